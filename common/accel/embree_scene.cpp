@@ -1,0 +1,192 @@
+// Embree 3 back end. One device per process, created on first use with an error callback that
+// logs; the scene is committed once and is then read-only (Embree: rtcCommitScene).
+#include "common/accel/embree_scene.h"
+
+#include <embree3/rtcore.h>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <cstring>
+#include <mutex>
+#include <string>
+
+#include "common/core/error.h"
+
+namespace pf {
+namespace {
+
+// Embree calls this from whichever thread hit the error; we cannot throw through C code, so
+// the message is logged and remembered, and the caller checks after each build step.
+std::mutex g_error_mutex;
+std::string g_last_error;
+
+void OnEmbreeError(void* /*user*/, RTCError code, const char* message) {
+  if (code == RTC_ERROR_NONE) return;
+  spdlog::error("embree error {}: {}", int(code), message ? message : "");
+  std::lock_guard lock(g_error_mutex);
+  g_last_error = message ? message : "unknown Embree error";
+}
+
+void ThrowIfEmbreeFailed(RTCDevice device, const char* what) {
+  const RTCError code = rtcGetDeviceError(device);
+  if (code == RTC_ERROR_NONE) return;
+  std::lock_guard lock(g_error_mutex);
+  throw SystemError(std::string("Embree failed while ") + what + ": " + g_last_error);
+}
+
+// The process-wide device (Mitsuba and Embree's tutorials: one device, error callback first).
+RTCDevice ProcessDevice() {
+  static RTCDevice device = [] {
+    RTCDevice d = rtcNewDevice(nullptr);
+    if (!d) throw SystemError("cannot create an Embree device (rtcNewDevice failed)");
+    rtcSetDeviceErrorFunction(d, OnEmbreeError, nullptr);
+    return d;
+  }();
+  return device;
+}
+
+}  // namespace
+
+struct EmbreeScene::EmbreeHandles {
+  RTCScene scene = nullptr;
+  ~EmbreeHandles() {
+    if (scene) rtcReleaseScene(scene);
+  }
+};
+
+EmbreeScene::EmbreeScene(const SceneDescription& scene)
+    : scene_(&scene), embree_(std::make_unique<EmbreeHandles>()) {
+  const size_t num_tris = scene.triangles.size();
+  face_normals_.resize(num_tris);
+  face_areas_.resize(num_tris);
+  for (size_t i = 0; i < num_tris; ++i) {
+    const auto& t = scene.triangles[i];
+    const Vec3 c = Cross(scene.positions[t[1]] - scene.positions[t[0]],
+                         scene.positions[t[2]] - scene.positions[t[0]]);
+    const float len = Length(c);
+    face_areas_[i] = 0.5f * len;
+    face_normals_[i] = len > 0 ? c / len : Vec3(0, 0, 1);
+  }
+  bounds_ = scene.ComputeBounds();
+  // Floor for ray offsets near the origin of large scenes: a small fraction of the scene size.
+  epsilon_ = bounds_.Empty() ? 1e-6f : std::max(MaxComponent(bounds_.Diagonal()) * 1e-6f, 1e-30f);
+
+  RTCDevice device = ProcessDevice();
+  embree_->scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(embree_->scene, RTC_BUILD_QUALITY_HIGH);
+  if (num_tris > 0) {
+    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    // Copies (not shared buffers): Embree needs 16-byte-readable padding past the last vertex.
+    auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), scene.positions.size()));
+    auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), num_tris));
+    ThrowIfEmbreeFailed(device, "allocating geometry buffers");
+    for (size_t i = 0; i < scene.positions.size(); ++i) {
+      vertices[3 * i + 0] = scene.positions[i].x;
+      vertices[3 * i + 1] = scene.positions[i].y;
+      vertices[3 * i + 2] = scene.positions[i].z;
+    }
+    for (size_t i = 0; i < num_tris; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        if (scene.triangles[i][k] >= scene.positions.size())
+          throw InputError("triangle " + std::to_string(i) + " references vertex " +
+                           std::to_string(scene.triangles[i][k]) + " of " +
+                           std::to_string(scene.positions.size()));
+        indices[3 * i + k] = scene.triangles[i][k];
+      }
+    }
+    rtcCommitGeometry(geom);
+    rtcAttachGeometryByID(embree_->scene, geom, 0);
+    rtcReleaseGeometry(geom);
+  }
+  rtcCommitScene(embree_->scene);
+  ThrowIfEmbreeFailed(device, "building the BVH");
+}
+
+EmbreeScene::~EmbreeScene() = default;
+
+std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit rh;
+  rh.ray.org_x = ray.origin.x;
+  rh.ray.org_y = ray.origin.y;
+  rh.ray.org_z = ray.origin.z;
+  rh.ray.dir_x = ray.direction.x;
+  rh.ray.dir_y = ray.direction.y;
+  rh.ray.dir_z = ray.direction.z;
+  rh.ray.tnear = 0.0f;
+  rh.ray.tfar = ray.t_max;
+  rh.ray.time = 0.0f;
+  rh.ray.mask = 0xffffffffu;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(embree_->scene, &context, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+
+  const SceneDescription& s = *scene_;
+  SurfaceHit hit;
+  hit.t = rh.ray.tfar;
+  hit.triangle = rh.hit.primID;
+  const auto& tri = s.triangles[hit.triangle];
+  const float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
+  hit.position = s.positions[tri[0]] * w + s.positions[tri[1]] * u + s.positions[tri[2]] * v;
+  hit.geometric_normal = face_normals_[hit.triangle];
+  hit.front_face = Dot(ray.direction, hit.geometric_normal) < 0.0f;
+  hit.shading_normal = hit.geometric_normal;
+  if (!s.normals.empty()) {
+    const Vec3& n0 = s.normals[tri[0]];
+    const Vec3& n1 = s.normals[tri[1]];
+    const Vec3& n2 = s.normals[tri[2]];
+    const Vec3 zero(0.0f);
+    if (!(n0 == zero) && !(n1 == zero) && !(n2 == zero)) {
+      Vec3 n = n0 * w + n1 * u + n2 * v;
+      const float len = Length(n);
+      if (len > 1e-12f && std::isfinite(len)) {
+        n = n / len;
+        // Shading normals live in the front face's hemisphere.
+        hit.shading_normal = Dot(n, hit.geometric_normal) >= 0 ? n : -n;
+      }
+    }
+  }
+  hit.material = s.triangle_material[hit.triangle];
+  hit.light = s.triangle_light.empty() ? kNoLight : s.triangle_light[hit.triangle];
+  return hit;
+}
+
+bool EmbreeScene::Occluded(const Ray& ray) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRay r;
+  r.org_x = ray.origin.x;
+  r.org_y = ray.origin.y;
+  r.org_z = ray.origin.z;
+  r.dir_x = ray.direction.x;
+  r.dir_y = ray.direction.y;
+  r.dir_z = ray.direction.z;
+  r.tnear = 0.0f;
+  r.tfar = ray.t_max;
+  r.time = 0.0f;
+  r.mask = 0xffffffffu;
+  r.id = 0;
+  r.flags = 0;
+  rtcOccluded1(embree_->scene, &context, &r);
+  return r.tfar < 0.0f;  // Embree sets tfar = -inf on occlusion
+}
+
+bool EmbreeScene::Visible(const Vec3& from, const Vec3& from_normal, const Vec3& to,
+                          const Vec3& to_normal) const {
+  const Vec3 d0 = to - from;
+  const Vec3 o = OffsetRayOrigin(from, Dot(d0, from_normal) >= 0 ? from_normal : -from_normal, epsilon_);
+  const Vec3 t = OffsetRayOrigin(to, Dot(d0, to_normal) <= 0 ? to_normal : -to_normal, epsilon_);
+  const Vec3 d = t - o;
+  const float dist = Length(d);
+  if (!(dist > 0.0f)) return true;
+  Ray ray{o, d / dist, dist};
+  return !Occluded(ray);
+}
+
+}  // namespace pf

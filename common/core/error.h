@@ -1,0 +1,42 @@
+#pragma once
+// User-facing errors (Design: three tiers of errors). Malformed input is reported with the file
+// and line it came from and the reason; such errors are thrown inside the core and caught at
+// the edges (CLI, coordinator, worker), which turn them into messages and exit codes / statuses.
+
+#include <stdexcept>
+#include <string>
+
+namespace pf {
+
+// Where a piece of user input came from. line == 0 means "the whole file".
+struct SourceLocation {
+  std::string file;
+  int line = 0;
+  std::string ToString() const {
+    return line > 0 ? file + ":" + std::to_string(line) : file;
+  }
+};
+
+// An error in user input (scene file, manifest, command line, job request).
+class InputError : public std::runtime_error {
+ public:
+  InputError(SourceLocation where, const std::string& reason)
+      : std::runtime_error(where.ToString() + ": " + reason),
+        where_(std::move(where)),
+        reason_(reason) {}
+  explicit InputError(const std::string& reason) : std::runtime_error(reason), reason_(reason) {}
+  const SourceLocation& where() const { return where_; }
+  const std::string& reason() const { return reason_; }
+
+ private:
+  SourceLocation where_;
+  std::string reason_;
+};
+
+// A failure of the machine or a library (cannot write a file, Embree device error...).
+class SystemError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace pf

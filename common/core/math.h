@@ -1,0 +1,130 @@
+#pragma once
+// Small vector and colour types shared by every part of the renderer.
+// Geometry is float (what Embree traces); parsing and transforms may use double (Vec3d).
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+
+namespace pf {
+
+inline constexpr float kPi = std::numbers::pi_v<float>;
+inline constexpr float kInvPi = 1.0f / kPi;
+inline constexpr float kTwoPi = 2.0f * kPi;
+
+template <typename T>
+struct Vec3T {
+  T x = 0, y = 0, z = 0;
+
+  constexpr Vec3T() = default;
+  constexpr Vec3T(T x_, T y_, T z_) : x(x_), y(y_), z(z_) {}
+  constexpr explicit Vec3T(T v) : x(v), y(v), z(v) {}
+  template <typename U>
+  constexpr explicit Vec3T(const Vec3T<U>& o) : x(T(o.x)), y(T(o.y)), z(T(o.z)) {}
+
+  constexpr T operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+  constexpr T& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+
+  constexpr Vec3T operator+(const Vec3T& o) const { return {x + o.x, y + o.y, z + o.z}; }
+  constexpr Vec3T operator-(const Vec3T& o) const { return {x - o.x, y - o.y, z - o.z}; }
+  constexpr Vec3T operator-() const { return {-x, -y, -z}; }
+  constexpr Vec3T operator*(T s) const { return {x * s, y * s, z * s}; }
+  constexpr Vec3T operator/(T s) const { return {x / s, y / s, z / s}; }
+  constexpr Vec3T operator*(const Vec3T& o) const { return {x * o.x, y * o.y, z * o.z}; }
+  constexpr Vec3T& operator+=(const Vec3T& o) { x += o.x; y += o.y; z += o.z; return *this; }
+  constexpr Vec3T& operator-=(const Vec3T& o) { x -= o.x; y -= o.y; z -= o.z; return *this; }
+  constexpr Vec3T& operator*=(T s) { x *= s; y *= s; z *= s; return *this; }
+  constexpr bool operator==(const Vec3T& o) const = default;
+};
+
+using Vec3 = Vec3T<float>;
+using Vec3d = Vec3T<double>;
+
+template <typename T>
+constexpr Vec3T<T> operator*(T s, const Vec3T<T>& v) { return v * s; }
+template <typename T>
+constexpr T Dot(const Vec3T<T>& a, const Vec3T<T>& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+template <typename T>
+constexpr Vec3T<T> Cross(const Vec3T<T>& a, const Vec3T<T>& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+template <typename T>
+constexpr T LengthSquared(const Vec3T<T>& v) { return Dot(v, v); }
+template <typename T>
+inline T Length(const Vec3T<T>& v) { return std::sqrt(Dot(v, v)); }
+template <typename T>
+inline Vec3T<T> Normalize(const Vec3T<T>& v) { return v / Length(v); }
+template <typename T>
+constexpr Vec3T<T> Min(const Vec3T<T>& a, const Vec3T<T>& b) {
+  return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
+}
+template <typename T>
+constexpr Vec3T<T> Max(const Vec3T<T>& a, const Vec3T<T>& b) {
+  return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
+}
+template <typename T>
+constexpr T MaxComponent(const Vec3T<T>& v) { return std::max(v.x, std::max(v.y, v.z)); }
+template <typename T>
+inline bool IsFinite(const Vec3T<T>& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// Linear RGB radiometric quantity (radiance, power, reflectance). Kept distinct from Vec3 so
+// that colours and directions never mix by accident.
+struct Rgb {
+  float r = 0, g = 0, b = 0;
+
+  constexpr Rgb() = default;
+  constexpr Rgb(float r_, float g_, float b_) : r(r_), g(g_), b(b_) {}
+  constexpr explicit Rgb(float v) : r(v), g(v), b(v) {}
+
+  constexpr float operator[](int i) const { return i == 0 ? r : (i == 1 ? g : b); }
+  constexpr float& operator[](int i) { return i == 0 ? r : (i == 1 ? g : b); }
+  constexpr Rgb operator+(const Rgb& o) const { return {r + o.r, g + o.g, b + o.b}; }
+  constexpr Rgb operator-(const Rgb& o) const { return {r - o.r, g - o.g, b - o.b}; }
+  constexpr Rgb operator*(const Rgb& o) const { return {r * o.r, g * o.g, b * o.b}; }
+  constexpr Rgb operator/(const Rgb& o) const { return {r / o.r, g / o.g, b / o.b}; }
+  constexpr Rgb operator*(float s) const { return {r * s, g * s, b * s}; }
+  constexpr Rgb operator/(float s) const { return {r / s, g / s, b / s}; }
+  constexpr Rgb& operator+=(const Rgb& o) { r += o.r; g += o.g; b += o.b; return *this; }
+  constexpr Rgb& operator*=(const Rgb& o) { r *= o.r; g *= o.g; b *= o.b; return *this; }
+  constexpr Rgb& operator*=(float s) { r *= s; g *= s; b *= s; return *this; }
+  constexpr bool operator==(const Rgb& o) const = default;
+
+  constexpr float Max() const { return std::max(r, std::max(g, b)); }
+  constexpr float Mean() const { return (r + g + b) * (1.0f / 3.0f); }
+  // Rec. 709 luminance weights.
+  constexpr float Luminance() const { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
+  constexpr bool IsBlack() const { return r == 0 && g == 0 && b == 0; }
+  bool IsFinite() const { return std::isfinite(r) && std::isfinite(g) && std::isfinite(b); }
+};
+constexpr Rgb operator*(float s, const Rgb& c) { return c * s; }
+
+// Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
+struct Frame {
+  Vec3 s, t, n;
+  Frame() = default;
+  explicit Frame(const Vec3& normal) : n(normal) {
+    const float sign = std::copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z);
+    const float b = n.x * n.y * a;
+    s = {1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x};
+    t = {b, sign + n.y * n.y * a, -n.y};
+  }
+  Vec3 ToLocal(const Vec3& v) const { return {Dot(v, s), Dot(v, t), Dot(v, n)}; }
+  Vec3 ToWorld(const Vec3& v) const { return s * v.x + t * v.y + n * v.z; }
+};
+
+struct Bounds3 {
+  Vec3 lo{std::numeric_limits<float>::max()};
+  Vec3 hi{-std::numeric_limits<float>::max()};
+  void Extend(const Vec3& p) { lo = Min(lo, p); hi = Max(hi, p); }
+  void Extend(const Bounds3& b) { lo = Min(lo, b.lo); hi = Max(hi, b.hi); }
+  bool Empty() const { return lo.x > hi.x || lo.y > hi.y || lo.z > hi.z; }
+  Vec3 Diagonal() const { return Empty() ? Vec3(0) : hi - lo; }
+  Vec3 Center() const { return (lo + hi) * 0.5f; }
+};
+
+}  // namespace pf

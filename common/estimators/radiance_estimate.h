@@ -1,0 +1,44 @@
+#pragma once
+// The radiance estimate (Wald 1999, §2.5, §3) with the feasibility tests of §4.1:
+//
+//   L_r(x, ω) ≈ Σ_p f_r(x, ω_p, ω) ΔΦ_p / (π r²),   r = distance to the k-th nearest photon.
+//
+// Feasibility tests (§4.1), applied either *inside* the query (only feasible photons enter the
+// heap, so k are found whenever k feasible ones exist) or *after* it (cheap: exactly the k
+// nearest are tested, fewer may remain; r stays the k-th distance):
+//  * direction vs normal: the photon must arrive from the viewer's side of the surface
+//    (skipped for materials that transmit diffusely, which see both sides);
+//  * caustic threshold: with a maximum search radius, discard the whole estimate when fewer
+//    than `min_fraction`·k photons are found (removes stray caustic photons; loses energy).
+
+#include <cstdint>
+#include <limits>
+
+#include "common/materials/bsdf.h"
+#include "common/photon/photon_map.h"
+
+namespace pf {
+
+enum class FeasibilityTest { kNone, kInQuery, kAfterQuery };
+
+struct RadianceEstimateOptions {
+  int k = 100;
+  float max_radius = std::numeric_limits<float>::infinity();
+  FeasibilityTest direction_test = FeasibilityTest::kInQuery;
+  float min_fraction = 0.0f;  // caustic threshold; 0 = off
+};
+
+struct RadianceEstimateResult {
+  Rgb radiance;
+  int photons_used = 0;
+  float radius2 = 0;
+};
+
+// Estimates the radiance leaving x towards `wo` through the non-delta lobes in `lobes` of
+// `bsdf`. `nearest` is the calling thread's query scratch.
+RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, const Vec3& x,
+                                        const Vec3& wo, uint32_t lobes,
+                                        const RadianceEstimateOptions& options,
+                                        NearestPhotons& nearest);
+
+}  // namespace pf

@@ -1,0 +1,104 @@
+#include "common/image/image_diff.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "common/core/error.h"
+
+namespace pf {
+namespace {
+
+void CheckSameSize(const Image& a, const Image& reference) {
+  if (a.width() != reference.width() || a.height() != reference.height()) {
+    throw InputError("cannot compare images of different sizes: " + std::to_string(a.width()) +
+                     "x" + std::to_string(a.height()) + " vs reference " +
+                     std::to_string(reference.width()) + "x" +
+                     std::to_string(reference.height()));
+  }
+}
+
+double SrgbToLinear(double v) {
+  return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+}
+
+}  // namespace
+
+ImageDiffStats CompareImages(const Image& a, const Image& reference) {
+  CheckSameSize(a, reference);
+  ImageDiffStats stats;
+  double sum_squared = 0, sum_relative = 0, sum_a = 0, sum_b = 0;
+  for (int y = 0; y < a.height(); ++y) {
+    for (int x = 0; x < a.width(); ++x) {
+      const Rgb& pa = a.at(x, y);
+      const Rgb& pb = reference.at(x, y);
+      const bool finite_a = pa.IsFinite(), finite_b = pb.IsFinite();
+      stats.nonfinite_a += !finite_a;
+      stats.nonfinite_b += !finite_b;
+      if (!finite_a || !finite_b) continue;
+      ++stats.pixels;
+      for (int c = 0; c < 3; ++c) {
+        const double va = pa[c], vb = pb[c];
+        const double d = va - vb;
+        sum_squared += d * d;
+        sum_relative += d * d / (vb * vb + kRelativeMseEpsilon);
+        sum_a += va;
+        sum_b += vb;
+        if (stats.max_x < 0 || std::abs(d) > stats.max_abs_error) {
+          stats.max_abs_error = std::abs(d);
+          stats.max_x = x;
+          stats.max_y = y;
+        }
+      }
+    }
+  }
+  if (stats.pixels == 0) return stats;
+  const double n = 3.0 * double(stats.pixels);
+  stats.rmse = std::sqrt(sum_squared / n);
+  stats.relative_mse = sum_relative / n;
+  stats.mean_a = sum_a / n;
+  stats.mean_b = sum_b / n;
+  return stats;
+}
+
+Rgb ErrorColormap(double t) {
+  // viridis at t = 0, 1/4, 1/2, 3/4, 1 (#440154 #3b528b #21918c #5ec962 #fde725), sRGB.
+  static constexpr double kStops[5][3] = {
+      {68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}};
+  t = std::isnan(t) ? 0.0 : std::clamp(t, 0.0, 1.0);
+  const double s = t * 4.0;
+  const int i = std::min(int(s), 3);
+  const double f = s - i;
+  Rgb out;
+  for (int c = 0; c < 3; ++c) {
+    const double srgb = (kStops[i][c] + f * (kStops[i + 1][c] - kStops[i][c])) / 255.0;
+    out[c] = float(SrgbToLinear(srgb));
+  }
+  return out;
+}
+
+Image FalseColourError(const Image& a, const Image& reference, double scale) {
+  CheckSameSize(a, reference);
+  Image error_image(a.width(), a.height());
+  std::vector<double> magnitude(a.size(), -1.0);  // -1 marks a non-finite pixel
+  double max_magnitude = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!a[i].IsFinite() || !reference[i].IsFinite()) continue;
+    double m = 0;
+    for (int c = 0; c < 3; ++c) m = std::max(m, std::abs(double(a[i][c]) - reference[i][c]));
+    magnitude[i] = m;
+    max_magnitude = std::max(max_magnitude, m);
+  }
+  if (!(scale > 0)) scale = max_magnitude;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (magnitude[i] < 0) {
+      error_image[i] = Rgb(1, 0, 1);
+    } else {
+      error_image[i] = ErrorColormap(scale > 0 ? magnitude[i] / scale : 0.0);
+    }
+  }
+  return error_image;
+}
+
+}  // namespace pf

@@ -1,0 +1,49 @@
+#pragma once
+// Comparing a rendered image against a reference: error statistics and a false-colour error
+// image. Used by convergence tests, benchmarks and the `pf compare` style tools.
+
+#include <cstddef>
+
+#include "common/image/image.h"
+
+namespace pf {
+
+// Statistics of `a` against `reference` (b). A pixel is non-finite if any of its channels is
+// NaN or infinite; pixels non-finite in either image are counted below and left out of every
+// other statistic. Over the remaining `pixels` pixels and their 3 channels (N = 3 * pixels):
+//   rmse          = sqrt( sum (a - b)^2 / N )
+//   relative_mse  = sum (a - b)^2 / (b^2 + kRelativeMseEpsilon) / N
+//   max_abs_error = max |a - b| over pixels and channels, at (max_x, max_y) (first in
+//                   row-major order; -1, -1 if no pixel was compared)
+//   mean_a/mean_b = sum a / N, sum b / N   (compare these to see a bias in brightness)
+// With no pixel compared every statistic is 0. Sums are accumulated in double.
+struct ImageDiffStats {
+  double rmse = 0;
+  double relative_mse = 0;
+  double max_abs_error = 0;
+  int max_x = -1, max_y = -1;
+  double mean_a = 0, mean_b = 0;
+  size_t pixels = 0;  // pixels compared (finite in both images)
+  size_t nonfinite_a = 0, nonfinite_b = 0;
+};
+
+// Keeps relative MSE finite where the reference is black; 1e-2 means errors in dark regions
+// (|b| << 0.1) are measured roughly as absolute squared errors * 100.
+inline constexpr double kRelativeMseEpsilon = 1e-2;
+
+// Throws InputError naming both sizes if the images differ in size.
+ImageDiffStats CompareImages(const Image& a, const Image& reference);
+
+// Per pixel error magnitude e = max over channels |a - b|, shown as ErrorColormap(e / scale)
+// (clamped to [0, 1]). scale <= 0 means the largest finite-pixel error, so the worst pixel
+// maps to the top of the ramp. Pixels non-finite in either image are magenta (1, 0, 1).
+// Throws InputError naming both sizes if the images differ in size.
+Image FalseColourError(const Image& a, const Image& reference, double scale = 0);
+
+// A viridis-like perceptual ramp from dark purple (t = 0) through blue and green to yellow
+// (t = 1), monotonic in lightness. Defined by five sRGB control points of viridis at
+// t = 0, 1/4, 1/2, 3/4, 1, interpolated linearly in sRGB and returned as *linear* RGB, so that
+// an sRGB preview (png_io.h, exposure 0) shows the intended colours. t is clamped to [0, 1].
+Rgb ErrorColormap(double t);
+
+}  // namespace pf

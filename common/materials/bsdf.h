@@ -1,0 +1,122 @@
+#pragma once
+// The BSDF of one shading point: Ward's model (Wald 1999, §2.1) — Lambertian diffuse,
+// perfect specular mirror, isotropic glossy Ward lobe, diffuse and specular transmission, and
+// Fresnel dielectrics — built from a `Material` and the local frame.
+//
+// Conventions (pbrt-like):
+//  * Directions are unit vectors in world space pointing AWAY from the surface: `wo` towards
+//    the viewer (for photons: towards where the photon came from), `wi` the other direction.
+//  * Eval/Pdf cover only the non-delta lobes; delta lobes (mirror, refraction, thin straight
+//    transmission) are reached only through Sample and report is_delta = true.
+//  * Sample's `weight` = f·|cos θi| / pdf, including the lobe-selection probability, so a path
+//    throughput is simply multiplied by it.
+//  * Lobe selection: by the lobes' albedos (channel means). Mode::kRussianRoulette selects with
+//    the *unnormalised* means and returns nullopt (absorption) otherwise: the photon random
+//    walk of §2.2 (per-channel power correction ρ/P is then in `weight`).
+
+#include <cstdint>
+#include <optional>
+
+#include "common/core/math.h"
+#include "common/scene/scene.h"
+
+namespace pf {
+
+enum LobeFlags : uint32_t {
+  kLobeNone = 0,
+  kLobeDiffuseReflection = 1u << 0,
+  kLobeGlossyReflection = 1u << 1,
+  kLobeSpecularReflection = 1u << 2,   // perfect mirror or Fresnel reflection (delta)
+  kLobeDiffuseTransmission = 1u << 3,
+  kLobeSpecularTransmission = 1u << 4, // refraction or thin straight-through (delta)
+  kLobeAll = (1u << 5) - 1,
+};
+
+// Wald's classification (§2.1): diffuse interactions are regular (D), specular and glossy ones
+// singular (S). Used for caustic-vs-diffuse photon storage.
+constexpr bool IsSingular(uint32_t lobe) {
+  return (lobe & (kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission)) != 0;
+}
+
+struct BsdfSample {
+  Vec3 wi;
+  Rgb weight;          // f·|cos θi| / pdf (delta lobes: reflectance·Fresnel / selection prob)
+  float pdf = 0.0f;    // solid-angle pdf incl. lobe selection; for delta lobes the selection prob
+  uint32_t lobe = kLobeNone;
+  bool is_delta = false;
+};
+
+class Bsdf {
+ public:
+  enum class Mode { kNormalized, kRussianRoulette };
+
+  // `ng`: geometric normal of the triangle's front face (unit). `ns`: shading normal (unit;
+  // flipped by the constructor into ng's hemisphere if needed). The material outlives the Bsdf.
+  Bsdf(const Material& material, const Vec3& ns, const Vec3& ng);
+
+  // f(wo, wi) of the non-delta lobes, without cosine. Zero if wi and wo are on the wrong sides
+  // for every lobe (judged against the geometric normal).
+  Rgb Eval(const Vec3& wo, const Vec3& wi) const;
+  // Solid-angle pdf with which Sample(kNormalized) produces wi through a non-delta lobe.
+  float Pdf(const Vec3& wo, const Vec3& wi) const;
+  // Samples an outgoing direction. u_lobe in [0,1) picks the lobe, (u1, u2) the direction.
+  std::optional<BsdfSample> Sample(const Vec3& wo, float u_lobe, float u1, float u2,
+                                   Mode mode = Mode::kNormalized) const;
+  // Sample restricted to the lobes in `lobes` (a LobeFlags mask), as if the others were absent:
+  // kNormalized renormalises the selection over the allowed lobes (weight = EvalLobes·|cos|/pdf
+  // of the allowed non-delta lobes), kRussianRoulette turns the others' probability into
+  // absorption. A dielectric's Fresnel reflection and refraction count as separate lobes
+  // (kLobeSpecularReflection / kLobeSpecularTransmission). E[weight] = albedo of the allowed
+  // lobes. Used by the photon map shader (§2.5): diffuse from photons, singular lobes traced.
+  std::optional<BsdfSample> Sample(const Vec3& wo, float u_lobe, float u1, float u2, Mode mode,
+                                   uint32_t lobes) const;
+
+  bool HasNonDelta() const;   // has any lobe that Eval can see (next-event estimation useful)
+  bool HasDiffuse() const;    // diffuse reflection or transmission (photon storage, §2.2)
+  bool HasLobes(uint32_t lobes) const;  // has any lobe of the LobeFlags mask (delta ones too)
+  const Material& material() const { return *material_; }
+  const Vec3& shading_normal() const { return ns_; }
+  const Vec3& geometric_normal() const { return ng_; }
+
+  // Eval restricted to the non-delta lobes in `lobes` (a LobeFlags mask); Eval(wo, wi) ==
+  // EvalLobes(wo, wi, all). The photon map shader (§2.5) estimates only the diffuse lobes
+  // from photons and traces the glossy one.
+  Rgb EvalLobes(const Vec3& wo, const Vec3& wi, uint32_t lobes) const;
+  // |cos θ| of w against the shading normal: the cosine included in Sample's weight, and the
+  // one to multiply Eval by (e.g. for next-event estimation).
+  float AbsCosTheta(const Vec3& w) const { return std::abs(Dot(w, ns_)); }
+
+ private:
+  // Lobe slots (bsdf.cpp explains the selection rules).
+  enum Slot { kSlotDiffuseR = 0, kSlotSpecularR, kSlotDiffuseT, kSlotSpecularT, kNumSlots };
+
+  // The normal that orients the lobes for this wo: the shading normal on wo's side of ng (ng
+  // itself if wo is below that shading hemisphere). `side` = sign(wo·ng). False if wo lies in
+  // the surface plane or the Bsdf is degenerate.
+  bool LobeNormal(const Vec3& wo, Vec3* n, float* side) const;
+  // The LobeFlags bit of a (non-dielectric) slot.
+  uint32_t SlotLobe(int slot) const;
+  // Selection probabilities of `mode` restricted to `lobes` (see the restricted Sample).
+  void SelectionProbabilities(Mode mode, uint32_t lobes, float probs[kNumSlots]) const;
+  // f and Σ probs[slot]·pdf_slot over the non-delta lobes in `lobes`.
+  void EvalPdf(const Vec3& wo, const Vec3& wi, uint32_t lobes, const float* probs, Rgb* f,
+               float* pdf) const;
+  std::optional<BsdfSample> SampleDielectric(const Vec3& wo, const Vec3& n, float side,
+                                             float u_lobe, Mode mode, uint32_t lobes) const;
+
+  const Material* material_;
+  Vec3 ns_, ng_;
+  float alpha_ = 0.0f;                  // Ward α of the reflection lobe; 0 = mirror
+  bool glossy_ = false;                 // ρs is a Ward lobe (α >= 1e-4), else a mirror
+  bool dielectric_ = false;             // τs with ior != 1: Fresnel dielectric only
+  bool valid_ = false;                  // ng usable
+  float mean_[kNumSlots] = {};          // channel means of ρd, ρs, τd, τs (>= 0)
+  float p_normalized_[kNumSlots] = {};  // Mode::kNormalized selection probabilities
+  float p_roulette_[kNumSlots] = {};    // Mode::kRussianRoulette selection probabilities
+};
+
+// Fresnel reflectance of a dielectric interface for unpolarised light. cos_i >= 0 is the cosine
+// on the incident side, eta = n_transmitted / n_incident. Returns 1 on total internal reflection.
+float FresnelDielectric(float cos_i, float eta);
+
+}  // namespace pf

@@ -1,0 +1,354 @@
+#include "common/photon/kdtree.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <utility>
+
+namespace pf {
+namespace {
+
+// Wald 1999, §2.3: the photons of a subtree are not stored contiguously (figure 2.2: the
+// subtree under node 4 is 4, 8, 9, 16..19, 32..39, ...), so the thesis walks a subtree with an
+// `Index` iterator that enumerates it in level order: `node++`, and when `node >> level`
+// leaves the subtree's prefix `mask`, descend: `node = mask << ++level`. Each level of a
+// subtree is thus one contiguous run of nodes.
+//
+// We keep that idea but materialise the runs (one per level, at most 32) so that the walk
+// can also go *backwards*, which a Hoare-style partition needs, and so that one sequence can
+// chain three parts:
+//
+//     [left subtree in level order] [root] [right subtree in level order]
+//
+// If this sequence is partitioned such that position |left| holds the element of rank
+// |left| on the split axis, every left element is ≤ it and every right element ≥ it: that
+// is exactly the kd-condition for the root (§2.3, eq. 2.7), with the root's position being
+// the one the left-balanced shape dictates. A quickselect over the sequence does it in
+// expected linear time; the thesis's BuildTree is a QuickSort-partitioning variant of the
+// same idea.
+struct Run {
+  uint64_t first;  // node numbers [first, last]
+  uint64_t last;
+  int64_t begin;   // sequence position of `first`
+};
+
+// A position in a SubtreeSequence: the node it denotes and its sequence position.
+struct Cursor {
+  const Run* run;
+  uint64_t node;
+  int64_t pos;
+
+  // Moving past either end lands on a sentinel run and is fine as long as the cursor is not
+  // dereferenced (the partition below never does).
+  void Next() {
+    ++pos;
+    if (++node > run->last) {
+      ++run;
+      node = run->first;
+    }
+  }
+  void Prev() {
+    --pos;
+    if (node-- == run->first) {
+      --run;
+      node = run->last;
+    }
+  }
+};
+
+class SubtreeSequence {
+ public:
+  // The subtree under `root` (which must have at least one child) of a tree with n nodes.
+  SubtreeSequence(uint64_t root, uint64_t n) {
+    runs_[0] = Run{0, 0, -1};  // sentinel before the first run
+    count_ = 1;
+    AddLevels(2 * root, n);
+    left_size_ = size_;
+    AddRun(root, root);
+    AddLevels(2 * root + 1, n);
+    runs_[count_] = Run{0, 0, size_};  // sentinel after the last run
+  }
+
+  int64_t size() const { return size_; }
+  int64_t left_size() const { return left_size_; }
+  const Run* begin() const { return &runs_[1]; }
+  const Run* end() const { return &runs_[count_]; }
+
+  // Random access, used only to pick pivot candidates: O(number of runs).
+  Cursor At(int64_t pos) const {
+    const Run* r = begin();
+    while (pos >= r->begin + int64_t(r->last - r->first) + 1) ++r;
+    return {r, r->first + uint64_t(pos - r->begin), pos};
+  }
+
+ private:
+  // Level order of the subtree under `sub`, exactly the thesis's Index walk: level d is the
+  // run [sub << d, (sub << d) + 2^d − 1], cut off at n.
+  void AddLevels(uint64_t sub, uint64_t n) {
+    for (uint64_t first = sub, width = 1; first <= n; first <<= 1, width <<= 1)
+      AddRun(first, std::min(first + width - 1, n));
+  }
+  void AddRun(uint64_t first, uint64_t last) {
+    runs_[count_++] = Run{first, last, size_};
+    size_ += int64_t(last - first) + 1;
+  }
+
+  // 2 sentinels + 1 root + at most 32 levels on each side (n < 2^31). Left uninitialised:
+  // this is built for every inner node, and only the used entries are ever read.
+  std::array<Run, 2 + 1 + 2 * 32> runs_;
+  int count_ = 0;
+  int64_t size_ = 0;
+  int64_t left_size_ = 0;
+};
+
+class Builder {
+ public:
+  Builder(std::vector<Photon>& photons, KdSplitRule rule, std::vector<uint8_t>& axes)
+      : photons_(photons), n_(photons.size()), rule_(rule), axes_(axes) {}
+
+  // Wald 1999, §2.3, BuildTree(p, N, root, level): establish the kd-condition at `root` by
+  // partitioning its subtree, then recurse into both children. Recursion depth ≤ 32.
+  void Build(uint64_t root, int level) {
+    if (2 * root > n_) return;  // a leaf: nothing below it to partition
+    const uint64_t size = SubtreeSize(root);
+    if (size <= kSmallSubtree) {
+      BuildSmall(root, level, size);
+      return;
+    }
+    const SubtreeSequence seq(root, n_);
+    int axis = level % 3;
+    if (rule_ == KdSplitRule::kWidestExtent) {
+      axis = WidestAxis(seq);
+      axes_[root >> 2] = uint8_t(axes_[root >> 2] | (axis << ((root & 3) * 2)));
+    }
+    Select(seq, seq.left_size(), axis);
+    Build(2 * root, level + 1);
+    Build(2 * root + 1, level + 1);
+  }
+
+ private:
+  Photon& At(const Cursor& c) { return photons_[c.node - 1]; }
+  float Key(const Cursor& c, int axis) { return photons_[c.node - 1].position[axis]; }
+  void Swap(const Cursor& a, const Cursor& b) { std::swap(At(a), At(b)); }
+
+  // §2.3, footnote 2: the dimension of the subtree's largest bounding-box extent.
+  int WidestAxis(const SubtreeSequence& seq) {
+    Bounds3 box;
+    for (const Run* r = seq.begin(); r != seq.end(); ++r)
+      for (uint64_t node = r->first; node <= r->last; ++node) box.Extend(photons_[node - 1].Position());
+    return WidestOf(box);
+  }
+
+  // Quickselect (Hoare 1961) over the sequence: afterwards position `target` holds the
+  // element of that rank on `axis`, everything before it is ≤ and everything after it ≥.
+  // Median-of-three pivots and Hoare's partition (which splits runs of equal keys evenly, so
+  // planar scenes and duplicate positions stay O(m) per subtree) give expected O(m).
+  void Select(const SubtreeSequence& seq, int64_t target, int axis) {
+    int64_t lo = 0, hi = seq.size() - 1;
+    while (hi - lo > kInsertionSortSize) {
+      Cursor a = seq.At(lo), b = seq.At(lo + (hi - lo) / 2), c = seq.At(hi);
+      if (Key(b, axis) < Key(a, axis)) Swap(a, b);
+      if (Key(c, axis) < Key(a, axis)) Swap(a, c);
+      if (Key(c, axis) < Key(b, axis)) Swap(b, c);
+      Swap(a, b);  // the median of the three is now the pivot at `lo`; `hi` holds one ≥ it
+      const float pivot = Key(a, axis);
+      // Hoare's partition with both cursors walking the (non-contiguous) sequence.
+      Cursor i = a, j = c;
+      for (;;) {
+        while (Key(i, axis) < pivot) i.Next();
+        while (Key(j, axis) > pivot) j.Prev();
+        if (i.pos >= j.pos) break;
+        Swap(i, j);
+        i.Next();
+        j.Prev();
+      }
+      // [lo, j] ≤ pivot ≤ [j + 1, hi], and lo ≤ j < hi: both sides shrink.
+      if (target <= j.pos) {
+        hi = j.pos;
+      } else {
+        lo = j.pos + 1;
+      }
+    }
+    InsertionSort(seq, lo, hi, axis);
+  }
+
+  void InsertionSort(const SubtreeSequence& seq, int64_t lo, int64_t hi, int axis) {
+    if (hi <= lo) return;
+    Cursor c = seq.At(lo);
+    for (c.Next(); c.pos <= hi; c.Next()) {
+      const Photon moving = At(c);
+      const float key = moving.position[axis];
+      Cursor hole = c;
+      while (hole.pos > lo) {
+        Cursor prev = hole;
+        prev.Prev();
+        if (!(Key(prev, axis) > key)) break;
+        At(hole) = At(prev);
+        hole = prev;
+      }
+      At(hole) = moving;
+    }
+  }
+
+  // Number of nodes in the subtree under `root`: the thesis's Index walk, level by level.
+  uint64_t SubtreeSize(uint64_t root) const {
+    uint64_t size = 0;
+    for (uint64_t first = root, width = 1; first <= n_; first <<= 1, width <<= 1)
+      size += std::min(width, n_ - first + 1);
+    return size;
+  }
+
+  // The bottom of the tree: most nodes head tiny subtrees, for which the sequence
+  // bookkeeping above costs more than the partitioning itself. Such a subtree (≤ 1024
+  // photons) is copied into a fixed 18 KB buffer, built there by the same median
+  // partitioning on contiguous ranges, and written back to its node positions. The memory
+  // stays O(1), and the result satisfies the same kd-condition.
+  void BuildSmall(uint64_t root, int level, uint64_t size) {
+    std::size_t m = 0;
+    for (uint64_t first = root, width = 1; first <= n_; first <<= 1, width <<= 1) {
+      const uint64_t last = std::min(first + width - 1, n_);
+      for (uint64_t node = first; node <= last; ++node) small_[m++] = photons_[node - 1];
+    }
+    Place(root, level, small_.data(), std::size_t(size));
+  }
+  void Place(uint64_t node, int level, Photon* photons, std::size_t m) {
+    if (m == 0) return;
+    if (m == 1) {
+      photons_[node - 1] = photons[0];
+      return;
+    }
+    int axis = level % 3;
+    if (rule_ == KdSplitRule::kWidestExtent) {
+      Bounds3 box;
+      for (std::size_t i = 0; i < m; ++i) box.Extend(photons[i].Position());
+      axis = WidestOf(box);
+      axes_[node >> 2] = uint8_t(axes_[node >> 2] | (axis << ((node & 3) * 2)));
+    }
+    const std::size_t left = std::size_t(SubtreeSize(2 * node));
+    std::nth_element(photons, photons + left, photons + m, [axis](const Photon& a, const Photon& b) {
+      return a.position[axis] < b.position[axis];
+    });
+    photons_[node - 1] = photons[left];
+    Place(2 * node, level + 1, photons, left);
+    Place(2 * node + 1, level + 1, photons + left + 1, m - left - 1);
+  }
+
+  static int WidestOf(const Bounds3& box) {
+    const Vec3 d = box.Diagonal();
+    return d.x >= d.y ? (d.x >= d.z ? 0 : 2) : (d.y >= d.z ? 1 : 2);
+  }
+
+  static constexpr int64_t kInsertionSortSize = 12;
+  static constexpr uint64_t kSmallSubtree = 1024;
+  std::array<Photon, kSmallSubtree> small_;
+
+  std::vector<Photon>& photons_;
+  uint64_t n_;
+  KdSplitRule rule_;
+  std::vector<uint8_t>& axes_;
+};
+
+}  // namespace
+
+void KdTree::Build() {
+  axes_.clear();
+  if (rule_ == KdSplitRule::kWidestExtent) {
+    axes_.assign(photons_.size() / 4 + 1, 0);
+    axes_.shrink_to_fit();
+  } else {
+    axes_.shrink_to_fit();
+  }
+  Builder(photons_, rule_, axes_).Build(1, 0);
+}
+
+int KdTree::SplitAxis(std::size_t node) const {
+  if (rule_ == KdSplitRule::kWidestExtent) return StoredAxis(node);
+  return (std::bit_width(node) - 1) % 3;
+}
+
+void KdTree::DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const {
+  const bool stored = rule_ == KdSplitRule::kWidestExtent;
+  const bool cell = culling_ == KdCulling::kCellDistance;
+  if (stored) {
+    cell ? Search<true, true>(x, nearest, filter) : Search<true, false>(x, nearest, filter);
+  } else {
+    cell ? Search<false, true>(x, nearest, filter) : Search<false, false>(x, nearest, filter);
+  }
+}
+
+// Wald 1999, §2.3.2: backtracking k-NN search. A node is processed when reached; the child
+// on x's side of the splitting plane is descended into first, the other one is remembered
+// with its culling distance and visited later only if that is still below the bound (which
+// only shrinks, so re-testing at pop time culls more).
+//
+// Exactness: every culling distance is a lower bound, *in float*, of DistanceSquared for all
+// photons of the culled subtree: per axis, a photon lies beyond each ancestor's plane, so
+// |x − photon| ≥ |x − plane| after rounding too (rounding is monotonic), and the cell
+// distance sums the per-axis terms in DistanceSquared's order. Hence the results equal brute
+// force's exactly (as distance multisets).
+template <bool kStoredAxes, bool kCellDistance>
+void KdTree::Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const {
+  const Photon* photons = photons_.data();
+  const uint32_t n = uint32_t(photons_.size());
+  const float q[3] = {x.x, x.y, x.z};
+
+  // Depths of pending far children strictly increase towards the top of the stack, so it
+  // never holds more entries than the tree has levels below the root (≤ 30).
+  struct Pending {
+    uint32_t node;
+    uint32_t axis;
+    float cull2;   // culling distance² of the subtree
+    float off[3];  // kCellDistance: per-axis offset from x to the subtree's cell
+  };
+  std::array<Pending, 32> stack;
+  int top = 0;
+
+  float bound2 = nearest.BoundSquared();
+  uint32_t node = 1, axis = 0;
+  float off[3] = {0.0f, 0.0f, 0.0f};  // offsets of the current node's cell (x is inside: 0)
+  for (;;) {
+    while (node <= n) {
+      // Nodes 4i..4i+3 are 72 contiguous bytes (two cache lines); they are needed two steps
+      // from now (the near grandchildren at once, the far ones maybe later).
+      if (4 * node + 3 <= n) {
+        __builtin_prefetch(&photons[4 * node - 1]);
+        __builtin_prefetch(&photons[4 * node + 2]);
+      }
+      const Photon& p = photons[node - 1];
+      if constexpr (kStoredAxes) axis = uint32_t(StoredAxis(node));
+      const float d = q[axis] - p.position[axis];
+      const float d2 = DistanceSquared(p, x);
+      if (d2 < bound2 && (filter == nullptr || filter->Accept(p, node - 1))) {
+        nearest.Insert(node - 1, d2);
+        bound2 = nearest.BoundSquared();
+      }
+      // Left subtree ≤ split ≤ right subtree: x on the right side (d ≥ 0) → right is near.
+      const uint32_t near_child = 2 * node + (d >= 0.0f ? 1u : 0u);
+      const uint32_t far_child = near_child ^ 1u;
+      const uint32_t split_axis = axis;
+      if constexpr (!kStoredAxes) axis = axis == 2 ? 0 : axis + 1;
+      if (far_child <= n) {
+        Pending far{far_child, axis, d * d, {off[0], off[1], off[2]}};
+        if constexpr (kCellDistance) {
+          far.off[split_axis] = d;
+          far.cull2 = (far.off[0] * far.off[0] + far.off[1] * far.off[1]) + far.off[2] * far.off[2];
+        }
+        if (far.cull2 < bound2) stack[top++] = far;
+      }
+      node = near_child;  // the near child's cell is as far from x as the node's
+    }
+    do {
+      if (top == 0) return;
+      --top;
+    } while (!(stack[top].cull2 < bound2));
+    node = stack[top].node;
+    axis = stack[top].axis;
+    if constexpr (kCellDistance) {
+      off[0] = stack[top].off[0];
+      off[1] = stack[top].off[1];
+      off[2] = stack[top].off[2];
+    }
+  }
+}
+
+}  // namespace pf

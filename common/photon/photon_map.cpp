@@ -1,0 +1,18 @@
+#include "common/photon/photon_map.h"
+
+#include "common/photon/grid.h"
+#include "common/photon/kdtree.h"
+
+namespace pf {
+
+std::unique_ptr<PhotonMap> MakePhotonMap(PhotonMapKind kind, const PhotonMapOptions& options) {
+  switch (kind) {
+    case PhotonMapKind::kKdTree:
+      return std::make_unique<KdTree>(options.kd_split_rule, options.kd_culling);
+    case PhotonMapKind::kGrid:
+      return std::make_unique<GridPhotonMap>(options.grid);
+  }
+  return nullptr;
+}
+
+}  // namespace pf

@@ -1,0 +1,284 @@
+#pragma once
+// The photon map interface of Wald 1999, §2.2: photons are stored with AddPhoton during the
+// random walk, the acceleration structure is built once by PrepareForQuery, and Query finds
+// the k nearest photons around a point into a max-heap (the thesis's "PhotonList").
+//
+// Two implementations: the left-balanced kd-tree of §2.3 (kdtree.h) and the regular grid of
+// §2.4 (grid.h). Both keep the photons in one dynamic array and reorder it in place; after
+// PrepareForQuery, `photon(i)` is the i-th photon in that post-build order and the indices
+// returned by Query refer to it.
+//
+// Query semantics (both implementations, and brute_force.h, agree on them exactly):
+// * the search region is the *open* ball: a photon is a candidate iff its squared distance
+//   (DistanceSquared in photon.h) is < max_radius²; max_radius = +inf means unbounded, and
+//   max_radius ≤ 0 or NaN finds nothing;
+// * the result is the min(k, #candidates) candidates of smallest distance; ties at the k-th
+//   distance are broken arbitrarily, so results are unique only as distance multisets;
+// * an optional PhotonFilter is applied *inside* the query (the "in-query" variant of
+//   §4.1): only accepted photons enter the heap, so the heap holds the k nearest *accepted*
+//   photons (always k if that many exist). The filter runs after the distance test, i.e. only
+//   for photons that would otherwise enter the heap;
+// * a query at a non-finite point finds nothing.
+//
+// Determinism (Design, property 1): builds use no randomness and no threads, so the same
+// photons added in the same order give the same post-build order and the same query results
+// (including tie-breaking) on every run.
+//
+// Threads: after PrepareForQuery the map is immutable and Query is const and touches no
+// shared mutable state, so any number of threads may query one map concurrently as long as
+// each passes its own NearestPhotons (which carries all per-query scratch, e.g. the grid's
+// visited-voxel tags). AddPhoton/PrepareForQuery must not run concurrently with anything.
+
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include "common/core/math.h"
+#include "common/photon/photon.h"
+
+namespace pf {
+
+// An in-query feasibility test (Wald 1999, §4.1), e.g. "the photon arrives from the front
+// side of the surface at x". Must be thread-safe if the map is queried from several threads.
+class PhotonFilter {
+ public:
+  virtual ~PhotonFilter() = default;
+  // `index` is the photon's post-build index (PhotonMap::photon(index) == photon).
+  virtual bool Accept(const Photon& photon, std::size_t index) const = 0;
+};
+
+// Adapts any callable `bool(const Photon&, std::size_t)` to a PhotonFilter.
+template <typename Fn>
+class FunctionFilter final : public PhotonFilter {
+ public:
+  explicit FunctionFilter(Fn fn) : fn_(std::move(fn)) {}
+  bool Accept(const Photon& photon, std::size_t index) const override { return fn_(photon, index); }
+
+ private:
+  Fn fn_;
+};
+
+// The result of a query and the caller-owned state of one querying thread: a bounded
+// max-heap of (photon index, squared distance) — the thesis's PhotonList (§2.3.2) — plus the
+// scratch memory a grid query needs. Reuse one object per thread across queries: after the
+// first few queries no query allocates.
+class NearestPhotons {
+ public:
+  struct Entry {
+    uint32_t index;   // post-build photon index
+    float distance2;  // squared distance to the query point
+  };
+
+  NearestPhotons() = default;
+
+  // Empties the heap and sets the capacity k (negative → 0) and the search radius.
+  void Reset(int k, float max_radius) {
+    k_ = k > 0 ? std::size_t(k) : 0;
+    heap_.clear();
+    if (heap_.capacity() < k_) heap_.reserve(k_);
+    radius2_ = max_radius > 0.0f ? max_radius * max_radius : 0.0f;  // NaN → 0: finds nothing
+    bound2_ = k_ > 0 ? radius2_ : 0.0f;
+  }
+
+  std::size_t k() const { return k_; }
+  std::size_t size() const { return heap_.size(); }
+  bool empty() const { return heap_.empty(); }
+  bool full() const { return heap_.size() == k_; }
+
+  // The exclusive acceptance bound of the running query: a photon can still enter the heap
+  // iff its squared distance is < BoundSquared(). It is max_radius² until the heap is full
+  // and the current k-th distance² (the heap's maximum) afterwards. Queries cull against it.
+  float BoundSquared() const { return bound2_; }
+  // The largest squared distance among the photons found (0 if none): r² of the radiance
+  // estimate Σ ΔΦ / (π r²) (§2.5).
+  float MaxDistanceSquared() const { return heap_.empty() ? 0.0f : heap_.front().distance2; }
+
+  // The entries in heap order (the first one is the farthest). Use Sort() for distance order.
+  std::span<const Entry> entries() const { return heap_; }
+  const Entry& operator[](std::size_t i) const { return heap_[i]; }
+
+  // Adds a candidate; requires distance2 < BoundSquared(). Replaces the farthest entry if
+  // the heap is full. O(log k).
+  void Insert(uint32_t index, float distance2) {
+    if (heap_.size() < k_) {
+      heap_.push_back({index, distance2});
+      SiftUp(heap_.size() - 1);
+      if (heap_.size() == k_) bound2_ = heap_.front().distance2;
+    } else {
+      heap_.front() = {index, distance2};
+      SiftDown(0);
+      bound2_ = heap_.front().distance2;
+    }
+  }
+
+  // Orders the entries by increasing distance (ties by index). Destroys the heap order: call
+  // it only after the query, and Reset (i.e. run a new query) before inserting again.
+  void Sort() {
+    std::sort(heap_.begin(), heap_.end(), [](const Entry& a, const Entry& b) {
+      return a.distance2 < b.distance2 || (a.distance2 == b.distance2 && a.index < b.index);
+    });
+  }
+
+ private:
+  friend class GridPhotonMap;
+
+  void SiftUp(std::size_t i) {
+    const Entry e = heap_[i];
+    while (i > 0) {
+      const std::size_t parent = (i - 1) / 2;
+      if (!(heap_[parent].distance2 < e.distance2)) break;
+      heap_[i] = heap_[parent];
+      i = parent;
+    }
+    heap_[i] = e;
+  }
+  void SiftDown(std::size_t i) {
+    const std::size_t n = heap_.size();
+    const Entry e = heap_[i];
+    for (;;) {
+      std::size_t child = 2 * i + 1;
+      if (child >= n) break;
+      if (child + 1 < n && heap_[child].distance2 < heap_[child + 1].distance2) ++child;
+      if (!(e.distance2 < heap_[child].distance2)) break;
+      heap_[i] = heap_[child];
+      i = child;
+    }
+    heap_[i] = e;
+  }
+
+  std::vector<Entry> heap_;
+  std::size_t k_ = 0;
+  float radius2_ = 0.0f;
+  float bound2_ = 0.0f;
+
+  // Scratch of GridPhotonMap queries (§2.4): a visited bit per voxel, set while a query runs
+  // and cleared again at its end through the list of voxels it touched (so the bitmap is all
+  // zero between queries and needs no per-query clearing or generation counter).
+  struct GridScratch {
+    std::vector<uint64_t> visited;
+    std::vector<std::array<int32_t, 4>> fill;  // voxel (i, j, k, linear index), visiting order
+  } grid_;
+};
+
+enum class PhotonMapKind { kKdTree, kGrid };
+
+// kd-tree split dimension (Wald 1999, §2.3 and its footnote 2).
+enum class KdSplitRule {
+  kLevelCycle,    // level % 3: the thesis's rule; needs no storage
+  kWidestExtent,  // the axis of the subtree's largest bounding-box extent; 2 bits per node
+};
+
+// kd-tree culling test for the far child of a node (Wald 1999, §2.3.2).
+enum class KdCulling {
+  // The thesis's test: squared distance from x to the node's splitting plane. Cheap, but it
+  // ignores every other plane bounding the far subtree and so underestimates its distance.
+  kPlaneDistance,
+  // Squared distance from x to the far subtree's whole cell (the box cut out by all its
+  // ancestors' planes), tracked per axis on the way down (Arya & Mount 1993). The thesis
+  // found "more involved tests" not worth their overhead in 1999; today a cache miss costs
+  // more than a few multiplies, and this test visits about half as many nodes.
+  kCellDistance,
+};
+
+struct GridOptions {
+  // The k most queries will use. The voxel size is chosen so that an occupied voxel holds
+  // about `photons_per_voxel` photons; 0 picks it from expected_k (see grid.h).
+  int expected_k = 50;
+  float photons_per_voxel = 0.0f;
+  // Upper bound on the number of voxels as a multiple of the photon count (memory: 4 bytes
+  // per voxel in the map, 1 bit per voxel in each thread's NearestPhotons).
+  double max_voxels_per_photon = 1.0;
+};
+
+struct PhotonMapOptions {
+  KdSplitRule kd_split_rule = KdSplitRule::kLevelCycle;
+  KdCulling kd_culling = KdCulling::kCellDistance;
+  GridOptions grid;
+};
+
+class PhotonMap {
+ public:
+  virtual ~PhotonMap() = default;
+  PhotonMap() = default;
+  // Movable, not copyable (a map may hold gigabytes; copy the photons() explicitly).
+  PhotonMap(const PhotonMap&) = delete;
+  PhotonMap& operator=(const PhotonMap&) = delete;
+  PhotonMap(PhotonMap&&) = default;
+  PhotonMap& operator=(PhotonMap&&) = default;
+
+  // Storing (§2.2). Adding after PrepareForQuery is allowed but un-prepares the map.
+  // Throws std::invalid_argument for a non-finite position (it could never be found, and it
+  // would break the ordering the structures rely on).
+  void AddPhoton(const Photon& photon) {
+    CheckPosition(photon);
+    photons_.push_back(photon);
+    prepared_ = false;
+  }
+  void AddPhoton(const Vec3& position, const Vec3& direction, const Rgb& power) {
+    AddPhoton(Photon::Make(position, direction, power));
+  }
+  void AddPhotons(std::span<const Photon> photons) {
+    for (const Photon& p : photons) CheckPosition(p);
+    photons_.insert(photons_.end(), photons.begin(), photons.end());
+    prepared_ = false;
+  }
+  void Reserve(std::size_t n) { photons_.reserve(n); }
+
+  // Builds the acceleration structure once, reordering the photons in place (§2.2). Throws
+  // std::length_error beyond kMaxPhotons.
+  void PrepareForQuery() {
+    if (photons_.size() > kMaxPhotons) throw std::length_error("PhotonMap: too many photons");
+    photons_.shrink_to_fit();  // the walk is over: drop the dynamic array's growth slack
+    if (!photons_.empty()) Build();
+    prepared_ = true;
+  }
+  bool prepared() const { return prepared_; }
+
+  // The k nearest photons around x within max_radius, into `nearest` (see the semantics at
+  // the top of this file). Throws std::logic_error if the map is not prepared.
+  void Query(const Vec3& x, int k, float max_radius, NearestPhotons& nearest,
+             const PhotonFilter* filter = nullptr) const {
+    nearest.Reset(k, max_radius);
+    if (!prepared_) throw std::logic_error("PhotonMap::Query before PrepareForQuery");
+    if (nearest.k() == 0 || photons_.empty() || !IsFinite(x) || !(nearest.BoundSquared() > 0.0f))
+      return;
+    DoQuery(x, nearest, filter);
+  }
+
+  std::size_t size() const { return photons_.size(); }
+  bool empty() const { return photons_.empty(); }
+  // Post-build order once prepared.
+  const Photon& photon(std::size_t i) const { return photons_[i]; }
+  std::span<const Photon> photons() const { return photons_; }
+
+  // Bytes held by the map (photon array and acceleration structure). Per-thread query
+  // scratch lives in NearestPhotons and is not included.
+  virtual std::size_t MemoryBytes() const { return photons_.capacity() * sizeof(Photon); }
+
+  // Photon indices are 32-bit and the kd-tree's node numbers 2i+1 must fit too.
+  static constexpr std::size_t kMaxPhotons = (std::size_t(1) << 31) - 1;
+
+ protected:
+  // Called by PrepareForQuery with at least one photon.
+  virtual void Build() = 0;
+  // Called by Query with k ≥ 1, a finite x, a non-empty map and `nearest` already Reset.
+  virtual void DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const = 0;
+
+  std::vector<Photon> photons_;  // one dynamic array (§2.2); reordered by Build
+  bool prepared_ = false;
+
+ private:
+  static void CheckPosition(const Photon& p) {
+    if (!IsFinite(p.Position())) throw std::invalid_argument("PhotonMap: non-finite photon position");
+  }
+};
+
+std::unique_ptr<PhotonMap> MakePhotonMap(PhotonMapKind kind, const PhotonMapOptions& options = {});
+
+}  // namespace pf

@@ -1,0 +1,64 @@
+#include "common/photon/photon_maps.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+
+namespace pf {
+namespace {
+
+std::unique_ptr<PhotonMap> MakeFilled(const PhotonMapsOptions& o,
+                                      std::initializer_list<const std::vector<TracedPhoton>*> lists) {
+  auto map = MakePhotonMap(o.kind, o.structure);
+  size_t n = 0;
+  for (const auto* l : lists) n += l->size();
+  map->Reserve(n);
+  for (const auto* l : lists)
+    for (const TracedPhoton& p : *l) map->AddPhoton(p.position, p.direction, p.power);
+  map->PrepareForQuery();
+  return map;
+}
+
+}  // namespace
+
+PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& lights,
+                             const PhotonMapsOptions& options) {
+  PhotonMaps maps;
+  const bool need_caustic = options.caustic == CausticMapMode::kOn ||
+                            (options.caustic == CausticMapMode::kAuto && SceneNeedsCausticMap(scene.description()));
+  if (options.caustic == CausticMapMode::kAuto && !need_caustic)
+    spdlog::info("photon maps: no specular or glossy surface in the scene: no caustic map");
+
+  const PhotonTracingResult traced = TracePhotons(scene, lights, options.tracing);
+  maps.stats.emitted = traced.emitted;
+  maps.stats.rays = traced.rays;
+  maps.stats.trace_seconds = traced.seconds;
+  maps.stats.emitted_power = traced.emitted_power;
+  maps.stats.stored_power = traced.StoredPower();
+
+  const auto t0 = std::chrono::steady_clock::now();
+  if (options.separate_direct) {
+    maps.global = MakeFilled(options, {&traced.indirect});
+    maps.direct = MakeFilled(options, {&traced.direct});
+  } else {
+    maps.global = MakeFilled(options, {&traced.direct, &traced.indirect});
+  }
+  if (need_caustic) {
+    maps.caustic = MakeFilled(options, {&traced.caustic});
+  } else if (!traced.caustic.empty()) {
+    // Cannot happen in kAuto (no singular surface → no caustic photon); with kOff the caustic
+    // photons are dropped on purpose and their light is missing from the image.
+    spdlog::warn("photon maps: caustic map disabled: {} caustic photons dropped", traced.caustic.size());
+  }
+  maps.stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  maps.stats.stored_global = maps.global->size();
+  maps.stats.stored_caustic = maps.caustic ? maps.caustic->size() : 0;
+  maps.stats.stored_direct = traced.direct.size();
+  spdlog::info(
+      "photon maps (seed {}): {} emitted, {} global + {} caustic stored ({} direct), trace {:.2f}s, build {:.2f}s",
+      options.tracing.map_seed, traced.emitted, maps.stats.stored_global, maps.stats.stored_caustic,
+      maps.stats.stored_direct, traced.seconds, maps.stats.build_seconds);
+  return maps;
+}
+
+}  // namespace pf

@@ -1,0 +1,44 @@
+#pragma once
+// The photon maps of one map seed (Wald 1999, §2.2): photon tracing plus the structures built
+// over its output. "Model only what the scene needs": the caustic map is built only when the
+// scene has singular surfaces (or when forced), and each decision is logged.
+
+#include <memory>
+#include <string>
+
+#include "common/photon/photon_map.h"
+#include "common/photon/photon_tracer.h"
+
+namespace pf {
+
+enum class CausticMapMode { kAuto, kOn, kOff };
+
+struct PhotonMapsOptions {
+  PhotonTracerOptions tracing;
+  PhotonMapKind kind = PhotonMapKind::kKdTree;
+  PhotonMapOptions structure;
+  CausticMapMode caustic = CausticMapMode::kAuto;
+  // Keep the first-hit direct photons out of the global map (for estimators that compute
+  // direct light separately, §4.2). Standalone rendering keeps them in.
+  bool separate_direct = false;
+};
+
+struct PhotonMapsStats {
+  uint64_t emitted = 0;
+  uint64_t stored_global = 0, stored_caustic = 0, stored_direct = 0;
+  double trace_seconds = 0, build_seconds = 0;
+  uint64_t rays = 0;
+  Rgb emitted_power, stored_power;  // stored_power: Σ Φ over all stored photons (before compression)
+};
+
+struct PhotonMaps {
+  std::unique_ptr<PhotonMap> global;   // diffuse (+ direct unless separate_direct) photons
+  std::unique_ptr<PhotonMap> caustic;  // null when not needed
+  std::unique_ptr<PhotonMap> direct;   // only with separate_direct
+  PhotonMapsStats stats;
+
+  static PhotonMaps Build(const EmbreeScene& scene, const LightSampler& lights,
+                          const PhotonMapsOptions& options);
+};
+
+}  // namespace pf

@@ -1,0 +1,122 @@
+#include "common/photon/photon_tracer.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <chrono>
+
+#include "common/core/rng.h"
+#include "common/materials/bsdf.h"
+
+namespace pf {
+
+Rgb PhotonTracingResult::StoredPower() const {
+  // Summed in double: millions of small powers lose digits in float.
+  double r = 0, g = 0, b = 0;
+  for (const auto* list : {&direct, &indirect, &caustic})
+    for (const TracedPhoton& p : *list) {
+      r += p.power.r;
+      g += p.power.g;
+      b += p.power.b;
+    }
+  return Rgb(float(r), float(g), float(b));
+}
+
+bool SceneNeedsCausticMap(const SceneDescription& scene) {
+  for (const Material& m : scene.materials)
+    if (!m.specular_reflectance.IsBlack() || !m.specular_transmittance.IsBlack()) return true;
+  return false;
+}
+
+namespace {
+
+constexpr uint64_t kChunk = 4096;  // photons per work item: fixed, so output order is fixed
+
+struct ChunkOutput {
+  std::vector<TracedPhoton> direct, indirect, caustic;
+  uint64_t rays = 0;
+};
+
+// Cosine-weighted direction around n.
+Vec3 SampleCosineHemisphere(const Vec3& n, float u1, float u2) {
+  const float r = std::sqrt(u1), phi = kTwoPi * u2;
+  const float z = std::sqrt(std::max(0.0f, 1.0f - u1));
+  return Frame(n).ToWorld(Vec3(r * std::cos(phi), r * std::sin(phi), z));
+}
+
+void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
+              uint64_t index, ChunkOutput& out) {
+  const SceneDescription& desc = scene.description();
+  Rng rng = Rng::ForKey(HashKey(o.map_seed, index, 0x70686f746f6eull /* "photon" */));
+  // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
+  // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
+  const float u_select = float((double(index) + rng.UniformDouble()) / double(o.photons));
+  const float u1 = rng.Uniform(), u2 = rng.Uniform();
+  const LightSample ls = lights.Sample(std::min(u_select, 0x1.fffffep-1f), u1, u2);
+  // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
+  Rgb power = ls.radiance * (kPi / (ls.pdf_area * float(o.photons)));
+  Vec3 dir = SampleCosineHemisphere(ls.normal, rng.Uniform(), rng.Uniform());
+  Vec3 previous = ls.position;
+  Ray ray{OffsetRayOrigin(ls.position, ls.normal, scene.epsilon()), dir};
+
+  bool any_singular_since_diffuse = false;
+  for (int bounce = 0; bounce < o.max_bounces; ++bounce) {
+    ++out.rays;
+    const std::optional<SurfaceHit> hit = scene.Intersect(ray);
+    if (!hit) return;
+    const Material& m = desc.materials[hit->material];
+    const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
+    const Vec3 wo = -ray.direction;
+    if (bsdf.HasDiffuse()) {
+      TracedPhoton p{hit->position, wo, power, previous, ls.light, PhotonKind::kIndirect};
+      if (bounce == 0) {
+        p.kind = PhotonKind::kDirect;
+        out.direct.push_back(p);
+      } else if (any_singular_since_diffuse) {
+        p.kind = PhotonKind::kCaustic;
+        out.caustic.push_back(p);
+      } else {
+        out.indirect.push_back(p);
+      }
+    }
+    const float ul = rng.Uniform(), ua = rng.Uniform(), ub = rng.Uniform();
+    const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, ua, ub, Bsdf::Mode::kRussianRoulette);
+    if (!s) return;  // absorbed
+    power *= s->weight;
+    if (power.IsBlack() || !power.IsFinite()) return;
+    // A diffuse bounce resets the caustic test; a singular one makes the next store caustic.
+    any_singular_since_diffuse = IsSingular(s->lobe);
+    previous = hit->position;
+    ray = Ray{scene.SpawnOrigin(*hit, s->wi), s->wi};
+  }
+}
+
+}  // namespace
+
+PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& lights,
+                                 const PhotonTracerOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  PhotonTracingResult result;
+  if (lights.empty() || options.photons == 0) return result;
+  const uint64_t chunks = (options.photons + kChunk - 1) / kChunk;
+  std::vector<ChunkOutput> outputs(chunks);
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(uint64_t(0), chunks, [&](uint64_t c) {
+      const uint64_t end = std::min(options.photons, (c + 1) * kChunk);
+      for (uint64_t i = c * kChunk; i < end; ++i) TraceOne(scene, lights, options, i, outputs[c]);
+    });
+  });
+  for (ChunkOutput& c : outputs) {
+    result.direct.insert(result.direct.end(), c.direct.begin(), c.direct.end());
+    result.indirect.insert(result.indirect.end(), c.indirect.begin(), c.indirect.end());
+    result.caustic.insert(result.caustic.end(), c.caustic.begin(), c.caustic.end());
+    result.rays += c.rays;
+  }
+  result.emitted = options.photons;
+  result.emitted_power = lights.total_power();
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace pf

@@ -1,0 +1,65 @@
+#pragma once
+// Photon tracing: the random walk from the lights (Wald 1999, §2.2).
+//
+// Photons leave the emitters with probability ∝ power (stratified over the photon index, so
+// each light gets its share up to ±1 photon), cosine-distributed about the emitter's front
+// normal, each carrying Φ = Φ_light / (p_light · N). At every hit on a surface with a diffuse
+// component the photon is stored; then Russian roulette on the material's reflectances picks
+// diffuse / specular / glossy / transmission / absorption, scaling Φ per channel by ρ/P.
+//
+// Classification (§2.1, the thesis's definition of caustic paths L (S|D)* S+ D): a stored
+// photon is *caustic* if every interaction since the last diffuse one was singular (and there
+// was at least one); *direct* if it is the first hit after leaving the light; otherwise
+// *indirect* (global/diffuse map). Direct photons are kept apart so that estimators can exclude
+// them (separate direct light, §4.2) or use them (PhotonDirect, §4.2.3).
+//
+// Determinism: photon i draws from Rng::ForKey(HashKey(map_seed, i)); photons are traced in
+// fixed-size chunks in parallel and concatenated in chunk order, so the arrays are identical
+// for any thread count.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/accel/embree_scene.h"
+#include "common/render/light_sampler.h"
+
+namespace pf {
+
+enum class PhotonKind : uint8_t { kDirect = 0, kIndirect = 1, kCaustic = 2 };
+
+// Full-precision photon as traced; compressed to the 18-byte Photon when put in a map.
+struct TracedPhoton {
+  Vec3 position;
+  Vec3 direction;   // unit, pointing back towards where the photon came from (ω in §2.2)
+  Rgb power;        // Φ, W
+  Vec3 origin;      // previous vertex of the path (occlusion testing, §4.1.1)
+  uint32_t light = 0;  // emitting light id (PhotonDirect, §4.2.3)
+  PhotonKind kind = PhotonKind::kIndirect;
+};
+
+struct PhotonTracerOptions {
+  uint64_t photons = 100000;  // emitted photons (not stored ones)
+  uint64_t map_seed = 1;
+  int max_bounces = 64;       // safety cap; Russian roulette ends walks long before
+  int threads = 0;            // 0 = all cores
+};
+
+struct PhotonTracingResult {
+  std::vector<TracedPhoton> direct, indirect, caustic;
+  uint64_t emitted = 0;
+  uint64_t rays = 0;
+  Rgb emitted_power;                  // Σ Φ of emitted photons (== total light power)
+  double seconds = 0;
+
+  Rgb StoredPower() const;            // Σ Φ over all stored photons
+};
+
+// Whether the scene has any singular surface a photon could bounce off before landing on a
+// diffuse one. If not, no photon can ever be caustic and the caustic map is not built
+// ("model only what the scene needs").
+bool SceneNeedsCausticMap(const SceneDescription& scene);
+
+PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& lights,
+                                 const PhotonTracerOptions& options);
+
+}  // namespace pf

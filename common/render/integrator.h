@@ -1,0 +1,30 @@
+#pragma once
+// What every pixel-by-pixel integrator provides: radiance along a camera ray, drawing its random
+// numbers from the pixel sample's own stream (so results never depend on threads).
+
+#include <cstdint>
+
+#include "common/accel/ray.h"
+#include "common/core/math.h"
+#include "common/core/rng.h"
+
+namespace pf {
+
+// Counters gathered per work item and summed by the driver (no shared atomics on the hot path).
+struct TraceCounters {
+  uint64_t rays = 0;          // closest-hit queries
+  uint64_t shadow_rays = 0;   // occlusion queries
+  void operator+=(const TraceCounters& o) {
+    rays += o.rays;
+    shadow_rays += o.shadow_rays;
+  }
+};
+
+class Integrator {
+ public:
+  virtual ~Integrator() = default;
+  virtual Rgb Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const = 0;
+  virtual const char* name() const = 0;
+};
+
+}  // namespace pf

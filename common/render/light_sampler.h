@@ -1,0 +1,51 @@
+#pragma once
+// Emitters of a scene: every emissive triangle, chosen with probability ∝ its power
+// (Φ = π·A·luminance(Le) for a Lambertian one-sided emitter), then a uniform point on it.
+// Used for next-event estimation (path tracer, §4.2.1 direct light) and for photon emission
+// (§2.2: photons per light ∝ its power).
+
+#include <cstdint>
+#include <vector>
+
+#include "common/accel/embree_scene.h"
+#include "common/core/math.h"
+
+namespace pf {
+
+struct LightSample {
+  Vec3 position;
+  Vec3 normal;        // front-face normal of the emitter (emission side)
+  Rgb radiance;       // Le
+  uint32_t triangle = 0;
+  uint32_t light = 0;
+  float pdf_area = 0; // probability density per unit area (incl. the triangle choice)
+};
+
+class LightSampler {
+ public:
+  explicit LightSampler(const EmbreeScene& scene);
+
+  bool empty() const { return triangles_.empty(); }
+  // Picks an emitter triangle ∝ power with u_select, then a uniform point with (u1, u2).
+  LightSample Sample(float u_select, float u1, float u2) const;
+  // Density per unit area of sampling this point on triangle `tri` (0 if it does not emit).
+  float PdfArea(uint32_t tri) const;
+  // Total emitted power Σ π·A·Le (RGB), W.
+  const Rgb& total_power() const { return total_power_; }
+  size_t num_emitting_triangles() const { return triangles_.size(); }
+
+ private:
+  const EmbreeScene* scene_;
+  std::vector<uint32_t> triangles_;   // emissive triangle ids
+  std::vector<float> cdf_;            // cumulative selection probability, last = 1
+  std::vector<float> select_prob_by_tri_;  // per scene triangle; 0 for non-emitters
+  Rgb total_power_;
+};
+
+// Uniform point on a triangle from two uniforms (barycentric square-root mapping).
+inline Vec3 SampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, float u1, float u2) {
+  const float su = std::sqrt(u1);
+  return a * (1.0f - su) + b * (su * (1.0f - u2)) + c * (su * u2);
+}
+
+}  // namespace pf

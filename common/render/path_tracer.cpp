@@ -1,0 +1,94 @@
+#include "common/render/path_tracer.h"
+
+#include "common/materials/bsdf.h"
+
+namespace pf {
+namespace {
+
+// Veach's power heuristic (β = 2) for two strategies with one sample each.
+inline float PowerHeuristic(float pdf_a, float pdf_b) {
+  const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
+  return a + b > 0.0f ? a / (a + b) : 0.0f;
+}
+
+}  // namespace
+
+PathTracer::PathTracer(const EmbreeScene& scene, const LightSampler& lights, PathTracerOptions options)
+    : scene_(scene), lights_(lights), options_(options) {}
+
+Rgb PathTracer::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const {
+  const SceneDescription& desc = scene_.description();
+  Rgb radiance(0.0f);
+  Rgb throughput(1.0f);
+  Ray ray = camera_ray;
+  bool previous_was_delta = true;  // camera rays see emitters with full weight
+  float previous_pdf = 0.0f;       // solid-angle pdf of the BSDF sample that made `ray`
+  Vec3 previous_position = ray.origin;
+
+  for (int depth = 0; depth < options_.max_depth; ++depth) {
+    ++counters.rays;
+    const std::optional<SurfaceHit> hit = scene_.Intersect(ray);
+    if (!hit) break;  // no environment light
+    const Material& material = desc.materials[hit->material];
+
+    // Emission seen by the BSDF-sampled ray, MIS-weighted against light sampling.
+    if (material.IsEmissive() && hit->front_face) {
+      if (previous_was_delta || lights_.empty()) {
+        radiance += throughput * material.emission;
+      } else {
+        const float cos_light = -Dot(ray.direction, hit->geometric_normal);
+        const float dist2 = LengthSquared(hit->position - previous_position);
+        const float pdf_light = lights_.PdfArea(hit->triangle) * dist2 / cos_light;
+        radiance += throughput * material.emission * PowerHeuristic(previous_pdf, pdf_light);
+      }
+    }
+
+    const Bsdf bsdf(material, hit->shading_normal, hit->geometric_normal);
+    const Vec3 wo = -ray.direction;
+
+    // Next-event estimation: one light sample, MIS-weighted against BSDF sampling.
+    if (bsdf.HasNonDelta() && !lights_.empty()) {
+      const float u_sel = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
+      const LightSample ls = lights_.Sample(u_sel, u1, u2);
+      const Vec3 to_light = ls.position - hit->position;
+      const float dist2 = LengthSquared(to_light);
+      if (dist2 > 0.0f) {
+        const Vec3 wi = to_light / std::sqrt(dist2);
+        const float cos_light = -Dot(wi, ls.normal);
+        if (cos_light > 0.0f) {
+          const Rgb f = bsdf.Eval(wo, wi);
+          if (!f.IsBlack()) {
+            ++counters.shadow_rays;
+            if (scene_.Visible(hit->position, hit->geometric_normal, ls.position, ls.normal)) {
+              const float pdf_light = ls.pdf_area * dist2 / cos_light;
+              const float weight = PowerHeuristic(pdf_light, bsdf.Pdf(wo, wi));
+              const float cos_surface = std::fabs(Dot(wi, hit->shading_normal));
+              radiance += throughput * f * ls.radiance * (cos_surface * weight / pdf_light);
+            }
+          }
+        }
+      }
+    }
+
+    // Continue the path by sampling the BSDF.
+    const float u_lobe = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
+    const std::optional<BsdfSample> s = bsdf.Sample(wo, u_lobe, u1, u2);
+    if (!s || s->weight.IsBlack()) break;
+    throughput *= s->weight;
+    previous_was_delta = s->is_delta;
+    // The full mixture pdf of the non-delta lobes, exactly what NEE's MIS weight used.
+    previous_pdf = s->is_delta ? 0.0f : bsdf.Pdf(wo, s->wi);
+    previous_position = hit->position;
+    ray = Ray{scene_.SpawnOrigin(*hit, s->wi), s->wi};
+
+    // Russian roulette (Arvo & Kirk 1990): unbiased termination of low-throughput paths.
+    if (depth + 1 >= options_.rr_start_depth) {
+      const float survive = std::min(1.0f, throughput.Max());
+      if (!(survive > 0.0f) || rng.Uniform() >= survive) break;
+      throughput *= 1.0f / survive;
+    }
+  }
+  return radiance;
+}
+
+}  // namespace pf

@@ -1,0 +1,44 @@
+#pragma once
+// Drives an integrator over pixels. The unit of work the farm will distribute is a *pixel
+// subset × sample range*: RenderPixels returns per-pixel sums in subset order, so a task result
+// never carries a full image (Design: Result). RenderImage is the single-process special case.
+//
+// Determinism: sample s of pixel p draws from Rng::ForKey(HashKey(seed, p, s)) and the samples
+// of a pixel are summed in order, so any thread count gives bit-identical sums.
+
+#include <atomic>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "common/image/image.h"
+#include "common/render/camera.h"
+#include "common/render/integrator.h"
+
+namespace pf {
+
+struct RenderOptions {
+  uint32_t spp = 16;
+  uint64_t seed = 1;
+  int threads = 0;  // 0 = all hardware threads
+};
+
+struct RenderStats {
+  double seconds = 0;
+  uint64_t samples = 0;
+  uint64_t nonfinite_samples = 0;  // dropped (counted, never averaged in)
+  TraceCounters counters;
+};
+
+// Adds the radiance of samples [sample_begin, sample_end) of each listed pixel (index y·W + x)
+// into sums[i]. `progress`, if given, is incremented by the number of pixels finished.
+RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
+                         std::span<const uint32_t> pixels, uint32_t sample_begin,
+                         uint32_t sample_end, uint64_t seed, int threads, std::span<Rgb> sums,
+                         std::atomic<uint64_t>* progress = nullptr);
+
+// Whole image, averaged over options.spp samples per pixel.
+Image RenderImage(const Integrator& integrator, const Camera& camera, const RenderOptions& options,
+                  RenderStats* stats = nullptr, std::atomic<uint64_t>* progress = nullptr);
+
+}  // namespace pf

@@ -1,0 +1,288 @@
+// Manifest parsing with nlohmann-json. Every access goes through a helper that knows the key
+// path, so a type error names the key ("cameras[0].eye") — nlohmann's own type errors do not
+// say where they happened. JSON syntax errors carry a byte offset, converted to a line.
+#include "common/scene/manifest.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "common/core/error.h"
+
+namespace pf {
+namespace {
+
+using Json = nlohmann::json;
+
+constexpr int kMaxResolution = 65536;
+
+class Parser {
+ public:
+  Parser(std::string file, std::vector<std::string>* warnings)
+      : file_(std::move(file)), warnings_(warnings) {}
+
+  [[noreturn]] void Fail(const std::string& key, const std::string& reason) const {
+    throw InputError(SourceLocation{file_, 0}, "key '" + key + "': " + reason);
+  }
+
+  void Warn(const std::string& reason) const { warnings_->push_back(file_ + ": " + reason); }
+
+  // Warns about keys of `object` not in `known`.
+  void CheckKeys(const Json& object, const std::string& prefix,
+                 std::initializer_list<const char*> known) const {
+    for (auto it = object.begin(); it != object.end(); ++it) {
+      bool found = false;
+      for (const char* k : known) found = found || it.key() == k;
+      if (!found)
+        Warn("key '" + Join(prefix, it.key()) + "' is not part of the manifest format; ignored");
+    }
+  }
+
+  static std::string Join(const std::string& prefix, const std::string& key) {
+    return prefix.empty() ? key : prefix + "." + key;
+  }
+
+  std::string String(const Json& v, const std::string& key) const {
+    if (!v.is_string()) Fail(key, "expected a string");
+    return v.get<std::string>();
+  }
+
+  double Number(const Json& v, const std::string& key) const {
+    if (!v.is_number()) Fail(key, "expected a number");
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) Fail(key, "expected a finite number");
+    return d;
+  }
+
+  double PositiveNumber(const Json& v, const std::string& key) const {
+    const double d = Number(v, key);
+    if (!(d > 0.0)) Fail(key, "expected a number > 0");
+    return d;
+  }
+
+  Vec3 Point(const Json& v, const std::string& key) const {
+    if (!v.is_array() || v.size() != 3) Fail(key, "expected 3 numbers");
+    Vec3 p;
+    for (int i = 0; i < 3; ++i) {
+      if (!v[i].is_number()) Fail(key, "expected 3 numbers");
+      p[i] = v[i].get<float>();
+      if (!std::isfinite(p[i])) Fail(key, "expected 3 finite numbers");
+    }
+    return p;
+  }
+
+  // A colour: 3 non-negative numbers, or one number for grey.
+  Rgb Colour(const Json& v, const std::string& key) const {
+    if (v.is_number()) {
+      const float g = float(Number(v, key));
+      if (!std::isfinite(g) || g < 0.0f) Fail(key, "expected a finite non-negative number");
+      return Rgb(g);
+    }
+    if (!v.is_array() || v.size() != 3) Fail(key, "expected 3 non-negative numbers or one number");
+    Rgb c;
+    for (int i = 0; i < 3; ++i) {
+      if (!v[i].is_number()) Fail(key, "expected 3 non-negative numbers or one number");
+      c[i] = v[i].get<float>();
+      if (!std::isfinite(c[i]) || c[i] < 0.0f)
+        Fail(key, "expected 3 finite non-negative numbers or one number");
+    }
+    return c;
+  }
+
+  CameraSpec Camera(const Json& v, const std::string& key, size_t index) const {
+    if (!v.is_object()) Fail(key, "expected an object");
+    CheckKeys(v, key, {"name", "eye", "look_at", "up", "fov", "resolution"});
+    CameraSpec cam;
+    cam.name = "camera" + std::to_string(index);
+    if (v.contains("name")) {
+      cam.name = String(v["name"], key + ".name");
+      if (cam.name.empty()) Fail(key + ".name", "expected a non-empty string");
+    }
+    if (!v.contains("eye")) Fail(key + ".eye", "missing (expected 3 numbers)");
+    if (!v.contains("look_at")) Fail(key + ".look_at", "missing (expected 3 numbers)");
+    cam.eye = Point(v["eye"], key + ".eye");
+    cam.look_at = Point(v["look_at"], key + ".look_at");
+    if (v.contains("up")) cam.up = Point(v["up"], key + ".up");
+    if (v.contains("fov")) {
+      const double fov = Number(v["fov"], key + ".fov");
+      if (!(fov > 0.0 && fov < 180.0)) Fail(key + ".fov", "expected degrees in (0, 180)");
+      cam.vfov_degrees = float(fov);
+    }
+    if (v.contains("resolution")) {
+      const Json& r = v["resolution"];
+      const std::string rkey = key + ".resolution";
+      const char* expect = "expected 2 positive integers [width, height]";
+      if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() ||
+          !r[1].is_number_integer())
+        Fail(rkey, expect);
+      const int64_t w = r[0].get<int64_t>(), h = r[1].get<int64_t>();
+      if (w <= 0 || h <= 0) Fail(rkey, expect);
+      if (w > kMaxResolution || h > kMaxResolution)
+        Fail(rkey, "width and height must be at most " + std::to_string(kMaxResolution));
+      cam.width = int(w);
+      cam.height = int(h);
+    }
+    const Vec3 forward = cam.look_at - cam.eye;
+    if (!(LengthSquared(forward) > 0.0f)) Fail(key + ".look_at", "must differ from eye");
+    if (!(LengthSquared(Cross(Normalize(forward), cam.up)) > 1e-12f))
+      Fail(key + ".up", "must not be zero or parallel to the view direction");
+    return cam;
+  }
+
+  MaterialOverride Override(const Json& v, const std::string& key) const {
+    if (!v.is_object()) Fail(key, "expected an object");
+    CheckKeys(v, key,
+              {"kind", "diffuse", "specular", "roughness", "transmission", "ior", "emission"});
+    MaterialOverride o;
+    if (v.contains("kind")) {
+      const std::string kind = String(v["kind"], key + ".kind");
+      if (kind == "diffuse") o.kind = MaterialOverride::Kind::kDiffuse;
+      else if (kind == "glossy") o.kind = MaterialOverride::Kind::kGlossy;
+      else if (kind == "mirror") o.kind = MaterialOverride::Kind::kMirror;
+      else if (kind == "glass") o.kind = MaterialOverride::Kind::kGlass;
+      else Fail(key + ".kind", "expected one of \"diffuse\", \"glossy\", \"mirror\", \"glass\"");
+    }
+    if (v.contains("diffuse")) o.diffuse = Colour(v["diffuse"], key + ".diffuse");
+    if (v.contains("specular")) o.specular = Colour(v["specular"], key + ".specular");
+    if (v.contains("transmission"))
+      o.transmission = Colour(v["transmission"], key + ".transmission");
+    if (v.contains("emission")) o.emission = Colour(v["emission"], key + ".emission");
+    if (v.contains("roughness")) {
+      const double a = Number(v["roughness"], key + ".roughness");
+      if (a < 0.0) Fail(key + ".roughness", "expected a number >= 0");
+      o.roughness = float(a);
+    }
+    if (v.contains("ior")) o.ior = float(PositiveNumber(v["ior"], key + ".ior"));
+    if (o.kind == MaterialOverride::Kind::kGlossy && !o.roughness)
+      Fail(key + ".roughness", "missing (kind \"glossy\" needs a Ward roughness > 0)");
+    if (o.kind == MaterialOverride::Kind::kGlossy && !(*o.roughness > 0.0f))
+      Fail(key + ".roughness", "kind \"glossy\" needs a Ward roughness > 0");
+    return o;
+  }
+
+ private:
+  std::string file_;
+  std::vector<std::string>* warnings_;
+};
+
+int LineOfByte(const std::string& text, size_t byte) {
+  byte = std::min(byte, text.size());
+  int line = 1;
+  for (size_t i = 0; i < byte; ++i) line += text[i] == '\n';
+  return line;
+}
+
+// nlohmann's messages start with "[json.exception.parse_error.101] "; the id is noise here.
+std::string StripExceptionId(const std::string& what) {
+  if (!what.empty() && what[0] == '[') {
+    const size_t close = what.find("] ");
+    if (close != std::string::npos) return what.substr(close + 2);
+  }
+  return what;
+}
+
+}  // namespace
+
+SceneManifest ParseManifest(const std::string& text, const std::filesystem::path& file) {
+  const std::string file_name = file.string();
+  Json root;
+  try {
+    root = Json::parse(text);
+  } catch (const Json::parse_error& e) {
+    throw InputError(SourceLocation{file_name, LineOfByte(text, e.byte == 0 ? 0 : e.byte - 1)},
+                     "invalid JSON: " + StripExceptionId(e.what()));
+  }
+
+  SceneManifest m;
+  m.file = file;
+  Parser p(file_name, &m.warnings);
+  if (!root.is_object())
+    throw InputError(SourceLocation{file_name, 0}, "a manifest must be a JSON object");
+  p.CheckKeys(root, "",
+              {"version", "name", "geometry", "scale", "cameras", "settings", "materials",
+               "notes"});
+
+  if (root.contains("version")) {
+    const Json& v = root["version"];
+    if (!v.is_number_integer() || v.get<int64_t>() != 1)
+      p.Fail("version", "expected 1 (the only manifest version so far)");
+  }
+
+  m.name = root.contains("name") ? p.String(root["name"], "name") : file.stem().string();
+
+  if (!root.contains("geometry")) p.Fail("geometry", "missing (expected a file name)");
+  const std::string geometry = p.String(root["geometry"], "geometry");
+  if (geometry.empty()) p.Fail("geometry", "expected a non-empty file name");
+  std::filesystem::path g(geometry);
+  if (g.is_relative()) g = file.parent_path() / g;
+  m.geometry = g.lexically_normal();
+
+  if (root.contains("scale")) m.scale = p.PositiveNumber(root["scale"], "scale");
+
+  if (root.contains("cameras")) {
+    const Json& cams = root["cameras"];
+    if (!cams.is_array()) p.Fail("cameras", "expected an array of camera objects");
+    std::set<std::string> names;
+    for (size_t i = 0; i < cams.size(); ++i) {
+      const std::string key = "cameras[" + std::to_string(i) + "]";
+      CameraSpec cam = p.Camera(cams[i], key, i);
+      if (!names.insert(cam.name).second)
+        p.Fail(key + ".name", "duplicate camera name \"" + cam.name + "\"");
+      m.cameras.push_back(std::move(cam));
+    }
+  }
+
+  if (root.contains("settings")) {
+    const Json& s = root["settings"];
+    if (!s.is_object()) p.Fail("settings", "expected an object");
+    for (auto it = s.begin(); it != s.end(); ++it) {
+      const Json& v = it.value();
+      if (v.is_number()) {
+        m.settings[it.key()] = p.Number(v, "settings." + it.key());
+      } else if (v.is_string()) {
+        m.settings[it.key()] = v.get<std::string>();
+      } else {
+        m.settings[it.key()] = v.dump();
+      }
+    }
+  }
+
+  if (root.contains("materials")) {
+    const Json& mats = root["materials"];
+    if (!mats.is_object()) p.Fail("materials", "expected an object (material name → changes)");
+    for (auto it = mats.begin(); it != mats.end(); ++it)
+      m.materials[it.key()] = p.Override(it.value(), "materials." + it.key());
+  }
+
+  if (root.contains("notes")) {
+    const Json& n = root["notes"];
+    if (n.is_string()) {
+      m.notes = n.get<std::string>();
+    } else if (n.is_array()) {
+      for (size_t i = 0; i < n.size(); ++i) {
+        if (!n[i].is_string()) p.Fail("notes[" + std::to_string(i) + "]", "expected a string");
+        if (i > 0) m.notes += "\n";
+        m.notes += n[i].get<std::string>();
+      }
+    } else {
+      p.Fail("notes", "expected a string or an array of strings");
+    }
+  }
+  return m;
+}
+
+SceneManifest LoadManifest(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(SourceLocation{path.string(), 0}, "no such file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(SourceLocation{path.string(), 0}, "cannot open file for reading");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseManifest(text.str(), path);
+}
+
+}  // namespace pf

@@ -1,0 +1,1815 @@
+// MGF 2.0 loader. What is supported, and what was chosen where the spec is silent, is documented
+// in mgf_loader.h; comments here explain how and cite the spec (mgfdoc.tr) sections.
+//
+// Structure: a file is read once into memory and cut into entities (words of one logical line,
+// continuation lines joined); an interpreter then executes the entities, keeping the MGF
+// contexts (§2.1 named contexts, §2.2 hierarchical contexts) and emitting triangles directly into
+// the SceneDescription. Arrays (`xf -a N`) re-execute the entities of their block, exactly as the
+// spec describes them (§2.2.3), so redefinitions inside a block behave as in mgflib.
+
+#include "common/scene/mgf_loader.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <iterator>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <set>
+#include <span>
+#include <string>
+#include <system_error>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "common/core/error.h"
+#include "common/core/math.h"
+
+namespace pf {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kPiD = std::numbers::pi;
+constexpr uint32_t kNone = 0xffffffffu;
+// Beyond this magnitude (after transformation) coordinates are rejected: products of two such
+// numbers stay far from overflow in double, and the value still fits a float.
+constexpr double kMaxCoordinate = 1e18;
+constexpr uintmax_t kMaxFileBytes = uintmax_t{1} << 30;
+constexpr long kMaxRepeat = 1'000'000;                 // largest N of `-i N` / `-a N`
+constexpr uint64_t kMaxArrayInstances = 1'000'000'000;  // product of the -a counts of one xf
+constexpr size_t kMaxStoredWarnings = 500;             // then only counted, to keep logs readable
+constexpr int kMinCurveSegments = 3;
+// The spec limits an entity to 4096 characters, i.e. about 2000 vertices per face; far larger
+// polygons are refused rather than ear-clipped in quadratic time.
+constexpr size_t kMaxPolygonVertices = 16384;
+// Material values beyond this are not physical and would overflow the float Material.
+constexpr double kMaxMaterialValue = 1e30;
+// Chromaticities with y below this are outside the spectral locus (whose minimum y is about
+// 0.004); their luminance-normalised colour would be absurdly large.
+constexpr double kMinChromaY = 1e-4;
+constexpr int kMaxCurveSegments = 1024;
+
+// ----------------------------------------------------------------------------------------------
+// Colour (§3 c/cxy/cspec/cct/cmix, §6.1.1).
+
+// CIE 1931 2° standard observer colour-matching functions x̄ ȳ z̄, 380..780 nm every 10 nm.
+// Coarse, but the spectra in MGF libraries are themselves 10-20 nm samples; the table sums agree
+// with the 1 nm tables to 1e-4 and equal-energy white comes out at (0.3334, 0.3334).
+constexpr double kCmfFirst = 380.0;
+constexpr double kCmfLast = 780.0;
+constexpr double kCmfStep = 10.0;
+constexpr int kCmfCount = 41;
+constexpr double kCmf[kCmfCount][3] = {
+    {0.001368, 0.000039, 0.006450}, {0.004243, 0.000120, 0.020050},
+    {0.014310, 0.000396, 0.067850}, {0.043510, 0.001210, 0.207400},
+    {0.134380, 0.004000, 0.645600}, {0.283900, 0.011600, 1.385600},
+    {0.348280, 0.023000, 1.747060}, {0.336200, 0.038000, 1.772110},
+    {0.290800, 0.060000, 1.669200}, {0.195360, 0.090980, 1.287640},
+    {0.095640, 0.139020, 0.812950}, {0.032010, 0.208020, 0.465180},
+    {0.004900, 0.323000, 0.272000}, {0.009300, 0.503000, 0.158200},
+    {0.063270, 0.710000, 0.078250}, {0.165500, 0.862000, 0.042160},
+    {0.290400, 0.954000, 0.020300}, {0.433450, 0.994950, 0.008750},
+    {0.594500, 0.995000, 0.003900}, {0.762100, 0.952000, 0.002100},
+    {0.916300, 0.870000, 0.001650}, {1.026300, 0.757000, 0.001100},
+    {1.062200, 0.631000, 0.000800}, {1.002600, 0.503000, 0.000340},
+    {0.854450, 0.381000, 0.000190}, {0.642400, 0.265000, 0.000050},
+    {0.447900, 0.175000, 0.000020}, {0.283500, 0.107000, 0.000000},
+    {0.164900, 0.061000, 0.000000}, {0.087400, 0.032000, 0.000000},
+    {0.046770, 0.017000, 0.000000}, {0.022700, 0.008210, 0.000000},
+    {0.011359, 0.004102, 0.000000}, {0.005790, 0.002091, 0.000000},
+    {0.002899, 0.001047, 0.000000}, {0.001440, 0.000520, 0.000000},
+    {0.000690, 0.000249, 0.000000}, {0.000332, 0.000120, 0.000000},
+    {0.000166, 0.000060, 0.000000}, {0.000083, 0.000030, 0.000000},
+    {0.000042, 0.000015, 0.000000},
+};
+
+Vec3d CmfAt(double lambda) {
+  if (!(lambda >= kCmfFirst && lambda <= kCmfLast)) return {};
+  const double t = (lambda - kCmfFirst) / kCmfStep;
+  const int i = std::min(static_cast<int>(t), kCmfCount - 2);
+  const double f = t - i;
+  return {kCmf[i][0] + f * (kCmf[i + 1][0] - kCmf[i][0]),
+          kCmf[i][1] + f * (kCmf[i + 1][1] - kCmf[i][1]),
+          kCmf[i][2] + f * (kCmf[i + 1][2] - kCmf[i][2])};
+}
+
+// Integrates a spectral function against the CMFs in 1 nm steps (the CMFs interpolated from
+// the 10 nm table), so that narrow spectra between two table entries still register.
+template <typename SpectrumFn>
+Vec3d IntegrateXyz(SpectrumFn&& spectrum) {
+  Vec3d xyz;
+  for (int l = static_cast<int>(kCmfFirst); l <= static_cast<int>(kCmfLast); ++l) {
+    const double v = spectrum(static_cast<double>(l));
+    if (v != 0.0) xyz += CmfAt(l) * v;
+  }
+  return xyz;
+}
+
+// The XYZ -> RGB matrix of §6.1.1 ("Converting between RGB and CIE Colors"): the spec's code
+// for its nominal CRT primaries and equal-energy white, written out as its closed form.
+struct Matrix3 {
+  double m[3][3];
+};
+constexpr Matrix3 MakeXyzToRgb() {
+  constexpr double xr = 0.640, yr = 0.330;  // nominal CRT primaries (the non-NTSC branch)
+  constexpr double xg = 0.290, yg = 0.600;
+  constexpr double xb = 0.150, yb = 0.060;
+  constexpr double xw = 1.0 / 3.0, yw = 1.0 / 3.0;  // "monitor white point"
+  constexpr double c_r = (xw * (yg - yb) - yw * (xg - xb) + xg * yb - xb * yg) / yw;
+  constexpr double c_g = (xw * (yb - yr) - yw * (xb - xr) - xr * yb + xb * yr) / yw;
+  constexpr double c_b = (xw * (yr - yg) - yw * (xr - xg) + xr * yg - xg * yr) / yw;
+  return Matrix3{{{(yg - yb - xb * yg + yb * xg) / c_r, (xb - xg - xb * yg + xg * yb) / c_r,
+                   (xg * yb - xb * yg) / c_r},
+                  {(yb - yr - yb * xr + yr * xb) / c_g, (xr - xb - xr * yb + xb * yr) / c_g,
+                   (xb * yr - xr * yb) / c_g},
+                  {(yr - yg - yr * xg + yg * xr) / c_b, (xg - xr - xg * yr + xr * yg) / c_b,
+                   (xr * yg - xg * yr) / c_b}}};
+}
+constexpr Matrix3 kXyzToRgb = MakeXyzToRgb();
+
+// A colour context: chromaticity only; intensity comes with the material value (§3 c).
+struct Chroma {
+  double x = 1.0 / 3.0;  // the unnamed colour is neutral (equal-energy) grey
+  double y = 1.0 / 3.0;
+  Vec3d XyzPerLuminance() const { return {x / y, 1.0, (1.0 - x - y) / y}; }
+};
+
+bool XyzToChroma(const Vec3d& xyz, Chroma* c) {
+  const double sum = xyz.x + xyz.y + xyz.z;
+  if (!(xyz.y > 0.0) || !(sum > 0.0) || !std::isfinite(sum)) return false;
+  c->x = xyz.x / sum;
+  c->y = xyz.y / sum;
+  return std::isfinite(c->x) && std::isfinite(c->y) && c->y >= kMinChromaY;
+}
+
+Rgb ChromaRgb(const Chroma& c) { return mgf::CieToRgb(c.x, c.y, 1.0); }
+
+// ----------------------------------------------------------------------------------------------
+// Transforms (§2.2.2, §2.2.3): rigid motions with uniform scale and mirrors, as 3×4 affine maps.
+
+struct Affine {
+  double m[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  Vec3d t;
+
+  Vec3d Vector(const Vec3d& v) const {
+    return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z,
+            m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+            m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
+  }
+  Vec3d Point(const Vec3d& p) const { return Vector(p) + t; }
+  double Det() const {
+    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+  }
+  // Uniform scale factor (length of the first column; hypot avoids overflow).
+  double Scale() const { return std::hypot(m[0][0], m[1][0], m[2][0]); }
+  // True if the map contains a mirror (negative determinant), computed on the normalised
+  // matrix so that huge or tiny scales cannot overflow it.
+  bool Mirrors() const {
+    const double s = Scale();
+    if (!(s > 0.0) || !std::isfinite(s)) return false;
+    Affine n = *this;
+    for (auto& row : n.m)
+      for (double& v : row) v /= s;
+    return n.Det() < 0.0;
+  }
+  bool IsFinite() const {
+    for (const auto& row : m)
+      for (double v : row)
+        if (!std::isfinite(v)) return false;
+    return pf::IsFinite(t);
+  }
+};
+
+// The map "first b, then a".
+Affine Compose(const Affine& a, const Affine& b) {
+  Affine r;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      r.m[i][j] = a.m[i][0] * b.m[0][j] + a.m[i][1] * b.m[1][j] + a.m[i][2] * b.m[2][j];
+  r.t = a.Point(b.t);
+  return r;
+}
+
+Affine Power(Affine a, long n) {
+  Affine r;
+  while (n > 0) {
+    if (n & 1) r = Compose(a, r);
+    n >>= 1;
+    if (n > 0) a = Compose(a, a);
+  }
+  return r;
+}
+
+// Rotation by `degrees` counter-clockwise about axis `axis` (right-hand rule, §2.2.2); exact
+// for multiples of 90° so that axis-aligned models stay axis-aligned.
+Affine Rotation(int axis, double degrees) {
+  double c, s;
+  const double r = std::fmod(degrees, 360.0);
+  if (r == std::floor(r / 90.0) * 90.0) {
+    static constexpr double kCos[4] = {1, 0, -1, 0};
+    static constexpr double kSin[4] = {0, 1, 0, -1};
+    const int q = ((static_cast<int>(r / 90.0) % 4) + 4) % 4;
+    c = kCos[q];
+    s = kSin[q];
+  } else {
+    c = std::cos(r * kPiD / 180.0);
+    s = std::sin(r * kPiD / 180.0);
+  }
+  Affine a;
+  const int i = (axis + 1) % 3, j = (axis + 2) % 3;
+  a.m[i][i] = c;
+  a.m[i][j] = -s;
+  a.m[j][i] = s;
+  a.m[j][j] = c;
+  return a;
+}
+
+// One transform specification: a sequence of segments, each a composed step applied `count`
+// times (`-i N`, and the arguments before the first -a/-i with count 1) or applied 0..N-1 times
+// over the instances of an array (`-a N`). "The scope of an array command continues until the
+// next -i or -a option" (§2.2.3).
+struct XformSegment {
+  bool array = false;
+  long count = 1;
+  Affine step;
+};
+struct XformSpec {
+  std::vector<XformSegment> segments;
+  uint64_t instances = 1;
+  size_t NumArrays() const {
+    size_t n = 0;
+    for (const auto& s : segments) n += s.array;
+    return n;
+  }
+  // The transform of the instance with the given array counters (one per -a segment).
+  Affine Instance(const std::vector<long>& counters) const {
+    Affine r;
+    size_t k = 0;
+    for (const auto& s : segments) {
+      const long n = s.array ? counters[k++] : s.count;
+      r = Compose(Power(s.step, n), r);  // later arguments act on the already moved object
+    }
+    return r;
+  }
+};
+
+// Odometer over the array counters; false once every instance has been produced.
+bool AdvanceCounters(const XformSpec& spec, std::vector<long>& counters) {
+  size_t k = 0;
+  for (const auto& s : spec.segments) {
+    if (!s.array) continue;
+    if (++counters[k] < s.count) return true;
+    counters[k] = 0;
+    ++k;
+  }
+  return false;
+}
+
+// ----------------------------------------------------------------------------------------------
+// Files: read once, cut into entities.
+
+struct Entity {
+  int line;        // physical line where the entity starts
+  uint32_t first;  // index of its keyword in MgfFile::words
+  uint32_t count;  // number of words, keyword included
+};
+
+struct MgfFile {
+  std::string name;       // as shown in messages
+  fs::path dir;           // base directory of its includes
+  std::string canonical;  // identity for the include stack and the cache
+  std::string text;
+  std::vector<std::string_view> words;  // views into `text`
+  std::vector<Entity> entities;
+  int last_line = 1;
+};
+
+bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\f' || c == '\v'; }
+
+// §1 / spec.txt "Other Details": end of line is LF, CR or CRLF; a backslash right before the end
+// of line continues the entity on the next line; blanks separate words. Comment entities are
+// dropped here (first word starting with '#', see mgf_loader.h).
+void Tokenize(MgfFile& file) {
+  const std::string& s = file.text;
+  const size_t n = s.size();
+  size_t pos = 0;
+  int line = 1;
+  auto eol_length = [&](size_t p) -> size_t {
+    if (p >= n) return 0;
+    if (s[p] == '\n') return 1;
+    if (s[p] == '\r') return (p + 1 < n && s[p + 1] == '\n') ? 2 : 1;
+    return 0;
+  };
+  while (pos < n) {
+    const int entity_line = line;
+    const size_t first_word = file.words.size();
+    size_t word_start = std::string::npos;
+    auto end_word = [&](size_t end) {
+      if (word_start != std::string::npos) {
+        file.words.emplace_back(s.data() + word_start, end - word_start);
+        word_start = std::string::npos;
+      }
+    };
+    while (pos < n) {
+      const char c = s[pos];
+      if (const size_t eol = eol_length(pos)) {
+        end_word(pos);
+        pos += eol;
+        ++line;
+        break;
+      }
+      if (c == '\\' && (pos + 1 == n || eol_length(pos + 1) > 0)) {
+        end_word(pos);
+        const size_t eol = eol_length(pos + 1);
+        pos += 1 + eol;
+        if (eol > 0) ++line;
+        continue;
+      }
+      if (IsBlank(c)) {
+        end_word(pos);
+      } else if (word_start == std::string::npos) {
+        word_start = pos;
+      }
+      ++pos;
+    }
+    end_word(pos);
+    const size_t count = file.words.size() - first_word;
+    if (count == 0) continue;
+    if (file.words[first_word][0] == '#') {
+      file.words.resize(first_word);
+      continue;
+    }
+    file.entities.push_back(Entity{entity_line, static_cast<uint32_t>(first_word),
+                                   static_cast<uint32_t>(count)});
+  }
+  // The last line that exists: a final end-of-line does not start another one.
+  const bool ends_with_eol = n > 0 && (s[n - 1] == '\n' || s[n - 1] == '\r');
+  file.last_line = std::max(1, ends_with_eol ? line - 1 : line);
+}
+
+// Text of a word for messages: bounded length, no control characters (fuzzed input).
+std::string Quote(std::string_view w) {
+  std::string r = "'";
+  const size_t n = std::min<size_t>(w.size(), 40);
+  for (size_t i = 0; i < n; ++i) {
+    const unsigned char c = static_cast<unsigned char>(w[i]);
+    r += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
+  }
+  if (w.size() > n) r += "...";
+  return r + "'";
+}
+
+// Reads a file for the loader; returns an error reason instead of throwing.
+std::string ReadWholeFile(const fs::path& path, std::string* out) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) return "file not found";
+  if (!fs::is_regular_file(st)) return "not a regular file";
+  const uintmax_t size = fs::file_size(path, ec);
+  if (ec) return "cannot determine the file size";
+  if (size > kMaxFileBytes) return "file larger than 1 GiB";
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "cannot open the file";
+  out->assign(static_cast<size_t>(size), '\0');
+  if (size > 0 && !in.read(out->data(), static_cast<std::streamsize>(size))) {
+    return "cannot read the file";
+  }
+  return {};
+}
+
+std::string CanonicalKey(const fs::path& p) {
+  std::error_code ec;
+  fs::path c = fs::weakly_canonical(p, ec);
+  if (ec) {
+    c = fs::absolute(p, ec);
+    if (ec) c = p;
+    c = c.lexically_normal();
+  }
+  return c.string();
+}
+
+// ----------------------------------------------------------------------------------------------
+// Geometry helpers.
+
+// Orthonormal u, w with u × w = n for unit n (Duff et al. 2017, as Frame in core/math.h).
+void OrthonormalBasis(const Vec3d& n, Vec3d* u, Vec3d* w) {
+  const double sign = std::copysign(1.0, n.z);
+  const double a = -1.0 / (sign + n.z);
+  const double b = n.x * n.y * a;
+  *u = {1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x};
+  *w = {b, sign + n.y * n.y * a, -n.y};
+}
+
+// Unit vector along v, or zero if v is zero (robust for huge and tiny components).
+Vec3d SafeNormalize(const Vec3d& v) {
+  const double m = std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+  if (!(m > 0.0) || !std::isfinite(m)) return {};
+  const Vec3d s = v / m;
+  return s / Length(s);
+}
+
+// Triangulates a planar (or nearly planar) polygon by ear clipping in its best-fit plane.
+// Triangles index `pts` and keep the polygon's orientation (right-hand rule). Returns false if
+// the polygon is degenerate (fewer than three distinct points, or no area). Sets *approximate if
+// no proper ear was found at some point (self-intersecting input): the result then still covers
+// the polygon's vertices but may overlap or miss parts of it.
+bool TriangulatePolygon(std::span<const Vec3d> pts, std::vector<std::array<uint32_t, 3>>* out,
+                        bool* approximate) {
+  out->clear();
+  *approximate = false;
+  std::vector<uint32_t> idx;
+  idx.reserve(pts.size());
+  for (uint32_t i = 0; i < pts.size(); ++i) {
+    if (idx.empty() || !(pts[i] == pts[idx.back()])) idx.push_back(i);
+  }
+  while (idx.size() > 1 && pts[idx.back()] == pts[idx.front()]) idx.pop_back();
+  const size_t n = idx.size();
+  if (n < 3) return false;
+
+  // Newell's normal: the area vector of the polygon, robust for concave and non-planar input.
+  const Vec3d o = pts[idx[0]];
+  Vec3d area2;
+  Vec3d lo = o, hi = o;
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3d& p = pts[idx[i]];
+    area2 += Cross(p - o, pts[idx[(i + 1) % n]] - o);
+    lo = Min(lo, p);
+    hi = Max(hi, p);
+  }
+  const double extent = MaxComponent(hi - lo);
+  const double eps = 1e-12 * extent * extent;  // in units of twice an area
+  const double len = Length(area2);
+  if (!(extent > 0.0) || !(len > eps)) return false;
+  if (n == 3) {
+    out->push_back({idx[0], idx[1], idx[2]});
+    return true;
+  }
+
+  // 2D coordinates in the plane; the polygon is counter-clockwise there by construction.
+  Vec3d u, w;
+  OrthonormalBasis(area2 / len, &u, &w);
+  std::vector<double> qx(n), qy(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3d d = pts[idx[i]] - o;
+    qx[i] = Dot(d, u);
+    qy[i] = Dot(d, w);
+  }
+  auto cross = [&](size_t a, size_t b, size_t c) {
+    return (qx[b] - qx[a]) * (qy[c] - qy[a]) - (qy[b] - qy[a]) * (qx[c] - qx[a]);
+  };
+  auto same = [&](size_t a, size_t b) { return qx[a] == qx[b] && qy[a] == qy[b]; };
+  std::vector<uint32_t> prev(n), next(n);
+  for (size_t i = 0; i < n; ++i) {
+    prev[i] = static_cast<uint32_t>((i + n - 1) % n);
+    next[i] = static_cast<uint32_t>((i + 1) % n);
+  }
+  // An ear (a, b, c) may not contain any other remaining vertex, on its boundary included, except
+  // vertices coincident with its corners: that exception is what makes MGF seams work, where a
+  // hole's bridge vertices appear twice (§3 f).
+  auto is_ear = [&](size_t a, size_t b, size_t c) {
+    for (size_t r = next[c]; r != a; r = next[r]) {
+      if (same(r, a) || same(r, b) || same(r, c)) continue;
+      if (cross(a, b, r) >= -eps && cross(b, c, r) >= -eps && cross(c, a, r) >= -eps) {
+        return false;
+      }
+    }
+    return true;
+  };
+
+  size_t remaining = n;
+  size_t cur = 0;
+  size_t stall = 0;
+  while (remaining > 3) {
+    const size_t a = prev[cur], c = next[cur];
+    const double cr = cross(a, cur, c);
+    bool clip = false, emit = false;
+    size_t victim = cur;
+    if (std::abs(cr) <= eps) {
+      clip = true;  // collinear vertex or zero-width spike: dropping it loses no area
+    } else if (cr > 0.0 && (*approximate || is_ear(a, cur, c))) {
+      // Once the polygon is known to intersect itself, ears are no longer searched for (that
+      // could take cubic time): every convex vertex is clipped.
+      clip = emit = true;
+    } else if (++stall > remaining) {
+      // A full lap without an ear: the polygon intersects itself. Clip some convex vertex
+      // anyway (or drop one) so that the loop always terminates.
+      *approximate = true;
+      clip = true;
+      size_t v = cur;
+      do {
+        if (cross(prev[v], v, next[v]) > eps) {
+          victim = v;
+          emit = true;
+          break;
+        }
+        v = next[v];
+      } while (v != cur);
+    }
+    if (!clip) {
+      cur = c;
+      continue;
+    }
+    const size_t va = prev[victim], vc = next[victim];
+    if (emit) out->push_back({idx[va], idx[victim], idx[vc]});
+    next[va] = static_cast<uint32_t>(vc);
+    prev[vc] = static_cast<uint32_t>(va);
+    --remaining;
+    stall = 0;
+    cur = vc;
+  }
+  const size_t a = prev[cur], c = next[cur];
+  const double cr = cross(a, cur, c);
+  if (cr > eps) {
+    out->push_back({idx[a], idx[cur], idx[c]});
+  } else if (cr < -eps) {
+    *approximate = true;
+  }
+  return !out->empty();
+}
+
+// ----------------------------------------------------------------------------------------------
+// The interpreter.
+
+struct StringHash {
+  using is_transparent = void;
+  size_t operator()(std::string_view s) const { return std::hash<std::string_view>{}(s); }
+};
+template <typename T>
+using NameMap = std::unordered_map<std::string, T, StringHash, std::equal_to<>>;
+
+struct VertexCtx {
+  Vec3d p;  // the unnamed vertex is the origin without normal (§3 v)
+  Vec3d n;  // unit normal, or zero for "none"
+};
+
+struct MaterialCtx {
+  std::string name;
+  int sides = 2;  // the unnamed material is a two-sided black absorber (§3 m)
+  double rd = 0, td = 0, ed = 0, rs = 0, rs_alpha = 0, ts = 0, ts_alpha = 0;
+  double ir_n = 1, ir_k = 0;
+  Chroma rd_c, td_c, ed_c, rs_c, ts_c;  // the colour in effect when each value was set (§2.1)
+  uint32_t cached = kNone;              // index in SceneDescription::materials, kNone if stale
+};
+
+// The named contexts of one kind (§2.1): the unnamed one, the named ones, and which is current.
+template <typename T>
+struct ContextTable {
+  T unnamed{};
+  NameMap<T> named;
+  T* current = &unnamed;
+};
+
+class Args {
+ public:
+  Args(const std::string_view* words, size_t count) : words_(words), count_(count) {}
+  size_t size() const { return count_; }
+  std::string_view operator[](size_t i) const { return words_[i]; }
+  std::string_view keyword() const { return words_[0]; }
+
+ private:
+  const std::string_view* words_;
+  size_t count_;
+};
+
+enum class Kind {
+  kUnknown, kObject, kXf, kInclude, kIes, kColor, kCxy, kCspec, kCct, kCmix, kMaterial,
+  kSides, kRd, kTd, kEd, kRs, kTs, kIr, kVertex, kPoint, kNormal, kFace, kFaceHoles,
+  kSphere, kCylinder, kCone, kPrism, kRing, kTorus,
+};
+
+Kind KindOf(std::string_view w) {
+  static const std::unordered_map<std::string_view, Kind> kKinds = {
+      {"o", Kind::kObject},     {"xf", Kind::kXf},        {"i", Kind::kInclude},
+      {"ies", Kind::kIes},      {"c", Kind::kColor},      {"cxy", Kind::kCxy},
+      {"cspec", Kind::kCspec},  {"cct", Kind::kCct},      {"cmix", Kind::kCmix},
+      {"m", Kind::kMaterial},   {"sides", Kind::kSides},  {"rd", Kind::kRd},
+      {"td", Kind::kTd},        {"ed", Kind::kEd},        {"rs", Kind::kRs},
+      {"ts", Kind::kTs},        {"ir", Kind::kIr},        {"v", Kind::kVertex},
+      {"p", Kind::kPoint},      {"n", Kind::kNormal},     {"f", Kind::kFace},
+      {"fh", Kind::kFaceHoles}, {"sph", Kind::kSphere},   {"cyl", Kind::kCylinder},
+      {"cone", Kind::kCone},    {"prism", Kind::kPrism},  {"ring", Kind::kRing},
+      {"torus", Kind::kTorus},
+  };
+  const auto it = kKinds.find(w);
+  return it == kKinds.end() ? Kind::kUnknown : it->second;
+}
+
+// A pushed transform context (§3 xf): its specification, the current array instance, and the
+// total transform in effect inside it.
+struct XfFrame {
+  XformSpec spec;
+  std::vector<long> counters;  // one per -a segment
+  Affine parent;               // world transform of the enclosing context
+  Affine world;                // this instance's transform, then the enclosing ones
+  size_t resume = 0;           // entity to jump back to for the next array instance
+  int line = 0;                // where it was begun, for messages
+};
+
+// A world-space vertex of a polygon with its (optional) normal.
+struct PolyVertex {
+  Vec3d p;
+  Vec3d n;
+};
+
+class MgfReader {
+ public:
+  MgfReader(const MgfOptions& options, SceneDescription* scene)
+      : options_(options), scene_(*scene) {
+    const int n = options_.curve_segments;
+    circle_.resize(static_cast<size_t>(n) + 1);
+    for (int i = 0; i <= n; ++i) {
+      const double a = 2.0 * kPiD * i / n;
+      circle_[i] = {std::cos(a), std::sin(a)};
+    }
+    circle_[n] = circle_[0];  // close the circle exactly
+    if (!options_.include_root.empty()) include_root_ = CanonicalKey(options_.include_root);
+  }
+
+  void Run(std::unique_ptr<MgfFile> top) {
+    const MgfFile& file = *top;
+    include_stack_.push_back(file.canonical);
+    files_.emplace(file.canonical, std::move(top));
+    Execute(file);
+    include_stack_.pop_back();
+    Finish();
+  }
+
+ private:
+  struct FileState {
+    const MgfFile* file;
+    size_t xf_base;
+    int object_base;
+  };
+
+  // ---- messages ------------------------------------------------------------------------------
+  SourceLocation Here() const {
+    return SourceLocation{state_ ? state_->file->name : std::string(), line_};
+  }
+  [[noreturn]] void Fail(const std::string& reason) const { throw InputError(Here(), reason); }
+  void Warn(const std::string& message) {
+    if (scene_.warnings.size() >= kMaxStoredWarnings) {
+      ++suppressed_warnings_;
+      return;
+    }
+    std::string text = Here().ToString() + ": " + message;
+    spdlog::warn("{}", text);
+    scene_.warnings.push_back(std::move(text));
+  }
+
+  // ---- arguments -----------------------------------------------------------------------------
+  void ExpectCount(const Args& a, size_t lo, size_t hi, const char* usage) const {
+    const size_t n = a.size() - 1;
+    if (n < lo || n > hi) {
+      Fail(std::string(a.keyword()) + ": expected " + usage + ", got " + std::to_string(n) +
+           " argument" + (n == 1 ? "" : "s"));
+    }
+  }
+  double Number(const Args& a, size_t i) const {
+    std::string_view s = a[i];
+    if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);
+    double v = 0;
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec == std::errc::result_out_of_range) {
+      Fail(std::string(a.keyword()) + ": number " + Quote(a[i]) + " is out of range");
+    }
+    if (ec != std::errc() || end != s.data() + s.size()) {
+      Fail(std::string(a.keyword()) + ": " + Quote(a[i]) + " is not a number");
+    }
+    if (!std::isfinite(v)) {
+      Fail(std::string(a.keyword()) + ": " + Quote(a[i]) + " is not a finite number");
+    }
+    return v;
+  }
+  long Integer(const Args& a, size_t i) const {
+    std::string_view s = a[i];
+    if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);
+    long v = 0;
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec != std::errc() || end != s.data() + s.size()) {
+      Fail(std::string(a.keyword()) + ": " + Quote(a[i]) + " is not an integer");
+    }
+    return v;
+  }
+  double Fraction(const Args& a, size_t i, const char* what) const {
+    const double v = Number(a, i);
+    if (v < 0.0 || v > 1.0) {
+      Fail(std::string(a.keyword()) + ": " + what + " " + Quote(a[i]) + " must be in [0, 1]");
+    }
+    return v;
+  }
+  double NonNegative(const Args& a, size_t i, const char* what) const {
+    const double v = Number(a, i);
+    if (v < 0.0) Fail(std::string(a.keyword()) + ": " + what + " must not be negative");
+    if (v > kMaxMaterialValue) Fail(std::string(a.keyword()) + ": " + what + " is out of range");
+    return v;
+  }
+
+  // ---- contexts ------------------------------------------------------------------------------
+  // The four forms of c/m/v (§2.1): "x", "x id", "x id =", "x id = template". Returns the
+  // name of a newly defined context (empty otherwise) through *defined.
+  template <typename T>
+  void SelectContext(ContextTable<T>& table, const Args& a, const char* what, bool* defined) {
+    *defined = false;
+    if (a.size() == 1) {
+      table.unnamed = T{};  // re-establishing the unnamed context restores its defaults
+      table.current = &table.unnamed;
+      return;
+    }
+    if (a.size() == 2) {
+      const auto it = table.named.find(a[1]);
+      if (it == table.named.end()) Fail(std::string("undefined ") + what + " " + Quote(a[1]));
+      table.current = &it->second;
+      return;
+    }
+    if ((a.size() == 3 || a.size() == 4) && a[2] == "=") {
+      T value{};
+      if (a.size() == 4) {
+        const auto it = table.named.find(a[3]);
+        if (it == table.named.end()) Fail(std::string("undefined ") + what + " " + Quote(a[3]));
+        value = it->second;  // by-value copy: later changes to the template do not propagate
+      }
+      auto [it, inserted] = table.named.try_emplace(std::string(a[1]));
+      it->second = std::move(value);
+      table.current = &it->second;
+      *defined = true;
+      return;
+    }
+    Fail(std::string(a.keyword()) + ": expected [id [= [template]]]");
+  }
+
+  const VertexCtx& NamedVertex(std::string_view name) const {
+    const auto it = vertices_.named.find(name);
+    if (it == vertices_.named.end()) Fail("undefined vertex " + Quote(name));
+    return it->second;
+  }
+  MaterialCtx& Mat() {
+    MaterialCtx& m = *materials_.current;
+    m.cached = kNone;  // about to be modified
+    return m;
+  }
+  const Chroma& CurrentColor() const { return *colors_.current; }
+
+  // ---- transforms ----------------------------------------------------------------------------
+  const Affine& World() const {
+    static const Affine kIdentity;
+    return xf_stack_.empty() ? kIdentity : xf_stack_.back().world;
+  }
+
+  XformSpec ParseXform(const Args& a, size_t first) const {
+    XformSpec spec;
+    spec.segments.emplace_back();  // the arguments before the first -a / -i
+    auto need = [&](size_t i, size_t n) {
+      if (i + n >= a.size()) {
+        Fail(std::string(a.keyword()) + ": transform option " + Quote(a[i]) + " needs " +
+             std::to_string(n) + " argument" + (n == 1 ? "" : "s"));
+      }
+    };
+    auto apply = [&](const Affine& op) {
+      XformSegment& s = spec.segments.back();
+      s.step = Compose(op, s.step);
+    };
+    for (size_t i = first; i < a.size();) {
+      const std::string_view opt = a[i];
+      if (opt == "-t") {
+        need(i, 3);
+        Affine t;
+        t.t = {Number(a, i + 1), Number(a, i + 2), Number(a, i + 3)};
+        apply(t);
+        i += 4;
+      } else if (opt == "-rx" || opt == "-ry" || opt == "-rz") {
+        need(i, 1);
+        apply(Rotation(opt[2] - 'x', Number(a, i + 1)));
+        i += 2;
+      } else if (opt == "-s") {
+        need(i, 1);
+        const double s = Number(a, i + 1);
+        if (s == 0.0) Fail(std::string(a.keyword()) + ": scale factor must not be zero");
+        Affine t;
+        for (int k = 0; k < 3; ++k) t.m[k][k] = s;
+        apply(t);
+        i += 2;
+      } else if (opt == "-mx" || opt == "-my" || opt == "-mz") {
+        Affine t;
+        const int k = opt[2] - 'x';
+        t.m[k][k] = -1.0;  // -mx mirrors about the Y-Z plane, i.e. negates x
+        apply(t);
+        i += 1;
+      } else if (opt == "-i" || opt == "-a") {
+        need(i, 1);
+        const long count = Integer(a, i + 1);
+        const bool array = opt == "-a";
+        if (count < (array ? 1 : 0) || count > kMaxRepeat) {
+          Fail(std::string(a.keyword()) + ": " + std::string(opt) + " count " + Quote(a[i + 1]) +
+               " must be in [" + (array ? "1" : "0") + ", " + std::to_string(kMaxRepeat) + "]");
+        }
+        if (array) {
+          spec.instances *= static_cast<uint64_t>(count);
+          if (spec.instances > kMaxArrayInstances) {
+            Fail(std::string(a.keyword()) + ": array of more than " +
+                 std::to_string(kMaxArrayInstances) + " instances");
+          }
+        }
+        spec.segments.push_back(XformSegment{array, count, Affine{}});
+        i += 2;
+      } else {
+        Fail(std::string(a.keyword()) + ": unknown transform option " + Quote(opt));
+      }
+    }
+    return spec;
+  }
+
+  void PushFrame(XformSpec spec, size_t resume) {
+    if (static_cast<int>(xf_stack_.size()) >= options_.max_depth) {
+      Fail("transforms nested deeper than " + std::to_string(options_.max_depth));
+    }
+    XfFrame f;
+    f.counters.assign(spec.NumArrays(), 0);
+    f.spec = std::move(spec);
+    f.parent = World();
+    f.resume = resume;
+    f.line = line_;
+    xf_stack_.push_back(std::move(f));
+    UpdateFrameWorld(xf_stack_.back());
+  }
+  void UpdateFrameWorld(XfFrame& f) const {
+    // Enclosed transforms are prepended to the enclosing ones (§2.2.2): apply this frame first.
+    f.world = Compose(f.parent, f.spec.Instance(f.counters));
+    if (!f.world.IsFinite()) Fail("transform overflows (huge -s or -t values)");
+  }
+
+  // ---- files ---------------------------------------------------------------------------------
+  const MgfFile& Include(std::string_view name) {
+    // A NUL would cut the name the OS sees short of the one checked below.
+    for (const char ch : name) {
+      if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) {
+        Fail("include path " + Quote(name) + " contains a control character");
+      }
+    }
+    const fs::path rel{std::string(name)};
+    if (rel.has_root_name() || rel.has_root_directory()) {
+      Fail("include path " + Quote(name) + " is absolute; MGF allows only relative paths (§3 i)");
+    }
+    const fs::path full = (state_->file->dir / rel).lexically_normal();
+    const std::string canonical = CanonicalKey(full);
+    if (!include_root_.empty()) {
+      const fs::path r = fs::path(canonical).lexically_relative(include_root_);
+      if (r.empty() || *r.begin() == "..") {
+        Fail("include " + Quote(name) + " resolves outside the scene directory");
+      }
+    }
+    if (std::find(include_stack_.begin(), include_stack_.end(), canonical) !=
+        include_stack_.end()) {
+      std::string chain;
+      for (const std::string& f : include_stack_) chain += fs::path(f).filename().string() + " -> ";
+      Fail("include cycle: " + chain + full.filename().string());
+    }
+    if (static_cast<int>(include_stack_.size()) > options_.max_depth) {
+      Fail("includes nested deeper than " + std::to_string(options_.max_depth));
+    }
+    if (const auto it = files_.find(canonical); it != files_.end()) return *it->second;
+    auto file = std::make_unique<MgfFile>();
+    if (std::string err = ReadWholeFile(full, &file->text); !err.empty()) {
+      Fail("cannot include " + Quote(name) + " (" + full.string() + "): " + err);
+    }
+    file->name = full.string();
+    file->dir = full.parent_path();
+    file->canonical = canonical;
+    Tokenize(*file);
+    const MgfFile& ref = *file;
+    files_.emplace(canonical, std::move(file));
+    return ref;
+  }
+
+  void ExecuteIncluded(const MgfFile& file) {
+    CountEntity();  // an include of an empty file, arrayed, must still count as work
+    include_stack_.push_back(file.canonical);
+    Execute(file);
+    include_stack_.pop_back();
+  }
+
+  void CountEntity() {
+    if (++executed_ > options_.max_entities) {
+      Fail("more than " + std::to_string(options_.max_entities) +
+           " entities executed (array repeats and includes included): scene too large");
+    }
+  }
+
+  void Execute(const MgfFile& file) {
+    FileState st{&file, xf_stack_.size(), object_depth_};
+    FileState* const saved_state = state_;
+    const int saved_line = line_;
+    state_ = &st;
+    size_t pc = 0;
+    while (pc < file.entities.size()) {
+      const Entity& e = file.entities[pc++];
+      line_ = e.line;
+      CountEntity();
+      const Args a(&file.words[e.first], e.count);
+      Dispatch(a, &pc);
+    }
+    if (xf_stack_.size() > st.xf_base) {
+      line_ = xf_stack_[st.xf_base].line;
+      Fail("xf begun here is not ended before the end of the file (§3 xf: must be balanced)");
+    }
+    if (object_depth_ > st.object_base) {
+      line_ = file.last_line;
+      Warn(std::to_string(object_depth_ - st.object_base) +
+           " object context(s) not ended at the end of the file");
+      object_depth_ = st.object_base;
+    }
+    state_ = saved_state;
+    line_ = saved_line;
+  }
+
+  void Dispatch(const Args& a, size_t* pc) {
+    switch (KindOf(a.keyword())) {
+      case Kind::kObject:
+        ExpectCount(a, 0, 1, "at most one object name");
+        if (a.size() == 2) {
+          ++object_depth_;
+        } else if (object_depth_ <= state_->object_base) {
+          Fail("'o' ends an object that was not begun in this file");
+        } else {
+          --object_depth_;
+        }
+        return;
+      case Kind::kXf:
+        if (a.size() == 1) {
+          if (xf_stack_.size() <= state_->xf_base) {
+            Fail("'xf' end without a matching begin in this file");
+          }
+          XfFrame& f = xf_stack_.back();
+          if (AdvanceCounters(f.spec, f.counters)) {
+            UpdateFrameWorld(f);
+            *pc = f.resume;  // next array instance: run the block again (§2.2.3)
+          } else {
+            xf_stack_.pop_back();
+          }
+        } else {
+          PushFrame(ParseXform(a, 1), *pc);
+        }
+        return;
+      case Kind::kInclude: {
+        if (a.size() < 2) Fail("i: expected a file name");
+        const MgfFile& file = Include(a[1]);
+        if (a.size() == 2) {
+          ExecuteIncluded(file);
+          return;
+        }
+        // "as though the include statement were enclosed by xf entities" (§3 i), arrays too.
+        PushFrame(ParseXform(a, 2), 0);
+        const size_t depth = xf_stack_.size();
+        while (true) {
+          ExecuteIncluded(file);
+          XfFrame& f = xf_stack_[depth - 1];  // re-fetched: the stack may have reallocated
+          if (!AdvanceCounters(f.spec, f.counters)) break;
+          UpdateFrameWorld(f);
+        }
+        xf_stack_.pop_back();
+        return;
+      }
+      case Kind::kIes:
+        WarnOnce("ies", "ies luminaires are not supported; entity ignored");
+        return;
+      case Kind::kColor: {
+        bool defined;
+        SelectContext(colors_, a, "colour", &defined);
+        return;
+      }
+      case Kind::kCxy: {
+        ExpectCount(a, 2, 2, "2 arguments (x y)");
+        const double x = Number(a, 1), y = Number(a, 2);
+        // §3 cxy wants x, y > 0 and x + y < 1; like mgflib we reject only negative values and
+        // x + y > 1 (the hospital scene has "cxy 0 .38" and "cxy .4 0").
+        if (x < 0.0 || y < 0.0 || x + y > 1.0) {
+          Fail("cxy: chromaticity (" + std::string(a[1]) + ", " + std::string(a[2]) +
+               ") is outside the CIE diagram (need x >= 0, y >= 0, x + y <= 1)");
+        }
+        if (y < kMinChromaY) {
+          // (Almost) no luminance: the colour of a luminance-normalised value would be infinite.
+          Warn("cxy: y = " + std::string(a[2]) +
+               " is a colour without luminance; neutral grey used instead");
+          *colors_.current = Chroma{};
+          return;
+        }
+        *colors_.current = Chroma{x, y};
+        return;
+      }
+      case Kind::kCspec: {
+        if (a.size() < 5) Fail("cspec: expected l_min l_max and at least 2 values");
+        const double lmin = Number(a, 1), lmax = Number(a, 2);
+        if (!(lmin < lmax)) Fail("cspec: l_min must be less than l_max");
+        std::vector<double> v;
+        v.reserve(a.size() - 3);
+        for (size_t i = 3; i < a.size(); ++i) v.push_back(Number(a, i));
+        double x, y;
+        if (!mgf::SpectrumToXy(lmin, lmax, v.data(), v.size(), &x, &y)) {
+          Fail("cspec: the spectrum has no positive luminance in 380-780 nm");
+        }
+        *colors_.current = Chroma{x, y};
+        return;
+      }
+      case Kind::kCct: {
+        ExpectCount(a, 1, 1, "1 argument (temperature in K)");
+        const double t = Number(a, 1);
+        if (!(t > 0.0)) Fail("cct: temperature must be positive");
+        // Planck's law; only relative values matter (the colour is normalised).
+        constexpr double kC2 = 1.4387769e-2;  // second radiation constant, m·K
+        const Vec3d xyz = IntegrateXyz([t](double nm) {
+          const double l = nm * 1e-9;
+          const double e = std::expm1(kC2 / (l * t));
+          return std::isfinite(e) && e > 0.0 ? 1.0 / (std::pow(l * 1e6, 5.0) * e) : 0.0;
+        });
+        Chroma c;
+        if (!XyzToChroma(xyz, &c)) Fail("cct: temperature " + Quote(a[1]) + " gives no visible light");
+        *colors_.current = c;
+        return;
+      }
+      case Kind::kCmix: {
+        if (a.size() < 3 || (a.size() - 1) % 2 != 0) {
+          Fail("cmix: expected pairs of weight and colour name");
+        }
+        // Weights are relative luminances (§3 cmix); summing per-unit-luminance XYZ is exactly
+        // the spectral mix for spectral colours and needs no spectrum for (x,y) colours.
+        Vec3d xyz;
+        for (size_t i = 1; i + 1 < a.size(); i += 2) {
+          const double w = Number(a, i);
+          const auto it = colors_.named.find(a[i + 1]);
+          if (it == colors_.named.end()) Fail("undefined colour " + Quote(a[i + 1]));
+          xyz += it->second.XyzPerLuminance() * w;
+        }
+        Chroma c;
+        if (!XyzToChroma(xyz, &c)) Fail("cmix: the mixture has no positive luminance");
+        *colors_.current = c;
+        return;
+      }
+      case Kind::kMaterial: {
+        bool defined;
+        SelectContext(materials_, a, "material", &defined);
+        if (defined) materials_.current->name = std::string(a[1]);
+        if (defined || a.size() == 1) materials_.current->cached = kNone;
+        return;
+      }
+      case Kind::kSides: {
+        ExpectCount(a, 1, 1, "1 argument (1 or 2)");
+        const long s = Integer(a, 1);
+        if (s != 1 && s != 2) Fail("sides: must be 1 or 2");
+        Mat().sides = static_cast<int>(s);
+        return;
+      }
+      case Kind::kRd:
+        ExpectCount(a, 1, 1, "1 argument (rho_d)");
+        Mat().rd = Fraction(a, 1, "reflectance");
+        Mat().rd_c = CurrentColor();
+        return;
+      case Kind::kTd:
+        ExpectCount(a, 1, 1, "1 argument (tau_d)");
+        Mat().td = Fraction(a, 1, "transmittance");
+        Mat().td_c = CurrentColor();
+        return;
+      case Kind::kEd:
+        ExpectCount(a, 1, 1, "1 argument (epsilon_d in lm/m^2)");
+        Mat().ed = NonNegative(a, 1, "emittance");
+        Mat().ed_c = CurrentColor();
+        return;
+      case Kind::kRs:
+        ExpectCount(a, 2, 2, "2 arguments (rho_s alpha_r)");
+        Mat().rs = Fraction(a, 1, "reflectance");
+        Mat().rs_alpha = NonNegative(a, 2, "roughness");
+        Mat().rs_c = CurrentColor();
+        return;
+      case Kind::kTs:
+        ExpectCount(a, 2, 2, "2 arguments (tau_s alpha_t)");
+        Mat().ts = Fraction(a, 1, "transmittance");
+        Mat().ts_alpha = NonNegative(a, 2, "roughness");
+        Mat().ts_c = CurrentColor();
+        return;
+      case Kind::kIr: {
+        ExpectCount(a, 2, 2, "2 arguments (n_real n_imag)");
+        const double n = Number(a, 1), k = Number(a, 2);
+        if (!(n > 0.0)) Fail("ir: the real index of refraction must be positive");
+        if (n > kMaxMaterialValue) Fail("ir: the index of refraction is out of range");
+        if (k != 0.0) {
+          Warn("ir: imaginary part " + std::string(a[2]) +
+               " ignored (metals are rendered as dielectrics)");
+        }
+        Mat().ir_n = n;
+        Mat().ir_k = k;
+        return;
+      }
+      case Kind::kVertex: {
+        bool defined;
+        SelectContext(vertices_, a, "vertex", &defined);
+        return;
+      }
+      case Kind::kPoint:
+        ExpectCount(a, 3, 3, "3 arguments (x y z)");
+        vertices_.current->p = {Number(a, 1), Number(a, 2), Number(a, 3)};
+        return;
+      case Kind::kNormal:
+        ExpectCount(a, 3, 3, "3 arguments (dx dy dz)");
+        // §3 n: normalised; a zero vector means "no normal".
+        vertices_.current->n = SafeNormalize({Number(a, 1), Number(a, 2), Number(a, 3)});
+        return;
+      case Kind::kFace:
+        Face(a);
+        return;
+      case Kind::kFaceHoles:
+        FaceWithHoles(a);
+        return;
+      case Kind::kSphere:
+        Sphere(a);
+        return;
+      case Kind::kCylinder:
+        ExpectCount(a, 3, 3, "3 arguments (v1 radius v2)");
+        {
+          const double r = Number(a, 2);
+          if (r == 0.0) Fail("cyl: radius must not be zero");
+          Cone(a, a[1], r, a[3], r);
+        }
+        return;
+      case Kind::kCone: {
+        ExpectCount(a, 4, 4, "4 arguments (v1 rad1 v2 rad2)");
+        const double r1 = Number(a, 2), r2 = Number(a, 4);
+        if (r1 == 0.0 && r2 == 0.0) Fail("cone: both radii are zero");
+        if ((r1 > 0.0 && r2 < 0.0) || (r1 < 0.0 && r2 > 0.0)) {
+          Fail("cone: the radii must not have opposite signs");
+        }
+        Cone(a, a[1], r1, a[3], r2);
+        return;
+      }
+      case Kind::kPrism:
+        Prism(a);
+        return;
+      case Kind::kRing:
+        Ring(a);
+        return;
+      case Kind::kTorus:
+        Torus(a);
+        return;
+      case Kind::kUnknown:
+        WarnOnce(a.keyword(), "unknown entity " + Quote(a.keyword()) + " ignored");
+        return;
+    }
+  }
+
+  void WarnOnce(std::string_view kind, const std::string& message) {
+    std::string key = state_->file->canonical;
+    key += '\0';
+    key += kind;
+    if (warned_once_.insert(std::move(key)).second) Warn(message);
+  }
+
+  // ---- emission ------------------------------------------------------------------------------
+  uint32_t MaterialIndex() {
+    MaterialCtx& m = *materials_.current;
+    if (m.cached != kNone) return m.cached;
+    Material out;
+    out.name = m.name;
+    out.diffuse_reflectance = ChromaRgb(m.rd_c) * static_cast<float>(m.rd);
+    out.specular_reflectance = ChromaRgb(m.rs_c) * static_cast<float>(m.rs);
+    out.specular_roughness = static_cast<float>(m.rs_alpha);
+    out.diffuse_transmittance = ChromaRgb(m.td_c) * static_cast<float>(m.td);
+    out.specular_transmittance = ChromaRgb(m.ts_c) * static_cast<float>(m.ts);
+    out.transmission_roughness = static_cast<float>(m.ts_alpha);
+    out.ior = static_cast<float>(m.ir_n);
+    out.one_sided = m.sides == 1;
+    // Luminous emittance (lm/m²) of a Lambertian emitter -> radiance in W/(m²·sr): divide by π
+    // and by the luminous efficacy of white light; the colour has luminance Y = 1.
+    out.emission = ChromaRgb(m.ed_c) *
+                   static_cast<float>(m.ed / (kPiD * mgf::kLuminousEfficacy));
+    // Energy conservation (§3 m: "the sum ... must not be greater than one").
+    // Saturated colours can push a channel above 1 even when the photometric values obey it.
+    const Rgb sum = out.diffuse_reflectance + out.specular_reflectance +
+                    out.diffuse_transmittance + out.specular_transmittance;
+    const float max_sum = sum.Max();
+    if (max_sum > 1.0f) {
+      const float s = 1.0f / max_sum;
+      out.diffuse_reflectance *= s;
+      out.specular_reflectance *= s;
+      out.diffuse_transmittance *= s;
+      out.specular_transmittance *= s;
+    }
+    std::string key = out.name;
+    key += '\0';
+    auto put = [&key](const auto& v) {
+      key.append(reinterpret_cast<const char*>(&v), sizeof(v));
+    };
+    for (const Rgb* c : {&out.diffuse_reflectance, &out.specular_reflectance,
+                         &out.diffuse_transmittance, &out.specular_transmittance, &out.emission}) {
+      put(c->r);
+      put(c->g);
+      put(c->b);
+    }
+    put(out.specular_roughness);
+    put(out.transmission_roughness);
+    put(out.ior);
+    put(out.one_sided);
+    auto [it, inserted] =
+        material_index_.try_emplace(std::move(key), static_cast<uint32_t>(scene_.materials.size()));
+    if (inserted) {
+      if (max_sum > 1.0001f) {  // rounding of "rd 1" with a near-white colour is not worth a word
+        Warn("material " + Quote(m.name.empty() ? std::string_view("(unnamed)") : m.name) +
+             ": rd+rs+td+ts reaches " + std::to_string(max_sum) +
+             " in a colour channel; scaled down to 1");
+      }
+      scene_.materials.push_back(std::move(out));
+    }
+    m.cached = it->second;
+    return m.cached;
+  }
+
+  // Starts a source primitive: its material, and a light id assigned at its first triangle.
+  void BeginPrimitive(size_t expected_triangles) {
+    if (scene_.triangles.size() + expected_triangles > options_.max_triangles) {
+      Fail("more than " + std::to_string(options_.max_triangles) +
+           " triangles (MgfOptions::max_triangles)");
+    }
+    prim_material_ = MaterialIndex();
+    prim_emissive_ = scene_.materials[prim_material_].IsEmissive();
+    prim_light_ = kNoLight;
+  }
+
+  uint32_t AddVertex(const Vec3d& p, const Vec3d& n) {
+    for (int k = 0; k < 3; ++k) {
+      if (!(std::abs(p[k]) <= kMaxCoordinate)) {
+        Fail("coordinates out of range after transformation (|x| > 1e18)");
+      }
+    }
+    if (scene_.positions.size() >= 0xfffffff0u) Fail("too many vertices");
+    scene_.positions.push_back(Vec3(p));
+    scene_.normals.push_back(Vec3(n));
+    any_normal_ = any_normal_ || !(n == Vec3d{});
+    return static_cast<uint32_t>(scene_.positions.size() - 1);
+  }
+
+  void AddTriangle(uint32_t a, uint32_t b, uint32_t c) {
+    if (scene_.triangles.size() >= options_.max_triangles) {
+      Fail("more than " + std::to_string(options_.max_triangles) +
+           " triangles (MgfOptions::max_triangles)");
+    }
+    if (prim_emissive_ && prim_light_ == kNoLight) prim_light_ = scene_.num_lights++;
+    scene_.triangles.push_back({a, b, c});
+    scene_.triangle_material.push_back(prim_material_);
+    scene_.triangle_light.push_back(prim_emissive_ ? prim_light_ : kNoLight);
+  }
+
+  // Emits a polygon given in world space, in its final orientation. Returns false if degenerate.
+  bool EmitPolygon(std::span<const PolyVertex> poly, bool use_normals, std::string_view what) {
+    poly_points_.resize(poly.size());
+    for (size_t i = 0; i < poly.size(); ++i) poly_points_[i] = poly[i].p;
+    bool approximate = false;
+    if (!TriangulatePolygon(poly_points_, &poly_tris_, &approximate)) return false;
+    if (approximate) {
+      Warn(std::string(what) + ": self-intersecting polygon, triangulated approximately");
+    }
+    remap_.assign(poly.size(), kNone);
+    auto vertex = [&](uint32_t i) {
+      if (remap_[i] == kNone) remap_[i] = AddVertex(poly[i].p, use_normals ? poly[i].n : Vec3d{});
+      return remap_[i];
+    };
+    for (const auto& t : poly_tris_) {
+      const uint32_t a = vertex(t[0]), b = vertex(t[1]), c = vertex(t[2]);
+      AddTriangle(a, b, c);
+    }
+    return true;
+  }
+
+  // World-space vertices of a list of vertex names; `all_normals` tells whether every vertex
+  // has a normal. Mirroring transforms reverse the order (see mgf_loader.h).
+  void WorldPolygon(const Args& a, size_t first, size_t end, std::vector<PolyVertex>* out,
+                    bool* all_normals) const {
+    if (end - first > kMaxPolygonVertices) {
+      Fail(std::string(a.keyword()) + ": more than " + std::to_string(kMaxPolygonVertices) +
+           " vertices in one polygon");
+    }
+    const Affine& xf = World();
+    out->clear();
+    *all_normals = true;
+    for (size_t i = first; i < end; ++i) {
+      const VertexCtx& v = NamedVertex(a[i]);
+      const bool has_n = !(v.n == Vec3d{});
+      *all_normals = *all_normals && has_n;
+      out->push_back({xf.Point(v.p), has_n ? SafeNormalize(xf.Vector(v.n)) : Vec3d{}});
+    }
+    if (xf.Mirrors()) std::reverse(out->begin(), out->end());
+  }
+
+  void Face(const Args& a) {
+    if (a.size() < 4) Fail("f: expected at least 3 vertex names, got " + std::to_string(a.size() - 1));
+    bool all_normals;
+    WorldPolygon(a, 1, a.size(), &poly_, &all_normals);
+    BeginPrimitive(a.size());
+    if (!EmitPolygon(poly_, all_normals, "f")) Warn("f: degenerate face (no area) skipped");
+  }
+
+  // §3 fh: "p1 p2 ... - h1.1 h1.2 ... - h2.1 ...". Holes are bridged into the outer contour,
+  // turning the face into the seamed polygon of §3 f, which the ear clipper handles.
+  void FaceWithHoles(const Args& a) {
+    std::vector<std::pair<size_t, size_t>> contours;  // [first, end) word ranges
+    size_t start = 1;
+    for (size_t i = 1; i <= a.size(); ++i) {
+      if (i == a.size() || a[i] == "-") {
+        if (i - start < 3) Fail("fh: every contour needs at least 3 vertices");
+        contours.emplace_back(start, i);
+        start = i + 1;
+      }
+    }
+    std::vector<std::vector<PolyVertex>> rings(contours.size());
+    bool all_normals = true;
+    for (size_t k = 0; k < contours.size(); ++k) {
+      bool n;
+      WorldPolygon(a, contours[k].first, contours[k].second, &rings[k], &n);
+      all_normals = all_normals && n;
+    }
+    BeginPrimitive(a.size() * 3);
+    std::vector<PolyVertex> merged;
+    if (!BridgeHoles(rings, &merged)) {
+      Warn("fh: degenerate outer contour (no area) skipped");
+      return;
+    }
+    if (!EmitPolygon(merged, all_normals, "fh")) Warn("fh: degenerate face (no area) skipped");
+  }
+
+  // Connects each hole to the outer contour through a pair of coincident seam edges: from the
+  // hole's extreme vertex M along +u to the nearest contour edge, then to a visible contour
+  // vertex P (the classic hole elimination of ear-clipping triangulators). Holes are processed
+  // from the largest u down, so a later bridge may also land on an earlier hole.
+  bool BridgeHoles(const std::vector<std::vector<PolyVertex>>& rings,
+                   std::vector<PolyVertex>* merged) {
+    const std::vector<PolyVertex>& outer = rings[0];
+    Vec3d area2;
+    for (size_t i = 0; i < outer.size(); ++i) {
+      area2 += Cross(outer[i].p - outer[0].p, outer[(i + 1) % outer.size()].p - outer[0].p);
+    }
+    const double len = Length(area2);
+    if (!(len > 0.0)) return false;
+    Vec3d u, w;
+    OrthonormalBasis(area2 / len, &u, &w);
+    auto q = [&](const PolyVertex& v) { return std::pair<double, double>{Dot(v.p, u), Dot(v.p, w)}; };
+    auto signed_area = [&](const std::vector<PolyVertex>& r) {
+      double s = 0;
+      for (size_t i = 0; i < r.size(); ++i) {
+        const auto [x0, y0] = q(r[i]);
+        const auto [x1, y1] = q(r[(i + 1) % r.size()]);
+        s += x0 * y1 - x1 * y0;
+      }
+      return s;
+    };
+    *merged = outer;
+    std::vector<std::pair<double, size_t>> order;  // (max u, hole index)
+    for (size_t k = 1; k < rings.size(); ++k) {
+      double mx = -std::numeric_limits<double>::infinity();
+      for (const PolyVertex& v : rings[k]) mx = std::max(mx, q(v).first);
+      order.emplace_back(mx, k);
+    }
+    std::sort(order.begin(), order.end(), std::greater<>());
+    for (const auto& [mx, k] : order) {
+      std::vector<PolyVertex> hole = rings[k];
+      if (signed_area(hole) > 0.0) std::reverse(hole.begin(), hole.end());  // holes run clockwise
+      size_t m = 0;
+      for (size_t i = 1; i < hole.size(); ++i) {
+        if (q(hole[i]).first > q(hole[m]).first) m = i;
+      }
+      // Plain variables, not a structured binding: lambdas below capture them (clang 14).
+      const double hx = q(hole[m]).first, hy = q(hole[m]).second;
+      // Nearest crossing of the ray y = hy, x >= hx with an edge of the merged contour.
+      double best_x = std::numeric_limits<double>::infinity();
+      size_t best = kNone;
+      const size_t n = merged->size();
+      for (size_t i = 0; i < n; ++i) {
+        const auto [ax, ay] = q((*merged)[i]);
+        const auto [bx, by] = q((*merged)[(i + 1) % n]);
+        if (ay == by || hy < std::min(ay, by) || hy > std::max(ay, by)) continue;
+        const double x = ax + (hy - ay) * (bx - ax) / (by - ay);
+        if (x >= hx && x < best_x) {
+          best_x = x;
+          best = ax > bx ? i : (i + 1) % n;
+        }
+      }
+      if (best == kNone) {
+        Warn("fh: a hole lies outside the outer contour; hole ignored");
+        continue;
+      }
+      // A contour vertex inside the triangle (M, crossing, P) could block the bridge: take the
+      // one with the smallest angle to the ray instead. Vertices that occur twice (the seam of
+      // an earlier bridge) are only usable at the copy whose interior angle contains the bridge
+      // direction ("locally inside"), otherwise the spliced contour would cross itself.
+      auto orient = [](double ax, double ay, double bx, double by, double cx, double cy) {
+        return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+      };
+      auto locally_inside = [&](size_t i) {
+        const auto [ax, ay] = q((*merged)[(i + n - 1) % n]);
+        const auto [bx, by] = q((*merged)[i]);
+        const auto [cx, cy] = q((*merged)[(i + 1) % n]);
+        const double left_of_in = orient(ax, ay, bx, by, hx, hy);
+        const double left_of_out = orient(bx, by, cx, cy, hx, hy);
+        return orient(ax, ay, bx, by, cx, cy) >= 0.0 ? (left_of_in >= 0.0 && left_of_out >= 0.0)
+                                                     : (left_of_in >= 0.0 || left_of_out >= 0.0);
+      };
+      const auto [px, py] = q((*merged)[best]);
+      const size_t hit = best;
+      double best_tan = std::numeric_limits<double>::infinity();
+      bool found = false;
+      for (size_t i = 0; i < n; ++i) {
+        const auto [vx, vy] = q((*merged)[i]);
+        const bool is_hit = vx == px && vy == py;
+        if (!is_hit) {
+          if (!(vx > hx)) continue;
+          const double o1 = orient(hx, hy, best_x, hy, vx, vy);
+          const double o2 = orient(best_x, hy, px, py, vx, vy);
+          const double o3 = orient(px, py, hx, hy, vx, vy);
+          const bool inside = (o1 >= 0 && o2 >= 0 && o3 >= 0) || (o1 <= 0 && o2 <= 0 && o3 <= 0);
+          if (!inside) continue;
+        }
+        if (!locally_inside(i)) continue;
+        const double t = vx > hx ? std::abs(vy - hy) / (vx - hx)
+                                 : std::numeric_limits<double>::max();
+        if (!found || t < best_tan) {
+          best_tan = t;
+          best = i;
+          found = true;
+        }
+      }
+      if (!found) best = hit;
+      std::vector<PolyVertex> insert;
+      insert.reserve(hole.size() + 2);
+      for (size_t i = 0; i <= hole.size(); ++i) insert.push_back(hole[(m + i) % hole.size()]);
+      insert.push_back((*merged)[best]);
+      merged->insert(merged->begin() + static_cast<std::ptrdiff_t>(best) + 1, insert.begin(),
+                     insert.end());
+    }
+    return true;
+  }
+
+  // World-space points and radii beyond kMaxCoordinate are errors; radii that vanish under a
+  // tiny scale make the primitive degenerate (a warning).
+  Vec3d CheckedPoint(const Vec3d& p) const {
+    for (int k = 0; k < 3; ++k) {
+      if (!(std::abs(p[k]) <= kMaxCoordinate)) {
+        Fail("coordinates out of range after transformation (|x| > 1e18)");
+      }
+    }
+    return p;
+  }
+  bool UsableRadius(double r) const {
+    if (!(r <= kMaxCoordinate)) Fail("radius out of range after transformation (> 1e18)");
+    return r > 1e-300;
+  }
+
+  void Sphere(const Args& a) {
+    ExpectCount(a, 2, 2, "2 arguments (vc radius)");
+    const VertexCtx& vc = NamedVertex(a[1]);
+    const double r = Number(a, 2);
+    if (r == 0.0) Fail("sph: radius must not be zero");
+    const Affine& xf = World();
+    const Vec3d c = CheckedPoint(xf.Point(vc.p));
+    const double scale = xf.Scale();
+    const double rw = std::abs(r) * scale;
+    const double sign = r > 0.0 ? 1.0 : -1.0;  // negative radius: inward normals (§3 sph)
+    const int n = options_.curve_segments;
+    const int bands = std::max(2, n / 2);
+    BeginPrimitive(static_cast<size_t>(2) * n * bands);
+    if (!UsableRadius(rw)) {
+      Warn("sph: radius vanishes after transformation; skipped");
+      return;
+    }
+    std::vector<uint32_t> ids(static_cast<size_t>(bands + 1) * n);
+    for (int j = 0; j <= bands; ++j) {
+      const double phi = kPiD * j / bands;  // polar angle from +z
+      const double sp = (j == 0 || j == bands) ? 0.0 : std::sin(phi);
+      const double cp = j == 0 ? 1.0 : (j == bands ? -1.0 : std::cos(phi));
+      for (int i = 0; i < n; ++i) {
+        const Vec3d d{sp * circle_[i].first, sp * circle_[i].second, cp};
+        ids[static_cast<size_t>(j) * n + i] = AddVertex(c + d * rw, d * sign);
+      }
+    }
+    for (int j = 0; j < bands; ++j) {
+      for (int i = 0; i < n; ++i) {
+        const int i1 = (i + 1) % n;
+        const uint32_t p00 = ids[j * n + i], p01 = ids[(j + 1) * n + i];
+        const uint32_t p11 = ids[(j + 1) * n + i1], p10 = ids[j * n + i1];
+        // (θ, φ) -> (θ, φ+) -> (θ+, φ+) faces outwards; the pole rows collapse to triangles.
+        if (j != bands - 1) Tri(sign, p00, p01, p11);
+        if (j != 0) Tri(sign, p00, p11, p10);
+      }
+    }
+  }
+
+  // Outward triangle (a, b, c), reversed when the primitive faces inwards.
+  void Tri(double sign, uint32_t a, uint32_t b, uint32_t c) {
+    if (sign > 0.0) {
+      AddTriangle(a, b, c);
+    } else {
+      AddTriangle(a, c, b);
+    }
+  }
+
+  // cyl and cone (§3 cyl, cone): open-ended truncated cone from v1 (radius r1) to v2 (r2).
+  void Cone(const Args& a, std::string_view n1, double r1, std::string_view n2, double r2) {
+    const VertexCtx& v1 = NamedVertex(n1);
+    const VertexCtx& v2 = NamedVertex(n2);
+    if (v1.p == v2.p) {
+      Fail(std::string(a.keyword()) + ": the end points coincide" +
+           (a.keyword() == "cone" ? " (use ring)" : ""));
+    }
+    const Affine& xf = World();
+    const Vec3d p1 = CheckedPoint(xf.Point(v1.p)), p2 = CheckedPoint(xf.Point(v2.p));
+    const double scale = xf.Scale();
+    const double sign = (r1 < 0.0 || r2 < 0.0) ? -1.0 : 1.0;  // negative radii face inwards
+    const double ra = std::abs(r1) * scale, rb = std::abs(r2) * scale;
+    const int n = options_.curve_segments;
+    BeginPrimitive(static_cast<size_t>(2) * n);
+    const Vec3d axis = p2 - p1;
+    const double h = Length(axis);
+    if (!UsableRadius(std::max(ra, rb)) || !(h > 0.0)) {
+      Warn(std::string(a.keyword()) + ": degenerate after transformation; skipped");
+      return;
+    }
+    const Vec3d ax = axis / h;
+    Vec3d u, w;
+    OrthonormalBasis(ax, &u, &w);
+    // Surface normal at angle θ: h·ρ(θ) + (ra − rb)·axis, normalised (perpendicular to the
+    // slant line). Apex vertices get the normal of their segment's middle.
+    auto normal_at = [&](double c, double s) {
+      return SafeNormalize((u * c + w * s) * h + ax * (ra - rb)) * sign;
+    };
+    const double half = kPiD / n;
+    std::vector<uint32_t> bottom(n), top(n);
+    for (int i = 0; i < n; ++i) {
+      const auto [c, s] = circle_[i];
+      const Vec3d rho = u * c + w * s;
+      const double ab = 2.0 * kPiD * i / n + half;  // bottom apex: segment (i, i+1)
+      const double at = 2.0 * kPiD * i / n - half;  // top apex: segment (i-1, i)
+      bottom[i] = AddVertex(p1 + rho * ra, ra > 0.0 ? normal_at(c, s)
+                                                    : normal_at(std::cos(ab), std::sin(ab)));
+      top[i] = AddVertex(p2 + rho * rb, rb > 0.0 ? normal_at(c, s)
+                                                 : normal_at(std::cos(at), std::sin(at)));
+    }
+    for (int i = 0; i < n; ++i) {
+      const int i1 = (i + 1) % n;
+      // (b_i, b_i+1, t_i+1) and (b_i, t_i+1, t_i) face outwards for u × w = axis.
+      if (ra > 0.0) Tri(sign, bottom[i], bottom[i1], top[i1]);
+      if (rb > 0.0) Tri(sign, bottom[i], top[i1], top[i]);
+    }
+  }
+
+  // The centre vertex of ring and torus must have a normal (§3 ring, torus).
+  const VertexCtx& OrientedCentre(const Args& a) const {
+    const VertexCtx& vc = NamedVertex(a[1]);
+    if (vc.n == Vec3d{}) {
+      Fail(std::string(a.keyword()) + ": centre vertex " + Quote(a[1]) + " has no normal");
+    }
+    return vc;
+  }
+
+  void Ring(const Args& a) {
+    ExpectCount(a, 3, 3, "3 arguments (vc rmin rmax)");
+    const VertexCtx& vc = OrientedCentre(a);
+    const double rmin = Number(a, 2), rmax = Number(a, 3);
+    if (rmin < 0.0) Fail("ring: inner radius must not be negative");
+    if (!(rmax > rmin)) Fail("ring: outer radius must be greater than the inner radius");
+    const Affine& xf = World();
+    const Vec3d c = CheckedPoint(xf.Point(vc.p));
+    const Vec3d nz = SafeNormalize(xf.Vector(vc.n));
+    const double scale = xf.Scale();
+    const double ri = rmin * scale, ro = rmax * scale;
+    const int n = options_.curve_segments;
+    BeginPrimitive(static_cast<size_t>(2) * n);
+    if (nz == Vec3d{} || !UsableRadius(ro)) {
+      Warn("ring: degenerate after transformation; skipped");
+      return;
+    }
+    Vec3d u, w;
+    OrthonormalBasis(nz, &u, &w);
+    std::vector<uint32_t> inner(n), outer(n);
+    const uint32_t centre = ri > 0.0 ? kNone : AddVertex(c, nz);
+    for (int i = 0; i < n; ++i) {
+      const Vec3d rho = u * circle_[i].first + w * circle_[i].second;
+      outer[i] = AddVertex(c + rho * ro, nz);
+      inner[i] = ri > 0.0 ? AddVertex(c + rho * ri, nz) : centre;
+    }
+    for (int i = 0; i < n; ++i) {
+      const int i1 = (i + 1) % n;
+      AddTriangle(inner[i], outer[i], outer[i1]);  // ρ × τ = u × w = normal
+      if (ri > 0.0) AddTriangle(inner[i], outer[i1], inner[i1]);
+    }
+  }
+
+  // §3 torus: tube of radius (rmax − rmin)/2 swept around a circle of radius (rmax + rmin)/2
+  // (mgflib's reading of "inner and outer radii").
+  void Torus(const Args& a) {
+    ExpectCount(a, 3, 3, "3 arguments (vc rmin rmax)");
+    const VertexCtx& vc = OrientedCentre(a);
+    const double rmin = Number(a, 2), rmax = Number(a, 3);
+    if (rmax == 0.0) Fail("torus: outer radius must not be zero");
+    if (rmax > 0.0 && rmin < 0.0) Fail("torus: inner radius must not be negative");
+    if (rmax < 0.0 && rmin > 0.0) Fail("torus: inner radius must not be positive for an inward torus");
+    if (!(std::abs(rmax) > std::abs(rmin))) {
+      Fail("torus: |outer radius| must be greater than |inner radius|");
+    }
+    const double sign = rmax > 0.0 ? 1.0 : -1.0;
+    const Affine& xf = World();
+    const Vec3d c = CheckedPoint(xf.Point(vc.p));
+    const Vec3d nz = SafeNormalize(xf.Vector(vc.n));
+    const double scale = xf.Scale();
+    const double tube = (std::abs(rmax) - std::abs(rmin)) * 0.5 * scale;
+    const double sweep = (std::abs(rmax) + std::abs(rmin)) * 0.5 * scale;
+    const int n = options_.curve_segments;
+    BeginPrimitive(static_cast<size_t>(2) * n * n);
+    if (nz == Vec3d{} || !UsableRadius(tube) || !UsableRadius(sweep)) {
+      Warn("torus: degenerate after transformation; skipped");
+      return;
+    }
+    Vec3d u, w;
+    OrthonormalBasis(nz, &u, &w);
+    std::vector<uint32_t> ids(static_cast<size_t>(n) * n);
+    for (int i = 0; i < n; ++i) {
+      const Vec3d rho = u * circle_[i].first + w * circle_[i].second;
+      for (int j = 0; j < n; ++j) {
+        const Vec3d d = rho * circle_[j].first + nz * circle_[j].second;
+        ids[static_cast<size_t>(i) * n + j] = AddVertex(c + rho * sweep + d * tube, d * sign);
+      }
+    }
+    for (int i = 0; i < n; ++i) {
+      const int i1 = (i + 1) % n;
+      for (int j = 0; j < n; ++j) {
+        const int j1 = (j + 1) % n;
+        const uint32_t p00 = ids[i * n + j], p10 = ids[i1 * n + j];
+        const uint32_t p11 = ids[i1 * n + j1], p01 = ids[i * n + j1];
+        Tri(sign, p00, p10, p11);  // ∂θ × ∂φ points away from the tube's core
+        Tri(sign, p00, p11, p01);
+      }
+    }
+  }
+
+  // §3 prism: the given face is one end (kept as given, so it faces outwards); the other end is
+  // its mirror image at distance `length` opposite to the face normal; N side quads join them.
+  // A negative length extrudes along the normal and leaves every normal pointing inwards.
+  void Prism(const Args& a) {
+    if (a.size() < 5) Fail("prism: expected at least 3 vertex names and a length");
+    const double length = Number(a, a.size() - 1);
+    if (length == 0.0) Fail("prism: length must not be zero");
+    bool all_normals;
+    WorldPolygon(a, 1, a.size() - 1, &poly_, &all_normals);
+    const size_t n = poly_.size();
+    BeginPrimitive(4 * n);
+    Vec3d area2;
+    for (size_t i = 0; i < n; ++i) area2 += Cross(poly_[i].p - poly_[0].p, poly_[(i + 1) % n].p - poly_[0].p);
+    const Vec3d nz = SafeNormalize(area2);
+    const double scale = World().Scale();
+    if (nz == Vec3d{}) {
+      Warn("prism: degenerate end face (no area) skipped");
+      return;
+    }
+    const Vec3d d = nz * (-length * scale);
+    std::vector<PolyVertex> end_face(poly_.size());
+    for (size_t i = 0; i < n; ++i) end_face[i] = {poly_[n - 1 - i].p + d, {}};
+    const std::vector<PolyVertex>& base = poly_;
+    EmitPolygon(base, false, "prism");
+    EmitPolygon(end_face, false, "prism");
+    for (size_t i = 0; i < n; ++i) {
+      const PolyVertex& p = base[i];
+      const PolyVertex& q = base[(i + 1) % n];
+      const std::array<PolyVertex, 4> side = {PolyVertex{p.p, p.n}, PolyVertex{p.p + d, p.n},
+                                              PolyVertex{q.p + d, q.n}, PolyVertex{q.p, q.n}};
+      EmitPolygon(side, all_normals, "prism");
+    }
+  }
+
+  void Finish() {
+    if (!any_normal_) scene_.normals.clear();
+    if (suppressed_warnings_ > 0) {
+      scene_.warnings.push_back(scene_.source + ": " + std::to_string(suppressed_warnings_) +
+                                " more warnings not shown");
+      spdlog::warn("{}", scene_.warnings.back());
+    }
+  }
+
+  const MgfOptions& options_;
+  SceneDescription& scene_;
+  std::vector<std::pair<double, double>> circle_;  // cos, sin of the N segment angles
+  std::string include_root_;
+
+  std::map<std::string, std::unique_ptr<MgfFile>> files_;  // by canonical path
+  std::vector<std::string> include_stack_;
+  FileState* state_ = nullptr;
+  int line_ = 0;
+  uint64_t executed_ = 0;
+
+  ContextTable<VertexCtx> vertices_;
+  ContextTable<Chroma> colors_;
+  ContextTable<MaterialCtx> materials_;
+  std::vector<XfFrame> xf_stack_;
+  int object_depth_ = 0;
+
+  std::unordered_map<std::string, uint32_t> material_index_;
+  uint32_t prim_material_ = 0;
+  bool prim_emissive_ = false;
+  uint32_t prim_light_ = kNoLight;
+  bool any_normal_ = false;
+
+  std::set<std::string> warned_once_;
+  size_t suppressed_warnings_ = 0;
+
+  // Scratch buffers reused across faces.
+  std::vector<PolyVertex> poly_;
+  std::vector<Vec3d> poly_points_;
+  std::vector<std::array<uint32_t, 3>> poly_tris_;
+  std::vector<uint32_t> remap_;
+};
+
+void CheckOptions(const MgfOptions& o, const std::string& name) {
+  if (o.curve_segments < kMinCurveSegments || o.curve_segments > kMaxCurveSegments) {
+    throw InputError(SourceLocation{name, 0},
+                     "MgfOptions::curve_segments = " + std::to_string(o.curve_segments) +
+                         " is not in [" + std::to_string(kMinCurveSegments) + ", " +
+                         std::to_string(kMaxCurveSegments) + "]");
+  }
+  if (o.max_depth < 1) throw InputError(SourceLocation{name, 0}, "MgfOptions::max_depth < 1");
+}
+
+SceneDescription Load(std::unique_ptr<MgfFile> file, const MgfOptions& options) {
+  CheckOptions(options, file->name);
+  Tokenize(*file);
+  SceneDescription scene;
+  scene.source = file->name;
+  MgfReader reader(options, &scene);
+  reader.Run(std::move(file));
+  return scene;
+}
+
+}  // namespace
+
+namespace mgf {
+
+Rgb CieToRgb(double x, double y, double Y) {
+  if (!(y > 0.0)) return Rgb();
+  const double xyz[3] = {x / y * Y, Y, (1.0 - x - y) / y * Y};
+  Rgb out;
+  for (int i = 0; i < 3; ++i) {
+    const double v = kXyzToRgb.m[i][0] * xyz[0] + kXyzToRgb.m[i][1] * xyz[1] +
+                     kXyzToRgb.m[i][2] * xyz[2];
+    // "watch for negative values" (§6.1.1); the upper clamp only keeps the float cast defined.
+    out[i] = v > 0.0 ? static_cast<float>(std::min(v, 1e30)) : 0.0f;
+  }
+  return out;
+}
+
+bool SpectrumToXy(double lambda_min, double lambda_max, const double* values, size_t count,
+                  double* x, double* y) {
+  if (count < 2 || !(lambda_min < lambda_max)) return false;
+  const double step = (lambda_max - lambda_min) / static_cast<double>(count - 1);
+  if (!(step > 0.0) || !std::isfinite(step)) return false;
+  // §3 cspec: evenly spaced samples, linearly interpolated, zero outside [l_min, l_max].
+  const Vec3d xyz = IntegrateXyz([&](double l) {
+    if (l < lambda_min || l > lambda_max) return 0.0;
+    const double t = (l - lambda_min) / step;
+    const size_t i = std::min(static_cast<size_t>(t), count - 2);
+    const double f = t - static_cast<double>(i);
+    return values[i] + f * (values[i + 1] - values[i]);
+  });
+  Chroma c;
+  if (!XyzToChroma(xyz, &c)) return false;
+  *x = c.x;
+  *y = c.y;
+  return true;
+}
+
+}  // namespace mgf
+
+SceneDescription LoadMgf(const std::filesystem::path& file, const MgfOptions& options) {
+  auto f = std::make_unique<MgfFile>();
+  f->name = file.string();
+  if (std::string err = ReadWholeFile(file, &f->text); !err.empty()) {
+    throw InputError(SourceLocation{f->name, 0}, "cannot load MGF file: " + err);
+  }
+  f->dir = file.parent_path();
+  f->canonical = CanonicalKey(file);
+  return Load(std::move(f), options);
+}
+
+SceneDescription LoadMgfFromString(std::string_view text, const std::string& virtual_name,
+                                   const MgfOptions& options) {
+  auto f = std::make_unique<MgfFile>();
+  f->name = virtual_name;
+  f->text = std::string(text);
+  const fs::path p(virtual_name);
+  f->dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  f->canonical = CanonicalKey(p);
+  return Load(std::move(f), options);
+}
+
+}  // namespace pf

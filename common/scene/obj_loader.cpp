@@ -1,0 +1,358 @@
+// OBJ/MTL loading through tinyobjloader; the mapping to Ward's model is documented in the
+// header. tinyobjloader reports problems as free text (warnings and errors); this file turns
+// the ones that would leave broken geometry into InputError with the file and line.
+#include "common/scene/obj_loader.h"
+
+#include <tiny_obj_loader.h>
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string_view>
+#include <unordered_map>
+
+#include "common/core/error.h"
+
+namespace pf {
+namespace {
+
+constexpr float kDefaultGrey = 0.8f;
+// Sums of reflectance and transmittance this close to 1 are not worth a warning.
+constexpr float kEnergyTolerance = 1e-4f;
+
+std::string FormatRgb(const Rgb& c) {
+  std::ostringstream s;
+  s << c.r << " " << c.g << " " << c.b;
+  return s.str();
+}
+
+// Negative or non-finite channels become 0 (with a warning): they would break every estimator.
+Rgb NonNegative(const Rgb& c, const std::string& material, const char* what,
+                std::vector<std::string>* warnings) {
+  Rgb out = c;
+  bool changed = false;
+  for (int i = 0; i < 3; ++i) {
+    if (!(out[i] >= 0.0f) || !std::isfinite(out[i])) {
+      out[i] = 0.0f;
+      changed = true;
+    }
+  }
+  if (changed && warnings)
+    warnings->push_back("material '" + material + "': " + what + " " + FormatRgb(c) +
+                        " has negative or non-finite channels; set to 0");
+  return out;
+}
+
+// tinyobjloader's messages often end with "line N." or "(line N.)".
+int LineFromMessage(const std::string& message) {
+  static const std::regex kLine(R"(line[ :]*([0-9]+))");
+  std::smatch m;
+  if (std::regex_search(message, m, kLine)) return std::stoi(m[1].str());
+  return 0;
+}
+
+std::vector<std::string> SplitLines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (!line.empty()) lines.push_back(line);
+  }
+  return lines;
+}
+
+// tinyobjloader's warnings that mean the geometry cannot be trusted.
+bool IsFatalWarning(const std::string& w) {
+  return w.find("Vertex indices out of bounds") != std::string::npos ||
+         w.find("Vertex normal indices out of bounds") != std::string::npos ||
+         w.find("Face with invalid vertex index") != std::string::npos;
+}
+
+// Parses the leading integer of an OBJ index field ("12", "-3"); nullopt-like 0 if absent.
+bool ParseIndex(std::string_view field, long* value) {
+  if (field.empty()) return false;
+  const char* begin = field.data();
+  const char* end = begin + field.size();
+  auto [ptr, ec] = std::from_chars(begin, end, *value);
+  return ec == std::errc() && ptr != begin;
+}
+
+// Error path only: re-reads the file to find the first face line whose vertex or normal index
+// does not resolve (tinyobjloader reports only the last line of the file). Positive indices are
+// checked against the final counts (tinyobjloader accepts forward references), negative ones
+// against the counts so far. Returns 0 if nothing is found.
+int FindFirstBadFaceLine(const std::filesystem::path& path, long total_v, long total_vn) {
+  std::ifstream in(path);
+  std::string line;
+  int line_number = 0;
+  long v_so_far = 0, vn_so_far = 0;
+  auto resolves = [](long idx, long so_far, long total) {
+    if (idx > 0) return idx <= total;
+    if (idx < 0) return so_far + idx >= 0;
+    return false;
+  };
+  while (std::getline(in, line)) {
+    ++line_number;
+    std::istringstream tokens(line);
+    std::string keyword;
+    if (!(tokens >> keyword)) continue;
+    if (keyword == "v") {
+      ++v_so_far;
+    } else if (keyword == "vn") {
+      ++vn_so_far;
+    } else if (keyword == "f") {
+      std::string corner;
+      while (tokens >> corner) {
+        const size_t slash1 = corner.find('/');
+        long vi = 0;
+        if (!ParseIndex(std::string_view(corner).substr(0, slash1), &vi) ||
+            !resolves(vi, v_so_far, total_v))
+          return line_number;
+        if (slash1 == std::string::npos) continue;
+        const size_t slash2 = corner.find('/', slash1 + 1);
+        if (slash2 == std::string::npos) continue;
+        long ni = 0;
+        const std::string_view normal_field = std::string_view(corner).substr(slash2 + 1);
+        if (!normal_field.empty() &&
+            (!ParseIndex(normal_field, &ni) || !resolves(ni, vn_so_far, total_vn)))
+          return line_number;
+      }
+    }
+  }
+  return 0;
+}
+
+MtlParameters FromTinyObj(const tinyobj::material_t& m) {
+  MtlParameters p;
+  p.name = m.name;
+  auto rgb = [](const tinyobj::real_t* c) { return Rgb(float(c[0]), float(c[1]), float(c[2])); };
+  p.kd = rgb(m.diffuse);
+  p.ks = rgb(m.specular);
+  p.ke = rgb(m.emission);
+  p.tf = rgb(m.transmittance);
+  p.ns = float(m.shininess);
+  p.ni = float(m.ior);
+  p.d = float(m.dissolve);
+  p.illum = m.illum;
+  return p;
+}
+
+}  // namespace
+
+float WardAlphaFromPhongExponent(float ns) {
+  if (!(ns >= 0.0f)) ns = 0.0f;  // also maps NaN to 0
+  if (ns >= kMirrorPhongExponent) return 0.0f;
+  return std::sqrt(2.0f / (ns + 2.0f));
+}
+
+bool ClampEnergy(Material* m) {
+  bool clamped = false;
+  for (int i = 0; i < 3; ++i) {
+    const float sum = m->diffuse_reflectance[i] + m->specular_reflectance[i] +
+                      m->diffuse_transmittance[i] + m->specular_transmittance[i];
+    if (sum > 1.0f + kEnergyTolerance) {
+      const float s = 1.0f / sum;
+      m->diffuse_reflectance[i] *= s;
+      m->specular_reflectance[i] *= s;
+      m->diffuse_transmittance[i] *= s;
+      m->specular_transmittance[i] *= s;
+      clamped = true;
+    }
+  }
+  return clamped;
+}
+
+Material MaterialFromMtl(const MtlParameters& mtl, std::vector<std::string>* warnings) {
+  auto warn = [&](const std::string& reason) {
+    if (warnings) warnings->push_back("material '" + mtl.name + "': " + reason);
+  };
+  const Rgb kd = NonNegative(mtl.kd, mtl.name, "Kd", warnings);
+  const Rgb ks = NonNegative(mtl.ks, mtl.name, "Ks", warnings);
+  const Rgb ke = NonNegative(mtl.ke, mtl.name, "Ke", warnings);
+  const Rgb tf = NonNegative(mtl.tf, mtl.name, "Tf", warnings);
+
+  Material m;
+  m.name = mtl.name;
+  m.emission = ke;
+
+  const bool glass = mtl.illum == 4 || mtl.illum == 6 || mtl.illum == 7;
+  if (glass) {
+    m.specular_transmittance = tf.IsBlack() ? Rgb(1.0f) : tf;
+    m.ior = std::isfinite(mtl.ni) ? mtl.ni : 1.0f;
+    if (!(m.ior > 1.0f))
+      warn("glass (illum " + std::to_string(mtl.illum) + ") with Ni " + std::to_string(mtl.ni) +
+           " <= 1: light passes straight through without refraction");
+    if (!kd.IsBlack() || !ks.IsBlack())
+      warn("glass (illum " + std::to_string(mtl.illum) +
+           ") reflects by Fresnel's law; its Kd/Ks are ignored");
+  } else {
+    m.diffuse_reflectance = kd;
+    m.specular_reflectance = ks;
+    if (!ks.IsBlack()) {
+      const bool mirror_illum = mtl.illum == 3 || mtl.illum == 5;
+      m.specular_roughness = mirror_illum ? 0.0f : WardAlphaFromPhongExponent(mtl.ns);
+    }
+    const float d = std::isfinite(mtl.d) ? std::clamp(mtl.d, 0.0f, 1.0f) : 1.0f;
+    if (d < 1.0f) {
+      m.specular_transmittance = Rgb(1.0f - d);
+      m.diffuse_reflectance *= d;
+      m.specular_reflectance *= d;
+      m.ior = 1.0f;
+    } else if (!tf.IsBlack() && !(tf == Rgb(1.0f))) {
+      warn("Tf " + FormatRgb(tf) + " ignored: the material is opaque (illum " +
+           std::to_string(mtl.illum) +
+           ", d = 1); use illum 4/6/7 for glass or a manifest material override");
+    }
+  }
+  if (ClampEnergy(&m))
+    warn("reflectance + transmittance exceeds 1 in some channel; scaled down to 1");
+  return m;
+}
+
+SceneDescription LoadObj(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(SourceLocation{file, 0}, "no such file");
+  {
+    std::ifstream probe(path);
+    if (!probe) throw InputError(SourceLocation{file, 0}, "cannot open file for reading");
+  }
+
+  tinyobj::ObjReaderConfig config;
+  config.triangulate = true;
+  config.vertex_color = false;
+  tinyobj::ObjReader reader;
+  const bool ok = reader.ParseFromFile(file, config);
+
+  SceneDescription scene;
+  scene.source = file;
+
+  // tinyobjloader's warnings: fatal ones become errors, the rest are passed on.
+  bool fatal_warning = false;
+  std::string fatal_text;
+  for (const std::string& w : SplitLines(reader.Warning())) {
+    if (IsFatalWarning(w)) {
+      fatal_warning = true;
+      if (fatal_text.empty()) fatal_text = w;
+    } else {
+      scene.warnings.push_back(file + ": " + w);
+    }
+  }
+  if (!ok || !reader.Error().empty()) {
+    const std::vector<std::string> lines = SplitLines(reader.Error());
+    std::string message = lines.empty() ? "tinyobjloader failed to parse the file" : lines[0];
+    for (size_t i = 1; i < lines.size(); ++i) message += "; " + lines[i];
+    throw InputError(SourceLocation{file, LineFromMessage(message)}, message);
+  }
+
+  const tinyobj::attrib_t& attrib = reader.GetAttrib();
+  const long num_v = long(attrib.vertices.size() / 3);
+  const long num_vn = long(attrib.normals.size() / 3);
+  auto bad_faces = [&](const std::string& reason) {
+    const int line = FindFirstBadFaceLine(path, num_v, num_vn);
+    throw InputError(SourceLocation{file, line},
+                     line > 0 ? "face references a vertex or normal that does not exist"
+                              : reason);
+  };
+  if (fatal_warning) bad_faces(fatal_text);
+
+  // Materials in MTL order; "(default)" appended on demand.
+  for (const tinyobj::material_t& tm : reader.GetMaterials()) {
+    std::vector<std::string> material_warnings;
+    scene.materials.push_back(MaterialFromMtl(FromTinyObj(tm), &material_warnings));
+    for (const std::string& w : material_warnings) scene.warnings.push_back(file + ": " + w);
+  }
+  uint32_t default_material = kNoLight;  // "none yet"
+  auto material_index = [&](int id) -> uint32_t {
+    if (id >= 0 && size_t(id) < scene.materials.size()) return uint32_t(id);
+    if (default_material == kNoLight) {
+      Material grey;
+      grey.name = "(default)";
+      grey.diffuse_reflectance = Rgb(kDefaultGrey);
+      default_material = uint32_t(scene.materials.size());
+      scene.materials.push_back(grey);
+      scene.warnings.push_back(file + ": faces without a material use a grey diffuse (" +
+                               std::to_string(kDefaultGrey) + ")");
+    }
+    return default_material;
+  };
+
+  // Vertices shared per (position, normal) pair.
+  std::unordered_map<uint64_t, uint32_t> vertex_of;
+  std::vector<Vec3> normals;
+  bool any_normal = false;
+  auto vertex = [&](const tinyobj::index_t& idx) -> uint32_t {
+    if (idx.vertex_index < 0 || idx.vertex_index >= num_v ||
+        idx.normal_index < -1 || idx.normal_index >= num_vn)
+      bad_faces("face references a vertex or normal that does not exist");
+    const uint64_t key = (uint64_t(uint32_t(idx.vertex_index)) << 32) |
+                         uint64_t(uint32_t(idx.normal_index + 1));
+    auto [it, inserted] = vertex_of.try_emplace(key, uint32_t(scene.positions.size()));
+    if (!inserted) return it->second;
+    const size_t v = size_t(idx.vertex_index) * 3;
+    const Vec3 p(float(attrib.vertices[v]), float(attrib.vertices[v + 1]),
+                 float(attrib.vertices[v + 2]));
+    if (!IsFinite(p))
+      throw InputError(SourceLocation{file, 0},
+                       "vertex " + std::to_string(idx.vertex_index + 1) + " is not finite");
+    scene.positions.push_back(p);
+    Vec3 n(0.0f);
+    if (idx.normal_index >= 0) {
+      const size_t k = size_t(idx.normal_index) * 3;
+      const Vec3 raw(float(attrib.normals[k]), float(attrib.normals[k + 1]),
+                     float(attrib.normals[k + 2]));
+      const float len2 = LengthSquared(raw);
+      if (std::isfinite(len2) && len2 > 0.0f) {
+        n = raw / std::sqrt(len2);
+        any_normal = true;
+      }
+    }
+    normals.push_back(n);
+    return it->second;
+  };
+
+  size_t degenerate = 0;
+  for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+    const tinyobj::mesh_t& mesh = shape.mesh;
+    uint32_t light = kNoLight;
+    size_t offset = 0;
+    for (size_t f = 0; f < mesh.num_face_vertices.size(); ++f) {
+      const size_t n = mesh.num_face_vertices[f];
+      const int material_id = f < mesh.material_ids.size() ? mesh.material_ids[f] : -1;
+      if (offset + n > mesh.indices.size()) bad_faces("inconsistent face data from tinyobjloader");
+      const uint32_t mat = material_index(material_id);
+      const bool emissive = scene.materials[mat].IsEmissive();
+      // Triangulated already; a fan covers anything tinyobjloader left as a polygon.
+      for (size_t k = 1; k + 1 < n; ++k) {
+        const std::array<uint32_t, 3> tri{vertex(mesh.indices[offset]),
+                                          vertex(mesh.indices[offset + k]),
+                                          vertex(mesh.indices[offset + k + 1])};
+        const Vec3 e = Cross(scene.positions[tri[1]] - scene.positions[tri[0]],
+                             scene.positions[tri[2]] - scene.positions[tri[0]]);
+        if (!(LengthSquared(e) > 0.0f)) {
+          ++degenerate;
+          continue;
+        }
+        if (emissive && light == kNoLight) light = scene.num_lights++;
+        scene.triangles.push_back(tri);
+        scene.triangle_material.push_back(mat);
+        scene.triangle_light.push_back(emissive ? light : kNoLight);
+      }
+      offset += n;
+    }
+  }
+  if (degenerate > 0)
+    scene.warnings.push_back(file + ": " + std::to_string(degenerate) +
+                             " degenerate (zero-area) triangles dropped");
+  if (any_normal) scene.normals = std::move(normals);
+  if (scene.triangles.empty())
+    scene.warnings.push_back(file + ": the file contains no triangles");
+  return scene;
+}
+
+}  // namespace pf

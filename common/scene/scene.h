@@ -1,0 +1,80 @@
+#pragma once
+// The scene *description*: what a scene file says, independent of any acceleration structure
+// (STYLE: pbrt's split between parsed description and runtime scene). Loaders (MGF, OBJ,
+// manifest) produce it; accel/ builds the Embree scene from it; the farm will ship the files
+// it came from and let each worker rebuild it.
+//
+// Everything is triangles: MGF's curved primitives (sph, cyl, cone, ring, torus, prism) are
+// tessellated by the loader with smooth vertex normals (see mgf_loader.h for the rule).
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/core/math.h"
+
+namespace pf {
+
+// Ward's reflection model plus transmission and emission (Wald 1999, §2.1; MGF `rd rs td ts
+// ed ir`). All reflectances/transmittances are linear RGB in [0,1] per channel.
+struct Material {
+  std::string name;
+  Rgb diffuse_reflectance;          // ρd: Lambertian reflection.
+  Rgb specular_reflectance;         // ρs: mirror if specular_roughness == 0, else Ward lobe.
+  float specular_roughness = 0.0f;  // Ward α of the reflection lobe (RMS slope).
+  Rgb diffuse_transmittance;        // τd: Lambertian transmission to the other side.
+  Rgb specular_transmittance;       // τs: specular transmission (refraction if ior != 1).
+  float transmission_roughness = 0.0f;  // MGF ts α; rendered as perfect transmission (documented).
+  float ior = 1.0f;                 // Index of refraction inside (behind the front face).
+  Rgb emission;                     // Le in W/(m²·sr), emitted from the front side only.
+  bool one_sided = false;           // MGF `sides 1` (recorded; surfaces are shaded two-sided).
+
+  bool IsEmissive() const { return !emission.IsBlack(); }
+};
+
+inline constexpr uint32_t kNoLight = 0xffffffffu;
+
+// A camera: pinhole, vertical field of view, image right = forward × up.
+struct CameraSpec {
+  std::string name = "default";
+  Vec3 eye{0, 0, 0};
+  Vec3 look_at{0, 0, -1};
+  Vec3 up{0, 1, 0};
+  float vfov_degrees = 45.0f;
+  int width = 512;
+  int height = 512;
+};
+
+struct SceneDescription {
+  // Triangle soup with shared vertices.
+  std::vector<Vec3> positions;
+  // Per-vertex shading normals; empty, or one per position. A zero vector means "none":
+  // triangles touching such a vertex use their geometric normal.
+  std::vector<Vec3> normals;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  std::vector<uint32_t> triangle_material;  // index into materials, one per triangle
+  // Light id per triangle: every emitting source primitive (an MGF face or sphere, an OBJ
+  // group with Ke) is one light, so that photons can be tagged with it (§4.2.3).
+  std::vector<uint32_t> triangle_light;     // kNoLight for non-emitters
+  uint32_t num_lights = 0;
+
+  std::vector<Material> materials;
+  std::vector<CameraSpec> cameras;          // from a manifest; may be empty
+  std::vector<std::string> warnings;        // non-fatal loader messages, "file:line: reason"
+  std::string source;                        // the file it was loaded from
+
+  size_t NumTriangles() const { return triangles.size(); }
+  Bounds3 ComputeBounds() const {
+    Bounds3 b;
+    for (const Vec3& p : positions) b.Extend(p);
+    return b;
+  }
+  size_t NumEmissiveTriangles() const {
+    size_t n = 0;
+    for (uint32_t l : triangle_light) n += (l != kNoLight);
+    return n;
+  }
+};
+
+}  // namespace pf

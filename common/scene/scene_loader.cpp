@@ -1,0 +1,177 @@
+// Scene loading entry point: extension dispatch, manifest application, default camera.
+#include "common/scene/scene_loader.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+
+#include "common/core/error.h"
+#include "common/scene/mgf_loader.h"
+#include "common/scene/obj_loader.h"
+
+namespace pf {
+namespace {
+
+constexpr const char* kSupported = "supported: .json (scene manifest), .mgf, .obj";
+
+std::string LowerExtension(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
+
+SceneDescription LoadGeometry(const std::filesystem::path& path) {
+  const std::string ext = LowerExtension(path);
+  if (ext == ".mgf") return LoadMgf(path);
+  if (ext == ".obj") return LoadObj(path);
+  throw InputError(SourceLocation{path.string(), 0},
+                   "unsupported scene file extension '" + ext + "' (" + kSupported + ")");
+}
+
+void ApplyKind(MaterialOverride::Kind kind, Material* m) {
+  using Kind = MaterialOverride::Kind;
+  switch (kind) {
+    case Kind::kUnchanged:
+      return;
+    case Kind::kDiffuse:
+      m->specular_reflectance = Rgb();
+      m->specular_roughness = 0.0f;
+      m->diffuse_transmittance = Rgb();
+      m->specular_transmittance = Rgb();
+      m->transmission_roughness = 0.0f;
+      m->ior = 1.0f;
+      return;
+    case Kind::kGlossy:
+      m->diffuse_transmittance = Rgb();
+      m->specular_transmittance = Rgb();
+      m->transmission_roughness = 0.0f;
+      m->ior = 1.0f;
+      return;
+    case Kind::kMirror:
+      if (m->specular_reflectance.IsBlack()) m->specular_reflectance = Rgb(1.0f);
+      m->specular_roughness = 0.0f;
+      m->diffuse_reflectance = Rgb();
+      m->diffuse_transmittance = Rgb();
+      m->specular_transmittance = Rgb();
+      m->transmission_roughness = 0.0f;
+      m->ior = 1.0f;
+      return;
+    case Kind::kGlass:
+      if (m->specular_transmittance.IsBlack()) m->specular_transmittance = Rgb(1.0f);
+      if (!(m->ior > 1.0f)) m->ior = 1.5f;
+      m->diffuse_reflectance = Rgb();
+      m->specular_reflectance = Rgb();
+      m->specular_roughness = 0.0f;
+      m->diffuse_transmittance = Rgb();
+      m->transmission_roughness = 0.0f;
+      return;
+  }
+}
+
+}  // namespace
+
+void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overrides,
+                            const std::string& manifest_file, SceneDescription* scene) {
+  for (const auto& [name, o] : overrides) {
+    const std::string key = "materials." + name;
+    bool found = false;
+    for (Material& m : scene->materials) {
+      if (m.name != name) continue;
+      found = true;
+      ApplyKind(o.kind, &m);
+      if (o.diffuse) m.diffuse_reflectance = *o.diffuse;
+      if (o.specular) m.specular_reflectance = *o.specular;
+      if (o.roughness) m.specular_roughness = *o.roughness;
+      if (o.transmission) m.specular_transmittance = *o.transmission;
+      if (o.ior) m.ior = *o.ior;
+      if (o.emission) {
+        if (!m.IsEmissive() || o.emission->IsBlack())
+          throw InputError(SourceLocation{manifest_file, 0},
+                           "key '" + key + ".emission': can only change the emission of a "
+                           "material that already emits, to a non-zero value (the geometry "
+                           "loader decides which primitives are lights)");
+        m.emission = *o.emission;
+      }
+      if (ClampEnergy(&m))
+        scene->warnings.push_back(manifest_file + ": " + key +
+                                  ": reflectance + transmittance exceeds 1 in some channel; "
+                                  "scaled down to 1");
+    }
+    if (!found)
+      throw InputError(SourceLocation{manifest_file, 0},
+                       "key '" + key + "': the geometry has no material named \"" + name + "\"");
+    // A `kind` re-decides the material, so the geometry loader's complaints about how it
+    // mapped that material (e.g. "Tf ignored") no longer apply.
+    if (o.kind != MaterialOverride::Kind::kUnchanged) {
+      const std::string tag = "material '" + name + "': ";
+      std::erase_if(scene->warnings,
+                    [&](const std::string& w) { return w.find(tag) != std::string::npos; });
+    }
+  }
+}
+
+void ApplyScale(double scale, SceneDescription* scene) {
+  if (scale == 1.0) return;
+  const float s = float(scale);
+  for (Vec3& p : scene->positions) p *= s;
+  for (CameraSpec& c : scene->cameras) {
+    c.eye *= s;
+    c.look_at *= s;
+  }
+}
+
+SceneDescription LoadScene(const std::filesystem::path& path, double scale_override) {
+  if (!std::isfinite(scale_override) || scale_override < 0.0)
+    throw InputError("scale override must be a finite number > 0 (or 0 for none), got " +
+                     std::to_string(scale_override));
+  const std::string ext = LowerExtension(path);
+  if (ext == ".mgf" || ext == ".obj") {
+    SceneDescription scene = LoadGeometry(path);
+    if (scale_override > 0.0) ApplyScale(scale_override, &scene);
+    return scene;
+  }
+  if (ext != ".json")
+    throw InputError(SourceLocation{path.string(), 0},
+                     "unsupported scene file extension '" + ext + "' (" + kSupported + ")");
+
+  const SceneManifest manifest = LoadManifest(path);
+  const std::string manifest_file = path.string();
+  const std::string geometry_ext = LowerExtension(manifest.geometry);
+  if (geometry_ext != ".mgf" && geometry_ext != ".obj")
+    throw InputError(SourceLocation{manifest_file, 0},
+                     "key 'geometry': '" + manifest.geometry.string() +
+                         "' is not a geometry file (supported: .mgf, .obj)");
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(manifest.geometry, ec))
+    throw InputError(SourceLocation{manifest_file, 0},
+                     "key 'geometry': file '" + manifest.geometry.string() + "' does not exist");
+
+  SceneDescription scene = LoadGeometry(manifest.geometry);
+  ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
+  scene.cameras = manifest.cameras;
+  ApplyScale(scale_override > 0.0 ? scale_override : manifest.scale, &scene);
+  scene.warnings.insert(scene.warnings.begin(), manifest.warnings.begin(),
+                        manifest.warnings.end());
+  scene.source = manifest_file;
+  return scene;
+}
+
+CameraSpec DefaultCamera(const SceneDescription& scene) {
+  CameraSpec cam;
+  const Bounds3 b = scene.ComputeBounds();
+  if (b.Empty()) return cam;
+  const Vec3 c = b.Center();
+  const Vec3 half = b.Diagonal() * 0.5f;
+  const float tan_half = std::tan(0.5f * cam.vfov_degrees * kPi / 180.0f);
+  const float aspect = float(cam.width) / float(cam.height);
+  // Distance from the +z face at which its x-y extent fits the frame, with a 5 % margin.
+  float d = 1.05f * std::max(half.y / tan_half, half.x / (tan_half * aspect));
+  if (!(d > 0.0f)) d = std::max(1.0f, half.z);  // a flat or point-like scene
+  cam.eye = Vec3(c.x, c.y, b.hi.z + d);
+  cam.look_at = c;
+  cam.up = Vec3(0, 1, 0);
+  return cam;
+}
+
+}  // namespace pf

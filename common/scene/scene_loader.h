@@ -1,0 +1,45 @@
+#pragma once
+// The one entry point for reading a scene from disk: dispatches on the file extension
+// (case-insensitive):
+//   .json  a manifest (docs/scene-manifest.md): loads its geometry (.mgf or .obj), applies its
+//          material overrides, its scale (to positions and to camera eye/look-at points) and
+//          attaches its cameras. `source` is the manifest's path.
+//   .mgf   MGF 2.0 (mgf_loader.h), no cameras.
+//   .obj   Wavefront OBJ/MTL (obj_loader.h), no cameras.
+// Anything else is an InputError that lists these. Bare files carry no camera; use
+// DefaultCamera() for them (and for manifests without "cameras").
+
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include "common/scene/manifest.h"
+#include "common/scene/scene.h"
+
+namespace pf {
+
+// scale_override > 0 replaces the manifest's "scale" (or scales a bare file); 0 = none;
+// negative or non-finite values are an InputError.
+SceneDescription LoadScene(const std::filesystem::path& path, double scale_override = 0);
+
+// Applies a manifest's "materials" overrides to every material of each name (semantics in
+// docs/scene-manifest.md). `manifest_file` is used in messages. Throws InputError if a name
+// matches no material, or if an override would turn an emitter on or off (light ids are
+// assigned by the geometry loader, per source primitive).
+void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overrides,
+                            const std::string& manifest_file, SceneDescription* scene);
+
+// Multiplies positions and camera eye/look-at points by `scale` (> 0). Normals, radiance and
+// reflectances are unchanged (a light's power grows with its area, i.e. with scale²).
+void ApplyScale(double scale, SceneDescription* scene);
+
+// A camera for scenes without one. Convention: y is up (true of every scene in scenes/: OBJ's
+// usual convention, and of the MGF rooms we ship). The camera looks along −z at the centre of
+// the bounding box, from in front of its +z face, far enough back that the box's x-y cross
+// section fits the field of view (45° vertical, 512 × 512) with a 5 % margin. For the Cornell
+// boxes (open towards +z) this looks into the open side; for closed rooms it shows the outside
+// of a wall — write a manifest with a camera inside. An empty scene gets the CameraSpec
+// default.
+CameraSpec DefaultCamera(const SceneDescription& scene);
+
+}  // namespace pf

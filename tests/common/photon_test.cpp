@@ -1,0 +1,522 @@
+// Tests of the 18-byte photon (Wald 1999, §2.2), the NearestPhotons heap and the PhotonMap
+// contract shared by both implementations (kd-tree §2.3, grid §2.4), checked against brute
+// force. Structure-specific invariants live in kdtree_test.cpp and grid_test.cpp.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numbers>
+#include <ostream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/core/rng.h"
+#include "common/photon/brute_force.h"
+#include "common/photon/grid.h"
+#include "common/photon/kdtree.h"
+#include "common/photon/photon.h"
+#include "common/photon/photon_map.h"
+
+namespace pf {
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Photon layout
+
+TEST(PhotonTest, IsEighteenTriviallyCopyableBytes) {
+  EXPECT_EQ(sizeof(Photon), 18u);
+  EXPECT_TRUE(std::is_trivially_copyable_v<Photon>);
+  std::vector<Photon> v(10);
+  EXPECT_EQ(reinterpret_cast<const char*>(&v[1]) - reinterpret_cast<const char*>(&v[0]), 18);
+}
+
+// ---------------------------------------------------------------------------------------
+// Direction: θ/φ bytes and lookup tables
+
+double AngleBetween(const Vec3d& a, const Vec3d& b) {
+  // atan2(|a×b|, a·b) is accurate for small angles, unlike acos.
+  return std::atan2(Length(Cross(a, b)), Dot(a, b));
+}
+
+Vec3 RandomDirection(Rng& rng) {
+  const float z = 1.0f - 2.0f * rng.Uniform();
+  const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+  const float phi = kTwoPi * rng.Uniform();
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+TEST(PhotonTest, DirectionTablesMatchLibm) {
+  const auto& t = photon_detail::kDirectionTables;
+  for (int i = 0; i < 256; ++i) {
+    EXPECT_NEAR(t.cos_theta[i], std::cos(i * std::numbers::pi / 255.0), 1e-7) << i;
+    EXPECT_NEAR(t.sin_theta[i], std::sin(i * std::numbers::pi / 255.0), 1e-7) << i;
+    EXPECT_NEAR(t.cos_phi[i], std::cos(i * 2.0 * std::numbers::pi / 256.0), 1e-7) << i;
+    EXPECT_NEAR(t.sin_phi[i], std::sin(i * 2.0 * std::numbers::pi / 256.0), 1e-7) << i;
+  }
+}
+
+// The stated bound: |Δθ| ≤ π/510 and |Δφ| ≤ π/256 (rounding to the nearest bin); by the
+// haversine formula the angle between ω and its decoded form is then at most
+// 2·asin(√(sin²(π/1020) + sin²(π/512))) ≈ 0.01373 rad ≈ 0.787°.
+TEST(PhotonTest, DirectionErrorWithinStatedBound) {
+  const double pi = std::numbers::pi;
+  const double bound = 2.0 * std::asin(std::sqrt(std::pow(std::sin(pi / 1020), 2) + std::pow(std::sin(pi / 512), 2)));
+  EXPECT_NEAR(kMaxDirectionErrorRadians, bound, 1e-15);
+  std::vector<Vec3> dirs = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},  {0, -1, 0}, {0, 0, 1},
+                            {0, 0, -1}, {-1, -1e-7f, 0}, {-1, 1e-7f, 0}, {1e-4f, 0, 1},
+                            {0, 1e-4f, -1}, {1, 1, 1}};
+  Rng rng(7, 1);
+  for (int i = 0; i < 200000; ++i) dirs.push_back(RandomDirection(rng));
+  double worst = 0.0;
+  for (const Vec3& w : dirs) {
+    const Vec3d exact = Normalize(Vec3d(w));
+    const Vec3 decoded = DecodeDirection(EncodeDirection(w));
+    EXPECT_NEAR(Length(decoded), 1.0f, 1e-6f);
+    const double angle = AngleBetween(exact, Vec3d(decoded));
+    worst = std::max(worst, angle);
+    // 1e-6 rad of slack for the float decode tables.
+    ASSERT_LE(angle, kMaxDirectionErrorRadians + 1e-6) << w.x << " " << w.y << " " << w.z;
+  }
+  // The bound is tight: random directions come close to it.
+  EXPECT_GT(worst, 0.97 * kMaxDirectionErrorRadians);
+}
+
+TEST(PhotonTest, DirectionBinsFollowTheThesisFormula) {
+  // theta = 255·acos(z)/π, phi = 256·atan2(y, x)/2π mod 256 (rounded).
+  EXPECT_EQ(EncodeDirection({0, 0, 1}).theta, 0);
+  EXPECT_EQ(EncodeDirection({0, 0, -1}).theta, 255);
+  EXPECT_NEAR(EncodeDirection({1, 0, 0}).theta, 127.5, 0.5);  // the equator sits on a bin edge
+  EXPECT_EQ(EncodeDirection({1, 0, 0}).phi, 0);
+  EXPECT_EQ(EncodeDirection({0, 1, 0}).phi, 64);
+  EXPECT_EQ(EncodeDirection({-1, 0, 0}).phi, 128);
+  EXPECT_EQ(EncodeDirection({0, -1, 0}).phi, 192);
+  EXPECT_EQ(EncodeDirection({1, -1e-6f, 0}).phi, 0);  // just below the seam wraps to 0
+  // Not normalised: only the direction matters.
+  EXPECT_EQ(EncodeDirection({0, 5, 0}).phi, 64);
+  // Every non-polar bin centre round-trips exactly.
+  for (int t = 1; t < 255; ++t) {
+    for (int p = 0; p < 256; ++p) {
+      const DirectionBytes d = EncodeDirection(DecodeDirection({uint8_t(t), uint8_t(p)}));
+      ASSERT_EQ(d.theta, t);
+      ASSERT_EQ(d.phi, p);
+    }
+  }
+}
+
+TEST(PhotonTest, DegenerateDirectionsEncodeAsPlusZ) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (const Vec3& w : {Vec3(0, 0, 0), Vec3(nan, 0, 0), Vec3(inf, 1, 0)}) {
+    const DirectionBytes d = EncodeDirection(w);
+    EXPECT_EQ(d.theta, 0);
+    EXPECT_EQ(d.phi, 0);
+  }
+  // Huge but finite components are fine.
+  EXPECT_EQ(EncodeDirection({0, 3e38f, 0}).phi, 64);
+}
+
+// ---------------------------------------------------------------------------------------
+// Power: RGBE
+
+// Checks the bounds stated in photon.h for a power whose largest channel is ≥ 2^-128.
+void ExpectRgbeBounds(const Rgb& c) {
+  const Rgb d = DecodeRgbe(EncodeRgbe(c));
+  const double m = c.Max();
+  const double decoded_max = d.Max();
+  ASSERT_TRUE(d.IsFinite());
+  for (int i = 0; i < 3; ++i) {
+    // All arithmetic below is exact in double (float inputs, power-of-two scales).
+    const double err = std::abs(double(d[i]) - double(c[i]));
+    ASSERT_LE(err, decoded_max * 0x1p-8) << c[i];
+    ASSERT_LE(err, m / 255.5) << c[i];
+    if (c[i] == m) {
+      ASSERT_LE(err, m * kMaxRgbeRelativeError) << c[i];
+    }
+    if (c[i] == 0.0f) {
+      ASSERT_EQ(d[i], 0.0f);
+    }
+  }
+}
+
+TEST(PhotonTest, RgbeErrorWithinStatedBounds) {
+  Rng rng(11, 2);
+  for (int i = 0; i < 200000; ++i) {
+    const float scale = std::ldexp(1.0f, int(rng.UniformInt(250)) - 127);  // 2^-127 .. 2^122
+    Rgb c(rng.Uniform() * scale, rng.Uniform() * scale, rng.Uniform() * scale);
+    if (i % 7 == 0) c.g = 0.0f;
+    if (i % 11 == 0) c.b = c.r * 1e-6f;
+    if (c.Max() < 0x1p-128f) continue;
+    ExpectRgbeBounds(c);
+  }
+  // Mantissas that round up into the next binade (the "carry" case).
+  for (float m : {0.999f, 0.99999f, 255.9f / 256.0f, 0.9981f * 0x1p-100f, 0.9991f * 0x1p100f}) {
+    ExpectRgbeBounds({m, m * 0.3f, m * 0.00201f});
+    ExpectRgbeBounds({m * 0.5f, m, 0.0f});
+  }
+  ExpectRgbeBounds({1.0f, 1.0f, 1.0f});
+  ExpectRgbeBounds({std::numeric_limits<float>::min(), 0.0f, 0.0f});
+}
+
+TEST(PhotonTest, RgbeExactCases) {
+  const RgbeBytes black = EncodeRgbe({0, 0, 0});
+  EXPECT_EQ(black, (RgbeBytes{0, 0, 0, 0}));
+  EXPECT_EQ(DecodeRgbe(black), Rgb(0.0f));
+  // Powers of two and small integers are exact.
+  EXPECT_EQ(DecodeRgbe(EncodeRgbe({1.0f, 0.5f, 0.25f})), Rgb(1.0f, 0.5f, 0.25f));
+  EXPECT_EQ(DecodeRgbe(EncodeRgbe({200.0f, 3.0f, 0.0f})), Rgb(200.0f, 3.0f, 0.0f));
+  // Every normalised byte pattern (max mantissa ≥ 128, E ≥ 1) is a fixed point.
+  for (int e = 1; e < 256; e += 3) {
+    for (int m = 128; m < 256; m += 5) {
+      const RgbeBytes bytes{uint8_t(m), uint8_t(m / 3), 0, uint8_t(e)};
+      ASSERT_EQ(EncodeRgbe(DecodeRgbe(bytes)), bytes) << e << " " << m;
+    }
+  }
+}
+
+TEST(PhotonTest, RgbeNeverProducesNanOrInf) {
+  for (int e = 0; e < 256; ++e) {
+    for (int m = 0; m < 256; ++m) {
+      const Rgb d = DecodeRgbe({uint8_t(m), 255, uint8_t(255 - m), uint8_t(e)});
+      ASSERT_TRUE(d.IsFinite());
+      ASSERT_GE(d.Max(), 0.0f);
+    }
+  }
+  const float inf = std::numeric_limits<float>::infinity();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float big = std::numeric_limits<float>::max();
+  // Huge: clamped to the largest representable value, chromaticity kept.
+  for (const Rgb& c : {Rgb(inf, inf, inf), Rgb(big, big, big), Rgb(inf, 1, 0), Rgb(3e38f, 0, 0)}) {
+    const Rgb d = DecodeRgbe(EncodeRgbe(c));
+    EXPECT_TRUE(d.IsFinite());
+    EXPECT_EQ(d.Max(), kMaxRgbeValue);
+  }
+  const Rgb half = DecodeRgbe(EncodeRgbe({big, big * 0.5f, 0}));
+  EXPECT_NEAR(half.g / half.r, 0.5, 0x1p-8);
+  // Just below the clamp threshold rounds normally.
+  ExpectRgbeBounds({255.4f * 0x1p119f, 1e30f, 0.0f});
+  // NaN and negative channels are treated as zero.
+  EXPECT_EQ(DecodeRgbe(EncodeRgbe({nan, 1.0f, -2.0f})), Rgb(0.0f, 1.0f, 0.0f));
+  EXPECT_EQ(DecodeRgbe(EncodeRgbe({nan, nan, nan})), Rgb(0.0f));
+  EXPECT_EQ(DecodeRgbe(EncodeRgbe({-1, -1, -1})), Rgb(0.0f));
+}
+
+TEST(PhotonTest, RgbeTinyPowersUnderflowGradually) {
+  const float denorm_min = std::numeric_limits<float>::denorm_min();
+  for (float v : {0x1p-129f, 0x1p-131f, 1e-40f, 0x1p-136f * 1.5f, 0x1p-140f, denorm_min}) {
+    const Rgb c(v, v * 0.25f, 0.0f);
+    const Rgb d = DecodeRgbe(EncodeRgbe(c));
+    EXPECT_TRUE(d.IsFinite());
+    for (int i = 0; i < 3; ++i) EXPECT_LE(std::abs(double(d[i]) - double(c[i])), 0x1p-136) << v;
+  }
+  EXPECT_EQ(EncodeRgbe({0x1p-140f, 0, 0}), (RgbeBytes{0, 0, 0, 0}));  // below 2^-136: black
+}
+
+TEST(PhotonTest, MakeRoundTrips) {
+  const Photon p = Photon::Make({1.5f, -2.25f, 1e6f}, {0.3f, -0.4f, 0.866f}, {0.1f, 0.02f, 0.003f});
+  EXPECT_EQ(p.Position(), Vec3(1.5f, -2.25f, 1e6f));
+  EXPECT_LE(AngleBetween(Normalize(Vec3d(0.3, -0.4, 0.866)), Vec3d(p.Direction())),
+            kMaxDirectionErrorRadians + 1e-6);
+  const Rgb power = p.Power();
+  EXPECT_NEAR(power.r, 0.1f, 0.1f / 256);
+  EXPECT_NEAR(power.g, 0.02f, 0.1f / 256);
+  EXPECT_NEAR(power.b, 0.003f, 0.1f / 256);
+}
+
+// ---------------------------------------------------------------------------------------
+// NearestPhotons
+
+TEST(NearestPhotonsTest, KeepsTheKSmallestAsAMaxHeap) {
+  NearestPhotons heap;
+  heap.Reset(10, std::numeric_limits<float>::infinity());
+  EXPECT_EQ(heap.BoundSquared(), std::numeric_limits<float>::infinity());
+  Rng rng(3, 3);
+  std::vector<float> all;
+  for (uint32_t i = 0; i < 1000; ++i) {
+    const float d2 = rng.Uniform();
+    all.push_back(d2);
+    if (d2 < heap.BoundSquared()) heap.Insert(i, d2);
+    for (std::size_t j = 1; j < heap.size(); ++j)
+      ASSERT_LE(heap[j].distance2, heap[(j - 1) / 2].distance2);  // max-heap
+    ASSERT_EQ(heap.MaxDistanceSquared(), heap[0].distance2);
+  }
+  ASSERT_TRUE(heap.full());
+  EXPECT_EQ(heap.BoundSquared(), heap.MaxDistanceSquared());
+  std::sort(all.begin(), all.end());
+  heap.Sort();
+  for (std::size_t j = 0; j < 10; ++j) EXPECT_EQ(heap[j].distance2, all[j]);
+}
+
+TEST(NearestPhotonsTest, RadiusAndDegenerateK) {
+  NearestPhotons heap;
+  heap.Reset(5, 2.0f);
+  EXPECT_EQ(heap.BoundSquared(), 4.0f);
+  EXPECT_EQ(heap.MaxDistanceSquared(), 0.0f);
+  heap.Insert(0, 1.0f);
+  EXPECT_EQ(heap.BoundSquared(), 4.0f);  // not full: the radius still bounds
+  EXPECT_EQ(heap.MaxDistanceSquared(), 1.0f);
+  heap.Reset(0, 1.0f);
+  EXPECT_TRUE(heap.full());
+  heap.Reset(-3, 1.0f);
+  EXPECT_EQ(heap.k(), 0u);
+  heap.Reset(3, -1.0f);
+  EXPECT_EQ(heap.BoundSquared(), 0.0f);
+  heap.Reset(3, std::numeric_limits<float>::quiet_NaN());
+  EXPECT_EQ(heap.BoundSquared(), 0.0f);
+}
+
+// ---------------------------------------------------------------------------------------
+// The PhotonMap contract, for every implementation, against brute force.
+
+struct MapVariant {
+  std::string name;
+  PhotonMapKind kind;
+  PhotonMapOptions options;
+};
+
+void PrintTo(const MapVariant& v, std::ostream* os) { *os << v.name; }
+
+std::vector<MapVariant> AllVariants() {
+  PhotonMapOptions widest;
+  widest.kd_split_rule = KdSplitRule::kWidestExtent;
+  PhotonMapOptions plane_culling;  // the thesis's original culling test (§2.3.2)
+  plane_culling.kd_culling = KdCulling::kPlaneDistance;
+  PhotonMapOptions fine_grid;
+  fine_grid.grid.photons_per_voxel = 2.0f;  // many voxels: long seed fills
+  PhotonMapOptions coarse_grid;
+  coarse_grid.grid.photons_per_voxel = 400.0f;
+  return {{"KdLevelCycle", PhotonMapKind::kKdTree, {}},
+          {"KdWidest", PhotonMapKind::kKdTree, widest},
+          {"KdPlaneCulling", PhotonMapKind::kKdTree, plane_culling},
+          {"Grid", PhotonMapKind::kGrid, {}},
+          {"GridFine", PhotonMapKind::kGrid, fine_grid},
+          {"GridCoarse", PhotonMapKind::kGrid, coarse_grid}};
+}
+
+Photon MakeTestPhoton(const Vec3& p, Rng& rng) {
+  return Photon::Make(p, RandomDirection(rng), Rgb(rng.Uniform(), rng.Uniform(), rng.Uniform()));
+}
+
+enum class Layout { kUniform, kClustered, kPlanar, kDuplicates, kLine };
+
+std::vector<Photon> MakePhotons(Layout layout, std::size_t n, uint64_t seed) {
+  Rng rng(seed, 17);
+  std::vector<Photon> out;
+  out.reserve(n);
+  auto gauss = [&rng] {  // Box–Muller
+    const float u = std::max(rng.Uniform(), 1e-7f), v = rng.Uniform();
+    return std::sqrt(-2.0f * std::log(u)) * std::cos(kTwoPi * v);
+  };
+  std::vector<Vec3> centres;
+  for (int i = 0; i < 6; ++i) centres.push_back({rng.Uniform(), rng.Uniform(), rng.Uniform()});
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec3 p;
+    switch (layout) {
+      case Layout::kUniform:
+        p = {rng.Uniform(), rng.Uniform(), rng.Uniform()};
+        break;
+      case Layout::kClustered: {  // caustic-like: tight gaussian blobs over a sparse background
+        if (rng.Uniform() < 0.1f) {
+          p = {rng.Uniform(), rng.Uniform(), rng.Uniform()};
+        } else {
+          const Vec3& c = centres[rng.UniformInt(uint32_t(centres.size()))];
+          const float sigma = 0.002f + 0.01f * float(&c - centres.data()) / 6.0f;
+          p = c + Vec3(gauss(), gauss(), gauss()) * sigma;
+        }
+        break;
+      }
+      case Layout::kPlanar:  // all z equal (a floor)
+        p = {rng.Uniform(), rng.Uniform(), 0.25f};
+        break;
+      case Layout::kDuplicates:  // many photons at identical positions
+        p = centres[rng.UniformInt(3)];
+        if (rng.Uniform() < 0.2f) p = {rng.Uniform(), rng.Uniform(), rng.Uniform()};
+        break;
+      case Layout::kLine:
+        p = {0.5f, rng.Uniform(), 0.5f};
+        break;
+    }
+    out.push_back(MakeTestPhoton(p, rng));
+  }
+  return out;
+}
+
+std::vector<Vec3> MakeQueries(std::span<const Photon> photons, std::size_t n, uint64_t seed) {
+  Rng rng(seed, 29);
+  std::vector<Vec3> q;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i % 4 == 0 && !photons.empty()) {
+      q.push_back(photons[rng.UniformInt(uint32_t(photons.size()))].Position());  // on a photon
+    } else {
+      q.push_back(Vec3(rng.Uniform(), rng.Uniform(), rng.Uniform()) * 1.4f - Vec3(0.2f));
+    }
+  }
+  // Far away on every side.
+  for (const Vec3& far : {Vec3(50, 0.5f, 0.5f), Vec3(-50, 0.5f, 0.5f), Vec3(0.5f, 1e4f, 0.5f),
+                          Vec3(0.5f, 0.5f, -1e6f), Vec3(-1e3f, 2e3f, -3e3f), Vec3(1e15f, 1e15f, 1e15f)})
+    q.push_back(far);
+  return q;
+}
+
+// Compares one query with brute force: same distance multiset, consistent entries.
+void ExpectMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, float radius,
+                             NearestPhotons& heap, const PhotonFilter* filter = nullptr) {
+  map.Query(x, k, radius, heap, filter);
+  const auto expected = BruteForceNearest(map.photons(), x, k, radius, filter);
+  ASSERT_EQ(heap.size(), expected.size()) << "x=" << x.x << "," << x.y << "," << x.z << " k=" << k
+                                          << " r=" << radius;
+  for (std::size_t j = 1; j < heap.size(); ++j)
+    ASSERT_LE(heap[j].distance2, heap[(j - 1) / 2].distance2);
+  std::vector<uint32_t> seen;
+  for (const auto& e : heap.entries()) {
+    ASSERT_LT(e.index, map.size());
+    ASSERT_EQ(e.distance2, DistanceSquared(map.photon(e.index), x));
+    if (filter != nullptr) {
+      ASSERT_TRUE(filter->Accept(map.photon(e.index), e.index));
+    }
+    seen.push_back(e.index);
+  }
+  std::sort(seen.begin(), seen.end());
+  ASSERT_EQ(std::adjacent_find(seen.begin(), seen.end()), seen.end()) << "photon found twice";
+  heap.Sort();
+  for (std::size_t j = 0; j < expected.size(); ++j)
+    ASSERT_EQ(heap[j].distance2, expected[j].distance2) << "rank " << j;
+}
+
+class PhotonMapContractTest : public ::testing::TestWithParam<MapVariant> {
+ protected:
+  std::unique_ptr<PhotonMap> Build(std::span<const Photon> photons) const {
+    auto map = MakePhotonMap(GetParam().kind, GetParam().options);
+    map->AddPhotons(photons);
+    map->PrepareForQuery();
+    return map;
+  }
+};
+
+TEST_P(PhotonMapContractTest, MatchesBruteForceOnAllLayouts) {
+  const float inf = std::numeric_limits<float>::infinity();
+  for (Layout layout : {Layout::kUniform, Layout::kClustered, Layout::kPlanar, Layout::kDuplicates,
+                        Layout::kLine}) {
+    SCOPED_TRACE(int(layout));
+    const auto photons = MakePhotons(layout, 6000, 100 + uint64_t(layout));
+    const auto map = Build(photons);
+    ASSERT_EQ(map->size(), photons.size());
+    NearestPhotons heap;
+    for (const Vec3& x : MakeQueries(map->photons(), 60, 5)) {
+      for (int k : {1, 8, 50, 300}) {
+        ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, inf, heap));
+        // max_radius limits: a radius that holds fewer than k photons, and a tiny one.
+        ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, 0.03f, heap));
+        ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, 1e-4f, heap));
+      }
+    }
+  }
+}
+
+TEST_P(PhotonMapContractTest, InQueryFilterAlwaysFillsTheHeap) {
+  // §4.1, in-query variant: only accepted photons enter the heap, so k are found whenever
+  // k accepted photons exist. Here: "arrives from above" (direction z > 0), about half.
+  const auto photons = MakePhotons(Layout::kClustered, 5000, 7);
+  const auto map = Build(photons);
+  const auto from_above = FunctionFilter([](const Photon& p, std::size_t) { return p.Direction().z > 0.0f; });
+  const auto by_index = FunctionFilter([](const Photon&, std::size_t i) { return i % 3 == 0; });
+  NearestPhotons heap;
+  for (const Vec3& x : MakeQueries(map->photons(), 40, 8)) {
+    for (int k : {1, 20, 100}) {
+      ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, std::numeric_limits<float>::infinity(), heap, &from_above));
+      EXPECT_EQ(heap.size(), std::size_t(k));
+      ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, 0.05f, heap, &by_index));
+    }
+  }
+}
+
+TEST_P(PhotonMapContractTest, TinyMaps) {
+  const float inf = std::numeric_limits<float>::infinity();
+  NearestPhotons heap;
+  // N = 0.
+  {
+    const auto map = Build({});
+    map->Query({0, 0, 0}, 10, inf, heap);
+    EXPECT_EQ(heap.size(), 0u);
+    EXPECT_EQ(map->size(), 0u);
+  }
+  // N = 1 .. 40, N < k and N ≥ k, including every small tree shape.
+  for (std::size_t n = 1; n <= 40; ++n) {
+    const auto photons = MakePhotons(Layout::kUniform, n, 1000 + n);
+    const auto map = Build(photons);
+    for (const Vec3& x : MakeQueries(map->photons(), 12, n)) {
+      for (int k : {1, 3, 7, 50}) ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, inf, heap));
+    }
+  }
+  // One photon, repeated: every distance ties.
+  const std::vector<Photon> same(100, Photon::Make({1, 2, 3}, {0, 0, 1}, Rgb(1)));
+  const auto map = Build(same);
+  map->Query({1, 2, 3.5f}, 10, inf, heap);
+  ASSERT_EQ(heap.size(), 10u);
+  for (const auto& e : heap.entries()) EXPECT_EQ(e.distance2, 0.25f);
+}
+
+TEST_P(PhotonMapContractTest, DegenerateQueries) {
+  const auto map = Build(MakePhotons(Layout::kUniform, 1000, 3));
+  NearestPhotons heap;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  map->Query({nan, 0, 0}, 10, 1.0f, heap);
+  EXPECT_EQ(heap.size(), 0u);
+  map->Query({0.5f, 0.5f, 0.5f}, 0, 1.0f, heap);
+  EXPECT_EQ(heap.size(), 0u);
+  map->Query({0.5f, 0.5f, 0.5f}, 10, 0.0f, heap);
+  EXPECT_EQ(heap.size(), 0u);
+  map->Query({0.5f, 0.5f, 0.5f}, 10, -1.0f, heap);
+  EXPECT_EQ(heap.size(), 0u);
+  // Far outside with a radius that does not reach the photons.
+  map->Query({10, 10, 10}, 10, 5.0f, heap);
+  EXPECT_EQ(heap.size(), 0u);
+}
+
+TEST_P(PhotonMapContractTest, LifecycleAndErrors) {
+  auto map = MakePhotonMap(GetParam().kind, GetParam().options);
+  NearestPhotons heap;
+  map->AddPhoton({0, 0, 0}, {0, 0, 1}, Rgb(1));
+  EXPECT_THROW(map->Query({0, 0, 0}, 1, 1.0f, heap), std::logic_error);
+  map->PrepareForQuery();
+  map->Query({0, 0, 0}, 1, 1.0f, heap);
+  EXPECT_EQ(heap.size(), 1u);
+  // Adding after the build un-prepares; re-preparing rebuilds from the current order.
+  Rng rng(1, 1);
+  for (const Photon& p : MakePhotons(Layout::kUniform, 500, 9)) map->AddPhoton(p);
+  EXPECT_FALSE(map->prepared());
+  EXPECT_THROW(map->Query({0, 0, 0}, 1, 1.0f, heap), std::logic_error);
+  map->PrepareForQuery();
+  for (const Vec3& x : MakeQueries(map->photons(), 20, 2))
+    ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, 10, std::numeric_limits<float>::infinity(), heap));
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(map->AddPhoton({nan, 0, 0}, {0, 0, 1}, Rgb(1)), std::invalid_argument);
+  EXPECT_GE(map->MemoryBytes(), map->size() * sizeof(Photon));
+}
+
+TEST_P(PhotonMapContractTest, ConcurrentQueriesAgreeWithSequential) {
+  const auto map = Build(MakePhotons(Layout::kClustered, 20000, 21));
+  const auto queries = MakeQueries(map->photons(), 400, 22);
+  auto run = [&](std::size_t begin, std::size_t step, std::vector<float>& out) {
+    NearestPhotons heap;  // one per thread
+    for (std::size_t i = begin; i < queries.size(); i += step) {
+      map->Query(queries[i], 30, 0.2f, heap);
+      out[i] = heap.MaxDistanceSquared() + float(heap.size());
+    }
+  };
+  std::vector<float> sequential(queries.size()), parallel(queries.size());
+  run(0, 1, sequential);
+  std::vector<std::thread> threads;
+  for (std::size_t t = 0; t < 4; ++t) threads.emplace_back(run, t, 4, std::ref(parallel));
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(sequential, parallel);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllPhotonMaps, PhotonMapContractTest, ::testing::ValuesIn(AllVariants()),
+                         [](const auto& info) { return info.param.name; });
+
+}  // namespace
+}  // namespace pf
