@@ -26,6 +26,7 @@
 #include "common/render/camera.h"
 #include "common/render/light_sampler.h"
 #include "common/render/path_tracer.h"
+#include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
 
@@ -119,6 +120,15 @@ struct RenderArgs {
   std::string eye, look_at, up, res;
   float fov = 0.0f;
   bool quiet = false;
+  // Photon map (--integrator photonmap).
+  uint64_t photons = 200000;
+  int k = 100;
+  std::string map = "kdtree";
+  std::string kd_split = "cycle";
+  std::string caustic = "auto";
+  float caustic_radius = 0.0f;
+  int glossy_depth = 1;
+  std::string direction_test = "in-query";
 };
 
 CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a) {
@@ -159,10 +169,31 @@ int RunRender(const RenderArgs& a) {
   const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   std::unique_ptr<Integrator> integrator;
+  PhotonMaps maps;
   if (a.integrator == "path") {
     integrator = std::make_unique<PathTracer>(accel, lights);
+  } else if (a.integrator == "photonmap") {
+    PhotonMapsOptions mo;
+    mo.tracing.photons = a.photons;
+    mo.tracing.map_seed = HashKey(a.seed, 0x6d6170 /* "map" */);
+    mo.tracing.threads = a.threads;
+    mo.kind = a.map == "grid" ? PhotonMapKind::kGrid : PhotonMapKind::kKdTree;
+    mo.structure.kd_split_rule = a.kd_split == "widest" ? KdSplitRule::kWidestExtent : KdSplitRule::kLevelCycle;
+    mo.structure.grid.expected_k = a.k;
+    mo.caustic = a.caustic == "on" ? CausticMapMode::kOn : a.caustic == "off" ? CausticMapMode::kOff : CausticMapMode::kAuto;
+    maps = PhotonMaps::Build(accel, lights, mo);
+    PhotonMapIntegratorOptions io;
+    io.global.k = a.k;
+    io.caustic = DefaultCausticOptions(a.k, accel.bounds());
+    if (a.caustic_radius > 0) io.caustic.max_radius = a.caustic_radius;
+    const FeasibilityTest test = a.direction_test == "none"    ? FeasibilityTest::kNone
+                                 : a.direction_test == "after" ? FeasibilityTest::kAfterQuery
+                                                               : FeasibilityTest::kInQuery;
+    io.global.direction_test = io.caustic.direction_test = test;
+    io.glossy_depth = a.glossy_depth;
+    integrator = std::make_unique<PhotonMapIntegrator>(accel, maps, io);
   } else {
-    throw InputError("--integrator: unknown integrator '" + a.integrator + "' (available: path)");
+    throw InputError("--integrator: unknown integrator '" + a.integrator + "' (available: path, photonmap)");
   }
 
   RenderOptions options;
@@ -191,6 +222,15 @@ int RunRender(const RenderArgs& a) {
       {"rays", std::to_string(stats.counters.rays + stats.counters.shadow_rays)},
       {"nonfinite_samples", std::to_string(stats.nonfinite_samples)},
   };
+  if (maps.global) {
+    meta["photons.emitted"] = std::to_string(maps.stats.emitted);
+    meta["photons.global"] = std::to_string(maps.stats.stored_global);
+    meta["photons.caustic"] = std::to_string(maps.stats.stored_caustic);
+    meta["photons.k"] = std::to_string(a.k);
+    meta["photons.map"] = a.map;
+    meta["photons.trace_seconds"] = fmt::format("{:.3f}", maps.stats.trace_seconds);
+    meta["photons.build_seconds"] = fmt::format("{:.3f}", maps.stats.build_seconds);
+  }
   WriteExr(output, image, meta);
   std::string png = a.png;
   if (png.empty() && !a.no_png) png = std::filesystem::path(output).replace_extension(".png").string();
@@ -267,8 +307,11 @@ int main(int argc, char** argv) {
   RenderArgs ra;
   CLI::App* render = app.add_subcommand("render", "Render a scene (.json manifest, .mgf or .obj) to EXR + PNG");
   render->add_option("scene", ra.scene, "Scene manifest (.json) or geometry file (.mgf, .obj)")->required();
-  render->add_option("--integrator", ra.integrator, "path = reference path tracer (NEE + MIS + RR)")
-      ->capture_default_str();
+  render->add_option("--integrator", ra.integrator,
+                     "path = reference path tracer (NEE + MIS + RR); photonmap = standalone photon-map "
+                     "estimate in a distribution ray tracer (Wald 1999, 2.5)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"path", "photonmap"}));
   render->add_option("--spp", ra.spp, "Samples per pixel")->capture_default_str()->check(CLI::Range(1u, 1u << 20));
   render->add_option("-o,--output", ra.output, "Output EXR (float32 RGB; default: <scene>.exr)");
   render->add_option("--png", ra.png, "PNG preview path (default: output with .png)");
@@ -283,6 +326,32 @@ int main(int argc, char** argv) {
   render->add_option("--fov", ra.fov, "Vertical field of view in degrees")->check(CLI::Range(0.01f, 179.9f));
   render->add_option("--res", ra.res, "Resolution WxH, e.g. 640x480");
   render->add_flag("-q,--quiet", ra.quiet, "No progress bar");
+  render->add_option("--photons", ra.photons, "photonmap: photons emitted per map")
+      ->capture_default_str()
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31));
+  render->add_option("--k", ra.k, "photonmap: nearest photons per radiance estimate")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  render->add_option("--map", ra.map, "photonmap: kdtree (left-balanced, 2.3) or grid (2.4)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"kdtree", "grid"}));
+  render->add_option("--kd-split", ra.kd_split, "kdtree split axis: cycle (level % 3) or widest (extent)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"cycle", "widest"}));
+  render->add_option("--caustic-map", ra.caustic,
+                     "auto = only when the scene has specular/glossy surfaces; on; off")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+  render->add_option("--caustic-radius", ra.caustic_radius,
+                     "photonmap: max caustic search radius (default 1% of the scene diagonal)");
+  render->add_option("--glossy-depth", ra.glossy_depth,
+                     "photonmap: glossy bounces followed before the map estimates the glossy lobe")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
+  render->add_option("--direction-test", ra.direction_test,
+                     "photonmap: photon direction vs normal test (4.1): in-query, after, none")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"in-query", "after", "none"}));
 
   std::string diff_a, diff_ref, diff_err;
   double diff_scale = 0;

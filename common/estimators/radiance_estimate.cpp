@@ -29,8 +29,11 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   const bool after_query = test && options.direction_test == FeasibilityTest::kAfterQuery;
   Rgb sum(0.0f);
   int used = 0;
-  for (const NearestPhotons::Entry& e : nearest.entries()) {
-    const Photon& p = map.photon(e.index);
+  // The heap's first entry is the farthest photon, the one at distance r.
+  const auto entries = nearest.entries();
+  const size_t first = options.exclude_boundary_photon && nearest.full() ? 1 : 0;
+  for (size_t i = first; i < entries.size(); ++i) {
+    const Photon& p = map.photon(entries[i].index);
     if (after_query && !feasible(p)) continue;
     const Rgb f = bsdf.EvalLobes(wo, p.Direction(), lobes);
     sum += f * p.Power();

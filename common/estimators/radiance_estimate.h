@@ -26,6 +26,11 @@ struct RadianceEstimateOptions {
   float max_radius = std::numeric_limits<float>::infinity();
   FeasibilityTest direction_test = FeasibilityTest::kInQuery;
   float min_fraction = 0.0f;  // caustic threshold; 0 = off
+  // The k-th photon only defines r. Counting its power too (the thesis's Σ over all k) biases
+  // a uniform photon density high by k/(k−1): for a Poisson density λ, πr²λ of the k-th
+  // neighbour is Gamma(k)-distributed and E[1/Gamma(k)] = 1/(k−1). Excluding it makes the
+  // estimate of a uniform density unbiased (furnace test). false = the thesis's formula.
+  bool exclude_boundary_photon = true;
 };
 
 struct RadianceEstimateResult {

@@ -1,0 +1,163 @@
+// Photon tracing (Wald 1999, §2.2) and the standalone photon-map estimate (§2.5): power
+// bookkeeping, determinism across thread counts, caustic classification, and the furnace.
+#include "common/photon/photon_tracer.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "common/photon/photon_maps.h"
+#include "common/render/photon_map_integrator.h"
+#include "common/render/renderer.h"
+#include "tests/common/test_scenes.h"
+
+namespace pf {
+namespace {
+
+using testing::AddMaterial;
+using testing::AddQuad;
+using testing::AddSphere;
+
+SceneDescription MakeFurnaceScene(float albedo) {
+  SceneDescription s;
+  Material wall;
+  wall.diffuse_reflectance = Rgb(albedo);
+  wall.emission = Rgb(1.0f);
+  AddSphere(s, Vec3(0.0f), 1.0f, 5, AddMaterial(s, wall), /*inward=*/true, 0, /*smooth=*/false);
+  s.num_lights = 1;
+  return s;
+}
+
+// Every emitted unit of power is stored once per diffuse bounce until absorbed: in a closed
+// furnace of albedo a the expected stored power is Φ/(1−a). Per-photon std of the stored
+// total is ≈0.9·mean (geometric walk length), so with 200k photons the std of the sum is
+// 0.2 %: 1 % is a 5σ bound.
+TEST(PhotonTracer, FurnaceStoredPowerIsEmittedOverOneMinusAlbedo) {
+  const SceneDescription scene = MakeFurnaceScene(0.8f);
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  PhotonTracerOptions o;
+  o.photons = 200000;
+  o.map_seed = 5;
+  const PhotonTracingResult r = TracePhotons(accel, lights, o);
+  const Rgb emitted = r.emitted_power;
+  // Emitted power is exactly Σ π·A·Le of the emitter triangles.
+  double area = 0;
+  for (uint32_t t = 0; t < scene.NumTriangles(); ++t) area += accel.triangle_area(t);
+  EXPECT_NEAR(emitted.r, kPi * area, 1e-4 * kPi * area);
+  // First hits are exactly the emitted photons (closed sphere: nothing escapes).
+  EXPECT_EQ(r.direct.size(), o.photons);
+  const Rgb stored = r.StoredPower();
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(stored[c], emitted[c] / 0.2f, 0.01f * emitted[c] / 0.2f) << c;
+  EXPECT_TRUE(r.caustic.empty());
+}
+
+TEST(PhotonTracer, SameSeedSamePhotonsForOneAndTwoThreads) {
+  const SceneDescription scene = MakeFurnaceScene(0.7f);
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  PhotonTracerOptions o;
+  o.photons = 20000;  // several chunks
+  o.map_seed = 77;
+  o.threads = 1;
+  const PhotonTracingResult one = TracePhotons(accel, lights, o);
+  o.threads = 2;
+  const PhotonTracingResult two = TracePhotons(accel, lights, o);
+  auto same = [](const std::vector<TracedPhoton>& a, const std::vector<TracedPhoton>& b) {
+    if (a.size() != b.size()) return false;
+    return std::memcmp(a.data(), b.data(), a.size() * sizeof(TracedPhoton)) == 0;
+  };
+  EXPECT_TRUE(same(one.direct, two.direct));
+  EXPECT_TRUE(same(one.indirect, two.indirect));
+  EXPECT_TRUE(same(one.caustic, two.caustic));
+  o.map_seed = 78;
+  const PhotonTracingResult other = TracePhotons(accel, lights, o);
+  EXPECT_FALSE(same(one.indirect, other.indirect)) << "another seed must give other photons";
+}
+
+// A mirror between a light and a floor: photons reflected by it land as caustic photons; the
+// ones arriving straight from the light are direct. With no singular surface there is none.
+TEST(PhotonTracer, CausticClassificationFollowsTheThesisDefinition) {
+  SceneDescription s;
+  Material floor;
+  floor.diffuse_reflectance = Rgb(0.5f);
+  Material mirror;
+  mirror.specular_reflectance = Rgb(1.0f);
+  Material light;
+  light.emission = Rgb(10.0f);
+  const uint32_t floor_id = AddMaterial(s, floor);
+  const uint32_t mirror_id = AddMaterial(s, mirror);
+  const uint32_t light_id = AddMaterial(s, light);
+  AddQuad(s, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
+  // Light facing down at z = 2, mirror facing up at z = 3 above it (light on both sides? no:
+  // a second light quad facing up so that photons reach the mirror).
+  AddQuad(s, {-0.5f, -0.5f, 2}, {-0.5f, 0.5f, 2}, {0.5f, 0.5f, 2}, {0.5f, -0.5f, 2}, light_id, 0);
+  AddQuad(s, {-0.5f, -0.5f, 2.001f}, {0.5f, -0.5f, 2.001f}, {0.5f, 0.5f, 2.001f}, {-0.5f, 0.5f, 2.001f}, light_id, 1);
+  AddQuad(s, {-3, -3, 3}, {-3, 3, 3}, {3, 3, 3}, {3, -3, 3}, mirror_id);  // faces down
+  s.num_lights = 2;
+  const EmbreeScene accel(s);
+  const LightSampler lights(accel);
+  ASSERT_TRUE(SceneNeedsCausticMap(s));
+  PhotonTracerOptions o;
+  o.photons = 50000;
+  const PhotonTracingResult r = TracePhotons(accel, lights, o);
+  EXPECT_GT(r.caustic.size(), 1000u);
+  EXPECT_GT(r.direct.size(), 1000u);
+  for (const TracedPhoton& p : r.caustic) ASSERT_LT(p.position.z, 1e-3f) << "caustics land on the floor";
+  // Caustic photons come from the mirror: their origin is on it.
+  for (const TracedPhoton& p : r.caustic) ASSERT_NEAR(p.origin.z, 3.0f, 1e-3f);
+  for (const TracedPhoton& p : r.direct) ASSERT_NEAR(p.origin.z, 2.0f, 0.01f);
+
+  SceneDescription diffuse_only = s;
+  diffuse_only.materials[mirror_id] = floor;
+  EXPECT_FALSE(SceneNeedsCausticMap(diffuse_only));
+}
+
+// Issue #3: in the furnace the direct visualisation of the estimate equals Le/(1−a) within 2 %
+// (N = 1M photons, k = 100). One estimate from k photons has a relative std of ~1/√k = 10 %
+// and neighbouring estimates share photons (the low-frequency noise of §3.3). A pixel of this
+// 4×4, 90° camera covers ~0.5 m of wall, ~700 disjoint search disks of r ≈ 9 mm, so its
+// 1024 jittered estimates average to ~0.4 %: 2 % is a 5σ bound. The thesis's variant that
+// also counts the k-th photon is high by k/(k−1) ≈ 1 %, which this bound would hide, so it is
+// checked on the image mean instead.
+TEST(PhotonMapIntegrator, FurnaceEstimateWithinTwoPercent) {
+  const SceneDescription scene = MakeFurnaceScene(0.8f);
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  PhotonMapsOptions mo;
+  mo.tracing.photons = 1000000;
+  mo.tracing.map_seed = 3;
+  const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
+  EXPECT_EQ(maps.caustic, nullptr) << "diffuse-only scene: no caustic map";
+  // The 18-byte photons (RGBE power) still hold the right total power.
+  double stored = 0;
+  for (const Photon& p : maps.global->photons()) stored += p.Power().r;
+  EXPECT_NEAR(stored, maps.stats.emitted_power.r / 0.2, 0.01 * maps.stats.emitted_power.r / 0.2);
+
+  PhotonMapIntegratorOptions io;
+  io.global.k = 100;
+  const PhotonMapIntegrator integrator(accel, maps, io);
+  CameraSpec cam;
+  cam.eye = Vec3(0.0f);
+  cam.look_at = Vec3(0, 0, -1);
+  cam.width = cam.height = 4;
+  cam.vfov_degrees = 90;
+  const Image img = RenderImage(integrator, Camera(cam), RenderOptions{.spp = 1024, .seed = 1});
+  double mean = 0;
+  for (size_t i = 0; i < img.size(); ++i) {
+    mean += img[i].Mean() / double(img.size());
+    for (int c = 0; c < 3; ++c) ASSERT_NEAR(img[i][c], 5.0f, 0.1f) << "pixel " << i << " channel " << c;
+  }
+  // Image mean (~0.1 % std): unbiased within 0.5 %; the thesis's Σ over all k is k/(k−1) high
+  // on the reflected part (4 of the 5): +0.8 %.
+  EXPECT_NEAR(mean, 5.0, 0.025);
+  io.global.exclude_boundary_photon = false;
+  const PhotonMapIntegrator thesis(accel, maps, io);
+  const Image img2 = RenderImage(thesis, Camera(cam), RenderOptions{.spp = 1024, .seed = 1});
+  double mean2 = 0;
+  for (size_t i = 0; i < img2.size(); ++i) mean2 += img2[i].Mean() / double(img2.size());
+  EXPECT_NEAR(mean2 - mean, 4.0 / 99.0, 0.01) << "counting the k-th photon adds 4·1/(k−1)";
+}
+
+}  // namespace
+}  // namespace pf
