@@ -7,6 +7,7 @@
 // Exit codes (documented in --help): 0 success, 1 runtime failure (I/O, Embree), 2 usage
 // error, 3 invalid input (scene or manifest, reported as file:line: reason), 130 interrupted.
 #include <CLI/CLI.hpp>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -270,6 +271,44 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
   return kExitOk;
 }
 
+// Weighted average of images rendered with different seeds, weights = their spp (EXR metadata
+// "spp"; 1 if absent). Prints the RMSE between the first two inputs halved — an estimate of the
+// noise left in the average of two equal-spp halves.
+int RunMerge(const std::vector<std::string>& inputs, const std::string& output) {
+  Image sum;
+  double total_weight = 0;
+  double seconds = 0;
+  std::vector<Image> first_two;
+  std::vector<std::string> seeds;
+  for (const std::string& path : inputs) {
+    ImageMetadata meta;
+    const Image img = ReadExr(path, &meta);
+    if (sum.size() == 0) sum = Image(img.width(), img.height());
+    if (img.width() != sum.width() || img.height() != sum.height())
+      throw InputError(path + ": size " + std::to_string(img.width()) + "x" + std::to_string(img.height()) +
+                       " differs from the first input");
+    const double w = meta.count("spp") ? std::stod(meta["spp"]) : 1.0;
+    if (meta.count("render_seconds")) seconds += std::stod(meta["render_seconds"]);
+    if (meta.count("seed")) seeds.push_back(meta["seed"]);
+    for (size_t i = 0; i < img.size(); ++i) sum[i] += img[i] * float(w);
+    total_weight += w;
+    if (first_two.size() < 2) first_two.push_back(img);
+  }
+  for (Rgb& c : sum.pixels()) c *= float(1.0 / total_weight);
+  ImageMetadata meta = {{"spp", fmt::format("{}", total_weight)},
+                        {"render_seconds", fmt::format("{:.1f}", seconds)},
+                        {"merged_from", fmt::format("{}", fmt::join(inputs, ","))},
+                        {"seeds", fmt::format("{}", fmt::join(seeds, ","))}};
+  if (first_two.size() == 2) {
+    const double noise = CompareImages(first_two[0], first_two[1]).rmse / 2.0;
+    meta["estimated_noise_rmse"] = fmt::format("{:.6g}", noise);
+    std::printf("estimated remaining noise (RMSE of the two halves / 2): %.6g\n", noise);
+  }
+  WriteExr(output, sum, meta, ExrCompression::kPiz);
+  std::printf("merged %zu images, %g spp in all -> %s\n", inputs.size(), total_weight, output.c_str());
+  return kExitOk;
+}
+
 int RunInfo(const std::string& path) {
   const SceneDescription scene = LoadScene(path);
   const Bounds3 b = scene.ComputeBounds();
@@ -363,6 +402,12 @@ int main(int argc, char** argv) {
   diff->add_option("--error-scale", diff_scale, "Error mapped to the top of the colour ramp (default: max)");
   diff->add_flag("--json", diff_json, "Print JSON instead of a line");
 
+  std::vector<std::string> merge_inputs;
+  std::string merge_output;
+  CLI::App* merge = app.add_subcommand("merge", "Average EXRs rendered with different seeds, weighted by their spp");
+  merge->add_option("inputs", merge_inputs, "EXR files")->required()->check(CLI::ExistingFile);
+  merge->add_option("-o,--output", merge_output, "Output EXR (PIZ-compressed)")->required();
+
   std::string info_scene;
   CLI::App* info = app.add_subcommand("info", "Print what a scene contains (counts, bounds, cameras, warnings)");
   info->add_option("scene", info_scene, "Scene manifest or geometry file")->required();
@@ -379,6 +424,7 @@ int main(int argc, char** argv) {
     if (*render) return RunRender(ra);
     if (*diff) return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json);
     if (*info) return RunInfo(info_scene);
+    if (*merge) return RunMerge(merge_inputs, merge_output);
   } catch (const InputError& e) {
     spdlog::error("{}", e.what());
     return kExitBadInput;

@@ -32,12 +32,30 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   // The heap's first entry is the farthest photon, the one at distance r.
   const auto entries = nearest.entries();
   const size_t first = options.exclude_boundary_photon && nearest.full() ? 1 : 0;
-  for (size_t i = first; i < entries.size(); ++i) {
-    const Photon& p = map.photon(entries[i].index);
-    if (after_query && !feasible(p)) continue;
-    const Rgb f = bsdf.EvalLobes(wo, p.Direction(), lobes);
-    sum += f * p.Power();
-    ++used;
+  const Material& m = bsdf.material();
+  const bool lambertian_only = !(lobes & kLobeGlossyReflection) || m.specular_reflectance.IsBlack() ||
+                               m.specular_roughness <= 0.0f;
+  if (lambertian_only) {
+    // Fast path: f_r is ρd/π for photons arriving on the viewer's side and τd/π for the
+    // other side, so the powers are summed per side and multiplied once (no per-photon BSDF).
+    Rgb front(0.0f), back(0.0f);
+    for (size_t i = first; i < entries.size(); ++i) {
+      const Photon& p = map.photon(entries[i].index);
+      const bool same_side = Dot(p.Direction(), side) > 0.0f;
+      if (after_query && !same_side) continue;
+      (same_side ? front : back) += p.Power();
+      ++used;
+    }
+    const Rgb f_front = bsdf.EvalLobes(wo, side, lobes);
+    const Rgb f_back = back.IsBlack() ? Rgb(0.0f) : bsdf.EvalLobes(wo, -side, lobes);
+    sum = f_front * front + f_back * back;
+  } else {
+    for (size_t i = first; i < entries.size(); ++i) {
+      const Photon& p = map.photon(entries[i].index);
+      if (after_query && !feasible(p)) continue;
+      sum += bsdf.EvalLobes(wo, p.Direction(), lobes) * p.Power();
+      ++used;
+    }
   }
   result.radiance = sum * (1.0f / (kPi * r2));
   result.photons_used = used;

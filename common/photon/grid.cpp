@@ -112,24 +112,52 @@ void GridPhotonMap::Build() {
   achieved_ = float(m);
   for (auto& planes : planes_) planes.shrink_to_fit();
 
-  // Voxel → first photon (prefix sums of the counts), then an in-place counting sort
-  // ("American flag" permutation): every swap moves one photon into its voxel's run for
-  // good, so the sort is O(N) with no second photon array (§2.4: the grid is built in place).
+  // Voxel → first photon (prefix sums of the counts), then the in-place sort by voxel.
   const std::size_t v_count = counts.size();
   first_.assign(v_count + 1, 0);
   for (std::size_t v = 0; v < v_count; ++v) first_[v + 1] = first_[v] + counts[v];
   first_.shrink_to_fit();
-  std::vector<uint32_t>& next = counts;  // reuse: write cursor per voxel
-  std::copy(first_.begin(), first_.end() - 1, next.begin());
-  for (std::size_t v = 0; v < v_count; ++v) {
-    const uint32_t end = first_[v + 1];
-    while (next[v] < end) {
-      const uint32_t i = next[v];
-      const std::size_t w = VoxelOf(photons_[i]);
-      if (w == v) {
-        ++next[v];
+  counts.clear();
+  counts.shrink_to_fit();
+  SortByVoxel();
+}
+
+// An in-place counting sort ("American flag" permutation): a cursor per bucket walks its
+// run, and every swap moves one photon into its bucket's run for good, so each pass is O(N)
+// with no second photon array (§2.4: the grid is built in place). Done most-significant
+// digit first — z slabs, then the voxels of each slab — because a single pass over millions
+// of buckets would make almost every swap a cache miss; with a few hundred slab cursors the
+// writes stream, and a slab's photons fit in cache for the second pass.
+void GridPhotonMap::SortByVoxel() {
+  const std::size_t slab = std::size_t(res_[0]) * std::size_t(res_[1]);
+  std::vector<uint32_t> next(std::max(std::size_t(res_[2]), slab));
+  for (int z = 0; z < res_[2]; ++z) next[z] = first_[std::size_t(z) * slab];
+  for (int z = 0; z < res_[2]; ++z) {
+    const uint32_t end = first_[std::size_t(z + 1) * slab];
+    while (next[z] < end) {
+      const uint32_t i = next[z];
+      const int32_t w = AxisCoord(2, photons_[i].position[2]);
+      if (w == z) {
+        ++next[z];
       } else {
-        std::swap(photons_[i], photons_[next[w]++]);  // w > v: earlier voxels are complete
+        std::swap(photons_[i], photons_[next[w]++]);  // w > z: earlier slabs are complete
+      }
+    }
+  }
+  for (int z = 0; z < res_[2]; ++z) {
+    const std::size_t base = std::size_t(z) * slab;
+    if (first_[base] == first_[base + slab]) continue;  // empty slab
+    std::copy(first_.begin() + std::ptrdiff_t(base), first_.begin() + std::ptrdiff_t(base + slab), next.begin());
+    for (std::size_t v = 0; v < slab; ++v) {
+      const uint32_t end = first_[base + v + 1];
+      while (next[v] < end) {
+        const uint32_t i = next[v];
+        const std::size_t w = VoxelOf(photons_[i]) - base;
+        if (w == v) {
+          ++next[v];
+        } else {
+          std::swap(photons_[i], photons_[next[w]++]);
+        }
       }
     }
   }

@@ -91,8 +91,9 @@ class GridPhotonMap final : public PhotonMap {
   }
   // Sets the resolution and planes for voxel edge h; returns false if over the cap.
   void SetResolution(const Bounds3& box, double h);
-  // Counts photons per voxel into counts_; returns photons per occupied voxel.
+  // Counts photons per voxel; returns photons per occupied voxel.
   double CountPhotons(std::vector<uint32_t>& counts) const;
+  void SortByVoxel();
 
   GridOptions options_;
   std::array<int, 3> res_{};

@@ -24,6 +24,7 @@ std::unique_ptr<PhotonMap> MakeFilled(const PhotonMapsOptions& o,
 PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& lights,
                              const PhotonMapsOptions& options) {
   PhotonMaps maps;
+  maps.seed = options.tracing.map_seed;
   const bool need_caustic = options.caustic == CausticMapMode::kOn ||
                             (options.caustic == CausticMapMode::kAuto && SceneNeedsCausticMap(scene.description()));
   if (options.caustic == CausticMapMode::kAuto && !need_caustic)

@@ -36,6 +36,7 @@ struct PhotonMaps {
   std::unique_ptr<PhotonMap> caustic;  // null when not needed
   std::unique_ptr<PhotonMap> direct;   // only with separate_direct
   PhotonMapsStats stats;
+  uint64_t seed = 0;  // the map seed the photons were traced with
 
   static PhotonMaps Build(const EmbreeScene& scene, const LightSampler& lights,
                           const PhotonMapsOptions& options);

@@ -1,0 +1,62 @@
+#pragma once
+// The merge arithmetic (Design: Merge = weighted averaging): per pixel Σ w·c / Σ w, where a
+// task contributes the sum of its samples with weight = its sample count.
+//
+// Determinism (Design property 1): the sums are kept in 64-bit fixed point (2^-32 units), so
+// addition is exact and associative, and the merged image is bit-identical whatever order the
+// tasks complete in, however many workers ran them. Range: a pixel's channel sum must stay
+// within ±2^31 (checked per task: ValidateTaskResult rejects a task whose sums exceed 2^30).
+//
+// Noise estimate (Design: Error estimate): samples of a pixel from different maps are
+// independent, so the spread of the per-map pixel means (luminance) estimates the pixel's
+// variance; EstimatedNoiseRms is the RMS over pixels covered by ≥ 2 maps of the standard error
+// of their mean. Kept in double: it only steers progress and the stop rule, never the image.
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/image/image.h"
+
+namespace pf {
+
+class Accumulator {
+ public:
+  Accumulator() = default;
+  Accumulator(int width, int height);
+
+  // "" if a task result may be merged, else the reason (wrong size, NaN/Inf, out of range).
+  static std::string ValidateTaskResult(std::span<const float> rgb_sums, uint64_t expected_pixels,
+                                        uint32_t samples);
+
+  // Merges one task: rgb_sums holds 3 floats per pixel of `pixels` (same order), each the sum
+  // over `samples` samples. Call ValidateTaskResult first; invalid input throws InputError.
+  void Add(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples);
+
+  Image Resolve() const;                 // Σ/n per pixel; black where n = 0
+  double EstimatedNoiseRms() const;      // < 0 while no pixel has two maps
+  uint64_t samples_merged() const { return samples_merged_; }
+  uint64_t tasks_merged() const { return tasks_merged_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+  // Checkpoint format: little-endian binary with a magic, a version and the sizes.
+  std::string Serialize() const;
+  static Accumulator Deserialize(std::string_view bytes);  // throws InputError if malformed
+
+  bool operator==(const Accumulator& o) const = default;
+
+ private:
+  int width_ = 0, height_ = 0;
+  std::vector<int64_t> sums_;        // 3 per pixel, fixed point 2^-32
+  std::vector<uint32_t> samples_;    // per pixel
+  std::vector<uint32_t> maps_;       // contributions per pixel
+  std::vector<double> lum_sum_;      // Σ n·m (m = per-map mean luminance)
+  std::vector<double> lum_sum2_;     // Σ n·m²
+  uint64_t samples_merged_ = 0;
+  uint64_t tasks_merged_ = 0;
+};
+
+}  // namespace pf

@@ -1,0 +1,116 @@
+#include "common/plan/task_executor.h"
+
+#include <chrono>
+
+#include "common/plan/accumulator.h"
+#include "common/render/camera.h"
+#include "common/render/path_tracer.h"
+#include "common/render/renderer.h"
+
+namespace pf {
+
+std::string JobRenderSettings::MapFingerprint() const {
+  return "photons=" + std::to_string(photons) + ";structure=" + std::to_string(int(structure)) +
+         ";kd=" + std::to_string(int(kd_split)) + ";caustic=" + std::to_string(int(caustic)) +
+         ";k=" + std::to_string(k);
+}
+
+SceneRuntime::SceneRuntime(SceneDescription d) : description(std::move(d)), accel(description), lights(accel) {}
+
+std::shared_ptr<const PhotonMaps> PhotonMapCache::Find(const std::string& key) {
+  std::lock_guard lock(mutex_);
+  for (auto it = entries_.begin(); it != entries_.end(); ++it)
+    if (it->key == key) {
+      entries_.splice(entries_.begin(), entries_, it);
+      return entries_.front().maps;
+    }
+  return nullptr;
+}
+
+void PhotonMapCache::Insert(const std::string& key, std::shared_ptr<const PhotonMaps> maps) {
+  if (capacity_ == 0) return;
+  std::lock_guard lock(mutex_);
+  const uint64_t seed = maps ? maps->seed : 0;
+  entries_.push_front(Entry{key, seed, std::move(maps)});
+  while (entries_.size() > capacity_) entries_.pop_back();
+}
+
+std::vector<uint64_t> PhotonMapCache::CachedSeeds() const {
+  std::lock_guard lock(mutex_);
+  std::vector<uint64_t> seeds;
+  for (const Entry& e : entries_) seeds.push_back(e.seed);
+  return seeds;
+}
+
+size_t PhotonMapCache::size() const {
+  std::lock_guard lock(mutex_);
+  return entries_.size();
+}
+
+TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera_spec,
+                       const JobRenderSettings& settings, const TaskSpec& task, int threads, PhotonMapCache* cache,
+                       std::atomic<uint64_t>* progress) {
+  TaskOutput out;
+  const Camera camera(camera_spec);
+  const std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
+  std::vector<Rgb> sums(pixels.size());
+  RenderStats stats;
+  if (settings.integrator == IntegratorKind::kPath) {
+    const PathTracer tracer(scene.accel, scene.lights);
+    stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads, sums,
+                         progress);
+  } else {
+    const std::string key = scene_key + "|" + settings.MapFingerprint() + "|" + std::to_string(task.map_seed);
+    std::shared_ptr<const PhotonMaps> maps = cache ? cache->Find(key) : nullptr;
+    out.map_cache_hit = maps != nullptr;
+    if (!maps) {
+      PhotonMapsOptions mo;
+      mo.tracing.photons = settings.photons;
+      mo.tracing.map_seed = task.map_seed;
+      mo.tracing.threads = threads;
+      mo.kind = settings.structure;
+      mo.structure.kd_split_rule = settings.kd_split;
+      mo.structure.grid.expected_k = settings.k;
+      mo.caustic = settings.caustic;
+      maps = std::make_shared<const PhotonMaps>(PhotonMaps::Build(scene.accel, scene.lights, mo));
+      if (cache) cache->Insert(key, maps);
+    }
+    out.photons_emitted = maps->stats.emitted;
+    out.photons_stored = maps->stats.stored_global + maps->stats.stored_caustic;
+    out.map_seconds = out.map_cache_hit ? 0.0 : maps->stats.trace_seconds + maps->stats.build_seconds;
+    PhotonMapIntegratorOptions io;
+    io.global.k = settings.k;
+    io.global.direction_test = settings.direction_test;
+    io.caustic = DefaultCausticOptions(settings.k, scene.accel.bounds());
+    if (settings.caustic_radius > 0.0f) io.caustic.max_radius = settings.caustic_radius;
+    io.caustic.direction_test = settings.direction_test;
+    io.glossy_depth = settings.glossy_depth;
+    const PhotonMapIntegrator integrator(scene.accel, *maps, io);
+    stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
+                         sums, progress);
+  }
+  out.pixels = pixels.size();
+  out.samples = task.sample_end - task.sample_begin;
+  out.rgb_sums.resize(pixels.size() * 3);
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    out.rgb_sums[3 * i] = sums[i].r;
+    out.rgb_sums[3 * i + 1] = sums[i].g;
+    out.rgb_sums[3 * i + 2] = sums[i].b;
+  }
+  out.rays = stats.counters.rays + stats.counters.shadow_rays;
+  out.render_seconds = stats.seconds;
+  return out;
+}
+
+Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera, const JobRenderSettings& settings,
+                        const PlanSpec& plan, uint64_t seed, int threads, std::atomic<uint64_t>* progress) {
+  Accumulator acc(camera.width, camera.height);
+  PhotonMapCache cache(1);
+  for (const TaskSpec& task : ExpandPlan(plan, camera.width, camera.height, seed)) {
+    const TaskOutput out = ExecuteTask(scene, "local", camera, settings, task, threads, &cache, progress);
+    acc.Add(PixelsOf(task.pixels, camera.width, camera.height), out.rgb_sums, out.samples);
+  }
+  return acc.Resolve();
+}
+
+}  // namespace pf

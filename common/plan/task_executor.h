@@ -1,0 +1,88 @@
+#pragma once
+// Executes one task — build (or reuse) the task's photon map, render its pixel subset — and the
+// single-process execution of a whole plan. Shared by pf-worker and `pf render`, so that a farm
+// render and a local render of the same plan and seed are bit-identical (Design property 1).
+
+#include <atomic>
+#include <cstdint>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "common/accel/embree_scene.h"
+#include "common/image/image.h"
+#include "common/photon/photon_maps.h"
+#include "common/plan/task_plan.h"
+#include "common/render/light_sampler.h"
+#include "common/render/photon_map_integrator.h"
+
+namespace pf {
+
+enum class IntegratorKind { kPath, kPhotonMap };
+
+// Everything about *how* to render that is the same for all tasks of a job.
+struct JobRenderSettings {
+  IntegratorKind integrator = IntegratorKind::kPhotonMap;
+  uint64_t photons = 200000;
+  PhotonMapKind structure = PhotonMapKind::kKdTree;
+  KdSplitRule kd_split = KdSplitRule::kLevelCycle;
+  CausticMapMode caustic = CausticMapMode::kAuto;
+  int k = 100;
+  float caustic_radius = 0.0f;  // 0 = DefaultCausticOptions
+  int glossy_depth = 1;
+  FeasibilityTest direction_test = FeasibilityTest::kInQuery;
+
+  // Stable text form of the settings that change a photon map (cache key).
+  std::string MapFingerprint() const;
+};
+
+// A scene ready to trace: description + Embree + lights. Built once per scene per process.
+struct SceneRuntime {
+  explicit SceneRuntime(SceneDescription description);
+  SceneDescription description;
+  EmbreeScene accel;
+  LightSampler lights;
+};
+
+// LRU cache of photon maps by (scene key, map fingerprint, map seed). Thread-safe.
+class PhotonMapCache {
+ public:
+  explicit PhotonMapCache(size_t capacity = 4) : capacity_(capacity) {}
+  std::shared_ptr<const PhotonMaps> Find(const std::string& key);
+  void Insert(const std::string& key, std::shared_ptr<const PhotonMaps> maps);
+  std::vector<uint64_t> CachedSeeds() const;
+  size_t size() const;
+
+ private:
+  struct Entry {
+    std::string key;
+    uint64_t seed;
+    std::shared_ptr<const PhotonMaps> maps;
+  };
+  mutable std::mutex mutex_;
+  std::list<Entry> entries_;  // most recent first
+  size_t capacity_;
+};
+
+struct TaskOutput {
+  std::vector<float> rgb_sums;  // 3 per pixel, subset order
+  uint64_t pixels = 0;
+  uint32_t samples = 0;         // per pixel
+  uint64_t photons_emitted = 0, photons_stored = 0, rays = 0;
+  double map_seconds = 0, render_seconds = 0;
+  bool map_cache_hit = false;
+};
+
+// Renders one task. `scene_key` identifies the scene for the cache (e.g. its bundle hash);
+// `cache` may be null. `progress` (optional) counts finished pixels.
+TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera,
+                       const JobRenderSettings& settings, const TaskSpec& task, int threads,
+                       PhotonMapCache* cache = nullptr, std::atomic<uint64_t>* progress = nullptr);
+
+// The whole plan in this process, merged with the farm's Accumulator (same arithmetic).
+Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera, const JobRenderSettings& settings,
+                        const PlanSpec& plan, uint64_t seed, int threads, std::atomic<uint64_t>* progress = nullptr);
+
+}  // namespace pf

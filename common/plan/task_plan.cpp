@@ -1,0 +1,176 @@
+#include "common/plan/task_plan.h"
+
+#include <numeric>
+
+#include "common/core/error.h"
+#include "common/core/rng.h"
+
+namespace pf {
+namespace {
+
+constexpr uint64_t kMapTag = 0x6d6170;    // "map"
+constexpr uint64_t kPixTag = 0x706978;    // "pix"
+constexpr uint64_t kPermTag = 0x7065726d;  // "perm"
+constexpr uint64_t kMaxTasks = 1u << 24;
+
+std::vector<PixelSubset> Tiles(uint32_t tile_size, int width, int height) {
+  std::vector<PixelSubset> tiles;
+  const uint32_t tw = tile_size == 0 ? uint32_t(width) : tile_size;
+  const uint32_t th = tile_size == 0 ? uint32_t(height) : tile_size;
+  for (uint32_t y = 0; y < uint32_t(height); y += th)
+    for (uint32_t x = 0; x < uint32_t(width); x += tw) {
+      PixelSubset t;
+      t.kind = PixelSubset::Kind::kTile;
+      t.x0 = x;
+      t.y0 = y;
+      t.x1 = std::min<uint32_t>(x + tw, uint32_t(width));
+      t.y1 = std::min<uint32_t>(y + th, uint32_t(height));
+      tiles.push_back(t);
+    }
+  return tiles;
+}
+
+uint64_t NumTiles(uint32_t tile_size, int width, int height) {
+  if (tile_size == 0) return 1;
+  return uint64_t((width + tile_size - 1) / tile_size) * ((height + tile_size - 1) / tile_size);
+}
+
+}  // namespace
+
+uint64_t MapSeed(uint64_t job_seed, uint64_t map_index) { return HashKey(job_seed, kMapTag, map_index); }
+uint64_t PixelSeed(uint64_t job_seed, uint64_t map_index) { return HashKey(job_seed, kPixTag, map_index); }
+
+void ValidatePlan(const PlanSpec& plan, int width, int height) {
+  if (width <= 0 || height <= 0) throw InputError("camera: width and height must be positive");
+  switch (plan.kind) {
+    case PlanKind::kMultipleMaps:
+      if (plan.maps < 1) throw InputError("plan.multiple_maps.maps: must be >= 1");
+      if (plan.samples_per_pixel < 1) throw InputError("plan.multiple_maps.samples_per_pixel: must be >= 1");
+      break;
+    case PlanKind::kMapsInTurn:
+      if (plan.samples_per_pixel < 1) throw InputError("plan.maps_in_turn.samples_per_pixel: must be >= 1");
+      break;
+    case PlanKind::kSkipping:
+      if (plan.stride < 1) throw InputError("plan.skipping.stride: must be >= 1");
+      if (uint64_t(plan.stride) * plan.stride > uint64_t(width) * uint64_t(height))
+        throw InputError("plan.skipping.stride: S² = " + std::to_string(uint64_t(plan.stride) * plan.stride) +
+                         " exceeds the number of pixels");
+      if (plan.rounds < 1) throw InputError("plan.skipping.rounds: must be >= 1");
+      if (plan.samples_per_pixel < 1) throw InputError("plan.skipping.samples_per_pixel: must be >= 1");
+      break;
+  }
+  if (CountTasks(plan, width, height) > kMaxTasks)
+    throw InputError("plan: more than " + std::to_string(kMaxTasks) + " tasks; use larger tiles or fewer maps");
+}
+
+uint64_t CountTasks(const PlanSpec& plan, int width, int height) {
+  switch (plan.kind) {
+    case PlanKind::kMultipleMaps:
+      return uint64_t(plan.maps) * NumTiles(plan.tile_size, width, height);
+    case PlanKind::kMapsInTurn:
+      return uint64_t(plan.samples_per_pixel) * NumTiles(plan.tile_size, width, height);
+    case PlanKind::kSkipping:
+      return uint64_t(plan.rounds) * plan.stride * plan.stride;
+  }
+  return 0;
+}
+
+uint32_t CountRounds(const PlanSpec& plan) { return plan.kind == PlanKind::kSkipping ? plan.rounds : 1; }
+
+std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed) {
+  ValidatePlan(plan, width, height);
+  std::vector<TaskSpec> tasks;
+  tasks.reserve(CountTasks(plan, width, height));
+  auto add = [&](uint32_t round, uint64_t map, const PixelSubset& px, uint32_t s0, uint32_t s1) {
+    TaskSpec t;
+    t.task_id = tasks.size();
+    t.round = round;
+    t.map_index = map;
+    t.map_seed = MapSeed(job_seed, map);
+    t.pixel_seed = PixelSeed(job_seed, map);
+    t.pixels = px;
+    t.sample_begin = s0;
+    t.sample_end = s1;
+    tasks.push_back(t);
+  };
+  switch (plan.kind) {
+    case PlanKind::kMultipleMaps: {
+      const auto tiles = Tiles(plan.tile_size, width, height);
+      // Map-major order: the tiles of one map are adjacent, so a worker that has built map m
+      // tends to lease its other tiles next (map affinity).
+      for (uint32_t m = 0; m < plan.maps; ++m)
+        for (const PixelSubset& t : tiles) add(0, m, t, 0, plan.samples_per_pixel);
+      break;
+    }
+    case PlanKind::kMapsInTurn: {
+      const auto tiles = Tiles(plan.tile_size, width, height);
+      for (uint32_t i = 0; i < plan.samples_per_pixel; ++i)
+        for (const PixelSubset& t : tiles) add(0, i, t, i, i + 1);
+      break;
+    }
+    case PlanKind::kSkipping: {
+      const uint32_t s2 = plan.stride * plan.stride;
+      for (uint32_t r = 0; r < plan.rounds; ++r) {
+        PixelSubset px;
+        px.kind = PixelSubset::Kind::kPermutationStride;
+        px.permutation_seed = HashKey(job_seed, kPermTag, r);
+        px.stride = s2;
+        for (uint32_t start = 0; start < s2; ++start) {
+          px.offset = start;
+          add(r, uint64_t(r) * s2 + start, px, 0, plan.samples_per_pixel);
+        }
+      }
+      break;
+    }
+  }
+  return tasks;
+}
+
+std::vector<uint32_t> PixelPermutation(uint64_t seed, uint32_t n) {
+  std::vector<uint32_t> perm(n);
+  std::iota(perm.begin(), perm.end(), 0u);
+  Rng rng = Rng::ForKey(seed);
+  for (uint32_t i = n; i > 1; --i) std::swap(perm[i - 1], perm[rng.UniformInt(i)]);
+  return perm;
+}
+
+uint64_t CountPixels(const PixelSubset& s, int width, int height) {
+  if (s.kind == PixelSubset::Kind::kTile)
+    return s.x1 > s.x0 && s.y1 > s.y0 ? uint64_t(s.x1 - s.x0) * (s.y1 - s.y0) : 0;
+  const uint64_t n = uint64_t(width) * uint64_t(height);
+  return s.offset < n && s.stride > 0 ? (n - s.offset + s.stride - 1) / s.stride : 0;
+}
+
+std::vector<uint32_t> PixelsOf(const PixelSubset& s, int width, int height) {
+  std::vector<uint32_t> px;
+  if (s.kind == PixelSubset::Kind::kTile) {
+    if (s.x1 > uint32_t(width) || s.y1 > uint32_t(height) || s.x0 >= s.x1 || s.y0 >= s.y1)
+      throw InputError("pixels.tile: outside the image or empty");
+    px.reserve(CountPixels(s, width, height));
+    for (uint32_t y = s.y0; y < s.y1; ++y)
+      for (uint32_t x = s.x0; x < s.x1; ++x) px.push_back(y * uint32_t(width) + x);
+    return px;
+  }
+  const uint32_t n = uint32_t(width) * uint32_t(height);
+  if (s.stride == 0 || s.offset >= n) throw InputError("pixels.permutation_stride: offset/stride out of range");
+  const std::vector<uint32_t> perm = PixelPermutation(s.permutation_seed, n);
+  px.reserve(CountPixels(s, width, height));
+  for (uint64_t i = s.offset; i < n; i += s.stride) px.push_back(perm[i]);
+  return px;
+}
+
+std::string DescribePlan(const PlanSpec& p) {
+  switch (p.kind) {
+    case PlanKind::kMultipleMaps:
+      return "multiple maps: " + std::to_string(p.maps) + " maps x " + std::to_string(p.samples_per_pixel) +
+             " spp, tile " + std::to_string(p.tile_size);
+    case PlanKind::kMapsInTurn:
+      return "maps in turn: " + std::to_string(p.samples_per_pixel) + " maps/spp, tile " + std::to_string(p.tile_size);
+    case PlanKind::kSkipping:
+      return "skipping: S=" + std::to_string(p.stride) + ", " + std::to_string(p.rounds) + " rounds, " +
+             std::to_string(p.samples_per_pixel) + " spp per round";
+  }
+  return "?";
+}
+
+}  // namespace pf

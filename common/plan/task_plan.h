@@ -1,0 +1,71 @@
+#pragma once
+// Job → tasks: the pure, deterministic expansion of a render job into independent
+// *photon map × pixel subset × sample range* tasks (Wald 1999, §4.4; Design: Jobs, tasks,
+// results). The coordinator and the single-process renderer call the same functions, and a
+// worker recomputes a task's pixels from its PixelSubset, so no pixel list ever travels.
+//
+// Plans:
+//  (a) kMultipleMaps: s independent maps over the whole image (cut into tiles); every map
+//      renders samples [0, spp) of every pixel; the pixel's value is the mean over maps.
+//  (b) kMapsInTurn: pixel sample i uses map i: task (map i, tile) renders sample [i, i+1).
+//  (c) kSkipping: per round a seeded permutation σ of all pixels; S² tasks per round, task
+//      `start` with its own new map and the pixels σ[start], σ[start+S²], … (§4.4).
+//
+// Seeds: map m of a job has map seed HashKey(job_seed, "map", m) and its pixel samples draw
+// from streams keyed by HashKey(job_seed, "pix", m): samples of different maps are independent.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pf {
+
+enum class PlanKind { kMultipleMaps, kMapsInTurn, kSkipping };
+
+struct PlanSpec {
+  PlanKind kind = PlanKind::kMultipleMaps;
+  uint32_t maps = 1;               // kMultipleMaps: s
+  uint32_t samples_per_pixel = 1;  // per map (a), total (b), per task and pixel (c)
+  uint32_t tile_size = 0;          // (a), (b): 0 = one tile = whole image
+  uint32_t stride = 1;             // (c): S
+  uint32_t rounds = 1;             // (c)
+};
+
+struct PixelSubset {
+  enum class Kind { kTile, kPermutationStride } kind = Kind::kTile;
+  // kTile: x ∈ [x0, x1), y ∈ [y0, y1), row-major.
+  uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  // kPermutationStride: σ[offset], σ[offset + stride], … of PixelPermutation(seed, W·H).
+  uint64_t permutation_seed = 0;
+  uint32_t offset = 0, stride = 1;
+};
+
+struct TaskSpec {
+  uint64_t task_id = 0;    // index in the expansion: stable and unique within the job
+  uint32_t round = 0;      // skipping round (0 for other plans)
+  uint64_t map_index = 0;
+  uint64_t map_seed = 0;
+  uint64_t pixel_seed = 0;
+  PixelSubset pixels;
+  uint32_t sample_begin = 0, sample_end = 1;
+};
+
+// Throws InputError naming the field ("plan.skipping.stride: must be ≥ 1") for invalid plans.
+void ValidatePlan(const PlanSpec& plan, int width, int height);
+uint64_t CountTasks(const PlanSpec& plan, int width, int height);
+uint32_t CountRounds(const PlanSpec& plan);  // 1 unless skipping
+std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed);
+
+uint64_t MapSeed(uint64_t job_seed, uint64_t map_index);
+uint64_t PixelSeed(uint64_t job_seed, uint64_t map_index);
+
+// A uniformly random permutation of [0, n) from a seed (Fisher–Yates with the project RNG).
+std::vector<uint32_t> PixelPermutation(uint64_t seed, uint32_t n);
+// The pixel indices (y·W + x) of a subset, in subset order.
+std::vector<uint32_t> PixelsOf(const PixelSubset& subset, int width, int height);
+// Number of pixels without materialising them.
+uint64_t CountPixels(const PixelSubset& subset, int width, int height);
+
+std::string DescribePlan(const PlanSpec& plan);
+
+}  // namespace pf

@@ -1,0 +1,202 @@
+// The job → task arithmetic and the merge arithmetic (common/plan): pure functions that the
+// coordinator, the worker and the local renderer must agree on exactly.
+#include "common/plan/task_plan.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <set>
+
+#include "common/core/error.h"
+#include "common/plan/accumulator.h"
+#include "common/plan/task_executor.h"
+#include "tests/common/test_scenes.h"
+
+namespace pf {
+namespace {
+
+// Every pixel must be covered the planned number of times with disjoint sample ranges per map.
+void ExpectCoverage(const PlanSpec& plan, int w, int h, uint32_t expected_samples, uint32_t expected_maps) {
+  const auto tasks = ExpandPlan(plan, w, h, 42);
+  EXPECT_EQ(tasks.size(), CountTasks(plan, w, h));
+  std::vector<uint32_t> samples(size_t(w) * h, 0), maps(size_t(w) * h, 0);
+  std::set<uint64_t> ids, map_seeds;
+  for (const TaskSpec& t : tasks) {
+    EXPECT_TRUE(ids.insert(t.task_id).second);
+    EXPECT_EQ(t.map_seed, MapSeed(42, t.map_index));
+    map_seeds.insert(t.map_seed);
+    const auto px = PixelsOf(t.pixels, w, h);
+    EXPECT_EQ(px.size(), CountPixels(t.pixels, w, h));
+    for (uint32_t p : px) {
+      samples[p] += t.sample_end - t.sample_begin;
+      maps[p] += 1;
+    }
+  }
+  for (size_t p = 0; p < samples.size(); ++p) {
+    ASSERT_EQ(samples[p], expected_samples) << p;
+    ASSERT_EQ(maps[p], expected_maps) << p;
+  }
+}
+
+TEST(TaskPlan, MultipleMapsCoverEveryPixelOncePerMap) {
+  ExpectCoverage({.kind = PlanKind::kMultipleMaps, .maps = 3, .samples_per_pixel = 4, .tile_size = 7}, 20, 13, 12, 3);
+  ExpectCoverage({.kind = PlanKind::kMultipleMaps, .maps = 2, .samples_per_pixel = 1, .tile_size = 0}, 5, 4, 2, 2);
+}
+
+TEST(TaskPlan, MapsInTurnUseMapIForSampleI) {
+  const PlanSpec plan{.kind = PlanKind::kMapsInTurn, .samples_per_pixel = 4, .tile_size = 8};
+  ExpectCoverage(plan, 16, 9, 4, 4);
+  for (const TaskSpec& t : ExpandPlan(plan, 16, 9, 1)) {
+    EXPECT_EQ(t.sample_begin, t.map_index);
+    EXPECT_EQ(t.sample_end, t.map_index + 1);
+  }
+}
+
+// §4.4: per round S² tasks, each with its own map, each with every S²-th pixel of σ.
+TEST(TaskPlan, SkippingIsThesisSection44) {
+  const PlanSpec plan{.kind = PlanKind::kSkipping, .samples_per_pixel = 2, .stride = 3, .rounds = 4};
+  const int w = 31, h = 17;
+  ExpectCoverage(plan, w, h, 2 * 4, 4);
+  const auto tasks = ExpandPlan(plan, w, h, 9);
+  ASSERT_EQ(tasks.size(), 4u * 9u);
+  std::set<uint64_t> maps;
+  for (const TaskSpec& t : tasks) maps.insert(t.map_index);
+  EXPECT_EQ(maps.size(), tasks.size()) << "a new map for every task";
+  // Within a round the subsets partition the image; rounds use different permutations.
+  EXPECT_NE(PixelsOf(tasks[0].pixels, w, h), PixelsOf(tasks[9].pixels, w, h));
+  const auto perm = PixelPermutation(tasks[0].pixels.permutation_seed, w * h);
+  const auto px = PixelsOf(tasks[4].pixels, w, h);
+  for (size_t i = 0; i < px.size(); ++i) EXPECT_EQ(px[i], perm[4 + 9 * i]);
+}
+
+TEST(TaskPlan, ExpansionIsDeterministicAndSeedDependent) {
+  const PlanSpec plan{.kind = PlanKind::kSkipping, .samples_per_pixel = 1, .stride = 2, .rounds = 2};
+  const auto a = ExpandPlan(plan, 10, 10, 5), b = ExpandPlan(plan, 10, 10, 5), c = ExpandPlan(plan, 10, 10, 6);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].map_seed, b[i].map_seed);
+    EXPECT_EQ(PixelsOf(a[i].pixels, 10, 10), PixelsOf(b[i].pixels, 10, 10));
+    EXPECT_NE(a[i].map_seed, c[i].map_seed);
+  }
+}
+
+TEST(TaskPlan, PermutationIsAPermutation) {
+  for (uint32_t n : {1u, 2u, 17u, 1000u}) {
+    auto p = PixelPermutation(123, n);
+    std::sort(p.begin(), p.end());
+    for (uint32_t i = 0; i < n; ++i) ASSERT_EQ(p[i], i);
+  }
+  EXPECT_NE(PixelPermutation(1, 100), PixelPermutation(2, 100));
+}
+
+TEST(TaskPlan, InvalidPlansNameTheField) {
+  auto message = [](const PlanSpec& p, int w, int h) {
+    try {
+      ValidatePlan(p, w, h);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message({.kind = PlanKind::kMultipleMaps, .maps = 0}, 4, 4).find("plan.multiple_maps.maps"), std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 0}, 4, 4).find("plan.skipping.stride"), std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 5}, 4, 4).find("exceeds the number of pixels"), std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 1, .rounds = 0}, 4, 4).find("plan.skipping.rounds"), std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kMapsInTurn, .samples_per_pixel = 0}, 4, 4).find("samples_per_pixel"), std::string::npos);
+  EXPECT_NE(message({}, 0, 4).find("camera"), std::string::npos);
+}
+
+TEST(Accumulator, OrderOfMergingDoesNotChangeABit) {
+  const int w = 6, h = 5;
+  std::mt19937 gen(3);
+  std::uniform_real_distribution<float> value(0.0f, 50.0f);
+  struct Part {
+    std::vector<uint32_t> pixels;
+    std::vector<float> sums;
+    uint32_t samples;
+  };
+  std::vector<Part> parts;
+  for (int t = 0; t < 40; ++t) {
+    Part p;
+    for (uint32_t i = 0; i < uint32_t(w * h); ++i)
+      if (gen() % 3 == 0) p.pixels.push_back(i);
+    for (size_t i = 0; i < p.pixels.size() * 3; ++i) p.sums.push_back(value(gen) * (t % 5 == 0 ? 1e-6f : 1.0f));
+    p.samples = 1 + gen() % 4;
+    parts.push_back(p);
+  }
+  Accumulator a(w, h), b(w, h);
+  for (const Part& p : parts) a.Add(p.pixels, p.sums, p.samples);
+  std::shuffle(parts.begin(), parts.end(), gen);
+  for (const Part& p : parts) b.Add(p.pixels, p.sums, p.samples);
+  const Image ia = a.Resolve(), ib = b.Resolve();
+  for (size_t i = 0; i < ia.size(); ++i) ASSERT_TRUE(ia[i] == ib[i]) << i;
+  EXPECT_EQ(a.samples_merged(), b.samples_merged());
+}
+
+TEST(Accumulator, WeightedAverageAndNoiseEstimate) {
+  Accumulator acc(2, 1);
+  const std::vector<uint32_t> px = {0, 1};
+  acc.Add(px, std::vector<float>{2, 2, 2, 8, 8, 8}, 2);  // means 1 and 4
+  EXPECT_LT(acc.EstimatedNoiseRms(), 0.0) << "one map: unknown";
+  acc.Add(px, std::vector<float>{3, 3, 3, 12, 12, 12}, 1);  // means 3 and 12
+  const Image img = acc.Resolve();
+  EXPECT_FLOAT_EQ(img[0].r, 5.0f / 3.0f);
+  EXPECT_FLOAT_EQ(img[1].g, 20.0f / 3.0f);
+  EXPECT_GT(acc.EstimatedNoiseRms(), 0.0);
+}
+
+TEST(Accumulator, RejectsBadResults) {
+  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>(5), 2, 1), "");
+  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, NAN}, 1, 1).find("not finite"), std::string::npos);
+  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, INFINITY}, 1, 1), "");
+  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, 3e9f}, 1, 1).find("range"), std::string::npos);
+  EXPECT_EQ(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, 3}, 1, 1), "");
+  Accumulator acc(2, 2);
+  EXPECT_THROW(acc.Add(std::vector<uint32_t>{9}, std::vector<float>{1, 1, 1}, 1), InputError);
+}
+
+TEST(Accumulator, SerializeRoundTrip) {
+  Accumulator acc(3, 2);
+  acc.Add(std::vector<uint32_t>{0, 5}, std::vector<float>{1, 2, 3, 4, 5, 6}, 3);
+  const Accumulator back = Accumulator::Deserialize(acc.Serialize());
+  EXPECT_TRUE(back == acc);
+  std::string bad = acc.Serialize();
+  bad.pop_back();
+  EXPECT_THROW(Accumulator::Deserialize(bad), InputError);
+  EXPECT_THROW(Accumulator::Deserialize("nonsense"), InputError);
+}
+
+// Same plan and seed: any order of task execution gives the same image as RenderPlanLocally.
+TEST(TaskExecutor, SkippingPlanIsOrderIndependent) {
+  SceneDescription s;
+  Material wall;
+  wall.diffuse_reflectance = Rgb(0.5f);
+  wall.emission = Rgb(1.0f);
+  testing::AddSphere(s, Vec3(0.0f), 1.0f, 3, testing::AddMaterial(s, wall), true, 0, false);
+  s.num_lights = 1;
+  const SceneRuntime scene(s);
+  CameraSpec cam;
+  cam.eye = Vec3(0.0f);
+  cam.look_at = Vec3(0, 0, -1);
+  cam.width = 12;
+  cam.height = 8;
+  JobRenderSettings settings;
+  settings.photons = 5000;
+  settings.k = 20;
+  const PlanSpec plan{.kind = PlanKind::kSkipping, .samples_per_pixel = 1, .stride = 2, .rounds = 2};
+  const Image local = RenderPlanLocally(scene, cam, settings, plan, 77, 2);
+  auto tasks = ExpandPlan(plan, cam.width, cam.height, 77);
+  std::reverse(tasks.begin(), tasks.end());
+  Accumulator acc(cam.width, cam.height);
+  for (const TaskSpec& t : tasks) {
+    const TaskOutput out = ExecuteTask(scene, "x", cam, settings, t, 1);
+    acc.Add(PixelsOf(t.pixels, cam.width, cam.height), out.rgb_sums, out.samples);
+  }
+  const Image farm = acc.Resolve();
+  for (size_t i = 0; i < local.size(); ++i) ASSERT_TRUE(local[i] == farm[i]) << i;
+  EXPECT_GT(local[0].r, 0.5f);
+}
+
+}  // namespace
+}  // namespace pf
