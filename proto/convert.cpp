@@ -1,0 +1,244 @@
+#include "proto/convert.h"
+
+#include <cmath>
+
+#include "common/core/error.h"
+
+namespace pf {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+Vec3 VecFromProto(const v1::Vec3& v, const std::string& field) {
+  const Vec3 out(float(v.x()), float(v.y()), float(v.z()));
+  if (!IsFinite(out)) throw InputError(field + ": must be three finite numbers");
+  return out;
+}
+void VecToProto(const Vec3& v, v1::Vec3* out) {
+  out->set_x(v.x);
+  out->set_y(v.y);
+  out->set_z(v.z);
+}
+
+void RequireAtLeastOne(uint64_t v, const std::string& field) {
+  if (v < 1) throw InputError(field + ": must be >= 1");
+}
+
+}  // namespace
+
+CameraSpec CameraFromProto(const v1::Camera& c, const std::string& field) {
+  CameraSpec cam;
+  cam.eye = VecFromProto(c.eye(), field + ".eye");
+  cam.look_at = VecFromProto(c.look_at(), field + ".look_at");
+  cam.up = VecFromProto(c.up(), field + ".up");
+  if (!(c.vfov_degrees() > 0.0 && c.vfov_degrees() < 180.0))
+    throw InputError(field + ".vfov_degrees: must be in (0, 180)");
+  cam.vfov_degrees = float(c.vfov_degrees());
+  if (c.width() == 0 || c.height() == 0) throw InputError(field + ".width/height: must be > 0");
+  if (c.width() > kMaxImageSide || c.height() > kMaxImageSide ||
+      uint64_t(c.width()) * c.height() > kMaxImagePixels)
+    throw LimitError(field + ".width/height: " + std::to_string(c.width()) + "x" + std::to_string(c.height()) +
+                     " exceeds the limit (" + std::to_string(kMaxImageSide) + " per side, " +
+                     std::to_string(kMaxImagePixels) + " pixels)");
+  cam.width = int(c.width());
+  cam.height = int(c.height());
+  if (!(LengthSquared(cam.look_at - cam.eye) > 0.0f)) throw InputError(field + ".look_at: must differ from eye");
+  if (!(LengthSquared(Cross(cam.look_at - cam.eye, cam.up)) > 0.0f))
+    throw InputError(field + ".up: must not be parallel to the view direction");
+  return cam;
+}
+
+void CameraToProto(const CameraSpec& c, v1::Camera* out) {
+  VecToProto(c.eye, out->mutable_eye());
+  VecToProto(c.look_at, out->mutable_look_at());
+  VecToProto(c.up, out->mutable_up());
+  out->set_vfov_degrees(c.vfov_degrees);
+  out->set_width(uint32_t(c.width));
+  out->set_height(uint32_t(c.height));
+}
+
+JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::string& field) {
+  JobRenderSettings out;
+  switch (s.integrator()) {
+    case v1::INTEGRATOR_PATH:
+      out.integrator = IntegratorKind::kPath;
+      return out;
+    case v1::INTEGRATOR_PHOTONMAP:
+      out.integrator = IntegratorKind::kPhotonMap;
+      break;
+    default:
+      throw InputError(field + ".integrator: must be INTEGRATOR_PATH or INTEGRATOR_PHOTONMAP");
+  }
+  const v1::PhotonMapSettings& pm = s.photon_map();
+  const std::string f = field + ".photon_map";
+  RequireAtLeastOne(pm.photons(), f + ".photons");
+  if (pm.photons() > kMaxPhotonsPerMap)
+    throw LimitError(f + ".photons: " + std::to_string(pm.photons()) + " exceeds the limit " +
+                     std::to_string(kMaxPhotonsPerMap));
+  RequireAtLeastOne(pm.k(), f + ".k");
+  if (pm.k() > kMaxK) throw LimitError(f + ".k: exceeds the limit " + std::to_string(kMaxK));
+  out.photons = pm.photons();
+  out.k = int(pm.k());
+  out.structure = pm.structure() == v1::MAP_STRUCTURE_GRID ? PhotonMapKind::kGrid : PhotonMapKind::kKdTree;
+  if (pm.structure() < 0 || pm.structure() > v1::MAP_STRUCTURE_GRID) throw InputError(f + ".structure: unknown value");
+  switch (pm.caustic()) {
+    case v1::CAUSTIC_MODE_UNSPECIFIED:
+    case v1::CAUSTIC_MODE_AUTO: out.caustic = CausticMapMode::kAuto; break;
+    case v1::CAUSTIC_MODE_ON: out.caustic = CausticMapMode::kOn; break;
+    case v1::CAUSTIC_MODE_OFF: out.caustic = CausticMapMode::kOff; break;
+    default: throw InputError(f + ".caustic: unknown value");
+  }
+  if (!(pm.caustic_radius() >= 0.0) || !std::isfinite(pm.caustic_radius()))
+    throw InputError(f + ".caustic_radius: must be a finite number >= 0");
+  out.caustic_radius = float(pm.caustic_radius());
+  if (pm.glossy_depth() > 64) throw InputError(f + ".glossy_depth: must be <= 64");
+  out.glossy_depth = int(pm.glossy_depth());
+  switch (pm.direction_test()) {
+    case v1::DIRECTION_TEST_UNSPECIFIED:
+    case v1::DIRECTION_TEST_IN_QUERY: out.direction_test = FeasibilityTest::kInQuery; break;
+    case v1::DIRECTION_TEST_AFTER_QUERY: out.direction_test = FeasibilityTest::kAfterQuery; break;
+    case v1::DIRECTION_TEST_NONE: out.direction_test = FeasibilityTest::kNone; break;
+    default: throw InputError(f + ".direction_test: unknown value");
+  }
+  return out;
+}
+
+void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
+  out->set_integrator(s.integrator == IntegratorKind::kPath ? v1::INTEGRATOR_PATH : v1::INTEGRATOR_PHOTONMAP);
+  if (s.integrator == IntegratorKind::kPath) return;
+  v1::PhotonMapSettings* pm = out->mutable_photon_map();
+  pm->set_photons(s.photons);
+  pm->set_k(uint32_t(s.k));
+  pm->set_structure(s.structure == PhotonMapKind::kGrid ? v1::MAP_STRUCTURE_GRID : v1::MAP_STRUCTURE_KDTREE);
+  pm->set_caustic(s.caustic == CausticMapMode::kOn    ? v1::CAUSTIC_MODE_ON
+                  : s.caustic == CausticMapMode::kOff ? v1::CAUSTIC_MODE_OFF
+                                                      : v1::CAUSTIC_MODE_AUTO);
+  pm->set_caustic_radius(s.caustic_radius);
+  pm->set_glossy_depth(uint32_t(s.glossy_depth));
+  pm->set_direction_test(s.direction_test == FeasibilityTest::kAfterQuery ? v1::DIRECTION_TEST_AFTER_QUERY
+                         : s.direction_test == FeasibilityTest::kNone     ? v1::DIRECTION_TEST_NONE
+                                                                          : v1::DIRECTION_TEST_IN_QUERY);
+}
+
+PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
+  PlanSpec out;
+  auto check_spp = [](uint32_t spp, const std::string& f) {
+    RequireAtLeastOne(spp, f);
+    if (spp > kMaxSamplesPerPixel) throw LimitError(f + ": exceeds the limit " + std::to_string(kMaxSamplesPerPixel));
+  };
+  switch (p.kind_case()) {
+    case v1::Plan::kMultipleMaps:
+      out.kind = PlanKind::kMultipleMaps;
+      out.maps = p.multiple_maps().maps();
+      out.samples_per_pixel = p.multiple_maps().samples_per_pixel();
+      out.tile_size = p.multiple_maps().tile_size();
+      RequireAtLeastOne(out.maps, field + ".multiple_maps.maps");
+      check_spp(out.samples_per_pixel, field + ".multiple_maps.samples_per_pixel");
+      break;
+    case v1::Plan::kMapsInTurn:
+      out.kind = PlanKind::kMapsInTurn;
+      out.samples_per_pixel = p.maps_in_turn().samples_per_pixel();
+      out.tile_size = p.maps_in_turn().tile_size();
+      check_spp(out.samples_per_pixel, field + ".maps_in_turn.samples_per_pixel");
+      break;
+    case v1::Plan::kSkipping:
+      out.kind = PlanKind::kSkipping;
+      out.stride = p.skipping().stride();
+      out.rounds = p.skipping().rounds();
+      out.samples_per_pixel = p.skipping().samples_per_pixel();
+      RequireAtLeastOne(out.stride, field + ".skipping.stride");
+      RequireAtLeastOne(out.rounds, field + ".skipping.rounds");
+      check_spp(out.samples_per_pixel, field + ".skipping.samples_per_pixel");
+      break;
+    default:
+      throw InputError(field + ": one of multiple_maps, maps_in_turn, skipping is required");
+  }
+  return out;
+}
+
+void PlanToProto(const PlanSpec& p, v1::Plan* out) {
+  switch (p.kind) {
+    case PlanKind::kMultipleMaps: {
+      auto* m = out->mutable_multiple_maps();
+      m->set_maps(p.maps);
+      m->set_samples_per_pixel(p.samples_per_pixel);
+      m->set_tile_size(p.tile_size);
+      break;
+    }
+    case PlanKind::kMapsInTurn: {
+      auto* m = out->mutable_maps_in_turn();
+      m->set_samples_per_pixel(p.samples_per_pixel);
+      m->set_tile_size(p.tile_size);
+      break;
+    }
+    case PlanKind::kSkipping: {
+      auto* m = out->mutable_skipping();
+      m->set_stride(p.stride);
+      m->set_rounds(p.rounds);
+      m->set_samples_per_pixel(p.samples_per_pixel);
+      break;
+    }
+  }
+}
+
+PixelSubset PixelSubsetFromProto(const v1::PixelSubset& p, const std::string& field) {
+  PixelSubset out;
+  switch (p.kind_case()) {
+    case v1::PixelSubset::kTile:
+      out.kind = PixelSubset::Kind::kTile;
+      out.x0 = p.tile().x0();
+      out.y0 = p.tile().y0();
+      out.x1 = p.tile().x1();
+      out.y1 = p.tile().y1();
+      break;
+    case v1::PixelSubset::kPermutationStride:
+      out.kind = PixelSubset::Kind::kPermutationStride;
+      out.permutation_seed = p.permutation_stride().permutation_seed();
+      out.offset = p.permutation_stride().offset();
+      out.stride = p.permutation_stride().stride();
+      break;
+    default:
+      throw InputError(field + ": tile or permutation_stride is required");
+  }
+  return out;
+}
+
+void PixelSubsetToProto(const PixelSubset& p, v1::PixelSubset* out) {
+  if (p.kind == PixelSubset::Kind::kTile) {
+    auto* t = out->mutable_tile();
+    t->set_x0(p.x0);
+    t->set_y0(p.y0);
+    t->set_x1(p.x1);
+    t->set_y1(p.y1);
+  } else {
+    auto* s = out->mutable_permutation_stride();
+    s->set_permutation_seed(p.permutation_seed);
+    s->set_offset(p.offset);
+    s->set_stride(p.stride);
+  }
+}
+
+TaskSpec TaskSpecFromProto(const v1::Task& t) {
+  TaskSpec s;
+  s.task_id = t.task_id();
+  s.map_index = t.map_index();
+  s.map_seed = t.map_seed();
+  s.pixel_seed = t.pixel_seed();
+  s.pixels = PixelSubsetFromProto(t.pixels(), "task.pixels");
+  s.sample_begin = t.sample_begin();
+  s.sample_end = t.sample_end();
+  if (s.sample_end <= s.sample_begin) throw InputError("task.sample_end: must be > sample_begin");
+  return s;
+}
+
+void TaskSpecToProto(const TaskSpec& spec, v1::Task* out) {
+  out->set_task_id(spec.task_id);
+  out->set_map_index(spec.map_index);
+  out->set_map_seed(spec.map_seed);
+  out->set_pixel_seed(spec.pixel_seed);
+  PixelSubsetToProto(spec.pixels, out->mutable_pixels());
+  out->set_sample_begin(spec.sample_begin);
+  out->set_sample_end(spec.sample_end);
+}
+
+}  // namespace pf

@@ -1,0 +1,46 @@
+#pragma once
+// The one place where photonfarm.v1 messages and core (common/) types meet. server/, worker/
+// and client/ call these at their edges; common/ never includes generated code.
+//
+// From-proto functions validate and throw pf::InputError whose message starts with the field
+// path ("spec.plan.skipping.stride: must be >= 1"); the RPC layers map that to
+// INVALID_ARGUMENT.
+
+#include "common/core/error.h"
+#include "common/plan/task_executor.h"
+#include "common/plan/task_plan.h"
+#include "common/scene/scene.h"
+#include "photonfarm/v1/farm.pb.h"
+
+namespace pf {
+
+// Limits (documented in docs/farm.md); over them: RESOURCE_EXHAUSTED.
+inline constexpr uint32_t kMaxImageSide = 8192;
+inline constexpr uint64_t kMaxImagePixels = uint64_t(4096) * 4096;
+inline constexpr uint64_t kMaxPhotonsPerMap = uint64_t(1) << 28;
+inline constexpr uint32_t kMaxK = 10000;
+inline constexpr uint32_t kMaxSamplesPerPixel = 1u << 16;
+
+// Thrown (instead of InputError) when a value is well-formed but over a limit.
+class LimitError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
+CameraSpec CameraFromProto(const photonfarm::v1::Camera& c, const std::string& field);
+void CameraToProto(const CameraSpec& c, photonfarm::v1::Camera* out);
+
+JobRenderSettings SettingsFromProto(const photonfarm::v1::RenderSettings& s, const std::string& field);
+void SettingsToProto(const JobRenderSettings& s, photonfarm::v1::RenderSettings* out);
+
+PlanSpec PlanFromProto(const photonfarm::v1::Plan& p, const std::string& field);
+void PlanToProto(const PlanSpec& p, photonfarm::v1::Plan* out);
+
+PixelSubset PixelSubsetFromProto(const photonfarm::v1::PixelSubset& p, const std::string& field);
+void PixelSubsetToProto(const PixelSubset& p, photonfarm::v1::PixelSubset* out);
+
+// Task ↔ core: the task's core TaskSpec (the camera and settings travel alongside).
+TaskSpec TaskSpecFromProto(const photonfarm::v1::Task& t);
+void TaskSpecToProto(const TaskSpec& spec, photonfarm::v1::Task* out);
+
+}  // namespace pf
