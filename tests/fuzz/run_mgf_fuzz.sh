@@ -11,9 +11,10 @@ repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 build="${PF_FUZZ_BUILD_DIR:-$repo/build-fuzz}"
 jobs="${PF_FUZZ_JOBS:-2}"
 
+mkdir -p "$build"
 CC=clang CXX=clang++ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPF_BUILD_FUZZ=ON -DPF_BUILD_TESTS=OFF -DPF_BUILD_BENCH=OFF \
-  >"$build.configure.log" 2>&1 || { cat "$build.configure.log"; exit 2; }
+  >"$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 2; }
 cmake --build "$build" --target mgf_fuzz -j "$jobs"
 
 # Scratch directory: the harness only lets includes resolve inside its working directory, and
