@@ -172,7 +172,8 @@ std::vector<Vec3> MakeQueries(std::size_t n, uint64_t seed) {
   Rng rng = Rng::ForKey(HashKey(seed, 2));
   std::vector<Vec3> q;
   q.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) q.push_back(rng.Uniform() < 0.1f ? CausticPoint(rng) : surfaces.Uniform(rng));
+  for (std::size_t i = 0; i < n; ++i)
+    q.push_back(rng.Uniform() < 0.1f ? CausticPoint(rng) : surfaces.Uniform(rng));
   return q;
 }
 
@@ -185,7 +186,9 @@ struct PhotonCloud {
   std::size_t kdtree_get_point_count() const { return n; }
   float kdtree_get_pt(std::size_t i, std::size_t dim) const { return photons[i].position[dim]; }
   template <class Box>
-  bool kdtree_get_bbox(Box&) const { return false; }
+  bool kdtree_get_bbox(Box&) const {
+    return false;
+  }
 };
 using NanoTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PhotonCloud>,
                                                      PhotonCloud, 3, uint32_t>;
@@ -270,16 +273,18 @@ Stopwatch::Lap QueryNano(const NanoTree& tree, const std::vector<Vec3>& points, 
 }
 
 void PrintHeader(const Config& config) {
-  std::printf("photonfarm photon map benchmark (Wald 1999, §2.3 kd-tree / §2.4 grid) vs nanoflann 1.4.3\n"
-              "(Debian libnanoflann-dev; its header says 0x142)\n");
+  std::printf(
+      "photonfarm photon map benchmark (Wald 1999, §2.3 kd-tree / §2.4 grid) vs nanoflann 1.4.3\n"
+      "(Debian libnanoflann-dev; its header says 0x142)\n");
   std::printf("CPU: %s, single thread, medians of %d repetitions, %s time\n", CpuName().c_str(), config.reps,
               config.wall ? "wall-clock" : "thread CPU");
-  std::printf("Photons: SYNTHETIC (no photon tracer yet), on the surfaces of a Cornell-box-like room\n"
-              "(6 walls + 2 rotated boxes, density falling off from the ceiling light) + 10%% in\n"
-              "caustic-like gaussian blobs on the floor. Query points (stand-ins for camera-ray hits):\n"
-              "uniform by area on the same surfaces, 10%% in the caustic blobs. Same photons and same\n"
-              "query points for every structure; k-NN with max_radius = inf.\n"
-              "kd trees use the cell-distance culling test (KdCulling::kCellDistance) unless noted.\n\n");
+  std::printf(
+      "Photons: SYNTHETIC (no photon tracer yet), on the surfaces of a Cornell-box-like room\n"
+      "(6 walls + 2 rotated boxes, density falling off from the ceiling light) + 10%% in\n"
+      "caustic-like gaussian blobs on the floor. Query points (stand-ins for camera-ray hits):\n"
+      "uniform by area on the same surfaces, 10%% in the caustic blobs. Same photons and same\n"
+      "query points for every structure; k-NN with max_radius = inf.\n"
+      "kd trees use the cell-distance culling test (KdCulling::kCellDistance) unless noted.\n\n");
 }
 
 // --grid-sweep: query time against the grid's photons-per-occupied-voxel target t, to check
@@ -289,7 +294,8 @@ int GridSweep(const Config& config) {
   PrintHeader(config);
   const std::vector<Photon> photons = MakePhotons(n, 1999);
   const std::vector<Vec3> points = MakeQueries(100000, 2024);
-  std::printf("Grid sweep, N=%s: us/query for t = c*sqrt(k) photons per occupied voxel\n", HumanCount(n).c_str());
+  std::printf("Grid sweep, N=%s: us/query for t = c*sqrt(k) photons per occupied voxel\n",
+              HumanCount(n).c_str());
   const double cs[] = {0.5, 1.0, 1.5, 2.2, 3.0, 4.5, 6.5};
   std::printf("%-5s", "k");
   for (double c : cs) std::printf(" c=%-8.1f", c);
@@ -316,8 +322,8 @@ int GridSweep(const Config& config) {
 
 int Run(const Config& config) {
   if (config.grid_sweep) return GridSweep(config);
-  const std::vector<std::size_t> sizes =
-      config.quick ? std::vector<std::size_t>{100000, 1000000} : std::vector<std::size_t>{100000, 1000000, 10000000};
+  const std::vector<std::size_t> sizes = config.quick ? std::vector<std::size_t>{100000, 1000000}
+                                                      : std::vector<std::size_t>{100000, 1000000, 10000000};
   const std::vector<int> ks = {10, 50, 100, 500};
   auto queries_for_k = [&](int k) -> std::size_t {
     const std::size_t base = k <= 10 ? 100000 : k <= 50 ? 50000 : k <= 100 ? 30000 : 6000;
@@ -330,9 +336,12 @@ int Run(const Config& config) {
   out["cpu"] = CpuName();
   out["repetitions"] = config.reps;
   out["table_clock"] = config.wall ? "wall" : "thread_cpu";
-  out["photons"] = "synthetic: Cornell-box-like room surfaces (density falling off from the light) + 10% caustic blobs";
-  out["queries"] = "uniform by area on the room surfaces, 10% in the caustic blobs (stand-ins for camera hits)";
-  out["nanoflann"] = "1.4.3, KDTreeSingleIndexAdaptor, leaf_max_size 10, L2_Simple_Adaptor<float>, uint32 indices";
+  out["photons"] =
+      "synthetic: Cornell-box-like room surfaces (density falling off from the light) + 10% caustic blobs";
+  out["queries"] =
+      "uniform by area on the room surfaces, 10% in the caustic blobs (stand-ins for camera hits)";
+  out["nanoflann"] =
+      "1.4.3, KDTreeSingleIndexAdaptor, leaf_max_size 10, L2_Simple_Adaptor<float>, uint32 indices";
   out["grid_rule"] = "photons_per_voxel = 2.2*sqrt(expected_k); queries use a grid built with expected_k = k";
   nlohmann::json& builds = out["build"];
   nlohmann::json& queries_json = out["query"];
@@ -413,7 +422,8 @@ int Run(const Config& config) {
     // --- Queries --------------------------------------------------------------------------
     for (const int k : ks) {
       const std::size_t count = queries_for_k(k);
-      std::fprintf(stderr, "[N=%s] k=%d: %zu queries x %d reps...\n", HumanCount(n).c_str(), k, count, config.reps);
+      std::fprintf(stderr, "[N=%s] k=%d: %zu queries x %d reps...\n", HumanCount(n).c_str(), k, count,
+                   config.reps);
       // The grid is built for the k it is queried with (its resolution depends on k, §2.4).
       GridOptions grid_options;
       grid_options.expected_k = k;
@@ -464,8 +474,8 @@ int Run(const Config& config) {
 
   // --- Tables ----------------------------------------------------------------------------
   std::printf("Build time [s] (in parentheses: time / nanoflann's)\n");
-  std::printf("%-6s %-16s %-16s %-16s %-10s | thesis BuildTree (1999 hardware)\n", "N", "kd level%3", "kd widest",
-              "grid (k=50)", "nanoflann");
+  std::printf("%-6s %-16s %-16s %-16s %-10s | thesis BuildTree (1999 hardware)\n", "N", "kd level%3",
+              "kd widest", "grid (k=50)", "nanoflann");
   for (const BuildRow& r : build_rows) {
     std::printf("%-6s", HumanCount(r.n).c_str());
     for (int s : {0, 1, 3}) {
@@ -475,7 +485,8 @@ int Run(const Config& config) {
     }
     std::printf(" %-10.3f | %s\n", pick(r.t[kNano]), ThesisBuildTree(r.n).c_str());
   }
-  std::printf("\nMemory [bytes/photon] (maps: photons + structure; nanoflann: our photon array + its index)\n");
+  std::printf(
+      "\nMemory [bytes/photon] (maps: photons + structure; nanoflann: our photon array + its index)\n");
   std::printf("%-6s %-11s %-11s %-11s %-11s\n", "N", "kd level%3", "kd widest", "grid (k=50)", "nanoflann");
   for (const BuildRow& r : build_rows) {
     std::printf("%-6s", HumanCount(r.n).c_str());
@@ -530,7 +541,8 @@ int main(int argc, char** argv) {
     } else if (arg == "--reps" && i + 1 < argc) {
       config.reps = std::max(1, std::atoi(argv[++i]));
     } else {
-      std::fprintf(stderr, "usage: %s [--quick] [--reps N] [--json out.json] [--wall] [--grid-sweep]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick] [--reps N] [--json out.json] [--wall] [--grid-sweep]\n",
+                   argv[0]);
       return 1;
     }
   }

@@ -14,8 +14,8 @@
 namespace pf {
 
 // The min(k, #candidates) nearest accepted photons, sorted by (distance², index).
-inline std::vector<NearestPhotons::Entry> BruteForceNearest(std::span<const Photon> photons,
-                                                            const Vec3& x, int k, float max_radius,
+inline std::vector<NearestPhotons::Entry> BruteForceNearest(std::span<const Photon> photons, const Vec3& x,
+                                                            int k, float max_radius,
                                                             const PhotonFilter* filter = nullptr) {
   std::vector<NearestPhotons::Entry> all;
   if (k <= 0 || !IsFinite(x) || !(max_radius > 0.0f)) return all;

@@ -147,7 +147,8 @@ void GridPhotonMap::SortByVoxel() {
   for (int z = 0; z < res_[2]; ++z) {
     const std::size_t base = std::size_t(z) * slab;
     if (first_[base] == first_[base + slab]) continue;  // empty slab
-    std::copy(first_.begin() + std::ptrdiff_t(base), first_.begin() + std::ptrdiff_t(base + slab), next.begin());
+    std::copy(first_.begin() + std::ptrdiff_t(base), first_.begin() + std::ptrdiff_t(base + slab),
+              next.begin());
     for (std::size_t v = 0; v < slab; ++v) {
       const uint32_t end = first_[base + v + 1];
       while (next[v] < end) {

@@ -29,7 +29,7 @@ namespace {
 struct Run {
   uint64_t first;  // node numbers [first, last]
   uint64_t last;
-  int64_t begin;   // sequence position of `first`
+  int64_t begin;  // sequence position of `first`
 };
 
 // A position in a SubtreeSequence: the node it denotes and its sequence position.

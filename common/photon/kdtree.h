@@ -40,8 +40,7 @@ namespace pf {
 
 class KdTree final : public PhotonMap {
  public:
-  explicit KdTree(KdSplitRule rule = KdSplitRule::kLevelCycle,
-                  KdCulling culling = KdCulling::kCellDistance)
+  explicit KdTree(KdSplitRule rule = KdSplitRule::kLevelCycle, KdCulling culling = KdCulling::kCellDistance)
       : rule_(rule), culling_(culling) {}
 
   KdSplitRule split_rule() const { return rule_; }

@@ -41,7 +41,7 @@ RgbeBytes EncodeRgbe(const Rgb& power) {
   }
 
   int e = 0;
-  std::frexp(m, &e);  // m = f · 2^e, f ∈ [0.5, 1)
+  std::frexp(m, &e);      // m = f · 2^e, f ∈ [0.5, 1)
   e = std::max(e, -127);  // gradual underflow: E = e + 128 ≥ 1 (0 means black)
   long mant[3];
   for (int pass = 0; pass < 2; ++pass) {

@@ -86,7 +86,9 @@ constexpr double CosSeries(double x) {
   }
   return sum;
 }
-constexpr double Wrap(double x) { return x > std::numbers::pi ? x - 2.0 * std::numbers::pi : x; }
+constexpr double Wrap(double x) {
+  return x > std::numbers::pi ? x - 2.0 * std::numbers::pi : x;
+}
 
 struct DirectionTables {
   std::array<float, 256> cos_theta{}, sin_theta{}, cos_phi{}, sin_phi{};
@@ -140,7 +142,7 @@ inline Rgb DecodeRgbe(const RgbeBytes& rgbe) {
 #pragma pack(push, 1)
 struct Photon {
   float position[3];
-  uint8_t theta;    // see EncodeDirection
+  uint8_t theta;  // see EncodeDirection
   uint8_t phi;
   uint8_t rgbe[4];  // see EncodeRgbe
 

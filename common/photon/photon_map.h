@@ -246,8 +246,7 @@ class PhotonMap {
              const PhotonFilter* filter = nullptr) const {
     nearest.Reset(k, max_radius);
     if (!prepared_) throw std::logic_error("PhotonMap::Query before PrepareForQuery");
-    if (nearest.k() == 0 || photons_.empty() || !IsFinite(x) || !(nearest.BoundSquared() > 0.0f))
-      return;
+    if (nearest.k() == 0 || photons_.empty() || !IsFinite(x) || !(nearest.BoundSquared() > 0.0f)) return;
     DoQuery(x, nearest, filter);
   }
 

@@ -163,7 +163,8 @@ TEST(KdTreeTest, KdConditionJustAboveTheSmallSubtreeSize) {
 
 TEST(KdTreeTest, KdConditionForLargeAwkwardInputs) {
   for (KdSplitRule rule : {KdSplitRule::kLevelCycle, KdSplitRule::kWidestExtent}) {
-    for (Shape shape : {Shape::kUniform, Shape::kClustered, Shape::kPlanar, Shape::kDuplicates, Shape::kLineY}) {
+    for (Shape shape :
+         {Shape::kUniform, Shape::kClustered, Shape::kPlanar, Shape::kDuplicates, Shape::kLineY}) {
       for (std::size_t n : {4095u, 4096u, 4097u, 50000u}) {
         SCOPED_TRACE(::testing::Message() << "rule " << int(rule) << " shape " << int(shape) << " n " << n);
         const auto photons = Photons(shape, n, 40 + n);
@@ -231,7 +232,8 @@ TEST(KdTreeTest, LargeTreeMatchesBruteForce) {
             const auto expected = BruteForceNearest(tree.photons(), x, k, radius);
             ASSERT_EQ(heap.size(), expected.size());
             heap.Sort();
-            for (std::size_t j = 0; j < expected.size(); ++j) ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+            for (std::size_t j = 0; j < expected.size(); ++j)
+              ASSERT_EQ(heap[j].distance2, expected[j].distance2);
           }
         }
       }

@@ -64,11 +64,12 @@ TEST(PhotonTest, DirectionTablesMatchLibm) {
 // 2·asin(√(sin²(π/1020) + sin²(π/512))) ≈ 0.01373 rad ≈ 0.787°.
 TEST(PhotonTest, DirectionErrorWithinStatedBound) {
   const double pi = std::numbers::pi;
-  const double bound = 2.0 * std::asin(std::sqrt(std::pow(std::sin(pi / 1020), 2) + std::pow(std::sin(pi / 512), 2)));
+  const double bound =
+      2.0 * std::asin(std::sqrt(std::pow(std::sin(pi / 1020), 2) + std::pow(std::sin(pi / 512), 2)));
   EXPECT_NEAR(kMaxDirectionErrorRadians, bound, 1e-15);
-  std::vector<Vec3> dirs = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},  {0, -1, 0}, {0, 0, 1},
-                            {0, 0, -1}, {-1, -1e-7f, 0}, {-1, 1e-7f, 0}, {1e-4f, 0, 1},
-                            {0, 1e-4f, -1}, {1, 1, 1}};
+  std::vector<Vec3> dirs = {{1, 0, 0},     {-1, 0, 0},     {0, 1, 0},       {0, -1, 0},
+                            {0, 0, 1},     {0, 0, -1},     {-1, -1e-7f, 0}, {-1, 1e-7f, 0},
+                            {1e-4f, 0, 1}, {0, 1e-4f, -1}, {1, 1, 1}};
   Rng rng(7, 1);
   for (int i = 0; i < 200000; ++i) dirs.push_back(RandomDirection(rng));
   double worst = 0.0;
@@ -277,7 +278,9 @@ struct MapVariant {
   PhotonMapOptions options;
 };
 
-void PrintTo(const MapVariant& v, std::ostream* os) { *os << v.name; }
+void PrintTo(const MapVariant& v, std::ostream* os) {
+  *os << v.name;
+}
 
 std::vector<MapVariant> AllVariants() {
   PhotonMapOptions widest;
@@ -362,14 +365,13 @@ std::vector<Vec3> MakeQueries(std::span<const Photon> photons, std::size_t n, ui
 }
 
 // Compares one query with brute force: same distance multiset, consistent entries.
-void ExpectMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, float radius,
-                             NearestPhotons& heap, const PhotonFilter* filter = nullptr) {
+void ExpectMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, float radius, NearestPhotons& heap,
+                             const PhotonFilter* filter = nullptr) {
   map.Query(x, k, radius, heap, filter);
   const auto expected = BruteForceNearest(map.photons(), x, k, radius, filter);
-  ASSERT_EQ(heap.size(), expected.size()) << "x=" << x.x << "," << x.y << "," << x.z << " k=" << k
-                                          << " r=" << radius;
-  for (std::size_t j = 1; j < heap.size(); ++j)
-    ASSERT_LE(heap[j].distance2, heap[(j - 1) / 2].distance2);
+  ASSERT_EQ(heap.size(), expected.size())
+      << "x=" << x.x << "," << x.y << "," << x.z << " k=" << k << " r=" << radius;
+  for (std::size_t j = 1; j < heap.size(); ++j) ASSERT_LE(heap[j].distance2, heap[(j - 1) / 2].distance2);
   std::vector<uint32_t> seen;
   for (const auto& e : heap.entries()) {
     ASSERT_LT(e.index, map.size());
@@ -398,8 +400,8 @@ class PhotonMapContractTest : public ::testing::TestWithParam<MapVariant> {
 
 TEST_P(PhotonMapContractTest, MatchesBruteForceOnAllLayouts) {
   const float inf = std::numeric_limits<float>::infinity();
-  for (Layout layout : {Layout::kUniform, Layout::kClustered, Layout::kPlanar, Layout::kDuplicates,
-                        Layout::kLine}) {
+  for (Layout layout :
+       {Layout::kUniform, Layout::kClustered, Layout::kPlanar, Layout::kDuplicates, Layout::kLine}) {
     SCOPED_TRACE(int(layout));
     const auto photons = MakePhotons(layout, 6000, 100 + uint64_t(layout));
     const auto map = Build(photons);
@@ -426,7 +428,8 @@ TEST_P(PhotonMapContractTest, InQueryFilterAlwaysFillsTheHeap) {
   NearestPhotons heap;
   for (const Vec3& x : MakeQueries(map->photons(), 40, 8)) {
     for (int k : {1, 20, 100}) {
-      ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, std::numeric_limits<float>::infinity(), heap, &from_above));
+      ASSERT_NO_FATAL_FAILURE(
+          ExpectMatchesBruteForce(*map, x, k, std::numeric_limits<float>::infinity(), heap, &from_above));
       EXPECT_EQ(heap.size(), std::size_t(k));
       ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, 0.05f, heap, &by_index));
     }
@@ -491,7 +494,8 @@ TEST_P(PhotonMapContractTest, LifecycleAndErrors) {
   EXPECT_THROW(map->Query({0, 0, 0}, 1, 1.0f, heap), std::logic_error);
   map->PrepareForQuery();
   for (const Vec3& x : MakeQueries(map->photons(), 20, 2))
-    ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, 10, std::numeric_limits<float>::infinity(), heap));
+    ASSERT_NO_FATAL_FAILURE(
+        ExpectMatchesBruteForce(*map, x, 10, std::numeric_limits<float>::infinity(), heap));
   const float nan = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(map->AddPhoton({nan, 0, 0}, {0, 0, 1}, Rgb(1)), std::invalid_argument);
   EXPECT_GE(map->MemoryBytes(), map->size() * sizeof(Photon));
