@@ -15,6 +15,9 @@ inline constexpr float kInvPi = 1.0f / kPi;
 inline constexpr float kTwoPi = 2.0f * kPi;
 
 template <typename T>
+constexpr T Sq(T v) { return v * v; }
+
+template <typename T>
 struct Vec3T {
   T x = 0, y = 0, z = 0;
 

@@ -1,11 +1,30 @@
 #include "common/estimators/radiance_estimate.h"
 
+#include <cmath>
+
 namespace pf {
+
+int AdaptiveK(const Vec3& x, std::span<const Vec3> nearest_sorted, int k_min) {
+  const int k = int(nearest_sorted.size());
+  if (k_min <= 0 || k <= k_min || k < 2) return k;
+  Vec3 cog(0.0f);
+  for (const Vec3& p : nearest_sorted) cog += p;
+  cog = cog * (1.0f / float(k));
+  const float r = Length(nearest_sorted.back() - x);
+  if (!(r > 0.0f)) return k;
+  const float d = Length(cog - x) / r;
+  const float d0 = 2.0f / std::sqrt(float(k));
+  const float d1 = 4.0f / (3.0f * kPi);
+  if (d <= d0 || d0 >= d1) return k;
+  if (d >= d1) return k_min;
+  const float t = (d - d0) / (d1 - d0);
+  return std::max(k_min, int(std::lround(float(k) - float(k - k_min) * t)));
+}
 
 RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, const Vec3& x,
                                         const Vec3& wo, uint32_t lobes,
                                         const RadianceEstimateOptions& options,
-                                        NearestPhotons& nearest) {
+                                        NearestPhotons& nearest, const EstimateContext& context) {
   RadianceEstimateResult result;
   if (map.empty() || options.k <= 0) return result;
   // The viewer's side of the surface: photons must arrive from it (unless light can also
@@ -20,42 +39,63 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   const bool in_query = test && options.direction_test == FeasibilityTest::kInQuery;
   map.Query(x, options.k, options.max_radius, nearest, in_query ? &filter : nullptr);
 
-  const int found = int(nearest.size());
-  if (found == 0) return result;
-  if (options.min_fraction > 0.0f && float(found) < options.min_fraction * float(options.k)) return result;
-  const float r2 = nearest.MaxDistanceSquared();
+  if (nearest.empty()) return result;
+  if (options.min_fraction > 0.0f && float(nearest.size()) < options.min_fraction * float(options.k)) return result;
+
+  // Distance order makes adaptive k and the boundary photon simple; k is small.
+  const bool full = nearest.full();
+  nearest.Sort();
+  const auto all = nearest.entries();
+  size_t count = all.size();
+  if (options.adaptive_k_min > 0 && full) {
+    thread_local std::vector<Vec3> positions;
+    positions.clear();
+    for (const auto& e : all) positions.push_back(map.photon(e.index).Position());
+    count = size_t(AdaptiveK(x, positions, options.adaptive_k_min));
+  }
+  const float r2 = all[count - 1].distance2;
   if (!(r2 > 0.0f)) return result;  // all photons exactly at x: no area to divide by
+  // The photon at distance r only defines r (see exclude_boundary_photon).
+  const size_t used_end = options.exclude_boundary_photon && (full || count < all.size()) ? count - 1 : count;
 
   const bool after_query = test && options.direction_test == FeasibilityTest::kAfterQuery;
-  Rgb sum(0.0f);
-  int used = 0;
-  // The heap's first entry is the farthest photon, the one at distance r.
-  const auto entries = nearest.entries();
-  const size_t first = options.exclude_boundary_photon && nearest.full() ? 1 : 0;
+  const bool occlusion = options.occlusion_test && context.origins && context.scene;
   const Material& m = bsdf.material();
   const bool lambertian_only = !(lobes & kLobeGlossyReflection) || m.specular_reflectance.IsBlack() ||
                                m.specular_roughness <= 0.0f;
-  if (lambertian_only) {
-    // Fast path: f_r is ρd/π for photons arriving on the viewer's side and τd/π for the
-    // other side, so the powers are summed per side and multiplied once (no per-photon BSDF).
-    Rgb front(0.0f), back(0.0f);
-    for (size_t i = first; i < entries.size(); ++i) {
-      const Photon& p = map.photon(entries[i].index);
-      const bool same_side = Dot(p.Direction(), side) > 0.0f;
-      if (after_query && !same_side) continue;
+  Rgb front(0.0f), back(0.0f), sum(0.0f);
+  int used = 0;
+  for (size_t i = 0; i < used_end; ++i) {
+    const Photon& p = map.photon(all[i].index);
+    const Vec3 dir = p.Direction();
+    const bool same_side = Dot(dir, side) > 0.0f;
+    if (after_query && !same_side) continue;
+    if (occlusion) {
+      // §4.1.1: is the photon's origin visible from x? The origin is moved off its surface
+      // towards the side the photon left it from (towards the photon), x towards the viewer.
+      const Vec3& origin = (*context.origins)[all[i].index];
+      const Vec3 leave = p.Position() - origin;
+      if (LengthSquared(leave) > 0.0f) {
+        const float eps = context.scene->epsilon();
+        const Vec3 from = OffsetRayOrigin(x, side, eps);
+        const Vec3 to = OffsetRayOrigin(origin, Normalize(leave), eps);
+        const Vec3 d = to - from;
+        const float dist = Length(d);
+        ++result.shadow_rays;
+        if (dist > 0.0f && context.scene->Occluded(Ray{from, d / dist, dist})) continue;
+      }
+    }
+    if (lambertian_only) {
+      // f_r is ρd/π on the viewer's side and τd/π on the other: sum powers, multiply once.
       (same_side ? front : back) += p.Power();
-      ++used;
+    } else {
+      sum += bsdf.EvalLobes(wo, dir, lobes) * p.Power();
     }
-    const Rgb f_front = bsdf.EvalLobes(wo, side, lobes);
-    const Rgb f_back = back.IsBlack() ? Rgb(0.0f) : bsdf.EvalLobes(wo, -side, lobes);
-    sum = f_front * front + f_back * back;
-  } else {
-    for (size_t i = first; i < entries.size(); ++i) {
-      const Photon& p = map.photon(entries[i].index);
-      if (after_query && !feasible(p)) continue;
-      sum += bsdf.EvalLobes(wo, p.Direction(), lobes) * p.Power();
-      ++used;
-    }
+    ++used;
+  }
+  if (lambertian_only) {
+    sum = bsdf.EvalLobes(wo, side, lobes) * front;
+    if (!back.IsBlack()) sum += bsdf.EvalLobes(wo, -side, lobes) * back;
   }
   result.radiance = sum * (1.0f / (kPi * r2));
   result.photons_used = used;

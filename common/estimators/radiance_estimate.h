@@ -14,6 +14,10 @@
 #include <cstdint>
 #include <limits>
 
+#include <span>
+#include <vector>
+
+#include "common/accel/embree_scene.h"
 #include "common/materials/bsdf.h"
 #include "common/photon/photon_map.h"
 
@@ -31,12 +35,30 @@ struct RadianceEstimateOptions {
   // neighbour is Gamma(k)-distributed and E[1/Gamma(k)] = 1/(k−1). Excluding it makes the
   // estimate of a uniform density unbiased (furnace test). false = the thesis's formula.
   bool exclude_boundary_photon = true;
+  // Occlusion testing (§4.1.1): after the query, drop every photon whose origin (previous
+  // path vertex) is not visible from x — one shadow ray per photon. Needs photon origins.
+  bool occlusion_test = false;
+  // Adaptive k (§4.8): query k photons, then use only the nearest k' ≤ k of them where their
+  // centre of gravity is off x (near borders of shadows, caustics, walls). With
+  // d = |cog − x| / r:   k' = k                                    for d ≤ d0 = 2/√k (noise)
+  //                       k' = k − (k − k_min)·(d − d0)/(d1 − d0)   for d0 < d < d1
+  //                       k' = k_min                                for d ≥ d1 = 4/(3π)
+  // d1 is the centre of gravity of a half disk: x exactly on a straight border. 0 = off.
+  int adaptive_k_min = 0;
+};
+
+// What an estimate may need beyond the map: per-photon attributes and the scene for shadow rays.
+struct EstimateContext {
+  const std::vector<Vec3>* origins = nullptr;  // for occlusion_test (post-build order)
+  const EmbreeScene* scene = nullptr;          // for occlusion_test
+
 };
 
 struct RadianceEstimateResult {
   Rgb radiance;
   int photons_used = 0;
   float radius2 = 0;
+  int shadow_rays = 0;
 };
 
 // Estimates the radiance leaving x towards `wo` through the non-delta lobes in `lobes` of
@@ -44,6 +66,9 @@ struct RadianceEstimateResult {
 RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, const Vec3& x,
                                         const Vec3& wo, uint32_t lobes,
                                         const RadianceEstimateOptions& options,
-                                        NearestPhotons& nearest);
+                                        NearestPhotons& nearest, const EstimateContext& context = {});
+
+// The adaptive-k rule above: how many of the k nearest photons (sorted by distance) to use.
+int AdaptiveK(const Vec3& x, std::span<const Vec3> nearest_sorted, int k_min);
 
 }  // namespace pf

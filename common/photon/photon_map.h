@@ -240,6 +240,28 @@ class PhotonMap {
   }
   bool prepared() const { return prepared_; }
 
+  // As PrepareForQuery, and reports where each photon came from: (*original_index)[i] is the
+  // insertion index of post-build photon i, so that attributes kept outside the 18 bytes
+  // (light id for PhotonDirect §4.2.3, origin for occlusion testing §4.1.1) can follow the
+  // build, and are only paid for when an estimator needs them. Both builds order photons by
+  // position alone, so the index rides in the power bytes during the build (no extra pass).
+  void PrepareForQuery(std::vector<uint32_t>* original_index) {
+    std::vector<std::array<uint8_t, 4>> power(photons_.size());
+    for (std::size_t i = 0; i < photons_.size(); ++i) {
+      for (int b = 0; b < 4; ++b) power[i][b] = photons_[i].rgbe[b];
+      const uint32_t index = uint32_t(i);
+      for (int b = 0; b < 4; ++b) photons_[i].rgbe[b] = uint8_t(index >> (8 * b));
+    }
+    PrepareForQuery();
+    original_index->resize(photons_.size());
+    for (std::size_t i = 0; i < photons_.size(); ++i) {
+      uint32_t index = 0;
+      for (int b = 0; b < 4; ++b) index |= uint32_t(photons_[i].rgbe[b]) << (8 * b);
+      (*original_index)[i] = index;
+      for (int b = 0; b < 4; ++b) photons_[i].rgbe[b] = power[index][b];
+    }
+  }
+
   // The k nearest photons around x within max_radius, into `nearest` (see the semantics at
   // the top of this file). Throws std::logic_error if the map is not prepared.
   void Query(const Vec3& x, int k, float max_radius, NearestPhotons& nearest,

@@ -8,14 +8,30 @@ namespace pf {
 namespace {
 
 std::unique_ptr<PhotonMap> MakeFilled(const PhotonMapsOptions& o,
-                                      std::initializer_list<const std::vector<TracedPhoton>*> lists) {
+                                      std::initializer_list<const std::vector<TracedPhoton>*> lists,
+                                      PhotonAttributes* attributes) {
   auto map = MakePhotonMap(o.kind, o.structure);
   size_t n = 0;
   for (const auto* l : lists) n += l->size();
   map->Reserve(n);
   for (const auto* l : lists)
     for (const TracedPhoton& p : *l) map->AddPhoton(p.position, p.direction, p.power);
-  map->PrepareForQuery();
+  if (!o.keep_light_ids && !o.keep_origins) {
+    map->PrepareForQuery();
+    return map;
+  }
+  std::vector<const TracedPhoton*> traced;
+  traced.reserve(n);
+  for (const auto* l : lists)
+    for (const TracedPhoton& p : *l) traced.push_back(&p);
+  std::vector<uint32_t> original;
+  map->PrepareForQuery(&original);
+  if (o.keep_light_ids) attributes->light.resize(n);
+  if (o.keep_origins) attributes->origin.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (o.keep_light_ids) attributes->light[i] = traced[original[i]]->light;
+    if (o.keep_origins) attributes->origin[i] = traced[original[i]]->origin;
+  }
   return map;
 }
 
@@ -39,13 +55,13 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
 
   const auto t0 = std::chrono::steady_clock::now();
   if (options.separate_direct) {
-    maps.global = MakeFilled(options, {&traced.indirect});
-    maps.direct = MakeFilled(options, {&traced.direct});
+    maps.global = MakeFilled(options, {&traced.indirect}, &maps.global_attributes);
+    maps.direct = MakeFilled(options, {&traced.direct}, &maps.direct_attributes);
   } else {
-    maps.global = MakeFilled(options, {&traced.direct, &traced.indirect});
+    maps.global = MakeFilled(options, {&traced.direct, &traced.indirect}, &maps.global_attributes);
   }
   if (need_caustic) {
-    maps.caustic = MakeFilled(options, {&traced.caustic});
+    maps.caustic = MakeFilled(options, {&traced.caustic}, &maps.caustic_attributes);
   } else if (!traced.caustic.empty()) {
     // Cannot happen in kAuto (no singular surface → no caustic photon); with kOff the caustic
     // photons are dropped on purpose and their light is missing from the image.

@@ -21,6 +21,17 @@ struct PhotonMapsOptions {
   // Keep the first-hit direct photons out of the global map (for estimators that compute
   // direct light separately, §4.2). Standalone rendering keeps them in.
   bool separate_direct = false;
+  // Per-photon attributes beyond the 18 bytes, kept only when an estimator needs them:
+  // the emitting light (PhotonDirect, §4.2.3) and the previous path vertex (occlusion
+  // testing, §4.1.1). 4 and 12 bytes per photon.
+  bool keep_light_ids = false;
+  bool keep_origins = false;
+};
+
+// Attributes of the photons of one map, indexed like PhotonMap::photon(i) (post-build order).
+struct PhotonAttributes {
+  std::vector<uint32_t> light;  // empty unless keep_light_ids
+  std::vector<Vec3> origin;     // empty unless keep_origins
 };
 
 struct PhotonMapsStats {
@@ -35,6 +46,7 @@ struct PhotonMaps {
   std::unique_ptr<PhotonMap> global;   // diffuse (+ direct unless separate_direct) photons
   std::unique_ptr<PhotonMap> caustic;  // null when not needed
   std::unique_ptr<PhotonMap> direct;   // only with separate_direct
+  PhotonAttributes global_attributes, caustic_attributes, direct_attributes;
   PhotonMapsStats stats;
   uint64_t seed = 0;  // the map seed the photons were traced with
 

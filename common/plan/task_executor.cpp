@@ -10,9 +10,45 @@
 namespace pf {
 
 std::string JobRenderSettings::MapFingerprint() const {
+  const PhotonMapsOptions o = MapsOptions();
   return "photons=" + std::to_string(photons) + ";structure=" + std::to_string(int(structure)) +
          ";kd=" + std::to_string(int(kd_split)) + ";caustic=" + std::to_string(int(caustic)) +
-         ";k=" + std::to_string(k);
+         ";k=" + std::to_string(k) + ";separate_direct=" + std::to_string(o.separate_direct) +
+         ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins);
+}
+
+PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& bounds) const {
+  PhotonMapIntegratorOptions io;
+  io.global.k = k;
+  io.global.direction_test = direction_test;
+  io.global.occlusion_test = occlusion_test;
+  io.global.adaptive_k_min = adaptive_k_min;
+  io.caustic = DefaultCausticOptions(k, bounds);
+  if (caustic_radius > 0.0f) io.caustic.max_radius = caustic_radius;
+  io.caustic.direction_test = direction_test;
+  io.caustic.occlusion_test = occlusion_test;
+  io.caustic.adaptive_k_min = adaptive_k_min;
+  io.glossy_depth = glossy_depth;
+  io.direct = direct;
+  io.monte_carlo.shadow_rays = shadow_rays;
+  io.monte_carlo.uniform_fraction = light_uniform_fraction;
+  io.photon_direct.k = photon_direct_k;
+  io.photon_direct.samples = shadow_rays;
+  io.photon_direct.non_contributing = non_contributing;
+  io.photon_direct.cache_radius_fraction = photon_direct_cache;
+  io.local_pass_rays = local_pass_rays;
+  return io;
+}
+
+PhotonMapsOptions JobRenderSettings::MapsOptions() const {
+  PhotonMapsOptions mo;
+  mo.tracing.photons = photons;
+  mo.kind = structure;
+  mo.structure.kd_split_rule = kd_split;
+  mo.structure.grid.expected_k = k;
+  mo.caustic = caustic;
+  ConfigureMapsFor(IntegratorOptions(Bounds3()), &mo);
+  return mo;
 }
 
 SceneRuntime::SceneRuntime(SceneDescription d) : description(std::move(d)), accel(description), lights(accel) {}
@@ -64,28 +100,17 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     std::shared_ptr<const PhotonMaps> maps = cache ? cache->Find(key) : nullptr;
     out.map_cache_hit = maps != nullptr;
     if (!maps) {
-      PhotonMapsOptions mo;
-      mo.tracing.photons = settings.photons;
+      PhotonMapsOptions mo = settings.MapsOptions();
       mo.tracing.map_seed = task.map_seed;
       mo.tracing.threads = threads;
-      mo.kind = settings.structure;
-      mo.structure.kd_split_rule = settings.kd_split;
-      mo.structure.grid.expected_k = settings.k;
-      mo.caustic = settings.caustic;
       maps = std::make_shared<const PhotonMaps>(PhotonMaps::Build(scene.accel, scene.lights, mo));
       if (cache) cache->Insert(key, maps);
     }
     out.photons_emitted = maps->stats.emitted;
     out.photons_stored = maps->stats.stored_global + maps->stats.stored_caustic;
     out.map_seconds = out.map_cache_hit ? 0.0 : maps->stats.trace_seconds + maps->stats.build_seconds;
-    PhotonMapIntegratorOptions io;
-    io.global.k = settings.k;
-    io.global.direction_test = settings.direction_test;
-    io.caustic = DefaultCausticOptions(settings.k, scene.accel.bounds());
-    if (settings.caustic_radius > 0.0f) io.caustic.max_radius = settings.caustic_radius;
-    io.caustic.direction_test = settings.direction_test;
-    io.glossy_depth = settings.glossy_depth;
-    const PhotonMapIntegrator integrator(scene.accel, *maps, io);
+    const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps,
+                                         settings.IntegratorOptions(scene.accel.bounds()));
     stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
                          sums, progress);
   }

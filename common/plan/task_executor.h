@@ -35,6 +35,21 @@ struct JobRenderSettings {
   float caustic_radius = 0.0f;  // 0 = DefaultCausticOptions
   int glossy_depth = 1;
   FeasibilityTest direction_test = FeasibilityTest::kInQuery;
+  // Chapter 4 (see photon_map_integrator.h and direct_light.h).
+  DirectLightMode direct = DirectLightMode::kNone;
+  int shadow_rays = 16;                  // MC: per shading point; PhotonDirect: N_total
+  float light_uniform_fraction = 0.0f;   // MC: defensive mixing β
+  int photon_direct_k = 50;
+  NonContributingMode non_contributing = NonContributingMode::kOneRandom;
+  float photon_direct_cache = 0.25f;     // neighbour-set cache radius fraction; 0 = off
+  int local_pass_rays = 0;               // §4.3; 0 = off
+  bool occlusion_test = false;           // §4.1.1
+  int adaptive_k_min = 0;                // §4.8; 0 = off
+
+  // The integrator options these settings describe, for a scene with these bounds.
+  PhotonMapIntegratorOptions IntegratorOptions(const Bounds3& scene_bounds) const;
+  // The photon-map options (everything but the seed and threads).
+  PhotonMapsOptions MapsOptions() const;
 
   // Stable text form of the settings that change a photon map (cache key).
   std::string MapFingerprint() const;

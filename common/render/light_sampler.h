@@ -34,7 +34,29 @@ class LightSampler {
   const Rgb& total_power() const { return total_power_; }
   size_t num_emitting_triangles() const { return triangles_.size(); }
 
+  // Per light (one emitting source primitive, scene.triangle_light), for direct-light
+  // estimators that sample each light separately (§4.2.1, §4.2.3). Lights are numbered
+  // 0..num_lights()-1 by scene light id; triangles without an id form one extra light.
+  size_t num_lights() const { return lights_.size(); }
+  const Rgb& light_power(size_t light) const { return lights_[light].power; }
+  // Samples light `light` alone: a triangle ∝ power within it, a uniform point on it.
+  // pdf_area is the density within that light.
+  LightSample SampleLight(size_t light, float u_select, float u1, float u2) const;
+  // Which light a scene light id is (kNoLight → the extra one); num_lights() if unknown.
+  size_t LightIndex(uint32_t scene_light_id) const;
+
  private:
+  struct LightGroup {
+    uint32_t scene_id = 0;
+    std::vector<uint32_t> triangles;
+    std::vector<float> cdf;
+    std::vector<float> prob;  // selection probability within the light, per entry of triangles
+    Rgb power;
+  };
+  LightSample MakeSample(uint32_t tri, float u1, float u2, float pdf_select) const;
+  std::vector<LightGroup> lights_;
+  std::vector<uint32_t> light_index_by_id_;  // scene id → index in lights_ (kNoLight slot last)
+
   const EmbreeScene* scene_;
   std::vector<uint32_t> triangles_;   // emissive triangle ids
   std::vector<float> cdf_;            // cumulative selection probability, last = 1

@@ -1,8 +1,21 @@
 #include "common/render/photon_map_integrator.h"
 
+#include "common/core/error.h"
 #include "common/materials/bsdf.h"
 
 namespace pf {
+namespace {
+
+constexpr uint32_t kDiffuseLobes = kLobeDiffuseReflection | kLobeDiffuseTransmission;
+constexpr uint32_t kSingularLobes = kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
+
+// Per-thread query scratch, reused across queries (NearestPhotons allocates only at first).
+NearestPhotons& Scratch() {
+  thread_local NearestPhotons nearest;
+  return nearest;
+}
+
+}  // namespace
 
 RadianceEstimateOptions DefaultCausticOptions(int k, const Bounds3& scene_bounds) {
   RadianceEstimateOptions o;
@@ -12,20 +25,86 @@ RadianceEstimateOptions DefaultCausticOptions(int k, const Bounds3& scene_bounds
   return o;
 }
 
-PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const PhotonMaps& maps,
-                                         PhotonMapIntegratorOptions options)
-    : scene_(scene), maps_(maps), options_(options) {}
+void ConfigureMapsFor(const PhotonMapIntegratorOptions& options, PhotonMapsOptions* maps) {
+  maps->separate_direct = options.direct != DirectLightMode::kNone;
+  maps->keep_light_ids = options.direct == DirectLightMode::kPhotonDirect;
+  maps->keep_origins = options.global.occlusion_test || options.caustic.occlusion_test;
+}
+
+PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSampler* lights,
+                                         const PhotonMaps& maps, PhotonMapIntegratorOptions options)
+    : scene_(scene), lights_(lights), maps_(maps), options_(options) {
+  if (options.direct != DirectLightMode::kNone && !lights)
+    throw InputError("direct light: a light sampler is required");
+  if (options.direct != DirectLightMode::kNone && !maps.direct)
+    throw InputError("direct light: the photon maps were built without a separate direct map");
+  if (options.direct == DirectLightMode::kMonteCarlo)
+    monte_carlo_ = std::make_unique<MonteCarloDirectLight>(scene, *lights, options.monte_carlo);
+  if (options.direct == DirectLightMode::kPhotonDirect) {
+    if (maps.direct_attributes.light.size() != maps.direct->size())
+      throw InputError("PhotonDirect: the direct photons carry no light ids (keep_light_ids)");
+    photon_direct_ = std::make_unique<PhotonDirectLight>(scene, *lights, *maps.direct, maps.direct_attributes.light,
+                                                         options.photon_direct);
+  }
+}
+
+PhotonMapIntegrator::~PhotonMapIntegrator() = default;
+
+Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
+                                     bool include_direct_photons, TraceCounters& counters) const {
+  NearestPhotons& nearest = Scratch();
+  auto estimate = [&](const PhotonMap& map, const PhotonAttributes& attributes, const RadianceEstimateOptions& o) {
+    const EstimateContext context{attributes.origin.empty() ? nullptr : &attributes.origin, &scene_};
+    const RadianceEstimateResult r = EstimateRadiance(map, bsdf, x, wo, lobes, o, nearest, context);
+    counters.shadow_rays += uint64_t(r.shadow_rays);
+    return r.radiance;
+  };
+  Rgb L = estimate(*maps_.global, maps_.global_attributes, options_.global);
+  if (include_direct_photons && maps_.direct) L += estimate(*maps_.direct, maps_.direct_attributes, options_.global);
+  if (maps_.caustic) L += estimate(*maps_.caustic, maps_.caustic_attributes, options_.caustic);
+  return L;
+}
+
+Rgb PhotonMapIntegrator::DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
+                                     TraceCounters& counters) const {
+  if (monte_carlo_) return monte_carlo_->Estimate(bsdf, x, wo, lobes, rng, counters);
+  if (photon_direct_) return photon_direct_->Estimate(bsdf, x, wo, lobes, rng, counters, Scratch());
+  return Rgb(0.0f);
+}
+
+Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Rng& rng,
+                                TraceCounters& counters) const {
+  const SceneDescription& desc = scene_.description();
+  const bool separate_direct = options_.direct != DirectLightMode::kNone;
+  const int n = options_.local_pass_rays;
+  Rgb sum(0.0f);
+  for (int j = 0; j < n; ++j) {
+    const float ul = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
+    const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u1, u2, Bsdf::Mode::kNormalized, lobes & kDiffuseLobes);
+    if (!s || s->weight.IsBlack()) continue;
+    ++counters.rays;
+    const std::optional<SurfaceHit> y = scene_.Intersect(Ray{scene_.SpawnOrigin(hit, s->wi), s->wi});
+    if (!y) continue;
+    const Material& my = desc.materials[y->material];
+    Rgb Ly(0.0f);
+    if (!separate_direct && my.IsEmissive() && y->front_face) Ly += my.emission;
+    const Bsdf by(my, y->shading_normal, y->geometric_normal);
+    if (by.HasLobes(kDiffuseLobes))
+      Ly += MapRadiance(by, y->position, -s->wi, kDiffuseLobes, /*include_direct_photons=*/true, counters);
+    sum += s->weight * Ly;
+  }
+  // Sampling only the diffuse lobes makes each weight f_d·cos/pdf over exactly those lobes.
+  return sum * (1.0f / float(n));
+}
 
 Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const {
-  // Per-thread query scratch, reused across queries (NearestPhotons allocates only at first).
-  thread_local NearestPhotons nearest;
   const SceneDescription& desc = scene_.description();
-  constexpr uint32_t kDiffuseLobes = kLobeDiffuseReflection | kLobeDiffuseTransmission;
-  constexpr uint32_t kSingularLobes = kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
+  const bool separate_direct = options_.direct != DirectLightMode::kNone;
 
   Rgb radiance(0.0f), throughput(1.0f);
   Ray ray = camera_ray;
   int glossy_bounces = 0;
+  bool gathered = false;  // the local pass runs at the first estimated surface only
   for (int depth = 0; depth < options_.max_depth; ++depth) {
     ++counters.rays;
     const std::optional<SurfaceHit> hit = scene_.Intersect(ray);
@@ -42,12 +121,26 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& coun
     const uint32_t followed = kSingularLobes & ~estimated;
 
     if (bsdf.HasLobes(estimated)) {
-      radiance += throughput *
-                  EstimateRadiance(*maps_.global, bsdf, hit->position, wo, estimated, options_.global, nearest).radiance;
-      if (maps_.caustic)
-        radiance += throughput * EstimateRadiance(*maps_.caustic, bsdf, hit->position, wo, estimated,
-                                                  options_.caustic, nearest)
-                                     .radiance;
+      Rgb L(0.0f);
+      if (separate_direct) L += DirectLight(bsdf, hit->position, wo, estimated, rng, counters);
+      if (options_.local_pass_rays > 0 && !gathered && bsdf.HasLobes(kDiffuseLobes)) {
+        gathered = true;
+        L += Gather(bsdf, *hit, wo, estimated, rng, counters);
+        // Caustics (and a glossy lobe estimated from the maps) still come from the maps.
+        if (maps_.caustic) {
+          NearestPhotons& nearest = Scratch();
+          const EstimateContext context{
+              maps_.caustic_attributes.origin.empty() ? nullptr : &maps_.caustic_attributes.origin, &scene_};
+          L += EstimateRadiance(*maps_.caustic, bsdf, hit->position, wo, estimated, options_.caustic, nearest,
+                                context)
+                   .radiance;
+        }
+        if (estimated & kLobeGlossyReflection)
+          L += MapRadiance(bsdf, hit->position, wo, kLobeGlossyReflection, !separate_direct, counters);
+      } else {
+        L += MapRadiance(bsdf, hit->position, wo, estimated, /*include_direct_photons=*/false, counters);
+      }
+      radiance += throughput * L;
     }
     if (!bsdf.HasLobes(followed)) break;
     const float ul = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();

@@ -1,44 +1,82 @@
 #pragma once
-// The photon map shader in a distribution ray tracer (Wald 1999, §2.5): the "standalone"
-// photon-map image (`--integrator photonmap`).
+// The photon map shader in a distribution ray tracer (Wald 1999, §2.5) and the better
+// estimators of chapter 4.
 //
 //  * Emitters are seen directly by camera rays and through singular (specular/glossy) paths.
 //  * Singular lobes are followed by recursion: specular exactly, glossy by importance-sampled
 //    Monte Carlo up to `glossy_depth` glossy bounces; beyond that the glossy lobe is
 //    approximated by the photon-map estimate like the diffuse lobes (§2.5).
-//  * Diffuse lobes read the global map (direct + indirect photons) and the caustic map; caustics
-//    are always visualised directly from the caustic map.
-// One sample per camera-path: the caller's samples per pixel average the stochastic choices.
+//  * At a surface whose diffuse lobes are estimated:
+//      direct = kNone:  L = L_global (direct + indirect photons) + L_caustic   (standalone)
+//      direct = MC or PhotonDirect (§4.2): L = L_d + L_i (global map without direct photons)
+//                                                 + L_c (caustic map)
+//    With the local pass (§4.3, `local_pass_rays` > 0) the first such surface replaces its
+//    photon-map estimate of the non-caustic light by final gathering: N_lp rays sampled from the
+//    diffuse lobes (cosine-weighted for Lambertian surfaces), each reading the maps at its hit y
+//    (L(y) = global + direct photons + caustics at y, plus y's emission when direct light is not
+//    separate). Gather rays that hit a purely singular surface add nothing: light reaching x
+//    through a mirror from a diffuse surface is a caustic path at x (the thesis's definition,
+//    (S|D)* S+ D) and is already in x's caustic map.
+// One sample per camera path: the caller's samples per pixel average the stochastic choices.
 
 #include <memory>
 
+#include "common/estimators/direct_light.h"
 #include "common/estimators/radiance_estimate.h"
 #include "common/photon/photon_maps.h"
 #include "common/render/integrator.h"
+#include "common/render/light_sampler.h"
 
 namespace pf {
+
+enum class DirectLightMode { kNone, kMonteCarlo, kPhotonDirect };
 
 struct PhotonMapIntegratorOptions {
   RadianceEstimateOptions global;   // k nearest, unbounded radius by default
   RadianceEstimateOptions caustic;  // max radius + threshold (§4.1), see DefaultCausticOptions
   int glossy_depth = 1;             // glossy bounces followed before using the estimate
   int max_depth = 32;               // singular-chain cap (Russian roulette ends most earlier)
+  DirectLightMode direct = DirectLightMode::kNone;
+  DirectLightOptions monte_carlo;   // §4.2.1
+  PhotonDirectOptions photon_direct;  // §4.2.3
+  int local_pass_rays = 0;          // N_lp (§4.3); 0 = off
 };
 
 // Caustic estimate defaults: the same k, a maximum radius of 1 % of the scene's bounding-box
 // diagonal, and the thesis's threshold of 10 % of k photons (§4.1).
 RadianceEstimateOptions DefaultCausticOptions(int k, const Bounds3& scene_bounds);
 
+// What the photon maps of a given integrator configuration must contain.
+void ConfigureMapsFor(const PhotonMapIntegratorOptions& options, PhotonMapsOptions* maps);
+
 class PhotonMapIntegrator final : public Integrator {
  public:
-  PhotonMapIntegrator(const EmbreeScene& scene, const PhotonMaps& maps, PhotonMapIntegratorOptions options);
+  // `maps` must have been built with ConfigureMapsFor(options, ...). `lights` may be null only
+  // when direct == kNone.
+  PhotonMapIntegrator(const EmbreeScene& scene, const LightSampler* lights, const PhotonMaps& maps,
+                      PhotonMapIntegratorOptions options);
+  PhotonMapIntegrator(const EmbreeScene& scene, const PhotonMaps& maps, PhotonMapIntegratorOptions options)
+      : PhotonMapIntegrator(scene, nullptr, maps, options) {}
+  ~PhotonMapIntegrator() override;
   Rgb Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const override;
   const char* name() const override { return "photonmap"; }
 
  private:
+  // Photon-map radiance leaving x towards wo through `lobes`: global (+ direct map when
+  // `include_direct_photons`) + caustic.
+  Rgb MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, bool include_direct_photons,
+                  TraceCounters& counters) const;
+  Rgb DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
+                  TraceCounters& counters) const;
+  Rgb Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Rng& rng,
+             TraceCounters& counters) const;
+
   const EmbreeScene& scene_;
+  const LightSampler* lights_;
   const PhotonMaps& maps_;
   PhotonMapIntegratorOptions options_;
+  std::unique_ptr<MonteCarloDirectLight> monte_carlo_;
+  std::unique_ptr<PhotonDirectLight> photon_direct_;
 };
 
 }  // namespace pf

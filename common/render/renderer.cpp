@@ -30,6 +30,7 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
       for (size_t i = range.begin(); i != range.end(); ++i) {
         const uint32_t p = pixels[i];
         const int px = int(p % uint32_t(width)), py = int(p / uint32_t(width));
+        ++t_pixel_epoch;
         Rgb sum = sums[i];
         for (uint32_t s = sample_begin; s < sample_end; ++s) {
           Rng rng = Rng::ForKey(HashKey(seed, p, s));

@@ -524,3 +524,35 @@ INSTANTIATE_TEST_SUITE_P(AllPhotonMaps, PhotonMapContractTest, ::testing::Values
 
 }  // namespace
 }  // namespace pf
+
+namespace pf {
+namespace {
+
+// PrepareForQuery(&original_index) must report the permutation of every structure exactly and
+// leave the photons' powers intact (attributes outside the 18 bytes follow it, §4.1.1/§4.2.3).
+TEST(PhotonMapPermutation, ReportsInsertionIndexAndKeepsPower) {
+  for (PhotonMapKind kind : {PhotonMapKind::kKdTree, PhotonMapKind::kGrid}) {
+    auto map = MakePhotonMap(kind);
+    std::vector<Photon> inserted;
+    Rng rng(9, 3);
+    for (int i = 0; i < 5000; ++i) {
+      const Vec3 p(rng.Uniform(), rng.Uniform() * 0.01f, rng.Uniform());
+      const Photon ph = Photon::Make(p, Vec3(0, 1, 0), Rgb(rng.Uniform(), rng.Uniform(), 0.5f + i));
+      inserted.push_back(ph);
+      map->AddPhoton(ph);
+    }
+    std::vector<uint32_t> original;
+    map->PrepareForQuery(&original);
+    ASSERT_EQ(original.size(), inserted.size());
+    std::vector<bool> seen(inserted.size(), false);
+    for (size_t i = 0; i < original.size(); ++i) {
+      ASSERT_LT(original[i], inserted.size());
+      ASSERT_FALSE(seen[original[i]]);
+      seen[original[i]] = true;
+      ASSERT_EQ(std::memcmp(&map->photon(i), &inserted[original[i]], sizeof(Photon)), 0) << i;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace pf

@@ -1,0 +1,148 @@
+#include "common/estimators/direct_light.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace pf {
+
+Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t light, const Bsdf& bsdf,
+                   const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng, float u_select,
+                   TraceCounters& counters) {
+  const float u1 = rng.Uniform(), u2 = rng.Uniform();
+  const LightSample ls = lights.SampleLight(light, u_select, u1, u2);
+  const Vec3 to_light = ls.position - x;
+  const float dist2 = LengthSquared(to_light);
+  if (!(dist2 > 0.0f)) return Rgb(0.0f);
+  const Vec3 wi = to_light / std::sqrt(dist2);
+  const float cos_light = -Dot(wi, ls.normal);
+  if (cos_light <= 0.0f) return Rgb(0.0f);  // the back of a one-sided emitter
+  const Rgb f = bsdf.EvalLobes(wo, wi, lobes);
+  if (f.IsBlack()) return Rgb(0.0f);
+  ++counters.shadow_rays;
+  if (!scene.Visible(x, bsdf.geometric_normal(), ls.position, ls.normal)) return Rgb(0.0f);
+  const float cos_surface = std::fabs(Dot(wi, bsdf.shading_normal()));
+  return f * ls.radiance * (cos_surface * cos_light / (dist2 * ls.pdf_area));
+}
+
+MonteCarloDirectLight::MonteCarloDirectLight(const EmbreeScene& scene, const LightSampler& lights,
+                                             DirectLightOptions options)
+    : scene_(scene), lights_(lights), options_(options) {
+  const size_t n = lights.num_lights();
+  double total = 0;
+  for (size_t i = 0; i < n; ++i) total += lights.light_power(i).Luminance();
+  const float beta = std::clamp(options.uniform_fraction, 0.0f, 0.999f);
+  double acc = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double by_power = total > 0 ? lights.light_power(i).Luminance() / total : 1.0 / double(n);
+    const double p = (1.0 - beta) * by_power + beta / double(n);
+    light_prob_.push_back(float(p));
+    acc += p;
+    light_cdf_.push_back(float(acc));
+  }
+  if (!light_cdf_.empty()) light_cdf_.back() = 1.0f;
+}
+
+Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
+                                    TraceCounters& counters) const {
+  if (light_cdf_.empty() || !bsdf.HasNonDelta()) return Rgb(0.0f);
+  const int n = std::max(1, options_.shadow_rays);
+  Rgb sum(0.0f);
+  for (int j = 0; j < n; ++j) {
+    // Stratified over the lights' CDF: light i receives N·p_i ± 1 of the N rays (§4.2.1).
+    const float u = (float(j) + rng.Uniform()) / float(n);
+    const size_t i = std::min<size_t>(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u) - light_cdf_.begin(),
+                                      light_cdf_.size() - 1);
+    const Rgb c = SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
+    sum += c * (1.0f / light_prob_[i]);
+  }
+  return sum * (1.0f / float(n));
+}
+
+PhotonDirectLight::PhotonDirectLight(const EmbreeScene& scene, const LightSampler& lights,
+                                     const PhotonMap& direct_map, const std::vector<uint32_t>& light_of_photon,
+                                     PhotonDirectOptions options)
+    : scene_(scene), lights_(lights), map_(direct_map), light_of_photon_(light_of_photon), options_(options) {}
+
+Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
+                                TraceCounters& counters, NearestPhotons& nearest) const {
+  const size_t num_lights = lights_.num_lights();
+  if (num_lights == 0 || !bsdf.HasNonDelta()) return Rgb(0.0f);
+  // Per-thread neighbour-set cache (§4.2.3): the contributing lights and their sample counts.
+  struct Cache {
+    bool valid = false;
+    uint64_t epoch = 0;
+    const PhotonMap* map = nullptr;
+    Vec3 x, n;
+    float radius = 0;
+    std::vector<uint32_t> lights;   // contributing light indices
+    std::vector<int> samples;       // N_i
+    std::vector<uint8_t> contributing;
+  };
+  thread_local Cache cache;
+  const Vec3& ng = bsdf.geometric_normal();
+  const Vec3 side = Dot(wo, ng) >= 0.0f ? ng : -ng;
+  const bool hit = options_.cache_radius_fraction > 0 && cache.valid && cache.map == &map_ &&
+                   cache.epoch == t_pixel_epoch &&
+                   LengthSquared(x - cache.x) < Sq(options_.cache_radius_fraction * cache.radius) &&
+                   Dot(cache.n, side) > 0.9f;
+  if (!hit) {
+    const auto filter = FunctionFilter([&](const Photon& p, std::size_t) { return Dot(p.Direction(), side) > 0.0f; });
+    map_.Query(x, options_.k, std::numeric_limits<float>::infinity(), nearest, &filter);
+    thread_local std::vector<double> energy;
+    energy.assign(num_lights, 0.0);
+    double total = 0;
+    for (const auto& e : nearest.entries()) {
+      const size_t light = lights_.LightIndex(light_of_photon_[e.index]);
+      if (light >= num_lights) continue;
+      const double l = map_.photon(e.index).Power().Luminance();
+      energy[light] += l;
+      total += l;
+    }
+    cache.valid = true;
+    cache.epoch = t_pixel_epoch;
+    cache.map = &map_;
+    cache.x = x;
+    cache.n = side;
+    cache.radius = std::sqrt(nearest.MaxDistanceSquared());
+    cache.lights.clear();
+    cache.samples.clear();
+    cache.contributing.assign(num_lights, 0);
+    for (size_t i = 0; i < num_lights; ++i)
+      if (energy[i] > 0.0) {
+        cache.lights.push_back(uint32_t(i));
+        cache.samples.push_back(std::max(1, int(std::lround(options_.samples * energy[i] / total))));
+        cache.contributing[i] = 1;
+      }
+  }
+  Rgb sum(0.0f);
+  for (size_t c = 0; c < cache.lights.size(); ++c) {
+    const int ni = cache.samples[c];
+    Rgb li(0.0f);
+    for (int j = 0; j < ni; ++j)
+      li += SampleOneLight(scene_, lights_, cache.lights[c], bsdf, x, wo, lobes, rng,
+                           (float(j) + rng.Uniform()) / float(ni), counters);
+    sum += li * (1.0f / float(ni));
+  }
+  const size_t non_contributing = num_lights - cache.lights.size();
+  if (non_contributing > 0) {
+    if (options_.non_contributing == NonContributingMode::kEachOne) {
+      for (size_t i = 0; i < num_lights; ++i)
+        if (!cache.contributing[i]) sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
+    } else {
+      // One sample to the m-th non-contributing light, m uniform, weighted by their number.
+      size_t m = rng.UniformInt(uint32_t(non_contributing));
+      for (size_t i = 0; i < num_lights; ++i) {
+        if (cache.contributing[i]) continue;
+        if (m-- == 0) {
+          sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters) *
+                 float(non_contributing);
+          break;
+        }
+      }
+    }
+  }
+  return sum;
+}
+
+}  // namespace pf

@@ -1,0 +1,199 @@
+#include "common/scene/scene_bundle.h"
+
+#include <openssl/evp.h>
+
+#include <algorithm>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <sstream>
+
+#include "common/core/error.h"
+#include "common/scene/scene_loader.h"
+
+namespace pf {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr std::string_view kHashDomain = "photonfarm-bundle-v1\n";
+
+std::string ReadWholeFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SystemError(path.string() + ": cannot open for reading");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw SystemError(path.string() + ": read failed");
+  return std::move(ss).str();
+}
+
+std::string LimitMessage() {
+  return "the bundle limit is " + std::to_string(kMaxBundleBytes >> 20) + " MiB of file content and " +
+         std::to_string(kMaxBundleFiles) + " files";
+}
+
+// "" if `path` is a valid bundle path, else the reason.
+std::string PathProblem(const std::string& path) {
+  if (path.empty()) return "empty path";
+  if (path.size() > kMaxBundlePathBytes)
+    return "path longer than " + std::to_string(kMaxBundlePathBytes) + " bytes";
+  if (path.find('\0') != std::string::npos) return "path contains a NUL byte";
+  if (path.find('\\') != std::string::npos) return "path contains a backslash (use '/')";
+  if (path.front() == '/') return "absolute path (must be relative to the bundle root)";
+  size_t begin = 0;
+  while (begin <= path.size()) {
+    const size_t end = std::min(path.find('/', begin), path.size());
+    const std::string_view part(path.data() + begin, end - begin);
+    if (part.empty()) return "empty path component";
+    if (part == "." || part == "..") return "'" + std::string(part) + "' component (paths stay inside the bundle)";
+    begin = end + 1;
+  }
+  return "";
+}
+
+class Sha256 {
+ public:
+  Sha256() : ctx_(EVP_MD_CTX_new(), &EVP_MD_CTX_free) {
+    if (!ctx_ || EVP_DigestInit_ex(ctx_.get(), EVP_sha256(), nullptr) != 1)
+      throw SystemError("SHA-256: OpenSSL initialisation failed");
+  }
+  void Update(std::string_view bytes) {
+    if (EVP_DigestUpdate(ctx_.get(), bytes.data(), bytes.size()) != 1) throw SystemError("SHA-256: update failed");
+  }
+  void UpdateU64(uint64_t v) {
+    unsigned char le[8];
+    for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>(v >> (8 * i));
+    Update(std::string_view(reinterpret_cast<const char*>(le), 8));
+  }
+  std::string HexDigest() {
+    unsigned char digest[EVP_MAX_MD_SIZE];
+    unsigned int len = 0;
+    if (EVP_DigestFinal_ex(ctx_.get(), digest, &len) != 1) throw SystemError("SHA-256: final failed");
+    static constexpr char kHex[] = "0123456789abcdef";
+    std::string hex;
+    hex.reserve(2 * len);
+    for (unsigned int i = 0; i < len; ++i) {
+      hex.push_back(kHex[digest[i] >> 4]);
+      hex.push_back(kHex[digest[i] & 15]);
+    }
+    return hex;
+  }
+
+ private:
+  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx_;
+};
+
+// Replaces every occurrence of `from` in `s` by `to`.
+std::string ReplaceAll(std::string s, const std::string& from, const std::string& to) {
+  if (from.empty()) return s;
+  for (size_t pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos + to.size()))
+    s.replace(pos, from.size(), to);
+  return s;
+}
+
+}  // namespace
+
+uint64_t SceneBundle::TotalBytes() const {
+  uint64_t total = 0;
+  for (const auto& [path, content] : files) total += content.size();
+  return total;
+}
+
+SceneBundle CollectBundle(const fs::path& entry) {
+  std::error_code ec;
+  if (!fs::is_regular_file(entry, ec))
+    throw InputError(SourceLocation{entry.string(), 0}, "scene file not found (or not a regular file)");
+  const fs::path root = entry.has_parent_path() ? entry.parent_path() : fs::path(".");
+  SceneBundle bundle;
+  bundle.entry = entry.filename().generic_string();
+  uint64_t total = 0;
+  for (fs::recursive_directory_iterator it(root, fs::directory_options::none, ec), end; !ec && it != end;
+       it.increment(ec)) {
+    if (!it->is_regular_file(ec)) continue;
+    const fs::path rel = it->path().lexically_relative(root);
+    const uint64_t size = it->file_size(ec);
+    if (ec) break;
+    total += size;
+    if (total > kMaxBundleBytes || bundle.files.size() + 1 > kMaxBundleFiles)
+      throw InputError(SourceLocation{root.string(), 0},
+                       "the scene folder holds more than the bundle limit (" + LimitMessage() +
+                           "); keep each scene in its own folder");
+    bundle.files.emplace_back(rel.generic_string(), ReadWholeFile(it->path()));
+  }
+  if (ec) throw SystemError(root.string() + ": cannot list the scene folder: " + ec.message());
+  std::sort(bundle.files.begin(), bundle.files.end());
+  ValidateBundle(bundle);
+  return bundle;
+}
+
+std::string BundleHash(const SceneBundle& bundle) {
+  std::vector<const std::pair<std::string, std::string>*> sorted;
+  sorted.reserve(bundle.files.size());
+  for (const auto& f : bundle.files) sorted.push_back(&f);
+  std::sort(sorted.begin(), sorted.end(), [](auto* a, auto* b) { return a->first < b->first; });
+  Sha256 sha;
+  sha.Update(kHashDomain);
+  sha.UpdateU64(bundle.entry.size());
+  sha.Update(bundle.entry);
+  sha.UpdateU64(sorted.size());
+  for (const auto* f : sorted) {
+    sha.UpdateU64(f->first.size());
+    sha.Update(f->first);
+    sha.UpdateU64(f->second.size());
+    sha.Update(f->second);
+  }
+  return sha.HexDigest();
+}
+
+void ValidateBundle(const SceneBundle& bundle) {
+  if (bundle.files.size() > kMaxBundleFiles)
+    throw InputError("bundle.files: " + std::to_string(bundle.files.size()) + " files exceed " + LimitMessage());
+  if (bundle.TotalBytes() > kMaxBundleBytes)
+    throw InputError("bundle.files: " + std::to_string(bundle.TotalBytes()) + " bytes exceed " + LimitMessage());
+  std::set<std::string_view> seen;
+  for (size_t i = 0; i < bundle.files.size(); ++i) {
+    const std::string& path = bundle.files[i].first;
+    const std::string problem = PathProblem(path);
+    const std::string field = "bundle.files[" + std::to_string(i) + "].path '" + path + "'";
+    if (!problem.empty()) throw InputError(field + ": " + problem);
+    if (!seen.insert(path).second) throw InputError(field + ": duplicate path");
+  }
+  const std::string entry_problem = PathProblem(bundle.entry);
+  if (!entry_problem.empty()) throw InputError("bundle.entry '" + bundle.entry + "': " + entry_problem);
+  if (!seen.count(bundle.entry)) throw InputError("bundle.entry '" + bundle.entry + "': not among the bundle's files");
+}
+
+void WriteBundle(const SceneBundle& bundle, const fs::path& dir) {
+  ValidateBundle(bundle);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw SystemError(dir.string() + ": cannot create directory: " + ec.message());
+  for (const auto& [path, content] : bundle.files) {
+    const fs::path target = dir / fs::path(path);
+    fs::create_directories(target.parent_path(), ec);
+    if (ec) throw SystemError(target.parent_path().string() + ": cannot create directory: " + ec.message());
+    std::ofstream out(target, std::ios::binary | std::ios::trunc);
+    out.write(content.data(), std::streamsize(content.size()));
+    out.close();
+    if (!out) throw SystemError(target.string() + ": write failed");
+  }
+}
+
+SceneDescription LoadBundle(const fs::path& dir, const std::string& entry) {
+  const std::string problem = PathProblem(entry);
+  if (!problem.empty()) throw InputError("bundle.entry '" + entry + "': " + problem);
+  // Messages name files as the client knows them: strip the storage directory.
+  const std::string prefix = (dir / "").string();
+  try {
+    SceneDescription scene = LoadScene(dir / fs::path(entry));
+    for (std::string& w : scene.warnings) w = ReplaceAll(std::move(w), prefix, "");
+    scene.source = ReplaceAll(std::move(scene.source), prefix, "");
+    return scene;
+  } catch (const InputError& e) {
+    if (e.where().file.empty()) throw InputError(ReplaceAll(e.reason(), prefix, ""));
+    throw InputError(SourceLocation{ReplaceAll(e.where().file, prefix, ""), e.where().line},
+                     ReplaceAll(e.reason(), prefix, ""));
+  }
+}
+
+}  // namespace pf
