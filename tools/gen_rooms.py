@@ -1,0 +1,135 @@
+#!/usr/bin/env python3
+"""Generates the SCENE10-like and INVISIBLEDATE-like test scenes of issue #5 as MGF.
+
+SCENE10 (Wald 1999, §5): a 10x10 array of small diffuse rooms, each with its own ceiling light,
+doors between neighbouring rooms. INVISIBLEDATE: two rooms side by side; the viewed room has no
+light of its own and is lit only through a narrow gap of a nearly closed door from the next room.
+
+    tools/gen_rooms.py            # writes scenes/scene10/scene10.mgf, scenes/invisibledate/invisibledate.mgf
+
+Units: metres, y up. Walls are single two-sided faces.
+"""
+import pathlib
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+class Mgf:
+    def __init__(self):
+        self.lines = []
+        self.n = 0
+
+    def material(self, name, rd=None, ed=None):
+        self.lines += [f"m {name} =", "  c"]
+        if rd is not None:
+            self.lines.append(f"  rd {rd}")
+        if ed is not None:
+            self.lines.append(f"  ed {ed}")
+
+    def use(self, name):
+        self.lines.append(f"m {name}")
+
+    def face(self, *points):
+        names = []
+        for p in points:
+            name = f"v{self.n}"
+            self.n += 1
+            self.lines += [f"v {name} =", f"  p {p[0]:.4f} {p[1]:.4f} {p[2]:.4f}"]
+            names.append(name)
+        self.lines.append("f " + " ".join(names))
+
+    def quad_y(self, x0, x1, z0, z1, y, down):
+        """Horizontal rectangle at height y; front face down (-y) or up (+y)."""
+        if down:
+            self.face((x0, y, z0), (x1, y, z0), (x1, y, z1), (x0, y, z1))
+        else:
+            self.face((x0, y, z0), (x0, y, z1), (x1, y, z1), (x1, y, z0))
+
+    def wall_x(self, x, z0, z1, y0, y1):
+        """Wall in the plane x = const."""
+        self.face((x, y0, z0), (x, y0, z1), (x, y1, z1), (x, y1, z0))
+
+    def wall_z(self, z, x0, x1, y0, y1):
+        self.face((x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z))
+
+    def wall_x_with_gap(self, x, z0, z1, height, gap_z0, gap_z1, gap_top):
+        self.wall_x(x, z0, gap_z0, 0, height)
+        self.wall_x(x, gap_z1, z1, 0, height)
+        self.wall_x(x, gap_z0, gap_z1, gap_top, height)
+
+    def wall_z_with_gap(self, z, x0, x1, height, gap_x0, gap_x1, gap_top):
+        self.wall_z(z, x0, gap_x0, 0, height)
+        self.wall_z(z, gap_x1, x1, 0, height)
+        self.wall_z(z, gap_x0, gap_x1, gap_top, height)
+
+    def write(self, path, header):
+        path.write_text("".join(f"# {h}\n" for h in header) + "\n".join(self.lines) + "\n")
+
+
+def scene10(rooms=10, size=4.0, height=2.5, door=0.9, door_top=2.0, light=0.5):
+    m = Mgf()
+    m.material("floor", rd=0.45)
+    m.material("wall", rd=0.7)
+    m.material("ceiling", rd=0.8)
+    # ed in lm/m²: Le = ed/(π·179) ≈ 10 W/(m²·sr) for 5622.
+    m.material("lamp", ed=5622)
+    total = rooms * size
+    m.use("floor")
+    m.quad_y(0, total, 0, total, 0.0, down=False)
+    m.use("ceiling")
+    m.quad_y(0, total, 0, total, height, down=True)
+    m.use("wall")
+    for i in range(rooms + 1):  # walls x = i·size and z = i·size
+        c = i * size
+        for j in range(rooms):
+            a, b = j * size, (j + 1) * size
+            mid = (a + b) / 2
+            if i in (0, rooms):
+                m.wall_x(c, a, b, 0, height)
+                m.wall_z(c, a, b, 0, height)
+            else:
+                m.wall_x_with_gap(c, a, b, height, mid - door / 2, mid + door / 2, door_top)
+                m.wall_z_with_gap(c, a, b, height, mid - door / 2, mid + door / 2, door_top)
+    m.use("lamp")
+    for i in range(rooms):
+        for j in range(rooms):
+            cx, cz = (i + 0.5) * size, (j + 0.5) * size
+            m.quad_y(cx - light / 2, cx + light / 2, cz - light / 2, cz + light / 2, height - 0.01, down=True)
+    return m
+
+
+def invisible_date(size=4.0, height=2.5, gap=0.05, door_top=2.0):
+    """Room A (x in [0,4]) is viewed; room B (x in [4,8]) holds the light. The door between them
+    is open by a `gap`-wide slit only."""
+    m = Mgf()
+    m.material("floor", rd=0.45)
+    m.material("wall", rd=0.7)
+    m.material("ceiling", rd=0.8)
+    m.material("lamp", ed=20000)
+    m.use("floor")
+    m.quad_y(0, 2 * size, 0, size, 0.0, down=False)
+    m.use("ceiling")
+    m.quad_y(0, 2 * size, 0, size, height, down=True)
+    m.use("wall")
+    m.wall_x(0, 0, size, 0, height)
+    m.wall_x(2 * size, 0, size, 0, height)
+    m.wall_z(0, 0, 2 * size, 0, height)
+    m.wall_z(size, 0, 2 * size, 0, height)
+    mid = size / 2
+    m.wall_x_with_gap(size, 0, size, height, mid - gap / 2, mid + gap / 2, door_top)
+    m.use("lamp")
+    m.quad_y(1.5 * size - 0.3, 1.5 * size + 0.3, mid - 0.3, mid + 0.3, height - 0.01, down=True)
+    return m
+
+
+def main():
+    scene10().write(ROOT / "scenes/scene10/scene10.mgf",
+                    ["SCENE10-like: 10x10 diffuse rooms (4 x 4 x 2.5 m), one 0.5 m ceiling light each,",
+                     "0.9 x 2.0 m doors between neighbours. Generated by tools/gen_rooms.py (photonfarm)."])
+    invisible_date().write(ROOT / "scenes/invisibledate/invisibledate.mgf",
+                           ["INVISIBLEDATE-like: two 4 x 4 x 2.5 m rooms; the left one is lit only through a",
+                            "5 cm door gap from the right one. Generated by tools/gen_rooms.py (photonfarm)."])
+
+
+if __name__ == "__main__":
+    main()
