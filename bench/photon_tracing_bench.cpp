@@ -1,0 +1,82 @@
+// Photon tracing throughput (issue #3 benchmark): photons emitted, stored and rays traced per
+// second on ONE thread (the walk is embarrassingly parallel; per-thread rates are what compare
+// across machines), median of --repeats runs, next to the thesis's Table 2.1 random-walk
+// times. Table + JSON.
+//
+//   build/bench/photon_tracing_bench [--photons 200000] [--repeats 3] [--json out.json]
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "common/accel/embree_scene.h"
+#include "common/photon/photon_tracer.h"
+#include "common/render/light_sampler.h"
+#include "common/scene/scene_loader.h"
+
+namespace {
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  uint64_t photons = 200000;
+  int repeats = 3;
+  std::string json_path;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--photons" && i + 1 < argc) photons = std::stoull(argv[++i]);
+    else if (a == "--repeats" && i + 1 < argc) repeats = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--json" && i + 1 < argc) json_path = argv[++i];
+    else {
+      std::fprintf(stderr, "usage: %s [--photons N] [--repeats R] [--json out.json]\n", argv[0]);
+      return 2;
+    }
+  }
+  spdlog::set_level(spdlog::level::warn);
+  const std::string root = PF_SOURCE_DIR;
+  const std::vector<std::pair<std::string, std::string>> scenes = {
+      {"cornell-box", root + "/scenes/cornell-box/cornell-box.json"},
+      {"cornell-sphere", root + "/scenes/cornell-sphere/cornell-sphere.json"},
+      {"office3", root + "/scenes/office3/office3.json"}};
+  nlohmann::json out = nlohmann::json::array();
+  std::printf("photon tracing, 1 thread, %llu photons, median of %d runs\n", (unsigned long long)photons, repeats);
+  std::printf("%-15s %12s %12s %12s %10s %14s\n", "scene", "emitted k/s", "stored k/s", "rays M/s", "stored/em.",
+              "s per 100k st.");
+  for (const auto& [name, path] : scenes) {
+    const pf::SceneDescription scene = pf::LoadScene(path);
+    const pf::EmbreeScene accel(scene);
+    const pf::LightSampler lights(accel);
+    std::vector<double> emitted_rate, stored_rate, ray_rate;
+    double stored_per_emitted = 0;
+    for (int r = 0; r < repeats; ++r) {
+      pf::PhotonTracerOptions o;
+      o.photons = photons;
+      o.map_seed = uint64_t(r + 1);
+      o.threads = 1;
+      const pf::PhotonTracingResult res = pf::TracePhotons(accel, lights, o);
+      const double stored = double(res.direct.size() + res.indirect.size() + res.caustic.size());
+      emitted_rate.push_back(double(res.emitted) / res.seconds);
+      stored_rate.push_back(stored / res.seconds);
+      ray_rate.push_back(double(res.rays) / res.seconds);
+      stored_per_emitted = stored / double(res.emitted);
+    }
+    const double st = Median(stored_rate);
+    std::printf("%-15s %12.1f %12.1f %12.2f %10.2f %14.3f\n", name.c_str(), Median(emitted_rate) * 1e-3, st * 1e-3,
+                Median(ray_rate) * 1e-6, stored_per_emitted, 1e5 / st);
+    out.push_back({{"scene", name}, {"photons_emitted", photons}, {"emitted_per_s", Median(emitted_rate)},
+                   {"stored_per_s", st}, {"rays_per_s", Median(ray_rate)}, {"stored_per_emitted", stored_per_emitted},
+                   {"threads", 1}, {"repeats", repeats}});
+  }
+  std::printf("thesis Table 2.1 (DEC Alpha 333 MHz): RandomWalk 100k photons 5 s, 700k 30 s\n");
+  const std::string text = out.dump(2);
+  if (!json_path.empty()) std::ofstream(json_path) << text << "\n";
+  std::printf("%s\n", text.c_str());
+  return 0;
+}
