@@ -42,21 +42,25 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   if (nearest.empty()) return result;
   if (options.min_fraction > 0.0f && float(nearest.size()) < options.min_fraction * float(options.k)) return result;
 
-  // Distance order makes adaptive k and the boundary photon simple; k is small.
+  // Entries [first, used_end) are summed over a radius² r2. Without adaptive k the heap order
+  // is enough: its first entry is the farthest photon (at r), the one excluded from the sum.
+  // Adaptive k needs distance order (sorting k entries costs about as much as the query).
   const bool full = nearest.full();
-  nearest.Sort();
-  const auto all = nearest.entries();
-  size_t count = all.size();
+  size_t first = 0, used_end = nearest.size();
+  float r2 = nearest.MaxDistanceSquared();
   if (options.adaptive_k_min > 0 && full) {
+    nearest.Sort();
     thread_local std::vector<Vec3> positions;
     positions.clear();
-    for (const auto& e : all) positions.push_back(map.photon(e.index).Position());
-    count = size_t(AdaptiveK(x, positions, options.adaptive_k_min));
+    for (const auto& e : nearest.entries()) positions.push_back(map.photon(e.index).Position());
+    const size_t count = size_t(AdaptiveK(x, positions, options.adaptive_k_min));
+    r2 = nearest[count - 1].distance2;
+    used_end = options.exclude_boundary_photon ? count - 1 : count;
+  } else if (options.exclude_boundary_photon && full) {
+    first = 1;  // the heap's front
   }
-  const float r2 = all[count - 1].distance2;
   if (!(r2 > 0.0f)) return result;  // all photons exactly at x: no area to divide by
-  // The photon at distance r only defines r (see exclude_boundary_photon).
-  const size_t used_end = options.exclude_boundary_photon && (full || count < all.size()) ? count - 1 : count;
+  const auto all = nearest.entries();
 
   const bool after_query = test && options.direction_test == FeasibilityTest::kAfterQuery;
   const bool occlusion = options.occlusion_test && context.origins && context.scene;
@@ -65,7 +69,7 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
                                m.specular_roughness <= 0.0f;
   Rgb front(0.0f), back(0.0f), sum(0.0f);
   int used = 0;
-  for (size_t i = 0; i < used_end; ++i) {
+  for (size_t i = first; i < used_end; ++i) {
     const Photon& p = map.photon(all[i].index);
     const Vec3 dir = p.Direction();
     const bool same_side = Dot(dir, side) > 0.0f;
