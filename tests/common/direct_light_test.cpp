@@ -208,3 +208,30 @@ TEST(OcclusionTest, RemovesEnergyBleedingThroughAWall) {
 
 }  // namespace
 }  // namespace pf
+
+namespace pf {
+namespace {
+
+// §4.8: the centre-of-gravity rule keeps all k photons in the interior of a uniform region and
+// drops to k_min on a straight border (x on the edge of a half disk of photons).
+TEST(AdaptiveK, FullDiskKeepsKHalfDiskDropsToKMin) {
+  Rng rng(5, 5);
+  std::vector<Vec3> disk, half;
+  while (disk.size() < 400) {
+    const Vec3 p(2 * rng.Uniform() - 1, 2 * rng.Uniform() - 1, 0);
+    if (LengthSquared(p) >= 1) continue;
+    disk.push_back(p);
+    if (p.x >= 0) half.push_back(p);
+  }
+  auto by_distance = [](std::vector<Vec3> v) {
+    std::sort(v.begin(), v.end(), [](const Vec3& a, const Vec3& b) { return LengthSquared(a) < LengthSquared(b); });
+    return v;
+  };
+  const auto d = by_distance(disk), h = by_distance(std::vector<Vec3>(half.begin(), half.begin() + 200));
+  EXPECT_EQ(AdaptiveK(Vec3(0.0f), d, 20), 400);
+  EXPECT_LE(AdaptiveK(Vec3(0.0f), h, 20), 40) << "a half disk is (close to) the border case";
+  EXPECT_EQ(AdaptiveK(Vec3(0.0f), h, 0), 200) << "k_min = 0 switches adaptive k off";
+}
+
+}  // namespace
+}  // namespace pf
