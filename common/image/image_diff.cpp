@@ -29,6 +29,7 @@ ImageDiffStats CompareImages(const Image& a, const Image& reference) {
   CheckSameSize(a, reference);
   ImageDiffStats stats;
   double sum_squared = 0, sum_relative = 0, sum_a = 0, sum_b = 0;
+  double sum_clamped = 0;
   for (int y = 0; y < a.height(); ++y) {
     for (int x = 0; x < a.width(); ++x) {
       const Rgb& pa = a.at(x, y);
@@ -42,6 +43,8 @@ ImageDiffStats CompareImages(const Image& a, const Image& reference) {
         const double va = pa[c], vb = pb[c];
         const double d = va - vb;
         sum_squared += d * d;
+        const double dc = std::clamp(va, 0.0, 1.0) - std::clamp(vb, 0.0, 1.0);
+        sum_clamped += dc * dc;
         sum_relative += d * d / (vb * vb + kRelativeMseEpsilon);
         sum_a += va;
         sum_b += vb;
@@ -56,6 +59,7 @@ ImageDiffStats CompareImages(const Image& a, const Image& reference) {
   if (stats.pixels == 0) return stats;
   const double n = 3.0 * double(stats.pixels);
   stats.rmse = std::sqrt(sum_squared / n);
+  stats.rmse_clamped = std::sqrt(sum_clamped / n);
   stats.relative_mse = sum_relative / n;
   stats.mean_a = sum_a / n;
   stats.mean_b = sum_b / n;

@@ -19,6 +19,11 @@ namespace pf {
 // With no pixel compared every statistic is 0. Sums are accumulated in double.
 struct ImageDiffStats {
   double rmse = 0;
+  // RMSE of the values clamped to [0, 1], the displayable range: the error a viewer sees. Raw
+  // RMSE is dominated by the few pixels on the border of a visible light (radiance 10–20 next
+  // to 0.5) that a finite number of pixel samples cannot resolve; clamping measures the
+  // estimator's noise and bias instead (the thesis's RMS values are on displayed images).
+  double rmse_clamped = 0;
   double relative_mse = 0;
   double max_abs_error = 0;
   int max_x = -1, max_y = -1;

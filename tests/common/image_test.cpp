@@ -646,3 +646,20 @@ TEST(ImageDiffTest, FalseColourMapsErrorMagnitude) {
 
 }  // namespace
 }  // namespace pf
+
+namespace pf {
+namespace {
+
+TEST(ImageDiffTest, ClampedRmseMeasuresTheDisplayRange) {
+  Image a(2, 1), b(2, 1);
+  a[0] = Rgb(20.0f);  // a light pixel, wrongly estimated: counts only up to 1
+  b[0] = Rgb(0.5f);
+  a[1] = Rgb(0.25f);
+  b[1] = Rgb(0.5f);
+  const ImageDiffStats d = CompareImages(a, b);
+  EXPECT_NEAR(d.rmse_clamped, std::sqrt((0.25 + 0.0625) / 2.0), 1e-9);
+  EXPECT_GT(d.rmse, 13.0);
+}
+
+}  // namespace
+}  // namespace pf
