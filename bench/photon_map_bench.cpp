@@ -9,18 +9,37 @@
 //   * memory in bytes per photon.
 // Medians of --reps repetitions (default 3); ratios are relative to nanoflann.
 //
-// Photons: there is no photon tracer yet, so photons are generated on the surfaces of a
-// Cornell-box-like room (6 walls, 2 rotated boxes) with a density that falls off away from
-// the ceiling light, plus 10% in caustic-like gaussian blobs on the floor. Query points
-// (stand-ins for camera-ray hits) are uniform by area over the same surfaces, 10% of them in
-// the caustic blobs.
+// Photons (default): REAL photons from the photon tracer (photon_tracer.h) in
+// scenes/cornell-box and scenes/office3: for each N, enough photons are emitted (map seed 1,
+// a pilot run measures stored/emitted) to store at least N, and N of the stored ones (direct,
+// indirect and caustic photons together, i.e. a global map that keeps the direct photons, as
+// in standalone rendering) are kept by even thinning. Query points: the hits of the
+// manifest camera's primary rays, one jittered ray per pixel (Rng keyed by the pixel, so
+// deterministic), the camera's resolution scaled so that its larger side is 256 pixels, in
+// scan-line order (as a renderer queries). Rays that miss are dropped.
 //
-// Usage: photon_map_bench [--quick] [--reps N] [--json out.json] [--wall] [--grid-sweep]
+// --synthetic: the earlier stand-in (no tracer needed): photons on the surfaces of a
+// Cornell-box-like room with a density falling off from the light plus 10% caustic blobs;
+// queries uniform by area on the same surfaces.
+//
+// The machines are shared: the load average (/proc/loadavg) is printed before and after the
+// run and stored in the JSON; tables show thread CPU time by default.
+//
+// Usage: photon_map_bench [--quick] [--synthetic] [--scenes cornell-box,office3] [--reps N]
+//                         [--json out.json] [--wall] [--grid-sweep] [--cache DIR]
+//                         [--profile STRUCT --scene S --n N --k K]
 //   --quick: N up to 1M and fewer queries.
 //   --wall: tables in wall-clock time instead of thread CPU time (both are in the JSON).
 //   --grid-sweep: only measure grid query time against its photons-per-voxel target.
+//   --cache DIR: keep traced photons and query points in DIR (raw 18-byte photons), so that
+//     repeated runs (and valgrind runs) do not trace again. Same content as without it.
+//   --profile STRUCT: build one structure (kd-cycle, kd-widest, kd-widest-plane, grid,
+//     nanoflann) and run the query set once through pf_bench_profile_queries(), for
+//     `valgrind --tool=callgrind --toggle-collect=pf_bench_profile_queries`; prints kd-tree
+//     traversal statistics (nodes visited per query). Use with --cache.
 
 #include <nanoflann.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -29,20 +48,28 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include "common/accel/embree_scene.h"
 #include "common/core/math.h"
 #include "common/core/rng.h"
 #include "common/photon/grid.h"
 #include "common/photon/kdtree.h"
 #include "common/photon/photon.h"
 #include "common/photon/photon_map.h"
+#include "common/photon/photon_tracer.h"
+#include "common/render/camera.h"
+#include "common/render/light_sampler.h"
+#include "common/scene/scene_loader.h"
 
 namespace pf {
 namespace {
@@ -75,8 +102,15 @@ double Median(std::vector<double> v) {
   return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+std::string LoadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  in >> a >> b >> c;
+  return a + " " + b + " " + c;
+}
+
 // ---------------------------------------------------------------------------------------
-// The stand-in scene: a Cornell-box-like room, 5.5 units on a side, y up.
+// Synthetic workload (--synthetic): a Cornell-box-like room, 5.5 units on a side, y up.
 
 struct Quad {  // the parallelogram origin + s·u + t·v, s, t ∈ [0, 1]
   Vec3 origin, u, v;
@@ -144,7 +178,7 @@ Vec3 CausticPoint(Rng& rng) {
   return {x, 0.0f, z};
 }
 
-std::vector<Photon> MakePhotons(std::size_t n, uint64_t seed) {
+std::vector<Photon> MakeSyntheticPhotons(std::size_t n, uint64_t seed) {
   const SurfaceSampler surfaces(RoomQuads());
   Rng rng = Rng::ForKey(HashKey(seed, 1));
   std::vector<Photon> photons;
@@ -167,7 +201,7 @@ std::vector<Photon> MakePhotons(std::size_t n, uint64_t seed) {
   return photons;
 }
 
-std::vector<Vec3> MakeQueries(std::size_t n, uint64_t seed) {
+std::vector<Vec3> MakeSyntheticQueries(std::size_t n, uint64_t seed) {
   const SurfaceSampler surfaces(RoomQuads());
   Rng rng = Rng::ForKey(HashKey(seed, 2));
   std::vector<Vec3> q;
@@ -176,6 +210,185 @@ std::vector<Vec3> MakeQueries(std::size_t n, uint64_t seed) {
     q.push_back(rng.Uniform() < 0.1f ? CausticPoint(rng) : surfaces.Uniform(rng));
   return q;
 }
+
+// ---------------------------------------------------------------------------------------
+// Real workload: traced photons and camera-ray hits.
+
+struct TraceInfo {
+  uint64_t emitted = 0;   // photons emitted to get `stored`
+  uint64_t stored = 0;    // photons stored by the walk (≥ N); N of them are kept
+  uint64_t direct = 0, indirect = 0, caustic = 0;
+  double seconds = 0;     // tracing wall time (all threads), 0 if from the cache
+  bool cached = false;
+};
+
+class Workload {
+ public:
+  virtual ~Workload() = default;
+  virtual std::string name() const = 0;
+  virtual std::string description() const = 0;
+  virtual std::vector<Photon> Photons(std::size_t n, TraceInfo* info) = 0;
+  virtual const std::vector<Vec3>& Queries() = 0;
+};
+
+class SyntheticWorkload final : public Workload {
+ public:
+  std::string name() const override { return "synthetic"; }
+  std::string description() const override {
+    return "SYNTHETIC photons on the surfaces of a Cornell-box-like room (6 walls + 2 rotated boxes, density "
+           "falling off from the ceiling light) + 10% in caustic-like gaussian blobs on the floor; queries uniform "
+           "by area on the same surfaces, 10% in the blobs (stand-ins for camera-ray hits)";
+  }
+  std::vector<Photon> Photons(std::size_t n, TraceInfo*) override { return MakeSyntheticPhotons(n, 1999); }
+  const std::vector<Vec3>& Queries() override {
+    if (queries_.empty()) queries_ = MakeSyntheticQueries(65536, 2024);
+    return queries_;
+  }
+
+ private:
+  std::vector<Vec3> queries_;
+};
+
+// Raw cache files: a 56-byte header (magic, element count, 5 numbers describing the content)
+// and the elements.
+constexpr uint64_t kCacheMagic = 0x70686f746f6e3032ull;
+template <typename T>
+bool ReadCache(const std::filesystem::path& path, std::vector<T>* out, uint64_t extra[5]) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  uint64_t header[7];
+  if (!in.read(reinterpret_cast<char*>(header), sizeof header) || header[0] != kCacheMagic) return false;
+  out->resize(header[1]);
+  for (int i = 0; i < 5; ++i) extra[i] = header[2 + i];
+  return bool(in.read(reinterpret_cast<char*>(out->data()), std::streamsize(out->size() * sizeof(T))));
+}
+template <typename T>
+void WriteCache(const std::filesystem::path& path, const std::vector<T>& v, const uint64_t extra[5]) {
+  std::filesystem::create_directories(path.parent_path());
+  std::ofstream out(path, std::ios::binary);
+  const uint64_t header[7] = {kCacheMagic, v.size(), extra[0], extra[1], extra[2], extra[3], extra[4]};
+  out.write(reinterpret_cast<const char*>(header), sizeof header);
+  out.write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * sizeof(T)));
+}
+
+class SceneWorkload final : public Workload {
+ public:
+  static constexpr uint64_t kMapSeed = 1;
+  static constexpr int kQueryRows = 256;  // the larger image side
+
+  SceneWorkload(std::string name, std::filesystem::path manifest, std::string cache_dir)
+      : name_(std::move(name)), manifest_(std::move(manifest)), cache_dir_(std::move(cache_dir)) {}
+
+  std::string name() const override { return name_; }
+  std::string description() const override {
+    return "REAL photons traced in " + manifest_.filename().string() +
+           " (photon_tracer.h, map seed 1; direct + indirect + caustic photons, evenly thinned to N); queries: "
+           "hits of the manifest camera's primary rays, 1 jittered ray per pixel, larger side 256 px, scan-line "
+           "order";
+  }
+
+  std::vector<Photon> Photons(std::size_t n, TraceInfo* info) override {
+    const std::filesystem::path cache =
+        cache_dir_.empty() ? std::filesystem::path() : std::filesystem::path(cache_dir_) / (name_ + "-" + std::to_string(n) + ".photons");
+    std::vector<Photon> photons;
+    uint64_t extra[5] = {0, 0, 0, 0, 0};
+    if (!cache.empty() && ReadCache(cache, &photons, extra) && photons.size() == n) {
+      *info = TraceInfo{extra[0], extra[1], extra[2], extra[3], extra[4], 0.0, true};
+      return photons;
+    }
+    Load();
+    // Pilot run: the stored-per-emitted ratio, then emit enough for N with a 2% margin.
+    PhotonTracerOptions options;
+    options.map_seed = 999;
+    options.photons = 20000;
+    options.threads = 0;
+    const PhotonTracingResult pilot = TracePhotons(*accel_, *lights_, options);
+    const double ratio =
+        double(pilot.direct.size() + pilot.indirect.size() + pilot.caustic.size()) / double(pilot.emitted);
+    options.map_seed = kMapSeed;
+    options.photons = uint64_t(std::ceil(double(n) / ratio * 1.02)) + 100;
+    for (;;) {
+      const auto t0 = Clock::now();
+      PhotonTracingResult traced = TracePhotons(*accel_, *lights_, options);
+      const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+      const std::size_t m = traced.direct.size() + traced.indirect.size() + traced.caustic.size();
+      if (m < n) {
+        options.photons = uint64_t(double(options.photons) * 1.05 * double(n) / double(std::max<std::size_t>(m, 1)));
+        continue;
+      }
+      *info = TraceInfo{traced.emitted, m, traced.direct.size(), traced.indirect.size(), traced.caustic.size(),
+                        seconds, false};
+      // Even thinning of the concatenation to exactly N: keeps each kind's share and, within a
+      // kind, the photons of every light stratum (the tracer stratifies lights over the index).
+      photons.reserve(n);
+      std::size_t j = 0;
+      for (const auto* list : {&traced.direct, &traced.indirect, &traced.caustic}) {
+        for (const TracedPhoton& p : *list) {
+          if ((j + 1) * n / m > j * n / m) photons.push_back(Photon::Make(p.position, p.direction, p.power));
+          ++j;
+        }
+      }
+      break;
+    }
+    if (!cache.empty()) {
+      const uint64_t counts[5] = {info->emitted, info->stored, info->direct, info->indirect, info->caustic};
+      WriteCache(cache, photons, counts);
+    }
+    return photons;
+  }
+
+  const std::vector<Vec3>& Queries() override {
+    if (!queries_.empty()) return queries_;
+    const std::filesystem::path cache =
+        cache_dir_.empty() ? std::filesystem::path() : std::filesystem::path(cache_dir_) / (name_ + ".queries");
+    uint64_t extra[5] = {0, 0, 0, 0, 0};
+    if (!cache.empty() && ReadCache(cache, &queries_, extra) && !queries_.empty()) {
+      width_ = int(extra[0]);
+      height_ = int(extra[1]);
+      return queries_;
+    }
+    Load();
+    CameraSpec spec = scene_.cameras.empty() ? DefaultCamera(scene_) : scene_.cameras.front();
+    const double scale = double(kQueryRows) / double(std::max(spec.width, spec.height));
+    spec.width = std::max(1, int(std::lround(spec.width * scale)));
+    spec.height = std::max(1, int(std::lround(spec.height * scale)));
+    width_ = spec.width;
+    height_ = spec.height;
+    const Camera camera(spec);
+    for (int y = 0; y < spec.height; ++y) {
+      for (int x = 0; x < spec.width; ++x) {
+        Rng rng = Rng::ForKey(HashKey(2024, uint64_t(y), uint64_t(x)));
+        const float u = rng.Uniform(), v = rng.Uniform();
+        if (const auto hit = accel_->Intersect(camera.GenerateRay(x, y, u, v))) queries_.push_back(hit->position);
+      }
+    }
+    if (!cache.empty()) {
+      extra[0] = uint64_t(width_);
+      extra[1] = uint64_t(height_);
+      WriteCache(cache, queries_, extra);
+    }
+    return queries_;
+  }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  void Load() {
+    if (accel_) return;
+    scene_ = LoadScene(manifest_);
+    accel_ = std::make_unique<EmbreeScene>(scene_);
+    lights_ = std::make_unique<LightSampler>(*accel_);
+  }
+
+  std::string name_;
+  std::filesystem::path manifest_;
+  std::string cache_dir_;
+  SceneDescription scene_;
+  std::unique_ptr<EmbreeScene> accel_;
+  std::unique_ptr<LightSampler> lights_;
+  std::vector<Vec3> queries_;
+  int width_ = 0, height_ = 0;
+};
 
 // ---------------------------------------------------------------------------------------
 // nanoflann over the same 18-byte photon array (it keeps its own index permutation).
@@ -199,8 +412,15 @@ struct Config {
   bool quick = false;
   bool wall = false;
   bool grid_sweep = false;
+  bool synthetic = false;
   int reps = 3;
   std::string json_path;
+  std::string cache_dir;
+  std::vector<std::string> scenes = {"cornell-box", "office3"};
+  // --profile
+  std::string profile;
+  std::size_t profile_n = 1000000;
+  int profile_k = 50;
 };
 
 std::string HumanCount(std::size_t n) {
@@ -244,27 +464,32 @@ Timing MedianTiming(int reps, Fn fn) {
   return {Median(wall), Median(cpu)};
 }
 
-// Runs `count` k-NN queries through one of our maps; the k-th distances go to `kth`.
-Stopwatch::Lap QueryOurs(const PhotonMap& map, const std::vector<Vec3>& points, std::size_t count, int k,
-                         std::vector<float>& kth) {
+// Query points for one k: every `stride`-th camera hit (spread over the whole image).
+std::vector<Vec3> Subset(const std::vector<Vec3>& points, std::size_t stride) {
+  std::vector<Vec3> out;
+  for (std::size_t i = 0; i < points.size(); i += stride) out.push_back(points[i]);
+  return out;
+}
+
+// Runs the k-NN queries through one of our maps; the k-th distances go to `kth`.
+Stopwatch::Lap QueryOurs(const PhotonMap& map, const std::vector<Vec3>& points, int k, std::vector<float>& kth) {
   NearestPhotons heap;
-  kth.resize(count);
+  kth.resize(points.size());
   map.Query(points[0], k, std::numeric_limits<float>::infinity(), heap);  // warm the heap
   const Stopwatch watch;
-  for (std::size_t i = 0; i < count; ++i) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
     map.Query(points[i], k, std::numeric_limits<float>::infinity(), heap);
     kth[i] = heap.MaxDistanceSquared();
   }
   return watch.Elapsed();
 }
 
-Stopwatch::Lap QueryNano(const NanoTree& tree, const std::vector<Vec3>& points, std::size_t count, int k,
-                         std::vector<float>& kth) {
+Stopwatch::Lap QueryNano(const NanoTree& tree, const std::vector<Vec3>& points, int k, std::vector<float>& kth) {
   std::vector<uint32_t> idx(static_cast<std::size_t>(k));
   std::vector<float> d2(static_cast<std::size_t>(k));
-  kth.resize(count);
+  kth.resize(points.size());
   const Stopwatch watch;
-  for (std::size_t i = 0; i < count; ++i) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
     const float x[3] = {points[i].x, points[i].y, points[i].z};
     const std::size_t found = tree.knnSearch(x, std::size_t(k), idx.data(), d2.data());
     kth[i] = found > 0 ? d2[found - 1] : 0.0f;
@@ -278,30 +503,29 @@ void PrintHeader(const Config& config) {
       "(Debian libnanoflann-dev; its header says 0x142)\n");
   std::printf("CPU: %s, single thread, medians of %d repetitions, %s time\n", CpuName().c_str(), config.reps,
               config.wall ? "wall-clock" : "thread CPU");
+  std::printf("Load average (1/5/15 min) at start: %s (shared machine, %u cores)\n", LoadAverage().c_str(),
+              std::thread::hardware_concurrency());
   std::printf(
-      "Photons: SYNTHETIC (no photon tracer yet), on the surfaces of a Cornell-box-like room\n"
-      "(6 walls + 2 rotated boxes, density falling off from the ceiling light) + 10%% in\n"
-      "caustic-like gaussian blobs on the floor. Query points (stand-ins for camera-ray hits):\n"
-      "uniform by area on the same surfaces, 10%% in the caustic blobs. Same photons and same\n"
-      "query points for every structure; k-NN with max_radius = inf.\n"
+      "Same photons and same query points for every structure; k-NN with max_radius = inf.\n"
       "kd trees use the cell-distance culling test (KdCulling::kCellDistance) unless noted.\n\n");
 }
 
 // --grid-sweep: query time against the grid's photons-per-occupied-voxel target t, to check
 // the default rule t = 2.2·sqrt(k) (grid.h).
-int GridSweep(const Config& config) {
+int GridSweep(const Config& config, Workload& workload) {
   const std::size_t n = config.quick ? 100000 : 1000000;
   PrintHeader(config);
-  const std::vector<Photon> photons = MakePhotons(n, 1999);
-  const std::vector<Vec3> points = MakeQueries(100000, 2024);
-  std::printf("Grid sweep, N=%s: us/query for t = c*sqrt(k) photons per occupied voxel\n",
-              HumanCount(n).c_str());
+  TraceInfo info;
+  const std::vector<Photon> photons = workload.Photons(n, &info);
+  const std::vector<Vec3>& points = workload.Queries();
+  std::printf("Grid sweep, %s, N=%s: us/query for t = c*sqrt(k) photons per occupied voxel\n",
+              workload.name().c_str(), HumanCount(n).c_str());
   const double cs[] = {0.5, 1.0, 1.5, 2.2, 3.0, 4.5, 6.5};
   std::printf("%-5s", "k");
   for (double c : cs) std::printf(" c=%-8.1f", c);
   std::printf("\n");
   for (int k : {10, 50, 100, 500}) {
-    const std::size_t count = k >= 500 ? 5000 : 30000;
+    const std::vector<Vec3> subset = Subset(points, k >= 500 ? 8 : 2);
     std::printf("%-5d", k);
     for (double c : cs) {
       GridOptions options;
@@ -311,48 +535,129 @@ int GridSweep(const Config& config) {
       grid.AddPhotons(photons);
       grid.PrepareForQuery();
       std::vector<float> kth;
-      const Timing t = MedianTiming(config.reps, [&] { return QueryOurs(grid, points, count, k, kth); });
-      std::printf(" %-10.2f", 1e6 * (config.wall ? t.wall : t.cpu) / double(count));
+      const Timing t = MedianTiming(config.reps, [&] { return QueryOurs(grid, subset, k, kth); });
+      std::printf(" %-10.2f", 1e6 * (config.wall ? t.wall : t.cpu) / double(subset.size()));
       std::fflush(stdout);
     }
     std::printf("\n");
   }
+  std::printf("Load average at end: %s\n", LoadAverage().c_str());
   return 0;
 }
 
-int Run(const Config& config) {
-  if (config.grid_sweep) return GridSweep(config);
+const char* const kNames[] = {"kd level%3", "kd widest", "kd widest/plane", "grid", "nanoflann"};
+const char* const kProfileNames[] = {"kd-cycle", "kd-widest", "kd-widest-plane", "grid", "nanoflann"};
+constexpr int kCols = 5, kNano = 4;
+
+}  // namespace
+}  // namespace pf
+
+// Outside the anonymous namespace with C linkage, so that callgrind can toggle on its name:
+// valgrind --tool=callgrind --collect-atstart=no --toggle-collect=pf_bench_profile_queries ...
+extern "C" __attribute__((noinline)) double pf_bench_profile_queries(const pf::PhotonMap* map,
+                                                                     const pf::NanoTree* nano,
+                                                                     const std::vector<pf::Vec3>* points, int k) {
+  std::vector<float> kth;
+  double sum = 0;
+  if (map != nullptr) {
+    pf::QueryOurs(*map, *points, k, kth);
+  } else {
+    pf::QueryNano(*nano, *points, k, kth);
+  }
+  for (float d : kth) sum += d;
+  return sum;
+}
+
+namespace pf {
+namespace {
+
+int Profile(const Config& config, Workload& workload) {
+  int s = -1;
+  for (int i = 0; i < kCols; ++i)
+    if (config.profile == kProfileNames[i]) s = i;
+  if (s < 0) {
+    std::fprintf(stderr, "--profile: one of kd-cycle, kd-widest, kd-widest-plane, grid, nanoflann\n");
+    return 1;
+  }
+  TraceInfo info;
+  const std::vector<Photon> photons = workload.Photons(config.profile_n, &info);
+  const std::vector<Vec3>& points = workload.Queries();
+  std::unique_ptr<PhotonMap> map;
+  std::unique_ptr<NanoTree> nano;
+  const PhotonCloud cloud{photons.data(), photons.size()};
+  if (s == kNano) {
+    nano = std::make_unique<NanoTree>(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  } else if (s == 3) {
+    GridOptions options;
+    options.expected_k = config.profile_k;
+    map = std::make_unique<GridPhotonMap>(options);
+  } else {
+    map = std::make_unique<KdTree>(s == 0 ? KdSplitRule::kLevelCycle : KdSplitRule::kWidestExtent,
+                                   s == 2 ? KdCulling::kPlaneDistance : KdCulling::kCellDistance);
+  }
+  if (map) {
+    map->AddPhotons(photons);
+    const Stopwatch build;
+    map->PrepareForQuery();
+    const Stopwatch::Lap lap = build.Elapsed();
+    std::printf("build: %.3f s cpu, %.3f s wall (%.3f s cpu per million photons)\n", lap.cpu, lap.wall,
+                lap.cpu / (double(photons.size()) * 1e-6));
+  }
+  const Stopwatch watch;
+  const double sum = pf_bench_profile_queries(map.get(), nano.get(), &points, config.profile_k);
+  const Stopwatch::Lap lap = watch.Elapsed();
+  std::printf("%s %s N=%s k=%d: %zu queries, %.3f us/query cpu, %.3f wall (checksum %.6g)\n", workload.name().c_str(),
+              kProfileNames[s], HumanCount(photons.size()).c_str(), config.profile_k, points.size(),
+              1e6 * lap.cpu / double(points.size()), 1e6 * lap.wall / double(points.size()), sum);
+  if (const auto* kd = dynamic_cast<const KdTree*>(map.get())) {
+    KdTree::SearchStats total;
+    NearestPhotons heap;
+    for (const Vec3& x : points) {
+      KdTree::SearchStats stats;
+      kd->QueryWithStats(x, config.profile_k, std::numeric_limits<float>::infinity(), heap, &stats);
+      total.nodes += stats.nodes;
+      total.inserts += stats.inserts;
+      total.pushes += stats.pushes;
+      total.pops += stats.pops;
+    }
+    const double q = double(points.size());
+    std::printf("per query: %.1f nodes visited, %.1f heap inserts, %.1f far children pushed, %.1f popped and visited\n",
+                double(total.nodes) / q, double(total.inserts) / q, double(total.pushes) / q, double(total.pops) / q);
+  }
+  return 0;
+}
+
+int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
   const std::vector<std::size_t> sizes = config.quick ? std::vector<std::size_t>{100000, 1000000}
                                                       : std::vector<std::size_t>{100000, 1000000, 10000000};
   const std::vector<int> ks = {10, 50, 100, 500};
-  auto queries_for_k = [&](int k) -> std::size_t {
-    const std::size_t base = k <= 10 ? 100000 : k <= 50 ? 50000 : k <= 100 ? 30000 : 6000;
-    return config.quick ? base / 4 : base;
+  // Every stride-th camera hit: ~65k queries for k ≤ 50 (/4 with --quick).
+  auto stride_for_k = [&](int k) -> std::size_t {
+    const std::size_t base = k <= 50 ? 1 : k <= 100 ? 2 : 8;
+    return config.quick ? base * 4 : base;
   };
   auto pick = [&](const Timing& t) { return config.wall ? t.wall : t.cpu; };
 
-  PrintHeader(config);
-  nlohmann::json out;
-  out["cpu"] = CpuName();
-  out["repetitions"] = config.reps;
-  out["table_clock"] = config.wall ? "wall" : "thread_cpu";
-  out["photons"] =
-      "synthetic: Cornell-box-like room surfaces (density falling off from the light) + 10% caustic blobs";
-  out["queries"] =
-      "uniform by area on the room surfaces, 10% in the caustic blobs (stand-ins for camera hits)";
-  out["nanoflann"] =
-      "1.4.3, KDTreeSingleIndexAdaptor, leaf_max_size 10, L2_Simple_Adaptor<float>, uint32 indices";
-  out["grid_rule"] = "photons_per_voxel = 2.2*sqrt(expected_k); queries use a grid built with expected_k = k";
+  const std::string load_before = LoadAverage();
+  std::printf("=== %s ===\n%s\n", workload.name().c_str(), workload.description().c_str());
+  out["name"] = workload.name();
+  out["description"] = workload.description();
+  out["loadavg_before"] = load_before;
+  const std::vector<Vec3>& all_points = workload.Queries();
+  std::printf("Query points: %zu", all_points.size());
+  if (auto* scene = dynamic_cast<SceneWorkload*>(&workload))
+    std::printf(" camera-ray hits of %d x %d pixels", scene->width(), scene->height());
+  std::printf("\n");
+  out["query_points"] = all_points.size();
   nlohmann::json& builds = out["build"];
   nlohmann::json& queries_json = out["query"];
+  nlohmann::json& tracing_json = out["tracing"];
 
-  // Columns of the tables. The kd-tree with the thesis's plane-distance culling is queried too.
-  const char* names[] = {"kd level%3", "kd widest", "kd widest/plane", "grid", "nanoflann"};
-  constexpr int kCols = 5, kNano = 4;
   struct BuildRow {
     std::size_t n;
     Timing t[kCols];
     double bytes[kCols];
+    TraceInfo trace;
   };
   struct QueryRow {
     std::size_t n;
@@ -365,14 +670,21 @@ int Run(const Config& config) {
   std::vector<QueryRow> query_rows;
 
   for (const std::size_t n : sizes) {
-    std::fprintf(stderr, "[N=%s] generating photons...\n", HumanCount(n).c_str());
-    const std::vector<Photon> photons = MakePhotons(n, 1999);
-    const std::vector<Vec3> points = MakeQueries(100000, 2024);
-
-    // --- Build ----------------------------------------------------------------------------
-    std::fprintf(stderr, "[N=%s] building...\n", HumanCount(n).c_str());
+    std::fprintf(stderr, "[%s N=%s] photons...\n", workload.name().c_str(), HumanCount(n).c_str());
     BuildRow row{};
     row.n = n;
+    const std::vector<Photon> photons = workload.Photons(n, &row.trace);
+    tracing_json.push_back({{"n", n},
+                            {"emitted", row.trace.emitted},
+                            {"stored", row.trace.stored},
+                            {"direct", row.trace.direct},
+                            {"indirect", row.trace.indirect},
+                            {"caustic", row.trace.caustic},
+                            {"trace_wall_seconds_all_threads", row.trace.seconds},
+                            {"from_cache", row.trace.cached}});
+
+    // --- Build ----------------------------------------------------------------------------
+    std::fprintf(stderr, "[%s N=%s] building...\n", workload.name().c_str(), HumanCount(n).c_str());
     auto build_map = [&](std::unique_ptr<PhotonMap>& holder, auto factory) {
       return MedianTiming(config.reps, [&] {
         holder.reset();
@@ -400,7 +712,7 @@ int Run(const Config& config) {
     });
     const KdTree* widest_tree = static_cast<const KdTree*>(kd_widest.get());
     KdTree widest_plane(KdSplitRule::kWidestExtent, KdCulling::kPlaneDistance);
-    widest_plane.AddPhotons(widest_tree->photons());  // already in tree order: rebuild is a no-op reshuffle
+    widest_plane.AddPhotons(widest_tree->photons());  // already in tree order: same tree again
     widest_plane.PrepareForQuery();
     row.bytes[0] = double(kd_cycle->MemoryBytes()) / double(n);
     row.bytes[1] = row.bytes[2] = double(kd_widest->MemoryBytes()) / double(n);
@@ -411,9 +723,10 @@ int Run(const Config& config) {
     for (int s = 0; s < kCols; ++s) {
       if (s == 2) continue;
       builds.push_back({{"n", n},
-                        {"structure", names[s]},
+                        {"structure", kNames[s]},
                         {"wall_seconds_median", row.t[s].wall},
                         {"cpu_seconds_median", row.t[s].cpu},
+                        {"cpu_seconds_per_million", row.t[s].cpu / (double(n) * 1e-6)},
                         {"bytes_per_photon", row.bytes[s]}});
     }
     builds.back()["grid_resolution_k50"] = static_cast<const GridPhotonMap*>(grid50.get())->resolution();
@@ -421,9 +734,10 @@ int Run(const Config& config) {
 
     // --- Queries --------------------------------------------------------------------------
     for (const int k : ks) {
-      const std::size_t count = queries_for_k(k);
-      std::fprintf(stderr, "[N=%s] k=%d: %zu queries x %d reps...\n", HumanCount(n).c_str(), k, count,
-                   config.reps);
+      const std::vector<Vec3> points = Subset(all_points, stride_for_k(k));
+      const std::size_t count = points.size();
+      std::fprintf(stderr, "[%s N=%s] k=%d: %zu queries x %d reps...\n", workload.name().c_str(),
+                   HumanCount(n).c_str(), k, count, config.reps);
       // The grid is built for the k it is queried with (its resolution depends on k, §2.4).
       GridOptions grid_options;
       grid_options.expected_k = k;
@@ -438,11 +752,11 @@ int Run(const Config& config) {
       std::vector<float> kth[kCols];
       std::vector<Stopwatch::Lap> laps[kCols];
       for (int r = 0; r < config.reps; ++r) {  // interleaved, so that load changes hit all alike
-        laps[0].push_back(QueryOurs(*kd_cycle, points, count, k, kth[0]));
-        laps[1].push_back(QueryOurs(*kd_widest, points, count, k, kth[1]));
-        laps[2].push_back(QueryOurs(widest_plane, points, count, k, kth[2]));
-        laps[3].push_back(QueryOurs(grid, points, count, k, kth[3]));
-        laps[kNano].push_back(QueryNano(*nano, points, count, k, kth[kNano]));
+        laps[0].push_back(QueryOurs(*kd_cycle, points, k, kth[0]));
+        laps[1].push_back(QueryOurs(*kd_widest, points, k, kth[1]));
+        laps[2].push_back(QueryOurs(widest_plane, points, k, kth[2]));
+        laps[3].push_back(QueryOurs(grid, points, k, kth[3]));
+        laps[kNano].push_back(QueryNano(*nano, points, k, kth[kNano]));
       }
       for (int s = 0; s < kCols; ++s) {
         std::vector<double> wall, cpu;
@@ -459,7 +773,7 @@ int Run(const Config& config) {
       for (int s = 0; s < kCols; ++s) {
         queries_json.push_back({{"n", n},
                                 {"k", k},
-                                {"structure", names[s]},
+                                {"structure", kNames[s]},
                                 {"queries", count},
                                 {"wall_us_per_query", 1e6 * q.t[s].wall / double(count)},
                                 {"cpu_us_per_query", 1e6 * q.t[s].cpu / double(count)},
@@ -471,11 +785,21 @@ int Run(const Config& config) {
       queries_json.back()["grid_photons_per_occupied_voxel"] = grid.photons_per_occupied_voxel();
     }
   }
+  const std::string load_after = LoadAverage();
+  out["loadavg_after"] = load_after;
 
   // --- Tables ----------------------------------------------------------------------------
-  std::printf("Build time [s] (in parentheses: time / nanoflann's)\n");
-  std::printf("%-6s %-16s %-16s %-16s %-10s | thesis BuildTree (1999 hardware)\n", "N", "kd level%3",
-              "kd widest", "grid (k=50)", "nanoflann");
+  std::printf("Photons (map seed %llu): emitted -> stored -> kept\n", (unsigned long long)SceneWorkload::kMapSeed);
+  for (const BuildRow& r : build_rows) {
+    if (r.trace.stored == 0) continue;
+    std::printf("  N=%-5s emitted %llu, stored %llu (direct %llu, indirect %llu, caustic %llu)%s\n",
+                HumanCount(r.n).c_str(), (unsigned long long)r.trace.emitted, (unsigned long long)r.trace.stored,
+                (unsigned long long)r.trace.direct, (unsigned long long)r.trace.indirect,
+                (unsigned long long)r.trace.caustic, r.trace.cached ? " [from cache]" : "");
+  }
+  std::printf("\nBuild time [s], 1 thread (in parentheses: time / nanoflann's)\n");
+  std::printf("%-6s %-16s %-16s %-16s %-10s | %-9s | thesis BuildTree (1999 hardware)\n", "N", "kd level%3",
+              "kd widest", "grid (k=50)", "nanoflann", "widest s/M");
   for (const BuildRow& r : build_rows) {
     std::printf("%-6s", HumanCount(r.n).c_str());
     for (int s : {0, 1, 3}) {
@@ -483,7 +807,8 @@ int Run(const Config& config) {
       std::snprintf(cell, sizeof cell, "%.3f (%.2fx)", pick(r.t[s]), pick(r.t[s]) / pick(r.t[kNano]));
       std::printf(" %-16s", cell);
     }
-    std::printf(" %-10.3f | %s\n", pick(r.t[kNano]), ThesisBuildTree(r.n).c_str());
+    std::printf(" %-10.3f | %-9.3f | %s\n", pick(r.t[kNano]), pick(r.t[1]) / (double(r.n) * 1e-6),
+                ThesisBuildTree(r.n).c_str());
   }
   std::printf(
       "\nMemory [bytes/photon] (maps: photons + structure; nanoflann: our photon array + its index)\n");
@@ -494,11 +819,11 @@ int Run(const Config& config) {
     std::printf("\n");
   }
   std::printf("\nk-NN queries, 1 thread: us/query (x = speed-up over nanoflann, >1 is faster)\n");
-  std::printf("%-6s %-4s", "N", "k");
-  for (int s = 0; s < kCols; ++s) std::printf(" %-16s", names[s]);
+  std::printf("%-6s %-4s %-6s", "N", "k", "#q");
+  for (int s = 0; s < kCols; ++s) std::printf(" %-16s", kNames[s]);
   std::printf(" mismatches\n");
   for (const QueryRow& r : query_rows) {
-    std::printf("%-6s %-4d", HumanCount(r.n).c_str(), r.k);
+    std::printf("%-6s %-4d %-6zu", HumanCount(r.n).c_str(), r.k, r.count);
     for (int s = 0; s < kCols; ++s) {
       char cell[64];
       const double us = 1e6 * pick(r.t[s]) / double(r.count);
@@ -512,38 +837,92 @@ int Run(const Config& config) {
     std::printf(" %ld\n", r.mismatches);
   }
   std::printf("(mismatches: queries whose k-th neighbour distance differs from nanoflann's; must be 0)\n");
-
-  if (!config.json_path.empty()) {
-    std::ofstream f(config.json_path);
-    f << out.dump(2) << "\n";
-    std::printf("\nJSON written to %s\n", config.json_path.c_str());
-  }
+  std::printf("Load average (1/5/15 min): before %s, after %s\n\n", load_before.c_str(), load_after.c_str());
   long bad = 0;
   for (const QueryRow& r : query_rows) bad += r.mismatches;
   return bad == 0 ? 0 : 2;
+}
+
+int Run(const Config& config) {
+  std::vector<std::unique_ptr<Workload>> workloads;
+  if (config.synthetic) {
+    workloads.push_back(std::make_unique<SyntheticWorkload>());
+  } else {
+    for (const std::string& s : config.scenes)
+      workloads.push_back(std::make_unique<SceneWorkload>(
+          s, std::filesystem::path(PF_SOURCE_DIR) / "scenes" / s / (s + ".json"), config.cache_dir));
+  }
+  if (!config.profile.empty()) return Profile(config, *workloads.front());
+  if (config.grid_sweep) return GridSweep(config, *workloads.front());
+
+  PrintHeader(config);
+  nlohmann::json out;
+  out["cpu"] = CpuName();
+  out["repetitions"] = config.reps;
+  out["table_clock"] = config.wall ? "wall" : "thread_cpu";
+  out["nanoflann"] =
+      "1.4.3, KDTreeSingleIndexAdaptor, leaf_max_size 10, L2_Simple_Adaptor<float>, uint32 indices";
+  out["grid_rule"] = "photons_per_voxel = 2.2*sqrt(expected_k); queries use a grid built with expected_k = k";
+  out["loadavg_start"] = LoadAverage();
+  int status = 0;
+  for (auto& w : workloads) {
+    nlohmann::json& section = out["workloads"].emplace_back();
+    status = std::max(status, RunWorkload(config, *w, section));
+    std::fflush(stdout);
+  }
+  out["loadavg_end"] = LoadAverage();
+  if (!config.json_path.empty()) {
+    std::ofstream f(config.json_path);
+    f << out.dump(2) << "\n";
+    std::printf("JSON written to %s\n", config.json_path.c_str());
+  }
+  return status;
 }
 
 }  // namespace
 }  // namespace pf
 
 int main(int argc, char** argv) {
+  spdlog::set_level(spdlog::level::warn);
   pf::Config config;
+  auto usage = [&] {
+    std::fprintf(stderr,
+                 "usage: %s [--quick] [--synthetic] [--scenes a,b] [--reps N] [--json out.json] [--wall]\n"
+                 "          [--grid-sweep] [--cache DIR] [--profile STRUCT [--n N] [--k K]]\n",
+                 argv[0]);
+    return 1;
+  };
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    const bool has_value = i + 1 < argc;
     if (arg == "--quick") {
       config.quick = true;
-    } else if (arg == "--json" && i + 1 < argc) {
+    } else if (arg == "--synthetic") {
+      config.synthetic = true;
+    } else if (arg == "--scenes" && has_value) {
+      config.scenes.clear();
+      std::stringstream list(argv[++i]);
+      for (std::string s; std::getline(list, s, ',');)
+        if (!s.empty()) config.scenes.push_back(s);
+      if (config.scenes.empty()) return usage();
+    } else if (arg == "--json" && has_value) {
       config.json_path = argv[++i];
+    } else if (arg == "--cache" && has_value) {
+      config.cache_dir = argv[++i];
     } else if (arg == "--wall") {
       config.wall = true;
     } else if (arg == "--grid-sweep") {
       config.grid_sweep = true;
-    } else if (arg == "--reps" && i + 1 < argc) {
+    } else if (arg == "--reps" && has_value) {
       config.reps = std::max(1, std::atoi(argv[++i]));
+    } else if (arg == "--profile" && has_value) {
+      config.profile = argv[++i];
+    } else if (arg == "--n" && has_value) {
+      config.profile_n = std::size_t(std::atoll(argv[++i]));
+    } else if (arg == "--k" && has_value) {
+      config.profile_k = std::max(1, std::atoi(argv[++i]));
     } else {
-      std::fprintf(stderr, "usage: %s [--quick] [--reps N] [--json out.json] [--wall] [--grid-sweep]\n",
-                   argv[0]);
-      return 1;
+      return usage();
     }
   }
   return pf::Run(config);

@@ -1,8 +1,12 @@
 #include "common/photon/kdtree.h"
 
+#include <immintrin.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <limits>
+#include <stdexcept>
 #include <utility>
 
 namespace pf {
@@ -101,6 +105,31 @@ class SubtreeSequence {
   int64_t left_size_ = 0;
 };
 
+// Bounding box of photon positions, one SSE min and max per photon (§2.3, footnote 2: the
+// widest-extent rule needs the box of every subtree, i.e. a pass over each level; in scalar
+// code that pass was ~30% of the build). Loads 16 bytes at the photon's start: the 3 position
+// floats plus 4 bytes of direction/power whose lane is ignored (all within the 18 bytes).
+class BoxAccumulator {
+ public:
+  void Add(const Photon& p) {
+    const __m128 v = _mm_loadu_ps(p.position);
+    lo_ = _mm_min_ps(lo_, v);
+    hi_ = _mm_max_ps(hi_, v);
+  }
+  // The axis of the largest extent (ties: x before y before z, as before).
+  int WidestAxis() const {
+    alignas(16) float lo[4], hi[4];
+    _mm_store_ps(lo, lo_);
+    _mm_store_ps(hi, hi_);
+    const float dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+    return dx >= dy ? (dx >= dz ? 0 : 2) : (dy >= dz ? 1 : 2);
+  }
+
+ private:
+  __m128 lo_ = _mm_set1_ps(std::numeric_limits<float>::max());
+  __m128 hi_ = _mm_set1_ps(-std::numeric_limits<float>::max());
+};
+
 class Builder {
  public:
   Builder(std::vector<Photon>& photons, KdSplitRule rule, std::vector<uint8_t>& axes)
@@ -133,10 +162,10 @@ class Builder {
 
   // §2.3, footnote 2: the dimension of the subtree's largest bounding-box extent.
   int WidestAxis(const SubtreeSequence& seq) {
-    Bounds3 box;
+    BoxAccumulator box;
     for (const Run* r = seq.begin(); r != seq.end(); ++r)
-      for (uint64_t node = r->first; node <= r->last; ++node) box.Extend(photons_[node - 1].Position());
-    return WidestOf(box);
+      for (uint64_t node = r->first; node <= r->last; ++node) box.Add(photons_[node - 1]);
+    return box.WidestAxis();
   }
 
   // Quickselect (Hoare 1961) over the sequence: afterwards position `target` holds the
@@ -219,9 +248,9 @@ class Builder {
     }
     int axis = level % 3;
     if (rule_ == KdSplitRule::kWidestExtent) {
-      Bounds3 box;
-      for (std::size_t i = 0; i < m; ++i) box.Extend(photons[i].Position());
-      axis = WidestOf(box);
+      BoxAccumulator box;
+      for (std::size_t i = 0; i < m; ++i) box.Add(photons[i]);
+      axis = box.WidestAxis();
       axes_[node >> 2] = uint8_t(axes_[node >> 2] | (axis << ((node & 3) * 2)));
     }
     const std::size_t left = std::size_t(SubtreeSize(2 * node));
@@ -231,11 +260,6 @@ class Builder {
     photons_[node - 1] = photons[left];
     Place(2 * node, level + 1, photons, left);
     Place(2 * node + 1, level + 1, photons + left + 1, m - left - 1);
-  }
-
-  static int WidestOf(const Bounds3& box) {
-    const Vec3 d = box.Diagonal();
-    return d.x >= d.y ? (d.x >= d.z ? 0 : 2) : (d.y >= d.z ? 1 : 2);
   }
 
   static constexpr int64_t kInsertionSortSize = 12;
@@ -276,29 +300,63 @@ void KdTree::DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter*
   }
 }
 
-// Wald 1999, §2.3.2: backtracking k-NN search. A node is processed when reached; the child
-// on x's side of the splitting plane is descended into first, the other one is remembered
-// with its culling distance and visited later only if that is still below the bound (which
-// only shrinks, so re-testing at pop time culls more).
+// Wald 1999, §2.3.2: backtracking k-NN search, with the nodes of each descent processed
+// bottom-up. The thesis processes a node's photon on the way down; then the first photons in
+// the heap are those of the root path, which lie far from x (the root splits the whole
+// scene), and while they fill the heap its bound stays loose and the nearby subtrees are
+// searched with it. Here a descent first goes down to a leaf along x's side of every
+// splitting plane, only reading each node's split coordinate (and computing its photon's
+// distance, the cache line being loaded anyway) and pushing the node. Popping a node then
+// processes its photon and, if its culling distance is still below the bound, descends into
+// its far child the same way. So the photons near x enter the heap first, the bound is tight
+// early, and most root-path photons are rejected by one comparison instead of entering the
+// heap and being evicted again. The stack holds one entry per node of the current path
+// (≤ 31 for n < 2^31). The visited set is the thesis's (a node is reached iff its cell is not
+// culled), only the order differs, and that order culls more.
 //
 // Exactness: every culling distance is a lower bound, *in float*, of DistanceSquared for all
 // photons of the culled subtree: per axis, a photon lies beyond each ancestor's plane, so
 // |x − photon| ≥ |x − plane| after rounding too (rounding is monotonic), and the cell
 // distance sums the per-axis terms in DistanceSquared's order. Hence the results equal brute
 // force's exactly (as distance multisets).
-template <bool kStoredAxes, bool kCellDistance>
-void KdTree::Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const {
+void KdTree::QueryWithStats(const Vec3& x, int k, float max_radius, NearestPhotons& nearest, SearchStats* stats,
+                            const PhotonFilter* filter) const {
+  nearest.Reset(k, max_radius);
+  if (!prepared_) throw std::logic_error("PhotonMap::Query before PrepareForQuery");
+  if (nearest.k() == 0 || photons_.empty() || !IsFinite(x) || !(nearest.BoundSquared() > 0.0f)) return;
+  const bool stored = rule_ == KdSplitRule::kWidestExtent;
+  const bool cell = culling_ == KdCulling::kCellDistance;
+  if (stored) {
+    cell ? Search<true, true, true>(x, nearest, filter, stats) : Search<true, false, true>(x, nearest, filter, stats);
+  } else {
+    cell ? Search<false, true, true>(x, nearest, filter, stats) : Search<false, false, true>(x, nearest, filter, stats);
+  }
+}
+
+template <bool kStoredAxes, bool kCellDistance, bool kStats>
+void KdTree::Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter, SearchStats* stats) const {
+  if (filter == nullptr) {
+    SearchImpl<kStoredAxes, kCellDistance, kStats, false>(x, nearest, nullptr, stats);
+  } else {
+    SearchImpl<kStoredAxes, kCellDistance, kStats, true>(x, nearest, filter, stats);
+  }
+}
+
+template <bool kStoredAxes, bool kCellDistance, bool kStats, bool kFilter>
+void KdTree::SearchImpl(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter,
+                        SearchStats* stats) const {
   const Photon* photons = photons_.data();
+  const uint8_t* axes = axes_.data();
   const uint32_t n = uint32_t(photons_.size());
   const float q[3] = {x.x, x.y, x.z};
 
-  // Depths of pending far children strictly increase towards the top of the stack, so it
-  // never holds more entries than the tree has levels below the root (≤ 30).
   struct Pending {
-    uint32_t node;
-    uint32_t axis;
-    float cull2;   // culling distance² of the subtree
-    float off[3];  // kCellDistance: per-axis offset from x to the subtree's cell
+    uint32_t node;      // a node of the current path whose photon is not processed yet
+    uint32_t far;       // its far child (> n: none)
+    uint32_t far_axis;  // kLevelCycle: the far child's split axis
+    float d2;           // the node's photon's squared distance to x
+    float off[3];       // per-axis offsets from x to the far child's cell (kPlaneDistance:
+                        // off[0] is the offset to the node's plane)
   };
   std::array<Pending, 32> stack;
   int top = 0;
@@ -307,46 +365,62 @@ void KdTree::Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* 
   uint32_t node = 1, axis = 0;
   float off[3] = {0.0f, 0.0f, 0.0f};  // offsets of the current node's cell (x is inside: 0)
   for (;;) {
-    while (node <= n) {
-      // Nodes 4i..4i+3 are 72 contiguous bytes (two cache lines); they are needed two steps
-      // from now (the near grandchildren at once, the far ones maybe later).
+    // Descend along x's side of each plane; the near child's cell is as far from x as its
+    // parent's, so only the far children get new offsets.
+    do {
+      // Nodes 4i..4i+3 are 72 contiguous bytes (two cache lines): the near grandchildren are
+      // needed two steps from now, the far ones maybe later.
       if (4 * node + 3 <= n) {
         __builtin_prefetch(&photons[4 * node - 1]);
         __builtin_prefetch(&photons[4 * node + 2]);
       }
       const Photon& p = photons[node - 1];
-      if constexpr (kStoredAxes) axis = uint32_t(StoredAxis(node));
+      if constexpr (kStats) ++stats->nodes;
+      if constexpr (kStoredAxes) axis = (axes[node >> 2] >> ((node & 3) * 2)) & 3u;
       const float d = q[axis] - p.position[axis];
-      const float d2 = DistanceSquared(p, x);
-      if (d2 < bound2 && (filter == nullptr || filter->Accept(p, node - 1))) {
-        nearest.Insert(node - 1, d2);
-        bound2 = nearest.BoundSquared();
-      }
       // Left subtree ≤ split ≤ right subtree: x on the right side (d ≥ 0) → right is near.
       const uint32_t near_child = 2 * node + (d >= 0.0f ? 1u : 0u);
-      const uint32_t far_child = near_child ^ 1u;
-      const uint32_t split_axis = axis;
-      if constexpr (!kStoredAxes) axis = axis == 2 ? 0 : axis + 1;
-      if (far_child <= n) {
-        Pending far{far_child, axis, d * d, {off[0], off[1], off[2]}};
-        if constexpr (kCellDistance) {
-          far.off[split_axis] = d;
-          far.cull2 = (far.off[0] * far.off[0] + far.off[1] * far.off[1]) + far.off[2] * far.off[2];
-        }
-        if (far.cull2 < bound2) stack[top++] = far;
+      Pending& e = stack[top++];
+      e.node = node;
+      e.far = near_child ^ 1u;
+      e.d2 = DistanceSquared(p, x);
+      if constexpr (kCellDistance) {
+        e.off[0] = off[0];
+        e.off[1] = off[1];
+        e.off[2] = off[2];
+        e.off[axis] = d;
+      } else {
+        e.off[0] = d;
       }
-      node = near_child;  // the near child's cell is as far from x as the node's
-    }
-    do {
+      if constexpr (!kStoredAxes) axis = axis == 2 ? 0 : axis + 1;
+      e.far_axis = axis;
+      node = near_child;
+    } while (node <= n);
+    // Unwind: process the path's photons bottom-up until a far child needs a visit.
+    for (;;) {
       if (top == 0) return;
-      --top;
-    } while (!(stack[top].cull2 < bound2));
-    node = stack[top].node;
-    axis = stack[top].axis;
-    if constexpr (kCellDistance) {
-      off[0] = stack[top].off[0];
-      off[1] = stack[top].off[1];
-      off[2] = stack[top].off[2];
+      const Pending& e = stack[--top];
+      if (e.d2 < bound2 && (!kFilter || filter->Accept(photons[e.node - 1], e.node - 1))) {
+        nearest.Insert(e.node - 1, e.d2);
+        bound2 = nearest.BoundSquared();
+        if constexpr (kStats) ++stats->inserts;
+      }
+      if (e.far <= n) {
+        if constexpr (kStats) ++stats->pushes;
+        const float cull2 = kCellDistance ? (e.off[0] * e.off[0] + e.off[1] * e.off[1]) + e.off[2] * e.off[2]
+                                          : e.off[0] * e.off[0];
+        if (cull2 < bound2) {
+          if constexpr (kStats) ++stats->pops;
+          node = e.far;
+          axis = e.far_axis;
+          if constexpr (kCellDistance) {
+            off[0] = e.off[0];
+            off[1] = e.off[1];
+            off[2] = e.off[2];
+          }
+          break;
+        }
+      }
     }
   }
 }

@@ -22,13 +22,18 @@
 // level and one fixed 18 KB buffer for subtrees of ≤ 1024 photons (and the axis array for
 // kWidestExtent).
 //
-// Query: the thesis's backtracking search (§2.3.2): process the node, descend into the
-// child on the query point's side first, and visit the other child later only if its
-// culling distance is still below the heap's current bound. The culling distance is the
-// thesis's splitting-plane distance (KdCulling::kPlaneDistance) or, by default, the distance
-// to the far child's whole cell (KdCulling::kCellDistance; both are exact, the second culls
-// more). Iterative with an explicit stack of depth ≤ 31; the grandchildren are prefetched
-// because below the cache-resident top of the tree every node is a cache miss.
+// Query: the thesis's backtracking search (§2.3.2): descend into the child on the query
+// point's side first, and visit the other child later only if its culling distance is still
+// below the heap's current bound. The culling distance is the thesis's splitting-plane
+// distance (KdCulling::kPlaneDistance) or, by default, the distance to the far child's whole
+// cell (KdCulling::kCellDistance; both are exact, the second culls more). Iterative with an
+// explicit stack of depth ≤ 31; each descent runs to a leaf first and the photons of its path
+// are tested bottom-up, so the nearby photons fill the heap before the far root-path ones
+// (kdtree.cpp). The grandchildren are prefetched because below the cache-resident top of the
+// tree every node is a cache miss.
+//
+// Build cost of kWidestExtent: one pass per level for the subtrees' bounding boxes (SSE
+// min/max per photon); the trees are the same as with an exact scalar box.
 
 #include <cstddef>
 #include <cstdint>
@@ -49,6 +54,17 @@ class KdTree final : public PhotonMap {
   // photon(i − 1)). For leaves the value is meaningless. Requires a prepared map.
   int SplitAxis(std::size_t node) const;
 
+  // Traversal counters of one query (benchmarks and tests; Query itself keeps no counters).
+  struct SearchStats {
+    uint64_t nodes = 0;    // photons (tree nodes) whose distance was computed
+    uint64_t inserts = 0;  // heap insertions
+    uint64_t pushes = 0;   // far children considered (nodes with a far child, popped)
+    uint64_t pops = 0;     // far children not culled, i.e. descended into
+  };
+  // Exactly Query(x, k, max_radius, nearest, filter), counting into *stats (added to it).
+  void QueryWithStats(const Vec3& x, int k, float max_radius, NearestPhotons& nearest, SearchStats* stats,
+                      const PhotonFilter* filter = nullptr) const;
+
   std::size_t MemoryBytes() const override {
     return PhotonMap::MemoryBytes() + axes_.capacity() * sizeof(uint8_t);
   }
@@ -58,8 +74,11 @@ class KdTree final : public PhotonMap {
   void DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const override;
 
  private:
-  template <bool kStoredAxes, bool kCellDistance>
-  void Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const;
+  template <bool kStoredAxes, bool kCellDistance, bool kStats = false>
+  void Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter,
+              SearchStats* stats = nullptr) const;
+  template <bool kStoredAxes, bool kCellDistance, bool kStats, bool kFilter>
+  void SearchImpl(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter, SearchStats* stats) const;
   void BuildSubtree(uint64_t root, int level);
   int StoredAxis(uint64_t node) const { return (axes_[node >> 2] >> ((node & 3) * 2)) & 3; }
 

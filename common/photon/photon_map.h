@@ -80,16 +80,16 @@ class NearestPhotons {
   // Empties the heap and sets the capacity k (negative → 0) and the search radius.
   void Reset(int k, float max_radius) {
     k_ = k > 0 ? std::size_t(k) : 0;
-    heap_.clear();
-    if (heap_.capacity() < k_) heap_.reserve(k_);
+    size_ = 0;
+    if (heap_.size() < k_) heap_.resize(k_);  // storage only grows: no allocation after warm-up
     radius2_ = max_radius > 0.0f ? max_radius * max_radius : 0.0f;  // NaN → 0: finds nothing
     bound2_ = k_ > 0 ? radius2_ : 0.0f;
   }
 
   std::size_t k() const { return k_; }
-  std::size_t size() const { return heap_.size(); }
-  bool empty() const { return heap_.empty(); }
-  bool full() const { return heap_.size() == k_; }
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  bool full() const { return size_ == k_; }
 
   // The exclusive acceptance bound of the running query: a photon can still enter the heap
   // iff its squared distance is < BoundSquared(). It is max_radius² until the heap is full
@@ -97,30 +97,29 @@ class NearestPhotons {
   float BoundSquared() const { return bound2_; }
   // The largest squared distance among the photons found (0 if none): r² of the radiance
   // estimate Σ ΔΦ / (π r²) (§2.5).
-  float MaxDistanceSquared() const { return heap_.empty() ? 0.0f : heap_.front().distance2; }
+  float MaxDistanceSquared() const { return size_ == 0 ? 0.0f : heap_[0].distance2; }
 
   // The entries in heap order (the first one is the farthest). Use Sort() for distance order.
-  std::span<const Entry> entries() const { return heap_; }
+  std::span<const Entry> entries() const { return {heap_.data(), size_}; }
   const Entry& operator[](std::size_t i) const { return heap_[i]; }
 
   // Adds a candidate; requires distance2 < BoundSquared(). Replaces the farthest entry if
-  // the heap is full. O(log k).
+  // the heap is full. O(log k). (Hot in every query: raw pointers, no bounds bookkeeping.)
   void Insert(uint32_t index, float distance2) {
-    if (heap_.size() < k_) {
-      heap_.push_back({index, distance2});
-      SiftUp(heap_.size() - 1);
-      if (heap_.size() == k_) bound2_ = heap_.front().distance2;
+    Entry* const h = heap_.data();
+    if (size_ < k_) {
+      SiftUp(h, size_++, {index, distance2});
+      if (size_ == k_) bound2_ = h[0].distance2;
     } else {
-      heap_.front() = {index, distance2};
-      SiftDown(0);
-      bound2_ = heap_.front().distance2;
+      SiftDown(h, size_, {index, distance2});
+      bound2_ = h[0].distance2;
     }
   }
 
   // Orders the entries by increasing distance (ties by index). Destroys the heap order: call
   // it only after the query, and Reset (i.e. run a new query) before inserting again.
   void Sort() {
-    std::sort(heap_.begin(), heap_.end(), [](const Entry& a, const Entry& b) {
+    std::sort(heap_.begin(), heap_.begin() + std::ptrdiff_t(size_), [](const Entry& a, const Entry& b) {
       return a.distance2 < b.distance2 || (a.distance2 == b.distance2 && a.index < b.index);
     });
   }
@@ -128,31 +127,33 @@ class NearestPhotons {
  private:
   friend class GridPhotonMap;
 
-  void SiftUp(std::size_t i) {
-    const Entry e = heap_[i];
+  // Places e, the new last entry at position i, by moving its larger ancestors down.
+  static void SiftUp(Entry* h, std::size_t i, Entry e) {
     while (i > 0) {
       const std::size_t parent = (i - 1) / 2;
-      if (!(heap_[parent].distance2 < e.distance2)) break;
-      heap_[i] = heap_[parent];
+      if (!(h[parent].distance2 < e.distance2)) break;
+      h[i] = h[parent];
       i = parent;
     }
-    heap_[i] = e;
+    h[i] = e;
   }
-  void SiftDown(std::size_t i) {
-    const std::size_t n = heap_.size();
-    const Entry e = heap_[i];
-    for (;;) {
+  // Replaces the root (the farthest entry) of the full heap h[0, n) by e.
+  static void SiftDown(Entry* h, std::size_t n, Entry e) {
+    std::size_t i = 0;
+    const std::size_t last_parent = n / 2;  // nodes < n/2 have at least one child
+    while (i < last_parent) {
       std::size_t child = 2 * i + 1;
-      if (child >= n) break;
-      if (child + 1 < n && heap_[child].distance2 < heap_[child + 1].distance2) ++child;
-      if (!(e.distance2 < heap_[child].distance2)) break;
-      heap_[i] = heap_[child];
+      float dc = h[child].distance2;
+      if (child + 1 < n && dc < h[child + 1].distance2) dc = h[++child].distance2;
+      if (!(e.distance2 < dc)) break;
+      h[i] = h[child];
       i = child;
     }
-    heap_[i] = e;
+    h[i] = e;
   }
 
-  std::vector<Entry> heap_;
+  std::vector<Entry> heap_;  // entries [0, size_) form the heap; size() ≥ k_ after Reset
+  std::size_t size_ = 0;
   std::size_t k_ = 0;
   float radius2_ = 0.0f;
   float bound2_ = 0.0f;

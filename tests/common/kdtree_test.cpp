@@ -241,5 +241,57 @@ TEST(KdTreeTest, LargeTreeMatchesBruteForce) {
   }
 }
 
+TEST(KdTreeTest, QueryWithStatsEqualsQueryAndCounts) {
+  // The instrumented search (benchmarks) is the same search: same heap, bit for bit, and its
+  // counters are consistent (every insert and every far-child visit follows a node visit).
+  const float inf = std::numeric_limits<float>::infinity();
+  for (KdSplitRule rule : {KdSplitRule::kLevelCycle, KdSplitRule::kWidestExtent}) {
+    for (KdCulling culling : {KdCulling::kCellDistance, KdCulling::kPlaneDistance}) {
+      KdTree tree(rule, culling);
+      tree.AddPhotons(Photons(Shape::kClustered, 20000, 9));
+      tree.PrepareForQuery();
+      Rng rng(10, 10);
+      NearestPhotons a, b;
+      for (int q = 0; q < 30; ++q) {
+        const Vec3 x{rng.Uniform(), rng.Uniform(), rng.Uniform()};
+        for (int k : {1, 50, 300}) {
+          tree.Query(x, k, inf, a);
+          KdTree::SearchStats stats;
+          tree.QueryWithStats(x, k, inf, b, &stats);
+          ASSERT_EQ(a.size(), b.size());
+          for (std::size_t j = 0; j < a.size(); ++j) {
+            ASSERT_EQ(a[j].index, b[j].index);
+            ASSERT_EQ(a[j].distance2, b[j].distance2);
+          }
+          EXPECT_GE(stats.nodes, std::size_t(k));
+          EXPECT_LE(stats.nodes, tree.size());
+          EXPECT_GE(stats.inserts, std::size_t(k));
+          EXPECT_LE(stats.inserts, stats.nodes);
+          EXPECT_LE(stats.pops, stats.pushes);
+        }
+      }
+    }
+  }
+}
+
+TEST(KdTreeTest, HeapReuseAcrossShrinkingAndGrowingK) {
+  // NearestPhotons keeps its storage across queries; a smaller k after a larger one (and a
+  // larger one again) must still give exactly the brute-force results.
+  KdTree tree(KdSplitRule::kWidestExtent);
+  tree.AddPhotons(Photons(Shape::kUniform, 5000, 11));
+  tree.PrepareForQuery();
+  NearestPhotons heap;
+  const Vec3 x{0.4f, 0.5f, 0.6f};
+  for (int k : {200, 3, 50, 1, 400, 7}) {
+    tree.Query(x, k, std::numeric_limits<float>::infinity(), heap);
+    const auto expected = BruteForceNearest(tree.photons(), x, k, std::numeric_limits<float>::infinity());
+    ASSERT_EQ(heap.size(), expected.size());
+    ASSERT_EQ(heap.entries().size(), expected.size());
+    EXPECT_EQ(heap.MaxDistanceSquared(), expected.back().distance2);
+    heap.Sort();
+    for (std::size_t j = 0; j < expected.size(); ++j) ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+  }
+}
+
 }  // namespace
 }  // namespace pf
