@@ -1,0 +1,52 @@
+#pragma once
+// The `pf` subcommands, one function each; main.cpp only wires the command line to them.
+// Exit codes (documented in `pf --help`): 0 success, 1 runtime failure (I/O, Embree, RPC, the
+// job failed or was cancelled), 2 usage error, 3 invalid input (scene/manifest file:line, or a
+// request the coordinator rejected as INVALID_ARGUMENT / NOT_FOUND / RESOURCE_EXHAUSTED),
+// 130 interrupted (Ctrl-C, SIGTERM).
+
+#include <string>
+#include <vector>
+
+#include "client/render_args.h"
+#include "common/image/image.h"
+
+namespace pf {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitUsage = 2;
+inline constexpr int kExitBadInput = 3;
+inline constexpr int kExitInterrupted = 130;
+
+// Connection to a running coordinator (submit, watch, get, list, cancel).
+struct FarmArgs {
+  std::string coordinator;  // HOST:PORT; default $PF_COORDINATOR
+  std::string token_file;   // default $PF_TOKEN
+  double timeout = 60;      // deadline of each call, seconds
+};
+
+// In-process (client/local_commands.cpp).
+int RunRender(const RenderArgs& a);     // the classic single-image render (no --plan)
+int RunLocalPlan(const RenderArgs& a);  // --local-only / --plan without --workers: the plan in-process
+int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
+            double error_scale, bool json);
+int RunMerge(const std::vector<std::string>& inputs, const std::string& output);
+int RunInfo(const std::string& path);
+
+// Farm (client/farm_commands.cpp).
+int RunFarmRender(const RenderArgs& a);  // --workers N: a local coordinator + N workers
+int RunSubmit(const RenderArgs& a, const FarmArgs& f);
+int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& output, double interval, bool json,
+             bool quiet);
+int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& output, const std::string& png);
+int RunList(const FarmArgs& f, bool all, bool json);
+int RunCancel(const FarmArgs& f, const std::string& job_id);
+
+// The exit code for an exception escaping a command (and the message printed).
+int ExitCodeFor(const std::exception& e);
+
+// Writes a PNG preview next to an EXR unless disabled (--png / --no-png semantics).
+void WritePreviewFor(const std::string& exr, const std::string& png, bool no_png, const Image& image);
+
+}  // namespace pf

@@ -1,0 +1,232 @@
+#include "client/farm_client.h"
+
+#include <fcntl.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <thread>
+
+#include "common/core/error.h"
+
+namespace pf {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+void Check(const grpc::Status& s) {
+  if (!s.ok()) throw RpcError(s);
+}
+
+bool IsTransient(const grpc::Status& s) {
+  return s.error_code() == grpc::StatusCode::UNAVAILABLE;
+}
+
+}  // namespace
+
+bool IsFinalState(v1::JobState s) {
+  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
+}
+
+const char* JobStateName(v1::JobState s) {
+  switch (s) {
+    case v1::JOB_STATE_QUEUED: return "queued";
+    case v1::JOB_STATE_RUNNING: return "running";
+    case v1::JOB_STATE_SUCCEEDED: return "succeeded";
+    case v1::JOB_STATE_FAILED: return "failed";
+    case v1::JOB_STATE_CANCELLED: return "cancelled";
+    default: return "unknown";
+  }
+}
+
+FarmClient::FarmClient(const std::string& address, std::string token, double timeout_seconds)
+    : channel_(MakeCoordinatorChannel(address, ChannelOptions{})),
+      stub_(v1::RenderService::NewStub(channel_)),
+      token_(std::move(token)),
+      timeout_(Seconds(timeout_seconds)) {}
+
+v1::UploadSceneResponse FarmClient::UploadScene(const SceneBundle& bundle) {
+  v1::UploadSceneRequest req;
+  req.mutable_bundle()->set_entry(bundle.entry);
+  for (const auto& [path, content] : bundle.files) {
+    v1::SceneFile* f = req.mutable_bundle()->add_files();
+    f->set_path(path);
+    f->set_content(content);
+  }
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  v1::UploadSceneResponse resp;
+  Check(stub_->UploadScene(&ctx, req, &resp));
+  return resp;
+}
+
+std::string FarmClient::SubmitJob(const v1::JobSpec& spec) {
+  v1::SubmitJobRequest req;
+  *req.mutable_spec() = spec;
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  v1::SubmitJobResponse resp;
+  Check(stub_->SubmitJob(&ctx, req, &resp));
+  return resp.job_id();
+}
+
+v1::JobStatus FarmClient::GetJob(const std::string& job_id) {
+  v1::GetJobRequest req;
+  req.set_job_id(job_id);
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  v1::JobStatus resp;
+  Check(stub_->GetJob(&ctx, req, &resp));
+  return resp;
+}
+
+std::vector<v1::JobStatus> FarmClient::ListJobs(bool include_finished) {
+  v1::ListJobsRequest req;
+  req.set_include_finished(include_finished);
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  v1::ListJobsResponse resp;
+  Check(stub_->ListJobs(&ctx, req, &resp));
+  return {resp.jobs().begin(), resp.jobs().end()};
+}
+
+v1::JobStatus FarmClient::CancelJob(const std::string& job_id) {
+  v1::CancelJobRequest req;
+  req.set_job_id(job_id);
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  v1::CancelJobResponse resp;
+  Check(stub_->CancelJob(&ctx, req, &resp));
+  return resp.status();
+}
+
+std::string FarmClient::GetImage(const std::string& job_id, uint64_t* samples_merged) {
+  v1::GetImageRequest req;
+  req.set_job_id(job_id);
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  std::unique_ptr<grpc::ClientReader<v1::ImageChunk>> reader = stub_->GetImage(&ctx, req);
+  std::string bytes;
+  v1::ImageChunk chunk;
+  uint32_t expected = 0, count = 0;
+  while (reader->Read(&chunk)) {
+    if (chunk.index() != expected)
+      throw RpcError(grpc::Status(grpc::StatusCode::DATA_LOSS, "GetImage: chunk " + std::to_string(chunk.index()) +
+                                                                   " arrived, expected " + std::to_string(expected)));
+    ++expected;
+    count = chunk.count();
+    bytes += chunk.exr_bytes();
+    if (samples_merged) *samples_merged = chunk.samples_merged();
+  }
+  Check(reader->Finish());
+  if (expected == 0 || expected != count)
+    throw RpcError(grpc::Status(grpc::StatusCode::DATA_LOSS, "GetImage: received " + std::to_string(expected) +
+                                                                 " of " + std::to_string(count) + " chunks"));
+  return bytes;
+}
+
+void FarmClient::Cancel() {
+  std::lock_guard lock(mutex_);
+  cancelled_ = true;
+  if (active_) active_->TryCancel();
+}
+
+v1::JobStatus FarmClient::Watch(const std::string& job_id, bool include_images, double min_interval_seconds,
+                                const std::function<void(const v1::JobUpdate&)>& on_update,
+                                double reconnect_seconds) {
+  v1::WatchJobRequest req;
+  req.set_job_id(job_id);
+  req.set_include_images(include_images);
+  req.set_min_interval_seconds(min_interval_seconds);
+  auto broken_since = std::chrono::steady_clock::time_point{};
+  int retries = 0;
+  while (true) {
+    grpc::ClientContext ctx;
+    // A watch lasts as long as the job; its deadline only bounds a silent, stuck stream.
+    PrepareContext(&ctx, token_, std::chrono::hours(24 * 7));
+    {
+      std::lock_guard lock(mutex_);
+      if (cancelled_) throw RpcError(grpc::Status(grpc::StatusCode::CANCELLED, "watch cancelled"));
+      active_ = &ctx;
+    }
+    std::unique_ptr<grpc::ClientReader<v1::JobUpdate>> reader = stub_->WatchJob(&ctx, req);
+    v1::JobUpdate update;
+    v1::JobStatus last;
+    bool final_seen = false;
+    bool any = false;
+    std::string chunks;  // a snapshot larger than one message arrives in consecutive updates
+    while (reader->Read(&update)) {
+      any = true;
+      if (update.has_image() && update.image().count() > 1) {
+        const v1::ImageChunk& c = update.image();
+        if (c.index() == 0) chunks.clear();
+        chunks += c.exr_bytes();
+        if (c.index() + 1 < c.count()) continue;  // the same status comes again with the next chunk
+        v1::ImageChunk* img = update.mutable_image();
+        img->set_index(0);
+        img->set_count(1);
+        img->set_exr_bytes(std::move(chunks));
+        chunks.clear();
+      }
+      last = update.status();
+      on_update(update);
+      if (IsFinalState(last.state())) final_seen = true;
+    }
+    const grpc::Status status = reader->Finish();
+    {
+      std::lock_guard lock(mutex_);
+      active_ = nullptr;
+    }
+    if (final_seen) return last;
+    if (cancelled_) throw RpcError(grpc::Status(grpc::StatusCode::CANCELLED, "watch cancelled"));
+    if (status.ok()) {
+      // The stream ended without a final state (e.g. the coordinator is shutting down): poll once.
+      last = GetJob(job_id);
+      if (IsFinalState(last.state())) {
+        v1::JobUpdate u;
+        *u.mutable_status() = last;
+        on_update(u);
+        return last;
+      }
+    } else if (!IsTransient(status)) {
+      throw RpcError(status);
+    }
+    // Transient: the coordinator may be restarting. Re-subscribe with a capped backoff.
+    const auto now = std::chrono::steady_clock::now();
+    if (any || retries == 0) broken_since = now, retries = 0;
+    if (now - broken_since > Seconds(reconnect_seconds)) throw RpcError(status.ok() ? grpc::Status(grpc::StatusCode::UNAVAILABLE, "watch stream ended") : status);
+    if (retries == 0) spdlog::warn("watch {}: {}; re-subscribing", job_id, StatusToString(status));
+    ++retries;
+    std::this_thread::sleep_for(std::chrono::milliseconds(std::min(2000, 100 << std::min(retries, 5))));
+  }
+}
+
+void WriteFileAtomically(const std::filesystem::path& path, const std::string& bytes) {
+  const std::filesystem::path tmp = path.string() + ".tmp." + std::to_string(getpid());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw SystemError(tmp.string() + ": cannot create: " + std::strerror(errno));
+  size_t off = 0;
+  while (off < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + off, bytes.size() - off);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const std::string err = std::strerror(errno);
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      throw SystemError(tmp.string() + ": write failed: " + err);
+    }
+    off += size_t(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    ::unlink(tmp.c_str());
+    throw SystemError(tmp.string() + ": cannot flush");
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string err = std::strerror(errno);
+    ::unlink(tmp.c_str());
+    throw SystemError(path.string() + ": cannot rename into place: " + err);
+  }
+}
+
+}  // namespace pf

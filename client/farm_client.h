@@ -1,0 +1,65 @@
+#pragma once
+// FarmClient: the client side of photonfarm.v1.RenderService, as plain calls that throw RpcError
+// (client/grpc_channel.h) on failure. Every call has a deadline; WatchJob survives coordinator
+// restarts by re-subscribing. Used by `pf` and by the e2e tests (the "real client").
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "client/grpc_channel.h"
+#include "common/scene/scene_bundle.h"
+#include "photonfarm/v1/farm.grpc.pb.h"
+
+namespace pf {
+
+class FarmClient {
+ public:
+  // `timeout_seconds`: deadline of unary calls and of each GetImage stream.
+  FarmClient(const std::string& address, std::string token, double timeout_seconds = 60);
+
+  photonfarm::v1::UploadSceneResponse UploadScene(const SceneBundle& bundle);
+  std::string SubmitJob(const photonfarm::v1::JobSpec& spec);
+  photonfarm::v1::JobStatus GetJob(const std::string& job_id);
+  std::vector<photonfarm::v1::JobStatus> ListJobs(bool include_finished);
+  photonfarm::v1::JobStatus CancelJob(const std::string& job_id);
+  // The current merged image, reassembled from its chunks: EXR bytes.
+  std::string GetImage(const std::string& job_id, uint64_t* samples_merged = nullptr);
+
+  // Streams the job's updates to `on_update` until its final state has been delivered, then
+  // returns that status. If the stream breaks (coordinator restarting), re-subscribes with
+  // backoff for up to `reconnect_seconds`. Cancel() from another thread ends it with
+  // RpcError(CANCELLED). Snapshot images come as whole EXRs in update.image().exr_bytes(): a
+  // snapshot sent in several chunks (consecutive updates) is reassembled first.
+  photonfarm::v1::JobStatus Watch(const std::string& job_id, bool include_images, double min_interval_seconds,
+                                  const std::function<void(const photonfarm::v1::JobUpdate&)>& on_update,
+                                  double reconnect_seconds = 60);
+  void Cancel();  // thread-safe; ends a Watch in progress
+  bool cancelled() const { return cancelled_.load(); }
+
+  photonfarm::v1::RenderService::Stub& stub() { return *stub_; }
+  const std::string& token() const { return token_; }
+  std::chrono::milliseconds timeout() const { return timeout_; }
+
+ private:
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<photonfarm::v1::RenderService::Stub> stub_;
+  std::string token_;
+  std::chrono::milliseconds timeout_;
+  std::mutex mutex_;
+  grpc::ClientContext* active_ = nullptr;
+  std::atomic<bool> cancelled_{false};
+};
+
+bool IsFinalState(photonfarm::v1::JobState s);
+const char* JobStateName(photonfarm::v1::JobState s);
+
+// Writes bytes to `path` atomically (temporary file in the same folder, fsync, rename).
+void WriteFileAtomically(const std::filesystem::path& path, const std::string& bytes);
+
+}  // namespace pf

@@ -1,0 +1,291 @@
+// pf's farm commands: submit, watch, get, list, cancel (to a running coordinator) and
+// `render --workers N` (a coordinator and N workers started, watched and stopped by pf).
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "client/commands.h"
+#include "client/farm_client.h"
+#include "client/interrupt.h"
+#include "client/local_farm.h"
+#include "client/progress.h"
+#include "common/core/error.h"
+#include "common/image/exr_io.h"
+#include "proto/convert.h"
+
+namespace pf {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+std::string CoordinatorAddress(const FarmArgs& f) {
+  if (!f.coordinator.empty()) return f.coordinator;
+  const char* env = std::getenv("PF_COORDINATOR");
+  if (env && *env) return env;
+  throw InputError("--coordinator: required (HOST:PORT, or set PF_COORDINATOR)");
+}
+
+FarmClient Connect(const FarmArgs& f) { return FarmClient(CoordinatorAddress(f), ResolveToken(f.token_file), f.timeout); }
+
+nlohmann::json StatusJson(const v1::JobStatus& s) {
+  return {{"job_id", s.job_id()},
+          {"name", s.spec().name()},
+          {"state", JobStateName(s.state())},
+          {"failure_reason", s.failure_reason()},
+          {"tasks_total", s.tasks_total()},
+          {"tasks_done", s.tasks_done()},
+          {"tasks_running", s.tasks_running()},
+          {"samples_merged", s.samples_merged()},
+          {"elapsed_seconds", s.elapsed_seconds()},
+          {"eta_seconds", s.eta_seconds()},
+          {"estimated_noise_rms", s.estimated_noise_rms()},
+          {"rounds_done", s.rounds_done()},
+          {"priority", s.spec().priority()},
+          {"submitted_unix_ms", s.submitted_unix_ms()}};
+}
+
+std::string Summary(const v1::JobStatus& s) {
+  std::string out = fmt::format("job {} {}: {}/{} tasks, {} samples, {}", s.job_id(), JobStateName(s.state()),
+                                s.tasks_done(), s.tasks_total(), s.samples_merged(),
+                                FormatDuration(s.elapsed_seconds()));
+  if (s.estimated_noise_rms() >= 0) out += fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms());
+  if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
+  return out;
+}
+
+int ExitCodeForState(v1::JobState s) { return s == v1::JOB_STATE_SUCCEEDED ? kExitOk : kExitFailure; }
+
+// Uploads the bundle and submits; returns the job id.
+std::string UploadAndSubmit(FarmClient& client, PreparedJob& job) {
+  const v1::UploadSceneResponse up = client.UploadScene(job.bundle);
+  for (const std::string& w : up.warnings()) spdlog::warn("scene: {}", w);
+  spdlog::info("scene {} uploaded: {} files, {} triangles, {} lights", up.scene_hash().substr(0, 12),
+               job.bundle.files.size(), up.triangles(), up.lights());
+  job.spec.set_scene_hash(up.scene_hash());
+  return client.SubmitJob(job.spec);
+}
+
+// Watches a job, drawing progress and (if `output` is set) rewriting it atomically with every
+// snapshot. Returns the final status.
+v1::JobStatus WatchWithProgress(FarmClient& client, const std::string& job_id, const std::string& output,
+                                double interval, bool json, bool quiet) {
+  FarmProgress progress(!quiet && !json);
+  const v1::JobStatus final_status = client.Watch(job_id, !output.empty(), interval, [&](const v1::JobUpdate& u) {
+    progress.Update(u.status());
+    if (json) {
+      nlohmann::json j = StatusJson(u.status());
+      j["snapshot"] = u.has_image() && !u.image().exr_bytes().empty();
+      std::printf("%s\n", j.dump().c_str());
+      std::fflush(stdout);
+    }
+    if (!output.empty() && u.has_image() && !u.image().exr_bytes().empty())
+      WriteFileAtomically(output, u.image().exr_bytes());
+  });
+  progress.Finish();
+  return final_status;
+}
+
+}  // namespace
+
+int ExitCodeFor(const std::exception& e) {
+  if (const auto* rpc = dynamic_cast<const RpcError*>(&e)) {
+    switch (rpc->code()) {
+      case grpc::StatusCode::INVALID_ARGUMENT:
+      case grpc::StatusCode::NOT_FOUND:
+      case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      case grpc::StatusCode::OUT_OF_RANGE:
+        return kExitBadInput;
+      case grpc::StatusCode::CANCELLED:
+        return Interrupted() ? kExitInterrupted : kExitFailure;
+      default:
+        return kExitFailure;
+    }
+  }
+  if (dynamic_cast<const InputError*>(&e)) return kExitBadInput;
+  return kExitFailure;
+}
+
+int RunSubmit(const RenderArgs& a, const FarmArgs& f) {
+  PreparedJob job = PrepareJob(a);
+  FarmClient client = Connect(f);
+  const std::string id = UploadAndSubmit(client, job);
+  std::printf("%s\n", id.c_str());
+  return kExitOk;
+}
+
+int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& output, double interval, bool json,
+             bool quiet) {
+  FarmClient client = Connect(f);
+  SetInterruptHandler([&client](int) { client.Cancel(); });
+  v1::JobStatus st;
+  try {
+    st = WatchWithProgress(client, job_id, output, interval, json, quiet);
+  } catch (...) {
+    SetInterruptHandler({});
+    throw;
+  }
+  SetInterruptHandler({});
+  if (!output.empty()) {
+    uint64_t samples = 0;
+    WriteFileAtomically(output, client.GetImage(job_id, &samples));
+  }
+  if (!json) std::printf("%s%s\n", Summary(st).c_str(), output.empty() ? "" : (" -> " + output).c_str());
+  return ExitCodeForState(st.state());
+}
+
+int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& output, const std::string& png) {
+  FarmClient client = Connect(f);
+  uint64_t samples = 0;
+  const std::string bytes = client.GetImage(job_id, &samples);
+  WriteFileAtomically(output, bytes);
+  if (!png.empty()) WritePreviewFor(output, png, false, DecodeExrFromMemory(bytes));
+  std::printf("job %s: %zu bytes, %llu samples merged -> %s\n", job_id.c_str(), bytes.size(),
+              (unsigned long long)samples, output.c_str());
+  return kExitOk;
+}
+
+int RunList(const FarmArgs& f, bool all, bool json) {
+  FarmClient client = Connect(f);
+  const std::vector<v1::JobStatus> jobs = client.ListJobs(all);
+  if (json) {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const v1::JobStatus& s : jobs) arr.push_back(StatusJson(s));
+    std::printf("%s\n", arr.dump(2).c_str());
+    return kExitOk;
+  }
+  std::printf("%-14s %-10s %8s %12s %10s %10s  %s\n", "JOB", "STATE", "PRIORITY", "TASKS", "ELAPSED", "NOISE", "NAME");
+  for (const v1::JobStatus& s : jobs)
+    std::printf("%-14s %-10s %8d %12s %10s %10s  %s\n", s.job_id().c_str(), JobStateName(s.state()),
+                s.spec().priority(), fmt::format("{}/{}", s.tasks_done(), s.tasks_total()).c_str(),
+                FormatDuration(s.elapsed_seconds()).c_str(),
+                s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()).c_str() : "-",
+                s.spec().name().c_str());
+  return kExitOk;
+}
+
+int RunCancel(const FarmArgs& f, const std::string& job_id) {
+  FarmClient client = Connect(f);
+  const v1::JobStatus s = client.CancelJob(job_id);
+  std::printf("%s\n", Summary(s).c_str());
+  return kExitOk;
+}
+
+int RunFarmRender(const RenderArgs& a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  // Everything that can be wrong with the input is found before a process starts.
+  PreparedJob job = PrepareJob(a);
+  const std::string output = a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+
+  LocalFarmOptions fo;
+  fo.workers = a.workers;
+  fo.threads_per_worker =
+      a.threads > 0 ? a.threads : std::max(1, int(std::thread::hardware_concurrency()) / std::max(1, a.workers));
+  fo.coordinator_bin = a.coordinator_bin;
+  fo.worker_bin = a.worker_bin;
+  fo.coordinator_args = a.coordinator_args;
+  fo.worker_args = a.worker_args;
+  fo.keep_dir = a.keep_farm_dir;
+  fo.log_level = spdlog::get_level() <= spdlog::level::debug ? "debug" : "info";
+  LocalFarm farm(fo);  // forks before any gRPC channel exists in this process
+  spdlog::info("local farm: coordinator {} and {} workers x {} threads (logs in {})", farm.address(), a.workers,
+               fo.threads_per_worker, farm.dir().string());
+  auto client_ptr = std::make_unique<FarmClient>(farm.address(), farm.token(), 60);
+  FarmClient& client = *client_ptr;
+
+  // Ctrl-C: cancel the watch and stop the children (a second Ctrl-C kills them).
+  SetInterruptHandler([&](int n) {
+    client.Cancel();
+    if (n == 1)
+      farm.TerminateAll();
+    else
+      farm.KillNow();
+  });
+  // A dead coordinator, or no worker left, would leave the watch waiting forever.
+  std::mutex monitor_mutex;
+  std::condition_variable monitor_cv;
+  bool monitor_stop = false;
+  std::string farm_error;
+  std::thread monitor([&] {
+    std::unique_lock lock(monitor_mutex);
+    while (!monitor_cv.wait_for(lock, std::chrono::milliseconds(200), [&] { return monitor_stop; })) {
+      const std::string dead = farm.CheckChildren();
+      if (dead.empty()) continue;
+      spdlog::warn("{}", dead);
+      if (!farm.coordinator_alive() || farm.live_workers() == 0) {
+        farm_error = dead;
+        client.Cancel();
+        return;
+      }
+    }
+  });
+  auto cleanup = [&](bool keep_logs) {
+    {
+      std::lock_guard lock(monitor_mutex);
+      monitor_stop = true;
+    }
+    monitor_cv.notify_all();
+    if (monitor.joinable()) monitor.join();
+    SetInterruptHandler([&](int n) {
+      if (n == 1)
+        farm.TerminateAll();
+      else
+        farm.KillNow();
+    });
+    client_ptr.reset();  // close the connection first: the coordinator then stops at once
+    farm.Shutdown(10, keep_logs);
+    SetInterruptHandler({});
+  };
+
+  v1::JobStatus st;
+  std::string bytes;
+  try {
+    const std::string id = UploadAndSubmit(client, job);
+    spdlog::info("job {} submitted ({} workers)", id, a.workers);
+    st = WatchWithProgress(client, id, output, 0.5, false, a.quiet);
+    if (st.state() == v1::JOB_STATE_SUCCEEDED) bytes = client.GetImage(id);
+  } catch (const std::exception& e) {
+    const bool interrupted = Interrupted();
+    cleanup(!interrupted);
+    if (interrupted) {
+      std::fprintf(stderr, "\ninterrupted: the farm was shut down\n");
+      return kExitInterrupted;
+    }
+    if (!farm_error.empty()) throw SystemError("the local farm broke: " + farm_error);
+    throw;
+  }
+  if (st.state() != v1::JOB_STATE_SUCCEEDED) {
+    cleanup(true);
+    spdlog::error("{}", Summary(st));
+    return kExitFailure;
+  }
+  cleanup(false);
+
+  ImageMetadata meta;
+  Image image = DecodeExrFromMemory(bytes, &meta);
+  meta["scene"] = a.scene;
+  meta["integrator"] = a.integrator;
+  meta["plan"] = DescribePlan(PlanFromProto(job.spec.plan(), "spec.plan"));
+  meta["seed"] = std::to_string(a.seed);
+  meta["farm.workers"] = std::to_string(a.workers);
+  meta["farm.job_id"] = st.job_id();
+  meta["tasks"] = std::to_string(st.tasks_done());
+  meta["samples_merged"] = std::to_string(st.samples_merged());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  meta["render_seconds"] = fmt::format("{:.3f}", seconds);
+  WriteExr(output, image, meta);
+  WritePreviewFor(output, a.png, a.no_png, image);
+  std::printf("rendered %dx%d on %d workers, %s, %llu tasks in %.2f s -> %s\n", image.width(), image.height(),
+              a.workers, meta["plan"].c_str(), (unsigned long long)st.tasks_done(), seconds, output.c_str());
+  return kExitOk;
+}
+
+}  // namespace pf

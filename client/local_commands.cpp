@@ -1,0 +1,245 @@
+// pf's in-process commands: render (classic and --local-only plans), diff, merge, info.
+#include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "client/commands.h"
+#include "client/progress.h"
+#include "common/accel/embree_scene.h"
+#include "common/core/error.h"
+#include "common/image/exr_io.h"
+#include "common/image/image_diff.h"
+#include "common/image/png_io.h"
+#include "common/plan/task_executor.h"
+#include "common/render/camera.h"
+#include "common/render/light_sampler.h"
+#include "common/render/path_tracer.h"
+#include "common/render/photon_map_integrator.h"
+#include "common/render/renderer.h"
+#include "common/scene/scene_loader.h"
+#include "proto/convert.h"
+
+namespace pf {
+
+void WritePreviewFor(const std::string& exr, const std::string& png_option, bool no_png, const Image& image) {
+  std::string png = png_option;
+  if (png.empty() && !no_png) png = std::filesystem::path(exr).replace_extension(".png").string();
+  if (!png.empty()) WritePngPreview(png, image, PreviewOptions{.auto_exposure = true});
+}
+
+int RunRender(const RenderArgs& a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const SceneDescription scene = LoadScene(a.scene);
+  const CameraSpec spec = ChooseCamera(scene, a);
+  const Camera camera(spec);
+  spdlog::info("scene {}: {} triangles, {} emitting, {} lights, {} materials", a.scene, scene.NumTriangles(),
+               scene.NumEmissiveTriangles(), scene.num_lights, scene.materials.size());
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  if (lights.empty()) spdlog::warn("the scene has no emitters: the image will be black");
+  const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  std::unique_ptr<Integrator> integrator;
+  PhotonMaps maps;
+  if (a.integrator == "path") {
+    integrator = std::make_unique<PathTracer>(accel, lights);
+  } else if (a.integrator == "photonmap") {
+    PhotonMapsOptions mo;
+    mo.tracing.photons = a.photons;
+    mo.tracing.map_seed = HashKey(a.seed, 0x6d6170 /* "map" */);
+    mo.tracing.threads = a.threads;
+    mo.kind = a.map == "grid" ? PhotonMapKind::kGrid : PhotonMapKind::kKdTree;
+    mo.structure.kd_split_rule = a.kd_split == "widest" ? KdSplitRule::kWidestExtent : KdSplitRule::kLevelCycle;
+    mo.structure.grid.expected_k = a.k;
+    mo.caustic = a.caustic == "on" ? CausticMapMode::kOn : a.caustic == "off" ? CausticMapMode::kOff : CausticMapMode::kAuto;
+    maps = PhotonMaps::Build(accel, lights, mo);
+    PhotonMapIntegratorOptions io;
+    io.global.k = a.k;
+    io.caustic = DefaultCausticOptions(a.k, accel.bounds());
+    if (a.caustic_radius > 0) io.caustic.max_radius = a.caustic_radius;
+    const FeasibilityTest test = a.direction_test == "none"    ? FeasibilityTest::kNone
+                                 : a.direction_test == "after" ? FeasibilityTest::kAfterQuery
+                                                               : FeasibilityTest::kInQuery;
+    io.global.direction_test = io.caustic.direction_test = test;
+    io.glossy_depth = a.glossy_depth;
+    integrator = std::make_unique<PhotonMapIntegrator>(accel, maps, io);
+  } else {
+    throw InputError("--integrator: unknown integrator '" + a.integrator + "' (available: path, photonmap)");
+  }
+
+  RenderOptions options;
+  options.spp = a.spp;
+  options.seed = a.seed;
+  options.threads = a.threads;
+  std::atomic<uint64_t> progress{0};
+  RenderStats stats;
+  Image image;
+  {
+    ProgressBar bar(progress, uint64_t(spec.width) * spec.height, !a.quiet);
+    image = RenderImage(*integrator, camera, options, &stats, &progress);
+  }
+
+  const std::string output = a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+  ImageMetadata meta = {
+      {"scene", a.scene},
+      {"integrator", integrator->name()},
+      {"spp", std::to_string(a.spp)},
+      {"seed", std::to_string(a.seed)},
+      {"camera.eye", FormatVec(spec.eye)},
+      {"camera.look_at", FormatVec(spec.look_at)},
+      {"camera.up", FormatVec(spec.up)},
+      {"camera.vfov_degrees", fmt::format("{}", spec.vfov_degrees)},
+      {"render_seconds", fmt::format("{:.3f}", stats.seconds)},
+      {"rays", std::to_string(stats.counters.rays + stats.counters.shadow_rays)},
+      {"nonfinite_samples", std::to_string(stats.nonfinite_samples)},
+  };
+  if (maps.global) {
+    meta["photons.emitted"] = std::to_string(maps.stats.emitted);
+    meta["photons.global"] = std::to_string(maps.stats.stored_global);
+    meta["photons.caustic"] = std::to_string(maps.stats.stored_caustic);
+    meta["photons.k"] = std::to_string(a.k);
+    meta["photons.map"] = a.map;
+    meta["photons.trace_seconds"] = fmt::format("{:.3f}", maps.stats.trace_seconds);
+    meta["photons.build_seconds"] = fmt::format("{:.3f}", maps.stats.build_seconds);
+  }
+  WriteExr(output, image, meta);
+  WritePreviewFor(output, a.png, a.no_png, image);
+
+  const uint64_t rays = stats.counters.rays + stats.counters.shadow_rays;
+  if (stats.nonfinite_samples > 0)
+    spdlog::warn("{} samples were NaN/Inf and were dropped", stats.nonfinite_samples);
+  std::printf("rendered %dx%d, %u spp, %s in %.2f s (+%.2f s load): %.2f M rays/s, %.2f M samples/s -> %s\n",
+              spec.width, spec.height, a.spp, integrator->name(), stats.seconds, load_seconds,
+              rays / stats.seconds * 1e-6, stats.samples / stats.seconds * 1e-6, output.c_str());
+  return kExitOk;
+}
+
+int RunLocalPlan(const RenderArgs& a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PreparedJob job = PrepareJob(a);
+  // Exactly the conversions the coordinator applies to a submitted JobSpec.
+  const CameraSpec camera = CameraFromProto(job.spec.camera(), "spec.camera");
+  const JobRenderSettings settings = SettingsFromProto(job.spec.settings(), "spec.settings");
+  PlanSpec plan = PlanFromProto(job.spec.plan(), "spec.plan");
+  if (a.max_rounds > 0 && plan.kind == PlanKind::kSkipping) plan.rounds = std::min(plan.rounds, a.max_rounds);
+  if (a.time_budget > 0 || a.target_noise > 0)
+    spdlog::warn("--time-budget/--target-noise apply to farm jobs only; the local render runs the whole plan");
+  ValidatePlan(plan, camera.width, camera.height);
+  uint64_t total_pixels = 0;
+  const std::vector<TaskSpec> tasks = ExpandPlan(plan, camera.width, camera.height, a.seed);
+  for (const TaskSpec& t : tasks) total_pixels += CountPixels(t.pixels, camera.width, camera.height);
+  spdlog::info("plan {}: {} tasks, seed {}", DescribePlan(plan), tasks.size(), a.seed);
+
+  const SceneRuntime runtime(std::move(job.scene));
+  const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::atomic<uint64_t> progress{0};
+  Image image;
+  const auto t1 = std::chrono::steady_clock::now();
+  {
+    ProgressBar bar(progress, total_pixels, !a.quiet);
+    image = RenderPlanLocally(runtime, camera, settings, plan, a.seed, a.threads, &progress);
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  const std::string output = a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+  const ImageMetadata meta = {{"scene", a.scene},
+                              {"integrator", a.integrator},
+                              {"plan", DescribePlan(plan)},
+                              {"seed", std::to_string(a.seed)},
+                              {"tasks", std::to_string(tasks.size())},
+                              {"render_seconds", fmt::format("{:.3f}", seconds)},
+                              {"camera.eye", FormatVec(camera.eye)},
+                              {"camera.look_at", FormatVec(camera.look_at)},
+                              {"camera.up", FormatVec(camera.up)},
+                              {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
+  WriteExr(output, image, meta);
+  WritePreviewFor(output, a.png, a.no_png, image);
+  std::printf("rendered %dx%d locally, %s, %zu tasks in %.2f s (+%.2f s load) -> %s\n", camera.width, camera.height,
+              DescribePlan(plan).c_str(), tasks.size(), seconds, load_seconds, output.c_str());
+  return kExitOk;
+}
+
+int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
+            double error_scale, bool json) {
+  const Image a = ReadExr(a_path);
+  const Image ref = ReadExr(ref_path);
+  const ImageDiffStats d = CompareImages(a, ref);
+  if (json) {
+    nlohmann::json j = {{"image", a_path},        {"reference", ref_path},     {"rmse", d.rmse},
+                        {"relative_mse", d.relative_mse}, {"rmse_clamped", d.rmse_clamped}, {"max_abs_error", d.max_abs_error},
+                        {"max_x", d.max_x},       {"max_y", d.max_y},          {"mean", d.mean_a},
+                        {"reference_mean", d.mean_b}, {"pixels", d.pixels}};
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("RMSE %.6g  relative MSE %.6g  max error %.6g at (%d,%d)  mean %.6g vs %.6g\n", d.rmse,
+                d.relative_mse, d.max_abs_error, d.max_x, d.max_y, d.mean_a, d.mean_b);
+  }
+  if (!error_image.empty()) {
+    const Image err = FalseColourError(a, ref, error_scale > 0 ? error_scale : d.max_abs_error);
+    if (std::filesystem::path(error_image).extension() == ".exr")
+      WriteExr(error_image, err);
+    else
+      WritePngPreview(error_image, err);
+  }
+  return kExitOk;
+}
+
+// Weighted average of images rendered with different seeds, weights = their spp (EXR metadata
+// "spp"; 1 if absent). Prints the RMSE between the first two inputs halved — an estimate of the
+// noise left in the average of two equal-spp halves.
+int RunMerge(const std::vector<std::string>& inputs, const std::string& output) {
+  Image sum;
+  double total_weight = 0;
+  double seconds = 0;
+  std::vector<Image> first_two;
+  std::vector<std::string> seeds;
+  for (const std::string& path : inputs) {
+    ImageMetadata meta;
+    const Image img = ReadExr(path, &meta);
+    if (sum.size() == 0) sum = Image(img.width(), img.height());
+    if (img.width() != sum.width() || img.height() != sum.height())
+      throw InputError(path + ": size " + std::to_string(img.width()) + "x" + std::to_string(img.height()) +
+                       " differs from the first input");
+    const double w = meta.count("spp") ? std::stod(meta["spp"]) : 1.0;
+    if (meta.count("render_seconds")) seconds += std::stod(meta["render_seconds"]);
+    if (meta.count("seed")) seeds.push_back(meta["seed"]);
+    for (size_t i = 0; i < img.size(); ++i) sum[i] += img[i] * float(w);
+    total_weight += w;
+    if (first_two.size() < 2) first_two.push_back(img);
+  }
+  for (Rgb& c : sum.pixels()) c *= float(1.0 / total_weight);
+  ImageMetadata meta = {{"spp", fmt::format("{}", total_weight)},
+                        {"render_seconds", fmt::format("{:.1f}", seconds)},
+                        {"merged_from", fmt::format("{}", fmt::join(inputs, ","))},
+                        {"seeds", fmt::format("{}", fmt::join(seeds, ","))}};
+  if (first_two.size() == 2) {
+    const double noise = CompareImages(first_two[0], first_two[1]).rmse / 2.0;
+    meta["estimated_noise_rmse"] = fmt::format("{:.6g}", noise);
+    std::printf("estimated remaining noise (RMSE of the two halves / 2): %.6g\n", noise);
+  }
+  WriteExr(output, sum, meta, ExrCompression::kPiz);
+  std::printf("merged %zu images, %g spp in all -> %s\n", inputs.size(), total_weight, output.c_str());
+  return kExitOk;
+}
+
+int RunInfo(const std::string& path) {
+  const SceneDescription scene = LoadScene(path);
+  const Bounds3 b = scene.ComputeBounds();
+  std::printf("scene       %s\ntriangles   %zu\nemitting    %zu triangles in %u lights\nmaterials   %zu\n",
+              path.c_str(), scene.NumTriangles(), scene.NumEmissiveTriangles(), scene.num_lights,
+              scene.materials.size());
+  std::printf("bounds      (%g, %g, %g) .. (%g, %g, %g)\n", b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z);
+  for (const CameraSpec& c : scene.cameras)
+    std::printf("camera      %s: eye %s look-at %s up %s fov %g res %dx%d\n", c.name.c_str(),
+                FormatVec(c.eye).c_str(), FormatVec(c.look_at).c_str(), FormatVec(c.up).c_str(),
+                c.vfov_degrees, c.width, c.height);
+  std::printf("warnings    %zu\n", scene.warnings.size());
+  for (const std::string& w : scene.warnings) std::printf("  %s\n", w.c_str());
+  return kExitOk;
+}
+
+}  // namespace pf

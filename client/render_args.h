@@ -1,0 +1,80 @@
+#pragma once
+// The options shared by `pf render` and `pf submit` (scene, camera, integrator and photon-map
+// settings, plan, stop rule) and their translation into a photonfarm.v1.JobSpec. The local plan
+// render (`pf render --local-only`) and the farm run the *same* JobSpec through the same
+// proto → core conversion (proto/convert.h) as the coordinator, so their inputs are identical
+// by construction (Design property 1).
+
+#include <CLI/CLI.hpp>
+
+#include <cstdint>
+#include <string>
+
+#include "common/scene/scene.h"
+#include "common/scene/scene_bundle.h"
+#include "photonfarm/v1/farm.pb.h"
+
+namespace pf {
+
+struct RenderArgs {
+  std::string scene;
+  std::string integrator = "path";
+  uint32_t spp = 16;
+  std::string output;
+  std::string png;
+  bool no_png = false;
+  int threads = 0;
+  uint64_t seed = 1;
+  std::string camera_name;
+  std::string eye, look_at, up, res;
+  float fov = 0.0f;
+  bool quiet = false;
+  // Photon map (--integrator photonmap).
+  uint64_t photons = 200000;
+  int k = 100;
+  std::string map = "kdtree";
+  std::string kd_split = "cycle";
+  std::string caustic = "auto";
+  float caustic_radius = 0.0f;
+  int glossy_depth = 1;
+  std::string direction_test = "in-query";
+  // Plan (farm and --local-only); plan.empty() = the classic single-process render.
+  std::string plan;
+  uint32_t maps = 1;
+  uint32_t stride = 2;
+  uint32_t rounds = 1;
+  uint32_t tile = 64;
+  // Stop rule and scheduling (farm).
+  uint32_t max_rounds = 0;
+  double time_budget = 0;
+  double target_noise = 0;
+  int32_t priority = 0;
+  std::string name;
+  // Where to run.
+  int workers = 0;
+  bool local_only = false;
+  std::string coordinator_bin, worker_bin;
+  std::vector<std::string> coordinator_args, worker_args;
+  bool keep_farm_dir = false;
+};
+
+// Scene, camera, integrator and photon-map options (render and submit).
+void AddSceneOptions(CLI::App* app, RenderArgs& a);
+// --plan, --maps, --stride, --rounds, --tile, stop rule, --priority, --name.
+void AddPlanOptions(CLI::App* app, RenderArgs& a);
+
+// The scene's camera after --camera/--eye/--look-at/--up/--fov/--res.
+CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a);
+
+// Loads the scene (InputError with file:line if malformed), chooses the camera and returns the
+// job (scene_hash left empty) and the scene's bundle.
+struct PreparedJob {
+  photonfarm::v1::JobSpec spec;
+  SceneBundle bundle;
+  SceneDescription scene;
+};
+PreparedJob PrepareJob(const RenderArgs& a);
+
+std::string FormatVec(const Vec3& v);
+
+}  // namespace pf

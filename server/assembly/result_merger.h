@@ -1,0 +1,51 @@
+#pragma once
+// Merging task results into a job's Accumulator (Design: Merge = weighted averaging).
+//
+// A result is validated before anything is changed: 3 finite floats per pixel of the task's
+// subset (the count from CountPixels, so a wrong size is caught without materialising pixels),
+// within the accumulator's range (Accumulator::ValidateTaskResult). An invalid result is rejected
+// whole; the scheduler then re-queues the task (attempt + 1) and logs the reason.
+//
+// Merging needs the subset's pixel indices in subset order (PixelsOf). For skipping tasks those
+// come from a permutation of all W·H pixels shared by the S² tasks of a round; the merger keeps
+// the last few permutations so a round costs one permutation, not S².
+//
+// Not thread-safe: called under the Scheduler's lock.
+
+#include <cstdint>
+#include <list>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/plan/accumulator.h"
+#include "common/plan/task_plan.h"
+
+namespace pf::server {
+
+class ResultMerger {
+ public:
+  explicit ResultMerger(size_t cached_permutations = 4) : capacity_(cached_permutations) {}
+
+  // "" if `rgb_sums` may be merged for `task` of a width × height job, else the reason.
+  static std::string Validate(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums);
+
+  // Validates (throws InputError with the reason) and adds the result to `acc`.
+  void Merge(const TaskSpec& task, std::span<const float> rgb_sums, Accumulator& acc);
+
+  // The pixel indices of `task`'s subset (cached permutations for skipping).
+  std::vector<uint32_t> PixelsOfTask(const TaskSpec& task, int width, int height);
+
+ private:
+  struct CachedPermutation {
+    uint64_t seed;
+    int width, height;
+    std::shared_ptr<const std::vector<uint32_t>> perm;
+  };
+  std::shared_ptr<const std::vector<uint32_t>> Permutation(uint64_t seed, int width, int height);
+  size_t capacity_;
+  std::list<CachedPermutation> cache_;  // most recent first
+};
+
+}  // namespace pf::server

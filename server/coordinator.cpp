@@ -1,0 +1,179 @@
+#include "server/coordinator.h"
+
+#include <fcntl.h>
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/server.h>
+#include <grpcpp/server_builder.h>
+#include <spdlog/spdlog.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <chrono>
+
+#include "common/core/error.h"
+#include "server/rpc/auth.h"
+#include "server/rpc/executor.h"
+#include "server/rpc/render_service.h"
+#include "server/rpc/watch_hub.h"
+#include "server/rpc/worker_service.h"
+#include "server/scheduling/scheduler.h"
+#include "server/store/persister.h"
+#include "server/store/scene_store.h"
+#include "server/store/sqlite_store.h"
+
+namespace pf::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+int LockDataDir(const fs::path& dir) {
+  const fs::path file = dir / "LOCK";
+  const int fd = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) throw SystemError(file.string() + ": cannot open the lock file");
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd);
+    throw SystemError(dir.string() + ": data directory in use by another coordinator (" + file.string() +
+                      " is locked)");
+  }
+  return fd;
+}
+
+}  // namespace
+
+Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(options)) {
+  if (options_.clock) {
+    clock_ = options_.clock;
+  } else {
+    own_clock_ = std::make_unique<SystemClock>();
+    clock_ = own_clock_.get();
+  }
+  std::error_code ec;
+  fs::create_directories(options_.data_dir, ec);
+  if (ec) throw SystemError(options_.data_dir.string() + ": cannot create the data directory: " + ec.message());
+  lock_fd_ = LockDataDir(options_.data_dir);
+
+  db_ = std::make_unique<SqliteStore>(options_.data_dir / "coordinator.db");
+  scenes_ = std::make_unique<SceneStore>(options_.data_dir / "scenes", *db_, *clock_);
+  scenes_->LoadIndex();
+  SchedulerOptions so;
+  so.lease_seconds = options_.lease_seconds;
+  so.max_attempts = options_.max_attempts;
+  scheduler_ = std::make_unique<Scheduler>(*clock_, so);
+  persister_ = std::make_unique<Persister>(*scheduler_, *db_, options_.data_dir / "checkpoints", *clock_,
+                                           options_.checkpoint_interval_seconds);
+  executor_ = std::make_unique<Executor>(options_.executor_threads);
+  watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_);
+  auth_ = std::make_unique<BearerAuth>(options_.token);
+  scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
+  scheduler_->SetChangeListener([w = watches_.get()](const std::string& job_id) { w->Notify(job_id); });
+
+  recovery_ = RecoverJobs(*db_, *scenes_, options_.data_dir / "checkpoints", *scheduler_, *clock_);
+  if (recovery_.jobs_resumed + recovery_.jobs_finished + recovery_.jobs_failed > 0)
+    spdlog::info("recovered {} unfinished jobs ({} tasks merged from checkpoints, {} re-queued), {} finished, {} "
+                 "could not be resumed",
+                 recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_finished,
+                 recovery_.jobs_failed);
+  persister_->Start();
+
+  ServiceContext ctx{*scheduler_, *scenes_, *db_, *persister_, *executor_, *watches_, *auth_, *clock_};
+  render_service_ = std::make_unique<RenderServiceImpl>(ctx);
+  worker_service_ = std::make_unique<WorkerServiceImpl>(ctx);
+}
+
+Coordinator::~Coordinator() {
+  try {
+    Shutdown();
+  } catch (const std::exception& e) {
+    spdlog::error("shutdown: {}", e.what());
+  }
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+}
+
+int Coordinator::Start() {
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(options_.listen, grpc::InsecureServerCredentials(), &port_);
+  builder.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
+  builder.SetMaxSendMessageSize(kMaxSendMessageBytes);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  builder.RegisterService(render_service_.get());
+  builder.RegisterService(worker_service_.get());
+  server_ = builder.BuildAndStart();
+  if (!server_ || port_ == 0) throw SystemError("cannot listen on " + options_.listen);
+  if (auto* health = server_->GetHealthCheckService()) {
+    health->SetServingStatus(true);
+    health->SetServingStatus("photonfarm.v1.RenderService", true);
+    health->SetServingStatus("photonfarm.v1.WorkerService", true);
+  }
+  tick_thread_ = std::thread([this] { TickLoop(); });
+  spdlog::info("serving on {} (port {}), data dir {}, lease {} s, max attempts {}, checkpoints {}, token {}",
+               options_.listen, port_, options_.data_dir.string(), options_.lease_seconds, options_.max_attempts,
+               options_.checkpoint_interval_seconds > 0
+                   ? "every " + std::to_string(int(options_.checkpoint_interval_seconds * 1000)) + " ms"
+                   : std::string("per merge (durable acks)"),
+               auth_->enabled() ? "required" : "off");
+  return port_;
+}
+
+void Coordinator::TickLoop() {
+  std::unique_lock lock(mu_);
+  while (!stopping_) {
+    lock.unlock();
+    try {
+      scheduler_->Tick();
+      watches_->Tick();
+    } catch (const std::exception& e) {
+      spdlog::error("tick: {}", e.what());
+    }
+    lock.lock();
+    cv_.wait_for(lock, std::chrono::duration<double>(options_.tick_seconds), [&] { return stopping_; });
+  }
+}
+
+void Coordinator::Shutdown() { Stop(/*graceful=*/true); }
+void Coordinator::SimulateCrash() { Stop(/*graceful=*/false); }
+
+void Coordinator::Stop(bool graceful) {
+  {
+    std::lock_guard lock(mu_);
+    if (stopping_) return;
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  if (graceful) spdlog::info("shutting down");
+  if (server_)
+    if (auto* health = server_->GetHealthCheckService()) health->SetServingStatus(false);
+  scheduler_->Shutdown();
+  watches_->Shutdown();
+  if (!graceful) persister_->Abandon();
+  if (server_) {
+    const double grace = graceful ? options_.shutdown_grace_seconds : 0.0;
+    server_->Shutdown(std::chrono::system_clock::now() +
+                      std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                          std::chrono::duration<double>(grace)));
+  }
+  if (tick_thread_.joinable()) tick_thread_.join();
+  executor_->Stop();
+  if (graceful) persister_->Stop();
+  if (server_) server_->Wait();
+  {
+    std::lock_guard lock(mu_);
+    stopped_ = true;
+  }
+  cv_.notify_all();
+  if (graceful) spdlog::info("stopped");
+}
+
+void Coordinator::Wait() {
+  std::unique_lock lock(mu_);
+  cv_.wait(lock, [&] { return stopped_; });
+}
+
+}  // namespace pf::server

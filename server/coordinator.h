@@ -1,0 +1,120 @@
+#pragma once
+// The assembled coordinator: owns every part (store, scheduler, persister, executor, watch hub,
+// the two services), builds the gRPC server and runs the tick. main.cpp is a CLI around it;
+// tests run it in-process on 127.0.0.1:0 with real channels.
+//
+// Data directory (--data-dir):
+//   coordinator.db          SQLite: scenes, jobs, tasks (server/store/sqlite_store.h)
+//   checkpoints/<job>.acc   accumulator + merged task ids (server/store/checkpoint.h)
+//   scenes/<hash>/          stored scene bundles (server/store/scene_store.h)
+//   LOCK                    flock'ed while a coordinator uses the directory
+//
+// gRPC server settings (docs/farm.md, "Coordinator: message sizes and keepalive"):
+//   max receive message  kMaxReceiveMessageBytes = 64 MiB of payload (a scene bundle, a task
+//                        result of up to kMaxPixelsPerTask pixels) + 1 MiB for framing
+//   max send message     kMaxSendMessageBytes = 16 MiB (images and bundles stream in ≤ 1 MiB
+//                        chunks; the largest unary answer is ListJobs)
+//   keepalive            pings idle clients every 20 s (10 s timeout); accepts client pings as
+//                        often as every 5 s, with or without calls in flight (so a worker with
+//                        keepalive ≥ 5 s notices a dead coordinator and is never sent GOAWAY)
+//   health               grpc.health.v1 ("" and both services SERVING until shutdown)
+//   reflection           enabled
+//
+// Shutdown (SIGTERM/SIGINT in main): health NOT_SERVING, no new leases, parked long polls and
+// watches answered, in-flight RPCs drained (≤ 5 s), background work drained, final flush of rows
+// and checkpoints. Leased tasks are re-queued at the next start without counting an attempt.
+
+#include <condition_variable>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "server/scheduling/clock.h"
+#include "server/store/recovery.h"
+
+namespace grpc {
+class Server;
+}
+
+namespace pf::server {
+
+class SqliteStore;
+class SceneStore;
+class Scheduler;
+class Persister;
+class Executor;
+class WatchHub;
+class BearerAuth;
+class RenderServiceImpl;
+class WorkerServiceImpl;
+
+inline constexpr int kMaxReceiveMessageBytes = (64 << 20) + (1 << 20);
+inline constexpr int kMaxSendMessageBytes = 16 << 20;
+
+struct CoordinatorOptions {
+  std::string listen = "127.0.0.1:0";
+  std::filesystem::path data_dir = "pf-data";
+  std::string token;                        // empty: no authentication
+  double lease_seconds = 30;
+  uint32_t max_attempts = 3;
+  double checkpoint_interval_seconds = 0;   // 0: durable acknowledgements (persister.h)
+  double tick_seconds = 0.05;               // lease/long-poll/budget/watch timer resolution
+  size_t executor_threads = 2;
+  double shutdown_grace_seconds = 5;
+  const Clock* clock = nullptr;             // null: the system clock
+};
+
+class Coordinator {
+ public:
+  // Opens (or creates) the data directory and resumes its unfinished jobs. No network yet.
+  explicit Coordinator(CoordinatorOptions options);
+  ~Coordinator();  // Shutdown()
+  Coordinator(const Coordinator&) = delete;
+  Coordinator& operator=(const Coordinator&) = delete;
+
+  // Binds and serves; returns the bound port. SystemError if the address cannot be bound.
+  int Start();
+  // Graceful stop (see above). Idempotent; safe from any thread except gRPC callbacks.
+  void Shutdown();
+  // Tests: stop serving as a crash would leave things — no final flush of rows or checkpoints.
+  void SimulateCrash();
+  // Blocks until Shutdown (or SimulateCrash) has completed.
+  void Wait();
+
+  const RecoveryReport& recovery() const { return recovery_; }
+  Scheduler& scheduler() { return *scheduler_; }
+  Persister& persister() { return *persister_; }
+  SceneStore& scenes() { return *scenes_; }
+  int port() const { return port_; }
+
+ private:
+  void Stop(bool graceful);
+  void TickLoop();
+
+  CoordinatorOptions options_;
+  std::unique_ptr<Clock> own_clock_;
+  const Clock* clock_;
+  int lock_fd_ = -1;
+  std::unique_ptr<SqliteStore> db_;
+  std::unique_ptr<SceneStore> scenes_;
+  std::unique_ptr<Scheduler> scheduler_;
+  std::unique_ptr<Persister> persister_;
+  std::unique_ptr<Executor> executor_;
+  std::unique_ptr<WatchHub> watches_;
+  std::unique_ptr<BearerAuth> auth_;
+  std::unique_ptr<RenderServiceImpl> render_service_;
+  std::unique_ptr<WorkerServiceImpl> worker_service_;
+  std::unique_ptr<grpc::Server> server_;
+  RecoveryReport recovery_;
+  int port_ = 0;
+
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool stopping_ = false;
+  bool stopped_ = false;
+  std::thread tick_thread_;
+};
+
+}  // namespace pf::server

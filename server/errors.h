@@ -1,0 +1,24 @@
+#pragma once
+// Errors the coordinator's logic throws besides the core's (common/core/error.h: InputError →
+// INVALID_ARGUMENT; proto/convert.h: LimitError → RESOURCE_EXHAUSTED). The single mapping to
+// gRPC status codes is server/rpc/status_mapping.h.
+
+#include <stdexcept>
+#include <string>
+
+namespace pf::server {
+
+// A job, scene or lease that does not exist. The message names the field ("job_id: unknown job
+// 'job-7'"). → NOT_FOUND.
+class NotFoundError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The coordinator cannot take the request now (shutting down, work queue full). → UNAVAILABLE.
+class UnavailableError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace pf::server

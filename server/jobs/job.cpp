@@ -1,0 +1,99 @@
+#include "server/jobs/job.h"
+
+#include <stdexcept>
+
+namespace pf::server {
+
+Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, std::vector<TaskSpec> tasks,
+         int64_t submitted_unix_ms, bool with_accumulator)
+    : id_(std::move(id)),
+      seq_(seq),
+      config_(std::move(config)),
+      tasks_(std::move(tasks)),
+      runtime_(tasks_.size()),
+      accumulator_(with_accumulator ? std::make_unique<Accumulator>(config_->camera.width, config_->camera.height)
+                                    : nullptr),
+      submitted_unix_ms_(submitted_unix_ms) {
+  counts_[size_t(TaskState::kQueued)] = tasks_.size();
+  for (const TaskSpec& t : tasks_) {
+    const uint64_t g = GroupOf(t);
+    if (g >= group_remaining_.size()) group_remaining_.resize(g + 1, 0);
+    ++group_remaining_[g];
+  }
+}
+
+uint64_t Job::GroupOf(const TaskSpec& t) const {
+  return config_->plan.kind == PlanKind::kSkipping ? t.round : t.map_index;
+}
+
+bool Job::CanTransition(JobState from, JobState to) {
+  if (IsTerminal(from)) return false;
+  switch (to) {
+    case JobState::kQueued: return false;
+    case JobState::kRunning: return from == JobState::kQueued;
+    case JobState::kSucceeded: return from == JobState::kRunning;
+    case JobState::kFailed:
+    case JobState::kCancelled: return true;
+  }
+  return false;
+}
+
+void Job::TransitionTo(JobState next, double now, const std::string& reason) {
+  if (!CanTransition(state_, next))
+    throw std::logic_error("job " + id_ + ": illegal transition " + JobStateName(state_) + " -> " +
+                           JobStateName(next));
+  if (next == JobState::kRunning) running_since_ = now;
+  if (IsTerminal(next) && running_since_) {
+    elapsed_before_ += now - *running_since_;
+    running_since_.reset();
+  }
+  state_ = next;
+  if (next == JobState::kFailed) failure_reason_ = reason;
+  row_dirty = true;
+}
+
+void Job::RestoreState(JobState state, const std::string& reason, double now) {
+  state_ = state;
+  failure_reason_ = reason;
+  running_since_.reset();
+  if (state == JobState::kRunning) running_since_ = now;
+}
+
+void Job::SetTaskState(uint64_t id, TaskState next) {
+  TaskRuntime& rt = runtime_.at(id);
+  --counts_[size_t(rt.state)];
+  ++counts_[size_t(next)];
+  rt.state = next;
+  if (next != TaskState::kLeased) {
+    rt.lease_id.clear();
+    rt.lease_deadline = 0;
+    rt.progress = 0;
+  }
+  dirty_tasks.insert(id);
+}
+
+void Job::RecordMerge(uint64_t task_id) {
+  SetTaskState(task_id, TaskState::kDone);
+  ++merge_seq_;
+  uint64_t& remaining = group_remaining_.at(GroupOf(tasks_.at(task_id)));
+  if (--remaining == 0) ++full_coverage_;
+}
+
+std::vector<uint64_t> Job::MergedTaskIds() const {
+  std::vector<uint64_t> ids;
+  ids.reserve(counts_[size_t(TaskState::kDone)]);
+  for (size_t i = 0; i < runtime_.size(); ++i)
+    if (runtime_[i].state == TaskState::kDone) ids.push_back(i);
+  return ids;
+}
+
+uint32_t Job::rounds_done() const {
+  if (config_->plan.kind == PlanKind::kSkipping) return full_coverage_;
+  return count(TaskState::kDone) == tasks_.size() && !tasks_.empty() ? 1 : 0;
+}
+
+double Job::ElapsedSeconds(double now) const {
+  return elapsed_before_ + (running_since_ ? now - *running_since_ : 0.0);
+}
+
+}  // namespace pf::server

@@ -1,0 +1,129 @@
+#pragma once
+// A job inside the coordinator: its validated configuration, its tasks with their runtime state,
+// its accumulator, and the job state machine
+//
+//     QUEUED ──▶ RUNNING ──▶ SUCCEEDED | FAILED | CANCELLED
+//        └───────────────────▶ FAILED | CANCELLED
+//
+// (TransitionTo enforces it; terminal states are final). A task is QUEUED → LEASED → DONE, or
+// LEASED → QUEUED again (lease expired, failed, result rejected, lease returned), or CANCELLED
+// (job cancelled, stopped by a stop rule, or failed).
+//
+// Not thread-safe by itself: the Scheduler owns every Job and serialises access with its lock.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "common/plan/accumulator.h"
+#include "common/plan/task_plan.h"
+#include "server/jobs/job_spec.h"
+#include "server/store/records.h"
+
+namespace pf::server {
+
+struct TaskRuntime {
+  TaskState state = TaskState::kQueued;
+  uint32_t attempts = 0;      // leases handed out (the current/next lease's attempt number)
+  uint32_t failures = 0;      // attempts that ended badly; bounded by max_attempts
+  std::string lease_id;       // current lease while kLeased
+  std::string worker_id;
+  double lease_deadline = 0;  // Clock::Now() seconds
+  double progress = 0;        // 0..1 as reported by ExtendLease
+  std::string last_error;
+};
+
+class Job {
+ public:
+  // `with_accumulator` = false for finished jobs reloaded from the store: their image is read
+  // from the checkpoint file on demand instead of being held in memory.
+  Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, std::vector<TaskSpec> tasks,
+      int64_t submitted_unix_ms, bool with_accumulator = true);
+
+  const std::string& id() const { return id_; }
+  uint64_t seq() const { return seq_; }
+  const JobConfig& config() const { return *config_; }
+  std::shared_ptr<const JobConfig> shared_config() const { return config_; }
+  const std::vector<TaskSpec>& tasks() const { return tasks_; }
+  const TaskSpec& task(uint64_t id) const { return tasks_.at(id); }
+  TaskRuntime& runtime(uint64_t id) { return runtime_.at(id); }
+  const TaskRuntime& runtime(uint64_t id) const { return runtime_.at(id); }
+  size_t num_tasks() const { return tasks_.size(); }
+
+  JobState state() const { return state_; }
+  const std::string& failure_reason() const { return failure_reason_; }
+  bool active() const { return !IsTerminal(state_); }
+  // Throws std::logic_error for a transition the state machine does not allow.
+  void TransitionTo(JobState next, double now, const std::string& reason = "");
+  static bool CanTransition(JobState from, JobState to);
+  // Recovery: the state as stored (no transition check); a RUNNING job's clock restarts at `now`.
+  void RestoreState(JobState state, const std::string& reason, double now);
+
+  // Task state changes keep the counters right; every call marks the task dirty (persist).
+  void SetTaskState(uint64_t id, TaskState next);
+  uint64_t count(TaskState s) const { return counts_[size_t(s)]; }
+
+  // Merge bookkeeping (the accumulator itself is changed by assembly/).
+  Accumulator& accumulator() { return *accumulator_; }
+  const Accumulator* accumulator_if_loaded() const { return accumulator_.get(); }
+  void set_accumulator(std::unique_ptr<Accumulator> acc) { accumulator_ = std::move(acc); }
+  void RecordMerge(uint64_t task_id);  // marks done, bumps merge_seq and coverage counters
+  uint64_t merge_seq() const { return merge_seq_; }
+  std::vector<uint64_t> MergedTaskIds() const;
+  // Rounds (skipping) or maps (other plans) whose every task is merged: every pixel has that
+  // many independent maps (the noise-target rule needs 2).
+  uint32_t full_coverage() const { return full_coverage_; }
+  uint32_t rounds_done() const;
+
+  // Timing: elapsed counts while RUNNING, across coordinator restarts.
+  double ElapsedSeconds(double now) const;
+  void RestoreElapsed(double seconds) { elapsed_before_ = seconds; }
+  int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
+
+  // Stop rules.
+  bool stopping = false;       // time budget reached: nothing new is scheduled
+  double noise_checked_at = -1e300;         // status cache of EstimatedNoiseRms
+  double noise_target_checked_at = -1e300;  // last evaluation of the target-noise rule
+  uint64_t noise_checked_seq = ~uint64_t(0);
+  uint32_t noise_checked_coverage = 0;
+  double noise_cache = -1;
+  // Sets the cached estimate (computed by the caller from this job's accumulator).
+  void SetNoise(double noise, double now) {
+    noise_cache = noise;
+    noise_checked_at = now;
+    noise_checked_seq = merge_seq_;
+    noise_checked_coverage = full_coverage_;
+  }
+
+  // Persistence bookkeeping (owned by the scheduler).
+  bool row_dirty = false;
+  std::set<uint64_t> dirty_tasks;
+  uint64_t checkpoint_collected_seq = 0;  // merge_seq of the last checkpoint handed to the persister
+  std::string checkpoint_path;            // for jobs whose accumulator is not loaded (finished, reloaded)
+  uint64_t stored_samples_merged = 0;     // their figures as last stored
+  double stored_noise_rms = -1;
+
+ private:
+  std::string id_;
+  uint64_t seq_;
+  std::shared_ptr<const JobConfig> config_;
+  std::vector<TaskSpec> tasks_;
+  std::vector<TaskRuntime> runtime_;
+  std::unique_ptr<Accumulator> accumulator_;
+  JobState state_ = JobState::kQueued;
+  std::string failure_reason_;
+  uint64_t counts_[5] = {0, 0, 0, 0, 0};
+  uint64_t merge_seq_ = 0;
+  // Coverage: per group (round for skipping, map index otherwise) tasks still unmerged.
+  std::vector<uint64_t> group_remaining_;
+  uint32_t full_coverage_ = 0;
+  uint64_t GroupOf(const TaskSpec& t) const;
+  double elapsed_before_ = 0;
+  std::optional<double> running_since_;
+  int64_t submitted_unix_ms_;
+};
+
+}  // namespace pf::server

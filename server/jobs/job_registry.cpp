@@ -1,0 +1,57 @@
+#include "server/jobs/job_registry.h"
+
+#include <stdexcept>
+
+#include "server/errors.h"
+
+namespace pf::server {
+
+std::pair<uint64_t, std::string> JobRegistry::Allocate() {
+  ++last_seq_;
+  return {last_seq_, "job-" + std::to_string(last_seq_)};
+}
+
+void JobRegistry::ReserveUpTo(uint64_t seq) {
+  if (seq > last_seq_) last_seq_ = seq;
+}
+
+Job& JobRegistry::Add(std::unique_ptr<Job> job) {
+  Job& ref = *job;
+  if (by_seq_.count(ref.seq()) || by_id_.count(ref.id()))
+    throw std::logic_error("JobRegistry: duplicate job " + ref.id());
+  ReserveUpTo(ref.seq());
+  by_seq_[ref.seq()] = &ref;
+  by_id_[ref.id()] = std::move(job);
+  return ref;
+}
+
+Job* JobRegistry::Find(const std::string& id) {
+  auto it = by_id_.find(id);
+  return it == by_id_.end() ? nullptr : it->second.get();
+}
+
+const Job* JobRegistry::Find(const std::string& id) const {
+  auto it = by_id_.find(id);
+  return it == by_id_.end() ? nullptr : it->second.get();
+}
+
+Job& JobRegistry::Get(const std::string& id) {
+  Job* job = Find(id);
+  if (!job) throw NotFoundError("job_id: unknown job '" + id + "'");
+  return *job;
+}
+
+const Job& JobRegistry::Get(const std::string& id) const {
+  const Job* job = Find(id);
+  if (!job) throw NotFoundError("job_id: unknown job '" + id + "'");
+  return *job;
+}
+
+std::vector<Job*> JobRegistry::InSubmissionOrder() const {
+  std::vector<Job*> jobs;
+  jobs.reserve(by_seq_.size());
+  for (const auto& [seq, job] : by_seq_) jobs.push_back(job);
+  return jobs;
+}
+
+}  // namespace pf::server

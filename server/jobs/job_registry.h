@@ -1,0 +1,38 @@
+#pragma once
+// All jobs the coordinator knows, by id and in submission order, and the allocation of job ids
+// ("job-<seq>", seq increasing across restarts). Not thread-safe: the Scheduler's lock guards it.
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "server/jobs/job.h"
+
+namespace pf::server {
+
+class JobRegistry {
+ public:
+  // A fresh (seq, id) pair; seqs are never reused.
+  std::pair<uint64_t, std::string> Allocate();
+  // Recovery: later allocations start above `seq`.
+  void ReserveUpTo(uint64_t seq);
+
+  Job& Add(std::unique_ptr<Job> job);
+  Job* Find(const std::string& id);
+  const Job* Find(const std::string& id) const;
+  // Throws NotFoundError("job_id: unknown job '<id>'").
+  Job& Get(const std::string& id);
+  const Job& Get(const std::string& id) const;
+  std::vector<Job*> InSubmissionOrder() const;
+  size_t size() const { return by_id_.size(); }
+
+ private:
+  uint64_t last_seq_ = 0;
+  std::unordered_map<std::string, std::unique_ptr<Job>> by_id_;
+  std::map<uint64_t, Job*> by_seq_;
+};
+
+}  // namespace pf::server

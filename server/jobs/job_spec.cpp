@@ -1,0 +1,141 @@
+#include "server/jobs/job_spec.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+
+#include "common/core/error.h"
+#include "proto/convert.h"
+#include "server/errors.h"
+
+namespace pf::server {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+bool IsZero(const v1::Vec3& v) { return v.x() == 0 && v.y() == 0 && v.z() == 0; }
+
+// "Only width/height set": the client asks for the scene's camera (at that resolution).
+bool WantsSceneCamera(const v1::JobSpec& spec) {
+  if (!spec.has_camera()) return true;
+  const v1::Camera& c = spec.camera();
+  return IsZero(c.eye()) && IsZero(c.look_at()) && IsZero(c.up()) && c.vfov_degrees() == 0;
+}
+
+CameraSpec ResolveCamera(const v1::JobSpec& spec, const SceneInfo& scene) {
+  if (!WantsSceneCamera(spec)) return CameraFromProto(spec.camera(), "spec.camera");
+  v1::Camera c;
+  CameraToProto(scene.camera, &c);
+  const uint32_t w = spec.camera().width(), h = spec.camera().height();
+  if ((w == 0) != (h == 0))
+    throw InputError("spec.camera.width/height: set both (> 0) or neither (the scene camera's resolution)");
+  if (w > 0) {
+    c.set_width(w);
+    c.set_height(h);
+  }
+  CameraSpec cam = CameraFromProto(c, "spec.camera");
+  cam.name = scene.camera.name;
+  return cam;
+}
+
+void RequireFiniteNonNegative(double v, const std::string& field) {
+  if (!std::isfinite(v) || v < 0) throw InputError(field + ": must be a finite number >= 0");
+}
+
+// ValidatePlan names fields relative to the job ("plan.skipping.stride", "camera: ..."); the
+// wire names them relative to the request.
+[[noreturn]] void RethrowUnderSpec(const InputError& e) {
+  const std::string msg = e.what();
+  if (msg.rfind("plan", 0) == 0 || msg.rfind("camera", 0) == 0) throw InputError("spec." + msg);
+  throw InputError(msg);
+}
+
+uint64_t MaxPixelsPerTask(const PlanSpec& plan, int width, int height) {
+  const uint64_t pixels = uint64_t(width) * uint64_t(height);
+  if (plan.kind == PlanKind::kSkipping) {
+    const uint64_t s2 = uint64_t(plan.stride) * plan.stride;
+    return (pixels + s2 - 1) / s2;
+  }
+  if (plan.tile_size == 0) return pixels;
+  return uint64_t(std::min<uint64_t>(plan.tile_size, uint64_t(width))) *
+         std::min<uint64_t>(plan.tile_size, uint64_t(height));
+}
+
+std::string PlanField(const PlanSpec& plan) {
+  switch (plan.kind) {
+    case PlanKind::kMultipleMaps: return "spec.plan.multiple_maps";
+    case PlanKind::kMapsInTurn: return "spec.plan.maps_in_turn";
+    case PlanKind::kSkipping: return "spec.plan.skipping";
+  }
+  return "spec.plan";
+}
+
+}  // namespace
+
+uint32_t JobConfig::ScheduledRounds() const {
+  const uint32_t planned = CountRounds(plan);
+  return stop.max_rounds == 0 ? planned : std::min(planned, stop.max_rounds);
+}
+
+JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
+  JobConfig job;
+  if (spec.name().size() > kMaxJobNameBytes)
+    throw InputError("spec.name: longer than " + std::to_string(kMaxJobNameBytes) + " bytes");
+  job.name = spec.name();
+
+  const std::string& hash = spec.scene_hash();
+  if (hash.empty()) throw InputError("spec.scene_hash: required (the hash UploadScene returned)");
+  if (hash.size() != 64 || !std::all_of(hash.begin(), hash.end(), [](char c) {
+        return std::isdigit(static_cast<unsigned char>(c)) || (c >= 'a' && c <= 'f');
+      }))
+    throw InputError("spec.scene_hash: must be 64 lowercase hex digits (the hash UploadScene returned)");
+  const std::optional<SceneInfo> scene = scenes.FindScene(hash);
+  if (!scene) throw NotFoundError("spec.scene_hash: unknown scene '" + hash + "' (upload it with UploadScene first)");
+  job.scene_hash = hash;
+  job.scene_entry = scene->entry;
+
+  job.camera = ResolveCamera(spec, *scene);
+  job.settings = SettingsFromProto(spec.settings(), "spec.settings");
+  job.plan = PlanFromProto(spec.plan(), "spec.plan");
+  try {
+    ValidatePlan(job.plan, job.camera.width, job.camera.height);
+  } catch (const LimitError&) {
+    throw;
+  } catch (const InputError& e) {
+    RethrowUnderSpec(e);
+  }
+  const uint64_t tasks = CountTasks(job.plan, job.camera.width, job.camera.height);
+  if (tasks > kMaxTasksPerJob)
+    throw LimitError("spec.plan: " + std::to_string(tasks) + " tasks exceed the limit of " +
+                     std::to_string(kMaxTasksPerJob) + " per job; use larger tiles or fewer maps/rounds");
+  const uint64_t task_pixels = MaxPixelsPerTask(job.plan, job.camera.width, job.camera.height);
+  if (task_pixels > kMaxPixelsPerTask)
+    throw LimitError(PlanField(job.plan) + ": a task of " + std::to_string(task_pixels) +
+                     " pixels exceeds the limit of " + std::to_string(kMaxPixelsPerTask) +
+                     " pixels per task (a result must fit one 64 MiB message); " +
+                     (job.plan.kind == PlanKind::kSkipping ? "use a larger stride" : "use tiles"));
+
+  RequireFiniteNonNegative(spec.stop().time_budget_seconds(), "spec.stop.time_budget_seconds");
+  RequireFiniteNonNegative(spec.stop().target_noise_rms(), "spec.stop.target_noise_rms");
+  job.stop.max_rounds = spec.stop().max_rounds();
+  job.stop.time_budget_seconds = spec.stop().time_budget_seconds();
+  job.stop.target_noise_rms = spec.stop().target_noise_rms();
+
+  job.seed = spec.seed();
+  job.priority = spec.priority();
+  job.spec = spec;
+  CameraToProto(job.camera, job.spec.mutable_camera());
+  return job;
+}
+
+std::vector<TaskSpec> ScheduledTasks(const JobConfig& config) {
+  std::vector<TaskSpec> tasks = ExpandPlan(config.plan, config.camera.width, config.camera.height, config.seed);
+  const uint32_t rounds = config.ScheduledRounds();
+  tasks.erase(std::remove_if(tasks.begin(), tasks.end(), [&](const TaskSpec& t) { return t.round >= rounds; }),
+              tasks.end());
+  for (size_t i = 0; i < tasks.size(); ++i)
+    if (tasks[i].task_id != i) throw std::logic_error("ScheduledTasks: task ids are not a prefix of the plan");
+  return tasks;
+}
+
+}  // namespace pf::server

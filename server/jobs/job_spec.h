@@ -1,0 +1,90 @@
+#pragma once
+// JobSpec (wire) → JobConfig (core types): the one validation of a submitted job, run before
+// anything is stored (Design property 4). Recovery runs it again on the stored, normalised spec,
+// so a resumed job is configured exactly as it was accepted.
+//
+// Rules, in order (the first violation is reported, its message starting with the field path):
+//   spec.name            ≤ 256 bytes                                        INVALID_ARGUMENT
+//   spec.scene_hash      64 lowercase hex digits                            INVALID_ARGUMENT
+//                        known to the coordinator (UploadScene)             NOT_FOUND
+//   spec.camera          unset, or only width/height set: the scene's camera (its manifest's
+//                        first camera, else DefaultCamera), at width × height when both > 0;
+//                        otherwise a full camera (eye ≠ look_at, up not parallel, vfov in
+//                        (0, 180), width and height > 0)                    INVALID_ARGUMENT
+//                        over kMaxImageSide / kMaxImagePixels (proto/convert.h)  RESOURCE_EXHAUSTED
+//   spec.settings        proto/convert.h SettingsFromProto (photons, k ≥ 1 and their limits)
+//   spec.plan            proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
+//                        more than kMaxTasksPerJob tasks, or a task of more than
+//                        kMaxPixelsPerTask pixels                           RESOURCE_EXHAUSTED
+//   spec.stop            time_budget_seconds, target_noise_rms finite and ≥ 0
+//
+// Why kMaxPixelsPerTask: a task's result carries 3 floats per pixel in one CompleteTask message,
+// which must fit the coordinator's 64 MiB receive limit (4 Mi pixels = 48 MiB). Use tiles for
+// larger images.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/plan/task_executor.h"
+#include "common/plan/task_plan.h"
+#include "common/scene/scene.h"
+#include "photonfarm/v1/farm.pb.h"
+
+namespace pf::server {
+
+inline constexpr uint64_t kMaxTasksPerJob = uint64_t(1) << 20;
+inline constexpr uint64_t kMaxPixelsPerTask = uint64_t(4) << 20;
+inline constexpr size_t kMaxJobNameBytes = 256;
+
+// What the coordinator knows about a stored scene.
+struct SceneInfo {
+  std::string hash;
+  std::string entry;
+  uint64_t triangles = 0;
+  uint32_t lights = 0;
+  uint64_t bytes = 0;
+  uint64_t files = 0;
+  CameraSpec camera;  // the manifest's first camera, else DefaultCamera(scene)
+  std::vector<std::string> warnings;
+};
+
+class SceneCatalog {
+ public:
+  virtual ~SceneCatalog() = default;
+  virtual std::optional<SceneInfo> FindScene(const std::string& hash) const = 0;
+};
+
+struct StopRule {
+  uint32_t max_rounds = 0;          // 0 = all planned rounds
+  double time_budget_seconds = 0;   // 0 = none
+  double target_noise_rms = 0;      // 0 = none
+};
+
+// A validated job.
+struct JobConfig {
+  std::string name;
+  std::string scene_hash;
+  std::string scene_entry;
+  CameraSpec camera;
+  JobRenderSettings settings;
+  PlanSpec plan;
+  uint64_t seed = 0;
+  StopRule stop;
+  int32_t priority = 0;
+  // The spec as accepted, with the camera resolved: echoed in JobStatus.spec and stored.
+  photonfarm::v1::JobSpec spec;
+
+  // Rounds that are scheduled: min(plan rounds, stop.max_rounds) (max_rounds 0 = all).
+  uint32_t ScheduledRounds() const;
+};
+
+// Throws InputError / LimitError / NotFoundError naming the field (rules above).
+JobConfig ValidateJobSpec(const photonfarm::v1::JobSpec& spec, const SceneCatalog& scenes);
+
+// The tasks a job schedules: ExpandPlan restricted to rounds < ScheduledRounds(). Task ids are
+// the expansion's, so they are equal to the index in the result.
+std::vector<TaskSpec> ScheduledTasks(const JobConfig& config);
+
+}  // namespace pf::server

@@ -1,0 +1,117 @@
+// pf-coordinator: the photonfarm coordinator (server/coordinator.h; docs/farm.md, "Coordinator").
+//
+//   pf-coordinator --data-dir DIR [--listen 127.0.0.1:0] [--token-file FILE]
+//                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
+//
+// Prints exactly one line on stdout once it serves — "listening on HOST:PORT" (the bound port,
+// also for :0) — and logs to stderr, one line per event with job and task ids (leases and merges
+// too: use --log-level warn for very many tiny tasks). SIGTERM / SIGINT
+// shut down gracefully (exit 0). Exit 1 on a usage or start-up error.
+#include <CLI/CLI.hpp>
+#include <signal.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+#include "server/coordinator.h"
+
+namespace {
+
+std::string Trim(std::string s) {
+  const auto not_space = [](unsigned char c) { return !std::isspace(c); };
+  s.erase(s.begin(), std::find_if(s.begin(), s.end(), not_space));
+  s.erase(std::find_if(s.rbegin(), s.rend(), not_space).base(), s.end());
+  return s;
+}
+
+std::string ReadToken(const std::string& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error("--token-file " + file + ": cannot read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string token = Trim(ss.str());
+  if (token.empty()) throw std::runtime_error("--token-file " + file + ": empty");
+  return token;
+}
+
+std::string HostOf(const std::string& listen) {
+  const size_t colon = listen.rfind(':');
+  return colon == std::string::npos ? listen : listen.substr(0, colon);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  pf::server::CoordinatorOptions options;
+  std::string token_file, log_level = "info";
+  int checkpoint_ms = 0;
+  CLI::App app{"pf-coordinator: the photonfarm coordinator (jobs, scheduling, merging, persistence)"};
+  app.add_option("--listen", options.listen, "Address to serve on; port 0 picks a free port")
+      ->capture_default_str();
+  app.add_option("--data-dir", options.data_dir, "Directory for the database, checkpoints and scenes")
+      ->capture_default_str();
+  app.add_option("--token-file", token_file,
+                 "File holding the bearer token clients and workers must send (else env PF_TOKEN; none: open)");
+  app.add_option("--lease-seconds", options.lease_seconds, "Lease length; workers extend it by heartbeat")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 86400.0));
+  app.add_option("--max-attempts", options.max_attempts, "Failed attempts of one task before its job fails")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--checkpoint-ms", checkpoint_ms,
+                 "0: checkpoint every merge and acknowledge results once durable; N: checkpoint at most every "
+                 "N ms (a crash re-runs up to N ms of work)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 3600000));
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
+  CLI11_PARSE(app, argc, argv);
+  options.checkpoint_interval_seconds = checkpoint_ms / 1000.0;
+
+  auto logger = spdlog::stderr_color_mt("pf-coordinator");
+  spdlog::set_default_logger(logger);
+  spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%^%l%$] %v");
+  spdlog::set_level(spdlog::level::from_str(log_level));
+
+  // SIGINT/SIGTERM are handled by one thread with sigwait; every other thread (gRPC's included,
+  // created later) inherits the blocked mask.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  try {
+    if (!token_file.empty()) {
+      options.token = ReadToken(token_file);
+    } else if (const char* env = std::getenv("PF_TOKEN"); env && *env) {
+      options.token = Trim(env);
+    }
+    pf::server::Coordinator coordinator(options);
+    const int port = coordinator.Start();
+    std::printf("listening on %s:%d\n", HostOf(options.listen).c_str(), port);
+    std::fflush(stdout);
+
+    std::thread signal_thread([&] {
+      int sig = 0;
+      sigwait(&signals, &sig);
+      if (sig != 0) spdlog::info("signal {}: shutting down", sig == SIGINT ? "SIGINT" : "SIGTERM");
+      coordinator.Shutdown();
+    });
+    coordinator.Wait();  // returns once the signal thread's Shutdown has completed
+    signal_thread.join();
+    return 0;
+  } catch (const std::exception& e) {
+    spdlog::critical("{}", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,155 @@
+#include "server/rpc/render_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include "common/core/error.h"
+#include "common/scene/scene_bundle.h"
+#include "server/errors.h"
+#include "server/rpc/buffered_stream.h"
+#include "server/rpc/job_images.h"
+#include "server/rpc/status_mapping.h"
+#include "server/rpc/watch_hub.h"
+
+namespace pf::server {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+grpc::Status Busy() { return {grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down; retry"}; }
+
+void RequireJobId(const std::string& id) {
+  if (id.empty()) throw InputError("job_id: required");
+}
+
+}  // namespace
+
+grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerContext* context,
+                                                         const v1::UploadSceneRequest* request,
+                                                         v1::UploadSceneResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  if (grpc::Status auth = ctx_.auth.Check(*context); !auth.ok()) {
+    reactor->Finish(auth);
+    return reactor;
+  }
+  const bool posted = ctx_.executor.Post([this, reactor, request, response] {
+    reactor->Finish(Guarded("UploadScene", [&] {
+      if (request->bundle().files_size() == 0) throw InputError("bundle.files: at least one file is required");
+      SceneBundle bundle;
+      bundle.entry = request->bundle().entry();
+      bundle.files.reserve(size_t(request->bundle().files_size()));
+      for (const v1::SceneFile& f : request->bundle().files()) bundle.files.emplace_back(f.path(), f.content());
+      const UploadResult result = ctx_.scenes.Upload(bundle);
+      response->set_scene_hash(result.info.hash);
+      response->set_triangles(result.info.triangles);
+      response->set_lights(result.info.lights);
+      for (const std::string& w : result.info.warnings) response->add_warnings(w);
+      return grpc::Status::OK;
+    }));
+  });
+  if (!posted) reactor->Finish(Busy());
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerContext* context,
+                                                       const v1::SubmitJobRequest* request,
+                                                       v1::SubmitJobResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  if (grpc::Status auth = ctx_.auth.Check(*context); !auth.ok()) {
+    reactor->Finish(auth);
+    return reactor;
+  }
+  // Validation is cheap (memory only) and happens here, before anything is stored.
+  auto config = std::make_shared<JobConfig>();
+  const grpc::Status valid = Guarded("SubmitJob", [&] {
+    *config = ValidateJobSpec(request->spec(), ctx_.scenes);
+    return grpc::Status::OK;
+  });
+  if (!valid.ok()) {
+    reactor->Finish(valid);
+    return reactor;
+  }
+  const bool posted = ctx_.executor.Post([this, reactor, response, config] {
+    reactor->Finish(Guarded("SubmitJob", [&] {
+      std::unique_ptr<Job> job = ctx_.scheduler.PrepareJob(std::move(*config));
+      JobRow row;
+      row.job_id = job->id();
+      row.seq = job->seq();
+      row.spec = job->config().spec.SerializeAsString();
+      row.state = JobState::kQueued;
+      row.submitted_unix_ms = job->submitted_unix_ms();
+      std::vector<TaskRow> tasks(job->num_tasks());
+      for (uint64_t i = 0; i < tasks.size(); ++i) {
+        tasks[i].job_id = job->id();
+        tasks[i].task_id = i;
+      }
+      ctx_.db.InsertJob(row, tasks);  // durable before the client hears the id
+      const JobConfig& c = job->config();
+      spdlog::info("job {}: submitted{}: scene {}, {}x{}, {}, {} tasks, seed {}, priority {}", job->id(),
+                   c.name.empty() ? "" : " '" + c.name + "'", c.scene_hash.substr(0, 12), c.camera.width,
+                   c.camera.height, DescribePlan(c.plan), job->num_tasks(), c.seed, c.priority);
+      response->set_job_id(job->id());
+      ctx_.scheduler.AddJob(std::move(job));
+      return grpc::Status::OK;
+    }));
+  });
+  if (!posted) reactor->Finish(Busy());
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* RenderServiceImpl::GetJob(grpc::CallbackServerContext* context,
+                                                    const v1::GetJobRequest* request, v1::JobStatus* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  grpc::Status status = ctx_.auth.Check(*context);
+  if (status.ok()) status = Guarded("GetJob", [&] {
+      RequireJobId(request->job_id());
+      *response = ctx_.scheduler.Status(request->job_id());
+      return grpc::Status::OK;
+    });
+  reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* RenderServiceImpl::ListJobs(grpc::CallbackServerContext* context,
+                                                      const v1::ListJobsRequest* request,
+                                                      v1::ListJobsResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  grpc::Status status = ctx_.auth.Check(*context);
+  if (status.ok()) status = Guarded("ListJobs", [&] {
+      for (v1::JobStatus& s : ctx_.scheduler.List(request->include_finished())) *response->add_jobs() = std::move(s);
+      return grpc::Status::OK;
+    });
+  reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* RenderServiceImpl::CancelJob(grpc::CallbackServerContext* context,
+                                                       const v1::CancelJobRequest* request,
+                                                       v1::CancelJobResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  grpc::Status status = ctx_.auth.Check(*context);
+  if (status.ok()) status = Guarded("CancelJob", [&] {
+      RequireJobId(request->job_id());
+      *response->mutable_status() = ctx_.scheduler.Cancel(request->job_id());
+      return grpc::Status::OK;
+    });
+  reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::CallbackServerContext* context,
+                                                                     const v1::WatchJobRequest* request) {
+  return ctx_.watches.Open(*request, ctx_.auth.Check(*context));
+}
+
+grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(grpc::CallbackServerContext* context,
+                                                                      const v1::GetImageRequest* request) {
+  grpc::Status precheck = ctx_.auth.Check(*context);
+  if (precheck.ok() && request->job_id().empty())
+    precheck = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "job_id: required");
+  const std::string job_id = request->job_id();
+  return BufferedStreamReactor<v1::ImageChunk>::Start(ctx_.executor, "GetImage", precheck, [this, job_id] {
+    return EncodeJobImage(ctx_.scheduler, job_id).chunks;
+  });
+}
+
+}  // namespace pf::server

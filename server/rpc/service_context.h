@@ -1,0 +1,27 @@
+#pragma once
+// What the gRPC service classes forward to: the coordinator's parts, owned by Coordinator.
+
+#include "server/rpc/auth.h"
+#include "server/rpc/executor.h"
+#include "server/scheduling/clock.h"
+#include "server/scheduling/scheduler.h"
+#include "server/store/persister.h"
+#include "server/store/scene_store.h"
+#include "server/store/sqlite_store.h"
+
+namespace pf::server {
+
+class WatchHub;
+
+struct ServiceContext {
+  Scheduler& scheduler;
+  SceneStore& scenes;
+  SqliteStore& db;
+  Persister& persister;
+  Executor& executor;
+  WatchHub& watches;
+  const BearerAuth& auth;
+  const Clock& clock;
+};
+
+}  // namespace pf::server

@@ -1,0 +1,206 @@
+#include "server/rpc/worker_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <mutex>
+
+#include "common/core/error.h"
+#include "proto/convert.h"
+#include "server/rpc/buffered_stream.h"
+#include "server/rpc/status_mapping.h"
+
+namespace pf::server {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+constexpr size_t kMaxWorkerIdBytes = 256;
+constexpr size_t kMaxReasonBytes = 4096;
+
+void FillTask(const Lease& lease, v1::Task* task) {
+  TaskSpecToProto(lease.task, task);
+  task->set_job_id(lease.job_id);
+  task->set_attempt(lease.attempt);
+  task->set_lease_id(lease.lease_id);
+  task->set_lease_seconds(lease.lease_seconds);
+  task->set_scene_hash(lease.config->scene_hash);
+  task->set_scene_entry(lease.config->scene_entry);
+  CameraToProto(lease.config->camera, task->mutable_camera());
+  SettingsToProto(lease.config->settings, task->mutable_settings());
+}
+
+void RequireLeaseId(const std::string& id) {
+  if (id.empty()) throw InputError("lease_id: required");
+}
+
+// One parked long poll. The state shared with the scheduler's callback lives in `State`, so the
+// reactor is only touched until it is finished (it deletes itself in OnDone).
+class LeaseReactor final : public grpc::ServerUnaryReactor {
+ public:
+  LeaseReactor(ServiceContext& ctx, grpc::CallbackServerContext* context, const v1::LeaseTaskRequest* request,
+               v1::LeaseTaskResponse* response)
+      : ctx_(ctx), state_(std::make_shared<State>()) {
+    grpc::Status status = ctx.auth.Check(*context);
+    LeaseRequest lr;
+    double wait = 0;
+    if (status.ok()) status = Guarded("LeaseTask", [&] {
+        if (request->worker_id().empty()) throw InputError("worker_id: required");
+        if (request->worker_id().size() > kMaxWorkerIdBytes)
+          throw InputError("worker_id: longer than " + std::to_string(kMaxWorkerIdBytes) + " bytes");
+        wait = request->wait_seconds();
+        if (!std::isfinite(wait) || wait < 0) throw InputError("wait_seconds: must be a finite number >= 0");
+        wait = std::min(wait, kMaxLeaseWaitSeconds);
+        lr.worker_id = request->worker_id();
+        lr.cached_map_seeds.assign(request->cached_map_seeds().begin(), request->cached_map_seeds().end());
+        return grpc::Status::OK;
+      });
+    if (!status.ok()) {
+      Finish(status);
+      return;
+    }
+    std::shared_ptr<State> state = state_;
+    Scheduler* scheduler = &ctx.scheduler;
+    // May run before LeaseOrWait returns; after Finish `this` may be gone, so only `state` and
+    // locals are used below.
+    auto deliver = [this, context, response, scheduler](std::optional<Lease> lease) {
+      if (lease && context->IsCancelled()) {
+        scheduler->ReturnLease(lease->lease_id);
+        lease.reset();
+      }
+      if (lease) {
+        FillTask(*lease, response->mutable_task());
+        spdlog::debug("job {} task {}: lease {} sent", lease->job_id, lease->task_id, lease->lease_id);
+      }
+      Finish(grpc::Status::OK);
+    };
+    const uint64_t waiter = scheduler->LeaseOrWait(lr, wait, std::move(deliver));
+    bool cancel_now = false;
+    {
+      std::lock_guard lock(state->mu);
+      state->waiter = waiter;
+      cancel_now = state->cancelled && waiter != 0;
+    }
+    if (cancel_now) scheduler->CancelWait(waiter);
+  }
+
+  void OnCancel() override {
+    uint64_t waiter = 0;
+    {
+      std::lock_guard lock(state_->mu);
+      state_->cancelled = true;
+      waiter = state_->waiter;
+    }
+    if (waiter != 0) ctx_.scheduler.CancelWait(waiter);  // answers "no task" if still parked
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  struct State {
+    std::mutex mu;
+    uint64_t waiter = 0;
+    bool cancelled = false;
+  };
+  ServiceContext& ctx_;
+  std::shared_ptr<State> state_;
+};
+
+}  // namespace
+
+grpc::ServerUnaryReactor* WorkerServiceImpl::LeaseTask(grpc::CallbackServerContext* context,
+                                                       const v1::LeaseTaskRequest* request,
+                                                       v1::LeaseTaskResponse* response) {
+  return new LeaseReactor(ctx_, context, request, response);
+}
+
+grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerContext* context,
+                                                         const v1::ExtendLeaseRequest* request,
+                                                         v1::ExtendLeaseResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  grpc::Status status = ctx_.auth.Check(*context);
+  if (status.ok()) status = Guarded("ExtendLease", [&] {
+      RequireLeaseId(request->lease_id());
+      const ExtendResult r = ctx_.scheduler.Extend(request->lease_id(), request->progress());
+      response->set_ok(r.ok);
+      response->set_lease_seconds(r.lease_seconds);
+      return grpc::Status::OK;
+    });
+  reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerContext* context,
+                                                          const v1::CompleteTaskRequest* request,
+                                                          v1::CompleteTaskResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  CompleteResult result;
+  grpc::Status status = ctx_.auth.Check(*context);
+  if (status.ok()) status = Guarded("CompleteTask", [&] {
+      RequireLeaseId(request->lease_id());
+      const auto& sums = request->rgb_sums();
+      result = ctx_.scheduler.Complete(request->lease_id(), std::span<const float>(sums.data(), size_t(sums.size())));
+      if (result.status == CompleteStatus::kRejected)
+        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                            "rgb_sums: result rejected, the task is re-queued: " + result.reason);
+      return grpc::Status::OK;
+    });
+  if (!status.ok() || result.status != CompleteStatus::kMerged) {
+    response->set_merged(false);
+    reactor->Finish(status);
+    return reactor;
+  }
+  const v1::TaskStats& st = request->stats();
+  spdlog::debug("job {} task {}: result merged (map {:.3f} s{}, render {:.3f} s, {} photons stored)", result.job_id,
+                result.task_id, st.map_seconds(), st.map_cache_hit() ? " cached" : "", st.render_seconds(),
+                st.photons_stored());
+  response->set_merged(true);
+  if (ctx_.persister.durable_acks()) {
+    const auto& sums = request->rgb_sums();
+    ctx_.persister.JournalThenAck(result.job_id, result.task_id, std::span<const float>(sums.data(), size_t(sums.size())),
+                                  [reactor] { reactor->Finish(grpc::Status::OK); });
+  } else {
+    reactor->Finish(grpc::Status::OK);
+  }
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContext* context,
+                                                      const v1::FailTaskRequest* request,
+                                                      v1::FailTaskResponse* /*response*/) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  grpc::Status status = ctx_.auth.Check(*context);
+  if (status.ok()) status = Guarded("FailTask", [&] {
+      RequireLeaseId(request->lease_id());
+      std::string reason = request->reason().substr(0, kMaxReasonBytes);
+      if (reason.empty()) reason = "no reason given";
+      ctx_.scheduler.Fail(request->lease_id(), reason, request->retryable());
+      return grpc::Status::OK;
+    });
+  reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::CallbackServerContext* context,
+                                                                       const v1::FetchSceneRequest* request) {
+  grpc::Status precheck = ctx_.auth.Check(*context);
+  if (precheck.ok() && request->scene_hash().empty())
+    precheck = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "scene_hash: required");
+  const std::string hash = request->scene_hash();
+  return BufferedStreamReactor<v1::SceneFile>::Start(ctx_.executor, "FetchScene", precheck, [this, hash] {
+    const SceneBundle bundle = ctx_.scenes.ReadBundle(hash);
+    std::vector<v1::SceneFile> messages;
+    for (const auto& [path, content] : bundle.files) {
+      size_t pos = 0;
+      do {
+        v1::SceneFile f;
+        f.set_path(path);
+        f.set_content(content.substr(pos, kSceneChunkBytes));
+        messages.push_back(std::move(f));
+        pos += kSceneChunkBytes;
+      } while (pos < content.size());
+    }
+    return messages;
+  });
+}
+
+}  // namespace pf::server

@@ -1,0 +1,652 @@
+#include "server/scheduling/scheduler.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "common/core/error.h"
+
+namespace pf::server {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+v1::JobState ToProto(JobState s) {
+  switch (s) {
+    case JobState::kQueued: return v1::JOB_STATE_QUEUED;
+    case JobState::kRunning: return v1::JOB_STATE_RUNNING;
+    case JobState::kSucceeded: return v1::JOB_STATE_SUCCEEDED;
+    case JobState::kFailed: return v1::JOB_STATE_FAILED;
+    case JobState::kCancelled: return v1::JOB_STATE_CANCELLED;
+  }
+  return v1::JOB_STATE_UNSPECIFIED;
+}
+
+}  // namespace
+
+Scheduler::Scheduler(const Clock& clock, SchedulerOptions options)
+    : clock_(clock), options_(options), rng_(std::random_device{}()) {
+  if (!(options_.lease_seconds > 0)) throw std::invalid_argument("Scheduler: lease_seconds must be > 0");
+  if (options_.max_attempts < 1) throw std::invalid_argument("Scheduler: max_attempts must be >= 1");
+}
+
+Scheduler::~Scheduler() = default;
+
+void Scheduler::SetChangeListener(std::function<void(const std::string&)> listener) {
+  std::lock_guard lock(mu_);
+  change_listener_ = std::move(listener);
+}
+
+void Scheduler::SetPersistListener(std::function<void()> listener) {
+  std::lock_guard lock(mu_);
+  persist_listener_ = std::move(listener);
+}
+
+void Scheduler::Run(Effects& fx) {
+  std::function<void(const std::string&)> change;
+  std::function<void()> persist;
+  {
+    std::lock_guard lock(mu_);
+    change = change_listener_;
+    persist = persist_listener_;
+  }
+  for (auto& [done, lease] : fx.callbacks) done(std::move(lease));
+  if (fx.persist && persist) persist();
+  if (change)
+    for (const std::string& id : fx.changed) change(id);
+}
+
+void Scheduler::Touch(Job& job, Effects& fx) {
+  fx.changed.insert(job.id());
+  fx.persist = true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Queue
+
+void Scheduler::Enqueue(Job& job, uint64_t task_id, Effects& fx) {
+  JobQueue& q = queues_[&job];
+  if (q.ids.empty()) ready_[{-int64_t(job.config().priority), job.seq()}] = &job;
+  q.ids.insert(task_id);
+  q.by_seed[job.task(task_id).map_seed].insert(task_id);
+  Touch(job, fx);
+}
+
+void Scheduler::Dequeue(Job& job, uint64_t task_id) {
+  auto qit = queues_.find(&job);
+  if (qit == queues_.end()) return;
+  JobQueue& q = qit->second;
+  if (!q.ids.erase(task_id)) return;
+  const uint64_t seed = job.task(task_id).map_seed;
+  auto sit = q.by_seed.find(seed);
+  if (sit != q.by_seed.end()) {
+    sit->second.erase(task_id);
+    if (sit->second.empty()) q.by_seed.erase(sit);
+  }
+  if (q.ids.empty()) {
+    ready_.erase({-int64_t(job.config().priority), job.seq()});
+    queues_.erase(qit);
+  }
+}
+
+void Scheduler::ServeWaiters(Effects& fx) {
+  const double now = clock_.Now();
+  while (!waiters_.empty() && !ready_.empty()) {
+    auto it = waiters_.begin();
+    std::optional<Lease> lease = LeaseLocked(it->second.request, now, fx);
+    if (!lease) break;
+    fx.callbacks.emplace_back(std::move(it->second.done), std::move(lease));
+    waiters_.erase(it);
+  }
+}
+
+std::string Scheduler::NewLeaseId(const Job& job, uint64_t task_id, uint32_t attempt) {
+  char rnd[17];
+  std::snprintf(rnd, sizeof(rnd), "%016llx", static_cast<unsigned long long>(rng_()));
+  return job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + rnd;
+}
+
+bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
+  const double budget = job.config().stop.time_budget_seconds;
+  if (budget <= 0 || job.stopping || !job.active() || job.ElapsedSeconds(now) < budget) return false;
+  job.stopping = true;
+  uint64_t cancelled = 0;
+  for (uint64_t id = 0; id < job.num_tasks(); ++id) {
+    if (job.runtime(id).state != TaskState::kQueued) continue;
+    Dequeue(job, id);
+    job.SetTaskState(id, TaskState::kCancelled);
+    ++cancelled;
+  }
+  spdlog::info("job {}: time budget {:.3g} s reached: {} queued tasks cancelled, {} still running", job.id(),
+               budget, cancelled, job.count(TaskState::kLeased));
+  Touch(job, fx);
+  MaybeSucceed(job, now, fx);
+  return true;
+}
+
+std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double now, Effects& fx) {
+  if (shutdown_) return std::nullopt;
+  while (!ready_.empty()) {
+    Job& job = *ready_.begin()->second;
+    if (CheckTimeBudget(job, now, fx)) continue;  // its queue is gone now
+    const JobQueue& q = queues_.at(&job);
+    uint64_t pick = *q.ids.begin();
+    bool affinity = false;
+    for (uint64_t seed : request.cached_map_seeds) {
+      auto it = q.by_seed.find(seed);
+      if (it == q.by_seed.end() || it->second.empty()) continue;
+      const uint64_t candidate = *it->second.begin();
+      if (!affinity || candidate < pick) pick = candidate;
+      affinity = true;
+    }
+    Dequeue(job, pick);
+    job.SetTaskState(pick, TaskState::kLeased);
+    TaskRuntime& rt = job.runtime(pick);
+    ++rt.attempts;
+    rt.lease_id = NewLeaseId(job, pick, rt.attempts);
+    rt.worker_id = request.worker_id;
+    rt.lease_deadline = now + options_.lease_seconds;
+    rt.progress = 0;
+    leases_[rt.lease_id] = {&job, pick};
+    if (job.state() == JobState::kQueued) {
+      job.TransitionTo(JobState::kRunning, now);
+      spdlog::info("job {}: running", job.id());
+    }
+    ++counters_.leases;
+    Touch(job, fx);
+    spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick, request.worker_id, rt.attempts,
+                 affinity ? ", map cached" : "");
+    Lease lease;
+    lease.lease_id = rt.lease_id;
+    lease.job_id = job.id();
+    lease.task_id = pick;
+    lease.attempt = rt.attempts;
+    lease.lease_seconds = options_.lease_seconds;
+    lease.task = job.task(pick);
+    lease.config = job.shared_config();
+    return lease;
+  }
+  return std::nullopt;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Jobs
+
+std::unique_ptr<Job> Scheduler::PrepareJob(JobConfig config) {
+  std::vector<TaskSpec> tasks = ScheduledTasks(config);
+  auto shared = std::make_shared<const JobConfig>(std::move(config));
+  std::pair<uint64_t, std::string> id;
+  {
+    std::lock_guard lock(mu_);
+    id = jobs_.Allocate();
+  }
+  return std::make_unique<Job>(id.second, id.first, std::move(shared), std::move(tasks), clock_.UnixMillis());
+}
+
+void Scheduler::ReserveJobSeq(uint64_t seq) {
+  std::lock_guard lock(mu_);
+  jobs_.ReserveUpTo(seq);
+}
+
+void Scheduler::AddJob(std::unique_ptr<Job> job) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    Job& j = jobs_.Add(std::move(job));
+    if (j.active()) {
+      for (uint64_t id = 0; id < j.num_tasks(); ++id)
+        if (j.runtime(id).state == TaskState::kQueued) Enqueue(j, id, fx);
+      const double now = clock_.Now();
+      MaybeSucceed(j, now, fx);  // recovery: everything may already be merged
+      ServeWaiters(fx);
+    }
+    fx.changed.insert(j.id());
+  }
+  Run(fx);
+}
+
+v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
+  v1::JobStatus s;
+  s.set_job_id(job.id());
+  *s.mutable_spec() = job.config().spec;
+  s.set_state(ToProto(job.state()));
+  s.set_failure_reason(job.failure_reason());
+  const uint64_t cancelled = job.count(TaskState::kCancelled);
+  const uint64_t done = job.count(TaskState::kDone);
+  const uint64_t total = job.num_tasks() - (job.active() ? cancelled : 0);
+  s.set_tasks_total(total);
+  s.set_tasks_done(done);
+  s.set_tasks_running(job.count(TaskState::kLeased));
+  const double elapsed = job.ElapsedSeconds(now);
+  s.set_elapsed_seconds(elapsed);
+  s.set_rounds_done(job.rounds_done());
+  s.set_submitted_unix_ms(job.submitted_unix_ms());
+  if (!job.accumulator_if_loaded()) {
+    s.set_samples_merged(job.stored_samples_merged);
+    job.noise_cache = job.stored_noise_rms;
+  }
+  if (const Accumulator* acc = job.accumulator_if_loaded()) {
+    s.set_samples_merged(acc->samples_merged());
+    // Refreshed (an O(pixels) pass) when stale and: the interval passed, another round or map
+    // became complete (the moments the estimate changes most), or the job is over.
+    const bool stale = job.noise_checked_seq != job.merge_seq();
+    if (stale && (now - job.noise_checked_at >= options_.noise_check_interval ||
+                  job.full_coverage() != job.noise_checked_coverage || !job.active()))
+      job.SetNoise(acc->EstimatedNoiseRms(), now);
+  }
+  s.set_estimated_noise_rms(job.noise_cache);
+  // ETA from throughput: the rate of (merged + in-progress fractions) so far.
+  double eta = -1;
+  if (!job.active()) {
+    eta = 0;
+  } else {
+    double done_eff = double(done);
+    for (const auto& [lease_id, ref] : leases_)
+      if (ref.job == &job) done_eff += std::clamp(job.runtime(ref.task_id).progress, 0.0, 1.0);
+    const double remaining = job.stopping ? double(job.count(TaskState::kLeased)) : double(total) - done_eff;
+    if (done_eff > 0 && elapsed > 0) eta = std::max(0.0, elapsed * remaining / done_eff);
+    const double budget = job.config().stop.time_budget_seconds;
+    if (budget > 0 && eta >= 0) eta = std::min(eta, std::max(0.0, budget - elapsed));
+  }
+  s.set_eta_seconds(eta);
+  return s;
+}
+
+v1::JobStatus Scheduler::Status(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  return BuildStatus(jobs_.Get(job_id), clock_.Now());
+}
+
+std::vector<v1::JobStatus> Scheduler::List(bool include_finished) {
+  std::lock_guard lock(mu_);
+  const double now = clock_.Now();
+  std::vector<v1::JobStatus> out;
+  for (Job* job : jobs_.InSubmissionOrder())
+    if (include_finished || job->active()) out.push_back(BuildStatus(*job, now));
+  return out;
+}
+
+v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
+  Effects fx;
+  v1::JobStatus status;
+  {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.Get(job_id);
+    const double now = clock_.Now();
+    if (job.active()) {
+      FinishJob(job, JobState::kCancelled, "", now, fx);
+      spdlog::info("job {}: cancelled", job.id());
+    }
+    status = BuildStatus(job, now);
+  }
+  Run(fx);
+  return status;
+}
+
+JobSnapshot Scheduler::Snapshot(const std::string& job_id, bool with_image) {
+  std::lock_guard lock(mu_);
+  Job& job = jobs_.Get(job_id);
+  JobSnapshot snap;
+  const double now = clock_.Now();
+  if (with_image) {
+    if (const Accumulator* acc = job.accumulator_if_loaded()) {
+      snap.image = ResolveSnapshot(job.id(), *acc);
+      job.SetNoise(snap.image->noise_rms, now);  // the status says what the image says
+    } else {
+      snap.checkpoint_path = job.checkpoint_path;
+    }
+  }
+  snap.status = BuildStatus(job, now);
+  return snap;
+}
+
+void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, double now, Effects& fx) {
+  for (uint64_t id = 0; id < job.num_tasks(); ++id) {
+    TaskRuntime& rt = job.runtime(id);
+    if (rt.state == TaskState::kQueued) {
+      Dequeue(job, id);
+      job.SetTaskState(id, TaskState::kCancelled);
+    } else if (rt.state == TaskState::kLeased) {
+      leases_.erase(rt.lease_id);
+      job.SetTaskState(id, TaskState::kCancelled);
+    }
+  }
+  if (state == JobState::kSucceeded && job.state() == JobState::kQueued) job.TransitionTo(JobState::kRunning, now);
+  job.TransitionTo(state, now, reason);
+  if (job.accumulator_if_loaded()) {
+    job.SetNoise(job.accumulator().EstimatedNoiseRms(), now);
+  }
+  Touch(job, fx);
+}
+
+void Scheduler::MaybeSucceed(Job& job, double now, Effects& fx) {
+  if (!job.active() || job.count(TaskState::kQueued) > 0 || job.count(TaskState::kLeased) > 0) return;
+  FinishJob(job, JobState::kSucceeded, "", now, fx);
+  spdlog::info("job {}: succeeded: {} of {} tasks merged in {:.3f} s{}", job.id(), job.count(TaskState::kDone),
+               job.num_tasks(), job.ElapsedSeconds(now), job.stopping ? " (time budget)" : "");
+}
+
+void Scheduler::CheckNoiseTarget(Job& job, double now, Effects& fx) {
+  const double target = job.config().stop.target_noise_rms;
+  if (target <= 0 || !job.active() || job.full_coverage() < 2) return;
+  if (now - job.noise_target_checked_at < options_.noise_check_interval &&
+      job.count(TaskState::kQueued) + job.count(TaskState::kLeased) > 0)
+    return;
+  job.noise_target_checked_at = now;
+  job.SetNoise(job.accumulator().EstimatedNoiseRms(), now);
+  if (job.noise_cache >= 0 && job.noise_cache <= target) {
+    spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job.id(), job.noise_cache,
+                 target, job.count(TaskState::kDone));
+    FinishJob(job, JobState::kSucceeded, "", now, fx);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Workers
+
+std::optional<Lease> Scheduler::TryLease(const LeaseRequest& request) {
+  Effects fx;
+  std::optional<Lease> lease;
+  {
+    std::lock_guard lock(mu_);
+    lease = LeaseLocked(request, clock_.Now(), fx);
+  }
+  Run(fx);
+  return lease;
+}
+
+uint64_t Scheduler::LeaseOrWait(const LeaseRequest& request, double wait_seconds, LeaseCallback done) {
+  Effects fx;
+  uint64_t id = 0;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    std::optional<Lease> lease = LeaseLocked(request, now, fx);
+    if (lease || shutdown_ || !(wait_seconds > 0)) {
+      fx.callbacks.emplace_back(std::move(done), std::move(lease));
+    } else {
+      id = next_waiter_++;
+      waiters_[id] = Waiter{request, now + wait_seconds, std::move(done)};
+    }
+  }
+  Run(fx);
+  return id;
+}
+
+void Scheduler::CancelWait(uint64_t waiter_id) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    auto it = waiters_.find(waiter_id);
+    if (it == waiters_.end()) return;
+    fx.callbacks.emplace_back(std::move(it->second.done), std::nullopt);
+    waiters_.erase(it);
+  }
+  Run(fx);
+}
+
+Scheduler::LeaseRef* Scheduler::FindLiveLease(const std::string& lease_id, double now, Effects& fx) {
+  auto it = leases_.find(lease_id);
+  if (it == leases_.end()) return nullptr;
+  Job& job = *it->second.job;
+  const uint64_t task_id = it->second.task_id;
+  if (now >= job.runtime(task_id).lease_deadline) {
+    ++counters_.expired;
+    FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
+    return nullptr;
+  }
+  return &it->second;
+}
+
+ExtendResult Scheduler::Extend(const std::string& lease_id, double progress) {
+  Effects fx;
+  ExtendResult result;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    if (LeaseRef* ref = FindLiveLease(lease_id, now, fx)) {
+      TaskRuntime& rt = ref->job->runtime(ref->task_id);
+      rt.lease_deadline = now + options_.lease_seconds;
+      rt.progress = std::isfinite(progress) ? std::clamp(progress, 0.0, 1.0) : 0.0;
+      result = {true, options_.lease_seconds};
+    }
+  }
+  Run(fx);
+  return result;
+}
+
+CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const float> rgb_sums) {
+  Effects fx;
+  CompleteResult result;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    LeaseRef* ref = FindLiveLease(lease_id, now, fx);
+    if (!ref) {
+      ++counters_.ignored;
+      result.reason = "unknown, expired or finished lease";
+      spdlog::info("result for lease {} ignored: {}", lease_id, result.reason);
+    } else {
+      Job& job = *ref->job;
+      const uint64_t task_id = ref->task_id;
+      const TaskSpec& task = job.task(task_id);
+      result.job_id = job.id();
+      result.task_id = task_id;
+      std::string problem = ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height,
+                                                   rgb_sums);
+      if (problem.empty()) {
+        try {
+          merger_.Merge(task, rgb_sums, job.accumulator());
+        } catch (const InputError& e) {
+          problem = e.what();
+        }
+      }
+      if (!problem.empty()) {
+        ++counters_.rejected;
+        result.status = CompleteStatus::kRejected;
+        result.reason = problem;
+        spdlog::warn("job {} task {}: result of attempt {} rejected: {}", job.id(), task_id,
+                     job.runtime(task_id).attempts, problem);
+        FailAttempt(job, task_id, "rejected result: " + problem, true, now, fx);
+      } else {
+        ++counters_.merged;
+        leases_.erase(lease_id);
+        job.RecordMerge(task_id);
+        result.status = CompleteStatus::kMerged;
+        result.merge_seq = job.merge_seq();
+        spdlog::info("job {} task {}: merged (attempt {}, worker {}; {}/{} done)", job.id(), task_id,
+                     job.runtime(task_id).attempts, job.runtime(task_id).worker_id, job.count(TaskState::kDone),
+                     job.num_tasks());
+        Touch(job, fx);
+        CheckNoiseTarget(job, now, fx);
+        MaybeSucceed(job, now, fx);
+        ServeWaiters(fx);
+      }
+    }
+  }
+  Run(fx);
+  return result;
+}
+
+void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now,
+                            Effects& fx) {
+  TaskRuntime& rt = job.runtime(task_id);
+  leases_.erase(rt.lease_id);
+  ++rt.failures;
+  ++counters_.failed_attempts;
+  rt.last_error = reason;
+  const uint32_t attempt = rt.attempts;
+  Touch(job, fx);
+  if (!job.active()) return;
+  if (job.stopping) {
+    job.SetTaskState(task_id, TaskState::kCancelled);
+    spdlog::info("job {} task {}: attempt {} ended ({}); not retried (time budget reached)", job.id(), task_id,
+                 attempt, reason);
+    MaybeSucceed(job, now, fx);
+    return;
+  }
+  if (!retryable || rt.failures >= options_.max_attempts) {
+    const std::string why = "task " + std::to_string(task_id) + " attempt " + std::to_string(attempt) +
+                            " failed: " + reason +
+                            (retryable ? "; gave up after " + std::to_string(rt.failures) + " failed attempts"
+                                       : " (not retryable)");
+    job.SetTaskState(task_id, TaskState::kCancelled);
+    FinishJob(job, JobState::kFailed, why, now, fx);
+    spdlog::error("job {}: failed: {}", job.id(), why);
+    return;
+  }
+  job.SetTaskState(task_id, TaskState::kQueued);
+  Enqueue(job, task_id, fx);
+  spdlog::warn("job {} task {}: attempt {} failed ({}); re-queued ({} of {} attempts failed)", job.id(), task_id,
+               attempt, reason, rt.failures, options_.max_attempts);
+  ServeWaiters(fx);
+}
+
+bool Scheduler::Fail(const std::string& lease_id, const std::string& reason, bool retryable) {
+  Effects fx;
+  bool known = false;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    if (LeaseRef* ref = FindLiveLease(lease_id, now, fx)) {
+      known = true;
+      FailAttempt(*ref->job, ref->task_id, "worker: " + reason, retryable, now, fx);
+    }
+  }
+  Run(fx);
+  return known;
+}
+
+void Scheduler::ReturnLease(const std::string& lease_id) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    auto it = leases_.find(lease_id);
+    if (it == leases_.end()) return;
+    Job& job = *it->second.job;
+    const uint64_t task_id = it->second.task_id;
+    leases_.erase(it);
+    ++counters_.returned;
+    job.SetTaskState(task_id, TaskState::kQueued);
+    Enqueue(job, task_id, fx);
+    spdlog::debug("job {} task {}: undelivered lease returned", job.id(), task_id);
+    ServeWaiters(fx);
+  }
+  Run(fx);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Time
+
+void Scheduler::Tick() {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    std::vector<std::string> expired;
+    for (const auto& [id, ref] : leases_)
+      if (now >= ref.job->runtime(ref.task_id).lease_deadline) expired.push_back(id);
+    for (const std::string& id : expired) {
+      auto it = leases_.find(id);
+      if (it == leases_.end()) continue;  // its job ended meanwhile
+      Job& job = *it->second.job;
+      const uint64_t task_id = it->second.task_id;
+      ++counters_.expired;
+      FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
+    }
+    for (Job* job : jobs_.InSubmissionOrder())
+      if (job->active() && job->config().stop.time_budget_seconds > 0) CheckTimeBudget(*job, now, fx);
+    for (auto it = waiters_.begin(); it != waiters_.end();) {
+      if (now >= it->second.deadline) {
+        fx.callbacks.emplace_back(std::move(it->second.done), std::nullopt);
+        it = waiters_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  Run(fx);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Persistence
+
+PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
+  PersistBatch batch;
+  std::lock_guard lock(mu_);
+  for (Job* job : jobs_.InSubmissionOrder()) {
+    if (job->row_dirty) {
+      JobRow row;
+      row.job_id = job->id();
+      row.seq = job->seq();
+      row.spec = job->config().spec.SerializeAsString();
+      row.state = job->state();
+      row.failure_reason = job->failure_reason();
+      row.submitted_unix_ms = job->submitted_unix_ms();
+      row.elapsed_seconds = job->ElapsedSeconds(clock_.Now());
+      if (const Accumulator* acc = job->accumulator_if_loaded()) {
+        row.samples_merged = acc->samples_merged();
+        row.noise_rms = job->noise_cache;
+      }
+      batch.jobs.push_back(std::move(row));
+      job->row_dirty = false;
+    }
+    for (uint64_t id : job->dirty_tasks) {
+      const TaskRuntime& rt = job->runtime(id);
+      batch.tasks.push_back({job->id(), id, rt.state, rt.attempts, rt.failures, rt.last_error});
+    }
+    job->dirty_tasks.clear();
+    const Accumulator* acc = job->accumulator_if_loaded();
+    if (acc && job->merge_seq() > job->checkpoint_collected_seq && (checkpoints_due || !job->active())) {
+      Checkpoint cp;
+      cp.job_id = job->id();
+      cp.merge_seq = job->merge_seq();
+      cp.merged_task_ids = job->MergedTaskIds();
+      cp.accumulator = acc->Serialize();
+      job->checkpoint_collected_seq = job->merge_seq();
+      batch.checkpoints.push_back(std::move(cp));
+    }
+  }
+  return batch;
+}
+
+void Scheduler::RestoreDirty(const PersistBatch& batch) {
+  std::lock_guard lock(mu_);
+  for (const JobRow& row : batch.jobs)
+    if (Job* job = jobs_.Find(row.job_id)) job->row_dirty = true;
+  for (const TaskRow& row : batch.tasks)
+    if (Job* job = jobs_.Find(row.job_id)) job->dirty_tasks.insert(row.task_id);
+}
+
+void Scheduler::CheckpointFailed(const std::string& job_id, uint64_t merge_seq) {
+  std::lock_guard lock(mu_);
+  if (Job* job = jobs_.Find(job_id))
+    if (job->checkpoint_collected_seq == merge_seq) job->checkpoint_collected_seq = 0;
+}
+
+bool Scheduler::HasUncheckpointedMerges() {
+  std::lock_guard lock(mu_);
+  for (Job* job : jobs_.InSubmissionOrder())
+    if (job->accumulator_if_loaded() && job->merge_seq() > job->checkpoint_collected_seq) return true;
+  return false;
+}
+
+void Scheduler::Shutdown() {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    shutdown_ = true;
+    for (auto& [id, w] : waiters_) fx.callbacks.emplace_back(std::move(w.done), std::nullopt);
+    waiters_.clear();
+  }
+  Run(fx);
+}
+
+SchedulerCounters Scheduler::counters() const {
+  std::lock_guard lock(mu_);
+  return counters_;
+}
+
+}  // namespace pf::server

@@ -1,0 +1,222 @@
+#pragma once
+// THE scheduler: which task a worker gets, how long it may keep it, what happens when it does
+// not come back, and when a job is over. Owns every Job (server/jobs/) and merges results into
+// their accumulators (server/assembly/). gRPC-free and clock-injected, so every rule below is
+// unit-tested with a FakeClock and no sleeping (tests/server/scheduler_test.cpp).
+//
+// Queue. Jobs are served by priority (higher first), then submission order. Within the chosen
+// job a worker gets the lowest queued task id — unless it reported cached photon maps
+// (LeaseTaskRequest.cached_map_seeds) and a queued task of that job uses one of them: then the
+// lowest such task (map affinity; tiles of one map are adjacent in the plan). Affinity never
+// crosses jobs: a map seed means a map only together with the job's scene and settings.
+//
+// Leases. A lease lasts lease_seconds; ExtendLease (heartbeat) renews it to now + lease_seconds.
+// A lease that runs out (checked on every Tick and whenever the lease is used) ends the attempt:
+// the task goes back to the queue and its next lease is attempt + 1. So does FailTask(retryable)
+// and a rejected result (wrong size, NaN/Inf). After max_attempts failed attempts of one task,
+// or one FailTask(retryable = false), the job FAILS with the reason; its other tasks are
+// cancelled. A lease handed to a long poll whose caller is already gone is returned without
+// counting a failure (ReturnLease).
+//
+// Results. Only the current lease of a task can deliver its result; a task is merged at most
+// once. A result for an unknown, expired, replaced or already-merged lease is answered
+// kIgnored (CompleteTaskResponse.merged = false), never merged twice.
+//
+// Long polls. LeaseOrWait answers at once if a task is queued, else parks the caller until a
+// task is queued (submit, re-queue) or its wait expires (Tick) — no busy waiting; callbacks
+// always run outside the lock, exactly once per waiter.
+//
+// Stop rules (JobSpec.stop): max_rounds — rounds ≥ max are never scheduled (server/jobs/
+// job_spec.h); time budget — once the job has been RUNNING that long nothing new is leased, the
+// queued tasks are cancelled, leased ones may finish, and the job SUCCEEDS with what was merged;
+// target noise — after a merge, once every pixel has ≥ 2 independent maps (two full rounds, or
+// two complete maps) and Accumulator::EstimatedNoiseRms() ≤ target, the job SUCCEEDS and its
+// remaining tasks are cancelled (the estimate is refreshed at most every noise_check_interval).
+//
+// Hooks: the change listener hears the id of every job that changed (WatchJob), the persist
+// listener that there is something to write (server/store/persister.h).
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <random>
+#include <set>
+#include <span>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "photonfarm/v1/farm.pb.h"
+#include "server/assembly/image_snapshot.h"
+#include "server/assembly/result_merger.h"
+#include "server/jobs/job.h"
+#include "server/jobs/job_registry.h"
+#include "server/scheduling/clock.h"
+#include "server/store/records.h"
+
+namespace pf::server {
+
+struct SchedulerOptions {
+  double lease_seconds = 30;
+  uint32_t max_attempts = 3;
+  double noise_check_interval = 0.5;  // seconds between noise estimates of one job
+};
+
+struct LeaseRequest {
+  std::string worker_id;
+  std::vector<uint64_t> cached_map_seeds;
+};
+
+struct Lease {
+  std::string lease_id;
+  std::string job_id;
+  uint64_t task_id = 0;
+  uint32_t attempt = 0;
+  double lease_seconds = 0;
+  TaskSpec task;
+  std::shared_ptr<const JobConfig> config;
+};
+
+struct ExtendResult {
+  bool ok = false;
+  double lease_seconds = 0;
+};
+
+enum class CompleteStatus { kMerged, kIgnored, kRejected };
+struct CompleteResult {
+  CompleteStatus status = CompleteStatus::kIgnored;
+  std::string reason;  // why ignored / rejected
+  std::string job_id;
+  uint64_t task_id = 0;
+  uint64_t merge_seq = 0;  // kMerged: the job's merge count including this one
+};
+
+// A consistent view of a job for clients: its status and (optionally) its merged image.
+struct JobSnapshot {
+  photonfarm::v1::JobStatus status;
+  std::optional<ResolvedImage> image;  // if requested and the accumulator is in memory
+  std::string checkpoint_path;         // else: read the image from here (finished, reloaded jobs)
+};
+
+struct SchedulerCounters {
+  uint64_t leases = 0, merged = 0, ignored = 0, rejected = 0, expired = 0, failed_attempts = 0, returned = 0;
+};
+
+class Scheduler {
+ public:
+  using LeaseCallback = std::function<void(std::optional<Lease>)>;
+
+  Scheduler(const Clock& clock, SchedulerOptions options);
+  ~Scheduler();
+  Scheduler(const Scheduler&) = delete;
+  Scheduler& operator=(const Scheduler&) = delete;
+
+  // Set before use; called outside the lock.
+  void SetChangeListener(std::function<void(const std::string& job_id)> listener);
+  void SetPersistListener(std::function<void()> listener);
+
+  // --- Jobs ---
+  // A new job with a fresh id and its scheduled tasks; not yet visible (store it, then AddJob).
+  std::unique_ptr<Job> PrepareJob(JobConfig config);
+  // Makes a job visible and queues its QUEUED tasks (new jobs and jobs restored by recovery).
+  void AddJob(std::unique_ptr<Job> job);
+  // Recovery: later job ids are numbered above `seq`.
+  void ReserveJobSeq(uint64_t seq);
+  photonfarm::v1::JobStatus Status(const std::string& job_id);  // NotFoundError if unknown
+  std::vector<photonfarm::v1::JobStatus> List(bool include_finished);
+  // Cancels queued and leased tasks; idempotent for finished jobs (returns their status).
+  photonfarm::v1::JobStatus Cancel(const std::string& job_id);
+  JobSnapshot Snapshot(const std::string& job_id, bool with_image);
+
+  // --- Workers ---
+  std::optional<Lease> TryLease(const LeaseRequest& request);
+  // Calls `done` exactly once: with a lease as soon as one is available (possibly before
+  // returning), or with nullopt when `wait_seconds` pass, on CancelWait or on Shutdown.
+  uint64_t LeaseOrWait(const LeaseRequest& request, double wait_seconds, LeaseCallback done);
+  void CancelWait(uint64_t waiter_id);
+  ExtendResult Extend(const std::string& lease_id, double progress);
+  // Validates and merges (see the header comment). Never throws for bad results: kRejected.
+  CompleteResult Complete(const std::string& lease_id, std::span<const float> rgb_sums);
+  // false if the lease is unknown (already expired, replaced or finished): nothing to do.
+  bool Fail(const std::string& lease_id, const std::string& reason, bool retryable);
+  // A lease that never reached its worker: back to the queue, no failure counted.
+  void ReturnLease(const std::string& lease_id);
+
+  // --- Time --- expires leases, long polls and time budgets. Call periodically.
+  void Tick();
+
+  // --- Persistence ---
+  // Rows that changed since the last call, and checkpoints of jobs with new merges when
+  // `checkpoints_due` (always for jobs that just finished).
+  PersistBatch CollectPersistBatch(bool checkpoints_due);
+  // The rows of `batch` could not be written: hand them out again next time.
+  void RestoreDirty(const PersistBatch& batch);
+  // A checkpoint could not be written: hand it out again next time.
+  void CheckpointFailed(const std::string& job_id, uint64_t merge_seq);
+  bool HasUncheckpointedMerges();
+
+  // No more leases; parked long polls are answered "no task".
+  void Shutdown();
+
+  SchedulerCounters counters() const;
+  const SchedulerOptions& options() const { return options_; }
+
+ private:
+  struct Effects {
+    std::vector<std::pair<LeaseCallback, std::optional<Lease>>> callbacks;
+    std::set<std::string> changed;
+    bool persist = false;
+  };
+  struct JobQueue {
+    std::set<uint64_t> ids;
+    std::unordered_map<uint64_t, std::set<uint64_t>> by_seed;
+  };
+  struct LeaseRef {
+    Job* job;
+    uint64_t task_id;
+  };
+  struct Waiter {
+    LeaseRequest request;
+    double deadline;
+    LeaseCallback done;
+  };
+
+  void Run(Effects& effects);  // outside the lock
+  void Touch(Job& job, Effects& fx);
+  void Enqueue(Job& job, uint64_t task_id, Effects& fx);
+  void Dequeue(Job& job, uint64_t task_id);
+  void ServeWaiters(Effects& fx);
+  std::optional<Lease> LeaseLocked(const LeaseRequest& request, double now, Effects& fx);
+  bool CheckTimeBudget(Job& job, double now, Effects& fx);
+  // The current attempt of a leased task ended badly.
+  void FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now, Effects& fx);
+  // Ends the job: cancels every queued and leased task, then transitions.
+  void FinishJob(Job& job, JobState state, const std::string& reason, double now, Effects& fx);
+  void MaybeSucceed(Job& job, double now, Effects& fx);
+  void CheckNoiseTarget(Job& job, double now, Effects& fx);
+  // The lease if it is current; expires it (and returns null) if it ran out.
+  LeaseRef* FindLiveLease(const std::string& lease_id, double now, Effects& fx);
+  std::string NewLeaseId(const Job& job, uint64_t task_id, uint32_t attempt);
+  photonfarm::v1::JobStatus BuildStatus(Job& job, double now);
+
+  const Clock& clock_;
+  const SchedulerOptions options_;
+  mutable std::mutex mu_;
+  JobRegistry jobs_;
+  ResultMerger merger_;
+  std::unordered_map<const Job*, JobQueue> queues_;
+  std::map<std::pair<int64_t, uint64_t>, Job*> ready_;  // (−priority, seq) of jobs with queued tasks
+  std::unordered_map<std::string, LeaseRef> leases_;
+  std::map<uint64_t, Waiter> waiters_;  // oldest first
+  uint64_t next_waiter_ = 1;
+  bool shutdown_ = false;
+  std::mt19937_64 rng_;
+  SchedulerCounters counters_;
+  std::function<void(const std::string&)> change_listener_;
+  std::function<void()> persist_listener_;
+};
+
+}  // namespace pf::server

@@ -1,0 +1,40 @@
+#pragma once
+// Checkpoint files: `<data-dir>/checkpoints/<job>.acc`, one per job, holding the job's
+// Accumulator *and* the ids of exactly the tasks merged into it — in one file, so the two can
+// never disagree: after a crash a task is either in the checkpoint (merged, not re-run) or not
+// (re-run), never counted twice.
+//
+// Format (little-endian):
+//   "PFCKPT01"                          8-byte magic
+//   u32 version = 1
+//   u32 len, job id bytes
+//   u64 merge_seq                       merges contained (monotonic per job)
+//   u64 n, u64 × n merged task ids      ascending
+//   u64 len, accumulator bytes          Accumulator::Serialize()
+//   u64 Checksum64 (server/store/checksum.h) of all preceding bytes
+//
+// Writing is atomic: the bytes go to "<file>.tmp", which is fsync'ed, renamed over the file, and
+// the directory is fsync'ed; a reader sees the old or the new checkpoint, never a torn one.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "server/store/records.h"
+
+namespace pf::server {
+
+std::string EncodeCheckpoint(const Checkpoint& checkpoint);
+// Throws InputError ("checkpoint: ...") if the bytes are not a valid checkpoint.
+Checkpoint DecodeCheckpoint(std::string_view bytes);
+
+// SystemError if the file system fails.
+void WriteCheckpointFile(const std::filesystem::path& file, const Checkpoint& checkpoint);
+// nullopt if the file does not exist; InputError if it is corrupt; SystemError if unreadable.
+std::optional<Checkpoint> ReadCheckpointFile(const std::filesystem::path& file);
+
+// Writes `bytes` to `file` atomically (tmp + fsync + rename + fsync of the directory).
+void WriteFileAtomically(const std::filesystem::path& file, std::string_view bytes);
+
+}  // namespace pf::server

@@ -1,0 +1,69 @@
+#pragma once
+// The rows and files the coordinator persists (docs/farm.md, "Coordinator: SQLite schema" and
+// "checkpoint format"). Produced by the scheduler (what changed), written by the persister,
+// read back by recovery. Plain data: no locks, no I/O.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pf::server {
+
+// Numeric values stored in SQLite; never renumber (they are on disk).
+enum class JobState : int { kQueued = 1, kRunning = 2, kSucceeded = 3, kFailed = 4, kCancelled = 5 };
+enum class TaskState : int { kQueued = 1, kLeased = 2, kDone = 3, kCancelled = 4 };
+
+const char* JobStateName(JobState s);
+const char* TaskStateName(TaskState s);
+bool IsTerminal(JobState s);
+
+struct JobRow {
+  std::string job_id;
+  uint64_t seq = 0;        // submission order (also the number in the id)
+  std::string spec;        // serialized photonfarm.v1.JobSpec, normalised (camera resolved)
+  JobState state = JobState::kQueued;
+  std::string failure_reason;
+  int64_t submitted_unix_ms = 0;
+  double elapsed_seconds = 0;  // running time accumulated so far
+  uint64_t samples_merged = 0; // for the status of finished jobs (their accumulator stays on disk)
+  double noise_rms = -1;
+};
+
+struct TaskRow {
+  std::string job_id;
+  uint64_t task_id = 0;
+  TaskState state = TaskState::kQueued;
+  uint32_t attempts = 0;   // leases handed out so far (the next lease is attempt attempts+1)
+  uint32_t failures = 0;   // attempts that ended badly (lease expired, FailTask, rejected result)
+  std::string last_error;
+};
+
+struct SceneRow {
+  std::string hash;
+  std::string entry;
+  uint64_t bytes = 0;
+  uint64_t files = 0;
+  uint64_t triangles = 0;
+  uint32_t lights = 0;
+  std::string default_camera;  // serialized photonfarm.v1.Camera: manifest camera or DefaultCamera
+  std::string warnings;        // loader warnings, '\n'-separated
+  int64_t created_unix_ms = 0;
+};
+
+// One checkpoint file: the accumulator and the ids of exactly the tasks merged into it.
+struct Checkpoint {
+  std::string job_id;
+  uint64_t merge_seq = 0;                 // number of merges it contains (monotonic per job)
+  std::vector<uint64_t> merged_task_ids;  // ascending
+  std::string accumulator;                // Accumulator::Serialize()
+};
+
+// Everything that changed since the last flush.
+struct PersistBatch {
+  std::vector<JobRow> jobs;
+  std::vector<TaskRow> tasks;
+  std::vector<Checkpoint> checkpoints;
+  bool empty() const { return jobs.empty() && tasks.empty() && checkpoints.empty(); }
+};
+
+}  // namespace pf::server

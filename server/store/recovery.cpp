@@ -1,0 +1,161 @@
+#include "server/store/recovery.h"
+
+#include <spdlog/spdlog.h>
+
+#include "common/core/error.h"
+#include "server/assembly/result_merger.h"
+#include "server/store/checkpoint.h"
+#include "server/store/journal.h"
+#include "server/store/persister.h"
+
+namespace pf::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+// Applies a checkpoint to a fresh job; false (job untouched) if it does not fit the job.
+bool ApplyCheckpoint(const Checkpoint& cp, Job& job, std::string* problem) {
+  if (cp.job_id != job.id()) {
+    *problem = "belongs to job '" + cp.job_id + "'";
+    return false;
+  }
+  auto acc = std::make_unique<Accumulator>(Accumulator::Deserialize(cp.accumulator));
+  if (acc->width() != job.config().camera.width || acc->height() != job.config().camera.height) {
+    *problem = "image size differs from the job's";
+    return false;
+  }
+  if (acc->tasks_merged() != cp.merged_task_ids.size()) {
+    *problem = "accumulator holds " + std::to_string(acc->tasks_merged()) + " tasks, the list " +
+               std::to_string(cp.merged_task_ids.size());
+    return false;
+  }
+  for (uint64_t id : cp.merged_task_ids)
+    if (id >= job.num_tasks()) {
+      *problem = "task id " + std::to_string(id) + " outside the plan";
+      return false;
+    }
+  job.set_accumulator(std::move(acc));
+  for (uint64_t id : cp.merged_task_ids) job.RecordMerge(id);
+  job.checkpoint_collected_seq = job.merge_seq();
+  return true;
+}
+
+// Merges the journal's entries for tasks not merged yet; cuts a torn tail. Returns how many.
+uint64_t ReplayJournal(const fs::path& file, Job& job) {
+  uint64_t valid = 0;
+  std::vector<JournalEntry> entries;
+  try {
+    entries = ReadJournalFile(file, &valid);
+  } catch (const std::exception& e) {
+    spdlog::error("job {}: journal unreadable ({}); its results are re-run", job.id(), e.what());
+    return 0;
+  }
+  std::error_code ec;
+  if (fs::exists(file, ec) && fs::file_size(file, ec) > valid) {
+    spdlog::warn("job {}: journal {} ends in a torn entry (an unacknowledged result); cut at {} bytes", job.id(),
+                 file.string(), valid);
+    fs::resize_file(file, valid, ec);
+  }
+  ResultMerger merger;
+  uint64_t merged = 0;
+  for (const JournalEntry& e : entries) {
+    if (e.task_id >= job.num_tasks() || job.runtime(e.task_id).state == TaskState::kDone) continue;
+    const TaskSpec& task = job.task(e.task_id);
+    const std::string problem =
+        ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
+    if (!problem.empty()) {
+      spdlog::error("job {} task {}: journal entry invalid ({}); the task is re-run", job.id(), e.task_id, problem);
+      continue;
+    }
+    merger.Merge(task, e.rgb_sums, job.accumulator());
+    job.RecordMerge(e.task_id);
+    ++merged;
+  }
+  return merged;
+}
+
+}  // namespace
+
+RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
+                           Scheduler& scheduler, const Clock& clock) {
+  RecoveryReport report;
+  const double now = clock.Now();
+  for (JobRow& row : db.LoadJobs()) {
+    scheduler.ReserveJobSeq(row.seq);
+    const bool finished = IsTerminal(row.state);
+    JobConfig config;
+    try {
+      photonfarm::v1::JobSpec spec;
+      if (!spec.ParseFromString(row.spec)) throw InputError("stored spec does not parse");
+      config = ValidateJobSpec(spec, scenes);
+    } catch (const std::exception& e) {
+      if (!finished) {
+        spdlog::error("job {}: cannot be resumed: {}", row.job_id, e.what());
+        row.state = JobState::kFailed;
+        row.failure_reason = std::string("cannot be resumed after a restart: ") + e.what();
+        db.Apply({row}, {});
+        ++report.jobs_failed;
+      } else {
+        spdlog::warn("job {}: finished job no longer loads ({}); not listed", row.job_id, e.what());
+      }
+      continue;
+    }
+    std::vector<TaskSpec> tasks = ScheduledTasks(config);
+    auto job = std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
+                                     std::move(tasks), row.submitted_unix_ms, /*with_accumulator=*/!finished);
+    const fs::path cp_file = Persister::CheckpointFile(checkpoint_dir, row.job_id);
+    job->checkpoint_path = cp_file.string();
+    const std::vector<TaskRow> rows = db.LoadTasks(row.job_id);
+
+    if (finished) {
+      for (const TaskRow& t : rows)
+        if (t.task_id < job->num_tasks() && t.state != TaskState::kQueued) job->SetTaskState(t.task_id, t.state);
+      job->dirty_tasks.clear();
+      job->RestoreState(row.state, row.failure_reason, now);
+      job->RestoreElapsed(row.elapsed_seconds);
+      job->stored_samples_merged = row.samples_merged;
+      job->stored_noise_rms = row.noise_rms;
+      std::error_code ec;
+      fs::remove(Persister::JournalFile(checkpoint_dir, row.job_id), ec);  // its final checkpoint has it all
+      ++report.jobs_finished;
+      scheduler.AddJob(std::move(job));
+      continue;
+    }
+
+    try {
+      if (std::optional<Checkpoint> cp = ReadCheckpointFile(cp_file)) {
+        std::string problem;
+        if (!ApplyCheckpoint(*cp, *job, &problem))
+          spdlog::error("job {}: checkpoint {} {}; restarting the job from zero merges", row.job_id,
+                        cp_file.string(), problem);
+      }
+    } catch (const std::exception& e) {
+      spdlog::error("job {}: checkpoint unreadable ({}); restarting the job from zero merges", row.job_id, e.what());
+    }
+    const uint64_t from_checkpoint = job->count(TaskState::kDone);
+    const uint64_t journaled = ReplayJournal(Persister::JournalFile(checkpoint_dir, row.job_id), *job);
+    job->dirty_tasks.clear();
+    for (const TaskRow& t : rows) {
+      if (t.task_id >= job->num_tasks()) continue;
+      TaskRuntime& rt = job->runtime(t.task_id);
+      rt.attempts = t.attempts;
+      rt.failures = t.failures;
+      rt.last_error = t.last_error;
+      if (rt.state != t.state) job->dirty_tasks.insert(t.task_id);  // e.g. leased before the crash
+    }
+    job->RestoreState(row.state, row.failure_reason, now);
+    job->RestoreElapsed(row.elapsed_seconds);
+    const uint64_t merged = job->count(TaskState::kDone);
+    const uint64_t requeued = job->count(TaskState::kQueued);
+    report.tasks_merged += merged;
+    report.tasks_from_journal += journaled;
+    report.tasks_requeued += requeued;
+    ++report.jobs_resumed;
+    spdlog::info("job {}: resumed ({}): {} tasks merged ({} from the checkpoint, {} from the journal), {} queued",
+                 row.job_id, JobStateName(row.state), merged, from_checkpoint, journaled, requeued);
+    scheduler.AddJob(std::move(job));
+  }
+  return report;
+}
+
+}  // namespace pf::server

@@ -1,0 +1,39 @@
+#pragma once
+// Coordinator start-up after a stop or a crash (Design property 3): every job in the database is
+// rebuilt from its stored, normalised spec (validated again, expanded again: the plan is a pure
+// function) and handed to the scheduler.
+//
+//  - Unfinished jobs: the checkpoint file and then the result journal decide which tasks are
+//    merged (the checkpoint's accumulator holds exactly its listed tasks; journal entries of tasks
+//    not in it are merged again, order does not matter). Every other task — queued, leased to a
+//    worker before the crash, or marked done in the database but in neither file — is queued
+//    again. Attempt and failure
+//    counts come from the database (a coordinator crash does not count as a failed attempt).
+//    A corrupt checkpoint is logged and the job restarts from zero merges (never double counts).
+//    A job whose spec no longer validates (e.g. its scene folder was deleted) is marked FAILED.
+//  - Finished jobs are listed with their final state; their image is read from the checkpoint
+//    file when asked for (not held in memory).
+
+#include <cstdint>
+#include <filesystem>
+
+#include "server/jobs/job_spec.h"
+#include "server/scheduling/clock.h"
+#include "server/scheduling/scheduler.h"
+#include "server/store/sqlite_store.h"
+
+namespace pf::server {
+
+struct RecoveryReport {
+  uint64_t jobs_resumed = 0;
+  uint64_t jobs_finished = 0;
+  uint64_t jobs_failed = 0;      // could not be resumed
+  uint64_t tasks_merged = 0;     // restored from checkpoints and journals (not re-run)
+  uint64_t tasks_from_journal = 0;
+  uint64_t tasks_requeued = 0;
+};
+
+RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const std::filesystem::path& checkpoint_dir,
+                           Scheduler& scheduler, const Clock& clock);
+
+}  // namespace pf::server

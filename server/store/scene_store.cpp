@@ -1,0 +1,166 @@
+#include "server/store/scene_store.h"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <fstream>
+#include <sstream>
+
+#include "common/core/error.h"
+#include "common/scene/scene_loader.h"
+#include "proto/convert.h"
+#include "server/errors.h"
+
+namespace pf::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string Join(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const std::string& l : lines) {
+    if (!out.empty()) out += '\n';
+    out += l;
+  }
+  return out;
+}
+
+std::vector<std::string> Split(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) out.push_back(line);
+  return out;
+}
+
+SceneInfo InfoFromRow(const SceneRow& row) {
+  SceneInfo info;
+  info.hash = row.hash;
+  info.entry = row.entry;
+  info.triangles = row.triangles;
+  info.lights = row.lights;
+  info.bytes = row.bytes;
+  info.files = row.files;
+  info.warnings = Split(row.warnings);
+  photonfarm::v1::Camera cam;
+  if (!cam.ParseFromString(row.default_camera)) throw SystemError("scenes table: bad camera of " + row.hash);
+  info.camera = CameraFromProto(cam, "scene.camera");
+  return info;
+}
+
+std::atomic<uint64_t> upload_counter{0};
+
+}  // namespace
+
+SceneStore::SceneStore(fs::path scenes_dir, SqliteStore& db, const Clock& clock)
+    : dir_(std::move(scenes_dir)), db_(db), clock_(clock) {
+  fs::create_directories(dir_);
+}
+
+void SceneStore::LoadIndex() {
+  // Folders of uploads interrupted by a crash.
+  for (const auto& e : fs::directory_iterator(dir_)) {
+    if (e.path().filename().string().rfind(".upload-", 0) != 0) continue;
+    std::error_code ec;
+    fs::remove_all(e.path(), ec);
+  }
+  std::unordered_map<std::string, SceneInfo> index;
+  for (const SceneRow& row : db_.LoadScenes()) {
+    if (!fs::is_directory(dir_ / row.hash)) {
+      spdlog::warn("scene {}: folder {} is missing; the scene is forgotten (upload it again)", row.hash,
+                   (dir_ / row.hash).string());
+      continue;
+    }
+    index[row.hash] = InfoFromRow(row);
+  }
+  std::lock_guard lock(mu_);
+  index_ = std::move(index);
+}
+
+UploadResult SceneStore::Upload(const SceneBundle& bundle) {
+  if (bundle.files.size() > kMaxBundleFiles || bundle.TotalBytes() > kMaxBundleBytes)
+    throw LimitError("bundle.files: " + std::to_string(bundle.files.size()) + " files, " +
+                     std::to_string(bundle.TotalBytes()) + " bytes exceed the bundle limit (" +
+                     std::to_string(kMaxBundleBytes >> 20) + " MiB, " + std::to_string(kMaxBundleFiles) + " files)");
+  ValidateBundle(bundle);
+  const std::string hash = BundleHash(bundle);
+  if (std::optional<SceneInfo> known = FindScene(hash)) return {*known, false};
+
+  const fs::path tmp = dir_ / (".upload-" + hash.substr(0, 16) + "-" + std::to_string(::getpid()) + "-" +
+                               std::to_string(upload_counter++));
+  SceneDescription scene;
+  try {
+    WriteBundle(bundle, tmp);
+    scene = LoadBundle(tmp, bundle.entry);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  SceneInfo info;
+  info.hash = hash;
+  info.entry = bundle.entry;
+  info.triangles = scene.NumTriangles();
+  info.lights = scene.num_lights;
+  info.bytes = bundle.TotalBytes();
+  info.files = bundle.files.size();
+  info.camera = scene.cameras.empty() ? DefaultCamera(scene) : scene.cameras.front();
+  info.warnings = scene.warnings;
+  if (scene.num_lights == 0) info.warnings.push_back(bundle.entry + ": the scene has no emitters: images will be black");
+
+  const fs::path final_dir = dir_ / hash;
+  std::error_code ec;
+  fs::rename(tmp, final_dir, ec);
+  if (ec) {  // a concurrent upload of the same bundle won the race, or the folder survived a crash
+    fs::remove_all(tmp, ec);
+    if (!fs::is_directory(final_dir)) throw SystemError(final_dir.string() + ": cannot store the scene");
+  }
+  SceneRow row;
+  row.hash = hash;
+  row.entry = info.entry;
+  row.bytes = info.bytes;
+  row.files = info.files;
+  row.triangles = info.triangles;
+  row.lights = info.lights;
+  photonfarm::v1::Camera cam;
+  CameraToProto(info.camera, &cam);
+  row.default_camera = cam.SerializeAsString();
+  row.warnings = Join(info.warnings);
+  row.created_unix_ms = clock_.UnixMillis();
+  db_.PutScene(row);
+  {
+    std::lock_guard lock(mu_);
+    index_[hash] = info;
+  }
+  spdlog::info("scene {}: stored ({} files, {} bytes, entry {}, {} triangles, {} lights)", hash, info.files,
+               info.bytes, info.entry, info.triangles, info.lights);
+  return {info, true};
+}
+
+std::optional<SceneInfo> SceneStore::FindScene(const std::string& hash) const {
+  std::lock_guard lock(mu_);
+  auto it = index_.find(hash);
+  if (it == index_.end()) return std::nullopt;
+  return it->second;
+}
+
+SceneBundle SceneStore::ReadBundle(const std::string& hash) const {
+  const std::optional<SceneInfo> info = FindScene(hash);
+  if (!info) throw NotFoundError("scene_hash: unknown scene '" + hash + "'");
+  const fs::path root = dir_ / hash;
+  SceneBundle bundle;
+  bundle.entry = info->entry;
+  for (const auto& e : fs::recursive_directory_iterator(root)) {
+    if (!e.is_regular_file()) continue;
+    std::ifstream in(e.path(), std::ios::binary);
+    if (!in) throw SystemError(e.path().string() + ": cannot read stored scene file");
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    bundle.files.emplace_back(e.path().lexically_relative(root).generic_string(), std::move(ss).str());
+  }
+  std::sort(bundle.files.begin(), bundle.files.end());
+  return bundle;
+}
+
+}  // namespace pf::server

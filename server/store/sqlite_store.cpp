@@ -1,0 +1,287 @@
+#include "server/store/sqlite_store.h"
+
+#include <sqlite3.h>
+
+#include "common/core/error.h"
+
+namespace pf::server {
+namespace {
+
+constexpr const char* kSchema = R"sql(
+CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);
+INSERT OR IGNORE INTO meta(key, value) VALUES ('schema_version', '1');
+CREATE TABLE IF NOT EXISTS scenes(
+  hash TEXT PRIMARY KEY,
+  entry TEXT NOT NULL,
+  bytes INTEGER NOT NULL,
+  files INTEGER NOT NULL,
+  triangles INTEGER NOT NULL,
+  lights INTEGER NOT NULL,
+  default_camera BLOB NOT NULL,
+  warnings TEXT NOT NULL,
+  created_unix_ms INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS jobs(
+  id TEXT PRIMARY KEY,
+  seq INTEGER NOT NULL UNIQUE,
+  spec BLOB NOT NULL,
+  state INTEGER NOT NULL,
+  failure_reason TEXT NOT NULL,
+  submitted_unix_ms INTEGER NOT NULL,
+  elapsed_seconds REAL NOT NULL,
+  samples_merged INTEGER NOT NULL DEFAULT 0,
+  noise_rms REAL NOT NULL DEFAULT -1);
+CREATE TABLE IF NOT EXISTS tasks(
+  job_id TEXT NOT NULL,
+  task_id INTEGER NOT NULL,
+  state INTEGER NOT NULL,
+  attempts INTEGER NOT NULL,
+  failures INTEGER NOT NULL,
+  last_error TEXT NOT NULL,
+  PRIMARY KEY (job_id, task_id)) WITHOUT ROWID;
+)sql";
+
+// A prepared statement, finalized on scope exit.
+class Statement {
+ public:
+  Statement(sqlite3* db, const char* sql) : db_(db) {
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK)
+      throw SystemError(std::string("sqlite: prepare '") + sql + "': " + sqlite3_errmsg(db));
+  }
+  ~Statement() { sqlite3_finalize(stmt_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  Statement& Text(int i, const std::string& v) {
+    Check(sqlite3_bind_text(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  Statement& Blob(int i, const std::string& v) {
+    Check(sqlite3_bind_blob(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  Statement& Int(int i, int64_t v) {
+    Check(sqlite3_bind_int64(stmt_, i, v));
+    return *this;
+  }
+  Statement& Real(int i, double v) {
+    Check(sqlite3_bind_double(stmt_, i, v));
+    return *this;
+  }
+  // true while a row is available.
+  bool Step() {
+    const int rc = sqlite3_step(stmt_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    throw SystemError(std::string("sqlite: step '") + sqlite3_sql(stmt_) + "': " + sqlite3_errmsg(db_));
+  }
+  void Run() {
+    while (Step()) {
+    }
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+  std::string ColText(int i) {
+    const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, i));
+    return p ? std::string(p, size_t(sqlite3_column_bytes(stmt_, i))) : std::string();
+  }
+  std::string ColBlob(int i) {
+    const auto* p = static_cast<const char*>(sqlite3_column_blob(stmt_, i));
+    return p ? std::string(p, size_t(sqlite3_column_bytes(stmt_, i))) : std::string();
+  }
+  int64_t ColInt(int i) { return sqlite3_column_int64(stmt_, i); }
+  double ColReal(int i) { return sqlite3_column_double(stmt_, i); }
+
+ private:
+  void Check(int rc) {
+    if (rc != SQLITE_OK) throw SystemError(std::string("sqlite: bind: ") + sqlite3_errmsg(db_));
+  }
+  sqlite3* db_;
+  sqlite3_stmt* stmt_ = nullptr;
+};
+
+// BEGIN IMMEDIATE … COMMIT, rolled back if an exception leaves the scope.
+class Transaction {
+ public:
+  explicit Transaction(sqlite3* db) : db_(db) { Exec("BEGIN IMMEDIATE"); }
+  ~Transaction() {
+    if (!committed_) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+  }
+  void Commit() {
+    Exec("COMMIT");
+    committed_ = true;
+  }
+
+ private:
+  void Exec(const char* sql) {
+    char* err = nullptr;
+    if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+      std::string msg = err ? err : "unknown error";
+      sqlite3_free(err);
+      throw SystemError(std::string("sqlite: ") + sql + ": " + msg);
+    }
+  }
+  sqlite3* db_;
+  bool committed_ = false;
+};
+
+void UpsertTask(Statement& st, const TaskRow& t) {
+  st.Text(1, t.job_id)
+      .Int(2, int64_t(t.task_id))
+      .Int(3, int(t.state))
+      .Int(4, t.attempts)
+      .Int(5, t.failures)
+      .Text(6, t.last_error)
+      .Run();
+}
+
+constexpr const char* kUpsertTask =
+    "INSERT INTO tasks(job_id, task_id, state, attempts, failures, last_error) VALUES (?1, ?2, ?3, ?4, ?5, ?6) "
+    "ON CONFLICT(job_id, task_id) DO UPDATE SET state = ?3, attempts = ?4, failures = ?5, last_error = ?6";
+
+}  // namespace
+
+SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.string()) {
+  if (sqlite3_open_v2(path_.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
+                      nullptr) != SQLITE_OK) {
+    const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    sqlite3_close(db_);
+    throw SystemError(path_ + ": cannot open database: " + msg);
+  }
+  sqlite3_busy_timeout(db_, 5000);
+  Exec("PRAGMA journal_mode = WAL");
+  Exec("PRAGMA synchronous = FULL");
+  Exec("PRAGMA foreign_keys = ON");
+  Exec(kSchema);
+}
+
+SqliteStore::~SqliteStore() { sqlite3_close(db_); }
+
+void SqliteStore::Exec(const char* sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : "unknown error";
+    sqlite3_free(err);
+    throw SystemError(path_ + ": " + msg);
+  }
+}
+
+void SqliteStore::PutScene(const SceneRow& s) {
+  std::lock_guard lock(mu_);
+  Statement(db_,
+            "INSERT OR IGNORE INTO scenes(hash, entry, bytes, files, triangles, lights, default_camera, warnings, "
+            "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)")
+      .Text(1, s.hash)
+      .Text(2, s.entry)
+      .Int(3, int64_t(s.bytes))
+      .Int(4, int64_t(s.files))
+      .Int(5, int64_t(s.triangles))
+      .Int(6, s.lights)
+      .Blob(7, s.default_camera)
+      .Text(8, s.warnings)
+      .Int(9, s.created_unix_ms)
+      .Run();
+}
+
+std::vector<SceneRow> SqliteStore::LoadScenes() {
+  std::lock_guard lock(mu_);
+  std::vector<SceneRow> out;
+  Statement st(db_,
+               "SELECT hash, entry, bytes, files, triangles, lights, default_camera, warnings, created_unix_ms "
+               "FROM scenes ORDER BY created_unix_ms, hash");
+  while (st.Step()) {
+    SceneRow s;
+    s.hash = st.ColText(0);
+    s.entry = st.ColText(1);
+    s.bytes = uint64_t(st.ColInt(2));
+    s.files = uint64_t(st.ColInt(3));
+    s.triangles = uint64_t(st.ColInt(4));
+    s.lights = uint32_t(st.ColInt(5));
+    s.default_camera = st.ColBlob(6);
+    s.warnings = st.ColText(7);
+    s.created_unix_ms = st.ColInt(8);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+void SqliteStore::InsertJob(const JobRow& job, const std::vector<TaskRow>& tasks) {
+  std::lock_guard lock(mu_);
+  Transaction tx(db_);
+  Statement(db_,
+            "INSERT INTO jobs(id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds) "
+            "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)")
+      .Text(1, job.job_id)
+      .Int(2, int64_t(job.seq))
+      .Blob(3, job.spec)
+      .Int(4, int(job.state))
+      .Text(5, job.failure_reason)
+      .Int(6, job.submitted_unix_ms)
+      .Real(7, job.elapsed_seconds)
+      .Run();
+  Statement task(db_, kUpsertTask);
+  for (const TaskRow& t : tasks) UpsertTask(task, t);
+  tx.Commit();
+}
+
+void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskRow>& tasks) {
+  if (jobs.empty() && tasks.empty()) return;
+  std::lock_guard lock(mu_);
+  Transaction tx(db_);
+  Statement job(db_,
+                "UPDATE jobs SET state = ?2, failure_reason = ?3, elapsed_seconds = ?4, samples_merged = ?5, "
+                "noise_rms = ?6 WHERE id = ?1");
+  for (const JobRow& j : jobs)
+    job.Text(1, j.job_id)
+        .Int(2, int(j.state))
+        .Text(3, j.failure_reason)
+        .Real(4, j.elapsed_seconds)
+        .Int(5, int64_t(j.samples_merged))
+        .Real(6, j.noise_rms)
+        .Run();
+  Statement task(db_, kUpsertTask);
+  for (const TaskRow& t : tasks) UpsertTask(task, t);
+  tx.Commit();
+}
+
+std::vector<JobRow> SqliteStore::LoadJobs() {
+  std::lock_guard lock(mu_);
+  std::vector<JobRow> out;
+  Statement st(db_,
+               "SELECT id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds, samples_merged, "
+               "noise_rms FROM jobs ORDER BY seq");
+  while (st.Step()) {
+    JobRow j;
+    j.job_id = st.ColText(0);
+    j.seq = uint64_t(st.ColInt(1));
+    j.spec = st.ColBlob(2);
+    j.state = JobState(st.ColInt(3));
+    j.failure_reason = st.ColText(4);
+    j.submitted_unix_ms = st.ColInt(5);
+    j.elapsed_seconds = st.ColReal(6);
+    j.samples_merged = uint64_t(st.ColInt(7));
+    j.noise_rms = st.ColReal(8);
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+std::vector<TaskRow> SqliteStore::LoadTasks(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  std::vector<TaskRow> out;
+  Statement st(db_,
+               "SELECT task_id, state, attempts, failures, last_error FROM tasks WHERE job_id = ?1 ORDER BY task_id");
+  st.Text(1, job_id);
+  while (st.Step()) {
+    TaskRow t;
+    t.job_id = job_id;
+    t.task_id = uint64_t(st.ColInt(0));
+    t.state = TaskState(st.ColInt(1));
+    t.attempts = uint32_t(st.ColInt(2));
+    t.failures = uint32_t(st.ColInt(3));
+    t.last_error = st.ColText(4);
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+}  // namespace pf::server

@@ -1,0 +1,57 @@
+#pragma once
+// The coordinator's database: `<data-dir>/coordinator.db` (SQLite, WAL journal,
+// synchronous=FULL: a committed transaction survives a crash of the process or the machine).
+// Schema (docs/farm.md, "Coordinator: SQLite schema"):
+//
+//   meta(key TEXT PRIMARY KEY, value TEXT)               schema_version = 1
+//   scenes(hash TEXT PRIMARY KEY, entry, bytes, files, triangles, lights,
+//          default_camera BLOB, warnings TEXT, created_unix_ms)
+//   jobs(id TEXT PRIMARY KEY, seq INTEGER UNIQUE, spec BLOB, state INTEGER, failure_reason,
+//        submitted_unix_ms, elapsed_seconds, samples_merged, noise_rms)
+//   tasks(job_id, task_id, state INTEGER, attempts, failures, last_error,
+//         PRIMARY KEY (job_id, task_id)) WITHOUT ROWID
+//
+// Accumulators are not in the database but in checkpoint files (server/store/checkpoint.h): the
+// checkpoint is the authority on which tasks are merged; `tasks.state` is informational for
+// merged tasks and authoritative for attempts/failures.
+//
+// Thread-safe (one connection behind a mutex). Errors are SystemError naming the statement.
+
+#include <filesystem>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "server/store/records.h"
+
+struct sqlite3;
+
+namespace pf::server {
+
+class SqliteStore {
+ public:
+  // Opens (creating if needed) the database file and its schema.
+  explicit SqliteStore(const std::filesystem::path& db_file);
+  ~SqliteStore();
+  SqliteStore(const SqliteStore&) = delete;
+  SqliteStore& operator=(const SqliteStore&) = delete;
+
+  void PutScene(const SceneRow& scene);  // insert or ignore (content-addressed)
+  std::vector<SceneRow> LoadScenes();
+
+  // The job row and all its task rows, in one transaction.
+  void InsertJob(const JobRow& job, const std::vector<TaskRow>& tasks);
+  // Updates of existing rows, in one transaction (jobs: state, failure reason, elapsed time,
+  // samples merged, noise; tasks: upserted).
+  void Apply(const std::vector<JobRow>& jobs, const std::vector<TaskRow>& tasks);
+  std::vector<JobRow> LoadJobs();  // in submission order
+  std::vector<TaskRow> LoadTasks(const std::string& job_id);  // by task id
+
+ private:
+  void Exec(const char* sql);
+  std::mutex mu_;
+  sqlite3* db_ = nullptr;
+  std::string path_;
+};
+
+}  // namespace pf::server

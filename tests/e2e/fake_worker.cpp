@@ -1,0 +1,171 @@
+// pf_fake_worker — a test and benchmark client that speaks WorkerService directly, without
+// rendering. Modes:
+//   bad-size   lease one task, complete it with one pixel too few        (e2e: must be rejected)
+//   nan        lease one task, complete it with a NaN in the first pixel (e2e: must be rejected)
+//   instant    lease and complete (zeros of the right size) as fast as possible with
+//              --concurrency threads, each with its own connection, until --tasks results were
+//              merged or --seconds passed; prints completions/s and bytes on the wire per task
+//              (bench/farm_bench.sh: the coordinator alone, "instant workers")
+// Prints one JSON object on stdout. Exit 0 if the mode did what it was asked, 1 otherwise.
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+#include <vector>
+
+#include "client/grpc_channel.h"
+#include "common/plan/task_plan.h"
+#include "photonfarm/v1/farm.grpc.pb.h"
+#include "proto/convert.h"
+
+namespace v1 = photonfarm::v1;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct Options {
+  std::string coordinator, token, mode = "instant";
+  double wait = 5, seconds = 10;
+  uint64_t tasks = 1000;
+  int concurrency = 4;
+};
+
+uint64_t PixelsOfTask(const v1::Task& t) {
+  const pf::CameraSpec cam = pf::CameraFromProto(t.camera(), "task.camera");
+  return pf::CountPixels(pf::PixelSubsetFromProto(t.pixels(), "task.pixels"), cam.width, cam.height);
+}
+
+bool LeaseOne(v1::WorkerService::Stub& stub, const Options& o, double wait, v1::Task* task, grpc::Status* status) {
+  v1::LeaseTaskRequest req;
+  req.set_worker_id("fake-" + o.mode);
+  req.set_threads(1);
+  req.set_wait_seconds(wait);
+  grpc::ClientContext ctx;
+  pf::PrepareContext(&ctx, o.token, pf::Seconds(wait + 10));
+  v1::LeaseTaskResponse resp;
+  *status = stub.LeaseTask(&ctx, req, &resp);
+  if (!status->ok() || !resp.has_task()) return false;
+  *task = resp.task();
+  return true;
+}
+
+int BadResult(const Options& o) {
+  auto stub = v1::WorkerService::NewStub(pf::MakeCoordinatorChannel(o.coordinator, {}));
+  v1::Task task;
+  grpc::Status st;
+  if (!LeaseOne(*stub, o, o.wait, &task, &st)) {
+    std::printf("%s\n", nlohmann::json{{"error", "no task leased"}, {"status", pf::StatusToString(st)}}.dump().c_str());
+    return 1;
+  }
+  const uint64_t pixels = PixelsOfTask(task);
+  v1::CompleteTaskRequest req;
+  req.set_lease_id(task.lease_id());
+  const uint64_t n = o.mode == "bad-size" ? (pixels - 1) * 3 : pixels * 3;
+  for (uint64_t i = 0; i < n; ++i) req.add_rgb_sums(0.25f);
+  if (o.mode == "nan") req.set_rgb_sums(0, std::numeric_limits<float>::quiet_NaN());
+  grpc::ClientContext ctx;
+  pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));
+  v1::CompleteTaskResponse resp;
+  const grpc::Status s = stub->CompleteTask(&ctx, req, &resp);
+  std::printf("%s\n", nlohmann::json{{"job_id", task.job_id()},
+                                     {"task_id", task.task_id()},
+                                     {"attempt", task.attempt()},
+                                     {"pixels", pixels},
+                                     {"code", pf::StatusCodeName(s.error_code())},
+                                     {"message", s.error_message()},
+                                     {"merged", resp.merged()}}
+                          .dump()
+                          .c_str());
+  return s.ok() ? 1 : 0;
+}
+
+int Instant(const Options& o) {
+  std::atomic<uint64_t> merged{0}, completed{0}, leases{0}, bytes{0}, pixels{0}, task_bytes{0};
+  std::atomic<bool> stop{false};
+  std::mutex error_mutex;
+  std::string error;
+  const Clock::time_point t0 = Clock::now();
+  const Clock::time_point until = t0 + pf::Seconds(o.seconds);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < o.concurrency; ++i)
+    threads.emplace_back([&] {
+      auto stub = v1::WorkerService::NewStub(pf::MakeCoordinatorChannel(o.coordinator, {}));
+      v1::CompleteTaskRequest req;
+      while (!stop && Clock::now() < until) {
+        v1::Task task;
+        grpc::Status st;
+        if (!LeaseOne(*stub, o, 0.2, &task, &st)) {
+          if (!st.ok()) {
+            std::lock_guard lock(error_mutex);
+            error = pf::StatusToString(st);
+            stop = true;
+          }
+          continue;
+        }
+        ++leases;
+        task_bytes += task.ByteSizeLong();
+        const uint64_t n = PixelsOfTask(task);
+        req.Clear();
+        req.set_lease_id(task.lease_id());
+        req.mutable_rgb_sums()->Resize(int(n * 3), 0.0f);
+        grpc::ClientContext ctx;
+        pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));
+        v1::CompleteTaskResponse resp;
+        const grpc::Status s = stub->CompleteTask(&ctx, req, &resp);
+        if (!s.ok()) {
+          std::lock_guard lock(error_mutex);
+          error = pf::StatusToString(s);
+          continue;
+        }
+        ++completed;
+        bytes += req.ByteSizeLong();
+        pixels += n;
+        if (resp.merged() && ++merged >= o.tasks) stop = true;
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  const uint64_t c = completed.load();
+  nlohmann::json j = {{"mode", "instant"},
+                      {"concurrency", o.concurrency},
+                      {"leases", leases.load()},
+                      {"completed", c},
+                      {"merged", merged.load()},
+                      {"seconds", seconds},
+                      {"completions_per_second", c / seconds},
+                      {"result_bytes_per_task", c ? double(bytes.load()) / double(c) : 0.0},
+                      {"task_bytes_per_lease", leases ? double(task_bytes.load()) / double(leases.load()) : 0.0},
+                      {"pixels_per_task", c ? double(pixels.load()) / double(c) : 0.0},
+                      {"error", error}};
+  std::printf("%s\n", j.dump().c_str());
+  return merged.load() > 0 ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  std::string token_file;
+  CLI::App app{"pf_fake_worker: speaks WorkerService without rendering (tests and benchmarks)"};
+  app.add_option("--coordinator", o.coordinator, "HOST:PORT")->required();
+  app.add_option("--token-file", token_file, "Bearer token file (default $PF_TOKEN)");
+  app.add_option("--mode", o.mode, "bad-size | nan | instant")->check(CLI::IsMember({"bad-size", "nan", "instant"}));
+  app.add_option("--wait", o.wait, "bad-size/nan: seconds to wait for a task")->capture_default_str();
+  app.add_option("--tasks", o.tasks, "instant: stop after this many merged results")->capture_default_str();
+  app.add_option("--seconds", o.seconds, "instant: stop after this long")->capture_default_str();
+  app.add_option("--concurrency", o.concurrency, "instant: parallel fake workers")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    o.token = pf::ResolveToken(token_file);
+    return o.mode == "instant" ? Instant(o) : BadResult(o);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "pf_fake_worker: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,144 @@
+#pragma once
+// The e2e harness: real processes (pf-coordinator, pf-worker, pf, the fake worker) on
+// ephemeral loopback ports, real SQLite files in a per-test folder, real EXR files read back.
+// Every child gets PR_SET_PDEATHSIG, and a Process's destructor SIGKILLs and reaps it, so a
+// failing (or crashing) test leaves nothing behind. The death signal follows the *thread* that
+// forked: start processes from the test's main thread only.
+
+#include <gtest/gtest.h>
+#include <sys/types.h>
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "common/image/image.h"
+
+namespace pf::e2e {
+
+// Built binaries and source paths (compile definitions from tests/e2e/CMakeLists.txt).
+struct Binaries {
+  static std::string Pf();
+  static std::string Worker();
+  static std::string Coordinator();
+  static std::string FakeWorker();
+  static std::string Scene();  // scenes/cornell-box/cornell-box.json
+};
+
+// A folder per test under $TMPDIR, removed at the end unless the test failed or PF_E2E_KEEP=1.
+class TestDir {
+ public:
+  TestDir();
+  ~TestDir();
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+class Process {
+ public:
+  // Starts argv[0] with the arguments; stdout and stderr append to `log` (both, or stdout to
+  // `out` when given). `env` entries are added to the environment ("" value = unset).
+  Process(std::string name, std::vector<std::string> argv, std::filesystem::path log,
+          std::filesystem::path out = {}, std::map<std::string, std::string> env = {});
+  ~Process();  // SIGKILL + reap if still running
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  pid_t pid() const { return pid_; }
+  const std::string& name() const { return name_; }
+  const std::filesystem::path& log() const { return log_; }
+  void Signal(int sig);
+  // Waits for exit; returns the exit code (128+signal if killed), nullopt on timeout.
+  std::optional<int> Wait(double seconds);
+  bool Running();
+
+ private:
+  std::string name_;
+  std::filesystem::path log_;
+  pid_t pid_ = -1;
+  bool reaped_ = false;
+  int status_ = 0;
+};
+
+std::string ReadFile(const std::filesystem::path& path);
+std::vector<std::string> ReadLines(const std::filesystem::path& path);
+// Lines matching `re` (search).
+std::vector<std::string> Grep(const std::filesystem::path& path, const std::string& re);
+// Polls `predicate` every 20 ms until it holds or `seconds` pass.
+bool WaitUntil(const std::function<bool()>& predicate, double seconds);
+
+// A coordinator in `data_dir`; port 0 = ephemeral. Waits for its "listening on" line.
+class CoordinatorProcess {
+ public:
+  CoordinatorProcess(const std::filesystem::path& data_dir, const std::filesystem::path& log_dir,
+                     std::vector<std::string> extra_args = {}, int port = 0, const std::string& token_file = "");
+  const std::string& address() const { return address_; }
+  int port() const { return port_; }
+  Process& process() { return *process_; }
+
+ private:
+  std::unique_ptr<Process> process_;
+  std::string address_;
+  int port_ = 0;
+};
+
+// pf-worker against `address` with 1 thread, its own cache folder and log.
+std::unique_ptr<Process> StartWorker(const std::string& address, const std::filesystem::path& dir,
+                                     const std::string& id, std::vector<std::string> extra_args = {});
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+// Runs a command to completion (killed after `timeout`), capturing stdout and stderr.
+RunResult RunCommand(const std::vector<std::string>& argv, const std::filesystem::path& dir, double timeout = 120,
+              std::map<std::string, std::string> env = {});
+
+inline std::vector<std::string> Concat(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+// Pixels of an EXR file / EXR bytes; bit-for-bit equality of two images.
+Image ReadImage(const std::filesystem::path& path);
+Image DecodeImage(const std::string& exr_bytes);
+::testing::AssertionResult BitIdentical(const Image& a, const Image& b);
+
+// The photon-map skipping job the tests share: cornell-box at 32x32, stride 2, few photons.
+struct JobArgs {
+  std::string integrator = "photonmap";
+  int photons = 2000;
+  int k = 20;
+  int stride = 2;
+  int rounds = 2;
+  int spp = 1;
+  int res = 32;
+  uint64_t seed = 7;
+  std::vector<std::string> ToFlags() const;
+};
+
+// Per-task counts of the worker log lines "completed job=J task=T ... merged=true".
+std::map<uint64_t, int> MergedTaskCounts(const std::vector<std::filesystem::path>& worker_logs,
+                                         const std::string& job_id);
+
+}  // namespace pf::e2e
+
+namespace pf::e2e {
+
+// Makes this process the reaper of orphaned descendants (PR_SET_CHILD_SUBREAPER), so that a
+// process `pf` leaves behind becomes our child and is seen by LiveChildren().
+void BecomeSubreaper();
+// Children of this process that are still alive (zombies are reaped and not counted), with
+// their command lines.
+std::vector<std::string> LiveChildren();
+
+}  // namespace pf::e2e

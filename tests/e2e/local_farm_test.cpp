@@ -1,0 +1,127 @@
+// `pf render --workers N`: the farm started, used and stopped by pf itself.
+//  (a) the final EXR is bit-identical for 1, 2 and 3 workers and equal to the single-process
+//      render of the same plan and seed (`pf render --local-only`);
+//  and pf leaves no process behind on success, on failure, on Ctrl-C and when SIGKILLed.
+#include <signal.h>
+
+#include <regex>
+
+#include "tests/e2e/harness.h"
+
+namespace pf::e2e {
+namespace {
+
+class LocalFarmTest : public ::testing::Test {
+ protected:
+  void SetUp() override { BecomeSubreaper(); }
+  void ExpectNoProcessLeft() {
+    // Orphans of pf would be re-parented to us (subreaper); give the kernel a moment.
+    std::vector<std::string> left;
+    WaitUntil([&] { return (left = LiveChildren()).empty(); }, 5);
+    EXPECT_TRUE(left.empty()) << "left behind: " << ::testing::PrintToString(left);
+  }
+};
+
+TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
+  TestDir dir;
+  const JobArgs job;  // cornell-box 32x32, photon map, skipping S=2 x 2 rounds
+  const std::vector<std::string> base = Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags());
+
+  const RunResult local = RunCommand(Concat(base, {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
+                              dir.path());
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  const Image reference = ReadImage(dir / "local.exr");
+  double sum = 0;
+  for (const Rgb& c : reference.pixels()) sum += c.r + c.g + c.b;
+  ASSERT_GT(sum, 0.0) << "the reference image is black";
+
+  for (int workers : {1, 2, 3}) {
+    const std::string out = (dir / ("farm-" + std::to_string(workers) + ".exr")).string();
+    const RunResult r = RunCommand(Concat(base, {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "-q"}),
+                            dir.path());
+    ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
+    EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
+    EXPECT_TRUE(std::filesystem::exists(dir / ("farm-" + std::to_string(workers) + ".png")));
+    ExpectNoProcessLeft();
+  }
+}
+
+TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
+  TestDir dir;
+  const std::vector<std::string> base = {Binaries::Pf(), "render", Binaries::Scene(), "--integrator", "photonmap",
+                                         "--photons", "2000", "--k", "20", "--res", "24x16", "--plan",
+                                         "multiple-maps", "--maps", "2", "--tile", "8", "--spp", "1", "--seed", "3",
+                                         "--no-png", "-q"};
+  const RunResult local = RunCommand(Concat(base, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  const RunResult farm = RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}),
+                             dir.path());
+  ASSERT_EQ(farm.exit_code, 0) << farm.err;
+  EXPECT_TRUE(BitIdentical(ReadImage(dir / "farm.exr"), ReadImage(dir / "local.exr")));
+  ExpectNoProcessLeft();
+}
+
+TEST_F(LocalFarmTest, CtrlCStopsEverything) {
+  TestDir dir;
+  JobArgs job;
+  job.photons = 200000;  // long enough to interrupt: many rounds of slow tasks
+  job.rounds = 50;
+  const std::string out = (dir / "out.exr").string();
+  Process pf("pf", Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
+                          {"--workers", "2", "--threads", "1", "-o", out, "-q", "--keep-farm-dir"}),
+             dir / "pf.log");
+  // Wait until a worker has finished a task (the farm is really running).
+  std::string farm_dir;
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        std::smatch m;
+        const std::string log = ReadFile(dir / "pf.log");
+        static const std::regex re(R"(logs in ([^)]+)\))");
+        if (farm_dir.empty() && std::regex_search(log, m, re)) farm_dir = m[1];
+        return !farm_dir.empty() && !Grep(std::filesystem::path(farm_dir) / "worker-1.log", "completed").empty();
+      },
+      60))
+      << ReadFile(dir / "pf.log");
+  pf.Signal(SIGINT);
+  const std::optional<int> code = pf.Wait(30);
+  ASSERT_TRUE(code.has_value()) << "pf did not exit after SIGINT";
+  EXPECT_EQ(*code, 130) << ReadFile(dir / "pf.log");
+  ExpectNoProcessLeft();
+  // The workers were stopped by SIGTERM (handed back or finished), not killed.
+  EXPECT_FALSE(Grep(std::filesystem::path(farm_dir) / "worker-1.log", "received SIGTERM").empty());
+  std::filesystem::remove_all(farm_dir);
+}
+
+TEST_F(LocalFarmTest, KilledPfLeavesNothingBehind) {
+  TestDir dir;
+  JobArgs job;
+  job.photons = 200000;
+  job.rounds = 50;
+  Process pf("pf", Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
+                          {"--workers", "2", "--threads", "1", "-o", (dir / "out.exr").string(), "-q"}),
+             dir / "pf.log");
+  ASSERT_TRUE(WaitUntil([&] { return ReadFile(dir / "pf.log").find("submitted") != std::string::npos; }, 60))
+      << ReadFile(dir / "pf.log");
+  pf.Signal(SIGKILL);
+  ASSERT_TRUE(pf.Wait(10).has_value());
+  ExpectNoProcessLeft();  // PR_SET_PDEATHSIG took the coordinator and the workers with it
+}
+
+TEST_F(LocalFarmTest, BrokenWorkersFailCleanly) {
+  TestDir dir;
+  const RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, JobArgs().ToFlags()),
+                                 {"--workers", "2", "--worker-bin", "/bin/false", "-o",
+                                  (dir / "out.exr").string(), "-q"}),
+                          dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("pf-worker #1 exited with status 1"), std::string::npos) << r.err;
+  ExpectNoProcessLeft();
+  // On failure the farm's folder is kept for its logs, and pf says where.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.err, m, std::regex(R"(farm folder kept: (\S+))"))) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(m[1].str()) / "coordinator.log"));
+  std::filesystem::remove_all(m[1].str());
+}
+
+}  // namespace
+}  // namespace pf::e2e

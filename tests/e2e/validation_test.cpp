@@ -1,0 +1,224 @@
+// (d) Bad requests through the real client library (FarmClient, the code `pf` runs) and the
+// real `pf` binary against a real coordinator: each gets the right status code and a message
+// that names the field; a worker that returns a wrong-size or NaN result (the fake worker, which
+// speaks WorkerService directly) is rejected and the task is re-run.
+#include <signal.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "client/farm_client.h"
+#include "tests/e2e/harness.h"
+
+namespace pf::e2e {
+namespace {
+namespace fs = std::filesystem;
+namespace v1 = photonfarm::v1;
+
+v1::JobSpec ValidSpec(const std::string& hash) {
+  v1::JobSpec s;
+  s.set_name("validation");
+  s.set_scene_hash(hash);
+  v1::Camera* c = s.mutable_camera();
+  c->mutable_eye()->set_y(1);
+  c->mutable_eye()->set_z(3.9);
+  c->mutable_look_at()->set_y(1);
+  c->mutable_up()->set_y(1);
+  c->set_vfov_degrees(39.3);
+  c->set_width(32);
+  c->set_height(32);
+  s.mutable_settings()->set_integrator(v1::INTEGRATOR_PHOTONMAP);
+  s.mutable_settings()->mutable_photon_map()->set_photons(1000);
+  s.mutable_settings()->mutable_photon_map()->set_k(20);
+  s.mutable_plan()->mutable_skipping()->set_stride(2);
+  s.mutable_plan()->mutable_skipping()->set_rounds(1);
+  s.mutable_plan()->mutable_skipping()->set_samples_per_pixel(1);
+  s.set_seed(1);
+  return s;
+}
+
+// The status of a call that must fail.
+grpc::Status Failure(const std::function<void()>& call) {
+  try {
+    call();
+  } catch (const RpcError& e) {
+    return e.status();
+  }
+  return grpc::Status::OK;
+}
+
+#define EXPECT_REJECTED(call, code, field)                                                          \
+  do {                                                                                              \
+    const grpc::Status st_ = Failure([&] { call; });                                                \
+    EXPECT_EQ(st_.error_code(), grpc::StatusCode::code) << #call << ": " << StatusToString(st_);    \
+    EXPECT_NE(st_.error_message().find(field), std::string::npos)                                   \
+        << #call << ": message does not name '" << field << "': " << st_.error_message();          \
+  } while (0)
+
+TEST(FarmValidation, BadJobsAreRejectedNamingTheField) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  FarmClient client(coordinator.address(), "");
+  const std::string hash = client.UploadScene(CollectBundle(Binaries::Scene())).scene_hash();
+  ASSERT_EQ(hash.size(), 64u);
+  EXPECT_FALSE(client.SubmitJob(ValidSpec(hash)).empty());  // the baseline is valid
+
+  v1::JobSpec s = ValidSpec(hash);
+  s.mutable_settings()->mutable_photon_map()->set_photons(0);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "photons");
+  s.mutable_settings()->mutable_photon_map()->set_photons(uint64_t(-1));  // "negative", as uint64
+  EXPECT_REJECTED(client.SubmitJob(s), RESOURCE_EXHAUSTED, "photons");
+
+  s = ValidSpec(hash);
+  s.mutable_settings()->mutable_photon_map()->set_k(0);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "k");
+  s = ValidSpec(hash);
+  s.mutable_settings()->set_integrator(v1::INTEGRATOR_UNSPECIFIED);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "integrator");
+
+  s = ValidSpec(hash);
+  s.mutable_camera()->set_width(0);
+  s.mutable_camera()->set_height(0);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "camera.width");
+  s.mutable_camera()->set_width(100000);
+  s.mutable_camera()->set_height(100000);
+  EXPECT_REJECTED(client.SubmitJob(s), RESOURCE_EXHAUSTED, "camera.width");
+  s = ValidSpec(hash);
+  s.mutable_camera()->set_vfov_degrees(0);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "vfov_degrees");
+
+  s = ValidSpec(std::string(64, 'a'));
+  EXPECT_REJECTED(client.SubmitJob(s), NOT_FOUND, "scene_hash");
+  s = ValidSpec("not-a-hash");
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "scene_hash");
+
+  s = ValidSpec(hash);
+  s.mutable_plan()->mutable_skipping()->set_stride(0);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "plan.skipping.stride");
+  s.mutable_plan()->mutable_skipping()->set_stride(100);  // S² = 10000 > 32·32 pixels
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "plan.skipping.stride");
+  s = ValidSpec(hash);
+  s.mutable_plan()->mutable_skipping()->set_rounds(0);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "plan.skipping.rounds");
+  s = ValidSpec(hash);
+  s.mutable_plan()->Clear();
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "plan");
+  s = ValidSpec(hash);
+  s.mutable_stop()->set_time_budget_seconds(-1);
+  EXPECT_REJECTED(client.SubmitJob(s), INVALID_ARGUMENT, "time_budget_seconds");
+
+  EXPECT_REJECTED(client.GetJob("job-999999"), NOT_FOUND, "job_id");
+  EXPECT_REJECTED(client.GetImage("job-999999"), NOT_FOUND, "job_id");
+
+  // A malformed scene: file:line.
+  SceneBundle bad;
+  bad.entry = "bad.mgf";
+  bad.files = {{"bad.mgf", "# a broken MGF file\nv p1 =\n\tp 0 0\n"}};
+  EXPECT_REJECTED(client.UploadScene(bad), INVALID_ARGUMENT, "bad.mgf:3");
+
+  // The same through the pf binary: exit 3 and the field on stderr; usage errors exit 2.
+  const std::vector<std::string> base = {Binaries::Pf(), "submit", Binaries::Scene(), "--coordinator",
+                                         coordinator.address(), "--integrator", "photonmap"};
+  RunResult r = RunCommand(Concat(base, {"--res", "32x32", "--plan", "skipping", "--stride", "100"}), dir.path());
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("plan.skipping.stride"), std::string::npos) << r.err;
+  r = RunCommand(Concat(base, {"--photons", "-5"}), dir.path());
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--photons"), std::string::npos) << r.err;
+  r = RunCommand(Concat(base, {"--res", "0x0"}), dir.path());
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("--res"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Pf(), "get", "job-424242", "-o", (dir / "x.exr").string(), "--coordinator",
+           coordinator.address()},
+          dir.path());
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("NOT_FOUND"), std::string::npos) << r.err;
+}
+
+TEST(FarmValidation, WrongTokenIsUnauthenticated) {
+  TestDir dir;
+  {
+    std::ofstream(dir / "token") << "s3cret-token\n";
+  }
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {}, 0, (dir / "token").string());
+  FarmClient right(coordinator.address(), "s3cret-token");
+  EXPECT_TRUE(right.ListJobs(true).empty());
+  FarmClient wrong(coordinator.address(), "guess");
+  EXPECT_REJECTED(wrong.ListJobs(true), UNAUTHENTICATED, "");
+  FarmClient none(coordinator.address(), "");
+  EXPECT_REJECTED(none.UploadScene(CollectBundle(Binaries::Scene())), UNAUTHENTICATED, "");
+
+  // pf: exit 1 with the code on stderr; the right token through PF_TOKEN works.
+  RunResult r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator.address()}, dir.path(), 30,
+                    {{"PF_TOKEN", "guess"}});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("UNAUTHENTICATED"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator.address()}, dir.path(), 30,
+          {{"PF_TOKEN", "s3cret-token"}});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+
+  // A worker with the wrong token gets nothing, says why, and keeps trying (the operator may fix
+  // the token file and restart it; it does not crash-loop); an empty token file is a usage error.
+  {
+    std::ofstream(dir / "wrong-token") << "guess\n";
+  }
+  auto worker = StartWorker(coordinator.address(), dir.path(), "w-wrong", {"--token-file", (dir / "wrong-token").string()});
+  EXPECT_TRUE(WaitUntil([&] { return !Grep(worker->log(), "UNAUTHENTICATED").empty(); }, 10)) << ReadFile(worker->log());
+  EXPECT_TRUE(worker->Running());
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(10).value_or(-1), 0);
+  auto empty_token = StartWorker(coordinator.address(), dir.path(), "w-empty", {"--token-file", "/dev/null"});
+  EXPECT_EQ(empty_token->Wait(10).value_or(-1), 2) << ReadFile(empty_token->log());
+  r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "nan", "--wait", "0.2"},
+          dir.path(), 30, {{"PF_TOKEN", "guess"}});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("UNAUTHENTICATED"), std::string::npos) << r.out << r.err;
+}
+
+TEST(FarmValidation, WrongSizeAndNanResultsAreRejectedAndRerun) {
+  TestDir dir;
+  JobArgs job;
+  job.rounds = 1;  // 4 tasks
+  const RunResult local = RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
+                                     {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
+                              dir.path());
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--max-attempts", "5"});
+  RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
+                           {"--coordinator", coordinator.address()}),
+                    dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string job_id = r.out.substr(0, r.out.find('\n'));
+
+  std::vector<uint64_t> rejected_tasks;
+  for (const char* mode : {"bad-size", "nan"}) {
+    r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", mode}, dir.path());
+    ASSERT_EQ(r.exit_code, 0) << mode << ": " << r.out << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["code"], "INVALID_ARGUMENT") << mode;
+    EXPECT_NE(j["message"].get<std::string>().find("rgb_sums"), std::string::npos) << j.dump();
+    EXPECT_FALSE(j["merged"].get<bool>());
+    rejected_tasks.push_back(j["task_id"].get<uint64_t>());
+  }
+  FarmClient client(coordinator.address(), "");
+  EXPECT_EQ(client.GetJob(job_id).tasks_done(), 0u);
+
+  auto worker = StartWorker(coordinator.address(), dir.path(), "w1");
+  v1::JobStatus st;
+  ASSERT_TRUE(WaitUntil([&] { return IsFinalState((st = client.GetJob(job_id)).state()); }, 60));
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  // The rejected tasks were re-run by the real worker (attempt > 1) and merged once.
+  for (uint64_t t : rejected_tasks)
+    EXPECT_FALSE(Grep(worker->log(), "completed job=" + job_id + " task=" + std::to_string(t) +
+                                         " attempt=[2-9] merged=true")
+                     .empty())
+        << "task " << t << "\n"
+        << ReadFile(worker->log());
+  EXPECT_EQ(st.samples_merged(), uint64_t(job.res) * job.res * job.spp * job.rounds);
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), ReadImage(dir / "local.exr")));
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(20).value_or(-1), 0);
+}
+
+}  // namespace
+}  // namespace pf::e2e

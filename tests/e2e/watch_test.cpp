@@ -1,0 +1,141 @@
+// (e) WatchJob on a multi-round skipping job delivers several image snapshots whose estimated
+// noise decreases, and the last one equals GetImage; `pf watch -o` keeps the EXR up to date
+// (atomically rewritten) and ends with the final image.
+#include <signal.h>
+
+#include <algorithm>
+#include <condition_variable>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "client/farm_client.h"
+#include "tests/e2e/harness.h"
+
+namespace pf::e2e {
+namespace {
+namespace v1 = photonfarm::v1;
+
+TEST(FarmWatch, SnapshotsGetLessNoisyAndTheLastIsTheImage) {
+  TestDir dir;
+  JobArgs job;
+  job.photons = 100000;  // ~0.15 s per task: the coordinator refreshes its noise estimate every 0.5 s
+  job.k = 40;
+  job.rounds = 6;  // 24 tasks; the noise estimate needs >= 2 maps per pixel (round 2 on)
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const RunResult sub = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
+                                   {"--coordinator", coordinator.address()}),
+                            dir.path());
+  ASSERT_EQ(sub.exit_code, 0) << sub.err;
+  const std::string job_id = sub.out.substr(0, sub.out.find('\n'));
+
+  // pf watch as a second observer, rewriting its EXR.
+  const std::string watched = (dir / "watched.exr").string();
+  Process pf_watch("pf-watch",
+                   {Binaries::Pf(), "watch", job_id, "-o", watched, "--json", "--interval", "0.05", "--coordinator",
+                    coordinator.address()},
+                   dir / "watch.err", dir / "watch.out");
+
+  struct Snapshot {
+    double noise;
+    uint32_t rounds_done;
+    uint64_t tasks_done;
+    std::string exr;
+  };
+  std::vector<Snapshot> snapshots;
+  FarmClient client(coordinator.address(), "");
+  std::unique_ptr<Process> worker;
+  // A watch has no end of its own if the job never finishes: give up after 90 s.
+  std::mutex m;
+  std::condition_variable cv;
+  bool done = false;
+  std::thread watchdog([&] {
+    std::unique_lock lock(m);
+    if (!cv.wait_for(lock, std::chrono::seconds(90), [&] { return done; })) client.Cancel();
+  });
+  const v1::JobStatus final_status = client.Watch(job_id, true, 0.05, [&](const v1::JobUpdate& u) {
+    // One worker, started once the watch is subscribed (from this thread: see harness.h).
+    if (!worker) worker = StartWorker(coordinator.address(), dir.path(), "w1");
+    if (u.has_image() && !u.image().exr_bytes().empty())
+      snapshots.push_back({u.status().estimated_noise_rms(), u.status().rounds_done(), u.status().tasks_done(),
+                           u.image().exr_bytes()});
+  });
+  {
+    std::lock_guard lock(m);
+    done = true;
+  }
+  cv.notify_all();
+  watchdog.join();
+  ASSERT_EQ(final_status.state(), v1::JOB_STATE_SUCCEEDED);
+
+  // Several snapshots with a noise estimate, and the estimate comes down as maps accumulate.
+  // It is the RMS over pixels with >= 2 maps of their standard error: within a round, pixels
+  // that just got their second map join with a large error, so it may tick up briefly; over
+  // rounds it falls like 1/sqrt(maps) (2 -> 6 maps: x0.58). So: the last estimate is the lowest,
+  // well below the first, and the estimate falls more often than it rises.
+  std::vector<double> noise;
+  std::string trace;
+  for (const Snapshot& s : snapshots) {
+    trace += "\n  tasks " + std::to_string(s.tasks_done) + " rounds " + std::to_string(s.rounds_done) + " noise " +
+             std::to_string(s.noise);
+    if (s.noise >= 0 && (noise.empty() || s.noise != noise.back())) noise.push_back(s.noise);
+  }
+  std::printf("%zu snapshots, %zu distinct noise estimates:", snapshots.size(), noise.size());
+  for (double n : noise) std::printf(" %.4f", n);
+  std::printf("\n");
+  ASSERT_GE(snapshots.size(), 4u) << trace;
+  ASSERT_GE(noise.size(), 3u) << trace;
+  int falls = 0, rises = 0;
+  for (size_t i = 1; i < noise.size(); ++i) (noise[i] < noise[i - 1] ? falls : rises) += 1;
+  EXPECT_EQ(noise.back(), *std::min_element(noise.begin(), noise.end())) << trace;
+  EXPECT_LT(noise.back(), 0.85 * noise.front()) << trace;
+  EXPECT_GT(falls, rises) << trace;
+
+  // The last snapshot is the final image, bit for bit.
+  const std::string final_bytes = client.GetImage(job_id);
+  EXPECT_TRUE(BitIdentical(DecodeImage(snapshots.back().exr), DecodeImage(final_bytes)));
+  EXPECT_EQ(snapshots.back().tasks_done, final_status.tasks_total());
+
+  // pf watch: exit 0, several snapshot updates, and its EXR is the final image.
+  EXPECT_EQ(pf_watch.Wait(30).value_or(-1), 0) << ReadFile(dir / "watch.err");
+  int pf_snapshots = 0;
+  for (const std::string& line : ReadLines(dir / "watch.out"))
+    if (!line.empty() && line[0] == '{') pf_snapshots += nlohmann::json::parse(line)["snapshot"].get<bool>();
+  EXPECT_GE(pf_snapshots, 2) << ReadFile(dir / "watch.out");
+  EXPECT_TRUE(BitIdentical(ReadImage(watched), DecodeImage(final_bytes)));
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(20).value_or(-1), 0);
+}
+
+TEST(FarmWatch, SnapshotsLargerThanOneMessageArriveWhole) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const RunResult sub = RunCommand({Binaries::Pf(), "submit", Binaries::Scene(), "--res", "512x512", "--spp", "1",
+                                    "--plan", "multiple-maps", "--tile", "128", "--coordinator", coordinator.address()},
+                                   dir.path());
+  ASSERT_EQ(sub.exit_code, 0) << sub.err;
+  const std::string job_id = sub.out.substr(0, sub.out.find('\n'));
+  FarmClient client(coordinator.address(), "");
+  std::unique_ptr<Process> worker;
+  size_t largest = 0, snapshots = 0;
+  std::string last;
+  const v1::JobStatus st = client.Watch(job_id, true, 0.05, [&](const v1::JobUpdate& u) {
+    if (!worker) worker = StartWorker(coordinator.address(), dir.path(), "w1");
+    if (!u.has_image()) return;
+    EXPECT_EQ(u.image().count(), 1u);
+    const Image img = DecodeImage(u.image().exr_bytes());  // whole: decodes
+    EXPECT_EQ(img.width(), 512);
+    largest = std::max(largest, u.image().exr_bytes().size());
+    last = u.image().exr_bytes();
+    ++snapshots;
+  });
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_GT(largest, size_t(1) << 20) << "no snapshot needed more than one chunk";
+  EXPECT_GE(snapshots, 2u);
+  EXPECT_EQ(last, client.GetImage(job_id));
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(20).value_or(-1), 0);
+}
+
+}  // namespace
+}  // namespace pf::e2e

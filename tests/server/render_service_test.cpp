@@ -1,0 +1,360 @@
+// Validation of client requests through the real RenderServiceImpl on an in-process gRPC server
+// (127.0.0.1:0, real channel, no mocks): each bad request gets the exact status code and a
+// message naming the field, and nothing is stored. Plus the bearer token on both services.
+#include <grpcpp/generic/generic_stub.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <functional>
+#include <mutex>
+
+#include "tests/server/server_test_util.h"
+
+namespace pf::server {
+namespace {
+using ::testing::HasSubstr;
+using testing::Ctx;
+using testing::LiveCoordinator;
+using testing::TempDir;
+namespace v1 = photonfarm::v1;
+
+class RenderServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    CoordinatorOptions o;
+    o.data_dir = dir_.path() / "data";
+    live_ = std::make_unique<LiveCoordinator>(o);
+    v1::UploadSceneRequest req;
+    *req.mutable_bundle() = testing::ToProto(CollectBundle(testing::CornellManifest()));
+    v1::UploadSceneResponse resp;
+    const grpc::Status st = live_->render->UploadScene(Ctx().get(), req, &resp);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    hash_ = resp.scene_hash();
+  }
+
+  v1::JobSpec ValidSpec() const {
+    v1::JobSpec spec;
+    spec.set_scene_hash(hash_);
+    v1::Camera* cam = spec.mutable_camera();
+    cam->mutable_eye()->set_y(1);
+    cam->mutable_eye()->set_z(3.9);
+    cam->mutable_look_at()->set_y(1);
+    cam->mutable_up()->set_y(1);
+    cam->set_vfov_degrees(39.3);
+    cam->set_width(32);
+    cam->set_height(24);
+    spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PHOTONMAP);
+    spec.mutable_settings()->mutable_photon_map()->set_photons(1000);
+    spec.mutable_settings()->mutable_photon_map()->set_k(20);
+    spec.mutable_plan()->mutable_skipping()->set_stride(2);
+    spec.mutable_plan()->mutable_skipping()->set_rounds(2);
+    spec.mutable_plan()->mutable_skipping()->set_samples_per_pixel(1);
+    spec.set_seed(3);
+    return spec;
+  }
+
+  grpc::Status Submit(const v1::JobSpec& spec, v1::SubmitJobResponse* resp = nullptr) {
+    v1::SubmitJobRequest req;
+    *req.mutable_spec() = spec;
+    v1::SubmitJobResponse ignored;
+    return live_->render->SubmitJob(Ctx().get(), req, resp ? resp : &ignored);
+  }
+
+  TempDir dir_;
+  std::unique_ptr<LiveCoordinator> live_;
+  std::string hash_;
+};
+
+struct BadCase {
+  const char* name;
+  std::function<void(v1::JobSpec&)> mutate;
+  grpc::StatusCode code;
+  const char* message;  // the message starts with this (the field path)
+};
+
+TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
+  using C = grpc::StatusCode;
+  const std::vector<BadCase> cases = {
+      {"zero photons", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photons(0); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.photons: must be >= 1"},
+      {"too many photons",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photons(uint64_t(1) << 40); },
+       C::RESOURCE_EXHAUSTED, "spec.settings.photon_map.photons: 1099511627776 exceeds the limit"},
+      {"zero k", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_k(0); }, C::INVALID_ARGUMENT,
+       "spec.settings.photon_map.k: must be >= 1"},
+      {"no integrator", [](v1::JobSpec& s) { s.mutable_settings()->clear_integrator(); }, C::INVALID_ARGUMENT,
+       "spec.settings.integrator:"},
+      {"0x0 image with a camera",
+       [](v1::JobSpec& s) {
+         s.mutable_camera()->set_width(0);
+         s.mutable_camera()->set_height(0);
+       },
+       C::INVALID_ARGUMENT, "spec.camera.width/height: must be > 0"},
+      {"width without height",
+       [](v1::JobSpec& s) {
+         s.clear_camera();
+         s.mutable_camera()->set_width(64);
+       },
+       C::INVALID_ARGUMENT, "spec.camera.width/height: set both"},
+      {"huge image",
+       [](v1::JobSpec& s) {
+         s.mutable_camera()->set_width(100000);
+         s.mutable_camera()->set_height(100000);
+       },
+       C::RESOURCE_EXHAUSTED, "spec.camera.width/height: 100000x100000 exceeds the limit"},
+      {"eye equals look_at", [](v1::JobSpec& s) { s.mutable_camera()->mutable_look_at()->set_z(3.9); },
+       C::INVALID_ARGUMENT, "spec.camera.look_at: must differ from eye"},
+      {"fov 180", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(180); }, C::INVALID_ARGUMENT,
+       "spec.camera.vfov_degrees"},
+      {"NaN eye", [](v1::JobSpec& s) { s.mutable_camera()->mutable_eye()->set_x(std::nan("")); },
+       C::INVALID_ARGUMENT, "spec.camera.eye: must be three finite numbers"},
+      {"no plan", [](v1::JobSpec& s) { s.clear_plan(); }, C::INVALID_ARGUMENT, "spec.plan: one of"},
+      {"stride 0", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_stride(0); },
+       C::INVALID_ARGUMENT, "spec.plan.skipping.stride: must be >= 1"},
+      {"stride too large", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_stride(28); },
+       C::INVALID_ARGUMENT, "spec.plan.skipping.stride: S² = 784 exceeds the number of pixels"},
+      {"rounds 0", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_rounds(0); }, C::INVALID_ARGUMENT,
+       "spec.plan.skipping.rounds: must be >= 1"},
+      {"spp 0", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_samples_per_pixel(0); },
+       C::INVALID_ARGUMENT, "spec.plan.skipping.samples_per_pixel: must be >= 1"},
+      {"spp over limit",
+       [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_samples_per_pixel(1u << 20); },
+       C::RESOURCE_EXHAUSTED, "spec.plan.skipping.samples_per_pixel: exceeds the limit"},
+      {"zero maps",
+       [](v1::JobSpec& s) {
+         s.mutable_plan()->mutable_multiple_maps()->set_maps(0);
+         s.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
+       },
+       C::INVALID_ARGUMENT, "spec.plan.multiple_maps.maps: must be >= 1"},
+      {"too many tasks",
+       [](v1::JobSpec& s) {
+         s.mutable_plan()->mutable_multiple_maps()->set_maps(100000);
+         s.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
+         s.mutable_plan()->mutable_multiple_maps()->set_tile_size(4);
+       },
+       C::RESOURCE_EXHAUSTED, "spec.plan: 4800000 tasks exceed the limit of 1048576"},
+      {"one task too large for a message",
+       [](v1::JobSpec& s) {
+         s.mutable_camera()->set_width(4096);
+         s.mutable_camera()->set_height(4096);
+         s.mutable_plan()->mutable_multiple_maps()->set_maps(1);
+         s.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
+       },
+       C::RESOURCE_EXHAUSTED, "spec.plan.multiple_maps: a task of 16777216 pixels exceeds the limit"},
+      {"negative time budget", [](v1::JobSpec& s) { s.mutable_stop()->set_time_budget_seconds(-1); },
+       C::INVALID_ARGUMENT, "spec.stop.time_budget_seconds: must be a finite number >= 0"},
+      {"NaN noise target", [](v1::JobSpec& s) { s.mutable_stop()->set_target_noise_rms(std::nan("")); },
+       C::INVALID_ARGUMENT, "spec.stop.target_noise_rms"},
+      {"long name", [](v1::JobSpec& s) { s.set_name(std::string(300, 'n')); }, C::INVALID_ARGUMENT,
+       "spec.name: longer than 256 bytes"},
+      {"no scene", [](v1::JobSpec& s) { s.clear_scene_hash(); }, C::INVALID_ARGUMENT, "spec.scene_hash: required"},
+      {"malformed scene hash", [](v1::JobSpec& s) { s.set_scene_hash("xyz"); }, C::INVALID_ARGUMENT,
+       "spec.scene_hash: must be 64 lowercase hex digits"},
+      {"unknown scene hash", [](v1::JobSpec& s) { s.set_scene_hash(std::string(64, '0')); }, C::NOT_FOUND,
+       "spec.scene_hash: unknown scene '0000"},
+  };
+  for (const BadCase& c : cases) {
+    v1::JobSpec spec = ValidSpec();
+    c.mutate(spec);
+    const grpc::Status st = Submit(spec);
+    EXPECT_EQ(st.error_code(), c.code) << c.name << ": " << st.error_message();
+    EXPECT_EQ(st.error_message().rfind(c.message, 0), 0u)
+        << c.name << ": got '" << st.error_message() << "', expected it to start with '" << c.message << "'";
+  }
+  // Nothing was stored or queued.
+  v1::ListJobsRequest list;
+  list.set_include_finished(true);
+  v1::ListJobsResponse jobs;
+  ASSERT_TRUE(live_->render->ListJobs(Ctx().get(), list, &jobs).ok());
+  EXPECT_EQ(jobs.jobs_size(), 0);
+  // And the valid spec is accepted.
+  v1::SubmitJobResponse resp;
+  const grpc::Status st = Submit(ValidSpec(), &resp);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(resp.job_id(), "job-1");
+}
+
+TEST_F(RenderServiceTest, UnsetCameraUsesTheManifestCamera) {
+  v1::JobSpec spec = ValidSpec();
+  spec.clear_camera();
+  v1::SubmitJobResponse resp;
+  ASSERT_TRUE(Submit(spec, &resp).ok());
+  v1::GetJobRequest get;
+  get.set_job_id(resp.job_id());
+  v1::JobStatus status;
+  ASSERT_TRUE(live_->render->GetJob(Ctx().get(), get, &status).ok());
+  EXPECT_EQ(status.spec().camera().width(), 512u);  // cornell-box.json
+  EXPECT_NEAR(status.spec().camera().vfov_degrees(), 39.3, 1e-5);
+  EXPECT_EQ(status.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(status.tasks_total(), 8u);
+  // Only a resolution: the manifest camera at that size.
+  spec.mutable_camera()->set_width(40);
+  spec.mutable_camera()->set_height(30);
+  ASSERT_TRUE(Submit(spec, &resp).ok());
+  get.set_job_id(resp.job_id());
+  ASSERT_TRUE(live_->render->GetJob(Ctx().get(), get, &status).ok());
+  EXPECT_EQ(status.spec().camera().width(), 40u);
+  EXPECT_NEAR(status.spec().camera().eye().z(), 3.9, 1e-5);
+}
+
+TEST_F(RenderServiceTest, ScenesAreValidatedAndUploadIsIdempotent) {
+  v1::UploadSceneRequest again;
+  *again.mutable_bundle() = testing::ToProto(CollectBundle(testing::CornellManifest()));
+  v1::UploadSceneResponse resp;
+  ASSERT_TRUE(live_->render->UploadScene(Ctx().get(), again, &resp).ok());
+  EXPECT_EQ(resp.scene_hash(), hash_);
+  EXPECT_GT(resp.triangles(), 0u);
+  EXPECT_EQ(resp.lights(), 1u);
+
+  v1::UploadSceneRequest broken;
+  broken.mutable_bundle()->set_entry("room.mgf");
+  v1::SceneFile* f = broken.mutable_bundle()->add_files();
+  f->set_path("room.mgf");
+  f->set_content("# a room\nv a =\n p 0 0 0\nf a nowhere elsewhere\n");
+  grpc::Status st = live_->render->UploadScene(Ctx().get(), broken, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message().rfind("room.mgf:4:", 0), 0u) << st.error_message();
+
+  v1::UploadSceneRequest escape;
+  escape.mutable_bundle()->set_entry("a.mgf");
+  escape.mutable_bundle()->add_files()->set_path("a.mgf");
+  escape.mutable_bundle()->add_files()->set_path("../../etc/x");
+  st = live_->render->UploadScene(Ctx().get(), escape, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(st.error_message(), HasSubstr("bundle.files[1].path '../../etc/x': '..' component"));
+
+  v1::UploadSceneRequest empty;
+  st = live_->render->UploadScene(Ctx().get(), empty, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(st.error_message(), HasSubstr("bundle.files"));
+}
+
+TEST_F(RenderServiceTest, UnknownJobsAreNotFound) {
+  v1::GetJobRequest get;
+  get.set_job_id("job-404");
+  v1::JobStatus status;
+  grpc::Status st = live_->render->GetJob(Ctx().get(), get, &status);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(st.error_message(), "job_id: unknown job 'job-404'");
+  v1::CancelJobRequest cancel;
+  cancel.set_job_id("job-404");
+  v1::CancelJobResponse cr;
+  EXPECT_EQ(live_->render->CancelJob(Ctx().get(), cancel, &cr).error_code(), grpc::StatusCode::NOT_FOUND);
+  get.set_job_id("");
+  EXPECT_EQ(live_->render->GetJob(Ctx().get(), get, &status).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  v1::GetImageRequest img;
+  img.set_job_id("job-404");
+  auto ctx = Ctx();
+  auto reader = live_->render->GetImage(ctx.get(), img);
+  v1::ImageChunk chunk;
+  EXPECT_FALSE(reader->Read(&chunk));
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+  v1::WatchJobRequest watch;
+  watch.set_job_id("job-404");
+  auto wctx = Ctx();
+  auto wreader = live_->render->WatchJob(wctx.get(), watch);
+  v1::JobUpdate update;
+  EXPECT_FALSE(wreader->Read(&update));
+  EXPECT_EQ(wreader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+class TokenTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    CoordinatorOptions o;
+    o.data_dir = dir_.path() / "data";
+    o.token = "s3cret-token";
+    live_ = std::make_unique<LiveCoordinator>(o);
+  }
+  TempDir dir_;
+  std::unique_ptr<LiveCoordinator> live_;
+};
+
+TEST_F(TokenTest, BothServicesRequireTheBearerToken) {
+  for (const std::string& token : {std::string(), std::string("wrong"), std::string("s3cret-token")}) {
+    const bool good = token == "s3cret-token";
+    SCOPED_TRACE(token.empty() ? "no token" : token);
+    auto expect = [&](const grpc::Status& st) {
+      if (good)
+        EXPECT_NE(st.error_code(), grpc::StatusCode::UNAUTHENTICATED) << st.error_message();
+      else
+        EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAUTHENTICATED) << st.error_message();
+    };
+    v1::ListJobsResponse list;
+    expect(live_->render->ListJobs(Ctx(token).get(), v1::ListJobsRequest(), &list));
+    v1::SubmitJobResponse submit;
+    expect(live_->render->SubmitJob(Ctx(token).get(), v1::SubmitJobRequest(), &submit));
+    v1::UploadSceneResponse upload;
+    expect(live_->render->UploadScene(Ctx(token).get(), v1::UploadSceneRequest(), &upload));
+    v1::LeaseTaskRequest lease_req;
+    lease_req.set_worker_id("w");
+    v1::LeaseTaskResponse lease;
+    expect(live_->worker->LeaseTask(Ctx(token).get(), lease_req, &lease));
+    v1::ExtendLeaseRequest extend_req;
+    extend_req.set_lease_id("x");
+    v1::ExtendLeaseResponse extend;
+    expect(live_->worker->ExtendLease(Ctx(token).get(), extend_req, &extend));
+    v1::CompleteTaskRequest complete_req;
+    complete_req.set_lease_id("x");
+    v1::CompleteTaskResponse complete;
+    expect(live_->worker->CompleteTask(Ctx(token).get(), complete_req, &complete));
+    v1::FailTaskRequest fail_req;
+    fail_req.set_lease_id("x");
+    v1::FailTaskResponse fail;
+    expect(live_->worker->FailTask(Ctx(token).get(), fail_req, &fail));
+    {
+      auto ctx = Ctx(token);
+      v1::FetchSceneRequest req;
+      req.set_scene_hash(std::string(64, 'c'));
+      auto reader = live_->worker->FetchScene(ctx.get(), req);
+      v1::SceneFile file;
+      while (reader->Read(&file)) {
+      }
+      expect(reader->Finish());
+    }
+    {
+      auto ctx = Ctx(token);
+      v1::WatchJobRequest req;
+      req.set_job_id("job-1");
+      auto reader = live_->render->WatchJob(ctx.get(), req);
+      v1::JobUpdate u;
+      while (reader->Read(&u)) {
+      }
+      expect(reader->Finish());
+    }
+  }
+}
+
+TEST_F(TokenTest, HealthCheckIsOpen) {
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  grpc::ByteBuffer response;
+  // grpc.health.v1.Health/Check with an empty HealthCheckRequest (service "").
+  grpc::GenericStub stub(live_->channel);
+  const grpc::Slice empty;
+  grpc::ByteBuffer req(&empty, 1);
+  std::mutex mu;
+  std::condition_variable cv;
+  bool done = false;
+  grpc::Status status;
+  stub.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &req, &response,
+                 [&](grpc::Status s) {
+                   std::lock_guard lock(mu);
+                   status = s;
+                   done = true;
+                   cv.notify_all();
+                 });
+  std::unique_lock lock(mu);
+  cv.wait(lock, [&] { return done; });
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  std::vector<grpc::Slice> slices;
+  ASSERT_TRUE(response.Dump(&slices).ok());
+  std::string bytes;
+  for (const auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  EXPECT_EQ(bytes, std::string("\x08\x01", 2)) << "status: SERVING";
+}
+
+}  // namespace
+}  // namespace pf::server

@@ -1,0 +1,436 @@
+// The scheduler's rules with a FakeClock (no sleeping): leases, heartbeats, expiry and attempts,
+// bounded retries, idempotent results, priorities, map affinity, long polls, stop rules.
+#include "server/scheduling/scheduler.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "server/errors.h"
+#include "server/scheduling/clock.h"
+#include "tests/server/server_test_util.h"
+
+namespace pf::server {
+namespace {
+using ::testing::HasSubstr;
+using testing::MakeConfig;
+using testing::MultipleMaps;
+using testing::Skipping;
+using testing::SyntheticResult;
+namespace v1 = photonfarm::v1;
+
+class SchedulerTest : public ::testing::Test {
+ protected:
+  SchedulerTest() : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3}) {}
+
+  std::string Submit(const JobConfig& config) {
+    std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
+    const std::string id = job->id();
+    scheduler_.AddJob(std::move(job));
+    return id;
+  }
+  Lease MustLease(const std::string& worker = "w1", std::vector<uint64_t> seeds = {}) {
+    std::optional<Lease> lease = scheduler_.TryLease({worker, std::move(seeds)});
+    EXPECT_TRUE(lease.has_value());
+    return lease.value_or(Lease{});
+  }
+  CompleteResult CompleteOk(const Lease& lease) {
+    const auto& cam = lease.config->camera;
+    const std::vector<float> sums = SyntheticResult(lease.task, cam.width, cam.height);
+    return scheduler_.Complete(lease.lease_id, sums);
+  }
+
+  FakeClock clock_;
+  Scheduler scheduler_;
+};
+
+TEST_F(SchedulerTest, JobRunsFromQueuedToSucceeded) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 8, 4));
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(scheduler_.Status(id).tasks_total(), 2u);
+  const Lease a = MustLease();
+  EXPECT_EQ(a.attempt, 1u);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(scheduler_.Status(id).tasks_running(), 1u);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
+  const Lease b = MustLease();
+  EXPECT_NE(a.task_id, b.task_id);
+  EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kMerged);
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_done(), 2u);
+  EXPECT_EQ(s.samples_merged(), 2u * 8 * 4);
+  EXPECT_GE(s.estimated_noise_rms(), 0.0);  // two maps cover every pixel
+  EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value());
+}
+
+TEST_F(SchedulerTest, ExpiredLeaseIsRequeuedWithTheNextAttempt) {
+  Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease first = MustLease("w1");
+  clock_.Advance(29.9);
+  scheduler_.Tick();
+  EXPECT_FALSE(scheduler_.TryLease({"w2", {}}).has_value()) << "still leased before expiry";
+  clock_.Advance(0.2);
+  scheduler_.Tick();
+  const Lease second = MustLease("w2");
+  EXPECT_EQ(second.task_id, first.task_id);
+  EXPECT_EQ(second.attempt, 2u);
+  EXPECT_NE(second.lease_id, first.lease_id);
+  EXPECT_EQ(scheduler_.counters().expired, 1u);
+  // The first worker's lease is gone: heartbeat says stop, its result is ignored.
+  EXPECT_FALSE(scheduler_.Extend(first.lease_id, 0.5).ok);
+  const CompleteResult late = CompleteOk(first);
+  EXPECT_EQ(late.status, CompleteStatus::kIgnored);
+  EXPECT_EQ(CompleteOk(second).status, CompleteStatus::kMerged);
+}
+
+TEST_F(SchedulerTest, ExpiryIsNoticedWhenTheLeaseIsUsedEvenWithoutATick) {
+  Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease first = MustLease();
+  clock_.Advance(31);
+  EXPECT_EQ(CompleteOk(first).status, CompleteStatus::kIgnored);
+  EXPECT_EQ(MustLease().attempt, 2u);
+}
+
+TEST_F(SchedulerTest, HeartbeatExtendsTheLease) {
+  Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease lease = MustLease();
+  for (int i = 0; i < 5; ++i) {
+    clock_.Advance(20);
+    const ExtendResult r = scheduler_.Extend(lease.lease_id, 0.1 * i);
+    EXPECT_TRUE(r.ok);
+    EXPECT_EQ(r.lease_seconds, 30);
+    scheduler_.Tick();
+  }
+  // 100 s after the lease started it is still alive thanks to the heartbeats.
+  EXPECT_FALSE(scheduler_.TryLease({"w2", {}}).has_value());
+  EXPECT_EQ(CompleteOk(lease).status, CompleteStatus::kMerged);
+}
+
+TEST_F(SchedulerTest, TooManyFailedAttemptsFailTheJobWithTheReason) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
+  for (uint32_t attempt = 1; attempt <= 3; ++attempt) {
+    const Lease lease = MustLease();
+    ASSERT_EQ(lease.task_id, 0u);
+    ASSERT_EQ(lease.attempt, attempt);
+    clock_.Advance(31);
+    scheduler_.Tick();
+  }
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
+  EXPECT_THAT(s.failure_reason(), HasSubstr("task 0 attempt 3 failed: lease expired (worker w1)"));
+  EXPECT_THAT(s.failure_reason(), HasSubstr("gave up after 3 failed attempts"));
+  EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value()) << "a failed job's other tasks are cancelled";
+}
+
+TEST_F(SchedulerTest, FailTaskRetriesThenNonRetryableFailsAtOnce) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease a = MustLease();
+  EXPECT_TRUE(scheduler_.Fail(a.lease_id, "out of memory", /*retryable=*/true));
+  EXPECT_FALSE(scheduler_.Fail(a.lease_id, "again", true)) << "the lease is gone";
+  const Lease b = MustLease();
+  EXPECT_EQ(b.attempt, 2u);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING);
+  EXPECT_TRUE(scheduler_.Fail(b.lease_id, "scene does not load", /*retryable=*/false));
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
+  EXPECT_THAT(s.failure_reason(), HasSubstr("worker: scene does not load (not retryable)"));
+}
+
+TEST_F(SchedulerTest, DuplicateResultsAreIgnoredAndMergedOnce) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
+  const Lease a = MustLease();
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kIgnored);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kIgnored);
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.tasks_done(), 1u);
+  EXPECT_EQ(s.samples_merged(), 16u);
+  EXPECT_EQ(scheduler_.counters().ignored, 2u);
+  const JobSnapshot snap = scheduler_.Snapshot(id, true);
+  ASSERT_TRUE(snap.image.has_value());
+  EXPECT_EQ(snap.image->metadata.at("tasks_merged"), "1");
+}
+
+TEST_F(SchedulerTest, LateResultAfterReassignmentIsIgnored) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease a = MustLease("slow");
+  clock_.Advance(31);
+  scheduler_.Tick();
+  const Lease b = MustLease("fast");
+  EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kMerged);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kIgnored);
+  EXPECT_EQ(scheduler_.Status(id).tasks_done(), 1u);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+TEST_F(SchedulerTest, RejectedResultsRequeueTheTaskWithTheNextAttempt) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease a = MustLease();
+  const std::vector<float> short_result(5, 1.0f);
+  CompleteResult r = scheduler_.Complete(a.lease_id, short_result);
+  EXPECT_EQ(r.status, CompleteStatus::kRejected);
+  EXPECT_THAT(r.reason, HasSubstr("rgb_sums has 5 values, expected 48"));
+  const Lease b = MustLease();
+  EXPECT_EQ(b.task_id, a.task_id);
+  EXPECT_EQ(b.attempt, 2u);
+  std::vector<float> nan_result = SyntheticResult(b.task, 4, 4);
+  nan_result[7] = std::nanf("");
+  r = scheduler_.Complete(b.lease_id, nan_result);
+  EXPECT_EQ(r.status, CompleteStatus::kRejected);
+  EXPECT_THAT(r.reason, HasSubstr("rgb_sums[7] is not finite"));
+  const Lease c = MustLease();
+  EXPECT_EQ(c.attempt, 3u);
+  EXPECT_EQ(CompleteOk(c).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(scheduler_.counters().rejected, 2u);
+  // Nothing of the rejected results reached the image.
+  EXPECT_EQ(scheduler_.Status(id).samples_merged(), 16u);
+}
+
+TEST_F(SchedulerTest, HigherPriorityFirstThenSubmissionOrder) {
+  const std::string low = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4, /*priority=*/0));
+  const std::string high = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4, /*priority=*/5));
+  const std::string low2 = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4, /*priority=*/0));
+  const std::string negative = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4, /*priority=*/-3));
+  EXPECT_EQ(MustLease().job_id, high);
+  EXPECT_EQ(MustLease().job_id, low);
+  EXPECT_EQ(MustLease().job_id, low2);
+  EXPECT_EQ(MustLease().job_id, negative);
+}
+
+TEST_F(SchedulerTest, MapAffinityPrefersACachedMapWithinTheJob) {
+  // 3 maps × 4 tiles: tasks 0-3 map 0, 4-7 map 1, 8-11 map 2.
+  Submit(MakeConfig(MultipleMaps(3, 2), 4, 4));
+  const Lease first = MustLease("w1");
+  EXPECT_EQ(first.task_id, 0u);
+  const Lease map2 = MustLease("w2");  // no cache: next in order
+  EXPECT_EQ(map2.task_id, 1u);
+  // w3 has map 2 cached: it gets map 2's first tile, not task 2.
+  uint64_t map2_seed = MapSeed(7, 2);
+  const Lease affine = MustLease("w3", {12345, map2_seed});
+  EXPECT_EQ(affine.task.map_index, 2u);
+  EXPECT_EQ(affine.task_id, 8u);
+  // A seed of another job (or unknown) changes nothing.
+  EXPECT_EQ(MustLease("w4", {999}).task_id, 2u);
+}
+
+TEST_F(SchedulerTest, LongPollIsAnsweredWhenATaskArrivesOrTheWaitEnds) {
+  std::vector<std::optional<Lease>> answers;
+  auto record = [&](std::optional<Lease> l) { answers.push_back(std::move(l)); };
+  scheduler_.LeaseOrWait({"w1", {}}, 10, record);
+  EXPECT_TRUE(answers.empty()) << "parked: no task yet";
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  ASSERT_EQ(answers.size(), 1u) << "submitting a job wakes the parked worker";
+  ASSERT_TRUE(answers[0].has_value());
+  EXPECT_EQ(answers[0]->job_id, id);
+
+  scheduler_.LeaseOrWait({"w2", {}}, 5, record);
+  clock_.Advance(4.9);
+  scheduler_.Tick();
+  EXPECT_EQ(answers.size(), 1u);
+  clock_.Advance(0.2);
+  scheduler_.Tick();
+  ASSERT_EQ(answers.size(), 2u);
+  EXPECT_FALSE(answers[1].has_value()) << "wait over: 'no task now'";
+
+  const uint64_t waiter = scheduler_.LeaseOrWait({"w3", {}}, 5, record);
+  scheduler_.CancelWait(waiter);
+  ASSERT_EQ(answers.size(), 3u);
+  EXPECT_FALSE(answers[2].has_value());
+  scheduler_.CancelWait(waiter);  // idempotent
+  EXPECT_EQ(answers.size(), 3u);
+
+  // A re-queued task (expired lease) also wakes a parked worker.
+  scheduler_.LeaseOrWait({"w4", {}}, 60, record);
+  clock_.Advance(31);
+  scheduler_.Tick();
+  ASSERT_EQ(answers.size(), 4u);
+  ASSERT_TRUE(answers[3].has_value());
+  EXPECT_EQ(answers[3]->attempt, 2u);
+}
+
+TEST_F(SchedulerTest, ShutdownAnswersParkedPollsAndStopsLeasing) {
+  std::vector<std::optional<Lease>> answers;
+  scheduler_.LeaseOrWait({"w1", {}}, 10, [&](std::optional<Lease> l) { answers.push_back(std::move(l)); });
+  scheduler_.Shutdown();
+  ASSERT_EQ(answers.size(), 1u);
+  EXPECT_FALSE(answers[0].has_value());
+  Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value());
+}
+
+TEST_F(SchedulerTest, ReturnedLeaseDoesNotCountAsAFailure) {
+  Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  for (int i = 0; i < 5; ++i) scheduler_.ReturnLease(MustLease().lease_id);
+  const Lease l = MustLease();
+  EXPECT_EQ(l.attempt, 6u);  // attempt numbers only grow
+  EXPECT_EQ(CompleteOk(l).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.counters().failed_attempts, 0u);
+}
+
+TEST_F(SchedulerTest, MaxRoundsSchedulesOnlyTheFirstRounds) {
+  const std::string id = Submit(MakeConfig(Skipping(2, 5), 8, 8, 0, StopRule{.max_rounds = 2}));
+  EXPECT_EQ(scheduler_.Status(id).tasks_total(), 8u);
+  for (int i = 0; i < 8; ++i) {
+    const Lease l = MustLease();
+    EXPECT_LT(l.task.round, 2u);
+    EXPECT_EQ(CompleteOk(l).status, CompleteStatus::kMerged);
+  }
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.rounds_done(), 2u);
+}
+
+TEST_F(SchedulerTest, TimeBudgetStopsSchedulingAndSucceedsWithWhatWasMerged) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(10, 0), 4, 4, 0, StopRule{.time_budget_seconds = 50}));
+  const Lease a = MustLease();
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
+  const Lease b = MustLease();
+  clock_.Advance(25);
+  EXPECT_TRUE(scheduler_.Extend(b.lease_id, 0.5).ok);
+  clock_.Advance(25);
+  scheduler_.Tick();
+  EXPECT_FALSE(scheduler_.TryLease({"w2", {}}).has_value()) << "nothing new after the budget";
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING) << "the leased task may finish";
+  EXPECT_TRUE(scheduler_.Extend(b.lease_id, 0.9).ok);
+  EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kMerged);
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_done(), 2u);
+  EXPECT_EQ(s.samples_merged(), 2u * 16);
+}
+
+TEST_F(SchedulerTest, TimeBudgetWithAnExpiringLeaseStillSucceeds) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(3, 0), 4, 4, 0, StopRule{.time_budget_seconds = 10}));
+  EXPECT_EQ(CompleteOk(MustLease()).status, CompleteStatus::kMerged);
+  MustLease();  // never comes back
+  clock_.Advance(40);
+  scheduler_.Tick();
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(scheduler_.Status(id).tasks_done(), 1u);
+}
+
+TEST_F(SchedulerTest, TargetNoiseEndsTheJobAfterTwoFullRounds) {
+  // S = 2: 4 tasks per round; the noise is only judged once every pixel has two maps.
+  const std::string id = Submit(MakeConfig(Skipping(2, 10), 8, 8, 0, StopRule{.target_noise_rms = 10.0}));
+  for (int i = 0; i < 7; ++i) {
+    EXPECT_EQ(CompleteOk(MustLease()).status, CompleteStatus::kMerged);
+    EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING) << i;
+  }
+  const Lease last_of_round2 = MustLease();
+  EXPECT_EQ(last_of_round2.task_id, 7u);
+  EXPECT_EQ(CompleteOk(last_of_round2).status, CompleteStatus::kMerged);
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_done(), 8u);
+  EXPECT_GE(s.estimated_noise_rms(), 0.0);
+  EXPECT_LE(s.estimated_noise_rms(), 10.0);
+  EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value()) << "remaining rounds cancelled";
+}
+
+TEST_F(SchedulerTest, UnreachableTargetNoiseRunsEveryRound) {
+  const std::string id = Submit(MakeConfig(Skipping(1, 4), 4, 4, 0, StopRule{.target_noise_rms = 1e-9}));
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(CompleteOk(MustLease()).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(scheduler_.Status(id).rounds_done(), 4u);
+}
+
+TEST_F(SchedulerTest, CancelStopsEverythingAndIsIdempotent) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(3, 0), 4, 4));
+  const Lease a = MustLease();
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
+  const Lease b = MustLease();
+  EXPECT_EQ(scheduler_.Cancel(id).state(), v1::JOB_STATE_CANCELLED);
+  EXPECT_FALSE(scheduler_.Extend(b.lease_id, 0).ok);
+  EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kIgnored);
+  EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value());
+  EXPECT_EQ(scheduler_.Cancel(id).state(), v1::JOB_STATE_CANCELLED);
+  // The merged image so far stays available.
+  const JobSnapshot snap = scheduler_.Snapshot(id, true);
+  ASSERT_TRUE(snap.image.has_value());
+  EXPECT_EQ(snap.image->samples_merged, 16u);
+  EXPECT_THROW(scheduler_.Cancel("job-999"), NotFoundError);
+  EXPECT_THROW(scheduler_.Status("nope"), NotFoundError);
+}
+
+TEST_F(SchedulerTest, EtaFollowsThroughput) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4));
+  EXPECT_LT(scheduler_.Status(id).eta_seconds(), 0) << "unknown before any progress";
+  const Lease a = MustLease();
+  clock_.Advance(10);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
+  // 1 of 4 tasks in 10 s: 30 s to go.
+  EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 30.0, 1e-9);
+  EXPECT_NEAR(scheduler_.Status(id).elapsed_seconds(), 10.0, 1e-9);
+  const Lease b = MustLease();
+  EXPECT_TRUE(scheduler_.Extend(b.lease_id, 0.5).ok);
+  EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 10.0 * 2.5 / 1.5, 1e-9);
+}
+
+TEST_F(SchedulerTest, MergedImageDoesNotDependOnCompletionOrder) {
+  FakeClock other_clock;
+  Scheduler other(other_clock, SchedulerOptions{});
+  const JobConfig config = MakeConfig(Skipping(3, 2), 9, 7);
+  const std::string id = Submit(config);
+  std::unique_ptr<Job> j = other.PrepareJob(config);
+  const std::string other_id = j->id();
+  other.AddJob(std::move(j));
+  std::vector<Lease> leases, other_leases;
+  for (int i = 0; i < 18; ++i) {
+    leases.push_back(MustLease());
+    other_leases.push_back(*other.TryLease({"w", {}}));
+  }
+  for (const Lease& l : leases) ASSERT_EQ(CompleteOk(l).status, CompleteStatus::kMerged);
+  for (auto it = other_leases.rbegin(); it != other_leases.rend(); ++it)
+    ASSERT_EQ(other.Complete(it->lease_id, SyntheticResult(it->task, 9, 7)).status, CompleteStatus::kMerged);
+  const JobSnapshot a = scheduler_.Snapshot(id, true), b = other.Snapshot(other_id, true);
+  ASSERT_TRUE(a.image && b.image);
+  ASSERT_EQ(a.image->image.size(), b.image->image.size());
+  for (size_t p = 0; p < a.image->image.size(); ++p)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(a.image->image[p][c], b.image->image[p][c]) << p;
+  EXPECT_EQ(EncodeSnapshot(*a.image), EncodeSnapshot(*b.image));
+}
+
+TEST_F(SchedulerTest, PersistBatchCarriesChangedRowsAndCheckpoints) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
+  EXPECT_TRUE(scheduler_.CollectPersistBatch(true).checkpoints.empty());
+  const Lease a = MustLease();
+  PersistBatch batch = scheduler_.CollectPersistBatch(true);
+  ASSERT_EQ(batch.tasks.size(), 1u);
+  EXPECT_EQ(batch.tasks[0].state, TaskState::kLeased);
+  EXPECT_EQ(batch.tasks[0].attempts, 1u);
+  ASSERT_EQ(batch.jobs.size(), 1u);
+  EXPECT_EQ(batch.jobs[0].state, JobState::kRunning);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
+  batch = scheduler_.CollectPersistBatch(/*checkpoints_due=*/false);
+  EXPECT_TRUE(batch.checkpoints.empty()) << "not due yet";
+  EXPECT_TRUE(scheduler_.HasUncheckpointedMerges());
+  batch = scheduler_.CollectPersistBatch(true);
+  ASSERT_EQ(batch.checkpoints.size(), 1u);
+  EXPECT_EQ(batch.checkpoints[0].job_id, id);
+  EXPECT_EQ(batch.checkpoints[0].merged_task_ids, std::vector<uint64_t>{a.task_id});
+  EXPECT_EQ(batch.checkpoints[0].merge_seq, 1u);
+  EXPECT_FALSE(scheduler_.HasUncheckpointedMerges());
+  // A finished job is checkpointed even when checkpoints are not due.
+  EXPECT_EQ(CompleteOk(MustLease()).status, CompleteStatus::kMerged);
+  batch = scheduler_.CollectPersistBatch(false);
+  ASSERT_EQ(batch.checkpoints.size(), 1u);
+  EXPECT_EQ(batch.checkpoints[0].merged_task_ids.size(), 2u);
+  ASSERT_EQ(batch.jobs.size(), 1u);
+  EXPECT_EQ(batch.jobs[0].state, JobState::kSucceeded);
+}
+
+TEST(JobStateMachine, OnlyForwardTransitions) {
+  EXPECT_TRUE(Job::CanTransition(JobState::kQueued, JobState::kRunning));
+  EXPECT_TRUE(Job::CanTransition(JobState::kQueued, JobState::kCancelled));
+  EXPECT_TRUE(Job::CanTransition(JobState::kRunning, JobState::kSucceeded));
+  EXPECT_TRUE(Job::CanTransition(JobState::kRunning, JobState::kFailed));
+  EXPECT_FALSE(Job::CanTransition(JobState::kQueued, JobState::kSucceeded));
+  EXPECT_FALSE(Job::CanTransition(JobState::kRunning, JobState::kQueued));
+  EXPECT_FALSE(Job::CanTransition(JobState::kSucceeded, JobState::kRunning));
+  EXPECT_FALSE(Job::CanTransition(JobState::kCancelled, JobState::kFailed));
+  EXPECT_FALSE(Job::CanTransition(JobState::kFailed, JobState::kFailed));
+}
+
+}  // namespace
+}  // namespace pf::server

@@ -1,0 +1,456 @@
+// WorkerService through a real in-process gRPC server: result validation re-queues the task,
+// duplicates are ignored, long polls wake up on new work, FetchScene returns the bundle that
+// hashes to the task's scene hash; WatchJob/GetImage; and an end-to-end farm run with real
+// rendering, a coordinator crash and restart, bit-identical to the single-process render.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <future>
+#include <map>
+#include <thread>
+
+#include "common/image/exr_io.h"
+#include "common/plan/task_executor.h"
+#include "common/scene/scene_bundle.h"
+#include "server/scheduling/scheduler.h"
+#include "server/store/persister.h"
+#include "tests/server/server_test_util.h"
+
+namespace pf::server {
+namespace {
+using ::testing::HasSubstr;
+using testing::Ctx;
+using testing::LiveCoordinator;
+using testing::TempDir;
+namespace v1 = photonfarm::v1;
+namespace fs = std::filesystem;
+
+std::string Upload(LiveCoordinator& live) {
+  v1::UploadSceneRequest req;
+  *req.mutable_bundle() = testing::ToProto(CollectBundle(testing::CornellManifest()));
+  v1::UploadSceneResponse resp;
+  const grpc::Status st = live.render->UploadScene(Ctx().get(), req, &resp);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return resp.scene_hash();
+}
+
+// The manifest camera at a small resolution.
+v1::JobSpec SmallSpec(const std::string& hash, v1::Plan plan, uint64_t seed = 5) {
+  v1::JobSpec spec;
+  spec.set_scene_hash(hash);
+  spec.mutable_camera()->set_width(24);
+  spec.mutable_camera()->set_height(18);
+  spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PHOTONMAP);
+  spec.mutable_settings()->mutable_photon_map()->set_photons(3000);
+  spec.mutable_settings()->mutable_photon_map()->set_k(20);
+  *spec.mutable_plan() = std::move(plan);
+  spec.set_seed(seed);
+  return spec;
+}
+
+v1::Plan SkippingPlan(uint32_t stride, uint32_t rounds) {
+  v1::Plan p;
+  p.mutable_skipping()->set_stride(stride);
+  p.mutable_skipping()->set_rounds(rounds);
+  p.mutable_skipping()->set_samples_per_pixel(1);
+  return p;
+}
+
+std::string SubmitOk(LiveCoordinator& live, const v1::JobSpec& spec) {
+  v1::SubmitJobRequest req;
+  *req.mutable_spec() = spec;
+  v1::SubmitJobResponse resp;
+  const grpc::Status st = live.render->SubmitJob(Ctx().get(), req, &resp);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return resp.job_id();
+}
+
+v1::JobStatus GetJob(LiveCoordinator& live, const std::string& id) {
+  v1::GetJobRequest req;
+  req.set_job_id(id);
+  v1::JobStatus s;
+  EXPECT_TRUE(live.render->GetJob(Ctx().get(), req, &s).ok());
+  return s;
+}
+
+std::optional<v1::Task> Lease(LiveCoordinator& live, double wait = 0, const std::string& worker = "w1") {
+  v1::LeaseTaskRequest req;
+  req.set_worker_id(worker);
+  req.set_wait_seconds(wait);
+  v1::LeaseTaskResponse resp;
+  const grpc::Status st = live.worker->LeaseTask(Ctx("", wait + 10).get(), req, &resp);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  if (!resp.has_task()) return std::nullopt;
+  return resp.task();
+}
+
+grpc::Status Complete(LiveCoordinator& live, const v1::Task& task, const std::vector<float>& sums,
+                      bool* merged = nullptr) {
+  v1::CompleteTaskRequest req;
+  req.set_lease_id(task.lease_id());
+  req.mutable_rgb_sums()->Add(sums.begin(), sums.end());
+  v1::CompleteTaskResponse resp;
+  const grpc::Status st = live.worker->CompleteTask(Ctx().get(), req, &resp);
+  if (merged) *merged = resp.merged();
+  return st;
+}
+
+std::vector<float> SyntheticFor(const v1::Task& task) {
+  return testing::SyntheticResult(TaskSpecFromProto(task), int(task.camera().width()), int(task.camera().height()));
+}
+
+std::string GetImageBytes(LiveCoordinator& live, const std::string& id) {
+  v1::GetImageRequest req;
+  req.set_job_id(id);
+  auto ctx = Ctx();
+  auto reader = live.render->GetImage(ctx.get(), req);
+  std::string bytes;
+  v1::ImageChunk chunk;
+  uint32_t expected = 0;
+  while (reader->Read(&chunk)) {
+    EXPECT_EQ(chunk.index(), expected++);
+    EXPECT_LE(chunk.exr_bytes().size(), size_t(1) << 20);
+    bytes += chunk.exr_bytes();
+  }
+  EXPECT_TRUE(reader->Finish().ok());
+  return bytes;
+}
+
+// A minimal in-test worker: fetches the scene once, renders tasks with the same ExecuteTask the
+// real worker uses, delivers the results.
+class TestWorker {
+ public:
+  TestWorker(LiveCoordinator* live, fs::path cache_dir) : live_(live), cache_dir_(std::move(cache_dir)) {}
+  void Rebind(LiveCoordinator* live) { live_ = live; }
+
+  // Renders up to `max_tasks` tasks; returns how many were merged.
+  int Run(int max_tasks) {
+    int merged_count = 0;
+    for (int i = 0; i < max_tasks; ++i) {
+      std::optional<v1::Task> task = Lease(*live_, 0.2, "test-worker");
+      if (!task) break;
+      const SceneRuntime& scene = Scene(task->scene_hash(), task->scene_entry());
+      const TaskOutput out =
+          ExecuteTask(scene, task->scene_hash(), CameraFromProto(task->camera(), "task.camera"),
+                      SettingsFromProto(task->settings(), "task.settings"), TaskSpecFromProto(*task), 1, &maps_);
+      ++executed_[task->task_id()];
+      bool merged = false;
+      EXPECT_TRUE(Complete(*live_, *task, out.rgb_sums, &merged).ok());
+      merged_count += merged;
+    }
+    return merged_count;
+  }
+  const std::map<uint64_t, int>& executed() const { return executed_; }
+
+  const SceneRuntime& Scene(const std::string& hash, const std::string& entry) {
+    auto it = scenes_.find(hash);
+    if (it != scenes_.end()) return *it->second;
+    v1::FetchSceneRequest req;
+    req.set_scene_hash(hash);
+    auto ctx = Ctx();
+    auto reader = live_->worker->FetchScene(ctx.get(), req);
+    SceneBundle bundle;
+    bundle.entry = entry;
+    v1::SceneFile f;
+    while (reader->Read(&f)) {
+      if (!bundle.files.empty() && bundle.files.back().first == f.path())
+        bundle.files.back().second += f.content();
+      else
+        bundle.files.emplace_back(f.path(), f.content());
+    }
+    EXPECT_TRUE(reader->Finish().ok());
+    EXPECT_EQ(BundleHash(bundle), hash) << "the fetched bundle is the uploaded one";
+    const fs::path dir = cache_dir_ / hash;
+    WriteBundle(bundle, dir);
+    auto runtime = std::make_unique<SceneRuntime>(LoadBundle(dir, entry));
+    return *scenes_.emplace(hash, std::move(runtime)).first->second;
+  }
+
+ private:
+  LiveCoordinator* live_;
+  fs::path cache_dir_;
+  std::map<std::string, std::unique_ptr<SceneRuntime>> scenes_;
+  PhotonMapCache maps_{4};
+  std::map<uint64_t, int> executed_;
+};
+
+class WorkerServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    CoordinatorOptions o;
+    o.data_dir = dir_.path() / "data";
+    live_ = std::make_unique<LiveCoordinator>(o);
+    hash_ = Upload(*live_);
+  }
+  TempDir dir_;
+  std::unique_ptr<LiveCoordinator> live_;
+  std::string hash_;
+};
+
+TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
+  v1::Plan plan;
+  plan.mutable_multiple_maps()->set_maps(1);
+  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
+  std::optional<v1::Task> t1 = Lease(*live_);
+  ASSERT_TRUE(t1.has_value());
+  EXPECT_EQ(t1->attempt(), 1u);
+  EXPECT_EQ(t1->scene_entry(), "cornell-box.json");
+  bool merged = true;
+  grpc::Status st = Complete(*live_, *t1, {1, 2, 3}, &merged);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message(),
+            "rgb_sums: result rejected, the task is re-queued: result: rgb_sums has 3 values, expected 1296 (3 per "
+            "pixel of the subset)");
+  EXPECT_FALSE(merged);
+
+  std::optional<v1::Task> t2 = Lease(*live_);
+  ASSERT_TRUE(t2.has_value());
+  EXPECT_EQ(t2->task_id(), t1->task_id());
+  EXPECT_EQ(t2->attempt(), 2u);
+  std::vector<float> nan_sums = SyntheticFor(*t2);
+  nan_sums[100] = std::numeric_limits<float>::infinity();
+  st = Complete(*live_, *t2, nan_sums);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(st.error_message(), HasSubstr("rgb_sums[100] is not finite"));
+
+  std::optional<v1::Task> t3 = Lease(*live_);
+  ASSERT_TRUE(t3.has_value());
+  EXPECT_EQ(t3->attempt(), 3u);
+  EXPECT_TRUE(Complete(*live_, *t3, SyntheticFor(*t3), &merged).ok());
+  EXPECT_TRUE(merged);
+  EXPECT_TRUE(Complete(*live_, *t3, SyntheticFor(*t3), &merged).ok());
+  EXPECT_FALSE(merged) << "duplicate";
+  EXPECT_TRUE(Complete(*live_, *t1, SyntheticFor(*t1), &merged).ok());
+  EXPECT_FALSE(merged) << "late, from a dead attempt";
+  const v1::JobStatus s = GetJob(*live_, id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_done(), 1u);
+  EXPECT_EQ(s.samples_merged(), 24u * 18u);
+}
+
+TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
+  v1::LeaseTaskRequest req;
+  v1::LeaseTaskResponse resp;
+  grpc::Status st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message(), "worker_id: required");
+  req.set_worker_id("w");
+  req.set_wait_seconds(-1);
+  st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(st.error_message(), HasSubstr("wait_seconds"));
+  v1::ExtendLeaseRequest ext;
+  v1::ExtendLeaseResponse ext_resp;
+  EXPECT_EQ(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  ext.set_lease_id("job-1.0.1.deadbeef");
+  ASSERT_TRUE(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).ok());
+  EXPECT_FALSE(ext_resp.ok()) << "unknown lease: stop";
+}
+
+TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
+  // Nothing queued: an empty answer after the wait.
+  auto start = std::chrono::steady_clock::now();
+  EXPECT_FALSE(Lease(*live_, 0.3).has_value());
+  double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(waited, 0.25);
+  EXPECT_LT(waited, 3.0);
+
+  // A parked poll returns as soon as a job is submitted, long before its 20 s wait.
+  start = std::chrono::steady_clock::now();
+  auto poll = std::async(std::launch::async, [&] { return Lease(*live_, 20, "parked"); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  v1::Plan plan;
+  plan.mutable_multiple_maps()->set_maps(1);
+  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
+  std::optional<v1::Task> task = poll.get();
+  waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_TRUE(task.has_value());
+  EXPECT_EQ(task->job_id(), id);
+  EXPECT_LT(waited, 5.0);
+  EXPECT_EQ(GetJob(*live_, id).tasks_running(), 1u);
+
+  // A poll whose client gives up is released (no lease leaks to a dead caller).
+  {
+    v1::LeaseTaskRequest req;
+    req.set_worker_id("impatient");
+    req.set_wait_seconds(20);
+    v1::LeaseTaskResponse resp;
+    const grpc::Status st = live_->worker->LeaseTask(Ctx("", 0.3).get(), req, &resp);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+  }
+}
+
+TEST_F(WorkerServiceTest, FetchSceneStreamsTheBundleOfTheTask) {
+  v1::Plan plan;
+  plan.mutable_multiple_maps()->set_maps(1);
+  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  SubmitOk(*live_, SmallSpec(hash_, plan));
+  std::optional<v1::Task> task = Lease(*live_);
+  ASSERT_TRUE(task.has_value());
+  EXPECT_EQ(task->scene_hash(), hash_);
+  TestWorker worker(live_.get(), dir_.path() / "worker-cache");
+  const SceneRuntime& scene = worker.Scene(task->scene_hash(), task->scene_entry());  // checks the hash
+  EXPECT_GT(scene.description.NumTriangles(), 0u);
+
+  // A bundle larger than gRPC's default 4 MiB message, with a file that streams in several chunks.
+  SceneBundle big = CollectBundle(testing::CornellManifest());
+  std::string blob(5 << 20, '\0');
+  for (size_t i = 0; i < blob.size(); ++i) blob[i] = char((i * 2654435761u) >> 13);
+  big.files.emplace_back("textures/big.bin", blob);
+  v1::UploadSceneRequest up;
+  *up.mutable_bundle() = testing::ToProto(big);
+  v1::UploadSceneResponse up_resp;
+  const grpc::Status up_st = live_->render->UploadScene(Ctx().get(), up, &up_resp);
+  ASSERT_TRUE(up_st.ok()) << up_st.error_message();
+  EXPECT_EQ(up_resp.scene_hash(), BundleHash(big));
+  {
+    v1::FetchSceneRequest req;
+    req.set_scene_hash(up_resp.scene_hash());
+    auto ctx = Ctx();
+    auto reader = live_->worker->FetchScene(ctx.get(), req);
+    SceneBundle fetched;
+    fetched.entry = big.entry;
+    v1::SceneFile f;
+    int messages = 0;
+    while (reader->Read(&f)) {
+      ++messages;
+      EXPECT_LE(f.content().size(), size_t(1) << 20);
+      if (!fetched.files.empty() && fetched.files.back().first == f.path())
+        fetched.files.back().second += f.content();
+      else
+        fetched.files.emplace_back(f.path(), f.content());
+    }
+    ASSERT_TRUE(reader->Finish().ok());
+    EXPECT_GE(messages, int(big.files.size()) + 4);
+    EXPECT_EQ(BundleHash(fetched), up_resp.scene_hash());
+  }
+
+  v1::FetchSceneRequest req;
+  req.set_scene_hash(std::string(64, 'e'));
+  auto ctx = Ctx();
+  auto reader = live_->worker->FetchScene(ctx.get(), req);
+  v1::SceneFile f;
+  EXPECT_FALSE(reader->Read(&f));
+  const grpc::Status st = reader->Finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_THAT(st.error_message(), HasSubstr("scene_hash: unknown scene"));
+}
+
+TEST_F(WorkerServiceTest, WatchJobDeliversSnapshotsWithFallingNoiseAndEndsWithTheFinalImage) {
+  const std::string id = SubmitOk(*live_, SmallSpec(hash_, SkippingPlan(2, 6)));
+  std::vector<v1::JobUpdate> updates;
+  std::thread watcher([&] {
+    v1::WatchJobRequest req;
+    req.set_job_id(id);
+    req.set_include_images(true);
+    req.set_min_interval_seconds(0.001);
+    auto ctx = Ctx("", 60);
+    auto reader = live_->render->WatchJob(ctx.get(), req);
+    v1::JobUpdate u;
+    while (reader->Read(&u)) updates.push_back(u);
+    const grpc::Status st = reader->Finish();
+    EXPECT_TRUE(st.ok()) << st.error_message();
+  });
+  // A slow synthetic worker, so that the watcher sees the job progress.
+  for (;;) {
+    std::optional<v1::Task> task = Lease(*live_, 0);
+    if (!task) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    bool merged = false;
+    ASSERT_TRUE(Complete(*live_, *task, SyntheticFor(*task), &merged).ok());
+    EXPECT_TRUE(merged);
+  }
+  watcher.join();
+  ASSERT_GE(updates.size(), 3u);
+  EXPECT_EQ(updates.back().status().state(), v1::JOB_STATE_SUCCEEDED);
+  // Snapshots (image chunk 0) whose noise estimate is known, in order: the noise falls.
+  std::vector<double> noise;
+  for (const v1::JobUpdate& u : updates) {
+    ASSERT_TRUE(u.has_image());
+    EXPECT_EQ(u.image().count(), 1u) << "a 24x18 EXR fits one chunk";
+    if (u.status().estimated_noise_rms() >= 0) noise.push_back(u.status().estimated_noise_rms());
+  }
+  ASSERT_GE(noise.size(), 2u);
+  EXPECT_LT(noise.back(), noise.front());
+  // The last snapshot is the final image, byte for byte.
+  EXPECT_EQ(updates.back().image().exr_bytes(), GetImageBytes(*live_, id));
+  ImageMetadata meta;
+  const Image img = DecodeExrFromMemory(updates.back().image().exr_bytes(), &meta);
+  EXPECT_EQ(img.width(), 24);
+  EXPECT_EQ(meta.at("job_id"), id);
+  EXPECT_EQ(meta.at("spp"), "6");
+  EXPECT_NE(meta.at("noise_rms"), "unknown");
+}
+
+TEST_F(WorkerServiceTest, WatchWithoutImagesEndsAfterCancel) {
+  const std::string id = SubmitOk(*live_, SmallSpec(hash_, SkippingPlan(2, 2)));
+  v1::WatchJobRequest req;
+  req.set_job_id(id);
+  req.set_min_interval_seconds(0.01);
+  auto ctx = Ctx("", 30);
+  auto reader = live_->render->WatchJob(ctx.get(), req);
+  v1::JobUpdate u;
+  ASSERT_TRUE(reader->Read(&u));
+  EXPECT_EQ(u.status().state(), v1::JOB_STATE_QUEUED);
+  EXPECT_FALSE(u.has_image());
+  v1::CancelJobRequest cancel;
+  cancel.set_job_id(id);
+  v1::CancelJobResponse cr;
+  ASSERT_TRUE(live_->render->CancelJob(Ctx().get(), cancel, &cr).ok());
+  EXPECT_EQ(cr.status().state(), v1::JOB_STATE_CANCELLED);
+  v1::JobUpdate last = u;
+  while (reader->Read(&u)) last = u;
+  EXPECT_TRUE(reader->Finish().ok());
+  EXPECT_EQ(last.status().state(), v1::JOB_STATE_CANCELLED);
+}
+
+// The farm's promise in one process: real rendering through the coordinator, a coordinator crash
+// in the middle, a restart on the same data directory — finished tasks are not re-run and the
+// final image is bit-identical to the single-process render of the same plan and seed.
+TEST(FarmEndToEnd, CrashAndRestartGiveTheSingleProcessImage) {
+  TempDir dir;
+  CoordinatorOptions o;
+  o.data_dir = dir.path() / "data";
+  auto live = std::make_unique<LiveCoordinator>(o);
+  const std::string hash = Upload(*live);
+  const v1::JobSpec spec = SmallSpec(hash, SkippingPlan(2, 3), /*seed=*/17);
+  const std::string id = SubmitOk(*live, spec);
+  TestWorker worker(live.get(), dir.path() / "worker");
+  EXPECT_EQ(worker.Run(5), 5);
+  EXPECT_EQ(GetJob(*live, id).tasks_done(), 5u);
+
+  live->coordinator->SimulateCrash();
+  live.reset();
+  live = std::make_unique<LiveCoordinator>(o);
+  EXPECT_EQ(live->coordinator->recovery().tasks_merged, 5u) << "acknowledged merges survive the crash";
+  EXPECT_EQ(live->coordinator->recovery().tasks_requeued, 7u);
+  worker.Rebind(live.get());
+  EXPECT_EQ(worker.Run(100), 7);
+  const v1::JobStatus s = GetJob(*live, id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_done(), 12u);
+  // Every task ran exactly once, across the crash.
+  EXPECT_EQ(worker.executed().size(), 12u);
+  for (const auto& [task, runs] : worker.executed()) EXPECT_EQ(runs, 1) << "task " << task;
+
+  const Image farm = DecodeExrFromMemory(GetImageBytes(*live, id));
+  const SceneRuntime& scene = worker.Scene(hash, "cornell-box.json");
+  const Image local = RenderPlanLocally(scene, CameraFromProto(s.spec().camera(), "camera"),
+                                        SettingsFromProto(s.spec().settings(), "settings"),
+                                        PlanFromProto(s.spec().plan(), "plan"), 17, /*threads=*/2);
+  ASSERT_EQ(farm.width(), local.width());
+  ASSERT_EQ(farm.height(), local.height());
+  size_t nonzero = 0;
+  for (size_t p = 0; p < local.size(); ++p)
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(farm[p][c], local[p][c]) << "pixel " << p << " channel " << c;
+      nonzero += local[p][c] > 0;
+    }
+  EXPECT_GT(nonzero, local.size()) << "the image is not black";
+}
+
+}  // namespace
+}  // namespace pf::server

@@ -1,0 +1,298 @@
+// worker/worker.h against a scripted, in-process WorkerService (real gRPC on loopback): the
+// heartbeat cadence, abandoning a result whose lease is gone, the SIGTERM grace period (finish
+// or hand back), cancelling an idle long poll, reconnecting when the coordinator appears, and
+// the affinity hints in LeaseTaskRequest.
+#include "worker/worker.h"
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <thread>
+
+#include "common/plan/task_plan.h"
+#include "proto/convert.h"
+
+namespace pf::worker {
+namespace {
+namespace fs = std::filesystem;
+namespace v1 = photonfarm::v1;
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Hands out scripted tasks and records what the worker says.
+class FakeCoordinator final : public v1::WorkerService::Service {
+ public:
+  explicit FakeCoordinator(SceneBundle bundle) : bundle_(std::move(bundle)), hash_(BundleHash(bundle_)) {}
+  const std::string& hash() const { return hash_; }
+
+  void Offer(v1::Task task) {
+    std::lock_guard lock(mu_);
+    task.set_scene_hash(hash_);
+    task.set_scene_entry(bundle_.entry);
+    offered_.push_back(std::move(task));
+  }
+  void set_extend_ok(bool ok) { extend_ok_ = ok; }
+
+  grpc::Status LeaseTask(grpc::ServerContext* ctx, const v1::LeaseTaskRequest* req, v1::LeaseTaskResponse* resp) override {
+    const Clock::time_point until = Clock::now() + std::chrono::milliseconds(int(req->wait_seconds() * 1000));
+    while (Clock::now() < until && !ctx->IsCancelled()) {
+      {
+        std::lock_guard lock(mu_);
+        lease_requests_.push_back(*req);
+        if (!offered_.empty()) {
+          *resp->mutable_task() = offered_.front();
+          offered_.erase(offered_.begin());
+          leased_at_ = Clock::now();
+          return grpc::Status::OK;
+        }
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return grpc::Status::OK;  // no task now
+  }
+  grpc::Status ExtendLease(grpc::ServerContext*, const v1::ExtendLeaseRequest* req, v1::ExtendLeaseResponse* resp) override {
+    std::lock_guard lock(mu_);
+    extends_.push_back(Since(leased_at_));
+    progress_.push_back(req->progress());
+    resp->set_ok(extend_ok_);
+    resp->set_lease_seconds(lease_seconds_);
+    return grpc::Status::OK;
+  }
+  grpc::Status CompleteTask(grpc::ServerContext*, const v1::CompleteTaskRequest* req, v1::CompleteTaskResponse* resp) override {
+    std::lock_guard lock(mu_);
+    completes_.push_back(*req);
+    resp->set_merged(true);
+    return grpc::Status::OK;
+  }
+  grpc::Status FailTask(grpc::ServerContext*, const v1::FailTaskRequest* req, v1::FailTaskResponse*) override {
+    std::lock_guard lock(mu_);
+    fails_.push_back(*req);
+    return grpc::Status::OK;
+  }
+  grpc::Status FetchScene(grpc::ServerContext*, const v1::FetchSceneRequest* req,
+                          grpc::ServerWriter<v1::SceneFile>* writer) override {
+    ++fetches_;
+    if (req->scene_hash() != hash_) return grpc::Status(grpc::StatusCode::NOT_FOUND, "scene_hash: unknown");
+    for (const auto& [path, content] : bundle_.files) {
+      v1::SceneFile f;
+      f.set_path(path);
+      f.set_content(content);
+      writer->Write(f);
+    }
+    return grpc::Status::OK;
+  }
+
+  std::vector<double> extends() const { std::lock_guard lock(mu_); return extends_; }
+  std::vector<double> progress() const { std::lock_guard lock(mu_); return progress_; }
+  std::vector<v1::CompleteTaskRequest> completes() const { std::lock_guard lock(mu_); return completes_; }
+  std::vector<v1::FailTaskRequest> fails() const { std::lock_guard lock(mu_); return fails_; }
+  std::vector<v1::LeaseTaskRequest> lease_requests() const { std::lock_guard lock(mu_); return lease_requests_; }
+  int fetches() const { return fetches_; }
+  double lease_seconds_ = 0.3;
+
+ private:
+  SceneBundle bundle_;
+  std::string hash_;
+  mutable std::mutex mu_;
+  std::vector<v1::Task> offered_;
+  Clock::time_point leased_at_ = Clock::now();
+  std::atomic<bool> extend_ok_{true};
+  std::vector<double> extends_, progress_;
+  std::vector<v1::CompleteTaskRequest> completes_;
+  std::vector<v1::FailTaskRequest> fails_;
+  std::vector<v1::LeaseTaskRequest> lease_requests_;
+  std::atomic<int> fetches_{0};
+};
+
+class WorkerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pf-worker-test-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fake_ = std::make_unique<FakeCoordinator>(
+        CollectBundle(fs::path(PF_SOURCE_DIR) / "scenes" / "cornell-box" / "cornell-box.json"));
+    StartServer(0);
+  }
+  void TearDown() override {
+    if (server_) server_->Shutdown(std::chrono::system_clock::now());
+    fs::remove_all(dir_);
+  }
+  void StartServer(int port) {
+    grpc::ServerBuilder builder;
+    builder.AddListeningPort("127.0.0.1:" + std::to_string(port), grpc::InsecureServerCredentials(), &port_);
+    builder.RegisterService(fake_.get());
+    server_ = builder.BuildAndStart();
+    ASSERT_TRUE(server_);
+  }
+  WorkerOptions Options() {
+    WorkerOptions o;
+    o.coordinator = "127.0.0.1:" + std::to_string(port_);
+    o.worker_id = "test";
+    o.threads = 1;
+    o.cache_dir = dir_;
+    o.poll_seconds = 0.2;
+    o.max_backoff_seconds = 0.2;
+    return o;
+  }
+  // A task whose photon map takes ~1 s to build on one thread.
+  static v1::Task SlowTask(uint64_t photons = 400000) {
+    v1::Task t;
+    t.set_job_id("job-1");
+    t.set_task_id(3);
+    t.set_attempt(1);
+    t.set_lease_id("lease-3");
+    t.set_lease_seconds(0.3);
+    CameraSpec cam;
+    cam.eye = Vec3(0, 1, 3.9f);
+    cam.look_at = Vec3(0, 1, 0);
+    cam.vfov_degrees = 39.3f;
+    cam.width = cam.height = 16;
+    CameraToProto(cam, t.mutable_camera());
+    t.mutable_settings()->set_integrator(v1::INTEGRATOR_PHOTONMAP);
+    t.mutable_settings()->mutable_photon_map()->set_photons(photons);
+    t.mutable_settings()->mutable_photon_map()->set_k(20);
+    TaskSpec spec = ExpandPlan(PlanSpec{.kind = PlanKind::kSkipping, .stride = 2}, 16, 16, 5)[3];
+    TaskSpecToProto(spec, &t);
+    t.set_attempt(1);
+    return t;
+  }
+  static uint64_t PixelsOf(const v1::Task& t) {
+    return CountPixels(PixelSubsetFromProto(t.pixels(), "p"), int(t.camera().width()), int(t.camera().height()));
+  }
+
+  fs::path dir_;
+  std::unique_ptr<FakeCoordinator> fake_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+};
+
+// Runs the worker on a thread until `done` holds (or 30 s), then stops it.
+void RunUntil(Worker& worker, const std::function<bool()>& done, double timeout = 30) {
+  int code = -1;
+  std::thread t([&] { code = worker.Run(); });
+  const Clock::time_point t0 = Clock::now();
+  while (!done() && Since(t0) < timeout) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  worker.RequestStop();
+  t.join();
+  EXPECT_EQ(code, 0);
+}
+
+TEST_F(WorkerTest, HeartbeatsAtAThirdOfTheLeaseAndReportsOnlyTheSubset) {
+  const v1::Task task = SlowTask();
+  fake_->Offer(task);
+  Worker worker(Options());
+  RunUntil(worker, [&] { return !fake_->completes().empty() && fake_->lease_requests().size() > 2; });
+  ASSERT_EQ(fake_->completes().size(), 1u);
+  const v1::CompleteTaskRequest c = fake_->completes()[0];
+  EXPECT_EQ(c.lease_id(), "lease-3");
+  EXPECT_EQ(uint64_t(c.rgb_sums_size()), 3 * PixelsOf(task));  // the subset, not 16x16
+  EXPECT_LT(uint64_t(c.rgb_sums_size()), 3u * 16 * 16);
+  for (float v : c.rgb_sums()) EXPECT_TRUE(std::isfinite(v));
+  EXPECT_EQ(c.stats().photons_emitted(), 400000u);
+  // Heartbeats every lease/3 = 0.1 s (some slack for a loaded machine), from the start.
+  const std::vector<double> ext = fake_->extends();
+  ASSERT_GE(ext.size(), 3u) << "the render was too fast to observe heartbeats";
+  EXPECT_LT(ext.front(), 0.3);
+  for (size_t i = 1; i < ext.size(); ++i) EXPECT_LT(ext[i] - ext[i - 1], 0.25) << "gap before heartbeat " << i;
+  EXPECT_TRUE(fake_->fails().empty());
+  EXPECT_EQ(fake_->fetches(), 1);
+  // Affinity: later polls carry the cached scene and map seed.
+  const v1::LeaseTaskRequest last = fake_->lease_requests().back();
+  ASSERT_EQ(last.cached_scene_hashes_size(), 1);
+  EXPECT_EQ(last.cached_scene_hashes(0), fake_->hash());
+  EXPECT_NE(std::find(last.cached_map_seeds().begin(), last.cached_map_seeds().end(), task.map_seed()),
+            last.cached_map_seeds().end());
+  EXPECT_EQ(worker.counters().merged, 1u);
+}
+
+TEST_F(WorkerTest, AbandonsTheResultWhenTheLeaseIsGone) {
+  fake_->set_extend_ok(false);
+  fake_->Offer(SlowTask());
+  Worker worker(Options());
+  RunUntil(worker, [&] { return worker.counters().abandoned > 0; });
+  EXPECT_EQ(worker.counters().abandoned, 1u);
+  EXPECT_TRUE(fake_->completes().empty());
+  EXPECT_TRUE(fake_->fails().empty());
+}
+
+TEST_F(WorkerTest, StopWithoutGraceHandsTheLeaseBack) {
+  fake_->Offer(SlowTask(3000000));  // several seconds
+  WorkerOptions o = Options();
+  o.grace_seconds = 0;
+  Worker worker(o);
+  int code = -1;
+  std::thread t([&] { code = worker.Run(); });
+  ASSERT_TRUE([&] {
+    for (int i = 0; i < 3000 && fake_->extends().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    return !fake_->extends().empty();
+  }());
+  const Clock::time_point t0 = Clock::now();
+  worker.RequestStop();
+  t.join();
+  EXPECT_LT(Since(t0), 1.0) << "a hand-back does not wait for the render";
+  EXPECT_EQ(code, 0);
+  ASSERT_EQ(fake_->fails().size(), 1u);
+  EXPECT_TRUE(fake_->fails()[0].retryable());
+  EXPECT_EQ(fake_->fails()[0].lease_id(), "lease-3");
+  EXPECT_TRUE(fake_->completes().empty());
+  EXPECT_EQ(worker.counters().handed_back, 1u);
+  EXPECT_TRUE(worker.render_in_flight());  // pf-worker's main() then exits without waiting
+}
+
+TEST_F(WorkerTest, StopWithGraceFinishesTheTask) {
+  fake_->Offer(SlowTask());
+  WorkerOptions o = Options();
+  o.grace_seconds = 60;
+  Worker worker(o);
+  int code = -1;
+  std::thread t([&] { code = worker.Run(); });
+  for (int i = 0; i < 3000 && fake_->extends().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  worker.RequestStop();
+  t.join();
+  EXPECT_EQ(code, 0);
+  EXPECT_EQ(fake_->completes().size(), 1u);
+  EXPECT_TRUE(fake_->fails().empty());
+  EXPECT_FALSE(worker.render_in_flight());
+}
+
+TEST_F(WorkerTest, StopCancelsAnIdleLongPoll) {
+  WorkerOptions o = Options();
+  o.poll_seconds = 20;
+  Worker worker(o);
+  int code = -1;
+  std::thread t([&] { code = worker.Run(); });
+  for (int i = 0; i < 500 && fake_->lease_requests().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_FALSE(fake_->lease_requests().empty());
+  const Clock::time_point t0 = Clock::now();
+  worker.RequestStop();
+  t.join();
+  EXPECT_LT(Since(t0), 1.0);
+  EXPECT_EQ(code, 0);
+}
+
+TEST_F(WorkerTest, WaitsForAnAbsentCoordinatorAndConnectsWhenItAppears) {
+  const int port = port_;
+  server_->Shutdown(std::chrono::system_clock::now());
+  server_.reset();
+  Worker worker(Options());
+  int code = -1;
+  std::thread t([&] { code = worker.Run(); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  EXPECT_TRUE(worker.state() == State::kConnecting || worker.state() == State::kBackoff)
+      << StateName(worker.state());
+  fake_->Offer(SlowTask(20000));
+  StartServer(port);
+  for (int i = 0; i < 1000 && fake_->completes().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  worker.RequestStop();
+  t.join();
+  EXPECT_EQ(code, 0);
+  EXPECT_EQ(fake_->completes().size(), 1u);
+}
+
+}  // namespace
+}  // namespace pf::worker

@@ -1,0 +1,499 @@
+#include "worker/worker.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "client/grpc_channel.h"
+#include "common/core/error.h"
+#include "proto/convert.h"
+
+namespace pf::worker {
+namespace v1 = photonfarm::v1;
+using Clock = std::chrono::steady_clock;
+
+const char* StateName(State s) {
+  switch (s) {
+    case State::kConnecting: return "connecting";
+    case State::kBackoff: return "backoff";
+    case State::kIdle: return "idle";
+    case State::kFetchingScene: return "fetching-scene";
+    case State::kBuildingMap: return "building-map";
+    case State::kRendering: return "rendering";
+    case State::kReporting: return "reporting";
+    case State::kStopping: return "stopping";
+  }
+  return "?";
+}
+
+namespace {
+
+bool IsConnectionError(const grpc::Status& s) {
+  return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
+}
+
+std::string TaskContext(const v1::Task& t) {
+  return "job=" + t.job_id() + " task=" + std::to_string(t.task_id()) + " attempt=" + std::to_string(t.attempt());
+}
+
+double SecondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+}  // namespace
+
+// One task's render, shared by the main loop, the render thread and the heartbeat thread.
+struct Worker::Execution {
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool done = false;            // the render thread finished (output or error set)
+  bool stop_heartbeat = false;
+  bool lease_lost = false;
+  std::optional<TaskOutput> output;
+  std::string error;
+  bool error_retryable = true;
+  std::atomic<uint64_t> progress{0};
+  uint64_t pixels = 1;
+  double lease_seconds = 30;
+};
+
+Worker::Worker(WorkerOptions options)
+    : options_(std::move(options)),
+      scenes_(options_.cache_dir, options_.scene_cache_capacity),
+      maps_(std::make_shared<PhotonMapCache>(options_.map_cache_capacity)),
+      jitter_rng_(std::random_device{}()) {
+  channel_ = MakeCoordinatorChannel(options_.coordinator, ChannelOptions{.token = options_.token});
+  stub_ = v1::WorkerService::NewStub(channel_);
+}
+
+Worker::~Worker() = default;
+
+void Worker::SetState(State s, const std::string& context) {
+  const State old = state_.exchange(s);
+  if (old == s) return;
+  if (context.empty())
+    spdlog::debug("state {} -> {}", StateName(old), StateName(s));
+  else
+    spdlog::debug("state {} -> {} {}", StateName(old), StateName(s), context);
+}
+
+WorkerCounters Worker::counters() const {
+  std::lock_guard lock(mutex_);
+  return counters_;
+}
+
+void Worker::RequestStop() {
+  std::lock_guard lock(mutex_);
+  if (stop_.load()) return;
+  stop_deadline_ = Clock::now() + Seconds(options_.grace_seconds);
+  stop_ = true;
+  if (poll_context_) poll_context_->TryCancel();
+  wake_.notify_all();
+  spdlog::info("stop requested: finishing the current task within {:.0f}s grace, no new leases",
+               options_.grace_seconds);
+}
+
+void Worker::RequestAbort() {
+  std::lock_guard lock(mutex_);
+  stop_deadline_ = Clock::now();
+  stop_ = true;
+  abort_ = true;
+  if (poll_context_) poll_context_->TryCancel();
+  wake_.notify_all();
+  spdlog::info("abort requested: handing back the current lease now");
+}
+
+bool Worker::InterruptibleSleep(std::chrono::milliseconds d, bool wake_on_stop) {
+  std::unique_lock lock(mutex_);
+  return wake_.wait_for(lock, d, [&] { return abort_.load() || (wake_on_stop && stop_.load()); });
+}
+
+void Worker::BackoffSleep() {
+  SetState(State::kBackoff);
+  // Exponential backoff with "equal jitter": half fixed, half random, so that workers that lost
+  // the coordinator together do not reconnect in lockstep.
+  const double cap = options_.max_backoff_seconds;
+  const double base = std::min(cap, 0.1 * double(1u << std::min(failures_, 16)));
+  std::uniform_real_distribution<double> u(0.5, 1.0);
+  const double seconds = base * u(jitter_rng_);
+  ++failures_;
+  InterruptibleSleep(Seconds(seconds));
+}
+
+bool Worker::WaitForConnection() {
+  SetState(State::kConnecting);
+  while (!stop_requested()) {
+    if (channel_->WaitForConnected(std::chrono::system_clock::now() + std::chrono::milliseconds(500))) {
+      if (failures_ > 0) spdlog::info("connected to coordinator {}", options_.coordinator);
+      return true;
+    }
+    if (failures_ == 0 || failures_ % 20 == 0)
+      spdlog::warn("coordinator {} unreachable; retrying with backoff", options_.coordinator);
+    BackoffSleep();
+    SetState(State::kConnecting);
+  }
+  return false;
+}
+
+std::optional<v1::Task> Worker::Lease(grpc::Status* status) {
+  SetState(State::kIdle);
+  v1::LeaseTaskRequest req;
+  req.set_worker_id(options_.worker_id);
+  req.set_threads(uint32_t(options_.threads));
+  for (const std::string& h : scenes_.CachedHashes()) req.add_cached_scene_hashes(h);
+  for (uint64_t s : maps_->CachedSeeds()) req.add_cached_map_seeds(s);
+  req.set_wait_seconds(options_.poll_seconds);
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, options_.token, Seconds(options_.poll_seconds + options_.rpc_timeout_seconds));
+  {
+    std::lock_guard lock(mutex_);
+    if (stop_.load()) {
+      *status = grpc::Status::CANCELLED;
+      return std::nullopt;
+    }
+    poll_context_ = &ctx;
+  }
+  v1::LeaseTaskResponse resp;
+  *status = stub_->LeaseTask(&ctx, req, &resp);
+  {
+    std::lock_guard lock(mutex_);
+    poll_context_ = nullptr;
+  }
+  if (!status->ok() || !resp.has_task()) return std::nullopt;
+  return resp.task();
+}
+
+int Worker::Run() {
+  spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", options_.worker_id, options_.coordinator,
+               options_.threads, options_.cache_dir.string());
+  uint64_t reported = 0;
+  while (!stop_requested()) {
+    if (!WaitForConnection()) break;
+    grpc::Status status;
+    std::optional<v1::Task> task = Lease(&status);
+    if (!status.ok()) {
+      if (stop_requested()) break;
+      if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
+          status.error_code() == grpc::StatusCode::PERMISSION_DENIED) {
+        // A wrong token will not fix itself, but an operator may rotate it: keep trying slowly.
+        spdlog::error("LeaseTask: {} (check --token-file / PF_TOKEN)", StatusToString(status));
+        failures_ = 16;
+      } else if (IsConnectionError(status)) {
+        spdlog::warn("LeaseTask: {}", StatusToString(status));
+      } else {
+        spdlog::error("LeaseTask: {}", StatusToString(status));
+      }
+      BackoffSleep();
+      continue;
+    }
+    failures_ = 0;
+    if (!task) continue;  // no task now: poll again
+    {
+      std::lock_guard lock(mutex_);
+      ++counters_.leased;
+    }
+    const Outcome outcome = RunTask(*task);
+    if (outcome == Outcome::kStop) break;
+    if (outcome == Outcome::kConnectionLost) BackoffSleep();
+    ++reported;
+    if (options_.max_tasks > 0 && reported >= options_.max_tasks) {
+      spdlog::info("reached --max-tasks {}: exiting", options_.max_tasks);
+      break;
+    }
+  }
+  SetState(State::kStopping);
+  const WorkerCounters c = counters();
+  spdlog::info("worker {} stopped: {} leased, {} completed ({} merged), {} failed, {} abandoned, {} handed back",
+               options_.worker_id, c.leased, c.completed, c.merged, c.failed, c.abandoned, c.handed_back);
+  return 0;
+}
+
+SceneBundle Worker::FetchBundle(const std::string& hash, const std::string& entry) {
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, options_.token, Seconds(options_.fetch_timeout_seconds));
+  v1::FetchSceneRequest req;
+  req.set_scene_hash(hash);
+  std::unique_ptr<grpc::ClientReader<v1::SceneFile>> reader = stub_->FetchScene(&ctx, req);
+  SceneBundle bundle;
+  v1::SceneFile chunk;
+  while (reader->Read(&chunk)) {
+    if (!bundle.files.empty() && bundle.files.back().first == chunk.path())
+      bundle.files.back().second += chunk.content();  // a large file continues in the next message
+    else
+      bundle.files.emplace_back(chunk.path(), chunk.content());
+  }
+  const grpc::Status status = reader->Finish();
+  if (!status.ok()) throw RpcError(status);
+  // The stream carries files only; the entry comes with the task (Task.scene_entry). The entry
+  // is part of the content hash, so a coordinator that does not send it is still understood:
+  // try the top-level .json, .mgf and .obj files until the hash matches.
+  std::vector<std::string> candidates;
+  if (!entry.empty()) candidates.push_back(entry);
+  for (const char* ext : {".json", ".mgf", ".obj"})
+    for (const auto& [path, content] : bundle.files) {
+      const std::filesystem::path p(path);
+      if (path.find('/') == std::string::npos && p.extension() == ext) candidates.push_back(path);
+    }
+  for (const std::string& entry : candidates) {
+    bundle.entry = entry;
+    if (BundleHash(bundle) == hash) return bundle;
+  }
+  throw InputError("FetchScene " + hash + ": no entry file of the " + std::to_string(bundle.files.size()) +
+                   " files received matches the hash");
+}
+
+Worker::Outcome Worker::RunTask(const v1::Task& task) {
+  const std::string ctx = TaskContext(task);
+  const Clock::time_point t0 = Clock::now();
+
+  // Parse first: a task we cannot even read goes straight back as a permanent failure.
+  CameraSpec camera;
+  JobRenderSettings settings;
+  TaskSpec spec;
+  try {
+    camera = CameraFromProto(task.camera(), "task.camera");
+    settings = SettingsFromProto(task.settings(), "task.settings");
+    spec = TaskSpecFromProto(task);
+  } catch (const InputError& e) {
+    Fail(task, ctx, e.what(), false);
+    return Outcome::kDone;
+  }
+  const uint64_t pixels = CountPixels(spec.pixels, camera.width, camera.height);
+  spdlog::info("leased {} map={} pixels={} samples={} lease={:.1f}s", ctx, task.map_index(), pixels,
+               spec.sample_end - spec.sample_begin, task.lease_seconds());
+
+  // Scene: memory, disk, or FetchScene.
+  SetState(State::kFetchingScene, ctx);
+  std::shared_ptr<const SceneRuntime> scene;
+  try {
+    std::string source;
+    scene = scenes_.Get(task.scene_hash(), [&] { return FetchBundle(task.scene_hash(), task.scene_entry()); }, &source);
+    if (source != "memory") spdlog::info("scene {} from {} for {}", task.scene_hash().substr(0, 12), source, ctx);
+  } catch (const RpcError& e) {
+    if (IsConnectionError(e.status())) {
+      spdlog::warn("FetchScene for {}: {}; the lease will expire", ctx, StatusToString(e.status()));
+      return Outcome::kConnectionLost;
+    }
+    Fail(task, ctx, "fetching scene " + task.scene_hash() + ": " + StatusToString(e.status()),
+         e.status().error_code() != grpc::StatusCode::NOT_FOUND);
+    return Outcome::kDone;
+  } catch (const InputError& e) {
+    Fail(task, ctx, std::string("scene ") + task.scene_hash() + ": " + e.what(), false);
+    return Outcome::kDone;
+  } catch (const std::exception& e) {
+    Fail(task, ctx, std::string("scene ") + task.scene_hash() + ": " + e.what(), true);
+    return Outcome::kDone;
+  }
+
+  // Render on a thread of its own so that this thread can watch the lease, the grace period
+  // and the stop requests; a heartbeat thread extends the lease meanwhile.
+  const std::vector<uint64_t> cached = maps_->CachedSeeds();
+  const bool map_cached = settings.integrator == IntegratorKind::kPath ||
+                          std::find(cached.begin(), cached.end(), spec.map_seed) != cached.end();
+  SetState(map_cached ? State::kRendering : State::kBuildingMap, ctx);
+  auto exec = std::make_shared<Execution>();
+  exec->pixels = std::max<uint64_t>(pixels, 1);
+  exec->lease_seconds = task.lease_seconds() > 0 ? task.lease_seconds() : 30.0;
+  render_in_flight_ = true;
+  // The render thread owns what it uses (it is detached on a hand-back and may outlive *this).
+  std::thread render([exec, scene, camera, settings, spec, hash = task.scene_hash(), maps = maps_,
+                      threads = options_.threads] {
+    std::optional<TaskOutput> out;
+    std::string error;
+    bool retryable = true;
+    try {
+      out = ExecuteTask(*scene, hash, camera, settings, spec, threads, maps.get(), &exec->progress);
+    } catch (const InputError& e) {
+      error = e.what();
+      retryable = false;
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    std::lock_guard lock(exec->mutex);
+    exec->output = std::move(out);
+    exec->error = error;
+    exec->error_retryable = retryable;
+    exec->done = true;
+    exec->cv.notify_all();
+  });
+  std::thread heartbeat([this, &task, ctx, exec] { Heartbeat(task, ctx, exec); });
+  auto stop_heartbeat = [&] {
+    {
+      std::lock_guard lock(exec->mutex);
+      exec->stop_heartbeat = true;
+      exec->cv.notify_all();
+    }
+    if (heartbeat.joinable()) heartbeat.join();
+  };
+
+  bool abandoned_logged = false;
+  while (true) {
+    std::unique_lock lock(exec->mutex);
+    exec->cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return exec->done; });
+    if (exec->done) break;
+    const bool lease_lost = exec->lease_lost;
+    lock.unlock();
+    if (state() == State::kBuildingMap && exec->progress.load() > 0)
+      SetState(State::kRendering, ctx);
+    if (lease_lost && !abandoned_logged) {
+      abandoned_logged = true;
+      spdlog::warn("abandoned {}: the coordinator says the lease is gone; the result will be dropped", ctx);
+    }
+    bool hand_back = false;
+    {
+      std::lock_guard slock(mutex_);
+      hand_back = stop_.load() && (abort_.load() || Clock::now() >= stop_deadline_);
+    }
+    if (hand_back) {
+      stop_heartbeat();
+      if (!lease_lost) {
+        spdlog::info("handed-back {}: shutting down before the task finished", ctx);
+        SendFail(task, ctx, "worker " + options_.worker_id + " shutting down", true);
+        std::lock_guard slock(mutex_);
+        ++counters_.handed_back;
+      }
+      render.detach();  // render_in_flight_ stays true: main() exits without waiting for it
+      return Outcome::kStop;
+    }
+  }
+  render.join();
+  render_in_flight_ = false;
+  stop_heartbeat();
+
+  std::unique_lock lock(exec->mutex);
+  if (exec->lease_lost) {
+    std::lock_guard slock(mutex_);
+    ++counters_.abandoned;
+    if (!abandoned_logged) spdlog::warn("abandoned {}: the lease is gone; result dropped", ctx);
+    return Outcome::kDone;
+  }
+  if (!exec->output) {
+    const std::string error = exec->error;
+    const bool retryable = exec->error_retryable;
+    lock.unlock();
+    Fail(task, ctx, error, retryable);
+    return Outcome::kDone;
+  }
+  const TaskOutput output = std::move(*exec->output);
+  lock.unlock();
+  spdlog::info("rendered {} pixels={} map_cache_hit={} map_s={:.3f} render_s={:.3f} total_s={:.3f}", ctx,
+               output.pixels, output.map_cache_hit, output.map_seconds, output.render_seconds, SecondsSince(t0));
+  return Report(task, ctx, output);
+}
+
+void Worker::Heartbeat(const v1::Task& task, const std::string& ctx, std::shared_ptr<Execution> exec) {
+  double lease_seconds = exec->lease_seconds;
+  while (true) {
+    const auto interval = Seconds(std::max(0.05, lease_seconds / 3.0));
+    {
+      std::unique_lock lock(exec->mutex);
+      if (exec->cv.wait_for(lock, interval, [&] { return exec->stop_heartbeat || exec->done; })) return;
+    }
+    v1::ExtendLeaseRequest req;
+    req.set_lease_id(task.lease_id());
+    req.set_progress(std::min(1.0, double(exec->progress.load()) / double(exec->pixels)));
+    v1::ExtendLeaseResponse resp;
+    grpc::ClientContext cctx;
+    PrepareContext(&cctx, options_.token, std::min(interval, Seconds(options_.rpc_timeout_seconds)));
+    const grpc::Status status = stub_->ExtendLease(&cctx, req, &resp);
+    if (status.ok() && !resp.ok()) {
+      std::lock_guard lock(exec->mutex);
+      exec->lease_lost = true;
+      exec->cv.notify_all();
+      return;
+    }
+    if (status.ok()) {
+      if (resp.lease_seconds() > 0) lease_seconds = resp.lease_seconds();
+      spdlog::trace("extended {} progress={:.2f}", ctx, req.progress());
+    } else if (status.error_code() == grpc::StatusCode::NOT_FOUND ||
+               status.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
+      std::lock_guard lock(exec->mutex);
+      exec->lease_lost = true;
+      exec->cv.notify_all();
+      return;
+    } else {
+      spdlog::warn("ExtendLease {}: {}", ctx, StatusToString(status));
+    }
+  }
+}
+
+Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, const TaskOutput& output) {
+  SetState(State::kReporting, ctx);
+  v1::CompleteTaskRequest req;
+  req.set_lease_id(task.lease_id());
+  req.mutable_rgb_sums()->Assign(output.rgb_sums.begin(), output.rgb_sums.end());
+  v1::TaskStats* st = req.mutable_stats();
+  st->set_photons_emitted(output.photons_emitted);
+  st->set_photons_stored(output.photons_stored);
+  st->set_rays(output.rays);
+  st->set_map_seconds(output.map_seconds);
+  st->set_render_seconds(output.render_seconds);
+  st->set_map_cache_hit(output.map_cache_hit);
+  const size_t bytes = req.ByteSizeLong();
+
+  // The result is kept while the coordinator is away (it may come back with the lease).
+  const Clock::time_point give_up = Clock::now() + Seconds(options_.report_retry_seconds);
+  int attempts = 0;
+  while (true) {
+    grpc::ClientContext cctx;
+    PrepareContext(&cctx, options_.token, Seconds(options_.rpc_timeout_seconds));
+    v1::CompleteTaskResponse resp;
+    const grpc::Status status = stub_->CompleteTask(&cctx, req, &resp);
+    if (status.ok()) {
+      spdlog::info("completed {} merged={} bytes={} pixels={}", ctx, resp.merged() ? "true" : "false", bytes,
+                   output.pixels);
+      std::lock_guard lock(mutex_);
+      ++counters_.completed;
+      counters_.merged += resp.merged();
+      return Outcome::kDone;
+    }
+    if (!IsConnectionError(status)) {
+      spdlog::error("completed {} merged=false rejected: {}", ctx, StatusToString(status));
+      std::lock_guard lock(mutex_);
+      ++counters_.completed;
+      return Outcome::kDone;
+    }
+    ++attempts;
+    bool give_up_now = Clock::now() >= give_up;
+    {
+      std::lock_guard lock(mutex_);
+      give_up_now = give_up_now || abort_.load() || (stop_.load() && Clock::now() >= stop_deadline_);
+    }
+    if (give_up_now) {
+      spdlog::error("dropped result of {} after {} attempts: {}", ctx, attempts, StatusToString(status));
+      return stop_requested() ? Outcome::kStop : Outcome::kConnectionLost;
+    }
+    if (attempts == 1) spdlog::warn("CompleteTask {}: {}; keeping the result and retrying", ctx, StatusToString(status));
+    failures_ = std::max(failures_, attempts);
+    BackoffSleep();
+    SetState(State::kReporting, ctx);
+  }
+}
+
+void Worker::Fail(const v1::Task& task, const std::string& ctx, const std::string& reason, bool retryable) {
+  spdlog::error("failed {} retryable={}: {}", ctx, retryable ? "true" : "false", reason);
+  {
+    std::lock_guard lock(mutex_);
+    ++counters_.failed;
+  }
+  SendFail(task, ctx, reason, retryable);
+}
+
+void Worker::SendFail(const v1::Task& task, const std::string& ctx, const std::string& reason, bool retryable) {
+  v1::FailTaskRequest req;
+  req.set_lease_id(task.lease_id());
+  req.set_reason(reason);
+  req.set_retryable(retryable);
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    grpc::ClientContext cctx;
+    PrepareContext(&cctx, options_.token, Seconds(std::min(options_.rpc_timeout_seconds, 5.0)));
+    v1::FailTaskResponse resp;
+    const grpc::Status status = stub_->FailTask(&cctx, req, &resp);
+    if (status.ok() || !IsConnectionError(status)) {
+      if (!status.ok()) spdlog::warn("FailTask {}: {}", ctx, StatusToString(status));
+      return;
+    }
+  }
+  spdlog::warn("FailTask {}: coordinator unreachable; the lease will expire", ctx);
+}
+
+}  // namespace pf::worker

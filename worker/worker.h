@@ -1,0 +1,125 @@
+#pragma once
+// pf-worker's pull loop as an explicit state machine (STYLE: Flamenco's worker):
+//
+//   connecting ──ready──▶ idle (LeaseTask long poll) ──task──▶ fetching-scene ──▶ building-map
+//       ▲   │                 │  ▲ no task now                                      │ (cache miss)
+//       │   ▼ unreachable     │  └──────────────────┐                               ▼
+//     backoff (jittered) ◀────┘ UNAVAILABLE        reporting (CompleteTask) ◀── rendering
+//
+// and `stopping` after SIGTERM. Every RPC has a deadline. While a task renders (on a thread of
+// its own, using all the worker's threads), a heartbeat thread extends the lease every third of
+// its duration; if the coordinator answers that the lease is gone, the result is abandoned.
+// Results are the subset's pixel sums only (common/plan/task_executor.h), never a full image.
+// A finished result survives a coordinator outage: CompleteTask is retried with backoff for
+// `report_retry_seconds`.
+//
+// SIGTERM (RequestStop): no new leases; the current task is finished and reported if that
+// happens within `grace_seconds`, else its lease is handed back with FailTask(retryable).
+// A second signal (RequestAbort) hands it back at once. Run() then returns 0.
+//
+// Log lines (one per event, grep-able; the e2e tests count them):
+//   leased job=J task=T attempt=A ...       completed job=J task=T attempt=A merged=true|false ...
+//   abandoned job=J task=T attempt=A: ...   failed job=J task=T attempt=A retryable=R: reason
+//   handed-back job=J task=T attempt=A: ... state X -> Y
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include "client/grpc_channel.h"
+#include "common/plan/task_executor.h"
+#include "photonfarm/v1/farm.grpc.pb.h"
+#include "worker/scene_cache.h"
+
+namespace pf::worker {
+
+enum class State { kConnecting, kBackoff, kIdle, kFetchingScene, kBuildingMap, kRendering, kReporting, kStopping };
+const char* StateName(State s);
+
+struct WorkerOptions {
+  std::string coordinator;               // HOST:PORT
+  std::string token;                     // bearer token, "" = none
+  std::string worker_id;
+  int threads = 1;                       // > 0
+  std::filesystem::path cache_dir;       // scene bundles by hash
+  double poll_seconds = 10;              // LeaseTask long-poll wait (≤ 30)
+  double rpc_timeout_seconds = 10;       // deadline of short calls
+  double fetch_timeout_seconds = 120;    // deadline of FetchScene
+  double grace_seconds = 30;             // SIGTERM: finish the task if it ends within this
+  double max_backoff_seconds = 5;        // cap of the jittered reconnect backoff
+  double report_retry_seconds = 60;      // keep retrying CompleteTask while the coordinator is away
+  size_t map_cache_capacity = 4;         // photon maps kept (LRU)
+  size_t scene_cache_capacity = 2;       // SceneRuntimes kept in memory (LRU)
+  uint64_t max_tasks = 0;                // exit 0 after this many reported tasks (0 = never); for batch schedulers
+};
+
+struct WorkerCounters {
+  uint64_t leased = 0, completed = 0, merged = 0, failed = 0, abandoned = 0, handed_back = 0;
+};
+
+class Worker {
+ public:
+  explicit Worker(WorkerOptions options);
+  ~Worker();
+  Worker(const Worker&) = delete;
+  Worker& operator=(const Worker&) = delete;
+
+  // The pull loop; returns the exit code (0 after a stop request or max_tasks).
+  int Run();
+  // Thread-safe (called from the signal thread, not from a signal handler).
+  void RequestStop();
+  void RequestAbort();
+
+  State state() const { return state_.load(); }
+  WorkerCounters counters() const;
+  // True if Run() returned while a render thread was still busy (its lease was handed back):
+  // the caller should end the process with _exit rather than wait for it.
+  bool render_in_flight() const { return render_in_flight_.load(); }
+
+ private:
+  struct Execution;
+  enum class Outcome { kDone, kConnectionLost, kStop };
+
+  void SetState(State s, const std::string& context = "");
+  bool WaitForConnection();
+  void BackoffSleep();
+  // Returns nullopt on "no task now"; sets *status on RPC failure.
+  std::optional<photonfarm::v1::Task> Lease(grpc::Status* status);
+  Outcome RunTask(const photonfarm::v1::Task& task);
+  Outcome Report(const photonfarm::v1::Task& task, const std::string& ctx, const TaskOutput& output);
+  // Logs and counts a failure, then tells the coordinator (SendFail).
+  void Fail(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& reason, bool retryable);
+  void SendFail(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& reason, bool retryable);
+  void Heartbeat(const photonfarm::v1::Task& task, const std::string& ctx, std::shared_ptr<Execution> exec);
+  SceneBundle FetchBundle(const std::string& hash, const std::string& entry);
+  bool stop_requested() const { return stop_.load(); }
+  // Sleeps up to `d`, returning early (true) when stop/abort is requested.
+  bool InterruptibleSleep(std::chrono::milliseconds d, bool wake_on_stop = true);
+
+  WorkerOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<photonfarm::v1::WorkerService::Stub> stub_;
+  SceneCache scenes_;
+  std::shared_ptr<PhotonMapCache> maps_;  // shared with a render thread that may outlive a hand-back
+
+  std::atomic<State> state_{State::kConnecting};
+  std::atomic<bool> stop_{false}, abort_{false}, render_in_flight_{false};
+  std::chrono::steady_clock::time_point stop_deadline_;
+  int failures_ = 0;                    // consecutive connection failures (backoff exponent)
+  std::mt19937_64 jitter_rng_;
+
+  mutable std::mutex mutex_;            // guards poll_context_, counters_, stop_deadline_
+  std::condition_variable wake_;        // stop/abort/execution progress
+  grpc::ClientContext* poll_context_ = nullptr;  // the LeaseTask in flight, cancelled on stop
+  WorkerCounters counters_;
+};
+
+}  // namespace pf::worker
