@@ -10,7 +10,9 @@
      farm-2    pf render --workers 2 --threads 1       (coordinator + 2 workers of 1 thread)
      local-2   pf render --local-only --threads 2      (the single-process renderer, two cores)
    Wall time of the whole command (farm start-up, upload, scheduling and shutdown included);
-   --repeat interleaved runs of each, the fastest counts (the machine may be shared).
+   --repeat interleaved runs of each, the fastest counts (the machine may be shared). Also the CPU
+   time (user + system) of all processes of a run: on a shared machine the cleaner measure of
+   what the farm adds (coordinator, client, RPCs).
    speedup = farm-1 / farm-2; overhead = farm-N / local-N - 1. All four images must be
    bit-identical (checked).
 2. The coordinator alone with instant workers (tests/e2e/pf_fake_worker --mode instant: lease,
@@ -25,7 +27,9 @@ import argparse
 import json
 import os
 import re
+import resource
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -35,10 +39,16 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(REPO, "scenes", "cornell-box", "cornell-box.json")
 
 
-def run(cmd, **kw):
+def run(cmd, cpu=None, **kw):
+    """Runs cmd; returns (wall seconds, result). `cpu` (a list) receives the CPU seconds (user +
+    system) of the command and every process it started and reaped (pf reaps its farm)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.monotonic()
     r = subprocess.run(cmd, capture_output=True, text=True, **kw)
     dt = time.monotonic() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if cpu is not None:
+        cpu.append(round((after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), 3))
     if r.returncode != 0:
         sys.exit(f"failed ({r.returncode}): {' '.join(cmd)}\n{r.stderr}")
     return dt, r
@@ -69,10 +79,11 @@ def stop(p):
 
 
 def main():
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the clean-up below
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--build", default=os.path.join(REPO, "build"))
     ap.add_argument("--quick", action="store_true", help="a 4x smaller render job (for a smoke run)")
-    ap.add_argument("--repeat", type=int, default=2, help="runs of each render configuration (the fastest counts)")
+    ap.add_argument("--repeat", type=int, default=3, help="runs of each render configuration (the fastest counts)")
     ap.add_argument("--json-out")
     a = ap.parse_args()
     pf = os.path.join(a.build, "client", "pf")
@@ -94,15 +105,17 @@ def main():
                 ("farm-2", ["--workers", "2", "--threads", "1"]), ("local-2", ["--local-only", "--threads", "2"])]
         # Interleaved repetitions, fastest of each: the machine may be shared.
         times = {name: [] for name, _ in runs}
+        cpus = {name: [] for name, _ in runs}
         for rep in range(a.repeat):
             for name, flags in runs:
                 out = os.path.join(tmp, name + ".exr")
-                dt, _ = run([pf, "render", SCENE, "-o", out] + job + flags)
+                dt, _ = run([pf, "render", SCENE, "-o", out] + job + flags, cpu=cpus[name])
                 times[name].append(round(dt, 3))
-                print(f"  {name:8s} {dt:8.2f} s", file=sys.stderr, flush=True)
+                print(f"  {name:8s} {dt:8.2f} s wall {cpus[name][-1]:8.2f} s CPU", file=sys.stderr, flush=True)
         for name, _ in runs:
             results["render"][name + "_seconds"] = min(times[name])
             results["render"][name + "_all_seconds"] = times[name]
+            results["render"][name + "_cpu_seconds"] = min(cpus[name])
         for name, _ in runs[1:]:
             _, r = run([pf, "diff", os.path.join(tmp, name + ".exr"), os.path.join(tmp, "local-1.exr"), "--json"])
             if json.loads(r.stdout)["max_abs_error"] != 0:
@@ -112,6 +125,8 @@ def main():
         r["speedup_2_vs_1_workers"] = round(r["farm-1_seconds"] / r["farm-2_seconds"], 3)
         r["overhead_farm1_vs_local1"] = round(r["farm-1_seconds"] / r["local-1_seconds"] - 1, 4)
         r["overhead_farm2_vs_local2"] = round(r["farm-2_seconds"] / r["local-2_seconds"] - 1, 4)
+        r["cpu_overhead_farm1_vs_local1"] = round(r["farm-1_cpu_seconds"] / r["local-1_cpu_seconds"] - 1, 4)
+        r["cpu_overhead_farm2_vs_local1"] = round(r["farm-2_cpu_seconds"] / r["local-1_cpu_seconds"] - 1, 4)
 
         for ckpt in ("0", "100"):
             for stride, res in ((8, 64), (2, 64)):
@@ -141,13 +156,15 @@ def main():
 
     r = results["render"]
     print(f"\nRender: {r['job']} on {os.cpu_count()} cores (wall time of the whole command)")
-    print(f"  {'run':<34}{'seconds':>9}")
+    print(f"  {'run':<40}{'wall s':>9}{'CPU s':>9}")
     for name, label in (("local-1", "local, 1 thread"), ("farm-1", "pf render --workers 1 (1 thread)"),
                         ("farm-2", "pf render --workers 2 (1 thread each)"), ("local-2", "local, 2 threads")):
-        print(f"  {label:<34}{r[name + '_seconds']:>9.2f}")
-    print(f"  speedup 2 vs 1 workers {r['speedup_2_vs_1_workers']:.2f}x;  farm overhead: "
+        print(f"  {label:<40}{r[name + '_seconds']:>9.2f}{r[name + '_cpu_seconds']:>9.2f}")
+    print(f"  speedup 2 vs 1 workers {r['speedup_2_vs_1_workers']:.2f}x;  farm overhead, wall: "
           f"{100 * r['overhead_farm1_vs_local1']:+.1f} % (1 worker vs 1 thread), "
-          f"{100 * r['overhead_farm2_vs_local2']:+.1f} % (2 workers vs 2 threads); images bit-identical")
+          f"{100 * r['overhead_farm2_vs_local2']:+.1f} % (2 workers vs 2 threads);  CPU: "
+          f"{100 * r['cpu_overhead_farm1_vs_local1']:+.1f} % (1 worker), "
+          f"{100 * r['cpu_overhead_farm2_vs_local1']:+.1f} % (2 workers); images bit-identical")
     print("\nCoordinator alone, 4 instant fake workers on loopback:")
     print(f"  {'checkpoints':<14}{'px/task':>8}{'tasks/s':>10}{'result B/task':>15}{'B/pixel':>9}{'task B':>8}")
     for row in results["coordinator"]:

@@ -74,12 +74,18 @@ std::string UploadAndSubmit(FarmClient& client, PreparedJob& job) {
   return client.SubmitJob(job.spec);
 }
 
-// Watches a job, drawing progress and (if `output` is set) rewriting it atomically with every
-// snapshot. Returns the final status.
+// Watches a job, drawing progress. With `output`, the EXR is rewritten atomically as the image
+// improves: from the stream's snapshots (`snapshot_every` = 0: every update carries one), or
+// with GetImage at most every `snapshot_every` seconds while the stream carries status only —
+// cheaper for the coordinator, and the updates can then come often (`interval`) so that the end
+// of the job is seen at once. Returns the final status.
 v1::JobStatus WatchWithProgress(FarmClient& client, const std::string& job_id, const std::string& output,
-                                double interval, bool json, bool quiet) {
+                                double interval, bool json, bool quiet, double snapshot_every = 0) {
   FarmProgress progress(!quiet && !json);
-  const v1::JobStatus final_status = client.Watch(job_id, !output.empty(), interval, [&](const v1::JobUpdate& u) {
+  const bool stream_images = !output.empty() && snapshot_every <= 0;
+  auto last_snapshot = std::chrono::steady_clock::now();
+  uint64_t snapshot_tasks = 0;
+  const v1::JobStatus final_status = client.Watch(job_id, stream_images, interval, [&](const v1::JobUpdate& u) {
     progress.Update(u.status());
     if (json) {
       nlohmann::json j = StatusJson(u.status());
@@ -87,8 +93,18 @@ v1::JobStatus WatchWithProgress(FarmClient& client, const std::string& job_id, c
       std::printf("%s\n", j.dump().c_str());
       std::fflush(stdout);
     }
-    if (!output.empty() && u.has_image() && !u.image().exr_bytes().empty())
-      WriteFileAtomically(output, u.image().exr_bytes());
+    if (output.empty()) return;
+    if (stream_images) {
+      if (u.has_image() && !u.image().exr_bytes().empty()) WriteFileAtomically(output, u.image().exr_bytes());
+      return;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (u.status().tasks_done() > snapshot_tasks && !IsFinalState(u.status().state()) &&
+        now - last_snapshot >= Seconds(snapshot_every)) {
+      WriteFileAtomically(output, client.GetImage(job_id));
+      snapshot_tasks = u.status().tasks_done();
+      last_snapshot = now;
+    }
   });
   progress.Finish();
   return final_status;
@@ -250,11 +266,14 @@ int RunFarmRender(const RenderArgs& a) {
   try {
     const std::string id = UploadAndSubmit(client, job);
     spdlog::info("job {} submitted ({} workers)", id, a.workers);
-    st = WatchWithProgress(client, id, output, 0.5, false, a.quiet);
+    // Status every 0.1 s at most (the end is seen at once); the output EXR is refreshed every 2 s
+    // with GetImage — each snapshot costs the coordinator an EXR encoding, on the same cores.
+    st = WatchWithProgress(client, id, output, 0.1, false, a.quiet, 2.0);
     if (st.state() == v1::JOB_STATE_SUCCEEDED) bytes = client.GetImage(id);
   } catch (const std::exception& e) {
     const bool interrupted = Interrupted();
-    cleanup(!interrupted);
+    // Keep the farm's logs when the farm itself failed, not for a request it rightly rejected.
+    cleanup(!interrupted && ExitCodeFor(e) != kExitBadInput);
     if (interrupted) {
       std::fprintf(stderr, "\ninterrupted: the farm was shut down\n");
       return kExitInterrupted;

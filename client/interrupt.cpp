@@ -29,17 +29,15 @@ void InstallInterruptHandling() {
       int sig = 0;
       if (sigwait(&set, &sig) != 0) continue;
       const int n = ++g_count;
-      std::function<void(int)> handler;
-      {
-        std::lock_guard lock(g_mutex);
-        handler = g_handler;
-      }
-      if (!handler) {
+      // Called under the lock: once SetInterruptHandler returns, the old handler (and what it
+      // refers to) is no longer in use.
+      std::lock_guard lock(g_mutex);
+      if (!g_handler) {
         std::fputs("\ninterrupted\n", stderr);
         std::fflush(nullptr);
         _exit(130);
       }
-      handler(n);
+      g_handler(n);
     }
   }).detach();
 }

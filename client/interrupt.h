@@ -15,8 +15,9 @@ namespace pf {
 // resets it after fork).
 void InstallInterruptHandling();
 
-// `handler(n)` runs on the signal thread for the n-th signal (1, 2, ...). Pass {} to restore
-// the default (exit 130).
+// `handler(n)` runs on the signal thread for the n-th signal (1, 2, ...); it must be quick and
+// must not call SetInterruptHandler. Pass {} to restore the default (exit 130). After this
+// returns, the previous handler is not running and will not run again.
 void SetInterruptHandler(std::function<void(int)> handler);
 
 bool Interrupted();

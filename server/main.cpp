@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -83,7 +84,10 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(log_level));
 
   // SIGINT/SIGTERM are handled by one thread with sigwait; every other thread (gRPC's included,
-  // created later) inherits the blocked mask.
+  // created later) inherits the blocked mask. A shell starts background jobs with SIGINT ignored,
+  // and an ignored signal is discarded even while blocked: restore the default disposition first.
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
