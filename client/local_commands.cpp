@@ -46,28 +46,19 @@ int RunRender(const RenderArgs& a) {
 
   std::unique_ptr<Integrator> integrator;
   PhotonMaps maps;
+  JobRenderSettings settings;
   if (a.integrator == "path") {
     integrator = std::make_unique<PathTracer>(accel, lights);
   } else if (a.integrator == "photonmap") {
-    PhotonMapsOptions mo;
-    mo.tracing.photons = a.photons;
+    // The same settings (and `auto` decisions) a farm job of these flags gets.
+    photonfarm::v1::RenderSettings rs;
+    RenderSettingsFromArgs(a, &rs);
+    settings = ResolveAndLog(SettingsFromProto(rs, "settings"), scene);
+    PhotonMapsOptions mo = settings.MapsOptions();
     mo.tracing.map_seed = HashKey(a.seed, 0x6d6170 /* "map" */);
     mo.tracing.threads = a.threads;
-    mo.kind = a.map == "grid" ? PhotonMapKind::kGrid : PhotonMapKind::kKdTree;
-    mo.structure.kd_split_rule = a.kd_split == "widest" ? KdSplitRule::kWidestExtent : KdSplitRule::kLevelCycle;
-    mo.structure.grid.expected_k = a.k;
-    mo.caustic = a.caustic == "on" ? CausticMapMode::kOn : a.caustic == "off" ? CausticMapMode::kOff : CausticMapMode::kAuto;
     maps = PhotonMaps::Build(accel, lights, mo);
-    PhotonMapIntegratorOptions io;
-    io.global.k = a.k;
-    io.caustic = DefaultCausticOptions(a.k, accel.bounds());
-    if (a.caustic_radius > 0) io.caustic.max_radius = a.caustic_radius;
-    const FeasibilityTest test = a.direction_test == "none"    ? FeasibilityTest::kNone
-                                 : a.direction_test == "after" ? FeasibilityTest::kAfterQuery
-                                                               : FeasibilityTest::kInQuery;
-    io.global.direction_test = io.caustic.direction_test = test;
-    io.glossy_depth = a.glossy_depth;
-    integrator = std::make_unique<PhotonMapIntegrator>(accel, maps, io);
+    integrator = std::make_unique<PhotonMapIntegrator>(accel, &lights, maps, settings.IntegratorOptions(accel.bounds()));
   } else {
     throw InputError("--integrator: unknown integrator '" + a.integrator + "' (available: path, photonmap)");
   }
@@ -104,6 +95,11 @@ int RunRender(const RenderArgs& a) {
     meta["photons.caustic"] = std::to_string(maps.stats.stored_caustic);
     meta["photons.k"] = std::to_string(a.k);
     meta["photons.map"] = a.map;
+    static constexpr const char* kDirectNames[] = {"photon-map", "mc", "photon-direct"};
+    meta["photons.direct"] = kDirectNames[int(*settings.direct)];
+    meta["photons.local_pass_rays"] = std::to_string(settings.local_pass_rays);
+    meta["photons.occlusion_test"] = settings.occlusion_test ? "1" : "0";
+    meta["photons.adaptive_k_min"] = std::to_string(settings.adaptive_k_min);
     meta["photons.trace_seconds"] = fmt::format("{:.3f}", maps.stats.trace_seconds);
     meta["photons.build_seconds"] = fmt::format("{:.3f}", maps.stats.build_seconds);
   }

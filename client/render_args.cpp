@@ -65,7 +65,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
       ->capture_default_str()
       ->check(CLI::IsMember({"kdtree", "grid"}));
   app->add_option("--kd-split", a.kd_split,
-                  "kdtree split axis: cycle (level % 3) or widest (extent); plans and the farm use cycle")
+                  "kdtree split axis: widest (extent; faster in rooms, 2.3 footnote) or cycle (level % 3)")
       ->capture_default_str()
       ->check(CLI::IsMember({"cycle", "widest"}));
   app->add_option("--caustic-map", a.caustic, "auto = only when the scene has specular/glossy surfaces; on; off")
@@ -81,6 +81,84 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
                   "photonmap: photon direction vs normal test (4.1): in-query, after, none")
       ->capture_default_str()
       ->check(CLI::IsMember({"in-query", "after", "none"}));
+  app->add_option("--direct", a.direct,
+                  "photonmap: direct light (4.2). photon-map = from the map (standalone, 2.5); mc = Monte Carlo "
+                  "shadow rays, per light in proportion to power (4.2.1); photon-direct = shadow rays split by "
+                  "the lights of the nearest direct photons (4.2.3); auto = photon-direct with " +
+                      std::to_string(kPhotonDirectMinLights) + "+ lights, else mc (logged)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "photon-map", "mc", "photon-direct"}));
+  app->add_option("--shadow-rays", a.shadow_rays,
+                  "mc: shadow rays per shading point; photon-direct: N_total for the contributing lights")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 4096));
+  app->add_option("--light-uniform", a.light_uniform,
+                  "mc: fraction of shadow rays drawn uniformly over lights rather than by power (defensive "
+                  "sampling: bounds the weight of dim lights)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0f, 1.0f));
+  app->add_option("--photon-direct-k", a.photon_direct_k, "photon-direct: direct photons looked up per point")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10000));
+  app->add_option("--non-contributing", a.non_contributing,
+                  "photon-direct: lights without photons nearby get one sample in total, to one of them chosen "
+                  "by their photon count (one-random), or one each (each); both unbiased")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"one-random", "each"}));
+  app->add_option("--photon-direct-cache", a.photon_direct_cache,
+                  "photon-direct: reuse the last neighbour set within this fraction of its radius (0 = off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0f, 1.0f));
+  app->add_option("--local-pass", a.local_pass,
+                  "photonmap: final gathering rays per shading point, photon map at their hits (4.3; 0 = off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4096));
+  app->add_flag("--occlusion-test", a.occlusion_test,
+                "photonmap: drop found photons whose origin is not visible from the point (4.1.1; "
+                "removes light bleeding through walls, one shadow ray per photon)");
+  app->add_option("--adaptive-k-min", a.adaptive_k_min,
+                  "photonmap: shrink k down to this at borders and corners by the centre-of-gravity test (4.8; "
+                  "0 = off)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100000));
+}
+
+void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
+  if (a.integrator == "path") {
+    rs->set_integrator(v1::INTEGRATOR_PATH);
+    return;
+  }
+  rs->set_integrator(v1::INTEGRATOR_PHOTONMAP);
+  v1::PhotonMapSettings* pm = rs->mutable_photon_map();
+  pm->set_photons(a.photons);
+  pm->set_k(uint32_t(a.k));
+  pm->set_structure(a.map == "grid" ? v1::MAP_STRUCTURE_GRID : v1::MAP_STRUCTURE_KDTREE);
+  pm->set_kd_split(a.kd_split == "cycle" ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
+  pm->set_caustic(a.caustic == "on" ? v1::CAUSTIC_MODE_ON : a.caustic == "off" ? v1::CAUSTIC_MODE_OFF : v1::CAUSTIC_MODE_AUTO);
+  pm->set_caustic_radius(a.caustic_radius);
+  pm->set_glossy_depth(uint32_t(a.glossy_depth));
+  pm->set_direction_test(a.direction_test == "none"    ? v1::DIRECTION_TEST_NONE
+                         : a.direction_test == "after" ? v1::DIRECTION_TEST_AFTER_QUERY
+                                                       : v1::DIRECTION_TEST_IN_QUERY);
+  pm->set_direct(a.direct == "photon-map"      ? v1::DIRECT_LIGHT_PHOTON_MAP
+                 : a.direct == "mc"            ? v1::DIRECT_LIGHT_MONTE_CARLO
+                 : a.direct == "photon-direct" ? v1::DIRECT_LIGHT_PHOTON_DIRECT
+                                               : v1::DIRECT_LIGHT_AUTO);
+  pm->set_shadow_rays(uint32_t(a.shadow_rays));
+  pm->set_light_uniform_fraction(a.light_uniform);
+  pm->set_photon_direct_k(uint32_t(a.photon_direct_k));
+  pm->set_non_contributing(a.non_contributing == "each" ? v1::NON_CONTRIBUTING_EACH : v1::NON_CONTRIBUTING_ONE_RANDOM);
+  pm->set_photon_direct_cache(a.photon_direct_cache);
+  pm->set_local_pass_rays(uint32_t(a.local_pass));
+  pm->set_occlusion_test(a.occlusion_test);
+  pm->set_adaptive_k_min(uint32_t(a.adaptive_k_min));
+}
+
+JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDescription& scene) {
+  std::vector<AutoChoice> choices;
+  JobRenderSettings resolved = settings.Resolved(scene, &choices);
+  for (const AutoChoice& c : choices) spdlog::info("auto {} = {}: {}", c.setting, c.value, c.reason);
+  return resolved;
 }
 
 void AddPlanOptions(CLI::App* app, RenderArgs& a) {
@@ -132,23 +210,10 @@ PreparedJob PrepareJob(const RenderArgs& a) {
   s.set_name(a.name.empty() ? std::filesystem::path(a.scene).filename().string() : a.name);
   CameraToProto(ChooseCamera(p.scene, a), s.mutable_camera());
 
-  v1::RenderSettings* rs = s.mutable_settings();
-  if (a.integrator == "path") {
-    rs->set_integrator(v1::INTEGRATOR_PATH);
-  } else {
-    rs->set_integrator(v1::INTEGRATOR_PHOTONMAP);
-    v1::PhotonMapSettings* pm = rs->mutable_photon_map();
-    pm->set_photons(a.photons);
-    pm->set_k(uint32_t(a.k));
-    pm->set_structure(a.map == "grid" ? v1::MAP_STRUCTURE_GRID : v1::MAP_STRUCTURE_KDTREE);
-    pm->set_caustic(a.caustic == "on" ? v1::CAUSTIC_MODE_ON : a.caustic == "off" ? v1::CAUSTIC_MODE_OFF : v1::CAUSTIC_MODE_AUTO);
-    pm->set_caustic_radius(a.caustic_radius);
-    pm->set_glossy_depth(uint32_t(a.glossy_depth));
-    pm->set_direction_test(a.direction_test == "none"    ? v1::DIRECTION_TEST_NONE
-                           : a.direction_test == "after" ? v1::DIRECTION_TEST_AFTER_QUERY
-                                                         : v1::DIRECTION_TEST_IN_QUERY);
-    if (a.kd_split != "cycle") spdlog::warn("--kd-split {}: plans and the farm always use 'cycle'", a.kd_split);
-  }
+  RenderSettingsFromArgs(a, s.mutable_settings());
+  // Validates (InputError naming the flag's field) and tells the user what `auto` becomes here;
+  // the workers decide alike from the same scene.
+  ResolveAndLog(SettingsFromProto(s.settings(), "settings"), p.scene);
 
   const std::string plan = a.plan.empty() ? "multiple-maps" : a.plan;
   v1::Plan* pl = s.mutable_plan();

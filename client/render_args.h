@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <string>
 
+#include "common/plan/task_executor.h"
 #include "common/scene/scene.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.pb.h"
@@ -33,11 +34,21 @@ struct RenderArgs {
   uint64_t photons = 200000;
   int k = 100;
   std::string map = "kdtree";
-  std::string kd_split = "cycle";
+  std::string kd_split = "widest";
   std::string caustic = "auto";
   float caustic_radius = 0.0f;
   int glossy_depth = 1;
   std::string direction_test = "in-query";
+  // Chapter 4 estimators (Wald 1999, §4.1–4.3, §4.8).
+  std::string direct = "auto";
+  int shadow_rays = 16;
+  float light_uniform = 0.0f;
+  int photon_direct_k = 50;
+  std::string non_contributing = "one-random";
+  float photon_direct_cache = 0.25f;
+  int local_pass = 0;
+  bool occlusion_test = false;
+  int adaptive_k_min = 0;
   // Plan (farm and --local-only); plan.empty() = the classic single-process render.
   std::string plan;
   uint32_t maps = 1;
@@ -74,6 +85,12 @@ struct PreparedJob {
   SceneDescription scene;
 };
 PreparedJob PrepareJob(const RenderArgs& a);
+
+// The integrator and photon-map options as the job's RenderSettings (auto values left auto).
+void RenderSettingsFromArgs(const RenderArgs& a, photonfarm::v1::RenderSettings* out);
+
+// Logs what each `auto` setting becomes for this scene, and why; returns the resolved settings.
+JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDescription& scene);
 
 std::string FormatVec(const Vec3& v);
 

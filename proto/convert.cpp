@@ -100,6 +100,50 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
     case v1::DIRECTION_TEST_NONE: out.direction_test = FeasibilityTest::kNone; break;
     default: throw InputError(f + ".direction_test: unknown value");
   }
+  switch (pm.direct()) {
+    case v1::DIRECT_LIGHT_UNSPECIFIED:
+    case v1::DIRECT_LIGHT_AUTO: out.direct.reset(); break;
+    case v1::DIRECT_LIGHT_PHOTON_MAP: out.direct = DirectLightMode::kNone; break;
+    case v1::DIRECT_LIGHT_MONTE_CARLO: out.direct = DirectLightMode::kMonteCarlo; break;
+    case v1::DIRECT_LIGHT_PHOTON_DIRECT: out.direct = DirectLightMode::kPhotonDirect; break;
+    default: throw InputError(f + ".direct: unknown value");
+  }
+  if (pm.has_shadow_rays()) {
+    if (pm.shadow_rays() < 1 || pm.shadow_rays() > kMaxShadowRays)
+      throw InputError(f + ".shadow_rays: must be in 1.." + std::to_string(kMaxShadowRays));
+    out.shadow_rays = int(pm.shadow_rays());
+  }
+  if (!(pm.light_uniform_fraction() >= 0.0 && pm.light_uniform_fraction() <= 1.0))
+    throw InputError(f + ".light_uniform_fraction: must be in [0, 1]");
+  out.light_uniform_fraction = float(pm.light_uniform_fraction());
+  if (pm.has_photon_direct_k()) {
+    if (pm.photon_direct_k() < 1 || pm.photon_direct_k() > kMaxK)
+      throw InputError(f + ".photon_direct_k: must be in 1.." + std::to_string(kMaxK));
+    out.photon_direct_k = int(pm.photon_direct_k());
+  }
+  switch (pm.non_contributing()) {
+    case v1::NON_CONTRIBUTING_UNSPECIFIED:
+    case v1::NON_CONTRIBUTING_ONE_RANDOM: out.non_contributing = NonContributingMode::kOneRandom; break;
+    case v1::NON_CONTRIBUTING_EACH: out.non_contributing = NonContributingMode::kEachOne; break;
+    default: throw InputError(f + ".non_contributing: unknown value");
+  }
+  if (pm.has_photon_direct_cache()) {
+    if (!(pm.photon_direct_cache() >= 0.0 && pm.photon_direct_cache() <= 1.0))
+      throw InputError(f + ".photon_direct_cache: must be in [0, 1]");
+    out.photon_direct_cache = float(pm.photon_direct_cache());
+  }
+  if (pm.local_pass_rays() > kMaxShadowRays)
+    throw InputError(f + ".local_pass_rays: must be <= " + std::to_string(kMaxShadowRays));
+  out.local_pass_rays = int(pm.local_pass_rays());
+  out.occlusion_test = pm.occlusion_test();
+  if (pm.adaptive_k_min() > pm.k()) throw InputError(f + ".adaptive_k_min: must be <= k (" + std::to_string(pm.k()) + ")");
+  out.adaptive_k_min = int(pm.adaptive_k_min());
+  switch (pm.kd_split()) {
+    case v1::KD_SPLIT_UNSPECIFIED:
+    case v1::KD_SPLIT_WIDEST: out.kd_split = KdSplitRule::kWidestExtent; break;
+    case v1::KD_SPLIT_CYCLE: out.kd_split = KdSplitRule::kLevelCycle; break;
+    default: throw InputError(f + ".kd_split: unknown value");
+  }
   return out;
 }
 
@@ -118,6 +162,20 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   pm->set_direction_test(s.direction_test == FeasibilityTest::kAfterQuery ? v1::DIRECTION_TEST_AFTER_QUERY
                          : s.direction_test == FeasibilityTest::kNone     ? v1::DIRECTION_TEST_NONE
                                                                           : v1::DIRECTION_TEST_IN_QUERY);
+  pm->set_direct(!s.direct                                           ? v1::DIRECT_LIGHT_AUTO
+                 : *s.direct == DirectLightMode::kMonteCarlo   ? v1::DIRECT_LIGHT_MONTE_CARLO
+                 : *s.direct == DirectLightMode::kPhotonDirect ? v1::DIRECT_LIGHT_PHOTON_DIRECT
+                                                               : v1::DIRECT_LIGHT_PHOTON_MAP);
+  pm->set_shadow_rays(uint32_t(s.shadow_rays));
+  pm->set_light_uniform_fraction(s.light_uniform_fraction);
+  pm->set_photon_direct_k(uint32_t(s.photon_direct_k));
+  pm->set_non_contributing(s.non_contributing == NonContributingMode::kEachOne ? v1::NON_CONTRIBUTING_EACH
+                                                                               : v1::NON_CONTRIBUTING_ONE_RANDOM);
+  pm->set_photon_direct_cache(s.photon_direct_cache);
+  pm->set_local_pass_rays(uint32_t(s.local_pass_rays));
+  pm->set_occlusion_test(s.occlusion_test);
+  pm->set_adaptive_k_min(uint32_t(s.adaptive_k_min));
+  pm->set_kd_split(s.kd_split == KdSplitRule::kLevelCycle ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
 }
 
 PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {

@@ -19,6 +19,7 @@ inline constexpr uint32_t kMaxImageSide = 8192;
 inline constexpr uint64_t kMaxImagePixels = uint64_t(4096) * 4096;
 inline constexpr uint64_t kMaxPhotonsPerMap = uint64_t(1) << 28;
 inline constexpr uint32_t kMaxK = 10000;
+inline constexpr uint32_t kMaxShadowRays = 4096;  // also the local pass's rays
 inline constexpr uint32_t kMaxSamplesPerPixel = 1u << 16;
 
 // Thrown (instead of InputError) when a value is well-formed but over a limit.

@@ -284,6 +284,13 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
     return Outcome::kDone;
   }
 
+  if (task.job_id() != auto_logged_job_ && settings.integrator == IntegratorKind::kPhotonMap) {
+    auto_logged_job_ = task.job_id();  // once per job (every task resolves alike, ExecuteTask)
+    std::vector<AutoChoice> choices;
+    settings.Resolved(scene->description, &choices);
+    for (const AutoChoice& c : choices) spdlog::info("{}: auto {} = {}: {}", ctx, c.setting, c.value, c.reason);
+  }
+
   // Render on a thread of its own so that this thread can watch the lease, the grace period
   // and the stop requests; a heartbeat thread extends the lease meanwhile.
   const std::vector<uint64_t> cached = maps_->CachedSeeds();

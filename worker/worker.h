@@ -114,6 +114,7 @@ class Worker {
   std::atomic<bool> stop_{false}, abort_{false}, render_in_flight_{false};
   std::chrono::steady_clock::time_point stop_deadline_;
   int failures_ = 0;                    // consecutive connection failures (backoff exponent)
+  std::string auto_logged_job_;         // the last job whose `auto` settings were logged
   std::mt19937_64 jitter_rng_;
 
   mutable std::mutex mutex_;            // guards poll_context_, counters_, stop_deadline_

@@ -88,7 +88,7 @@ Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
                    Dot(cache.n, side) > 0.9f;
   if (!hit) {
     const auto filter = FunctionFilter([&](const Photon& p, std::size_t) { return Dot(p.Direction(), side) > 0.0f; });
-    map_.Query(x, options_.k, std::numeric_limits<float>::infinity(), nearest, &filter);
+    map_.Query(x, options_.k, options_.max_radius, nearest, &filter);
     thread_local std::vector<double> energy;
     energy.assign(num_lights, 0.0);
     double total = 0;

@@ -22,6 +22,7 @@
 //   pixels would make the image depend on which pixels a thread rendered before.
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "common/accel/embree_scene.h"
@@ -65,6 +66,10 @@ struct PhotonDirectOptions {
   int samples = 10;           // N_total for the contributing lights
   NonContributingMode non_contributing = NonContributingMode::kOneRandom;
   float cache_radius_fraction = 0.25f;  // 0 = no neighbour-set cache
+  // Search radius bound. Where no direct photon arrives on the point's side (a ceiling lit by
+  // downward lights, the back of a wall) an unbounded query would visit the whole map; with the
+  // bound, such points find none and every light is treated as non-contributing (still unbiased).
+  float max_radius = std::numeric_limits<float>::infinity();
 };
 
 class PhotonDirectLight {

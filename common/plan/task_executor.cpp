@@ -1,6 +1,7 @@
 #include "common/plan/task_executor.h"
 
 #include <chrono>
+#include <stdexcept>
 
 #include "common/plan/accumulator.h"
 #include "common/render/camera.h"
@@ -17,7 +18,42 @@ std::string JobRenderSettings::MapFingerprint() const {
          ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins);
 }
 
+JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene, std::vector<AutoChoice>* choices) const {
+  JobRenderSettings r = *this;
+  auto choose = [&](const char* setting, const char* value, std::string reason) {
+    if (choices) choices->push_back({setting, value, std::move(reason)});
+  };
+  if (r.integrator != IntegratorKind::kPhotonMap) return r;
+  if (r.caustic == CausticMapMode::kAuto) {
+    const bool need = SceneNeedsCausticMap(scene);
+    r.caustic = need ? CausticMapMode::kOn : CausticMapMode::kOff;
+    choose("caustic-map", need ? "on" : "off",
+           need ? "the scene has specular or glossy surfaces (caustic paths L S+ D exist)"
+                : "no specular or glossy surface: no caustic path can exist (a caustic map would stay empty)");
+  }
+  if (!r.direct) {
+    // Wald 1999, §4.2.3: with many lights, Monte Carlo spends most shadow rays on lights that
+    // do not reach the point; the direct photons tell which lights matter (PhotonDirect).
+    // With few lights, stratified MC shadow rays are cheaper and have no photon-map bias.
+    const int lights = scene.num_lights;
+    if (lights >= kPhotonDirectMinLights) {
+      r.direct = DirectLightMode::kPhotonDirect;
+      choose("direct", "photon-direct",
+             std::to_string(lights) + " lights (>= " + std::to_string(kPhotonDirectMinLights) +
+                 "): shadow rays go to the lights whose direct photons reach the point (4.2.3)");
+    } else {
+      r.direct = DirectLightMode::kMonteCarlo;
+      choose("direct", "monte-carlo",
+             std::to_string(lights) + (lights == 1 ? " light" : " lights") + " (< " +
+                 std::to_string(kPhotonDirectMinLights) +
+                 "): stratified shadow rays per light, sharp shadows, no direct photons in the estimate (4.2.1)");
+    }
+  }
+  return r;
+}
+
 PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& bounds) const {
+  if (!direct) throw std::logic_error("JobRenderSettings::IntegratorOptions: direct light is still 'auto' (call Resolved)");
   PhotonMapIntegratorOptions io;
   io.global.k = k;
   io.global.direction_test = direction_test;
@@ -29,13 +65,14 @@ PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& b
   io.caustic.occlusion_test = occlusion_test;
   io.caustic.adaptive_k_min = adaptive_k_min;
   io.glossy_depth = glossy_depth;
-  io.direct = direct;
+  io.direct = *direct;
   io.monte_carlo.shadow_rays = shadow_rays;
   io.monte_carlo.uniform_fraction = light_uniform_fraction;
   io.photon_direct.k = photon_direct_k;
   io.photon_direct.samples = shadow_rays;
   io.photon_direct.non_contributing = non_contributing;
   io.photon_direct.cache_radius_fraction = photon_direct_cache;
+  io.photon_direct.max_radius = std::max(kPhotonDirectRadiusFraction * Length(bounds.Diagonal()), 1e-12f);
   io.local_pass_rays = local_pass_rays;
   return io;
 }
@@ -84,18 +121,19 @@ size_t PhotonMapCache::size() const {
 }
 
 TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera_spec,
-                       const JobRenderSettings& settings, const TaskSpec& task, int threads, PhotonMapCache* cache,
-                       std::atomic<uint64_t>* progress) {
+                       const JobRenderSettings& settings_as_given, const TaskSpec& task, int threads,
+                       PhotonMapCache* cache, std::atomic<uint64_t>* progress) {
   TaskOutput out;
   const Camera camera(camera_spec);
   const std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
   std::vector<Rgb> sums(pixels.size());
   RenderStats stats;
-  if (settings.integrator == IntegratorKind::kPath) {
+  if (settings_as_given.integrator == IntegratorKind::kPath) {
     const PathTracer tracer(scene.accel, scene.lights);
     stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads, sums,
                          progress);
   } else {
+    const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
     const std::string key = scene_key + "|" + settings.MapFingerprint() + "|" + std::to_string(task.map_seed);
     std::shared_ptr<const PhotonMaps> maps = cache ? cache->Find(key) : nullptr;
     out.map_cache_hit = maps != nullptr;

@@ -8,6 +8,7 @@
 #include <list>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,17 @@
 namespace pf {
 
 enum class IntegratorKind { kPath, kPhotonMap };
+
+// What an `auto` setting became for a scene, and why (logged by pf and pf-worker).
+struct AutoChoice {
+  std::string setting, value, reason;
+};
+
+// Direct light `auto`: PhotonDirect from this many lights on, Monte Carlo below (docs/renderer.md,
+// "auto settings"; measured in docs/results/estimators.md).
+inline constexpr int kPhotonDirectMinLights = 8;
+// PhotonDirect's search radius bound as a fraction of the scene diagonal (direct_light.h).
+inline constexpr float kPhotonDirectRadiusFraction = 0.05f;
 
 // Everything about *how* to render that is the same for all tasks of a job.
 struct JobRenderSettings {
@@ -36,7 +48,7 @@ struct JobRenderSettings {
   int glossy_depth = 1;
   FeasibilityTest direction_test = FeasibilityTest::kInQuery;
   // Chapter 4 (see photon_map_integrator.h and direct_light.h).
-  DirectLightMode direct = DirectLightMode::kNone;
+  std::optional<DirectLightMode> direct;  // nullopt = auto (see Resolved)
   int shadow_rays = 16;                  // MC: per shading point; PhotonDirect: N_total
   float light_uniform_fraction = 0.0f;   // MC: defensive mixing β
   int photon_direct_k = 50;
@@ -46,7 +58,12 @@ struct JobRenderSettings {
   bool occlusion_test = false;           // §4.1.1
   int adaptive_k_min = 0;                // §4.8; 0 = off
 
-  // The integrator options these settings describe, for a scene with these bounds.
+  // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
+  // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.
+  JobRenderSettings Resolved(const SceneDescription& scene, std::vector<AutoChoice>* choices = nullptr) const;
+
+  // The integrator options these settings describe, for a scene with these bounds. Requires
+  // resolved settings (std::logic_error otherwise).
   PhotonMapIntegratorOptions IntegratorOptions(const Bounds3& scene_bounds) const;
   // The photon-map options (everything but the seed and threads).
   PhotonMapsOptions MapsOptions() const;

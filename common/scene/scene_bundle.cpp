@@ -3,6 +3,7 @@
 #include <openssl/evp.h>
 
 #include <algorithm>
+#include <cctype>
 #include <fstream>
 #include <memory>
 #include <set>
@@ -45,7 +46,12 @@ std::string PathProblem(const std::string& path) {
     const size_t end = std::min(path.find('/', begin), path.size());
     const std::string_view part(path.data() + begin, end - begin);
     if (part.empty()) return "empty path component";
-    if (part == "." || part == "..") return "'" + std::string(part) + "' component (paths stay inside the bundle)";
+    if (part == "." || part == "..") {
+      // Built with append: GCC 12's -Wrestrict misfires on "'" + std::string(part) + ...
+      std::string message(1, '\'');
+      message.append(part).append("' component (paths stay inside the bundle)");
+      return message;
+    }
     begin = end + 1;
   }
   return "";
@@ -99,6 +105,16 @@ uint64_t SceneBundle::TotalBytes() const {
   return total;
 }
 
+namespace {
+// Renders kept next to a scene (references, previews) are outputs, never inputs: the loaders
+// read no images (materials carry no textures), so shipping them would only cost upload time.
+bool IsRenderedImage(const fs::path& rel) {
+  std::string ext = rel.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".exr" || ext == ".png";
+}
+}  // namespace
+
 SceneBundle CollectBundle(const fs::path& entry) {
   std::error_code ec;
   if (!fs::is_regular_file(entry, ec))
@@ -111,6 +127,7 @@ SceneBundle CollectBundle(const fs::path& entry) {
        it.increment(ec)) {
     if (!it->is_regular_file(ec)) continue;
     const fs::path rel = it->path().lexically_relative(root);
+    if (IsRenderedImage(rel)) continue;
     const uint64_t size = it->file_size(ec);
     if (ec) break;
     total += size;

@@ -57,6 +57,8 @@ TEST_F(SceneBundleTest, CollectTakesEveryFileBelowTheEntryFolder) {
   const fs::path entry = Write("main.mgf", kMainMgf);
   Write("parts/light.mgf", kLightMgf);
   Write("notes/readme.txt", "hello");
+  Write("reference-256.exr", "rendered output");  // images are outputs: left out
+  Write("previews/view.PNG", "rendered output");
   const SceneBundle b = CollectBundle(entry);
   EXPECT_EQ(b.entry, "main.mgf");
   std::vector<std::string> paths;

@@ -61,6 +61,31 @@ TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
   ExpectNoProcessLeft();
 }
 
+// The chapter-4 estimators through the farm (job settings → proto → workers): PhotonDirect with
+// the neighbour-set cache, local pass, occlusion test and adaptive k give the local image.
+TEST_F(LocalFarmTest, ChapterFourEstimatorsMatchLocal) {
+  TestDir dir;
+  const std::vector<std::string> base = {
+      Binaries::Pf(), "render", Binaries::Scene(), "--integrator", "photonmap", "--photons", "3000", "--k", "20",
+      "--res", "24x16", "--plan", "skipping", "--stride", "2", "--rounds", "1", "--spp", "1", "--seed", "5",
+      "--occlusion-test", "--adaptive-k-min", "6", "--no-png", "-q"};
+  const std::vector<std::string> chapter4 = Concat(base, {"--direct", "photon-direct", "--non-contributing", "each",
+                                                          "--photon-direct-k", "10", "--local-pass", "3"});
+  const RunResult local = RunCommand(Concat(chapter4, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  const RunResult farm = RunCommand(
+      Concat(chapter4, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}), dir.path());
+  ASSERT_EQ(farm.exit_code, 0) << farm.err;
+  EXPECT_TRUE(BitIdentical(ReadImage(dir / "farm.exr"), ReadImage(dir / "local.exr")));
+  // A different estimator is a different image (the options really reached the workers).
+  const RunResult standalone = RunCommand(
+      Concat(base, {"--direct", "photon-map", "--local-only", "-o", (dir / "pm.exr").string()}),
+      dir.path());
+  ASSERT_EQ(standalone.exit_code, 0) << standalone.err;
+  EXPECT_FALSE(BitIdentical(ReadImage(dir / "pm.exr"), ReadImage(dir / "local.exr")));
+  ExpectNoProcessLeft();
+}
+
 TEST_F(LocalFarmTest, CtrlCStopsEverything) {
   TestDir dir;
   JobArgs job;

@@ -10,6 +10,7 @@
 #include <functional>
 #include <mutex>
 
+#include "proto/convert.h"
 #include "tests/server/server_test_util.h"
 
 namespace pf::server {
@@ -86,6 +87,22 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
        "spec.settings.photon_map.k: must be >= 1"},
       {"no integrator", [](v1::JobSpec& s) { s.mutable_settings()->clear_integrator(); }, C::INVALID_ARGUMENT,
        "spec.settings.integrator:"},
+      {"unknown direct light", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_direct(v1::DirectLight(99)); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.direct: unknown value"},
+      {"zero shadow rays", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_shadow_rays(0); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.shadow_rays: must be in 1..4096"},
+      {"uniform fraction 2", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_light_uniform_fraction(2); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.light_uniform_fraction: must be in [0, 1]"},
+      {"NaN cache", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photon_direct_cache(std::nan("")); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.photon_direct_cache: must be in [0, 1]"},
+      {"zero PhotonDirect k", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photon_direct_k(0); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.photon_direct_k: must be in 1..10000"},
+      {"local pass 5000", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_local_pass_rays(5000); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.local_pass_rays: must be <= 4096"},
+      {"adaptive k above k", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_adaptive_k_min(21); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.adaptive_k_min: must be <= k (20)"},
+      {"unknown kd split", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_kd_split(v1::KdSplit(7)); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.kd_split: unknown value"},
       {"0x0 image with a camera",
        [](v1::JobSpec& s) {
          s.mutable_camera()->set_width(0);
@@ -174,6 +191,54 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
   const grpc::Status st = Submit(ValidSpec(), &resp);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(resp.job_id(), "job-1");
+}
+
+TEST(SettingsConversion, EveryChapterFourSettingSurvivesTheRoundTrip) {
+  JobRenderSettings s;
+  s.photons = 1234;
+  s.k = 77;
+  s.kd_split = KdSplitRule::kLevelCycle;
+  s.direct = DirectLightMode::kPhotonDirect;
+  s.shadow_rays = 5;
+  s.light_uniform_fraction = 0.25f;
+  s.photon_direct_k = 40;
+  s.non_contributing = NonContributingMode::kEachOne;
+  s.photon_direct_cache = 0.0f;  // off: must not read back as the default 0.25
+  s.local_pass_rays = 9;
+  s.occlusion_test = true;
+  s.adaptive_k_min = 11;
+  v1::RenderSettings proto;
+  SettingsToProto(s, &proto);
+  const JobRenderSettings r = SettingsFromProto(proto, "settings");
+  EXPECT_EQ(r.photons, s.photons);
+  EXPECT_EQ(r.k, s.k);
+  EXPECT_EQ(r.kd_split, s.kd_split);
+  EXPECT_EQ(r.direct, s.direct);
+  EXPECT_EQ(r.shadow_rays, s.shadow_rays);
+  EXPECT_EQ(r.light_uniform_fraction, s.light_uniform_fraction);
+  EXPECT_EQ(r.photon_direct_k, s.photon_direct_k);
+  EXPECT_EQ(r.non_contributing, s.non_contributing);
+  EXPECT_EQ(r.photon_direct_cache, 0.0f);
+  EXPECT_EQ(r.local_pass_rays, s.local_pass_rays);
+  EXPECT_EQ(r.occlusion_test, s.occlusion_test);
+  EXPECT_EQ(r.adaptive_k_min, s.adaptive_k_min);
+  EXPECT_EQ(r.MapFingerprint(), s.MapFingerprint());
+
+  // Unset fields mean the documented defaults, and DIRECT_LIGHT_UNSPECIFIED means auto.
+  v1::RenderSettings minimal;
+  minimal.set_integrator(v1::INTEGRATOR_PHOTONMAP);
+  minimal.mutable_photon_map()->set_photons(10);
+  minimal.mutable_photon_map()->set_k(10);
+  const JobRenderSettings d = SettingsFromProto(minimal, "settings");
+  const JobRenderSettings defaults;
+  EXPECT_FALSE(d.direct.has_value());
+  EXPECT_EQ(d.shadow_rays, defaults.shadow_rays);
+  EXPECT_EQ(d.photon_direct_k, defaults.photon_direct_k);
+  EXPECT_EQ(d.photon_direct_cache, defaults.photon_direct_cache);
+  EXPECT_EQ(d.kd_split, defaults.kd_split);
+  v1::RenderSettings again;
+  SettingsToProto(d, &again);
+  EXPECT_EQ(again.photon_map().direct(), v1::DIRECT_LIGHT_AUTO);
 }
 
 TEST_F(RenderServiceTest, UnsetCameraUsesTheManifestCamera) {

@@ -1,0 +1,103 @@
+// JobRenderSettings: what the `auto` settings become for a scene (issue #5: "auto defaults that
+// choose from the scene and log why"), and that explicit settings are never overridden.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <stdexcept>
+
+#include "common/plan/task_executor.h"
+#include "common/scene/scene_loader.h"
+
+namespace pf {
+namespace {
+
+SceneDescription Shipped(const std::string& rel) {
+  return LoadScene((std::filesystem::path(PF_SOURCE_DIR) / "scenes" / rel).string());
+}
+
+const AutoChoice* Find(const std::vector<AutoChoice>& choices, const std::string& setting) {
+  for (const AutoChoice& c : choices)
+    if (c.setting == setting) return &c;
+  return nullptr;
+}
+
+TEST(AutoSettings, OneLightGetsMonteCarloManyLightsGetPhotonDirect) {
+  JobRenderSettings s;  // direct and caustic map are `auto` by default
+  ASSERT_FALSE(s.direct.has_value());
+
+  std::vector<AutoChoice> choices;
+  const JobRenderSettings cornell = s.Resolved(Shipped("cornell-box/cornell-box.json"), &choices);
+  ASSERT_TRUE(cornell.direct.has_value());
+  EXPECT_EQ(*cornell.direct, DirectLightMode::kMonteCarlo);
+  EXPECT_EQ(cornell.caustic, CausticMapMode::kOff) << "all-diffuse box: no caustic path";
+  const AutoChoice* d = Find(choices, "direct");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->value, "monte-carlo");
+  EXPECT_NE(d->reason.find("1 light"), std::string::npos) << d->reason;
+  ASSERT_NE(Find(choices, "caustic-map"), nullptr);
+
+  choices.clear();
+  const SceneDescription rooms = Shipped("scene10/scene10.json");
+  ASSERT_GE(rooms.num_lights, kPhotonDirectMinLights);
+  const JobRenderSettings scene10 = s.Resolved(rooms, &choices);
+  EXPECT_EQ(*scene10.direct, DirectLightMode::kPhotonDirect);
+  d = Find(choices, "direct");
+  ASSERT_NE(d, nullptr);
+  EXPECT_NE(d->reason.find(std::to_string(rooms.num_lights) + " lights"), std::string::npos) << d->reason;
+
+  choices.clear();
+  const JobRenderSettings sphere = s.Resolved(Shipped("cornell-sphere/cornell-sphere.json"), &choices);
+  EXPECT_EQ(sphere.caustic, CausticMapMode::kOn) << "mirror and glass spheres make caustics";
+}
+
+TEST(AutoSettings, ExplicitSettingsAreKeptAndNotReported) {
+  JobRenderSettings s;
+  s.direct = DirectLightMode::kNone;
+  s.caustic = CausticMapMode::kOn;
+  std::vector<AutoChoice> choices;
+  const JobRenderSettings r = s.Resolved(Shipped("scene10/scene10.json"), &choices);
+  EXPECT_EQ(*r.direct, DirectLightMode::kNone);
+  EXPECT_EQ(r.caustic, CausticMapMode::kOn);
+  EXPECT_TRUE(choices.empty());
+}
+
+TEST(AutoSettings, UnresolvedSettingsCannotConfigureAnIntegrator) {
+  const JobRenderSettings s;
+  EXPECT_THROW(s.IntegratorOptions(Bounds3()), std::logic_error);
+  EXPECT_THROW(s.MapsOptions(), std::logic_error);
+}
+
+TEST(AutoSettings, ChapterFourSettingsReachTheIntegratorAndTheMaps) {
+  JobRenderSettings s;
+  s.direct = DirectLightMode::kPhotonDirect;
+  s.shadow_rays = 7;
+  s.photon_direct_k = 33;
+  s.non_contributing = NonContributingMode::kEachOne;
+  s.photon_direct_cache = 0.5f;
+  s.local_pass_rays = 12;
+  s.occlusion_test = true;
+  s.adaptive_k_min = 9;
+  Bounds3 b;
+  b.Extend(Vec3(0, 0, 0));
+  b.Extend(Vec3(3, 4, 0));  // diagonal 5
+  const PhotonMapIntegratorOptions io = s.IntegratorOptions(b);
+  EXPECT_EQ(io.direct, DirectLightMode::kPhotonDirect);
+  EXPECT_EQ(io.photon_direct.samples, 7);
+  EXPECT_EQ(io.photon_direct.k, 33);
+  EXPECT_EQ(io.photon_direct.non_contributing, NonContributingMode::kEachOne);
+  EXPECT_FLOAT_EQ(io.photon_direct.cache_radius_fraction, 0.5f);
+  EXPECT_FLOAT_EQ(io.photon_direct.max_radius, 5.0f * kPhotonDirectRadiusFraction);
+  EXPECT_EQ(io.local_pass_rays, 12);
+  EXPECT_TRUE(io.global.occlusion_test && io.caustic.occlusion_test);
+  EXPECT_EQ(io.global.adaptive_k_min, 9);
+  const PhotonMapsOptions mo = s.MapsOptions();
+  EXPECT_TRUE(mo.separate_direct && mo.keep_light_ids && mo.keep_origins);
+  // The maps differ from standalone ones, so the cache key must differ too.
+  JobRenderSettings standalone = s;
+  standalone.direct = DirectLightMode::kNone;
+  standalone.occlusion_test = false;
+  EXPECT_NE(s.MapFingerprint(), standalone.MapFingerprint());
+}
+
+}  // namespace
+}  // namespace pf
