@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages photonfarm needs, if any are missing. Idempotent and quick
 # when everything is present. Uses sudo only when not already root.
+#   tools/install-deps.sh           what building, running and testing need
+#   tools/install-deps.sh --bench   also what the benchmark reports need (plots: matplotlib)
 set -euo pipefail
 
 PACKAGES=(
@@ -15,6 +17,7 @@ PACKAGES=(
   # Fuzzing the MGF parser (libFuzzer lives in clang's runtime).
   clang libclang-rt-14-dev
 )
+if [ "${1:-}" = "--bench" ]; then PACKAGES+=(python3-matplotlib); fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -59,6 +59,7 @@ PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& b
   io.global.direction_test = direction_test;
   io.global.occlusion_test = occlusion_test;
   io.global.adaptive_k_min = adaptive_k_min;
+  io.direct_photons = DefaultDirectPhotonOptions(io.global, bounds);
   io.caustic = DefaultCausticOptions(k, bounds);
   if (caustic_radius > 0.0f) io.caustic.max_radius = caustic_radius;
   io.caustic.direction_test = direction_test;
@@ -72,7 +73,7 @@ PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& b
   io.photon_direct.samples = shadow_rays;
   io.photon_direct.non_contributing = non_contributing;
   io.photon_direct.cache_radius_fraction = photon_direct_cache;
-  io.photon_direct.max_radius = std::max(kPhotonDirectRadiusFraction * Length(bounds.Diagonal()), 1e-12f);
+  io.photon_direct.max_radius = io.direct_photons.max_radius;  // same bound, same reason (direct_light.h)
   io.local_pass_rays = local_pass_rays;
   return io;
 }

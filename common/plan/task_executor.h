@@ -31,8 +31,6 @@ struct AutoChoice {
 // Direct light `auto`: PhotonDirect from this many lights on, Monte Carlo below (docs/renderer.md,
 // "auto settings"; measured in docs/results/estimators.md).
 inline constexpr int kPhotonDirectMinLights = 8;
-// PhotonDirect's search radius bound as a fraction of the scene diagonal (direct_light.h).
-inline constexpr float kPhotonDirectRadiusFraction = 0.05f;
 
 // Everything about *how* to render that is the same for all tasks of a job.
 struct JobRenderSettings {

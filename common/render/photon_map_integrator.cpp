@@ -25,6 +25,12 @@ RadianceEstimateOptions DefaultCausticOptions(int k, const Bounds3& scene_bounds
   return o;
 }
 
+RadianceEstimateOptions DefaultDirectPhotonOptions(const RadianceEstimateOptions& global, const Bounds3& scene_bounds) {
+  RadianceEstimateOptions o = global;
+  o.max_radius = std::min(o.max_radius, std::max(kDirectPhotonRadiusFraction * Length(scene_bounds.Diagonal()), 1e-12f));
+  return o;
+}
+
 void ConfigureMapsFor(const PhotonMapIntegratorOptions& options, PhotonMapsOptions* maps) {
   maps->separate_direct = options.direct != DirectLightMode::kNone;
   maps->keep_light_ids = options.direct == DirectLightMode::kPhotonDirect;
@@ -60,7 +66,8 @@ Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3
     return r.radiance;
   };
   Rgb L = estimate(*maps_.global, maps_.global_attributes, options_.global);
-  if (include_direct_photons && maps_.direct) L += estimate(*maps_.direct, maps_.direct_attributes, options_.global);
+  if (include_direct_photons && maps_.direct)
+    L += estimate(*maps_.direct, maps_.direct_attributes, options_.direct_photons);
   if (maps_.caustic) L += estimate(*maps_.caustic, maps_.caustic_attributes, options_.caustic);
   return L;
 }

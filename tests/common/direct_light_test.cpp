@@ -141,6 +141,7 @@ TEST(LocalPass, FurnaceAnalyticValueWithinOnePercent) {
     io.global.k = 50;
     io.local_pass_rays = 16;
     io.direct = mode;
+    io.direct_photons = io.global;
     PhotonMapsOptions mo;
     mo.tracing.photons = 200000;
     mo.tracing.map_seed = 4;

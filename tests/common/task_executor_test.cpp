@@ -86,7 +86,9 @@ TEST(AutoSettings, ChapterFourSettingsReachTheIntegratorAndTheMaps) {
   EXPECT_EQ(io.photon_direct.k, 33);
   EXPECT_EQ(io.photon_direct.non_contributing, NonContributingMode::kEachOne);
   EXPECT_FLOAT_EQ(io.photon_direct.cache_radius_fraction, 0.5f);
-  EXPECT_FLOAT_EQ(io.photon_direct.max_radius, 5.0f * kPhotonDirectRadiusFraction);
+  EXPECT_FLOAT_EQ(io.photon_direct.max_radius, 5.0f * kDirectPhotonRadiusFraction);
+  EXPECT_FLOAT_EQ(io.direct_photons.max_radius, 5.0f * kDirectPhotonRadiusFraction);
+  EXPECT_EQ(io.direct_photons.k, io.global.k);
   EXPECT_EQ(io.local_pass_rays, 12);
   EXPECT_TRUE(io.global.occlusion_test && io.caustic.occlusion_test);
   EXPECT_EQ(io.global.adaptive_k_min, 9);
