@@ -32,6 +32,9 @@ int RunLocalPlan(const RenderArgs& a);  // --local-only / --plan without --worke
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
             double error_scale, bool json);
 int RunMerge(const std::vector<std::string>& inputs, const std::string& output);
+// PNG of an EXR: auto exposure of `image`, or of `exposure_of` (so renders of one scene share
+// one exposure and compare by eye), plus `stops`.
+int RunPreview(const std::string& image, const std::string& output, const std::string& exposure_of, double stops);
 int RunInfo(const std::string& path);
 
 // Farm (client/farm_commands.cpp).

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -219,6 +220,16 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output) 
   }
   WriteExr(output, sum, meta, ExrCompression::kPiz);
   std::printf("merged %zu images, %g spp in all -> %s\n", inputs.size(), total_weight, output.c_str());
+  return kExitOk;
+}
+
+int RunPreview(const std::string& image_path, const std::string& output, const std::string& exposure_of,
+               double stops) {
+  const Image image = ReadExr(image_path);
+  PreviewOptions o{.exposure_stops = stops, .auto_exposure = exposure_of.empty()};
+  if (!exposure_of.empty()) o.exposure_stops += std::log2(AutoExposureScale(ReadExr(exposure_of)));
+  WritePngPreview(output, image, o);
+  std::printf("%s -> %s (scale %.6g)\n", image_path.c_str(), output.c_str(), PreviewScale(image, o));
   return kExitOk;
 }
 

@@ -7,7 +7,7 @@
 //   pf watch JOB [-o out.exr]                 progress (and snapshots) until the job ends
 //   pf get JOB -o out.exr                     the current merged image
 //   pf list / pf cancel JOB                   jobs of a coordinator
-//   pf diff / merge / info                    images and scenes
+//   pf diff / merge / preview / info          images and scenes
 //
 // Exit codes: client/commands.h (0 ok, 1 failure, 2 usage, 3 invalid input, 130 interrupted).
 #include <CLI/CLI.hpp>
@@ -139,6 +139,17 @@ int main(int argc, char** argv) {
   merge->add_option("inputs", merge_inputs, "EXR files")->required()->check(CLI::ExistingFile);
   merge->add_option("-o,--output", merge_output, "Output EXR (PIZ-compressed)")->required();
 
+  std::string preview_in, preview_out, preview_ref;
+  double preview_stops = 0;
+  CLI::App* preview = app.add_subcommand(
+      "preview", "Write an EXR's PNG preview (sRGB). Exposure: automatic (99th-percentile luminance -> 0.9),\n"
+                 "or that of --exposure-of REF so that several renders of one scene compare by eye");
+  preview->add_option("image", preview_in, "EXR to show")->required()->check(CLI::ExistingFile);
+  preview->add_option("-o,--output", preview_out, "Output PNG")->required();
+  preview->add_option("--exposure-of", preview_ref, "Use this EXR's automatic exposure instead of the image's own")
+      ->check(CLI::ExistingFile);
+  preview->add_option("--exposure", preview_stops, "Stops added on top (+1 = twice as bright)")->capture_default_str();
+
   std::string info_scene;
   CLI::App* info = app.add_subcommand("info", "Print what a scene contains (counts, bounds, cameras, warnings)");
   info->add_option("scene", info_scene, "Scene manifest or geometry file")->required();
@@ -169,6 +180,7 @@ int main(int argc, char** argv) {
     if (*diff) return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json);
     if (*info) return RunInfo(info_scene);
     if (*merge) return RunMerge(merge_inputs, merge_output);
+    if (*preview) return RunPreview(preview_in, preview_out, preview_ref, preview_stops);
   } catch (const std::exception& e) {
     const int code = ExitCodeFor(e);
     if (code == kExitInterrupted)

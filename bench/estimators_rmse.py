@@ -1,0 +1,327 @@
+#!/usr/bin/python3
+"""RMSE against the path-traced reference and wall time, per chapter-4 estimator (issue #5).
+
+For every scene (Cornell box, CornellBox-Sphere, scene8, the SCENE10-like rooms and the
+INVISIBLEDATE-like pair of rooms) and every budget (photons, k, camera samples per pixel), renders
+each method with `pf render` (one process, one map, seed 1, all cores), times the whole command
+(median of --repeat runs: load, photon tracing, kd-tree build and rendering included), and compares
+with `pf diff --json` against scenes/<scene>/reference-*.exr:
+
+    standalone          --direct photon-map            direct light from the map (2.5)
+    standalone+occl     ... --occlusion-test           origin visibility per photon (4.1.1)
+    mc                  --direct mc                    Monte Carlo direct light (4.2.1)
+    photon-direct       --direct photon-direct         shadow rays split by direct photons (4.2.3)
+    photon-direct-each  ... --non-contributing each    the other unbiased variant
+    mc+local-pass       --direct mc --local-pass 8     final gathering (4.3)
+    mc+occl             --direct mc --occlusion-test
+    mc+adaptive-k       --direct mc --adaptive-k-min k/5   (4.8)
+    path                --integrator path, 4x the budget's spp (what the same machine does without maps)
+
+plus, where the thesis makes a claim about it: mc+local-pass+occl on the two room scenes, and
+PhotonDirect without its neighbour-set cache on scene10; and on scene10 (both budgets) and scene8
+(the first budget) a shadow-ray sweep, Monte Carlo at 16/64/256 rays against PhotonDirect at
+4/16/64 (the claim of 4.2.3: PhotonDirect reaches Monte Carlo's error in less time).
+
+Error columns: the RMSE of values clamped to [0,1] (the display range; lights seen directly are
+8-17 in value and their edge pixels' coverage noise would otherwise dominate), the raw RMSE /
+reference mean (scenes differ 50x in brightness), mean / reference mean (bias), and the reference's
+own noise (RMSE of its two halves / 2; no row can measure below it).
+
+Writes to --out (default docs/results): estimators.json, estimators_table.md, per scene a plot of
+error against time (estimators-<scene>.png) and a contact sheet of the last budget's images, all at
+the reference's exposure, over their error images on one scale (estimators-<scene>-images.png).
+
+    tools/install-deps.sh --bench        # matplotlib for the plots
+    bench/estimators_rmse.py [--scenes cornell-box,scene10] [--budgets low,high] [--repeat 3]
+    bench/estimators_rmse.py --replot    # table and plots again from estimators.json
+"""
+import argparse
+import json
+import pathlib
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SCENES = {  # name: (manifest, reference, resolution)
+    "cornell-box": ("scenes/cornell-box/cornell-box.json", "scenes/cornell-box/reference-256.exr", "256x256"),
+    "cornell-sphere": ("scenes/cornell-sphere/cornell-sphere.json", "scenes/cornell-sphere/reference-256.exr", "256x256"),
+    "scene8": ("scenes/scene8/scene8.json", "scenes/scene8/reference-320.exr", "320x240"),
+    "scene10": ("scenes/scene10/scene10.json", "scenes/scene10/reference-320.exr", "320x240"),
+    "invisibledate": ("scenes/invisibledate/invisibledate.json", "scenes/invisibledate/reference-320.exr", "320x240"),
+}
+BUDGETS = {  # name: (photons, k, spp)
+    "low": (100_000, 50, 4),
+    "high": (400_000, 100, 16),
+}
+PATH_SPP_FACTOR = 4
+SHADOW_RAY_SWEEP = {"scene10": ("low", "high"), "scene8": ("low",)}  # scene: budgets swept
+MC_RAYS = (16, 64, 256)
+PHOTON_DIRECT_RAYS = (4, 16, 64)
+# The methods the contact sheets show (the last budget), in this order.
+SHEET = ("standalone", "standalone+occl", "mc", "photon-direct", "mc+local-pass", "mc+occl", "mc+adaptive-k", "path")
+
+
+def methods(scene, k):
+    """(name, pf render flags) of every method measured on `scene` at a budget with this k."""
+    pm = ["--integrator", "photonmap"]
+    rows = [
+        ("standalone", pm + ["--direct", "photon-map"]),
+        ("standalone+occl", pm + ["--direct", "photon-map", "--occlusion-test"]),
+        ("mc", pm + ["--direct", "mc"]),
+        ("photon-direct", pm + ["--direct", "photon-direct"]),
+        ("photon-direct-each", pm + ["--direct", "photon-direct", "--non-contributing", "each"]),
+        ("mc+local-pass", pm + ["--direct", "mc", "--local-pass", "8"]),
+        ("mc+occl", pm + ["--direct", "mc", "--occlusion-test"]),
+        ("mc+adaptive-k", pm + ["--direct", "mc", "--adaptive-k-min", str(max(1, k // 5))]),
+    ]
+    if scene in ("scene10", "invisibledate"):  # bleeding at the gather hits (4.1.1 with 4.3)
+        rows.append(("mc+local-pass+occl", pm + ["--direct", "mc", "--local-pass", "8", "--occlusion-test"]))
+    if scene == "scene10":  # the thesis's x20 of the neighbour-set cache (4.2.3)
+        rows.append(("photon-direct (no cache)", pm + ["--direct", "photon-direct", "--photon-direct-cache", "0"]))
+    return rows
+
+
+def sweep(scene, budget):
+    if budget not in SHADOW_RAY_SWEEP.get(scene, ()):
+        return []
+    def flags(direct, n):  # pf's default count spelled as the `mc` / `photon-direct` rows spell it
+        return ["--integrator", "photonmap", "--direct", direct] + (["--shadow-rays", str(n)] if n != 16 else [])
+    return ([(f"mc ({n} rays)", flags("mc", n)) for n in MC_RAYS] +
+            [(f"photon-direct ({n} rays)", flags("photon-direct", n)) for n in PHOTON_DIRECT_RAYS])
+
+
+def run(cmd):
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    if r.returncode != 0:
+        sys.exit(f"failed ({r.returncode}): {' '.join(map(str, cmd))}\n{r.stderr}")
+    return r
+
+
+def reference_noise(reference):
+    """The reference's pf:estimated_noise_rmse header attribute (written by pf merge): an EXR
+    string attribute is name NUL "string" NUL, a 4-byte little-endian length, the bytes."""
+    data = (ROOT / reference).read_bytes()[:65536]
+    key = b"pf:estimated_noise_rmse\x00string\x00"
+    i = data.find(key)
+    if i < 0:
+        return None
+    n = int.from_bytes(data[i + len(key):i + len(key) + 4], "little")
+    return float(data[i + len(key) + 4:i + len(key) + 4 + n].decode())
+
+
+class Measurer:
+    """Renders and compares; a flag set measured once is reused by every row naming it (the
+    sweep's 16-ray Monte Carlo is the `mc` row)."""
+
+    def __init__(self, args, work):
+        self.args, self.work, self.done = args, work, {}
+
+    def measure(self, scene, budget, method, flags):
+        manifest, reference, res = SCENES[scene]
+        photons, k, spp = BUDGETS[budget]
+        if "path" in flags:
+            spp *= PATH_SPP_FACTOR
+        key = (scene, budget, tuple(flags))
+        if key in self.done:
+            return dict(self.done[key], method=method)
+        exr = self.work / f"{scene}-{budget}-{len(self.done)}.exr"
+        cmd = [self.args.pf, "render", manifest, "--photons", str(photons), "--k", str(k), "--spp", str(spp),
+               "--res", res, "--seed", "1", "--threads", str(self.args.threads), "-q", "--no-png", "-o", str(exr)]
+        walls = []
+        for _ in range(self.args.repeat):
+            t0 = time.monotonic()
+            run(cmd + flags)
+            walls.append(time.monotonic() - t0)
+        diff = json.loads(run([self.args.pf, "diff", str(exr), reference, "--json"]).stdout)
+        row = {"scene": scene, "budget": budget, "method": method, "flags": " ".join(flags),
+               "photons": 0 if "path" in flags else photons, "k": 0 if "path" in flags else k, "spp": spp,
+               "wall_seconds": round(statistics.median(walls), 3), "wall_seconds_all": [round(w, 3) for w in walls],
+               "rmse": diff["rmse"], "rmse_clamped": diff["rmse_clamped"],
+               "nrmse": diff["rmse"] / diff["reference_mean"], "mean_ratio": diff["mean"] / diff["reference_mean"],
+               "exr": str(exr)}
+        print(f"{scene:14s} {budget:5s} {method:26s} {row['wall_seconds']:7.2f} s  RMSE/mean {row['nrmse']:.4f}  "
+              f"RMSE[0,1] {row['rmse_clamped']:.4f}  mean/ref {row['mean_ratio']:.4f}", flush=True)
+        self.done[key] = row
+        return dict(row)
+
+
+def contact_sheet(pf, scene, rows, out, work, reference_mean):
+    """The last budget's images at the reference's exposure (pf preview --exposure-of), each over
+    its absolute error (pf diff --error-image) on one colour scale per scene."""
+    import matplotlib.pyplot as plt
+    import matplotlib.image as mpimg
+    reference = SCENES[scene][1]
+    shown = [r for name in SHEET for r in rows if r["method"] == name]
+    error_scale = 0.5 * reference_mean  # yellow = an error of half the image's mean radiance
+    cells = [("reference", reference, None, "")] + [
+        (r["method"], r["exr"], True, f"{r['wall_seconds']:.1f} s, RMSE[0,1] {r['rmse_clamped']:.4f}, "
+                                      f"mean {r['mean_ratio']:.3f}") for r in shown]
+    cols = 3
+    rows_of_cells = (len(cells) + cols - 1) // cols
+    fig, axes = plt.subplots(2 * rows_of_cells, cols, figsize=(3.4 * cols, 2.75 * 2 * rows_of_cells),
+                             gridspec_kw={"hspace": 0.25, "wspace": 0.04})
+    for ax in axes.flat:
+        ax.axis("off")
+    for i, (name, exr, has_error, caption) in enumerate(cells):
+        top, bottom = axes[2 * (i // cols)][i % cols], axes[2 * (i // cols) + 1][i % cols]
+        img, err = work / f"{scene}-sheet-{i}.png", work / f"{scene}-sheet-{i}-error.png"
+        run([pf, "preview", exr, "-o", img, "--exposure-of", reference])
+        top.imshow(mpimg.imread(img))
+        top.set_title(f"{name}\n{caption}" if caption else name, fontsize=8)
+        if has_error:
+            run([pf, "diff", exr, reference, "--error-image", err, "--error-scale", f"{error_scale:.6g}"])
+            bottom.imshow(mpimg.imread(err))
+        else:
+            bottom.text(0.5, 0.5, f"below each image: |image - reference|,\nviridis ramp from 0 (purple)\n"
+                                  f"to {error_scale:.3g} (yellow, half the mean)", ha="center", va="center",
+                        fontsize=8, transform=bottom.transAxes)
+    first = shown[0]
+    fig.suptitle(f"{scene}, budget {first['budget']}: {first['photons'] // 1000}k photons, k {first['k']}, "
+                 f"{first['spp']} spp (path: {first['spp'] * PATH_SPP_FACTOR} spp); one exposure for all", fontsize=9)
+    fig.subplots_adjust(top=1 - 0.9 / fig.get_figheight(), bottom=0.01, left=0.01, right=0.99)
+    path = out / f"estimators-{scene}-images.png"
+    fig.savefig(path, dpi=75)
+    plt.close(fig)
+    return path.name
+
+
+def plot(rows, scenes, out):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("no matplotlib: plots skipped (tools/install-deps.sh --bench)", file=sys.stderr)
+        return []
+    markers = "osD^v<>pPX*h"
+    written = []
+    for scene in scenes:
+        mine = [r for r in rows if r["scene"] == scene]
+        swept = [r for r in mine if "rays)" in r["method"]]
+        fig, axes = plt.subplots(1, 2 if swept else 1, figsize=(12 if swept else 7, 4.5), squeeze=False)
+        ax = axes[0][0]
+        names = list(dict.fromkeys(r["method"] for r in mine if "rays)" not in r["method"]))
+        cmap = plt.get_cmap("tab20")
+        for i, method in enumerate(names):
+            pts = sorted((r["wall_seconds"], r["rmse_clamped"]) for r in mine if r["method"] == method)
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=markers[i % len(markers)], color=cmap(i % 20),
+                    label=method, linestyle=":" if method == "path" else "-")
+        if mine[0].get("reference_noise_rmse"):
+            ax.axhline(mine[0]["reference_noise_rmse"], color="grey", linewidth=0.8, linestyle=":",
+                       label="reference noise (unclamped)")
+        ax.set_title(f"{scene}: every method, budgets {', '.join(dict.fromkeys(r['budget'] for r in mine))}",
+                     fontsize=10)
+        ax.legend(fontsize=7, ncol=2)
+        if swept:
+            ax2 = axes[0][1]
+            for family, colour in (("mc", "tab:blue"), ("photon-direct", "tab:red")):
+                for budget, style in (("low", "-"), ("high", "--")):
+                    pts = sorted((r["wall_seconds"], r["rmse_clamped"], r["method"].split("(")[1].split()[0])
+                                 for r in swept if r["method"].startswith(family + " (") and r["budget"] == budget)
+                    if not pts:
+                        continue
+                    ax2.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=colour, linestyle=style,
+                             label=f"{family}, {budget}")
+                    for t, e, n in pts:
+                        ax2.annotate(n, (t, e), textcoords="offset points", xytext=(4, 4), fontsize=7)
+            ax2.set_title(f"{scene}: shadow rays per shading point (numbers at the points)", fontsize=10)
+            ax2.legend(fontsize=7)
+        for a in axes[0]:
+            a.set_xscale("log")
+            a.set_yscale("log")
+            a.set_xlabel("wall time of pf render, median (s)")
+            a.set_ylabel("RMSE, values clamped to [0,1]")
+            a.grid(True, which="both", alpha=0.3)
+        fig.tight_layout()
+        path = out / f"estimators-{scene}.png"
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        written.append(path.name)
+    return written
+
+
+def write_reports(rows, scenes, out, sheets=()):
+    plots = plot(rows, scenes, out)
+    lines = []
+    for scene in scenes:
+        mine = [r for r in rows if r["scene"] == scene]
+        lines += [f"### {scene}", "",
+                  "| budget (photons / k / spp) | method | wall s (median) | RMSE [0,1] | RMSE / mean | mean / ref |",
+                  "|---|---|---:|---:|---:|---:|"]
+        for r in mine:
+            budget = f"{r['photons'] // 1000}k / {r['k']} / {r['spp']}" if r["photons"] else f"{r['spp']} spp"
+            lines.append(f"| {r['budget']} ({budget}) | {r['method']} | {r['wall_seconds']:.2f} | "
+                         f"{r['rmse_clamped']:.4f} | {r['nrmse']:.4f} | {r['mean_ratio']:.3f} |")
+        if mine[0].get("reference_noise_nrmse"):
+            lines += ["", f"The reference's own noise: RMSE {mine[0]['reference_noise_rmse']:.5f} "
+                          f"({mine[0]['reference_noise_nrmse']:.4f} of its mean), unclamped; no row can measure below it."]
+        lines += [""]
+        if f"estimators-{scene}.png" in plots:
+            lines += [f"![{scene}: error against time](estimators-{scene}.png)", ""]
+        if f"estimators-{scene}-images.png" in sheets or (out / f"estimators-{scene}-images.png").exists():
+            lines += [f"![{scene}: images and errors](estimators-{scene}-images.png)", ""]
+    (out / "estimators_table.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {out / 'estimators.json'}, {out / 'estimators_table.md'} and {len(plots)} plots")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 epilog=__doc__.split("\n\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pf", default="build/client/pf")
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--budgets", default=",".join(BUDGETS))
+    ap.add_argument("--threads", type=int, default=0, help="render threads (0 = all cores)")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per row; the median time counts")
+    ap.add_argument("--out", default="docs/results")
+    ap.add_argument("--replot", action="store_true", help="only rewrite the table and plots from <out>/estimators.json")
+    args = ap.parse_args()
+    out = ROOT / args.out
+    out.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        rows = json.loads((out / "estimators.json").read_text())
+        write_reports(rows, list(dict.fromkeys(r["scene"] for r in rows)), out)
+        return
+    scenes = [s for s in args.scenes.split(",") if s]
+    budgets = [b for b in args.budgets.split(",") if b]
+    for s in scenes:
+        if s not in SCENES:
+            sys.exit(f"unknown scene {s} (have {', '.join(SCENES)})")
+    for b in budgets:
+        if b not in BUDGETS:
+            sys.exit(f"unknown budget {b} (have {', '.join(BUDGETS)})")
+    work = pathlib.Path(tempfile.mkdtemp(prefix="pf-estimators-"))
+    try:
+        measurer = Measurer(args, work)
+        rows, sheets = [], []
+        for scene in scenes:
+            noise = reference_noise(SCENES[scene][1])
+            ref_mean = json.loads(run([args.pf, "diff", SCENES[scene][1], SCENES[scene][1], "--json"]).stdout)["mean"]
+            mine = []
+            for budget in budgets:
+                for method, flags in methods(scene, BUDGETS[budget][1]) + [("path", ["--integrator", "path"])]:
+                    mine.append(measurer.measure(scene, budget, method, flags))
+                for method, flags in sweep(scene, budget):
+                    mine.append(measurer.measure(scene, budget, method, flags))
+            for r in mine:
+                r["reference_noise_rmse"] = noise
+                r["reference_noise_nrmse"] = noise / ref_mean if noise else None
+            try:
+                sheets.append(contact_sheet(args.pf, scene, [r for r in mine if r["budget"] == budgets[-1]], out, work,
+                                            ref_mean))
+            except ImportError:
+                print("no matplotlib: contact sheets skipped (tools/install-deps.sh --bench)", file=sys.stderr)
+            rows += mine
+        for r in rows:
+            del r["exr"]
+        (out / "estimators.json").write_text(json.dumps(rows, indent=2) + "\n")
+        write_reports(rows, scenes, out, sheets)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
