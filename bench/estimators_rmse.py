@@ -22,10 +22,12 @@ PhotonDirect without its neighbour-set cache on scene10; and on scene10 (both bu
 (the first budget) a shadow-ray sweep, Monte Carlo at 16/64/256 rays against PhotonDirect at
 4/16/64 (the claim of 4.2.3: PhotonDirect reaches Monte Carlo's error in less time).
 
-Error columns: the RMSE of values clamped to [0,1] (the display range; lights seen directly are
-8-17 in value and their edge pixels' coverage noise would otherwise dominate), the raw RMSE /
-reference mean (scenes differ 50x in brightness), mean / reference mean (bias), and the reference's
-own noise (RMSE of its two halves / 2; no row can measure below it).
+Error columns: the display RMSE (pf diff's rmse_display: both images clamped to the reference's
+display white w = its median luminance / 0.18, RMSE / w; scale-free, so a dim scene is measured
+like a bright one, and lights seen directly, 8-17 in value, count no more than white, instead of
+their edge pixels' coverage noise dominating everything), the raw RMSE / reference mean,
+mean / reference mean (bias), and the reference's own noise (RMSE of its two halves / 2, over w;
+no row can measure below it).
 
 Writes to --out (default docs/results): estimators.json, estimators_table.md, per scene a plot of
 error against time (estimators-<scene>.png) and a contact sheet of the last budget's images, all at
@@ -140,25 +142,25 @@ class Measurer:
         row = {"scene": scene, "budget": budget, "method": method, "flags": " ".join(flags),
                "photons": 0 if "path" in flags else photons, "k": 0 if "path" in flags else k, "spp": spp,
                "wall_seconds": round(statistics.median(walls), 3), "wall_seconds_all": [round(w, 3) for w in walls],
-               "rmse": diff["rmse"], "rmse_clamped": diff["rmse_clamped"],
+               "rmse": diff["rmse"], "rmse_clamped": diff["rmse_clamped"], "rmse_display": diff["rmse_display"],
                "nrmse": diff["rmse"] / diff["reference_mean"], "mean_ratio": diff["mean"] / diff["reference_mean"],
                "exr": str(exr)}
         print(f"{scene:14s} {budget:5s} {method:26s} {row['wall_seconds']:7.2f} s  RMSE/mean {row['nrmse']:.4f}  "
-              f"RMSE[0,1] {row['rmse_clamped']:.4f}  mean/ref {row['mean_ratio']:.4f}", flush=True)
+              f"RMSE/white {row['rmse_display']:.4f}  mean/ref {row['mean_ratio']:.4f}", flush=True)
         self.done[key] = row
         return dict(row)
 
 
-def contact_sheet(pf, scene, rows, out, work, reference_mean):
+def contact_sheet(pf, scene, rows, out, work, white):
     """The last budget's images at the reference's exposure (pf preview --exposure-of), each over
     its absolute error (pf diff --error-image) on one colour scale per scene."""
     import matplotlib.pyplot as plt
     import matplotlib.image as mpimg
     reference = SCENES[scene][1]
     shown = [r for name in SHEET for r in rows if r["method"] == name]
-    error_scale = 0.5 * reference_mean  # yellow = an error of half the image's mean radiance
+    error_scale = 0.25 * white  # yellow = an error of a quarter of the display white
     cells = [("reference", reference, None, "")] + [
-        (r["method"], r["exr"], True, f"{r['wall_seconds']:.1f} s, RMSE[0,1] {r['rmse_clamped']:.4f}, "
+        (r["method"], r["exr"], True, f"{r['wall_seconds']:.1f} s, RMSE/white {r['rmse_display']:.4f}, "
                                       f"mean {r['mean_ratio']:.3f}") for r in shown]
     cols = 3
     rows_of_cells = (len(cells) + cols - 1) // cols
@@ -177,7 +179,7 @@ def contact_sheet(pf, scene, rows, out, work, reference_mean):
             bottom.imshow(mpimg.imread(err))
         else:
             bottom.text(0.5, 0.5, f"below each image: |image - reference|,\nviridis ramp from 0 (purple)\n"
-                                  f"to {error_scale:.3g} (yellow, half the mean)", ha="center", va="center",
+                                  f"to {error_scale:.3g} (yellow, 1/4 of white)", ha="center", va="center",
                         fontsize=8, transform=bottom.transAxes)
     first = shown[0]
     fig.suptitle(f"{scene}, budget {first['budget']}: {first['photons'] // 1000}k photons, k {first['k']}, "
@@ -207,11 +209,11 @@ def plot(rows, scenes, out):
         names = list(dict.fromkeys(r["method"] for r in mine if "rays)" not in r["method"]))
         cmap = plt.get_cmap("tab20")
         for i, method in enumerate(names):
-            pts = sorted((r["wall_seconds"], r["rmse_clamped"]) for r in mine if r["method"] == method)
+            pts = sorted((r["wall_seconds"], r["rmse_display"]) for r in mine if r["method"] == method)
             ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=markers[i % len(markers)], color=cmap(i % 20),
                     label=method, linestyle=":" if method == "path" else "-")
-        if mine[0].get("reference_noise_rmse"):
-            ax.axhline(mine[0]["reference_noise_rmse"], color="grey", linewidth=0.8, linestyle=":",
+        if mine[0].get("reference_noise_display"):
+            ax.axhline(mine[0]["reference_noise_display"], color="grey", linewidth=0.8, linestyle=":",
                        label="reference noise (unclamped)")
         ax.set_title(f"{scene}: every method, budgets {', '.join(dict.fromkeys(r['budget'] for r in mine))}",
                      fontsize=10)
@@ -220,7 +222,7 @@ def plot(rows, scenes, out):
             ax2 = axes[0][1]
             for family, colour in (("mc", "tab:blue"), ("photon-direct", "tab:red")):
                 for budget, style in (("low", "-"), ("high", "--")):
-                    pts = sorted((r["wall_seconds"], r["rmse_clamped"], r["method"].split("(")[1].split()[0])
+                    pts = sorted((r["wall_seconds"], r["rmse_display"], r["method"].split("(")[1].split()[0])
                                  for r in swept if r["method"].startswith(family + " (") and r["budget"] == budget)
                     if not pts:
                         continue
@@ -234,7 +236,7 @@ def plot(rows, scenes, out):
             a.set_xscale("log")
             a.set_yscale("log")
             a.set_xlabel("wall time of pf render, median (s)")
-            a.set_ylabel("RMSE, values clamped to [0,1]")
+            a.set_ylabel("RMSE / display white (clamped at white)")
             a.grid(True, which="both", alpha=0.3)
         fig.tight_layout()
         path = out / f"estimators-{scene}.png"
@@ -250,15 +252,16 @@ def write_reports(rows, scenes, out, sheets=()):
     for scene in scenes:
         mine = [r for r in rows if r["scene"] == scene]
         lines += [f"### {scene}", "",
-                  "| budget (photons / k / spp) | method | wall s (median) | RMSE [0,1] | RMSE / mean | mean / ref |",
+                  "| budget (photons / k / spp) | method | wall s (median) | RMSE / white | RMSE / mean | mean / ref |",
                   "|---|---|---:|---:|---:|---:|"]
         for r in mine:
             budget = f"{r['photons'] // 1000}k / {r['k']} / {r['spp']}" if r["photons"] else f"{r['spp']} spp"
             lines.append(f"| {r['budget']} ({budget}) | {r['method']} | {r['wall_seconds']:.2f} | "
-                         f"{r['rmse_clamped']:.4f} | {r['nrmse']:.4f} | {r['mean_ratio']:.3f} |")
+                         f"{r['rmse_display']:.4f} | {r['nrmse']:.4f} | {r['mean_ratio']:.3f} |")
         if mine[0].get("reference_noise_nrmse"):
-            lines += ["", f"The reference's own noise: RMSE {mine[0]['reference_noise_rmse']:.5f} "
-                          f"({mine[0]['reference_noise_nrmse']:.4f} of its mean), unclamped; no row can measure below it."]
+            lines += ["", f"The reference's own noise: RMSE {mine[0]['reference_noise_rmse']:.5f} = "
+                          f"{mine[0]['reference_noise_display']:.4f} of white = {mine[0]['reference_noise_nrmse']:.4f} "
+                          f"of its mean (unclamped); no row can measure below it."]
         lines += [""]
         if f"estimators-{scene}.png" in plots:
             lines += [f"![{scene}: error against time](estimators-{scene}.png)", ""]
@@ -299,7 +302,8 @@ def main():
         rows, sheets = [], []
         for scene in scenes:
             noise = reference_noise(SCENES[scene][1])
-            ref_mean = json.loads(run([args.pf, "diff", SCENES[scene][1], SCENES[scene][1], "--json"]).stdout)["mean"]
+            ref = json.loads(run([args.pf, "diff", SCENES[scene][1], SCENES[scene][1], "--json"]).stdout)
+            ref_mean, white = ref["mean"], ref["display_white"]
             mine = []
             for budget in budgets:
                 for method, flags in methods(scene, BUDGETS[budget][1]) + [("path", ["--integrator", "path"])]:
@@ -309,9 +313,11 @@ def main():
             for r in mine:
                 r["reference_noise_rmse"] = noise
                 r["reference_noise_nrmse"] = noise / ref_mean if noise else None
+                r["reference_noise_display"] = noise / white if noise else None
+                r["display_white"] = white
             try:
                 sheets.append(contact_sheet(args.pf, scene, [r for r in mine if r["budget"] == budgets[-1]], out, work,
-                                            ref_mean))
+                                            white))
             except ImportError:
                 print("no matplotlib: contact sheets skipped (tools/install-deps.sh --bench)", file=sys.stderr)
             rows += mine

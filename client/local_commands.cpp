@@ -167,13 +167,15 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
   const ImageDiffStats d = CompareImages(a, ref);
   if (json) {
     nlohmann::json j = {{"image", a_path},        {"reference", ref_path},     {"rmse", d.rmse},
-                        {"relative_mse", d.relative_mse}, {"rmse_clamped", d.rmse_clamped}, {"max_abs_error", d.max_abs_error},
+                        {"relative_mse", d.relative_mse}, {"rmse_clamped", d.rmse_clamped}, {"rmse_display", d.rmse_display},
+                        {"display_white", d.display_white}, {"max_abs_error", d.max_abs_error},
                         {"max_x", d.max_x},       {"max_y", d.max_y},          {"mean", d.mean_a},
                         {"reference_mean", d.mean_b}, {"pixels", d.pixels}};
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("RMSE %.6g  relative MSE %.6g  max error %.6g at (%d,%d)  mean %.6g vs %.6g\n", d.rmse,
-                d.relative_mse, d.max_abs_error, d.max_x, d.max_y, d.mean_a, d.mean_b);
+    std::printf("RMSE %.6g (%.4g of display white %.4g)  relative MSE %.6g  max error %.6g at (%d,%d)  mean %.6g vs %.6g\n",
+                d.rmse, d.rmse_display, d.display_white, d.relative_mse, d.max_abs_error, d.max_x, d.max_y, d.mean_a,
+                d.mean_b);
   }
   if (!error_image.empty()) {
     const Image err = FalseColourError(a, ref, error_scale > 0 ? error_scale : d.max_abs_error);

@@ -25,11 +25,29 @@ double SrgbToLinear(double v) {
 
 }  // namespace
 
+double DisplayWhite(const Image& image) {
+  constexpr double kKey = 0.18;
+  std::vector<float> luminance;
+  luminance.reserve(image.size());
+  double sum = 0;
+  for (const Rgb& c : image.pixels()) {
+    if (!c.IsFinite()) continue;
+    luminance.push_back(std::max(0.0f, c.Luminance()));
+    sum += luminance.back();
+  }
+  if (luminance.empty()) return 1.0;
+  const auto middle = luminance.begin() + luminance.size() / 2;
+  std::nth_element(luminance.begin(), middle, luminance.end());
+  if (*middle > 0) return *middle / kKey;
+  return sum > 0 ? sum / double(luminance.size()) / kKey : 1.0;
+}
+
 ImageDiffStats CompareImages(const Image& a, const Image& reference) {
   CheckSameSize(a, reference);
   ImageDiffStats stats;
   double sum_squared = 0, sum_relative = 0, sum_a = 0, sum_b = 0;
-  double sum_clamped = 0;
+  double sum_clamped = 0, sum_display = 0;
+  const double white = DisplayWhite(reference);
   for (int y = 0; y < a.height(); ++y) {
     for (int x = 0; x < a.width(); ++x) {
       const Rgb& pa = a.at(x, y);
@@ -45,6 +63,8 @@ ImageDiffStats CompareImages(const Image& a, const Image& reference) {
         sum_squared += d * d;
         const double dc = std::clamp(va, 0.0, 1.0) - std::clamp(vb, 0.0, 1.0);
         sum_clamped += dc * dc;
+        const double dd = std::clamp(va, 0.0, white) - std::clamp(vb, 0.0, white);
+        sum_display += dd * dd;
         sum_relative += d * d / (vb * vb + kRelativeMseEpsilon);
         sum_a += va;
         sum_b += vb;
@@ -60,6 +80,8 @@ ImageDiffStats CompareImages(const Image& a, const Image& reference) {
   const double n = 3.0 * double(stats.pixels);
   stats.rmse = std::sqrt(sum_squared / n);
   stats.rmse_clamped = std::sqrt(sum_clamped / n);
+  stats.display_white = white;
+  stats.rmse_display = std::sqrt(sum_display / n) / white;
   stats.relative_mse = sum_relative / n;
   stats.mean_a = sum_a / n;
   stats.mean_b = sum_b / n;

@@ -24,6 +24,12 @@ struct ImageDiffStats {
   // to 0.5) that a finite number of pixel samples cannot resolve; clamping measures the
   // estimator's noise and bias instead (the thesis's RMS values are on displayed images).
   double rmse_clamped = 0;
+  // The same relative to the reference's own display white w: both images clamped to [0, w],
+  // RMSE / w, where w = DisplayWhite(reference) (its median luminance shown as middle grey).
+  // Scale-free (0.01 = 1 % of white), so a dim scene (CornellBox-Sphere, mean 0.01) is measured
+  // like a bright one, and lights count no more than white whatever part of the image they cover.
+  double rmse_display = 0;
+  double display_white = 0;  // w
   double relative_mse = 0;
   double max_abs_error = 0;
   int max_x = -1, max_y = -1;
@@ -35,6 +41,12 @@ struct ImageDiffStats {
 // Keeps relative MSE finite where the reference is black; 1e-2 means errors in dark regions
 // (|b| << 0.1) are measured roughly as absolute squared errors * 100.
 inline constexpr double kRelativeMseEpsilon = 1e-2;
+
+// The radiance a display exposure keyed to the image's median shows as white: median luminance
+// (Rec. 709, finite pixels, negatives as 0) / 0.18, Reinhard's key value; the median and not a
+// high percentile, because lights may fill more than 1 % of a view (scene8's ceiling panels).
+// Falls back to the mean luminance / 0.18 if the median is 0, and to 1 for a black image.
+double DisplayWhite(const Image& image);
 
 // Throws InputError naming both sizes if the images differ in size.
 ImageDiffStats CompareImages(const Image& a, const Image& reference);

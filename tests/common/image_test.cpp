@@ -663,3 +663,30 @@ TEST(ImageDiffTest, ClampedRmseMeasuresTheDisplayRange) {
 
 }  // namespace
 }  // namespace pf
+
+namespace pf {
+namespace {
+
+TEST(ImageDiffTest, DisplayRmseIsRelativeToTheReferencesWhite) {
+  // Grey 0.09 everywhere (median 0.09 = middle grey 0.18 of white): white is 0.5.
+  Image reference(10, 10);
+  for (Rgb& c : reference.pixels()) c = Rgb(0.09f);
+  Image a = reference;
+  a[0] = Rgb(20.0f);   // counts as 0.5: an error of 0.41 = 0.82 of white
+  a[1] = Rgb(0.19f);   // 0.1 = 0.2 of white
+  const ImageDiffStats d = CompareImages(a, reference);
+  EXPECT_NEAR(d.display_white, 0.5, 1e-6);
+  EXPECT_NEAR(d.rmse_display, std::sqrt((0.82 * 0.82 + 0.2 * 0.2) / 100.0), 1e-6);
+  // A light covering 30 % of the view does not move white (the median does not see it).
+  Image lit = reference;
+  for (size_t i = 0; i < 30; ++i) lit[i] = Rgb(50.0f);
+  EXPECT_NEAR(DisplayWhite(lit), 0.5, 1e-6);
+  // Scale-free: the same scene 100x dimmer has the same display RMSE.
+  Image dim_a = a, dim_ref = reference;
+  for (Rgb& c : dim_a.pixels()) c *= 0.01f;
+  for (Rgb& c : dim_ref.pixels()) c *= 0.01f;
+  EXPECT_NEAR(CompareImages(dim_a, dim_ref).rmse_display, d.rmse_display, 1e-6);
+}
+
+}  // namespace
+}  // namespace pf
