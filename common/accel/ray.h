@@ -33,10 +33,13 @@ struct SurfaceHit {
 // too: ~2^-15 of the largest coordinate (plus a floor from the scene's own size, which covers
 // points near the origin of a large scene). This keeps scenes from 1e-3 m to 1e4 m free of acne
 // and of light leaks through closed surfaces (tests: furnace at three scales).
-inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsilon) {
+// RayOffset is that amount at p.
+inline float RayOffset(const Vec3& p, float scene_epsilon) {
   const float magnitude = MaxComponent(Vec3(std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)));
-  const float eps = std::max(magnitude * 0x1p-15f, scene_epsilon);
-  return p + normal * eps;
+  return std::max(magnitude * 0x1p-15f, scene_epsilon);
+}
+inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsilon) {
+  return p + normal * RayOffset(p, scene_epsilon);
 }
 
 }  // namespace pf

@@ -35,12 +35,14 @@ MonteCarloDirectLight::MonteCarloDirectLight(const EmbreeScene& scene, const Lig
   double acc = 0;
   for (size_t i = 0; i < n; ++i) {
     const double by_power = total > 0 ? lights.light_power(i).Luminance() / total : 1.0 / double(n);
-    const double p = (1.0 - beta) * by_power + beta / double(n);
-    light_prob_.push_back(float(p));
-    acc += p;
+    acc += (1.0 - beta) * by_power + beta / double(n);
     light_cdf_.push_back(float(acc));
   }
   if (!light_cdf_.empty()) light_cdf_.back() = 1.0f;
+  // The probability of light i is the width of its stratum of the float CDF that Estimate
+  // searches, not p_i itself: the weights then match the choice exactly (a light too dim for
+  // a float stratum, < ~6e-8 of the power with β = 0, is never chosen and weighs nothing).
+  for (size_t i = 0; i < n; ++i) light_prob_.push_back(light_cdf_[i] - (i > 0 ? light_cdf_[i - 1] : 0.0f));
 }
 
 Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
@@ -53,6 +55,7 @@ Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3&
     const float u = (float(j) + rng.Uniform()) / float(n);
     const size_t i = std::min<size_t>(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u) - light_cdf_.begin(),
                                       light_cdf_.size() - 1);
+    if (!(light_prob_[i] > 0.0f)) continue;  // an empty stratum: u cannot land in it
     const Rgb c = SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
     sum += c * (1.0f / light_prob_[i]);
   }

@@ -1,6 +1,7 @@
 #include "common/estimators/radiance_estimate.h"
 
 #include <cmath>
+#include <limits>
 
 namespace pf {
 
@@ -58,6 +59,12 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
     used_end = options.exclude_boundary_photon ? count - 1 : count;
   } else if (options.exclude_boundary_photon && full) {
     first = 1;  // the heap's front
+  } else if (!full && std::isfinite(options.max_radius)) {
+    // Fewer than k within the bound: the whole disk of radius max_radius was searched and
+    // holds exactly these photons, so it is the area to divide by. The farthest photon's
+    // distance r_n would bias the estimate high: for n uniform photons E[R²/r_n²] = n/(n−1)
+    // (+11 % at the caustic threshold n = 10, unbounded at n = 1).
+    r2 = options.max_radius * options.max_radius;
   }
   if (!(r2 > 0.0f)) return result;  // all photons exactly at x: no area to divide by
   const auto all = nearest.entries();
@@ -75,18 +82,24 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
     const bool same_side = Dot(dir, side) > 0.0f;
     if (after_query && !same_side) continue;
     if (occlusion) {
-      // §4.1.1: is the photon's origin visible from x? The origin is moved off its surface
-      // towards the side the photon left it from (towards the photon), x towards the viewer.
+      // §4.1.1: is the photon's origin visible from x? x is moved off its surface towards the
+      // viewer — or, on a diffusely transmitting surface, towards the origin's side (light
+      // from behind is real there). The origin is moved off its surface towards the side the
+      // photon left it from, and the ray ends short of it: the offset alone is only eps·cos θ
+      // for a photon that left at a grazing angle; the shortened end keeps a ray that meets
+      // the origin's surface at an angle from hitting it.
       const Vec3& origin = (*context.origins)[all[i].index];
       const Vec3 leave = p.Position() - origin;
       if (LengthSquared(leave) > 0.0f) {
         const float eps = context.scene->epsilon();
-        const Vec3 from = OffsetRayOrigin(x, side, eps);
+        const Vec3 from_side = two_sided && Dot(origin - x, ng) * Dot(side, ng) < 0.0f ? -side : side;
+        const Vec3 from = OffsetRayOrigin(x, from_side, eps);
         const Vec3 to = OffsetRayOrigin(origin, Normalize(leave), eps);
         const Vec3 d = to - from;
         const float dist = Length(d);
+        const float end = dist - RayOffset(to, eps);
         ++result.shadow_rays;
-        if (dist > 0.0f && context.scene->Occluded(Ray{from, d / dist, dist})) continue;
+        if (end > 0.0f && context.scene->Occluded(Ray{from, d / dist, end})) continue;
       }
     }
     if (lambertian_only) {

@@ -10,6 +10,7 @@
 //    (skipped for materials that transmit diffusely, which see both sides);
 //  * caustic threshold: with a maximum search radius, discard the whole estimate when fewer
 //    than `min_fraction`·k photons are found (removes stray caustic photons; loses energy).
+// With a maximum radius R and fewer than k photons inside it, r = R: the disk searched.
 
 #include <cstdint>
 #include <limits>
@@ -43,7 +44,9 @@ struct RadianceEstimateOptions {
   // d = |cog − x| / r:   k' = k                                    for d ≤ d0 = 2/√k (noise)
   //                       k' = k − (k − k_min)·(d − d0)/(d1 − d0)   for d0 < d < d1
   //                       k' = k_min                                for d ≥ d1 = 4/(3π)
-  // d1 is the centre of gravity of a half disk: x exactly on a straight border. 0 = off.
+  // d1 is the centre of gravity of a half disk: x exactly on a straight border. d0 ≈ 4σ of
+  // |cog − x|/r for k uniform photons in a disk. For k ≤ 22, d0 ≥ d1: noise alone cannot be
+  // told from a border and the rule keeps k (adaptive k is off). 0 = off.
   int adaptive_k_min = 0;
 };
 

@@ -36,7 +36,8 @@ class LightSampler {
 
   // Per light (one emitting source primitive, scene.triangle_light), for direct-light
   // estimators that sample each light separately (§4.2.1, §4.2.3). Lights are numbered
-  // 0..num_lights()-1 by scene light id; triangles without an id form one extra light.
+  // 0..num_lights()-1 in the order of their first emitting triangle (LightIndex maps a scene
+  // light id to its number); triangles without an id form one extra light.
   size_t num_lights() const { return lights_.size(); }
   const Rgb& light_power(size_t light) const { return lights_[light].power; }
   // Samples light `light` alone: a triangle ∝ power within it, a uniform point on it.

@@ -133,13 +133,14 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& coun
       if (options_.local_pass_rays > 0 && !gathered && bsdf.HasLobes(kDiffuseLobes)) {
         gathered = true;
         L += Gather(bsdf, *hit, wo, estimated, rng, counters);
-        // Caustics (and a glossy lobe estimated from the maps) still come from the maps.
+        // Caustics through the diffuse lobes still come from the caustic map; a glossy lobe
+        // estimated from the maps reads all of them (caustic map included) below.
         if (maps_.caustic) {
           NearestPhotons& nearest = Scratch();
           const EstimateContext context{
               maps_.caustic_attributes.origin.empty() ? nullptr : &maps_.caustic_attributes.origin, &scene_};
-          L += EstimateRadiance(*maps_.caustic, bsdf, hit->position, wo, estimated, options_.caustic, nearest,
-                                context)
+          L += EstimateRadiance(*maps_.caustic, bsdf, hit->position, wo, estimated & kDiffuseLobes, options_.caustic,
+                                nearest, context)
                    .radiance;
         }
         if (estimated & kLobeGlossyReflection)
