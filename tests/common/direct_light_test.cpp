@@ -21,6 +21,13 @@ using testing::AddMaterial;
 using testing::AddQuad;
 using testing::AddSphere;
 
+// A black wall at x = 0.3, z in [0.2, 1.4], both faces: it hides lights on its right (x > 0.3)
+// from much of the floor's left half.
+void AddBlackWall(SceneDescription& s, uint32_t black_id) {
+  AddQuad(s, {0.3f, -3, 0.2f}, {0.3f, 3, 0.2f}, {0.3f, 3, 1.4f}, {0.3f, -3, 1.4f}, black_id);
+  AddQuad(s, {0.3f, -3, 0.2f}, {0.3f, -3, 1.4f}, {0.3f, 3, 1.4f}, {0.3f, 3, 0.2f}, black_id);
+}
+
 // A floor lit by two small area lights of different power, one of them partly hidden behind a
 // black occluder (so some floor points have a non-contributing light). Lights and occluder
 // are black: the floor receives direct light only, and the path tracer's image is exactly Ld.
@@ -39,9 +46,7 @@ SceneDescription TwoLightScene() {
   // Lights face down (clockwise seen from above).
   AddQuad(s, {-1.2f, -0.2f, 1}, {-1.2f, 0.2f, 1}, {-0.8f, 0.2f, 1}, {-0.8f, -0.2f, 1}, AddMaterial(s, bright), 0);
   AddQuad(s, {0.8f, -0.3f, 1.5f}, {0.8f, 0.3f, 1.5f}, {1.4f, 0.3f, 1.5f}, {1.4f, -0.3f, 1.5f}, AddMaterial(s, dim), 1);
-  // A black wall at x = 0.3 between the dim light and the left half of the floor (both faces).
-  AddQuad(s, {0.3f, -3, 0.2f}, {0.3f, 3, 0.2f}, {0.3f, 3, 1.4f}, {0.3f, -3, 1.4f}, black_id);
-  AddQuad(s, {0.3f, -3, 0.2f}, {0.3f, -3, 1.4f}, {0.3f, 3, 1.4f}, {0.3f, 3, 0.2f}, black_id);
+  AddBlackWall(s, black_id);  // between the dim light and the left half of the floor
   s.num_lights = 2;
   return s;
 }
@@ -55,6 +60,33 @@ CameraSpec FloorCamera() {
   c.width = 24;
   c.height = 16;
   return c;
+}
+
+constexpr int kRuns = 8;         // independent seeds per estimate of a mean
+constexpr uint32_t kSpp = 64;     // photon-map images; the path tracer's get 4x
+
+// The floor camera's path-traced image: exactly Ld where lights and occluders are black.
+Image PathImage(const EmbreeScene& accel, const LightSampler& lights, uint64_t seed) {
+  return RenderImage(PathTracer(accel, lights), Camera(FloorCamera()), RenderOptions{.spp = kSpp * 4, .seed = seed});
+}
+
+// The photon maps `io` needs: `photons` emitted, seeded by `seed`.
+PhotonMaps MapsFor(const EmbreeScene& accel, const LightSampler& lights, const PhotonMapIntegratorOptions& io,
+                   uint64_t photons, uint64_t seed) {
+  PhotonMapsOptions mo;
+  mo.tracing.photons = photons;
+  mo.tracing.map_seed = seed;
+  ConfigureMapsFor(io, &mo);
+  return PhotonMaps::Build(accel, lights, mo);
+}
+
+// The floor camera's image with photon maps of 20000 photons built for `io`, seeded by `seed`.
+Image PhotonMapImage(const EmbreeScene& accel, const LightSampler& lights, const PhotonMapIntegratorOptions& io,
+                     uint64_t seed) {
+  const PhotonMaps maps = MapsFor(accel, lights, io, 20000, seed);
+  EXPECT_EQ(maps.global->size(), 0u) << "no indirect light in this scene";
+  const PhotonMapIntegrator integrator(accel, &lights, maps, io);
+  return RenderImage(integrator, Camera(FloorCamera()), RenderOptions{.spp = kSpp, .seed = seed});
 }
 
 struct MeanAndError {
@@ -108,14 +140,7 @@ TEST(DirectLight, MonteCarloAndBothPhotonDirectVariantsAgreeWithThePathTracer) {
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   ASSERT_EQ(lights.num_lights(), 2u);
-  const Camera camera(FloorCamera());
-  constexpr int kRuns = 8;
-  const uint32_t spp = 64;
-
-  const PathTracer path(accel, lights);
-  const MeanAndError reference = RunMeans(kRuns, [&](uint64_t seed) {
-    return RenderImage(path, camera, RenderOptions{.spp = spp * 4, .seed = seed});
-  });
+  const MeanAndError reference = RunMeans(kRuns, [&](uint64_t seed) { return PathImage(accel, lights, seed); });
 
   auto photon_map_run = [&](DirectLightMode mode, NonContributingMode nc) {
     PhotonMapIntegratorOptions io;
@@ -124,16 +149,7 @@ TEST(DirectLight, MonteCarloAndBothPhotonDirectVariantsAgreeWithThePathTracer) {
     io.photon_direct.samples = 4;
     io.photon_direct.k = 20;
     io.photon_direct.non_contributing = nc;
-    PhotonMapsOptions mo;
-    mo.tracing.photons = 20000;
-    ConfigureMapsFor(io, &mo);
-    return RunMeans(kRuns, [&](uint64_t seed) {
-      mo.tracing.map_seed = seed;
-      const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
-      EXPECT_EQ(maps.global->size(), 0u) << "no indirect light in this scene";
-      const PhotonMapIntegrator integrator(accel, &lights, maps, io);
-      return RenderImage(integrator, camera, RenderOptions{.spp = spp, .seed = seed});
-    });
+    return RunMeans(kRuns, [&](uint64_t seed) { return PhotonMapImage(accel, lights, io, seed); });
   };
   const MeanAndError mc = photon_map_run(DirectLightMode::kMonteCarlo, NonContributingMode::kOneRandom);
   const MeanAndError pd_random = photon_map_run(DirectLightMode::kPhotonDirect, NonContributingMode::kOneRandom);
@@ -173,36 +189,19 @@ TEST(DirectLight, PhotonDirectNonContributingLightsAreWeightedRightWithFourLight
   light(1.1f, -0.9f, 1.3f, 0.25f, Rgb(10.0f, 8.0f, 6.0f), 1);
   light(1.1f, 0.9f, 1.3f, 0.25f, Rgb(6.0f, 8.0f, 10.0f), 2);
   light(1.6f, 0.0f, 0.9f, 0.15f, Rgb(12.0f), 3);
-  // A black wall at x = 0.3 hides the right-hand lights from much of the left half.
-  AddQuad(s, {0.3f, -3, 0.2f}, {0.3f, 3, 0.2f}, {0.3f, 3, 1.4f}, {0.3f, -3, 1.4f}, black_id);
-  AddQuad(s, {0.3f, -3, 0.2f}, {0.3f, -3, 1.4f}, {0.3f, 3, 1.4f}, {0.3f, 3, 0.2f}, black_id);
+  AddBlackWall(s, black_id);
   s.num_lights = 4;
   const EmbreeScene accel(s);
   const LightSampler lights(accel);
   ASSERT_EQ(lights.num_lights(), 4u);
-  const Camera camera(FloorCamera());
-  constexpr int kRuns = 8;
-  const uint32_t spp = 64;
-
-  const PathTracer path(accel, lights);
-  const auto reference = RunHalfMeans(kRuns, [&](uint64_t seed) {
-    return RenderImage(path, camera, RenderOptions{.spp = spp * 4, .seed = seed});
-  });
+  const auto reference = RunHalfMeans(kRuns, [&](uint64_t seed) { return PathImage(accel, lights, seed); });
   for (NonContributingMode nc : {NonContributingMode::kOneRandom, NonContributingMode::kEachOne}) {
     PhotonMapIntegratorOptions io;
     io.direct = DirectLightMode::kPhotonDirect;
     io.photon_direct.samples = 4;
     io.photon_direct.k = 3;
     io.photon_direct.non_contributing = nc;
-    PhotonMapsOptions mo;
-    mo.tracing.photons = 20000;
-    ConfigureMapsFor(io, &mo);
-    const auto halves = RunHalfMeans(kRuns, [&](uint64_t seed) {
-      mo.tracing.map_seed = seed;
-      const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
-      const PhotonMapIntegrator integrator(accel, &lights, maps, io);
-      return RenderImage(integrator, camera, RenderOptions{.spp = spp, .seed = seed});
-    });
+    const auto halves = RunHalfMeans(kRuns, [&](uint64_t seed) { return PhotonMapImage(accel, lights, io, seed); });
     for (int h = 0; h < 2; ++h) {
       const MeanAndError& m = halves[h];
       const MeanAndError& ref = reference[h];
@@ -230,11 +229,7 @@ TEST(LocalPass, FurnaceAnalyticValueWithinOnePercent) {
     io.local_pass_rays = 16;
     io.direct = mode;
     io.direct_photons = io.global;
-    PhotonMapsOptions mo;
-    mo.tracing.photons = 200000;
-    mo.tracing.map_seed = 4;
-    ConfigureMapsFor(io, &mo);
-    const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
+    const PhotonMaps maps = MapsFor(accel, lights, io, 200000, 4);
     const PhotonMapIntegrator integrator(accel, &lights, maps, io);
     CameraSpec cam;
     cam.eye = Vec3(0.0f);
@@ -286,11 +281,7 @@ TEST(LocalPass, GlossyCausticsAreCountedOnce) {
     io.global.k = io.caustic.k = 100;
     io.caustic.max_radius = 0.2f;
     io.direct_photons = io.global;
-    PhotonMapsOptions mo;
-    mo.tracing.photons = 200000;
-    mo.tracing.map_seed = 9;
-    ConfigureMapsFor(io, &mo);
-    const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
+    const PhotonMaps maps = MapsFor(accel, lights, io, 200000, 9);
     EXPECT_TRUE(maps.caustic && maps.caustic->size() > 10000u) << "the floor's light is a caustic";
     const PhotonMapIntegrator integrator(accel, &lights, maps, io);
     const Image img = RenderImage(integrator, Camera(cam), RenderOptions{.spp = 16, .seed = 3});
