@@ -34,14 +34,15 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
 int RunMerge(const std::vector<std::string>& inputs, const std::string& output);
 // PNG of an EXR: auto exposure of `image`, or of `exposure_of` (so renders of one scene share
 // one exposure and compare by eye), plus `stops`.
-int RunPreview(const std::string& image, const std::string& output, const std::string& exposure_of, double stops);
+int RunPreview(const std::string& image, const std::string& output, const std::string& exposure_of,
+               double stops);
 int RunInfo(const std::string& path);
 
 // Farm (client/farm_commands.cpp).
 int RunFarmRender(const RenderArgs& a);  // --workers N: a local coordinator + N workers
 int RunSubmit(const RenderArgs& a, const FarmArgs& f);
-int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& output, double interval, bool json,
-             bool quiet);
+int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& output, double interval,
+             bool json, bool quiet);
 int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& output, const std::string& png);
 int RunList(const FarmArgs& f, bool all, bool json);
 int RunCancel(const FarmArgs& f, const std::string& job_id);

@@ -59,7 +59,8 @@ int RunRender(const RenderArgs& a) {
     mo.tracing.map_seed = HashKey(a.seed, 0x6d6170 /* "map" */);
     mo.tracing.threads = a.threads;
     maps = PhotonMaps::Build(accel, lights, mo);
-    integrator = std::make_unique<PhotonMapIntegrator>(accel, &lights, maps, settings.IntegratorOptions(accel.bounds()));
+    integrator = std::make_unique<PhotonMapIntegrator>(accel, &lights, maps,
+                                                       settings.IntegratorOptions(accel.bounds()));
   } else {
     throw InputError("--integrator: unknown integrator '" + a.integrator + "' (available: path, photonmap)");
   }
@@ -76,7 +77,8 @@ int RunRender(const RenderArgs& a) {
     image = RenderImage(*integrator, camera, options, &stats, &progress);
   }
 
-  const std::string output = a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+  const std::string output =
+      a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
   ImageMetadata meta = {
       {"scene", a.scene},
       {"integrator", integrator->name()},
@@ -125,7 +127,8 @@ int RunLocalPlan(const RenderArgs& a) {
   PlanSpec plan = PlanFromProto(job.spec.plan(), "spec.plan");
   if (a.max_rounds > 0 && plan.kind == PlanKind::kSkipping) plan.rounds = std::min(plan.rounds, a.max_rounds);
   if (a.time_budget > 0 || a.target_noise > 0)
-    spdlog::warn("--time-budget/--target-noise apply to farm jobs only; the local render runs the whole plan");
+    spdlog::warn(
+        "--time-budget/--target-noise apply to farm jobs only; the local render runs the whole plan");
   ValidatePlan(plan, camera.width, camera.height);
   uint64_t total_pixels = 0;
   const std::vector<TaskSpec> tasks = ExpandPlan(plan, camera.width, camera.height, a.seed);
@@ -142,7 +145,8 @@ int RunLocalPlan(const RenderArgs& a) {
     image = RenderPlanLocally(runtime, camera, settings, plan, a.seed, a.threads, &progress);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-  const std::string output = a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+  const std::string output =
+      a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
   const ImageMetadata meta = {{"scene", a.scene},
                               {"integrator", a.integrator},
                               {"plan", DescribePlan(plan)},
@@ -155,8 +159,8 @@ int RunLocalPlan(const RenderArgs& a) {
                               {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
   WriteExr(output, image, meta);
   WritePreviewFor(output, a.png, a.no_png, image);
-  std::printf("rendered %dx%d locally, %s, %zu tasks in %.2f s (+%.2f s load) -> %s\n", camera.width, camera.height,
-              DescribePlan(plan).c_str(), tasks.size(), seconds, load_seconds, output.c_str());
+  std::printf("rendered %dx%d locally, %s, %zu tasks in %.2f s (+%.2f s load) -> %s\n", camera.width,
+              camera.height, DescribePlan(plan).c_str(), tasks.size(), seconds, load_seconds, output.c_str());
   return kExitOk;
 }
 
@@ -166,16 +170,26 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
   const Image ref = ReadExr(ref_path);
   const ImageDiffStats d = CompareImages(a, ref);
   if (json) {
-    nlohmann::json j = {{"image", a_path},        {"reference", ref_path},     {"rmse", d.rmse},
-                        {"relative_mse", d.relative_mse}, {"rmse_clamped", d.rmse_clamped}, {"rmse_display", d.rmse_display},
-                        {"display_white", d.display_white}, {"max_abs_error", d.max_abs_error},
-                        {"max_x", d.max_x},       {"max_y", d.max_y},          {"mean", d.mean_a},
-                        {"reference_mean", d.mean_b}, {"pixels", d.pixels}};
+    nlohmann::json j = {{"image", a_path},
+                        {"reference", ref_path},
+                        {"rmse", d.rmse},
+                        {"relative_mse", d.relative_mse},
+                        {"rmse_clamped", d.rmse_clamped},
+                        {"rmse_display", d.rmse_display},
+                        {"display_white", d.display_white},
+                        {"max_abs_error", d.max_abs_error},
+                        {"max_x", d.max_x},
+                        {"max_y", d.max_y},
+                        {"mean", d.mean_a},
+                        {"reference_mean", d.mean_b},
+                        {"pixels", d.pixels}};
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("RMSE %.6g (%.4g of display white %.4g)  relative MSE %.6g  max error %.6g at (%d,%d)  mean %.6g vs %.6g\n",
-                d.rmse, d.rmse_display, d.display_white, d.relative_mse, d.max_abs_error, d.max_x, d.max_y, d.mean_a,
-                d.mean_b);
+    std::printf(
+        "RMSE %.6g (%.4g of display white %.4g)  relative MSE %.6g  max error %.6g at (%d,%d)  mean %.6g vs "
+        "%.6g\n",
+        d.rmse, d.rmse_display, d.display_white, d.relative_mse, d.max_abs_error, d.max_x, d.max_y, d.mean_a,
+        d.mean_b);
   }
   if (!error_image.empty()) {
     const Image err = FalseColourError(a, ref, error_scale > 0 ? error_scale : d.max_abs_error);

@@ -10,9 +10,9 @@
 //   pf diff / merge / preview / info          images and scenes
 //
 // Exit codes: client/commands.h (0 ok, 1 failure, 2 usage, 3 invalid input, 130 interrupted).
-#include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include "client/commands.h"
 #include "client/interrupt.h"
@@ -22,8 +22,11 @@ namespace {
 
 void AddFarmOptions(CLI::App* app, pf::FarmArgs& f) {
   app->add_option("--coordinator", f.coordinator, "Coordinator HOST:PORT (default $PF_COORDINATOR)");
-  app->add_option("--token-file", f.token_file, "File whose first line is the bearer token (default $PF_TOKEN)");
-  app->add_option("--timeout", f.timeout, "Deadline of each call, seconds")->capture_default_str()->check(CLI::Range(0.1, 86400.0));
+  app->add_option("--token-file", f.token_file,
+                  "File whose first line is the bearer token (default $PF_TOKEN)");
+  app->add_option("--timeout", f.timeout, "Deadline of each call, seconds")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 86400.0));
 }
 
 void AddOutputOptions(CLI::App* app, pf::RenderArgs& a) {
@@ -60,30 +63,41 @@ int main(int argc, char** argv) {
   RenderArgs ra;
   CLI::App* render = app.add_subcommand(
       "render",
-      "Render a scene (.json manifest, .mgf or .obj) to EXR + PNG: in this process, or with --workers N on a\n"
+      "Render a scene (.json manifest, .mgf or .obj) to EXR + PNG: in this process, or with --workers N on "
+      "a\n"
       "coordinator and N worker processes that pf starts on loopback and stops afterwards");
   AddSceneOptions(render, ra);
   AddPlanOptions(render, ra);
   AddOutputOptions(render, ra);
-  render->add_option("--threads", ra.threads, "Threads (0 = all cores; with --workers: per worker, default cores/N)")
+  render
+      ->add_option("--threads", ra.threads,
+                   "Threads (0 = all cores; with --workers: per worker, default cores/N)")
       ->capture_default_str()
       ->check(CLI::Range(0, 1024));
-  render->add_option("--workers", ra.workers,
-                     "Render on a local farm of N pf-worker processes (default plan: multiple-maps, 1 map, 64-pixel tiles)")
+  render
+      ->add_option("--workers", ra.workers,
+                   "Render on a local farm of N pf-worker processes (default plan: multiple-maps, 1 map, "
+                   "64-pixel tiles)")
       ->check(CLI::Range(0, 256));
-  render->add_flag("--local-only", ra.local_only,
-                   "Run the plan in this process (same tasks, seeds and merge as the farm: bit-identical image)");
-  render->add_option("--coordinator-bin", ra.coordinator_bin, "pf-coordinator executable (default: next to pf)");
+  render->add_flag(
+      "--local-only", ra.local_only,
+      "Run the plan in this process (same tasks, seeds and merge as the farm: bit-identical image)");
+  render->add_option("--coordinator-bin", ra.coordinator_bin,
+                     "pf-coordinator executable (default: next to pf)");
   render->add_option("--worker-bin", ra.worker_bin, "pf-worker executable (default: next to pf)");
-  render->add_option("--coordinator-arg", ra.coordinator_args, "Extra flag for the local coordinator (repeatable)")
+  render
+      ->add_option("--coordinator-arg", ra.coordinator_args,
+                   "Extra flag for the local coordinator (repeatable)")
       ->allow_extra_args(false);
   render->add_option("--worker-arg", ra.worker_args, "Extra flag for each local worker (repeatable)")
       ->allow_extra_args(false);
-  render->add_flag("--keep-farm-dir", ra.keep_farm_dir, "Keep the local farm's folder (logs, SQLite) afterwards");
+  render->add_flag("--keep-farm-dir", ra.keep_farm_dir,
+                   "Keep the local farm's folder (logs, SQLite) afterwards");
 
   RenderArgs sa;
   FarmArgs sf;
-  CLI::App* submit = app.add_subcommand("submit", "Upload a scene and submit a render job; prints the job id");
+  CLI::App* submit =
+      app.add_subcommand("submit", "Upload a scene and submit a render job; prints the job id");
   AddSceneOptions(submit, sa);
   AddPlanOptions(submit, sa);
   AddFarmOptions(submit, sf);
@@ -93,8 +107,9 @@ int main(int argc, char** argv) {
   double watch_interval = 0.5;
   bool watch_json = false, watch_quiet = false;
   CLI::App* watch = app.add_subcommand(
-      "watch", "Follow a job until it ends: progress, ETA, estimated noise; with -o the EXR is rewritten\n"
-               "atomically with every snapshot and holds the final image at the end");
+      "watch",
+      "Follow a job until it ends: progress, ETA, estimated noise; with -o the EXR is rewritten\n"
+      "atomically with every snapshot and holds the final image at the end");
   watch->add_option("job", watch_job, "Job id")->required();
   watch->add_option("-o,--output", watch_out, "EXR to keep up to date");
   watch->add_option("--interval", watch_interval, "Minimum seconds between updates")->capture_default_str();
@@ -126,7 +141,8 @@ int main(int argc, char** argv) {
   std::string diff_a, diff_ref, diff_err;
   double diff_scale = 0;
   bool diff_json = false;
-  CLI::App* diff = app.add_subcommand("diff", "Compare an image with a reference: RMSE, relative MSE, max error");
+  CLI::App* diff =
+      app.add_subcommand("diff", "Compare an image with a reference: RMSE, relative MSE, max error");
   diff->add_option("image", diff_a, "Image to judge (EXR)")->required()->check(CLI::ExistingFile);
   diff->add_option("reference", diff_ref, "Reference (EXR)")->required()->check(CLI::ExistingFile);
   diff->add_option("--error-image", diff_err, "Write a false-colour error image (.png or .exr)");
@@ -135,23 +151,29 @@ int main(int argc, char** argv) {
 
   std::vector<std::string> merge_inputs;
   std::string merge_output;
-  CLI::App* merge = app.add_subcommand("merge", "Average EXRs rendered with different seeds, weighted by their spp");
+  CLI::App* merge =
+      app.add_subcommand("merge", "Average EXRs rendered with different seeds, weighted by their spp");
   merge->add_option("inputs", merge_inputs, "EXR files")->required()->check(CLI::ExistingFile);
   merge->add_option("-o,--output", merge_output, "Output EXR (PIZ-compressed)")->required();
 
   std::string preview_in, preview_out, preview_ref;
   double preview_stops = 0;
   CLI::App* preview = app.add_subcommand(
-      "preview", "Write an EXR's PNG preview (sRGB). Exposure: automatic (99th-percentile luminance -> 0.9),\n"
-                 "or that of --exposure-of REF so that several renders of one scene compare by eye");
+      "preview",
+      "Write an EXR's PNG preview (sRGB). Exposure: automatic (99th-percentile luminance -> 0.9),\n"
+      "or that of --exposure-of REF so that several renders of one scene compare by eye");
   preview->add_option("image", preview_in, "EXR to show")->required()->check(CLI::ExistingFile);
   preview->add_option("-o,--output", preview_out, "Output PNG")->required();
-  preview->add_option("--exposure-of", preview_ref, "Use this EXR's automatic exposure instead of the image's own")
+  preview
+      ->add_option("--exposure-of", preview_ref,
+                   "Use this EXR's automatic exposure instead of the image's own")
       ->check(CLI::ExistingFile);
-  preview->add_option("--exposure", preview_stops, "Stops added on top (+1 = twice as bright)")->capture_default_str();
+  preview->add_option("--exposure", preview_stops, "Stops added on top (+1 = twice as bright)")
+      ->capture_default_str();
 
   std::string info_scene;
-  CLI::App* info = app.add_subcommand("info", "Print what a scene contains (counts, bounds, cameras, warnings)");
+  CLI::App* info =
+      app.add_subcommand("info", "Print what a scene contains (counts, bounds, cameras, warnings)");
   info->add_option("scene", info_scene, "Scene manifest or geometry file")->required();
 
   try {

@@ -53,8 +53,9 @@ Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3&
   for (int j = 0; j < n; ++j) {
     // Stratified over the lights' CDF: light i receives N·p_i ± 1 of the N rays (§4.2.1).
     const float u = (float(j) + rng.Uniform()) / float(n);
-    const size_t i = std::min<size_t>(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u) - light_cdf_.begin(),
-                                      light_cdf_.size() - 1);
+    const size_t i =
+        std::min<size_t>(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u) - light_cdf_.begin(),
+                         light_cdf_.size() - 1);
     if (!(light_prob_[i] > 0.0f)) continue;  // an empty stratum: u cannot land in it
     const Rgb c = SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
     sum += c * (1.0f / light_prob_[i]);
@@ -63,9 +64,14 @@ Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3&
 }
 
 PhotonDirectLight::PhotonDirectLight(const EmbreeScene& scene, const LightSampler& lights,
-                                     const PhotonMap& direct_map, const std::vector<uint32_t>& light_of_photon,
+                                     const PhotonMap& direct_map,
+                                     const std::vector<uint32_t>& light_of_photon,
                                      PhotonDirectOptions options)
-    : scene_(scene), lights_(lights), map_(direct_map), light_of_photon_(light_of_photon), options_(options) {}
+    : scene_(scene),
+      lights_(lights),
+      map_(direct_map),
+      light_of_photon_(light_of_photon),
+      options_(options) {}
 
 Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
                                 TraceCounters& counters, NearestPhotons& nearest) const {
@@ -78,8 +84,8 @@ Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
     const PhotonMap* map = nullptr;
     Vec3 x, n;
     float radius = 0;
-    std::vector<uint32_t> lights;   // contributing light indices
-    std::vector<int> samples;       // N_i
+    std::vector<uint32_t> lights;  // contributing light indices
+    std::vector<int> samples;      // N_i
     std::vector<uint8_t> contributing;
   };
   thread_local Cache cache;
@@ -90,7 +96,8 @@ Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
                    LengthSquared(x - cache.x) < Sq(options_.cache_radius_fraction * cache.radius) &&
                    Dot(cache.n, side) > 0.9f;
   if (!hit) {
-    const auto filter = FunctionFilter([&](const Photon& p, std::size_t) { return Dot(p.Direction(), side) > 0.0f; });
+    const auto filter =
+        FunctionFilter([&](const Photon& p, std::size_t) { return Dot(p.Direction(), side) > 0.0f; });
     map_.Query(x, options_.k, options_.max_radius, nearest, &filter);
     thread_local std::vector<double> energy;
     energy.assign(num_lights, 0.0);
@@ -131,7 +138,8 @@ Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
   if (non_contributing > 0) {
     if (options_.non_contributing == NonContributingMode::kEachOne) {
       for (size_t i = 0; i < num_lights; ++i)
-        if (!cache.contributing[i]) sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
+        if (!cache.contributing[i])
+          sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
     } else {
       // One sample to the m-th non-contributing light, m uniform, weighted by their number.
       size_t m = rng.UniformInt(uint32_t(non_contributing));

@@ -22,9 +22,8 @@ int AdaptiveK(const Vec3& x, std::span<const Vec3> nearest_sorted, int k_min) {
   return std::max(k_min, int(std::lround(float(k) - float(k - k_min) * t)));
 }
 
-RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, const Vec3& x,
-                                        const Vec3& wo, uint32_t lobes,
-                                        const RadianceEstimateOptions& options,
+RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
+                                        uint32_t lobes, const RadianceEstimateOptions& options,
                                         NearestPhotons& nearest, const EstimateContext& context) {
   RadianceEstimateResult result;
   if (map.empty() || options.k <= 0) return result;
@@ -41,7 +40,8 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   map.Query(x, options.k, options.max_radius, nearest, in_query ? &filter : nullptr);
 
   if (nearest.empty()) return result;
-  if (options.min_fraction > 0.0f && float(nearest.size()) < options.min_fraction * float(options.k)) return result;
+  if (options.min_fraction > 0.0f && float(nearest.size()) < options.min_fraction * float(options.k))
+    return result;
 
   // Entries [first, used_end) are summed over a radius² r2. Without adaptive k the heap order
   // is enough: its first entry is the farthest photon (at r), the one excluded from the sum.
@@ -72,8 +72,8 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   const bool after_query = test && options.direction_test == FeasibilityTest::kAfterQuery;
   const bool occlusion = options.occlusion_test && context.origins && context.scene;
   const Material& m = bsdf.material();
-  const bool lambertian_only = !(lobes & kLobeGlossyReflection) || m.specular_reflectance.IsBlack() ||
-                               m.specular_roughness <= 0.0f;
+  const bool lambertian_only =
+      !(lobes & kLobeGlossyReflection) || m.specular_reflectance.IsBlack() || m.specular_roughness <= 0.0f;
   Rgb front(0.0f), back(0.0f), sum(0.0f);
   int used = 0;
   for (size_t i = first; i < used_end; ++i) {

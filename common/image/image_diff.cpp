@@ -12,9 +12,8 @@ namespace {
 
 void CheckSameSize(const Image& a, const Image& reference) {
   if (a.width() != reference.width() || a.height() != reference.height()) {
-    throw InputError("cannot compare images of different sizes: " + std::to_string(a.width()) +
-                     "x" + std::to_string(a.height()) + " vs reference " +
-                     std::to_string(reference.width()) + "x" +
+    throw InputError("cannot compare images of different sizes: " + std::to_string(a.width()) + "x" +
+                     std::to_string(a.height()) + " vs reference " + std::to_string(reference.width()) + "x" +
                      std::to_string(reference.height()));
   }
 }

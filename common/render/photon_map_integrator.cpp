@@ -7,7 +7,8 @@ namespace pf {
 namespace {
 
 constexpr uint32_t kDiffuseLobes = kLobeDiffuseReflection | kLobeDiffuseTransmission;
-constexpr uint32_t kSingularLobes = kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
+constexpr uint32_t kSingularLobes =
+    kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
 
 // Per-thread query scratch, reused across queries (NearestPhotons allocates only at first).
 NearestPhotons& Scratch() {
@@ -25,9 +26,11 @@ RadianceEstimateOptions DefaultCausticOptions(int k, const Bounds3& scene_bounds
   return o;
 }
 
-RadianceEstimateOptions DefaultDirectPhotonOptions(const RadianceEstimateOptions& global, const Bounds3& scene_bounds) {
+RadianceEstimateOptions DefaultDirectPhotonOptions(const RadianceEstimateOptions& global,
+                                                   const Bounds3& scene_bounds) {
   RadianceEstimateOptions o = global;
-  o.max_radius = std::min(o.max_radius, std::max(kDirectPhotonRadiusFraction * Length(scene_bounds.Diagonal()), 1e-12f));
+  o.max_radius =
+      std::min(o.max_radius, std::max(kDirectPhotonRadiusFraction * Length(scene_bounds.Diagonal()), 1e-12f));
   return o;
 }
 
@@ -49,8 +52,8 @@ PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSa
   if (options.direct == DirectLightMode::kPhotonDirect) {
     if (maps.direct_attributes.light.size() != maps.direct->size())
       throw InputError("PhotonDirect: the direct photons carry no light ids (keep_light_ids)");
-    photon_direct_ = std::make_unique<PhotonDirectLight>(scene, *lights, *maps.direct, maps.direct_attributes.light,
-                                                         options.photon_direct);
+    photon_direct_ = std::make_unique<PhotonDirectLight>(scene, *lights, *maps.direct,
+                                                         maps.direct_attributes.light, options.photon_direct);
   }
 }
 
@@ -59,7 +62,8 @@ PhotonMapIntegrator::~PhotonMapIntegrator() = default;
 Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
                                      bool include_direct_photons, TraceCounters& counters) const {
   NearestPhotons& nearest = Scratch();
-  auto estimate = [&](const PhotonMap& map, const PhotonAttributes& attributes, const RadianceEstimateOptions& o) {
+  auto estimate = [&](const PhotonMap& map, const PhotonAttributes& attributes,
+                      const RadianceEstimateOptions& o) {
     const EstimateContext context{attributes.origin.empty() ? nullptr : &attributes.origin, &scene_};
     const RadianceEstimateResult r = EstimateRadiance(map, bsdf, x, wo, lobes, o, nearest, context);
     counters.shadow_rays += uint64_t(r.shadow_rays);
@@ -72,22 +76,23 @@ Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3
   return L;
 }
 
-Rgb PhotonMapIntegrator::DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
-                                     TraceCounters& counters) const {
+Rgb PhotonMapIntegrator::DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
+                                     Rng& rng, TraceCounters& counters) const {
   if (monte_carlo_) return monte_carlo_->Estimate(bsdf, x, wo, lobes, rng, counters);
   if (photon_direct_) return photon_direct_->Estimate(bsdf, x, wo, lobes, rng, counters, Scratch());
   return Rgb(0.0f);
 }
 
-Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Rng& rng,
-                                TraceCounters& counters) const {
+Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes,
+                                Rng& rng, TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
   const bool separate_direct = options_.direct != DirectLightMode::kNone;
   const int n = options_.local_pass_rays;
   Rgb sum(0.0f);
   for (int j = 0; j < n; ++j) {
     const float ul = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-    const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u1, u2, Bsdf::Mode::kNormalized, lobes & kDiffuseLobes);
+    const std::optional<BsdfSample> s =
+        bsdf.Sample(wo, ul, u1, u2, Bsdf::Mode::kNormalized, lobes & kDiffuseLobes);
     if (!s || s->weight.IsBlack()) continue;
     ++counters.rays;
     const std::optional<SurfaceHit> y = scene_.Intersect(Ray{scene_.SpawnOrigin(hit, s->wi), s->wi});
@@ -139,8 +144,8 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& coun
           NearestPhotons& nearest = Scratch();
           const EstimateContext context{
               maps_.caustic_attributes.origin.empty() ? nullptr : &maps_.caustic_attributes.origin, &scene_};
-          L += EstimateRadiance(*maps_.caustic, bsdf, hit->position, wo, estimated & kDiffuseLobes, options_.caustic,
-                                nearest, context)
+          L += EstimateRadiance(*maps_.caustic, bsdf, hit->position, wo, estimated & kDiffuseLobes,
+                                options_.caustic, nearest, context)
                    .radiance;
         }
         if (estimated & kLobeGlossyReflection)

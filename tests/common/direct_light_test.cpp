@@ -44,8 +44,10 @@ SceneDescription TwoLightScene() {
   const uint32_t black_id = AddMaterial(s, black);
   AddQuad(s, {-3, -3, 0}, {3, -3, 0}, {3, 3, 0}, {-3, 3, 0}, floor_id);
   // Lights face down (clockwise seen from above).
-  AddQuad(s, {-1.2f, -0.2f, 1}, {-1.2f, 0.2f, 1}, {-0.8f, 0.2f, 1}, {-0.8f, -0.2f, 1}, AddMaterial(s, bright), 0);
-  AddQuad(s, {0.8f, -0.3f, 1.5f}, {0.8f, 0.3f, 1.5f}, {1.4f, 0.3f, 1.5f}, {1.4f, -0.3f, 1.5f}, AddMaterial(s, dim), 1);
+  AddQuad(s, {-1.2f, -0.2f, 1}, {-1.2f, 0.2f, 1}, {-0.8f, 0.2f, 1}, {-0.8f, -0.2f, 1}, AddMaterial(s, bright),
+          0);
+  AddQuad(s, {0.8f, -0.3f, 1.5f}, {0.8f, 0.3f, 1.5f}, {1.4f, 0.3f, 1.5f}, {1.4f, -0.3f, 1.5f},
+          AddMaterial(s, dim), 1);
   AddBlackWall(s, black_id);  // between the dim light and the left half of the floor
   s.num_lights = 2;
   return s;
@@ -62,12 +64,13 @@ CameraSpec FloorCamera() {
   return c;
 }
 
-constexpr int kRuns = 8;         // independent seeds per estimate of a mean
-constexpr uint32_t kSpp = 64;     // photon-map images; the path tracer's get 4x
+constexpr int kRuns = 8;       // independent seeds per estimate of a mean
+constexpr uint32_t kSpp = 64;  // photon-map images; the path tracer's get 4x
 
 // The floor camera's path-traced image: exactly Ld where lights and occluders are black.
 Image PathImage(const EmbreeScene& accel, const LightSampler& lights, uint64_t seed) {
-  return RenderImage(PathTracer(accel, lights), Camera(FloorCamera()), RenderOptions{.spp = kSpp * 4, .seed = seed});
+  return RenderImage(PathTracer(accel, lights), Camera(FloorCamera()),
+                     RenderOptions{.spp = kSpp * 4, .seed = seed});
 }
 
 // The photon maps `io` needs: `photons` emitted, seeded by `seed`.
@@ -81,8 +84,8 @@ PhotonMaps MapsFor(const EmbreeScene& accel, const LightSampler& lights, const P
 }
 
 // The floor camera's image with photon maps of 20000 photons built for `io`, seeded by `seed`.
-Image PhotonMapImage(const EmbreeScene& accel, const LightSampler& lights, const PhotonMapIntegratorOptions& io,
-                     uint64_t seed) {
+Image PhotonMapImage(const EmbreeScene& accel, const LightSampler& lights,
+                     const PhotonMapIntegratorOptions& io, uint64_t seed) {
   const PhotonMaps maps = MapsFor(accel, lights, io, 20000, seed);
   EXPECT_EQ(maps.global->size(), 0u) << "no indirect light in this scene";
   const PhotonMapIntegrator integrator(accel, &lights, maps, io);
@@ -140,7 +143,8 @@ TEST(DirectLight, MonteCarloAndBothPhotonDirectVariantsAgreeWithThePathTracer) {
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   ASSERT_EQ(lights.num_lights(), 2u);
-  const MeanAndError reference = RunMeans(kRuns, [&](uint64_t seed) { return PathImage(accel, lights, seed); });
+  const MeanAndError reference =
+      RunMeans(kRuns, [&](uint64_t seed) { return PathImage(accel, lights, seed); });
 
   auto photon_map_run = [&](DirectLightMode mode, NonContributingMode nc) {
     PhotonMapIntegratorOptions io;
@@ -152,16 +156,18 @@ TEST(DirectLight, MonteCarloAndBothPhotonDirectVariantsAgreeWithThePathTracer) {
     return RunMeans(kRuns, [&](uint64_t seed) { return PhotonMapImage(accel, lights, io, seed); });
   };
   const MeanAndError mc = photon_map_run(DirectLightMode::kMonteCarlo, NonContributingMode::kOneRandom);
-  const MeanAndError pd_random = photon_map_run(DirectLightMode::kPhotonDirect, NonContributingMode::kOneRandom);
+  const MeanAndError pd_random =
+      photon_map_run(DirectLightMode::kPhotonDirect, NonContributingMode::kOneRandom);
   const MeanAndError pd_each = photon_map_run(DirectLightMode::kPhotonDirect, NonContributingMode::kEachOne);
 
-  for (const auto& [name, m] : {std::pair{"monte carlo", mc}, {"photon direct, one random", pd_random},
+  for (const auto& [name, m] : {std::pair{"monte carlo", mc},
+                                {"photon direct, one random", pd_random},
                                 {"photon direct, each one", pd_each}}) {
     const double bound = 3.5 * std::sqrt(m.standard_error * m.standard_error +
                                          reference.standard_error * reference.standard_error);
-    EXPECT_NEAR(m.mean, reference.mean, bound) << name << " (path tracer " << reference.mean << " ± "
-                                               << reference.standard_error << ", " << name << " ± "
-                                               << m.standard_error << ")";
+    EXPECT_NEAR(m.mean, reference.mean, bound)
+        << name << " (path tracer " << reference.mean << " ± " << reference.standard_error << ", " << name
+        << " ± " << m.standard_error << ")";
     // The bound must be tight enough to mean something: < 1.5 % of the mean.
     EXPECT_LT(bound, 0.015 * reference.mean) << name;
   }
@@ -182,8 +188,8 @@ TEST(DirectLight, PhotonDirectNonContributingLightsAreWeightedRightWithFourLight
   const auto light = [&](float x, float y, float z, float half, Rgb le, uint32_t id) {
     Material m;
     m.emission = le;
-    AddQuad(s, {x - half, y - half, z}, {x - half, y + half, z}, {x + half, y + half, z}, {x + half, y - half, z},
-            AddMaterial(s, m), id);
+    AddQuad(s, {x - half, y - half, z}, {x - half, y + half, z}, {x + half, y + half, z},
+            {x + half, y - half, z}, AddMaterial(s, m), id);
   };
   light(-1.0f, 0.0f, 1.0f, 0.2f, Rgb(30.0f), 0);
   light(1.1f, -0.9f, 1.3f, 0.25f, Rgb(10.0f, 8.0f, 6.0f), 1);
@@ -201,13 +207,14 @@ TEST(DirectLight, PhotonDirectNonContributingLightsAreWeightedRightWithFourLight
     io.photon_direct.samples = 4;
     io.photon_direct.k = 3;
     io.photon_direct.non_contributing = nc;
-    const auto halves = RunHalfMeans(kRuns, [&](uint64_t seed) { return PhotonMapImage(accel, lights, io, seed); });
+    const auto halves =
+        RunHalfMeans(kRuns, [&](uint64_t seed) { return PhotonMapImage(accel, lights, io, seed); });
     for (int h = 0; h < 2; ++h) {
       const MeanAndError& m = halves[h];
       const MeanAndError& ref = reference[h];
       const double bound = 3.5 * std::hypot(m.standard_error, ref.standard_error);
-      EXPECT_NEAR(m.mean, ref.mean, bound) << (h ? "right" : "left") << " half, mode " << int(nc)
-                                           << " (path tracer " << ref.mean << ")";
+      EXPECT_NEAR(m.mean, ref.mean, bound)
+          << (h ? "right" : "left") << " half, mode " << int(nc) << " (path tracer " << ref.mean << ")";
       EXPECT_LT(bound, 0.03 * ref.mean) << (h ? "right" : "left") << " half, mode " << int(nc);
     }
   }
@@ -322,8 +329,8 @@ TEST(OcclusionTest, RemovesEnergyBleedingThroughAWall) {
     const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
     const Bsdf bsdf(s.materials[floor_id], Vec3(0, 0, 1), Vec3(0, 0, 1));
     NearestPhotons nearest;
-    const EstimateContext context{maps.global_attributes.origin.empty() ? nullptr : &maps.global_attributes.origin,
-                                  &accel};
+    const EstimateContext context{
+        maps.global_attributes.origin.empty() ? nullptr : &maps.global_attributes.origin, &accel};
     return EstimateRadiance(*maps.global, bsdf, Vec3(x, 0, 0), Vec3(0, 0, 1), kLobeDiffuseReflection,
                             io.global, nearest, context)
         .radiance.Mean();
@@ -362,7 +369,8 @@ TEST(AdaptiveK, FullDiskKeepsKHalfDiskDropsToKMin) {
     if (p.x >= 0) half.push_back(p);
   }
   auto by_distance = [](std::vector<Vec3> v) {
-    std::sort(v.begin(), v.end(), [](const Vec3& a, const Vec3& b) { return LengthSquared(a) < LengthSquared(b); });
+    std::sort(v.begin(), v.end(),
+              [](const Vec3& a, const Vec3& b) { return LengthSquared(a) < LengthSquared(b); });
     return v;
   };
   ASSERT_GE(half.size(), 200u);

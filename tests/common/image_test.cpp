@@ -105,8 +105,7 @@ void ExpectBitIdentical(const Image& expected, const Image& actual) {
   for (size_t i = 0; i < expected.size(); ++i) {
     for (int c = 0; c < 3; ++c) {
       EXPECT_EQ(std::bit_cast<uint32_t>(expected[i][c]), std::bit_cast<uint32_t>(actual[i][c]))
-          << "pixel " << i << " channel " << c << ": " << expected[i][c] << " vs "
-          << actual[i][c];
+          << "pixel " << i << " channel " << c << ": " << expected[i][c] << " vs " << actual[i][c];
     }
   }
 }
@@ -114,8 +113,7 @@ void ExpectBitIdentical(const Image& expected, const Image& actual) {
 // ---------------------------------------------------------------------------------------------
 // EXR
 
-class ExrCompressionTest : public TempDirTest,
-                           public ::testing::WithParamInterface<ExrCompression> {};
+class ExrCompressionTest : public TempDirTest, public ::testing::WithParamInterface<ExrCompression> {};
 
 TEST_P(ExrCompressionTest, FileRoundTripIsBitExact) {
   const Image image = ExtremeValuesImage();
@@ -139,13 +137,15 @@ TEST_P(ExrCompressionTest, MemoryRoundTripIsBitExactAndMatchesFile) {
 }
 
 INSTANTIATE_TEST_SUITE_P(AllCompressions, ExrCompressionTest,
-                         ::testing::Values(ExrCompression::kNone, ExrCompression::kZip,
-                                           ExrCompression::kPiz),
+                         ::testing::Values(ExrCompression::kNone, ExrCompression::kZip, ExrCompression::kPiz),
                          [](const auto& info) {
                            switch (info.param) {
-                             case ExrCompression::kNone: return std::string("None");
-                             case ExrCompression::kZip: return std::string("Zip");
-                             case ExrCompression::kPiz: return std::string("Piz");
+                             case ExrCompression::kNone:
+                               return std::string("None");
+                             case ExrCompression::kZip:
+                               return std::string("Zip");
+                             case ExrCompression::kPiz:
+                               return std::string("Piz");
                            }
                            return std::string("Unknown");
                          });
@@ -247,8 +247,8 @@ TEST_F(ExrIoTest, TruncatedFileIsSystemErrorWithPath) {
     EXPECT_THAT(e.what(), HasSubstr(path.string()));
   }
   // Every cut, from inside the magic number to the last byte, is an error and not a crash.
-  for (size_t length : {size_t(0), size_t(3), size_t(8), size_t(40), size_t(200),
-                        bytes.size() / 3, bytes.size() - 20, bytes.size() - 1}) {
+  for (size_t length : {size_t(0), size_t(3), size_t(8), size_t(40), size_t(200), bytes.size() / 3,
+                        bytes.size() - 20, bytes.size() - 1}) {
     EXPECT_THROW(DecodeExrFromMemory(std::string_view(bytes).substr(0, length)), SystemError)
         << "length " << length << " of " << bytes.size();
   }
@@ -274,10 +274,10 @@ class HandMadeExr {
     for (const std::string& name : channels) {
       chlist += name;
       chlist += '\0';
-      AppendInt32(chlist, 1);  // HALF
+      AppendInt32(chlist, 1);          // HALF
       chlist += std::string(4, '\0');  // pLinear + reserved
-      AppendInt32(chlist, 1);  // xSampling
-      AppendInt32(chlist, 1);  // ySampling
+      AppendInt32(chlist, 1);          // xSampling
+      AppendInt32(chlist, 1);          // ySampling
     }
     chlist += '\0';
     exr.Attribute("channels", "chlist", chlist);
@@ -309,9 +309,7 @@ class HandMadeExr {
   }
 
  private:
-  static void AppendInt32(std::string& s, int32_t v) {
-    s.append(reinterpret_cast<const char*>(&v), 4);
-  }
+  static void AppendInt32(std::string& s, int32_t v) { s.append(reinterpret_cast<const char*>(&v), 4); }
   static std::string FloatBytes(float f) { return std::string(reinterpret_cast<char*>(&f), 4); }
   static std::string BoxBytes(Box b) {
     std::string s;
@@ -344,8 +342,7 @@ uint16_t CodedHalf(const std::string& channel, int /*x*/, int /*y*/) {
 }
 
 TEST_F(ExrIoTest, ReadsHalfChannels) {
-  const std::string bytes =
-      HandMadeExr::Build({"B", "G", "R"}, {0, 0, 2, 1}, {0, 0, 2, 1}, CodedHalf);
+  const std::string bytes = HandMadeExr::Build({"B", "G", "R"}, {0, 0, 2, 1}, {0, 0, 2, 1}, CodedHalf);
   ImageMetadata metadata = {{"stale", "x"}};
   const Image image = DecodeExrFromMemory(bytes, &metadata);
   ASSERT_EQ(image.width(), 3);
@@ -356,8 +353,7 @@ TEST_F(ExrIoTest, ReadsHalfChannels) {
 
 TEST_F(ExrIoTest, DataWindowInsideDisplayWindowIsPlacedAndPadded) {
   // Display 4x3 at the origin; data only at x in [1,2], y in [1,2].
-  const std::string bytes =
-      HandMadeExr::Build({"B", "G", "R"}, {1, 1, 2, 2}, {0, 0, 3, 2}, CodedHalf);
+  const std::string bytes = HandMadeExr::Build({"B", "G", "R"}, {1, 1, 2, 2}, {0, 0, 3, 2}, CodedHalf);
   const fs::path path = dir_ / "crop.exr";
   WriteBytes(path, bytes);
   const Image image = ReadExr(path);
@@ -366,8 +362,7 @@ TEST_F(ExrIoTest, DataWindowInsideDisplayWindowIsPlacedAndPadded) {
   for (int y = 0; y < 3; ++y) {
     for (int x = 0; x < 4; ++x) {
       const bool has_data = x >= 1 && x <= 2 && y >= 1;
-      EXPECT_EQ(image.at(x, y), has_data ? Rgb(1.0f, 2.0f, 0.5f) : Rgb(0.0f))
-          << "at " << x << "," << y;
+      EXPECT_EQ(image.at(x, y), has_data ? Rgb(1.0f, 2.0f, 0.5f) : Rgb(0.0f)) << "at " << x << "," << y;
     }
   }
 }
@@ -381,8 +376,7 @@ uint16_t PositionHalf(const std::string& channel, int x, int y) {
 
 TEST_F(ExrIoTest, DataWindowOverlappingDisplayWindowIsCropped) {
   // Display (1,0)-(3,1) is 3x2; data (-1,1)-(1,2) overlaps it only at (1,1) -> image (0,1).
-  const std::string bytes =
-      HandMadeExr::Build({"B", "G", "R"}, {-1, 1, 1, 2}, {1, 0, 3, 1}, PositionHalf);
+  const std::string bytes = HandMadeExr::Build({"B", "G", "R"}, {-1, 1, 1, 2}, {1, 0, 3, 1}, PositionHalf);
   const Image image = DecodeExrFromMemory(bytes);
   ASSERT_EQ(image.width(), 3);
   ASSERT_EQ(image.height(), 2);
@@ -395,8 +389,7 @@ TEST_F(ExrIoTest, DataWindowOverlappingDisplayWindowIsCropped) {
 }
 
 TEST_F(ExrIoTest, MissingChannelIsSystemErrorNamingIt) {
-  const std::string bytes =
-      HandMadeExr::Build({"G", "R"}, {0, 0, 1, 1}, {0, 0, 1, 1}, CodedHalf);
+  const std::string bytes = HandMadeExr::Build({"G", "R"}, {0, 0, 1, 1}, {0, 0, 1, 1}, CodedHalf);
   const fs::path path = dir_ / "no_blue.exr";
   WriteBytes(path, bytes);
   try {
@@ -479,7 +472,15 @@ TEST_F(PngIoTest, KnownValuesAndNonFinite) {
   image.at(2, 0) = Rgb(nan, inf, -inf);
   image.at(3, 0) = Rgb(0.001f, 0.0031308f, 0.04f);
   const std::vector<uint8_t> bytes = ToneMapToSrgb8(image);
-  const std::vector<uint8_t> expected = {0,   255, 255, 188, 118, 0, 0, 255, 0,
+  const std::vector<uint8_t> expected = {0,
+                                         255,
+                                         255,
+                                         188,
+                                         118,
+                                         0,
+                                         0,
+                                         255,
+                                         0,
                                          uint8_t(ExpectedSrgbByte(0.001)),
                                          uint8_t(ExpectedSrgbByte(0.0031308)),
                                          uint8_t(ExpectedSrgbByte(0.04))};
@@ -672,8 +673,8 @@ TEST(ImageDiffTest, DisplayRmseIsRelativeToTheReferencesWhite) {
   Image reference(10, 10);
   for (Rgb& c : reference.pixels()) c = Rgb(0.09f);
   Image a = reference;
-  a[0] = Rgb(20.0f);   // counts as 0.5: an error of 0.41 = 0.82 of white
-  a[1] = Rgb(0.19f);   // 0.1 = 0.2 of white
+  a[0] = Rgb(20.0f);  // counts as 0.5: an error of 0.41 = 0.82 of white
+  a[1] = Rgb(0.19f);  // 0.1 = 0.2 of white
   const ImageDiffStats d = CompareImages(a, reference);
   EXPECT_NEAR(d.display_white, 0.5, 1e-6);
   EXPECT_NEAR(d.rmse_display, std::sqrt((0.82 * 0.82 + 0.2 * 0.2) / 100.0), 1e-6);

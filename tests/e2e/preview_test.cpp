@@ -32,8 +32,9 @@ TEST(PfPreview, ExposureOfAnotherImageMatchesItsScale) {
   WriteExr(dir / "image.exr", Ramp(1.0f));
   WriteExr(dir / "twice.exr", Ramp(2.0f));  // its automatic exposure is exactly half the image's
   const auto preview = [&](const std::vector<std::string>& extra, const std::string& png) {
-    const RunResult r = RunCommand(Concat({Binaries::Pf(), "preview", (dir / "image.exr").string(), "-o",
-                                           (dir / png).string()}, extra), dir.path());
+    const RunResult r = RunCommand(
+        Concat({Binaries::Pf(), "preview", (dir / "image.exr").string(), "-o", (dir / png).string()}, extra),
+        dir.path());
     EXPECT_EQ(r.exit_code, 0) << r.err;
     return ReadPng8(dir / png);
   };
@@ -48,8 +49,8 @@ TEST(PfPreview, ExposureOfAnotherImageMatchesItsScale) {
   // The brightest pixel of the image's own exposure is near the top, never clipped to black.
   EXPECT_GT(*std::max_element(own.rgb.begin(), own.rgb.end()), 200);
 
-  const RunResult missing =
-      RunCommand({Binaries::Pf(), "preview", (dir / "nope.exr").string(), "-o", (dir / "x.png").string()}, dir.path());
+  const RunResult missing = RunCommand(
+      {Binaries::Pf(), "preview", (dir / "nope.exr").string(), "-o", (dir / "x.png").string()}, dir.path());
   EXPECT_EQ(missing.exit_code, 2) << "a missing input is a usage error";
   EXPECT_NE(missing.err.find("nope.exr"), std::string::npos) << missing.err;
 }
