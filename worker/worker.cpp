@@ -15,14 +15,22 @@ using Clock = std::chrono::steady_clock;
 
 const char* StateName(State s) {
   switch (s) {
-    case State::kConnecting: return "connecting";
-    case State::kBackoff: return "backoff";
-    case State::kIdle: return "idle";
-    case State::kFetchingScene: return "fetching-scene";
-    case State::kBuildingMap: return "building-map";
-    case State::kRendering: return "rendering";
-    case State::kReporting: return "reporting";
-    case State::kStopping: return "stopping";
+    case State::kConnecting:
+      return "connecting";
+    case State::kBackoff:
+      return "backoff";
+    case State::kIdle:
+      return "idle";
+    case State::kFetchingScene:
+      return "fetching-scene";
+    case State::kBuildingMap:
+      return "building-map";
+    case State::kRendering:
+      return "rendering";
+    case State::kReporting:
+      return "reporting";
+    case State::kStopping:
+      return "stopping";
   }
   return "?";
 }
@@ -30,14 +38,18 @@ const char* StateName(State s) {
 namespace {
 
 bool IsConnectionError(const grpc::Status& s) {
-  return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
+  return s.error_code() == grpc::StatusCode::UNAVAILABLE ||
+         s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
 }
 
 std::string TaskContext(const v1::Task& t) {
-  return "job=" + t.job_id() + " task=" + std::to_string(t.task_id()) + " attempt=" + std::to_string(t.attempt());
+  return "job=" + t.job_id() + " task=" + std::to_string(t.task_id()) +
+         " attempt=" + std::to_string(t.attempt());
 }
 
-double SecondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double SecondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 }  // namespace
 
@@ -45,13 +57,17 @@ double SecondsSince(Clock::time_point t0) { return std::chrono::duration<double>
 struct Worker::Execution {
   std::mutex mutex;
   std::condition_variable cv;
-  bool done = false;            // the render thread finished (output or error set)
+  bool done = false;  // the render thread finished (output or error set)
   bool stop_heartbeat = false;
   bool lease_lost = false;
   std::optional<TaskOutput> output;
   std::string error;
   bool error_retryable = true;
   std::atomic<uint64_t> progress{0};
+  // Set when the result can no longer count (the lease is gone, or it was handed back): the
+  // render stops within a block of pixels or a chunk of photons instead of running to the end.
+  std::atomic<bool> cancel{false};
+  bool cancelled = false;  // the render thread stopped because of `cancel`
   uint64_t pixels = 1;
   double lease_seconds = 30;
 };
@@ -163,8 +179,8 @@ std::optional<v1::Task> Worker::Lease(grpc::Status* status) {
 }
 
 int Worker::Run() {
-  spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", options_.worker_id, options_.coordinator,
-               options_.threads, options_.cache_dir.string());
+  spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", options_.worker_id,
+               options_.coordinator, options_.threads, options_.cache_dir.string());
   uint64_t reported = 0;
   while (!stop_requested()) {
     if (!WaitForConnection()) break;
@@ -202,8 +218,10 @@ int Worker::Run() {
   }
   SetState(State::kStopping);
   const WorkerCounters c = counters();
-  spdlog::info("worker {} stopped: {} leased, {} completed ({} merged), {} failed, {} abandoned, {} handed back",
-               options_.worker_id, c.leased, c.completed, c.merged, c.failed, c.abandoned, c.handed_back);
+  spdlog::info(
+      "worker {} stopped: {} leased, {} completed ({} merged), {} failed, {} abandoned ({} cancelled), {} "
+      "handed back",
+      options_.worker_id, c.leased, c.completed, c.merged, c.failed, c.abandoned, c.cancelled, c.handed_back);
   return 0;
 }
 
@@ -266,8 +284,10 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   std::shared_ptr<const SceneRuntime> scene;
   try {
     std::string source;
-    scene = scenes_.Get(task.scene_hash(), [&] { return FetchBundle(task.scene_hash(), task.scene_entry()); }, &source);
-    if (source != "memory") spdlog::info("scene {} from {} for {}", task.scene_hash().substr(0, 12), source, ctx);
+    scene = scenes_.Get(
+        task.scene_hash(), [&] { return FetchBundle(task.scene_hash(), task.scene_entry()); }, &source);
+    if (source != "memory")
+      spdlog::info("scene {} from {} for {}", task.scene_hash().substr(0, 12), source, ctx);
   } catch (const RpcError& e) {
     if (IsConnectionError(e.status())) {
       spdlog::warn("FetchScene for {}: {}; the lease will expire", ctx, StatusToString(e.status()));
@@ -288,7 +308,8 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
     auto_logged_job_ = task.job_id();  // once per job (every task resolves alike, ExecuteTask)
     std::vector<AutoChoice> choices;
     settings.Resolved(scene->description, &choices);
-    for (const AutoChoice& c : choices) spdlog::info("{}: auto {} = {}: {}", ctx, c.setting, c.value, c.reason);
+    for (const AutoChoice& c : choices)
+      spdlog::info("{}: auto {} = {}: {}", ctx, c.setting, c.value, c.reason);
   }
 
   // Render on a thread of its own so that this thread can watch the lease, the grace period
@@ -306,9 +327,13 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
                       threads = options_.threads] {
     std::optional<TaskOutput> out;
     std::string error;
-    bool retryable = true;
+    bool retryable = true, cancelled = false;
     try {
-      out = ExecuteTask(*scene, hash, camera, settings, spec, threads, maps.get(), &exec->progress);
+      out = ExecuteTask(*scene, hash, camera, settings, spec, threads, maps.get(), &exec->progress,
+                        &exec->cancel);
+    } catch (const Cancelled&) {
+      error = "cancelled";
+      cancelled = true;
     } catch (const InputError& e) {
       error = e.what();
       retryable = false;
@@ -319,6 +344,7 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
     exec->output = std::move(out);
     exec->error = error;
     exec->error_retryable = retryable;
+    exec->cancelled = cancelled;
     exec->done = true;
     exec->cv.notify_all();
   });
@@ -339,11 +365,11 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
     if (exec->done) break;
     const bool lease_lost = exec->lease_lost;
     lock.unlock();
-    if (state() == State::kBuildingMap && exec->progress.load() > 0)
-      SetState(State::kRendering, ctx);
+    if (state() == State::kBuildingMap && exec->progress.load() > 0) SetState(State::kRendering, ctx);
     if (lease_lost && !abandoned_logged) {
       abandoned_logged = true;
-      spdlog::warn("abandoned {}: the coordinator says the lease is gone; the result will be dropped", ctx);
+      exec->cancel = true;
+      spdlog::warn("abandoned {}: the coordinator says the lease is gone; rendering cancelled", ctx);
     }
     bool hand_back = false;
     {
@@ -358,7 +384,8 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
         std::lock_guard slock(mutex_);
         ++counters_.handed_back;
       }
-      render.detach();  // render_in_flight_ stays true: main() exits without waiting for it
+      exec->cancel = true;  // the detached render stops soon instead of using the cores to the end
+      render.detach();      // render_in_flight_ stays true: main() exits without waiting for it
       return Outcome::kStop;
     }
   }
@@ -370,6 +397,7 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   if (exec->lease_lost) {
     std::lock_guard slock(mutex_);
     ++counters_.abandoned;
+    counters_.cancelled += exec->cancelled;
     if (!abandoned_logged) spdlog::warn("abandoned {}: the lease is gone; result dropped", ctx);
     return Outcome::kDone;
   }
@@ -383,7 +411,8 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   const TaskOutput output = std::move(*exec->output);
   lock.unlock();
   spdlog::info("rendered {} pixels={} map_cache_hit={} map_s={:.3f} render_s={:.3f} total_s={:.3f}", ctx,
-               output.pixels, output.map_cache_hit, output.map_seconds, output.render_seconds, SecondsSince(t0));
+               output.pixels, output.map_cache_hit, output.map_seconds, output.render_seconds,
+               SecondsSince(t0));
   return Report(task, ctx, output);
 }
 
@@ -469,7 +498,8 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
       spdlog::error("dropped result of {} after {} attempts: {}", ctx, attempts, StatusToString(status));
       return stop_requested() ? Outcome::kStop : Outcome::kConnectionLost;
     }
-    if (attempts == 1) spdlog::warn("CompleteTask {}: {}; keeping the result and retrying", ctx, StatusToString(status));
+    if (attempts == 1)
+      spdlog::warn("CompleteTask {}: {}; keeping the result and retrying", ctx, StatusToString(status));
     failures_ = std::max(failures_, attempts);
     BackoffSleep();
     SetState(State::kReporting, ctx);
@@ -485,7 +515,8 @@ void Worker::Fail(const v1::Task& task, const std::string& ctx, const std::strin
   SendFail(task, ctx, reason, retryable);
 }
 
-void Worker::SendFail(const v1::Task& task, const std::string& ctx, const std::string& reason, bool retryable) {
+void Worker::SendFail(const v1::Task& task, const std::string& ctx, const std::string& reason,
+                      bool retryable) {
   v1::FailTaskRequest req;
   req.set_lease_id(task.lease_id());
   req.set_reason(reason);

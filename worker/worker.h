@@ -8,7 +8,8 @@
 //
 // and `stopping` after SIGTERM. Every RPC has a deadline. While a task renders (on a thread of
 // its own, using all the worker's threads), a heartbeat thread extends the lease every third of
-// its duration; if the coordinator answers that the lease is gone, the result is abandoned.
+// its duration; if the coordinator answers that the lease is gone, the result is abandoned and
+// the render is cancelled (it stops within a block of pixels or a chunk of photons).
 // Results are the subset's pixel sums only (common/plan/task_executor.h), never a full image.
 // A finished result survives a coordinator outage: CompleteTask is retried with backoff for
 // `report_retry_seconds`.
@@ -41,28 +42,38 @@
 
 namespace pf::worker {
 
-enum class State { kConnecting, kBackoff, kIdle, kFetchingScene, kBuildingMap, kRendering, kReporting, kStopping };
+enum class State {
+  kConnecting,
+  kBackoff,
+  kIdle,
+  kFetchingScene,
+  kBuildingMap,
+  kRendering,
+  kReporting,
+  kStopping
+};
 const char* StateName(State s);
 
 struct WorkerOptions {
-  std::string coordinator;               // HOST:PORT
-  std::string token;                     // bearer token, "" = none
+  std::string coordinator;  // HOST:PORT
+  std::string token;        // bearer token, "" = none
   std::string worker_id;
-  int threads = 1;                       // > 0
-  std::filesystem::path cache_dir;       // scene bundles by hash
-  double poll_seconds = 10;              // LeaseTask long-poll wait (≤ 30)
-  double rpc_timeout_seconds = 10;       // deadline of short calls
-  double fetch_timeout_seconds = 120;    // deadline of FetchScene
-  double grace_seconds = 30;             // SIGTERM: finish the task if it ends within this
-  double max_backoff_seconds = 5;        // cap of the jittered reconnect backoff
-  double report_retry_seconds = 60;      // keep retrying CompleteTask while the coordinator is away
-  size_t map_cache_capacity = 4;         // photon maps kept (LRU)
-  size_t scene_cache_capacity = 2;       // SceneRuntimes kept in memory (LRU)
-  uint64_t max_tasks = 0;                // exit 0 after this many reported tasks (0 = never); for batch schedulers
+  int threads = 1;                     // > 0
+  std::filesystem::path cache_dir;     // scene bundles by hash
+  double poll_seconds = 10;            // LeaseTask long-poll wait (≤ 30)
+  double rpc_timeout_seconds = 10;     // deadline of short calls
+  double fetch_timeout_seconds = 120;  // deadline of FetchScene
+  double grace_seconds = 30;           // SIGTERM: finish the task if it ends within this
+  double max_backoff_seconds = 5;      // cap of the jittered reconnect backoff
+  double report_retry_seconds = 60;    // keep retrying CompleteTask while the coordinator is away
+  size_t map_cache_capacity = 4;       // photon maps kept (LRU)
+  size_t scene_cache_capacity = 2;     // SceneRuntimes kept in memory (LRU)
+  uint64_t max_tasks = 0;  // exit 0 after this many reported tasks (0 = never); for batch schedulers
 };
 
 struct WorkerCounters {
   uint64_t leased = 0, completed = 0, merged = 0, failed = 0, abandoned = 0, handed_back = 0;
+  uint64_t cancelled = 0;  // abandoned tasks whose render was stopped before its end
 };
 
 class Worker {
@@ -96,8 +107,10 @@ class Worker {
   Outcome RunTask(const photonfarm::v1::Task& task);
   Outcome Report(const photonfarm::v1::Task& task, const std::string& ctx, const TaskOutput& output);
   // Logs and counts a failure, then tells the coordinator (SendFail).
-  void Fail(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& reason, bool retryable);
-  void SendFail(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& reason, bool retryable);
+  void Fail(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& reason,
+            bool retryable);
+  void SendFail(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& reason,
+                bool retryable);
   void Heartbeat(const photonfarm::v1::Task& task, const std::string& ctx, std::shared_ptr<Execution> exec);
   SceneBundle FetchBundle(const std::string& hash, const std::string& entry);
   bool stop_requested() const { return stop_.load(); }
@@ -113,12 +126,12 @@ class Worker {
   std::atomic<State> state_{State::kConnecting};
   std::atomic<bool> stop_{false}, abort_{false}, render_in_flight_{false};
   std::chrono::steady_clock::time_point stop_deadline_;
-  int failures_ = 0;                    // consecutive connection failures (backoff exponent)
-  std::string auto_logged_job_;         // the last job whose `auto` settings were logged
+  int failures_ = 0;             // consecutive connection failures (backoff exponent)
+  std::string auto_logged_job_;  // the last job whose `auto` settings were logged
   std::mt19937_64 jitter_rng_;
 
-  mutable std::mutex mutex_;            // guards poll_context_, counters_, stop_deadline_
-  std::condition_variable wake_;        // stop/abort/execution progress
+  mutable std::mutex mutex_;                     // guards poll_context_, counters_, stop_deadline_
+  std::condition_variable wake_;                 // stop/abort/execution progress
   grpc::ClientContext* poll_context_ = nullptr;  // the LeaseTask in flight, cancelled on stop
   WorkerCounters counters_;
 };

@@ -33,6 +33,13 @@ class InputError : public std::runtime_error {
   std::string reason_;
 };
 
+// Work given up on request (a cancel flag was set): e.g. a worker whose lease is gone stops
+// rendering a task whose result would be dropped anyway. Not an error of the input or the machine.
+class Cancelled : public std::runtime_error {
+ public:
+  Cancelled() : std::runtime_error("cancelled") {}
+};
+
 // A failure of the machine or a library (cannot write a file, Embree device error...).
 class SystemError : public std::runtime_error {
  public:

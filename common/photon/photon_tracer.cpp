@@ -5,6 +5,7 @@
 
 #include <chrono>
 
+#include "common/core/error.h"
 #include "common/core/rng.h"
 #include "common/materials/bsdf.h"
 
@@ -103,10 +104,12 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   arena.execute([&] {
     tbb::parallel_for(uint64_t(0), chunks, [&](uint64_t c) {
+      if (options.cancel && options.cancel->load(std::memory_order_relaxed)) return;
       const uint64_t end = std::min(options.photons, (c + 1) * kChunk);
       for (uint64_t i = c * kChunk; i < end; ++i) TraceOne(scene, lights, options, i, outputs[c]);
     });
   });
+  if (options.cancel && options.cancel->load()) throw Cancelled();
   for (ChunkOutput& c : outputs) {
     result.direct.insert(result.direct.end(), c.direct.begin(), c.direct.end());
     result.indirect.insert(result.indirect.end(), c.indirect.begin(), c.indirect.end());

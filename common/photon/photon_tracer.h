@@ -17,6 +17,7 @@
 // fixed-size chunks in parallel and concatenated in chunk order, so the arrays are identical
 // for any thread count.
 
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -42,6 +43,8 @@ struct PhotonTracerOptions {
   uint64_t map_seed = 1;
   int max_bounces = 64;       // safety cap; Russian roulette ends walks long before
   int threads = 0;            // 0 = all cores
+  // Checked before each chunk of photons; once set, TracePhotons throws Cancelled.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct PhotonTracingResult {

@@ -18,7 +18,8 @@ std::string JobRenderSettings::MapFingerprint() const {
          ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins);
 }
 
-JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene, std::vector<AutoChoice>* choices) const {
+JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene,
+                                              std::vector<AutoChoice>* choices) const {
   JobRenderSettings r = *this;
   auto choose = [&](const char* setting, const char* value, std::string reason) {
     if (choices) choices->push_back({setting, value, std::move(reason)});
@@ -28,8 +29,9 @@ JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene, std
     const bool need = SceneNeedsCausticMap(scene);
     r.caustic = need ? CausticMapMode::kOn : CausticMapMode::kOff;
     choose("caustic-map", need ? "on" : "off",
-           need ? "the scene has specular or glossy surfaces (caustic paths L S+ D exist)"
-                : "no specular or glossy surface: no caustic path can exist (a caustic map would stay empty)");
+           need
+               ? "the scene has specular or glossy surfaces (caustic paths L S+ D exist)"
+               : "no specular or glossy surface: no caustic path can exist (a caustic map would stay empty)");
   }
   if (!r.direct) {
     // Wald 1999, §4.2.3: with many lights, Monte Carlo spends most shadow rays on lights that
@@ -46,14 +48,17 @@ JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene, std
       choose("direct", "monte-carlo",
              std::to_string(lights) + (lights == 1 ? " light" : " lights") + " (< " +
                  std::to_string(kPhotonDirectMinLights) +
-                 "): stratified shadow rays per light, sharp shadows, no direct photons in the estimate (4.2.1)");
+                 "): stratified shadow rays per light, sharp shadows, no direct photons in the estimate "
+                 "(4.2.1)");
     }
   }
   return r;
 }
 
 PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& bounds) const {
-  if (!direct) throw std::logic_error("JobRenderSettings::IntegratorOptions: direct light is still 'auto' (call Resolved)");
+  if (!direct)
+    throw std::logic_error(
+        "JobRenderSettings::IntegratorOptions: direct light is still 'auto' (call Resolved)");
   PhotonMapIntegratorOptions io;
   io.global.k = k;
   io.global.direction_test = direction_test;
@@ -89,7 +94,8 @@ PhotonMapsOptions JobRenderSettings::MapsOptions() const {
   return mo;
 }
 
-SceneRuntime::SceneRuntime(SceneDescription d) : description(std::move(d)), accel(description), lights(accel) {}
+SceneRuntime::SceneRuntime(SceneDescription d)
+    : description(std::move(d)), accel(description), lights(accel) {}
 
 std::shared_ptr<const PhotonMaps> PhotonMapCache::Find(const std::string& key) {
   std::lock_guard lock(mutex_);
@@ -123,7 +129,8 @@ size_t PhotonMapCache::size() const {
 
 TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera_spec,
                        const JobRenderSettings& settings_as_given, const TaskSpec& task, int threads,
-                       PhotonMapCache* cache, std::atomic<uint64_t>* progress) {
+                       PhotonMapCache* cache, std::atomic<uint64_t>* progress,
+                       const std::atomic<bool>* cancel) {
   TaskOutput out;
   const Camera camera(camera_spec);
   const std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
@@ -131,8 +138,8 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   RenderStats stats;
   if (settings_as_given.integrator == IntegratorKind::kPath) {
     const PathTracer tracer(scene.accel, scene.lights);
-    stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads, sums,
-                         progress);
+    stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
+                         sums, progress, cancel);
   } else {
     const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
     const std::string key = scene_key + "|" + settings.MapFingerprint() + "|" + std::to_string(task.map_seed);
@@ -142,6 +149,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
       PhotonMapsOptions mo = settings.MapsOptions();
       mo.tracing.map_seed = task.map_seed;
       mo.tracing.threads = threads;
+      mo.tracing.cancel = cancel;
       maps = std::make_shared<const PhotonMaps>(PhotonMaps::Build(scene.accel, scene.lights, mo));
       if (cache) cache->Insert(key, maps);
     }
@@ -150,8 +158,8 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     out.map_seconds = out.map_cache_hit ? 0.0 : maps->stats.trace_seconds + maps->stats.build_seconds;
     const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps,
                                          settings.IntegratorOptions(scene.accel.bounds()));
-    stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
-                         sums, progress);
+    stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed,
+                         threads, sums, progress, cancel);
   }
   out.pixels = pixels.size();
   out.samples = task.sample_end - task.sample_begin;
@@ -166,8 +174,9 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   return out;
 }
 
-Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera, const JobRenderSettings& settings,
-                        const PlanSpec& plan, uint64_t seed, int threads, std::atomic<uint64_t>* progress) {
+Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
+                        const JobRenderSettings& settings, const PlanSpec& plan, uint64_t seed, int threads,
+                        std::atomic<uint64_t>* progress) {
   Accumulator acc(camera.width, camera.height);
   PhotonMapCache cache(1);
   for (const TaskSpec& task : ExpandPlan(plan, camera.width, camera.height, seed)) {

@@ -108,10 +108,13 @@ struct TaskOutput {
 };
 
 // Renders one task. `scene_key` identifies the scene for the cache (e.g. its bundle hash);
-// `cache` may be null. `progress` (optional) counts finished pixels.
+// `cache` may be null. `progress` (optional) counts finished pixels. `cancel` (optional) stops
+// photon tracing and rendering soon after it is set: ExecuteTask then throws Cancelled and
+// caches no map.
 TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera,
                        const JobRenderSettings& settings, const TaskSpec& task, int threads,
-                       PhotonMapCache* cache = nullptr, std::atomic<uint64_t>* progress = nullptr);
+                       PhotonMapCache* cache = nullptr, std::atomic<uint64_t>* progress = nullptr,
+                       const std::atomic<bool>* cancel = nullptr);
 
 // The whole plan in this process, merged with the farm's Accumulator (same arithmetic).
 Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera, const JobRenderSettings& settings,

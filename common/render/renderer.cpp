@@ -8,14 +8,15 @@
 #include <chrono>
 #include <numeric>
 
+#include "common/core/error.h"
 #include "common/core/rng.h"
 
 namespace pf {
 
-RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
-                         std::span<const uint32_t> pixels, uint32_t sample_begin,
-                         uint32_t sample_end, uint64_t seed, int threads, std::span<Rgb> sums,
-                         std::atomic<uint64_t>* progress) {
+RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std::span<const uint32_t> pixels,
+                         uint32_t sample_begin, uint32_t sample_end, uint64_t seed, int threads,
+                         std::span<Rgb> sums, std::atomic<uint64_t>* progress,
+                         const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
   struct Local {
     TraceCounters counters;
@@ -26,6 +27,7 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels.size(), 16), [&](const auto& range) {
+      if (cancel && cancel->load(std::memory_order_relaxed)) return;
       Local& local = locals.local();
       for (size_t i = range.begin(); i != range.end(); ++i) {
         const uint32_t p = pixels[i];
@@ -47,6 +49,7 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
       if (progress) progress->fetch_add(range.size(), std::memory_order_relaxed);
     });
   });
+  if (cancel && cancel->load()) throw Cancelled();
   RenderStats stats;
   for (const Local& l : locals) {
     stats.counters += l.counters;

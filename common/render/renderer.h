@@ -32,10 +32,13 @@ struct RenderStats {
 
 // Adds the radiance of samples [sample_begin, sample_end) of each listed pixel (index y·W + x)
 // into sums[i]. `progress`, if given, is incremented by the number of pixels finished.
+// `cancel`, if given, is checked before each block of 16 pixels; once it is set, the remaining
+// blocks are skipped and RenderPixels throws Cancelled (`sums` then holds a partial result).
 RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
                          std::span<const uint32_t> pixels, uint32_t sample_begin,
                          uint32_t sample_end, uint64_t seed, int threads, std::span<Rgb> sums,
-                         std::atomic<uint64_t>* progress = nullptr);
+                         std::atomic<uint64_t>* progress = nullptr,
+                         const std::atomic<bool>* cancel = nullptr);
 
 // Whole image, averaged over options.spp samples per pixel.
 Image RenderImage(const Integrator& integrator, const Camera& camera, const RenderOptions& options,

@@ -5,8 +5,10 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "common/core/error.h"
 #include "common/plan/task_executor.h"
 #include "common/scene/scene_loader.h"
+#include "tests/common/test_scenes.h"
 
 namespace pf {
 namespace {
@@ -99,6 +101,39 @@ TEST(AutoSettings, ChapterFourSettingsReachTheIntegratorAndTheMaps) {
   standalone.direct = DirectLightMode::kNone;
   standalone.occlusion_test = false;
   EXPECT_NE(s.MapFingerprint(), standalone.MapFingerprint());
+}
+
+// A cancel flag stops a task (photon tracing or rendering) with Cancelled, and a map whose
+// tracing was cut short is never cached; without the flag the same task runs and caches its map.
+TEST(TaskExecutor, CancelStopsTheTaskAndCachesNoMap) {
+  SceneDescription s;
+  Material wall;
+  wall.diffuse_reflectance = Rgb(0.5f);
+  wall.emission = Rgb(1.0f);
+  testing::AddSphere(s, Vec3(0.0f), 1.0f, 3, testing::AddMaterial(s, wall), true, 0, false);
+  s.num_lights = 1;
+  const SceneRuntime scene(s);
+  CameraSpec cam;
+  cam.eye = Vec3(0.0f);
+  cam.look_at = Vec3(0, 0, -1);
+  cam.width = 12;
+  cam.height = 8;
+  JobRenderSettings settings;
+  settings.photons = 20000;
+  settings.k = 20;
+  const TaskSpec task = ExpandPlan(PlanSpec{.kind = PlanKind::kMultipleMaps}, cam.width, cam.height, 5).at(0);
+  PhotonMapCache cache(2);
+  std::atomic<bool> cancel{true};
+  EXPECT_THROW(ExecuteTask(scene, "x", cam, settings, task, 1, &cache, nullptr, &cancel), Cancelled);
+  EXPECT_EQ(cache.size(), 0u) << "a cut-short map must not be reused";
+  JobRenderSettings path = settings;
+  path.integrator = IntegratorKind::kPath;
+  EXPECT_THROW(ExecuteTask(scene, "x", cam, path, task, 1, &cache, nullptr, &cancel), Cancelled);
+
+  cancel = false;
+  const TaskOutput out = ExecuteTask(scene, "x", cam, settings, task, 1, &cache, nullptr, &cancel);
+  EXPECT_EQ(out.pixels, uint64_t(cam.width * cam.height));
+  EXPECT_EQ(cache.size(), 1u);
 }
 
 }  // namespace

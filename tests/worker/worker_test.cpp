@@ -21,7 +21,9 @@ namespace fs = std::filesystem;
 namespace v1 = photonfarm::v1;
 using Clock = std::chrono::steady_clock;
 
-double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double Since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 // Hands out scripted tasks and records what the worker says.
 class FakeCoordinator final : public v1::WorkerService::Service {
@@ -37,7 +39,8 @@ class FakeCoordinator final : public v1::WorkerService::Service {
   }
   void set_extend_ok(bool ok) { extend_ok_ = ok; }
 
-  grpc::Status LeaseTask(grpc::ServerContext* ctx, const v1::LeaseTaskRequest* req, v1::LeaseTaskResponse* resp) override {
+  grpc::Status LeaseTask(grpc::ServerContext* ctx, const v1::LeaseTaskRequest* req,
+                         v1::LeaseTaskResponse* resp) override {
     const Clock::time_point until = Clock::now() + std::chrono::milliseconds(int(req->wait_seconds() * 1000));
     while (Clock::now() < until && !ctx->IsCancelled()) {
       {
@@ -54,7 +57,8 @@ class FakeCoordinator final : public v1::WorkerService::Service {
     }
     return grpc::Status::OK;  // no task now
   }
-  grpc::Status ExtendLease(grpc::ServerContext*, const v1::ExtendLeaseRequest* req, v1::ExtendLeaseResponse* resp) override {
+  grpc::Status ExtendLease(grpc::ServerContext*, const v1::ExtendLeaseRequest* req,
+                           v1::ExtendLeaseResponse* resp) override {
     std::lock_guard lock(mu_);
     extends_.push_back(Since(leased_at_));
     progress_.push_back(req->progress());
@@ -62,13 +66,15 @@ class FakeCoordinator final : public v1::WorkerService::Service {
     resp->set_lease_seconds(lease_seconds_);
     return grpc::Status::OK;
   }
-  grpc::Status CompleteTask(grpc::ServerContext*, const v1::CompleteTaskRequest* req, v1::CompleteTaskResponse* resp) override {
+  grpc::Status CompleteTask(grpc::ServerContext*, const v1::CompleteTaskRequest* req,
+                            v1::CompleteTaskResponse* resp) override {
     std::lock_guard lock(mu_);
     completes_.push_back(*req);
     resp->set_merged(true);
     return grpc::Status::OK;
   }
-  grpc::Status FailTask(grpc::ServerContext*, const v1::FailTaskRequest* req, v1::FailTaskResponse*) override {
+  grpc::Status FailTask(grpc::ServerContext*, const v1::FailTaskRequest* req,
+                        v1::FailTaskResponse*) override {
     std::lock_guard lock(mu_);
     fails_.push_back(*req);
     return grpc::Status::OK;
@@ -86,11 +92,26 @@ class FakeCoordinator final : public v1::WorkerService::Service {
     return grpc::Status::OK;
   }
 
-  std::vector<double> extends() const { std::lock_guard lock(mu_); return extends_; }
-  std::vector<double> progress() const { std::lock_guard lock(mu_); return progress_; }
-  std::vector<v1::CompleteTaskRequest> completes() const { std::lock_guard lock(mu_); return completes_; }
-  std::vector<v1::FailTaskRequest> fails() const { std::lock_guard lock(mu_); return fails_; }
-  std::vector<v1::LeaseTaskRequest> lease_requests() const { std::lock_guard lock(mu_); return lease_requests_; }
+  std::vector<double> extends() const {
+    std::lock_guard lock(mu_);
+    return extends_;
+  }
+  std::vector<double> progress() const {
+    std::lock_guard lock(mu_);
+    return progress_;
+  }
+  std::vector<v1::CompleteTaskRequest> completes() const {
+    std::lock_guard lock(mu_);
+    return completes_;
+  }
+  std::vector<v1::FailTaskRequest> fails() const {
+    std::lock_guard lock(mu_);
+    return fails_;
+  }
+  std::vector<v1::LeaseTaskRequest> lease_requests() const {
+    std::lock_guard lock(mu_);
+    return lease_requests_;
+  }
   int fetches() const { return fetches_; }
   double lease_seconds_ = 0.3;
 
@@ -162,7 +183,8 @@ class WorkerTest : public ::testing::Test {
     return t;
   }
   static uint64_t PixelsOf(const v1::Task& t) {
-    return CountPixels(PixelSubsetFromProto(t.pixels(), "p"), int(t.camera().width()), int(t.camera().height()));
+    return CountPixels(PixelSubsetFromProto(t.pixels(), "p"), int(t.camera().width()),
+                       int(t.camera().height()));
   }
 
   fs::path dir_;
@@ -198,7 +220,8 @@ TEST_F(WorkerTest, HeartbeatsAtAThirdOfTheLeaseAndReportsOnlyTheSubset) {
   const std::vector<double> ext = fake_->extends();
   ASSERT_GE(ext.size(), 3u) << "the render was too fast to observe heartbeats";
   EXPECT_LT(ext.front(), 0.3);
-  for (size_t i = 1; i < ext.size(); ++i) EXPECT_LT(ext[i] - ext[i - 1], 0.25) << "gap before heartbeat " << i;
+  for (size_t i = 1; i < ext.size(); ++i)
+    EXPECT_LT(ext[i] - ext[i - 1], 0.25) << "gap before heartbeat " << i;
   EXPECT_TRUE(fake_->fails().empty());
   EXPECT_EQ(fake_->fetches(), 1);
   // Affinity: later polls carry the cached scene and map seed.
@@ -212,10 +235,16 @@ TEST_F(WorkerTest, HeartbeatsAtAThirdOfTheLeaseAndReportsOnlyTheSubset) {
 
 TEST_F(WorkerTest, AbandonsTheResultWhenTheLeaseIsGone) {
   fake_->set_extend_ok(false);
-  fake_->Offer(SlowTask());
+  fake_->Offer(SlowTask(3000000));  // several seconds of photon tracing on one thread
   Worker worker(Options());
+  const Clock::time_point t0 = Clock::now();
   RunUntil(worker, [&] { return worker.counters().abandoned > 0; });
+  // The first heartbeat (at lease/3 = 0.1 s) learns that the lease is gone; the render is
+  // cancelled within a chunk of photons instead of tracing all of them for nothing.
   EXPECT_EQ(worker.counters().abandoned, 1u);
+  EXPECT_EQ(worker.counters().cancelled, 1u) << "the render ran to its end";
+  EXPECT_LT(Since(t0), 2.0);
+  EXPECT_FALSE(worker.render_in_flight());
   EXPECT_TRUE(fake_->completes().empty());
   EXPECT_TRUE(fake_->fails().empty());
 }
@@ -228,7 +257,8 @@ TEST_F(WorkerTest, StopWithoutGraceHandsTheLeaseBack) {
   int code = -1;
   std::thread t([&] { code = worker.Run(); });
   ASSERT_TRUE([&] {
-    for (int i = 0; i < 3000 && fake_->extends().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    for (int i = 0; i < 3000 && fake_->extends().empty(); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
     return !fake_->extends().empty();
   }());
   const Clock::time_point t0 = Clock::now();
@@ -251,7 +281,8 @@ TEST_F(WorkerTest, StopWithGraceFinishesTheTask) {
   Worker worker(o);
   int code = -1;
   std::thread t([&] { code = worker.Run(); });
-  for (int i = 0; i < 3000 && fake_->extends().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 3000 && fake_->extends().empty(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   worker.RequestStop();
   t.join();
   EXPECT_EQ(code, 0);
@@ -266,7 +297,8 @@ TEST_F(WorkerTest, StopCancelsAnIdleLongPoll) {
   Worker worker(o);
   int code = -1;
   std::thread t([&] { code = worker.Run(); });
-  for (int i = 0; i < 500 && fake_->lease_requests().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 500 && fake_->lease_requests().empty(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ASSERT_FALSE(fake_->lease_requests().empty());
   const Clock::time_point t0 = Clock::now();
   worker.RequestStop();
@@ -287,7 +319,8 @@ TEST_F(WorkerTest, WaitsForAnAbsentCoordinatorAndConnectsWhenItAppears) {
       << StateName(worker.state());
   fake_->Offer(SlowTask(20000));
   StartServer(port);
-  for (int i = 0; i < 1000 && fake_->completes().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 1000 && fake_->completes().empty(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   worker.RequestStop();
   t.join();
   EXPECT_EQ(code, 0);
