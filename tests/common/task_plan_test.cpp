@@ -10,8 +10,6 @@
 
 #include "common/core/error.h"
 #include "common/plan/accumulator.h"
-#include "common/plan/task_executor.h"
-#include "tests/common/test_scenes.h"
 
 namespace pf {
 namespace {
@@ -40,8 +38,10 @@ void ExpectCoverage(const PlanSpec& plan, int w, int h, uint32_t expected_sample
 }
 
 TEST(TaskPlan, MultipleMapsCoverEveryPixelOncePerMap) {
-  ExpectCoverage({.kind = PlanKind::kMultipleMaps, .maps = 3, .samples_per_pixel = 4, .tile_size = 7}, 20, 13, 12, 3);
-  ExpectCoverage({.kind = PlanKind::kMultipleMaps, .maps = 2, .samples_per_pixel = 1, .tile_size = 0}, 5, 4, 2, 2);
+  ExpectCoverage({.kind = PlanKind::kMultipleMaps, .maps = 3, .samples_per_pixel = 4, .tile_size = 7}, 20, 13,
+                 12, 3);
+  ExpectCoverage({.kind = PlanKind::kMultipleMaps, .maps = 2, .samples_per_pixel = 1, .tile_size = 0}, 5, 4,
+                 2, 2);
 }
 
 TEST(TaskPlan, MapsInTurnUseMapIForSampleI) {
@@ -72,7 +72,8 @@ TEST(TaskPlan, SkippingIsThesisSection44) {
 
 TEST(TaskPlan, ExpansionIsDeterministicAndSeedDependent) {
   const PlanSpec plan{.kind = PlanKind::kSkipping, .samples_per_pixel = 1, .stride = 2, .rounds = 2};
-  const auto a = ExpandPlan(plan, 10, 10, 5), b = ExpandPlan(plan, 10, 10, 5), c = ExpandPlan(plan, 10, 10, 6);
+  const auto a = ExpandPlan(plan, 10, 10, 5), b = ExpandPlan(plan, 10, 10, 5),
+             c = ExpandPlan(plan, 10, 10, 6);
   ASSERT_EQ(a.size(), b.size());
   for (size_t i = 0; i < a.size(); ++i) {
     EXPECT_EQ(a[i].map_seed, b[i].map_seed);
@@ -99,11 +100,17 @@ TEST(TaskPlan, InvalidPlansNameTheField) {
     }
     return std::string("no error");
   };
-  EXPECT_NE(message({.kind = PlanKind::kMultipleMaps, .maps = 0}, 4, 4).find("plan.multiple_maps.maps"), std::string::npos);
-  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 0}, 4, 4).find("plan.skipping.stride"), std::string::npos);
-  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 5}, 4, 4).find("exceeds the number of pixels"), std::string::npos);
-  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 1, .rounds = 0}, 4, 4).find("plan.skipping.rounds"), std::string::npos);
-  EXPECT_NE(message({.kind = PlanKind::kMapsInTurn, .samples_per_pixel = 0}, 4, 4).find("samples_per_pixel"), std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kMultipleMaps, .maps = 0}, 4, 4).find("plan.multiple_maps.maps"),
+            std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 0}, 4, 4).find("plan.skipping.stride"),
+            std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kSkipping, .stride = 5}, 4, 4).find("exceeds the number of pixels"),
+            std::string::npos);
+  EXPECT_NE(
+      message({.kind = PlanKind::kSkipping, .stride = 1, .rounds = 0}, 4, 4).find("plan.skipping.rounds"),
+      std::string::npos);
+  EXPECT_NE(message({.kind = PlanKind::kMapsInTurn, .samples_per_pixel = 0}, 4, 4).find("samples_per_pixel"),
+            std::string::npos);
   EXPECT_NE(message({}, 0, 4).find("camera"), std::string::npos);
 }
 
@@ -121,7 +128,8 @@ TEST(Accumulator, OrderOfMergingDoesNotChangeABit) {
     Part p;
     for (uint32_t i = 0; i < uint32_t(w * h); ++i)
       if (gen() % 3 == 0) p.pixels.push_back(i);
-    for (size_t i = 0; i < p.pixels.size() * 3; ++i) p.sums.push_back(value(gen) * (t % 5 == 0 ? 1e-6f : 1.0f));
+    for (size_t i = 0; i < p.pixels.size() * 3; ++i)
+      p.sums.push_back(value(gen) * (t % 5 == 0 ? 1e-6f : 1.0f));
     p.samples = 1 + gen() % 4;
     parts.push_back(p);
   }
@@ -148,9 +156,11 @@ TEST(Accumulator, WeightedAverageAndNoiseEstimate) {
 
 TEST(Accumulator, RejectsBadResults) {
   EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>(5), 2, 1), "");
-  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, NAN}, 1, 1).find("not finite"), std::string::npos);
+  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, NAN}, 1, 1).find("not finite"),
+            std::string::npos);
   EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, INFINITY}, 1, 1), "");
-  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, 3e9f}, 1, 1).find("range"), std::string::npos);
+  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, 3e9f}, 1, 1).find("range"),
+            std::string::npos);
   EXPECT_EQ(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, 3}, 1, 1), "");
   Accumulator acc(2, 2);
   EXPECT_THROW(acc.Add(std::vector<uint32_t>{9}, std::vector<float>{1, 1, 1}, 1), InputError);
@@ -165,37 +175,6 @@ TEST(Accumulator, SerializeRoundTrip) {
   bad.pop_back();
   EXPECT_THROW(Accumulator::Deserialize(bad), InputError);
   EXPECT_THROW(Accumulator::Deserialize("nonsense"), InputError);
-}
-
-// Same plan and seed: any order of task execution gives the same image as RenderPlanLocally.
-TEST(TaskExecutor, SkippingPlanIsOrderIndependent) {
-  SceneDescription s;
-  Material wall;
-  wall.diffuse_reflectance = Rgb(0.5f);
-  wall.emission = Rgb(1.0f);
-  testing::AddSphere(s, Vec3(0.0f), 1.0f, 3, testing::AddMaterial(s, wall), true, 0, false);
-  s.num_lights = 1;
-  const SceneRuntime scene(s);
-  CameraSpec cam;
-  cam.eye = Vec3(0.0f);
-  cam.look_at = Vec3(0, 0, -1);
-  cam.width = 12;
-  cam.height = 8;
-  JobRenderSettings settings;
-  settings.photons = 5000;
-  settings.k = 20;
-  const PlanSpec plan{.kind = PlanKind::kSkipping, .samples_per_pixel = 1, .stride = 2, .rounds = 2};
-  const Image local = RenderPlanLocally(scene, cam, settings, plan, 77, 2);
-  auto tasks = ExpandPlan(plan, cam.width, cam.height, 77);
-  std::reverse(tasks.begin(), tasks.end());
-  Accumulator acc(cam.width, cam.height);
-  for (const TaskSpec& t : tasks) {
-    const TaskOutput out = ExecuteTask(scene, "x", cam, settings, t, 1);
-    acc.Add(PixelsOf(t.pixels, cam.width, cam.height), out.rgb_sums, out.samples);
-  }
-  const Image farm = acc.Resolve();
-  for (size_t i = 0; i < local.size(); ++i) ASSERT_TRUE(local[i] == farm[i]) << i;
-  EXPECT_GT(local[0].r, 0.5f);
 }
 
 }  // namespace
