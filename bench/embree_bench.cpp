@@ -1,4 +1,4 @@
-// Embree throughput on real scenes (issue #2 benchmark): rays/s per thread for camera rays,
+// Embree throughput on real scenes: rays/s per thread for camera rays,
 // incoherent secondary rays (cosine-distributed from the camera hits) and shadow rays, and the
 // path tracer's samples/s. Single thread, median of --repeats runs, printed as a table and JSON.
 //

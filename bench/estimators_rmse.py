@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""RMSE against the path-traced reference and wall time, per chapter-4 estimator (issue #5).
+"""RMSE against the path-traced reference and wall time, per chapter-4 estimator.
 
 For every scene (Cornell box, CornellBox-Sphere, scene8, the SCENE10-like rooms and the
 INVISIBLEDATE-like pair of rooms) and every budget (photons, k, camera samples per pixel), renders

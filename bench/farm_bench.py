@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""farm_bench.py — the farm's benchmark (issue #4): scaling, overhead and coordinator throughput.
+"""farm_bench.py — the farm's benchmark: scaling, overhead and coordinator throughput.
 
     bench/farm_bench.py [--build build] [--quick] [--json-out results.json]
 

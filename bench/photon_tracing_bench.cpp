@@ -1,4 +1,4 @@
-// Photon tracing throughput (issue #3 benchmark): photons emitted, stored and rays traced per
+// Photon tracing throughput: photons emitted, stored and rays traced per
 // second on ONE thread (the walk is embarrassingly parallel; per-thread rates are what compare
 // across machines), median of --repeats runs, next to the thesis's Table 2.1 random-walk
 // times. Table + JSON.

@@ -1,7 +1,7 @@
 #pragma once
 // The client side of every connection to the coordinator: `pf`, `pf-worker` and the e2e tests
 // all open their channels here, so keepalive, reconnect backoff, message limits, the bearer
-// token and deadlines are configured in one place (Design: Access; issue #4: every client call
+// token and deadlines are configured in one place (docs/design.md, G5; every client call
 // has a deadline, keepalive on both sides).
 //
 // Keepalive: a ping every 10 s even without calls (so an idle worker long-polling a coordinator

@@ -3,7 +3,7 @@
 // settings, plan, stop rule) and their translation into a photonfarm.v1.JobSpec. The local plan
 // render (`pf render --local-only`) and the farm run the *same* JobSpec through the same
 // proto → core conversion (proto/convert.h) as the coordinator, so their inputs are identical
-// by construction (Design property 1).
+// by construction (docs/design.md, G1).
 
 #include <CLI/CLI.hpp>
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generates the SCENE10-like and INVISIBLEDATE-like test scenes of issue #5 as MGF.
+"""Generates the SCENE10-like and INVISIBLEDATE-like test scenes (chapter-4 estimators, docs/results/estimators.md) as MGF.
 
 SCENE10 (Wald 1999, §5): a 10x10 array of small diffuse rooms, each with its own ceiling light,
 doors between neighbouring rooms. INVISIBLEDATE: two rooms side by side; the viewed room has no

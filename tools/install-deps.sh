@@ -10,7 +10,7 @@ PACKAGES=(
   libembree-dev libopenexr-dev libspdlog-dev libfmt-dev libtbb-dev libtinyobjloader-dev
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev libpng-dev
   libnanoflann-dev
-  # The farm (issue #4): gRPC, Protobuf, SQLite, and the Python client.
+  # The farm: gRPC, Protobuf, SQLite, and the Python client.
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libsqlite3-dev sqlite3
   libssl-dev  # SHA-256 of scene bundles (OpenSSL EVP)
   python3 python3-grpcio python3-protobuf

@@ -1,5 +1,5 @@
 #pragma once
-// The worker's scene caches (issue #4: "scene bundle cache by hash"):
+// The worker's scene caches (docs/design.md, §1: bundles are content-addressed):
 //  - on disk, under <cache-dir>/scenes/<hash>/ (the bundle's files, written with WriteBundle)
 //    plus <cache-dir>/scenes/<hash>.entry (the entry path). A bundle is fetched at most once
 //    per cache directory, survives worker restarts, and is re-hashed when read back (a corrupt

@@ -1,5 +1,5 @@
 #pragma once
-// pf-worker's pull loop as an explicit state machine (STYLE: Flamenco's worker):
+// pf-worker's pull loop as an explicit state machine (docs/design.md, S6):
 //
 //   connecting ──ready──▶ idle (LeaseTask long poll) ──task──▶ fetching-scene ──▶ building-map
 //       ▲   │                 │  ▲ no task now                                      │ (cache miss)

@@ -1,6 +1,6 @@
 #pragma once
 // Rays, hits and the robust ray-origin offset. No Embree here: accel/embree_scene.cpp is the
-// only file that includes Embree (STYLE: one place per third-party library).
+// only file that includes Embree (docs/design.md, S3: one place per third-party library).
 
 #include <cstdint>
 #include <limits>

@@ -1,5 +1,5 @@
 #pragma once
-// User-facing errors (Design: three tiers of errors). Malformed input is reported with the file
+// User-facing errors (docs/design.md, §3: three tiers of errors). Malformed input is reported with the file
 // and line it came from and the reason; such errors are thrown inside the core and caught at
 // the edges (CLI, coordinator, worker), which turn them into messages and exit codes / statuses.
 

@@ -1,7 +1,7 @@
 #pragma once
 // Seedable counter-based random numbers.
 //
-// Determinism contract (Design, property 1): the random numbers of one pixel sample depend only
+// Determinism contract (docs/design.md, G1): the random numbers of one pixel sample depend only
 // on (seed, pixel, sample), those of one photon only on (map seed, photon index) — never on
 // threads or scheduling. A `Rng` is therefore never shared: each unit of work derives its own
 // stream from a key with `Rng::ForKey`, and then draws sequentially (PCG32, O'Neill 2014).

@@ -20,7 +20,7 @@
 //   for photons that would otherwise enter the heap;
 // * a query at a non-finite point finds nothing.
 //
-// Determinism (Design, property 1): builds use no randomness and no threads, so the same
+// Determinism (docs/design.md, G1): builds use no randomness and no threads, so the same
 // photons added in the same order give the same post-build order and the same query results
 // (including tie-breaking) on every run.
 //

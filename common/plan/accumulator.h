@@ -1,13 +1,13 @@
 #pragma once
-// The merge arithmetic (Design: Merge = weighted averaging): per pixel Σ w·c / Σ w, where a
+// The merge arithmetic (docs/design.md, §1 Merge): per pixel Σ w·c / Σ w, where a
 // task contributes the sum of its samples with weight = its sample count.
 //
-// Determinism (Design property 1): the sums are kept in 64-bit fixed point (2^-32 units), so
+// Determinism (docs/design.md, G1): the sums are kept in 64-bit fixed point (2^-32 units), so
 // addition is exact and associative, and the merged image is bit-identical whatever order the
 // tasks complete in, however many workers ran them. Range: a pixel's channel sum must stay
 // within ±2^31 (checked per task: ValidateTaskResult rejects a task whose sums exceed 2^30).
 //
-// Noise estimate (Design: Error estimate): samples of a pixel from different maps are
+// Noise estimate (docs/design.md, §1 Error estimate): samples of a pixel from different maps are
 // independent, so the spread of the per-map pixel means (luminance) estimates the pixel's
 // variance; EstimatedNoiseRms is the RMS over pixels covered by ≥ 2 maps of the standard error
 // of their mean. Kept in double: it only steers progress and the stop rule, never the image.

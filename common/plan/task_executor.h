@@ -1,7 +1,7 @@
 #pragma once
 // Executes one task — build (or reuse) the task's photon map, render its pixel subset — and the
 // single-process execution of a whole plan. Shared by pf-worker and `pf render`, so that a farm
-// render and a local render of the same plan and seed are bit-identical (Design property 1).
+// render and a local render of the same plan and seed are bit-identical (docs/design.md, G1).
 
 #include <atomic>
 #include <cstdint>

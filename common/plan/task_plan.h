@@ -1,6 +1,6 @@
 #pragma once
 // Job → tasks: the pure, deterministic expansion of a render job into independent
-// *photon map × pixel subset × sample range* tasks (Wald 1999, §4.4; Design: Jobs, tasks,
+// *photon map × pixel subset × sample range* tasks (Wald 1999, §4.4; docs/design.md, §1 Jobs, tasks,
 // results). The coordinator and the single-process renderer call the same functions, and a
 // worker recomputes a task's pixels from its PixelSubset, so no pixel list ever travels.
 //

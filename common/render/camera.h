@@ -1,5 +1,5 @@
 #pragma once
-// Pinhole camera with a vertical field of view; image right = forward × up (issue #2).
+// Pinhole camera with a vertical field of view; image right = forward × up.
 // Pixel filter: a one-pixel box — a sample (u, v) ∈ [0,1)² lands uniformly in the pixel.
 
 #include <cmath>

@@ -22,7 +22,7 @@ struct TraceCounters {
 
 // Bumped by the render driver before each pixel, per thread. Integrator-side caches (e.g. the
 // PhotonDirect neighbour set) are reused only within one pixel, so a result never depends on
-// which pixels a thread happened to render before it (determinism, Design property 1).
+// which pixels a thread happened to render before it (determinism, docs/design.md, G1).
 inline thread_local uint64_t t_pixel_epoch = 0;
 
 class Integrator {

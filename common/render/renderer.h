@@ -1,7 +1,7 @@
 #pragma once
 // Drives an integrator over pixels. The unit of work the farm will distribute is a *pixel
 // subset × sample range*: RenderPixels returns per-pixel sums in subset order, so a task result
-// never carries a full image (Design: Result). RenderImage is the single-process special case.
+// never carries a full image (docs/design.md, §1 Result). RenderImage is the single-process special case.
 //
 // Determinism: sample s of pixel p draws from Rng::ForKey(HashKey(seed, p, s)) and the samples
 // of a pixel are summed in order, so any thread count gives bit-identical sums.

@@ -1,6 +1,6 @@
 #pragma once
 // The scene *description*: what a scene file says, independent of any acceleration structure
-// (STYLE: pbrt's split between parsed description and runtime scene). Loaders (MGF, OBJ,
+// (docs/design.md, S2: parsed description vs runtime scene). Loaders (MGF, OBJ,
 // manifest) produce it; accel/ builds the Embree scene from it; the farm will ship the files
 // it came from and let each worker rebuild it.
 //

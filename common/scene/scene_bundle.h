@@ -1,5 +1,5 @@
 #pragma once
-// Scene bundles: the files a scene is made of, shipped as one content-addressed unit (Design:
+// Scene bundles: the files a scene is made of, shipped as one content-addressed unit (docs/design.md, §1
 // Jobs — "scene bundle (content-addressed: hash of all files; uploaded once, cached by
 // workers)"). The client collects a bundle, the coordinator validates and stores it under its
 // hash, workers fetch it by hash and load it from a directory; all three use this file pair, so

@@ -1,5 +1,5 @@
 #pragma once
-// Merging task results into a job's Accumulator (Design: Merge = weighted averaging).
+// Merging task results into a job's Accumulator (docs/design.md, §1 Merge).
 //
 // A result is validated before anything is changed: 3 finite floats per pixel of the task's
 // subset (the count from CountPixels, so a wrong size is caught without materialising pixels),

@@ -1,6 +1,6 @@
 #pragma once
 // JobSpec (wire) → JobConfig (core types): the one validation of a submitted job, run before
-// anything is stored (Design property 4). Recovery runs it again on the stored, normalised spec,
+// anything is stored (docs/design.md, G4). Recovery runs it again on the stored, normalised spec,
 // so a resumed job is configured exactly as it was accepted.
 //
 // Rules, in order (the first violation is reported, its message starting with the field path):

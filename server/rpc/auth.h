@@ -1,5 +1,5 @@
 #pragma once
-// Bearer-token access control for RenderService and WorkerService (Design property 5). When a
+// Bearer-token access control for RenderService and WorkerService (docs/design.md, G5). When a
 // token is configured (--token-file or PF_TOKEN), every call must carry the metadata
 // `authorization: Bearer <token>`; a missing or wrong token is UNAUTHENTICATED. The comparison
 // takes the same time wherever the first difference is. The health and reflection services stay

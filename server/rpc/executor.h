@@ -1,5 +1,5 @@
 #pragma once
-// A small pool of threads for the work an RPC must not do on a gRPC callback thread (STYLE:
+// A small pool of threads for the work an RPC must not do on a gRPC callback thread (docs/design.md, S4;
 // "reactors only validate and enqueue, never block"): loading an uploaded scene, writing a new
 // job to SQLite, encoding an EXR, reading a scene bundle from disk. The reactor posts the work and
 // returns; the work finishes the reactor.

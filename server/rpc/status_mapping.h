@@ -1,5 +1,5 @@
 #pragma once
-// The one mapping from the core's and the coordinator's errors to gRPC status codes (STYLE:
+// The one mapping from the core's and the coordinator's errors to gRPC status codes (docs/design.md, §3;
 // "errors as values inside, mapped to gRPC status codes in one function at the edge"):
 //
 //   pf::LimitError (proto/convert.h)        RESOURCE_EXHAUSTED   over a documented limit

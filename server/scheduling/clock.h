@@ -1,5 +1,5 @@
 #pragma once
-// Time, injected (STYLE: Flamenco — "time is injected, so timeouts are testable"). The scheduler,
+// Time, injected (docs/design.md, S5: time is injected, so timeouts are testable). The scheduler,
 // the persister and the job bookkeeping read time only through a Clock: production uses
 // SystemClock, tests a FakeClock they advance by hand, so lease expiry, long-poll deadlines,
 // time budgets and checkpoint intervals are tested without sleeping.

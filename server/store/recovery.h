@@ -1,5 +1,5 @@
 #pragma once
-// Coordinator start-up after a stop or a crash (Design property 3): every job in the database is
+// Coordinator start-up after a stop or a crash (docs/design.md, G3): every job in the database is
 // rebuilt from its stored, normalised spec (validated again, expanded again: the plan is a pure
 // function) and handed to the scheduler.
 //

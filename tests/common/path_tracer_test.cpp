@@ -1,4 +1,4 @@
-// Analytic tests of the reference path tracer (issue #2 "Must show"): the furnace, a Lambertian
+// Analytic tests of the reference path tracer: the furnace, a Lambertian
 // plane under a small area light, and thread-count determinism.
 #include "common/render/path_tracer.h"
 

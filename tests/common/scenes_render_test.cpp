@@ -1,4 +1,4 @@
-// Every scene shipped in scenes/ loads and renders (issue #2): each manifest, path-traced at a
+// Every scene shipped in scenes/ loads and renders: each manifest, path-traced at a
 // tiny resolution, gives a finite image that is not black, with no NaN/Inf samples dropped.
 #include <gtest/gtest.h>
 

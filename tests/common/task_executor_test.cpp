@@ -1,4 +1,4 @@
-// common/plan/task_executor.h: what the `auto` settings become for a scene (issue #5: "auto
+// common/plan/task_executor.h: what the `auto` settings become for a scene ("auto
 // defaults that choose from the scene and log why"), that explicit settings are never overridden;
 // that tasks executed in any order merge to the local plan's image; that a cancel flag stops one.
 #include <gtest/gtest.h>
