@@ -1,11 +1,7 @@
 #include "client/farm_client.h"
 
-#include <fcntl.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
-#include <cerrno>
-#include <cstring>
 #include <thread>
 
 #include "common/core/error.h"
@@ -199,33 +195,6 @@ v1::JobStatus FarmClient::Watch(const std::string& job_id, bool include_images, 
     if (retries == 0) spdlog::warn("watch {}: {}; re-subscribing", job_id, StatusToString(status));
     ++retries;
     std::this_thread::sleep_for(std::chrono::milliseconds(std::min(2000, 100 << std::min(retries, 5))));
-  }
-}
-
-void WriteFileAtomically(const std::filesystem::path& path, const std::string& bytes) {
-  const std::filesystem::path tmp = path.string() + ".tmp." + std::to_string(getpid());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw SystemError(tmp.string() + ": cannot create: " + std::strerror(errno));
-  size_t off = 0;
-  while (off < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + off, bytes.size() - off);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      const std::string err = std::strerror(errno);
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      throw SystemError(tmp.string() + ": write failed: " + err);
-    }
-    off += size_t(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    ::unlink(tmp.c_str());
-    throw SystemError(tmp.string() + ": cannot flush");
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string err = std::strerror(errno);
-    ::unlink(tmp.c_str());
-    throw SystemError(path.string() + ": cannot rename into place: " + err);
   }
 }
 

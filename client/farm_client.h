@@ -59,7 +59,4 @@ class FarmClient {
 bool IsFinalState(photonfarm::v1::JobState s);
 const char* JobStateName(photonfarm::v1::JobState s);
 
-// Writes bytes to `path` atomically (temporary file in the same folder, fsync, rename).
-void WriteFileAtomically(const std::filesystem::path& path, const std::string& bytes);
-
 }  // namespace pf

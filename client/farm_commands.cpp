@@ -18,6 +18,7 @@
 #include "client/interrupt.h"
 #include "client/local_farm.h"
 #include "client/progress.h"
+#include "common/core/atomic_file.h"
 #include "common/core/error.h"
 #include "common/image/exr_io.h"
 #include "proto/convert.h"

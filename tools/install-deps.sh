@@ -8,7 +8,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libembree-dev libopenexr-dev libspdlog-dev libfmt-dev libtbb-dev libtinyobjloader-dev
-  libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev libpng-dev
+  libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libpng-dev
   libnanoflann-dev
   # The farm: gRPC, Protobuf, SQLite, and the Python client.
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libsqlite3-dev sqlite3

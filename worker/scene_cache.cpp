@@ -1,11 +1,10 @@
 #include "worker/scene_cache.h"
 
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <fstream>
-#include <random>
 
+#include "common/core/atomic_file.h"
 #include "common/core/error.h"
 
 namespace pf::worker {
@@ -20,7 +19,7 @@ SceneCache::SceneCache(fs::path cache_dir, size_t memory_capacity)
     const std::string name = e.path().filename().string();
     if (e.is_directory() && IsValidHash(name) && fs::exists(dir_ / (name + ".entry"))) disk_hashes_.push_back(name);
     // Left-overs of an interrupted store.
-    if (name.rfind(".tmp-", 0) == 0) fs::remove_all(e.path(), ec);
+    if (IsTemporaryName(name)) fs::remove_all(e.path(), ec);
   }
 }
 
@@ -59,19 +58,10 @@ std::shared_ptr<const SceneRuntime> SceneCache::LoadFromDisk(const std::string& 
 void SceneCache::StoreOnDisk(const std::string& hash, const SceneBundle& bundle) {
   // Write to a private temporary folder, then rename: a crash never leaves a half-written
   // bundle under its hash, and workers sharing the cache directory do not collide.
-  std::random_device rd;
-  const fs::path tmp = dir_ / (".tmp-" + hash.substr(0, 16) + "-" + std::to_string(getpid()) + "-" + std::to_string(rd()));
+  const fs::path tmp = TemporarySibling(dir_ / hash);
   WriteBundle(bundle, tmp);
-  std::error_code ec;
-  fs::rename(tmp, dir_ / hash, ec);
-  if (ec) fs::remove_all(tmp, ec);  // another worker stored it first (same content)
-  const fs::path entry_tmp = tmp.string() + ".entry";
-  {
-    std::ofstream out(entry_tmp);
-    out << bundle.entry << "\n";
-    if (!out) throw SystemError("scene cache: cannot write " + entry_tmp.string());
-  }
-  fs::rename(entry_tmp, dir_ / (hash + ".entry"));
+  PublishDirectory(tmp, dir_ / hash);  // false: another worker stored it first (same content)
+  WriteFileAtomically(dir_ / (hash + ".entry"), bundle.entry + "\n");
   if (std::find(disk_hashes_.begin(), disk_hashes_.end(), hash) == disk_hashes_.end()) disk_hashes_.push_back(hash);
 }
 

@@ -1,11 +1,8 @@
 // OpenEXR wrapper (see exr_io.h). Encoding and decoding go through in-memory Imf::OStream /
 // Imf::IStream subclasses so that files and gRPC payloads share one code path; files are then
-// written atomically with POSIX calls (write to a temporary name, fsync, rename).
+// written atomically (common/core/atomic_file.h).
 
 #include "common/image/exr_io.h"
-
-#include <fcntl.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -25,6 +22,7 @@
 #include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
 
+#include "common/core/atomic_file.h"
 #include "common/core/error.h"
 
 namespace pf {
@@ -207,40 +205,6 @@ Image Decode(Imf::InputFile& file, ImageMetadata* metadata) {
     }
   }
   return out;
-}
-
-// Writes `bytes` to "<path>.tmp.<pid>", fsyncs it and renames it over `path`. On failure the
-// temporary file is removed and SystemError names the path, the step and the OS reason.
-// (The directory itself is not fsynced: readers see old-or-new, a power cut may lose the
-// rename.)
-void WriteFileAtomically(const std::filesystem::path& path, std::string_view bytes) {
-  std::filesystem::path tmp = path;
-  tmp += ".tmp." + std::to_string(::getpid());
-  const auto fail = [&](const char* step, int err) {
-    ::unlink(tmp.c_str());
-    throw SystemError(path.string() + ": cannot write (" + step + " " + tmp.string() +
-                      "): " + std::system_category().message(err));
-  };
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) fail("open", errno);
-  size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int err = errno;
-      ::close(fd);
-      fail("write", err);
-    }
-    done += size_t(n);
-  }
-  if (::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    fail("fsync", err);
-  }
-  if (::close(fd) != 0) fail("close", errno);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) fail("rename", errno);
 }
 
 }  // namespace

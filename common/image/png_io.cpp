@@ -4,9 +4,7 @@
 
 #include "common/image/png_io.h"
 
-#include <fcntl.h>
 #include <png.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -14,6 +12,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "common/core/atomic_file.h"
 #include "common/core/error.h"
 
 namespace pf {
@@ -24,39 +23,6 @@ void CheckNotEmpty(const Image& image) {
     throw InputError("cannot write an empty image (" + std::to_string(image.width()) + "x" +
                      std::to_string(image.height()) + ") as PNG");
   }
-}
-
-// Writes `bytes` to "<path>.tmp.<pid>", fsyncs it and renames it over `path`. On failure the
-// temporary file is removed and SystemError names the path, the step and the OS reason.
-// Same protocol as in exr_io.cpp (each wrapper stays self-contained).
-void WriteFileAtomically(const std::filesystem::path& path, std::string_view bytes) {
-  std::filesystem::path tmp = path;
-  tmp += ".tmp." + std::to_string(::getpid());
-  const auto fail = [&](const char* step, int err) {
-    ::unlink(tmp.c_str());
-    throw SystemError(path.string() + ": cannot write (" + step + " " + tmp.string() +
-                      "): " + std::system_category().message(err));
-  };
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) fail("open", errno);
-  size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int err = errno;
-      ::close(fd);
-      fail("write", err);
-    }
-    done += size_t(n);
-  }
-  if (::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    fail("fsync", err);
-  }
-  if (::close(fd) != 0) fail("close", errno);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) fail("rename", errno);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "common/core/byte_codec.h"
 #include "common/core/error.h"
 
 namespace pf {
@@ -11,30 +12,6 @@ namespace {
 constexpr double kFixedScale = 4294967296.0;  // 2^32
 constexpr double kMaxTaskSum = 1073741824.0;  // 2^30
 constexpr char kMagic[8] = {'P', 'F', 'A', 'C', 'C', 'U', 'M', '1'};
-
-template <typename T>
-void Put(std::string& out, const T& v) {
-  out.append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
-template <typename T>
-void PutVector(std::string& out, const std::vector<T>& v) {
-  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-}
-template <typename T>
-T Get(std::string_view& in) {
-  if (in.size() < sizeof(T)) throw InputError("accumulator checkpoint: truncated");
-  T v;
-  std::memcpy(&v, in.data(), sizeof(T));
-  in.remove_prefix(sizeof(T));
-  return v;
-}
-template <typename T>
-void GetVector(std::string_view& in, std::vector<T>& v, size_t n) {
-  if (in.size() < n * sizeof(T)) throw InputError("accumulator checkpoint: truncated");
-  v.resize(n);
-  std::memcpy(v.data(), in.data(), n * sizeof(T));
-  in.remove_prefix(n * sizeof(T));
-}
 
 }  // namespace
 
@@ -109,37 +86,46 @@ double Accumulator::EstimatedNoiseRms() const {
 
 std::string Accumulator::Serialize() const {
   std::string out;
-  out.append(kMagic, sizeof(kMagic));
-  Put(out, int32_t(width_));
-  Put(out, int32_t(height_));
-  Put(out, samples_merged_);
-  Put(out, tasks_merged_);
-  PutVector(out, sums_);
-  PutVector(out, samples_);
-  PutVector(out, maps_);
-  PutVector(out, lum_sum_);
-  PutVector(out, lum_sum2_);
+  out.reserve(sizeof(kMagic) + 24 + sums_.size() * 8 + samples_.size() * 24);
+  ByteWriter w(out);
+  w.PutBytes(std::string_view(kMagic, sizeof(kMagic)));
+  w.Put<int32_t>(width_);
+  w.Put<int32_t>(height_);
+  w.Put<uint64_t>(samples_merged_);
+  w.Put<uint64_t>(tasks_merged_);
+  w.PutArray<int64_t>(sums_);
+  w.PutArray<uint32_t>(samples_);
+  w.PutArray<uint32_t>(maps_);
+  w.PutArray<double>(lum_sum_);
+  w.PutArray<double>(lum_sum2_);
   return out;
 }
 
 Accumulator Accumulator::Deserialize(std::string_view in) {
   if (in.size() < sizeof(kMagic) || std::memcmp(in.data(), kMagic, sizeof(kMagic)) != 0)
     throw InputError("accumulator checkpoint: bad magic");
-  in.remove_prefix(sizeof(kMagic));
-  const int32_t w = Get<int32_t>(in), h = Get<int32_t>(in);
+  ByteReader r(in.substr(sizeof(kMagic)), "accumulator checkpoint");
+  const int32_t w = r.Get<int32_t>(), h = r.Get<int32_t>();
   if (w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28)) throw InputError("accumulator checkpoint: bad size");
   Accumulator a;
   a.width_ = w;
   a.height_ = h;
-  a.samples_merged_ = Get<uint64_t>(in);
-  a.tasks_merged_ = Get<uint64_t>(in);
+  a.samples_merged_ = r.Get<uint64_t>();
+  a.tasks_merged_ = r.Get<uint64_t>();
   const size_t n = size_t(w) * h;
-  GetVector(in, a.sums_, 3 * n);
-  GetVector(in, a.samples_, n);
-  GetVector(in, a.maps_, n);
-  GetVector(in, a.lum_sum_, n);
-  GetVector(in, a.lum_sum2_, n);
-  if (!in.empty()) throw InputError("accumulator checkpoint: trailing bytes");
+  // Sizes are checked before allocating: a corrupt header must not allocate gigabytes.
+  constexpr size_t kBytesPerPixel = 3 * sizeof(int64_t) + 2 * sizeof(uint32_t) + 2 * sizeof(double);
+  if (r.remaining() != n * kBytesPerPixel) r.Fail(r.remaining() < n * kBytesPerPixel ? "truncated" : "trailing bytes");
+  a.sums_.resize(3 * n);
+  a.samples_.resize(n);
+  a.maps_.resize(n);
+  a.lum_sum_.resize(n);
+  a.lum_sum2_.resize(n);
+  r.GetArray<int64_t>(a.sums_);
+  r.GetArray<uint32_t>(a.samples_);
+  r.GetArray<uint32_t>(a.maps_);
+  r.GetArray<double>(a.lum_sum_);
+  r.GetArray<double>(a.lum_sum2_);
   return a;
 }
 

@@ -13,8 +13,8 @@
 //   u64 len, accumulator bytes          Accumulator::Serialize()
 //   u64 Checksum64 (server/store/checksum.h) of all preceding bytes
 //
-// Writing is atomic: the bytes go to "<file>.tmp", which is fsync'ed, renamed over the file, and
-// the directory is fsync'ed; a reader sees the old or the new checkpoint, never a torn one.
+// Writing is atomic (common/core/atomic_file.h): a reader sees the old or the new checkpoint,
+// never a torn one. Bytes go through common/core/byte_codec.h.
 
 #include <filesystem>
 #include <optional>
@@ -33,8 +33,5 @@ Checkpoint DecodeCheckpoint(std::string_view bytes);
 void WriteCheckpointFile(const std::filesystem::path& file, const Checkpoint& checkpoint);
 // nullopt if the file does not exist; InputError if it is corrupt; SystemError if unreadable.
 std::optional<Checkpoint> ReadCheckpointFile(const std::filesystem::path& file);
-
-// Writes `bytes` to `file` atomically (tmp + fsync + rename + fsync of the directory).
-void WriteFileAtomically(const std::filesystem::path& file, std::string_view bytes);
 
 }  // namespace pf::server

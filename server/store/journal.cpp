@@ -4,6 +4,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/core/byte_codec.h"
 #include "common/core/error.h"
 #include "server/store/checksum.h"
 
@@ -13,29 +14,17 @@ namespace {
 constexpr char kMagic[4] = {'P', 'F', 'J', '1'};
 constexpr size_t kHeader = 4 + 8 + 4;
 
-void PutLe(std::string& out, uint64_t v, int bytes) {
-  for (int i = 0; i < bytes; ++i) out.push_back(char((v >> (8 * i)) & 0xff));
-}
-uint64_t GetLe(const char* p, int bytes) {
-  uint64_t v = 0;
-  for (int i = 0; i < bytes; ++i) v |= uint64_t(static_cast<unsigned char>(p[i])) << (8 * i);
-  return v;
-}
-
 }  // namespace
 
 std::string EncodeJournalEntry(uint64_t task_id, std::span<const float> rgb_sums) {
   std::string out;
   out.reserve(kHeader + 4 * rgb_sums.size() + 8);
-  out.append(kMagic, 4);
-  PutLe(out, task_id, 8);
-  PutLe(out, rgb_sums.size(), 4);
-  for (float f : rgb_sums) {
-    uint32_t bits;
-    std::memcpy(&bits, &f, 4);
-    PutLe(out, bits, 4);
-  }
-  PutLe(out, Checksum64(out), 8);
+  ByteWriter w(out);
+  w.PutBytes(std::string_view(kMagic, 4));
+  w.Put<uint64_t>(task_id);
+  w.Put<uint32_t>(uint32_t(rgb_sums.size()));
+  w.PutArray<float>(rgb_sums);
+  w.Put<uint64_t>(Checksum64(out));
   return out;
 }
 
@@ -53,17 +42,14 @@ std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uin
   while (bytes.size() - pos >= kHeader + 8) {
     const char* p = bytes.data() + pos;
     if (std::memcmp(p, kMagic, 4) != 0) break;
-    const uint64_t n = GetLe(p + 12, 4);
+    const uint64_t n = LoadLittleEndian<uint32_t>(p + 12);
     const size_t size = kHeader + 4 * n + 8;
     if (bytes.size() - pos < size) break;
-    if (GetLe(p + size - 8, 8) != Checksum64(std::string_view(p, size - 8))) break;
+    if (LoadLittleEndian<uint64_t>(p + size - 8) != Checksum64(std::string_view(p, size - 8))) break;
     JournalEntry e;
-    e.task_id = GetLe(p + 4, 8);
+    e.task_id = LoadLittleEndian<uint64_t>(p + 4);
     e.rgb_sums.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-      const uint32_t bits = uint32_t(GetLe(p + kHeader + 4 * i, 4));
-      std::memcpy(&e.rgb_sums[i], &bits, 4);
-    }
+    ByteReader(std::string_view(p + kHeader, 4 * n), "journal entry").GetArray<float>(e.rgb_sums);
     entries.push_back(std::move(e));
     pos += size;
   }

@@ -1,13 +1,12 @@
 #include "server/store/scene_store.h"
 
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <fstream>
 #include <sstream>
 
+#include "common/core/atomic_file.h"
 #include "common/core/error.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
@@ -49,7 +48,6 @@ SceneInfo InfoFromRow(const SceneRow& row) {
   return info;
 }
 
-std::atomic<uint64_t> upload_counter{0};
 
 }  // namespace
 
@@ -61,7 +59,7 @@ SceneStore::SceneStore(fs::path scenes_dir, SqliteStore& db, const Clock& clock)
 void SceneStore::LoadIndex() {
   // Folders of uploads interrupted by a crash.
   for (const auto& e : fs::directory_iterator(dir_)) {
-    if (e.path().filename().string().rfind(".upload-", 0) != 0) continue;
+    if (!IsTemporaryName(e.path().filename().string())) continue;
     std::error_code ec;
     fs::remove_all(e.path(), ec);
   }
@@ -87,8 +85,7 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   const std::string hash = BundleHash(bundle);
   if (std::optional<SceneInfo> known = FindScene(hash)) return {*known, false};
 
-  const fs::path tmp = dir_ / (".upload-" + hash.substr(0, 16) + "-" + std::to_string(::getpid()) + "-" +
-                               std::to_string(upload_counter++));
+  const fs::path tmp = TemporarySibling(dir_ / hash);
   SceneDescription scene;
   try {
     WriteBundle(bundle, tmp);
@@ -109,13 +106,8 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   info.warnings = scene.warnings;
   if (scene.num_lights == 0) info.warnings.push_back(bundle.entry + ": the scene has no emitters: images will be black");
 
-  const fs::path final_dir = dir_ / hash;
-  std::error_code ec;
-  fs::rename(tmp, final_dir, ec);
-  if (ec) {  // a concurrent upload of the same bundle won the race, or the folder survived a crash
-    fs::remove_all(tmp, ec);
-    if (!fs::is_directory(final_dir)) throw SystemError(final_dir.string() + ": cannot store the scene");
-  }
+  // false: a concurrent upload of the same bundle won the race, or the folder survived a crash.
+  PublishDirectory(tmp, dir_ / hash);
   SceneRow row;
   row.hash = hash;
   row.entry = info.entry;

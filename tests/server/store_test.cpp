@@ -7,6 +7,7 @@
 
 #include <fstream>
 
+#include "common/core/atomic_file.h"
 #include "common/core/error.h"
 #include "server/scheduling/clock.h"
 #include "server/scheduling/scheduler.h"
@@ -159,7 +160,8 @@ TEST(Checkpoint, FilesAreWrittenAtomically) {
   ASSERT_TRUE(cp.has_value());
   EXPECT_EQ(cp->merge_seq, 3u);
   EXPECT_EQ(cp->merged_task_ids, (std::vector<uint64_t>{0, 1, 7}));
-  EXPECT_FALSE(fs::exists(file.string() + ".tmp"));
+  for (const auto& e : fs::directory_iterator(dir.path()))
+    EXPECT_FALSE(IsTemporaryName(e.path().filename().string())) << "left behind: " << e.path();
   std::ofstream(file, std::ios::binary | std::ios::trunc) << "garbage";
   try {
     ReadCheckpointFile(file);

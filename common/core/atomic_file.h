@@ -1,0 +1,34 @@
+#pragma once
+// The one way the project writes a file that a crash must not tear (images, checkpoints, scene
+// bundles, the client's downloads; docs/design.md, G3): write a temporary beside the target,
+// fsync it, rename(2) it over the target, fsync the directory. Readers see the old file or the
+// new one, never a mix, and once the call returns the new one survives a power cut.
+//
+// Temporaries are named "<dir>/.<name>.tmp-<pid>-<n>" (the same directory, so the rename is
+// atomic; the leading dot hides them). A process that finds such names at start-up may remove
+// them: IsTemporaryName recognises them.
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+namespace pf {
+
+// Throws SystemError naming the path, the failed step and the OS reason; the temporary is
+// removed on failure and the target is left as it was.
+void WriteFileAtomically(const std::filesystem::path& path, std::string_view bytes);
+
+// A fresh temporary name beside `path`, unique within the process and across processes.
+std::filesystem::path TemporarySibling(const std::filesystem::path& path);
+bool IsTemporaryName(std::string_view filename);
+
+// Publishes a fully written temporary directory (see TemporarySibling) under `target`, for
+// content-addressed artifacts made of several files (scene bundles). Returns false, and
+// removes `tmp`, when `target` already exists: an artifact of that name has that content, so
+// whoever published first wins. Throws SystemError for other failures.
+bool PublishDirectory(const std::filesystem::path& tmp, const std::filesystem::path& target);
+
+// fsync(2) of the directory that holds `path` (best effort: some file systems refuse it).
+void SyncParentDirectory(const std::filesystem::path& path);
+
+}  // namespace pf
