@@ -128,6 +128,7 @@ bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
 
 std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double now, Effects& fx) {
   if (shutdown_) return std::nullopt;
+  ++counters_.lease_attempts;
   while (!ready_.empty()) {
     Job& job = *ready_.begin()->second;
     if (CheckTimeBudget(job, now, fx)) continue;  // its queue is gone now
@@ -646,7 +647,9 @@ void Scheduler::Shutdown() {
 
 SchedulerCounters Scheduler::counters() const {
   std::lock_guard lock(mu_);
-  return counters_;
+  SchedulerCounters c = counters_;
+  c.parked_polls = waiters_.size();
+  return c;
 }
 
 }  // namespace pf::server

@@ -103,6 +103,8 @@ struct JobSnapshot {
 
 struct SchedulerCounters {
   uint64_t leases = 0, merged = 0, ignored = 0, rejected = 0, expired = 0, failed_attempts = 0, returned = 0;
+  uint64_t lease_attempts = 0;  // searches of the queue for a task (a spinning poll would inflate it)
+  uint64_t parked_polls = 0;    // long polls waiting right now
 };
 
 class Scheduler {

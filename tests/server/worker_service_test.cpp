@@ -257,10 +257,19 @@ TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
   EXPECT_GE(waited, 0.25);
   EXPECT_LT(waited, 3.0);
 
-  // A parked poll returns as soon as a job is submitted, long before its 20 s wait.
+  // The poll is parked: it waits as a waiter of the scheduler, and nothing searches the queue on
+  // its behalf while it waits (a poll that retried in a loop would pass the timing checks alone).
   start = std::chrono::steady_clock::now();
   auto poll = std::async(std::launch::async, [&] { return Lease(*live_, 20, "parked"); });
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  Scheduler& scheduler = live_->coordinator->scheduler();
+  for (int i = 0; i < 500 && scheduler.counters().parked_polls == 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_EQ(scheduler.counters().parked_polls, 1u) << "the poll never parked";
+  const uint64_t attempts = scheduler.counters().lease_attempts;
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(scheduler.counters().lease_attempts, attempts) << "the parked poll kept searching the queue";
+  EXPECT_EQ(scheduler.counters().parked_polls, 1u);
+  // It returns as soon as a job is submitted, long before its 20 s wait.
   v1::Plan plan;
   plan.mutable_multiple_maps()->set_maps(1);
   plan.mutable_multiple_maps()->set_samples_per_pixel(1);
@@ -271,6 +280,7 @@ TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
   EXPECT_EQ(task->job_id(), id);
   EXPECT_LT(waited, 5.0);
   EXPECT_EQ(GetJob(*live_, id).tasks_running(), 1u);
+  EXPECT_EQ(scheduler.counters().parked_polls, 0u) << "a served poll leaves the waiters";
 
   // A poll whose client gives up is released (no lease leaks to a dead caller).
   {
