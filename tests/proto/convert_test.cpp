@@ -1,0 +1,230 @@
+// proto/convert.h: every message survives core -> proto -> core unchanged, and every invalid
+// field is refused with an InputError whose message starts with the field's path (LimitError,
+// i.e. RESOURCE_EXHAUSTED at the RPC edge, for well-formed values over a limit).
+
+#include "proto/convert.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <limits>
+
+namespace pf {
+namespace {
+namespace v1 = photonfarm::v1;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+v1::Camera GoodCamera() {
+  v1::Camera c;
+  c.mutable_eye()->set_z(5);
+  c.mutable_up()->set_y(1);
+  c.set_vfov_degrees(40);
+  c.set_width(64);
+  c.set_height(48);
+  return c;
+}
+
+v1::RenderSettings GoodSettings() {
+  v1::RenderSettings s;
+  s.set_integrator(v1::INTEGRATOR_PHOTONMAP);
+  s.mutable_photon_map()->set_photons(1000);
+  s.mutable_photon_map()->set_k(50);
+  return s;
+}
+
+// Runs `f` and returns the InputError's message (fails the test if nothing is thrown).
+template <typename Error = InputError>
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "wrong exception type: " << e.what();
+    return "";
+  }
+  ADD_FAILURE() << "accepted";
+  return "";
+}
+
+TEST(Convert, CameraRoundTrips) {
+  v1::Camera c = GoodCamera();
+  c.mutable_eye()->set_x(1.5);
+  c.mutable_look_at()->set_y(-2.25);
+  const CameraSpec cam = CameraFromProto(c, "spec.camera");
+  EXPECT_EQ(cam.eye, Vec3(1.5f, 0, 5));
+  EXPECT_EQ(cam.look_at, Vec3(0, -2.25f, 0));
+  EXPECT_EQ(cam.width, 64);
+  EXPECT_EQ(cam.height, 48);
+  v1::Camera back;
+  CameraToProto(cam, &back);
+  EXPECT_EQ(back.SerializeAsString(), c.SerializeAsString());
+}
+
+TEST(Convert, BadCamerasNameTheirField) {
+  auto with = [](auto edit) {
+    v1::Camera c = GoodCamera();
+    edit(c);
+    return ErrorOf([&] { CameraFromProto(c, "spec.camera"); });
+  };
+  EXPECT_THAT(with([](v1::Camera& c) { c.mutable_eye()->set_x(std::nan("")); }),
+              StartsWith("spec.camera.eye:"));
+  EXPECT_THAT(with([](v1::Camera& c) { c.mutable_up()->set_z(INFINITY); }), StartsWith("spec.camera.up:"));
+  EXPECT_THAT(with([](v1::Camera& c) { c.set_vfov_degrees(0); }), StartsWith("spec.camera.vfov_degrees:"));
+  EXPECT_THAT(with([](v1::Camera& c) { c.set_vfov_degrees(180); }), StartsWith("spec.camera.vfov_degrees:"));
+  EXPECT_THAT(with([](v1::Camera& c) { c.set_width(0); }), StartsWith("spec.camera.width/height:"));
+  EXPECT_THAT(with([](v1::Camera& c) { c.mutable_look_at()->set_z(5); }), StartsWith("spec.camera.look_at:"));
+  EXPECT_THAT(with([](v1::Camera& c) { c.mutable_up()->set_y(0), c.mutable_up()->set_z(1); }),
+              StartsWith("spec.camera.up:"));
+  v1::Camera big = GoodCamera();
+  big.set_width(kMaxImageSide + 1);
+  EXPECT_THAT(ErrorOf<LimitError>([&] { CameraFromProto(big, "spec.camera"); }),
+              HasSubstr("exceeds the limit"));
+  big.set_width(kMaxImageSide);
+  big.set_height(kMaxImageSide);  // each side in range, the product over the pixel limit
+  EXPECT_THAT(ErrorOf<LimitError>([&] { CameraFromProto(big, "spec.camera"); }),
+              HasSubstr("exceeds the limit"));
+}
+
+TEST(Convert, EverySettingRoundTrips) {
+  v1::RenderSettings s = GoodSettings();
+  v1::PhotonMapSettings& pm = *s.mutable_photon_map();
+  pm.set_structure(v1::MAP_STRUCTURE_GRID);
+  pm.set_caustic(v1::CAUSTIC_MODE_OFF);
+  pm.set_caustic_radius(0.25);
+  pm.set_glossy_depth(3);
+  pm.set_direction_test(v1::DIRECTION_TEST_AFTER_QUERY);
+  pm.set_direct(v1::DIRECT_LIGHT_PHOTON_DIRECT);
+  pm.set_shadow_rays(7);
+  pm.set_light_uniform_fraction(0.5);
+  pm.set_photon_direct_k(9);
+  pm.set_non_contributing(v1::NON_CONTRIBUTING_EACH);
+  pm.set_photon_direct_cache(0.125);
+  pm.set_local_pass_rays(4);
+  pm.set_occlusion_test(true);
+  pm.set_adaptive_k_min(10);
+  pm.set_kd_split(v1::KD_SPLIT_CYCLE);
+  const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
+  EXPECT_EQ(core.structure, PhotonMapKind::kGrid);
+  EXPECT_EQ(core.caustic, CausticMapMode::kOff);
+  EXPECT_EQ(core.direct, DirectLightMode::kPhotonDirect);
+  EXPECT_EQ(core.non_contributing, NonContributingMode::kEachOne);
+  EXPECT_EQ(core.kd_split, KdSplitRule::kLevelCycle);
+  EXPECT_EQ(core.local_pass_rays, 4);
+  EXPECT_TRUE(core.occlusion_test);
+  v1::RenderSettings back;
+  SettingsToProto(core, &back);
+  EXPECT_EQ(SettingsFromProto(back, "x").MapFingerprint(), core.MapFingerprint());
+  EXPECT_EQ(back.SerializeAsString(), s.SerializeAsString());
+
+  v1::RenderSettings path;
+  path.set_integrator(v1::INTEGRATOR_PATH);
+  EXPECT_EQ(SettingsFromProto(path, "s").integrator, IntegratorKind::kPath);
+}
+
+TEST(Convert, BadSettingsNameTheirField) {
+  auto with = [](auto edit) {
+    v1::RenderSettings s = GoodSettings();
+    edit(*s.mutable_photon_map());
+    return ErrorOf([&] { SettingsFromProto(s, "spec.settings"); });
+  };
+  const std::string f = "spec.settings.photon_map.";
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_photons(0); }), StartsWith(f + "photons:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_k(0); }), StartsWith(f + "k:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_caustic_radius(-1); }),
+              StartsWith(f + "caustic_radius:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_caustic_radius(INFINITY); }),
+              StartsWith(f + "caustic_radius:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_glossy_depth(65); }),
+              StartsWith(f + "glossy_depth:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_shadow_rays(0); }), StartsWith(f + "shadow_rays:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_light_uniform_fraction(1.5); }),
+              StartsWith(f + "light_uniform_fraction:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_photon_direct_cache(-0.1); }),
+              StartsWith(f + "photon_direct_cache:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_local_pass_rays(kMaxShadowRays + 1); }),
+              StartsWith(f + "local_pass_rays:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_adaptive_k_min(51); }),
+              StartsWith(f + "adaptive_k_min:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_direct(static_cast<v1::DirectLight>(99)); }),
+              StartsWith(f + "direct:"));
+  v1::RenderSettings none;
+  EXPECT_THAT(ErrorOf([&] { SettingsFromProto(none, "spec.settings"); }),
+              StartsWith("spec.settings.integrator:"));
+  v1::RenderSettings many = GoodSettings();
+  many.mutable_photon_map()->set_photons(kMaxPhotonsPerMap + 1);
+  EXPECT_THAT(ErrorOf<LimitError>([&] { SettingsFromProto(many, "spec.settings"); }),
+              StartsWith(f + "photons:"));
+  many.mutable_photon_map()->set_photons(1);
+  many.mutable_photon_map()->set_k(kMaxK + 1);
+  EXPECT_THAT(ErrorOf<LimitError>([&] { SettingsFromProto(many, "spec.settings"); }), StartsWith(f + "k:"));
+}
+
+TEST(Convert, PlansRoundTripAndNameTheirField) {
+  for (const PlanKind kind : {PlanKind::kMultipleMaps, PlanKind::kMapsInTurn, PlanKind::kSkipping}) {
+    PlanSpec p;
+    p.kind = kind;
+    p.maps = 3;
+    p.samples_per_pixel = 5;
+    p.tile_size = 16;
+    p.stride = 4;
+    p.rounds = 2;
+    v1::Plan proto;
+    PlanToProto(p, &proto);
+    const PlanSpec back = PlanFromProto(proto, "spec.plan");
+    EXPECT_EQ(back.kind, kind);
+    EXPECT_EQ(back.samples_per_pixel, 5u);
+    v1::Plan again;
+    PlanToProto(back, &again);
+    EXPECT_EQ(again.SerializeAsString(), proto.SerializeAsString());
+  }
+  v1::Plan empty;
+  EXPECT_THAT(ErrorOf([&] { PlanFromProto(empty, "spec.plan"); }), StartsWith("spec.plan:"));
+  v1::Plan skip;
+  skip.mutable_skipping()->set_stride(0);
+  skip.mutable_skipping()->set_rounds(1);
+  skip.mutable_skipping()->set_samples_per_pixel(1);
+  EXPECT_THAT(ErrorOf([&] { PlanFromProto(skip, "spec.plan"); }), StartsWith("spec.plan.skipping.stride:"));
+  v1::Plan spp;
+  spp.mutable_multiple_maps()->set_maps(1);
+  spp.mutable_multiple_maps()->set_samples_per_pixel(kMaxSamplesPerPixel + 1);
+  EXPECT_THAT(ErrorOf<LimitError>([&] { PlanFromProto(spp, "spec.plan"); }),
+              StartsWith("spec.plan.multiple_maps.samples_per_pixel:"));
+}
+
+TEST(Convert, TasksRoundTripAndRefuseEmptySampleRanges) {
+  TaskSpec t;
+  t.task_id = 17;
+  t.map_index = 3;
+  t.map_seed = 0xfeedface12345678ull;
+  t.pixel_seed = 99;
+  t.pixels.kind = PixelSubset::Kind::kPermutationStride;
+  t.pixels.permutation_seed = 7;
+  t.pixels.offset = 2;
+  t.pixels.stride = 5;
+  t.sample_begin = 4;
+  t.sample_end = 8;
+  v1::Task proto;
+  TaskSpecToProto(t, &proto);
+  const TaskSpec back = TaskSpecFromProto(proto);
+  EXPECT_EQ(back.task_id, 17u);
+  EXPECT_EQ(back.map_seed, t.map_seed);
+  EXPECT_EQ(back.pixels.kind, PixelSubset::Kind::kPermutationStride);
+  EXPECT_EQ(back.pixels.offset, 2u);
+  EXPECT_EQ(back.sample_end, 8u);
+  v1::Task again;
+  TaskSpecToProto(back, &again);
+  EXPECT_EQ(again.SerializeAsString(), proto.SerializeAsString());
+
+  proto.set_sample_end(4);
+  EXPECT_THAT(ErrorOf([&] { TaskSpecFromProto(proto); }), StartsWith("task.sample_end:"));
+  proto.set_sample_end(8);
+  proto.clear_pixels();
+  EXPECT_THAT(ErrorOf([&] { TaskSpecFromProto(proto); }), StartsWith("task.pixels:"));
+}
+
+}  // namespace
+}  // namespace pf
