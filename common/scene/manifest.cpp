@@ -216,6 +216,9 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
   if (!root.contains("geometry")) p.Fail("geometry", "missing (expected a file name)");
   const std::string geometry = p.String(root["geometry"], "geometry");
   if (geometry.empty()) p.Fail("geometry", "expected a non-empty file name");
+  m.geometry_reference = geometry;
+  if (const size_t at = text.find("\"geometry\""); at != std::string::npos)
+    m.geometry_line = LineOfByte(text, at);
   std::filesystem::path g(geometry);
   if (g.is_relative()) g = file.parent_path() / g;
   m.geometry = g.lexically_normal();

@@ -39,6 +39,8 @@ struct SceneManifest {
   std::filesystem::path file;        // the manifest itself
   std::string name;                  // "name", default: the manifest's file stem
   std::filesystem::path geometry;    // "geometry", resolved relative to the manifest's folder
+  std::string geometry_reference;    // "geometry" as written (LoadScene confines it to the root)
+  int geometry_line = 0;             // line of the "geometry" key (0 if not found)
   double scale = 1.0;                // "scale": multiplies positions and camera points
   std::vector<CameraSpec> cameras;   // "cameras", in file order
   std::map<std::string, SettingValue> settings;

@@ -33,6 +33,7 @@
 
 #include "common/core/error.h"
 #include "common/core/math.h"
+#include "common/scene/scene_reference.h"
 
 namespace pf {
 namespace {
@@ -634,7 +635,6 @@ class MgfReader {
       circle_[i] = {std::cos(a), std::sin(a)};
     }
     circle_[n] = circle_[0];  // close the circle exactly
-    if (!options_.include_root.empty()) include_root_ = CanonicalKey(options_.include_root);
   }
 
   void Run(std::unique_ptr<MgfFile> top) {
@@ -862,13 +862,14 @@ class MgfReader {
       Fail("include path " + Quote(name) + " is absolute; MGF allows only relative paths (§3 i)");
     }
     const fs::path full = (state_->file->dir / rel).lexically_normal();
-    const std::string canonical = CanonicalKey(full);
-    if (!include_root_.empty()) {
-      const fs::path r = fs::path(canonical).lexically_relative(include_root_);
-      if (r.empty() || *r.begin() == "..") {
-        Fail("include " + Quote(name) + " resolves outside the scene directory");
-      }
+    // Checked before the file is looked at, with one answer for existing and missing files
+    // (scene_reference.h).
+    if (!options_.include_root.empty()) {
+      const std::string problem =
+          SceneReferenceProblem(options_.include_root, state_->file->dir, name, nullptr);
+      if (!problem.empty()) Fail("include " + Quote(name) + " " + problem);
     }
+    const std::string canonical = CanonicalKey(full);
     if (std::find(include_stack_.begin(), include_stack_.end(), canonical) !=
         include_stack_.end()) {
       std::string chain;
@@ -1701,7 +1702,6 @@ class MgfReader {
   const MgfOptions& options_;
   SceneDescription& scene_;
   std::vector<std::pair<double, double>> circle_;  // cos, sin of the N segment angles
-  std::string include_root_;
 
   std::map<std::string, std::unique_ptr<MgfFile>> files_;  // by canonical path
   std::vector<std::string> include_stack_;

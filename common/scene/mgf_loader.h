@@ -74,8 +74,9 @@ struct MgfOptions {
   size_t max_triangles = 20'000'000;
   size_t max_entities = 200'000'000;  // entities executed, counting array repeats and includes
   int max_depth = 64;                 // include nesting and xf nesting, each
-  // If non-empty, every included file must resolve (after symlinks) inside this directory;
-  // the farm uses it to keep a scene bundle from reading outside itself.
+  // If non-empty, every included file must resolve (after symlinks) inside this directory
+  // (scene_reference.h). LoadScene sets it to the scene's root folder (the bundle directory on
+  // the farm, the entry file's folder for local files); empty = no confinement.
   std::filesystem::path include_root;
 };
 

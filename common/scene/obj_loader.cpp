@@ -9,12 +9,14 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <sstream>
 #include <string_view>
 #include <unordered_map>
 
 #include "common/core/error.h"
+#include "common/scene/scene_reference.h"
 
 namespace pf {
 namespace {
@@ -126,6 +128,60 @@ int FindFirstBadFaceLine(const std::filesystem::path& path, long total_v, long t
   return 0;
 }
 
+// Reads `mtllib` files for tinyobjloader, but only inside the scene's root (scene_reference.h);
+// tinyobjloader's own reader opens any path an OBJ names. A refused reference is kept and
+// turned into an InputError by LoadObj (tinyobjloader would only warn); a missing file inside
+// the root stays a warning, as before.
+class ConfinedMtlReader : public tinyobj::MaterialReader {
+ public:
+  ConfinedMtlReader(std::filesystem::path root, std::filesystem::path base_dir)
+      : root_(std::move(root)), base_dir_(std::move(base_dir)) {}
+
+  bool operator()(const std::string& reference, std::vector<tinyobj::material_t>* materials,
+                  std::map<std::string, int>* material_map, std::string* warn,
+                  std::string* err) override {
+    std::filesystem::path resolved;
+    const std::string problem = SceneReferenceProblem(root_, base_dir_, reference, &resolved);
+    if (!problem.empty()) {
+      if (refused_reference_.empty()) {
+        refused_reference_ = reference;
+        refusal_ = problem;
+      }
+      return false;
+    }
+    std::error_code ec;
+    std::ifstream in;
+    if (std::filesystem::is_regular_file(resolved, ec)) in.open(resolved, std::ios::binary);
+    if (!in) {
+      missing_.push_back(reference);
+      return false;
+    }
+    tinyobj::LoadMtl(material_map, materials, &in, warn, err);
+    return true;
+  }
+
+  const std::string& refused_reference() const { return refused_reference_; }
+  const std::string& refusal() const { return refusal_; }
+  const std::vector<std::string>& missing() const { return missing_; }
+
+ private:
+  std::filesystem::path root_, base_dir_;
+  std::string refused_reference_, refusal_;
+  std::vector<std::string> missing_;
+};
+
+// The line of the first `mtllib` statement that names `reference` (0 if none is found).
+int MtllibLine(const std::filesystem::path& path, const std::string& reference) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const size_t start = line.find_first_not_of(" \t");
+    if (start == std::string::npos || line.compare(start, 6, "mtllib") != 0) continue;
+    if (line.find(reference, start + 6) != std::string::npos) return number;
+  }
+  return 0;
+}
+
 MtlParameters FromTinyObj(const tinyobj::material_t& m) {
   MtlParameters p;
   p.name = m.name;
@@ -213,29 +269,39 @@ Material MaterialFromMtl(const MtlParameters& mtl, std::vector<std::string>* war
   return m;
 }
 
-SceneDescription LoadObj(const std::filesystem::path& path) {
+SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root) {
   const std::string file = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw InputError(SourceLocation{file, 0}, "no such file");
-  {
-    std::ifstream probe(path);
-    if (!probe) throw InputError(SourceLocation{file, 0}, "cannot open file for reading");
-  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(SourceLocation{file, 0}, "cannot open file for reading");
 
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = true;
-  config.vertex_color = false;
-  tinyobj::ObjReader reader;
-  const bool ok = reader.ParseFromFile(file, config);
+  const std::filesystem::path base_dir = path.has_parent_path() ? path.parent_path() : ".";
+  ConfinedMtlReader mtl_reader(root.empty() ? base_dir : root, base_dir);
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+  std::vector<tinyobj::material_t> materials;
+  std::string tiny_warning, tiny_error;
+  const bool ok = tinyobj::LoadObj(&attrib, &shapes, &materials, &tiny_warning, &tiny_error, &in,
+                                   &mtl_reader, /*triangulate=*/true,
+                                   /*default_vcols_fallback=*/false);
+  if (!mtl_reader.refused_reference().empty()) {
+    const std::string& ref = mtl_reader.refused_reference();
+    throw InputError(SourceLocation{file, MtllibLine(path, ref)},
+                     "mtllib " + QuoteReference(ref) + " " + mtl_reader.refusal());
+  }
 
   SceneDescription scene;
   scene.source = file;
+  for (const std::string& ref : mtl_reader.missing())
+    scene.warnings.push_back(file + ": mtllib " + QuoteReference(ref) +
+                             ": no such file in the scene folder; its materials are missing");
 
   // tinyobjloader's warnings: fatal ones become errors, the rest are passed on.
   bool fatal_warning = false;
   std::string fatal_text;
-  for (const std::string& w : SplitLines(reader.Warning())) {
+  for (const std::string& w : SplitLines(tiny_warning)) {
     if (IsFatalWarning(w)) {
       fatal_warning = true;
       if (fatal_text.empty()) fatal_text = w;
@@ -243,14 +309,13 @@ SceneDescription LoadObj(const std::filesystem::path& path) {
       scene.warnings.push_back(file + ": " + w);
     }
   }
-  if (!ok || !reader.Error().empty()) {
-    const std::vector<std::string> lines = SplitLines(reader.Error());
+  if (!ok || !tiny_error.empty()) {
+    const std::vector<std::string> lines = SplitLines(tiny_error);
     std::string message = lines.empty() ? "tinyobjloader failed to parse the file" : lines[0];
     for (size_t i = 1; i < lines.size(); ++i) message += "; " + lines[i];
     throw InputError(SourceLocation{file, LineFromMessage(message)}, message);
   }
 
-  const tinyobj::attrib_t& attrib = reader.GetAttrib();
   const long num_v = long(attrib.vertices.size() / 3);
   const long num_vn = long(attrib.normals.size() / 3);
   auto bad_faces = [&](const std::string& reason) {
@@ -262,7 +327,7 @@ SceneDescription LoadObj(const std::filesystem::path& path) {
   if (fatal_warning) bad_faces(fatal_text);
 
   // Materials in MTL order; "(default)" appended on demand.
-  for (const tinyobj::material_t& tm : reader.GetMaterials()) {
+  for (const tinyobj::material_t& tm : materials) {
     std::vector<std::string> material_warnings;
     scene.materials.push_back(MaterialFromMtl(FromTinyObj(tm), &material_warnings));
     for (const std::string& w : material_warnings) scene.warnings.push_back(file + ": " + w);
@@ -317,7 +382,7 @@ SceneDescription LoadObj(const std::filesystem::path& path) {
   };
 
   size_t degenerate = 0;
-  for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+  for (const tinyobj::shape_t& shape : shapes) {
     const tinyobj::mesh_t& mesh = shape.mesh;
     uint32_t light = kNoLight;
     size_t offset = 0;

@@ -51,7 +51,10 @@
 
 namespace pf {
 
-SceneDescription LoadObj(const std::filesystem::path& path);
+// `mtllib` files resolve only inside `root` (scene_reference.h; empty = the OBJ's own folder):
+// a reference outside it is an InputError naming the file and line; a missing file inside it
+// is a warning (its faces get the default material).
+SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root = {});
 
 // Phong exponents at or above this are treated as a perfect mirror.
 inline constexpr float kMirrorPhongExponent = 1000.0f;

@@ -11,6 +11,7 @@
 
 #include "common/core/error.h"
 #include "common/scene/scene_loader.h"
+#include "common/scene/scene_reference.h"
 
 namespace pf {
 namespace fs = std::filesystem;
@@ -39,6 +40,8 @@ std::string PathProblem(const std::string& path) {
   if (path.size() > kMaxBundlePathBytes)
     return "path longer than " + std::to_string(kMaxBundlePathBytes) + " bytes";
   if (path.find('\0') != std::string::npos) return "path contains a NUL byte";
+  for (const char ch : path)
+    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) return "path contains a control character";
   if (path.find('\\') != std::string::npos) return "path contains a backslash (use '/')";
   if (path.front() == '/') return "absolute path (must be relative to the bundle root)";
   size_t begin = 0;
@@ -171,13 +174,24 @@ void ValidateBundle(const SceneBundle& bundle) {
   for (size_t i = 0; i < bundle.files.size(); ++i) {
     const std::string& path = bundle.files[i].first;
     const std::string problem = PathProblem(path);
-    const std::string field = "bundle.files[" + std::to_string(i) + "].path '" + path + "'";
+    const std::string field = "bundle.files[" + std::to_string(i) + "].path " + QuoteReference(path);
     if (!problem.empty()) throw InputError(field + ": " + problem);
     if (!seen.insert(path).second) throw InputError(field + ": duplicate path");
   }
+  // A path cannot be a file and a folder at once ("a" and "a/b"): the bundle could not be
+  // written to disk, and which one wins would depend on the order of writing.
+  for (size_t i = 0; i < bundle.files.size(); ++i) {
+    const std::string& path = bundle.files[i].first;
+    for (size_t slash = path.find('/'); slash != std::string::npos; slash = path.find('/', slash + 1)) {
+      if (seen.count(std::string_view(path).substr(0, slash)))
+        throw InputError("bundle.files[" + std::to_string(i) + "].path " + QuoteReference(path) +
+                         ": " + QuoteReference(path.substr(0, slash)) +
+                         " is also a file of the bundle (a path cannot be a file and a folder)");
+    }
+  }
   const std::string entry_problem = PathProblem(bundle.entry);
-  if (!entry_problem.empty()) throw InputError("bundle.entry '" + bundle.entry + "': " + entry_problem);
-  if (!seen.count(bundle.entry)) throw InputError("bundle.entry '" + bundle.entry + "': not among the bundle's files");
+  if (!entry_problem.empty()) throw InputError("bundle.entry " + QuoteReference(bundle.entry) + ": " + entry_problem);
+  if (!seen.count(bundle.entry)) throw InputError("bundle.entry " + QuoteReference(bundle.entry) + ": not among the bundle's files");
 }
 
 void WriteBundle(const SceneBundle& bundle, const fs::path& dir) {
@@ -198,11 +212,11 @@ void WriteBundle(const SceneBundle& bundle, const fs::path& dir) {
 
 SceneDescription LoadBundle(const fs::path& dir, const std::string& entry) {
   const std::string problem = PathProblem(entry);
-  if (!problem.empty()) throw InputError("bundle.entry '" + entry + "': " + problem);
+  if (!problem.empty()) throw InputError("bundle.entry " + QuoteReference(entry) + ": " + problem);
   // Messages name files as the client knows them: strip the storage directory.
   const std::string prefix = (dir / "").string();
   try {
-    SceneDescription scene = LoadScene(dir / fs::path(entry));
+    SceneDescription scene = LoadScene(dir / fs::path(entry), 0, dir);
     for (std::string& w : scene.warnings) w = ReplaceAll(std::move(w), prefix, "");
     scene.source = ReplaceAll(std::move(scene.source), prefix, "");
     return scene;

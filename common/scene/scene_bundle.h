@@ -26,7 +26,8 @@
 // injective (no two different bundles produce the same byte string).
 //
 // Paths inside a bundle: non-empty, relative, '/'-separated, no empty, "." or ".." components,
-// no backslash or NUL, at most 1024 bytes, unique. ValidateBundle enforces this; WriteBundle
+// no backslash, NUL or other control character, at most 1024 bytes, unique, and no path is a
+// folder of another ("a" and "a/b"). ValidateBundle enforces this; WriteBundle
 // and LoadBundle call it, so a hostile bundle cannot write outside its directory.
 
 #include <cstdint>
@@ -68,8 +69,9 @@ void ValidateBundle(const SceneBundle& bundle);
 void WriteBundle(const SceneBundle& bundle, const std::filesystem::path& dir);
 
 // Loads the scene of a bundle written to `dir` with WriteBundle. `entry` must obey the path
-// rules. Loader messages name files relative to `dir` ("scene.mgf:12: ..."), as the client
-// knows them, not the directory they were stored in.
+// rules. Every reference between files stays inside `dir` (scene_reference.h). Loader
+// messages name files relative to `dir` ("scene.mgf:12: ..."), as the client knows them, not
+// the directory they were stored in.
 SceneDescription LoadBundle(const std::filesystem::path& dir, const std::string& entry);
 
 }  // namespace pf

@@ -8,6 +8,7 @@
 #include "common/core/error.h"
 #include "common/scene/mgf_loader.h"
 #include "common/scene/obj_loader.h"
+#include "common/scene/scene_reference.h"
 
 namespace pf {
 namespace {
@@ -21,10 +22,14 @@ std::string LowerExtension(const std::filesystem::path& path) {
   return ext;
 }
 
-SceneDescription LoadGeometry(const std::filesystem::path& path) {
+SceneDescription LoadGeometry(const std::filesystem::path& path, const std::filesystem::path& root) {
   const std::string ext = LowerExtension(path);
-  if (ext == ".mgf") return LoadMgf(path);
-  if (ext == ".obj") return LoadObj(path);
+  if (ext == ".mgf") {
+    MgfOptions options;
+    options.include_root = root;
+    return LoadMgf(path, options);
+  }
+  if (ext == ".obj") return LoadObj(path, root);
   throw InputError(SourceLocation{path.string(), 0},
                    "unsupported scene file extension '" + ext + "' (" + kSupported + ")");
 }
@@ -121,13 +126,17 @@ void ApplyScale(double scale, SceneDescription* scene) {
   }
 }
 
-SceneDescription LoadScene(const std::filesystem::path& path, double scale_override) {
+SceneDescription LoadScene(const std::filesystem::path& path, double scale_override,
+                           const std::filesystem::path& root_or_empty) {
   if (!std::isfinite(scale_override) || scale_override < 0.0)
     throw InputError("scale override must be a finite number > 0 (or 0 for none), got " +
                      std::to_string(scale_override));
+  const std::filesystem::path root =
+      !root_or_empty.empty() ? root_or_empty
+                             : (path.has_parent_path() ? path.parent_path() : std::filesystem::path("."));
   const std::string ext = LowerExtension(path);
   if (ext == ".mgf" || ext == ".obj") {
-    SceneDescription scene = LoadGeometry(path);
+    SceneDescription scene = LoadGeometry(path, root);
     if (scale_override > 0.0) ApplyScale(scale_override, &scene);
     return scene;
   }
@@ -137,6 +146,14 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
 
   const SceneManifest manifest = LoadManifest(path);
   const std::string manifest_file = path.string();
+  // Confined before anything about the file is looked at (scene_reference.h).
+  const std::string problem = SceneReferenceProblem(
+      root, path.has_parent_path() ? path.parent_path() : std::filesystem::path("."),
+      manifest.geometry_reference, nullptr);
+  if (!problem.empty())
+    throw InputError(SourceLocation{manifest_file, manifest.geometry_line},
+                     "key 'geometry': " + QuoteReference(manifest.geometry_reference) + " " +
+                         problem);
   const std::string geometry_ext = LowerExtension(manifest.geometry);
   if (geometry_ext != ".mgf" && geometry_ext != ".obj")
     throw InputError(SourceLocation{manifest_file, 0},
@@ -147,7 +164,7 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
     throw InputError(SourceLocation{manifest_file, 0},
                      "key 'geometry': file '" + manifest.geometry.string() + "' does not exist");
 
-  SceneDescription scene = LoadGeometry(manifest.geometry);
+  SceneDescription scene = LoadGeometry(manifest.geometry, root);
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
   scene.cameras = manifest.cameras;
   ApplyScale(scale_override > 0.0 ? scale_override : manifest.scale, &scene);

@@ -20,7 +20,11 @@ namespace pf {
 
 // scale_override > 0 replaces the manifest's "scale" (or scales a bare file); 0 = none;
 // negative or non-finite values are an InputError.
-SceneDescription LoadScene(const std::filesystem::path& path, double scale_override = 0);
+// Every file the scene refers to (manifest "geometry", MGF `i`, OBJ `mtllib`) must lie inside
+// `root` (scene_reference.h); an empty root means the folder of `path` — the folder that
+// CollectBundle ships, so local renders read exactly what a farm render would.
+SceneDescription LoadScene(const std::filesystem::path& path, double scale_override = 0,
+                           const std::filesystem::path& root = {});
 
 // Applies a manifest's "materials" overrides to every material of each name (semantics in
 // docs/scene-manifest.md). `manifest_file` is used in messages. Throws InputError if a name

@@ -463,7 +463,7 @@ TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
     LoadMgf(dir.path() / "inner/scene.mgf", o);
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_NE(e.reason().find("resolves outside the scene directory"), std::string::npos)
+    EXPECT_NE(e.reason().find("resolves outside the scene folder"), std::string::npos)
         << e.what();
   }
   EXPECT_NO_THROW(LoadMgf(dir.path() / "inner/ok.mgf", o));

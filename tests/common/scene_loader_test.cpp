@@ -60,6 +60,14 @@ class TempDirTest : public ::testing::Test {
     return p;
   }
 
+  // Copies the Cornell box OBJ + MTL into the test folder (a manifest may refer only to files
+  // in its own folder, scene_reference.h); returns the OBJ's name relative to that folder.
+  std::string CopyCornellBoxHere() const {
+    for (const char* f : {"CornellBox-Original.obj", "CornellBox-Original.mtl"})
+      fs::copy_file(kScenes / "cornell-box" / f, dir_ / f, fs::copy_options::overwrite_existing);
+    return "CornellBox-Original.obj";
+  }
+
   // The message of the InputError that `f` throws ("" and a failure if it does not).
   template <typename F>
   static std::string ErrorOf(F&& f) {
@@ -528,8 +536,8 @@ TEST_F(LoadSceneTest, ManifestAttachesCamerasAndScales) {
   EXPECT_EQ(doubled.cameras[0].up, s.cameras[0].up);
   ExpectRgbNear(FindMaterial(doubled, "light").emission, Rgb(17, 12, 4));
 
-  // The manifest's own "scale" (geometry given by absolute path), and the override winning.
-  const std::string obj = (kScenes / "cornell-box" / "CornellBox-Original.obj").string();
+  // The manifest's own "scale", and the override winning.
+  const std::string obj = CopyCornellBoxHere();
   const fs::path half = Write("half.json", R"({"geometry": ")" + obj + R"(", "scale": 0.5,
       "cameras": [{"eye": [0, 1, 4], "look_at": [0, 1, 0]}]})");
   const SceneDescription h = LoadScene(half);
@@ -543,7 +551,7 @@ TEST_F(LoadSceneTest, ManifestAttachesCamerasAndScales) {
 }
 
 TEST_F(LoadSceneTest, MaterialOverrides) {
-  const std::string obj = (kScenes / "cornell-box" / "CornellBox-Original.obj").string();
+  const std::string obj = CopyCornellBoxHere();
   const fs::path p = Write("o.json", R"({"geometry": ")" + obj + R"(", "materials": {
       "tallBox": {"kind": "mirror"},
       "shortBox": {"kind": "glass", "ior": 1.33},
