@@ -133,7 +133,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                        const std::atomic<bool>* cancel) {
   TaskOutput out;
   const Camera camera(camera_spec);
-  const std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
+  std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
   std::vector<Rgb> sums(pixels.size());
   RenderStats stats;
   if (settings_as_given.integrator == IntegratorKind::kPath) {
@@ -171,6 +171,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   }
   out.rays = stats.counters.rays + stats.counters.shadow_rays;
   out.render_seconds = stats.seconds;
+  out.pixel_indices = std::move(pixels);
   return out;
 }
 
@@ -181,7 +182,7 @@ Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
   PhotonMapCache cache(1);
   for (const TaskSpec& task : ExpandPlan(plan, camera.width, camera.height, seed)) {
     const TaskOutput out = ExecuteTask(scene, "local", camera, settings, task, threads, &cache, progress);
-    acc.Add(PixelsOf(task.pixels, camera.width, camera.height), out.rgb_sums, out.samples);
+    acc.Add(out.pixel_indices, out.rgb_sums, out.samples);
   }
   return acc.Resolve();
 }

@@ -100,6 +100,9 @@ class PhotonMapCache {
 
 struct TaskOutput {
   std::vector<float> rgb_sums;  // 3 per pixel, subset order
+  // The subset's pixel indices in subset order (PixelsOf), so that a local merge does not
+  // expand the subset, or a skipping permutation of all W·H pixels, a second time.
+  std::vector<uint32_t> pixel_indices;
   uint64_t pixels = 0;
   uint32_t samples = 0;         // per pixel
   uint64_t photons_emitted = 0, photons_stored = 0, rays = 0;
