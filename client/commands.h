@@ -23,6 +23,7 @@ inline constexpr int kExitInterrupted = 130;
 struct FarmArgs {
   std::string coordinator;  // HOST:PORT; default $PF_COORDINATOR
   std::string token_file;   // default $PF_TOKEN
+  std::string tls_ca, tls_cert, tls_key;  // TLS (rpc/grpc_channel.h ResolveClientTls)
   double timeout = 60;      // deadline of each call, seconds
 };
 

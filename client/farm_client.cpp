@@ -36,8 +36,8 @@ const char* JobStateName(v1::JobState s) {
   }
 }
 
-FarmClient::FarmClient(const std::string& address, std::string token, double timeout_seconds)
-    : channel_(MakeCoordinatorChannel(address, ChannelOptions{})),
+FarmClient::FarmClient(const std::string& address, std::string token, double timeout_seconds, ClientTls tls)
+    : channel_(MakeCoordinatorChannel(address, ChannelOptions{.token = "", .tls = std::move(tls)})),
       stub_(v1::RenderService::NewStub(channel_)),
       token_(std::move(token)),
       timeout_(Seconds(timeout_seconds)) {}

@@ -1,6 +1,6 @@
 #pragma once
 // FarmClient: the client side of photonfarm.v1.RenderService, as plain calls that throw RpcError
-// (client/grpc_channel.h) on failure. Every call has a deadline; WatchJob survives coordinator
+// (rpc/grpc_channel.h) on failure. Every call has a deadline; WatchJob survives coordinator
 // restarts by re-subscribing. Used by `pf` and by the e2e tests (the "real client").
 
 #include <atomic>
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "client/grpc_channel.h"
+#include "rpc/grpc_channel.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 
@@ -21,7 +21,8 @@ namespace pf {
 class FarmClient {
  public:
   // `timeout_seconds`: deadline of unary calls and of each GetImage stream.
-  FarmClient(const std::string& address, std::string token, double timeout_seconds = 60);
+  // `tls`: plaintext unless tls.ca_pem is set.
+  FarmClient(const std::string& address, std::string token, double timeout_seconds = 60, ClientTls tls = {});
 
   photonfarm::v1::UploadSceneResponse UploadScene(const SceneBundle& bundle);
   std::string SubmitJob(const photonfarm::v1::JobSpec& spec);

@@ -35,7 +35,10 @@ std::string CoordinatorAddress(const FarmArgs& f) {
   throw InputError("--coordinator: required (HOST:PORT, or set PF_COORDINATOR)");
 }
 
-FarmClient Connect(const FarmArgs& f) { return FarmClient(CoordinatorAddress(f), ResolveToken(f.token_file), f.timeout); }
+FarmClient Connect(const FarmArgs& f) {
+  return FarmClient(CoordinatorAddress(f), ResolveToken(f.token_file), f.timeout,
+                    ResolveClientTls(f.tls_ca, f.tls_cert, f.tls_key));
+}
 
 nlohmann::json StatusJson(const v1::JobStatus& s) {
   return {{"job_id", s.job_id()},

@@ -80,17 +80,21 @@ LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
   std::string templ = (fs::path(tmp && *tmp ? tmp : "/tmp") / "pf-farm-XXXXXX").string();
   if (!mkdtemp(templ.data())) throw SystemError("cannot create a temporary folder: " + std::string(strerror(errno)));
   dir_ = templ;
+  // Two credentials, one per role (docs/security.md): pf uses the client token, workers theirs.
   token_ = RandomToken();
-  const fs::path token_file = dir_ / "token";
-  {
-    const int fd = ::open(token_file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-    if (fd < 0 || ::write(fd, token_.data(), token_.size()) != ssize_t(token_.size()) || ::close(fd) != 0)
-      throw SystemError("cannot write " + token_file.string());
+  const std::string worker_token = RandomToken();
+  const fs::path token_file = dir_ / "client-token";
+  const fs::path worker_token_file = dir_ / "worker-token";
+  for (const auto& [file, token] : {std::pair{token_file, token_}, std::pair{worker_token_file, worker_token}}) {
+    const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd < 0 || ::write(fd, token.data(), token.size()) != ssize_t(token.size()) || ::close(fd) != 0)
+      throw SystemError("cannot write " + file.string());
   }
 
   try {
     std::vector<std::string> cargs = {"--listen", "127.0.0.1:0", "--data-dir", (dir_ / "data").string(),
-                                      "--token-file", token_file.string(), "--log-level", options_.log_level};
+                                      "--client-token-file", token_file.string(), "--worker-token-file",
+                                      worker_token_file.string(), "--log-level", options_.log_level};
     cargs.insert(cargs.end(), options_.coordinator_args.begin(), options_.coordinator_args.end());
     const fs::path out = dir_ / "coordinator.out";
     Spawn("pf-coordinator", options_.coordinator_bin, cargs, out, dir_ / "coordinator.log");
@@ -117,7 +121,7 @@ LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
 
     for (int i = 0; i < options_.workers; ++i) {
       const std::string id = "local-" + std::to_string(i + 1);
-      std::vector<std::string> wargs = {"--coordinator", address_, "--token-file", token_file.string(),
+      std::vector<std::string> wargs = {"--coordinator", address_, "--token-file", worker_token_file.string(),
                                         "--threads", std::to_string(options_.threads_per_worker),
                                         "--worker-id", id, "--cache-dir", (dir_ / ("cache-" + id)).string(),
                                         "--log-level", options_.log_level};

@@ -23,7 +23,11 @@ namespace {
 void AddFarmOptions(CLI::App* app, pf::FarmArgs& f) {
   app->add_option("--coordinator", f.coordinator, "Coordinator HOST:PORT (default $PF_COORDINATOR)");
   app->add_option("--token-file", f.token_file,
-                  "File whose first line is the bearer token (default $PF_TOKEN)");
+                  "File holding the client's bearer token, one line (default $PF_TOKEN)");
+  app->add_option("--tls-ca", f.tls_ca,
+                  "PEM roots of the coordinator's TLS certificate: connect with TLS (default $PF_TLS_CA)");
+  app->add_option("--tls-cert", f.tls_cert, "PEM client certificate (with --tls-key; default $PF_TLS_CERT)");
+  app->add_option("--tls-key", f.tls_key, "PEM private key of --tls-cert (default $PF_TLS_KEY)");
   app->add_option("--timeout", f.timeout, "Deadline of each call, seconds")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 86400.0));

@@ -65,7 +65,8 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
                                            options_.checkpoint_interval_seconds);
   executor_ = std::make_unique<Executor>(options_.executor_threads);
   watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_);
-  auth_ = std::make_unique<BearerAuth>(options_.token);
+  auth_ = std::make_shared<RoleAuthProcessor>(RoleTokens{options_.client_token, options_.worker_token},
+                                              !options_.tls_client_ca_pem.empty());
   scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
   scheduler_->SetChangeListener([w = watches_.get()](const std::string& job_id) { w->Notify(job_id); });
 
@@ -77,7 +78,7 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
                  recovery_.jobs_failed);
   persister_->Start();
 
-  ServiceContext ctx{*scheduler_, *scenes_, *db_, *persister_, *executor_, *watches_, *auth_, *clock_};
+  ServiceContext ctx{*scheduler_, *scenes_, *db_, *persister_, *executor_, *watches_, *clock_};
   render_service_ = std::make_unique<RenderServiceImpl>(ctx);
   worker_service_ = std::make_unique<WorkerServiceImpl>(ctx);
 }
@@ -95,7 +96,7 @@ int Coordinator::Start() {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(options_.listen, grpc::InsecureServerCredentials(), &port_);
+  builder.AddListeningPort(options_.listen, ServerCredentials(), &port_);
   builder.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
   builder.SetMaxSendMessageSize(kMaxSendMessageBytes);
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
@@ -113,13 +114,62 @@ int Coordinator::Start() {
     health->SetServingStatus("photonfarm.v1.WorkerService", true);
   }
   tick_thread_ = std::thread([this] { TickLoop(); });
-  spdlog::info("serving on {} (port {}), data dir {}, lease {} s, max attempts {}, checkpoints {}, token {}",
+  spdlog::info("serving on {} (port {}), data dir {}, lease {} s, max attempts {}, checkpoints {}, {}, client token {}, "
+               "worker token {}",
                options_.listen, port_, options_.data_dir.string(), options_.lease_seconds, options_.max_attempts,
                options_.checkpoint_interval_seconds > 0
                    ? "every " + std::to_string(int(options_.checkpoint_interval_seconds * 1000)) + " ms"
                    : std::string("per merge (durable acks)"),
-               auth_->enabled() ? "required" : "off");
+               options_.tls_cert_pem.empty() ? "plaintext"
+               : options_.tls_client_ca_pem.empty() ? "TLS"
+                                                    : "TLS + client certificates for workers",
+               options_.client_token.empty() ? "off" : "required", options_.worker_token.empty() ? "off" : "required");
   return port_;
+}
+
+std::shared_ptr<grpc::ServerCredentials> Coordinator::ServerCredentials() const {
+  if ((options_.tls_cert_pem.empty()) != (options_.tls_key_pem.empty()))
+    throw InputError("--tls-cert and --tls-key go together");
+  if (options_.tls_cert_pem.empty() && !options_.tls_client_ca_pem.empty())
+    throw InputError("--tls-client-ca needs --tls-cert/--tls-key");
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  if (!options_.tls_cert_pem.empty()) {
+    grpc::SslServerCredentialsOptions ssl(options_.tls_client_ca_pem.empty()
+                                              ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                              : GRPC_SSL_REQUEST_CLIENT_CERTIFICATE_AND_VERIFY);
+    ssl.pem_root_certs = options_.tls_client_ca_pem;
+    ssl.pem_key_cert_pairs.push_back({options_.tls_key_pem, options_.tls_cert_pem});
+    credentials = grpc::SslServerCredentials(ssl);
+  } else if (IsLoopbackAddress(options_.listen)) {
+    // Plaintext, but only for peers on this machine; unlike InsecureServerCredentials these
+    // credentials carry the auth processor.
+    credentials = grpc::experimental::LocalServerCredentials(LOCAL_TCP);
+  } else if (!options_.insecure) {
+    throw InputError("refusing to serve on the non-loopback address " + options_.listen +
+                     " without TLS: pass --tls-cert/--tls-key (and --tls-client-ca for workers), or --insecure "
+                     "for a trusted network");
+  } else if (options_.client_token.size() + options_.worker_token.size() > 0) {
+    throw InputError("--insecure on " + options_.listen +
+                     " with tokens: bearer tokens would cross the network readable; use TLS");
+  } else {
+    spdlog::warn("serving plaintext without authentication on {} (--insecure)", options_.listen);
+    return grpc::InsecureServerCredentials();
+  }
+  credentials->SetAuthMetadataProcessor(auth_);
+  return credentials;
+}
+
+bool IsLoopbackAddress(const std::string& listen) {
+  std::string host = listen;
+  if (host.rfind("ipv4:", 0) == 0) host = host.substr(5);
+  if (host.rfind("ipv6:", 0) == 0) host = host.substr(5);
+  if (!host.empty() && host.front() == '[') {
+    const size_t close = host.find(']');
+    host = close == std::string::npos ? host : host.substr(1, close - 1);
+  } else if (const size_t colon = host.rfind(':'); colon != std::string::npos) {
+    host = host.substr(0, colon);
+  }
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
 }
 
 void Coordinator::TickLoop() {

@@ -24,6 +24,8 @@
 // watches answered, in-flight RPCs drained (≤ 5 s), background work drained, final flush of rows
 // and checkpoints. Leased tasks are re-queued at the next start without counting an attempt.
 
+#include <grpcpp/security/server_credentials.h>
+
 #include <condition_variable>
 #include <filesystem>
 #include <memory>
@@ -46,7 +48,7 @@ class Scheduler;
 class Persister;
 class Executor;
 class WatchHub;
-class BearerAuth;
+class RoleAuthProcessor;
 class RenderServiceImpl;
 class WorkerServiceImpl;
 
@@ -56,7 +58,15 @@ inline constexpr int kMaxSendMessageBytes = 16 << 20;
 struct CoordinatorOptions {
   std::string listen = "127.0.0.1:0";
   std::filesystem::path data_dir = "pf-data";
-  std::string token;                        // empty: no authentication
+  std::string client_token;                 // RenderService bearer token; empty: open
+  std::string worker_token;                 // WorkerService bearer token; empty: open
+  // TLS (docs/security.md): PEM server certificate chain and key; both or neither. With
+  // tls_client_ca, peers may present a client certificate signed by it, and WorkerService calls
+  // must (mTLS for workers).
+  std::string tls_cert_pem, tls_key_pem, tls_client_ca_pem;
+  // Listening on a non-loopback address in plaintext is refused unless this is set (tokens
+  // would cross the network readable; docs/security.md).
+  bool insecure = false;
   double lease_seconds = 30;
   uint32_t max_attempts = 3;
   double checkpoint_interval_seconds = 0;   // 0: durable acknowledgements (persister.h)
@@ -65,6 +75,10 @@ struct CoordinatorOptions {
   double shutdown_grace_seconds = 5;
   const Clock* clock = nullptr;             // null: the system clock
 };
+
+// True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"
+// included, counts as reachable from the network.
+bool IsLoopbackAddress(const std::string& listen);
 
 class Coordinator {
  public:
@@ -92,6 +106,7 @@ class Coordinator {
  private:
   void Stop(bool graceful);
   void TickLoop();
+  std::shared_ptr<grpc::ServerCredentials> ServerCredentials() const;
 
   CoordinatorOptions options_;
   std::unique_ptr<Clock> own_clock_;
@@ -103,7 +118,7 @@ class Coordinator {
   std::unique_ptr<Persister> persister_;
   std::unique_ptr<Executor> executor_;
   std::unique_ptr<WatchHub> watches_;
-  std::unique_ptr<BearerAuth> auth_;
+  std::shared_ptr<RoleAuthProcessor> auth_;
   std::unique_ptr<RenderServiceImpl> render_service_;
   std::unique_ptr<WorkerServiceImpl> worker_service_;
   std::unique_ptr<grpc::Server> server_;

@@ -1,6 +1,8 @@
 // pf-coordinator: the photonfarm coordinator (server/coordinator.h; docs/farm.md, "Coordinator").
 //
-//   pf-coordinator --data-dir DIR [--listen 127.0.0.1:0] [--token-file FILE]
+//   pf-coordinator --data-dir DIR [--listen 127.0.0.1:0]
+//                  [--client-token-file FILE] [--worker-token-file FILE]
+//                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]] [--insecure]
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
 //
 // Prints exactly one line on stdout once it serves — "listening on HOST:PORT" (the bound port,
@@ -22,25 +24,19 @@
 #include <sstream>
 #include <thread>
 
+#include "common/core/error.h"
+#include "rpc/grpc_channel.h"
 #include "server/coordinator.h"
 
 namespace {
 
-std::string Trim(std::string s) {
-  const auto not_space = [](unsigned char c) { return !std::isspace(c); };
-  s.erase(s.begin(), std::find_if(s.begin(), s.end(), not_space));
-  s.erase(std::find_if(s.rbegin(), s.rend(), not_space).base(), s.end());
-  return s;
-}
-
-std::string ReadToken(const std::string& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error("--token-file " + file + ": cannot read");
+std::string ReadPem(const std::string& file, const char* flag) {
+  if (file.empty()) return "";
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw pf::InputError(std::string(flag) + ": cannot read '" + file + "'");
   std::stringstream ss;
   ss << in.rdbuf();
-  std::string token = Trim(ss.str());
-  if (token.empty()) throw std::runtime_error("--token-file " + file + ": empty");
-  return token;
+  return ss.str();
 }
 
 std::string HostOf(const std::string& listen) {
@@ -52,15 +48,25 @@ std::string HostOf(const std::string& listen) {
 
 int main(int argc, char** argv) {
   pf::server::CoordinatorOptions options;
-  std::string token_file, log_level = "info";
+  std::string client_token_file, worker_token_file, tls_cert, tls_key, tls_client_ca, log_level = "info";
   int checkpoint_ms = 0;
   CLI::App app{"pf-coordinator: the photonfarm coordinator (jobs, scheduling, merging, persistence)"};
   app.add_option("--listen", options.listen, "Address to serve on; port 0 picks a free port")
       ->capture_default_str();
   app.add_option("--data-dir", options.data_dir, "Directory for the database, checkpoints and scenes")
       ->capture_default_str();
-  app.add_option("--token-file", token_file,
-                 "File holding the bearer token clients and workers must send (else env PF_TOKEN; none: open)");
+  app.add_option("--client-token-file", client_token_file,
+                 "File holding the bearer token clients (pf, RenderService) must send (else env PF_CLIENT_TOKEN; "
+                 "none: RenderService open)");
+  app.add_option("--worker-token-file", worker_token_file,
+                 "File holding the bearer token workers (WorkerService) must send (else env PF_WORKER_TOKEN; "
+                 "none: WorkerService open). A worker token cannot call RenderService and vice versa");
+  app.add_option("--tls-cert", tls_cert, "PEM certificate chain: serve TLS (with --tls-key)");
+  app.add_option("--tls-key", tls_key, "PEM private key of --tls-cert");
+  app.add_option("--tls-client-ca", tls_client_ca,
+                 "PEM CA: workers must present a client certificate it signed (mTLS)");
+  app.add_flag("--insecure", options.insecure,
+               "Allow plaintext without authentication on a non-loopback address (trusted networks only)");
   app.add_option("--lease-seconds", options.lease_seconds, "Lease length; workers extend it by heartbeat")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 86400.0));
@@ -95,11 +101,13 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   try {
-    if (!token_file.empty()) {
-      options.token = ReadToken(token_file);
-    } else if (const char* env = std::getenv("PF_TOKEN"); env && *env) {
-      options.token = Trim(env);
-    }
+    options.client_token = pf::ResolveToken(client_token_file, "PF_CLIENT_TOKEN");
+    options.worker_token = pf::ResolveToken(worker_token_file, "PF_WORKER_TOKEN");
+    if (!options.client_token.empty() && options.client_token == options.worker_token)
+      throw pf::InputError("the client and worker tokens are the same: roles need different credentials");
+    options.tls_cert_pem = ReadPem(tls_cert, "--tls-cert");
+    options.tls_key_pem = ReadPem(tls_key, "--tls-key");
+    options.tls_client_ca_pem = ReadPem(tls_client_ca, "--tls-client-ca");
     pf::server::Coordinator coordinator(options);
     const int port = coordinator.Start();
     std::printf("listening on %s:%d\n", HostOf(options.listen).c_str(), port);

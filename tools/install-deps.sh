@@ -13,6 +13,7 @@ PACKAGES=(
   # The farm: gRPC, Protobuf, SQLite, and the Python client.
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libsqlite3-dev sqlite3
   libssl-dev  # SHA-256 of scene bundles (OpenSSL EVP)
+  openssl     # the TLS e2e tests make their certificates with the openssl CLI
   python3 python3-grpcio python3-protobuf
   # Fuzzing the MGF parser (libFuzzer lives in clang's runtime).
   clang libclang-rt-14-dev

@@ -69,7 +69,11 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene", help="scene manifest (.json), .mgf or .obj")
     ap.add_argument("--coordinator", default=os.environ.get("PF_COORDINATOR"), help="HOST:PORT")
-    ap.add_argument("--token-file", help="bearer token file (default: $PF_TOKEN)")
+    ap.add_argument("--token-file", help="client bearer token file, one line (default: $PF_TOKEN)")
+    ap.add_argument("--tls-ca", default=os.environ.get("PF_TLS_CA"),
+                    help="PEM roots of the coordinator's certificate: connect with TLS (default: $PF_TLS_CA)")
+    ap.add_argument("--tls-cert", default=os.environ.get("PF_TLS_CERT"), help="PEM client certificate (mTLS)")
+    ap.add_argument("--tls-key", default=os.environ.get("PF_TLS_KEY"), help="PEM private key of --tls-cert")
     ap.add_argument("--stubs", help="folder with photonfarm/v1/farm_pb2*.py")
     ap.add_argument("-o", "--output", required=True, help="EXR kept up to date while the job runs")
     ap.add_argument("--res", default="64x64", help="WxH")
@@ -92,11 +96,30 @@ def main():
     pb, rpc = load_stubs(a.stubs)
     import grpc  # Debian: python3-grpcio
 
-    token = open(a.token_file).readline().strip() if a.token_file else os.environ.get("PF_TOKEN", "")
+    # The token rules of rpc/grpc_channel.h ParseToken: trimmed, one line of printable ASCII.
+    if a.token_file:
+        with open(a.token_file) as f:
+            token, source = f.read().strip(), "--token-file"
+    else:
+        token, source = os.environ.get("PF_TOKEN"), "$PF_TOKEN"
+        token = None if token is None else token.strip()
+    if token is not None and (not token or len(token) > 4096 or
+                              any(not (0x21 <= ord(c) <= 0x7e) for c in token)):
+        ap.error(f"{source}: the token must be one non-empty line of printable ASCII without spaces")
     metadata = [("authorization", "Bearer " + token)] if token else []
-    channel = grpc.insecure_channel(a.coordinator, options=[("grpc.keepalive_time_ms", 10000),
-                                                            ("grpc.max_receive_message_length", -1),
-                                                            ("grpc.max_send_message_length", -1)])
+    options = [("grpc.keepalive_time_ms", 10000), ("grpc.max_receive_message_length", -1),
+               ("grpc.max_send_message_length", -1)]
+    if bool(a.tls_cert) != bool(a.tls_key):
+        ap.error("--tls-cert and --tls-key go together")
+    if a.tls_ca:
+        def read(path):
+            with open(path, "rb") as f:
+                return f.read()
+        creds = grpc.ssl_channel_credentials(read(a.tls_ca), read(a.tls_key) if a.tls_key else None,
+                                             read(a.tls_cert) if a.tls_cert else None)
+        channel = grpc.secure_channel(a.coordinator, creds, options=options)
+    else:
+        channel = grpc.insecure_channel(a.coordinator, options=options)
     render = rpc.RenderServiceStub(channel)
     try:
         up = render.UploadScene(pb.UploadSceneRequest(bundle=collect_bundle(pb, a.scene)),

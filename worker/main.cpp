@@ -15,7 +15,7 @@
 #include <cstdio>
 #include <thread>
 
-#include "client/grpc_channel.h"
+#include "rpc/grpc_channel.h"
 #include "common/core/error.h"
 #include "worker/worker.h"
 
@@ -31,7 +31,7 @@ std::string DefaultWorkerId() {
 
 int main(int argc, char** argv) {
   pf::worker::WorkerOptions o;
-  std::string token_file, log_level = "info";
+  std::string token_file, tls_ca, tls_cert, tls_key, log_level = "info";
   std::string cache_dir;
   int threads = 0;
   CLI::App app{
@@ -41,7 +41,11 @@ int main(int argc, char** argv) {
       "SIGTERM/SIGINT: finish the current task within --grace or hand it back, then exit 0.\n"
       "Exit codes: 0 stopped, 1 start-up failure, 2 usage error."};
   app.add_option("--coordinator", o.coordinator, "Coordinator address HOST:PORT")->required();
-  app.add_option("--token-file", token_file, "File whose first line is the bearer token (default: $PF_TOKEN)");
+  app.add_option("--token-file", token_file,
+                 "File holding the worker's bearer token, one line (default: $PF_TOKEN)");
+  app.add_option("--tls-ca", tls_ca, "PEM roots of the coordinator's TLS certificate: connect with TLS (default: $PF_TLS_CA)");
+  app.add_option("--tls-cert", tls_cert, "PEM client certificate for mTLS (with --tls-key; default: $PF_TLS_CERT)");
+  app.add_option("--tls-key", tls_key, "PEM private key of --tls-cert (default: $PF_TLS_KEY)");
   app.add_option("--worker-id", o.worker_id, "Name in the coordinator's logs (default: HOST-PID)");
   app.add_option("--threads", threads, "Render threads (0 = all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
   app.add_option("--cache-dir", cache_dir, "Scene bundle cache (default: $TMPDIR/pf-worker-cache)");
@@ -88,6 +92,7 @@ int main(int argc, char** argv) {
 
   try {
     o.token = pf::ResolveToken(token_file);
+    o.tls = pf::ResolveClientTls(tls_ca, tls_cert, tls_key);
     o.threads = threads > 0 ? threads : int(std::max(1u, std::thread::hardware_concurrency()));
     if (o.worker_id.empty()) o.worker_id = DefaultWorkerId();
     const char* tmp = std::getenv("TMPDIR");

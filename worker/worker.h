@@ -35,7 +35,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "client/grpc_channel.h"
+#include "rpc/grpc_channel.h"
 #include "common/plan/task_executor.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "worker/scene_cache.h"
@@ -57,6 +57,7 @@ const char* StateName(State s);
 struct WorkerOptions {
   std::string coordinator;  // HOST:PORT
   std::string token;        // bearer token, "" = none
+  ClientTls tls;            // TLS to the coordinator (plaintext if tls.ca_pem is empty)
   std::string worker_id;
   int threads = 1;                     // > 0
   std::filesystem::path cache_dir;     // scene bundles by hash

@@ -1,7 +1,15 @@
 #include "server/rpc/auth.h"
 
+#include <algorithm>
+
 namespace pf::server {
 namespace {
+
+constexpr std::string_view kRenderService = "/photonfarm.v1.RenderService/";
+constexpr std::string_view kWorkerService = "/photonfarm.v1.WorkerService/";
+constexpr std::string_view kOpenPrefixes[] = {"/grpc.health.v1.Health/",
+                                              "/grpc.reflection.v1alpha.ServerReflection/",
+                                              "/grpc.reflection.v1.ServerReflection/"};
 
 bool ConstantTimeEquals(std::string_view a, std::string_view b) {
   unsigned char diff = a.size() == b.size() ? 0 : 1;
@@ -14,19 +22,60 @@ bool ConstantTimeEquals(std::string_view a, std::string_view b) {
   return diff == 0;
 }
 
+bool StartsWith(std::string_view s, std::string_view prefix) {
+  return s.substr(0, prefix.size()) == prefix;
+}
+
 }  // namespace
 
-grpc::Status BearerAuth::Check(const grpc::ServerContextBase& context) const {
-  if (token_.empty()) return grpc::Status::OK;
-  const auto& md = context.client_metadata();
-  auto it = md.find("authorization");
-  if (it == md.end())
-    return {grpc::StatusCode::UNAUTHENTICATED, "authorization: missing (expected 'Bearer <token>')"};
-  const std::string_view value(it->second.data(), it->second.size());
+grpc::Status Authorize(const RoleTokens& tokens, std::string_view method, std::string_view authorization) {
+  const std::string* needed = nullptr;
+  const std::string* other = nullptr;
+  const char* role = "";
+  if (StartsWith(method, kRenderService)) {
+    needed = &tokens.client;
+    other = &tokens.worker;
+    role = "RenderService needs the client credential";
+  } else if (StartsWith(method, kWorkerService)) {
+    needed = &tokens.worker;
+    other = &tokens.client;
+    role = "WorkerService needs the worker credential";
+  } else {
+    for (std::string_view open : kOpenPrefixes)
+      if (StartsWith(method, open)) return grpc::Status::OK;
+    if (!tokens.any()) return grpc::Status::OK;
+    return {grpc::StatusCode::UNAUTHENTICATED, "authorization: unknown service"};
+  }
+  if (needed->empty()) return grpc::Status::OK;
   constexpr std::string_view kPrefix = "Bearer ";
-  if (value.substr(0, kPrefix.size()) != kPrefix || !ConstantTimeEquals(value.substr(kPrefix.size()), token_))
-    return {grpc::StatusCode::UNAUTHENTICATED, "authorization: invalid bearer token"};
-  return grpc::Status::OK;
+  if (authorization.empty())
+    return {grpc::StatusCode::UNAUTHENTICATED, "authorization: missing (expected 'Bearer <token>')"};
+  if (!StartsWith(authorization, kPrefix))
+    return {grpc::StatusCode::UNAUTHENTICATED, "authorization: expected 'Bearer <token>'"};
+  const std::string_view presented = authorization.substr(kPrefix.size());
+  if (ConstantTimeEquals(presented, *needed)) return grpc::Status::OK;
+  if (!other->empty() && ConstantTimeEquals(presented, *other))
+    return {grpc::StatusCode::PERMISSION_DENIED, std::string("authorization: ") + role};
+  return {grpc::StatusCode::UNAUTHENTICATED, "authorization: invalid bearer token"};
+}
+
+grpc::Status RoleAuthProcessor::Process(const InputMetadata& auth_metadata, grpc::AuthContext* context,
+                                        OutputMetadata* consumed_auth_metadata, OutputMetadata*) {
+  std::string_view method, authorization;
+  for (const auto& [key, value] : auth_metadata) {
+    const std::string_view k(key.data(), key.size());
+    if (k == ":path") method = std::string_view(value.data(), value.size());
+    if (k == "authorization") authorization = std::string_view(value.data(), value.size());
+  }
+  grpc::Status status = Authorize(tokens_, method, authorization);
+  if (status.ok() && worker_needs_certificate_ && StartsWith(method, kWorkerService) &&
+      (context == nullptr || context->FindPropertyValues("x509_pem_cert").empty()))
+    status = {grpc::StatusCode::UNAUTHENTICATED,
+              "WorkerService needs a client certificate signed by the coordinator's --tls-client-ca"};
+  // The token is consumed: handlers never see it (and cannot log it).
+  if (status.ok() && !authorization.empty())
+    consumed_auth_metadata->insert({"authorization", std::string(authorization)});
+  return status;
 }
 
 }  // namespace pf::server

@@ -1,25 +1,46 @@
 #pragma once
-// Bearer-token access control for RenderService and WorkerService (docs/design.md, G5). When a
-// token is configured (--token-file or PF_TOKEN), every call must carry the metadata
-// `authorization: Bearer <token>`; a missing or wrong token is UNAUTHENTICATED. The comparison
-// takes the same time wherever the first difference is. The health and reflection services stay
-// open (liveness probes; the schema is not a secret).
+// Access control for the coordinator's services, checked once for every call by gRPC itself:
+// an AuthMetadataProcessor attached to the server credentials (coordinator.cpp), so a new RPC
+// cannot forget it. Two roles, two credentials (docs/security.md, "Authentication and roles"):
+//   /photonfarm.v1.RenderService/*  needs `authorization: Bearer <client token>`
+//   /photonfarm.v1.WorkerService/*  needs `authorization: Bearer <worker token>`
+// A role without a configured token is open. A missing or unknown token is UNAUTHENTICATED; the
+// other role's token is PERMISSION_DENIED (a worker credential cannot submit or read jobs, a
+// client credential cannot lease or complete tasks). Health checking and reflection stay open
+// (liveness probes; the schema is public), every other method is refused when any token is set.
+// Token comparisons take the same time wherever the first difference is.
+
+#include <grpcpp/security/auth_metadata_processor.h>
 
 #include <string>
-
-#include <grpcpp/server_context.h>
-#include <grpcpp/support/status.h>
+#include <string_view>
 
 namespace pf::server {
 
-class BearerAuth {
+struct RoleTokens {
+  std::string client;  // RenderService; "" = open
+  std::string worker;  // WorkerService; "" = open
+  bool any() const { return !client.empty() || !worker.empty(); }
+};
+
+// The decision for one call, separate from gRPC's types so it can be tested directly.
+// `method` is the HTTP/2 :path ("/photonfarm.v1.RenderService/SubmitJob"), `authorization`
+// the metadata value ("" if absent).
+grpc::Status Authorize(const RoleTokens& tokens, std::string_view method, std::string_view authorization);
+
+class RoleAuthProcessor final : public grpc::AuthMetadataProcessor {
  public:
-  explicit BearerAuth(std::string token = "") : token_(std::move(token)) {}
-  bool enabled() const { return !token_.empty(); }
-  grpc::Status Check(const grpc::ServerContextBase& context) const;
+  // `worker_needs_certificate`: WorkerService calls must come over TLS with a verified client
+  // certificate (the server's --tls-client-ca; gRPC has checked it in the handshake).
+  RoleAuthProcessor(RoleTokens tokens, bool worker_needs_certificate)
+      : tokens_(std::move(tokens)), worker_needs_certificate_(worker_needs_certificate) {}
+  bool IsBlocking() const override { return false; }  // memory only: runs on gRPC's thread
+  grpc::Status Process(const InputMetadata& auth_metadata, grpc::AuthContext* context,
+                       OutputMetadata* consumed_auth_metadata, OutputMetadata* response_metadata) override;
 
  private:
-  std::string token_;
+  RoleTokens tokens_;
+  bool worker_needs_certificate_;
 };
 
 }  // namespace pf::server

@@ -1,7 +1,7 @@
 #pragma once
 // What the gRPC service classes forward to: the coordinator's parts, owned by Coordinator.
+// Authentication is not among them: gRPC checks it before any handler runs (server/rpc/auth.h).
 
-#include "server/rpc/auth.h"
 #include "server/rpc/executor.h"
 #include "server/scheduling/clock.h"
 #include "server/scheduling/scheduler.h"
@@ -20,7 +20,6 @@ struct ServiceContext {
   Persister& persister;
   Executor& executor;
   WatchHub& watches;
-  const BearerAuth& auth;
   const Clock& clock;
 };
 

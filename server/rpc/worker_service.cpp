@@ -41,10 +41,9 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
   LeaseReactor(ServiceContext& ctx, grpc::CallbackServerContext* context, const v1::LeaseTaskRequest* request,
                v1::LeaseTaskResponse* response)
       : ctx_(ctx), state_(std::make_shared<State>()) {
-    grpc::Status status = ctx.auth.Check(*context);
     LeaseRequest lr;
     double wait = 0;
-    if (status.ok()) status = Guarded("LeaseTask", [&] {
+    const grpc::Status status = Guarded("LeaseTask", [&] {
         if (request->worker_id().empty()) throw InputError("worker_id: required");
         if (request->worker_id().size() > kMaxWorkerIdBytes)
           throw InputError("worker_id: longer than " + std::to_string(kMaxWorkerIdBytes) + " bytes");
@@ -117,8 +116,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerCon
                                                          const v1::ExtendLeaseRequest* request,
                                                          v1::ExtendLeaseResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  grpc::Status status = ctx_.auth.Check(*context);
-  if (status.ok()) status = Guarded("ExtendLease", [&] {
+  grpc::Status status = Guarded("ExtendLease", [&] {
       RequireLeaseId(request->lease_id());
       const ExtendResult r = ctx_.scheduler.Extend(request->lease_id(), request->progress());
       response->set_ok(r.ok);
@@ -134,8 +132,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
                                                           v1::CompleteTaskResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   CompleteResult result;
-  grpc::Status status = ctx_.auth.Check(*context);
-  if (status.ok()) status = Guarded("CompleteTask", [&] {
+  grpc::Status status = Guarded("CompleteTask", [&] {
       RequireLeaseId(request->lease_id());
       const auto& sums = request->rgb_sums();
       result = ctx_.scheduler.Complete(request->lease_id(), std::span<const float>(sums.data(), size_t(sums.size())));
@@ -168,8 +165,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
                                                       const v1::FailTaskRequest* request,
                                                       v1::FailTaskResponse* /*response*/) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  grpc::Status status = ctx_.auth.Check(*context);
-  if (status.ok()) status = Guarded("FailTask", [&] {
+  grpc::Status status = Guarded("FailTask", [&] {
       RequireLeaseId(request->lease_id());
       std::string reason = request->reason().substr(0, kMaxReasonBytes);
       if (reason.empty()) reason = "no reason given";
@@ -180,10 +176,10 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
   return reactor;
 }
 
-grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::CallbackServerContext* context,
+grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::CallbackServerContext* /*context*/,
                                                                        const v1::FetchSceneRequest* request) {
-  grpc::Status precheck = ctx_.auth.Check(*context);
-  if (precheck.ok() && request->scene_hash().empty())
+  grpc::Status precheck;
+  if (request->scene_hash().empty())
     precheck = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "scene_hash: required");
   const std::string hash = request->scene_hash();
   return BufferedStreamReactor<v1::SceneFile>::Start(ctx_.executor, "FetchScene", precheck, [this, hash] {

@@ -19,7 +19,7 @@
 #include <thread>
 #include <vector>
 
-#include "client/grpc_channel.h"
+#include "rpc/grpc_channel.h"
 #include "common/plan/task_plan.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "proto/convert.h"

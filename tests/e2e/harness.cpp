@@ -164,10 +164,10 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
   const fs::path out = log_dir / ("coordinator-" + n + ".out");
   std::vector<std::string> argv = {Binaries::Coordinator(), "--listen", "127.0.0.1:" + std::to_string(port),
                                    "--data-dir", data_dir.string()};
-  if (!token_file.empty()) argv.insert(argv.end(), {"--token-file", token_file});
+  if (!token_file.empty()) argv.insert(argv.end(), {"--client-token-file", token_file});
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
   process_ = std::make_unique<Process>("pf-coordinator", argv, log_dir / ("coordinator-" + n + ".log"), out,
-                                       std::map<std::string, std::string>{{"PF_TOKEN", ""}});
+                                       std::map<std::string, std::string>{{"PF_TOKEN", ""}, {"PF_CLIENT_TOKEN", ""}, {"PF_WORKER_TOKEN", ""}});
   const std::regex listening(R"(listening on ([0-9.]+):([0-9]+))");
   const bool ok = WaitUntil(
       [&] {

@@ -77,6 +77,7 @@ std::vector<std::string> Grep(const std::filesystem::path& path, const std::stri
 bool WaitUntil(const std::function<bool()>& predicate, double seconds);
 
 // A coordinator in `data_dir`; port 0 = ephemeral. Waits for its "listening on" line.
+// `token_file`: the client (RenderService) token; worker tokens go in `extra_args`.
 class CoordinatorProcess {
  public:
   CoordinatorProcess(const std::filesystem::path& data_dir, const std::filesystem::path& log_dir,

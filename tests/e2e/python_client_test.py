@@ -27,10 +27,14 @@ def main():
         token = os.path.join(tmp, "token")
         with open(token, "w") as f:
             f.write("python-test-token\n")
+        worker_token = os.path.join(tmp, "worker-token")
+        with open(worker_token, "w") as f:
+            f.write("python-worker-token\n")
         env = dict(os.environ, PF_TOKEN="")
         out = open(os.path.join(tmp, "coordinator.out"), "w+")
         coord = subprocess.Popen([a.coordinator_bin, "--listen", "127.0.0.1:0", "--data-dir",
-                                  os.path.join(tmp, "data"), "--token-file", token],
+                                  os.path.join(tmp, "data"), "--client-token-file", token,
+                                  "--worker-token-file", worker_token],
                                  stdout=out, stderr=open(os.path.join(tmp, "coordinator.log"), "w"), env=env)
         procs.append(coord)
         address = None
@@ -42,7 +46,7 @@ def main():
                 break
             time.sleep(0.02)
         assert address, "coordinator did not start"
-        procs.append(subprocess.Popen([a.worker_bin, "--coordinator", address, "--token-file", token, "--threads", "1",
+        procs.append(subprocess.Popen([a.worker_bin, "--coordinator", address, "--token-file", worker_token, "--threads", "1",
                                        "--cache-dir", os.path.join(tmp, "cache")],
                                       stdout=subprocess.DEVNULL, stderr=open(os.path.join(tmp, "worker.log"), "w")))
         output = os.path.join(tmp, "python.exr")

@@ -2,6 +2,9 @@
 // real client library. A bundle may refer only to its own files (scene_reference.h); the answer
 // is INVALID_ARGUMENT naming file:line, echoing nothing of the coordinator's files, with no
 // server path, and the same whether the outside file exists or not.
+#include <signal.h>
+#include <unistd.h>
+
 #include <fstream>
 
 #include "client/farm_client.h"
@@ -106,6 +109,161 @@ TEST_F(BundleConfinement, AFileThatIsAlsoAFolderIsInvalidArgument) {
   ExpectRefused(b, "'a' is also a file of the bundle");
   // The bundle's own files still load: a valid upload works after the refusals.
   EXPECT_EQ(client_->UploadScene(OneFile("main.mgf", kQuadMgf)).triangles(), 2u);
+}
+
+// The openssl CLI on $PATH (tools/install-deps.sh installs it); the harness execs by path.
+std::string OpensslBinary() {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "/usr/bin:/bin";
+  for (size_t begin = 0; begin <= dirs.size();) {
+    const size_t end = std::min(dirs.find(':', begin), dirs.size());
+    const fs::path candidate = fs::path(dirs.substr(begin, end - begin)) / "openssl";
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    begin = end + 1;
+  }
+  return "/usr/bin/openssl";
+}
+
+// TLS and mTLS with certificates made here by the openssl CLI: a CA, the coordinator's
+// certificate (SAN 127.0.0.1 and localhost) and a worker's client certificate.
+class TlsFarm : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const fs::path conf = dir_ / "san.cnf";
+    std::ofstream(conf) << "subjectAltName=DNS:localhost,IP:127.0.0.1\n";
+    Openssl({"req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", Path("ca.key"), "-out",
+             Path("ca.pem"), "-days", "2", "-subj", "/CN=photonfarm test CA"});
+    for (const char* who : {"server", "worker"}) {
+      const std::string name(who);
+      Openssl({"req", "-newkey", "rsa:2048", "-nodes", "-keyout", Path(name + ".key"), "-out",
+               Path(name + ".csr"), "-subj", "/CN=" + name});
+      std::vector<std::string> sign = {"x509",
+                                       "-req",
+                                       "-in",
+                                       Path(name + ".csr"),
+                                       "-CA",
+                                       Path("ca.pem"),
+                                       "-CAkey",
+                                       Path("ca.key"),
+                                       "-CAcreateserial",
+                                       "-out",
+                                       Path(name + ".pem"),
+                                       "-days",
+                                       "2"};
+      if (name == "server") sign.insert(sign.end(), {"-extfile", conf.string()});
+      Openssl(sign);
+    }
+    std::ofstream(dir_ / "client-token") << "tls-client-token\n";
+    std::ofstream(dir_ / "worker-token") << "tls-worker-token\n";
+    coordinator_ = std::make_unique<CoordinatorProcess>(
+        dir_ / "data", dir_.path(),
+        std::vector<std::string>{"--tls-cert", Path("server.pem"), "--tls-key", Path("server.key"),
+                                 "--tls-client-ca", Path("ca.pem"), "--worker-token-file",
+                                 Path("worker-token")},
+        0, Path("client-token"));
+  }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  void Openssl(std::vector<std::string> args) {
+    args.insert(args.begin(), OpensslBinary());
+    const RunResult r = RunCommand(args, dir_.path(), 60);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  ClientTls CaOnly() const { return ResolveClientTls(Path("ca.pem"), "", ""); }
+
+  TestDir dir_;
+  std::unique_ptr<CoordinatorProcess> coordinator_;
+};
+
+TEST_F(TlsFarm, ClientsNeedTlsAndTheirToken) {
+  FarmClient tls(coordinator_->address(), "tls-client-token", 10, CaOnly());
+  EXPECT_TRUE(tls.ListJobs(true).empty());
+  // A plaintext client is refused by the TLS coordinator (the handshake fails: UNAVAILABLE).
+  FarmClient plain(coordinator_->address(), "tls-client-token", 5);
+  try {
+    plain.ListJobs(true);
+    ADD_FAILURE() << "a plaintext client was served";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), grpc::StatusCode::UNAVAILABLE) << e.what();
+  }
+  // The worker's credential does not open RenderService.
+  FarmClient as_worker(coordinator_->address(), "tls-worker-token", 10, CaOnly());
+  try {
+    as_worker.ListJobs(true);
+    ADD_FAILURE() << "the worker token listed jobs";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), grpc::StatusCode::PERMISSION_DENIED) << e.what();
+  }
+  // pf itself, with --tls-ca.
+  const RunResult r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator_->address(),
+                                  "--tls-ca", Path("ca.pem"), "--token-file", Path("client-token")},
+                                 dir_.path(), 30);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+}
+
+TEST_F(TlsFarm, WorkersNeedAClientCertificate) {
+  // Without a client certificate: refused on every WorkerService call, says why, keeps trying.
+  auto no_cert = StartWorker(coordinator_->address(), dir_.path(), "w-nocert",
+                             {"--tls-ca", Path("ca.pem"), "--token-file", Path("worker-token")});
+  EXPECT_TRUE(WaitUntil([&] { return !Grep(no_cert->log(), "client certificate").empty(); }, 15))
+      << ReadFile(no_cert->log());
+  no_cert->Signal(SIGTERM);
+  no_cert->Wait(10);
+
+  // With it, a job renders end to end over mTLS.
+  auto worker = StartWorker(coordinator_->address(), dir_.path(), "w-mtls",
+                            {"--tls-ca", Path("ca.pem"), "--tls-cert", Path("worker.pem"), "--tls-key",
+                             Path("worker.key"), "--token-file", Path("worker-token")});
+  JobArgs job;
+  job.rounds = 1;
+  const std::vector<std::string> at = {"--coordinator", coordinator_->address(), "--tls-ca",
+                                       Path("ca.pem"),  "--token-file",          Path("client-token")};
+  RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at),
+                           dir_.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string id = r.out.substr(0, r.out.find('\n'));
+  r = RunCommand(Concat({Binaries::Pf(), "watch", id, "-q", "-o", Path("tls.exr")}, at), dir_.path(), 120);
+  EXPECT_EQ(r.exit_code, 0) << r.err << ReadFile(worker->log());
+  EXPECT_EQ(ReadImage(dir_ / "tls.exr").width(), job.res);
+}
+
+// Plaintext on a network address is refused unless --insecure (and then without tokens).
+TEST(ListenPolicy, NonLoopbackPlaintextNeedsInsecure) {
+  TestDir dir;
+  RunResult r =
+      RunCommand({Binaries::Coordinator(), "--listen", "0.0.0.0:0", "--data-dir", (dir / "d1").string()},
+                 dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("without TLS"), std::string::npos) << r.err;
+  std::ofstream(dir / "t") << "some-token\n";
+  r = RunCommand({Binaries::Coordinator(), "--listen", "0.0.0.0:0", "--data-dir", (dir / "d2").string(),
+                  "--insecure", "--client-token-file", (dir / "t").string()},
+                 dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("readable"), std::string::npos) << r.err;
+}
+
+// Tokens are parsed strictly: blank or multi-line tokens are start-up errors, never "open".
+TEST(TokenPolicy, BlankOrMultiLineTokensAreStartUpErrors) {
+  TestDir dir;
+  std::ofstream(dir / "two-lines") << "first\nsecond\n";
+  RunResult r = RunCommand({Binaries::Coordinator(), "--data-dir", (dir / "d1").string(),
+                            "--client-token-file", (dir / "two-lines").string()},
+                           dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("single line"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Coordinator(), "--data-dir", (dir / "d2").string()}, dir.path(), 30,
+                 {{"PF_CLIENT_TOKEN", "   "}});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("empty"), std::string::npos) << r.err;
+  // A newline inside the token: pf and pf-worker stop with a usage error instead of aborting.
+  r = RunCommand({Binaries::Pf(), "list", "--coordinator", "127.0.0.1:1"}, dir.path(), 30,
+                 {{"PF_TOKEN", "abc\ndef"}});
+  EXPECT_NE(r.exit_code, 134) << r.err;
+  EXPECT_NE(r.err.find("single line"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Worker(), "--coordinator", "127.0.0.1:1", "--cache-dir", (dir / "c").string()},
+                 dir.path(), 30, {{"PF_TOKEN", "abc\ndef"}});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("single line"), std::string::npos) << r.err;
 }
 
 }  // namespace

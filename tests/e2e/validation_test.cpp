@@ -140,7 +140,11 @@ TEST(FarmValidation, WrongTokenIsUnauthenticated) {
   {
     std::ofstream(dir / "token") << "s3cret-token\n";
   }
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {}, 0, (dir / "token").string());
+  {
+    std::ofstream(dir / "worker-token") << "w0rker-token\n";
+  }
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--worker-token-file", (dir / "worker-token").string()},
+                                 0, (dir / "token").string());
   FarmClient right(coordinator.address(), "s3cret-token");
   EXPECT_TRUE(right.ListJobs(true).empty());
   FarmClient wrong(coordinator.address(), "guess");

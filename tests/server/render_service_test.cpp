@@ -1,6 +1,6 @@
 // Validation of client requests through the real RenderServiceImpl on an in-process gRPC server
 // (127.0.0.1:0, real channel, no mocks): each bad request gets the exact status code and a
-// message naming the field, and nothing is stored. Plus the bearer token on both services.
+// message naming the field, and nothing is stored. Plus the bearer tokens and roles of both services.
 #include <grpcpp/generic/generic_stub.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -330,23 +330,35 @@ class TokenTest : public ::testing::Test {
   void SetUp() override {
     CoordinatorOptions o;
     o.data_dir = dir_.path() / "data";
-    o.token = "s3cret-token";
+    o.client_token = "client-token";
+    o.worker_token = "worker-token";
     live_ = std::make_unique<LiveCoordinator>(o);
   }
   TempDir dir_;
   std::unique_ptr<LiveCoordinator> live_;
 };
 
-TEST_F(TokenTest, BothServicesRequireTheBearerToken) {
-  for (const std::string& token : {std::string(), std::string("wrong"), std::string("s3cret-token")}) {
-    const bool good = token == "s3cret-token";
+// Auth is checked by gRPC for every call (server/rpc/auth.h), per role: the client token opens
+// RenderService only, the worker token WorkerService only; the other role's token is
+// PERMISSION_DENIED, no or a wrong token UNAUTHENTICATED.
+TEST_F(TokenTest, EachServiceRequiresItsRolesToken) {
+  for (const std::string& token :
+       {std::string(), std::string("wrong"), std::string("client-token"), std::string("worker-token")}) {
     SCOPED_TRACE(token.empty() ? "no token" : token);
-    auto expect = [&](const grpc::Status& st) {
-      if (good)
-        EXPECT_NE(st.error_code(), grpc::StatusCode::UNAUTHENTICATED) << st.error_message();
-      else
-        EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAUTHENTICATED) << st.error_message();
+    auto expect_for = [&](const std::string& right, const std::string& other) {
+      return [&token, right, other](const grpc::Status& st) {
+        if (token == right) {
+          EXPECT_NE(st.error_code(), grpc::StatusCode::UNAUTHENTICATED) << st.error_message();
+          EXPECT_NE(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+        } else if (token == other) {
+          EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+        } else {
+          EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAUTHENTICATED) << st.error_message();
+        }
+      };
     };
+    const auto expect = expect_for("client-token", "worker-token");
+    const auto expect_worker = expect_for("worker-token", "client-token");
     v1::ListJobsResponse list;
     expect(live_->render->ListJobs(Ctx(token).get(), v1::ListJobsRequest(), &list));
     v1::SubmitJobResponse submit;
@@ -356,19 +368,19 @@ TEST_F(TokenTest, BothServicesRequireTheBearerToken) {
     v1::LeaseTaskRequest lease_req;
     lease_req.set_worker_id("w");
     v1::LeaseTaskResponse lease;
-    expect(live_->worker->LeaseTask(Ctx(token).get(), lease_req, &lease));
+    expect_worker(live_->worker->LeaseTask(Ctx(token).get(), lease_req, &lease));
     v1::ExtendLeaseRequest extend_req;
     extend_req.set_lease_id("x");
     v1::ExtendLeaseResponse extend;
-    expect(live_->worker->ExtendLease(Ctx(token).get(), extend_req, &extend));
+    expect_worker(live_->worker->ExtendLease(Ctx(token).get(), extend_req, &extend));
     v1::CompleteTaskRequest complete_req;
     complete_req.set_lease_id("x");
     v1::CompleteTaskResponse complete;
-    expect(live_->worker->CompleteTask(Ctx(token).get(), complete_req, &complete));
+    expect_worker(live_->worker->CompleteTask(Ctx(token).get(), complete_req, &complete));
     v1::FailTaskRequest fail_req;
     fail_req.set_lease_id("x");
     v1::FailTaskResponse fail;
-    expect(live_->worker->FailTask(Ctx(token).get(), fail_req, &fail));
+    expect_worker(live_->worker->FailTask(Ctx(token).get(), fail_req, &fail));
     {
       auto ctx = Ctx(token);
       v1::FetchSceneRequest req;
@@ -377,7 +389,7 @@ TEST_F(TokenTest, BothServicesRequireTheBearerToken) {
       v1::SceneFile file;
       while (reader->Read(&file)) {
       }
-      expect(reader->Finish());
+      expect_worker(reader->Finish());
     }
     {
       auto ctx = Ctx(token);

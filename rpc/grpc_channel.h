@@ -1,7 +1,7 @@
 #pragma once
 // The client side of every connection to the coordinator: `pf`, `pf-worker` and the e2e tests
-// all open their channels here, so keepalive, reconnect backoff, message limits, the bearer
-// token and deadlines are configured in one place (docs/design.md, G5; every client call
+// all open their channels here, so keepalive, reconnect backoff, message limits, TLS, the bearer
+// token and deadlines are configured in one place (the coordinator parses its tokens here too) (docs/design.md, G5; every client call
 // has a deadline, keepalive on both sides).
 //
 // Keepalive: a ping every 10 s even without calls (so an idle worker long-polling a coordinator
@@ -15,6 +15,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace pf {
 
@@ -30,20 +31,40 @@ class RpcError : public std::runtime_error {
   grpc::Status status_;
 };
 
+// TLS towards the coordinator (docs/security.md). ca_pem empty = plaintext.
+struct ClientTls {
+  std::string ca_pem;    // PEM roots that sign the coordinator's certificate; non-empty = TLS
+  std::string cert_pem;  // client certificate chain (mTLS, workers); "" = none
+  std::string key_pem;   // its private key
+  std::string server_name;  // name to verify instead of the address' host ("" = the host)
+};
+
+// Reads the PEM files named by the --tls-ca / --tls-cert / --tls-key flags (each may be "",
+// falling back to $PF_TLS_CA / $PF_TLS_CERT / $PF_TLS_KEY). InputError if a file cannot be
+// read, if cert and key come alone, or if a client certificate is given without a CA.
+ClientTls ResolveClientTls(std::string ca_file, std::string cert_file, std::string key_file);
+
 struct ChannelOptions {
   std::string token;        // bearer token; "" = none
+  ClientTls tls;            // plaintext unless tls.ca_pem is set
   int keepalive_ms = 10000;  // 0 = no keepalive pings
   int keepalive_timeout_ms = 5000;
   int max_reconnect_backoff_ms = 2000;
 };
 
-// An insecure channel to HOST:PORT with the options above (loopback by default; TLS is the
-// coordinator's deployment concern, see docs/farm.md).
+// A channel to HOST:PORT with the options above: TLS when options.tls.ca_pem is set, else
+// plaintext.
 std::shared_ptr<grpc::Channel> MakeCoordinatorChannel(const std::string& address, const ChannelOptions& options);
 
-// The bearer token: the first line of `token_file` if given (throws InputError if it cannot be
-// read or is empty), else $PF_TOKEN, else "".
-std::string ResolveToken(const std::string& token_file);
+// A bearer token from untrusted text (a file or an environment variable named by `source`):
+// surrounding whitespace (a trailing newline) is trimmed; what remains must be non-empty, one
+// line of printable ASCII without spaces (it goes into an HTTP/2 header; a newline there would
+// abort gRPC) and at most 4096 bytes. Anything else is an InputError naming `source`.
+std::string ParseToken(std::string_view text, const std::string& source);
+
+// The bearer token: the whole of `token_file` if given, else $`env_name` if set (set but blank is
+// an error, not "no token"), else "". Parsed with ParseToken; InputError if unreadable.
+std::string ResolveToken(const std::string& token_file, const char* env_name = "PF_TOKEN");
 
 // Sets a deadline `timeout` from now and, if `token` is non-empty, the
 // "authorization: Bearer <token>" metadata.
