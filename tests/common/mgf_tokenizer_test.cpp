@@ -59,7 +59,7 @@ TEST(MgfTokenizer, LineEndsContinuationsBlanksAndComments) {
 
 TEST(MgfTokenizer, QuoteBoundsLengthAndHidesControlCharacters) {
   EXPECT_EQ(Quote("abc"), "'abc'");
-  EXPECT_EQ(Quote(std::string("a\0b\x1b\x7f", 5)), "'a?b?" "?'");
+  EXPECT_EQ(Quote(std::string("a\0b\x1b\x7f", 5)), "'a?b?\?'");
   EXPECT_EQ(Quote(std::string(41, 'x')), "'" + std::string(40, 'x') + "...'");
   EXPECT_EQ(Quote(std::string(40, 'x')), "'" + std::string(40, 'x') + "'");
 }
