@@ -17,7 +17,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
 #include <functional>
 #include <iterator>
 #include <map>
@@ -33,6 +32,11 @@
 
 #include "common/core/error.h"
 #include "common/core/math.h"
+#include "common/scene/curved_primitives.h"
+#include "common/scene/mgf_color.h"
+#include "common/scene/mgf_tokenizer.h"
+#include "common/scene/mgf_transform.h"
+#include "common/scene/polygon_triangulation.h"
 #include "common/scene/scene_reference.h"
 
 namespace pf {
@@ -45,7 +49,6 @@ constexpr uint32_t kNone = 0xffffffffu;
 // Beyond this magnitude (after transformation) coordinates are rejected: products of two such
 // numbers stay far from overflow in double, and the value still fits a float.
 constexpr double kMaxCoordinate = 1e18;
-constexpr uintmax_t kMaxFileBytes = uintmax_t{1} << 30;
 constexpr long kMaxRepeat = 1'000'000;                 // largest N of `-i N` / `-a N`
 constexpr uint64_t kMaxArrayInstances = 1'000'000'000;  // product of the -a counts of one xf
 constexpr size_t kMaxStoredWarnings = 500;             // then only counted, to keep logs readable
@@ -55,490 +58,32 @@ constexpr int kMinCurveSegments = 3;
 constexpr size_t kMaxPolygonVertices = 16384;
 // Material values beyond this are not physical and would overflow the float Material.
 constexpr double kMaxMaterialValue = 1e30;
-// Chromaticities with y below this are outside the spectral locus (whose minimum y is about
-// 0.004); their luminance-normalised colour would be absurdly large.
-constexpr double kMinChromaY = 1e-4;
 constexpr int kMaxCurveSegments = 1024;
 
-// ----------------------------------------------------------------------------------------------
-// Colour (§3 c/cxy/cspec/cct/cmix, §6.1.1).
-
-// CIE 1931 2° standard observer colour-matching functions x̄ ȳ z̄, 380..780 nm every 10 nm.
-// Coarse, but the spectra in MGF libraries are themselves 10-20 nm samples; the table sums agree
-// with the 1 nm tables to 1e-4 and equal-energy white comes out at (0.3334, 0.3334).
-constexpr double kCmfFirst = 380.0;
-constexpr double kCmfLast = 780.0;
-constexpr double kCmfStep = 10.0;
-constexpr int kCmfCount = 41;
-constexpr double kCmf[kCmfCount][3] = {
-    {0.001368, 0.000039, 0.006450}, {0.004243, 0.000120, 0.020050},
-    {0.014310, 0.000396, 0.067850}, {0.043510, 0.001210, 0.207400},
-    {0.134380, 0.004000, 0.645600}, {0.283900, 0.011600, 1.385600},
-    {0.348280, 0.023000, 1.747060}, {0.336200, 0.038000, 1.772110},
-    {0.290800, 0.060000, 1.669200}, {0.195360, 0.090980, 1.287640},
-    {0.095640, 0.139020, 0.812950}, {0.032010, 0.208020, 0.465180},
-    {0.004900, 0.323000, 0.272000}, {0.009300, 0.503000, 0.158200},
-    {0.063270, 0.710000, 0.078250}, {0.165500, 0.862000, 0.042160},
-    {0.290400, 0.954000, 0.020300}, {0.433450, 0.994950, 0.008750},
-    {0.594500, 0.995000, 0.003900}, {0.762100, 0.952000, 0.002100},
-    {0.916300, 0.870000, 0.001650}, {1.026300, 0.757000, 0.001100},
-    {1.062200, 0.631000, 0.000800}, {1.002600, 0.503000, 0.000340},
-    {0.854450, 0.381000, 0.000190}, {0.642400, 0.265000, 0.000050},
-    {0.447900, 0.175000, 0.000020}, {0.283500, 0.107000, 0.000000},
-    {0.164900, 0.061000, 0.000000}, {0.087400, 0.032000, 0.000000},
-    {0.046770, 0.017000, 0.000000}, {0.022700, 0.008210, 0.000000},
-    {0.011359, 0.004102, 0.000000}, {0.005790, 0.002091, 0.000000},
-    {0.002899, 0.001047, 0.000000}, {0.001440, 0.000520, 0.000000},
-    {0.000690, 0.000249, 0.000000}, {0.000332, 0.000120, 0.000000},
-    {0.000166, 0.000060, 0.000000}, {0.000083, 0.000030, 0.000000},
-    {0.000042, 0.000015, 0.000000},
-};
-
-Vec3d CmfAt(double lambda) {
-  if (!(lambda >= kCmfFirst && lambda <= kCmfLast)) return {};
-  const double t = (lambda - kCmfFirst) / kCmfStep;
-  const int i = std::min(static_cast<int>(t), kCmfCount - 2);
-  const double f = t - i;
-  return {kCmf[i][0] + f * (kCmf[i + 1][0] - kCmf[i][0]),
-          kCmf[i][1] + f * (kCmf[i + 1][1] - kCmf[i][1]),
-          kCmf[i][2] + f * (kCmf[i + 1][2] - kCmf[i][2])};
-}
-
-// Integrates a spectral function against the CMFs in 1 nm steps (the CMFs interpolated from
-// the 10 nm table), so that narrow spectra between two table entries still register.
-template <typename SpectrumFn>
-Vec3d IntegrateXyz(SpectrumFn&& spectrum) {
-  Vec3d xyz;
-  for (int l = static_cast<int>(kCmfFirst); l <= static_cast<int>(kCmfLast); ++l) {
-    const double v = spectrum(static_cast<double>(l));
-    if (v != 0.0) xyz += CmfAt(l) * v;
-  }
-  return xyz;
-}
-
-// The XYZ -> RGB matrix of §6.1.1 ("Converting between RGB and CIE Colors"): the spec's code
-// for its nominal CRT primaries and equal-energy white, written out as its closed form.
-struct Matrix3 {
-  double m[3][3];
-};
-constexpr Matrix3 MakeXyzToRgb() {
-  constexpr double xr = 0.640, yr = 0.330;  // nominal CRT primaries (the non-NTSC branch)
-  constexpr double xg = 0.290, yg = 0.600;
-  constexpr double xb = 0.150, yb = 0.060;
-  constexpr double xw = 1.0 / 3.0, yw = 1.0 / 3.0;  // "monitor white point"
-  constexpr double c_r = (xw * (yg - yb) - yw * (xg - xb) + xg * yb - xb * yg) / yw;
-  constexpr double c_g = (xw * (yb - yr) - yw * (xb - xr) - xr * yb + xb * yr) / yw;
-  constexpr double c_b = (xw * (yr - yg) - yw * (xr - xg) + xr * yg - xg * yr) / yw;
-  return Matrix3{{{(yg - yb - xb * yg + yb * xg) / c_r, (xb - xg - xb * yg + xg * yb) / c_r,
-                   (xg * yb - xb * yg) / c_r},
-                  {(yb - yr - yb * xr + yr * xb) / c_g, (xr - xb - xr * yb + xb * yr) / c_g,
-                   (xb * yr - xr * yb) / c_g},
-                  {(yr - yg - yr * xg + yg * xr) / c_b, (xg - xr - xg * yr + xr * yg) / c_b,
-                   (xr * yg - xg * yr) / c_b}}};
-}
-constexpr Matrix3 kXyzToRgb = MakeXyzToRgb();
-
-// A colour context: chromaticity only; intensity comes with the material value (§3 c).
-struct Chroma {
-  double x = 1.0 / 3.0;  // the unnamed colour is neutral (equal-energy) grey
-  double y = 1.0 / 3.0;
-  Vec3d XyzPerLuminance() const { return {x / y, 1.0, (1.0 - x - y) / y}; }
-};
-
-bool XyzToChroma(const Vec3d& xyz, Chroma* c) {
-  const double sum = xyz.x + xyz.y + xyz.z;
-  if (!(xyz.y > 0.0) || !(sum > 0.0) || !std::isfinite(sum)) return false;
-  c->x = xyz.x / sum;
-  c->y = xyz.y / sum;
-  return std::isfinite(c->x) && std::isfinite(c->y) && c->y >= kMinChromaY;
-}
-
-Rgb ChromaRgb(const Chroma& c) { return mgf::CieToRgb(c.x, c.y, 1.0); }
-
-// ----------------------------------------------------------------------------------------------
-// Transforms (§2.2.2, §2.2.3): rigid motions with uniform scale and mirrors, as 3×4 affine maps.
-
-struct Affine {
-  double m[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  Vec3d t;
-
-  Vec3d Vector(const Vec3d& v) const {
-    return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z,
-            m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
-            m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
-  }
-  Vec3d Point(const Vec3d& p) const { return Vector(p) + t; }
-  double Det() const {
-    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-  }
-  // Uniform scale factor (length of the first column; hypot avoids overflow).
-  double Scale() const { return std::hypot(m[0][0], m[1][0], m[2][0]); }
-  // True if the map contains a mirror (negative determinant), computed on the normalised
-  // matrix so that huge or tiny scales cannot overflow it.
-  bool Mirrors() const {
-    const double s = Scale();
-    if (!(s > 0.0) || !std::isfinite(s)) return false;
-    Affine n = *this;
-    for (auto& row : n.m)
-      for (double& v : row) v /= s;
-    return n.Det() < 0.0;
-  }
-  bool IsFinite() const {
-    for (const auto& row : m)
-      for (double v : row)
-        if (!std::isfinite(v)) return false;
-    return pf::IsFinite(t);
-  }
-};
-
-// The map "first b, then a".
-Affine Compose(const Affine& a, const Affine& b) {
-  Affine r;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      r.m[i][j] = a.m[i][0] * b.m[0][j] + a.m[i][1] * b.m[1][j] + a.m[i][2] * b.m[2][j];
-  r.t = a.Point(b.t);
-  return r;
-}
-
-Affine Power(Affine a, long n) {
-  Affine r;
-  while (n > 0) {
-    if (n & 1) r = Compose(a, r);
-    n >>= 1;
-    if (n > 0) a = Compose(a, a);
-  }
-  return r;
-}
-
-// Rotation by `degrees` counter-clockwise about axis `axis` (right-hand rule, §2.2.2); exact
-// for multiples of 90° so that axis-aligned models stay axis-aligned.
-Affine Rotation(int axis, double degrees) {
-  double c, s;
-  const double r = std::fmod(degrees, 360.0);
-  if (r == std::floor(r / 90.0) * 90.0) {
-    static constexpr double kCos[4] = {1, 0, -1, 0};
-    static constexpr double kSin[4] = {0, 1, 0, -1};
-    const int q = ((static_cast<int>(r / 90.0) % 4) + 4) % 4;
-    c = kCos[q];
-    s = kSin[q];
-  } else {
-    c = std::cos(r * kPiD / 180.0);
-    s = std::sin(r * kPiD / 180.0);
-  }
-  Affine a;
-  const int i = (axis + 1) % 3, j = (axis + 2) % 3;
-  a.m[i][i] = c;
-  a.m[i][j] = -s;
-  a.m[j][i] = s;
-  a.m[j][j] = c;
-  return a;
-}
-
-// One transform specification: a sequence of segments, each a composed step applied `count`
-// times (`-i N`, and the arguments before the first -a/-i with count 1) or applied 0..N-1 times
-// over the instances of an array (`-a N`). "The scope of an array command continues until the
-// next -i or -a option" (§2.2.3).
-struct XformSegment {
-  bool array = false;
-  long count = 1;
-  Affine step;
-};
-struct XformSpec {
-  std::vector<XformSegment> segments;
-  uint64_t instances = 1;
-  size_t NumArrays() const {
-    size_t n = 0;
-    for (const auto& s : segments) n += s.array;
-    return n;
-  }
-  // The transform of the instance with the given array counters (one per -a segment).
-  Affine Instance(const std::vector<long>& counters) const {
-    Affine r;
-    size_t k = 0;
-    for (const auto& s : segments) {
-      const long n = s.array ? counters[k++] : s.count;
-      r = Compose(Power(s.step, n), r);  // later arguments act on the already moved object
-    }
-    return r;
-  }
-};
-
-// Odometer over the array counters; false once every instance has been produced.
-bool AdvanceCounters(const XformSpec& spec, std::vector<long>& counters) {
-  size_t k = 0;
-  for (const auto& s : spec.segments) {
-    if (!s.array) continue;
-    if (++counters[k] < s.count) return true;
-    counters[k] = 0;
-    ++k;
-  }
-  return false;
-}
-
-// ----------------------------------------------------------------------------------------------
-// Files: read once, cut into entities.
-
-struct Entity {
-  int line;        // physical line where the entity starts
-  uint32_t first;  // index of its keyword in MgfFile::words
-  uint32_t count;  // number of words, keyword included
-};
-
-struct MgfFile {
-  std::string name;       // as shown in messages
-  fs::path dir;           // base directory of its includes
-  std::string canonical;  // identity for the include stack and the cache
-  std::string text;
-  std::vector<std::string_view> words;  // views into `text`
-  std::vector<Entity> entities;
-  int last_line = 1;
-};
-
-bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\f' || c == '\v'; }
-
-// §1 / spec.txt "Other Details": end of line is LF, CR or CRLF; a backslash right before the end
-// of line continues the entity on the next line; blanks separate words. Comment entities are
-// dropped here (first word starting with '#', see mgf_loader.h).
-void Tokenize(MgfFile& file) {
-  const std::string& s = file.text;
-  const size_t n = s.size();
-  size_t pos = 0;
-  int line = 1;
-  auto eol_length = [&](size_t p) -> size_t {
-    if (p >= n) return 0;
-    if (s[p] == '\n') return 1;
-    if (s[p] == '\r') return (p + 1 < n && s[p + 1] == '\n') ? 2 : 1;
-    return 0;
-  };
-  while (pos < n) {
-    const int entity_line = line;
-    const size_t first_word = file.words.size();
-    size_t word_start = std::string::npos;
-    auto end_word = [&](size_t end) {
-      if (word_start != std::string::npos) {
-        file.words.emplace_back(s.data() + word_start, end - word_start);
-        word_start = std::string::npos;
-      }
-    };
-    while (pos < n) {
-      const char c = s[pos];
-      if (const size_t eol = eol_length(pos)) {
-        end_word(pos);
-        pos += eol;
-        ++line;
-        break;
-      }
-      if (c == '\\' && (pos + 1 == n || eol_length(pos + 1) > 0)) {
-        end_word(pos);
-        const size_t eol = eol_length(pos + 1);
-        pos += 1 + eol;
-        if (eol > 0) ++line;
-        continue;
-      }
-      if (IsBlank(c)) {
-        end_word(pos);
-      } else if (word_start == std::string::npos) {
-        word_start = pos;
-      }
-      ++pos;
-    }
-    end_word(pos);
-    const size_t count = file.words.size() - first_word;
-    if (count == 0) continue;
-    if (file.words[first_word][0] == '#') {
-      file.words.resize(first_word);
-      continue;
-    }
-    file.entities.push_back(Entity{entity_line, static_cast<uint32_t>(first_word),
-                                   static_cast<uint32_t>(count)});
-  }
-  // The last line that exists: a final end-of-line does not start another one.
-  const bool ends_with_eol = n > 0 && (s[n - 1] == '\n' || s[n - 1] == '\r');
-  file.last_line = std::max(1, ends_with_eol ? line - 1 : line);
-}
-
-// Text of a word for messages: bounded length, no control characters (fuzzed input).
-std::string Quote(std::string_view w) {
-  std::string r = "'";
-  const size_t n = std::min<size_t>(w.size(), 40);
-  for (size_t i = 0; i < n; ++i) {
-    const unsigned char c = static_cast<unsigned char>(w[i]);
-    r += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
-  }
-  if (w.size() > n) r += "...";
-  return r + "'";
-}
-
-// Reads a file for the loader; returns an error reason instead of throwing.
-std::string ReadWholeFile(const fs::path& path, std::string* out) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (ec || !fs::exists(st)) return "file not found";
-  if (!fs::is_regular_file(st)) return "not a regular file";
-  const uintmax_t size = fs::file_size(path, ec);
-  if (ec) return "cannot determine the file size";
-  if (size > kMaxFileBytes) return "file larger than 1 GiB";
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return "cannot open the file";
-  out->assign(static_cast<size_t>(size), '\0');
-  if (size > 0 && !in.read(out->data(), static_cast<std::streamsize>(size))) {
-    return "cannot read the file";
-  }
-  return {};
-}
-
-std::string CanonicalKey(const fs::path& p) {
-  std::error_code ec;
-  fs::path c = fs::weakly_canonical(p, ec);
-  if (ec) {
-    c = fs::absolute(p, ec);
-    if (ec) c = p;
-    c = c.lexically_normal();
-  }
-  return c.string();
-}
-
-// ----------------------------------------------------------------------------------------------
-// Geometry helpers.
-
-// Orthonormal u, w with u × w = n for unit n (Duff et al. 2017, as Frame in core/math.h).
-void OrthonormalBasis(const Vec3d& n, Vec3d* u, Vec3d* w) {
-  const double sign = std::copysign(1.0, n.z);
-  const double a = -1.0 / (sign + n.z);
-  const double b = n.x * n.y * a;
-  *u = {1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x};
-  *w = {b, sign + n.y * n.y * a, -n.y};
-}
-
-// Unit vector along v, or zero if v is zero (robust for huge and tiny components).
-Vec3d SafeNormalize(const Vec3d& v) {
-  const double m = std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
-  if (!(m > 0.0) || !std::isfinite(m)) return {};
-  const Vec3d s = v / m;
-  return s / Length(s);
-}
-
-// Triangulates a planar (or nearly planar) polygon by ear clipping in its best-fit plane.
-// Triangles index `pts` and keep the polygon's orientation (right-hand rule). Returns false if
-// the polygon is degenerate (fewer than three distinct points, or no area). Sets *approximate if
-// no proper ear was found at some point (self-intersecting input): the result then still covers
-// the polygon's vertices but may overlap or miss parts of it.
-bool TriangulatePolygon(std::span<const Vec3d> pts, std::vector<std::array<uint32_t, 3>>* out,
-                        bool* approximate) {
-  out->clear();
-  *approximate = false;
-  std::vector<uint32_t> idx;
-  idx.reserve(pts.size());
-  for (uint32_t i = 0; i < pts.size(); ++i) {
-    if (idx.empty() || !(pts[i] == pts[idx.back()])) idx.push_back(i);
-  }
-  while (idx.size() > 1 && pts[idx.back()] == pts[idx.front()]) idx.pop_back();
-  const size_t n = idx.size();
-  if (n < 3) return false;
-
-  // Newell's normal: the area vector of the polygon, robust for concave and non-planar input.
-  const Vec3d o = pts[idx[0]];
-  Vec3d area2;
-  Vec3d lo = o, hi = o;
-  for (size_t i = 0; i < n; ++i) {
-    const Vec3d& p = pts[idx[i]];
-    area2 += Cross(p - o, pts[idx[(i + 1) % n]] - o);
-    lo = Min(lo, p);
-    hi = Max(hi, p);
-  }
-  const double extent = MaxComponent(hi - lo);
-  const double eps = 1e-12 * extent * extent;  // in units of twice an area
-  const double len = Length(area2);
-  if (!(extent > 0.0) || !(len > eps)) return false;
-  if (n == 3) {
-    out->push_back({idx[0], idx[1], idx[2]});
-    return true;
-  }
-
-  // 2D coordinates in the plane; the polygon is counter-clockwise there by construction.
-  Vec3d u, w;
-  OrthonormalBasis(area2 / len, &u, &w);
-  std::vector<double> qx(n), qy(n);
-  for (size_t i = 0; i < n; ++i) {
-    const Vec3d d = pts[idx[i]] - o;
-    qx[i] = Dot(d, u);
-    qy[i] = Dot(d, w);
-  }
-  auto cross = [&](size_t a, size_t b, size_t c) {
-    return (qx[b] - qx[a]) * (qy[c] - qy[a]) - (qy[b] - qy[a]) * (qx[c] - qx[a]);
-  };
-  auto same = [&](size_t a, size_t b) { return qx[a] == qx[b] && qy[a] == qy[b]; };
-  std::vector<uint32_t> prev(n), next(n);
-  for (size_t i = 0; i < n; ++i) {
-    prev[i] = static_cast<uint32_t>((i + n - 1) % n);
-    next[i] = static_cast<uint32_t>((i + 1) % n);
-  }
-  // An ear (a, b, c) may not contain any other remaining vertex, on its boundary included, except
-  // vertices coincident with its corners: that exception is what makes MGF seams work, where a
-  // hole's bridge vertices appear twice (§3 f).
-  auto is_ear = [&](size_t a, size_t b, size_t c) {
-    for (size_t r = next[c]; r != a; r = next[r]) {
-      if (same(r, a) || same(r, b) || same(r, c)) continue;
-      if (cross(a, b, r) >= -eps && cross(b, c, r) >= -eps && cross(c, a, r) >= -eps) {
-        return false;
-      }
-    }
-    return true;
-  };
-
-  size_t remaining = n;
-  size_t cur = 0;
-  size_t stall = 0;
-  while (remaining > 3) {
-    const size_t a = prev[cur], c = next[cur];
-    const double cr = cross(a, cur, c);
-    bool clip = false, emit = false;
-    size_t victim = cur;
-    if (std::abs(cr) <= eps) {
-      clip = true;  // collinear vertex or zero-width spike: dropping it loses no area
-    } else if (cr > 0.0 && (*approximate || is_ear(a, cur, c))) {
-      // Once the polygon is known to intersect itself, ears are no longer searched for (that
-      // could take cubic time): every convex vertex is clipped.
-      clip = emit = true;
-    } else if (++stall > remaining) {
-      // A full lap without an ear: the polygon intersects itself. Clip some convex vertex
-      // anyway (or drop one) so that the loop always terminates.
-      *approximate = true;
-      clip = true;
-      size_t v = cur;
-      do {
-        if (cross(prev[v], v, next[v]) > eps) {
-          victim = v;
-          emit = true;
-          break;
-        }
-        v = next[v];
-      } while (v != cur);
-    }
-    if (!clip) {
-      cur = c;
-      continue;
-    }
-    const size_t va = prev[victim], vc = next[victim];
-    if (emit) out->push_back({idx[va], idx[victim], idx[vc]});
-    next[va] = static_cast<uint32_t>(vc);
-    prev[vc] = static_cast<uint32_t>(va);
-    --remaining;
-    stall = 0;
-    cur = vc;
-  }
-  const size_t a = prev[cur], c = next[cur];
-  const double cr = cross(a, cur, c);
-  if (cr > eps) {
-    out->push_back({idx[a], idx[cur], idx[c]});
-  } else if (cr < -eps) {
-    *approximate = true;
-  }
-  return !out->empty();
-}
+// The pieces the interpreter is built from: colour (mgf_color.h), transforms
+// (mgf_transform.h), files and entities (mgf_tokenizer.h), polygon triangulation
+// (polygon_triangulation.h) and curved-primitive tessellation (curved_primitives.h).
+using geometry::BridgeHoles;
+using geometry::ContourVertex;
+using geometry::SafeNormalize;
+using geometry::TriangulatePolygon;
+using geometry::UnitCircle;
+using mgf::AdvanceCounters;
+using mgf::Affine;
+using mgf::CanonicalKey;
+using mgf::Chroma;
+using mgf::ChromaRgb;
+using mgf::Compose;
+using mgf::Entity;
+using mgf::kMinChromaY;
+using mgf::MgfFile;
+using mgf::Quote;
+using mgf::ReadWholeFile;
+using mgf::Rotation;
+using mgf::Tokenize;
+using mgf::XformSegment;
+using mgf::XformSpec;
+using mgf::XyzToChroma;
 
 // ----------------------------------------------------------------------------------------------
 // The interpreter.
@@ -624,18 +169,10 @@ struct PolyVertex {
   Vec3d n;
 };
 
-class MgfReader {
+class MgfReader final : private geometry::MeshSink {
  public:
   MgfReader(const MgfOptions& options, SceneDescription* scene)
-      : options_(options), scene_(*scene) {
-    const int n = options_.curve_segments;
-    circle_.resize(static_cast<size_t>(n) + 1);
-    for (int i = 0; i <= n; ++i) {
-      const double a = 2.0 * kPiD * i / n;
-      circle_[i] = {std::cos(a), std::sin(a)};
-    }
-    circle_[n] = circle_[0];  // close the circle exactly
-  }
+      : options_(options), scene_(*scene), circle_(options.curve_segments) {}
 
   void Run(std::unique_ptr<MgfFile> top) {
     const MgfFile& file = *top;
@@ -1026,15 +563,8 @@ class MgfReader {
         ExpectCount(a, 1, 1, "1 argument (temperature in K)");
         const double t = Number(a, 1);
         if (!(t > 0.0)) Fail("cct: temperature must be positive");
-        // Planck's law; only relative values matter (the colour is normalised).
-        constexpr double kC2 = 1.4387769e-2;  // second radiation constant, m·K
-        const Vec3d xyz = IntegrateXyz([t](double nm) {
-          const double l = nm * 1e-9;
-          const double e = std::expm1(kC2 / (l * t));
-          return std::isfinite(e) && e > 0.0 ? 1.0 / (std::pow(l * 1e6, 5.0) * e) : 0.0;
-        });
         Chroma c;
-        if (!XyzToChroma(xyz, &c)) Fail("cct: temperature " + Quote(a[1]) + " gives no visible light");
+        if (!mgf::BlackbodyToChroma(t, &c)) Fail("cct: temperature " + Quote(a[1]) + " gives no visible light");
         *colors_.current = c;
         return;
       }
@@ -1243,7 +773,7 @@ class MgfReader {
     prim_light_ = kNoLight;
   }
 
-  uint32_t AddVertex(const Vec3d& p, const Vec3d& n) {
+  uint32_t AddVertex(const Vec3d& p, const Vec3d& n) override {
     for (int k = 0; k < 3; ++k) {
       if (!(std::abs(p[k]) <= kMaxCoordinate)) {
         Fail("coordinates out of range after transformation (|x| > 1e18)");
@@ -1256,7 +786,7 @@ class MgfReader {
     return static_cast<uint32_t>(scene_.positions.size() - 1);
   }
 
-  void AddTriangle(uint32_t a, uint32_t b, uint32_t c) {
+  void AddTriangle(uint32_t a, uint32_t b, uint32_t c) override {
     if (scene_.triangles.size() >= options_.max_triangles) {
       Fail("more than " + std::to_string(options_.max_triangles) +
            " triangles (MgfOptions::max_triangles)");
@@ -1336,123 +866,23 @@ class MgfReader {
       all_normals = all_normals && n;
     }
     BeginPrimitive(a.size() * 3);
-    std::vector<PolyVertex> merged;
-    if (!BridgeHoles(rings, &merged)) {
+    std::vector<std::vector<Vec3d>> contour_points(rings.size());
+    for (size_t k = 0; k < rings.size(); ++k) {
+      for (const PolyVertex& v : rings[k]) contour_points[k].push_back(v.p);
+    }
+    std::vector<ContourVertex> bridged;
+    size_t ignored_holes = 0;
+    if (!BridgeHoles(contour_points, &bridged, &ignored_holes)) {
       Warn("fh: degenerate outer contour (no area) skipped");
       return;
     }
+    for (size_t k = 0; k < ignored_holes; ++k) {
+      Warn("fh: a hole lies outside the outer contour; hole ignored");
+    }
+    std::vector<PolyVertex> merged;
+    merged.reserve(bridged.size());
+    for (const ContourVertex& v : bridged) merged.push_back(rings[v.contour][v.index]);
     if (!EmitPolygon(merged, all_normals, "fh")) Warn("fh: degenerate face (no area) skipped");
-  }
-
-  // Connects each hole to the outer contour through a pair of coincident seam edges: from the
-  // hole's extreme vertex M along +u to the nearest contour edge, then to a visible contour
-  // vertex P (the classic hole elimination of ear-clipping triangulators). Holes are processed
-  // from the largest u down, so a later bridge may also land on an earlier hole.
-  bool BridgeHoles(const std::vector<std::vector<PolyVertex>>& rings,
-                   std::vector<PolyVertex>* merged) {
-    const std::vector<PolyVertex>& outer = rings[0];
-    Vec3d area2;
-    for (size_t i = 0; i < outer.size(); ++i) {
-      area2 += Cross(outer[i].p - outer[0].p, outer[(i + 1) % outer.size()].p - outer[0].p);
-    }
-    const double len = Length(area2);
-    if (!(len > 0.0)) return false;
-    Vec3d u, w;
-    OrthonormalBasis(area2 / len, &u, &w);
-    auto q = [&](const PolyVertex& v) { return std::pair<double, double>{Dot(v.p, u), Dot(v.p, w)}; };
-    auto signed_area = [&](const std::vector<PolyVertex>& r) {
-      double s = 0;
-      for (size_t i = 0; i < r.size(); ++i) {
-        const auto [x0, y0] = q(r[i]);
-        const auto [x1, y1] = q(r[(i + 1) % r.size()]);
-        s += x0 * y1 - x1 * y0;
-      }
-      return s;
-    };
-    *merged = outer;
-    std::vector<std::pair<double, size_t>> order;  // (max u, hole index)
-    for (size_t k = 1; k < rings.size(); ++k) {
-      double mx = -std::numeric_limits<double>::infinity();
-      for (const PolyVertex& v : rings[k]) mx = std::max(mx, q(v).first);
-      order.emplace_back(mx, k);
-    }
-    std::sort(order.begin(), order.end(), std::greater<>());
-    for (const auto& [mx, k] : order) {
-      std::vector<PolyVertex> hole = rings[k];
-      if (signed_area(hole) > 0.0) std::reverse(hole.begin(), hole.end());  // holes run clockwise
-      size_t m = 0;
-      for (size_t i = 1; i < hole.size(); ++i) {
-        if (q(hole[i]).first > q(hole[m]).first) m = i;
-      }
-      // Plain variables, not a structured binding: lambdas below capture them (clang 14).
-      const double hx = q(hole[m]).first, hy = q(hole[m]).second;
-      // Nearest crossing of the ray y = hy, x >= hx with an edge of the merged contour.
-      double best_x = std::numeric_limits<double>::infinity();
-      size_t best = kNone;
-      const size_t n = merged->size();
-      for (size_t i = 0; i < n; ++i) {
-        const auto [ax, ay] = q((*merged)[i]);
-        const auto [bx, by] = q((*merged)[(i + 1) % n]);
-        if (ay == by || hy < std::min(ay, by) || hy > std::max(ay, by)) continue;
-        const double x = ax + (hy - ay) * (bx - ax) / (by - ay);
-        if (x >= hx && x < best_x) {
-          best_x = x;
-          best = ax > bx ? i : (i + 1) % n;
-        }
-      }
-      if (best == kNone) {
-        Warn("fh: a hole lies outside the outer contour; hole ignored");
-        continue;
-      }
-      // A contour vertex inside the triangle (M, crossing, P) could block the bridge: take the
-      // one with the smallest angle to the ray instead. Vertices that occur twice (the seam of
-      // an earlier bridge) are only usable at the copy whose interior angle contains the bridge
-      // direction ("locally inside"), otherwise the spliced contour would cross itself.
-      auto orient = [](double ax, double ay, double bx, double by, double cx, double cy) {
-        return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
-      };
-      auto locally_inside = [&](size_t i) {
-        const auto [ax, ay] = q((*merged)[(i + n - 1) % n]);
-        const auto [bx, by] = q((*merged)[i]);
-        const auto [cx, cy] = q((*merged)[(i + 1) % n]);
-        const double left_of_in = orient(ax, ay, bx, by, hx, hy);
-        const double left_of_out = orient(bx, by, cx, cy, hx, hy);
-        return orient(ax, ay, bx, by, cx, cy) >= 0.0 ? (left_of_in >= 0.0 && left_of_out >= 0.0)
-                                                     : (left_of_in >= 0.0 || left_of_out >= 0.0);
-      };
-      const auto [px, py] = q((*merged)[best]);
-      const size_t hit = best;
-      double best_tan = std::numeric_limits<double>::infinity();
-      bool found = false;
-      for (size_t i = 0; i < n; ++i) {
-        const auto [vx, vy] = q((*merged)[i]);
-        const bool is_hit = vx == px && vy == py;
-        if (!is_hit) {
-          if (!(vx > hx)) continue;
-          const double o1 = orient(hx, hy, best_x, hy, vx, vy);
-          const double o2 = orient(best_x, hy, px, py, vx, vy);
-          const double o3 = orient(px, py, hx, hy, vx, vy);
-          const bool inside = (o1 >= 0 && o2 >= 0 && o3 >= 0) || (o1 <= 0 && o2 <= 0 && o3 <= 0);
-          if (!inside) continue;
-        }
-        if (!locally_inside(i)) continue;
-        const double t = vx > hx ? std::abs(vy - hy) / (vx - hx)
-                                 : std::numeric_limits<double>::max();
-        if (!found || t < best_tan) {
-          best_tan = t;
-          best = i;
-          found = true;
-        }
-      }
-      if (!found) best = hit;
-      std::vector<PolyVertex> insert;
-      insert.reserve(hole.size() + 2);
-      for (size_t i = 0; i <= hole.size(); ++i) insert.push_back(hole[(m + i) % hole.size()]);
-      insert.push_back((*merged)[best]);
-      merged->insert(merged->begin() + static_cast<std::ptrdiff_t>(best) + 1, insert.begin(),
-                     insert.end());
-    }
-    return true;
   }
 
   // World-space points and radii beyond kMaxCoordinate are errors; radii that vanish under a
@@ -1481,41 +911,13 @@ class MgfReader {
     const double rw = std::abs(r) * scale;
     const double sign = r > 0.0 ? 1.0 : -1.0;  // negative radius: inward normals (§3 sph)
     const int n = options_.curve_segments;
-    const int bands = std::max(2, n / 2);
+    const int bands = geometry::SphereBands(n);
     BeginPrimitive(static_cast<size_t>(2) * n * bands);
     if (!UsableRadius(rw)) {
       Warn("sph: radius vanishes after transformation; skipped");
       return;
     }
-    std::vector<uint32_t> ids(static_cast<size_t>(bands + 1) * n);
-    for (int j = 0; j <= bands; ++j) {
-      const double phi = kPiD * j / bands;  // polar angle from +z
-      const double sp = (j == 0 || j == bands) ? 0.0 : std::sin(phi);
-      const double cp = j == 0 ? 1.0 : (j == bands ? -1.0 : std::cos(phi));
-      for (int i = 0; i < n; ++i) {
-        const Vec3d d{sp * circle_[i].first, sp * circle_[i].second, cp};
-        ids[static_cast<size_t>(j) * n + i] = AddVertex(c + d * rw, d * sign);
-      }
-    }
-    for (int j = 0; j < bands; ++j) {
-      for (int i = 0; i < n; ++i) {
-        const int i1 = (i + 1) % n;
-        const uint32_t p00 = ids[j * n + i], p01 = ids[(j + 1) * n + i];
-        const uint32_t p11 = ids[(j + 1) * n + i1], p10 = ids[j * n + i1];
-        // (θ, φ) -> (θ, φ+) -> (θ+, φ+) faces outwards; the pole rows collapse to triangles.
-        if (j != bands - 1) Tri(sign, p00, p01, p11);
-        if (j != 0) Tri(sign, p00, p11, p10);
-      }
-    }
-  }
-
-  // Outward triangle (a, b, c), reversed when the primitive faces inwards.
-  void Tri(double sign, uint32_t a, uint32_t b, uint32_t c) {
-    if (sign > 0.0) {
-      AddTriangle(a, b, c);
-    } else {
-      AddTriangle(a, c, b);
-    }
+    geometry::TessellateSphere(c, rw, sign, circle_, *this);
   }
 
   // cyl and cone (§3 cyl, cone): open-ended truncated cone from v1 (radius r1) to v2 (r2).
@@ -1539,32 +941,7 @@ class MgfReader {
       Warn(std::string(a.keyword()) + ": degenerate after transformation; skipped");
       return;
     }
-    const Vec3d ax = axis / h;
-    Vec3d u, w;
-    OrthonormalBasis(ax, &u, &w);
-    // Surface normal at angle θ: h·ρ(θ) + (ra − rb)·axis, normalised (perpendicular to the
-    // slant line). Apex vertices get the normal of their segment's middle.
-    auto normal_at = [&](double c, double s) {
-      return SafeNormalize((u * c + w * s) * h + ax * (ra - rb)) * sign;
-    };
-    const double half = kPiD / n;
-    std::vector<uint32_t> bottom(n), top(n);
-    for (int i = 0; i < n; ++i) {
-      const auto [c, s] = circle_[i];
-      const Vec3d rho = u * c + w * s;
-      const double ab = 2.0 * kPiD * i / n + half;  // bottom apex: segment (i, i+1)
-      const double at = 2.0 * kPiD * i / n - half;  // top apex: segment (i-1, i)
-      bottom[i] = AddVertex(p1 + rho * ra, ra > 0.0 ? normal_at(c, s)
-                                                    : normal_at(std::cos(ab), std::sin(ab)));
-      top[i] = AddVertex(p2 + rho * rb, rb > 0.0 ? normal_at(c, s)
-                                                 : normal_at(std::cos(at), std::sin(at)));
-    }
-    for (int i = 0; i < n; ++i) {
-      const int i1 = (i + 1) % n;
-      // (b_i, b_i+1, t_i+1) and (b_i, t_i+1, t_i) face outwards for u × w = axis.
-      if (ra > 0.0) Tri(sign, bottom[i], bottom[i1], top[i1]);
-      if (rb > 0.0) Tri(sign, bottom[i], top[i1], top[i]);
-    }
+    geometry::TessellateCone(p1, ra, p2, rb, sign, circle_, *this);
   }
 
   // The centre vertex of ring and torus must have a normal (§3 ring, torus).
@@ -1593,20 +970,7 @@ class MgfReader {
       Warn("ring: degenerate after transformation; skipped");
       return;
     }
-    Vec3d u, w;
-    OrthonormalBasis(nz, &u, &w);
-    std::vector<uint32_t> inner(n), outer(n);
-    const uint32_t centre = ri > 0.0 ? kNone : AddVertex(c, nz);
-    for (int i = 0; i < n; ++i) {
-      const Vec3d rho = u * circle_[i].first + w * circle_[i].second;
-      outer[i] = AddVertex(c + rho * ro, nz);
-      inner[i] = ri > 0.0 ? AddVertex(c + rho * ri, nz) : centre;
-    }
-    for (int i = 0; i < n; ++i) {
-      const int i1 = (i + 1) % n;
-      AddTriangle(inner[i], outer[i], outer[i1]);  // ρ × τ = u × w = normal
-      if (ri > 0.0) AddTriangle(inner[i], outer[i1], inner[i1]);
-    }
+    geometry::TessellateRing(c, nz, ri, ro, circle_, *this);
   }
 
   // §3 torus: tube of radius (rmax − rmin)/2 swept around a circle of radius (rmax + rmin)/2
@@ -1634,26 +998,7 @@ class MgfReader {
       Warn("torus: degenerate after transformation; skipped");
       return;
     }
-    Vec3d u, w;
-    OrthonormalBasis(nz, &u, &w);
-    std::vector<uint32_t> ids(static_cast<size_t>(n) * n);
-    for (int i = 0; i < n; ++i) {
-      const Vec3d rho = u * circle_[i].first + w * circle_[i].second;
-      for (int j = 0; j < n; ++j) {
-        const Vec3d d = rho * circle_[j].first + nz * circle_[j].second;
-        ids[static_cast<size_t>(i) * n + j] = AddVertex(c + rho * sweep + d * tube, d * sign);
-      }
-    }
-    for (int i = 0; i < n; ++i) {
-      const int i1 = (i + 1) % n;
-      for (int j = 0; j < n; ++j) {
-        const int j1 = (j + 1) % n;
-        const uint32_t p00 = ids[i * n + j], p10 = ids[i1 * n + j];
-        const uint32_t p11 = ids[i1 * n + j1], p01 = ids[i * n + j1];
-        Tri(sign, p00, p10, p11);  // ∂θ × ∂φ points away from the tube's core
-        Tri(sign, p00, p11, p01);
-      }
-    }
+    geometry::TessellateTorus(c, nz, tube, sweep, sign, circle_, *this);
   }
 
   // §3 prism: the given face is one end (kept as given, so it faces outwards); the other end is
@@ -1701,7 +1046,7 @@ class MgfReader {
 
   const MgfOptions& options_;
   SceneDescription& scene_;
-  std::vector<std::pair<double, double>> circle_;  // cos, sin of the N segment angles
+  const UnitCircle circle_;  // cos, sin of the N segment angles
 
   std::map<std::string, std::unique_ptr<MgfFile>> files_;  // by canonical path
   std::vector<std::string> include_stack_;
@@ -1752,43 +1097,6 @@ SceneDescription Load(std::unique_ptr<MgfFile> file, const MgfOptions& options) 
 }
 
 }  // namespace
-
-namespace mgf {
-
-Rgb CieToRgb(double x, double y, double Y) {
-  if (!(y > 0.0)) return Rgb();
-  const double xyz[3] = {x / y * Y, Y, (1.0 - x - y) / y * Y};
-  Rgb out;
-  for (int i = 0; i < 3; ++i) {
-    const double v = kXyzToRgb.m[i][0] * xyz[0] + kXyzToRgb.m[i][1] * xyz[1] +
-                     kXyzToRgb.m[i][2] * xyz[2];
-    // "watch for negative values" (§6.1.1); the upper clamp only keeps the float cast defined.
-    out[i] = v > 0.0 ? static_cast<float>(std::min(v, 1e30)) : 0.0f;
-  }
-  return out;
-}
-
-bool SpectrumToXy(double lambda_min, double lambda_max, const double* values, size_t count,
-                  double* x, double* y) {
-  if (count < 2 || !(lambda_min < lambda_max)) return false;
-  const double step = (lambda_max - lambda_min) / static_cast<double>(count - 1);
-  if (!(step > 0.0) || !std::isfinite(step)) return false;
-  // §3 cspec: evenly spaced samples, linearly interpolated, zero outside [l_min, l_max].
-  const Vec3d xyz = IntegrateXyz([&](double l) {
-    if (l < lambda_min || l > lambda_max) return 0.0;
-    const double t = (l - lambda_min) / step;
-    const size_t i = std::min(static_cast<size_t>(t), count - 2);
-    const double f = t - static_cast<double>(i);
-    return values[i] + f * (values[i + 1] - values[i]);
-  });
-  Chroma c;
-  if (!XyzToChroma(xyz, &c)) return false;
-  *x = c.x;
-  *y = c.y;
-  return true;
-}
-
-}  // namespace mgf
 
 SceneDescription LoadMgf(const std::filesystem::path& file, const MgfOptions& options) {
   auto f = std::make_unique<MgfFile>();

@@ -88,16 +88,7 @@ SceneDescription LoadMgf(const std::filesystem::path& file, const MgfOptions& op
 SceneDescription LoadMgfFromString(std::string_view text, const std::string& virtual_name,
                                    const MgfOptions& options = {});
 
-// The conversions above, exposed for tests and for tools that print material tables.
-namespace mgf {
-// Luminous efficacy used to turn lumens into radiometric "watts" (Radiance's WHTEFFICACY).
-inline constexpr double kLuminousEfficacy = 179.0;
-// Linear RGB of CIE (x, y, Y) with the §6.1.1 matrix; negative components clamped to 0.
-Rgb CieToRgb(double x, double y, double Y);
-// CIE (x, y) of a relative spectrum sampled evenly from lambda_min to lambda_max nanometres.
-// Returns false if it has no positive luminance in 380-780 nm.
-bool SpectrumToXy(double lambda_min, double lambda_max, const double* values, size_t count,
-                  double* x, double* y);
-}  // namespace mgf
+// The colour conversions above (mgf::CieToRgb, mgf::SpectrumToXy, mgf::kLuminousEfficacy) are
+// declared in mgf_color.h, for tests and for tools that print material tables.
 
 }  // namespace pf

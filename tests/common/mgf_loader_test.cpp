@@ -3,6 +3,7 @@
 // checked against analytic values.
 
 #include "common/scene/mgf_loader.h"
+#include "common/scene/mgf_color.h"
 
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
