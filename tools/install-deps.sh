@@ -17,6 +17,8 @@ PACKAGES=(
   python3 python3-grpcio python3-protobuf
   # Fuzzing the MGF parser (libFuzzer lives in clang's runtime).
   clang libclang-rt-14-dev
+  # Formatting check of the test command (tools/check-format.sh): Debian 12 ships version 14.
+  clang-format
 )
 if [ "${1:-}" = "--bench" ]; then PACKAGES+=(python3-matplotlib); fi
 
