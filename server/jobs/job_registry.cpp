@@ -3,12 +3,14 @@
 #include <stdexcept>
 
 #include "server/errors.h"
+#include "server/jobs/random_id.h"
 
 namespace pf::server {
 
 std::pair<uint64_t, std::string> JobRegistry::Allocate() {
   ++last_seq_;
-  return {last_seq_, "job-" + std::to_string(last_seq_)};
+  // The sequence number orders jobs; the id is random (random_id.h): never reused.
+  return {last_seq_, "job-" + RandomHex(16)};
 }
 
 void JobRegistry::ReserveUpTo(uint64_t seq) {

@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "common/core/error.h"
+#include "server/jobs/random_id.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
@@ -27,7 +28,7 @@ v1::JobState ToProto(JobState s) {
 }  // namespace
 
 Scheduler::Scheduler(const Clock& clock, SchedulerOptions options)
-    : clock_(clock), options_(options), rng_(std::random_device{}()) {
+    : clock_(clock), options_(options) {
   if (!(options_.lease_seconds > 0)) throw std::invalid_argument("Scheduler: lease_seconds must be > 0");
   if (options_.max_attempts < 1) throw std::invalid_argument("Scheduler: max_attempts must be >= 1");
 }
@@ -103,9 +104,8 @@ void Scheduler::ServeWaiters(Effects& fx) {
 }
 
 std::string Scheduler::NewLeaseId(const Job& job, uint64_t task_id, uint32_t attempt) {
-  char rnd[17];
-  std::snprintf(rnd, sizeof(rnd), "%016llx", static_cast<unsigned long long>(rng_()));
-  return job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + rnd;
+  // 128 bits from the CSPRNG: a lease id is the worker's only proof that it holds the task.
+  return job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + RandomHex(16);
 }
 
 bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {

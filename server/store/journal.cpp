@@ -39,8 +39,9 @@ std::string EncodeJournalEntry(uint64_t task_id, std::span<const float> rgb_sums
   return out;
 }
 
-std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uint64_t* valid_bytes) {
+std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uint64_t* valid_bytes, bool* damaged) {
   *valid_bytes = 0;
+  if (damaged) *damaged = false;
   std::vector<JournalEntry> entries;
   std::error_code ec;
   if (!std::filesystem::exists(file, ec)) return entries;
@@ -52,11 +53,23 @@ std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uin
   size_t pos = 0;
   while (bytes.size() - pos >= kHeader + 8) {
     const char* p = bytes.data() + pos;
-    if (std::memcmp(p, kMagic, 4) != 0) break;
+    const auto another_entry_follows = [&] {
+      return std::string_view(bytes).find(std::string_view(kMagic, 4), pos + 1) != std::string_view::npos;
+    };
+    if (std::memcmp(p, kMagic, 4) != 0) {
+      if (damaged) *damaged = another_entry_follows();
+      break;
+    }
     const uint64_t n = GetLe(p + 12, 4);
     const size_t size = kHeader + 4 * n + 8;
-    if (bytes.size() - pos < size) break;
-    if (GetLe(p + size - 8, 8) != Checksum64(std::string_view(p, size - 8))) break;
+    if (bytes.size() - pos < size) {
+      if (damaged) *damaged = another_entry_follows();
+      break;
+    }
+    if (GetLe(p + size - 8, 8) != Checksum64(std::string_view(p, size - 8))) {
+      if (damaged) *damaged = bytes.size() - pos > size || another_entry_follows();
+      break;
+    }
     JournalEntry e;
     e.task_id = GetLe(p + 4, 8);
     e.rgb_sums.resize(n);
