@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "proto/limits.h"
 #include "server/errors.h"
 #include "server/jobs/random_id.h"
 
@@ -39,13 +40,13 @@ const Job* JobRegistry::Find(const std::string& id) const {
 
 Job& JobRegistry::Get(const std::string& id) {
   Job* job = Find(id);
-  if (!job) throw NotFoundError("job_id: unknown job '" + id + "'");
+  if (!job) throw NotFoundError("job_id: unknown job " + limits::Quote(id));
   return *job;
 }
 
 const Job& JobRegistry::Get(const std::string& id) const {
   const Job* job = Find(id);
-  if (!job) throw NotFoundError("job_id: unknown job '" + id + "'");
+  if (!job) throw NotFoundError("job_id: unknown job " + limits::Quote(id));
   return *job;
 }
 

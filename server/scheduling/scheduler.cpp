@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "common/core/error.h"
+#include "proto/limits.h"
 #include "server/jobs/random_id.h"
 
 namespace pf::server {
@@ -156,7 +157,8 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     }
     ++counters_.leases;
     Touch(job, fx);
-    spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick, request.worker_id, rt.attempts,
+    spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick,
+                 limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), rt.attempts,
                  affinity ? ", map cached" : "");
     Lease lease;
     lease.lease_id = rt.lease_id;
@@ -427,7 +429,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
     if (!ref) {
       ++counters_.ignored;
       result.reason = "unknown, expired or finished lease";
-      spdlog::info("result for lease {} ignored: {}", lease_id, result.reason);
+      spdlog::info("result for lease {} ignored: {}", limits::Quote(lease_id, limits::kMaxIdBytes), result.reason);
     } else {
       Job& job = *ref->job;
       const uint64_t task_id = ref->task_id;
