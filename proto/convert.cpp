@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common/core/error.h"
+#include "proto/limits.h"
 
 namespace pf {
 namespace v1 = photonfarm::v1;
@@ -31,9 +32,11 @@ CameraSpec CameraFromProto(const v1::Camera& c, const std::string& field) {
   cam.eye = VecFromProto(c.eye(), field + ".eye");
   cam.look_at = VecFromProto(c.look_at(), field + ".look_at");
   cam.up = VecFromProto(c.up(), field + ".up");
-  if (!(c.vfov_degrees() > 0.0 && c.vfov_degrees() < 180.0))
-    throw InputError(field + ".vfov_degrees: must be in (0, 180)");
+  // Checked as the worker will use it: as a float (1e-300 becomes 0, 179.9999999 becomes 180).
   cam.vfov_degrees = float(c.vfov_degrees());
+  if (!(cam.vfov_degrees >= kMinVfovDegrees && cam.vfov_degrees <= kMaxVfovDegrees))
+    throw InputError(field + ".vfov_degrees: must be in [" + std::to_string(kMinVfovDegrees) + ", " +
+                     std::to_string(kMaxVfovDegrees) + "] (as a 32-bit float)");
   if (c.width() == 0 || c.height() == 0) throw InputError(field + ".width/height: must be > 0");
   if (c.width() > kMaxImageSide || c.height() > kMaxImageSide ||
       uint64_t(c.width()) * c.height() > kMaxImagePixels)

@@ -21,4 +21,12 @@ class UnavailableError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Data the coordinator had acknowledged is gone or corrupt (a damaged checkpoint of a finished
+// job). The message names the job, never a server path. → DATA_LOSS (clients must not read it
+// as "your input was invalid").
+class DataLossError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 }  // namespace pf::server

@@ -170,6 +170,30 @@ class ConfinedMtlReader : public tinyobj::MaterialReader {
   std::vector<std::string> missing_;
 };
 
+// tinyobjloader reads "nan", "inf" or "1e999" in a `v`/`vn` line as some number without a
+// word; a scene with such a vertex must not load (it would poison the kd-tree and every
+// estimator). Checks the first three fields of every `v` and `vn` line.
+void CheckCoordinates(const std::string& text, const std::string& file) {
+  std::istringstream lines(text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    std::istringstream tokens(line);
+    std::string keyword;
+    if (!(tokens >> keyword) || (keyword != "v" && keyword != "vn")) continue;
+    for (int i = 0; i < 3; ++i) {
+      std::string field;
+      if (!(tokens >> field)) break;  // too few fields: tinyobjloader's own error
+      double value = 0;
+      const char* begin = field.data() + (field.size() > 1 && field[0] == '+' ? 1 : 0);
+      const auto [ptr, ec] = std::from_chars(begin, field.data() + field.size(), value);
+      if (ec != std::errc() || ptr != field.data() + field.size() || !std::isfinite(value) ||
+          !std::isfinite(float(value)))
+        throw InputError(SourceLocation{file, number}, keyword + " coordinate " + QuoteReference(field) +
+                                                           " is not a finite number");
+    }
+  }
+}
+
 // The line of the first `mtllib` statement that names `reference` (0 if none is found).
 int MtllibLine(const std::filesystem::path& path, const std::string& reference) {
   std::ifstream in(path, std::ios::binary);
@@ -274,8 +298,16 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw InputError(SourceLocation{file, 0}, "no such file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(SourceLocation{file, 0}, "cannot open file for reading");
+  std::string text;
+  {
+    std::ifstream file_in(path, std::ios::binary);
+    if (!file_in) throw InputError(SourceLocation{file, 0}, "cannot open file for reading");
+    std::ostringstream ss;
+    ss << file_in.rdbuf();
+    text = std::move(ss).str();
+  }
+  CheckCoordinates(text, file);
+  std::istringstream in(text);
 
   const std::filesystem::path base_dir = path.has_parent_path() ? path.parent_path() : ".";
   ConfinedMtlReader mtl_reader(root.empty() ? base_dir : root, base_dir);

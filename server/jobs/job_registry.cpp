@@ -2,13 +2,16 @@
 
 #include <stdexcept>
 
+#include "proto/limits.h"
 #include "server/errors.h"
+#include "server/jobs/random_id.h"
 
 namespace pf::server {
 
 std::pair<uint64_t, std::string> JobRegistry::Allocate() {
   ++last_seq_;
-  return {last_seq_, "job-" + std::to_string(last_seq_)};
+  // The sequence number orders jobs; the id is random (random_id.h): never reused.
+  return {last_seq_, "job-" + RandomHex(16)};
 }
 
 void JobRegistry::ReserveUpTo(uint64_t seq) {
@@ -37,13 +40,13 @@ const Job* JobRegistry::Find(const std::string& id) const {
 
 Job& JobRegistry::Get(const std::string& id) {
   Job* job = Find(id);
-  if (!job) throw NotFoundError("job_id: unknown job '" + id + "'");
+  if (!job) throw NotFoundError("job_id: unknown job " + limits::Quote(id));
   return *job;
 }
 
 const Job& JobRegistry::Get(const std::string& id) const {
   const Job* job = Find(id);
-  if (!job) throw NotFoundError("job_id: unknown job '" + id + "'");
+  if (!job) throw NotFoundError("job_id: unknown job " + limits::Quote(id));
   return *job;
 }
 

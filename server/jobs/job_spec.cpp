@@ -1,5 +1,7 @@
 #include "server/jobs/job_spec.h"
 
+#include "proto/limits.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -79,8 +81,7 @@ uint32_t JobConfig::ScheduledRounds() const {
 
 JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
   JobConfig job;
-  if (spec.name().size() > kMaxJobNameBytes)
-    throw InputError("spec.name: longer than " + std::to_string(kMaxJobNameBytes) + " bytes");
+  limits::CheckText(spec.name(), "spec.name", kMaxJobNameBytes);
   job.name = spec.name();
 
   const std::string& hash = spec.scene_hash();
@@ -90,7 +91,8 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
       }))
     throw InputError("spec.scene_hash: must be 64 lowercase hex digits (the hash UploadScene returned)");
   const std::optional<SceneInfo> scene = scenes.FindScene(hash);
-  if (!scene) throw NotFoundError("spec.scene_hash: unknown scene '" + hash + "' (upload it with UploadScene first)");
+  if (!scene)
+    throw NotFoundError("spec.scene_hash: unknown scene " + limits::Quote(hash) + " (upload it with UploadScene first)");
   job.scene_hash = hash;
   job.scene_entry = scene->entry;
 

@@ -31,12 +31,13 @@
 #include "common/plan/task_plan.h"
 #include "common/scene/scene.h"
 #include "photonfarm/v1/farm.pb.h"
+#include "proto/limits.h"
 
 namespace pf::server {
 
 inline constexpr uint64_t kMaxTasksPerJob = uint64_t(1) << 20;
 inline constexpr uint64_t kMaxPixelsPerTask = uint64_t(4) << 20;
-inline constexpr size_t kMaxJobNameBytes = 256;
+inline constexpr size_t kMaxJobNameBytes = limits::kMaxJobNameBytes;
 
 // What the coordinator knows about a stored scene.
 struct SceneInfo {

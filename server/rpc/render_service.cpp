@@ -1,5 +1,7 @@
 #include "server/rpc/render_service.h"
 
+#include "proto/limits.h"
+
 #include <spdlog/spdlog.h>
 
 #include "common/core/error.h"
@@ -17,9 +19,7 @@ namespace {
 
 grpc::Status Busy() { return {grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down; retry"}; }
 
-void RequireJobId(const std::string& id) {
-  if (id.empty()) throw InputError("job_id: required");
-}
+void RequireJobId(const std::string& id) { limits::CheckId(id, "job_id"); }
 
 }  // namespace
 
@@ -132,9 +132,10 @@ grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::Callb
 
 grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(grpc::CallbackServerContext* /*context*/,
                                                                       const v1::GetImageRequest* request) {
-  grpc::Status precheck;
-  if (request->job_id().empty())
-    precheck = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "job_id: required");
+  const grpc::Status precheck = Guarded("GetImage", [&] {
+    RequireJobId(request->job_id());
+    return grpc::Status::OK;
+  });
   const std::string job_id = request->job_id();
   return BufferedStreamReactor<v1::ImageChunk>::Start(ctx_.executor, "GetImage", precheck, [this, job_id] {
     return EncodeJobImage(ctx_.scheduler, job_id).chunks;

@@ -22,6 +22,9 @@ grpc::Status StatusFromException(std::exception_ptr error, std::string_view rpc)
   } catch (const NotFoundError& e) {
     spdlog::info("{}: NOT_FOUND: {}", rpc, e.what());
     return {grpc::StatusCode::NOT_FOUND, e.what()};
+  } catch (const DataLossError& e) {
+    spdlog::error("{}: DATA_LOSS: {}", rpc, e.what());
+    return {grpc::StatusCode::DATA_LOSS, e.what()};
   } catch (const UnavailableError& e) {
     return {grpc::StatusCode::UNAVAILABLE, e.what()};
   } catch (const std::bad_alloc&) {

@@ -5,6 +5,7 @@
 #include <optional>
 #include <vector>
 
+#include "proto/limits.h"
 #include "server/rpc/job_images.h"
 #include "server/rpc/status_mapping.h"
 
@@ -190,6 +191,11 @@ grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(const v1::WatchJobReques
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           "min_interval_seconds: must be a finite number in [0, 3600]");
     if (request.job_id().empty()) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "job_id: required");
+    try {
+      limits::CheckId(request.job_id(), "job_id");
+    } catch (const InputError& e) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
+    }
     scheduler_.Status(request.job_id());  // NOT_FOUND for an unknown job
     return grpc::Status::OK;
   });

@@ -1,5 +1,7 @@
 #include "server/rpc/worker_service.h"
 
+#include "proto/limits.h"
+
 #include <spdlog/spdlog.h>
 
 #include <cmath>
@@ -15,7 +17,6 @@ namespace v1 = photonfarm::v1;
 
 namespace {
 
-constexpr size_t kMaxWorkerIdBytes = 256;
 constexpr size_t kMaxReasonBytes = 4096;
 
 void FillTask(const Lease& lease, v1::Task* task) {
@@ -30,9 +31,7 @@ void FillTask(const Lease& lease, v1::Task* task) {
   SettingsToProto(lease.config->settings, task->mutable_settings());
 }
 
-void RequireLeaseId(const std::string& id) {
-  if (id.empty()) throw InputError("lease_id: required");
-}
+void RequireLeaseId(const std::string& id) { limits::CheckId(id, "lease_id"); }
 
 // One parked long poll. The state shared with the scheduler's callback lives in `State`, so the
 // reactor is only touched until it is finished (it deletes itself in OnDone).
@@ -44,9 +43,7 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
     LeaseRequest lr;
     double wait = 0;
     const grpc::Status status = Guarded("LeaseTask", [&] {
-        if (request->worker_id().empty()) throw InputError("worker_id: required");
-        if (request->worker_id().size() > kMaxWorkerIdBytes)
-          throw InputError("worker_id: longer than " + std::to_string(kMaxWorkerIdBytes) + " bytes");
+        limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
         wait = request->wait_seconds();
         if (!std::isfinite(wait) || wait < 0) throw InputError("wait_seconds: must be a finite number >= 0");
         wait = std::min(wait, kMaxLeaseWaitSeconds);
@@ -178,9 +175,10 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
 
 grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::CallbackServerContext* /*context*/,
                                                                        const v1::FetchSceneRequest* request) {
-  grpc::Status precheck;
-  if (request->scene_hash().empty())
-    precheck = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "scene_hash: required");
+  const grpc::Status precheck = Guarded("FetchScene", [&] {
+    limits::CheckId(request->scene_hash(), "scene_hash");
+    return grpc::Status::OK;
+  });
   const std::string hash = request->scene_hash();
   return BufferedStreamReactor<v1::SceneFile>::Start(ctx_.executor, "FetchScene", precheck, [this, hash] {
     const SceneBundle bundle = ctx_.scenes.ReadBundle(hash);

@@ -7,6 +7,8 @@
 #include <cstdio>
 
 #include "common/core/error.h"
+#include "proto/limits.h"
+#include "server/jobs/random_id.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
@@ -27,7 +29,7 @@ v1::JobState ToProto(JobState s) {
 }  // namespace
 
 Scheduler::Scheduler(const Clock& clock, SchedulerOptions options)
-    : clock_(clock), options_(options), rng_(std::random_device{}()) {
+    : clock_(clock), options_(options) {
   if (!(options_.lease_seconds > 0)) throw std::invalid_argument("Scheduler: lease_seconds must be > 0");
   if (options_.max_attempts < 1) throw std::invalid_argument("Scheduler: max_attempts must be >= 1");
 }
@@ -103,9 +105,8 @@ void Scheduler::ServeWaiters(Effects& fx) {
 }
 
 std::string Scheduler::NewLeaseId(const Job& job, uint64_t task_id, uint32_t attempt) {
-  char rnd[17];
-  std::snprintf(rnd, sizeof(rnd), "%016llx", static_cast<unsigned long long>(rng_()));
-  return job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + rnd;
+  // 128 bits from the CSPRNG: a lease id is the worker's only proof that it holds the task.
+  return job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + RandomHex(16);
 }
 
 bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
@@ -157,7 +158,8 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     }
     ++counters_.leases;
     Touch(job, fx);
-    spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick, request.worker_id, rt.attempts,
+    spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick,
+                 limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), rt.attempts,
                  affinity ? ", map cached" : "");
     Lease lease;
     lease.lease_id = rt.lease_id;
@@ -428,7 +430,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
     if (!ref) {
       ++counters_.ignored;
       result.reason = "unknown, expired or finished lease";
-      spdlog::info("result for lease {} ignored: {}", lease_id, result.reason);
+      spdlog::info("result for lease {} ignored: {}", limits::Quote(lease_id, limits::kMaxIdBytes), result.reason);
     } else {
       Job& job = *ref->job;
       const uint64_t task_id = ref->task_id;

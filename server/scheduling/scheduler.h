@@ -215,7 +215,6 @@ class Scheduler {
   std::map<uint64_t, Waiter> waiters_;  // oldest first
   uint64_t next_waiter_ = 1;
   bool shutdown_ = false;
-  std::mt19937_64 rng_;
   SchedulerCounters counters_;
   std::function<void(const std::string&)> change_listener_;
   std::function<void()> persist_listener_;

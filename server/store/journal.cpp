@@ -28,8 +28,9 @@ std::string EncodeJournalEntry(uint64_t task_id, std::span<const float> rgb_sums
   return out;
 }
 
-std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uint64_t* valid_bytes) {
+std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uint64_t* valid_bytes, bool* damaged) {
   *valid_bytes = 0;
+  if (damaged) *damaged = false;
   std::vector<JournalEntry> entries;
   std::error_code ec;
   if (!std::filesystem::exists(file, ec)) return entries;
@@ -41,11 +42,23 @@ std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uin
   size_t pos = 0;
   while (bytes.size() - pos >= kHeader + 8) {
     const char* p = bytes.data() + pos;
-    if (std::memcmp(p, kMagic, 4) != 0) break;
+    const auto another_entry_follows = [&] {
+      return std::string_view(bytes).find(std::string_view(kMagic, 4), pos + 1) != std::string_view::npos;
+    };
+    if (std::memcmp(p, kMagic, 4) != 0) {
+      if (damaged) *damaged = another_entry_follows();
+      break;
+    }
     const uint64_t n = LoadLittleEndian<uint32_t>(p + 12);
     const size_t size = kHeader + 4 * n + 8;
-    if (bytes.size() - pos < size) break;
-    if (LoadLittleEndian<uint64_t>(p + size - 8) != Checksum64(std::string_view(p, size - 8))) break;
+    if (bytes.size() - pos < size) {
+      if (damaged) *damaged = another_entry_follows();
+      break;
+    }
+    if (LoadLittleEndian<uint64_t>(p + size - 8) != Checksum64(std::string_view(p, size - 8))) {
+      if (damaged) *damaged = bytes.size() - pos > size || another_entry_follows();
+      break;
+    }
     JournalEntry e;
     e.task_id = LoadLittleEndian<uint64_t>(p + 4);
     e.rgb_sums.resize(n);

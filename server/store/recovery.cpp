@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <set>
+
 #include "common/core/error.h"
 #include "server/assembly/result_merger.h"
 #include "server/store/checkpoint.h"
@@ -41,19 +43,31 @@ bool ApplyCheckpoint(const Checkpoint& cp, Job& job, std::string* problem) {
 }
 
 // Merges the journal's entries for tasks not merged yet; cuts a torn tail. Returns how many.
-uint64_t ReplayJournal(const fs::path& file, Job& job) {
+uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
   uint64_t valid = 0;
+  bool damaged = false;
   std::vector<JournalEntry> entries;
   try {
-    entries = ReadJournalFile(file, &valid);
+    entries = ReadJournalFile(file, &valid, &damaged);
   } catch (const std::exception& e) {
     spdlog::error("job {}: journal unreadable ({}); its results are re-run", job.id(), e.what());
     return 0;
   }
   std::error_code ec;
-  if (fs::exists(file, ec) && fs::file_size(file, ec) > valid) {
-    spdlog::warn("job {}: journal {} ends in a torn entry (an unacknowledged result); cut at {} bytes", job.id(),
-                 file.string(), valid);
+  if (damaged) {
+    // Acknowledged results are unreadable: an error for the operator, with the file kept. The
+    // image stays right (the tasks are re-run; rendering is deterministic).
+    ++report.journals_damaged;
+    fs::path kept = file;
+    kept += ".damaged";
+    fs::copy_file(file, kept, fs::copy_options::overwrite_existing, ec);
+    spdlog::error("job {}: DATA LOSS: journal damaged after byte {} of {} (acknowledged results unreadable); "
+                  "{} entries kept, the other tasks are re-run; damaged file kept as {}",
+                  job.id(), valid, fs::file_size(file, ec), entries.size(), kept.filename().string());
+    fs::resize_file(file, valid, ec);
+  } else if (fs::exists(file, ec) && fs::file_size(file, ec) > valid) {
+    spdlog::warn("job {}: journal ends in a torn entry (an unacknowledged result); cut at {} bytes", job.id(),
+                 valid);
     fs::resize_file(file, valid, ec);
   }
   ResultMerger merger;
@@ -76,11 +90,38 @@ uint64_t ReplayJournal(const fs::path& file, Job& job) {
 
 }  // namespace
 
+// Checkpoints and journals whose job has no row (the job table was lost or restored from an
+// older copy) belong to no job: they are never replayed into another job (job ids are random
+// and never reused, jobs/random_id.h), but they are acknowledged results, so they are kept aside
+// as `<file>.orphaned` and reported as an error for the operator.
+static void SetAsideOrphans(const fs::path& checkpoint_dir, const std::vector<JobRow>& rows) {
+  std::set<std::string> known;
+  for (const JobRow& row : rows) {
+    known.insert(Persister::CheckpointFile(checkpoint_dir, row.job_id).filename().string());
+    known.insert(Persister::JournalFile(checkpoint_dir, row.job_id).filename().string());
+  }
+  std::error_code ec;
+  for (fs::directory_iterator it(checkpoint_dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const fs::path file = it->path();
+    const std::string ext = file.extension().string();
+    if ((ext != ".acc" && ext != ".journal") || known.count(file.filename().string())) continue;
+    fs::path aside = file;
+    aside += ".orphaned";
+    std::error_code rename_ec;
+    fs::rename(file, aside, rename_ec);
+    spdlog::error("{} belongs to no known job (the job table was lost or restored?); not replayed, {} ",
+                  file.filename().string(),
+                  rename_ec ? "left in place: " + rename_ec.message() : "kept as " + aside.filename().string());
+  }
+}
+
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
                            Scheduler& scheduler, const Clock& clock) {
   RecoveryReport report;
   const double now = clock.Now();
-  for (JobRow& row : db.LoadJobs()) {
+  std::vector<JobRow> rows = db.LoadJobs();
+  SetAsideOrphans(checkpoint_dir, rows);
+  for (JobRow& row : rows) {
     scheduler.ReserveJobSeq(row.seq);
     const bool finished = IsTerminal(row.state);
     JobConfig config;
@@ -133,7 +174,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       spdlog::error("job {}: checkpoint unreadable ({}); restarting the job from zero merges", row.job_id, e.what());
     }
     const uint64_t from_checkpoint = job->count(TaskState::kDone);
-    const uint64_t journaled = ReplayJournal(Persister::JournalFile(checkpoint_dir, row.job_id), *job);
+    const uint64_t journaled = ReplayJournal(Persister::JournalFile(checkpoint_dir, row.job_id), *job, report);
     job->dirty_tasks.clear();
     for (const TaskRow& t : rows) {
       if (t.task_id >= job->num_tasks()) continue;

@@ -31,6 +31,7 @@ struct RecoveryReport {
   uint64_t tasks_merged = 0;     // restored from checkpoints and journals (not re-run)
   uint64_t tasks_from_journal = 0;
   uint64_t tasks_requeued = 0;
+  uint64_t journals_damaged = 0;  // damage before the end: acknowledged results lost (re-run)
 };
 
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const std::filesystem::path& checkpoint_dir,

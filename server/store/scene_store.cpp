@@ -1,5 +1,7 @@
 #include "server/store/scene_store.h"
 
+#include "proto/limits.h"
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -139,7 +141,7 @@ std::optional<SceneInfo> SceneStore::FindScene(const std::string& hash) const {
 
 SceneBundle SceneStore::ReadBundle(const std::string& hash) const {
   const std::optional<SceneInfo> info = FindScene(hash);
-  if (!info) throw NotFoundError("scene_hash: unknown scene '" + hash + "'");
+  if (!info) throw NotFoundError("scene_hash: unknown scene " + limits::Quote(hash));
   const fs::path root = dir_ / hash;
   SceneBundle bundle;
   bundle.entry = info->entry;

@@ -188,5 +188,17 @@ TEST(BundlePaths, AFileCannotAlsoBeAFolder) {
   }
 }
 
+// Issue #14: an OBJ with a NaN vertex was accepted (tinyobjloader reads "nan" as a number).
+TEST_F(SceneReferenceTest, ObjVerticesMustBeFiniteNumbers) {
+  for (const char* bad : {"nan", "inf", "-inf", "1e999", "1e39", "0x1p3", "abc"}) {
+    const fs::path p = Write("scene/bad.obj", std::string("v 0 0 0\nv 1 0 ") + bad + "\nv 0 1 0\nf 1 2 3\n");
+    EXPECT_THAT(LoadError(p), HasSubstr("bad.obj:2: v coordinate '" + std::string(bad) + "' is not a finite number"))
+        << bad;
+  }
+  const fs::path n = Write("scene/badn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 nan 1\nf 1//1 2//1 3//1\n");
+  EXPECT_THAT(LoadError(n), HasSubstr("badn.obj:4: vn coordinate 'nan'"));
+  EXPECT_EQ(LoadError(Write("scene/ok.obj", "v 0 0 0\nv 1.5e2 -0 0\nv 0 1 +0.5\nf 1 2 3\n")), "");
+}
+
 }  // namespace
 }  // namespace pf

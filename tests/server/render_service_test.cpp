@@ -125,6 +125,16 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
        C::INVALID_ARGUMENT, "spec.camera.look_at: must differ from eye"},
       {"fov 180", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(180); }, C::INVALID_ARGUMENT,
        "spec.camera.vfov_degrees"},
+      // Issue #14: valid as doubles, 0 and 180 as the worker's floats.
+      {"fov 1e-300", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(1e-300); }, C::INVALID_ARGUMENT,
+       "spec.camera.vfov_degrees"},
+      {"fov 179.9999999", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(179.9999999); },
+       C::INVALID_ARGUMENT, "spec.camera.vfov_degrees"},
+      // Issue #14: names are logged; control characters would forge log lines or drive terminals.
+      {"name with a newline", [](v1::JobSpec& s) { s.set_name("a\n[error] forged"); }, C::INVALID_ARGUMENT,
+       "spec.name 'a\\x0a[error] forged': contains a control character"},
+      {"name with ANSI", [](v1::JobSpec& s) { s.set_name("\x1b[2Jx"); }, C::INVALID_ARGUMENT,
+       "spec.name '\\x1b[2Jx': contains a control character"},
       {"NaN eye", [](v1::JobSpec& s) { s.mutable_camera()->mutable_eye()->set_x(std::nan("")); },
        C::INVALID_ARGUMENT, "spec.camera.eye: must be three finite numbers"},
       {"no plan", [](v1::JobSpec& s) { s.clear_plan(); }, C::INVALID_ARGUMENT, "spec.plan: one of"},
@@ -190,7 +200,7 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
   v1::SubmitJobResponse resp;
   const grpc::Status st = Submit(ValidSpec(), &resp);
   ASSERT_TRUE(st.ok()) << st.error_message();
-  EXPECT_EQ(resp.job_id(), "job-1");
+  EXPECT_THAT(resp.job_id(), ::testing::MatchesRegex("job-[0-9a-f]{32}"));
 }
 
 TEST(SettingsConversion, EveryChapterFourSettingSurvivesTheRoundTrip) {
@@ -323,6 +333,40 @@ TEST_F(RenderServiceTest, UnknownJobsAreNotFound) {
   v1::JobUpdate update;
   EXPECT_FALSE(wreader->Read(&update));
   EXPECT_EQ(wreader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+// Issue #14: an 8000-byte job id was echoed into the error (the client saw RESOURCE_EXHAUSTED
+// for the oversized status); a 1 MiB lease id wrote a 1 MiB log line per call. Ids are checked
+// at the edge: bounded, printable, and never echoed in full.
+TEST_F(RenderServiceTest, OverlongOrBinaryIdsAreRejectedWithoutEchoingThem) {
+  const std::string long_id(8000, 'j');
+  v1::GetJobRequest get;
+  get.set_job_id(long_id);
+  v1::JobStatus status;
+  grpc::Status st = live_->render->GetJob(Ctx().get(), get, &status);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_EQ(st.error_message(), "job_id: longer than 128 bytes");
+  get.set_job_id("job-\n\x1b[31m");
+  st = live_->render->GetJob(Ctx().get(), get, &status);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_EQ(st.error_message().find('\n'), std::string::npos) << st.error_message();
+  EXPECT_EQ(st.error_message().find('\x1b'), std::string::npos) << st.error_message();
+  get.set_job_id("job-" + std::string(100, 'f'));  // well-formed, unknown: NOT_FOUND, echo cut
+  st = live_->render->GetJob(Ctx().get(), get, &status);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND) << st.error_message();
+  EXPECT_LT(st.error_message().size(), 120u) << st.error_message();
+
+  v1::ExtendLeaseRequest extend;
+  extend.set_lease_id(std::string(1 << 20, 'l'));
+  v1::ExtendLeaseResponse extended;
+  st = live_->worker->ExtendLease(Ctx().get(), extend, &extended);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message().substr(0, 200);
+  EXPECT_EQ(st.error_message(), "lease_id: longer than 128 bytes");
+  v1::LeaseTaskRequest lease;
+  lease.set_worker_id("w\nforged");
+  v1::LeaseTaskResponse leased;
+  st = live_->worker->LeaseTask(Ctx().get(), lease, &leased);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
 }
 
 class TokenTest : public ::testing::Test {

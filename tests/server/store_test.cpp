@@ -9,6 +9,8 @@
 
 #include "common/core/atomic_file.h"
 #include "common/core/error.h"
+#include "server/rpc/job_images.h"
+#include "server/rpc/status_mapping.h"
 #include "server/scheduling/clock.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/checkpoint.h"
@@ -193,6 +195,35 @@ TEST(Journal, EntriesRoundTripAndATornTailIsCut) {
   EXPECT_TRUE(ReadJournalFile(file, &valid).empty()) << "a corrupt entry ends the journal";
 }
 
+// Issue #14: a byte flipped mid-journal lost acknowledged results and was logged only as a "torn
+// entry" warning. Damage before the end is now told apart from a torn tail.
+TEST(Journal, DamageBeforeTheEndIsNotATornTail) {
+  TempDir dir;
+  const fs::path file = dir.path() / "j.journal";
+  const std::string a = EncodeJournalEntry(3, std::vector<float>{1, 2, 3});
+  const std::string b = EncodeJournalEntry(4, std::vector<float>{4, 5, 6});
+  const std::string c = EncodeJournalEntry(5, std::vector<float>{7, 8, 9});
+  uint64_t valid = 0;
+  bool damaged = true;
+  std::ofstream(file, std::ios::binary | std::ios::trunc) << a << b << c.substr(0, c.size() - 1);
+  EXPECT_EQ(ReadJournalFile(file, &valid, &damaged).size(), 2u);
+  EXPECT_FALSE(damaged) << "torn tail";
+  for (size_t at : {size_t(1), size_t(18), b.size() - 2}) {  // magic, a value, the checksum of b
+    std::string bad = b;
+    bad[at] ^= 0x40;
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << a << bad << c;
+    EXPECT_EQ(ReadJournalFile(file, &valid, &damaged).size(), 1u) << at;
+    EXPECT_EQ(valid, a.size());
+    EXPECT_TRUE(damaged) << "byte " << at << " of the middle entry";
+  }
+  // The last entry damaged in place (nothing follows): indistinguishable from a torn append.
+  std::string last = c;
+  last[20] ^= 1;
+  std::ofstream(file, std::ios::binary | std::ios::trunc) << a << b << last;
+  EXPECT_EQ(ReadJournalFile(file, &valid, &damaged).size(), 2u);
+  EXPECT_FALSE(damaged);
+}
+
 TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   TempDir dir;
   FakeClock clock;
@@ -350,6 +381,73 @@ TEST(Recovery, FinishedJobsAreListedAndCorruptCheckpointsRestartTheJob) {
   EXPECT_EQ(scheduler.Status(broken_id).tasks_done(), 0u) << "corrupt checkpoint: from zero";
   EXPECT_EQ(scheduler.List(false).size(), 1u);
   EXPECT_EQ(scheduler.List(true).size(), 2u);
+
+  // Issue #14: the finished job's image lives only in its checkpoint. Damaged, it was
+  // INVALID_ARGUMENT with a server path (and `pf get` said "invalid input"); now DATA_LOSS
+  // naming the job only. Missing, it was a black image; now DATA_LOSS too.
+  EXPECT_EQ(EncodeJobImage(scheduler, done_id).chunks.size(), 1u);
+  const fs::path done_cp = Persister::CheckpointFile(cp_dir, done_id);
+  std::string bytes;
+  {
+    std::ifstream in(done_cp, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  bytes[bytes.size() / 2] ^= 1;
+  std::ofstream(done_cp, std::ios::binary | std::ios::trunc) << bytes;
+  for (int missing = 0; missing < 2; ++missing) {
+    if (missing) fs::remove(done_cp);
+    const grpc::Status st = StatusFromException(
+        [&] {
+          try {
+            EncodeJobImage(scheduler, done_id);
+          } catch (...) {
+            return std::current_exception();
+          }
+          return std::exception_ptr();
+        }(),
+        "GetImage");
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::DATA_LOSS) << st.error_message();
+    EXPECT_NE(st.error_message().find(done_id), std::string::npos) << st.error_message();
+    EXPECT_EQ(st.error_message().find(dir.path().string()), std::string::npos) << st.error_message();
+  }
+}
+
+
+// Issue #14: the job table is lost (SQLite file deleted with its WAL) while a job's journal and
+// checkpoint survive. Before, the id counter restarted, the next job got the old id and the old
+// journal was replayed into it (a wrong image that SUCCEEDED). Ids are random now: the new job
+// gets another id, starts from zero merges, and the old files are set aside and reported.
+TEST(Recovery, ALostJobTableNeverReusesAnIdAndOldFilesAreSetAside) {
+  TempDir dir;
+  FakeClock clock;
+  FakeCatalog catalog;
+  const fs::path db_file = dir.path() / "coordinator.db";
+  const fs::path cp_dir = dir.path() / "checkpoints";
+  std::string old_id;
+  {
+    SqliteStore db(db_file);
+    Scheduler scheduler(clock, SchedulerOptions{});
+    Persister persister(scheduler, db, cp_dir, clock, 0);
+    old_id = SubmitStored(scheduler, db, ValidateJobSpec(SkippingSpec(1, 3), catalog));
+    Complete(scheduler, *scheduler.TryLease({"w", {}}));
+    persister.Stop();  // the unfinished job's checkpoint stays
+  }
+  ASSERT_TRUE(fs::exists(Persister::JournalFile(cp_dir, old_id)) ||
+              fs::exists(Persister::CheckpointFile(cp_dir, old_id)));
+  for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(db_file.string() + suffix);
+
+  SqliteStore db(db_file);
+  Scheduler scheduler(clock, SchedulerOptions{});
+  RecoverJobs(db, catalog, cp_dir, scheduler, clock);
+  EXPECT_FALSE(fs::exists(Persister::JournalFile(cp_dir, old_id)));
+  EXPECT_FALSE(fs::exists(Persister::CheckpointFile(cp_dir, old_id)));
+  EXPECT_TRUE(fs::exists(Persister::JournalFile(cp_dir, old_id).string() + ".orphaned") ||
+              fs::exists(Persister::CheckpointFile(cp_dir, old_id).string() + ".orphaned"));
+  Persister persister(scheduler, db, cp_dir, clock, 0);
+  const std::string new_id = SubmitStored(scheduler, db, ValidateJobSpec(SkippingSpec(1, 3), catalog));
+  EXPECT_NE(new_id, old_id);
+  EXPECT_EQ(scheduler.Status(new_id).tasks_done(), 0u) << "nothing of the old job merged into the new one";
+  persister.Stop();
 }
 
 }  // namespace

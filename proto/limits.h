@@ -1,0 +1,70 @@
+#pragma once
+// The limits of the wire protocol in one place (docs/security.md, "Limits"): the coordinator
+// enforces them, pf and the worker use the same constants, farm.proto's comments cite this file.
+// Every string taken from a request is checked here before it is used, logged or echoed.
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+
+#include "common/core/error.h"
+
+namespace pf::limits {
+
+inline constexpr size_t kMaxIdBytes = 128;        // job_id, lease_id, scene_hash in requests
+inline constexpr size_t kMaxWorkerIdBytes = 256;  // LeaseTaskRequest.worker_id
+inline constexpr size_t kMaxJobNameBytes = 256;   // JobSpec.name
+inline constexpr size_t kMaxEchoBytes = 64;       // of an untrusted string quoted in a message or log
+}  // namespace pf::limits
+namespace pf {
+// Camera.vfov_degrees, checked after conversion to float (the worker's type).
+inline constexpr float kMinVfovDegrees = 0.001f;
+inline constexpr float kMaxVfovDegrees = 179.9f;
+}  // namespace pf
+namespace pf::limits {
+
+// `text` for a log line or an error message: non-printable bytes (\n, ESC, ...) as \xNN, cut to
+// `max_bytes` with "...", in single quotes.
+inline std::string Quote(std::string_view text, size_t max_bytes = kMaxEchoBytes) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out = "'";
+  for (size_t i = 0; i < text.size() && i < max_bytes; ++i) {
+    const auto u = static_cast<unsigned char>(text[i]);
+    if (u < 0x20 || u >= 0x7f || text[i] == '\'' || text[i] == '\\') {
+      out += "\\x";
+      out += kHex[u >> 4];
+      out += kHex[u & 15];
+    } else {
+      out += text[i];
+    }
+  }
+  if (text.size() > max_bytes) out += "...";
+  return out + "'";
+}
+
+// An identifier from a request: non-empty, at most `max_bytes`, printable ASCII without spaces.
+// InputError naming `field` — without echoing an over-long value.
+inline void CheckId(std::string_view value, const char* field, size_t max_bytes = kMaxIdBytes) {
+  if (value.empty()) throw InputError(std::string(field) + ": required");
+  if (value.size() > max_bytes)
+    throw InputError(std::string(field) + ": longer than " + std::to_string(max_bytes) + " bytes");
+  for (const char ch : value) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (u <= 0x20 || u >= 0x7f)
+      throw InputError(std::string(field) + " " + Quote(value) + ": only printable ASCII without spaces");
+  }
+}
+
+// Free text from a request (a job name): at most `max_bytes`, no control characters (they would
+// forge log lines or drive terminals).
+inline void CheckText(std::string_view value, const char* field, size_t max_bytes) {
+  if (value.size() > max_bytes)
+    throw InputError(std::string(field) + ": longer than " + std::to_string(max_bytes) + " bytes");
+  for (const char ch : value) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (u < 0x20 || u == 0x7f)
+      throw InputError(std::string(field) + " " + Quote(value) + ": contains a control character");
+  }
+}
+
+}  // namespace pf::limits
