@@ -153,7 +153,7 @@ def plot(curves):
         return
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.6))
     panels = [("cornell-box", ["rmse", "rmse_masked", "rmse_lowfreq"], "Cornell box, whole image / masked / low-freq"),
-              ("cornell-box", ["rmse_edge"], "Cornell box, emitter-edge pixels"),
+              ("cornell-box", ["rmse_edge"], "Emitter-edge pixels (Cornell; Sphere dotted)"),
               ("cornell-sphere", ["rmse", "rmse_masked"], "CornellBox-Sphere")]
     styles = {"independent": "--", "sobol": "-"}
     for ax, (name, metrics, title) in zip(axes, panels):
@@ -162,8 +162,13 @@ def plot(curves):
                 c = curves.get((name, metric, sampler))
                 if not c:
                     continue
-                ax.loglog([p[0] for p in c], [max(p[1], 1e-9) for p in c], styles[sampler], marker="o", ms=3,
+                c = [p for p in c if p[1] > 0]  # 0: below the reference's own noise
+                ax.loglog([p[0] for p in c], [p[1] for p in c], styles[sampler], marker="o", ms=3,
                           label=f"{metric} {sampler}")
+                if metric == "rmse_edge":
+                    e = [p for p in curves.get(("cornell-sphere", metric, sampler), []) if p[1] > 0]
+                    ax.loglog([p[0] for p in e], [p[1] for p in e], ":", marker="s", ms=3,
+                              label=f"sphere {metric} {sampler}")
         ax.set_title(title)
         ax.set_xlabel("samples per pixel")
         ax.set_ylabel("RMSE vs reference (reference noise removed)")
