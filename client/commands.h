@@ -30,8 +30,10 @@ struct FarmArgs {
 // In-process (client/local_commands.cpp).
 int RunRender(const RenderArgs& a);     // the classic single-image render (no --plan)
 int RunLocalPlan(const RenderArgs& a);  // --local-only / --plan without --workers: the plan in-process
+// `scene` (optional): the scene the images show, for the masked metrics (rmse_masked,
+// rmse_lowfreq); its camera `camera_name` (default: the first) at the images' resolution.
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
-            double error_scale, bool json);
+            double error_scale, bool json, const std::string& scene = "", const std::string& camera_name = "");
 int RunMerge(const std::vector<std::string>& inputs, const std::string& output);
 // PNG of an EXR: auto exposure of `image`, or of `exposure_of` (so renders of one scene share
 // one exposure and compare by eye), plus `stops`.

@@ -18,6 +18,7 @@
 #include "common/image/png_io.h"
 #include "common/plan/task_executor.h"
 #include "common/render/camera.h"
+#include "common/render/emitter_coverage.h"
 #include "common/render/light_sampler.h"
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
@@ -69,6 +70,7 @@ int RunRender(const RenderArgs& a) {
   options.spp = a.spp;
   options.seed = a.seed;
   options.threads = a.threads;
+  options.sampler = a.sampler == "independent" ? SamplerKind::kIndependent : SamplerKind::kSobol;
   std::atomic<uint64_t> progress{0};
   RenderStats stats;
   Image image;
@@ -82,6 +84,7 @@ int RunRender(const RenderArgs& a) {
   ImageMetadata meta = {
       {"scene", a.scene},
       {"integrator", integrator->name()},
+      {"sampler", a.sampler},
       {"spp", std::to_string(a.spp)},
       {"seed", std::to_string(a.seed)},
       {"camera.eye", FormatVec(spec.eye)},
@@ -149,6 +152,7 @@ int RunLocalPlan(const RenderArgs& a) {
       a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
   const ImageMetadata meta = {{"scene", a.scene},
                               {"integrator", a.integrator},
+                              {"sampler", a.sampler},
                               {"plan", DescribePlan(plan)},
                               {"seed", std::to_string(a.seed)},
                               {"tasks", std::to_string(tasks.size())},
@@ -165,10 +169,21 @@ int RunLocalPlan(const RenderArgs& a) {
 }
 
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
-            double error_scale, bool json) {
+            double error_scale, bool json, const std::string& scene_path, const std::string& camera_name) {
   const Image a = ReadExr(a_path);
   const Image ref = ReadExr(ref_path);
-  const ImageDiffStats d = CompareImages(a, ref);
+  std::vector<uint8_t> excluded;
+  if (!scene_path.empty()) {
+    RenderArgs args;
+    args.camera_name = camera_name;
+    const SceneDescription scene = LoadScene(scene_path);
+    CameraSpec spec = ChooseCamera(scene, args);
+    spec.width = ref.width();
+    spec.height = ref.height();
+    const EmbreeScene accel(scene);
+    excluded = EmitterExclusionMask(EmitterCoverage(accel, Camera(spec)), spec.width, spec.height);
+  }
+  const ImageDiffStats d = CompareImages(a, ref, excluded.empty() ? nullptr : &excluded);
   if (json) {
     nlohmann::json j = {{"image", a_path},
                         {"reference", ref_path},
@@ -183,6 +198,12 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
                         {"mean", d.mean_a},
                         {"reference_mean", d.mean_b},
                         {"pixels", d.pixels}};
+    if (d.masked) {
+      j["rmse_masked"] = d.rmse_masked;
+      j["rmse_lowfreq"] = d.rmse_lowfreq;
+      j["pixels_masked"] = d.pixels_masked;
+      j["blocks_lowfreq"] = d.blocks_lowfreq;
+    }
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf(
@@ -190,6 +211,9 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
         "%.6g\n",
         d.rmse, d.rmse_display, d.display_white, d.relative_mse, d.max_abs_error, d.max_x, d.max_y, d.mean_a,
         d.mean_b);
+    if (d.masked)
+      std::printf("RMSE masked %.6g (%zu pixels away from emitters)  low-frequency %.6g (%zu 4x4 blocks)\n",
+                  d.rmse_masked, d.pixels_masked, d.rmse_lowfreq, d.blocks_lowfreq);
   }
   if (!error_image.empty()) {
     const Image err = FalseColourError(a, ref, error_scale > 0 ? error_scale : d.max_abs_error);

@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
       "  pf submit scenes/office3/office.mgf --integrator photonmap --plan skipping --coordinator HOST:PORT\n"
       "  pf watch job-1 -o office.exr;  pf get job-1 -o office.exr;  pf list --all;  pf cancel job-1\n"
       "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --error-image err.png\n"
+      "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --scene scenes/cornell-box/cornell-box.json\n"
       "  pf preview cornell.exr -o cornell.png --exposure-of scenes/cornell-box/reference-256.exr\n"
       "  pf info scenes/scene8/scene8.json\n\n"
       "Exit codes: 0 ok, 1 runtime failure (I/O, Embree, RPC; the job failed or was cancelled),\n"
@@ -143,7 +144,7 @@ int main(int argc, char** argv) {
   cancel->add_option("job", cancel_job, "Job id")->required();
   AddFarmOptions(cancel, cf);
 
-  std::string diff_a, diff_ref, diff_err;
+  std::string diff_a, diff_ref, diff_err, diff_scene, diff_camera;
   double diff_scale = 0;
   bool diff_json = false;
   CLI::App* diff =
@@ -153,6 +154,12 @@ int main(int argc, char** argv) {
   diff->add_option("--error-image", diff_err, "Write a false-colour error image (.png or .exr)");
   diff->add_option("--error-scale", diff_scale, "Error mapped to the top of the colour ramp (default: max)");
   diff->add_flag("--json", diff_json, "Print JSON instead of a line");
+  diff->add_option("--scene", diff_scene,
+                   "The scene shown: adds rmse_masked (without the emitters seen directly and a 2-pixel band "
+                   "around them) and rmse_lowfreq (RMSE of 4x4-pixel block means outside that mask); emitters "
+                   "are found by tracing the scene's camera at the images' resolution")
+      ->check(CLI::ExistingFile);
+  diff->add_option("--camera", diff_camera, "With --scene: the named camera (default: the scene's first)");
 
   std::vector<std::string> merge_inputs;
   std::string merge_output;
@@ -204,7 +211,7 @@ int main(int argc, char** argv) {
     if (*get) return RunGet(gf, get_job, get_out, get_png);
     if (*list) return RunList(lf, list_all, list_json);
     if (*cancel) return RunCancel(cf, cancel_job);
-    if (*diff) return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json);
+    if (*diff) return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera);
     if (*info) return RunInfo(info_scene);
     if (*merge) return RunMerge(merge_inputs, merge_output);
     if (*preview) return RunPreview(preview_in, preview_out, preview_ref, preview_stops);

@@ -42,6 +42,12 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
                   "estimate in a distribution ray tracer (Wald 1999, 2.5)")
       ->capture_default_str()
       ->check(CLI::IsMember({"path", "photonmap"}));
+  app->add_option("--sampler", a.sampler,
+                  "sobol = padded Owen-scrambled Sobol points (randomised quasi-Monte Carlo: pixel position, "
+                  "lights, BSDFs, roulette, gather rays, photon emission and scattering); independent = "
+                  "independent uniform numbers, to compare (docs/renderer.md, 'Sampling')")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"sobol", "independent"}));
   app->add_option("--spp", a.spp,
                   "Samples per pixel (with --plan: per map for multiple-maps, = number of maps for "
                   "maps-in-turn, per task and pixel for skipping)")
@@ -124,6 +130,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
 }
 
 void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
+  rs->set_sampler(a.sampler == "independent" ? v1::SAMPLER_INDEPENDENT : v1::SAMPLER_SOBOL);
   if (a.integrator == "path") {
     rs->set_integrator(v1::INTEGRATOR_PATH);
     return;

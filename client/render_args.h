@@ -20,6 +20,7 @@ namespace pf {
 struct RenderArgs {
   std::string scene;
   std::string integrator = "path";
+  std::string sampler = "sobol";
   uint32_t spp = 16;
   std::string output;
   std::string png;

@@ -62,6 +62,17 @@ void CameraToProto(const CameraSpec& c, v1::Camera* out) {
 
 JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::string& field) {
   JobRenderSettings out;
+  switch (s.sampler()) {
+    case v1::SAMPLER_UNSPECIFIED:
+    case v1::SAMPLER_SOBOL:
+      out.sampler = SamplerKind::kSobol;
+      break;
+    case v1::SAMPLER_INDEPENDENT:
+      out.sampler = SamplerKind::kIndependent;
+      break;
+    default:
+      throw InputError(field + ".sampler: must be SAMPLER_SOBOL or SAMPLER_INDEPENDENT");
+  }
   switch (s.integrator()) {
     case v1::INTEGRATOR_PATH:
       out.integrator = IntegratorKind::kPath;
@@ -152,6 +163,7 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
 
 void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   out->set_integrator(s.integrator == IntegratorKind::kPath ? v1::INTEGRATOR_PATH : v1::INTEGRATOR_PHOTONMAP);
+  out->set_sampler(s.sampler == SamplerKind::kIndependent ? v1::SAMPLER_INDEPENDENT : v1::SAMPLER_SOBOL);
   if (s.integrator == IntegratorKind::kPath) return;
   v1::PhotonMapSettings* pm = out->mutable_photon_map();
   pm->set_photons(s.photons);

@@ -7,10 +7,9 @@
 namespace pf {
 
 Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t light, const Bsdf& bsdf,
-                   const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng, float u_select,
+                   const Vec3& x, const Vec3& wo, uint32_t lobes, float u_select, Sample2 u,
                    TraceCounters& counters) {
-  const float u1 = rng.Uniform(), u2 = rng.Uniform();
-  const LightSample ls = lights.SampleLight(light, u_select, u1, u2);
+  const LightSample ls = lights.SampleLight(light, u_select, u.u, u.v);
   const Vec3 to_light = ls.position - x;
   const float dist2 = LengthSquared(to_light);
   if (!(dist2 > 0.0f)) return Rgb(0.0f);
@@ -45,19 +44,23 @@ MonteCarloDirectLight::MonteCarloDirectLight(const EmbreeScene& scene, const Lig
   for (size_t i = 0; i < n; ++i) light_prob_.push_back(light_cdf_[i] - (i > 0 ? light_cdf_[i - 1] : 0.0f));
 }
 
-Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
+Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
+                                    Sampler& sampler, const PathVertexSlots& slots,
                                     TraceCounters& counters) const {
   if (light_cdf_.empty() || !bsdf.HasNonDelta()) return Rgb(0.0f);
   const int n = std::max(1, options_.shadow_rays);
   Rgb sum(0.0f);
   for (int j = 0; j < n; ++j) {
     // Stratified over the lights' CDF: light i receives N·p_i ± 1 of the N rays (§4.2.1).
-    const float u = (float(j) + rng.Uniform()) / float(n);
+    const uint32_t sj = uint32_t(j), sn = uint32_t(n);
+    const float u = (float(j) + sampler.Get1D(slots.light_stratum, sj, sn)) / float(n);
     const size_t i =
         std::min<size_t>(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u) - light_cdf_.begin(),
                          light_cdf_.size() - 1);
     if (!(light_prob_[i] > 0.0f)) continue;  // an empty stratum: u cannot land in it
-    const Rgb c = SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
+    const float u_select = sampler.Get1D(slots.light_select, sj, sn);
+    const Rgb c = SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, u_select,
+                                 sampler.Get2D(slots.light_point, sj, sn), counters);
     sum += c * (1.0f / light_prob_[i]);
   }
   return sum * (1.0f / float(n));
@@ -73,8 +76,9 @@ PhotonDirectLight::PhotonDirectLight(const EmbreeScene& scene, const LightSample
       light_of_photon_(light_of_photon),
       options_(options) {}
 
-Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
-                                TraceCounters& counters, NearestPhotons& nearest) const {
+Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
+                                Sampler& sampler, const PathVertexSlots& slots, TraceCounters& counters,
+                                NearestPhotons& nearest) const {
   const size_t num_lights = lights_.num_lights();
   if (num_lights == 0 || !bsdf.HasNonDelta()) return Rgb(0.0f);
   // Per-thread neighbour-set cache (§4.2.3): the contributing lights and their sample counts.
@@ -126,27 +130,37 @@ Rgb PhotonDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
       }
   }
   Rgb sum(0.0f);
+  const uint32_t n_total = uint32_t(std::max(1, options_.samples));
+  uint32_t ray = 0;  // sub-index over all contributing lights' rays; beyond N_total: independent
   for (size_t c = 0; c < cache.lights.size(); ++c) {
     const int ni = cache.samples[c];
     Rgb li(0.0f);
-    for (int j = 0; j < ni; ++j)
-      li += SampleOneLight(scene_, lights_, cache.lights[c], bsdf, x, wo, lobes, rng,
-                           (float(j) + rng.Uniform()) / float(ni), counters);
+    for (int j = 0; j < ni; ++j, ++ray) {
+      const float u_select = (float(j) + sampler.Get1D(slots.light_stratum, ray, n_total)) / float(ni);
+      li += SampleOneLight(scene_, lights_, cache.lights[c], bsdf, x, wo, lobes, u_select,
+                           sampler.Get2D(slots.light_point, ray, n_total), counters);
+    }
     sum += li * (1.0f / float(ni));
   }
   const size_t non_contributing = num_lights - cache.lights.size();
   if (non_contributing > 0) {
     if (options_.non_contributing == NonContributingMode::kEachOne) {
       for (size_t i = 0; i < num_lights; ++i)
-        if (!cache.contributing[i])
-          sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters);
+        if (!cache.contributing[i]) {
+          // Call order fixed by the locals (arguments are evaluated in any order).
+          const float u_select = sampler.rng().Uniform();
+          const Sample2 u{sampler.rng().Uniform(), sampler.rng().Uniform()};
+          sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, u_select, u, counters);
+        }
     } else {
       // One sample to the m-th non-contributing light, m uniform, weighted by their number.
-      size_t m = rng.UniformInt(uint32_t(non_contributing));
+      size_t m = sampler.rng().UniformInt(uint32_t(non_contributing));
       for (size_t i = 0; i < num_lights; ++i) {
         if (cache.contributing[i]) continue;
         if (m-- == 0) {
-          sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, rng, rng.Uniform(), counters) *
+          const float u_select = sampler.Get1D(slots.light_select);
+          const Sample2 u = sampler.Get2D(slots.light_extra);
+          sum += SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, u_select, u, counters) *
                  float(non_contributing);
           break;
         }

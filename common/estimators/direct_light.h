@@ -31,6 +31,7 @@
 #include "common/photon/photon_map.h"
 #include "common/render/integrator.h"
 #include "common/render/light_sampler.h"
+#include "common/sampling/sample_layout.h"
 
 namespace pf {
 
@@ -42,8 +43,9 @@ struct DirectLightOptions {
 class MonteCarloDirectLight {
  public:
   MonteCarloDirectLight(const EmbreeScene& scene, const LightSampler& lights, DirectLightOptions options);
-  Rgb Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
-               TraceCounters& counters) const;
+  // Ray j of the N draws its numbers from `slots` at sub-index j (sample_layout.h).
+  Rgb Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Sampler& sampler,
+               const PathVertexSlots& slots, TraceCounters& counters) const;
 
  private:
   const EmbreeScene& scene_;
@@ -52,11 +54,11 @@ class MonteCarloDirectLight {
   std::vector<float> light_cdf_, light_prob_;
 };
 
-// One light sample's contribution f·Le·V·cos·cos/d² / pdf_area (pdf within the light), or 0.
-// Only the BSDF lobes in `lobes` are evaluated (lobes followed by recursion see the emitters
-// themselves).
+// One light sample's contribution f·Le·V·cos·cos/d² / pdf_area (pdf within the light), or 0:
+// u_select picks the triangle within the light, `u` the point on it. Only the BSDF lobes in
+// `lobes` are evaluated (lobes followed by recursion see the emitters themselves).
 Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t light, const Bsdf& bsdf,
-                   const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng, float u_select,
+                   const Vec3& x, const Vec3& wo, uint32_t lobes, float u_select, Sample2 u,
                    TraceCounters& counters);
 
 enum class NonContributingMode { kOneRandom, kEachOne };
@@ -77,8 +79,10 @@ class PhotonDirectLight {
   // `light_of_photon`: scene light id of each photon of `direct_map` (post-build order).
   PhotonDirectLight(const EmbreeScene& scene, const LightSampler& lights, const PhotonMap& direct_map,
                     const std::vector<uint32_t>& light_of_photon, PhotonDirectOptions options);
-  Rgb Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
-               TraceCounters& counters, NearestPhotons& nearest) const;
+  // Shadow ray j (counted over the contributing lights, j < N_total) draws from `slots` at
+  // sub-index j; the non-contributing lights' sample from light_extra (sample_layout.h).
+  Rgb Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Sampler& sampler,
+               const PathVertexSlots& slots, TraceCounters& counters, NearestPhotons& nearest) const;
 
   struct CacheStats {
     uint64_t queries = 0, hits = 0;

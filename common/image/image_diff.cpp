@@ -41,7 +41,75 @@ double DisplayWhite(const Image& image) {
   return sum > 0 ? sum / double(luminance.size()) / kKey : 1.0;
 }
 
-ImageDiffStats CompareImages(const Image& a, const Image& reference) {
+std::vector<uint8_t> EmitterExclusionMask(const std::vector<float>& coverage, int width, int height, int band) {
+  if (coverage.size() != size_t(width) * size_t(height))
+    throw InputError("emitter coverage: " + std::to_string(coverage.size()) + " values for a " +
+                     std::to_string(width) + "x" + std::to_string(height) + " image");
+  std::vector<uint8_t> mask(coverage.size(), 0);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      if (!(coverage[size_t(y) * width + x] > 0.0f)) continue;
+      for (int yy = std::max(0, y - band); yy <= std::min(height - 1, y + band); ++yy)
+        for (int xx = std::max(0, x - band); xx <= std::min(width - 1, x + band); ++xx) mask[size_t(yy) * width + xx] = 1;
+    }
+  return mask;
+}
+
+double RmseOver(const Image& a, const Image& reference, const std::vector<uint8_t>& selected) {
+  CheckSameSize(a, reference);
+  if (selected.size() != a.size()) throw InputError("RmseOver: selection size differs from the image size");
+  double sum = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!selected[i] || !a[i].IsFinite() || !reference[i].IsFinite()) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(a[i][c]) - reference[i][c];
+      sum += d * d;
+    }
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / (3.0 * double(n))) : 0.0;
+}
+
+namespace {
+
+void AddMaskedMetrics(const Image& a, const Image& reference, const std::vector<uint8_t>& excluded,
+                      ImageDiffStats* stats) {
+  if (excluded.size() != a.size())
+    throw InputError("exclusion mask: " + std::to_string(excluded.size()) + " values for " +
+                     std::to_string(a.size()) + " pixels");
+  std::vector<uint8_t> kept(excluded.size());
+  for (size_t i = 0; i < kept.size(); ++i) kept[i] = !excluded[i] && a[i].IsFinite() && reference[i].IsFinite();
+  stats->masked = true;
+  stats->rmse_masked = RmseOver(a, reference, kept);
+  stats->pixels_masked = size_t(std::count(kept.begin(), kept.end(), uint8_t(1)));
+  constexpr int kB = kLowFrequencyBlock;
+  double sum = 0;
+  size_t blocks = 0;
+  for (int by = 0; by + kB <= a.height(); by += kB)
+    for (int bx = 0; bx + kB <= a.width(); bx += kB) {
+      double da[3] = {0, 0, 0};
+      bool whole = true;
+      for (int y = by; y < by + kB && whole; ++y)
+        for (int x = bx; x < bx + kB; ++x) {
+          const size_t i = size_t(y) * a.width() + x;
+          if (!kept[i]) {
+            whole = false;
+            break;
+          }
+          for (int c = 0; c < 3; ++c) da[c] += double(a[i][c]) - reference[i][c];
+        }
+      if (!whole) continue;
+      for (int c = 0; c < 3; ++c) sum += (da[c] / (kB * kB)) * (da[c] / (kB * kB));
+      ++blocks;
+    }
+  stats->blocks_lowfreq = blocks;
+  stats->rmse_lowfreq = blocks > 0 ? std::sqrt(sum / (3.0 * double(blocks))) : 0.0;
+}
+
+}  // namespace
+
+ImageDiffStats CompareImages(const Image& a, const Image& reference, const std::vector<uint8_t>* excluded) {
   CheckSameSize(a, reference);
   ImageDiffStats stats;
   double sum_squared = 0, sum_relative = 0, sum_a = 0, sum_b = 0;
@@ -75,6 +143,7 @@ ImageDiffStats CompareImages(const Image& a, const Image& reference) {
       }
     }
   }
+  if (excluded) AddMaskedMetrics(a, reference, *excluded, &stats);
   if (stats.pixels == 0) return stats;
   const double n = 3.0 * double(stats.pixels);
   stats.rmse = std::sqrt(sum_squared / n);

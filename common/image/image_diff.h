@@ -3,6 +3,8 @@
 // image. Used by convergence tests, benchmarks and the `pf compare` style tools.
 
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include "common/image/image.h"
 
@@ -36,7 +38,30 @@ struct ImageDiffStats {
   double mean_a = 0, mean_b = 0;
   size_t pixels = 0;  // pixels compared (finite in both images)
   size_t nonfinite_a = 0, nonfinite_b = 0;
+
+  // With an exclusion mask only (see EmitterExclusionMask; issue #11):
+  //   rmse_masked  = RMSE over the compared pixels outside the mask: the noise where the eye
+  //                  looks, without the emitters seen directly and the band around them, whose
+  //                  partly covered pixels (radiance 17 next to 0.5) dominate the raw RMSE.
+  //   rmse_lowfreq = RMSE of the 4x4-pixel block means (per channel) over the blocks lying wholly
+  //                  outside the mask: pixel noise averages out 16-fold in a block, what is left
+  //                  are errors wider than a block — the photon map's blotches (Wald 1999,
+  //                  §3.3.2) and biases.
+  bool masked = false;
+  double rmse_masked = 0, rmse_lowfreq = 0;
+  size_t pixels_masked = 0;  // pixels in rmse_masked
+  size_t blocks_lowfreq = 0; // 4x4 blocks in rmse_lowfreq
 };
+
+// Pixels within this many pixels (Chebyshev distance) of an emitter seen directly are left out
+// of rmse_masked; the side of the blocks of rmse_lowfreq.
+inline constexpr int kEmitterBandPixels = 2;
+inline constexpr int kLowFrequencyBlock = 4;
+
+// 1 for every pixel with emitter coverage > 0 (common/render/emitter_coverage.h) and every pixel
+// within `band` pixels of one, else 0. Throws InputError if coverage is not width x height.
+std::vector<uint8_t> EmitterExclusionMask(const std::vector<float>& coverage, int width, int height,
+                                          int band = kEmitterBandPixels);
 
 // Keeps relative MSE finite where the reference is black; 1e-2 means errors in dark regions
 // (|b| << 0.1) are measured roughly as absolute squared errors * 100.
@@ -48,8 +73,12 @@ inline constexpr double kRelativeMseEpsilon = 1e-2;
 // Falls back to the mean luminance / 0.18 if the median is 0, and to 1 for a black image.
 double DisplayWhite(const Image& image);
 
-// Throws InputError naming both sizes if the images differ in size.
-ImageDiffStats CompareImages(const Image& a, const Image& reference);
+// Throws InputError naming both sizes if the images differ in size (or the mask, if given, is
+// not one byte per pixel). `excluded` (optional): nonzero = left out of the masked metrics.
+ImageDiffStats CompareImages(const Image& a, const Image& reference, const std::vector<uint8_t>* excluded = nullptr);
+
+// RMSE over the pixels with selected[i] != 0 that are finite in both images (0 if none).
+double RmseOver(const Image& a, const Image& reference, const std::vector<uint8_t>& selected);
 
 // Per pixel error magnitude e = max over channels |a - b|, shown as ErrorColormap(e / scale)
 // (clamped to [0, 1]). scale <= 0 means the largest finite-pixel error, so the worst pixel

@@ -6,7 +6,7 @@
 #include <chrono>
 
 #include "common/core/error.h"
-#include "common/core/rng.h"
+#include "common/sampling/sample_layout.h"
 #include "common/materials/bsdf.h"
 
 namespace pf {
@@ -48,15 +48,18 @@ Vec3 SampleCosineHemisphere(const Vec3& n, float u1, float u2) {
 void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
               uint64_t index, ChunkOutput& out) {
   const SceneDescription& desc = scene.description();
-  Rng rng = Rng::ForKey(HashKey(o.map_seed, index, 0x70686f746f6eull /* "photon" */));
+  Sampler sampler = Sampler::ForPhoton(o.sampler, o.map_seed, index);
   // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
   // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
-  const float u_select = float((double(index) + rng.UniformDouble()) / double(o.photons));
-  const float u1 = rng.Uniform(), u2 = rng.Uniform();
-  const LightSample ls = lights.Sample(std::min(u_select, 0x1.fffffep-1f), u1, u2);
+  const double jitter = o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
+                                                          : sampler.rng().UniformDouble();
+  const float u_select = float((double(index) + jitter) / double(o.photons));
+  const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
+  const LightSample ls = lights.Sample(std::min(u_select, 0x1.fffffep-1f), u_point.u, u_point.v);
   // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
   Rgb power = ls.radiance * (kPi / (ls.pdf_area * float(o.photons)));
-  Vec3 dir = SampleCosineHemisphere(ls.normal, rng.Uniform(), rng.Uniform());
+  const Sample2 u_dir = sampler.Get2D(kPhotonDirectionSlot);
+  Vec3 dir = SampleCosineHemisphere(ls.normal, u_dir.u, u_dir.v);
   Vec3 previous = ls.position;
   Ray ray{OffsetRayOrigin(ls.position, ls.normal, scene.epsilon()), dir};
 
@@ -80,8 +83,10 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
         out.indirect.push_back(p);
       }
     }
-    const float ul = rng.Uniform(), ua = rng.Uniform(), ub = rng.Uniform();
-    const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, ua, ub, Bsdf::Mode::kRussianRoulette);
+    const PhotonBounceSlots slots = SlotsOfPhotonBounce(bounce);
+    const float ul = sampler.Get1D(slots.lobe);
+    const Sample2 u = sampler.Get2D(slots.direction);
+    const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u.u, u.v, Bsdf::Mode::kRussianRoulette);
     if (!s) return;  // absorbed
     power *= s->weight;
     if (power.IsBlack() || !power.IsFinite()) return;

@@ -13,7 +13,8 @@
 // *indirect* (global/diffuse map). Direct photons are kept apart so that estimators can exclude
 // them (separate direct light, §4.2) or use them (PhotonDirect, §4.2.3).
 //
-// Determinism: photon i draws from Rng::ForKey(HashKey(map_seed, i)); photons are traced in
+// Determinism: photon i draws from Sampler::ForPhoton(sampler, map_seed, i) (index i of the map's
+// scrambled sequences, common/sampling/sample_layout.h); photons are traced in
 // fixed-size chunks in parallel and concatenated in chunk order, so the arrays are identical
 // for any thread count.
 
@@ -23,6 +24,7 @@
 
 #include "common/accel/embree_scene.h"
 #include "common/render/light_sampler.h"
+#include "common/sampling/sampler.h"
 
 namespace pf {
 
@@ -43,6 +45,7 @@ struct PhotonTracerOptions {
   uint64_t map_seed = 1;
   int max_bounces = 64;       // safety cap; Russian roulette ends walks long before
   int threads = 0;            // 0 = all cores
+  SamplerKind sampler = SamplerKind::kSobol;  // quasi-random emission and scattering (§2.2)
   // Checked before each chunk of photons; once set, TracePhotons throws Cancelled.
   const std::atomic<bool>* cancel = nullptr;
 };

@@ -15,7 +15,8 @@ std::string JobRenderSettings::MapFingerprint() const {
   return "photons=" + std::to_string(photons) + ";structure=" + std::to_string(int(structure)) +
          ";kd=" + std::to_string(int(kd_split)) + ";caustic=" + std::to_string(int(caustic)) +
          ";k=" + std::to_string(k) + ";separate_direct=" + std::to_string(o.separate_direct) +
-         ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins);
+         ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins) +
+         ";sampler=" + SamplerName(sampler);
 }
 
 JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene,
@@ -86,6 +87,7 @@ PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& b
 PhotonMapsOptions JobRenderSettings::MapsOptions() const {
   PhotonMapsOptions mo;
   mo.tracing.photons = photons;
+  mo.tracing.sampler = sampler;
   mo.kind = structure;
   mo.structure.kd_split_rule = kd_split;
   mo.structure.grid.expected_k = k;
@@ -139,7 +141,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   if (settings_as_given.integrator == IntegratorKind::kPath) {
     const PathTracer tracer(scene.accel, scene.lights);
     stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
-                         sums, progress, cancel);
+                         sums, progress, cancel, settings_as_given.sampler);
   } else {
     const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
     const std::string key = scene_key + "|" + settings.MapFingerprint() + "|" + std::to_string(task.map_seed);
@@ -159,7 +161,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps,
                                          settings.IntegratorOptions(scene.accel.bounds()));
     stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed,
-                         threads, sums, progress, cancel);
+                         threads, sums, progress, cancel, settings.sampler);
   }
   out.pixels = pixels.size();
   out.samples = task.sample_end - task.sample_begin;

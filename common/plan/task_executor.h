@@ -35,6 +35,8 @@ inline constexpr int kPhotonDirectMinLights = 8;
 // Everything about *how* to render that is the same for all tasks of a job.
 struct JobRenderSettings {
   IntegratorKind integrator = IntegratorKind::kPhotonMap;
+  // Pixel samples and photons (issue #11): Owen-scrambled Sobol by default.
+  SamplerKind sampler = SamplerKind::kSobol;
   uint64_t photons = 200000;
   PhotonMapKind structure = PhotonMapKind::kKdTree;
   // Widest extent: 2-4x faster queries than level % 3 in rooms with axis-aligned walls

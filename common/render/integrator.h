@@ -1,12 +1,13 @@
 #pragma once
 // What every pixel-by-pixel integrator provides: radiance along a camera ray, drawing its random
-// numbers from the pixel sample's own stream (so results never depend on threads).
+// numbers from the pixel sample's own sampler (so results never depend on threads), by the slots
+// of common/sampling/sample_layout.h.
 
 #include <cstdint>
 
 #include "common/accel/ray.h"
 #include "common/core/math.h"
-#include "common/core/rng.h"
+#include "common/sampling/sampler.h"
 
 namespace pf {
 
@@ -28,7 +29,7 @@ inline thread_local uint64_t t_pixel_epoch = 0;
 class Integrator {
  public:
   virtual ~Integrator() = default;
-  virtual Rgb Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const = 0;
+  virtual Rgb Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const = 0;
   virtual const char* name() const = 0;
 };
 

@@ -1,6 +1,7 @@
 #include "common/render/path_tracer.h"
 
 #include "common/materials/bsdf.h"
+#include "common/sampling/sample_layout.h"
 
 namespace pf {
 namespace {
@@ -16,7 +17,7 @@ inline float PowerHeuristic(float pdf_a, float pdf_b) {
 PathTracer::PathTracer(const EmbreeScene& scene, const LightSampler& lights, PathTracerOptions options)
     : scene_(scene), lights_(lights), options_(options) {}
 
-Rgb PathTracer::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const {
+Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
   Rgb radiance(0.0f);
   Rgb throughput(1.0f);
@@ -30,6 +31,7 @@ Rgb PathTracer::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) con
     const std::optional<SurfaceHit> hit = scene_.Intersect(ray);
     if (!hit) break;  // no environment light
     const Material& material = desc.materials[hit->material];
+    const PathVertexSlots slots = SlotsOfVertex(depth);
 
     // Emission seen by the BSDF-sampled ray, MIS-weighted against light sampling.
     if (material.IsEmissive() && hit->front_face) {
@@ -48,8 +50,9 @@ Rgb PathTracer::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) con
 
     // Next-event estimation: one light sample, MIS-weighted against BSDF sampling.
     if (bsdf.HasNonDelta() && !lights_.empty()) {
-      const float u_sel = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-      const LightSample ls = lights_.Sample(u_sel, u1, u2);
+      const float u_sel = sampler.Get1D(slots.light_select);
+      const Sample2 u = sampler.Get2D(slots.light_point);
+      const LightSample ls = lights_.Sample(u_sel, u.u, u.v);
       const Vec3 to_light = ls.position - hit->position;
       const float dist2 = LengthSquared(to_light);
       if (dist2 > 0.0f) {
@@ -71,8 +74,9 @@ Rgb PathTracer::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) con
     }
 
     // Continue the path by sampling the BSDF.
-    const float u_lobe = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-    const std::optional<BsdfSample> s = bsdf.Sample(wo, u_lobe, u1, u2);
+    const float u_lobe = sampler.Get1D(slots.bsdf_lobe);
+    const Sample2 u = sampler.Get2D(slots.bsdf_dir);
+    const std::optional<BsdfSample> s = bsdf.Sample(wo, u_lobe, u.u, u.v);
     if (!s || s->weight.IsBlack()) break;
     throughput *= s->weight;
     previous_was_delta = s->is_delta;
@@ -84,7 +88,7 @@ Rgb PathTracer::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) con
     // Russian roulette (Arvo & Kirk 1990): unbiased termination of low-throughput paths.
     if (depth + 1 >= options_.rr_start_depth) {
       const float survive = std::min(1.0f, throughput.Max());
-      if (!(survive > 0.0f) || rng.Uniform() >= survive) break;
+      if (!(survive > 0.0f) || sampler.Get1D(slots.roulette) >= survive) break;
       throughput *= 1.0f / survive;
     }
   }

@@ -21,7 +21,7 @@ struct PathTracerOptions {
 class PathTracer final : public Integrator {
  public:
   PathTracer(const EmbreeScene& scene, const LightSampler& lights, PathTracerOptions options = {});
-  Rgb Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const override;
+  Rgb Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const override;
   const char* name() const override { return "path"; }
 
  private:

@@ -77,22 +77,24 @@ Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3
 }
 
 Rgb PhotonMapIntegrator::DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
-                                     Rng& rng, TraceCounters& counters) const {
-  if (monte_carlo_) return monte_carlo_->Estimate(bsdf, x, wo, lobes, rng, counters);
-  if (photon_direct_) return photon_direct_->Estimate(bsdf, x, wo, lobes, rng, counters, Scratch());
+                                     Sampler& sampler, const PathVertexSlots& slots,
+                                     TraceCounters& counters) const {
+  if (monte_carlo_) return monte_carlo_->Estimate(bsdf, x, wo, lobes, sampler, slots, counters);
+  if (photon_direct_) return photon_direct_->Estimate(bsdf, x, wo, lobes, sampler, slots, counters, Scratch());
   return Rgb(0.0f);
 }
 
 Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes,
-                                Rng& rng, TraceCounters& counters) const {
+                                Sampler& sampler, const PathVertexSlots& slots, TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
   const bool separate_direct = options_.direct != DirectLightMode::kNone;
   const int n = options_.local_pass_rays;
   Rgb sum(0.0f);
   for (int j = 0; j < n; ++j) {
-    const float ul = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
+    const float ul = sampler.Get1D(slots.gather_lobe, uint32_t(j), uint32_t(n));
+    const Sample2 u = sampler.Get2D(slots.gather_dir, uint32_t(j), uint32_t(n));
     const std::optional<BsdfSample> s =
-        bsdf.Sample(wo, ul, u1, u2, Bsdf::Mode::kNormalized, lobes & kDiffuseLobes);
+        bsdf.Sample(wo, ul, u.u, u.v, Bsdf::Mode::kNormalized, lobes & kDiffuseLobes);
     if (!s || s->weight.IsBlack()) continue;
     ++counters.rays;
     const std::optional<SurfaceHit> y = scene_.Intersect(Ray{scene_.SpawnOrigin(hit, s->wi), s->wi});
@@ -109,7 +111,7 @@ Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const V
   return sum * (1.0f / float(n));
 }
 
-Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const {
+Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
   const bool separate_direct = options_.direct != DirectLightMode::kNone;
 
@@ -122,6 +124,7 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& coun
     const std::optional<SurfaceHit> hit = scene_.Intersect(ray);
     if (!hit) break;
     const Material& material = desc.materials[hit->material];
+    const PathVertexSlots slots = SlotsOfVertex(depth);
     // Every path reaching here came from the camera through singular bounces only, so
     // emission is never counted twice (diffuse bounces end the path in an estimate).
     if (material.IsEmissive() && hit->front_face) radiance += throughput * material.emission;
@@ -134,10 +137,10 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& coun
 
     if (bsdf.HasLobes(estimated)) {
       Rgb L(0.0f);
-      if (separate_direct) L += DirectLight(bsdf, hit->position, wo, estimated, rng, counters);
+      if (separate_direct) L += DirectLight(bsdf, hit->position, wo, estimated, sampler, slots, counters);
       if (options_.local_pass_rays > 0 && !gathered && bsdf.HasLobes(kDiffuseLobes)) {
         gathered = true;
-        L += Gather(bsdf, *hit, wo, estimated, rng, counters);
+        L += Gather(bsdf, *hit, wo, estimated, sampler, slots, counters);
         // Caustics through the diffuse lobes still come from the caustic map; a glossy lobe
         // estimated from the maps reads all of them (caustic map included) below.
         if (maps_.caustic) {
@@ -156,15 +159,16 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Rng& rng, TraceCounters& coun
       radiance += throughput * L;
     }
     if (!bsdf.HasLobes(followed)) break;
-    const float ul = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-    const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u1, u2, Bsdf::Mode::kNormalized, followed);
+    const float ul = sampler.Get1D(slots.bsdf_lobe);
+    const Sample2 u = sampler.Get2D(slots.bsdf_dir);
+    const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u.u, u.v, Bsdf::Mode::kNormalized, followed);
     if (!s || s->weight.IsBlack()) break;
     throughput *= s->weight;
     if (s->lobe & kLobeGlossyReflection) ++glossy_bounces;
     ray = Ray{scene_.SpawnOrigin(*hit, s->wi), s->wi};
     if (depth >= 4) {  // Russian roulette on long singular chains (e.g. glass inside glass)
       const float survive = std::min(1.0f, throughput.Max());
-      if (!(survive > 0.0f) || rng.Uniform() >= survive) break;
+      if (!(survive > 0.0f) || sampler.Get1D(slots.roulette) >= survive) break;
       throughput *= 1.0f / survive;
     }
   }

@@ -26,6 +26,7 @@
 #include "common/photon/photon_maps.h"
 #include "common/render/integrator.h"
 #include "common/render/light_sampler.h"
+#include "common/sampling/sample_layout.h"
 
 namespace pf {
 
@@ -68,7 +69,7 @@ class PhotonMapIntegrator final : public Integrator {
   PhotonMapIntegrator(const EmbreeScene& scene, const PhotonMaps& maps, PhotonMapIntegratorOptions options)
       : PhotonMapIntegrator(scene, nullptr, maps, options) {}
   ~PhotonMapIntegrator() override;
-  Rgb Li(const Ray& camera_ray, Rng& rng, TraceCounters& counters) const override;
+  Rgb Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const override;
   const char* name() const override { return "photonmap"; }
 
  private:
@@ -76,10 +77,10 @@ class PhotonMapIntegrator final : public Integrator {
   // `include_direct_photons`) + caustic.
   Rgb MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, bool include_direct_photons,
                   TraceCounters& counters) const;
-  Rgb DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Rng& rng,
-                  TraceCounters& counters) const;
-  Rgb Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Rng& rng,
-             TraceCounters& counters) const;
+  Rgb DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Sampler& sampler,
+                  const PathVertexSlots& slots, TraceCounters& counters) const;
+  Rgb Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Sampler& sampler,
+             const PathVertexSlots& slots, TraceCounters& counters) const;
 
   const EmbreeScene& scene_;
   const LightSampler* lights_;

@@ -9,14 +9,14 @@
 #include <numeric>
 
 #include "common/core/error.h"
-#include "common/core/rng.h"
+#include "common/sampling/sample_layout.h"
 
 namespace pf {
 
 RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std::span<const uint32_t> pixels,
                          uint32_t sample_begin, uint32_t sample_end, uint64_t seed, int threads,
                          std::span<Rgb> sums, std::atomic<uint64_t>* progress,
-                         const std::atomic<bool>* cancel) {
+                         const std::atomic<bool>* cancel, SamplerKind sampler_kind) {
   const auto start = std::chrono::steady_clock::now();
   struct Local {
     TraceCounters counters;
@@ -35,9 +35,9 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std
         ++t_pixel_epoch;
         Rgb sum = sums[i];
         for (uint32_t s = sample_begin; s < sample_end; ++s) {
-          Rng rng = Rng::ForKey(HashKey(seed, p, s));
-          const float u = rng.Uniform(), v = rng.Uniform();
-          const Rgb L = integrator.Li(camera.GenerateRay(px, py, u, v), rng, local.counters);
+          Sampler sampler = Sampler::ForPixelSample(sampler_kind, seed, p, s);
+          const Sample2 uv = sampler.Get2D(kPixelSlot);
+          const Rgb L = integrator.Li(camera.GenerateRay(px, py, uv.u, uv.v), sampler, local.counters);
           if (L.IsFinite()) {
             sum += L;
           } else {
@@ -66,7 +66,7 @@ Image RenderImage(const Integrator& integrator, const Camera& camera, const Rend
   std::vector<uint32_t> pixels(image.size());
   std::iota(pixels.begin(), pixels.end(), 0u);
   const RenderStats s = RenderPixels(integrator, camera, pixels, 0, options.spp, options.seed,
-                                     options.threads, image.pixels(), progress);
+                                     options.threads, image.pixels(), progress, nullptr, options.sampler);
   const float inv = options.spp > 0 ? 1.0f / float(options.spp) : 0.0f;
   for (Rgb& c : image.pixels()) c *= inv;
   if (stats) *stats = s;

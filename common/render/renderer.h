@@ -3,8 +3,9 @@
 // subset × sample range*: RenderPixels returns per-pixel sums in subset order, so a task result
 // never carries a full image (docs/design.md, §1 Result). RenderImage is the single-process special case.
 //
-// Determinism: sample s of pixel p draws from Rng::ForKey(HashKey(seed, p, s)) and the samples
-// of a pixel are summed in order, so any thread count gives bit-identical sums.
+// Determinism: sample s of pixel p draws from Sampler::ForPixelSample(kind, seed, p, s) (a value
+// depends only on seed, p, s and the slot) and the samples of a pixel are summed in order, so any
+// thread count gives bit-identical sums.
 
 #include <atomic>
 #include <cstdint>
@@ -14,6 +15,7 @@
 #include "common/image/image.h"
 #include "common/render/camera.h"
 #include "common/render/integrator.h"
+#include "common/sampling/sampler.h"
 
 namespace pf {
 
@@ -21,6 +23,7 @@ struct RenderOptions {
   uint32_t spp = 16;
   uint64_t seed = 1;
   int threads = 0;  // 0 = all hardware threads
+  SamplerKind sampler = SamplerKind::kSobol;
 };
 
 struct RenderStats {
@@ -38,7 +41,8 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
                          std::span<const uint32_t> pixels, uint32_t sample_begin,
                          uint32_t sample_end, uint64_t seed, int threads, std::span<Rgb> sums,
                          std::atomic<uint64_t>* progress = nullptr,
-                         const std::atomic<bool>* cancel = nullptr);
+                         const std::atomic<bool>* cancel = nullptr,
+                         SamplerKind sampler = SamplerKind::kSobol);
 
 // Whole image, averaged over options.spp samples per pixel.
 Image RenderImage(const Integrator& integrator, const Camera& camera, const RenderOptions& options,

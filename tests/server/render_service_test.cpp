@@ -217,6 +217,7 @@ TEST(SettingsConversion, EveryChapterFourSettingSurvivesTheRoundTrip) {
   s.local_pass_rays = 9;
   s.occlusion_test = true;
   s.adaptive_k_min = 11;
+  s.sampler = SamplerKind::kIndependent;
   v1::RenderSettings proto;
   SettingsToProto(s, &proto);
   const JobRenderSettings r = SettingsFromProto(proto, "settings");
@@ -232,7 +233,23 @@ TEST(SettingsConversion, EveryChapterFourSettingSurvivesTheRoundTrip) {
   EXPECT_EQ(r.local_pass_rays, s.local_pass_rays);
   EXPECT_EQ(r.occlusion_test, s.occlusion_test);
   EXPECT_EQ(r.adaptive_k_min, s.adaptive_k_min);
+  EXPECT_EQ(r.sampler, SamplerKind::kIndependent);
   EXPECT_EQ(r.MapFingerprint(), s.MapFingerprint());
+  // The sampler changes the photons, so it is part of the map's cache key.
+  JobRenderSettings sobol = s;
+  sobol.sampler = SamplerKind::kSobol;
+  EXPECT_NE(sobol.MapFingerprint(), s.MapFingerprint());
+  // Unset (older clients) means Sobol, the default; an unknown value is rejected by name.
+  v1::RenderSettings unset = proto;
+  unset.clear_sampler();
+  EXPECT_EQ(SettingsFromProto(unset, "settings").sampler, SamplerKind::kSobol);
+  unset.set_sampler(v1::Sampler(7));
+  try {
+    SettingsFromProto(unset, "settings");
+    ADD_FAILURE() << "unknown sampler accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("settings.sampler"), std::string::npos) << e.what();
+  }
 
   // Unset fields mean the documented defaults, and DIRECT_LIGHT_UNSPECIFIED means auto.
   v1::RenderSettings minimal;

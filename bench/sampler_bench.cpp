@@ -1,0 +1,143 @@
+// The samplers' cost (issue #11): nanoseconds per 1-D and 2-D number for the independent and the
+// Sobol sampler, and the renderer's time per sample with each (path tracer and photon-map
+// integrator on the Cornell box), measured side by side in one run: the variants alternate
+// within every repeat, and the medians and their ratio are printed as a table and JSON.
+//
+//   build/bench/sampler_bench [--repeats 7] [--res 128] [--spp 8] [--json out.json]
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "common/plan/task_executor.h"
+#include "common/render/camera.h"
+#include "common/render/path_tracer.h"
+#include "common/render/renderer.h"
+#include "common/sampling/sample_layout.h"
+#include "common/scene/scene_loader.h"
+
+namespace pf {
+namespace {
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : (v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]));
+}
+
+template <typename F>
+double TimeIt(F&& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// ns per number: `samples` pixel samples, each asking `slots` slots once (as a path does).
+double NsPerNumber(SamplerKind kind, bool two_d, uint32_t samples, uint32_t slots, float* sink) {
+  float acc = 0;
+  const double s = TimeIt([&] {
+    for (uint32_t i = 0; i < samples; ++i) {
+      Sampler sampler = Sampler::ForPixelSample(kind, 7, i >> 6, i & 63);
+      for (uint32_t d = 0; d < slots; ++d) {
+        if (two_d) {
+          const Sample2 p = sampler.Get2D(d);
+          acc += p.u + p.v;
+        } else {
+          acc += sampler.Get1D(d);
+        }
+      }
+    }
+  });
+  *sink += acc;
+  return s * 1e9 / (double(samples) * slots);
+}
+
+int Run(int repeats, int res, uint32_t spp, const std::string& json_path) {
+  nlohmann::json out;
+  float sink = 0;
+  std::printf("sampler cost per number (1 thread, median of %d; 45 slots per sample as a 5-vertex path)\n",
+              repeats);
+  std::printf("%-12s %10s %10s\n", "sampler", "1-D ns", "2-D ns");
+  for (SamplerKind kind : {SamplerKind::kIndependent, SamplerKind::kSobol}) {
+    std::vector<double> one, two;
+    for (int r = 0; r < repeats; ++r) {
+      one.push_back(NsPerNumber(kind, false, 1 << 16, 45, &sink));
+      two.push_back(NsPerNumber(kind, true, 1 << 16, 45, &sink));
+    }
+    std::printf("%-12s %10.2f %10.2f\n", SamplerName(kind), Median(one), Median(two));
+    out["per_number"][SamplerName(kind)] = {{"ns_1d", Median(one)}, {"ns_2d", Median(two)}};
+  }
+
+  const SceneRuntime scene(LoadScene(std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json"));
+  CameraSpec spec = scene.description.cameras.front();
+  spec.width = spec.height = res;
+  const Camera camera(spec);
+  std::vector<uint32_t> pixels(size_t(res) * res);
+  std::iota(pixels.begin(), pixels.end(), 0u);
+  const PathTracer path(scene.accel, scene.lights);
+  JobRenderSettings settings;
+  settings.photons = 50000;
+  settings = settings.Resolved(scene.description);
+  PhotonMapsOptions mo = settings.MapsOptions();
+  mo.tracing.threads = 1;
+  const PhotonMaps maps = PhotonMaps::Build(scene.accel, scene.lights, mo);
+  const PhotonMapIntegrator photonmap(scene.accel, &scene.lights, maps,
+                                      settings.IntegratorOptions(scene.accel.bounds()));
+  std::printf("\nrenderer, Cornell box %dx%d, %u spp, 1 thread: microseconds per sample (median of %d)\n",
+              res, res, spp, repeats);
+  std::printf("%-10s %12s %12s %8s\n", "integrator", "independent", "sobol", "ratio");
+  for (const Integrator* integrator :
+       {static_cast<const Integrator*>(&path), static_cast<const Integrator*>(&photonmap)}) {
+    std::vector<double> t[2];
+    for (int r = 0; r < repeats; ++r)
+      for (int k = 0; k < 2; ++k) {
+        const SamplerKind kind = k == 0 ? SamplerKind::kIndependent : SamplerKind::kSobol;
+        std::vector<Rgb> sums(pixels.size());
+        t[k].push_back(TimeIt([&] {
+                         RenderPixels(*integrator, camera, pixels, 0, spp, 1, 1, sums, nullptr, nullptr,
+                                      kind);
+                       }) *
+                       1e6 / (double(pixels.size()) * spp));
+      }
+    const double ind = Median(t[0]), sob = Median(t[1]);
+    std::printf("%-10s %12.3f %12.3f %8.3f\n", integrator->name(), ind, sob, sob / ind);
+    out["renderer"][integrator->name()] = {{"us_per_sample_independent", ind},
+                                           {"us_per_sample_sobol", sob},
+                                           {"ratio_sobol_over_independent", sob / ind}};
+  }
+  out["config"] = {{"repeats", repeats}, {"res", res}, {"spp", spp}, {"sink", sink}};
+  std::printf("\n%s\n", out.dump(1).c_str());
+  if (!json_path.empty()) std::ofstream(json_path) << out.dump(1) << "\n";
+  return 0;
+}
+
+}  // namespace
+}  // namespace pf
+
+int main(int argc, char** argv) {
+  int repeats = 7, res = 128;
+  uint32_t spp = 8;
+  std::string json;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string k = argv[i], v = argv[i + 1];
+    if (k == "--repeats")
+      repeats = std::stoi(v);
+    else if (k == "--res")
+      res = std::stoi(v);
+    else if (k == "--spp")
+      spp = uint32_t(std::stoul(v));
+    else if (k == "--json")
+      json = v;
+    else {
+      std::fprintf(stderr, "usage: %s [--repeats 7] [--res 128] [--spp 8] [--json out.json]\n", argv[0]);
+      return 2;
+    }
+  }
+  spdlog::set_level(spdlog::level::warn);
+  return pf::Run(repeats, res, spp, json);
+}

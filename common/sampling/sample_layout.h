@@ -1,0 +1,61 @@
+#pragma once
+// The dimension layout (issue #11): which sampler slot (common/sampling/sampler.h) feeds which
+// decision. Every decision has its own slot, so bounces, light samples and Russian roulette never
+// share (and so never correlate through) one low-discrepancy sequence; a slot asked for several
+// numbers per sample (shadow rays, gather rays) takes them at sub-indices j < N.
+//
+// Camera paths (path tracer and photon-map integrator):
+//   slot 0                       pixel position (2-D)
+//   vertex d < kPathVertexBudget: slots 1 + 9·d + ...
+//     +0 light_stratum   1-D  MC direct light: jitter within the light-CDF stratum of ray j
+//                             (j < N); PhotonDirect: within light i's stratum
+//     +1 light_select    1-D  emitter triangle (path tracer: the light; MC: triangle in light)
+//     +2 light_point     2-D  point on the emitter (j < N)
+//     +3 light_extra     2-D  PhotonDirect: the one sample to a non-contributing light
+//     +4 gather_lobe     1-D  local pass (§4.3): lobe of gather ray j (j < N_lp)
+//     +5 gather_dir      2-D  local pass: direction of gather ray j
+//     +6 bsdf_lobe       1-D  lobe of the path's continuation
+//     +7 bsdf_dir        2-D  direction of the continuation
+//     +8 roulette        1-D  Russian roulette
+//   vertex d >= kPathVertexBudget: every slot is kIndependentSlot (the sample's PCG stream):
+//   these vertices carry little of the error and the stream is cheaper.
+//
+// Photons (photon tracer, index = photon number within its map, key = map seed):
+//   slot 0 light stratum jitter (1-D), 1 point on the light (2-D), 2 emission direction (2-D);
+//   bounce b < kPhotonBounceBudget: 3 + 2b lobe (1-D, Russian roulette), 4 + 2b direction (2-D);
+//   later bounces: kIndependentSlot.
+
+#include <cstdint>
+
+#include "common/sampling/sampler.h"
+
+namespace pf {
+
+inline constexpr uint32_t kPixelSlot = 0;
+inline constexpr int kPathVertexBudget = 2;
+
+struct PathVertexSlots {
+  uint32_t light_stratum, light_select, light_point, light_extra, gather_lobe, gather_dir, bsdf_lobe,
+      bsdf_dir, roulette;
+};
+
+constexpr PathVertexSlots SlotsOfVertex(int depth) {
+  if (depth < 0 || depth >= kPathVertexBudget)
+    return {kIndependentSlot, kIndependentSlot, kIndependentSlot, kIndependentSlot, kIndependentSlot,
+            kIndependentSlot, kIndependentSlot, kIndependentSlot, kIndependentSlot};
+  const uint32_t b = 1 + 9 * uint32_t(depth);
+  return {b, b + 1, b + 2, b + 3, b + 4, b + 5, b + 6, b + 7, b + 8};
+}
+
+inline constexpr uint32_t kPhotonLightSlot = 0, kPhotonPointSlot = 1, kPhotonDirectionSlot = 2;
+inline constexpr int kPhotonBounceBudget = 8;
+
+struct PhotonBounceSlots {
+  uint32_t lobe, direction;
+};
+constexpr PhotonBounceSlots SlotsOfPhotonBounce(int bounce) {
+  if (bounce < 0 || bounce >= kPhotonBounceBudget) return {kIndependentSlot, kIndependentSlot};
+  return {3 + 2 * uint32_t(bounce), 4 + 2 * uint32_t(bounce)};
+}
+
+}  // namespace pf

@@ -1,0 +1,232 @@
+#pragma once
+// Where the random numbers of one estimate come from (issue #11): one `Sampler` per pixel sample
+// or per photon, asked for numbers by *dimension slot* (common/sampling/sample_layout.h), never
+// by call order, so that the same slot means the same decision (bounce 2's BSDF direction, the
+// RR test at vertex 1, ...) in every sample of a pixel and every photon of a map.
+//
+//  * kIndependent: every number from the sample's own PCG stream, Rng::ForKey(HashKey(seed,
+//    pixel, sample)) (photons: HashKey(map seed, index, "photon")), drawn in call order — the
+//    sampler the renderer always had.
+//  * kSobol (default): padded, Owen-scrambled, shuffled 2-D Sobol points (Burley 2020,
+//    "Practical Hash-based Owen Scrambling"). Every slot is its own 2-D (0,2)-sequence —
+//    dimension 0 the van der Corput sequence, dimension 1 the Pascal-matrix generator — at
+//    index = the sample's index (pixel sample number; photon number within the map). Per slot
+//    and per stream key (seed, pixel) or (map seed) the index is shuffled by a nested uniform
+//    scramble of its bits (this maps every aligned block of 2^m indices onto another such block,
+//    so the first 2^m points of a slot stay a (0,m,2)-net) and each coordinate is Owen-scrambled
+//    with its own seed. The shuffle decorrelates the slots (padding); the scrambles make every
+//    point uniformly distributed, so each estimate stays unbiased (randomised QMC), and make
+//    streams of different keys (pixels, photon maps, maps of a job) independent.
+//    A slot may also be asked for `subs` numbers per sample (N shadow rays, N_lp gather rays):
+//    number j of sample i sits at index i·subs + j, so the N numbers of one sample are a net of
+//    their own when N is a power of two, and all samples of a pixel together are one as well.
+//    Slots beyond the layout's budget (kIndependentSlot), j >= subs and indices >= 2^32 draw from
+//    the sample's PCG stream instead.
+//
+// A value depends only on (kind, key, index, slot, j): never on threads, workers or order.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string_view>
+
+#include "common/core/rng.h"
+
+namespace pf {
+
+enum class SamplerKind : uint8_t { kSobol = 0, kIndependent = 1 };
+
+// "sobol" / "independent".
+const char* SamplerName(SamplerKind kind);
+std::optional<SamplerKind> ParseSamplerKind(std::string_view name);
+
+// A slot number that always draws from the independent fallback stream.
+inline constexpr uint32_t kIndependentSlot = 0xffffffffu;
+
+struct Sample2 {
+  float u = 0, v = 0;
+};
+
+namespace sobol {
+
+constexpr uint32_t ReverseBits(uint32_t v) {
+  v = ((v >> 1) & 0x55555555u) | ((v & 0x55555555u) << 1);
+  v = ((v >> 2) & 0x33333333u) | ((v & 0x33333333u) << 2);
+  v = ((v >> 4) & 0x0f0f0f0fu) | ((v & 0x0f0f0f0fu) << 4);
+  return __builtin_bswap32(v);
+}
+
+// A hash of v in which output bit k depends only on the seed and the input bits 0..k (every
+// operation carries upwards: addition, multiplication by odd numbers, x ^= x·even). Applied to a
+// bit-reversed fraction, this flips each binary digit as a function of the digits before it — a
+// nested (Owen) scramble; the first step (+ seed) makes the result uniform for a uniform seed.
+// The pattern is Laine and Karras's (2011); the constants are ours, checked by the
+// scramble-quality tests in tests/common/sampler_test.cpp.
+constexpr uint32_t NestedHash(uint32_t v, uint32_t seed) {
+  v += seed;
+  v ^= v * 0x89025cc0u;
+  v ^= v * 0x1c9756ceu;
+  v *= (seed >> 15) | 1u;
+  return v;
+}
+
+// Nested uniform scramble of a 32-bit binary fraction (MSB = first digit): an Owen scramble.
+// Also shuffles a sequence index: bits of the index are flipped as functions of the higher bits,
+// so every aligned block of 2^m indices maps onto an aligned block of 2^m indices.
+constexpr uint32_t OwenScramble(uint32_t x, uint32_t seed) {
+  return ReverseBits(NestedHash(ReverseBits(x), seed));
+}
+
+// Generator columns of Sobol dimension 1 (the Pascal matrix mod 2), bit-reversed so that bit r
+// of column c is C(c, r) mod 2, tabulated per index byte: kPascal[b][t] = XOR of the reversed
+// columns 8b + k for the set bits k of t.
+constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalTables() {
+  std::array<uint32_t, 32> column{};
+  column[0] = 1u;
+  for (int c = 1; c < 32; ++c) column[c] = column[c - 1] ^ (column[c - 1] << 1);
+  std::array<std::array<uint32_t, 256>, 4> t{};
+  for (int b = 0; b < 4; ++b)
+    for (uint32_t v = 0; v < 256; ++v) {
+      uint32_t x = 0;
+      for (int k = 0; k < 8; ++k)
+        if (v & (1u << k)) x ^= column[8 * b + k];
+      t[b][v] = x;
+    }
+  return t;
+}
+inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascal = MakePascalTables();
+
+// Unscrambled Sobol dimensions 0 and 1 of index i, as 32-bit fractions.
+constexpr uint32_t VanDerCorput(uint32_t i) {
+  return ReverseBits(i);
+}
+constexpr uint32_t Pascal(uint32_t i) {
+  return ReverseBits(kPascal[0][i & 255] ^ kPascal[1][(i >> 8) & 255] ^ kPascal[2][(i >> 16) & 255] ^
+                     kPascal[3][i >> 24]);
+}
+
+// A 32-bit fraction as a float in [0, 1): its top 24 bits, exactly representable, never 1.
+constexpr float ToFloat(uint32_t x) {
+  return float(x >> 8) * 0x1p-24f;
+}
+
+// The seeds of slot `slot` in the stream `key`: the index shuffle, and per dimension the nested
+// scramble and a final digital shift (XOR of a random fraction: a scramble too, and it makes every
+// point uniform whatever the nested hash's quality: x's shift comes from bits disjoint from x's
+// scramble seed, y's from a second multiply-xorshift round).
+struct SlotSeeds1 {
+  uint32_t shuffle, x, shift_x;
+};
+struct SlotSeeds2 {
+  uint32_t shuffle, x, shift_x, y, shift_y;
+};
+// `key` is already a Mix64 output; one multiply-xorshift round spreads the slot over it.
+constexpr uint64_t SlotHash(uint64_t key, uint32_t slot) {
+  uint64_t h = (key ^ (uint64_t(slot) * 0xd1342543de82ef95ull)) * 0xbf58476d1ce4e5b9ull;
+  return h ^ (h >> 31);
+}
+constexpr SlotSeeds1 Seeds1Of(uint64_t key, uint32_t slot) {
+  const uint64_t h = SlotHash(key, slot);
+  return {uint32_t(h) * 0x9e3779b9u + 0x7f4a7c15u, uint32_t(h), uint32_t(h >> 32)};
+}
+constexpr SlotSeeds2 Seeds2Of(uint64_t key, uint32_t slot) {
+  const uint64_t h = SlotHash(key, slot);
+  const uint64_t g = (h ^ (h >> 29)) * 0x94d049bb133111ebull;
+  return {uint32_t(h) * 0x9e3779b9u + 0x7f4a7c15u, uint32_t(h), uint32_t(h >> 32), uint32_t(g),
+          uint32_t(g >> 32)};
+}
+
+// The scrambled, shuffled points of one slot, as 32-bit fractions, from the bit-reversed index
+// (computed once per sample). Written out so that no bit reversal is done twice:
+// VanDerCorput(j) = ReverseBits(j), the Owen scramble of a bit-reversed value needs no reversal
+// before hashing, and the shuffle OwenScramble(i) = ReverseBits(NestedHash(ReverseBits(i))).
+constexpr uint32_t Point1D(uint32_t reversed_index, const SlotSeeds1& s) {
+  const uint32_t j = ReverseBits(NestedHash(reversed_index, s.shuffle));
+  return ReverseBits(NestedHash(j, s.x) ^ s.shift_x);
+}
+struct Point2 {
+  uint32_t x, y;
+};
+constexpr Point2 Point2D(uint32_t reversed_index, const SlotSeeds2& s) {
+  const uint32_t j = ReverseBits(NestedHash(reversed_index, s.shuffle));
+  const uint32_t pascal_reversed =
+      kPascal[0][j & 255] ^ kPascal[1][(j >> 8) & 255] ^ kPascal[2][(j >> 16) & 255] ^ kPascal[3][j >> 24];
+  return {ReverseBits(NestedHash(j, s.x) ^ s.shift_x),
+          ReverseBits(NestedHash(pascal_reversed, s.y) ^ s.shift_y)};
+}
+
+}  // namespace sobol
+
+class Sampler {
+ public:
+  // Sample `sample` of pixel `pixel` (y·W + x) of the stream family `seed` (a job's pixel seed).
+  // The independent stream is Rng::ForKey(HashKey(seed, pixel, sample)), as it always was.
+  static Sampler ForPixelSample(SamplerKind kind, uint64_t seed, uint32_t pixel, uint32_t sample) {
+    const uint64_t pixel_key = HashKey(seed, pixel);
+    return Sampler(kind, Mix64(pixel_key ^ kPixelTag), sample, HashKey(pixel_key, sample));
+  }
+  // Photon `photon` of the photon map traced with `map_seed`; independent stream
+  // Rng::ForKey(HashKey(map_seed, photon, "photon")) as before.
+  static Sampler ForPhoton(SamplerKind kind, uint64_t map_seed, uint64_t photon) {
+    return Sampler(photon >> 32 ? SamplerKind::kIndependent : kind, HashKey(map_seed, kPhotonTag),
+                   uint32_t(photon), HashKey(map_seed, photon, kPhotonTag));
+  }
+
+  // Number j of `subs` in slot `slot` (see the header comment), uniform in [0, 1).
+  float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+    uint32_t reversed;
+    if (!LowDiscrepancy(slot, j, subs, &reversed)) return rng().Uniform();
+    return sobol::ToFloat(sobol::Point1D(reversed, sobol::Seeds1Of(key_, slot)));
+  }
+  Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+    uint32_t reversed;
+    if (!LowDiscrepancy(slot, j, subs, &reversed)) {
+      const float u = rng().Uniform();
+      return {u, rng().Uniform()};
+    }
+    const sobol::Point2 p = sobol::Point2D(reversed, sobol::Seeds2Of(key_, slot));
+    return {sobol::ToFloat(p.x), sobol::ToFloat(p.y)};
+  }
+  // The independent stream, for choices outside the layout (e.g. an exact UniformInt). Seeded on
+  // first use: a Sobol sample whose slots are all within the budget never pays for it.
+  Rng& rng() {
+    if (!rng_ready_) {
+      rng_ = Rng::ForKey(rng_key_);
+      rng_ready_ = true;
+    }
+    return rng_;
+  }
+  SamplerKind kind() const { return kind_; }
+
+ private:
+  static constexpr uint64_t kPixelTag = 0x736f626f6c;        // "sobol"
+  static constexpr uint64_t kPhotonTag = 0x70686f746f6eull;  // "photon", as the photon tracer's key
+
+  Sampler(SamplerKind kind, uint64_t key, uint32_t index, uint64_t rng_key)
+      : kind_(kind),
+        index_(index),
+        reversed_index_(sobol::ReverseBits(index)),
+        key_(key),
+        rng_key_(rng_key) {}
+
+  // The bit-reversed sequence index of number j of `subs`, if it has a low-discrepancy value.
+  bool LowDiscrepancy(uint32_t slot, uint32_t j, uint32_t subs, uint32_t* reversed) const {
+    if (kind_ != SamplerKind::kSobol || slot == kIndependentSlot || j >= subs) return false;
+    if (subs == 1) {
+      *reversed = reversed_index_;
+      return true;
+    }
+    const uint64_t i = uint64_t(index_) * subs + j;
+    if (i >> 32) return false;
+    *reversed = sobol::ReverseBits(uint32_t(i));
+    return true;
+  }
+
+  SamplerKind kind_;
+  bool rng_ready_ = false;
+  uint32_t index_, reversed_index_;
+  uint64_t key_, rng_key_;
+  Rng rng_;
+};
+
+}  // namespace pf
