@@ -13,6 +13,8 @@ with `pf diff --json` against scenes/<scene>/reference-*.exr:
     photon-direct       --direct photon-direct         shadow rays split by direct photons (4.2.3)
     photon-direct-each  ... --non-contributing each    the other unbiased variant
     mc+local-pass       --direct mc --local-pass 8     final gathering (4.3)
+    mc+local-pass+precomputed  ... --local-pass-lookup precomputed   gather hits read the irradiance
+                        precomputed at every 4th photon (Christensen 1999)
     mc+occl             --direct mc --occlusion-test
     mc+adaptive-k       --direct mc --adaptive-k-min k/5   (4.8)
     path                --integrator path, 4x the budget's spp (what the same machine does without maps)
@@ -77,6 +79,8 @@ def methods(scene, k):
         ("photon-direct", pm + ["--direct", "photon-direct"]),
         ("photon-direct-each", pm + ["--direct", "photon-direct", "--non-contributing", "each"]),
         ("mc+local-pass", pm + ["--direct", "mc", "--local-pass", "8"]),
+        ("mc+local-pass+precomputed",
+         pm + ["--direct", "mc", "--local-pass", "8", "--local-pass-lookup", "precomputed"]),
         ("mc+occl", pm + ["--direct", "mc", "--occlusion-test"]),
         ("mc+adaptive-k", pm + ["--direct", "mc", "--adaptive-k-min", str(max(1, k // 5))]),
     ]
@@ -280,6 +284,8 @@ def main():
     ap.add_argument("--threads", type=int, default=0, help="render threads (0 = all cores)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per row; the median time counts")
     ap.add_argument("--out", default="docs/results")
+    ap.add_argument("--methods", default="", help="only these rows (comma-separated method names; default all)")
+    ap.add_argument("--map", default="", help="photon map structure for every photonmap row (pf render --map)")
     ap.add_argument("--replot", action="store_true", help="only rewrite the table and plots from <out>/estimators.json")
     args = ap.parse_args()
     out = ROOT / args.out
@@ -296,6 +302,7 @@ def main():
     for b in budgets:
         if b not in BUDGETS:
             sys.exit(f"unknown budget {b} (have {', '.join(BUDGETS)})")
+    wanted = {m for m in args.methods.split(",") if m}
     work = pathlib.Path(tempfile.mkdtemp(prefix="pf-estimators-"))
     try:
         measurer = Measurer(args, work)
@@ -306,9 +313,12 @@ def main():
             ref_mean, white = ref["mean"], ref["display_white"]
             mine = []
             for budget in budgets:
-                for method, flags in methods(scene, BUDGETS[budget][1]) + [("path", ["--integrator", "path"])]:
-                    mine.append(measurer.measure(scene, budget, method, flags))
-                for method, flags in sweep(scene, budget):
+                for method, flags in (methods(scene, BUDGETS[budget][1]) + [("path", ["--integrator", "path"])] +
+                                      sweep(scene, budget)):
+                    if wanted and method not in wanted:
+                        continue
+                    if args.map and "photonmap" in flags:
+                        flags = flags + ["--map", args.map]
                     mine.append(measurer.measure(scene, budget, method, flags))
             for r in mine:
                 r["reference_noise_rmse"] = noise

@@ -62,6 +62,7 @@
 #include "common/accel/embree_scene.h"
 #include "common/core/math.h"
 #include "common/core/rng.h"
+#include "common/photon/bucket_kdtree.h"
 #include "common/photon/grid.h"
 #include "common/photon/kdtree.h"
 #include "common/photon/photon.h"
@@ -417,6 +418,8 @@ struct Config {
   std::string json_path;
   std::string cache_dir;
   std::vector<std::string> scenes = {"cornell-box", "office3"};
+  int leaf_size = 8;  // --leaf: photons per bucket of the bucketed kd-trees
+  std::vector<std::size_t> sizes;  // --sizes: photon counts (default 100k,1M,10M; --quick 100k,1M)
   // --profile
   std::string profile;
   std::size_t profile_n = 1000000;
@@ -484,6 +487,28 @@ Stopwatch::Lap QueryOurs(const PhotonMap& map, const std::vector<Vec3>& points, 
   return watch.Elapsed();
 }
 
+// PhotonMap::QueryWithHint with the previous query's k-th distance × kHintGrow as the hint
+// (the queries are camera hits in scan-line order: each one's predecessor is a neighbouring
+// pixel, as for a renderer's thread walking its tile). Exact; misses re-query unbounded.
+constexpr float kHintGrow = 1.2f;
+Stopwatch::Lap QueryOursHinted(const PhotonMap& map, const std::vector<Vec3>& points, int k, std::vector<float>& kth,
+                               std::size_t* misses = nullptr) {
+  NearestPhotons heap;
+  kth.resize(points.size());
+  map.Query(points[0], k, std::numeric_limits<float>::infinity(), heap);  // warm the heap
+  std::size_t missed = 0;
+  float hint = 0.0f;
+  const Stopwatch watch;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    missed += map.QueryWithHint(points[i], k, std::numeric_limits<float>::infinity(), hint, heap) ? 0 : 1;
+    kth[i] = heap.MaxDistanceSquared();
+    hint = kHintGrow * std::sqrt(kth[i]);
+  }
+  const Stopwatch::Lap lap = watch.Elapsed();
+  if (misses != nullptr) *misses = missed;
+  return lap;
+}
+
 Stopwatch::Lap QueryNano(const NanoTree& tree, const std::vector<Vec3>& points, int k, std::vector<float>& kth) {
   std::vector<uint32_t> idx(static_cast<std::size_t>(k));
   std::vector<float> d2(static_cast<std::size_t>(k));
@@ -545,9 +570,19 @@ int GridSweep(const Config& config, Workload& workload) {
   return 0;
 }
 
-const char* const kNames[] = {"kd level%3", "kd widest", "kd widest/plane", "grid", "nanoflann"};
-const char* const kProfileNames[] = {"kd-cycle", "kd-widest", "kd-widest-plane", "grid", "nanoflann"};
-constexpr int kCols = 5, kNano = 4;
+const char* const kNames[] = {"kd level%3", "kd widest", "kd widest/plane", "grid",
+                              "bucket median",  "bucket mid", "bucket mid+hint", "nanoflann"};
+const char* const kProfileNames[] = {"kd-cycle", "kd-widest", "kd-widest-plane", "grid",
+                                     "bucket-median", "bucket-mid", "bucket-mid-hint", "nanoflann"};
+constexpr int kCols = 8, kBucketMedian = 4, kBucketMid = 5, kBucketHint = 6, kNano = 7;
+
+// The bucketed kd-tree (bucket_kdtree.h) with the bench's leaf size (--leaf).
+std::unique_ptr<PhotonMap> MakeBucketTree(BucketSplit split, int leaf_size) {
+  BucketKdOptions options;
+  options.split = split;
+  options.leaf_size = leaf_size;
+  return std::make_unique<BucketKdTree>(options);
+}
 
 }  // namespace
 }  // namespace pf
@@ -556,10 +591,13 @@ constexpr int kCols = 5, kNano = 4;
 // valgrind --tool=callgrind --collect-atstart=no --toggle-collect=pf_bench_profile_queries ...
 extern "C" __attribute__((noinline)) double pf_bench_profile_queries(const pf::PhotonMap* map,
                                                                      const pf::NanoTree* nano,
-                                                                     const std::vector<pf::Vec3>* points, int k) {
+                                                                     const std::vector<pf::Vec3>* points, int k,
+                                                                     bool hinted) {
   std::vector<float> kth;
   double sum = 0;
-  if (map != nullptr) {
+  if (map != nullptr && hinted) {
+    pf::QueryOursHinted(*map, *points, k, kth);
+  } else if (map != nullptr) {
     pf::QueryOurs(*map, *points, k, kth);
   } else {
     pf::QueryNano(*nano, *points, k, kth);
@@ -576,7 +614,7 @@ int Profile(const Config& config, Workload& workload) {
   for (int i = 0; i < kCols; ++i)
     if (config.profile == kProfileNames[i]) s = i;
   if (s < 0) {
-    std::fprintf(stderr, "--profile: one of kd-cycle, kd-widest, kd-widest-plane, grid, nanoflann\n");
+    std::fprintf(stderr, "--profile: one of kd-cycle, kd-widest, kd-widest-plane, grid, bucket-median, bucket-mid, nanoflann\n");
     return 1;
   }
   TraceInfo info;
@@ -591,6 +629,8 @@ int Profile(const Config& config, Workload& workload) {
     GridOptions options;
     options.expected_k = config.profile_k;
     map = std::make_unique<GridPhotonMap>(options);
+  } else if (s == kBucketMedian || s == kBucketMid || s == kBucketHint) {
+    map = MakeBucketTree(s == kBucketMedian ? BucketSplit::kMedian : BucketSplit::kMidpoint, config.leaf_size);
   } else {
     map = std::make_unique<KdTree>(s == 0 ? KdSplitRule::kLevelCycle : KdSplitRule::kWidestExtent,
                                    s == 2 ? KdCulling::kPlaneDistance : KdCulling::kCellDistance);
@@ -604,11 +644,15 @@ int Profile(const Config& config, Workload& workload) {
                 lap.cpu / (double(photons.size()) * 1e-6));
   }
   const Stopwatch watch;
-  const double sum = pf_bench_profile_queries(map.get(), nano.get(), &points, config.profile_k);
+  const double sum = pf_bench_profile_queries(map.get(), nano.get(), &points, config.profile_k, s == kBucketHint);
   const Stopwatch::Lap lap = watch.Elapsed();
   std::printf("%s %s N=%s k=%d: %zu queries, %.3f us/query cpu, %.3f wall (checksum %.6g)\n", workload.name().c_str(),
               kProfileNames[s], HumanCount(photons.size()).c_str(), config.profile_k, points.size(),
               1e6 * lap.cpu / double(points.size()), 1e6 * lap.wall / double(points.size()), sum);
+  if (const auto* bucket = dynamic_cast<const BucketKdTree*>(map.get()))
+    std::printf("bucket tree: %zu nodes, %zu leaves, depth %d, leaf kernel %s, %.2f bytes/photon\n",
+                bucket->node_count(), bucket->leaf_count(), bucket->depth(), bucket->simd(),
+                double(bucket->MemoryBytes()) / double(photons.size()));
   if (const auto* kd = dynamic_cast<const KdTree*>(map.get())) {
     KdTree::SearchStats total;
     NearestPhotons heap;
@@ -628,8 +672,9 @@ int Profile(const Config& config, Workload& workload) {
 }
 
 int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
-  const std::vector<std::size_t> sizes = config.quick ? std::vector<std::size_t>{100000, 1000000}
-                                                      : std::vector<std::size_t>{100000, 1000000, 10000000};
+  std::vector<std::size_t> sizes = config.quick ? std::vector<std::size_t>{100000, 1000000}
+                                                : std::vector<std::size_t>{100000, 1000000, 10000000};
+  if (!config.sizes.empty()) sizes = config.sizes;
   const std::vector<int> ks = {10, 50, 100, 500};
   // Every stride-th camera hit: ~65k queries for k ≤ 50 (/4 with --quick).
   auto stride_for_k = [&](int k) -> std::size_t {
@@ -665,6 +710,7 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
     std::size_t count;
     Timing t[kCols];
     long mismatches;
+    std::size_t hint_misses;  // queries of "bucket mid+hint" whose hint held < k photons
   };
   std::vector<BuildRow> build_rows;
   std::vector<QueryRow> query_rows;
@@ -695,13 +741,16 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
         return watch.Elapsed();
       });
     };
-    std::unique_ptr<PhotonMap> kd_cycle, kd_widest, grid50;
+    std::unique_ptr<PhotonMap> kd_cycle, kd_widest, grid50, bucket_median, bucket_mid;
     row.t[0] = build_map(kd_cycle, [] { return std::make_unique<KdTree>(KdSplitRule::kLevelCycle); });
     row.t[1] = build_map(kd_widest, [] { return std::make_unique<KdTree>(KdSplitRule::kWidestExtent); });
     row.t[2] = row.t[1];  // same tree, other culling test
     GridOptions options50;
     options50.expected_k = 50;
     row.t[3] = build_map(grid50, [&] { return std::make_unique<GridPhotonMap>(options50); });
+    row.t[kBucketMedian] =
+        build_map(bucket_median, [&] { return MakeBucketTree(BucketSplit::kMedian, config.leaf_size); });
+    row.t[kBucketMid] = build_map(bucket_mid, [&] { return MakeBucketTree(BucketSplit::kMidpoint, config.leaf_size); });
     const PhotonCloud cloud{photons.data(), photons.size()};
     std::unique_ptr<NanoTree> nano;
     row.t[kNano] = MedianTiming(config.reps, [&] {
@@ -717,11 +766,14 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
     row.bytes[0] = double(kd_cycle->MemoryBytes()) / double(n);
     row.bytes[1] = row.bytes[2] = double(kd_widest->MemoryBytes()) / double(n);
     row.bytes[3] = double(grid50->MemoryBytes()) / double(n);
+    row.bytes[kBucketMedian] = double(bucket_median->MemoryBytes()) / double(n);
+    row.bytes[kBucketMid] = row.bytes[kBucketHint] = double(bucket_mid->MemoryBytes()) / double(n);
+    row.t[kBucketHint] = row.t[kBucketMid];  // same tree, hinted queries
     // nanoflann reads our photon array (18 B/photon) plus its index permutation and nodes.
     row.bytes[kNano] = double(n * sizeof(Photon) + nano->usedMemory(*nano)) / double(n);
     build_rows.push_back(row);
     for (int s = 0; s < kCols; ++s) {
-      if (s == 2) continue;
+      if (s == 2 || s == kBucketHint) continue;
       builds.push_back({{"n", n},
                         {"structure", kNames[s]},
                         {"wall_seconds_median", row.t[s].wall},
@@ -756,6 +808,9 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
         laps[1].push_back(QueryOurs(*kd_widest, points, k, kth[1]));
         laps[2].push_back(QueryOurs(widest_plane, points, k, kth[2]));
         laps[3].push_back(QueryOurs(grid, points, k, kth[3]));
+        laps[kBucketMedian].push_back(QueryOurs(*bucket_median, points, k, kth[kBucketMedian]));
+        laps[kBucketMid].push_back(QueryOurs(*bucket_mid, points, k, kth[kBucketMid]));
+        laps[kBucketHint].push_back(QueryOursHinted(*bucket_mid, points, k, kth[kBucketHint], &q.hint_misses));
         laps[kNano].push_back(QueryNano(*nano, points, k, kth[kNano]));
       }
       for (int s = 0; s < kCols; ++s) {
@@ -781,6 +836,7 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
                                 {"speedup_vs_nanoflann", pick(q.t[kNano]) / pick(q.t[s])}});
       }
       queries_json.back()["kth_distance_mismatches"] = q.mismatches;
+      queries_json.back()["hint_misses"] = q.hint_misses;
       queries_json.back()["grid_resolution"] = grid.resolution();
       queries_json.back()["grid_photons_per_occupied_voxel"] = grid.photons_per_occupied_voxel();
     }
@@ -798,11 +854,11 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
                 (unsigned long long)r.trace.caustic, r.trace.cached ? " [from cache]" : "");
   }
   std::printf("\nBuild time [s], 1 thread (in parentheses: time / nanoflann's)\n");
-  std::printf("%-6s %-16s %-16s %-16s %-10s | %-9s | thesis BuildTree (1999 hardware)\n", "N", "kd level%3",
-              "kd widest", "grid (k=50)", "nanoflann", "widest s/M");
+  std::printf("%-6s %-16s %-16s %-16s %-16s %-16s %-10s | %-9s | thesis BuildTree (1999 hardware)\n", "N",
+              "kd level%3", "kd widest", "grid (k=50)", "bucket median", "bucket mid", "nanoflann", "widest s/M");
   for (const BuildRow& r : build_rows) {
     std::printf("%-6s", HumanCount(r.n).c_str());
-    for (int s : {0, 1, 3}) {
+    for (int s : {0, 1, 3, kBucketMedian, kBucketMid}) {
       char cell[64];
       std::snprintf(cell, sizeof cell, "%.3f (%.2fx)", pick(r.t[s]), pick(r.t[s]) / pick(r.t[kNano]));
       std::printf(" %-16s", cell);
@@ -812,16 +868,18 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
   }
   std::printf(
       "\nMemory [bytes/photon] (maps: photons + structure; nanoflann: our photon array + its index)\n");
-  std::printf("%-6s %-11s %-11s %-11s %-11s\n", "N", "kd level%3", "kd widest", "grid (k=50)", "nanoflann");
+  std::printf("%-6s %-11s %-11s %-11s %-13s %-11s %-11s\n", "N", "kd level%3", "kd widest", "grid (k=50)",
+              "bucket median", "bucket mid", "nanoflann");
   for (const BuildRow& r : build_rows) {
     std::printf("%-6s", HumanCount(r.n).c_str());
-    for (int s : {0, 1, 3, kNano}) std::printf(" %-11.2f", r.bytes[s]);
+    for (int s : {0, 1, 3}) std::printf(" %-11.2f", r.bytes[s]);
+    std::printf(" %-13.2f %-11.2f %-11.2f", r.bytes[kBucketMedian], r.bytes[kBucketMid], r.bytes[kNano]);
     std::printf("\n");
   }
   std::printf("\nk-NN queries, 1 thread: us/query (x = speed-up over nanoflann, >1 is faster)\n");
   std::printf("%-6s %-4s %-6s", "N", "k", "#q");
   for (int s = 0; s < kCols; ++s) std::printf(" %-16s", kNames[s]);
-  std::printf(" mismatches\n");
+  std::printf(" mismatches hint-misses\n");
   for (const QueryRow& r : query_rows) {
     std::printf("%-6s %-4d %-6zu", HumanCount(r.n).c_str(), r.k, r.count);
     for (int s = 0; s < kCols; ++s) {
@@ -834,9 +892,12 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
       }
       std::printf(" %-16s", cell);
     }
-    std::printf(" %ld\n", r.mismatches);
+    std::printf(" %-10ld %zu\n", r.mismatches, r.hint_misses);
   }
-  std::printf("(mismatches: queries whose k-th neighbour distance differs from nanoflann's; must be 0)\n");
+  std::printf("(mismatches: queries whose k-th neighbour distance differs from nanoflann's; must be 0.\n"
+              " bucket mid+hint: the bucket mid tree queried with QueryWithHint, hint = %.1f x the previous\n"
+              " query's k-th distance; hint-misses: queries re-run unbounded because the hint held < k)\n",
+              double(kHintGrow));
   std::printf("Load average (1/5/15 min): before %s, after %s\n\n", load_before.c_str(), load_after.c_str());
   long bad = 0;
   for (const QueryRow& r : query_rows) bad += r.mismatches;
@@ -888,7 +949,8 @@ int main(int argc, char** argv) {
   auto usage = [&] {
     std::fprintf(stderr,
                  "usage: %s [--quick] [--synthetic] [--scenes a,b] [--reps N] [--json out.json] [--wall]\n"
-                 "          [--grid-sweep] [--cache DIR] [--profile STRUCT [--n N] [--k K]]\n",
+                 "          [--grid-sweep] [--cache DIR] [--profile STRUCT [--n N] [--k K]] [--leaf L]\n"
+                 "          [--sizes 100000,1000000]\n",
                  argv[0]);
     return 1;
   };
@@ -919,6 +981,12 @@ int main(int argc, char** argv) {
       config.profile = argv[++i];
     } else if (arg == "--n" && has_value) {
       config.profile_n = std::size_t(std::atoll(argv[++i]));
+    } else if (arg == "--leaf" && has_value) {
+      config.leaf_size = std::clamp(std::atoi(argv[++i]), 1, 64);
+    } else if (arg == "--sizes" && has_value) {
+      std::stringstream list(argv[++i]);
+      for (std::string v; std::getline(list, v, ',');)
+        if (!v.empty()) config.sizes.push_back(std::size_t(std::atoll(v.c_str())));
     } else if (arg == "--k" && has_value) {
       config.profile_k = std::max(1, std::atoi(argv[++i]));
     } else {

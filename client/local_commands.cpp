@@ -104,6 +104,7 @@ int RunRender(const RenderArgs& a) {
     static constexpr const char* kDirectNames[] = {"photon-map", "mc", "photon-direct"};
     meta["photons.direct"] = kDirectNames[int(*settings.direct)];
     meta["photons.local_pass_rays"] = std::to_string(settings.local_pass_rays);
+    meta["photons.local_pass_lookup"] = settings.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
     meta["photons.occlusion_test"] = settings.occlusion_test ? "1" : "0";
     meta["photons.adaptive_k_min"] = std::to_string(settings.adaptive_k_min);
     meta["photons.trace_seconds"] = fmt::format("{:.3f}", maps.stats.trace_seconds);

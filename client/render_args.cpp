@@ -67,9 +67,11 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--k", a.k, "photonmap: nearest photons per radiance estimate")
       ->capture_default_str()
       ->check(CLI::Range(1, 100000));
-  app->add_option("--map", a.map, "photonmap: kdtree (left-balanced, 2.3) or grid (2.4)")
+  app->add_option("--map", a.map,
+                  "photonmap: kdtree (left-balanced, 2.3), grid (2.4) or bucket (unbalanced kd-tree with SIMD "
+                  "buckets, the fastest queries)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"kdtree", "grid"}));
+      ->check(CLI::IsMember({"kdtree", "grid", "bucket"}));
   app->add_option("--kd-split", a.kd_split,
                   "kdtree split axis: widest (extent; faster in rooms, 2.3 footnote) or cycle (level % 3)")
       ->capture_default_str()
@@ -119,6 +121,11 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
                   "photonmap: final gathering rays per shading point, photon map at their hits (4.3; 0 = off)")
       ->capture_default_str()
       ->check(CLI::Range(0, 4096));
+  app->add_option("--local-pass-lookup", a.local_pass_lookup,
+                  "local pass: what a gather ray reads at its hit: full (the photon-map estimate) or precomputed "
+                  "(irradiance at every 4th photon, estimated once per map; one nearest-site lookup, Christensen 1999)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"full", "precomputed"}));
   app->add_flag("--occlusion-test", a.occlusion_test,
                 "photonmap: drop found photons whose origin is not visible from the point (4.1.1; "
                 "removes light bleeding through walls, one shadow ray per photon)");
@@ -139,7 +146,9 @@ void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
   v1::PhotonMapSettings* pm = rs->mutable_photon_map();
   pm->set_photons(a.photons);
   pm->set_k(uint32_t(a.k));
-  pm->set_structure(a.map == "grid" ? v1::MAP_STRUCTURE_GRID : v1::MAP_STRUCTURE_KDTREE);
+  pm->set_structure(a.map == "grid"     ? v1::MAP_STRUCTURE_GRID
+                    : a.map == "bucket" ? v1::MAP_STRUCTURE_BUCKET_KDTREE
+                                        : v1::MAP_STRUCTURE_KDTREE);
   pm->set_kd_split(a.kd_split == "cycle" ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
   pm->set_caustic(a.caustic == "on" ? v1::CAUSTIC_MODE_ON : a.caustic == "off" ? v1::CAUSTIC_MODE_OFF : v1::CAUSTIC_MODE_AUTO);
   pm->set_caustic_radius(a.caustic_radius);
@@ -157,6 +166,8 @@ void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
   pm->set_non_contributing(a.non_contributing == "each" ? v1::NON_CONTRIBUTING_EACH : v1::NON_CONTRIBUTING_ONE_RANDOM);
   pm->set_photon_direct_cache(a.photon_direct_cache);
   pm->set_local_pass_rays(uint32_t(a.local_pass));
+  pm->set_local_pass_lookup(a.local_pass_lookup == "precomputed" ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
+                                                                 : v1::LOCAL_PASS_LOOKUP_FULL);
   pm->set_occlusion_test(a.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(a.adaptive_k_min));
 }

@@ -48,6 +48,7 @@ struct RenderArgs {
   std::string non_contributing = "one-random";
   float photon_direct_cache = 0.25f;
   int local_pass = 0;
+  std::string local_pass_lookup = "full";
   bool occlusion_test = false;
   int adaptive_k_min = 0;
   // Plan (farm and --local-only); plan.empty() = the classic single-process render.

@@ -93,8 +93,11 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   if (pm.k() > kMaxK) throw LimitError(f + ".k: exceeds the limit " + std::to_string(kMaxK));
   out.photons = pm.photons();
   out.k = int(pm.k());
-  out.structure = pm.structure() == v1::MAP_STRUCTURE_GRID ? PhotonMapKind::kGrid : PhotonMapKind::kKdTree;
-  if (pm.structure() < 0 || pm.structure() > v1::MAP_STRUCTURE_GRID) throw InputError(f + ".structure: unknown value");
+  out.structure = pm.structure() == v1::MAP_STRUCTURE_GRID            ? PhotonMapKind::kGrid
+                  : pm.structure() == v1::MAP_STRUCTURE_BUCKET_KDTREE ? PhotonMapKind::kBucketKdTree
+                                                                      : PhotonMapKind::kKdTree;
+  if (pm.structure() < 0 || pm.structure() > v1::MAP_STRUCTURE_BUCKET_KDTREE)
+    throw InputError(f + ".structure: unknown value");
   switch (pm.caustic()) {
     case v1::CAUSTIC_MODE_UNSPECIFIED:
     case v1::CAUSTIC_MODE_AUTO: out.caustic = CausticMapMode::kAuto; break;
@@ -149,6 +152,12 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   if (pm.local_pass_rays() > kMaxShadowRays)
     throw InputError(f + ".local_pass_rays: must be <= " + std::to_string(kMaxShadowRays));
   out.local_pass_rays = int(pm.local_pass_rays());
+  switch (pm.local_pass_lookup()) {
+    case v1::LOCAL_PASS_LOOKUP_UNSPECIFIED:
+    case v1::LOCAL_PASS_LOOKUP_FULL: out.local_pass_lookup = LocalPassLookup::kFull; break;
+    case v1::LOCAL_PASS_LOOKUP_PRECOMPUTED: out.local_pass_lookup = LocalPassLookup::kPrecomputed; break;
+    default: throw InputError(f + ".local_pass_lookup: unknown value");
+  }
   out.occlusion_test = pm.occlusion_test();
   if (pm.adaptive_k_min() > pm.k()) throw InputError(f + ".adaptive_k_min: must be <= k (" + std::to_string(pm.k()) + ")");
   out.adaptive_k_min = int(pm.adaptive_k_min());
@@ -168,7 +177,9 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   v1::PhotonMapSettings* pm = out->mutable_photon_map();
   pm->set_photons(s.photons);
   pm->set_k(uint32_t(s.k));
-  pm->set_structure(s.structure == PhotonMapKind::kGrid ? v1::MAP_STRUCTURE_GRID : v1::MAP_STRUCTURE_KDTREE);
+  pm->set_structure(s.structure == PhotonMapKind::kGrid            ? v1::MAP_STRUCTURE_GRID
+                    : s.structure == PhotonMapKind::kBucketKdTree ? v1::MAP_STRUCTURE_BUCKET_KDTREE
+                                                                  : v1::MAP_STRUCTURE_KDTREE);
   pm->set_caustic(s.caustic == CausticMapMode::kOn    ? v1::CAUSTIC_MODE_ON
                   : s.caustic == CausticMapMode::kOff ? v1::CAUSTIC_MODE_OFF
                                                       : v1::CAUSTIC_MODE_AUTO);
@@ -188,6 +199,8 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
                                                                                : v1::NON_CONTRIBUTING_ONE_RANDOM);
   pm->set_photon_direct_cache(s.photon_direct_cache);
   pm->set_local_pass_rays(uint32_t(s.local_pass_rays));
+  pm->set_local_pass_lookup(s.local_pass_lookup == LocalPassLookup::kPrecomputed ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
+                                                                                  : v1::LOCAL_PASS_LOOKUP_FULL);
   pm->set_occlusion_test(s.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(s.adaptive_k_min));
   pm->set_kd_split(s.kd_split == KdSplitRule::kLevelCycle ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);

@@ -173,11 +173,14 @@ static_assert(std::is_standard_layout_v<Photon>);
 // Squared distance from a photon to a point. Every photon map and the brute-force reference
 // use this one function, so that they agree bit for bit on every distance (tests compare
 // result distance multisets exactly).
-inline float DistanceSquared(const Photon& p, const Vec3& x) {
-  const float dx = p.position[0] - x.x;
-  const float dy = p.position[1] - x.y;
-  const float dz = p.position[2] - x.z;
+inline float DistanceSquared(float px, float py, float pz, const Vec3& x) {
+  const float dx = px - x.x;
+  const float dy = py - x.y;
+  const float dz = pz - x.z;
   return dx * dx + dy * dy + dz * dz;
+}
+inline float DistanceSquared(const Photon& p, const Vec3& x) {
+  return DistanceSquared(p.position[0], p.position[1], p.position[2], x);
 }
 
 }  // namespace pf

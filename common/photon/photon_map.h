@@ -167,7 +167,9 @@ class NearestPhotons {
   } grid_;
 };
 
-enum class PhotonMapKind { kKdTree, kGrid };
+// kKdTree: the thesis's left-balanced kd-tree (kdtree.h); kGrid: the regular grid (grid.h);
+// kBucketKdTree: a bucketed, unbalanced kd-tree with SIMD bucket tests (bucket_kdtree.h).
+enum class PhotonMapKind { kKdTree, kGrid, kBucketKdTree };
 
 // kd-tree split dimension (Wald 1999, §2.3 and its footnote 2).
 enum class KdSplitRule {
@@ -197,10 +199,25 @@ struct GridOptions {
   double max_voxels_per_photon = 1.0;
 };
 
+// Split rule of the bucketed kd-tree (bucket_kdtree.h).
+enum class BucketSplit {
+  kMedian,    // median on the widest extent: balanced
+  kMidpoint,  // middle of the widest extent, sliding to the nearest photon: near-cubic cells
+};
+
+struct BucketKdOptions {
+  int leaf_size = 8;  // photons per bucket at most, in [1, 64]
+  BucketSplit split = BucketSplit::kMedian;
+  // Use the AVX2 bucket kernel where the CPU has it (false: always the SSE one, e.g. to test
+  // it on an AVX2 machine).
+  bool allow_avx2 = true;
+};
+
 struct PhotonMapOptions {
   KdSplitRule kd_split_rule = KdSplitRule::kLevelCycle;
   KdCulling kd_culling = KdCulling::kCellDistance;
   GridOptions grid;
+  BucketKdOptions bucket;
 };
 
 class PhotonMap {
@@ -271,6 +288,23 @@ class PhotonMap {
     if (!prepared_) throw std::logic_error("PhotonMap::Query before PrepareForQuery");
     if (nearest.k() == 0 || photons_.empty() || !IsFinite(x) || !(nearest.BoundSquared() > 0.0f)) return;
     DoQuery(x, nearest, filter);
+  }
+
+  // Exact k-NN with a guessed radius (e.g. the previous query's k-th distance, slightly
+  // enlarged, for a neighbouring pixel): searches the open ball of radius
+  // min(hint_radius, max_radius) first. If that ball holds k accepted photons they are the k
+  // nearest overall (every photon outside lies at ≥ hint_radius, beyond all of them), so the
+  // result is exactly Query's; otherwise it searches again with max_radius. A good hint culls
+  // most of the tree from the start and spares the heap the photons that would enter it only
+  // to be evicted. Returns true iff the hint sufficed.
+  bool QueryWithHint(const Vec3& x, int k, float max_radius, float hint_radius, NearestPhotons& nearest,
+                     const PhotonFilter* filter = nullptr) const {
+    if (hint_radius > 0.0f && hint_radius < max_radius) {
+      Query(x, k, hint_radius, nearest, filter);
+      if (nearest.full()) return true;
+    }
+    Query(x, k, max_radius, nearest, filter);
+    return false;
   }
 
   std::size_t size() const { return photons_.size(); }

@@ -4,6 +4,7 @@
 // scene has singular surfaces (or when forced), and each decision is logged.
 
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "common/photon/photon_map.h"
@@ -49,6 +50,16 @@ struct PhotonMaps {
   PhotonAttributes global_attributes, caustic_attributes, direct_attributes;
   PhotonMapsStats stats;
   uint64_t seed = 0;  // the map seed the photons were traced with
+
+  // A structure an estimator derives from these maps and keeps with them, so that maps
+  // shared through a cache pay for it once (the precomputed irradiance of the local pass,
+  // estimators/precomputed_irradiance.h). `key` names what was built and with which options.
+  struct Derived {
+    std::mutex mutex;
+    std::string key;
+    std::shared_ptr<const void> value;
+  };
+  std::shared_ptr<Derived> derived = std::make_shared<Derived>();
 
   static PhotonMaps Build(const EmbreeScene& scene, const LightSampler& lights,
                           const PhotonMapsOptions& options);

@@ -81,6 +81,7 @@ PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& b
   io.photon_direct.cache_radius_fraction = photon_direct_cache;
   io.photon_direct.max_radius = io.direct_photons.max_radius;  // same bound, same reason (direct_light.h)
   io.local_pass_rays = local_pass_rays;
+  io.local_pass_lookup = local_pass_lookup;
   return io;
 }
 
@@ -158,8 +159,9 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     out.photons_emitted = maps->stats.emitted;
     out.photons_stored = maps->stats.stored_global + maps->stats.stored_caustic;
     out.map_seconds = out.map_cache_hit ? 0.0 : maps->stats.trace_seconds + maps->stats.build_seconds;
-    const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps,
-                                         settings.IntegratorOptions(scene.accel.bounds()));
+    PhotonMapIntegratorOptions integrator_options = settings.IntegratorOptions(scene.accel.bounds());
+    integrator_options.precomputed.threads = threads;
+    const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps, integrator_options);
     stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed,
                          threads, sums, progress, cancel, settings.sampler);
   }

@@ -55,6 +55,7 @@ struct JobRenderSettings {
   NonContributingMode non_contributing = NonContributingMode::kOneRandom;
   float photon_direct_cache = 0.25f;     // neighbour-set cache radius fraction; 0 = off
   int local_pass_rays = 0;               // §4.3; 0 = off
+  LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;  // precomputed irradiance (Christensen 1999)
   bool occlusion_test = false;           // §4.1.1
   int adaptive_k_min = 0;                // §4.8; 0 = off
 

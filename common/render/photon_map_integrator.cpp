@@ -1,5 +1,7 @@
 #include "common/render/photon_map_integrator.h"
 
+#include <string>
+
 #include "common/core/error.h"
 #include "common/materials/bsdf.h"
 
@@ -55,9 +57,51 @@ PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSa
     photon_direct_ = std::make_unique<PhotonDirectLight>(scene, *lights, *maps.direct,
                                                          maps.direct_attributes.light, options.photon_direct);
   }
+  if (options_.local_pass_rays > 0 && options_.local_pass_lookup == LocalPassLookup::kPrecomputed)
+    PreparePrecomputedIrradiance();
 }
 
 PhotonMapIntegrator::~PhotonMapIntegrator() = default;
+
+void PhotonMapIntegrator::PreparePrecomputedIrradiance() {
+  // Everything the sites' estimates depend on (besides the maps themselves).
+  auto describe = [](const RadianceEstimateOptions& o) {
+    return std::to_string(o.k) + "," + std::to_string(o.max_radius) + "," + std::to_string(int(o.direction_test)) +
+           "," + std::to_string(o.min_fraction) + "," + std::to_string(o.exclude_boundary_photon) + "," +
+           std::to_string(o.occlusion_test) + "," + std::to_string(o.adaptive_k_min);
+  };
+  const PrecomputedIrradianceOptions& p = options_.precomputed;
+  const std::string key = "precomputed-irradiance|" + describe(options_.global) + "|" +
+                          describe(options_.direct_photons) + "|" + describe(options_.caustic) + "|" +
+                          std::to_string(p.stride) + "," + std::to_string(p.normal_cos) + "," +
+                          std::to_string(p.max_radius_fraction);
+  PhotonMaps::Derived& slot = *maps_.derived;
+  std::lock_guard lock(slot.mutex);
+  if (slot.key == key && slot.value) {
+    precomputed_ = std::static_pointer_cast<const PrecomputedIrradiance>(slot.value);
+    return;
+  }
+  precomputed_ = PrecomputedIrradiance::Build(scene_, maps_, p, [this](const Bsdf& white, const Vec3& x, const Vec3& n) {
+    TraceCounters unused;
+    return MapRadiance(white, x, n, kLobeDiffuseReflection, /*include_direct_photons=*/true, unused);
+  });
+  slot.key = key;
+  slot.value = precomputed_;
+}
+
+Rgb PhotonMapIntegrator::GatherHitRadiance(const Bsdf& by, const Material& my, const SurfaceHit& y, const Vec3& wo,
+                                           TraceCounters& counters) const {
+  if (!by.HasLobes(kDiffuseLobes)) return Rgb(0.0f);
+  // Christensen 1999: L(y) = ρd/π · E(nearest site) on y's side facing the gather ray. Diffuse
+  // transmitters see light from both sides: they keep the full estimate.
+  if (precomputed_ && my.diffuse_transmittance.IsBlack()) {
+    const Vec3 ng = Dot(wo, y.geometric_normal) >= 0.0f ? y.geometric_normal : -y.geometric_normal;
+    const Vec3 ns = Dot(y.shading_normal, ng) >= 0.0f ? y.shading_normal : -y.shading_normal;
+    if (const std::optional<Rgb> e = precomputed_->Lookup(y.position, ns, Scratch()))
+      return my.diffuse_reflectance * (*e * kInvPi);
+  }
+  return MapRadiance(by, y.position, wo, kDiffuseLobes, /*include_direct_photons=*/true, counters);
+}
 
 Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
                                      bool include_direct_photons, TraceCounters& counters) const {
@@ -103,8 +147,7 @@ Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const V
     Rgb Ly(0.0f);
     if (!separate_direct && my.IsEmissive() && y->front_face) Ly += my.emission;
     const Bsdf by(my, y->shading_normal, y->geometric_normal);
-    if (by.HasLobes(kDiffuseLobes))
-      Ly += MapRadiance(by, y->position, -s->wi, kDiffuseLobes, /*include_direct_photons=*/true, counters);
+    Ly += GatherHitRadiance(by, my, *y, -s->wi, counters);
     sum += s->weight * Ly;
   }
   // Sampling only the diffuse lobes makes each weight f_d·cos/pdf over exactly those lobes.

@@ -22,6 +22,7 @@
 #include <memory>
 
 #include "common/estimators/direct_light.h"
+#include "common/estimators/precomputed_irradiance.h"
 #include "common/estimators/radiance_estimate.h"
 #include "common/photon/photon_maps.h"
 #include "common/render/integrator.h"
@@ -31,6 +32,7 @@
 namespace pf {
 
 enum class DirectLightMode { kNone, kMonteCarlo, kPhotonDirect };
+enum class LocalPassLookup { kFull, kPrecomputed };
 
 struct PhotonMapIntegratorOptions {
   RadianceEstimateOptions global;   // k nearest, unbounded radius by default
@@ -44,6 +46,11 @@ struct PhotonMapIntegratorOptions {
   DirectLightOptions monte_carlo;   // §4.2.1
   PhotonDirectOptions photon_direct;  // §4.2.3
   int local_pass_rays = 0;          // N_lp (§4.3); 0 = off
+  // What a local-pass gather ray reads at its hit: the full photon-map estimate, or the
+  // precomputed irradiance of the nearest site (Christensen 1999; precomputed_irradiance.h),
+  // built once per map on first use.
+  LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;
+  PrecomputedIrradianceOptions precomputed;
 };
 
 // Caustic estimate defaults: the same k, a maximum radius of 1 % of the scene's bounding-box
@@ -81,6 +88,11 @@ class PhotonMapIntegrator final : public Integrator {
                   const PathVertexSlots& slots, TraceCounters& counters) const;
   Rgb Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Sampler& sampler,
              const PathVertexSlots& slots, TraceCounters& counters) const;
+  // The diffuse radiance leaving a gather hit y towards wo (local_pass_lookup).
+  Rgb GatherHitRadiance(const Bsdf& by, const Material& my, const SurfaceHit& y, const Vec3& wo,
+                        TraceCounters& counters) const;
+  // Builds or reuses (maps_.derived) the precomputed irradiance.
+  void PreparePrecomputedIrradiance();
 
   const EmbreeScene& scene_;
   const LightSampler* lights_;
@@ -88,6 +100,7 @@ class PhotonMapIntegrator final : public Integrator {
   PhotonMapIntegratorOptions options_;
   std::unique_ptr<MonteCarloDirectLight> monte_carlo_;
   std::unique_ptr<PhotonDirectLight> photon_direct_;
+  std::shared_ptr<const PrecomputedIrradiance> precomputed_;
 };
 
 }  // namespace pf

@@ -282,6 +282,14 @@ void PrintTo(const MapVariant& v, std::ostream* os) {
   *os << v.name;
 }
 
+PhotonMapOptions Bucket(BucketSplit split, int leaf_size, bool allow_avx2) {
+  PhotonMapOptions o;
+  o.bucket.split = split;
+  o.bucket.leaf_size = leaf_size;
+  o.bucket.allow_avx2 = allow_avx2;
+  return o;
+}
+
 std::vector<MapVariant> AllVariants() {
   PhotonMapOptions widest;
   widest.kd_split_rule = KdSplitRule::kWidestExtent;
@@ -296,7 +304,13 @@ std::vector<MapVariant> AllVariants() {
           {"KdPlaneCulling", PhotonMapKind::kKdTree, plane_culling},
           {"Grid", PhotonMapKind::kGrid, {}},
           {"GridFine", PhotonMapKind::kGrid, fine_grid},
-          {"GridCoarse", PhotonMapKind::kGrid, coarse_grid}};
+          {"GridCoarse", PhotonMapKind::kGrid, coarse_grid},
+          {"BucketMedian", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMedian, 8, true)},
+          {"BucketMidpoint", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 8, true)},
+          {"BucketMidpointSse", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 8, false)},
+          {"BucketMedianLeaf13Sse", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMedian, 13, false)},
+          {"BucketMidpointLeaf1", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 1, true)},
+          {"BucketMidpointLeaf64", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 64, true)}};
 }
 
 Photon MakeTestPhoton(const Vec3& p, Rng& rng) {
@@ -418,6 +432,38 @@ TEST_P(PhotonMapContractTest, MatchesBruteForceOnAllLayouts) {
   }
 }
 
+// QueryWithHint is exact whatever the hint: too small (re-query), exactly the k-th distance
+// (open ball: the k-th photon itself is outside, so it must re-query), just above, far above.
+TEST_P(PhotonMapContractTest, QueryWithHintEqualsQueryForAnyHint) {
+  const float inf = std::numeric_limits<float>::infinity();
+  const auto photons = MakePhotons(Layout::kClustered, 6000, 31);
+  const auto map = Build(photons);
+  NearestPhotons heap, reference;
+  int hits = 0, misses = 0;
+  for (const Vec3& x : MakeQueries(map->photons(), 80, 13)) {
+    for (int k : {1, 20, 100}) {
+      for (float max_radius : {inf, 0.05f}) {
+        map->Query(x, k, max_radius, reference);
+        const float kth = std::sqrt(reference.MaxDistanceSquared());
+        for (float hint : {0.0f, 1e-6f, 0.5f * kth, kth, std::nextafter(kth, inf), 1.2f * kth, 1e30f}) {
+          const bool used = map->QueryWithHint(x, k, max_radius, hint, heap);
+          const auto expected = BruteForceNearest(map->photons(), x, k, max_radius);
+          ASSERT_EQ(heap.size(), expected.size()) << "hint " << hint << " k " << k;
+          heap.Sort();
+          for (std::size_t j = 0; j < expected.size(); ++j) ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+          // The hint sufficed iff the open ball of radius hint (< max_radius) holds k photons.
+          const auto in_hint = BruteForceNearest(map->photons(), x, k, hint);
+          const bool expect_used = hint > 0.0f && hint < max_radius && in_hint.size() == std::size_t(k);
+          ASSERT_EQ(used, expect_used) << "hint " << hint << " k " << k;
+          (used ? hits : misses)++;
+        }
+      }
+    }
+  }
+  EXPECT_GT(hits, 100);
+  EXPECT_GT(misses, 100);
+}
+
 TEST_P(PhotonMapContractTest, InQueryFilterAlwaysFillsTheHeap) {
   // §4.1, in-query variant: only accepted photons enter the heap, so k are found whenever
   // k accepted photons exist. Here: "arrives from above" (direction z > 0), about half.
@@ -531,7 +577,7 @@ namespace {
 // PrepareForQuery(&original_index) must report the permutation of every structure exactly and
 // leave the photons' powers intact (attributes outside the 18 bytes follow it, §4.1.1/§4.2.3).
 TEST(PhotonMapPermutation, ReportsInsertionIndexAndKeepsPower) {
-  for (PhotonMapKind kind : {PhotonMapKind::kKdTree, PhotonMapKind::kGrid}) {
+  for (PhotonMapKind kind : {PhotonMapKind::kKdTree, PhotonMapKind::kGrid, PhotonMapKind::kBucketKdTree}) {
     auto map = MakePhotonMap(kind);
     std::vector<Photon> inserted;
     Rng rng(9, 3);
