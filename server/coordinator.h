@@ -49,6 +49,7 @@ class WatchHub;
 class BearerAuth;
 class RenderServiceImpl;
 class WorkerServiceImpl;
+class StatusHttpServer;
 
 inline constexpr int kMaxReceiveMessageBytes = (64 << 20) + (1 << 20);
 inline constexpr int kMaxSendMessageBytes = 16 << 20;
@@ -64,6 +65,7 @@ struct CoordinatorOptions {
   size_t executor_threads = 2;
   double shutdown_grace_seconds = 5;
   const Clock* clock = nullptr;             // null: the system clock
+  std::string http_listen;                  // web status page (server/http/); empty: none
 };
 
 class Coordinator {
@@ -88,6 +90,7 @@ class Coordinator {
   Persister& persister() { return *persister_; }
   SceneStore& scenes() { return *scenes_; }
   int port() const { return port_; }
+  int http_port() const { return http_port_; }  // 0 without --http
 
  private:
   void Stop(bool graceful);
@@ -107,6 +110,8 @@ class Coordinator {
   std::unique_ptr<RenderServiceImpl> render_service_;
   std::unique_ptr<WorkerServiceImpl> worker_service_;
   std::unique_ptr<grpc::Server> server_;
+  std::unique_ptr<StatusHttpServer> http_;
+  int http_port_ = 0;
   RecoveryReport recovery_;
   int port_ = 0;
 

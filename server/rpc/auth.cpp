@@ -20,9 +20,15 @@ grpc::Status BearerAuth::Check(const grpc::ServerContextBase& context) const {
   if (token_.empty()) return grpc::Status::OK;
   const auto& md = context.client_metadata();
   auto it = md.find("authorization");
-  if (it == md.end())
+  if (it == md.end()) return CheckAuthorization(std::nullopt);
+  return CheckAuthorization(std::string_view(it->second.data(), it->second.size()));
+}
+
+grpc::Status BearerAuth::CheckAuthorization(std::optional<std::string_view> authorization) const {
+  if (token_.empty()) return grpc::Status::OK;
+  if (!authorization)
     return {grpc::StatusCode::UNAUTHENTICATED, "authorization: missing (expected 'Bearer <token>')"};
-  const std::string_view value(it->second.data(), it->second.size());
+  const std::string_view value = *authorization;
   constexpr std::string_view kPrefix = "Bearer ";
   if (value.substr(0, kPrefix.size()) != kPrefix || !ConstantTimeEquals(value.substr(kPrefix.size()), token_))
     return {grpc::StatusCode::UNAUTHENTICATED, "authorization: invalid bearer token"};

@@ -5,7 +5,9 @@
 // takes the same time wherever the first difference is. The health and reflection services stay
 // open (liveness probes; the schema is not a secret).
 
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include <grpcpp/server_context.h>
 #include <grpcpp/support/status.h>
@@ -17,6 +19,9 @@ class BearerAuth {
   explicit BearerAuth(std::string token = "") : token_(std::move(token)) {}
   bool enabled() const { return !token_.empty(); }
   grpc::Status Check(const grpc::ServerContextBase& context) const;
+  // The same check on an `authorization` value from elsewhere (the web status page's HTTP
+  // header); nullopt = no header.
+  grpc::Status CheckAuthorization(std::optional<std::string_view> authorization) const;
 
  private:
   std::string token_;
