@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
       "  pf info scenes/scene8/scene8.json;  pf info cornell.exr\n"
       "  pf workers --coordinator HOST:PORT;  pf events job-1 --coordinator HOST:PORT\n\n"
       "{}"
-      "A scene manifest's \"settings\" (spp, photons, k) are the defaults its flags override.\n\n"
+      "A scene manifest's \"settings\" (spp of a plain render, photons, k) are defaults that flags override.\n\n"
       "Exit codes: 0 ok, 1 runtime failure (I/O, Embree, RPC; the job failed or was cancelled),\n"
       "2 usage error, 3 invalid input (scene/manifest errors as file:line: reason; requests the\n"
       "coordinator rejects as INVALID_ARGUMENT, NOT_FOUND or RESOURCE_EXHAUSTED), 130 interrupted.",

@@ -53,7 +53,10 @@ void ApplyManifestSettings(RenderArgs& a) {
                        ", got " + fmt::format("{}", v));
     return v;
   };
-  if (auto v = number("spp", 1, kMaxSamplesPerPixel); v && !a.spp_given) {
+  // A plan's --spp means samples per map or per task (see --spp): only a plain render takes the
+  // manifest's, which is a per-pixel count.
+  const bool plain = a.plan.empty() && !a.local_only && a.workers == 0;
+  if (auto v = number("spp", 1, kMaxSamplesPerPixel); v && !a.spp_given && plain) {
     a.spp = uint32_t(*v);
     spdlog::info("spp = {} from the manifest's settings (--spp overrides)", a.spp);
   }

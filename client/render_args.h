@@ -70,7 +70,8 @@ struct RenderArgs {
   bool keep_farm_dir = false;
 };
 
-// A scene manifest's "settings" (spp, photons, k) become the defaults of the flags not given;
+// A scene manifest's "settings" (spp for a plain render, photons, k) become the defaults of the
+// flags not given;
 // logged. No-op for a geometry file. InputError if a value is out of the flags' range.
 void ApplyManifestSettings(RenderArgs& a);
 

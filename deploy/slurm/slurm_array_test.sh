@@ -42,7 +42,7 @@ cleanup() {
   [ -n "$array_job" ] && scancel "$array_job" 2> /dev/null
   for p in "${pids[@]}"; do kill "$p" 2> /dev/null; done
   for p in "${pids[@]}"; do
-    for _ in $(seq 50); do kill -0 "$p" 2> /dev/null || break; sleep 0.1; done
+    for _ in $(seq 150); do kill -0 "$p" 2> /dev/null || break; sleep 0.1; done
     kill -9 "$p" 2> /dev/null
   done
   if [ -n "$munged_pid" ]; then kill "$munged_pid" 2> /dev/null; fi

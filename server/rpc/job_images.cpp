@@ -35,9 +35,10 @@ void AddJobMetadata(const photonfarm::v1::JobStatus& status, ImageMetadata& meta
   meta["plan"] = spec.plan().ShortDebugString();
   meta["job_state"] = v1::JobState_Name(status.state());
   meta["version"] = PF_VERSION;
-  const std::time_t now = std::time(nullptr);
+  // The job's submission time, not "now": the same merged state encodes to the same bytes.
+  const std::time_t submitted = std::time_t(status.submitted_unix_ms() / 1000);
   std::tm tm{};
-  gmtime_r(&now, &tm);
+  gmtime_r(&submitted, &tm);
   char date[32];
   std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", &tm);
   meta["date"] = date;
