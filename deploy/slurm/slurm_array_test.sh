@@ -39,7 +39,14 @@ array_job=""
 cleanup() {
   local rc=$?
   set +e
-  [ -n "$array_job" ] && scancel "$array_job" 2> /dev/null
+  if [ -n "$array_job" ]; then
+    # Let slurmd end the array's steps (slurmstepd) before slurmd itself goes: none outlive it.
+    scancel "$array_job" 2> /dev/null
+    for _ in $(seq 300); do
+      [ -z "$(squeue -h -j "$array_job" 2> /dev/null)" ] && break
+      sleep 0.1
+    done
+  fi
   for p in "${pids[@]}"; do kill "$p" 2> /dev/null; done
   for p in "${pids[@]}"; do
     for _ in $(seq 150); do kill -0 "$p" 2> /dev/null || break; sleep 0.1; done

@@ -100,6 +100,14 @@ TEST(Visibility, FarmImageHeaderDescribesTheJob) {
                             "--coordinator", coordinator.address()},
                            dir.path(), 120);
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  // On a terminal (script(1) gives pf a pty) the progress line ends by erasing the rest of the
+  // line: a line shorter than the one before leaves no stray characters.
+  r = RunCommand({"/usr/bin/script", "-qfec",
+                  Binaries::Pf() + " watch " + id + " --coordinator " + coordinator.address(), "/dev/null"},
+                 dir.path(), 60);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("\r["), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\033[K"), std::string::npos) << r.out;
   r = RunCommand({Binaries::Pf(), "info", (dir / "farm.exr").string()}, dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* line : {"seed        11", "integrator  photonmap", "photons.per_map 2000",
