@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "client/render_args.h"
+#include "common/image/exr_io.h"
 #include "common/image/image.h"
 
 namespace pf {
@@ -34,12 +35,13 @@ int RunLocalPlan(const RenderArgs& a);  // --local-only / --plan without --worke
 // rmse_lowfreq); its camera `camera_name` (default: the first) at the images' resolution.
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
             double error_scale, bool json, const std::string& scene = "", const std::string& camera_name = "");
-int RunMerge(const std::vector<std::string>& inputs, const std::string& output);
+// Inputs without "spp" in their header weigh `assume_spp` (0: refused with InputError).
+int RunMerge(const std::vector<std::string>& inputs, const std::string& output, double assume_spp = 0);
 // PNG of an EXR: auto exposure of `image`, or of `exposure_of` (so renders of one scene share
 // one exposure and compare by eye), plus `stops`.
 int RunPreview(const std::string& image, const std::string& output, const std::string& exposure_of,
                double stops);
-int RunInfo(const std::string& path);
+int RunInfo(const std::string& path);  // a scene, or an EXR's size and header
 
 // Farm (client/farm_commands.cpp).
 int RunFarmRender(const RenderArgs& a);  // --workers N: a local coordinator + N workers
@@ -49,9 +51,18 @@ int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& ou
 int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& output, const std::string& png);
 int RunList(const FarmArgs& f, bool all, bool json);
 int RunCancel(const FarmArgs& f, const std::string& job_id);
+int RunWorkers(const FarmArgs& f, bool json);
+int RunEvents(const FarmArgs& f, const std::string& job_id, bool json);
 
 // The exit code for an exception escaping a command (and the message printed).
 int ExitCodeFor(const std::exception& e);
+
+// Fails (SystemError naming the path) unless `path` can be written: its folder exists and is
+// writable, and the file, if present, is writable. Called before a render, not after it.
+void CheckWritable(const std::string& path, const char* what);
+
+// Header entries every image pf writes carries: version and UTC date.
+void AddProvenance(ImageMetadata& meta);
 
 // Writes a PNG preview next to an EXR unless disabled (--png / --no-png semantics).
 void WritePreviewFor(const std::string& exr, const std::string& png, bool no_png, const Image& image);

@@ -97,6 +97,24 @@ v1::JobStatus FarmClient::CancelJob(const std::string& job_id) {
   return resp.status();
 }
 
+std::vector<v1::WorkerInfo> FarmClient::ListWorkers() {
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  v1::ListWorkersResponse resp;
+  Check(stub_->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp));
+  return {resp.workers().begin(), resp.workers().end()};
+}
+
+v1::ListJobEventsResponse FarmClient::ListJobEvents(const std::string& job_id) {
+  v1::ListJobEventsRequest req;
+  req.set_job_id(job_id);
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  v1::ListJobEventsResponse resp;
+  Check(stub_->ListJobEvents(&ctx, req, &resp));
+  return resp;
+}
+
 std::string FarmClient::GetImage(const std::string& job_id, uint64_t* samples_merged) {
   v1::GetImageRequest req;
   req.set_job_id(job_id);

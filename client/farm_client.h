@@ -29,6 +29,8 @@ class FarmClient {
   photonfarm::v1::JobStatus GetJob(const std::string& job_id);
   std::vector<photonfarm::v1::JobStatus> ListJobs(bool include_finished);
   photonfarm::v1::JobStatus CancelJob(const std::string& job_id);
+  std::vector<photonfarm::v1::WorkerInfo> ListWorkers();
+  photonfarm::v1::ListJobEventsResponse ListJobEvents(const std::string& job_id);
   // The current merged image, reassembled from its chunks: EXR bytes.
   std::string GetImage(const std::string& job_id, uint64_t* samples_merged = nullptr);
 

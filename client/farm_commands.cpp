@@ -9,10 +9,12 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "rpc/address.h"
 #include "client/commands.h"
 #include "client/farm_client.h"
 #include "client/interrupt.h"
@@ -31,7 +33,11 @@ namespace {
 std::string CoordinatorAddress(const FarmArgs& f) {
   if (!f.coordinator.empty()) return f.coordinator;
   const char* env = std::getenv("PF_COORDINATOR");
-  if (env && *env) return env;
+  if (env && *env) {
+    if (const std::string problem = CoordinatorAddressProblem(env); !problem.empty())
+      throw InputError("PF_COORDINATOR: " + problem);
+    return env;
+  }
   throw InputError("--coordinator: required (HOST:PORT, or set PF_COORDINATOR)");
 }
 
@@ -71,7 +77,8 @@ int ExitCodeForState(v1::JobState s) { return s == v1::JOB_STATE_SUCCEEDED ? kEx
 // Uploads the bundle and submits; returns the job id.
 std::string UploadAndSubmit(FarmClient& client, PreparedJob& job) {
   const v1::UploadSceneResponse up = client.UploadScene(job.bundle);
-  for (const std::string& w : up.warnings()) spdlog::warn("scene: {}", w);
+  if (job.scene.warnings.empty())  // else PrepareJob has shown them already
+    for (const std::string& w : up.warnings()) spdlog::warn("scene: {}", w);
   spdlog::info("scene {} uploaded: {} files, {} triangles, {} lights", up.scene_hash().substr(0, 12),
                job.bundle.files.size(), up.triangles(), up.lights());
   job.spec.set_scene_hash(up.scene_hash());
@@ -84,13 +91,24 @@ std::string UploadAndSubmit(FarmClient& client, PreparedJob& job) {
 // cheaper for the coordinator, and the updates can then come often (`interval`) so that the end
 // of the job is seen at once. Returns the final status.
 v1::JobStatus WatchWithProgress(FarmClient& client, const std::string& job_id, const std::string& output,
-                                double interval, bool json, bool quiet, double snapshot_every = 0) {
+                                double interval, bool json, bool quiet, double snapshot_every = 0,
+                                bool hint_no_workers = false) {
   FarmProgress progress(!quiet && !json);
+  bool hinted = !hint_no_workers;
   const bool stream_images = !output.empty() && snapshot_every <= 0;
   auto last_snapshot = std::chrono::steady_clock::now();
   uint64_t snapshot_tasks = 0;
   const v1::JobStatus final_status = client.Watch(job_id, stream_images, interval, [&](const v1::JobUpdate& u) {
     progress.Update(u.status());
+    if (!hinted && u.status().state() == v1::JOB_STATE_QUEUED && u.status().tasks_running() == 0) {
+      hinted = true;
+      try {
+        if (client.ListWorkers().empty())
+          spdlog::warn("no worker has contacted the coordinator yet, so the job waits (ETA unknown): start one with "
+                       "pf-worker --coordinator HOST:PORT");
+      } catch (const RpcError&) {  // an older coordinator without ListWorkers: no hint
+      }
+    }
     if (json) {
       nlohmann::json j = StatusJson(u.status());
       j["snapshot"] = u.has_image() && !u.image().exr_bytes().empty();
@@ -144,11 +162,12 @@ int RunSubmit(const RenderArgs& a, const FarmArgs& f) {
 
 int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& output, double interval, bool json,
              bool quiet) {
+  if (!output.empty()) CheckWritable(output, "-o");
   FarmClient client = Connect(f);
   SetInterruptHandler([&client](int) { client.Cancel(); });
   v1::JobStatus st;
   try {
-    st = WatchWithProgress(client, job_id, output, interval, json, quiet);
+    st = WatchWithProgress(client, job_id, output, interval, json, quiet, 0, /*hint_no_workers=*/true);
   } catch (...) {
     SetInterruptHandler({});
     throw;
@@ -163,6 +182,8 @@ int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& ou
 }
 
 int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& output, const std::string& png) {
+  CheckWritable(output, "-o");
+  if (!png.empty()) CheckWritable(png, "--png");
   FarmClient client = Connect(f);
   uint64_t samples = 0;
   const std::string bytes = client.GetImage(job_id, &samples);
@@ -199,11 +220,78 @@ int RunCancel(const FarmArgs& f, const std::string& job_id) {
   return kExitOk;
 }
 
+int RunWorkers(const FarmArgs& f, bool json) {
+  FarmClient client = Connect(f);
+  const std::vector<v1::WorkerInfo> workers = client.ListWorkers();
+  if (json) {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const v1::WorkerInfo& w : workers)
+      arr.push_back({{"worker_id", w.worker_id()},
+                     {"peer", w.peer()},
+                     {"threads", w.threads()},
+                     {"busy", w.busy()},
+                     {"current_job_id", w.current_job_id()},
+                     {"current_task_id", w.current_task_id()},
+                     {"tasks_done", w.tasks_done()},
+                     {"tasks_failed", w.tasks_failed()},
+                     {"photons_emitted", w.photons_emitted()},
+                     {"busy_seconds", w.busy_seconds()},
+                     {"photons_per_second", w.photons_per_second()},
+                     {"seconds_since_seen", w.seconds_since_seen()}});
+    std::printf("%s\n", arr.dump(2).c_str());
+    return kExitOk;
+  }
+  if (workers.empty()) {
+    std::printf("no workers have contacted this coordinator since it started\n");
+    return kExitOk;
+  }
+  std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE", "FAILED",
+              "PHOTONS/S", "SEEN");
+  for (const v1::WorkerInfo& w : workers)
+    std::printf("%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s\n", w.worker_id().c_str(), w.peer().c_str(),
+                w.threads(),
+                w.busy() ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id()).c_str() : "idle",
+                (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(), w.photons_per_second(),
+                (FormatDuration(w.seconds_since_seen()) + " ago").c_str());
+  return kExitOk;
+}
+
+int RunEvents(const FarmArgs& f, const std::string& job_id, bool json) {
+  FarmClient client = Connect(f);
+  const v1::ListJobEventsResponse r = client.ListJobEvents(job_id);
+  if (json) {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const v1::TaskEvent& e : r.events())
+      arr.push_back({{"unix_ms", e.unix_ms()},
+                     {"kind", e.kind()},
+                     {"task_id", e.task_id()},
+                     {"attempt", e.attempt()},
+                     {"worker_id", e.worker_id()},
+                     {"detail", e.detail()}});
+    std::printf("%s\n", nlohmann::json{{"job_id", job_id}, {"dropped", r.dropped()}, {"events", arr}}.dump(2).c_str());
+    return kExitOk;
+  }
+  if (r.dropped() > 0) std::printf("(%llu older events not kept)\n", (unsigned long long)r.dropped());
+  std::printf("%-23s %-9s %6s %7s %-24s %s\n", "TIME (UTC)", "EVENT", "TASK", "ATTEMPT", "WORKER", "DETAIL");
+  for (const v1::TaskEvent& e : r.events()) {
+    const std::time_t t = std::time_t(e.unix_ms() / 1000);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char when[32];
+    std::strftime(when, sizeof(when), "%Y-%m-%d %H:%M:%S", &tm);
+    std::printf("%s.%03d %-9s %6llu %7u %-24s %s\n", when, int(e.unix_ms() % 1000), e.kind().c_str(),
+                (unsigned long long)e.task_id(), e.attempt(), e.worker_id().c_str(), e.detail().c_str());
+  }
+  return kExitOk;
+}
+
 int RunFarmRender(const RenderArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   // Everything that can be wrong with the input is found before a process starts.
   PreparedJob job = PrepareJob(a);
   const std::string output = a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+  CheckWritable(output, "-o");
+  if (!a.png.empty()) CheckWritable(a.png, "--png");
 
   LocalFarmOptions fo;
   fo.workers = a.workers;
@@ -304,6 +392,7 @@ int RunFarmRender(const RenderArgs& a) {
   meta["samples_merged"] = std::to_string(st.samples_merged());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   meta["render_seconds"] = fmt::format("{:.3f}", seconds);
+  AddProvenance(meta);
   WriteExr(output, image, meta);
   WritePreviewFor(output, a.png, a.no_png, image);
   std::printf("rendered %dx%d on %d workers, %s, %llu tasks in %.2f s -> %s\n", image.width(), image.height(),

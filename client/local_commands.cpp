@@ -8,6 +8,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+#include <set>
+#include <unistd.h>
 
 #include "client/commands.h"
 #include "client/progress.h"
@@ -24,9 +29,32 @@
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
+#include "photonfarm_version.h"
 #include "proto/convert.h"
 
 namespace pf {
+
+void CheckWritable(const std::string& path, const char* what) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    throw SystemError(std::string(what) + " " + path + ": the folder " + dir.string() + " does not exist");
+  if (fs::is_directory(p, ec)) throw SystemError(std::string(what) + " " + path + ": is a folder");
+  if (fs::exists(p, ec) ? access(path.c_str(), W_OK) != 0 : access(dir.c_str(), W_OK | X_OK) != 0)
+    throw SystemError(std::string(what) + " " + path + ": not writable (" + std::strerror(errno) + ")");
+}
+
+void AddProvenance(ImageMetadata& meta) {
+  meta["version"] = PF_VERSION;
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char date[32];
+  std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  meta["date"] = date;
+}
 
 void WritePreviewFor(const std::string& exr, const std::string& png_option, bool no_png, const Image& image) {
   std::string png = png_option;
@@ -34,9 +62,25 @@ void WritePreviewFor(const std::string& exr, const std::string& png_option, bool
   if (!png.empty()) WritePngPreview(png, image, PreviewOptions{.auto_exposure = true});
 }
 
+namespace {
+
+std::string OutputFor(const RenderArgs& a) {
+  return a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+}
+
+// Before any work: the EXR and the preview can be written.
+void CheckOutputs(const RenderArgs& a) {
+  CheckWritable(OutputFor(a), "-o");
+  if (!a.png.empty()) CheckWritable(a.png, "--png");
+}
+
+}  // namespace
+
 int RunRender(const RenderArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
+  CheckOutputs(a);
   const SceneDescription scene = LoadScene(a.scene);
+  for (const std::string& w : scene.warnings) spdlog::warn("scene: {}", w);
   const CameraSpec spec = ChooseCamera(scene, a);
   const Camera camera(spec);
   spdlog::info("scene {}: {} triangles, {} emitting, {} lights, {} materials", a.scene, scene.NumTriangles(),
@@ -110,6 +154,7 @@ int RunRender(const RenderArgs& a) {
     meta["photons.trace_seconds"] = fmt::format("{:.3f}", maps.stats.trace_seconds);
     meta["photons.build_seconds"] = fmt::format("{:.3f}", maps.stats.build_seconds);
   }
+  AddProvenance(meta);
   WriteExr(output, image, meta);
   WritePreviewFor(output, a.png, a.no_png, image);
 
@@ -124,6 +169,7 @@ int RunRender(const RenderArgs& a) {
 
 int RunLocalPlan(const RenderArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
+  CheckOutputs(a);
   PreparedJob job = PrepareJob(a);
   // Exactly the conversions the coordinator applies to a submitted JobSpec.
   const CameraSpec camera = CameraFromProto(job.spec.camera(), "spec.camera");
@@ -134,9 +180,13 @@ int RunLocalPlan(const RenderArgs& a) {
     spdlog::warn(
         "--time-budget/--target-noise apply to farm jobs only; the local render runs the whole plan");
   ValidatePlan(plan, camera.width, camera.height);
-  uint64_t total_pixels = 0;
+  uint64_t total_pixels = 0, total_samples = 0;
   const std::vector<TaskSpec> tasks = ExpandPlan(plan, camera.width, camera.height, a.seed);
-  for (const TaskSpec& t : tasks) total_pixels += CountPixels(t.pixels, camera.width, camera.height);
+  for (const TaskSpec& t : tasks) {
+    const uint64_t n = CountPixels(t.pixels, camera.width, camera.height);
+    total_pixels += n;
+    total_samples += n * (t.sample_end - t.sample_begin);
+  }
   spdlog::info("plan {}: {} tasks, seed {}", DescribePlan(plan), tasks.size(), a.seed);
 
   const SceneRuntime runtime(std::move(job.scene));
@@ -151,9 +201,10 @@ int RunLocalPlan(const RenderArgs& a) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   const std::string output =
       a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
-  const ImageMetadata meta = {{"scene", a.scene},
+  ImageMetadata meta = {{"scene", a.scene},
                               {"integrator", a.integrator},
                               {"sampler", a.sampler},
+                              {"spp", fmt::format("{}", double(total_samples) / (double(camera.width) * camera.height))},
                               {"plan", DescribePlan(plan)},
                               {"seed", std::to_string(a.seed)},
                               {"tasks", std::to_string(tasks.size())},
@@ -162,6 +213,11 @@ int RunLocalPlan(const RenderArgs& a) {
                               {"camera.look_at", FormatVec(camera.look_at)},
                               {"camera.up", FormatVec(camera.up)},
                               {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
+  if (a.integrator == "photonmap") {
+    meta["photons.per_map"] = std::to_string(a.photons);
+    meta["photons.k"] = std::to_string(a.k);
+  }
+  AddProvenance(meta);
   WriteExr(output, image, meta);
   WritePreviewFor(output, a.png, a.no_png, image);
   std::printf("rendered %dx%d locally, %s, %zu tasks in %.2f s (+%.2f s load) -> %s\n", camera.width,
@@ -229,12 +285,14 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
 // Weighted average of images rendered with different seeds, weights = their spp (EXR metadata
 // "spp"; 1 if absent). Prints the RMSE between the first two inputs halved — an estimate of the
 // noise left in the average of two equal-spp halves.
-int RunMerge(const std::vector<std::string>& inputs, const std::string& output) {
+int RunMerge(const std::vector<std::string>& inputs, const std::string& output, double assume_spp) {
   Image sum;
   double total_weight = 0;
   double seconds = 0;
   std::vector<Image> first_two;
   std::vector<std::string> seeds;
+  std::map<std::string, std::string> seed_owner;
+  std::map<std::string, std::string> first_value;  // integrator / scene / camera of the first input
   for (const std::string& path : inputs) {
     ImageMetadata meta;
     const Image img = ReadExr(path, &meta);
@@ -242,7 +300,28 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output) 
     if (img.width() != sum.width() || img.height() != sum.height())
       throw InputError(path + ": size " + std::to_string(img.width()) + "x" + std::to_string(img.height()) +
                        " differs from the first input");
-    const double w = meta.count("spp") ? std::stod(meta["spp"]) : 1.0;
+    double w = assume_spp;
+    if (meta.count("spp")) {
+      char* end = nullptr;
+      w = std::strtod(meta["spp"].c_str(), &end);
+      if (end == meta["spp"].c_str() || !(w > 0) || !std::isfinite(w))
+        throw InputError(path + ": header spp '" + meta["spp"] + "' is not a positive number");
+    } else if (assume_spp <= 0) {
+      throw InputError(path + ": its header has no spp, so its weight is unknown; pass --assume-spp N");
+    }
+    if (meta.count("seed")) {
+      auto [it, fresh] = seed_owner.emplace(meta["seed"], path);
+      if (!fresh)
+        spdlog::warn("{} and {} were both rendered with seed {}: the same noise twice, the average is no better",
+                     it->second, path, meta["seed"]);
+    }
+    for (const char* key : {"integrator", "scene", "camera.eye", "camera.look_at"}) {
+      if (!meta.count(key)) continue;
+      auto [it, fresh] = first_value.emplace(key, meta[key]);
+      if (!fresh && it->second != meta[key])
+        spdlog::warn("{}: {} {} differs from the first input's {}: the average mixes different renders", path, key,
+                     meta[key], it->second);
+    }
     if (meta.count("render_seconds")) seconds += std::stod(meta["render_seconds"]);
     if (meta.count("seed")) seeds.push_back(meta["seed"]);
     for (size_t i = 0; i < img.size(); ++i) sum[i] += img[i] * float(w);
@@ -275,6 +354,18 @@ int RunPreview(const std::string& image_path, const std::string& output, const s
 }
 
 int RunInfo(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".exr") {
+    ImageMetadata meta;
+    const Image image = ReadExr(path, &meta);
+    double sum = 0;
+    for (const Rgb& c : image.pixels()) sum += (double(c.r) + c.g + c.b) / 3.0;
+    std::printf("image       %s\nsize        %dx%d\nmean        %.6g\n", path.c_str(), image.width(), image.height(),
+                image.size() ? sum / double(image.size()) : 0.0);
+    for (const auto& [key, value] : meta) std::printf("%-11s %s\n", key.c_str(), value.c_str());
+    return kExitOk;
+  }
   const SceneDescription scene = LoadScene(path);
   const Bounds3 b = scene.ComputeBounds();
   std::printf("scene       %s\ntriangles   %zu\nemitting    %zu triangles in %u lights\nmaterials   %zu\n",

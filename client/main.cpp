@@ -10,18 +10,56 @@
 //   pf diff / merge / preview / info          images and scenes
 //
 // Exit codes: client/commands.h (0 ok, 1 failure, 2 usage, 3 invalid input, 130 interrupted).
+#include <fmt/format.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+
+#include "rpc/address.h"
 #include "client/commands.h"
 #include "client/interrupt.h"
 #include "common/core/error.h"
+#include "photonfarm_version.h"
+#include "proto/convert.h"
 
 namespace {
 
+// Refuses a file name whose extension does not say what pf writes there (-o x.png used to get
+// EXR bytes, and the preview then overwrote them).
+CLI::Validator Extension(std::vector<std::string> allowed, std::string what) {
+  std::string desc;
+  for (const std::string& e : allowed) desc += (desc.empty() ? "" : "|") + e;
+  return CLI::Validator(
+      [allowed, what](std::string& value) -> std::string {
+        std::string ext = std::filesystem::path(value).extension().string();
+        std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+        if (std::find(allowed.begin(), allowed.end(), ext) != allowed.end()) return "";
+        std::string list;
+        for (const std::string& e : allowed) list += (list.empty() ? "" : " or ") + e;
+        return "'" + value + "': " + what + ", so its name must end in " + list;
+      },
+      desc);
+}
+
+const CLI::Validator kCoordinatorAddress(
+    [](std::string& value) { return pf::CoordinatorAddressProblem(value); }, "HOST:PORT");
+
+// The farm's limits (proto/convert.h), which pf's flags check too: one source of truth.
+std::string LimitsHelp() {
+  return fmt::format(
+      "Limits (the farm's, checked before anything runs): --photons <= {} per map, --k <= {}, --res <= {}\n"
+      "per side and {} pixels in all, --spp <= {}, --shadow-rays and --local-pass <= {}.\n",
+      pf::kMaxPhotonsPerMap, pf::kMaxK, pf::kMaxImageSide, pf::kMaxImagePixels, pf::kMaxSamplesPerPixel,
+      pf::kMaxShadowRays);
+}
+
 void AddFarmOptions(CLI::App* app, pf::FarmArgs& f) {
-  app->add_option("--coordinator", f.coordinator, "Coordinator HOST:PORT (default $PF_COORDINATOR)");
+  app->add_option("--coordinator", f.coordinator, "Coordinator HOST:PORT (default $PF_COORDINATOR)")
+      ->check(kCoordinatorAddress);
   app->add_option("--token-file", f.token_file,
                   "File holding the client's bearer token, one line (default $PF_TOKEN)");
   app->add_option("--tls-ca", f.tls_ca,
@@ -34,8 +72,10 @@ void AddFarmOptions(CLI::App* app, pf::FarmArgs& f) {
 }
 
 void AddOutputOptions(CLI::App* app, pf::RenderArgs& a) {
-  app->add_option("-o,--output", a.output, "Output EXR (float32 RGB; default: <scene>.exr)");
-  app->add_option("--png", a.png, "PNG preview path (default: output with .png)");
+  app->add_option("-o,--output", a.output, "Output EXR (float32 RGB; default: <scene>.exr)")
+      ->check(Extension({".exr"}, "the output is an OpenEXR file (the PNG preview goes to --png)"));
+  app->add_option("--png", a.png, "PNG preview path (default: output with .png)")
+      ->check(Extension({".png"}, "the preview is a PNG file"));
   app->add_flag("--no-png", a.no_png, "Do not write a PNG preview");
   app->add_flag("-q,--quiet", a.quiet, "No progress bar");
 }
@@ -45,7 +85,7 @@ void AddOutputOptions(CLI::App* app, pf::RenderArgs& a) {
 int main(int argc, char** argv) {
   using namespace pf;
   InstallInterruptHandling();
-  CLI::App app{
+  CLI::App app{fmt::format(
       "pf — photonfarm, photorealistic rendering with the photon map (Wald 1999).\n\n"
       "Examples:\n"
       "  pf render scenes/cornell-box/cornell-box.json --workers 2 -o cornell.exr\n"
@@ -57,14 +97,21 @@ int main(int argc, char** argv) {
       "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --error-image err.png\n"
       "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --scene scenes/cornell-box/cornell-box.json\n"
       "  pf preview cornell.exr -o cornell.png --exposure-of scenes/cornell-box/reference-256.exr\n"
-      "  pf info scenes/scene8/scene8.json\n\n"
+      "  pf info scenes/scene8/scene8.json;  pf info cornell.exr\n"
+      "  pf workers --coordinator HOST:PORT;  pf events job-1 --coordinator HOST:PORT\n\n"
+      "{}"
+      "A scene manifest's \"settings\" (spp of a plain render, photons, k) are defaults that flags override.\n\n"
       "Exit codes: 0 ok, 1 runtime failure (I/O, Embree, RPC; the job failed or was cancelled),\n"
       "2 usage error, 3 invalid input (scene/manifest errors as file:line: reason; requests the\n"
-      "coordinator rejects as INVALID_ARGUMENT, NOT_FOUND or RESOURCE_EXHAUSTED), 130 interrupted."};
+      "coordinator rejects as INVALID_ARGUMENT, NOT_FOUND or RESOURCE_EXHAUSTED), 130 interrupted.",
+      LimitsHelp())};
   app.require_subcommand(1);
   app.fallthrough();  // --log-level may follow the subcommand
   std::string log_level = "info";
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
+  app.set_version_flag("--version", "pf " PF_VERSION);
 
   RenderArgs ra;
   CLI::App* render = app.add_subcommand(
@@ -117,7 +164,7 @@ int main(int argc, char** argv) {
       "Follow a job until it ends: progress, ETA, estimated noise; with -o the EXR is rewritten\n"
       "atomically with every snapshot and holds the final image at the end");
   watch->add_option("job", watch_job, "Job id")->required();
-  watch->add_option("-o,--output", watch_out, "EXR to keep up to date");
+  watch->add_option("-o,--output", watch_out, "EXR to keep up to date")->check(Extension({".exr"}, "the output is an OpenEXR file"));
   watch->add_option("--interval", watch_interval, "Minimum seconds between updates")->capture_default_str();
   watch->add_flag("--json", watch_json, "One JSON object per update on stdout");
   watch->add_flag("-q,--quiet", watch_quiet, "No progress bar");
@@ -127,8 +174,8 @@ int main(int argc, char** argv) {
   std::string get_job, get_out, get_png;
   CLI::App* get = app.add_subcommand("get", "Fetch a job's current merged image (EXR, linear float)");
   get->add_option("job", get_job, "Job id")->required();
-  get->add_option("-o,--output", get_out, "Output EXR")->required();
-  get->add_option("--png", get_png, "Also write a PNG preview");
+  get->add_option("-o,--output", get_out, "Output EXR")->required()->check(Extension({".exr"}, "the output is an OpenEXR file"));
+  get->add_option("--png", get_png, "Also write a PNG preview")->check(Extension({".png"}, "the preview is a PNG file"));
   AddFarmOptions(get, gf);
 
   FarmArgs lf;
@@ -137,6 +184,22 @@ int main(int argc, char** argv) {
   list->add_flag("-a,--all", list_all, "Include finished jobs");
   list->add_flag("--json", list_json, "JSON output");
   AddFarmOptions(list, lf);
+
+  FarmArgs wkf;
+  bool workers_json = false;
+  CLI::App* workers = app.add_subcommand(
+      "workers", "List the workers the coordinator has seen since it started: current task, tasks done, photons/s");
+  workers->add_flag("--json", workers_json, "JSON output");
+  AddFarmOptions(workers, wkf);
+
+  FarmArgs ef;
+  std::string events_job;
+  bool events_json = false;
+  CLI::App* events = app.add_subcommand(
+      "events", "A job's task events since the coordinator started: which worker ran which task, retries, failures");
+  events->add_option("job", events_job, "Job id")->required();
+  events->add_flag("--json", events_json, "JSON output");
+  AddFarmOptions(events, ef);
 
   FarmArgs cf;
   std::string cancel_job;
@@ -151,7 +214,8 @@ int main(int argc, char** argv) {
       app.add_subcommand("diff", "Compare an image with a reference: RMSE, relative MSE, max error");
   diff->add_option("image", diff_a, "Image to judge (EXR)")->required()->check(CLI::ExistingFile);
   diff->add_option("reference", diff_ref, "Reference (EXR)")->required()->check(CLI::ExistingFile);
-  diff->add_option("--error-image", diff_err, "Write a false-colour error image (.png or .exr)");
+  diff->add_option("--error-image", diff_err, "Write a false-colour error image (.png or .exr)")
+      ->check(Extension({".png", ".exr"}, "the error image is a PNG or OpenEXR file"));
   diff->add_option("--error-scale", diff_scale, "Error mapped to the top of the colour ramp (default: max)");
   diff->add_flag("--json", diff_json, "Print JSON instead of a line");
   diff->add_option("--scene", diff_scene,
@@ -163,10 +227,18 @@ int main(int argc, char** argv) {
 
   std::vector<std::string> merge_inputs;
   std::string merge_output;
-  CLI::App* merge =
-      app.add_subcommand("merge", "Average EXRs rendered with different seeds, weighted by their spp");
+  double merge_assume_spp = 0;
+  CLI::App* merge = app.add_subcommand(
+      "merge",
+      "Average EXRs rendered with different seeds, weighted by their spp (the 'spp' of each header).\n"
+      "Refuses an EXR without spp unless --assume-spp; warns about repeated seeds (the same noise twice)\n"
+      "and about images of different integrators, scenes or cameras");
   merge->add_option("inputs", merge_inputs, "EXR files")->required()->check(CLI::ExistingFile);
-  merge->add_option("-o,--output", merge_output, "Output EXR (PIZ-compressed)")->required();
+  merge->add_option("-o,--output", merge_output, "Output EXR (PIZ-compressed)")
+      ->required()
+      ->check(Extension({".exr"}, "the output is an OpenEXR file"));
+  merge->add_option("--assume-spp", merge_assume_spp, "Weight of inputs whose header has no spp")
+      ->check(CLI::PositiveNumber);
 
   std::string preview_in, preview_out, preview_ref;
   double preview_stops = 0;
@@ -175,7 +247,7 @@ int main(int argc, char** argv) {
       "Write an EXR's PNG preview (sRGB). Exposure: automatic (99th-percentile luminance -> 0.9),\n"
       "or that of --exposure-of REF so that several renders of one scene compare by eye");
   preview->add_option("image", preview_in, "EXR to show")->required()->check(CLI::ExistingFile);
-  preview->add_option("-o,--output", preview_out, "Output PNG")->required();
+  preview->add_option("-o,--output", preview_out, "Output PNG")->required()->check(Extension({".png"}, "the preview is a PNG file"));
   preview
       ->add_option("--exposure-of", preview_ref,
                    "Use this EXR's automatic exposure instead of the image's own")
@@ -184,14 +256,27 @@ int main(int argc, char** argv) {
       ->capture_default_str();
 
   std::string info_scene;
-  CLI::App* info =
-      app.add_subcommand("info", "Print what a scene contains (counts, bounds, cameras, warnings)");
-  info->add_option("scene", info_scene, "Scene manifest or geometry file")->required();
+  CLI::App* info = app.add_subcommand(
+      "info", "Print what a scene contains (counts, bounds, cameras, warnings), or an EXR's size and header");
+  info->add_option("scene", info_scene, "Scene manifest, geometry file or EXR image")->required();
 
   try {
     app.parse(argc, argv);
     if (*render && ra.local_only && ra.workers > 0)
       throw CLI::ValidationError("--local-only", "cannot be combined with --workers");
+    // A plain render (no --plan, --local-only or --workers) runs every sample in this process:
+    // the plan and farm options would be silently ignored.
+    if (*render && ra.workers == 0 && !ra.local_only && ra.plan.empty())
+      for (const char* opt : {"--maps", "--stride", "--rounds", "--tile", "--max-rounds", "--time-budget",
+                              "--target-noise", "--priority", "--name"})
+        if (render->count(opt) > 0)
+          throw CLI::ValidationError(opt, std::string("applies to plan renders only (add --plan P, --local-only or "
+                                                      "--workers N); a plain render runs every sample here"));
+    for (auto [cmd, args] : {std::pair{render, &ra}, std::pair{submit, &sa}}) {
+      args->spp_given = cmd->count("--spp") > 0;
+      args->photons_given = cmd->count("--photons") > 0;
+      args->k_given = cmd->count("--k") > 0;
+    }
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? kExitOk : kExitUsage;
@@ -202,18 +287,24 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
   try {
     if (*render) {
+      ApplyManifestSettings(ra);
       if (ra.workers > 0) return RunFarmRender(ra);
       if (ra.local_only || !ra.plan.empty()) return RunLocalPlan(ra);
       return RunRender(ra);
     }
-    if (*submit) return RunSubmit(sa, sf);
+    if (*submit) {
+      ApplyManifestSettings(sa);
+      return RunSubmit(sa, sf);
+    }
+    if (*workers) return RunWorkers(wkf, workers_json);
+    if (*events) return RunEvents(ef, events_job, events_json);
     if (*watch) return RunWatch(wf, watch_job, watch_out, watch_interval, watch_json, watch_quiet);
     if (*get) return RunGet(gf, get_job, get_out, get_png);
     if (*list) return RunList(lf, list_all, list_json);
     if (*cancel) return RunCancel(cf, cancel_job);
     if (*diff) return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera);
     if (*info) return RunInfo(info_scene);
-    if (*merge) return RunMerge(merge_inputs, merge_output);
+    if (*merge) return RunMerge(merge_inputs, merge_output, merge_assume_spp);
     if (*preview) return RunPreview(preview_in, preview_out, preview_ref, preview_stops);
   } catch (const std::exception& e) {
     const int code = ExitCodeFor(e);

@@ -3,9 +3,13 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <cmath>
+#include <optional>
 #include <sstream>
+#include <variant>
 
 #include "common/core/error.h"
+#include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
 
@@ -27,13 +31,45 @@ void ParseResolution(const std::string& text, int& width, int& height) {
   char x = 0;
   std::istringstream in(text);
   if (!(in >> width >> x >> height) || (x != 'x' && x != 'X') || !in.eof() || width <= 0 || height <= 0 ||
-      width > 16384 || height > 16384)
-    throw InputError("--res: expected WxH with 1..16384 each, got '" + text + "'");
+      width > int(kMaxImageSide) || height > int(kMaxImageSide))
+    throw InputError("--res: expected WxH with 1.." + std::to_string(kMaxImageSide) + " each, got '" + text + "'");
+  if (uint64_t(width) * uint64_t(height) > kMaxImagePixels)
+    throw InputError("--res: " + text + " is more than the farm's " + std::to_string(kMaxImagePixels) + " pixels");
 }
 
 }  // namespace
 
 std::string FormatVec(const Vec3& v) { return fmt::format("{},{},{}", v.x, v.y, v.z); }
+
+void ApplyManifestSettings(RenderArgs& a) {
+  if (std::filesystem::path(a.scene).extension() != ".json") return;
+  const SceneManifest manifest = LoadManifest(a.scene);
+  auto number = [&](const char* key, double lo, double hi) -> std::optional<double> {
+    auto it = manifest.settings.find(key);
+    if (it == manifest.settings.end() || !std::holds_alternative<double>(it->second)) return std::nullopt;
+    const double v = std::get<double>(it->second);
+    if (!(v >= lo && v <= hi) || v != std::floor(v))
+      throw InputError(a.scene + ": settings." + key + ": expected a whole number in " + fmt::format("{}..{}", lo, hi) +
+                       ", got " + fmt::format("{}", v));
+    return v;
+  };
+  // A plan's --spp means samples per map or per task (see --spp): only a plain render takes the
+  // manifest's, which is a per-pixel count.
+  const bool plain = a.plan.empty() && !a.local_only && a.workers == 0;
+  if (auto v = number("spp", 1, kMaxSamplesPerPixel); v && !a.spp_given && plain) {
+    a.spp = uint32_t(*v);
+    spdlog::info("spp = {} from the manifest's settings (--spp overrides)", a.spp);
+  }
+  if (a.integrator != "photonmap") return;
+  if (auto v = number("photons", 1, double(kMaxPhotonsPerMap)); v && !a.photons_given) {
+    a.photons = uint64_t(*v);
+    spdlog::info("photons = {} from the manifest's settings (--photons overrides)", a.photons);
+  }
+  if (auto v = number("k", 1, kMaxK); v && !a.k_given) {
+    a.k = int(*v);
+    spdlog::info("k = {} from the manifest's settings (--k overrides)", a.k);
+  }
+}
 
 void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("scene", a.scene, "Scene manifest (.json) or geometry file (.mgf, .obj)")->required();
@@ -52,7 +88,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
                   "Samples per pixel (with --plan: per map for multiple-maps, = number of maps for "
                   "maps-in-turn, per task and pixel for skipping)")
       ->capture_default_str()
-      ->check(CLI::Range(1u, 1u << 20));
+      ->check(CLI::Range(1u, kMaxSamplesPerPixel));
   app->add_option("--seed", a.seed, "Seed: the same seed gives the same image on any thread or worker count")
       ->capture_default_str();
   app->add_option("--camera", a.camera_name, "Named camera of the manifest (default: its first)");
@@ -63,10 +99,10 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--res", a.res, "Resolution WxH, e.g. 640x480");
   app->add_option("--photons", a.photons, "photonmap: photons emitted per map")
       ->capture_default_str()
-      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 31));
+      ->check(CLI::Range(uint64_t(1), kMaxPhotonsPerMap));
   app->add_option("--k", a.k, "photonmap: nearest photons per radiance estimate")
       ->capture_default_str()
-      ->check(CLI::Range(1, 100000));
+      ->check(CLI::Range(1, int(kMaxK)));
   app->add_option("--map", a.map,
                   "photonmap: kdtree (left-balanced, 2.3), grid (2.4) or bucket (unbalanced kd-tree with SIMD "
                   "buckets, the fastest queries)")
@@ -99,7 +135,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--shadow-rays", a.shadow_rays,
                   "mc: shadow rays per shading point; photon-direct: N_total for the contributing lights")
       ->capture_default_str()
-      ->check(CLI::Range(1, 4096));
+      ->check(CLI::Range(1, int(kMaxShadowRays)));
   app->add_option("--light-uniform", a.light_uniform,
                   "mc: fraction of shadow rays drawn uniformly over lights rather than by power (defensive "
                   "sampling: bounds the weight of dim lights)")
@@ -107,7 +143,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
       ->check(CLI::Range(0.0f, 1.0f));
   app->add_option("--photon-direct-k", a.photon_direct_k, "photon-direct: direct photons looked up per point")
       ->capture_default_str()
-      ->check(CLI::Range(1, 10000));
+      ->check(CLI::Range(1, int(kMaxK)));
   app->add_option("--non-contributing", a.non_contributing,
                   "photon-direct: lights without photons nearby get one sample in total, to one of them chosen "
                   "by their photon count (one-random), or one each (each); both unbiased")
@@ -120,7 +156,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--local-pass", a.local_pass,
                   "photonmap: final gathering rays per shading point, photon map at their hits (4.3; 0 = off)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 4096));
+      ->check(CLI::Range(0, int(kMaxShadowRays)));
   app->add_option("--local-pass-lookup", a.local_pass_lookup,
                   "local pass: what a gather ray reads at its hit: full (the photon-map estimate) or precomputed "
                   "(irradiance at every 4th photon, estimated once per map; one nearest-site lookup, Christensen 1999)")
@@ -133,7 +169,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
                   "photonmap: shrink k down to this at borders and corners by the centre-of-gravity test (4.8; "
                   "0 = off)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 100000));
+      ->check(CLI::Range(0, int(kMaxK)));
 }
 
 void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
@@ -223,6 +259,7 @@ CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a) {
 PreparedJob PrepareJob(const RenderArgs& a) {
   PreparedJob p;
   p.scene = LoadScene(a.scene);
+  for (const std::string& w : p.scene.warnings) spdlog::warn("scene: {}", w);
   p.bundle = CollectBundle(a.scene);
   v1::JobSpec& s = p.spec;
   s.set_name(a.name.empty() ? std::filesystem::path(a.scene).filename().string() : a.name);

@@ -22,6 +22,7 @@ struct RenderArgs {
   std::string integrator = "path";
   std::string sampler = "sobol";
   uint32_t spp = 16;
+  bool spp_given = false, photons_given = false, k_given = false;  // on the command line
   std::string output;
   std::string png;
   bool no_png = false;
@@ -70,6 +71,11 @@ struct RenderArgs {
   std::vector<std::string> coordinator_args, worker_args;
   bool keep_farm_dir = false;
 };
+
+// A scene manifest's "settings" (spp for a plain render, photons, k) become the defaults of the
+// flags not given;
+// logged. No-op for a geometry file. InputError if a value is out of the flags' range.
+void ApplyManifestSettings(RenderArgs& a);
 
 // Scene, camera, integrator and photon-map options (render and submit).
 void AddSceneOptions(CLI::App* app, RenderArgs& a);

@@ -1,3 +1,4 @@
+#include "server/http/status_page.h"
 #include "server/coordinator.h"
 
 #include <fcntl.h>
@@ -114,6 +115,10 @@ int Coordinator::Start() {
     health->SetServingStatus("photonfarm.v1.WorkerService", true);
   }
   tick_thread_ = std::thread([this] { TickLoop(); });
+  if (!options_.http_listen.empty()) {
+    http_ = std::make_unique<StatusHttpServer>(*scheduler_, RoleTokens{options_.client_token, options_.worker_token});
+    http_port_ = http_->Start(options_.http_listen);
+  }
   spdlog::info("serving on {} (port {}), data dir {}, lease {} s, max attempts {}, checkpoints {}, {}, client token {}, "
                "worker token {}",
                options_.listen, port_, options_.data_dir.string(), options_.lease_seconds, options_.max_attempts,
@@ -200,6 +205,7 @@ void Coordinator::Stop(bool graceful) {
   if (graceful) spdlog::info("shutting down");
   if (server_)
     if (auto* health = server_->GetHealthCheckService()) health->SetServingStatus(false);
+  if (http_) http_->Stop();
   scheduler_->Shutdown();
   watches_->Shutdown();
   if (!graceful) persister_->Abandon();

@@ -51,6 +51,7 @@ class WatchHub;
 class RoleAuthProcessor;
 class RenderServiceImpl;
 class WorkerServiceImpl;
+class StatusHttpServer;
 
 inline constexpr int kMaxReceiveMessageBytes = (64 << 20) + (1 << 20);
 inline constexpr int kMaxSendMessageBytes = 16 << 20;
@@ -74,6 +75,7 @@ struct CoordinatorOptions {
   size_t executor_threads = 2;
   double shutdown_grace_seconds = 5;
   const Clock* clock = nullptr;             // null: the system clock
+  std::string http_listen;                  // web status page (server/http/); empty: none
 };
 
 // True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"
@@ -102,6 +104,7 @@ class Coordinator {
   Persister& persister() { return *persister_; }
   SceneStore& scenes() { return *scenes_; }
   int port() const { return port_; }
+  int http_port() const { return http_port_; }  // 0 without --http
 
  private:
   void Stop(bool graceful);
@@ -122,6 +125,8 @@ class Coordinator {
   std::unique_ptr<RenderServiceImpl> render_service_;
   std::unique_ptr<WorkerServiceImpl> worker_service_;
   std::unique_ptr<grpc::Server> server_;
+  std::unique_ptr<StatusHttpServer> http_;
+  int http_port_ = 0;
   RecoveryReport recovery_;
   int port_ = 0;
 

@@ -5,10 +5,10 @@
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]] [--insecure]
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
 //
-// Prints exactly one line on stdout once it serves — "listening on HOST:PORT" (the bound port,
-// also for :0) — and logs to stderr, one line per event with job and task ids (leases and merges
+// Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
+// :0; with --http a second line, "http on HOST:PORT", for the web status page) — and logs to stderr, one line per event with job and task ids (leases and merges
 // too: use --log-level warn for very many tiny tasks). SIGTERM / SIGINT
-// shut down gracefully (exit 0). Exit 1 on a usage or start-up error.
+// shut down gracefully (exit 0). Exit 2 on a usage error, 1 on a start-up error.
 #include <CLI/CLI.hpp>
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
@@ -25,8 +25,10 @@
 #include <thread>
 
 #include "common/core/error.h"
+#include "photonfarm_version.h"
 #include "rpc/grpc_channel.h"
 #include "server/coordinator.h"
+#include "server/http/status_page.h"
 
 namespace {
 
@@ -78,10 +80,19 @@ int main(int argc, char** argv) {
                  "N ms (a crash re-runs up to N ms of work)")
       ->capture_default_str()
       ->check(CLI::Range(0, 3600000));
+  app.add_option("--http", options.http_listen,
+                 "Serve the web status page (jobs, workers, live previews) on [HOST:]PORT; HOST defaults to "
+                 "127.0.0.1, port 0 picks a free port; same token as gRPC (Bearer, or Basic with the token as "
+                 "password)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
-  CLI11_PARSE(app, argc, argv);
+  app.set_version_flag("--version", "pf-coordinator " PF_VERSION);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;  // --help/--version: 0; usage errors: 2 (CLI11's own codes are 105, 109...)
+  }
   options.checkpoint_interval_seconds = checkpoint_ms / 1000.0;
 
   auto logger = spdlog::stderr_color_mt("pf-coordinator");
@@ -111,6 +122,9 @@ int main(int argc, char** argv) {
     pf::server::Coordinator coordinator(options);
     const int port = coordinator.Start();
     std::printf("listening on %s:%d\n", HostOf(options.listen).c_str(), port);
+    if (coordinator.http_port() > 0)
+      std::printf("http on %s:%d\n", pf::server::ParseHttpListen(options.http_listen).first.c_str(),
+                  coordinator.http_port());
     std::fflush(stdout);
 
     std::thread signal_thread([&] {

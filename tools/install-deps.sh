@@ -3,6 +3,8 @@
 # when everything is present. Uses sudo only when not already root.
 #   tools/install-deps.sh           what building, running and testing need
 #   tools/install-deps.sh --bench   also what the benchmark reports need (plots: matplotlib)
+#   tools/install-deps.sh --slurm   also Slurm and munge (deploy/slurm/slurm_array_test.sh)
+#   tools/install-deps.sh --container  also mmdebstrap and podman (deploy/container/)
 set -euo pipefail
 
 PACKAGES=(
@@ -19,8 +21,19 @@ PACKAGES=(
   clang libclang-rt-14-dev
   # Formatting check of the test command (tools/check-format.sh): Debian 12 ships version 14.
   clang-format
+  # The coordinator's web status page (cpp-httplib) and its test in headless Chromium.
+  libcpp-httplib-dev chromium
 )
-if [ "${1:-}" = "--bench" ]; then PACKAGES+=(python3-matplotlib); fi
+for option in "$@"; do
+  case "$option" in
+    --bench) PACKAGES+=(python3-matplotlib) ;;
+    # deploy/slurm/slurm_array_test.sh: a one-node Slurm cluster with munge on this machine.
+    --slurm) PACKAGES+=(slurm-wlm munge) ;;
+    # deploy/container/build-image.sh: a Debian root filesystem imported into podman.
+    --container) PACKAGES+=(mmdebstrap podman uidmap) ;;
+    *) echo "install-deps: unknown option $option (--bench, --slurm, --container)" >&2; exit 2 ;;
+  esac
+done
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -6,6 +6,13 @@ cd "$(dirname "$0")/.."
 tools/install-deps.sh
 tools/build.sh
 ctest --test-dir build --output-on-failure -j "$(nproc)" --timeout 900
+# The Slurm deployment (deploy/README.md): a one-node cluster brought up here; needs root.
+if [ "$(id -u)" -eq 0 ]; then
+  tools/install-deps.sh --slurm
+  PF_BUILD_DIR="$PWD/build" deploy/slurm/slurm_array_test.sh
+else
+  echo "test.sh: deploy/slurm/slurm_array_test.sh needs root (munged, slurmd); run it with sudo"
+fi
 if [ -x tests/fuzz/run_mgf_fuzz.sh ]; then
   tests/fuzz/run_mgf_fuzz.sh "${PF_FUZZ_SECONDS:-60}"
 fi

@@ -15,8 +15,10 @@
 #include <cstdio>
 #include <thread>
 
+#include "rpc/address.h"
 #include "rpc/grpc_channel.h"
 #include "common/core/error.h"
+#include "photonfarm_version.h"
 #include "worker/worker.h"
 
 namespace {
@@ -40,7 +42,9 @@ int main(int argc, char** argv) {
       "  pf-worker --coordinator 127.0.0.1:7000 --cache-dir /var/cache/pf-worker\n\n"
       "SIGTERM/SIGINT: finish the current task within --grace or hand it back, then exit 0.\n"
       "Exit codes: 0 stopped, 1 start-up failure, 2 usage error."};
-  app.add_option("--coordinator", o.coordinator, "Coordinator address HOST:PORT")->required();
+  app.add_option("--coordinator", o.coordinator, "Coordinator address HOST:PORT")
+      ->required()
+      ->check(CLI::Validator([](std::string& v) { return pf::CoordinatorAddressProblem(v); }, "HOST:PORT"));
   app.add_option("--token-file", token_file,
                  "File holding the worker's bearer token, one line (default: $PF_TOKEN)");
   app.add_option("--tls-ca", tls_ca, "PEM roots of the coordinator's TLS certificate: connect with TLS (default: $PF_TLS_CA)");
@@ -69,7 +73,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 86400.0));
   app.add_option("--max-tasks", o.max_tasks, "Exit 0 after this many tasks (0 = run until signalled)")
       ->capture_default_str();
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
+  app.set_version_flag("--version", "pf-worker " PF_VERSION);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -195,6 +195,10 @@ int Worker::Run() {
         failures_ = 16;
       } else if (IsConnectionError(status)) {
         spdlog::warn("LeaseTask: {}", StatusToString(status));
+      } else if (status.error_code() == grpc::StatusCode::CANCELLED) {
+        // Not our stop (checked above): the coordinator ended the call, as a clean shutdown or
+        // restart does with parked long polls. Nothing is wrong here; reconnect.
+        spdlog::info("LeaseTask: the coordinator closed the call ({}); reconnecting", status.error_message());
       } else {
         spdlog::error("LeaseTask: {}", StatusToString(status));
       }

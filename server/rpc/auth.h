@@ -12,6 +12,7 @@
 
 #include <grpcpp/security/auth_metadata_processor.h>
 
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -27,6 +28,10 @@ struct RoleTokens {
 // `method` is the HTTP/2 :path ("/photonfarm.v1.RenderService/SubmitJob"), `authorization`
 // the metadata value ("" if absent).
 grpc::Status Authorize(const RoleTokens& tokens, std::string_view method, std::string_view authorization);
+
+// The web status page (server/http/status_page.h) is a view of RenderService: it is authorized
+// as this RenderService method, so it needs the client credential.
+inline constexpr std::string_view kWebStatusMethod = "/photonfarm.v1.RenderService/WebStatus";
 
 class RoleAuthProcessor final : public grpc::AuthMetadataProcessor {
  public:

@@ -1,13 +1,53 @@
 #include "server/rpc/job_images.h"
 
+#include <fmt/format.h>
+
+#include <ctime>
+
 #include "common/core/error.h"
+#include "photonfarm_version.h"
 #include "server/assembly/image_snapshot.h"
 #include "server/errors.h"
 #include "server/store/checkpoint.h"
 
 namespace pf::server {
+namespace {
 
-EncodedImage EncodeJobImage(Scheduler& scheduler, const std::string& job_id) {
+std::string Vec(const photonfarm::v1::Vec3& v) { return fmt::format("{},{},{}", v.x(), v.y(), v.z()); }
+
+// What the image is of, so that `pf info x.exr` and `pf merge` can tell (issue #16): the job's
+// scene, camera, integrator, photon-map settings, plan and seed, the build and the date.
+void AddJobMetadata(const photonfarm::v1::JobStatus& status, ImageMetadata& meta) {
+  namespace v1 = photonfarm::v1;
+  const v1::JobSpec& spec = status.spec();
+  meta["job_name"] = spec.name();
+  meta["scene"] = spec.scene_hash();
+  meta["seed"] = std::to_string(spec.seed());
+  meta["camera.eye"] = Vec(spec.camera().eye());
+  meta["camera.look_at"] = Vec(spec.camera().look_at());
+  meta["camera.up"] = Vec(spec.camera().up());
+  meta["camera.vfov_degrees"] = fmt::format("{}", spec.camera().vfov_degrees());
+  const bool photonmap = spec.settings().integrator() == v1::INTEGRATOR_PHOTONMAP;
+  meta["integrator"] = photonmap ? "photonmap" : "path";
+  if (photonmap) {
+    meta["photons.per_map"] = std::to_string(spec.settings().photon_map().photons());
+    meta["photons.k"] = std::to_string(spec.settings().photon_map().k());
+  }
+  meta["plan"] = spec.plan().ShortDebugString();
+  meta["job_state"] = v1::JobState_Name(status.state());
+  meta["version"] = PF_VERSION;
+  // The job's submission time, not "now": the same merged state encodes to the same bytes.
+  const std::time_t submitted = std::time_t(status.submitted_unix_ms() / 1000);
+  std::tm tm{};
+  gmtime_r(&submitted, &tm);
+  char date[32];
+  std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  meta["date"] = date;
+}
+
+}  // namespace
+
+ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id, photonfarm::v1::JobStatus* status) {
   JobSnapshot snap = scheduler.Snapshot(job_id, /*with_image=*/true);
   ResolvedImage image;
   if (snap.image) {
@@ -36,9 +76,15 @@ EncodedImage EncodeJobImage(Scheduler& scheduler, const std::string& job_id) {
                                            int(snap.status.spec().camera().height()));
     image = ResolveSnapshot(job_id, acc);
   }
-  const std::string exr = EncodeSnapshot(image);
+  AddJobMetadata(snap.status, image.metadata);
+  if (status) *status = std::move(snap.status);
+  return image;
+}
+
+EncodedImage EncodeJobImage(Scheduler& scheduler, const std::string& job_id) {
   EncodedImage out;
-  out.status = std::move(snap.status);
+  const ResolvedImage image = ResolveJobImage(scheduler, job_id, &out.status);
+  const std::string exr = EncodeSnapshot(image);
   const std::vector<std::string_view> pieces = SplitChunks(exr);
   for (size_t i = 0; i < pieces.size(); ++i) {
     photonfarm::v1::ImageChunk chunk;

@@ -125,6 +125,32 @@ grpc::ServerUnaryReactor* RenderServiceImpl::CancelJob(grpc::CallbackServerConte
   return reactor;
 }
 
+grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerContext* context,
+                                                         const v1::ListWorkersRequest* /*request*/,
+                                                         v1::ListWorkersResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  for (v1::WorkerInfo& w : ctx_.scheduler.activity().Workers()) *response->add_workers() = std::move(w);
+  reactor->Finish(grpc::Status::OK);
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* RenderServiceImpl::ListJobEvents(grpc::CallbackServerContext* context,
+                                                           const v1::ListJobEventsRequest* request,
+                                                           v1::ListJobEventsResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const grpc::Status status = Guarded("ListJobEvents", [&] {
+      RequireJobId(request->job_id());
+      ctx_.scheduler.Status(request->job_id());  // NOT_FOUND for an unknown job
+      uint64_t dropped = 0;
+      for (v1::TaskEvent& e : ctx_.scheduler.activity().Events(request->job_id(), &dropped))
+        *response->add_events() = std::move(e);
+      response->set_dropped(dropped);
+      return grpc::Status::OK;
+    });
+  reactor->Finish(status);
+  return reactor;
+}
+
 grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::CallbackServerContext* /*context*/,
                                                                      const v1::WatchJobRequest* request) {
   return ctx_.watches.Open(*request, grpc::Status::OK);

@@ -30,6 +30,12 @@ class RenderServiceImpl final : public photonfarm::v1::RenderService::CallbackSe
                                       photonfarm::v1::CancelJobResponse* response) override;
   grpc::ServerWriteReactor<photonfarm::v1::JobUpdate>* WatchJob(
       grpc::CallbackServerContext* context, const photonfarm::v1::WatchJobRequest* request) override;
+  grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* context,
+                                        const photonfarm::v1::ListWorkersRequest* request,
+                                        photonfarm::v1::ListWorkersResponse* response) override;
+  grpc::ServerUnaryReactor* ListJobEvents(grpc::CallbackServerContext* context,
+                                          const photonfarm::v1::ListJobEventsRequest* request,
+                                          photonfarm::v1::ListJobEventsResponse* response) override;
   grpc::ServerWriteReactor<photonfarm::v1::ImageChunk>* GetImage(
       grpc::CallbackServerContext* context, const photonfarm::v1::GetImageRequest* request) override;
 

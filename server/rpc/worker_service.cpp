@@ -48,6 +48,7 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
         if (!std::isfinite(wait) || wait < 0) throw InputError("wait_seconds: must be a finite number >= 0");
         wait = std::min(wait, kMaxLeaseWaitSeconds);
         lr.worker_id = request->worker_id();
+        ctx.scheduler.activity().WorkerSeen(lr.worker_id, context->peer(), request->threads());
         lr.cached_map_seeds.assign(request->cached_map_seeds().begin(), request->cached_map_seeds().end());
         return grpc::Status::OK;
       });
@@ -147,6 +148,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
   spdlog::debug("job {} task {}: result merged (map {:.3f} s{}, render {:.3f} s, {} photons stored)", result.job_id,
                 result.task_id, st.map_seconds(), st.map_cache_hit() ? " cached" : "", st.render_seconds(),
                 st.photons_stored());
+  ctx_.scheduler.activity().WorkerStats(result.worker_id, st.photons_emitted(), st.map_seconds() + st.render_seconds());
   response->set_merged(true);
   if (ctx_.persister.durable_acks()) {
     const auto& sums = request->rgb_sums();

@@ -29,7 +29,7 @@ v1::JobState ToProto(JobState s) {
 }  // namespace
 
 Scheduler::Scheduler(const Clock& clock, SchedulerOptions options)
-    : clock_(clock), options_(options) {
+    : clock_(clock), options_(options), activity_(clock) {
   if (!(options_.lease_seconds > 0)) throw std::invalid_argument("Scheduler: lease_seconds must be > 0");
   if (options_.max_attempts < 1) throw std::invalid_argument("Scheduler: max_attempts must be >= 1");
 }
@@ -161,6 +161,7 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick,
                  limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), rt.attempts,
                  affinity ? ", map cached" : "");
+    activity_.TaskEvent(job.id(), "leased", pick, rt.attempts, request.worker_id, affinity ? "map cached" : "");
     Lease lease;
     lease.lease_id = rt.lease_id;
     lease.job_id = job.id();
@@ -222,6 +223,8 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   s.set_tasks_total(total);
   s.set_tasks_done(done);
   s.set_tasks_running(job.count(TaskState::kLeased));
+  s.set_tasks_queued(job.count(TaskState::kQueued));
+  s.set_tasks_cancelled(cancelled);
   const double elapsed = job.ElapsedSeconds(now);
   s.set_elapsed_seconds(elapsed);
   s.set_rounds_done(job.rounds_done());
@@ -314,6 +317,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
     } else if (rt.state == TaskState::kLeased) {
       leases_.erase(rt.lease_id);
       job.SetTaskState(id, TaskState::kCancelled);
+      activity_.TaskEvent(job.id(), "cancelled", id, rt.attempts, rt.worker_id, "the job ended while leased");
     }
   }
   if (state == JobState::kSucceeded && job.state() == JobState::kQueued) job.TransitionTo(JobState::kRunning, now);
@@ -397,6 +401,7 @@ Scheduler::LeaseRef* Scheduler::FindLiveLease(const std::string& lease_id, doubl
   const uint64_t task_id = it->second.task_id;
   if (now >= job.runtime(task_id).lease_deadline) {
     ++counters_.expired;
+    activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts, job.runtime(task_id).worker_id);
     FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
     return nullptr;
   }
@@ -452,6 +457,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
         result.reason = problem;
         spdlog::warn("job {} task {}: result of attempt {} rejected: {}", job.id(), task_id,
                      job.runtime(task_id).attempts, problem);
+        activity_.TaskEvent(job.id(), "rejected", task_id, job.runtime(task_id).attempts,
+                            job.runtime(task_id).worker_id, problem);
         FailAttempt(job, task_id, "rejected result: " + problem, true, now, fx);
       } else {
         ++counters_.merged;
@@ -459,6 +466,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
         job.RecordMerge(task_id);
         result.status = CompleteStatus::kMerged;
         result.merge_seq = job.merge_seq();
+        result.worker_id = job.runtime(task_id).worker_id;
+        activity_.TaskEvent(job.id(), "merged", task_id, job.runtime(task_id).attempts, result.worker_id);
         spdlog::info("job {} task {}: merged (attempt {}, worker {}; {}/{} done)", job.id(), task_id,
                      job.runtime(task_id).attempts, job.runtime(task_id).worker_id, job.count(TaskState::kDone),
                      job.num_tasks());
@@ -515,6 +524,9 @@ bool Scheduler::Fail(const std::string& lease_id, const std::string& reason, boo
     const double now = clock_.Now();
     if (LeaseRef* ref = FindLiveLease(lease_id, now, fx)) {
       known = true;
+      const TaskRuntime& rt = ref->job->runtime(ref->task_id);
+      activity_.TaskEvent(ref->job->id(), "failed", ref->task_id, rt.attempts, rt.worker_id,
+                          reason + (retryable ? "" : " (not retryable)"));
       FailAttempt(*ref->job, ref->task_id, "worker: " + reason, retryable, now, fx);
     }
   }
@@ -532,6 +544,8 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
     const uint64_t task_id = it->second.task_id;
     leases_.erase(it);
     ++counters_.returned;
+    activity_.TaskEvent(job.id(), "returned", task_id, job.runtime(task_id).attempts, job.runtime(task_id).worker_id,
+                        "the lease never reached the worker");
     job.SetTaskState(task_id, TaskState::kQueued);
     Enqueue(job, task_id, fx);
     spdlog::debug("job {} task {}: undelivered lease returned", job.id(), task_id);
@@ -557,6 +571,8 @@ void Scheduler::Tick() {
       Job& job = *it->second.job;
       const uint64_t task_id = it->second.task_id;
       ++counters_.expired;
+      activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
+                          job.runtime(task_id).worker_id);
       FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
     }
     for (Job* job : jobs_.InSubmissionOrder())

@@ -54,6 +54,7 @@
 #include "server/assembly/result_merger.h"
 #include "server/jobs/job.h"
 #include "server/jobs/job_registry.h"
+#include "server/scheduling/farm_activity.h"
 #include "server/scheduling/clock.h"
 #include "server/store/records.h"
 
@@ -92,6 +93,7 @@ struct CompleteResult {
   std::string job_id;
   uint64_t task_id = 0;
   uint64_t merge_seq = 0;  // kMerged: the job's merge count including this one
+  std::string worker_id;   // kMerged: the worker that delivered it
 };
 
 // A consistent view of a job for clients: its status and (optionally) its merged image.
@@ -165,6 +167,8 @@ class Scheduler {
 
   SchedulerCounters counters() const;
   const SchedulerOptions& options() const { return options_; }
+  // Workers and task events, for people (pf workers, pf events, the web page).
+  FarmActivity& activity() { return activity_; }
 
  private:
   struct Effects {
@@ -216,6 +220,7 @@ class Scheduler {
   uint64_t next_waiter_ = 1;
   bool shutdown_ = false;
   SchedulerCounters counters_;
+  FarmActivity activity_;
   std::function<void(const std::string&)> change_listener_;
   std::function<void()> persist_listener_;
 };

@@ -21,9 +21,15 @@ namespace pf::e2e {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-std::string Binaries::Pf() { return PF_E2E_PF; }
-std::string Binaries::Worker() { return PF_E2E_WORKER; }
-std::string Binaries::Coordinator() { return PF_E2E_COORDINATOR; }
+// PF_E2E_BIN_DIR=DIR runs the tests against DIR/{client/pf, worker/pf-worker,
+// server/pf-coordinator} of another build tree — an older commit's, to see a test fail there.
+static std::string BinaryIn(const char* built, const char* relative) {
+  const char* dir = std::getenv("PF_E2E_BIN_DIR");
+  return dir && *dir ? std::string(dir) + "/" + relative : std::string(built);
+}
+std::string Binaries::Pf() { return BinaryIn(PF_E2E_PF, "client/pf"); }
+std::string Binaries::Worker() { return BinaryIn(PF_E2E_WORKER, "worker/pf-worker"); }
+std::string Binaries::Coordinator() { return BinaryIn(PF_E2E_COORDINATOR, "server/pf-coordinator"); }
 std::string Binaries::FakeWorker() { return PF_E2E_FAKE_WORKER; }
 std::string Binaries::Scene() { return std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json"; }
 

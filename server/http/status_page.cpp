@@ -1,0 +1,291 @@
+#include "server/http/status_page.h"
+
+#include <fmt/format.h>
+#include <httplib.h>
+#include <spdlog/spdlog.h>
+
+#include <nlohmann/json.hpp>
+
+#include "common/core/error.h"
+#include "common/image/png_io.h"
+#include "server/errors.h"
+#include "server/rpc/auth.h"
+#include "server/rpc/job_images.h"
+#include "server/scheduling/scheduler.h"
+
+namespace pf::server {
+namespace v1 = photonfarm::v1;
+
+namespace {
+
+constexpr int kHttpThreads = 2;  // the page is for people: a few requests a second at most
+
+std::string Escape(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+std::string StateName(v1::JobState s) {
+  switch (s) {
+    case v1::JOB_STATE_QUEUED:
+      return "queued";
+    case v1::JOB_STATE_RUNNING:
+      return "running";
+    case v1::JOB_STATE_SUCCEEDED:
+      return "succeeded";
+    case v1::JOB_STATE_FAILED:
+      return "failed";
+    case v1::JOB_STATE_CANCELLED:
+      return "cancelled";
+    default:
+      return "unknown";
+  }
+}
+
+std::string Duration(double s) {
+  if (s < 0) return "?";
+  if (s < 60) return fmt::format("{:.1f} s", s);
+  if (s < 3600) return fmt::format("{} min {} s", int(s / 60), int(s) % 60);
+  return fmt::format("{} h {} min", int(s / 3600), (int(s) % 3600) / 60);
+}
+
+std::string Base64Decode(std::string_view in) {
+  static constexpr std::string_view kAlphabet =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  uint32_t bits = 0;
+  int n = 0;
+  for (char c : in) {
+    if (c == '=') break;
+    const size_t v = kAlphabet.find(c);
+    if (v == std::string_view::npos) return "";
+    bits = (bits << 6) | uint32_t(v);
+    n += 6;
+    if (n >= 8) {
+      n -= 8;
+      out += char((bits >> n) & 0xff);
+    }
+  }
+  return out;
+}
+
+nlohmann::json JobJson(const v1::JobStatus& s) {
+  return {{"job_id", s.job_id()},
+          {"name", s.spec().name()},
+          {"state", StateName(s.state())},
+          {"failure_reason", s.failure_reason()},
+          {"tasks",
+           {{"total", s.tasks_total()},
+            {"done", s.tasks_done()},
+            {"running", s.tasks_running()},
+            {"queued", s.tasks_queued()},
+            {"cancelled", s.tasks_cancelled()}}},
+          {"progress", s.tasks_total() ? double(s.tasks_done()) / double(s.tasks_total()) : 0.0},
+          {"elapsed_seconds", s.elapsed_seconds()},
+          {"eta_seconds", s.eta_seconds()},
+          {"estimated_noise_rms", s.estimated_noise_rms()},
+          {"samples_merged", s.samples_merged()},
+          {"width", s.spec().camera().width()},
+          {"height", s.spec().camera().height()}};
+}
+
+nlohmann::json WorkerJson(const v1::WorkerInfo& w) {
+  return {{"worker_id", w.worker_id()},
+          {"host", w.peer()},
+          {"threads", w.threads()},
+          {"busy", w.busy()},
+          {"current_job_id", w.current_job_id()},
+          {"current_task_id", w.current_task_id()},
+          {"tasks_done", w.tasks_done()},
+          {"tasks_failed", w.tasks_failed()},
+          {"photons_per_second", w.photons_per_second()},
+          {"seconds_since_seen", w.seconds_since_seen()}};
+}
+
+}  // namespace
+
+std::pair<std::string, int> ParseHttpListen(const std::string& listen) {
+  std::string host = "127.0.0.1", port = listen;
+  const size_t colon = listen.rfind(':');
+  if (colon != std::string::npos) {
+    if (colon > 0) host = listen.substr(0, colon);
+    port = listen.substr(colon + 1);
+  }
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoi(port) > 65535)
+    throw InputError("--http: expected PORT or HOST:PORT (port 0..65535), got '" + listen + "'");
+  return {host, std::stoi(port)};
+}
+
+std::string RenderStatusPage(const std::vector<v1::JobStatus>& jobs,
+                             const std::vector<v1::WorkerInfo>& workers) {
+  std::string html = R"(<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><meta http-equiv="refresh" content="2">
+<title>photonfarm</title>
+<style>
+body { font: 14px/1.4 sans-serif; margin: 8px; background: #fafafa; color: #222; }
+.previews { display: flex; flex-wrap: wrap; gap: 8px; margin: 0 0 12px 0; }
+.previews figure { margin: 0; width: 192px; }
+.previews img { width: 192px; height: 192px; object-fit: contain; background: #000; display: block;
+                image-rendering: pixelated; }
+.previews figcaption { font-size: 12px; }
+table { border-collapse: collapse; margin-bottom: 16px; }
+th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
+.bar { width: 120px; height: 10px; background: #ddd; display: inline-block; }
+.bar span { height: 10px; background: #3a7; display: block; }
+</style></head><body>
+)";
+  html += "<div class=\"previews\" id=\"previews\">\n";
+  for (const v1::JobStatus& s : jobs)
+    html += fmt::format(
+        "<figure><img id=\"preview-{0}\" alt=\"preview of {0}\" src=\"/jobs/{0}/preview.png?samples={1}\">"
+        "<figcaption>{0} {2}</figcaption></figure>\n",
+        Escape(s.job_id()), s.samples_merged(), Escape(StateName(s.state())));
+  html += "</div>\n<h2>Jobs</h2>\n";
+  if (jobs.empty())
+    html += "<p>No jobs.</p>\n";
+  else {
+    html +=
+        "<table "
+        "id=\"jobs\"><tr><th>job</th><th>name</th><th>state</th><th>progress</th><th>done</th><th>running</"
+        "th>"
+        "<th>queued</th><th>cancelled</th><th>elapsed</th><th>ETA</th><th>noise</th></tr>\n";
+    for (const v1::JobStatus& s : jobs) {
+      const double frac = s.tasks_total() ? double(s.tasks_done()) / double(s.tasks_total()) : 0.0;
+      html += fmt::format(
+          "<tr><td>{}</td><td>{}</td><td>{}{}</td><td><span class=\"bar\"><span "
+          "style=\"width:{:.0f}%\"></span></span> "
+          "{:.1f}%</td><td>{}/{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></"
+          "tr>\n",
+          Escape(s.job_id()), Escape(s.spec().name()), StateName(s.state()),
+          s.failure_reason().empty() ? "" : ": " + Escape(s.failure_reason()), 100 * frac, 100 * frac,
+          s.tasks_done(), s.tasks_total(), s.tasks_running(), s.tasks_queued(), s.tasks_cancelled(),
+          Duration(s.elapsed_seconds()),
+          s.state() == v1::JOB_STATE_RUNNING || s.state() == v1::JOB_STATE_QUEUED ? Duration(s.eta_seconds())
+                                                                                  : "-",
+          s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-");
+    }
+    html += "</table>\n";
+  }
+  html += "<h2>Workers</h2>\n";
+  if (workers.empty())
+    html += "<p>No worker has contacted this coordinator since it started.</p>\n";
+  else {
+    html +=
+        "<table id=\"workers\"><tr><th>worker</th><th>host</th><th>threads</th><th>current "
+        "task</th><th>tasks "
+        "done</th><th>failed</th><th>photons/s</th><th>last seen</th></tr>\n";
+    for (const v1::WorkerInfo& w : workers)
+      html += fmt::format(
+          "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4g}</td><td>{} "
+          "ago</td></tr>\n",
+          Escape(w.worker_id()), Escape(w.peer()), w.threads(),
+          w.busy() ? Escape(w.current_job_id()) + " task " + std::to_string(w.current_task_id()) : "idle",
+          w.tasks_done(), w.tasks_failed(), w.photons_per_second(), Duration(w.seconds_since_seen()));
+    html += "</table>\n";
+  }
+  html += "</body></html>\n";
+  return html;
+}
+
+StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens)
+    : scheduler_(scheduler), tokens_(std::move(tokens)), server_(std::make_unique<httplib::Server>()) {
+  httplib::Server& svr = *server_;
+  // cpp-httplib owns the queue it is given (its API takes a raw pointer).
+  svr.new_task_queue = [] { return new httplib::ThreadPool(kHttpThreads); };
+  svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    std::string header;  // "" = none
+    if (req.has_header("Authorization")) {
+      header = req.get_header_value("Authorization");
+      // Basic (what a browser sends after asking): the password is the token.
+      if (header.rfind("Basic ", 0) == 0) {
+        const std::string decoded = Base64Decode(std::string_view(header).substr(6));
+        const size_t colon = decoded.find(':');
+        header = "Bearer " + (colon == std::string::npos ? decoded : decoded.substr(colon + 1));
+      }
+    }
+    // The page shows what RenderService shows: the client credential, by the same decision.
+    const grpc::Status status = Authorize(tokens_, kWebStatusMethod, header);
+    if (status.ok()) return httplib::Server::HandlerResponse::Unhandled;
+    res.status = 401;
+    res.set_header("WWW-Authenticate", "Basic realm=\"photonfarm\"");
+    res.set_content(status.error_message() + "\n", "text/plain");
+    return httplib::Server::HandlerResponse::Handled;
+  });
+  svr.Get("/", [this](const httplib::Request&, httplib::Response& res) {
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(RenderStatusPage(scheduler_.List(true), scheduler_.activity().Workers()),
+                    "text/html; charset=utf-8");
+  });
+  svr.Get("/api/status", [this](const httplib::Request&, httplib::Response& res) {
+    nlohmann::json j = {{"jobs", nlohmann::json::array()}, {"workers", nlohmann::json::array()}};
+    for (const v1::JobStatus& s : scheduler_.List(true)) j["jobs"].push_back(JobJson(s));
+    for (const v1::WorkerInfo& w : scheduler_.activity().Workers()) j["workers"].push_back(WorkerJson(w));
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(j.dump(), "application/json");
+  });
+  svr.Get(
+      R"(/jobs/([A-Za-z0-9._-]+)/preview\.png)", [this](const httplib::Request& req, httplib::Response& res) {
+        const std::string job_id = req.matches[1];
+        try {
+          const ResolvedImage image = ResolveJobImage(scheduler_, job_id, nullptr);
+          res.set_header("Cache-Control", "no-store");
+          res.set_content(EncodePngPreview(image.image, PreviewOptions{.auto_exposure = true}), "image/png");
+        } catch (const NotFoundError& e) {
+          res.status = 404;
+          res.set_content(std::string(e.what()) + "\n", "text/plain");
+        } catch (const std::exception& e) {
+          spdlog::warn("http: preview of job {}: {}", job_id, e.what());
+          res.status = 500;
+          res.set_content(std::string(e.what()) + "\n", "text/plain");
+        }
+      });
+}
+
+StatusHttpServer::~StatusHttpServer() {
+  Stop();
+}
+
+int StatusHttpServer::Start(const std::string& listen) {
+  const auto [host, port] = ParseHttpListen(listen);
+  int bound = port;
+  if (port == 0) {
+    bound = server_->bind_to_any_port(host.c_str());
+    if (bound < 0) throw SystemError("--http " + listen + ": cannot bind");
+  } else if (!server_->bind_to_port(host.c_str(), port)) {
+    throw SystemError("--http " + listen + ": cannot bind (in use, or not an address of this machine)");
+  }
+  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  spdlog::info("http: status page on http://{}:{}/", host, bound);
+  return bound;
+}
+
+void StatusHttpServer::Stop() {
+  if (!thread_.joinable()) return;
+  server_->stop();
+  thread_.join();
+}
+
+}  // namespace pf::server

@@ -1,0 +1,57 @@
+#pragma once
+// The coordinator's web status page (pf-coordinator --http ADDR; issue #16), served with Debian's
+// cpp-httplib next to the gRPC port:
+//
+//   GET /                      HTML: jobs (progress, noise, ETA, tasks per state), workers (id,
+//                              host, current task, tasks done, photons/s) and every job's live
+//                              preview; the page reloads itself every 2 s
+//   GET /api/status            the same as JSON
+//   GET /jobs/<id>/preview.png the job's merged image now, tone-mapped (auto exposure)
+//
+// Credentials are the gRPC side's (server/rpc/auth.h, one check): with a token configured every
+// request needs `Authorization: Bearer <token>` — or HTTP Basic with the token as the password,
+// which a browser asks for — else 401. The listen address defaults to loopback.
+
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "photonfarm/v1/farm.pb.h"
+#include "server/rpc/auth.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace pf::server {
+
+class Scheduler;
+
+// "PORT" or ":PORT" mean 127.0.0.1:PORT; else HOST:PORT. InputError if malformed.
+std::pair<std::string, int> ParseHttpListen(const std::string& listen);
+
+// The page for these jobs and workers (pure: tested without a server).
+std::string RenderStatusPage(const std::vector<photonfarm::v1::JobStatus>& jobs,
+                             const std::vector<photonfarm::v1::WorkerInfo>& workers);
+
+class StatusHttpServer {
+ public:
+  StatusHttpServer(Scheduler& scheduler, RoleTokens tokens);
+  ~StatusHttpServer();  // Stop()
+  StatusHttpServer(const StatusHttpServer&) = delete;
+  StatusHttpServer& operator=(const StatusHttpServer&) = delete;
+
+  // Binds (port 0: a free port) and serves on a thread; returns the port. SystemError if the
+  // address cannot be bound.
+  int Start(const std::string& listen);
+  void Stop();
+
+ private:
+  Scheduler& scheduler_;
+  const RoleTokens tokens_;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread thread_;
+};
+
+}  // namespace pf::server

@@ -1,0 +1,99 @@
+#include "server/scheduling/farm_activity.h"
+
+#include <algorithm>
+
+namespace pf::server {
+namespace v1 = photonfarm::v1;
+
+FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
+  auto it = workers_.find(worker_id);
+  if (it != workers_.end()) return it->second;
+  if (workers_.size() >= kMaxWorkersKept) {  // forget the longest-silent worker
+    auto oldest = workers_.begin();
+    for (auto w = workers_.begin(); w != workers_.end(); ++w)
+      if (w->second.last_seen < oldest->second.last_seen) oldest = w;
+    workers_.erase(oldest);
+  }
+  Worker& w = workers_[worker_id];
+  w.info.set_worker_id(worker_id);
+  w.last_seen = clock_.Now();
+  return w;
+}
+
+void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads) {
+  std::lock_guard lock(mu_);
+  Worker& w = WorkerLocked(worker_id);
+  w.info.set_peer(peer);
+  w.info.set_threads(threads);
+  w.last_seen = clock_.Now();
+}
+
+void FarmActivity::TaskEvent(const std::string& job_id, const std::string& kind, uint64_t task_id,
+                             uint32_t attempt, const std::string& worker_id, const std::string& detail) {
+  std::lock_guard lock(mu_);
+  JobEvents& je = events_[job_id];
+  v1::TaskEvent& e = je.events.emplace_back();
+  e.set_unix_ms(clock_.UnixMillis());
+  e.set_kind(kind);
+  e.set_task_id(task_id);
+  e.set_attempt(attempt);
+  e.set_worker_id(worker_id);
+  e.set_detail(detail);
+  if (je.events.size() > kMaxEventsPerJob) {
+    je.events.pop_front();
+    ++je.dropped;
+  }
+  if (worker_id.empty()) return;
+  Worker& w = WorkerLocked(worker_id);
+  if (kind == "leased") {
+    w.info.set_busy(true);
+    w.info.set_current_job_id(job_id);
+    w.info.set_current_task_id(task_id);
+    w.last_seen = clock_.Now();
+    return;
+  }
+  // Any other event ends the worker's hold on this task (if it still holds it).
+  if (w.info.busy() && w.info.current_job_id() == job_id && w.info.current_task_id() == task_id) {
+    w.info.set_busy(false);
+    w.info.clear_current_job_id();
+    w.info.set_current_task_id(0);
+  }
+  if (kind == "merged") {
+    w.info.set_tasks_done(w.info.tasks_done() + 1);
+    w.last_seen = clock_.Now();
+  } else if (kind == "failed" || kind == "expired" || kind == "rejected") {
+    w.info.set_tasks_failed(w.info.tasks_failed() + 1);
+  }
+}
+
+void FarmActivity::WorkerStats(const std::string& worker_id, uint64_t photons_emitted, double seconds) {
+  if (worker_id.empty()) return;
+  std::lock_guard lock(mu_);
+  Worker& w = WorkerLocked(worker_id);
+  w.info.set_photons_emitted(w.info.photons_emitted() + photons_emitted);
+  if (seconds > 0 && seconds < 1e9) w.info.set_busy_seconds(w.info.busy_seconds() + seconds);
+  w.info.set_photons_per_second(
+      w.info.busy_seconds() > 0 ? double(w.info.photons_emitted()) / w.info.busy_seconds() : 0.0);
+}
+
+std::vector<v1::WorkerInfo> FarmActivity::Workers() const {
+  std::lock_guard lock(mu_);
+  const double now = clock_.Now();
+  std::vector<v1::WorkerInfo> out;
+  out.reserve(workers_.size());
+  for (const auto& [id, w] : workers_) {
+    out.push_back(w.info);
+    out.back().set_seconds_since_seen(std::max(0.0, now - w.last_seen));
+  }
+  return out;
+}
+
+std::vector<v1::TaskEvent> FarmActivity::Events(const std::string& job_id, uint64_t* dropped) const {
+  std::lock_guard lock(mu_);
+  auto it = events_.find(job_id);
+  if (dropped) *dropped = it == events_.end() ? 0 : it->second.dropped;
+  if (it == events_.end()) return {};
+  return {it->second.events.begin(), it->second.events.end()};
+}
+
+}  // namespace pf::server

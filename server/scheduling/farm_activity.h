@@ -1,0 +1,57 @@
+#pragma once
+// What the farm did, for people: the workers seen since the coordinator started (`pf workers`,
+// the web status page) and each job's task events — which worker ran which task, retries,
+// failures (`pf events JOB`). In memory only and bounded: a restart starts empty, and a job keeps
+// its newest kMaxEventsPerJob events. The scheduler records into it under its own lock; this
+// class has its own mutex and never calls out, so the lock order is always scheduler → activity.
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "photonfarm/v1/farm.pb.h"
+#include "server/scheduling/clock.h"
+
+namespace pf::server {
+
+inline constexpr size_t kMaxEventsPerJob = 10000;
+inline constexpr size_t kMaxWorkersKept = 4096;
+
+class FarmActivity {
+ public:
+  explicit FarmActivity(const Clock& clock) : clock_(clock) {}
+
+  // A LeaseTask call from `worker_id` (its peer address and threads).
+  void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads);
+  // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned.
+  void TaskEvent(const std::string& job_id, const std::string& kind, uint64_t task_id, uint32_t attempt,
+                 const std::string& worker_id, const std::string& detail = "");
+  // The merged result's statistics (photons per second of the worker).
+  void WorkerStats(const std::string& worker_id, uint64_t photons_emitted, double seconds);
+
+  std::vector<photonfarm::v1::WorkerInfo> Workers() const;
+  // Events of `job_id`, oldest first; `dropped` = older events no longer kept. Empty for a job
+  // with no events (the caller checks that the job exists).
+  std::vector<photonfarm::v1::TaskEvent> Events(const std::string& job_id, uint64_t* dropped = nullptr) const;
+
+ private:
+  struct Worker {
+    photonfarm::v1::WorkerInfo info;
+    double last_seen = 0;
+  };
+  struct JobEvents {
+    std::deque<photonfarm::v1::TaskEvent> events;
+    uint64_t dropped = 0;
+  };
+  Worker& WorkerLocked(const std::string& worker_id);
+
+  const Clock& clock_;
+  mutable std::mutex mu_;
+  std::map<std::string, Worker> workers_;
+  std::map<std::string, JobEvents> events_;
+};
+
+}  // namespace pf::server

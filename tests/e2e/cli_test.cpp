@@ -1,0 +1,221 @@
+// The command-line contract of pf, pf-worker and pf-coordinator as a new user meets it (issue #16,
+// "rough edges"): usage errors exit 2 in all three, --version, names that say what is written,
+// outputs checked before the work, the farm's limits, manifest settings and warnings, pf merge's
+// weights, pf info on an EXR. Every test runs the real binaries.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "common/image/exr_io.h"
+#include "tests/e2e/harness.h"
+
+namespace pf::e2e {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A tiny path-traced render: fast enough to run many times.
+std::vector<std::string> TinyRender(const std::string& scene, const fs::path& out) {
+  return {Binaries::Pf(), "render",   scene, "--res",     "8x8", "--spp", "1",
+          "-q",           "--no-png", "-o",  out.string()};
+}
+
+ImageMetadata HeaderOf(const fs::path& exr) {
+  ImageMetadata meta;
+  ReadExr(exr.string(), &meta);
+  return meta;
+}
+
+// A Cornell box manifest in `dir` (next to copies of its geometry) with extra JSON.
+fs::path WriteManifest(const fs::path& dir, const std::string& extra) {
+  for (const char* file : {"CornellBox-Original.obj", "CornellBox-Original.mtl"})
+    fs::copy_file(fs::path(Binaries::Scene()).parent_path() / file, dir / file,
+                  fs::copy_options::overwrite_existing);
+  const fs::path path = dir / "box.json";
+  std::ofstream(path) << "{\"version\": 1, \"name\": \"box\", \"geometry\": \"CornellBox-Original.obj\",\n"
+                      << " \"cameras\": [{\"name\": \"main\", \"eye\": [0, 1, 3.9], \"look_at\": [0, 1, 0],"
+                      << " \"up\": [0, 1, 0], \"fov\": 39.3, \"resolution\": [16, 16]}]" << extra << "}\n";
+  return path;
+}
+
+TEST(Cli, UsageErrorsExitTwoInAllThreeBinaries) {
+  TestDir dir;
+  for (const std::string& bin : {Binaries::Pf(), Binaries::Worker(), Binaries::Coordinator()}) {
+    const RunResult r = RunCommand({bin, "--no-such-flag"}, dir.path(), 30);
+    EXPECT_EQ(r.exit_code, 2) << bin << ": " << r.err;
+  }
+  // A flag value out of range, the other CLI11 error (pf-coordinator used to exit 105).
+  const RunResult r = RunCommand({Binaries::Coordinator(), "--max-attempts", "0"}, dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+}
+
+TEST(Cli, VersionOnAllThreeBinaries) {
+  TestDir dir;
+  for (const auto& [bin, name] :
+       {std::pair{Binaries::Pf(), "pf "}, std::pair{Binaries::Worker(), "pf-worker "},
+        std::pair{Binaries::Coordinator(), "pf-coordinator "}}) {
+    const RunResult r = RunCommand({bin, "--version"}, dir.path(), 30);
+    EXPECT_EQ(r.exit_code, 0) << bin << ": " << r.err;
+    EXPECT_EQ(r.out.rfind(std::string(name) + "0.1.0-", 0), 0u) << r.out;
+  }
+}
+
+TEST(Cli, BogusLogLevelIsAUsageError) {
+  TestDir dir;
+  RunResult r =
+      RunCommand({Binaries::Pf(), "--log-level", "bogus", "info", Binaries::Scene()}, dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  // pf-worker used to accept it and then wait for its coordinator forever.
+  r = RunCommand({Binaries::Worker(), "--coordinator", "127.0.0.1:1", "--log-level", "bogus"}, dir.path(),
+                 20);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+}
+
+TEST(Cli, CoordinatorAddressWithoutPortIsRefused) {
+  TestDir dir;
+  // gRPC would read "localhost" as localhost:443 and retry "nonsense" forever.
+  RunResult r =
+      RunCommand({Binaries::Pf(), "list", "--coordinator", "localhost", "--timeout", "2"}, dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("no port"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Worker(), "--coordinator", "nonsense"}, dir.path(), 20);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("HOST:PORT"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Pf(), "list", "--timeout", "2"}, dir.path(), 30,
+                 {{"PF_COORDINATOR", "localhost"}});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("PF_COORDINATOR"), std::string::npos) << r.err;
+}
+
+TEST(Cli, OutputMustBeNamedExr) {
+  TestDir dir;
+  for (const char* name : {"x.png", "x.jpg"}) {
+    const RunResult r = RunCommand(TinyRender(Binaries::Scene(), dir / name), dir.path(), 60);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_FALSE(fs::exists(dir / name)) << name;
+  }
+  const RunResult r =
+      RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "x.exr"), {"--png", (dir / "x.exr").string()}),
+                 dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+}
+
+TEST(Cli, UnwritableOutputFailsBeforeTheRender) {
+  TestDir dir;
+  // A render of many minutes: the error must come at once, not after it.
+  const std::vector<std::string> slow = {Binaries::Pf(),
+                                         "render",
+                                         Binaries::Scene(),
+                                         "--spp",
+                                         "65536",
+                                         "--res",
+                                         "512x512",
+                                         "-q",
+                                         "-o",
+                                         (dir / "no-such-folder" / "x.exr").string()};
+  RunResult r = RunCommand(slow, dir.path(), 20);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
+  r = RunCommand(Concat(slow, {"--plan", "skipping", "--local-only"}), dir.path(), 20);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+}
+
+TEST(Cli, ManifestSettingsAreTheDefaults) {
+  TestDir dir;
+  const fs::path manifest = WriteManifest(dir.path(), ", \"settings\": {\"spp\": 3}");
+  RunResult r = RunCommand(TinyRender(manifest.string(), dir / "a.exr"), dir.path(), 60);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(HeaderOf(dir / "a.exr")["spp"], "1") << "--spp given: the flag wins";
+  r = RunCommand({Binaries::Pf(), "render", manifest.string(), "--res", "8x8", "-q", "--no-png", "-o",
+                  (dir / "b.exr").string()},
+                 dir.path(), 60);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(HeaderOf(dir / "b.exr")["spp"], "3") << r.err;
+}
+
+TEST(Cli, RenderShowsManifestWarnings) {
+  TestDir dir;
+  const fs::path manifest = WriteManifest(dir.path(), ", \"colour_grading\": 1");
+  const RunResult r = RunCommand(TinyRender(manifest.string(), dir / "a.exr"), dir.path(), 60);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("colour_grading"), std::string::npos) << r.err;
+}
+
+TEST(Cli, FlagLimitsAreTheFarmsLimits) {
+  TestDir dir;
+  const std::vector<std::string> base = TinyRender(Binaries::Scene(), dir / "a.exr");
+  // Accepted by pf before (its own limits 10^5, 2^31), refused by every coordinator.
+  RunResult r = RunCommand(Concat(base, {"--k", "20000"}), dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  r = RunCommand(Concat(base, {"--photons", "300000000"}), dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  r = RunCommand(
+      {Binaries::Pf(), "render", Binaries::Scene(), "--res", "9000x8", "-o", (dir / "b.exr").string()},
+      dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  r = RunCommand({Binaries::Pf(), "--help"}, dir.path(), 30);
+  EXPECT_NE(r.out.find("--photons <= 268435456"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--k <= 10000"), std::string::npos) << r.out;
+}
+
+TEST(Cli, PlainRenderRefusesPlanOptions) {
+  TestDir dir;
+  for (const std::vector<std::string>& extra :
+       {std::vector<std::string>{"--stride", "4"}, {"--time-budget", "5"}, {"--rounds", "2"}}) {
+    const RunResult r =
+        RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), extra), dir.path(), 60);
+    EXPECT_EQ(r.exit_code, 2) << extra[0] << ": " << r.err;
+    EXPECT_NE(r.err.find("plan renders only"), std::string::npos) << r.err;
+  }
+}
+
+TEST(Cli, MergeWeighsBySppAndWarns) {
+  TestDir dir;
+  for (const char* name : {"a.exr", "b.exr"})
+    ASSERT_EQ(RunCommand(TinyRender(Binaries::Scene(), dir / name), dir.path(), 60).exit_code, 0);
+  ASSERT_EQ(RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "pm.exr"),
+                              {"--integrator", "photonmap", "--photons", "2000", "--k", "10"}),
+                       dir.path(), 60)
+                .exit_code,
+            0);
+  // The same seed twice: warned.
+  RunResult r = RunCommand({Binaries::Pf(), "merge", (dir / "a.exr").string(), (dir / "b.exr").string(), "-o",
+                            (dir / "ab.exr").string()},
+                           dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("seed 1"), std::string::npos) << r.err;
+  // Different integrators: warned.
+  r = RunCommand({Binaries::Pf(), "merge", (dir / "a.exr").string(), (dir / "pm.exr").string(), "-o",
+                  (dir / "apm.exr").string()},
+                 dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("integrator"), std::string::npos) << r.err;
+  // An EXR without spp (here pf diff's error image) is not silently weighted 1.
+  ASSERT_EQ(RunCommand({Binaries::Pf(), "diff", (dir / "a.exr").string(), (dir / "b.exr").string(),
+                        "--error-image", (dir / "err.exr").string()},
+                       dir.path(), 60)
+                .exit_code,
+            0);
+  r = RunCommand({Binaries::Pf(), "merge", (dir / "a.exr").string(), (dir / "err.exr").string(), "-o",
+                  (dir / "m.exr").string()},
+                 dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("--assume-spp"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Pf(), "merge", (dir / "a.exr").string(), (dir / "err.exr").string(),
+                  "--assume-spp", "1", "-o", (dir / "m.exr").string()},
+                 dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(HeaderOf(dir / "m.exr")["spp"], "2");
+}
+
+TEST(Cli, InfoPrintsAnExrHeader) {
+  TestDir dir;
+  ASSERT_EQ(RunCommand(TinyRender(Binaries::Scene(), dir / "a.exr"), dir.path(), 60).exit_code, 0);
+  const RunResult r = RunCommand({Binaries::Pf(), "info", (dir / "a.exr").string()}, dir.path(), 30);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* key : {"size        8x8", "seed", "camera.eye", "integrator", "version", "date"})
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
+}
+
+}  // namespace
+}  // namespace pf::e2e
