@@ -42,6 +42,24 @@ inline std::string Quote(std::string_view text, size_t max_bytes = kMaxEchoBytes
   return out + "'";
 }
 
+// Free text from a request kept for display (a worker's failure reason): control and non-ASCII
+// bytes as \xNN, cut to `max_bytes` of input — safe to log and to show in a terminal.
+inline std::string Printable(std::string_view text, size_t max_bytes) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (size_t i = 0; i < text.size() && i < max_bytes; ++i) {
+    const auto u = static_cast<unsigned char>(text[i]);
+    if (u < 0x20 || u >= 0x7f) {
+      out += "\\x";
+      out += kHex[u >> 4];
+      out += kHex[u & 15];
+    } else {
+      out += text[i];
+    }
+  }
+  return out;
+}
+
 // An identifier from a request: non-empty, at most `max_bytes`, printable ASCII without spaces.
 // InputError naming `field` — without echoing an over-long value.
 inline void CheckId(std::string_view value, const char* field, size_t max_bytes = kMaxIdBytes) {

@@ -100,6 +100,9 @@ class Job {
 
   // Persistence bookkeeping (owned by the scheduler).
   bool row_dirty = false;
+  // When the elapsed running time was last marked for persisting (Scheduler::Tick), so that a
+  // time budget counts across coordinator restarts (docs/security.md).
+  double elapsed_marked_at = 0;
   std::set<uint64_t> dirty_tasks;
   uint64_t checkpoint_collected_seq = 0;  // merge_seq of the last checkpoint handed to the persister
   std::string checkpoint_path;            // for jobs whose accumulator is not loaded (finished, reloaded)

@@ -166,7 +166,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("FailTask", [&] {
       RequireLeaseId(request->lease_id());
-      std::string reason = request->reason().substr(0, kMaxReasonBytes);
+      std::string reason = limits::Printable(request->reason(), kMaxReasonBytes);
       if (reason.empty()) reason = "no reason given";
       ctx_.scheduler.Fail(request->lease_id(), reason, request->retryable());
       return grpc::Status::OK;

@@ -575,8 +575,17 @@ void Scheduler::Tick() {
                           job.runtime(task_id).worker_id);
       FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
     }
-    for (Job* job : jobs_.InSubmissionOrder())
+    for (Job* job : jobs_.InSubmissionOrder()) {
       if (job->active() && job->config().stop.time_budget_seconds > 0) CheckTimeBudget(*job, now, fx);
+      // Elapsed time was saved only on state changes, so a restart reset a running job's clock
+      // (and its time budget). Now it is persisted at least every kElapsedPersistSeconds; a
+      // restart loses at most that much, plus the downtime, which does not count.
+      if (job->state() == JobState::kRunning && now - job->elapsed_marked_at >= kElapsedPersistSeconds) {
+        job->elapsed_marked_at = now;
+        job->row_dirty = true;
+        fx.persist = true;
+      }
+    }
     for (auto it = waiters_.begin(); it != waiters_.end();) {
       if (now >= it->second.deadline) {
         fx.callbacks.emplace_back(std::move(it->second.done), std::nullopt);

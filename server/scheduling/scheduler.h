@@ -60,6 +60,9 @@
 
 namespace pf::server {
 
+// How often a running job's elapsed time is written to the job table (Scheduler::Tick).
+inline constexpr double kElapsedPersistSeconds = 1.0;
+
 struct SchedulerOptions {
   double lease_seconds = 30;
   uint32_t max_attempts = 3;

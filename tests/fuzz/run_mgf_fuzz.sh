@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds the MGF loader fuzzer with clang (libFuzzer + ASan + UBSan) and runs it.
-#   tests/fuzz/run_mgf_fuzz.sh [seconds]      (default 30)
+# Builds the scene fuzzers with clang (libFuzzer + ASan + UBSan) and runs them within one time
+# budget: the MGF loader half of it, the OBJ loader and the manifest parser a quarter each.
+#   tests/fuzz/run_mgf_fuzz.sh [seconds]      (default 30, total)
 # Environment: PF_FUZZ_BUILD_DIR (default <repo>/build-fuzz), PF_FUZZ_JOBS (build jobs, 2).
 # Exits non-zero on a finding; the reproducer is left in <build>/mgf_fuzz_run/artifacts/ and can
 # be replayed with: <build>/tests/fuzz/mgf_fuzz <artifact>   (run from <build>/mgf_fuzz_run).
@@ -15,7 +16,10 @@ mkdir -p "$build"
 CC=clang CXX=clang++ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPF_BUILD_FUZZ=ON -DPF_BUILD_TESTS=OFF -DPF_BUILD_BENCH=OFF \
   >"$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 2; }
-cmake --build "$build" --target mgf_fuzz -j "$jobs"
+cmake --build "$build" --target mgf_fuzz obj_fuzz manifest_fuzz -j "$jobs"
+mgf_seconds=$(( (seconds + 1) / 2 ))
+other_seconds=$(( (seconds - mgf_seconds + 1) / 2 ))
+[ "$other_seconds" -ge 1 ] || other_seconds=1
 
 # Scratch directory: the harness only lets includes resolve inside its working directory, and
 # the seeds include these files (a plain one, one with an include cycle, one in a subfolder).
@@ -28,7 +32,7 @@ printf 'xf -t 0 0 1\ni ../inc.mgf\nxf\n' >"$run/sub/part.mgf"
 cd "$run"
 status=0
 "$build/tests/fuzz/mgf_fuzz" corpus "$repo/tests/fuzz/mgf_corpus" \
-  -max_total_time="$seconds" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
+  -max_total_time="$mgf_seconds" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
   -dict="$repo/tests/fuzz/mgf.dict" \
   -artifact_prefix=artifacts/ -print_final_stats=1 || status=$?
 if [ "$status" -ne 0 ]; then
@@ -36,4 +40,23 @@ if [ "$status" -ne 0 ]; then
   ls -1 "$run/artifacts" >&2 || true
   exit "$status"
 fi
-echo "mgf_fuzz: no findings in ${seconds}s"
+echo "mgf_fuzz: no findings in ${mgf_seconds}s"
+
+# The OBJ loader and the manifest parser, each in its own scratch folder (the OBJ harness writes
+# its input to a file there; `mtllib m.mtl` resolves inside it, anything else must be refused).
+for target in obj manifest; do
+  dir="$build/${target}_fuzz_run"
+  mkdir -p "$dir/corpus" "$dir/artifacts"
+  [ "$target" = obj ] && printf 'newmtl lamp\nKe 1 1 1\nnewmtl wall\nKd .5 .5 .5\n' >"$dir/m.mtl"
+  cd "$dir"
+  status=0
+  "$build/tests/fuzz/${target}_fuzz" corpus "$repo/tests/fuzz/${target}_corpus" \
+    -max_total_time="$other_seconds" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
+    -artifact_prefix=artifacts/ -print_final_stats=1 || status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "${target}_fuzz: FINDING (exit $status); reproducer(s) in $dir/artifacts:" >&2
+    ls -1 "$dir/artifacts" >&2 || true
+    exit "$status"
+  fi
+  echo "${target}_fuzz: no findings in ${other_seconds}s"
+done

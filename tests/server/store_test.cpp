@@ -450,5 +450,47 @@ TEST(Recovery, ALostJobTableNeverReusesAnIdAndOldFilesAreSetAside) {
   persister.Stop();
 }
 
+// Issue #14: elapsed time was saved only on state changes, so a time budget restarted with the
+// coordinator. Now a running job's elapsed time is persisted every kElapsedPersistSeconds and
+// the budget counts across a restart (the downtime does not).
+TEST(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {
+  TempDir dir;
+  FakeClock clock;
+  FakeCatalog catalog;
+  const fs::path db_file = dir.path() / "coordinator.db";
+  const fs::path cp_dir = dir.path() / "checkpoints";
+  v1::JobSpec spec = SkippingSpec(1, 3);
+  spec.mutable_stop()->set_time_budget_seconds(10);
+  std::string id;
+  {
+    SqliteStore db(db_file);
+    Scheduler scheduler(clock, SchedulerOptions{.lease_seconds = 100});
+    Persister persister(scheduler, db, cp_dir, clock, 0);
+    id = SubmitStored(scheduler, db, ValidateJobSpec(spec, catalog));
+    ASSERT_TRUE(scheduler.TryLease({"w", {}}).has_value());  // running from now
+    persister.FlushNow();                                      // the row says: running, 0 s
+    clock.Advance(6);
+    scheduler.Tick();
+    persister.FlushNow();  // before the fix: nothing dirty, the row kept 0 s
+    persister.Abandon();   // a crash
+  }
+  clock.Advance(100);  // downtime
+  SqliteStore db(db_file);
+  for (const JobRow& row : db.LoadJobs()) {
+    if (row.job_id == id) {
+      EXPECT_NEAR(row.elapsed_seconds, 6.0, 1e-6);
+    }
+  }
+  Scheduler scheduler(clock, SchedulerOptions{});
+  RecoverJobs(db, catalog, cp_dir, scheduler, clock);
+  EXPECT_NEAR(scheduler.Status(id).elapsed_seconds(), 6.0, 1e-6) << "the downtime does not count";
+  clock.Advance(3);
+  scheduler.Tick();
+  EXPECT_TRUE(scheduler.Status(id).state() == v1::JOB_STATE_RUNNING) << "9 s of 10";
+  clock.Advance(2);
+  scheduler.Tick();
+  EXPECT_NE(scheduler.Status(id).state(), v1::JOB_STATE_RUNNING) << "11 s: the budget is spent";
+}
+
 }  // namespace
 }  // namespace pf::server

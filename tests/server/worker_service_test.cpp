@@ -230,6 +230,28 @@ TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
   EXPECT_EQ(s.samples_merged(), 24u * 18u);
 }
 
+// Issue #14: a worker's failure reason is logged and shown by `pf`; control characters in it
+// would forge log lines or drive the user's terminal.
+TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
+  v1::Plan plan;
+  plan.mutable_multiple_maps()->set_maps(1);
+  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
+  std::optional<v1::Task> t = Lease(*live_);
+  ASSERT_TRUE(t.has_value());
+  v1::FailTaskRequest fail;
+  fail.set_lease_id(t->lease_id());
+  fail.set_reason("disk full\n[error] forged line \x1b[2J");
+  fail.set_retryable(false);
+  v1::FailTaskResponse failed;
+  ASSERT_TRUE(live_->worker->FailTask(Ctx().get(), fail, &failed).ok());
+  const v1::JobStatus s = GetJob(*live_, id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
+  EXPECT_THAT(s.failure_reason(), HasSubstr("disk full\\x0a[error] forged line \\x1b[2J"));
+  EXPECT_EQ(s.failure_reason().find('\n'), std::string::npos);
+  EXPECT_EQ(s.failure_reason().find('\x1b'), std::string::npos);
+}
+
 TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
   v1::LeaseTaskRequest req;
   v1::LeaseTaskResponse resp;
