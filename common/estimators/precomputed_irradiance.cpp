@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 #include <vector>
@@ -88,6 +89,8 @@ std::shared_ptr<const PrecomputedIrradiance> PrecomputedIrradiance::Build(
     if (Dot(s.normal, s.normal) > 0.0f) out->sites_->AddPhoton(s.position, s.normal, s.irradiance);
   out->sites_->PrepareForQuery();
   out->normal_cos_ = options.normal_cos;
+  out->scene_ = &scene;
+  out->candidates_ = options.candidates;
   out->max_radius_ = std::max(options.max_radius_fraction * Length(scene.bounds().Diagonal()), 1e-12f);
   out->build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
@@ -99,9 +102,14 @@ std::optional<Rgb> PrecomputedIrradiance::Lookup(const Vec3& y, const Vec3& n,
   const float min_cos = normal_cos_;
   const auto agrees = FunctionFilter(
       [&n, min_cos](const Photon& p, std::size_t) { return Dot(p.Direction(), n) >= min_cos; });
-  sites_->Query(y, 1, max_radius_, nearest, &agrees);
+  sites_->Query(y, std::max(candidates_, 1), max_radius_, nearest, &agrees);
   if (nearest.empty()) return std::nullopt;
-  return sites_->photon(nearest[0].index).Power();
+  nearest.Sort();
+  for (std::size_t i = 0; i < nearest.size(); ++i) {
+    const Photon& site = sites_->photon(nearest[i].index);
+    if (candidates_ == 0 || scene_->Visible(y, n, site.Position(), site.Direction())) return site.Power();
+  }
+  return std::nullopt;
 }
 
 }  // namespace pf

@@ -11,9 +11,10 @@
 // (0.8° quantisation, photon.h) and the "power" bytes E in RGBE (2^-8 relative). The photon
 // record does not carry a surface normal, so each site finds its own with one short ray along
 // the photon's incoming direction through its position (the photon was stored where that ray
-// hit). A lookup accepts only the nearest site whose normal agrees with y's side
-// (cos ≥ normal_cos, in-query filter, §4.1) within max_radius; without one the caller falls
-// back to the full estimate.
+// hit). A lookup takes the nearest site whose normal agrees with y's side (cos ≥ normal_cos,
+// in-query filter, §4.1) within max_radius and that is visible from y (a shadow ray, as the
+// occlusion test of §4.1.1: the nearest site may lie across a thin wall, in a brighter room);
+// without one the caller falls back to the full estimate.
 //
 // Bias: E is the estimate at the site, not at y (a nearest-neighbour interpolation over a
 // distance of about the photon spacing times √stride) and is RGBE-rounded; both are far below
@@ -38,7 +39,11 @@ namespace pf {
 struct PrecomputedIrradianceOptions {
   int stride = 4;                     // every stride-th photon is a site (Christensen 1999 uses 4)
   float normal_cos = 0.75f;           // a site serves y only if cos(normal_site, normal_y) ≥ this
-  float max_radius_fraction = 0.02f;  // lookup radius, fraction of the scene's diagonal
+  float max_radius_fraction = 0.05f;  // lookup radius, fraction of the scene's diagonal
+  // Candidates per lookup: the nearest `candidates` agreeing sites are tried in distance
+  // order, and the first one visible from y serves (one shadow ray each): a site behind a
+  // wall would carry the other room's light into this one. 0 = no visibility test (nearest).
+  int candidates = 4;
   int threads = 0;                    // for the precomputation; 0 = TBB's default
 };
 
@@ -61,6 +66,8 @@ class PrecomputedIrradiance {
 
  private:
   std::unique_ptr<PhotonMap> sites_;
+  const EmbreeScene* scene_ = nullptr;
+  int candidates_ = 4;
   float normal_cos_ = 0.75f;
   float max_radius_ = 0.0f;
   double build_seconds_ = 0.0;

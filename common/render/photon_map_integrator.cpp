@@ -74,7 +74,7 @@ void PhotonMapIntegrator::PreparePrecomputedIrradiance() {
   const std::string key = "precomputed-irradiance|" + describe(options_.global) + "|" +
                           describe(options_.direct_photons) + "|" + describe(options_.caustic) + "|" +
                           std::to_string(p.stride) + "," + std::to_string(p.normal_cos) + "," +
-                          std::to_string(p.max_radius_fraction);
+                          std::to_string(p.max_radius_fraction) + "," + std::to_string(p.candidates);
   PhotonMaps::Derived& slot = *maps_.derived;
   std::lock_guard lock(slot.mutex);
   if (slot.key == key && slot.value) {

@@ -149,7 +149,8 @@ TEST_F(PrecomputedIrradianceCornell, LookupAgreesWithFullEstimate) {
     }
   }
   ASSERT_GT(points, 1000);
-  EXPECT_LT(fallbacks, points / 20);  // no site with an agreeing normal nearby: the full estimate
+  // No visible site with an agreeing normal nearby (corners, box edges): the full estimate.
+  EXPECT_LT(fallbacks, points / 10);
   EXPECT_NEAR(sum_pre / sum_full, 1.0, 0.02);
   EXPECT_GT(close, points * 9 / 10);
 }
