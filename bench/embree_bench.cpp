@@ -62,7 +62,8 @@ SceneResult BenchScene(const std::string& name, const std::string& path, int res
   std::vector<Ray> camera_rays, secondary, shadow;
   Rng rng(42, 1);
   for (int y = 0; y < res; ++y)
-    for (int x = 0; x < res; ++x) camera_rays.push_back(camera.GenerateRay(x, y, rng.Uniform(), rng.Uniform()));
+    for (int x = 0; x < res; ++x)
+      camera_rays.push_back(camera.GenerateRay(x, y, rng.Uniform(), rng.Uniform()));
   for (const Ray& cr : camera_rays) {
     const auto hit = accel.Intersect(cr);
     if (!hit) continue;
@@ -118,9 +119,12 @@ int main(int argc, char** argv) {
   std::string json_path;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--repeats" && i + 1 < argc) repeats = std::max(1, std::atoi(argv[++i]));
-    else if (a == "--json" && i + 1 < argc) json_path = argv[++i];
-    else if (a == "--res" && i + 1 < argc) res = std::max(16, std::atoi(argv[++i]));
+    if (a == "--repeats" && i + 1 < argc)
+      repeats = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--json" && i + 1 < argc)
+      json_path = argv[++i];
+    else if (a == "--res" && i + 1 < argc)
+      res = std::max(16, std::atoi(argv[++i]));
     else {
       std::fprintf(stderr, "usage: %s [--repeats N] [--res R] [--json out.json]\n", argv[0]);
       return 2;
@@ -140,10 +144,16 @@ int main(int argc, char** argv) {
     std::printf("%-12s %9zu %9.1f %12.2f %12.2f %12.2f %12.1f %12.2f\n", r.scene.c_str(), r.triangles,
                 r.build_seconds * 1e3, r.camera_rays_per_s * 1e-6, r.secondary_rays_per_s * 1e-6,
                 r.shadow_rays_per_s * 1e-6, r.path_samples_per_s * 1e-3, r.path_rays_per_s * 1e-6);
-    out.push_back({{"scene", r.scene}, {"triangles", r.triangles}, {"build_seconds", r.build_seconds},
-                   {"camera_rays_per_s", r.camera_rays_per_s}, {"secondary_rays_per_s", r.secondary_rays_per_s},
-                   {"shadow_rays_per_s", r.shadow_rays_per_s}, {"path_samples_per_s", r.path_samples_per_s},
-                   {"path_rays_per_s", r.path_rays_per_s}, {"threads", 1}, {"repeats", repeats}});
+    out.push_back({{"scene", r.scene},
+                   {"triangles", r.triangles},
+                   {"build_seconds", r.build_seconds},
+                   {"camera_rays_per_s", r.camera_rays_per_s},
+                   {"secondary_rays_per_s", r.secondary_rays_per_s},
+                   {"shadow_rays_per_s", r.shadow_rays_per_s},
+                   {"path_samples_per_s", r.path_samples_per_s},
+                   {"path_rays_per_s", r.path_rays_per_s},
+                   {"threads", 1},
+                   {"repeats", repeats}});
   }
   const std::string text = out.dump(2);
   if (!json_path.empty()) std::ofstream(json_path) << text << "\n";

@@ -38,8 +38,8 @@
 //     `valgrind --tool=callgrind --toggle-collect=pf_bench_profile_queries`; prints kd-tree
 //     traversal statistics (nodes visited per query). Use with --cache.
 
-#include <nanoflann.hpp>
 #include <spdlog/spdlog.h>
+#include <nanoflann.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -216,10 +216,10 @@ std::vector<Vec3> MakeSyntheticQueries(std::size_t n, uint64_t seed) {
 // Real workload: traced photons and camera-ray hits.
 
 struct TraceInfo {
-  uint64_t emitted = 0;   // photons emitted to get `stored`
-  uint64_t stored = 0;    // photons stored by the walk (≥ N); N of them are kept
+  uint64_t emitted = 0;  // photons emitted to get `stored`
+  uint64_t stored = 0;   // photons stored by the walk (≥ N); N of them are kept
   uint64_t direct = 0, indirect = 0, caustic = 0;
-  double seconds = 0;     // tracing wall time (all threads), 0 if from the cache
+  double seconds = 0;  // tracing wall time (all threads), 0 if from the cache
   bool cached = false;
 };
 
@@ -237,7 +237,8 @@ class SyntheticWorkload final : public Workload {
   std::string name() const override { return "synthetic"; }
   std::string description() const override {
     return "SYNTHETIC photons on the surfaces of a Cornell-box-like room (6 walls + 2 rotated boxes, density "
-           "falling off from the ceiling light) + 10% in caustic-like gaussian blobs on the floor; queries uniform "
+           "falling off from the ceiling light) + 10% in caustic-like gaussian blobs on the floor; queries "
+           "uniform "
            "by area on the same surfaces, 10% in the blobs (stand-ins for camera-ray hits)";
   }
   std::vector<Photon> Photons(std::size_t n, TraceInfo*) override { return MakeSyntheticPhotons(n, 1999); }
@@ -283,14 +284,18 @@ class SceneWorkload final : public Workload {
   std::string name() const override { return name_; }
   std::string description() const override {
     return "REAL photons traced in " + manifest_.filename().string() +
-           " (photon_tracer.h, map seed 1; direct + indirect + caustic photons, evenly thinned to N); queries: "
-           "hits of the manifest camera's primary rays, 1 jittered ray per pixel, larger side 256 px, scan-line "
+           " (photon_tracer.h, map seed 1; direct + indirect + caustic photons, evenly thinned to N); "
+           "queries: "
+           "hits of the manifest camera's primary rays, 1 jittered ray per pixel, larger side 256 px, "
+           "scan-line "
            "order";
   }
 
   std::vector<Photon> Photons(std::size_t n, TraceInfo* info) override {
     const std::filesystem::path cache =
-        cache_dir_.empty() ? std::filesystem::path() : std::filesystem::path(cache_dir_) / (name_ + "-" + std::to_string(n) + ".photons");
+        cache_dir_.empty()
+            ? std::filesystem::path()
+            : std::filesystem::path(cache_dir_) / (name_ + "-" + std::to_string(n) + ".photons");
     std::vector<Photon> photons;
     uint64_t extra[5] = {0, 0, 0, 0, 0};
     if (!cache.empty() && ReadCache(cache, &photons, extra) && photons.size() == n) {
@@ -314,11 +319,13 @@ class SceneWorkload final : public Workload {
       const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
       const std::size_t m = traced.direct.size() + traced.indirect.size() + traced.caustic.size();
       if (m < n) {
-        options.photons = uint64_t(double(options.photons) * 1.05 * double(n) / double(std::max<std::size_t>(m, 1)));
+        options.photons =
+            uint64_t(double(options.photons) * 1.05 * double(n) / double(std::max<std::size_t>(m, 1)));
         continue;
       }
-      *info = TraceInfo{traced.emitted, m, traced.direct.size(), traced.indirect.size(), traced.caustic.size(),
-                        seconds, false};
+      *info =
+          TraceInfo{traced.emitted, m,    traced.direct.size(), traced.indirect.size(), traced.caustic.size(),
+                    seconds,        false};
       // Even thinning of the concatenation to exactly N: keeps each kind's share and, within a
       // kind, the photons of every light stratum (the tracer stratifies lights over the index).
       photons.reserve(n);
@@ -340,8 +347,9 @@ class SceneWorkload final : public Workload {
 
   const std::vector<Vec3>& Queries() override {
     if (!queries_.empty()) return queries_;
-    const std::filesystem::path cache =
-        cache_dir_.empty() ? std::filesystem::path() : std::filesystem::path(cache_dir_) / (name_ + ".queries");
+    const std::filesystem::path cache = cache_dir_.empty()
+                                            ? std::filesystem::path()
+                                            : std::filesystem::path(cache_dir_) / (name_ + ".queries");
     uint64_t extra[5] = {0, 0, 0, 0, 0};
     if (!cache.empty() && ReadCache(cache, &queries_, extra) && !queries_.empty()) {
       width_ = int(extra[0]);
@@ -360,7 +368,8 @@ class SceneWorkload final : public Workload {
       for (int x = 0; x < spec.width; ++x) {
         Rng rng = Rng::ForKey(HashKey(2024, uint64_t(y), uint64_t(x)));
         const float u = rng.Uniform(), v = rng.Uniform();
-        if (const auto hit = accel_->Intersect(camera.GenerateRay(x, y, u, v))) queries_.push_back(hit->position);
+        if (const auto hit = accel_->Intersect(camera.GenerateRay(x, y, u, v)))
+          queries_.push_back(hit->position);
       }
     }
     if (!cache.empty()) {
@@ -418,7 +427,7 @@ struct Config {
   std::string json_path;
   std::string cache_dir;
   std::vector<std::string> scenes = {"cornell-box", "office3"};
-  int leaf_size = 8;  // --leaf: photons per bucket of the bucketed kd-trees
+  int leaf_size = 8;               // --leaf: photons per bucket of the bucketed kd-trees
   std::vector<std::size_t> sizes;  // --sizes: photon counts (default 100k,1M,10M; --quick 100k,1M)
   // --profile
   std::string profile;
@@ -475,7 +484,8 @@ std::vector<Vec3> Subset(const std::vector<Vec3>& points, std::size_t stride) {
 }
 
 // Runs the k-NN queries through one of our maps; the k-th distances go to `kth`.
-Stopwatch::Lap QueryOurs(const PhotonMap& map, const std::vector<Vec3>& points, int k, std::vector<float>& kth) {
+Stopwatch::Lap QueryOurs(const PhotonMap& map, const std::vector<Vec3>& points, int k,
+                         std::vector<float>& kth) {
   NearestPhotons heap;
   kth.resize(points.size());
   map.Query(points[0], k, std::numeric_limits<float>::infinity(), heap);  // warm the heap
@@ -491,8 +501,8 @@ Stopwatch::Lap QueryOurs(const PhotonMap& map, const std::vector<Vec3>& points, 
 // (the queries are camera hits in scan-line order: each one's predecessor is a neighbouring
 // pixel, as for a renderer's thread walking its tile). Exact; misses re-query unbounded.
 constexpr float kHintGrow = 1.2f;
-Stopwatch::Lap QueryOursHinted(const PhotonMap& map, const std::vector<Vec3>& points, int k, std::vector<float>& kth,
-                               std::size_t* misses = nullptr) {
+Stopwatch::Lap QueryOursHinted(const PhotonMap& map, const std::vector<Vec3>& points, int k,
+                               std::vector<float>& kth, std::size_t* misses = nullptr) {
   NearestPhotons heap;
   kth.resize(points.size());
   map.Query(points[0], k, std::numeric_limits<float>::infinity(), heap);  // warm the heap
@@ -509,7 +519,8 @@ Stopwatch::Lap QueryOursHinted(const PhotonMap& map, const std::vector<Vec3>& po
   return lap;
 }
 
-Stopwatch::Lap QueryNano(const NanoTree& tree, const std::vector<Vec3>& points, int k, std::vector<float>& kth) {
+Stopwatch::Lap QueryNano(const NanoTree& tree, const std::vector<Vec3>& points, int k,
+                         std::vector<float>& kth) {
   std::vector<uint32_t> idx(static_cast<std::size_t>(k));
   std::vector<float> d2(static_cast<std::size_t>(k));
   kth.resize(points.size());
@@ -570,9 +581,9 @@ int GridSweep(const Config& config, Workload& workload) {
   return 0;
 }
 
-const char* const kNames[] = {"kd level%3", "kd widest", "kd widest/plane", "grid",
-                              "bucket median",  "bucket mid", "bucket mid+hint", "nanoflann"};
-const char* const kProfileNames[] = {"kd-cycle", "kd-widest", "kd-widest-plane", "grid",
+const char* const kNames[] = {"kd level%3",    "kd widest",  "kd widest/plane", "grid",
+                              "bucket median", "bucket mid", "bucket mid+hint", "nanoflann"};
+const char* const kProfileNames[] = {"kd-cycle",      "kd-widest",  "kd-widest-plane", "grid",
                                      "bucket-median", "bucket-mid", "bucket-mid-hint", "nanoflann"};
 constexpr int kCols = 8, kBucketMedian = 4, kBucketMid = 5, kBucketHint = 6, kNano = 7;
 
@@ -591,8 +602,8 @@ std::unique_ptr<PhotonMap> MakeBucketTree(BucketSplit split, int leaf_size) {
 // valgrind --tool=callgrind --collect-atstart=no --toggle-collect=pf_bench_profile_queries ...
 extern "C" __attribute__((noinline)) double pf_bench_profile_queries(const pf::PhotonMap* map,
                                                                      const pf::NanoTree* nano,
-                                                                     const std::vector<pf::Vec3>* points, int k,
-                                                                     bool hinted) {
+                                                                     const std::vector<pf::Vec3>* points,
+                                                                     int k, bool hinted) {
   std::vector<float> kth;
   double sum = 0;
   if (map != nullptr && hinted) {
@@ -614,7 +625,9 @@ int Profile(const Config& config, Workload& workload) {
   for (int i = 0; i < kCols; ++i)
     if (config.profile == kProfileNames[i]) s = i;
   if (s < 0) {
-    std::fprintf(stderr, "--profile: one of kd-cycle, kd-widest, kd-widest-plane, grid, bucket-median, bucket-mid, nanoflann\n");
+    std::fprintf(stderr,
+                 "--profile: one of kd-cycle, kd-widest, kd-widest-plane, grid, bucket-median, bucket-mid, "
+                 "nanoflann\n");
     return 1;
   }
   TraceInfo info;
@@ -630,7 +643,8 @@ int Profile(const Config& config, Workload& workload) {
     options.expected_k = config.profile_k;
     map = std::make_unique<GridPhotonMap>(options);
   } else if (s == kBucketMedian || s == kBucketMid || s == kBucketHint) {
-    map = MakeBucketTree(s == kBucketMedian ? BucketSplit::kMedian : BucketSplit::kMidpoint, config.leaf_size);
+    map =
+        MakeBucketTree(s == kBucketMedian ? BucketSplit::kMedian : BucketSplit::kMidpoint, config.leaf_size);
   } else {
     map = std::make_unique<KdTree>(s == 0 ? KdSplitRule::kLevelCycle : KdSplitRule::kWidestExtent,
                                    s == 2 ? KdCulling::kPlaneDistance : KdCulling::kCellDistance);
@@ -644,11 +658,13 @@ int Profile(const Config& config, Workload& workload) {
                 lap.cpu / (double(photons.size()) * 1e-6));
   }
   const Stopwatch watch;
-  const double sum = pf_bench_profile_queries(map.get(), nano.get(), &points, config.profile_k, s == kBucketHint);
+  const double sum =
+      pf_bench_profile_queries(map.get(), nano.get(), &points, config.profile_k, s == kBucketHint);
   const Stopwatch::Lap lap = watch.Elapsed();
-  std::printf("%s %s N=%s k=%d: %zu queries, %.3f us/query cpu, %.3f wall (checksum %.6g)\n", workload.name().c_str(),
-              kProfileNames[s], HumanCount(photons.size()).c_str(), config.profile_k, points.size(),
-              1e6 * lap.cpu / double(points.size()), 1e6 * lap.wall / double(points.size()), sum);
+  std::printf("%s %s N=%s k=%d: %zu queries, %.3f us/query cpu, %.3f wall (checksum %.6g)\n",
+              workload.name().c_str(), kProfileNames[s], HumanCount(photons.size()).c_str(), config.profile_k,
+              points.size(), 1e6 * lap.cpu / double(points.size()), 1e6 * lap.wall / double(points.size()),
+              sum);
   if (const auto* bucket = dynamic_cast<const BucketKdTree*>(map.get()))
     std::printf("bucket tree: %zu nodes, %zu leaves, depth %d, leaf kernel %s, %.2f bytes/photon\n",
                 bucket->node_count(), bucket->leaf_count(), bucket->depth(), bucket->simd(),
@@ -665,8 +681,10 @@ int Profile(const Config& config, Workload& workload) {
       total.pops += stats.pops;
     }
     const double q = double(points.size());
-    std::printf("per query: %.1f nodes visited, %.1f heap inserts, %.1f far children pushed, %.1f popped and visited\n",
-                double(total.nodes) / q, double(total.inserts) / q, double(total.pushes) / q, double(total.pops) / q);
+    std::printf(
+        "per query: %.1f nodes visited, %.1f heap inserts, %.1f far children pushed, %.1f popped and "
+        "visited\n",
+        double(total.nodes) / q, double(total.inserts) / q, double(total.pushes) / q, double(total.pops) / q);
   }
   return 0;
 }
@@ -750,7 +768,8 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
     row.t[3] = build_map(grid50, [&] { return std::make_unique<GridPhotonMap>(options50); });
     row.t[kBucketMedian] =
         build_map(bucket_median, [&] { return MakeBucketTree(BucketSplit::kMedian, config.leaf_size); });
-    row.t[kBucketMid] = build_map(bucket_mid, [&] { return MakeBucketTree(BucketSplit::kMidpoint, config.leaf_size); });
+    row.t[kBucketMid] =
+        build_map(bucket_mid, [&] { return MakeBucketTree(BucketSplit::kMidpoint, config.leaf_size); });
     const PhotonCloud cloud{photons.data(), photons.size()};
     std::unique_ptr<NanoTree> nano;
     row.t[kNano] = MedianTiming(config.reps, [&] {
@@ -810,7 +829,8 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
         laps[3].push_back(QueryOurs(grid, points, k, kth[3]));
         laps[kBucketMedian].push_back(QueryOurs(*bucket_median, points, k, kth[kBucketMedian]));
         laps[kBucketMid].push_back(QueryOurs(*bucket_mid, points, k, kth[kBucketMid]));
-        laps[kBucketHint].push_back(QueryOursHinted(*bucket_mid, points, k, kth[kBucketHint], &q.hint_misses));
+        laps[kBucketHint].push_back(
+            QueryOursHinted(*bucket_mid, points, k, kth[kBucketHint], &q.hint_misses));
         laps[kNano].push_back(QueryNano(*nano, points, k, kth[kNano]));
       }
       for (int s = 0; s < kCols; ++s) {
@@ -845,17 +865,20 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
   out["loadavg_after"] = load_after;
 
   // --- Tables ----------------------------------------------------------------------------
-  std::printf("Photons (map seed %llu): emitted -> stored -> kept\n", (unsigned long long)SceneWorkload::kMapSeed);
+  std::printf("Photons (map seed %llu): emitted -> stored -> kept\n",
+              (unsigned long long)SceneWorkload::kMapSeed);
   for (const BuildRow& r : build_rows) {
     if (r.trace.stored == 0) continue;
     std::printf("  N=%-5s emitted %llu, stored %llu (direct %llu, indirect %llu, caustic %llu)%s\n",
-                HumanCount(r.n).c_str(), (unsigned long long)r.trace.emitted, (unsigned long long)r.trace.stored,
-                (unsigned long long)r.trace.direct, (unsigned long long)r.trace.indirect,
-                (unsigned long long)r.trace.caustic, r.trace.cached ? " [from cache]" : "");
+                HumanCount(r.n).c_str(), (unsigned long long)r.trace.emitted,
+                (unsigned long long)r.trace.stored, (unsigned long long)r.trace.direct,
+                (unsigned long long)r.trace.indirect, (unsigned long long)r.trace.caustic,
+                r.trace.cached ? " [from cache]" : "");
   }
   std::printf("\nBuild time [s], 1 thread (in parentheses: time / nanoflann's)\n");
   std::printf("%-6s %-16s %-16s %-16s %-16s %-16s %-10s | %-9s | thesis BuildTree (1999 hardware)\n", "N",
-              "kd level%3", "kd widest", "grid (k=50)", "bucket median", "bucket mid", "nanoflann", "widest s/M");
+              "kd level%3", "kd widest", "grid (k=50)", "bucket median", "bucket mid", "nanoflann",
+              "widest s/M");
   for (const BuildRow& r : build_rows) {
     std::printf("%-6s", HumanCount(r.n).c_str());
     for (int s : {0, 1, 3, kBucketMedian, kBucketMid}) {
@@ -894,10 +917,11 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
     }
     std::printf(" %-10ld %zu\n", r.mismatches, r.hint_misses);
   }
-  std::printf("(mismatches: queries whose k-th neighbour distance differs from nanoflann's; must be 0.\n"
-              " bucket mid+hint: the bucket mid tree queried with QueryWithHint, hint = %.1f x the previous\n"
-              " query's k-th distance; hint-misses: queries re-run unbounded because the hint held < k)\n",
-              double(kHintGrow));
+  std::printf(
+      "(mismatches: queries whose k-th neighbour distance differs from nanoflann's; must be 0.\n"
+      " bucket mid+hint: the bucket mid tree queried with QueryWithHint, hint = %.1f x the previous\n"
+      " query's k-th distance; hint-misses: queries re-run unbounded because the hint held < k)\n",
+      double(kHintGrow));
   std::printf("Load average (1/5/15 min): before %s, after %s\n\n", load_before.c_str(), load_after.c_str());
   long bad = 0;
   for (const QueryRow& r : query_rows) bad += r.mismatches;

@@ -31,9 +31,12 @@ int main(int argc, char** argv) {
   std::string json_path;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--photons" && i + 1 < argc) photons = std::stoull(argv[++i]);
-    else if (a == "--repeats" && i + 1 < argc) repeats = std::max(1, std::atoi(argv[++i]));
-    else if (a == "--json" && i + 1 < argc) json_path = argv[++i];
+    if (a == "--photons" && i + 1 < argc)
+      photons = std::stoull(argv[++i]);
+    else if (a == "--repeats" && i + 1 < argc)
+      repeats = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--json" && i + 1 < argc)
+      json_path = argv[++i];
     else {
       std::fprintf(stderr, "usage: %s [--photons N] [--repeats R] [--json out.json]\n", argv[0]);
       return 2;
@@ -46,9 +49,10 @@ int main(int argc, char** argv) {
       {"cornell-sphere", root + "/scenes/cornell-sphere/cornell-sphere.json"},
       {"office3", root + "/scenes/office3/office3.json"}};
   nlohmann::json out = nlohmann::json::array();
-  std::printf("photon tracing, 1 thread, %llu photons, median of %d runs\n", (unsigned long long)photons, repeats);
-  std::printf("%-15s %12s %12s %12s %10s %14s\n", "scene", "emitted k/s", "stored k/s", "rays M/s", "stored/em.",
-              "s per 100k st.");
+  std::printf("photon tracing, 1 thread, %llu photons, median of %d runs\n", (unsigned long long)photons,
+              repeats);
+  std::printf("%-15s %12s %12s %12s %10s %14s\n", "scene", "emitted k/s", "stored k/s", "rays M/s",
+              "stored/em.", "s per 100k st.");
   for (const auto& [name, path] : scenes) {
     const pf::SceneDescription scene = pf::LoadScene(path);
     const pf::EmbreeScene accel(scene);
@@ -68,11 +72,16 @@ int main(int argc, char** argv) {
       stored_per_emitted = stored / double(res.emitted);
     }
     const double st = Median(stored_rate);
-    std::printf("%-15s %12.1f %12.1f %12.2f %10.2f %14.3f\n", name.c_str(), Median(emitted_rate) * 1e-3, st * 1e-3,
-                Median(ray_rate) * 1e-6, stored_per_emitted, 1e5 / st);
-    out.push_back({{"scene", name}, {"photons_emitted", photons}, {"emitted_per_s", Median(emitted_rate)},
-                   {"stored_per_s", st}, {"rays_per_s", Median(ray_rate)}, {"stored_per_emitted", stored_per_emitted},
-                   {"threads", 1}, {"repeats", repeats}});
+    std::printf("%-15s %12.1f %12.1f %12.2f %10.2f %14.3f\n", name.c_str(), Median(emitted_rate) * 1e-3,
+                st * 1e-3, Median(ray_rate) * 1e-6, stored_per_emitted, 1e5 / st);
+    out.push_back({{"scene", name},
+                   {"photons_emitted", photons},
+                   {"emitted_per_s", Median(emitted_rate)},
+                   {"stored_per_s", st},
+                   {"rays_per_s", Median(ray_rate)},
+                   {"stored_per_emitted", stored_per_emitted},
+                   {"threads", 1},
+                   {"repeats", repeats}});
   }
   std::printf("thesis Table 2.1 (DEC Alpha 333 MHz): RandomWalk 100k photons 5 s, 700k 30 s\n");
   const std::string text = out.dump(2);

@@ -22,10 +22,10 @@ inline constexpr int kExitInterrupted = 130;
 
 // Connection to a running coordinator (submit, watch, get, list, cancel).
 struct FarmArgs {
-  std::string coordinator;  // HOST:PORT; default $PF_COORDINATOR
-  std::string token_file;   // default $PF_TOKEN
+  std::string coordinator;                // HOST:PORT; default $PF_COORDINATOR
+  std::string token_file;                 // default $PF_TOKEN
   std::string tls_ca, tls_cert, tls_key;  // TLS (rpc/grpc_channel.h ResolveClientTls)
-  double timeout = 60;      // deadline of each call, seconds
+  double timeout = 60;                    // deadline of each call, seconds
 };
 
 // In-process (client/local_commands.cpp).
@@ -34,7 +34,8 @@ int RunLocalPlan(const RenderArgs& a);  // --local-only / --plan without --worke
 // `scene` (optional): the scene the images show, for the masked metrics (rmse_masked,
 // rmse_lowfreq); its camera `camera_name` (default: the first) at the images' resolution.
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
-            double error_scale, bool json, const std::string& scene = "", const std::string& camera_name = "");
+            double error_scale, bool json, const std::string& scene = "",
+            const std::string& camera_name = "");
 // Inputs without "spp" in their header weigh `assume_spp` (0: refused with InputError).
 int RunMerge(const std::vector<std::string>& inputs, const std::string& output, double assume_spp = 0);
 // PNG of an EXR: auto exposure of `image`, or of `exposure_of` (so renders of one scene share

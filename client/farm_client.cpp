@@ -27,12 +27,18 @@ bool IsFinalState(v1::JobState s) {
 
 const char* JobStateName(v1::JobState s) {
   switch (s) {
-    case v1::JOB_STATE_QUEUED: return "queued";
-    case v1::JOB_STATE_RUNNING: return "running";
-    case v1::JOB_STATE_SUCCEEDED: return "succeeded";
-    case v1::JOB_STATE_FAILED: return "failed";
-    case v1::JOB_STATE_CANCELLED: return "cancelled";
-    default: return "unknown";
+    case v1::JOB_STATE_QUEUED:
+      return "queued";
+    case v1::JOB_STATE_RUNNING:
+      return "running";
+    case v1::JOB_STATE_SUCCEEDED:
+      return "succeeded";
+    case v1::JOB_STATE_FAILED:
+      return "failed";
+    case v1::JOB_STATE_CANCELLED:
+      return "cancelled";
+    default:
+      return "unknown";
   }
 }
 
@@ -126,8 +132,9 @@ std::string FarmClient::GetImage(const std::string& job_id, uint64_t* samples_me
   uint32_t expected = 0, count = 0;
   while (reader->Read(&chunk)) {
     if (chunk.index() != expected)
-      throw RpcError(grpc::Status(grpc::StatusCode::DATA_LOSS, "GetImage: chunk " + std::to_string(chunk.index()) +
-                                                                   " arrived, expected " + std::to_string(expected)));
+      throw RpcError(
+          grpc::Status(grpc::StatusCode::DATA_LOSS, "GetImage: chunk " + std::to_string(chunk.index()) +
+                                                        " arrived, expected " + std::to_string(expected)));
     ++expected;
     count = chunk.count();
     bytes += chunk.exr_bytes();
@@ -135,8 +142,9 @@ std::string FarmClient::GetImage(const std::string& job_id, uint64_t* samples_me
   }
   Check(reader->Finish());
   if (expected == 0 || expected != count)
-    throw RpcError(grpc::Status(grpc::StatusCode::DATA_LOSS, "GetImage: received " + std::to_string(expected) +
-                                                                 " of " + std::to_string(count) + " chunks"));
+    throw RpcError(grpc::Status(
+        grpc::StatusCode::DATA_LOSS,
+        "GetImage: received " + std::to_string(expected) + " of " + std::to_string(count) + " chunks"));
   return bytes;
 }
 
@@ -209,7 +217,9 @@ v1::JobStatus FarmClient::Watch(const std::string& job_id, bool include_images, 
     // Transient: the coordinator may be restarting. Re-subscribe with a capped backoff.
     const auto now = std::chrono::steady_clock::now();
     if (any || retries == 0) broken_since = now, retries = 0;
-    if (now - broken_since > Seconds(reconnect_seconds)) throw RpcError(status.ok() ? grpc::Status(grpc::StatusCode::UNAVAILABLE, "watch stream ended") : status);
+    if (now - broken_since > Seconds(reconnect_seconds))
+      throw RpcError(status.ok() ? grpc::Status(grpc::StatusCode::UNAVAILABLE, "watch stream ended")
+                                 : status);
     if (retries == 0) spdlog::warn("watch {}: {}; re-subscribing", job_id, StatusToString(status));
     ++retries;
     std::this_thread::sleep_for(std::chrono::milliseconds(std::min(2000, 100 << std::min(retries, 5))));

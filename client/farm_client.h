@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "rpc/grpc_channel.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "rpc/grpc_channel.h"
 
 namespace pf {
 

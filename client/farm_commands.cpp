@@ -14,7 +14,6 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "rpc/address.h"
 #include "client/commands.h"
 #include "client/farm_client.h"
 #include "client/interrupt.h"
@@ -24,6 +23,7 @@
 #include "common/core/error.h"
 #include "common/image/exr_io.h"
 #include "proto/convert.h"
+#include "rpc/address.h"
 
 namespace pf {
 namespace v1 = photonfarm::v1;
@@ -64,15 +64,17 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
 }
 
 std::string Summary(const v1::JobStatus& s) {
-  std::string out = fmt::format("job {} {}: {}/{} tasks, {} samples, {}", s.job_id(), JobStateName(s.state()),
-                                s.tasks_done(), s.tasks_total(), s.samples_merged(),
-                                FormatDuration(s.elapsed_seconds()));
+  std::string out =
+      fmt::format("job {} {}: {}/{} tasks, {} samples, {}", s.job_id(), JobStateName(s.state()),
+                  s.tasks_done(), s.tasks_total(), s.samples_merged(), FormatDuration(s.elapsed_seconds()));
   if (s.estimated_noise_rms() >= 0) out += fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms());
   if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
   return out;
 }
 
-int ExitCodeForState(v1::JobState s) { return s == v1::JOB_STATE_SUCCEEDED ? kExitOk : kExitFailure; }
+int ExitCodeForState(v1::JobState s) {
+  return s == v1::JOB_STATE_SUCCEEDED ? kExitOk : kExitFailure;
+}
 
 // Uploads the bundle and submits; returns the job id.
 std::string UploadAndSubmit(FarmClient& client, PreparedJob& job) {
@@ -98,36 +100,40 @@ v1::JobStatus WatchWithProgress(FarmClient& client, const std::string& job_id, c
   const bool stream_images = !output.empty() && snapshot_every <= 0;
   auto last_snapshot = std::chrono::steady_clock::now();
   uint64_t snapshot_tasks = 0;
-  const v1::JobStatus final_status = client.Watch(job_id, stream_images, interval, [&](const v1::JobUpdate& u) {
-    progress.Update(u.status());
-    if (!hinted && u.status().state() == v1::JOB_STATE_QUEUED && u.status().tasks_running() == 0) {
-      hinted = true;
-      try {
-        if (client.ListWorkers().empty())
-          spdlog::warn("no worker has contacted the coordinator yet, so the job waits (ETA unknown): start one with "
-                       "pf-worker --coordinator HOST:PORT");
-      } catch (const RpcError&) {  // an older coordinator without ListWorkers: no hint
-      }
-    }
-    if (json) {
-      nlohmann::json j = StatusJson(u.status());
-      j["snapshot"] = u.has_image() && !u.image().exr_bytes().empty();
-      std::printf("%s\n", j.dump().c_str());
-      std::fflush(stdout);
-    }
-    if (output.empty()) return;
-    if (stream_images) {
-      if (u.has_image() && !u.image().exr_bytes().empty()) WriteFileAtomically(output, u.image().exr_bytes());
-      return;
-    }
-    const auto now = std::chrono::steady_clock::now();
-    if (u.status().tasks_done() > snapshot_tasks && !IsFinalState(u.status().state()) &&
-        now - last_snapshot >= Seconds(snapshot_every)) {
-      WriteFileAtomically(output, client.GetImage(job_id));
-      snapshot_tasks = u.status().tasks_done();
-      last_snapshot = now;
-    }
-  });
+  const v1::JobStatus final_status =
+      client.Watch(job_id, stream_images, interval, [&](const v1::JobUpdate& u) {
+        progress.Update(u.status());
+        if (!hinted && u.status().state() == v1::JOB_STATE_QUEUED && u.status().tasks_running() == 0) {
+          hinted = true;
+          try {
+            if (client.ListWorkers().empty())
+              spdlog::warn(
+                  "no worker has contacted the coordinator yet, so the job waits (ETA unknown): start one "
+                  "with "
+                  "pf-worker --coordinator HOST:PORT");
+          } catch (const RpcError&) {  // an older coordinator without ListWorkers: no hint
+          }
+        }
+        if (json) {
+          nlohmann::json j = StatusJson(u.status());
+          j["snapshot"] = u.has_image() && !u.image().exr_bytes().empty();
+          std::printf("%s\n", j.dump().c_str());
+          std::fflush(stdout);
+        }
+        if (output.empty()) return;
+        if (stream_images) {
+          if (u.has_image() && !u.image().exr_bytes().empty())
+            WriteFileAtomically(output, u.image().exr_bytes());
+          return;
+        }
+        const auto now = std::chrono::steady_clock::now();
+        if (u.status().tasks_done() > snapshot_tasks && !IsFinalState(u.status().state()) &&
+            now - last_snapshot >= Seconds(snapshot_every)) {
+          WriteFileAtomically(output, client.GetImage(job_id));
+          snapshot_tasks = u.status().tasks_done();
+          last_snapshot = now;
+        }
+      });
   progress.Finish();
   return final_status;
 }
@@ -160,8 +166,8 @@ int RunSubmit(const RenderArgs& a, const FarmArgs& f) {
   return kExitOk;
 }
 
-int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& output, double interval, bool json,
-             bool quiet) {
+int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& output, double interval,
+             bool json, bool quiet) {
   if (!output.empty()) CheckWritable(output, "-o");
   FarmClient client = Connect(f);
   SetInterruptHandler([&client](int) { client.Cancel(); });
@@ -203,7 +209,8 @@ int RunList(const FarmArgs& f, bool all, bool json) {
     std::printf("%s\n", arr.dump(2).c_str());
     return kExitOk;
   }
-  std::printf("%-14s %-10s %8s %12s %10s %10s  %s\n", "JOB", "STATE", "PRIORITY", "TASKS", "ELAPSED", "NOISE", "NAME");
+  std::printf("%-14s %-10s %8s %12s %10s %10s  %s\n", "JOB", "STATE", "PRIORITY", "TASKS", "ELAPSED", "NOISE",
+              "NAME");
   for (const v1::JobStatus& s : jobs)
     std::printf("%-14s %-10s %8d %12s %10s %10s  %s\n", s.job_id().c_str(), JobStateName(s.state()),
                 s.spec().priority(), fmt::format("{}/{}", s.tasks_done(), s.tasks_total()).c_str(),
@@ -245,14 +252,15 @@ int RunWorkers(const FarmArgs& f, bool json) {
     std::printf("no workers have contacted this coordinator since it started\n");
     return kExitOk;
   }
-  std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE", "FAILED",
-              "PHOTONS/S", "SEEN");
+  std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE",
+              "FAILED", "PHOTONS/S", "SEEN");
   for (const v1::WorkerInfo& w : workers)
-    std::printf("%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s\n", w.worker_id().c_str(), w.peer().c_str(),
-                w.threads(),
-                w.busy() ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id()).c_str() : "idle",
-                (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(), w.photons_per_second(),
-                (FormatDuration(w.seconds_since_seen()) + " ago").c_str());
+    std::printf(
+        "%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s\n", w.worker_id().c_str(), w.peer().c_str(),
+        w.threads(),
+        w.busy() ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id()).c_str() : "idle",
+        (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(), w.photons_per_second(),
+        (FormatDuration(w.seconds_since_seen()) + " ago").c_str());
   return kExitOk;
 }
 
@@ -268,7 +276,9 @@ int RunEvents(const FarmArgs& f, const std::string& job_id, bool json) {
                      {"attempt", e.attempt()},
                      {"worker_id", e.worker_id()},
                      {"detail", e.detail()}});
-    std::printf("%s\n", nlohmann::json{{"job_id", job_id}, {"dropped", r.dropped()}, {"events", arr}}.dump(2).c_str());
+    std::printf(
+        "%s\n",
+        nlohmann::json{{"job_id", job_id}, {"dropped", r.dropped()}, {"events", arr}}.dump(2).c_str());
     return kExitOk;
   }
   if (r.dropped() > 0) std::printf("(%llu older events not kept)\n", (unsigned long long)r.dropped());
@@ -289,14 +299,16 @@ int RunFarmRender(const RenderArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   // Everything that can be wrong with the input is found before a process starts.
   PreparedJob job = PrepareJob(a);
-  const std::string output = a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
+  const std::string output =
+      a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
   CheckWritable(output, "-o");
   if (!a.png.empty()) CheckWritable(a.png, "--png");
 
   LocalFarmOptions fo;
   fo.workers = a.workers;
   fo.threads_per_worker =
-      a.threads > 0 ? a.threads : std::max(1, int(std::thread::hardware_concurrency()) / std::max(1, a.workers));
+      a.threads > 0 ? a.threads
+                    : std::max(1, int(std::thread::hardware_concurrency()) / std::max(1, a.workers));
   fo.coordinator_bin = a.coordinator_bin;
   fo.worker_bin = a.worker_bin;
   fo.coordinator_args = a.coordinator_args;
@@ -304,8 +316,8 @@ int RunFarmRender(const RenderArgs& a) {
   fo.keep_dir = a.keep_farm_dir;
   fo.log_level = spdlog::get_level() <= spdlog::level::debug ? "debug" : "info";
   LocalFarm farm(fo);  // forks before any gRPC channel exists in this process
-  spdlog::info("local farm: coordinator {} and {} workers x {} threads (logs in {})", farm.address(), a.workers,
-               fo.threads_per_worker, farm.dir().string());
+  spdlog::info("local farm: coordinator {} and {} workers x {} threads (logs in {})", farm.address(),
+               a.workers, fo.threads_per_worker, farm.dir().string());
   auto client_ptr = std::make_unique<FarmClient>(farm.address(), farm.token(), 60);
   FarmClient& client = *client_ptr;
 

@@ -47,6 +47,8 @@ void SetInterruptHandler(std::function<void(int)> handler) {
   g_handler = std::move(handler);
 }
 
-bool Interrupted() { return g_count.load() > 0; }
+bool Interrupted() {
+  return g_count.load() > 0;
+}
 
 }  // namespace pf

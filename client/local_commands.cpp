@@ -2,17 +2,17 @@
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
+#include <unistd.h>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
-#include <nlohmann/json.hpp>
-#include <cerrno>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
+#include <nlohmann/json.hpp>
 #include <set>
-#include <unistd.h>
 
 #include "client/commands.h"
 #include "client/progress.h"
@@ -148,7 +148,8 @@ int RunRender(const RenderArgs& a) {
     static constexpr const char* kDirectNames[] = {"photon-map", "mc", "photon-direct"};
     meta["photons.direct"] = kDirectNames[int(*settings.direct)];
     meta["photons.local_pass_rays"] = std::to_string(settings.local_pass_rays);
-    meta["photons.local_pass_lookup"] = settings.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
+    meta["photons.local_pass_lookup"] =
+        settings.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
     meta["photons.occlusion_test"] = settings.occlusion_test ? "1" : "0";
     meta["photons.adaptive_k_min"] = std::to_string(settings.adaptive_k_min);
     meta["photons.trace_seconds"] = fmt::format("{:.3f}", maps.stats.trace_seconds);
@@ -201,18 +202,19 @@ int RunLocalPlan(const RenderArgs& a) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   const std::string output =
       a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
-  ImageMetadata meta = {{"scene", a.scene},
-                              {"integrator", a.integrator},
-                              {"sampler", a.sampler},
-                              {"spp", fmt::format("{}", double(total_samples) / (double(camera.width) * camera.height))},
-                              {"plan", DescribePlan(plan)},
-                              {"seed", std::to_string(a.seed)},
-                              {"tasks", std::to_string(tasks.size())},
-                              {"render_seconds", fmt::format("{:.3f}", seconds)},
-                              {"camera.eye", FormatVec(camera.eye)},
-                              {"camera.look_at", FormatVec(camera.look_at)},
-                              {"camera.up", FormatVec(camera.up)},
-                              {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
+  ImageMetadata meta = {
+      {"scene", a.scene},
+      {"integrator", a.integrator},
+      {"sampler", a.sampler},
+      {"spp", fmt::format("{}", double(total_samples) / (double(camera.width) * camera.height))},
+      {"plan", DescribePlan(plan)},
+      {"seed", std::to_string(a.seed)},
+      {"tasks", std::to_string(tasks.size())},
+      {"render_seconds", fmt::format("{:.3f}", seconds)},
+      {"camera.eye", FormatVec(camera.eye)},
+      {"camera.look_at", FormatVec(camera.look_at)},
+      {"camera.up", FormatVec(camera.up)},
+      {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
   if (a.integrator == "photonmap") {
     meta["photons.per_map"] = std::to_string(a.photons);
     meta["photons.k"] = std::to_string(a.k);
@@ -312,15 +314,16 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output, 
     if (meta.count("seed")) {
       auto [it, fresh] = seed_owner.emplace(meta["seed"], path);
       if (!fresh)
-        spdlog::warn("{} and {} were both rendered with seed {}: the same noise twice, the average is no better",
-                     it->second, path, meta["seed"]);
+        spdlog::warn(
+            "{} and {} were both rendered with seed {}: the same noise twice, the average is no better",
+            it->second, path, meta["seed"]);
     }
     for (const char* key : {"integrator", "scene", "camera.eye", "camera.look_at"}) {
       if (!meta.count(key)) continue;
       auto [it, fresh] = first_value.emplace(key, meta[key]);
       if (!fresh && it->second != meta[key])
-        spdlog::warn("{}: {} {} differs from the first input's {}: the average mixes different renders", path, key,
-                     meta[key], it->second);
+        spdlog::warn("{}: {} {} differs from the first input's {}: the average mixes different renders", path,
+                     key, meta[key], it->second);
     }
     if (meta.count("render_seconds")) seconds += std::stod(meta["render_seconds"]);
     if (meta.count("seed")) seeds.push_back(meta["seed"]);
@@ -361,8 +364,8 @@ int RunInfo(const std::string& path) {
     const Image image = ReadExr(path, &meta);
     double sum = 0;
     for (const Rgb& c : image.pixels()) sum += (double(c.r) + c.g + c.b) / 3.0;
-    std::printf("image       %s\nsize        %dx%d\nmean        %.6g\n", path.c_str(), image.width(), image.height(),
-                image.size() ? sum / double(image.size()) : 0.0);
+    std::printf("image       %s\nsize        %dx%d\nmean        %.6g\n", path.c_str(), image.width(),
+                image.height(), image.size() ? sum / double(image.size()) : 0.0);
     for (const auto& [key, value] : meta) std::printf("%-11s %s\n", key.c_str(), value.c_str());
     return kExitOk;
   }

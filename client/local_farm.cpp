@@ -69,39 +69,52 @@ std::string DescribeStatus(int status) {
 }  // namespace
 
 LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
-  if (options_.coordinator_bin.empty()) options_.coordinator_bin = FindSiblingBinary("server", "pf-coordinator");
+  if (options_.coordinator_bin.empty())
+    options_.coordinator_bin = FindSiblingBinary("server", "pf-coordinator");
   if (options_.worker_bin.empty()) options_.worker_bin = FindSiblingBinary("worker", "pf-worker");
   if (options_.coordinator_bin.empty())
-    throw SystemError("cannot find pf-coordinator next to pf (build/server/ or the same folder); use --coordinator-bin");
+    throw SystemError(
+        "cannot find pf-coordinator next to pf (build/server/ or the same folder); use --coordinator-bin");
   if (options_.worker_bin.empty())
-    throw SystemError("cannot find pf-worker next to pf (build/worker/ or the same folder); use --worker-bin");
+    throw SystemError(
+        "cannot find pf-worker next to pf (build/worker/ or the same folder); use --worker-bin");
 
   const char* tmp = std::getenv("TMPDIR");
   std::string templ = (fs::path(tmp && *tmp ? tmp : "/tmp") / "pf-farm-XXXXXX").string();
-  if (!mkdtemp(templ.data())) throw SystemError("cannot create a temporary folder: " + std::string(strerror(errno)));
+  if (!mkdtemp(templ.data()))
+    throw SystemError("cannot create a temporary folder: " + std::string(strerror(errno)));
   dir_ = templ;
   // Two credentials, one per role (docs/security.md): pf uses the client token, workers theirs.
   token_ = RandomToken();
   const std::string worker_token = RandomToken();
   const fs::path token_file = dir_ / "client-token";
   const fs::path worker_token_file = dir_ / "worker-token";
-  for (const auto& [file, token] : {std::pair{token_file, token_}, std::pair{worker_token_file, worker_token}}) {
+  for (const auto& [file, token] :
+       {std::pair{token_file, token_}, std::pair{worker_token_file, worker_token}}) {
     const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     if (fd < 0 || ::write(fd, token.data(), token.size()) != ssize_t(token.size()) || ::close(fd) != 0)
       throw SystemError("cannot write " + file.string());
   }
 
   try {
-    std::vector<std::string> cargs = {"--listen", "127.0.0.1:0", "--data-dir", (dir_ / "data").string(),
-                                      "--client-token-file", token_file.string(), "--worker-token-file",
-                                      worker_token_file.string(), "--log-level", options_.log_level};
+    std::vector<std::string> cargs = {"--listen",
+                                      "127.0.0.1:0",
+                                      "--data-dir",
+                                      (dir_ / "data").string(),
+                                      "--client-token-file",
+                                      token_file.string(),
+                                      "--worker-token-file",
+                                      worker_token_file.string(),
+                                      "--log-level",
+                                      options_.log_level};
     cargs.insert(cargs.end(), options_.coordinator_args.begin(), options_.coordinator_args.end());
     const fs::path out = dir_ / "coordinator.out";
     Spawn("pf-coordinator", options_.coordinator_bin, cargs, out, dir_ / "coordinator.log");
 
     // Wait for "listening on HOST:PORT" on its stdout.
     const std::regex listening(R"(listening on ([0-9.]+:[0-9]+))");
-    const Clock::time_point give_up = Clock::now() + std::chrono::milliseconds(int(options_.start_timeout_seconds * 1000));
+    const Clock::time_point give_up =
+        Clock::now() + std::chrono::milliseconds(int(options_.start_timeout_seconds * 1000));
     while (address_.empty()) {
       std::ifstream in(out);
       std::string line;
@@ -111,20 +124,25 @@ LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
       if (!address_.empty()) break;
       const std::string dead = CheckChildren();
       if (!dead.empty())
-        throw SystemError(dead + "; its log (" + (dir_ / "coordinator.log").string() + "):\n" + CoordinatorLogTail());
+        throw SystemError(dead + "; its log (" + (dir_ / "coordinator.log").string() + "):\n" +
+                          CoordinatorLogTail());
       if (Clock::now() > give_up)
         throw SystemError("pf-coordinator did not report its address within " +
-                          std::to_string(int(options_.start_timeout_seconds)) + " s; its log:\n" + CoordinatorLogTail());
+                          std::to_string(int(options_.start_timeout_seconds)) + " s; its log:\n" +
+                          CoordinatorLogTail());
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
-    spdlog::debug("coordinator listening on {} (pid {}), folder {}", address_, children_[0].pid, dir_.string());
+    spdlog::debug("coordinator listening on {} (pid {}), folder {}", address_, children_[0].pid,
+                  dir_.string());
 
     for (int i = 0; i < options_.workers; ++i) {
       const std::string id = "local-" + std::to_string(i + 1);
-      std::vector<std::string> wargs = {"--coordinator", address_, "--token-file", worker_token_file.string(),
-                                        "--threads", std::to_string(options_.threads_per_worker),
-                                        "--worker-id", id, "--cache-dir", (dir_ / ("cache-" + id)).string(),
-                                        "--log-level", options_.log_level};
+      std::vector<std::string> wargs = {"--coordinator", address_,
+                                        "--token-file",  worker_token_file.string(),
+                                        "--threads",     std::to_string(options_.threads_per_worker),
+                                        "--worker-id",   id,
+                                        "--cache-dir",   (dir_ / ("cache-" + id)).string(),
+                                        "--log-level",   options_.log_level};
       wargs.insert(wargs.end(), options_.worker_args.begin(), options_.worker_args.end());
       const fs::path log = dir_ / ("worker-" + std::to_string(i + 1) + ".log");
       Spawn("pf-worker #" + std::to_string(i + 1), options_.worker_bin, wargs, log, log);
@@ -135,7 +153,9 @@ LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
   }
 }
 
-LocalFarm::~LocalFarm() { Shutdown(); }
+LocalFarm::~LocalFarm() {
+  Shutdown();
+}
 
 pid_t LocalFarm::Spawn(const std::string& name, const fs::path& bin, const std::vector<std::string>& args,
                        const fs::path& stdout_file, const fs::path& stderr_file) {
@@ -147,8 +167,9 @@ pid_t LocalFarm::Spawn(const std::string& name, const fs::path& bin, const std::
   for (std::string& a : argv_storage) argv.push_back(a.data());
   argv.push_back(nullptr);
   const int out_fd = ::open(stdout_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  const int err_fd = stderr_file == stdout_file ? out_fd
-                                                : ::open(stderr_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  const int err_fd = stderr_file == stdout_file
+                         ? out_fd
+                         : ::open(stderr_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
   if (out_fd < 0 || err_fd < 0) throw SystemError("cannot create log files in " + dir_.string());
   const pid_t parent = getpid();
   const pid_t group = pgid_;
@@ -244,7 +265,9 @@ bool LocalFarm::WaitAll(bool workers, bool coordinator, double seconds) {
   }
 }
 
-void LocalFarm::KillNow() { Signal(true, true, SIGKILL); }
+void LocalFarm::KillNow() {
+  Signal(true, true, SIGKILL);
+}
 
 void LocalFarm::Shutdown(double grace_seconds, bool keep_logs) {
   if (shut_down_) return;
@@ -277,6 +300,8 @@ void LocalFarm::Shutdown(double grace_seconds, bool keep_logs) {
   }
 }
 
-std::string LocalFarm::CoordinatorLogTail(size_t lines) const { return TailOf(dir_ / "coordinator.log", lines); }
+std::string LocalFarm::CoordinatorLogTail(size_t lines) const {
+  return TailOf(dir_ / "coordinator.log", lines);
+}
 
 }  // namespace pf

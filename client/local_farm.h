@@ -31,7 +31,7 @@ struct LocalFarmOptions {
   std::vector<std::string> coordinator_args;  // extra flags, passed through
   std::vector<std::string> worker_args;
   std::string log_level = "info";
-  bool keep_dir = false;                   // keep the temporary folder (logs, SQLite) afterwards
+  bool keep_dir = false;  // keep the temporary folder (logs, SQLite) afterwards
   double start_timeout_seconds = 30;
 };
 
@@ -78,7 +78,7 @@ class LocalFarm {
   LocalFarmOptions options_;
   std::filesystem::path dir_;
   std::string address_, token_;
-  mutable std::mutex mutex_;      // children_ (KillNow runs on the signal thread)
+  mutable std::mutex mutex_;     // children_ (KillNow runs on the signal thread)
   std::vector<Child> children_;  // [0] = coordinator
   pid_t pgid_ = 0;
   bool shut_down_ = false;

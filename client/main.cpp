@@ -19,12 +19,12 @@
 #include <cctype>
 #include <filesystem>
 
-#include "rpc/address.h"
 #include "client/commands.h"
 #include "client/interrupt.h"
 #include "common/core/error.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
+#include "rpc/address.h"
 
 namespace {
 
@@ -95,12 +95,14 @@ int main(int argc, char** argv) {
       "  pf submit scenes/office3/office.mgf --integrator photonmap --plan skipping --coordinator HOST:PORT\n"
       "  pf watch job-1 -o office.exr;  pf get job-1 -o office.exr;  pf list --all;  pf cancel job-1\n"
       "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --error-image err.png\n"
-      "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --scene scenes/cornell-box/cornell-box.json\n"
+      "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --scene "
+      "scenes/cornell-box/cornell-box.json\n"
       "  pf preview cornell.exr -o cornell.png --exposure-of scenes/cornell-box/reference-256.exr\n"
       "  pf info scenes/scene8/scene8.json;  pf info cornell.exr\n"
       "  pf workers --coordinator HOST:PORT;  pf events job-1 --coordinator HOST:PORT\n\n"
       "{}"
-      "A scene manifest's \"settings\" (spp of a plain render, photons, k) are defaults that flags override.\n\n"
+      "A scene manifest's \"settings\" (spp of a plain render, photons, k) are defaults that flags "
+      "override.\n\n"
       "Exit codes: 0 ok, 1 runtime failure (I/O, Embree, RPC; the job failed or was cancelled),\n"
       "2 usage error, 3 invalid input (scene/manifest errors as file:line: reason; requests the\n"
       "coordinator rejects as INVALID_ARGUMENT, NOT_FOUND or RESOURCE_EXHAUSTED), 130 interrupted.",
@@ -164,7 +166,8 @@ int main(int argc, char** argv) {
       "Follow a job until it ends: progress, ETA, estimated noise; with -o the EXR is rewritten\n"
       "atomically with every snapshot and holds the final image at the end");
   watch->add_option("job", watch_job, "Job id")->required();
-  watch->add_option("-o,--output", watch_out, "EXR to keep up to date")->check(Extension({".exr"}, "the output is an OpenEXR file"));
+  watch->add_option("-o,--output", watch_out, "EXR to keep up to date")
+      ->check(Extension({".exr"}, "the output is an OpenEXR file"));
   watch->add_option("--interval", watch_interval, "Minimum seconds between updates")->capture_default_str();
   watch->add_flag("--json", watch_json, "One JSON object per update on stdout");
   watch->add_flag("-q,--quiet", watch_quiet, "No progress bar");
@@ -174,8 +177,11 @@ int main(int argc, char** argv) {
   std::string get_job, get_out, get_png;
   CLI::App* get = app.add_subcommand("get", "Fetch a job's current merged image (EXR, linear float)");
   get->add_option("job", get_job, "Job id")->required();
-  get->add_option("-o,--output", get_out, "Output EXR")->required()->check(Extension({".exr"}, "the output is an OpenEXR file"));
-  get->add_option("--png", get_png, "Also write a PNG preview")->check(Extension({".png"}, "the preview is a PNG file"));
+  get->add_option("-o,--output", get_out, "Output EXR")
+      ->required()
+      ->check(Extension({".exr"}, "the output is an OpenEXR file"));
+  get->add_option("--png", get_png, "Also write a PNG preview")
+      ->check(Extension({".png"}, "the preview is a PNG file"));
   AddFarmOptions(get, gf);
 
   FarmArgs lf;
@@ -188,7 +194,8 @@ int main(int argc, char** argv) {
   FarmArgs wkf;
   bool workers_json = false;
   CLI::App* workers = app.add_subcommand(
-      "workers", "List the workers the coordinator has seen since it started: current task, tasks done, photons/s");
+      "workers",
+      "List the workers the coordinator has seen since it started: current task, tasks done, photons/s");
   workers->add_flag("--json", workers_json, "JSON output");
   AddFarmOptions(workers, wkf);
 
@@ -196,7 +203,8 @@ int main(int argc, char** argv) {
   std::string events_job;
   bool events_json = false;
   CLI::App* events = app.add_subcommand(
-      "events", "A job's task events since the coordinator started: which worker ran which task, retries, failures");
+      "events",
+      "A job's task events since the coordinator started: which worker ran which task, retries, failures");
   events->add_option("job", events_job, "Job id")->required();
   events->add_flag("--json", events_json, "JSON output");
   AddFarmOptions(events, ef);
@@ -218,10 +226,11 @@ int main(int argc, char** argv) {
       ->check(Extension({".png", ".exr"}, "the error image is a PNG or OpenEXR file"));
   diff->add_option("--error-scale", diff_scale, "Error mapped to the top of the colour ramp (default: max)");
   diff->add_flag("--json", diff_json, "Print JSON instead of a line");
-  diff->add_option("--scene", diff_scene,
-                   "The scene shown: adds rmse_masked (without the emitters seen directly and a 2-pixel band "
-                   "around them) and rmse_lowfreq (RMSE of 4x4-pixel block means outside that mask); emitters "
-                   "are found by tracing the scene's camera at the images' resolution")
+  diff->add_option(
+          "--scene", diff_scene,
+          "The scene shown: adds rmse_masked (without the emitters seen directly and a 2-pixel band "
+          "around them) and rmse_lowfreq (RMSE of 4x4-pixel block means outside that mask); emitters "
+          "are found by tracing the scene's camera at the images' resolution")
       ->check(CLI::ExistingFile);
   diff->add_option("--camera", diff_camera, "With --scene: the named camera (default: the scene's first)");
 
@@ -247,7 +256,9 @@ int main(int argc, char** argv) {
       "Write an EXR's PNG preview (sRGB). Exposure: automatic (99th-percentile luminance -> 0.9),\n"
       "or that of --exposure-of REF so that several renders of one scene compare by eye");
   preview->add_option("image", preview_in, "EXR to show")->required()->check(CLI::ExistingFile);
-  preview->add_option("-o,--output", preview_out, "Output PNG")->required()->check(Extension({".png"}, "the preview is a PNG file"));
+  preview->add_option("-o,--output", preview_out, "Output PNG")
+      ->required()
+      ->check(Extension({".png"}, "the preview is a PNG file"));
   preview
       ->add_option("--exposure-of", preview_ref,
                    "Use this EXR's automatic exposure instead of the image's own")
@@ -270,8 +281,9 @@ int main(int argc, char** argv) {
       for (const char* opt : {"--maps", "--stride", "--rounds", "--tile", "--max-rounds", "--time-budget",
                               "--target-noise", "--priority", "--name"})
         if (render->count(opt) > 0)
-          throw CLI::ValidationError(opt, std::string("applies to plan renders only (add --plan P, --local-only or "
-                                                      "--workers N); a plain render runs every sample here"));
+          throw CLI::ValidationError(
+              opt, std::string("applies to plan renders only (add --plan P, --local-only or "
+                               "--workers N); a plain render runs every sample here"));
     for (auto [cmd, args] : {std::pair{render, &ra}, std::pair{submit, &sa}}) {
       args->spp_given = cmd->count("--spp") > 0;
       args->photons_given = cmd->count("--photons") > 0;

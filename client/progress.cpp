@@ -45,7 +45,8 @@ void ProgressBar::Draw(bool final) {
     bar.resize(kWidth, '.');
     const double eta = frac > 0 ? elapsed * (1.0 - frac) / frac : 0.0;
     // \033[K erases the rest of the line: a shorter line leaves no stray characters behind.
-    std::fprintf(stderr, "\r[%s] %5.1f%%  %6.1fs elapsed  ETA %6.1fs\033[K", bar.c_str(), 100.0 * frac, elapsed, eta);
+    std::fprintf(stderr, "\r[%s] %5.1f%%  %6.1fs elapsed  ETA %6.1fs\033[K", bar.c_str(), 100.0 * frac,
+                 elapsed, eta);
     std::fflush(stderr);
   } else {
     const int decile = int(frac * 10.0);
@@ -61,16 +62,17 @@ FarmProgress::FarmProgress(bool enabled) : enabled_(enabled), tty_(isatty(fileno
 void FarmProgress::Update(const photonfarm::v1::JobStatus& s) {
   if (!enabled_) return;
   const double frac = s.tasks_total() ? double(s.tasks_done()) / double(s.tasks_total()) : 0.0;
-  const std::string noise = s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-";
+  const std::string noise =
+      s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-";
   const std::string eta = s.eta_seconds() >= 0 ? FormatDuration(s.eta_seconds()) : "?";
   if (tty_) {
     constexpr int kWidth = 30;
     std::string bar(size_t(frac * kWidth), '#');
     bar.resize(kWidth, '.');
-    std::fprintf(stderr, "\r[%s] %5.1f%%  %llu/%llu tasks  %llu running  %s  ETA %s  noise %s\033[K", bar.c_str(),
-                 100.0 * frac, (unsigned long long)s.tasks_done(), (unsigned long long)s.tasks_total(),
-                 (unsigned long long)s.tasks_running(), FormatDuration(s.elapsed_seconds()).c_str(), eta.c_str(),
-                 noise.c_str());
+    std::fprintf(stderr, "\r[%s] %5.1f%%  %llu/%llu tasks  %llu running  %s  ETA %s  noise %s\033[K",
+                 bar.c_str(), 100.0 * frac, (unsigned long long)s.tasks_done(),
+                 (unsigned long long)s.tasks_total(), (unsigned long long)s.tasks_running(),
+                 FormatDuration(s.elapsed_seconds()).c_str(), eta.c_str(), noise.c_str());
     std::fflush(stderr);
     drawn_ = true;
   } else {

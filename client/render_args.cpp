@@ -32,14 +32,18 @@ void ParseResolution(const std::string& text, int& width, int& height) {
   std::istringstream in(text);
   if (!(in >> width >> x >> height) || (x != 'x' && x != 'X') || !in.eof() || width <= 0 || height <= 0 ||
       width > int(kMaxImageSide) || height > int(kMaxImageSide))
-    throw InputError("--res: expected WxH with 1.." + std::to_string(kMaxImageSide) + " each, got '" + text + "'");
+    throw InputError("--res: expected WxH with 1.." + std::to_string(kMaxImageSide) + " each, got '" + text +
+                     "'");
   if (uint64_t(width) * uint64_t(height) > kMaxImagePixels)
-    throw InputError("--res: " + text + " is more than the farm's " + std::to_string(kMaxImagePixels) + " pixels");
+    throw InputError("--res: " + text + " is more than the farm's " + std::to_string(kMaxImagePixels) +
+                     " pixels");
 }
 
 }  // namespace
 
-std::string FormatVec(const Vec3& v) { return fmt::format("{},{},{}", v.x, v.y, v.z); }
+std::string FormatVec(const Vec3& v) {
+  return fmt::format("{},{},{}", v.x, v.y, v.z);
+}
 
 void ApplyManifestSettings(RenderArgs& a) {
   if (std::filesystem::path(a.scene).extension() != ".json") return;
@@ -49,8 +53,8 @@ void ApplyManifestSettings(RenderArgs& a) {
     if (it == manifest.settings.end() || !std::holds_alternative<double>(it->second)) return std::nullopt;
     const double v = std::get<double>(it->second);
     if (!(v >= lo && v <= hi) || v != std::floor(v))
-      throw InputError(a.scene + ": settings." + key + ": expected a whole number in " + fmt::format("{}..{}", lo, hi) +
-                       ", got " + fmt::format("{}", v));
+      throw InputError(a.scene + ": settings." + key + ": expected a whole number in " +
+                       fmt::format("{}..{}", lo, hi) + ", got " + fmt::format("{}", v));
     return v;
   };
   // A plan's --spp means samples per map or per task (see --spp): only a plain render takes the
@@ -103,16 +107,18 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--k", a.k, "photonmap: nearest photons per radiance estimate")
       ->capture_default_str()
       ->check(CLI::Range(1, int(kMaxK)));
-  app->add_option("--map", a.map,
-                  "photonmap: kdtree (left-balanced, 2.3), grid (2.4) or bucket (unbalanced kd-tree with SIMD "
-                  "buckets, the fastest queries)")
+  app->add_option(
+         "--map", a.map,
+         "photonmap: kdtree (left-balanced, 2.3), grid (2.4) or bucket (unbalanced kd-tree with SIMD "
+         "buckets, the fastest queries)")
       ->capture_default_str()
       ->check(CLI::IsMember({"kdtree", "grid", "bucket"}));
   app->add_option("--kd-split", a.kd_split,
                   "kdtree split axis: widest (extent; faster in rooms, 2.3 footnote) or cycle (level % 3)")
       ->capture_default_str()
       ->check(CLI::IsMember({"cycle", "widest"}));
-  app->add_option("--caustic-map", a.caustic, "auto = only when the scene has specular/glossy surfaces; on; off")
+  app->add_option("--caustic-map", a.caustic,
+                  "auto = only when the scene has specular/glossy surfaces; on; off")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "on", "off"}));
   app->add_option("--caustic-radius", a.caustic_radius,
@@ -125,11 +131,12 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
                   "photonmap: photon direction vs normal test (4.1): in-query, after, none")
       ->capture_default_str()
       ->check(CLI::IsMember({"in-query", "after", "none"}));
-  app->add_option("--direct", a.direct,
-                  "photonmap: direct light (4.2). photon-map = from the map (standalone, 2.5); mc = Monte Carlo "
-                  "shadow rays, per light in proportion to power (4.2.1); photon-direct = shadow rays split by "
-                  "the lights of the nearest direct photons (4.2.3); auto = photon-direct with " +
-                      std::to_string(kPhotonDirectMinLights) + "+ lights, else mc (logged)")
+  app->add_option(
+         "--direct", a.direct,
+         "photonmap: direct light (4.2). photon-map = from the map (standalone, 2.5); mc = Monte Carlo "
+         "shadow rays, per light in proportion to power (4.2.1); photon-direct = shadow rays split by "
+         "the lights of the nearest direct photons (4.2.3); auto = photon-direct with " +
+             std::to_string(kPhotonDirectMinLights) + "+ lights, else mc (logged)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "photon-map", "mc", "photon-direct"}));
   app->add_option("--shadow-rays", a.shadow_rays,
@@ -144,30 +151,35 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--photon-direct-k", a.photon_direct_k, "photon-direct: direct photons looked up per point")
       ->capture_default_str()
       ->check(CLI::Range(1, int(kMaxK)));
-  app->add_option("--non-contributing", a.non_contributing,
-                  "photon-direct: lights without photons nearby get one sample in total, to one of them chosen "
-                  "by their photon count (one-random), or one each (each); both unbiased")
+  app->add_option(
+         "--non-contributing", a.non_contributing,
+         "photon-direct: lights without photons nearby get one sample in total, to one of them chosen "
+         "by their photon count (one-random), or one each (each); both unbiased")
       ->capture_default_str()
       ->check(CLI::IsMember({"one-random", "each"}));
   app->add_option("--photon-direct-cache", a.photon_direct_cache,
                   "photon-direct: reuse the last neighbour set within this fraction of its radius (0 = off)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1.0f));
-  app->add_option("--local-pass", a.local_pass,
-                  "photonmap: final gathering rays per shading point, photon map at their hits (4.3; 0 = off)")
+  app->add_option(
+         "--local-pass", a.local_pass,
+         "photonmap: final gathering rays per shading point, photon map at their hits (4.3; 0 = off)")
       ->capture_default_str()
       ->check(CLI::Range(0, int(kMaxShadowRays)));
-  app->add_option("--local-pass-lookup", a.local_pass_lookup,
-                  "local pass: what a gather ray reads at its hit: full (the photon-map estimate) or precomputed "
-                  "(irradiance at every 4th photon, estimated once per map; one nearest-site lookup, Christensen 1999)")
+  app->add_option(
+         "--local-pass-lookup", a.local_pass_lookup,
+         "local pass: what a gather ray reads at its hit: full (the photon-map estimate) or precomputed "
+         "(irradiance at every 4th photon, estimated once per map; one nearest-site lookup, Christensen "
+         "1999)")
       ->capture_default_str()
       ->check(CLI::IsMember({"full", "precomputed"}));
   app->add_flag("--occlusion-test", a.occlusion_test,
                 "photonmap: drop found photons whose origin is not visible from the point (4.1.1; "
                 "removes light bleeding through walls, one shadow ray per photon)");
-  app->add_option("--adaptive-k-min", a.adaptive_k_min,
-                  "photonmap: shrink k down to this at borders and corners by the centre-of-gravity test (4.8; "
-                  "0 = off)")
+  app->add_option(
+         "--adaptive-k-min", a.adaptive_k_min,
+         "photonmap: shrink k down to this at borders and corners by the centre-of-gravity test (4.8; "
+         "0 = off)")
       ->capture_default_str()
       ->check(CLI::Range(0, int(kMaxK)));
 }
@@ -186,7 +198,9 @@ void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
                     : a.map == "bucket" ? v1::MAP_STRUCTURE_BUCKET_KDTREE
                                         : v1::MAP_STRUCTURE_KDTREE);
   pm->set_kd_split(a.kd_split == "cycle" ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
-  pm->set_caustic(a.caustic == "on" ? v1::CAUSTIC_MODE_ON : a.caustic == "off" ? v1::CAUSTIC_MODE_OFF : v1::CAUSTIC_MODE_AUTO);
+  pm->set_caustic(a.caustic == "on"    ? v1::CAUSTIC_MODE_ON
+                  : a.caustic == "off" ? v1::CAUSTIC_MODE_OFF
+                                       : v1::CAUSTIC_MODE_AUTO);
   pm->set_caustic_radius(a.caustic_radius);
   pm->set_glossy_depth(uint32_t(a.glossy_depth));
   pm->set_direction_test(a.direction_test == "none"    ? v1::DIRECTION_TEST_NONE
@@ -199,7 +213,8 @@ void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
   pm->set_shadow_rays(uint32_t(a.shadow_rays));
   pm->set_light_uniform_fraction(a.light_uniform);
   pm->set_photon_direct_k(uint32_t(a.photon_direct_k));
-  pm->set_non_contributing(a.non_contributing == "each" ? v1::NON_CONTRIBUTING_EACH : v1::NON_CONTRIBUTING_ONE_RANDOM);
+  pm->set_non_contributing(a.non_contributing == "each" ? v1::NON_CONTRIBUTING_EACH
+                                                        : v1::NON_CONTRIBUTING_ONE_RANDOM);
   pm->set_photon_direct_cache(a.photon_direct_cache);
   pm->set_local_pass_rays(uint32_t(a.local_pass));
   pm->set_local_pass_lookup(a.local_pass_lookup == "precomputed" ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
@@ -216,10 +231,11 @@ JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDe
 }
 
 void AddPlanOptions(CLI::App* app, RenderArgs& a) {
-  app->add_option("--plan", a.plan,
-                  "How the image is split into tasks (Wald 1999, 4.4): multiple-maps (--maps independent maps "
-                  "over --tile tiles, averaged), maps-in-turn (sample i from map i), skipping (per round a "
-                  "seeded pixel permutation, stride^2 tasks each with its own map)")
+  app->add_option(
+         "--plan", a.plan,
+         "How the image is split into tasks (Wald 1999, 4.4): multiple-maps (--maps independent maps "
+         "over --tile tiles, averaged), maps-in-turn (sample i from map i), skipping (per round a "
+         "seeded pixel permutation, stride^2 tasks each with its own map)")
       ->check(CLI::IsMember({"multiple-maps", "maps-in-turn", "skipping"}));
   app->add_option("--maps", a.maps, "multiple-maps: number of independent maps")->capture_default_str();
   app->add_option("--stride", a.stride, "skipping: S (S^2 tasks per round)")->capture_default_str();
@@ -227,7 +243,8 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--tile", a.tile, "multiple-maps, maps-in-turn: tile side in pixels (0 = whole image)")
       ->capture_default_str();
   app->add_option("--max-rounds", a.max_rounds, "Stop rule: stop after this many rounds (0 = all)");
-  app->add_option("--time-budget", a.time_budget, "Stop rule: seconds (0 = none; the image then depends on timing)");
+  app->add_option("--time-budget", a.time_budget,
+                  "Stop rule: seconds (0 = none; the image then depends on timing)");
   app->add_option("--target-noise", a.target_noise, "Stop rule: estimated noise RMS to reach (0 = none)");
   app->add_option("--priority", a.priority, "Job priority (higher first)");
   app->add_option("--name", a.name, "Job name (default: the scene's file name)");

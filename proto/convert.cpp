@@ -40,12 +40,13 @@ CameraSpec CameraFromProto(const v1::Camera& c, const std::string& field) {
   if (c.width() == 0 || c.height() == 0) throw InputError(field + ".width/height: must be > 0");
   if (c.width() > kMaxImageSide || c.height() > kMaxImageSide ||
       uint64_t(c.width()) * c.height() > kMaxImagePixels)
-    throw LimitError(field + ".width/height: " + std::to_string(c.width()) + "x" + std::to_string(c.height()) +
-                     " exceeds the limit (" + std::to_string(kMaxImageSide) + " per side, " +
-                     std::to_string(kMaxImagePixels) + " pixels)");
+    throw LimitError(field + ".width/height: " + std::to_string(c.width()) + "x" +
+                     std::to_string(c.height()) + " exceeds the limit (" + std::to_string(kMaxImageSide) +
+                     " per side, " + std::to_string(kMaxImagePixels) + " pixels)");
   cam.width = int(c.width());
   cam.height = int(c.height());
-  if (!(LengthSquared(cam.look_at - cam.eye) > 0.0f)) throw InputError(field + ".look_at: must differ from eye");
+  if (!(LengthSquared(cam.look_at - cam.eye) > 0.0f))
+    throw InputError(field + ".look_at: must differ from eye");
   if (!(LengthSquared(Cross(cam.look_at - cam.eye, cam.up)) > 0.0f))
     throw InputError(field + ".up: must not be parallel to the view direction");
   return cam;
@@ -100,10 +101,17 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
     throw InputError(f + ".structure: unknown value");
   switch (pm.caustic()) {
     case v1::CAUSTIC_MODE_UNSPECIFIED:
-    case v1::CAUSTIC_MODE_AUTO: out.caustic = CausticMapMode::kAuto; break;
-    case v1::CAUSTIC_MODE_ON: out.caustic = CausticMapMode::kOn; break;
-    case v1::CAUSTIC_MODE_OFF: out.caustic = CausticMapMode::kOff; break;
-    default: throw InputError(f + ".caustic: unknown value");
+    case v1::CAUSTIC_MODE_AUTO:
+      out.caustic = CausticMapMode::kAuto;
+      break;
+    case v1::CAUSTIC_MODE_ON:
+      out.caustic = CausticMapMode::kOn;
+      break;
+    case v1::CAUSTIC_MODE_OFF:
+      out.caustic = CausticMapMode::kOff;
+      break;
+    default:
+      throw InputError(f + ".caustic: unknown value");
   }
   if (!(pm.caustic_radius() >= 0.0) || !std::isfinite(pm.caustic_radius()))
     throw InputError(f + ".caustic_radius: must be a finite number >= 0");
@@ -112,18 +120,34 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   out.glossy_depth = int(pm.glossy_depth());
   switch (pm.direction_test()) {
     case v1::DIRECTION_TEST_UNSPECIFIED:
-    case v1::DIRECTION_TEST_IN_QUERY: out.direction_test = FeasibilityTest::kInQuery; break;
-    case v1::DIRECTION_TEST_AFTER_QUERY: out.direction_test = FeasibilityTest::kAfterQuery; break;
-    case v1::DIRECTION_TEST_NONE: out.direction_test = FeasibilityTest::kNone; break;
-    default: throw InputError(f + ".direction_test: unknown value");
+    case v1::DIRECTION_TEST_IN_QUERY:
+      out.direction_test = FeasibilityTest::kInQuery;
+      break;
+    case v1::DIRECTION_TEST_AFTER_QUERY:
+      out.direction_test = FeasibilityTest::kAfterQuery;
+      break;
+    case v1::DIRECTION_TEST_NONE:
+      out.direction_test = FeasibilityTest::kNone;
+      break;
+    default:
+      throw InputError(f + ".direction_test: unknown value");
   }
   switch (pm.direct()) {
     case v1::DIRECT_LIGHT_UNSPECIFIED:
-    case v1::DIRECT_LIGHT_AUTO: out.direct.reset(); break;
-    case v1::DIRECT_LIGHT_PHOTON_MAP: out.direct = DirectLightMode::kNone; break;
-    case v1::DIRECT_LIGHT_MONTE_CARLO: out.direct = DirectLightMode::kMonteCarlo; break;
-    case v1::DIRECT_LIGHT_PHOTON_DIRECT: out.direct = DirectLightMode::kPhotonDirect; break;
-    default: throw InputError(f + ".direct: unknown value");
+    case v1::DIRECT_LIGHT_AUTO:
+      out.direct.reset();
+      break;
+    case v1::DIRECT_LIGHT_PHOTON_MAP:
+      out.direct = DirectLightMode::kNone;
+      break;
+    case v1::DIRECT_LIGHT_MONTE_CARLO:
+      out.direct = DirectLightMode::kMonteCarlo;
+      break;
+    case v1::DIRECT_LIGHT_PHOTON_DIRECT:
+      out.direct = DirectLightMode::kPhotonDirect;
+      break;
+    default:
+      throw InputError(f + ".direct: unknown value");
   }
   if (pm.has_shadow_rays()) {
     if (pm.shadow_rays() < 1 || pm.shadow_rays() > kMaxShadowRays)
@@ -140,9 +164,14 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   }
   switch (pm.non_contributing()) {
     case v1::NON_CONTRIBUTING_UNSPECIFIED:
-    case v1::NON_CONTRIBUTING_ONE_RANDOM: out.non_contributing = NonContributingMode::kOneRandom; break;
-    case v1::NON_CONTRIBUTING_EACH: out.non_contributing = NonContributingMode::kEachOne; break;
-    default: throw InputError(f + ".non_contributing: unknown value");
+    case v1::NON_CONTRIBUTING_ONE_RANDOM:
+      out.non_contributing = NonContributingMode::kOneRandom;
+      break;
+    case v1::NON_CONTRIBUTING_EACH:
+      out.non_contributing = NonContributingMode::kEachOne;
+      break;
+    default:
+      throw InputError(f + ".non_contributing: unknown value");
   }
   if (pm.has_photon_direct_cache()) {
     if (!(pm.photon_direct_cache() >= 0.0 && pm.photon_direct_cache() <= 1.0))
@@ -154,18 +183,29 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   out.local_pass_rays = int(pm.local_pass_rays());
   switch (pm.local_pass_lookup()) {
     case v1::LOCAL_PASS_LOOKUP_UNSPECIFIED:
-    case v1::LOCAL_PASS_LOOKUP_FULL: out.local_pass_lookup = LocalPassLookup::kFull; break;
-    case v1::LOCAL_PASS_LOOKUP_PRECOMPUTED: out.local_pass_lookup = LocalPassLookup::kPrecomputed; break;
-    default: throw InputError(f + ".local_pass_lookup: unknown value");
+    case v1::LOCAL_PASS_LOOKUP_FULL:
+      out.local_pass_lookup = LocalPassLookup::kFull;
+      break;
+    case v1::LOCAL_PASS_LOOKUP_PRECOMPUTED:
+      out.local_pass_lookup = LocalPassLookup::kPrecomputed;
+      break;
+    default:
+      throw InputError(f + ".local_pass_lookup: unknown value");
   }
   out.occlusion_test = pm.occlusion_test();
-  if (pm.adaptive_k_min() > pm.k()) throw InputError(f + ".adaptive_k_min: must be <= k (" + std::to_string(pm.k()) + ")");
+  if (pm.adaptive_k_min() > pm.k())
+    throw InputError(f + ".adaptive_k_min: must be <= k (" + std::to_string(pm.k()) + ")");
   out.adaptive_k_min = int(pm.adaptive_k_min());
   switch (pm.kd_split()) {
     case v1::KD_SPLIT_UNSPECIFIED:
-    case v1::KD_SPLIT_WIDEST: out.kd_split = KdSplitRule::kWidestExtent; break;
-    case v1::KD_SPLIT_CYCLE: out.kd_split = KdSplitRule::kLevelCycle; break;
-    default: throw InputError(f + ".kd_split: unknown value");
+    case v1::KD_SPLIT_WIDEST:
+      out.kd_split = KdSplitRule::kWidestExtent;
+      break;
+    case v1::KD_SPLIT_CYCLE:
+      out.kd_split = KdSplitRule::kLevelCycle;
+      break;
+    default:
+      throw InputError(f + ".kd_split: unknown value");
   }
   return out;
 }
@@ -177,7 +217,7 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   v1::PhotonMapSettings* pm = out->mutable_photon_map();
   pm->set_photons(s.photons);
   pm->set_k(uint32_t(s.k));
-  pm->set_structure(s.structure == PhotonMapKind::kGrid            ? v1::MAP_STRUCTURE_GRID
+  pm->set_structure(s.structure == PhotonMapKind::kGrid           ? v1::MAP_STRUCTURE_GRID
                     : s.structure == PhotonMapKind::kBucketKdTree ? v1::MAP_STRUCTURE_BUCKET_KDTREE
                                                                   : v1::MAP_STRUCTURE_KDTREE);
   pm->set_caustic(s.caustic == CausticMapMode::kOn    ? v1::CAUSTIC_MODE_ON
@@ -188,19 +228,21 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   pm->set_direction_test(s.direction_test == FeasibilityTest::kAfterQuery ? v1::DIRECTION_TEST_AFTER_QUERY
                          : s.direction_test == FeasibilityTest::kNone     ? v1::DIRECTION_TEST_NONE
                                                                           : v1::DIRECTION_TEST_IN_QUERY);
-  pm->set_direct(!s.direct                                           ? v1::DIRECT_LIGHT_AUTO
+  pm->set_direct(!s.direct                                     ? v1::DIRECT_LIGHT_AUTO
                  : *s.direct == DirectLightMode::kMonteCarlo   ? v1::DIRECT_LIGHT_MONTE_CARLO
                  : *s.direct == DirectLightMode::kPhotonDirect ? v1::DIRECT_LIGHT_PHOTON_DIRECT
                                                                : v1::DIRECT_LIGHT_PHOTON_MAP);
   pm->set_shadow_rays(uint32_t(s.shadow_rays));
   pm->set_light_uniform_fraction(s.light_uniform_fraction);
   pm->set_photon_direct_k(uint32_t(s.photon_direct_k));
-  pm->set_non_contributing(s.non_contributing == NonContributingMode::kEachOne ? v1::NON_CONTRIBUTING_EACH
-                                                                               : v1::NON_CONTRIBUTING_ONE_RANDOM);
+  pm->set_non_contributing(s.non_contributing == NonContributingMode::kEachOne
+                               ? v1::NON_CONTRIBUTING_EACH
+                               : v1::NON_CONTRIBUTING_ONE_RANDOM);
   pm->set_photon_direct_cache(s.photon_direct_cache);
   pm->set_local_pass_rays(uint32_t(s.local_pass_rays));
-  pm->set_local_pass_lookup(s.local_pass_lookup == LocalPassLookup::kPrecomputed ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
-                                                                                  : v1::LOCAL_PASS_LOOKUP_FULL);
+  pm->set_local_pass_lookup(s.local_pass_lookup == LocalPassLookup::kPrecomputed
+                                ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
+                                : v1::LOCAL_PASS_LOOKUP_FULL);
   pm->set_occlusion_test(s.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(s.adaptive_k_min));
   pm->set_kd_split(s.kd_split == KdSplitRule::kLevelCycle ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
@@ -210,7 +252,8 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
   PlanSpec out;
   auto check_spp = [](uint32_t spp, const std::string& f) {
     RequireAtLeastOne(spp, f);
-    if (spp > kMaxSamplesPerPixel) throw LimitError(f + ": exceeds the limit " + std::to_string(kMaxSamplesPerPixel));
+    if (spp > kMaxSamplesPerPixel)
+      throw LimitError(f + ": exceeds the limit " + std::to_string(kMaxSamplesPerPixel));
   };
   switch (p.kind_case()) {
     case v1::Plan::kMultipleMaps:

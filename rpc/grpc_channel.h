@@ -1,8 +1,8 @@
 #pragma once
 // The client side of every connection to the coordinator: `pf`, `pf-worker` and the e2e tests
 // all open their channels here, so keepalive, reconnect backoff, message limits, TLS, the bearer
-// token and deadlines are configured in one place (the coordinator parses its tokens here too) (docs/design.md, G5; every client call
-// has a deadline, keepalive on both sides).
+// token and deadlines are configured in one place (the coordinator parses its tokens here too)
+// (docs/design.md, G5; every client call has a deadline, keepalive on both sides).
 //
 // Keepalive: a ping every 10 s even without calls (so an idle worker long-polling a coordinator
 // that vanished without closing its sockets notices within ~15 s); the coordinator permits
@@ -33,9 +33,9 @@ class RpcError : public std::runtime_error {
 
 // TLS towards the coordinator (docs/security.md). ca_pem empty = plaintext.
 struct ClientTls {
-  std::string ca_pem;    // PEM roots that sign the coordinator's certificate; non-empty = TLS
-  std::string cert_pem;  // client certificate chain (mTLS, workers); "" = none
-  std::string key_pem;   // its private key
+  std::string ca_pem;       // PEM roots that sign the coordinator's certificate; non-empty = TLS
+  std::string cert_pem;     // client certificate chain (mTLS, workers); "" = none
+  std::string key_pem;      // its private key
   std::string server_name;  // name to verify instead of the address' host ("" = the host)
 };
 
@@ -45,8 +45,8 @@ struct ClientTls {
 ClientTls ResolveClientTls(std::string ca_file, std::string cert_file, std::string key_file);
 
 struct ChannelOptions {
-  std::string token;        // bearer token; "" = none
-  ClientTls tls;            // plaintext unless tls.ca_pem is set
+  std::string token;         // bearer token; "" = none
+  ClientTls tls;             // plaintext unless tls.ca_pem is set
   int keepalive_ms = 10000;  // 0 = no keepalive pings
   int keepalive_timeout_ms = 5000;
   int max_reconnect_backoff_ms = 2000;
@@ -54,7 +54,8 @@ struct ChannelOptions {
 
 // A channel to HOST:PORT with the options above: TLS when options.tls.ca_pem is set, else
 // plaintext.
-std::shared_ptr<grpc::Channel> MakeCoordinatorChannel(const std::string& address, const ChannelOptions& options);
+std::shared_ptr<grpc::Channel> MakeCoordinatorChannel(const std::string& address,
+                                                      const ChannelOptions& options);
 
 // A bearer token from untrusted text (a file or an environment variable named by `source`):
 // surrounding whitespace (a trailing newline) is trimmed; what remains must be non-empty, one
@@ -68,9 +69,12 @@ std::string ResolveToken(const std::string& token_file, const char* env_name = "
 
 // Sets a deadline `timeout` from now and, if `token` is non-empty, the
 // "authorization: Bearer <token>" metadata.
-void PrepareContext(grpc::ClientContext* context, const std::string& token, std::chrono::milliseconds timeout);
+void PrepareContext(grpc::ClientContext* context, const std::string& token,
+                    std::chrono::milliseconds timeout);
 
-inline std::chrono::milliseconds Seconds(double s) { return std::chrono::milliseconds(int64_t(s * 1000.0)); }
+inline std::chrono::milliseconds Seconds(double s) {
+  return std::chrono::milliseconds(int64_t(s * 1000.0));
+}
 
 // "CODE: message" for logs and CLI errors, e.g. "INVALID_ARGUMENT: spec.camera.width/height: must be > 0".
 std::string StatusToString(const grpc::Status& status);

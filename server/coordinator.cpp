@@ -1,5 +1,5 @@
-#include "server/http/status_page.h"
 #include "server/coordinator.h"
+#include "server/http/status_page.h"
 
 #include <fcntl.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
@@ -52,7 +52,8 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   }
   std::error_code ec;
   fs::create_directories(options_.data_dir, ec);
-  if (ec) throw SystemError(options_.data_dir.string() + ": cannot create the data directory: " + ec.message());
+  if (ec)
+    throw SystemError(options_.data_dir.string() + ": cannot create the data directory: " + ec.message());
   lock_fd_ = LockDataDir(options_.data_dir);
 
   db_ = std::make_unique<SqliteStore>(options_.data_dir / "coordinator.db");
@@ -73,10 +74,11 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
 
   recovery_ = RecoverJobs(*db_, *scenes_, options_.data_dir / "checkpoints", *scheduler_, *clock_);
   if (recovery_.jobs_resumed + recovery_.jobs_finished + recovery_.jobs_failed > 0)
-    spdlog::info("recovered {} unfinished jobs ({} tasks merged from checkpoints, {} re-queued), {} finished, {} "
-                 "could not be resumed",
-                 recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_finished,
-                 recovery_.jobs_failed);
+    spdlog::info(
+        "recovered {} unfinished jobs ({} tasks merged from checkpoints, {} re-queued), {} finished, {} "
+        "could not be resumed",
+        recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_finished,
+        recovery_.jobs_failed);
   persister_->Start();
 
   ServiceContext ctx{*scheduler_, *scenes_, *db_, *persister_, *executor_, *watches_, *clock_};
@@ -116,19 +118,22 @@ int Coordinator::Start() {
   }
   tick_thread_ = std::thread([this] { TickLoop(); });
   if (!options_.http_listen.empty()) {
-    http_ = std::make_unique<StatusHttpServer>(*scheduler_, RoleTokens{options_.client_token, options_.worker_token});
+    http_ = std::make_unique<StatusHttpServer>(*scheduler_,
+                                               RoleTokens{options_.client_token, options_.worker_token});
     http_port_ = http_->Start(options_.http_listen);
   }
-  spdlog::info("serving on {} (port {}), data dir {}, lease {} s, max attempts {}, checkpoints {}, {}, client token {}, "
-               "worker token {}",
-               options_.listen, port_, options_.data_dir.string(), options_.lease_seconds, options_.max_attempts,
-               options_.checkpoint_interval_seconds > 0
-                   ? "every " + std::to_string(int(options_.checkpoint_interval_seconds * 1000)) + " ms"
-                   : std::string("per merge (durable acks)"),
-               options_.tls_cert_pem.empty() ? "plaintext"
-               : options_.tls_client_ca_pem.empty() ? "TLS"
-                                                    : "TLS + client certificates for workers",
-               options_.client_token.empty() ? "off" : "required", options_.worker_token.empty() ? "off" : "required");
+  spdlog::info(
+      "serving on {} (port {}), data dir {}, lease {} s, max attempts {}, checkpoints {}, {}, client token "
+      "{}, "
+      "worker token {}",
+      options_.listen, port_, options_.data_dir.string(), options_.lease_seconds, options_.max_attempts,
+      options_.checkpoint_interval_seconds > 0
+          ? "every " + std::to_string(int(options_.checkpoint_interval_seconds * 1000)) + " ms"
+          : std::string("per merge (durable acks)"),
+      options_.tls_cert_pem.empty()        ? "plaintext"
+      : options_.tls_client_ca_pem.empty() ? "TLS"
+                                           : "TLS + client certificates for workers",
+      options_.client_token.empty() ? "off" : "required", options_.worker_token.empty() ? "off" : "required");
   return port_;
 }
 
@@ -150,9 +155,10 @@ std::shared_ptr<grpc::ServerCredentials> Coordinator::ServerCredentials() const 
     // credentials carry the auth processor.
     credentials = grpc::experimental::LocalServerCredentials(LOCAL_TCP);
   } else if (!options_.insecure) {
-    throw InputError("refusing to serve on the non-loopback address " + options_.listen +
-                     " without TLS: pass --tls-cert/--tls-key (and --tls-client-ca for workers), or --insecure "
-                     "for a trusted network");
+    throw InputError(
+        "refusing to serve on the non-loopback address " + options_.listen +
+        " without TLS: pass --tls-cert/--tls-key (and --tls-client-ca for workers), or --insecure "
+        "for a trusted network");
   } else if (options_.client_token.size() + options_.worker_token.size() > 0) {
     throw InputError("--insecure on " + options_.listen +
                      " with tokens: bearer tokens would cross the network readable; use TLS");
@@ -192,8 +198,12 @@ void Coordinator::TickLoop() {
   }
 }
 
-void Coordinator::Shutdown() { Stop(/*graceful=*/true); }
-void Coordinator::SimulateCrash() { Stop(/*graceful=*/false); }
+void Coordinator::Shutdown() {
+  Stop(/*graceful=*/true);
+}
+void Coordinator::SimulateCrash() {
+  Stop(/*graceful=*/false);
+}
 
 void Coordinator::Stop(bool graceful) {
   {

@@ -59,8 +59,8 @@ inline constexpr int kMaxSendMessageBytes = 16 << 20;
 struct CoordinatorOptions {
   std::string listen = "127.0.0.1:0";
   std::filesystem::path data_dir = "pf-data";
-  std::string client_token;                 // RenderService bearer token; empty: open
-  std::string worker_token;                 // WorkerService bearer token; empty: open
+  std::string client_token;  // RenderService bearer token; empty: open
+  std::string worker_token;  // WorkerService bearer token; empty: open
   // TLS (docs/security.md): PEM server certificate chain and key; both or neither. With
   // tls_client_ca, peers may present a client certificate signed by it, and WorkerService calls
   // must (mTLS for workers).
@@ -70,12 +70,12 @@ struct CoordinatorOptions {
   bool insecure = false;
   double lease_seconds = 30;
   uint32_t max_attempts = 3;
-  double checkpoint_interval_seconds = 0;   // 0: durable acknowledgements (persister.h)
-  double tick_seconds = 0.05;               // lease/long-poll/budget/watch timer resolution
+  double checkpoint_interval_seconds = 0;  // 0: durable acknowledgements (persister.h)
+  double tick_seconds = 0.05;              // lease/long-poll/budget/watch timer resolution
   size_t executor_threads = 2;
   double shutdown_grace_seconds = 5;
-  const Clock* clock = nullptr;             // null: the system clock
-  std::string http_listen;                  // web status page (server/http/); empty: none
+  const Clock* clock = nullptr;  // null: the system clock
+  std::string http_listen;       // web status page (server/http/); empty: none
 };
 
 // True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"

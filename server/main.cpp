@@ -6,13 +6,13 @@
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
-// :0; with --http a second line, "http on HOST:PORT", for the web status page) — and logs to stderr, one line per event with job and task ids (leases and merges
-// too: use --log-level warn for very many tiny tasks). SIGTERM / SIGINT
-// shut down gracefully (exit 0). Exit 2 on a usage error, 1 on a start-up error.
-#include <CLI/CLI.hpp>
+// :0; with --http a second line, "http on HOST:PORT", for the web status page) — and logs to stderr, one line
+// per event with job and task ids (leases and merges too: use --log-level warn for very many tiny tasks).
+// SIGTERM / SIGINT shut down gracefully (exit 0). Exit 2 on a usage error, 1 on a start-up error.
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -57,9 +57,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--data-dir", options.data_dir, "Directory for the database, checkpoints and scenes")
       ->capture_default_str();
-  app.add_option("--client-token-file", client_token_file,
-                 "File holding the bearer token clients (pf, RenderService) must send (else env PF_CLIENT_TOKEN; "
-                 "none: RenderService open)");
+  app.add_option(
+      "--client-token-file", client_token_file,
+      "File holding the bearer token clients (pf, RenderService) must send (else env PF_CLIENT_TOKEN; "
+      "none: RenderService open)");
   app.add_option("--worker-token-file", worker_token_file,
                  "File holding the bearer token workers (WorkerService) must send (else env PF_WORKER_TOKEN; "
                  "none: WorkerService open). A worker token cannot call RenderService and vice versa");
@@ -75,15 +76,17 @@ int main(int argc, char** argv) {
   app.add_option("--max-attempts", options.max_attempts, "Failed attempts of one task before its job fails")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000));
-  app.add_option("--checkpoint-ms", checkpoint_ms,
-                 "0: checkpoint every merge and acknowledge results once durable; N: checkpoint at most every "
-                 "N ms (a crash re-runs up to N ms of work)")
+  app.add_option(
+         "--checkpoint-ms", checkpoint_ms,
+         "0: checkpoint every merge and acknowledge results once durable; N: checkpoint at most every "
+         "N ms (a crash re-runs up to N ms of work)")
       ->capture_default_str()
       ->check(CLI::Range(0, 3600000));
-  app.add_option("--http", options.http_listen,
-                 "Serve the web status page (jobs, workers, live previews) on [HOST:]PORT; HOST defaults to "
-                 "127.0.0.1, port 0 picks a free port; same token as gRPC (Bearer, or Basic with the token as "
-                 "password)");
+  app.add_option(
+      "--http", options.http_listen,
+      "Serve the web status page (jobs, workers, live previews) on [HOST:]PORT; HOST defaults to "
+      "127.0.0.1, port 0 picks a free port; same token as gRPC (Bearer, or Basic with the token as "
+      "password)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
@@ -91,7 +94,8 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;  // --help/--version: 0; usage errors: 2 (CLI11's own codes are 105, 109...)
+    return app.exit(e) == 0 ? 0
+                            : 2;  // --help/--version: 0; usage errors: 2 (CLI11's own codes are 105, 109...)
   }
   options.checkpoint_interval_seconds = checkpoint_ms / 1000.0;
 

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# README command 2 (and .ci/run): install what is missing, build, run every test, then a
-# bounded libFuzzer smoke of the MGF parser.
+# README command 2 (and .ci/run): install what is missing, check formatting, build, run every
+# test, the Slurm deployment test (as root), then a bounded libFuzzer smoke of the MGF, OBJ and
+# manifest parsers.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/install-deps.sh
+tools/check-format.sh   # clang-format 14 clean, or a list of the files that are not
 tools/build.sh
 ctest --test-dir build --output-on-failure -j "$(nproc)" --timeout 900
 # The Slurm deployment (deploy/README.md): a one-node cluster brought up here; needs root.

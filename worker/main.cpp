@@ -5,20 +5,20 @@
 // Signals: SIGTERM or SIGINT = finish the current task within --grace (else hand its lease
 // back), then exit 0; a second signal hands the lease back at once.
 // Exit codes: 0 stopped by a signal (or --max-tasks reached), 2 usage error, 1 start-up failure.
-#include <CLI/CLI.hpp>
 #include <pthread.h>
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <thread>
 
-#include "rpc/address.h"
-#include "rpc/grpc_channel.h"
 #include "common/core/error.h"
 #include "photonfarm_version.h"
+#include "rpc/address.h"
+#include "rpc/grpc_channel.h"
 #include "worker/worker.h"
 
 namespace {
@@ -47,21 +47,28 @@ int main(int argc, char** argv) {
       ->check(CLI::Validator([](std::string& v) { return pf::CoordinatorAddressProblem(v); }, "HOST:PORT"));
   app.add_option("--token-file", token_file,
                  "File holding the worker's bearer token, one line (default: $PF_TOKEN)");
-  app.add_option("--tls-ca", tls_ca, "PEM roots of the coordinator's TLS certificate: connect with TLS (default: $PF_TLS_CA)");
-  app.add_option("--tls-cert", tls_cert, "PEM client certificate for mTLS (with --tls-key; default: $PF_TLS_CERT)");
+  app.add_option("--tls-ca", tls_ca,
+                 "PEM roots of the coordinator's TLS certificate: connect with TLS (default: $PF_TLS_CA)");
+  app.add_option("--tls-cert", tls_cert,
+                 "PEM client certificate for mTLS (with --tls-key; default: $PF_TLS_CERT)");
   app.add_option("--tls-key", tls_key, "PEM private key of --tls-cert (default: $PF_TLS_KEY)");
   app.add_option("--worker-id", o.worker_id, "Name in the coordinator's logs (default: HOST-PID)");
-  app.add_option("--threads", threads, "Render threads (0 = all cores)")->capture_default_str()->check(CLI::Range(0, 1024));
+  app.add_option("--threads", threads, "Render threads (0 = all cores)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1024));
   app.add_option("--cache-dir", cache_dir, "Scene bundle cache (default: $TMPDIR/pf-worker-cache)");
-  app.add_option("--map-cache", o.map_cache_capacity, "Photon maps kept in memory (LRU)")->capture_default_str();
-  app.add_option("--scene-cache", o.scene_cache_capacity, "Loaded scenes kept in memory (LRU)")->capture_default_str();
+  app.add_option("--map-cache", o.map_cache_capacity, "Photon maps kept in memory (LRU)")
+      ->capture_default_str();
+  app.add_option("--scene-cache", o.scene_cache_capacity, "Loaded scenes kept in memory (LRU)")
+      ->capture_default_str();
   app.add_option("--poll-seconds", o.poll_seconds, "LeaseTask long-poll wait")
       ->capture_default_str()
       ->check(CLI::Range(0.05, 30.0));
   app.add_option("--rpc-timeout", o.rpc_timeout_seconds, "Deadline of short RPCs, seconds")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 600.0));
-  app.add_option("--grace", o.grace_seconds, "SIGTERM: seconds to finish the current task before handing it back")
+  app.add_option("--grace", o.grace_seconds,
+                 "SIGTERM: seconds to finish the current task before handing it back")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 86400.0));
   app.add_option("--max-backoff", o.max_backoff_seconds, "Cap of the reconnect backoff, seconds")

@@ -17,7 +17,8 @@ SceneCache::SceneCache(fs::path cache_dir, size_t memory_capacity)
   if (ec) throw SystemError("--cache-dir: cannot create " + dir_.string() + ": " + ec.message());
   for (const fs::directory_entry& e : fs::directory_iterator(dir_)) {
     const std::string name = e.path().filename().string();
-    if (e.is_directory() && IsValidHash(name) && fs::exists(dir_ / (name + ".entry"))) disk_hashes_.push_back(name);
+    if (e.is_directory() && IsValidHash(name) && fs::exists(dir_ / (name + ".entry")))
+      disk_hashes_.push_back(name);
     // Left-overs of an interrupted store.
     if (IsTemporaryName(name)) fs::remove_all(e.path(), ec);
   }
@@ -62,10 +63,12 @@ void SceneCache::StoreOnDisk(const std::string& hash, const SceneBundle& bundle)
   WriteBundle(bundle, tmp);
   PublishDirectory(tmp, dir_ / hash);  // false: another worker stored it first (same content)
   WriteFileAtomically(dir_ / (hash + ".entry"), bundle.entry + "\n");
-  if (std::find(disk_hashes_.begin(), disk_hashes_.end(), hash) == disk_hashes_.end()) disk_hashes_.push_back(hash);
+  if (std::find(disk_hashes_.begin(), disk_hashes_.end(), hash) == disk_hashes_.end())
+    disk_hashes_.push_back(hash);
 }
 
-std::shared_ptr<const SceneRuntime> SceneCache::Get(const std::string& hash, const Fetcher& fetch, std::string* source) {
+std::shared_ptr<const SceneRuntime> SceneCache::Get(const std::string& hash, const Fetcher& fetch,
+                                                    std::string* source) {
   if (!IsValidHash(hash)) throw InputError("task.scene_hash: '" + hash + "' is not 64 lowercase hex digits");
   std::lock_guard lock(mutex_);
   for (auto it = memory_.begin(); it != memory_.end(); ++it)

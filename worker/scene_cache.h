@@ -34,7 +34,8 @@ class SceneCache {
   // The runtime of the bundle with this hash. `source` (optional) receives "memory", "disk"
   // or "fetched". Throws InputError if the hash is malformed, the fetched bundle's hash differs
   // or the scene does not load (file:line), SystemError if the disk fails.
-  std::shared_ptr<const SceneRuntime> Get(const std::string& hash, const Fetcher& fetch, std::string* source = nullptr);
+  std::shared_ptr<const SceneRuntime> Get(const std::string& hash, const Fetcher& fetch,
+                                          std::string* source = nullptr);
 
   // Hashes of the bundles on disk (for LeaseTaskRequest.cached_scene_hashes: affinity).
   std::vector<std::string> CachedHashes() const;

@@ -5,9 +5,9 @@
 #include <algorithm>
 #include <thread>
 
-#include "rpc/grpc_channel.h"
 #include "common/core/error.h"
 #include "proto/convert.h"
+#include "rpc/grpc_channel.h"
 
 namespace pf::worker {
 namespace v1 = photonfarm::v1;
@@ -77,7 +77,8 @@ Worker::Worker(WorkerOptions options)
       scenes_(options_.cache_dir, options_.scene_cache_capacity),
       maps_(std::make_shared<PhotonMapCache>(options_.map_cache_capacity)),
       jitter_rng_(std::random_device{}()) {
-  channel_ = MakeCoordinatorChannel(options_.coordinator, ChannelOptions{.token = options_.token, .tls = options_.tls});
+  channel_ = MakeCoordinatorChannel(options_.coordinator,
+                                    ChannelOptions{.token = options_.token, .tls = options_.tls});
   stub_ = v1::WorkerService::NewStub(channel_);
 }
 

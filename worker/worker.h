@@ -35,9 +35,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "rpc/grpc_channel.h"
 #include "common/plan/task_executor.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "rpc/grpc_channel.h"
 #include "worker/scene_cache.h"
 
 namespace pf::worker {

@@ -61,8 +61,8 @@ EmbreeScene::EmbreeScene(const SceneDescription& scene)
   face_areas_.resize(num_tris);
   for (size_t i = 0; i < num_tris; ++i) {
     const auto& t = scene.triangles[i];
-    const Vec3 c = Cross(scene.positions[t[1]] - scene.positions[t[0]],
-                         scene.positions[t[2]] - scene.positions[t[0]]);
+    const Vec3 c =
+        Cross(scene.positions[t[1]] - scene.positions[t[0]], scene.positions[t[2]] - scene.positions[t[0]]);
     const float len = Length(c);
     face_areas_[i] = 0.5f * len;
     face_normals_[i] = len > 0 ? c / len : Vec3(0, 0, 1);

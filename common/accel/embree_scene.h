@@ -27,7 +27,7 @@ class EmbreeScene {
   bool Visible(const Vec3& from, const Vec3& from_normal, const Vec3& to, const Vec3& to_normal) const;
 
   const SceneDescription& description() const { return *scene_; }
-  float epsilon() const { return epsilon_; }   // absolute offset floor for ray origins
+  float epsilon() const { return epsilon_; }  // absolute offset floor for ray origins
   const Bounds3& bounds() const { return bounds_; }
   const Vec3& triangle_normal(uint32_t tri) const { return face_normals_[tri]; }
   float triangle_area(uint32_t tri) const { return face_areas_[tri]; }

@@ -12,18 +12,14 @@ namespace pf {
 struct SourceLocation {
   std::string file;
   int line = 0;
-  std::string ToString() const {
-    return line > 0 ? file + ":" + std::to_string(line) : file;
-  }
+  std::string ToString() const { return line > 0 ? file + ":" + std::to_string(line) : file; }
 };
 
 // An error in user input (scene file, manifest, command line, job request).
 class InputError : public std::runtime_error {
  public:
   InputError(SourceLocation where, const std::string& reason)
-      : std::runtime_error(where.ToString() + ": " + reason),
-        where_(std::move(where)),
-        reason_(reason) {}
+      : std::runtime_error(where.ToString() + ": " + reason), where_(std::move(where)), reason_(reason) {}
   explicit InputError(const std::string& reason) : std::runtime_error(reason), reason_(reason) {}
   const SourceLocation& where() const { return where_; }
   const std::string& reason() const { return reason_; }

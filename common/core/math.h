@@ -15,7 +15,9 @@ inline constexpr float kInvPi = 1.0f / kPi;
 inline constexpr float kTwoPi = 2.0f * kPi;
 
 template <typename T>
-constexpr T Sq(T v) { return v * v; }
+constexpr T Sq(T v) {
+  return v * v;
+}
 
 template <typename T>
 struct Vec3T {
@@ -36,9 +38,24 @@ struct Vec3T {
   constexpr Vec3T operator*(T s) const { return {x * s, y * s, z * s}; }
   constexpr Vec3T operator/(T s) const { return {x / s, y / s, z / s}; }
   constexpr Vec3T operator*(const Vec3T& o) const { return {x * o.x, y * o.y, z * o.z}; }
-  constexpr Vec3T& operator+=(const Vec3T& o) { x += o.x; y += o.y; z += o.z; return *this; }
-  constexpr Vec3T& operator-=(const Vec3T& o) { x -= o.x; y -= o.y; z -= o.z; return *this; }
-  constexpr Vec3T& operator*=(T s) { x *= s; y *= s; z *= s; return *this; }
+  constexpr Vec3T& operator+=(const Vec3T& o) {
+    x += o.x;
+    y += o.y;
+    z += o.z;
+    return *this;
+  }
+  constexpr Vec3T& operator-=(const Vec3T& o) {
+    x -= o.x;
+    y -= o.y;
+    z -= o.z;
+    return *this;
+  }
+  constexpr Vec3T& operator*=(T s) {
+    x *= s;
+    y *= s;
+    z *= s;
+    return *this;
+  }
   constexpr bool operator==(const Vec3T& o) const = default;
 };
 
@@ -46,19 +63,29 @@ using Vec3 = Vec3T<float>;
 using Vec3d = Vec3T<double>;
 
 template <typename T>
-constexpr Vec3T<T> operator*(T s, const Vec3T<T>& v) { return v * s; }
+constexpr Vec3T<T> operator*(T s, const Vec3T<T>& v) {
+  return v * s;
+}
 template <typename T>
-constexpr T Dot(const Vec3T<T>& a, const Vec3T<T>& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr T Dot(const Vec3T<T>& a, const Vec3T<T>& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 template <typename T>
 constexpr Vec3T<T> Cross(const Vec3T<T>& a, const Vec3T<T>& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 template <typename T>
-constexpr T LengthSquared(const Vec3T<T>& v) { return Dot(v, v); }
+constexpr T LengthSquared(const Vec3T<T>& v) {
+  return Dot(v, v);
+}
 template <typename T>
-inline T Length(const Vec3T<T>& v) { return std::sqrt(Dot(v, v)); }
+inline T Length(const Vec3T<T>& v) {
+  return std::sqrt(Dot(v, v));
+}
 template <typename T>
-inline Vec3T<T> Normalize(const Vec3T<T>& v) { return v / Length(v); }
+inline Vec3T<T> Normalize(const Vec3T<T>& v) {
+  return v / Length(v);
+}
 template <typename T>
 constexpr Vec3T<T> Min(const Vec3T<T>& a, const Vec3T<T>& b) {
   return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
@@ -68,7 +95,9 @@ constexpr Vec3T<T> Max(const Vec3T<T>& a, const Vec3T<T>& b) {
   return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
 }
 template <typename T>
-constexpr T MaxComponent(const Vec3T<T>& v) { return std::max(v.x, std::max(v.y, v.z)); }
+constexpr T MaxComponent(const Vec3T<T>& v) {
+  return std::max(v.x, std::max(v.y, v.z));
+}
 template <typename T>
 inline bool IsFinite(const Vec3T<T>& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
@@ -91,9 +120,24 @@ struct Rgb {
   constexpr Rgb operator/(const Rgb& o) const { return {r / o.r, g / o.g, b / o.b}; }
   constexpr Rgb operator*(float s) const { return {r * s, g * s, b * s}; }
   constexpr Rgb operator/(float s) const { return {r / s, g / s, b / s}; }
-  constexpr Rgb& operator+=(const Rgb& o) { r += o.r; g += o.g; b += o.b; return *this; }
-  constexpr Rgb& operator*=(const Rgb& o) { r *= o.r; g *= o.g; b *= o.b; return *this; }
-  constexpr Rgb& operator*=(float s) { r *= s; g *= s; b *= s; return *this; }
+  constexpr Rgb& operator+=(const Rgb& o) {
+    r += o.r;
+    g += o.g;
+    b += o.b;
+    return *this;
+  }
+  constexpr Rgb& operator*=(const Rgb& o) {
+    r *= o.r;
+    g *= o.g;
+    b *= o.b;
+    return *this;
+  }
+  constexpr Rgb& operator*=(float s) {
+    r *= s;
+    g *= s;
+    b *= s;
+    return *this;
+  }
   constexpr bool operator==(const Rgb& o) const = default;
 
   constexpr float Max() const { return std::max(r, std::max(g, b)); }
@@ -103,7 +147,9 @@ struct Rgb {
   constexpr bool IsBlack() const { return r == 0 && g == 0 && b == 0; }
   bool IsFinite() const { return std::isfinite(r) && std::isfinite(g) && std::isfinite(b); }
 };
-constexpr Rgb operator*(float s, const Rgb& c) { return c * s; }
+constexpr Rgb operator*(float s, const Rgb& c) {
+  return c * s;
+}
 
 // Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
 struct Frame {
@@ -123,8 +169,14 @@ struct Frame {
 struct Bounds3 {
   Vec3 lo{std::numeric_limits<float>::max()};
   Vec3 hi{-std::numeric_limits<float>::max()};
-  void Extend(const Vec3& p) { lo = Min(lo, p); hi = Max(hi, p); }
-  void Extend(const Bounds3& b) { lo = Min(lo, b.lo); hi = Max(hi, b.hi); }
+  void Extend(const Vec3& p) {
+    lo = Min(lo, p);
+    hi = Max(hi, p);
+  }
+  void Extend(const Bounds3& b) {
+    lo = Min(lo, b.lo);
+    hi = Max(hi, b.hi);
+  }
   bool Empty() const { return lo.x > hi.x || lo.y > hi.y || lo.z > hi.z; }
   Vec3 Diagonal() const { return Empty() ? Vec3(0) : hi - lo; }
   Vec3 Center() const { return (lo + hi) * 0.5f; }

@@ -19,8 +19,12 @@ constexpr uint64_t Mix64(uint64_t z) {
 }
 
 // Hashes a tuple of 64-bit words into one key (order matters).
-constexpr uint64_t HashKey(uint64_t a, uint64_t b) { return Mix64(a ^ Mix64(b + 0x632be59bd9b4e019ull)); }
-constexpr uint64_t HashKey(uint64_t a, uint64_t b, uint64_t c) { return HashKey(HashKey(a, b), c); }
+constexpr uint64_t HashKey(uint64_t a, uint64_t b) {
+  return Mix64(a ^ Mix64(b + 0x632be59bd9b4e019ull));
+}
+constexpr uint64_t HashKey(uint64_t a, uint64_t b, uint64_t c) {
+  return HashKey(HashKey(a, b), c);
+}
 constexpr uint64_t HashKey(uint64_t a, uint64_t b, uint64_t c, uint64_t d) {
   return HashKey(HashKey(a, b, c), d);
 }

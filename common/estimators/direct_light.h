@@ -36,8 +36,8 @@
 namespace pf {
 
 struct DirectLightOptions {
-  int shadow_rays = 16;          // N per shading point (MC), N_total (PhotonDirect)
-  float uniform_fraction = 0.0f; // β (MC)
+  int shadow_rays = 16;           // N per shading point (MC), N_total (PhotonDirect)
+  float uniform_fraction = 0.0f;  // β (MC)
 };
 
 class MonteCarloDirectLight {
@@ -64,8 +64,8 @@ Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t 
 enum class NonContributingMode { kOneRandom, kEachOne };
 
 struct PhotonDirectOptions {
-  int k = 50;                 // direct photons per query
-  int samples = 10;           // N_total for the contributing lights
+  int k = 50;        // direct photons per query
+  int samples = 10;  // N_total for the contributing lights
   NonContributingMode non_contributing = NonContributingMode::kOneRandom;
   float cache_radius_fraction = 0.25f;  // 0 = no neighbour-set cache
   // Search radius bound. Where no direct photon arrives on the point's side (a ceiling lit by

@@ -44,7 +44,7 @@ struct PrecomputedIrradianceOptions {
   // order, and the first one visible from y serves (one shadow ray each): a site behind a
   // wall would carry the other room's light into this one. 0 = no visibility test (nearest).
   int candidates = 4;
-  int threads = 0;                    // for the precomputation; 0 = TBB's default
+  int threads = 0;  // for the precomputation; 0 = TBB's default
 };
 
 class PrecomputedIrradiance {

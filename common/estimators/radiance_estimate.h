@@ -54,7 +54,6 @@ struct RadianceEstimateOptions {
 struct EstimateContext {
   const std::vector<Vec3>* origins = nullptr;  // for occlusion_test (post-build order)
   const EmbreeScene* scene = nullptr;          // for occlusion_test
-
 };
 
 struct RadianceEstimateResult {
@@ -66,9 +65,8 @@ struct RadianceEstimateResult {
 
 // Estimates the radiance leaving x towards `wo` through the non-delta lobes in `lobes` of
 // `bsdf`. `nearest` is the calling thread's query scratch.
-RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, const Vec3& x,
-                                        const Vec3& wo, uint32_t lobes,
-                                        const RadianceEstimateOptions& options,
+RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
+                                        uint32_t lobes, const RadianceEstimateOptions& options,
                                         NearestPhotons& nearest, const EstimateContext& context = {});
 
 // The adaptive-k rule above: how many of the k nearest photons (sorted by distance) to use.

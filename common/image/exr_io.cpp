@@ -98,15 +98,17 @@ class MemoryIStream final : public Imf::IStream {
 
 Imf::Compression ToImf(ExrCompression compression) {
   switch (compression) {
-    case ExrCompression::kNone: return Imf::NO_COMPRESSION;
-    case ExrCompression::kZip: return Imf::ZIP_COMPRESSION;
-    case ExrCompression::kPiz: return Imf::PIZ_COMPRESSION;
+    case ExrCompression::kNone:
+      return Imf::NO_COMPRESSION;
+    case ExrCompression::kZip:
+      return Imf::ZIP_COMPRESSION;
+    case ExrCompression::kPiz:
+      return Imf::PIZ_COMPRESSION;
   }
   throw InputError("unknown ExrCompression value " + std::to_string(int(compression)));
 }
 
-std::string Encode(const Image& image, const ImageMetadata& metadata,
-                   ExrCompression compression) {
+std::string Encode(const Image& image, const ImageMetadata& metadata, ExrCompression compression) {
   if (image.width() <= 0 || image.height() <= 0) {
     throw InputError("cannot encode an empty image (" + std::to_string(image.width()) + "x" +
                      std::to_string(image.height()) + ") as OpenEXR");
@@ -138,15 +140,18 @@ std::string Encode(const Image& image, const ImageMetadata& metadata,
   return stream.Take();
 }
 
-int64_t WindowWidth(const Imath::Box2i& box) { return int64_t(box.max.x) - box.min.x + 1; }
-int64_t WindowHeight(const Imath::Box2i& box) { return int64_t(box.max.y) - box.min.y + 1; }
+int64_t WindowWidth(const Imath::Box2i& box) {
+  return int64_t(box.max.x) - box.min.x + 1;
+}
+int64_t WindowHeight(const Imath::Box2i& box) {
+  return int64_t(box.max.y) - box.min.y + 1;
+}
 
 void CheckWindow(const Imath::Box2i& box, const char* what) {
   const int64_t w = WindowWidth(box), h = WindowHeight(box);
   if (w <= 0 || h <= 0 || w * h > kMaxExrPixels) {
     throw ExrFormatError(std::string(what) + " " + std::to_string(w) + "x" + std::to_string(h) +
-                         " is empty or larger than " + std::to_string(kMaxExrPixels) +
-                         " pixels");
+                         " is empty or larger than " + std::to_string(kMaxExrPixels) + " pixels");
   }
 }
 
@@ -171,9 +176,8 @@ Image Decode(Imf::InputFile& file, ImageMetadata* metadata) {
   Imf::FrameBuffer frame_buffer;
   for (int c = 0; c < 3; ++c) {
     // Slice::Make offsets the base pointer so that pixel (min.x, min.y) lands on `base`.
-    frame_buffer.insert(kChannelNames[c],
-                        Imf::Slice::Make(Imf::FLOAT, base + c * sizeof(float), data_window,
-                                         x_stride, y_stride));
+    frame_buffer.insert(kChannelNames[c], Imf::Slice::Make(Imf::FLOAT, base + c * sizeof(float), data_window,
+                                                           x_stride, y_stride));
   }
   file.setFrameBuffer(frame_buffer);
   file.readPixels(data_window.min.y, data_window.max.y);
@@ -209,11 +213,10 @@ Image Decode(Imf::InputFile& file, ImageMetadata* metadata) {
 
 }  // namespace
 
-void WriteExr(const std::filesystem::path& path, const Image& image,
-              const ImageMetadata& metadata, ExrCompression compression) {
-  const std::string bytes = CatchOpenExr(path.string(), "write", [&] {
-    return Encode(image, metadata, compression);
-  });
+void WriteExr(const std::filesystem::path& path, const Image& image, const ImageMetadata& metadata,
+              ExrCompression compression) {
+  const std::string bytes =
+      CatchOpenExr(path.string(), "write", [&] { return Encode(image, metadata, compression); });
   WriteFileAtomically(path, bytes);
 }
 
@@ -224,11 +227,8 @@ Image ReadExr(const std::filesystem::path& path, ImageMetadata* metadata) {
   });
 }
 
-std::string EncodeExrToMemory(const Image& image, const ImageMetadata& metadata,
-                              ExrCompression compression) {
-  return CatchOpenExr(kMemorySourceName, "write", [&] {
-    return Encode(image, metadata, compression);
-  });
+std::string EncodeExrToMemory(const Image& image, const ImageMetadata& metadata, ExrCompression compression) {
+  return CatchOpenExr(kMemorySourceName, "write", [&] { return Encode(image, metadata, compression); });
 }
 
 Image DecodeExrFromMemory(std::string_view bytes, ImageMetadata* metadata) {

@@ -25,8 +25,7 @@ enum class ExrCompression { kNone, kZip, kPiz };
 // partial one. Two threads of one process must not write the same path at the same time.
 // Throws InputError for an empty image and SystemError if encoding or the file system fails
 // (the temporary file is removed in that case).
-void WriteExr(const std::filesystem::path& path, const Image& image,
-              const ImageMetadata& metadata = {},
+void WriteExr(const std::filesystem::path& path, const Image& image, const ImageMetadata& metadata = {},
               ExrCompression compression = ExrCompression::kZip);
 
 // Reads the R, G and B channels of a scanline or tiled EXR (single part, or the first part of

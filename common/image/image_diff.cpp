@@ -41,7 +41,8 @@ double DisplayWhite(const Image& image) {
   return sum > 0 ? sum / double(luminance.size()) / kKey : 1.0;
 }
 
-std::vector<uint8_t> EmitterExclusionMask(const std::vector<float>& coverage, int width, int height, int band) {
+std::vector<uint8_t> EmitterExclusionMask(const std::vector<float>& coverage, int width, int height,
+                                          int band) {
   if (coverage.size() != size_t(width) * size_t(height))
     throw InputError("emitter coverage: " + std::to_string(coverage.size()) + " values for a " +
                      std::to_string(width) + "x" + std::to_string(height) + " image");
@@ -50,7 +51,8 @@ std::vector<uint8_t> EmitterExclusionMask(const std::vector<float>& coverage, in
     for (int x = 0; x < width; ++x) {
       if (!(coverage[size_t(y) * width + x] > 0.0f)) continue;
       for (int yy = std::max(0, y - band); yy <= std::min(height - 1, y + band); ++yy)
-        for (int xx = std::max(0, x - band); xx <= std::min(width - 1, x + band); ++xx) mask[size_t(yy) * width + xx] = 1;
+        for (int xx = std::max(0, x - band); xx <= std::min(width - 1, x + band); ++xx)
+          mask[size_t(yy) * width + xx] = 1;
     }
   return mask;
 }
@@ -79,7 +81,8 @@ void AddMaskedMetrics(const Image& a, const Image& reference, const std::vector<
     throw InputError("exclusion mask: " + std::to_string(excluded.size()) + " values for " +
                      std::to_string(a.size()) + " pixels");
   std::vector<uint8_t> kept(excluded.size());
-  for (size_t i = 0; i < kept.size(); ++i) kept[i] = !excluded[i] && a[i].IsFinite() && reference[i].IsFinite();
+  for (size_t i = 0; i < kept.size(); ++i)
+    kept[i] = !excluded[i] && a[i].IsFinite() && reference[i].IsFinite();
   stats->masked = true;
   stats->rmse_masked = RmseOver(a, reference, kept);
   stats->pixels_masked = size_t(std::count(kept.begin(), kept.end(), uint8_t(1)));

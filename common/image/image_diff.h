@@ -49,8 +49,8 @@ struct ImageDiffStats {
   //                  §3.3.2) and biases.
   bool masked = false;
   double rmse_masked = 0, rmse_lowfreq = 0;
-  size_t pixels_masked = 0;  // pixels in rmse_masked
-  size_t blocks_lowfreq = 0; // 4x4 blocks in rmse_lowfreq
+  size_t pixels_masked = 0;   // pixels in rmse_masked
+  size_t blocks_lowfreq = 0;  // 4x4 blocks in rmse_lowfreq
 };
 
 // Pixels within this many pixels (Chebyshev distance) of an emitter seen directly are left out
@@ -75,7 +75,8 @@ double DisplayWhite(const Image& image);
 
 // Throws InputError naming both sizes if the images differ in size (or the mask, if given, is
 // not one byte per pixel). `excluded` (optional): nonzero = left out of the masked metrics.
-ImageDiffStats CompareImages(const Image& a, const Image& reference, const std::vector<uint8_t>* excluded = nullptr);
+ImageDiffStats CompareImages(const Image& a, const Image& reference,
+                             const std::vector<uint8_t>* excluded = nullptr);
 
 // RMSE over the pixels with selected[i] != 0 that are finite in both images (0 if none).
 double RmseOver(const Image& a, const Image& reference, const std::vector<uint8_t>& selected);

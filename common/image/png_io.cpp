@@ -75,8 +75,8 @@ std::string EncodePngPreview(const Image& image, const PreviewOptions& options) 
   // One pass into a buffer of the worst-case size, then trim.
   std::string out(PNG_IMAGE_PNG_SIZE_MAX(png), '\0');
   png_alloc_size_t size = out.size();
-  const int ok = png_image_write_to_memory(&png, out.data(), &size, /*convert_to_8_bit=*/0,
-                                           pixels.data(), /*row_stride=*/0,
+  const int ok = png_image_write_to_memory(&png, out.data(), &size, /*convert_to_8_bit=*/0, pixels.data(),
+                                           /*row_stride=*/0,
                                            /*colormap=*/nullptr);
   if (!ok) {
     const std::string reason = png.message;
@@ -87,8 +87,7 @@ std::string EncodePngPreview(const Image& image, const PreviewOptions& options) 
   return out;
 }
 
-void WritePngPreview(const std::filesystem::path& path, const Image& image,
-                     const PreviewOptions& options) {
+void WritePngPreview(const std::filesystem::path& path, const Image& image, const PreviewOptions& options) {
   std::string bytes;
   try {
     bytes = EncodePngPreview(image, options);

@@ -26,9 +26,9 @@ enum LobeFlags : uint32_t {
   kLobeNone = 0,
   kLobeDiffuseReflection = 1u << 0,
   kLobeGlossyReflection = 1u << 1,
-  kLobeSpecularReflection = 1u << 2,   // perfect mirror or Fresnel reflection (delta)
+  kLobeSpecularReflection = 1u << 2,  // perfect mirror or Fresnel reflection (delta)
   kLobeDiffuseTransmission = 1u << 3,
-  kLobeSpecularTransmission = 1u << 4, // refraction or thin straight-through (delta)
+  kLobeSpecularTransmission = 1u << 4,  // refraction or thin straight-through (delta)
   kLobeAll = (1u << 5) - 1,
 };
 
@@ -40,8 +40,8 @@ constexpr bool IsSingular(uint32_t lobe) {
 
 struct BsdfSample {
   Vec3 wi;
-  Rgb weight;          // f·|cos θi| / pdf (delta lobes: reflectance·Fresnel / selection prob)
-  float pdf = 0.0f;    // solid-angle pdf incl. lobe selection; for delta lobes the selection prob
+  Rgb weight;        // f·|cos θi| / pdf (delta lobes: reflectance·Fresnel / selection prob)
+  float pdf = 0.0f;  // solid-angle pdf incl. lobe selection; for delta lobes the selection prob
   uint32_t lobe = kLobeNone;
   bool is_delta = false;
 };
@@ -71,8 +71,8 @@ class Bsdf {
   std::optional<BsdfSample> Sample(const Vec3& wo, float u_lobe, float u1, float u2, Mode mode,
                                    uint32_t lobes) const;
 
-  bool HasNonDelta() const;   // has any lobe that Eval can see (next-event estimation useful)
-  bool HasDiffuse() const;    // diffuse reflection or transmission (photon storage, §2.2)
+  bool HasNonDelta() const;             // has any lobe that Eval can see (next-event estimation useful)
+  bool HasDiffuse() const;              // diffuse reflection or transmission (photon storage, §2.2)
   bool HasLobes(uint32_t lobes) const;  // has any lobe of the LobeFlags mask (delta ones too)
   const Material& material() const { return *material_; }
   const Vec3& shading_normal() const { return ns_; }
@@ -99,10 +99,9 @@ class Bsdf {
   // Selection probabilities of `mode` restricted to `lobes` (see the restricted Sample).
   void SelectionProbabilities(Mode mode, uint32_t lobes, float probs[kNumSlots]) const;
   // f and Σ probs[slot]·pdf_slot over the non-delta lobes in `lobes`.
-  void EvalPdf(const Vec3& wo, const Vec3& wi, uint32_t lobes, const float* probs, Rgb* f,
-               float* pdf) const;
-  std::optional<BsdfSample> SampleDielectric(const Vec3& wo, const Vec3& n, float side,
-                                             float u_lobe, Mode mode, uint32_t lobes) const;
+  void EvalPdf(const Vec3& wo, const Vec3& wi, uint32_t lobes, const float* probs, Rgb* f, float* pdf) const;
+  std::optional<BsdfSample> SampleDielectric(const Vec3& wo, const Vec3& n, float side, float u_lobe,
+                                             Mode mode, uint32_t lobes) const;
 
   const Material* material_;
   Vec3 ns_, ng_;

@@ -319,22 +319,25 @@ void KdTree::DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter*
 // |x − photon| ≥ |x − plane| after rounding too (rounding is monotonic), and the cell
 // distance sums the per-axis terms in DistanceSquared's order. Hence the results equal brute
 // force's exactly (as distance multisets).
-void KdTree::QueryWithStats(const Vec3& x, int k, float max_radius, NearestPhotons& nearest, SearchStats* stats,
-                            const PhotonFilter* filter) const {
+void KdTree::QueryWithStats(const Vec3& x, int k, float max_radius, NearestPhotons& nearest,
+                            SearchStats* stats, const PhotonFilter* filter) const {
   nearest.Reset(k, max_radius);
   if (!prepared_) throw std::logic_error("PhotonMap::Query before PrepareForQuery");
   if (nearest.k() == 0 || photons_.empty() || !IsFinite(x) || !(nearest.BoundSquared() > 0.0f)) return;
   const bool stored = rule_ == KdSplitRule::kWidestExtent;
   const bool cell = culling_ == KdCulling::kCellDistance;
   if (stored) {
-    cell ? Search<true, true, true>(x, nearest, filter, stats) : Search<true, false, true>(x, nearest, filter, stats);
+    cell ? Search<true, true, true>(x, nearest, filter, stats)
+         : Search<true, false, true>(x, nearest, filter, stats);
   } else {
-    cell ? Search<false, true, true>(x, nearest, filter, stats) : Search<false, false, true>(x, nearest, filter, stats);
+    cell ? Search<false, true, true>(x, nearest, filter, stats)
+         : Search<false, false, true>(x, nearest, filter, stats);
   }
 }
 
 template <bool kStoredAxes, bool kCellDistance, bool kStats>
-void KdTree::Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter, SearchStats* stats) const {
+void KdTree::Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter,
+                    SearchStats* stats) const {
   if (filter == nullptr) {
     SearchImpl<kStoredAxes, kCellDistance, kStats, false>(x, nearest, nullptr, stats);
   } else {

@@ -78,7 +78,8 @@ class KdTree final : public PhotonMap {
   void Search(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter,
               SearchStats* stats = nullptr) const;
   template <bool kStoredAxes, bool kCellDistance, bool kStats, bool kFilter>
-  void SearchImpl(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter, SearchStats* stats) const;
+  void SearchImpl(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter,
+                  SearchStats* stats) const;
   void BuildSubtree(uint64_t root, int level);
   int StoredAxis(uint64_t node) const { return (axes_[node >> 2] >> ((node & 3) * 2)) & 3; }
 

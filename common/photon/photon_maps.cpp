@@ -41,8 +41,9 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
                              const PhotonMapsOptions& options) {
   PhotonMaps maps;
   maps.seed = options.tracing.map_seed;
-  const bool need_caustic = options.caustic == CausticMapMode::kOn ||
-                            (options.caustic == CausticMapMode::kAuto && SceneNeedsCausticMap(scene.description()));
+  const bool need_caustic =
+      options.caustic == CausticMapMode::kOn ||
+      (options.caustic == CausticMapMode::kAuto && SceneNeedsCausticMap(scene.description()));
   if (options.caustic == CausticMapMode::kAuto && !need_caustic)
     spdlog::info("photon maps: no specular or glossy surface in the scene: no caustic map");
 
@@ -72,7 +73,8 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
   maps.stats.stored_caustic = maps.caustic ? maps.caustic->size() : 0;
   maps.stats.stored_direct = traced.direct.size();
   spdlog::info(
-      "photon maps (seed {}): {} emitted, {} global + {} caustic stored ({} direct), trace {:.2f}s, build {:.2f}s",
+      "photon maps (seed {}): {} emitted, {} global + {} caustic stored ({} direct), trace {:.2f}s, build "
+      "{:.2f}s",
       options.tracing.map_seed, traced.emitted, maps.stats.stored_global, maps.stats.stored_caustic,
       maps.stats.stored_direct, traced.seconds, maps.stats.build_seconds);
   return maps;

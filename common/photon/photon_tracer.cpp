@@ -6,8 +6,8 @@
 #include <chrono>
 
 #include "common/core/error.h"
-#include "common/sampling/sample_layout.h"
 #include "common/materials/bsdf.h"
+#include "common/sampling/sample_layout.h"
 
 namespace pf {
 
@@ -52,7 +52,7 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
   // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
   // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
   const double jitter = o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
-                                                          : sampler.rng().UniformDouble();
+                                                         : sampler.rng().UniformDouble();
   const float u_select = float((double(index) + jitter) / double(o.photons));
   const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
   const LightSample ls = lights.Sample(std::min(u_select, 0x1.fffffep-1f), u_point.u, u_point.v);

@@ -33,9 +33,9 @@ enum class PhotonKind : uint8_t { kDirect = 0, kIndirect = 1, kCaustic = 2 };
 // Full-precision photon as traced; compressed to the 18-byte Photon when put in a map.
 struct TracedPhoton {
   Vec3 position;
-  Vec3 direction;   // unit, pointing back towards where the photon came from (ω in §2.2)
-  Rgb power;        // Φ, W
-  Vec3 origin;      // previous vertex of the path (occlusion testing, §4.1.1)
+  Vec3 direction;      // unit, pointing back towards where the photon came from (ω in §2.2)
+  Rgb power;           // Φ, W
+  Vec3 origin;         // previous vertex of the path (occlusion testing, §4.1.1)
   uint32_t light = 0;  // emitting light id (PhotonDirect, §4.2.3)
   PhotonKind kind = PhotonKind::kIndirect;
 };
@@ -43,8 +43,8 @@ struct TracedPhoton {
 struct PhotonTracerOptions {
   uint64_t photons = 100000;  // emitted photons (not stored ones)
   uint64_t map_seed = 1;
-  int max_bounces = 64;       // safety cap; Russian roulette ends walks long before
-  int threads = 0;            // 0 = all cores
+  int max_bounces = 64;                       // safety cap; Russian roulette ends walks long before
+  int threads = 0;                            // 0 = all cores
   SamplerKind sampler = SamplerKind::kSobol;  // quasi-random emission and scattering (§2.2)
   // Checked before each chunk of photons; once set, TracePhotons throws Cancelled.
   const std::atomic<bool>* cancel = nullptr;
@@ -54,10 +54,10 @@ struct PhotonTracingResult {
   std::vector<TracedPhoton> direct, indirect, caustic;
   uint64_t emitted = 0;
   uint64_t rays = 0;
-  Rgb emitted_power;                  // Σ Φ of emitted photons (== total light power)
+  Rgb emitted_power;  // Σ Φ of emitted photons (== total light power)
   double seconds = 0;
 
-  Rgb StoredPower() const;            // Σ Φ over all stored photons
+  Rgb StoredPower() const;  // Σ Φ over all stored photons
 };
 
 // Whether the scene has any singular surface a photon could bounce off before landing on a

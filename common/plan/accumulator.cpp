@@ -106,7 +106,8 @@ Accumulator Accumulator::Deserialize(std::string_view in) {
     throw InputError("accumulator checkpoint: bad magic");
   ByteReader r(in.substr(sizeof(kMagic)), "accumulator checkpoint");
   const int32_t w = r.Get<int32_t>(), h = r.Get<int32_t>();
-  if (w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28)) throw InputError("accumulator checkpoint: bad size");
+  if (w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28))
+    throw InputError("accumulator checkpoint: bad size");
   Accumulator a;
   a.width_ = w;
   a.height_ = h;
@@ -115,7 +116,8 @@ Accumulator Accumulator::Deserialize(std::string_view in) {
   const size_t n = size_t(w) * h;
   // Sizes are checked before allocating: a corrupt header must not allocate gigabytes.
   constexpr size_t kBytesPerPixel = 3 * sizeof(int64_t) + 2 * sizeof(uint32_t) + 2 * sizeof(double);
-  if (r.remaining() != n * kBytesPerPixel) r.Fail(r.remaining() < n * kBytesPerPixel ? "truncated" : "trailing bytes");
+  if (r.remaining() != n * kBytesPerPixel)
+    r.Fail(r.remaining() < n * kBytesPerPixel ? "truncated" : "trailing bytes");
   a.sums_.resize(3 * n);
   a.samples_.resize(n);
   a.maps_.resize(n);

@@ -35,8 +35,8 @@ class Accumulator {
   // over `samples` samples. Call ValidateTaskResult first; invalid input throws InputError.
   void Add(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples);
 
-  Image Resolve() const;                 // Σ/n per pixel; black where n = 0
-  double EstimatedNoiseRms() const;      // < 0 while no pixel has two maps
+  Image Resolve() const;             // Σ/n per pixel; black where n = 0
+  double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps
   uint64_t samples_merged() const { return samples_merged_; }
   uint64_t tasks_merged() const { return tasks_merged_; }
   int width() const { return width_; }
@@ -50,11 +50,11 @@ class Accumulator {
 
  private:
   int width_ = 0, height_ = 0;
-  std::vector<int64_t> sums_;        // 3 per pixel, fixed point 2^-32
-  std::vector<uint32_t> samples_;    // per pixel
-  std::vector<uint32_t> maps_;       // contributions per pixel
-  std::vector<double> lum_sum_;      // Σ n·m (m = per-map mean luminance)
-  std::vector<double> lum_sum2_;     // Σ n·m²
+  std::vector<int64_t> sums_;      // 3 per pixel, fixed point 2^-32
+  std::vector<uint32_t> samples_;  // per pixel
+  std::vector<uint32_t> maps_;     // contributions per pixel
+  std::vector<double> lum_sum_;    // Σ n·m (m = per-map mean luminance)
+  std::vector<double> lum_sum2_;   // Σ n·m²
   uint64_t samples_merged_ = 0;
   uint64_t tasks_merged_ = 0;
 };

@@ -49,15 +49,15 @@ struct JobRenderSettings {
   FeasibilityTest direction_test = FeasibilityTest::kInQuery;
   // Chapter 4 (see photon_map_integrator.h and direct_light.h).
   std::optional<DirectLightMode> direct;  // nullopt = auto (see Resolved)
-  int shadow_rays = 16;                  // MC: per shading point; PhotonDirect: N_total
-  float light_uniform_fraction = 0.0f;   // MC: defensive mixing β
+  int shadow_rays = 16;                   // MC: per shading point; PhotonDirect: N_total
+  float light_uniform_fraction = 0.0f;    // MC: defensive mixing β
   int photon_direct_k = 50;
   NonContributingMode non_contributing = NonContributingMode::kOneRandom;
-  float photon_direct_cache = 0.25f;     // neighbour-set cache radius fraction; 0 = off
-  int local_pass_rays = 0;               // §4.3; 0 = off
+  float photon_direct_cache = 0.25f;                           // neighbour-set cache radius fraction; 0 = off
+  int local_pass_rays = 0;                                     // §4.3; 0 = off
   LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;  // precomputed irradiance (Christensen 1999)
-  bool occlusion_test = false;           // §4.1.1
-  int adaptive_k_min = 0;                // §4.8; 0 = off
+  bool occlusion_test = false;                                 // §4.1.1
+  int adaptive_k_min = 0;                                      // §4.8; 0 = off
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
   // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.
@@ -107,7 +107,7 @@ struct TaskOutput {
   // expand the subset, or a skipping permutation of all W·H pixels, a second time.
   std::vector<uint32_t> pixel_indices;
   uint64_t pixels = 0;
-  uint32_t samples = 0;         // per pixel
+  uint32_t samples = 0;  // per pixel
   uint64_t photons_emitted = 0, photons_stored = 0, rays = 0;
   double map_seconds = 0, render_seconds = 0;
   bool map_cache_hit = false;
@@ -123,7 +123,8 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                        const std::atomic<bool>* cancel = nullptr);
 
 // The whole plan in this process, merged with the farm's Accumulator (same arithmetic).
-Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera, const JobRenderSettings& settings,
-                        const PlanSpec& plan, uint64_t seed, int threads, std::atomic<uint64_t>* progress = nullptr);
+Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
+                        const JobRenderSettings& settings, const PlanSpec& plan, uint64_t seed, int threads,
+                        std::atomic<uint64_t>* progress = nullptr);
 
 }  // namespace pf

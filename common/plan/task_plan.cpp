@@ -8,8 +8,8 @@
 namespace pf {
 namespace {
 
-constexpr uint64_t kMapTag = 0x6d6170;    // "map"
-constexpr uint64_t kPixTag = 0x706978;    // "pix"
+constexpr uint64_t kMapTag = 0x6d6170;     // "map"
+constexpr uint64_t kPixTag = 0x706978;     // "pix"
 constexpr uint64_t kPermTag = 0x7065726d;  // "perm"
 constexpr uint64_t kMaxTasks = 1u << 24;
 
@@ -37,8 +37,12 @@ uint64_t NumTiles(uint32_t tile_size, int width, int height) {
 
 }  // namespace
 
-uint64_t MapSeed(uint64_t job_seed, uint64_t map_index) { return HashKey(job_seed, kMapTag, map_index); }
-uint64_t PixelSeed(uint64_t job_seed, uint64_t map_index) { return HashKey(job_seed, kPixTag, map_index); }
+uint64_t MapSeed(uint64_t job_seed, uint64_t map_index) {
+  return HashKey(job_seed, kMapTag, map_index);
+}
+uint64_t PixelSeed(uint64_t job_seed, uint64_t map_index) {
+  return HashKey(job_seed, kPixTag, map_index);
+}
 
 void ValidatePlan(const PlanSpec& plan, int width, int height) {
   if (width <= 0 || height <= 0) throw InputError("camera: width and height must be positive");
@@ -60,7 +64,8 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
       break;
   }
   if (CountTasks(plan, width, height) > kMaxTasks)
-    throw InputError("plan: more than " + std::to_string(kMaxTasks) + " tasks; use larger tiles or fewer maps");
+    throw InputError("plan: more than " + std::to_string(kMaxTasks) +
+                     " tasks; use larger tiles or fewer maps");
 }
 
 uint64_t CountTasks(const PlanSpec& plan, int width, int height) {
@@ -75,7 +80,9 @@ uint64_t CountTasks(const PlanSpec& plan, int width, int height) {
   return 0;
 }
 
-uint32_t CountRounds(const PlanSpec& plan) { return plan.kind == PlanKind::kSkipping ? plan.rounds : 1; }
+uint32_t CountRounds(const PlanSpec& plan) {
+  return plan.kind == PlanKind::kSkipping ? plan.rounds : 1;
+}
 
 std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed) {
   ValidatePlan(plan, width, height);
@@ -152,7 +159,8 @@ std::vector<uint32_t> PixelsOf(const PixelSubset& s, int width, int height) {
     return px;
   }
   const uint32_t n = uint32_t(width) * uint32_t(height);
-  if (s.stride == 0 || s.offset >= n) throw InputError("pixels.permutation_stride: offset/stride out of range");
+  if (s.stride == 0 || s.offset >= n)
+    throw InputError("pixels.permutation_stride: offset/stride out of range");
   const std::vector<uint32_t> perm = PixelPermutation(s.permutation_seed, n);
   px.reserve(CountPixels(s, width, height));
   for (uint64_t i = s.offset; i < n; i += s.stride) px.push_back(perm[i]);
@@ -165,7 +173,8 @@ std::string DescribePlan(const PlanSpec& p) {
       return "multiple maps: " + std::to_string(p.maps) + " maps x " + std::to_string(p.samples_per_pixel) +
              " spp, tile " + std::to_string(p.tile_size);
     case PlanKind::kMapsInTurn:
-      return "maps in turn: " + std::to_string(p.samples_per_pixel) + " maps/spp, tile " + std::to_string(p.tile_size);
+      return "maps in turn: " + std::to_string(p.samples_per_pixel) + " maps/spp, tile " +
+             std::to_string(p.tile_size);
     case PlanKind::kSkipping:
       return "skipping: S=" + std::to_string(p.stride) + ", " + std::to_string(p.rounds) + " rounds, " +
              std::to_string(p.samples_per_pixel) + " spp per round";

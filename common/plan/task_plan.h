@@ -41,8 +41,8 @@ struct PixelSubset {
 };
 
 struct TaskSpec {
-  uint64_t task_id = 0;    // index in the expansion: stable and unique within the job
-  uint32_t round = 0;      // skipping round (0 for other plans)
+  uint64_t task_id = 0;  // index in the expansion: stable and unique within the job
+  uint32_t round = 0;    // skipping round (0 for other plans)
   uint64_t map_index = 0;
   uint64_t map_seed = 0;
   uint64_t pixel_seed = 0;

@@ -13,8 +13,8 @@ namespace pf {
 
 // Counters gathered per work item and summed by the driver (no shared atomics on the hot path).
 struct TraceCounters {
-  uint64_t rays = 0;          // closest-hit queries
-  uint64_t shadow_rays = 0;   // occlusion queries
+  uint64_t rays = 0;         // closest-hit queries
+  uint64_t shadow_rays = 0;  // occlusion queries
   void operator+=(const TraceCounters& o) {
     rays += o.rays;
     shadow_rays += o.shadow_rays;

@@ -88,8 +88,8 @@ size_t LightSampler::LightIndex(uint32_t scene_light_id) const {
 }
 
 LightSample LightSampler::Sample(float u_select, float u1, float u2) const {
-  const size_t i = std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(),
-                                    cdf_.size() - 1);
+  const size_t i =
+      std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(), cdf_.size() - 1);
   const uint32_t tri = triangles_[i];
   return MakeSample(tri, u1, u2, select_prob_by_tri_[tri]);
 }

@@ -14,11 +14,11 @@ namespace pf {
 
 struct LightSample {
   Vec3 position;
-  Vec3 normal;        // front-face normal of the emitter (emission side)
-  Rgb radiance;       // Le
+  Vec3 normal;   // front-face normal of the emitter (emission side)
+  Rgb radiance;  // Le
   uint32_t triangle = 0;
   uint32_t light = 0;
-  float pdf_area = 0; // probability density per unit area (incl. the triangle choice)
+  float pdf_area = 0;  // probability density per unit area (incl. the triangle choice)
 };
 
 class LightSampler {
@@ -59,8 +59,8 @@ class LightSampler {
   std::vector<uint32_t> light_index_by_id_;  // scene id → index in lights_ (kNoLight slot last)
 
   const EmbreeScene* scene_;
-  std::vector<uint32_t> triangles_;   // emissive triangle ids
-  std::vector<float> cdf_;            // cumulative selection probability, last = 1
+  std::vector<uint32_t> triangles_;        // emissive triangle ids
+  std::vector<float> cdf_;                 // cumulative selection probability, last = 1
   std::vector<float> select_prob_by_tri_;  // per scene triangle; 0 for non-emitters
   Rgb total_power_;
 };

@@ -66,9 +66,10 @@ PhotonMapIntegrator::~PhotonMapIntegrator() = default;
 void PhotonMapIntegrator::PreparePrecomputedIrradiance() {
   // Everything the sites' estimates depend on (besides the maps themselves).
   auto describe = [](const RadianceEstimateOptions& o) {
-    return std::to_string(o.k) + "," + std::to_string(o.max_radius) + "," + std::to_string(int(o.direction_test)) +
-           "," + std::to_string(o.min_fraction) + "," + std::to_string(o.exclude_boundary_photon) + "," +
-           std::to_string(o.occlusion_test) + "," + std::to_string(o.adaptive_k_min);
+    return std::to_string(o.k) + "," + std::to_string(o.max_radius) + "," +
+           std::to_string(int(o.direction_test)) + "," + std::to_string(o.min_fraction) + "," +
+           std::to_string(o.exclude_boundary_photon) + "," + std::to_string(o.occlusion_test) + "," +
+           std::to_string(o.adaptive_k_min);
   };
   const PrecomputedIrradianceOptions& p = options_.precomputed;
   const std::string key = "precomputed-irradiance|" + describe(options_.global) + "|" +
@@ -81,16 +82,17 @@ void PhotonMapIntegrator::PreparePrecomputedIrradiance() {
     precomputed_ = std::static_pointer_cast<const PrecomputedIrradiance>(slot.value);
     return;
   }
-  precomputed_ = PrecomputedIrradiance::Build(scene_, maps_, p, [this](const Bsdf& white, const Vec3& x, const Vec3& n) {
-    TraceCounters unused;
-    return MapRadiance(white, x, n, kLobeDiffuseReflection, /*include_direct_photons=*/true, unused);
-  });
+  precomputed_ =
+      PrecomputedIrradiance::Build(scene_, maps_, p, [this](const Bsdf& white, const Vec3& x, const Vec3& n) {
+        TraceCounters unused;
+        return MapRadiance(white, x, n, kLobeDiffuseReflection, /*include_direct_photons=*/true, unused);
+      });
   slot.key = key;
   slot.value = precomputed_;
 }
 
-Rgb PhotonMapIntegrator::GatherHitRadiance(const Bsdf& by, const Material& my, const SurfaceHit& y, const Vec3& wo,
-                                           TraceCounters& counters) const {
+Rgb PhotonMapIntegrator::GatherHitRadiance(const Bsdf& by, const Material& my, const SurfaceHit& y,
+                                           const Vec3& wo, TraceCounters& counters) const {
   if (!by.HasLobes(kDiffuseLobes)) return Rgb(0.0f);
   // Christensen 1999: L(y) = ρd/π · E(nearest site) on y's side facing the gather ray. Diffuse
   // transmitters see light from both sides: they keep the full estimate.
@@ -124,12 +126,14 @@ Rgb PhotonMapIntegrator::DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3
                                      Sampler& sampler, const PathVertexSlots& slots,
                                      TraceCounters& counters) const {
   if (monte_carlo_) return monte_carlo_->Estimate(bsdf, x, wo, lobes, sampler, slots, counters);
-  if (photon_direct_) return photon_direct_->Estimate(bsdf, x, wo, lobes, sampler, slots, counters, Scratch());
+  if (photon_direct_)
+    return photon_direct_->Estimate(bsdf, x, wo, lobes, sampler, slots, counters, Scratch());
   return Rgb(0.0f);
 }
 
 Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes,
-                                Sampler& sampler, const PathVertexSlots& slots, TraceCounters& counters) const {
+                                Sampler& sampler, const PathVertexSlots& slots,
+                                TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
   const bool separate_direct = options_.direct != DirectLightMode::kNone;
   const int n = options_.local_pass_rays;

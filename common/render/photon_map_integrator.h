@@ -40,12 +40,12 @@ struct PhotonMapIntegratorOptions {
   // The separate direct map read as photons (local pass hits, an estimated glossy lobe with
   // separate direct light): bounded, see DefaultDirectPhotonOptions.
   RadianceEstimateOptions direct_photons;
-  int glossy_depth = 1;             // glossy bounces followed before using the estimate
-  int max_depth = 32;               // singular-chain cap (Russian roulette ends most earlier)
+  int glossy_depth = 1;  // glossy bounces followed before using the estimate
+  int max_depth = 32;    // singular-chain cap (Russian roulette ends most earlier)
   DirectLightMode direct = DirectLightMode::kNone;
-  DirectLightOptions monte_carlo;   // §4.2.1
+  DirectLightOptions monte_carlo;     // §4.2.1
   PhotonDirectOptions photon_direct;  // §4.2.3
-  int local_pass_rays = 0;          // N_lp (§4.3); 0 = off
+  int local_pass_rays = 0;            // N_lp (§4.3); 0 = off
   // What a local-pass gather ray reads at its hit: the full photon-map estimate, or the
   // precomputed irradiance of the nearest site (Christensen 1999; precomputed_irradiance.h),
   // built once per map on first use.
@@ -62,7 +62,8 @@ RadianceEstimateOptions DefaultCausticOptions(int k, const Bounds3& scene_bounds
 // (a ceiling lit from below); an unbounded query filtered by the direction test then visits
 // every direct photon before giving up — measured on Cornell with the local pass: 150x slower.
 inline constexpr float kDirectPhotonRadiusFraction = 0.05f;
-RadianceEstimateOptions DefaultDirectPhotonOptions(const RadianceEstimateOptions& global, const Bounds3& scene_bounds);
+RadianceEstimateOptions DefaultDirectPhotonOptions(const RadianceEstimateOptions& global,
+                                                   const Bounds3& scene_bounds);
 
 // What the photon maps of a given integrator configuration must contain.
 void ConfigureMapsFor(const PhotonMapIntegratorOptions& options, PhotonMapsOptions* maps);
@@ -82,8 +83,8 @@ class PhotonMapIntegrator final : public Integrator {
  private:
   // Photon-map radiance leaving x towards wo through `lobes`: global (+ direct map when
   // `include_direct_photons`) + caustic.
-  Rgb MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, bool include_direct_photons,
-                  TraceCounters& counters) const;
+  Rgb MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
+                  bool include_direct_photons, TraceCounters& counters) const;
   Rgb DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Sampler& sampler,
                   const PathVertexSlots& slots, TraceCounters& counters) const;
   Rgb Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Sampler& sampler,

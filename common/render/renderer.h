@@ -37,10 +37,9 @@ struct RenderStats {
 // into sums[i]. `progress`, if given, is incremented by the number of pixels finished.
 // `cancel`, if given, is checked before each block of 16 pixels; once it is set, the remaining
 // blocks are skipped and RenderPixels throws Cancelled (`sums` then holds a partial result).
-RenderStats RenderPixels(const Integrator& integrator, const Camera& camera,
-                         std::span<const uint32_t> pixels, uint32_t sample_begin,
-                         uint32_t sample_end, uint64_t seed, int threads, std::span<Rgb> sums,
-                         std::atomic<uint64_t>* progress = nullptr,
+RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std::span<const uint32_t> pixels,
+                         uint32_t sample_begin, uint32_t sample_end, uint64_t seed, int threads,
+                         std::span<Rgb> sums, std::atomic<uint64_t>* progress = nullptr,
                          const std::atomic<bool>* cancel = nullptr,
                          SamplerKind sampler = SamplerKind::kSobol);
 

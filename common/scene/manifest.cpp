@@ -36,8 +36,7 @@ class Parser {
     for (auto it = object.begin(); it != object.end(); ++it) {
       bool found = false;
       for (const char* k : known) found = found || it.key() == k;
-      if (!found)
-        Warn("key '" + Join(prefix, it.key()) + "' is not part of the manifest format; ignored");
+      if (!found) Warn("key '" + Join(prefix, it.key()) + "' is not part of the manifest format; ignored");
     }
   }
 
@@ -115,8 +114,7 @@ class Parser {
       const Json& r = v["resolution"];
       const std::string rkey = key + ".resolution";
       const char* expect = "expected 2 positive integers [width, height]";
-      if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() ||
-          !r[1].is_number_integer())
+      if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() || !r[1].is_number_integer())
         Fail(rkey, expect);
       const int64_t w = r[0].get<int64_t>(), h = r[1].get<int64_t>();
       if (w <= 0 || h <= 0) Fail(rkey, expect);
@@ -134,21 +132,24 @@ class Parser {
 
   MaterialOverride Override(const Json& v, const std::string& key) const {
     if (!v.is_object()) Fail(key, "expected an object");
-    CheckKeys(v, key,
-              {"kind", "diffuse", "specular", "roughness", "transmission", "ior", "emission"});
+    CheckKeys(v, key, {"kind", "diffuse", "specular", "roughness", "transmission", "ior", "emission"});
     MaterialOverride o;
     if (v.contains("kind")) {
       const std::string kind = String(v["kind"], key + ".kind");
-      if (kind == "diffuse") o.kind = MaterialOverride::Kind::kDiffuse;
-      else if (kind == "glossy") o.kind = MaterialOverride::Kind::kGlossy;
-      else if (kind == "mirror") o.kind = MaterialOverride::Kind::kMirror;
-      else if (kind == "glass") o.kind = MaterialOverride::Kind::kGlass;
-      else Fail(key + ".kind", "expected one of \"diffuse\", \"glossy\", \"mirror\", \"glass\"");
+      if (kind == "diffuse")
+        o.kind = MaterialOverride::Kind::kDiffuse;
+      else if (kind == "glossy")
+        o.kind = MaterialOverride::Kind::kGlossy;
+      else if (kind == "mirror")
+        o.kind = MaterialOverride::Kind::kMirror;
+      else if (kind == "glass")
+        o.kind = MaterialOverride::Kind::kGlass;
+      else
+        Fail(key + ".kind", "expected one of \"diffuse\", \"glossy\", \"mirror\", \"glass\"");
     }
     if (v.contains("diffuse")) o.diffuse = Colour(v["diffuse"], key + ".diffuse");
     if (v.contains("specular")) o.specular = Colour(v["specular"], key + ".specular");
-    if (v.contains("transmission"))
-      o.transmission = Colour(v["transmission"], key + ".transmission");
+    if (v.contains("transmission")) o.transmission = Colour(v["transmission"], key + ".transmission");
     if (v.contains("emission")) o.emission = Colour(v["emission"], key + ".emission");
     if (v.contains("roughness")) {
       const double a = Number(v["roughness"], key + ".roughness");
@@ -199,11 +200,9 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
   SceneManifest m;
   m.file = file;
   Parser p(file_name, &m.warnings);
-  if (!root.is_object())
-    throw InputError(SourceLocation{file_name, 0}, "a manifest must be a JSON object");
+  if (!root.is_object()) throw InputError(SourceLocation{file_name, 0}, "a manifest must be a JSON object");
   p.CheckKeys(root, "",
-              {"version", "name", "geometry", "scale", "cameras", "settings", "materials",
-               "notes"});
+              {"version", "name", "geometry", "scale", "cameras", "settings", "materials", "notes"});
 
   if (root.contains("version")) {
     const Json& v = root["version"];
@@ -232,8 +231,7 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
     for (size_t i = 0; i < cams.size(); ++i) {
       const std::string key = "cameras[" + std::to_string(i) + "]";
       CameraSpec cam = p.Camera(cams[i], key, i);
-      if (!names.insert(cam.name).second)
-        p.Fail(key + ".name", "duplicate camera name \"" + cam.name + "\"");
+      if (!names.insert(cam.name).second) p.Fail(key + ".name", "duplicate camera name \"" + cam.name + "\"");
       m.cameras.push_back(std::move(cam));
     }
   }

@@ -23,12 +23,12 @@ namespace pf {
 struct MaterialOverride {
   enum class Kind { kUnchanged, kDiffuse, kGlossy, kMirror, kGlass };
   Kind kind = Kind::kUnchanged;
-  std::optional<Rgb> diffuse;        // ρd
-  std::optional<Rgb> specular;       // ρs
-  std::optional<float> roughness;    // Ward α of ρs
-  std::optional<Rgb> transmission;   // τs
+  std::optional<Rgb> diffuse;       // ρd
+  std::optional<Rgb> specular;      // ρs
+  std::optional<float> roughness;   // Ward α of ρs
+  std::optional<Rgb> transmission;  // τs
   std::optional<float> ior;
-  std::optional<Rgb> emission;       // Le, W/(m²·sr)
+  std::optional<Rgb> emission;  // Le, W/(m²·sr)
 };
 
 // A "settings" value: numbers stay numbers; strings are kept as their text; anything else
@@ -36,17 +36,17 @@ struct MaterialOverride {
 using SettingValue = std::variant<double, std::string>;
 
 struct SceneManifest {
-  std::filesystem::path file;        // the manifest itself
-  std::string name;                  // "name", default: the manifest's file stem
-  std::filesystem::path geometry;    // "geometry", resolved relative to the manifest's folder
-  std::string geometry_reference;    // "geometry" as written (LoadScene confines it to the root)
-  int geometry_line = 0;             // line of the "geometry" key (0 if not found)
-  double scale = 1.0;                // "scale": multiplies positions and camera points
-  std::vector<CameraSpec> cameras;   // "cameras", in file order
+  std::filesystem::path file;       // the manifest itself
+  std::string name;                 // "name", default: the manifest's file stem
+  std::filesystem::path geometry;   // "geometry", resolved relative to the manifest's folder
+  std::string geometry_reference;   // "geometry" as written (LoadScene confines it to the root)
+  int geometry_line = 0;            // line of the "geometry" key (0 if not found)
+  double scale = 1.0;               // "scale": multiplies positions and camera points
+  std::vector<CameraSpec> cameras;  // "cameras", in file order
   std::map<std::string, SettingValue> settings;
   std::map<std::string, MaterialOverride> materials;
   std::string notes;
-  std::vector<std::string> warnings; // "file: reason"
+  std::vector<std::string> warnings;  // "file: reason"
 };
 
 // Reads and validates a manifest. Throws InputError (missing file, JSON syntax error with its

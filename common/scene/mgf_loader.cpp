@@ -49,9 +49,9 @@ constexpr uint32_t kNone = 0xffffffffu;
 // Beyond this magnitude (after transformation) coordinates are rejected: products of two such
 // numbers stay far from overflow in double, and the value still fits a float.
 constexpr double kMaxCoordinate = 1e18;
-constexpr long kMaxRepeat = 1'000'000;                 // largest N of `-i N` / `-a N`
+constexpr long kMaxRepeat = 1'000'000;                  // largest N of `-i N` / `-a N`
 constexpr uint64_t kMaxArrayInstances = 1'000'000'000;  // product of the -a counts of one xf
-constexpr size_t kMaxStoredWarnings = 500;             // then only counted, to keep logs readable
+constexpr size_t kMaxStoredWarnings = 500;              // then only counted, to keep logs readable
 constexpr int kMinCurveSegments = 3;
 // The spec limits an entity to 4096 characters, i.e. about 2000 vertices per face; far larger
 // polygons are refused rather than ear-clipped in quadratic time.
@@ -130,23 +130,46 @@ class Args {
 };
 
 enum class Kind {
-  kUnknown, kObject, kXf, kInclude, kIes, kColor, kCxy, kCspec, kCct, kCmix, kMaterial,
-  kSides, kRd, kTd, kEd, kRs, kTs, kIr, kVertex, kPoint, kNormal, kFace, kFaceHoles,
-  kSphere, kCylinder, kCone, kPrism, kRing, kTorus,
+  kUnknown,
+  kObject,
+  kXf,
+  kInclude,
+  kIes,
+  kColor,
+  kCxy,
+  kCspec,
+  kCct,
+  kCmix,
+  kMaterial,
+  kSides,
+  kRd,
+  kTd,
+  kEd,
+  kRs,
+  kTs,
+  kIr,
+  kVertex,
+  kPoint,
+  kNormal,
+  kFace,
+  kFaceHoles,
+  kSphere,
+  kCylinder,
+  kCone,
+  kPrism,
+  kRing,
+  kTorus,
 };
 
 Kind KindOf(std::string_view w) {
   static const std::unordered_map<std::string_view, Kind> kKinds = {
-      {"o", Kind::kObject},     {"xf", Kind::kXf},        {"i", Kind::kInclude},
-      {"ies", Kind::kIes},      {"c", Kind::kColor},      {"cxy", Kind::kCxy},
-      {"cspec", Kind::kCspec},  {"cct", Kind::kCct},      {"cmix", Kind::kCmix},
-      {"m", Kind::kMaterial},   {"sides", Kind::kSides},  {"rd", Kind::kRd},
-      {"td", Kind::kTd},        {"ed", Kind::kEd},        {"rs", Kind::kRs},
-      {"ts", Kind::kTs},        {"ir", Kind::kIr},        {"v", Kind::kVertex},
-      {"p", Kind::kPoint},      {"n", Kind::kNormal},     {"f", Kind::kFace},
-      {"fh", Kind::kFaceHoles}, {"sph", Kind::kSphere},   {"cyl", Kind::kCylinder},
-      {"cone", Kind::kCone},    {"prism", Kind::kPrism},  {"ring", Kind::kRing},
-      {"torus", Kind::kTorus},
+      {"o", Kind::kObject},  {"xf", Kind::kXf},        {"i", Kind::kInclude},   {"ies", Kind::kIes},
+      {"c", Kind::kColor},   {"cxy", Kind::kCxy},      {"cspec", Kind::kCspec}, {"cct", Kind::kCct},
+      {"cmix", Kind::kCmix}, {"m", Kind::kMaterial},   {"sides", Kind::kSides}, {"rd", Kind::kRd},
+      {"td", Kind::kTd},     {"ed", Kind::kEd},        {"rs", Kind::kRs},       {"ts", Kind::kTs},
+      {"ir", Kind::kIr},     {"v", Kind::kVertex},     {"p", Kind::kPoint},     {"n", Kind::kNormal},
+      {"f", Kind::kFace},    {"fh", Kind::kFaceHoles}, {"sph", Kind::kSphere},  {"cyl", Kind::kCylinder},
+      {"cone", Kind::kCone}, {"prism", Kind::kPrism},  {"ring", Kind::kRing},   {"torus", Kind::kTorus},
   };
   const auto it = kKinds.find(w);
   return it == kKinds.end() ? Kind::kUnknown : it->second;
@@ -191,9 +214,7 @@ class MgfReader final : private geometry::MeshSink {
   };
 
   // ---- messages ------------------------------------------------------------------------------
-  SourceLocation Here() const {
-    return SourceLocation{state_ ? state_->file->name : std::string(), line_};
-  }
+  SourceLocation Here() const { return SourceLocation{state_ ? state_->file->name : std::string(), line_}; }
   [[noreturn]] void Fail(const std::string& reason) const { throw InputError(Here(), reason); }
   void Warn(const std::string& message) {
     if (scene_.warnings.size() >= kMaxStoredWarnings) {
@@ -209,8 +230,8 @@ class MgfReader final : private geometry::MeshSink {
   void ExpectCount(const Args& a, size_t lo, size_t hi, const char* usage) const {
     const size_t n = a.size() - 1;
     if (n < lo || n > hi) {
-      Fail(std::string(a.keyword()) + ": expected " + usage + ", got " + std::to_string(n) +
-           " argument" + (n == 1 ? "" : "s"));
+      Fail(std::string(a.keyword()) + ": expected " + usage + ", got " + std::to_string(n) + " argument" +
+           (n == 1 ? "" : "s"));
     }
   }
   double Number(const Args& a, size_t i) const {
@@ -309,8 +330,8 @@ class MgfReader final : private geometry::MeshSink {
     spec.segments.emplace_back();  // the arguments before the first -a / -i
     auto need = [&](size_t i, size_t n) {
       if (i + n >= a.size()) {
-        Fail(std::string(a.keyword()) + ": transform option " + Quote(a[i]) + " needs " +
-             std::to_string(n) + " argument" + (n == 1 ? "" : "s"));
+        Fail(std::string(a.keyword()) + ": transform option " + Quote(a[i]) + " needs " + std::to_string(n) +
+             " argument" + (n == 1 ? "" : "s"));
       }
     };
     auto apply = [&](const Affine& op) {
@@ -354,8 +375,8 @@ class MgfReader final : private geometry::MeshSink {
         if (array) {
           spec.instances *= static_cast<uint64_t>(count);
           if (spec.instances > kMaxArrayInstances) {
-            Fail(std::string(a.keyword()) + ": array of more than " +
-                 std::to_string(kMaxArrayInstances) + " instances");
+            Fail(std::string(a.keyword()) + ": array of more than " + std::to_string(kMaxArrayInstances) +
+                 " instances");
           }
         }
         spec.segments.push_back(XformSegment{array, count, Affine{}});
@@ -407,8 +428,7 @@ class MgfReader final : private geometry::MeshSink {
       if (!problem.empty()) Fail("include " + Quote(name) + " " + problem);
     }
     const std::string canonical = CanonicalKey(full);
-    if (std::find(include_stack_.begin(), include_stack_.end(), canonical) !=
-        include_stack_.end()) {
+    if (std::find(include_stack_.begin(), include_stack_.end(), canonical) != include_stack_.end()) {
       std::string chain;
       for (const std::string& f : include_stack_) chain += fs::path(f).filename().string() + " -> ";
       Fail("include cycle: " + chain + full.filename().string());
@@ -537,8 +557,7 @@ class MgfReader final : private geometry::MeshSink {
         }
         if (y < kMinChromaY) {
           // (Almost) no luminance: the colour of a luminance-normalised value would be infinite.
-          Warn("cxy: y = " + std::string(a[2]) +
-               " is a colour without luminance; neutral grey used instead");
+          Warn("cxy: y = " + std::string(a[2]) + " is a colour without luminance; neutral grey used instead");
           *colors_.current = Chroma{};
           return;
         }
@@ -564,7 +583,8 @@ class MgfReader final : private geometry::MeshSink {
         const double t = Number(a, 1);
         if (!(t > 0.0)) Fail("cct: temperature must be positive");
         Chroma c;
-        if (!mgf::BlackbodyToChroma(t, &c)) Fail("cct: temperature " + Quote(a[1]) + " gives no visible light");
+        if (!mgf::BlackbodyToChroma(t, &c))
+          Fail("cct: temperature " + Quote(a[1]) + " gives no visible light");
         *colors_.current = c;
         return;
       }
@@ -633,8 +653,7 @@ class MgfReader final : private geometry::MeshSink {
         if (!(n > 0.0)) Fail("ir: the real index of refraction must be positive");
         if (n > kMaxMaterialValue) Fail("ir: the index of refraction is out of range");
         if (k != 0.0) {
-          Warn("ir: imaginary part " + std::string(a[2]) +
-               " ignored (metals are rendered as dielectrics)");
+          Warn("ir: imaginary part " + std::string(a[2]) + " ignored (metals are rendered as dielectrics)");
         }
         Mat().ir_n = n;
         Mat().ir_k = k;
@@ -719,12 +738,11 @@ class MgfReader final : private geometry::MeshSink {
     out.one_sided = m.sides == 1;
     // Luminous emittance (lm/m²) of a Lambertian emitter -> radiance in W/(m²·sr): divide by π
     // and by the luminous efficacy of white light; the colour has luminance Y = 1.
-    out.emission = ChromaRgb(m.ed_c) *
-                   static_cast<float>(m.ed / (kPiD * mgf::kLuminousEfficacy));
+    out.emission = ChromaRgb(m.ed_c) * static_cast<float>(m.ed / (kPiD * mgf::kLuminousEfficacy));
     // Energy conservation (§3 m: "the sum ... must not be greater than one").
     // Saturated colours can push a channel above 1 even when the photometric values obey it.
-    const Rgb sum = out.diffuse_reflectance + out.specular_reflectance +
-                    out.diffuse_transmittance + out.specular_transmittance;
+    const Rgb sum = out.diffuse_reflectance + out.specular_reflectance + out.diffuse_transmittance +
+                    out.specular_transmittance;
     const float max_sum = sum.Max();
     if (max_sum > 1.0f) {
       const float s = 1.0f / max_sum;
@@ -735,11 +753,9 @@ class MgfReader final : private geometry::MeshSink {
     }
     std::string key = out.name;
     key += '\0';
-    auto put = [&key](const auto& v) {
-      key.append(reinterpret_cast<const char*>(&v), sizeof(v));
-    };
-    for (const Rgb* c : {&out.diffuse_reflectance, &out.specular_reflectance,
-                         &out.diffuse_transmittance, &out.specular_transmittance, &out.emission}) {
+    auto put = [&key](const auto& v) { key.append(reinterpret_cast<const char*>(&v), sizeof(v)); };
+    for (const Rgb* c : {&out.diffuse_reflectance, &out.specular_reflectance, &out.diffuse_transmittance,
+                         &out.specular_transmittance, &out.emission}) {
       put(c->r);
       put(c->g);
       put(c->b);
@@ -753,8 +769,7 @@ class MgfReader final : private geometry::MeshSink {
     if (inserted) {
       if (max_sum > 1.0001f) {  // rounding of "rd 1" with a near-white colour is not worth a word
         Warn("material " + Quote(m.name.empty() ? std::string_view("(unnamed)") : m.name) +
-             ": rd+rs+td+ts reaches " + std::to_string(max_sum) +
-             " in a colour channel; scaled down to 1");
+             ": rd+rs+td+ts reaches " + std::to_string(max_sum) + " in a colour channel; scaled down to 1");
       }
       scene_.materials.push_back(std::move(out));
     }
@@ -765,8 +780,7 @@ class MgfReader final : private geometry::MeshSink {
   // Starts a source primitive: its material, and a light id assigned at its first triangle.
   void BeginPrimitive(size_t expected_triangles) {
     if (scene_.triangles.size() + expected_triangles > options_.max_triangles) {
-      Fail("more than " + std::to_string(options_.max_triangles) +
-           " triangles (MgfOptions::max_triangles)");
+      Fail("more than " + std::to_string(options_.max_triangles) + " triangles (MgfOptions::max_triangles)");
     }
     prim_material_ = MaterialIndex();
     prim_emissive_ = scene_.materials[prim_material_].IsEmissive();
@@ -788,8 +802,7 @@ class MgfReader final : private geometry::MeshSink {
 
   void AddTriangle(uint32_t a, uint32_t b, uint32_t c) override {
     if (scene_.triangles.size() >= options_.max_triangles) {
-      Fail("more than " + std::to_string(options_.max_triangles) +
-           " triangles (MgfOptions::max_triangles)");
+      Fail("more than " + std::to_string(options_.max_triangles) + " triangles (MgfOptions::max_triangles)");
     }
     if (prim_emissive_ && prim_light_ == kNoLight) prim_light_ = scene_.num_lights++;
     scene_.triangles.push_back({a, b, c});
@@ -1079,9 +1092,8 @@ class MgfReader final : private geometry::MeshSink {
 void CheckOptions(const MgfOptions& o, const std::string& name) {
   if (o.curve_segments < kMinCurveSegments || o.curve_segments > kMaxCurveSegments) {
     throw InputError(SourceLocation{name, 0},
-                     "MgfOptions::curve_segments = " + std::to_string(o.curve_segments) +
-                         " is not in [" + std::to_string(kMinCurveSegments) + ", " +
-                         std::to_string(kMaxCurveSegments) + "]");
+                     "MgfOptions::curve_segments = " + std::to_string(o.curve_segments) + " is not in [" +
+                         std::to_string(kMinCurveSegments) + ", " + std::to_string(kMaxCurveSegments) + "]");
   }
   if (o.max_depth < 1) throw InputError(SourceLocation{name, 0}, "MgfOptions::max_depth < 1");
 }

@@ -111,16 +111,14 @@ int FindFirstBadFaceLine(const std::filesystem::path& path, long total_v, long t
       while (tokens >> corner) {
         const size_t slash1 = corner.find('/');
         long vi = 0;
-        if (!ParseIndex(std::string_view(corner).substr(0, slash1), &vi) ||
-            !resolves(vi, v_so_far, total_v))
+        if (!ParseIndex(std::string_view(corner).substr(0, slash1), &vi) || !resolves(vi, v_so_far, total_v))
           return line_number;
         if (slash1 == std::string::npos) continue;
         const size_t slash2 = corner.find('/', slash1 + 1);
         if (slash2 == std::string::npos) continue;
         long ni = 0;
         const std::string_view normal_field = std::string_view(corner).substr(slash2 + 1);
-        if (!normal_field.empty() &&
-            (!ParseIndex(normal_field, &ni) || !resolves(ni, vn_so_far, total_vn)))
+        if (!normal_field.empty() && (!ParseIndex(normal_field, &ni) || !resolves(ni, vn_so_far, total_vn)))
           return line_number;
       }
     }
@@ -138,8 +136,7 @@ class ConfinedMtlReader : public tinyobj::MaterialReader {
       : root_(std::move(root)), base_dir_(std::move(base_dir)) {}
 
   bool operator()(const std::string& reference, std::vector<tinyobj::material_t>* materials,
-                  std::map<std::string, int>* material_map, std::string* warn,
-                  std::string* err) override {
+                  std::map<std::string, int>* material_map, std::string* warn, std::string* err) override {
     std::filesystem::path resolved;
     const std::string problem = SceneReferenceProblem(root_, base_dir_, reference, &resolved);
     if (!problem.empty()) {
@@ -188,8 +185,8 @@ void CheckCoordinates(const std::string& text, const std::string& file) {
       const auto [ptr, ec] = std::from_chars(begin, field.data() + field.size(), value);
       if (ec != std::errc() || ptr != field.data() + field.size() || !std::isfinite(value) ||
           !std::isfinite(float(value)))
-        throw InputError(SourceLocation{file, number}, keyword + " coordinate " + QuoteReference(field) +
-                                                           " is not a finite number");
+        throw InputError(SourceLocation{file, number},
+                         keyword + " coordinate " + QuoteReference(field) + " is not a finite number");
     }
   }
 }
@@ -232,8 +229,8 @@ float WardAlphaFromPhongExponent(float ns) {
 bool ClampEnergy(Material* m) {
   bool clamped = false;
   for (int i = 0; i < 3; ++i) {
-    const float sum = m->diffuse_reflectance[i] + m->specular_reflectance[i] +
-                      m->diffuse_transmittance[i] + m->specular_transmittance[i];
+    const float sum = m->diffuse_reflectance[i] + m->specular_reflectance[i] + m->diffuse_transmittance[i] +
+                      m->specular_transmittance[i];
     if (sum > 1.0f + kEnergyTolerance) {
       const float s = 1.0f / sum;
       m->diffuse_reflectance[i] *= s;
@@ -283,21 +280,18 @@ Material MaterialFromMtl(const MtlParameters& mtl, std::vector<std::string>* war
       m.specular_reflectance *= d;
       m.ior = 1.0f;
     } else if (!tf.IsBlack() && !(tf == Rgb(1.0f))) {
-      warn("Tf " + FormatRgb(tf) + " ignored: the material is opaque (illum " +
-           std::to_string(mtl.illum) +
+      warn("Tf " + FormatRgb(tf) + " ignored: the material is opaque (illum " + std::to_string(mtl.illum) +
            ", d = 1); use illum 4/6/7 for glass or a manifest material override");
     }
   }
-  if (ClampEnergy(&m))
-    warn("reflectance + transmittance exceeds 1 in some channel; scaled down to 1");
+  if (ClampEnergy(&m)) warn("reflectance + transmittance exceeds 1 in some channel; scaled down to 1");
   return m;
 }
 
 SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root) {
   const std::string file = path.string();
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    throw InputError(SourceLocation{file, 0}, "no such file");
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(SourceLocation{file, 0}, "no such file");
   std::string text;
   {
     std::ifstream file_in(path, std::ios::binary);
@@ -315,8 +309,8 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
   std::vector<tinyobj::shape_t> shapes;
   std::vector<tinyobj::material_t> materials;
   std::string tiny_warning, tiny_error;
-  const bool ok = tinyobj::LoadObj(&attrib, &shapes, &materials, &tiny_warning, &tiny_error, &in,
-                                   &mtl_reader, /*triangulate=*/true,
+  const bool ok = tinyobj::LoadObj(&attrib, &shapes, &materials, &tiny_warning, &tiny_error, &in, &mtl_reader,
+                                   /*triangulate=*/true,
                                    /*default_vcols_fallback=*/false);
   if (!mtl_reader.refused_reference().empty()) {
     const std::string& ref = mtl_reader.refused_reference();
@@ -353,8 +347,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
   auto bad_faces = [&](const std::string& reason) {
     const int line = FindFirstBadFaceLine(path, num_v, num_vn);
     throw InputError(SourceLocation{file, line},
-                     line > 0 ? "face references a vertex or normal that does not exist"
-                              : reason);
+                     line > 0 ? "face references a vertex or normal that does not exist" : reason);
   };
   if (fatal_warning) bad_faces(fatal_text);
 
@@ -384,16 +377,15 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
   std::vector<Vec3> normals;
   bool any_normal = false;
   auto vertex = [&](const tinyobj::index_t& idx) -> uint32_t {
-    if (idx.vertex_index < 0 || idx.vertex_index >= num_v ||
-        idx.normal_index < -1 || idx.normal_index >= num_vn)
+    if (idx.vertex_index < 0 || idx.vertex_index >= num_v || idx.normal_index < -1 ||
+        idx.normal_index >= num_vn)
       bad_faces("face references a vertex or normal that does not exist");
-    const uint64_t key = (uint64_t(uint32_t(idx.vertex_index)) << 32) |
-                         uint64_t(uint32_t(idx.normal_index + 1));
+    const uint64_t key =
+        (uint64_t(uint32_t(idx.vertex_index)) << 32) | uint64_t(uint32_t(idx.normal_index + 1));
     auto [it, inserted] = vertex_of.try_emplace(key, uint32_t(scene.positions.size()));
     if (!inserted) return it->second;
     const size_t v = size_t(idx.vertex_index) * 3;
-    const Vec3 p(float(attrib.vertices[v]), float(attrib.vertices[v + 1]),
-                 float(attrib.vertices[v + 2]));
+    const Vec3 p(float(attrib.vertices[v]), float(attrib.vertices[v + 1]), float(attrib.vertices[v + 2]));
     if (!IsFinite(p))
       throw InputError(SourceLocation{file, 0},
                        "vertex " + std::to_string(idx.vertex_index + 1) + " is not finite");
@@ -401,8 +393,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
     Vec3 n(0.0f);
     if (idx.normal_index >= 0) {
       const size_t k = size_t(idx.normal_index) * 3;
-      const Vec3 raw(float(attrib.normals[k]), float(attrib.normals[k + 1]),
-                     float(attrib.normals[k + 2]));
+      const Vec3 raw(float(attrib.normals[k]), float(attrib.normals[k + 1]), float(attrib.normals[k + 2]));
       const float len2 = LengthSquared(raw);
       if (std::isfinite(len2) && len2 > 0.0f) {
         n = raw / std::sqrt(len2);
@@ -426,8 +417,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
       const bool emissive = scene.materials[mat].IsEmissive();
       // Triangulated already; a fan covers anything tinyobjloader left as a polygon.
       for (size_t k = 1; k + 1 < n; ++k) {
-        const std::array<uint32_t, 3> tri{vertex(mesh.indices[offset]),
-                                          vertex(mesh.indices[offset + k]),
+        const std::array<uint32_t, 3> tri{vertex(mesh.indices[offset]), vertex(mesh.indices[offset + k]),
                                           vertex(mesh.indices[offset + k + 1])};
         const Vec3 e = Cross(scene.positions[tri[1]] - scene.positions[tri[0]],
                              scene.positions[tri[2]] - scene.positions[tri[0]]);
@@ -447,8 +437,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
     scene.warnings.push_back(file + ": " + std::to_string(degenerate) +
                              " degenerate (zero-area) triangles dropped");
   if (any_normal) scene.normals = std::move(normals);
-  if (scene.triangles.empty())
-    scene.warnings.push_back(file + ": the file contains no triangles");
+  if (scene.triangles.empty()) scene.warnings.push_back(file + ": the file contains no triangles");
   return scene;
 }
 

@@ -68,9 +68,9 @@ float WardAlphaFromPhongExponent(float ns);
 struct MtlParameters {
   std::string name;
   Rgb kd, ks, ke, tf;
-  float ns = 1.0f;      // tinyobjloader's default
+  float ns = 1.0f;  // tinyobjloader's default
   float ni = 1.0f;
-  float d = 1.0f;       // dissolve (1 = opaque); Tr is folded in as d = 1 − Tr
+  float d = 1.0f;  // dissolve (1 = opaque); Tr is folded in as d = 1 − Tr
   int illum = 0;
 };
 

@@ -20,15 +20,15 @@ namespace pf {
 // ed ir`). All reflectances/transmittances are linear RGB in [0,1] per channel.
 struct Material {
   std::string name;
-  Rgb diffuse_reflectance;          // ρd: Lambertian reflection.
-  Rgb specular_reflectance;         // ρs: mirror if specular_roughness == 0, else Ward lobe.
-  float specular_roughness = 0.0f;  // Ward α of the reflection lobe (RMS slope).
-  Rgb diffuse_transmittance;        // τd: Lambertian transmission to the other side.
-  Rgb specular_transmittance;       // τs: specular transmission (refraction if ior != 1).
+  Rgb diffuse_reflectance;              // ρd: Lambertian reflection.
+  Rgb specular_reflectance;             // ρs: mirror if specular_roughness == 0, else Ward lobe.
+  float specular_roughness = 0.0f;      // Ward α of the reflection lobe (RMS slope).
+  Rgb diffuse_transmittance;            // τd: Lambertian transmission to the other side.
+  Rgb specular_transmittance;           // τs: specular transmission (refraction if ior != 1).
   float transmission_roughness = 0.0f;  // MGF ts α; rendered as perfect transmission (documented).
-  float ior = 1.0f;                 // Index of refraction inside (behind the front face).
-  Rgb emission;                     // Le in W/(m²·sr), emitted from the front side only.
-  bool one_sided = false;           // MGF `sides 1` (recorded; surfaces are shaded two-sided).
+  float ior = 1.0f;                     // Index of refraction inside (behind the front face).
+  Rgb emission;                         // Le in W/(m²·sr), emitted from the front side only.
+  bool one_sided = false;               // MGF `sides 1` (recorded; surfaces are shaded two-sided).
 
   bool IsEmissive() const { return !emission.IsBlack(); }
 };
@@ -56,13 +56,13 @@ struct SceneDescription {
   std::vector<uint32_t> triangle_material;  // index into materials, one per triangle
   // Light id per triangle: every emitting source primitive (an MGF face or sphere, an OBJ
   // group with Ke) is one light, so that photons can be tagged with it (§4.2.3).
-  std::vector<uint32_t> triangle_light;     // kNoLight for non-emitters
+  std::vector<uint32_t> triangle_light;  // kNoLight for non-emitters
   uint32_t num_lights = 0;
 
   std::vector<Material> materials;
-  std::vector<CameraSpec> cameras;          // from a manifest; may be empty
-  std::vector<std::string> warnings;        // non-fatal loader messages, "file:line: reason"
-  std::string source;                        // the file it was loaded from
+  std::vector<CameraSpec> cameras;    // from a manifest; may be empty
+  std::vector<std::string> warnings;  // non-fatal loader messages, "file:line: reason"
+  std::string source;                 // the file it was loaded from
 
   size_t NumTriangles() const { return triangles.size(); }
   Bounds3 ComputeBounds() const {

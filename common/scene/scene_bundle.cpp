@@ -67,7 +67,8 @@ class Sha256 {
       throw SystemError("SHA-256: OpenSSL initialisation failed");
   }
   void Update(std::string_view bytes) {
-    if (EVP_DigestUpdate(ctx_.get(), bytes.data(), bytes.size()) != 1) throw SystemError("SHA-256: update failed");
+    if (EVP_DigestUpdate(ctx_.get(), bytes.data(), bytes.size()) != 1)
+      throw SystemError("SHA-256: update failed");
   }
   void UpdateU64(uint64_t v) {
     unsigned char le[8];
@@ -167,9 +168,11 @@ std::string BundleHash(const SceneBundle& bundle) {
 
 void ValidateBundle(const SceneBundle& bundle) {
   if (bundle.files.size() > kMaxBundleFiles)
-    throw InputError("bundle.files: " + std::to_string(bundle.files.size()) + " files exceed " + LimitMessage());
+    throw InputError("bundle.files: " + std::to_string(bundle.files.size()) + " files exceed " +
+                     LimitMessage());
   if (bundle.TotalBytes() > kMaxBundleBytes)
-    throw InputError("bundle.files: " + std::to_string(bundle.TotalBytes()) + " bytes exceed " + LimitMessage());
+    throw InputError("bundle.files: " + std::to_string(bundle.TotalBytes()) + " bytes exceed " +
+                     LimitMessage());
   std::set<std::string_view> seen;
   for (size_t i = 0; i < bundle.files.size(); ++i) {
     const std::string& path = bundle.files[i].first;
@@ -184,14 +187,16 @@ void ValidateBundle(const SceneBundle& bundle) {
     const std::string& path = bundle.files[i].first;
     for (size_t slash = path.find('/'); slash != std::string::npos; slash = path.find('/', slash + 1)) {
       if (seen.count(std::string_view(path).substr(0, slash)))
-        throw InputError("bundle.files[" + std::to_string(i) + "].path " + QuoteReference(path) +
-                         ": " + QuoteReference(path.substr(0, slash)) +
+        throw InputError("bundle.files[" + std::to_string(i) + "].path " + QuoteReference(path) + ": " +
+                         QuoteReference(path.substr(0, slash)) +
                          " is also a file of the bundle (a path cannot be a file and a folder)");
     }
   }
   const std::string entry_problem = PathProblem(bundle.entry);
-  if (!entry_problem.empty()) throw InputError("bundle.entry " + QuoteReference(bundle.entry) + ": " + entry_problem);
-  if (!seen.count(bundle.entry)) throw InputError("bundle.entry " + QuoteReference(bundle.entry) + ": not among the bundle's files");
+  if (!entry_problem.empty())
+    throw InputError("bundle.entry " + QuoteReference(bundle.entry) + ": " + entry_problem);
+  if (!seen.count(bundle.entry))
+    throw InputError("bundle.entry " + QuoteReference(bundle.entry) + ": not among the bundle's files");
 }
 
 void WriteBundle(const SceneBundle& bundle, const fs::path& dir) {

@@ -17,8 +17,7 @@ constexpr const char* kSupported = "supported: .json (scene manifest), .mgf, .ob
 
 std::string LowerExtension(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   return ext;
 }
 
@@ -93,9 +92,10 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
       if (o.emission) {
         if (!m.IsEmissive() || o.emission->IsBlack())
           throw InputError(SourceLocation{manifest_file, 0},
-                           "key '" + key + ".emission': can only change the emission of a "
-                           "material that already emits, to a non-zero value (the geometry "
-                           "loader decides which primitives are lights)");
+                           "key '" + key +
+                               ".emission': can only change the emission of a "
+                               "material that already emits, to a non-zero value (the geometry "
+                               "loader decides which primitives are lights)");
         m.emission = *o.emission;
       }
       if (ClampEnergy(&m))
@@ -110,8 +110,7 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
     // mapped that material (e.g. "Tf ignored") no longer apply.
     if (o.kind != MaterialOverride::Kind::kUnchanged) {
       const std::string tag = "material '" + name + "': ";
-      std::erase_if(scene->warnings,
-                    [&](const std::string& w) { return w.find(tag) != std::string::npos; });
+      std::erase_if(scene->warnings, [&](const std::string& w) { return w.find(tag) != std::string::npos; });
     }
   }
 }
@@ -147,13 +146,12 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
   const SceneManifest manifest = LoadManifest(path);
   const std::string manifest_file = path.string();
   // Confined before anything about the file is looked at (scene_reference.h).
-  const std::string problem = SceneReferenceProblem(
-      root, path.has_parent_path() ? path.parent_path() : std::filesystem::path("."),
-      manifest.geometry_reference, nullptr);
+  const std::string problem =
+      SceneReferenceProblem(root, path.has_parent_path() ? path.parent_path() : std::filesystem::path("."),
+                            manifest.geometry_reference, nullptr);
   if (!problem.empty())
     throw InputError(SourceLocation{manifest_file, manifest.geometry_line},
-                     "key 'geometry': " + QuoteReference(manifest.geometry_reference) + " " +
-                         problem);
+                     "key 'geometry': " + QuoteReference(manifest.geometry_reference) + " " + problem);
   const std::string geometry_ext = LowerExtension(manifest.geometry);
   if (geometry_ext != ".mgf" && geometry_ext != ".obj")
     throw InputError(SourceLocation{manifest_file, 0},
@@ -168,8 +166,7 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
   scene.cameras = manifest.cameras;
   ApplyScale(scale_override > 0.0 ? scale_override : manifest.scale, &scene);
-  scene.warnings.insert(scene.warnings.begin(), manifest.warnings.begin(),
-                        manifest.warnings.end());
+  scene.warnings.insert(scene.warnings.begin(), manifest.warnings.begin(), manifest.warnings.end());
   scene.source = manifest_file;
   return scene;
 }

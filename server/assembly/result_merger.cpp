@@ -4,7 +4,8 @@
 
 namespace pf::server {
 
-std::string ResultMerger::Validate(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums) {
+std::string ResultMerger::Validate(const TaskSpec& task, int width, int height,
+                                   std::span<const float> rgb_sums) {
   if (task.sample_end <= task.sample_begin) return "task: empty sample range";
   const uint64_t pixels = CountPixels(task.pixels, width, height);
   return Accumulator::ValidateTaskResult(rgb_sums, pixels, task.sample_end - task.sample_begin);
@@ -17,7 +18,8 @@ std::shared_ptr<const std::vector<uint32_t>> ResultMerger::Permutation(uint64_t 
       return cache_.front().perm;
     }
   }
-  auto perm = std::make_shared<const std::vector<uint32_t>>(PixelPermutation(seed, uint32_t(width) * uint32_t(height)));
+  auto perm = std::make_shared<const std::vector<uint32_t>>(
+      PixelPermutation(seed, uint32_t(width) * uint32_t(height)));
   cache_.push_front({seed, width, height, perm});
   while (cache_.size() > capacity_) cache_.pop_back();
   return perm;
@@ -27,7 +29,8 @@ std::vector<uint32_t> ResultMerger::PixelsOfTask(const TaskSpec& task, int width
   const PixelSubset& s = task.pixels;
   if (s.kind == PixelSubset::Kind::kTile) return PixelsOf(s, width, height);
   const uint64_t n = uint64_t(width) * uint64_t(height);
-  if (s.stride == 0 || s.offset >= n) throw InputError("pixels.permutation_stride: offset/stride out of range");
+  if (s.stride == 0 || s.offset >= n)
+    throw InputError("pixels.permutation_stride: offset/stride out of range");
   const auto perm = Permutation(s.permutation_seed, width, height);
   std::vector<uint32_t> px;
   px.reserve(CountPixels(s, width, height));

@@ -11,8 +11,9 @@ Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, 
       config_(std::move(config)),
       tasks_(std::move(tasks)),
       runtime_(tasks_.size()),
-      accumulator_(with_accumulator ? std::make_unique<Accumulator>(config_->camera.width, config_->camera.height)
-                                    : nullptr),
+      accumulator_(with_accumulator
+                       ? std::make_unique<Accumulator>(config_->camera.width, config_->camera.height)
+                       : nullptr),
       submitted_unix_ms_(submitted_unix_ms) {
   counts_[size_t(TaskState::kQueued)] = tasks_.size();
   for (const TaskSpec& t : tasks_) {
@@ -29,11 +30,15 @@ uint64_t Job::GroupOf(const TaskSpec& t) const {
 bool Job::CanTransition(JobState from, JobState to) {
   if (IsTerminal(from)) return false;
   switch (to) {
-    case JobState::kQueued: return false;
-    case JobState::kRunning: return from == JobState::kQueued;
-    case JobState::kSucceeded: return from == JobState::kRunning;
+    case JobState::kQueued:
+      return false;
+    case JobState::kRunning:
+      return from == JobState::kQueued;
+    case JobState::kSucceeded:
+      return from == JobState::kRunning;
     case JobState::kFailed:
-    case JobState::kCancelled: return true;
+    case JobState::kCancelled:
+      return true;
   }
   return false;
 }

@@ -27,9 +27,9 @@ namespace pf::server {
 
 struct TaskRuntime {
   TaskState state = TaskState::kQueued;
-  uint32_t attempts = 0;      // leases handed out (the current/next lease's attempt number)
-  uint32_t failures = 0;      // attempts that ended badly; bounded by max_attempts
-  std::string lease_id;       // current lease while kLeased
+  uint32_t attempts = 0;  // leases handed out (the current/next lease's attempt number)
+  uint32_t failures = 0;  // attempts that ended badly; bounded by max_attempts
+  std::string lease_id;   // current lease while kLeased
   std::string worker_id;
   double lease_deadline = 0;  // Clock::Now() seconds
   double progress = 0;        // 0..1 as reported by ExtendLease
@@ -84,7 +84,7 @@ class Job {
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
 
   // Stop rules.
-  bool stopping = false;       // time budget reached: nothing new is scheduled
+  bool stopping = false;                    // time budget reached: nothing new is scheduled
   double noise_checked_at = -1e300;         // status cache of EstimatedNoiseRms
   double noise_target_checked_at = -1e300;  // last evaluation of the target-noise rule
   uint64_t noise_checked_seq = ~uint64_t(0);

@@ -15,7 +15,9 @@ namespace v1 = photonfarm::v1;
 
 namespace {
 
-bool IsZero(const v1::Vec3& v) { return v.x() == 0 && v.y() == 0 && v.z() == 0; }
+bool IsZero(const v1::Vec3& v) {
+  return v.x() == 0 && v.y() == 0 && v.z() == 0;
+}
 
 // "Only width/height set": the client asks for the scene's camera (at that resolution).
 bool WantsSceneCamera(const v1::JobSpec& spec) {
@@ -65,9 +67,12 @@ uint64_t MaxPixelsPerTask(const PlanSpec& plan, int width, int height) {
 
 std::string PlanField(const PlanSpec& plan) {
   switch (plan.kind) {
-    case PlanKind::kMultipleMaps: return "spec.plan.multiple_maps";
-    case PlanKind::kMapsInTurn: return "spec.plan.maps_in_turn";
-    case PlanKind::kSkipping: return "spec.plan.skipping";
+    case PlanKind::kMultipleMaps:
+      return "spec.plan.multiple_maps";
+    case PlanKind::kMapsInTurn:
+      return "spec.plan.maps_in_turn";
+    case PlanKind::kSkipping:
+      return "spec.plan.skipping";
   }
   return "spec.plan";
 }
@@ -92,7 +97,8 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
     throw InputError("spec.scene_hash: must be 64 lowercase hex digits (the hash UploadScene returned)");
   const std::optional<SceneInfo> scene = scenes.FindScene(hash);
   if (!scene)
-    throw NotFoundError("spec.scene_hash: unknown scene " + limits::Quote(hash) + " (upload it with UploadScene first)");
+    throw NotFoundError("spec.scene_hash: unknown scene " + limits::Quote(hash) +
+                        " (upload it with UploadScene first)");
   job.scene_hash = hash;
   job.scene_entry = scene->entry;
 
@@ -131,12 +137,15 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
 }
 
 std::vector<TaskSpec> ScheduledTasks(const JobConfig& config) {
-  std::vector<TaskSpec> tasks = ExpandPlan(config.plan, config.camera.width, config.camera.height, config.seed);
+  std::vector<TaskSpec> tasks =
+      ExpandPlan(config.plan, config.camera.width, config.camera.height, config.seed);
   const uint32_t rounds = config.ScheduledRounds();
-  tasks.erase(std::remove_if(tasks.begin(), tasks.end(), [&](const TaskSpec& t) { return t.round >= rounds; }),
-              tasks.end());
+  tasks.erase(
+      std::remove_if(tasks.begin(), tasks.end(), [&](const TaskSpec& t) { return t.round >= rounds; }),
+      tasks.end());
   for (size_t i = 0; i < tasks.size(); ++i)
-    if (tasks[i].task_id != i) throw std::logic_error("ScheduledTasks: task ids are not a prefix of the plan");
+    if (tasks[i].task_id != i)
+      throw std::logic_error("ScheduledTasks: task ids are not a prefix of the plan");
   return tasks;
 }
 

@@ -58,9 +58,9 @@ class SceneCatalog {
 };
 
 struct StopRule {
-  uint32_t max_rounds = 0;          // 0 = all planned rounds
-  double time_budget_seconds = 0;   // 0 = none
-  double target_noise_rms = 0;      // 0 = none
+  uint32_t max_rounds = 0;         // 0 = all planned rounds
+  double time_budget_seconds = 0;  // 0 = none
+  double target_noise_rms = 0;     // 0 = none
 };
 
 // A validated job.

@@ -8,7 +8,9 @@ Executor::Executor(size_t threads, size_t max_queue) : max_queue_(max_queue) {
   for (size_t i = 0; i < std::max<size_t>(1, threads); ++i) threads_.emplace_back([this] { Loop(); });
 }
 
-Executor::~Executor() { Stop(); }
+Executor::~Executor() {
+  Stop();
+}
 
 bool Executor::Post(std::function<void()> work) {
   {

@@ -13,7 +13,9 @@
 namespace pf::server {
 namespace {
 
-std::string Vec(const photonfarm::v1::Vec3& v) { return fmt::format("{},{},{}", v.x(), v.y(), v.z()); }
+std::string Vec(const photonfarm::v1::Vec3& v) {
+  return fmt::format("{},{},{}", v.x(), v.y(), v.z());
+}
 
 // What the image is of, so that `pf info x.exr` and `pf merge` can tell (issue #16): the job's
 // scene, camera, integrator, photon-map settings, plan and seed, the build and the date.
@@ -47,7 +49,8 @@ void AddJobMetadata(const photonfarm::v1::JobStatus& status, ImageMetadata& meta
 
 }  // namespace
 
-ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id, photonfarm::v1::JobStatus* status) {
+ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id,
+                              photonfarm::v1::JobStatus* status) {
   JobSnapshot snap = scheduler.Snapshot(job_id, /*with_image=*/true);
   ResolvedImage image;
   if (snap.image) {
@@ -66,8 +69,10 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id, p
       throw;
     } catch (const std::exception& e) {
       std::string reason = e.what();
-      if (const size_t colon = reason.rfind("checkpoint:"); colon != std::string::npos) reason = reason.substr(colon);
-      throw DataLossError("job " + job_id + ": its stored image is damaged (" + reason + "); the results are lost");
+      if (const size_t colon = reason.rfind("checkpoint:"); colon != std::string::npos)
+        reason = reason.substr(colon);
+      throw DataLossError("job " + job_id + ": its stored image is damaged (" + reason +
+                          "); the results are lost");
     }
     if (!cp && snap.status.tasks_done() > 0)
       throw DataLossError("job " + job_id + ": its stored image is missing; the results are lost");

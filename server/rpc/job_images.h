@@ -17,7 +17,8 @@ struct EncodedImage {
 
 // The job's merged image and its header (what the image is of), with the status of the same
 // moment. O(pixels); NotFoundError for an unknown job. The web page's PNG previews use it.
-ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id, photonfarm::v1::JobStatus* status);
+ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id,
+                              photonfarm::v1::JobStatus* status);
 
 // Slow (EXR encoding): call on the Executor. NotFoundError for an unknown job.
 EncodedImage EncodeJobImage(Scheduler& scheduler, const std::string& job_id);

@@ -17,9 +17,13 @@ namespace v1 = photonfarm::v1;
 
 namespace {
 
-grpc::Status Busy() { return {grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down; retry"}; }
+grpc::Status Busy() {
+  return {grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down; retry"};
+}
 
-void RequireJobId(const std::string& id) { limits::CheckId(id, "job_id"); }
+void RequireJobId(const std::string& id) {
+  limits::CheckId(id, "job_id");
+}
 
 }  // namespace
 
@@ -29,11 +33,13 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const bool posted = ctx_.executor.Post([this, reactor, request, response] {
     reactor->Finish(Guarded("UploadScene", [&] {
-      if (request->bundle().files_size() == 0) throw InputError("bundle.files: at least one file is required");
+      if (request->bundle().files_size() == 0)
+        throw InputError("bundle.files: at least one file is required");
       SceneBundle bundle;
       bundle.entry = request->bundle().entry();
       bundle.files.reserve(size_t(request->bundle().files_size()));
-      for (const v1::SceneFile& f : request->bundle().files()) bundle.files.emplace_back(f.path(), f.content());
+      for (const v1::SceneFile& f : request->bundle().files())
+        bundle.files.emplace_back(f.path(), f.content());
       const UploadResult result = ctx_.scenes.Upload(bundle);
       response->set_scene_hash(result.info.hash);
       response->set_triangles(result.info.triangles);
@@ -89,13 +95,14 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::GetJob(grpc::CallbackServerContext* context,
-                                                    const v1::GetJobRequest* request, v1::JobStatus* response) {
+                                                    const v1::GetJobRequest* request,
+                                                    v1::JobStatus* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded("GetJob", [&] {
-      RequireJobId(request->job_id());
-      *response = ctx_.scheduler.Status(request->job_id());
-      return grpc::Status::OK;
-    });
+    RequireJobId(request->job_id());
+    *response = ctx_.scheduler.Status(request->job_id());
+    return grpc::Status::OK;
+  });
   reactor->Finish(status);
   return reactor;
 }
@@ -105,9 +112,10 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobs(grpc::CallbackServerContex
                                                       v1::ListJobsResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded("ListJobs", [&] {
-      for (v1::JobStatus& s : ctx_.scheduler.List(request->include_finished())) *response->add_jobs() = std::move(s);
-      return grpc::Status::OK;
-    });
+    for (v1::JobStatus& s : ctx_.scheduler.List(request->include_finished()))
+      *response->add_jobs() = std::move(s);
+    return grpc::Status::OK;
+  });
   reactor->Finish(status);
   return reactor;
 }
@@ -117,10 +125,10 @@ grpc::ServerUnaryReactor* RenderServiceImpl::CancelJob(grpc::CallbackServerConte
                                                        v1::CancelJobResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded("CancelJob", [&] {
-      RequireJobId(request->job_id());
-      *response->mutable_status() = ctx_.scheduler.Cancel(request->job_id());
-      return grpc::Status::OK;
-    });
+    RequireJobId(request->job_id());
+    *response->mutable_status() = ctx_.scheduler.Cancel(request->job_id());
+    return grpc::Status::OK;
+  });
   reactor->Finish(status);
   return reactor;
 }
@@ -139,14 +147,14 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobEvents(grpc::CallbackServerC
                                                            v1::ListJobEventsResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded("ListJobEvents", [&] {
-      RequireJobId(request->job_id());
-      ctx_.scheduler.Status(request->job_id());  // NOT_FOUND for an unknown job
-      uint64_t dropped = 0;
-      for (v1::TaskEvent& e : ctx_.scheduler.activity().Events(request->job_id(), &dropped))
-        *response->add_events() = std::move(e);
-      response->set_dropped(dropped);
-      return grpc::Status::OK;
-    });
+    RequireJobId(request->job_id());
+    ctx_.scheduler.Status(request->job_id());  // NOT_FOUND for an unknown job
+    uint64_t dropped = 0;
+    for (v1::TaskEvent& e : ctx_.scheduler.activity().Events(request->job_id(), &dropped))
+      *response->add_events() = std::move(e);
+    response->set_dropped(dropped);
+    return grpc::Status::OK;
+  });
   reactor->Finish(status);
   return reactor;
 }
@@ -156,8 +164,8 @@ grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::Callb
   return ctx_.watches.Open(*request, grpc::Status::OK);
 }
 
-grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(grpc::CallbackServerContext* /*context*/,
-                                                                      const v1::GetImageRequest* request) {
+grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(
+    grpc::CallbackServerContext* /*context*/, const v1::GetImageRequest* request) {
   const grpc::Status precheck = Guarded("GetImage", [&] {
     RequireJobId(request->job_id());
     return grpc::Status::OK;

@@ -20,7 +20,8 @@ class RenderServiceImpl final : public photonfarm::v1::RenderService::CallbackSe
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* context,
                                       const photonfarm::v1::SubmitJobRequest* request,
                                       photonfarm::v1::SubmitJobResponse* response) override;
-  grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* context, const photonfarm::v1::GetJobRequest* request,
+  grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* context,
+                                   const photonfarm::v1::GetJobRequest* request,
                                    photonfarm::v1::JobStatus* response) override;
   grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* context,
                                      const photonfarm::v1::ListJobsRequest* request,

@@ -31,7 +31,9 @@ void FillTask(const Lease& lease, v1::Task* task) {
   SettingsToProto(lease.config->settings, task->mutable_settings());
 }
 
-void RequireLeaseId(const std::string& id) { limits::CheckId(id, "lease_id"); }
+void RequireLeaseId(const std::string& id) {
+  limits::CheckId(id, "lease_id");
+}
 
 // One parked long poll. The state shared with the scheduler's callback lives in `State`, so the
 // reactor is only touched until it is finished (it deletes itself in OnDone).
@@ -43,15 +45,15 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
     LeaseRequest lr;
     double wait = 0;
     const grpc::Status status = Guarded("LeaseTask", [&] {
-        limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
-        wait = request->wait_seconds();
-        if (!std::isfinite(wait) || wait < 0) throw InputError("wait_seconds: must be a finite number >= 0");
-        wait = std::min(wait, kMaxLeaseWaitSeconds);
-        lr.worker_id = request->worker_id();
-        ctx.scheduler.activity().WorkerSeen(lr.worker_id, context->peer(), request->threads());
-        lr.cached_map_seeds.assign(request->cached_map_seeds().begin(), request->cached_map_seeds().end());
-        return grpc::Status::OK;
-      });
+      limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
+      wait = request->wait_seconds();
+      if (!std::isfinite(wait) || wait < 0) throw InputError("wait_seconds: must be a finite number >= 0");
+      wait = std::min(wait, kMaxLeaseWaitSeconds);
+      lr.worker_id = request->worker_id();
+      ctx.scheduler.activity().WorkerSeen(lr.worker_id, context->peer(), request->threads());
+      lr.cached_map_seeds.assign(request->cached_map_seeds().begin(), request->cached_map_seeds().end());
+      return grpc::Status::OK;
+    });
     if (!status.ok()) {
       Finish(status);
       return;
@@ -115,12 +117,12 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerCon
                                                          v1::ExtendLeaseResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("ExtendLease", [&] {
-      RequireLeaseId(request->lease_id());
-      const ExtendResult r = ctx_.scheduler.Extend(request->lease_id(), request->progress());
-      response->set_ok(r.ok);
-      response->set_lease_seconds(r.lease_seconds);
-      return grpc::Status::OK;
-    });
+    RequireLeaseId(request->lease_id());
+    const ExtendResult r = ctx_.scheduler.Extend(request->lease_id(), request->progress());
+    response->set_ok(r.ok);
+    response->set_lease_seconds(r.lease_seconds);
+    return grpc::Status::OK;
+  });
   reactor->Finish(status);
   return reactor;
 }
@@ -131,28 +133,31 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   CompleteResult result;
   grpc::Status status = Guarded("CompleteTask", [&] {
-      RequireLeaseId(request->lease_id());
-      const auto& sums = request->rgb_sums();
-      result = ctx_.scheduler.Complete(request->lease_id(), std::span<const float>(sums.data(), size_t(sums.size())));
-      if (result.status == CompleteStatus::kRejected)
-        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                            "rgb_sums: result rejected, the task is re-queued: " + result.reason);
-      return grpc::Status::OK;
-    });
+    RequireLeaseId(request->lease_id());
+    const auto& sums = request->rgb_sums();
+    result = ctx_.scheduler.Complete(request->lease_id(),
+                                     std::span<const float>(sums.data(), size_t(sums.size())));
+    if (result.status == CompleteStatus::kRejected)
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "rgb_sums: result rejected, the task is re-queued: " + result.reason);
+    return grpc::Status::OK;
+  });
   if (!status.ok() || result.status != CompleteStatus::kMerged) {
     response->set_merged(false);
     reactor->Finish(status);
     return reactor;
   }
   const v1::TaskStats& st = request->stats();
-  spdlog::debug("job {} task {}: result merged (map {:.3f} s{}, render {:.3f} s, {} photons stored)", result.job_id,
-                result.task_id, st.map_seconds(), st.map_cache_hit() ? " cached" : "", st.render_seconds(),
-                st.photons_stored());
-  ctx_.scheduler.activity().WorkerStats(result.worker_id, st.photons_emitted(), st.map_seconds() + st.render_seconds());
+  spdlog::debug("job {} task {}: result merged (map {:.3f} s{}, render {:.3f} s, {} photons stored)",
+                result.job_id, result.task_id, st.map_seconds(), st.map_cache_hit() ? " cached" : "",
+                st.render_seconds(), st.photons_stored());
+  ctx_.scheduler.activity().WorkerStats(result.worker_id, st.photons_emitted(),
+                                        st.map_seconds() + st.render_seconds());
   response->set_merged(true);
   if (ctx_.persister.durable_acks()) {
     const auto& sums = request->rgb_sums();
-    ctx_.persister.JournalThenAck(result.job_id, result.task_id, std::span<const float>(sums.data(), size_t(sums.size())),
+    ctx_.persister.JournalThenAck(result.job_id, result.task_id,
+                                  std::span<const float>(sums.data(), size_t(sums.size())),
                                   [reactor] { reactor->Finish(grpc::Status::OK); });
   } else {
     reactor->Finish(grpc::Status::OK);
@@ -165,18 +170,18 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
                                                       v1::FailTaskResponse* /*response*/) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("FailTask", [&] {
-      RequireLeaseId(request->lease_id());
-      std::string reason = limits::Printable(request->reason(), kMaxReasonBytes);
-      if (reason.empty()) reason = "no reason given";
-      ctx_.scheduler.Fail(request->lease_id(), reason, request->retryable());
-      return grpc::Status::OK;
-    });
+    RequireLeaseId(request->lease_id());
+    std::string reason = limits::Printable(request->reason(), kMaxReasonBytes);
+    if (reason.empty()) reason = "no reason given";
+    ctx_.scheduler.Fail(request->lease_id(), reason, request->retryable());
+    return grpc::Status::OK;
+  });
   reactor->Finish(status);
   return reactor;
 }
 
-grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::CallbackServerContext* /*context*/,
-                                                                       const v1::FetchSceneRequest* request) {
+grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(
+    grpc::CallbackServerContext* /*context*/, const v1::FetchSceneRequest* request) {
   const grpc::Status precheck = Guarded("FetchScene", [&] {
     limits::CheckId(request->scene_hash(), "scene_hash");
     return grpc::Status::OK;

@@ -17,11 +17,16 @@ namespace {
 
 v1::JobState ToProto(JobState s) {
   switch (s) {
-    case JobState::kQueued: return v1::JOB_STATE_QUEUED;
-    case JobState::kRunning: return v1::JOB_STATE_RUNNING;
-    case JobState::kSucceeded: return v1::JOB_STATE_SUCCEEDED;
-    case JobState::kFailed: return v1::JOB_STATE_FAILED;
-    case JobState::kCancelled: return v1::JOB_STATE_CANCELLED;
+    case JobState::kQueued:
+      return v1::JOB_STATE_QUEUED;
+    case JobState::kRunning:
+      return v1::JOB_STATE_RUNNING;
+    case JobState::kSucceeded:
+      return v1::JOB_STATE_SUCCEEDED;
+    case JobState::kFailed:
+      return v1::JOB_STATE_FAILED;
+    case JobState::kCancelled:
+      return v1::JOB_STATE_CANCELLED;
   }
   return v1::JOB_STATE_UNSPECIFIED;
 }
@@ -161,7 +166,8 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick,
                  limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), rt.attempts,
                  affinity ? ", map cached" : "");
-    activity_.TaskEvent(job.id(), "leased", pick, rt.attempts, request.worker_id, affinity ? "map cached" : "");
+    activity_.TaskEvent(job.id(), "leased", pick, rt.attempts, request.worker_id,
+                        affinity ? "map cached" : "");
     Lease lease;
     lease.lease_id = rt.lease_id;
     lease.job_id = job.id();
@@ -320,7 +326,8 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
       activity_.TaskEvent(job.id(), "cancelled", id, rt.attempts, rt.worker_id, "the job ended while leased");
     }
   }
-  if (state == JobState::kSucceeded && job.state() == JobState::kQueued) job.TransitionTo(JobState::kRunning, now);
+  if (state == JobState::kSucceeded && job.state() == JobState::kQueued)
+    job.TransitionTo(JobState::kRunning, now);
   job.TransitionTo(state, now, reason);
   if (job.accumulator_if_loaded()) {
     job.SetNoise(job.accumulator().EstimatedNoiseRms(), now);
@@ -331,8 +338,9 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
 void Scheduler::MaybeSucceed(Job& job, double now, Effects& fx) {
   if (!job.active() || job.count(TaskState::kQueued) > 0 || job.count(TaskState::kLeased) > 0) return;
   FinishJob(job, JobState::kSucceeded, "", now, fx);
-  spdlog::info("job {}: succeeded: {} of {} tasks merged in {:.3f} s{}", job.id(), job.count(TaskState::kDone),
-               job.num_tasks(), job.ElapsedSeconds(now), job.stopping ? " (time budget)" : "");
+  spdlog::info("job {}: succeeded: {} of {} tasks merged in {:.3f} s{}", job.id(),
+               job.count(TaskState::kDone), job.num_tasks(), job.ElapsedSeconds(now),
+               job.stopping ? " (time budget)" : "");
 }
 
 void Scheduler::CheckNoiseTarget(Job& job, double now, Effects& fx) {
@@ -344,8 +352,8 @@ void Scheduler::CheckNoiseTarget(Job& job, double now, Effects& fx) {
   job.noise_target_checked_at = now;
   job.SetNoise(job.accumulator().EstimatedNoiseRms(), now);
   if (job.noise_cache >= 0 && job.noise_cache <= target) {
-    spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job.id(), job.noise_cache,
-                 target, job.count(TaskState::kDone));
+    spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job.id(),
+                 job.noise_cache, target, job.count(TaskState::kDone));
     FinishJob(job, JobState::kSucceeded, "", now, fx);
   }
 }
@@ -401,7 +409,8 @@ Scheduler::LeaseRef* Scheduler::FindLiveLease(const std::string& lease_id, doubl
   const uint64_t task_id = it->second.task_id;
   if (now >= job.runtime(task_id).lease_deadline) {
     ++counters_.expired;
-    activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts, job.runtime(task_id).worker_id);
+    activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
+                        job.runtime(task_id).worker_id);
     FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
     return nullptr;
   }
@@ -435,15 +444,16 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
     if (!ref) {
       ++counters_.ignored;
       result.reason = "unknown, expired or finished lease";
-      spdlog::info("result for lease {} ignored: {}", limits::Quote(lease_id, limits::kMaxIdBytes), result.reason);
+      spdlog::info("result for lease {} ignored: {}", limits::Quote(lease_id, limits::kMaxIdBytes),
+                   result.reason);
     } else {
       Job& job = *ref->job;
       const uint64_t task_id = ref->task_id;
       const TaskSpec& task = job.task(task_id);
       result.job_id = job.id();
       result.task_id = task_id;
-      std::string problem = ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height,
-                                                   rgb_sums);
+      std::string problem =
+          ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, rgb_sums);
       if (problem.empty()) {
         try {
           merger_.Merge(task, rgb_sums, job.accumulator());
@@ -469,8 +479,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
         result.worker_id = job.runtime(task_id).worker_id;
         activity_.TaskEvent(job.id(), "merged", task_id, job.runtime(task_id).attempts, result.worker_id);
         spdlog::info("job {} task {}: merged (attempt {}, worker {}; {}/{} done)", job.id(), task_id,
-                     job.runtime(task_id).attempts, job.runtime(task_id).worker_id, job.count(TaskState::kDone),
-                     job.num_tasks());
+                     job.runtime(task_id).attempts, job.runtime(task_id).worker_id,
+                     job.count(TaskState::kDone), job.num_tasks());
         Touch(job, fx);
         CheckNoiseTarget(job, now, fx);
         MaybeSucceed(job, now, fx);
@@ -494,8 +504,8 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
   if (!job.active()) return;
   if (job.stopping) {
     job.SetTaskState(task_id, TaskState::kCancelled);
-    spdlog::info("job {} task {}: attempt {} ended ({}); not retried (time budget reached)", job.id(), task_id,
-                 attempt, reason);
+    spdlog::info("job {} task {}: attempt {} ended ({}); not retried (time budget reached)", job.id(),
+                 task_id, attempt, reason);
     MaybeSucceed(job, now, fx);
     return;
   }
@@ -511,8 +521,8 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
   }
   job.SetTaskState(task_id, TaskState::kQueued);
   Enqueue(job, task_id, fx);
-  spdlog::warn("job {} task {}: attempt {} failed ({}); re-queued ({} of {} attempts failed)", job.id(), task_id,
-               attempt, reason, rt.failures, options_.max_attempts);
+  spdlog::warn("job {} task {}: attempt {} failed ({}); re-queued ({} of {} attempts failed)", job.id(),
+               task_id, attempt, reason, rt.failures, options_.max_attempts);
   ServeWaiters(fx);
 }
 
@@ -544,8 +554,8 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
     const uint64_t task_id = it->second.task_id;
     leases_.erase(it);
     ++counters_.returned;
-    activity_.TaskEvent(job.id(), "returned", task_id, job.runtime(task_id).attempts, job.runtime(task_id).worker_id,
-                        "the lease never reached the worker");
+    activity_.TaskEvent(job.id(), "returned", task_id, job.runtime(task_id).attempts,
+                        job.runtime(task_id).worker_id, "the lease never reached the worker");
     job.SetTaskState(task_id, TaskState::kQueued);
     Enqueue(job, task_id, fx);
     spdlog::debug("job {} task {}: undelivered lease returned", job.id(), task_id);
@@ -573,7 +583,8 @@ void Scheduler::Tick() {
       ++counters_.expired;
       activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
                           job.runtime(task_id).worker_id);
-      FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
+      FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now,
+                  fx);
     }
     for (Job* job : jobs_.InSubmissionOrder()) {
       if (job->active() && job->config().stop.time_budget_seconds > 0) CheckTimeBudget(*job, now, fx);

@@ -54,8 +54,8 @@
 #include "server/assembly/result_merger.h"
 #include "server/jobs/job.h"
 #include "server/jobs/job_registry.h"
-#include "server/scheduling/farm_activity.h"
 #include "server/scheduling/clock.h"
+#include "server/scheduling/farm_activity.h"
 #include "server/store/records.h"
 
 namespace pf::server {
@@ -201,7 +201,8 @@ class Scheduler {
   std::optional<Lease> LeaseLocked(const LeaseRequest& request, double now, Effects& fx);
   bool CheckTimeBudget(Job& job, double now, Effects& fx);
   // The current attempt of a leased task ended badly.
-  void FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now, Effects& fx);
+  void FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now,
+                   Effects& fx);
   // Ends the job: cancels every queued and leased task, then transitions.
   void FinishJob(Job& job, JobState state, const std::string& reason, double now, Effects& fx);
   void MaybeSucceed(Job& job, double now, Effects& fx);

@@ -40,7 +40,8 @@ Checkpoint DecodeCheckpoint(std::string_view bytes) {
   if (bytes.size() < sizeof(kMagic) + 8 || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0)
     throw InputError("checkpoint: bad magic");
   const uint64_t stored = LoadLittleEndian<uint64_t>(bytes.data() + bytes.size() - 8);
-  if (stored != Checksum64(bytes.substr(0, bytes.size() - 8))) throw InputError("checkpoint: checksum mismatch");
+  if (stored != Checksum64(bytes.substr(0, bytes.size() - 8)))
+    throw InputError("checkpoint: checksum mismatch");
   ByteReader in(bytes.substr(sizeof(kMagic), bytes.size() - sizeof(kMagic) - 8), "checkpoint");
   const uint32_t version = in.Get<uint32_t>();
   if (version != kVersion) throw InputError("checkpoint: unsupported version " + std::to_string(version));
@@ -62,7 +63,9 @@ Checkpoint DecodeCheckpoint(std::string_view bytes) {
   return cp;
 }
 
-void WriteCheckpointFile(const fs::path& file, const Checkpoint& cp) { WriteFileAtomically(file, EncodeCheckpoint(cp)); }
+void WriteCheckpointFile(const fs::path& file, const Checkpoint& cp) {
+  WriteFileAtomically(file, EncodeCheckpoint(cp));
+}
 
 std::optional<Checkpoint> ReadCheckpointFile(const fs::path& file) {
   std::error_code ec;

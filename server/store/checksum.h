@@ -23,7 +23,8 @@ inline uint64_t Checksum64(std::string_view bytes) {
     step(w);
   }
   uint64_t tail = 0;
-  for (int b = 0; i + b < bytes.size(); ++b) tail |= uint64_t(static_cast<unsigned char>(bytes[i + b])) << (8 * b);
+  for (int b = 0; i + b < bytes.size(); ++b)
+    tail |= uint64_t(static_cast<unsigned char>(bytes[i + b])) << (8 * b);
   step(tail);
   h ^= h >> 29;
   h *= 0xc4ceb9fe1a85ec53ull;

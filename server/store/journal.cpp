@@ -28,7 +28,8 @@ std::string EncodeJournalEntry(uint64_t task_id, std::span<const float> rgb_sums
   return out;
 }
 
-std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uint64_t* valid_bytes, bool* damaged) {
+std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uint64_t* valid_bytes,
+                                          bool* damaged) {
   *valid_bytes = 0;
   if (damaged) *damaged = false;
   std::vector<JournalEntry> entries;

@@ -34,7 +34,9 @@ Persister::~Persister() {
     if (j.fd >= 0) ::close(j.fd);
 }
 
-fs::path Persister::CheckpointFile(const fs::path& dir, const std::string& job_id) { return dir / (job_id + ".acc"); }
+fs::path Persister::CheckpointFile(const fs::path& dir, const std::string& job_id) {
+  return dir / (job_id + ".acc");
+}
 fs::path Persister::JournalFile(const fs::path& dir, const std::string& job_id) {
   return dir / (job_id + ".journal");
 }
@@ -95,7 +97,8 @@ void Persister::JournalThenAck(const std::string& job_id, uint64_t task_id, std:
   {
     std::lock_guard lock(mu_);
     if (!stop_) {
-      pending_.push_back({job_id, task_id, std::vector<float>(rgb_sums.begin(), rgb_sums.end()), std::move(ack)});
+      pending_.push_back(
+          {job_id, task_id, std::vector<float>(rgb_sums.begin(), rgb_sums.end()), std::move(ack)});
       woken_ = true;
       cv_.notify_all();
       return;
@@ -114,7 +117,9 @@ uint64_t Persister::journal_entries_written() const {
   return journal_entries_written_;
 }
 
-void Persister::FlushNow(bool checkpoints_due) { Flush(checkpoints_due); }
+void Persister::FlushNow(bool checkpoints_due) {
+  Flush(checkpoints_due);
+}
 
 void Persister::Loop() {
   std::unique_lock lock(mu_);
@@ -226,8 +231,10 @@ void Persister::Flush(bool force_checkpoints) {
   bool due = force_checkpoints;
   {
     std::lock_guard lock(mu_);
-    if (interval_ > 0) due = due || now - last_checkpoint_ >= interval_;
-    else due = due || now - last_checkpoint_ >= kSnapshotSeconds;
+    if (interval_ > 0)
+      due = due || now - last_checkpoint_ >= interval_;
+    else
+      due = due || now - last_checkpoint_ >= kSnapshotSeconds;
     if (due) last_checkpoint_ = now;
   }
   PersistBatch batch = scheduler_.CollectPersistBatch(due);
@@ -261,7 +268,8 @@ void Persister::Flush(bool force_checkpoints) {
   // A finished job's final checkpoint is on disk (CollectPersistBatch hands it out with the
   // final row): its journal is no longer needed.
   for (const JobRow& row : batch.jobs)
-    if (IsTerminal(row.state) && !failed_checkpoints.count(row.job_id)) CloseJournal(row.job_id, /*remove=*/true);
+    if (IsTerminal(row.state) && !failed_checkpoints.count(row.job_id))
+      CloseJournal(row.job_id, /*remove=*/true);
 }
 
 }  // namespace pf::server

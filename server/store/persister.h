@@ -52,7 +52,8 @@ class Persister {
 
   static std::filesystem::path CheckpointFile(const std::filesystem::path& checkpoint_dir,
                                               const std::string& job_id);
-  static std::filesystem::path JournalFile(const std::filesystem::path& checkpoint_dir, const std::string& job_id);
+  static std::filesystem::path JournalFile(const std::filesystem::path& checkpoint_dir,
+                                           const std::string& job_id);
   std::filesystem::path CheckpointFile(const std::string& job_id) const {
     return CheckpointFile(checkpoint_dir_, job_id);
   }

@@ -19,13 +19,13 @@ bool IsTerminal(JobState s);
 
 struct JobRow {
   std::string job_id;
-  uint64_t seq = 0;        // submission order (also the number in the id)
-  std::string spec;        // serialized photonfarm.v1.JobSpec, normalised (camera resolved)
+  uint64_t seq = 0;  // submission order (also the number in the id)
+  std::string spec;  // serialized photonfarm.v1.JobSpec, normalised (camera resolved)
   JobState state = JobState::kQueued;
   std::string failure_reason;
   int64_t submitted_unix_ms = 0;
-  double elapsed_seconds = 0;  // running time accumulated so far
-  uint64_t samples_merged = 0; // for the status of finished jobs (their accumulator stays on disk)
+  double elapsed_seconds = 0;   // running time accumulated so far
+  uint64_t samples_merged = 0;  // for the status of finished jobs (their accumulator stays on disk)
   double noise_rms = -1;
 };
 
@@ -33,8 +33,8 @@ struct TaskRow {
   std::string job_id;
   uint64_t task_id = 0;
   TaskState state = TaskState::kQueued;
-  uint32_t attempts = 0;   // leases handed out so far (the next lease is attempt attempts+1)
-  uint32_t failures = 0;   // attempts that ended badly (lease expired, FailTask, rejected result)
+  uint32_t attempts = 0;  // leases handed out so far (the next lease is attempt attempts+1)
+  uint32_t failures = 0;  // attempts that ended badly (lease expired, FailTask, rejected result)
   std::string last_error;
 };
 

@@ -61,9 +61,10 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
     fs::path kept = file;
     kept += ".damaged";
     fs::copy_file(file, kept, fs::copy_options::overwrite_existing, ec);
-    spdlog::error("job {}: DATA LOSS: journal damaged after byte {} of {} (acknowledged results unreadable); "
-                  "{} entries kept, the other tasks are re-run; damaged file kept as {}",
-                  job.id(), valid, fs::file_size(file, ec), entries.size(), kept.filename().string());
+    spdlog::error(
+        "job {}: DATA LOSS: journal damaged after byte {} of {} (acknowledged results unreadable); "
+        "{} entries kept, the other tasks are re-run; damaged file kept as {}",
+        job.id(), valid, fs::file_size(file, ec), entries.size(), kept.filename().string());
     fs::resize_file(file, valid, ec);
   } else if (fs::exists(file, ec) && fs::file_size(file, ec) > valid) {
     spdlog::warn("job {}: journal ends in a torn entry (an unacknowledged result); cut at {} bytes", job.id(),
@@ -78,7 +79,8 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
     const std::string problem =
         ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
     if (!problem.empty()) {
-      spdlog::error("job {} task {}: journal entry invalid ({}); the task is re-run", job.id(), e.task_id, problem);
+      spdlog::error("job {} task {}: journal entry invalid ({}); the task is re-run", job.id(), e.task_id,
+                    problem);
       continue;
     }
     merger.Merge(task, e.rgb_sums, job.accumulator());
@@ -109,9 +111,10 @@ static void SetAsideOrphans(const fs::path& checkpoint_dir, const std::vector<Jo
     aside += ".orphaned";
     std::error_code rename_ec;
     fs::rename(file, aside, rename_ec);
-    spdlog::error("{} belongs to no known job (the job table was lost or restored?); not replayed, {} ",
-                  file.filename().string(),
-                  rename_ec ? "left in place: " + rename_ec.message() : "kept as " + aside.filename().string());
+    spdlog::error(
+        "{} belongs to no known job (the job table was lost or restored?); not replayed, {} ",
+        file.filename().string(),
+        rename_ec ? "left in place: " + rename_ec.message() : "kept as " + aside.filename().string());
   }
 }
 
@@ -142,15 +145,17 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       continue;
     }
     std::vector<TaskSpec> tasks = ScheduledTasks(config);
-    auto job = std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
-                                     std::move(tasks), row.submitted_unix_ms, /*with_accumulator=*/!finished);
+    auto job =
+        std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
+                              std::move(tasks), row.submitted_unix_ms, /*with_accumulator=*/!finished);
     const fs::path cp_file = Persister::CheckpointFile(checkpoint_dir, row.job_id);
     job->checkpoint_path = cp_file.string();
     const std::vector<TaskRow> rows = db.LoadTasks(row.job_id);
 
     if (finished) {
       for (const TaskRow& t : rows)
-        if (t.task_id < job->num_tasks() && t.state != TaskState::kQueued) job->SetTaskState(t.task_id, t.state);
+        if (t.task_id < job->num_tasks() && t.state != TaskState::kQueued)
+          job->SetTaskState(t.task_id, t.state);
       job->dirty_tasks.clear();
       job->RestoreState(row.state, row.failure_reason, now);
       job->RestoreElapsed(row.elapsed_seconds);
@@ -171,10 +176,12 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
                         cp_file.string(), problem);
       }
     } catch (const std::exception& e) {
-      spdlog::error("job {}: checkpoint unreadable ({}); restarting the job from zero merges", row.job_id, e.what());
+      spdlog::error("job {}: checkpoint unreadable ({}); restarting the job from zero merges", row.job_id,
+                    e.what());
     }
     const uint64_t from_checkpoint = job->count(TaskState::kDone);
-    const uint64_t journaled = ReplayJournal(Persister::JournalFile(checkpoint_dir, row.job_id), *job, report);
+    const uint64_t journaled =
+        ReplayJournal(Persister::JournalFile(checkpoint_dir, row.job_id), *job, report);
     job->dirty_tasks.clear();
     for (const TaskRow& t : rows) {
       if (t.task_id >= job->num_tasks()) continue;
@@ -192,8 +199,9 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     report.tasks_from_journal += journaled;
     report.tasks_requeued += requeued;
     ++report.jobs_resumed;
-    spdlog::info("job {}: resumed ({}): {} tasks merged ({} from the checkpoint, {} from the journal), {} queued",
-                 row.job_id, JobStateName(row.state), merged, from_checkpoint, journaled, requeued);
+    spdlog::info(
+        "job {}: resumed ({}): {} tasks merged ({} from the checkpoint, {} from the journal), {} queued",
+        row.job_id, JobStateName(row.state), merged, from_checkpoint, journaled, requeued);
     scheduler.AddJob(std::move(job));
   }
   return report;

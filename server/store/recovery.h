@@ -27,14 +27,15 @@ namespace pf::server {
 struct RecoveryReport {
   uint64_t jobs_resumed = 0;
   uint64_t jobs_finished = 0;
-  uint64_t jobs_failed = 0;      // could not be resumed
-  uint64_t tasks_merged = 0;     // restored from checkpoints and journals (not re-run)
+  uint64_t jobs_failed = 0;   // could not be resumed
+  uint64_t tasks_merged = 0;  // restored from checkpoints and journals (not re-run)
   uint64_t tasks_from_journal = 0;
   uint64_t tasks_requeued = 0;
   uint64_t journals_damaged = 0;  // damage before the end: acknowledged results lost (re-run)
 };
 
-RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const std::filesystem::path& checkpoint_dir,
-                           Scheduler& scheduler, const Clock& clock);
+RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes,
+                           const std::filesystem::path& checkpoint_dir, Scheduler& scheduler,
+                           const Clock& clock);
 
 }  // namespace pf::server

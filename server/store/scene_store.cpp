@@ -50,7 +50,6 @@ SceneInfo InfoFromRow(const SceneRow& row) {
   return info;
 }
 
-
 }  // namespace
 
 SceneStore::SceneStore(fs::path scenes_dir, SqliteStore& db, const Clock& clock)
@@ -82,7 +81,8 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   if (bundle.files.size() > kMaxBundleFiles || bundle.TotalBytes() > kMaxBundleBytes)
     throw LimitError("bundle.files: " + std::to_string(bundle.files.size()) + " files, " +
                      std::to_string(bundle.TotalBytes()) + " bytes exceed the bundle limit (" +
-                     std::to_string(kMaxBundleBytes >> 20) + " MiB, " + std::to_string(kMaxBundleFiles) + " files)");
+                     std::to_string(kMaxBundleBytes >> 20) + " MiB, " + std::to_string(kMaxBundleFiles) +
+                     " files)");
   ValidateBundle(bundle);
   const std::string hash = BundleHash(bundle);
   if (std::optional<SceneInfo> known = FindScene(hash)) return {*known, false};
@@ -106,7 +106,8 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   info.files = bundle.files.size();
   info.camera = scene.cameras.empty() ? DefaultCamera(scene) : scene.cameras.front();
   info.warnings = scene.warnings;
-  if (scene.num_lights == 0) info.warnings.push_back(bundle.entry + ": the scene has no emitters: images will be black");
+  if (scene.num_lights == 0)
+    info.warnings.push_back(bundle.entry + ": the scene has no emitters: images will be black");
 
   // false: a concurrent upload of the same bundle won the race, or the folder survived a crash.
   PublishDirectory(tmp, dir_ / hash);

@@ -135,7 +135,8 @@ void UpsertTask(Statement& st, const TaskRow& t) {
 }
 
 constexpr const char* kUpsertTask =
-    "INSERT INTO tasks(job_id, task_id, state, attempts, failures, last_error) VALUES (?1, ?2, ?3, ?4, ?5, ?6) "
+    "INSERT INTO tasks(job_id, task_id, state, attempts, failures, last_error) VALUES (?1, ?2, ?3, ?4, ?5, "
+    "?6) "
     "ON CONFLICT(job_id, task_id) DO UPDATE SET state = ?3, attempts = ?4, failures = ?5, last_error = ?6";
 
 }  // namespace
@@ -154,7 +155,9 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
   Exec(kSchema);
 }
 
-SqliteStore::~SqliteStore() { sqlite3_close(db_); }
+SqliteStore::~SqliteStore() {
+  sqlite3_close(db_);
+}
 
 void SqliteStore::Exec(const char* sql) {
   char* err = nullptr;
@@ -167,9 +170,10 @@ void SqliteStore::Exec(const char* sql) {
 
 void SqliteStore::PutScene(const SceneRow& s) {
   std::lock_guard lock(mu_);
-  Statement(db_,
-            "INSERT OR IGNORE INTO scenes(hash, entry, bytes, files, triangles, lights, default_camera, warnings, "
-            "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)")
+  Statement(
+      db_,
+      "INSERT OR IGNORE INTO scenes(hash, entry, bytes, files, triangles, lights, default_camera, warnings, "
+      "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)")
       .Text(1, s.hash)
       .Text(2, s.entry)
       .Int(3, int64_t(s.bytes))
@@ -185,9 +189,10 @@ void SqliteStore::PutScene(const SceneRow& s) {
 std::vector<SceneRow> SqliteStore::LoadScenes() {
   std::lock_guard lock(mu_);
   std::vector<SceneRow> out;
-  Statement st(db_,
-               "SELECT hash, entry, bytes, files, triangles, lights, default_camera, warnings, created_unix_ms "
-               "FROM scenes ORDER BY created_unix_ms, hash");
+  Statement st(
+      db_,
+      "SELECT hash, entry, bytes, files, triangles, lights, default_camera, warnings, created_unix_ms "
+      "FROM scenes ORDER BY created_unix_ms, hash");
   while (st.Step()) {
     SceneRow s;
     s.hash = st.ColText(0);
@@ -246,9 +251,10 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
 std::vector<JobRow> SqliteStore::LoadJobs() {
   std::lock_guard lock(mu_);
   std::vector<JobRow> out;
-  Statement st(db_,
-               "SELECT id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds, samples_merged, "
-               "noise_rms FROM jobs ORDER BY seq");
+  Statement st(
+      db_,
+      "SELECT id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds, samples_merged, "
+      "noise_rms FROM jobs ORDER BY seq");
   while (st.Step()) {
     JobRow j;
     j.job_id = st.ColText(0);
@@ -268,8 +274,9 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
 std::vector<TaskRow> SqliteStore::LoadTasks(const std::string& job_id) {
   std::lock_guard lock(mu_);
   std::vector<TaskRow> out;
-  Statement st(db_,
-               "SELECT task_id, state, attempts, failures, last_error FROM tasks WHERE job_id = ?1 ORDER BY task_id");
+  Statement st(
+      db_,
+      "SELECT task_id, state, attempts, failures, last_error FROM tasks WHERE job_id = ?1 ORDER BY task_id");
   st.Text(1, job_id);
   while (st.Step()) {
     TaskRow t;

@@ -44,7 +44,7 @@ class SqliteStore {
   // Updates of existing rows, in one transaction (jobs: state, failure reason, elapsed time,
   // samples merged, noise; tasks: upserted).
   void Apply(const std::vector<JobRow>& jobs, const std::vector<TaskRow>& tasks);
-  std::vector<JobRow> LoadJobs();  // in submission order
+  std::vector<JobRow> LoadJobs();                             // in submission order
   std::vector<TaskRow> LoadTasks(const std::string& job_id);  // by task id
 
  private:

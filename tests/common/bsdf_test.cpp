@@ -234,10 +234,11 @@ TEST_P(BsdfChiSquareTest, SampleMatchesPdf) {
       continue;
     }
     ASSERT_FALSE(s->is_delta);
-    const int ti = std::clamp(int(std::upper_bound(bin_cos.begin(), bin_cos.end(), s->wi.z,
-                                                   std::greater<float>()) -
-                                  bin_cos.begin()) - 1,
-                              0, kThetaBins - 1);
+    const int ti =
+        std::clamp(int(std::upper_bound(bin_cos.begin(), bin_cos.end(), s->wi.z, std::greater<float>()) -
+                       bin_cos.begin()) -
+                       1,
+                   0, kThetaBins - 1);
     float phi = std::atan2(s->wi.y, s->wi.x);
     if (phi < 0) phi += kTwoPi;
     const int pi = std::min(kPhiBins - 1, int(phi * (kPhiBins / kTwoPi)));
@@ -276,8 +277,7 @@ TEST_P(BsdfChiSquareTest, SampleMatchesPdf) {
       const double p0 = pi * dp, p1 = (pi + 1) * dp;
       double coarse = simpson(t0, t1, p0, p1, 8);
       double fine = simpson(t0, t1, p0, p1, 16);
-      for (int sub = 32; sub <= 256 && std::abs(fine - coarse) > std::max(1e-4 * fine, 1e-8);
-           sub *= 2) {
+      for (int sub = 32; sub <= 256 && std::abs(fine - coarse) > std::max(1e-4 * fine, 1e-8); sub *= 2) {
         coarse = fine;
         fine = simpson(t0, t1, p0, p1, sub);
       }
@@ -290,11 +290,10 @@ TEST_P(BsdfChiSquareTest, SampleMatchesPdf) {
   const ChiSquareResult r = ChiSquare(observed, expected, kSamples);
   ASSERT_TRUE(r.error.empty()) << r.error;
   const double significance = 1.0 - std::pow(1.0 - 0.01, 1.0 / double(ChiCases().size()));
-  std::printf("[chi2] %-32s pdf mass %.5f  rejected %.5f  chi2 %.1f dof %d  p = %.4f\n",
-              c.name.c_str(), total, observed[num_bins] / kSamples, r.chi2, r.dof, r.p_value);
-  EXPECT_GT(r.p_value, significance)
-      << c.name << ": χ² = " << r.chi2 << " with " << r.dof << " dof (Šidák-corrected level "
-      << significance << ")";
+  std::printf("[chi2] %-32s pdf mass %.5f  rejected %.5f  chi2 %.1f dof %d  p = %.4f\n", c.name.c_str(),
+              total, observed[num_bins] / kSamples, r.chi2, r.dof, r.p_value);
+  EXPECT_GT(r.p_value, significance) << c.name << ": χ² = " << r.chi2 << " with " << r.dof
+                                     << " dof (Šidák-corrected level " << significance << ")";
 }
 
 INSTANTIATE_TEST_SUITE_P(Bsdf, BsdfChiSquareTest, testing::ValuesIn(ChiCases()),
@@ -350,8 +349,7 @@ TEST(BsdfReciprocity, EvalIsSymmetricForReflectionAndDiffuseTransmission) {
       const Rgb a = bsdf.Eval(wo, wi), b = bsdf.Eval(wi, wo);
       for (int ch = 0; ch < 3; ++ch) {
         ASSERT_NEAR(a[ch], b[ch], 1e-5f * std::max(std::abs(a[ch]), 1e-6f))
-            << "wo " << wo.x << " " << wo.y << " " << wo.z << " wi " << wi.x << " " << wi.y << " "
-            << wi.z;
+            << "wo " << wo.x << " " << wo.y << " " << wo.z << " wi " << wi.x << " " << wi.y << " " << wi.z;
       }
       ++checked;
       nonzero += !a.IsBlack();
@@ -416,8 +414,7 @@ TEST(BsdfEnergy, GlossyAlbedoNeverExceedsOne) {
     const Bsdf bsdf(m, kUp, kUp);
     for (float c : kFurnaceCosines) {
       const Albedo a = EstimateAlbedo(bsdf, FromCos(c), 50'000, 2);
-      std::printf("[furnace] glossy a=%.2f cos %g albedo %.5f ± %.5f\n", alpha, c, a.mean[0],
-                  a.sigma[0]);
+      std::printf("[furnace] glossy a=%.2f cos %g albedo %.5f ± %.5f\n", alpha, c, a.mean[0], a.sigma[0]);
       EXPECT_LE(a.mean[0], 1.0 + 3 * a.sigma[0]) << "α " << alpha << " cos " << c;
       EXPECT_GT(a.mean[0], 0.0);
     }
@@ -483,8 +480,12 @@ TEST(BsdfConsistency, WeightEqualsEvalCosOverPdf) {
   const struct {
     Material m;
     Vec3 ns;
-  } cases[] = {{Diffuse(0.7f), kUp}, {Glossy(0.8f, 0.05f), kUp}, {Glossy(0.8f, 0.5f), tilted},
-               {mix, kUp},           {mix, tilted},             {dm, kUp}};
+  } cases[] = {{Diffuse(0.7f), kUp},
+               {Glossy(0.8f, 0.05f), kUp},
+               {Glossy(0.8f, 0.5f), tilted},
+               {mix, kUp},
+               {mix, tilted},
+               {dm, kUp}};
   Rng rng(21, 4);
   int checked = 0;
   for (const auto& c : cases) {
@@ -528,16 +529,16 @@ TEST(BsdfRussianRoulette, SurvivalIsSumOfMeansAndWeightIsUnbiased) {
   for (int ch = 0; ch < 3; ++ch) {
     const double albedo = m.diffuse_reflectance[ch] + m.specular_reflectance[ch] * glossy_albedo +
                           m.diffuse_transmittance[ch] + m.specular_transmittance[ch];
-    std::printf("[roulette] ch %d albedo %.5f: RR %.5f ± %.5f, normalized %.5f ± %.5f\n", ch,
-                albedo, rr.mean[ch], rr.sigma[ch], norm.mean[ch], norm.sigma[ch]);
+    std::printf("[roulette] ch %d albedo %.5f: RR %.5f ± %.5f, normalized %.5f ± %.5f\n", ch, albedo,
+                rr.mean[ch], rr.sigma[ch], norm.mean[ch], norm.sigma[ch]);
     EXPECT_NEAR(rr.mean[ch], albedo, 4 * rr.sigma[ch] + 1e-5) << "channel " << ch;
     EXPECT_NEAR(norm.mean[ch], albedo, 4 * norm.sigma[ch] + 1e-5) << "channel " << ch;
   }
   // The diffuse lobe's weight is exactly the thesis's ρ/P per channel.
   Rng rng(3, 3);
   for (int i = 0; i < 1000; ++i) {
-    const auto s = bsdf.Sample(FromCos(0.6f), rng.Uniform(), rng.Uniform(), rng.Uniform(),
-                               Bsdf::Mode::kRussianRoulette);
+    const auto s =
+        bsdf.Sample(FromCos(0.6f), rng.Uniform(), rng.Uniform(), rng.Uniform(), Bsdf::Mode::kRussianRoulette);
     if (!s || s->lobe != kLobeDiffuseReflection) continue;
     for (int ch = 0; ch < 3; ++ch) {
       EXPECT_NEAR(s->weight[ch], m.diffuse_reflectance[ch] / m.diffuse_reflectance.Mean(), 1e-4f);
@@ -612,8 +613,7 @@ TEST(BsdfLobeMask, RestrictedSamplingEstimatesTheAllowedLobesAlbedo) {
       ++survived;
       ASSERT_NE(s->lobe & singular, 0u);
       if (!s->is_delta && mode == Bsdf::Mode::kNormalized) {
-        const float expected =
-            bsdf.EvalLobes(kUp, s->wi, singular).r * bsdf.AbsCosTheta(s->wi) / s->pdf;
+        const float expected = bsdf.EvalLobes(kUp, s->wi, singular).r * bsdf.AbsCosTheta(s->wi) / s->pdf;
         ASSERT_NEAR(s->weight.r, expected, 1e-4f * expected);
       }
       sum += s->weight.r;
@@ -663,10 +663,10 @@ TEST(BsdfLobeMask, DielectricBranchesCanBeRestricted) {
   }
   // Total internal reflection with refraction alone allowed: nothing.
   const Vec3 inside = Spherical((180.0 - 60.0) * kPiD / 180, 0.0);
-  EXPECT_FALSE(bsdf.Sample(inside, 0.5f, 0.5f, 0.5f, Bsdf::Mode::kNormalized,
-                           kLobeSpecularTransmission).has_value());
-  EXPECT_FALSE(bsdf.Sample(wo, 0.5f, 0.5f, 0.5f, Bsdf::Mode::kNormalized,
-                           kLobeDiffuseReflection).has_value());
+  EXPECT_FALSE(
+      bsdf.Sample(inside, 0.5f, 0.5f, 0.5f, Bsdf::Mode::kNormalized, kLobeSpecularTransmission).has_value());
+  EXPECT_FALSE(
+      bsdf.Sample(wo, 0.5f, 0.5f, 0.5f, Bsdf::Mode::kNormalized, kLobeDiffuseReflection).has_value());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -710,8 +710,7 @@ TEST(Fresnel, SymmetricUnderReversal) {
   for (float eta : {1.5f, 2.0f, 1.1f}) {
     for (float ci = 0.02f; ci <= 1.0f; ci += 0.07f) {
       const float ct = std::sqrt(1.0f - (1.0f - ci * ci) / (eta * eta));
-      EXPECT_NEAR(FresnelDielectric(ci, eta), FresnelDielectric(ct, 1.0f / eta), 1e-5f)
-          << eta << " " << ci;
+      EXPECT_NEAR(FresnelDielectric(ci, eta), FresnelDielectric(ct, 1.0f / eta), 1e-5f) << eta << " " << ci;
     }
   }
 }
@@ -738,7 +737,7 @@ TEST(BsdfSidedness, ReflectionFromTheBackSide) {
     EXPECT_NEAR(bsdf.Pdf(a, b), bsdf.Pdf(flip(a), flip(b)), 1e-5f * std::max(1.0f, bsdf.Pdf(a, b)));
   }
   EXPECT_NEAR(bsdf.Eval(wo, FromCos(-0.5f, 2.5f)).r, 0.5f * kInvPi, 1e-3f);  // diffuse part
-  EXPECT_TRUE(bsdf.Eval(wo, FromCos(0.5f, 2.5f)).IsBlack());                // other side
+  EXPECT_TRUE(bsdf.Eval(wo, FromCos(0.5f, 2.5f)).IsBlack());                 // other side
   EXPECT_EQ(bsdf.Pdf(wo, FromCos(0.5f, 2.5f)), 0.0f);
 }
 
@@ -888,7 +887,7 @@ TEST(BsdfRobustness, NeverProducesNanOrInf) {
     if (i % 97 == 0) ns = Vec3(0.0f);
     if (i % 89 == 0) ns = Normalize(Cross(ng, Vec3(0.3f, 0.5f, 0.8f)));  // perpendicular
     Vec3 wo = UniformSphere(rng);
-    if (i % 13 == 0) wo = Normalize(wo - ng * Dot(wo, ng));  // (nearly) in the plane
+    if (i % 13 == 0) wo = Normalize(wo - ng * Dot(wo, ng));                  // (nearly) in the plane
     if (i % 17 == 0) wo = Normalize(ng * 1e-4f + Normalize(Cross(ng, wo)));  // grazing
     const Bsdf bsdf(m, ns, ng);
     const float ul = i % 5 == 0 ? edge_u[rng.UniformInt(3)] : rng.Uniform();

@@ -36,7 +36,9 @@ SceneDescription Load(const std::string& text, const MgfOptions& options = {}) {
   return LoadMgfFromString(text, "test.mgf", options);
 }
 
-Vec3d P(const SceneDescription& s, uint32_t i) { return Vec3d(s.positions[i]); }
+Vec3d P(const SceneDescription& s, uint32_t i) {
+  return Vec3d(s.positions[i]);
+}
 
 // Twice-area vector (right-hand rule) of triangle t.
 Vec3d AreaVector(const SceneDescription& s, size_t t) {
@@ -91,8 +93,8 @@ class TempDir {
  public:
   TempDir() {
     path_ = fs::temp_directory_path() /
-            ("pf_mgf_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-             "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+            ("pf_mgf_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(path_);
     fs::create_directories(path_);
   }
@@ -145,7 +147,7 @@ const std::map<std::string, std::string> kFragments = {
 // Top-level scenes and the number of light sources (emitting primitives) they must have,
 // counted by hand from the files.
 const std::map<std::string, uint32_t> kScenesWithLights = {
-    {"NREL-Radiance/examp1.mgf", 2},             // one cyl lamp, arrayed twice (-a 2 -my)
+    {"NREL-Radiance/examp1.mgf", 2},  // one cyl lamp, arrayed twice (-a 2 -my)
     {"OscarChavarro-rpkCpp/examp1.mgf", 2},
     {"OscarChavarro-rpkCpp/office3/office.mgf", 3},  // 2 fluorescent faces + 1 sphere bulb
     {"StepanHrbek-LightsprintSDK/scene8.mgf", 4},    // four 1x1 m ceiling panels
@@ -173,8 +175,7 @@ TEST(MgfSharedScenes, EveryMgfFileLoads) {
   std::sort(files.begin(), files.end());
   ASSERT_GE(files.size(), 50u);
 
-  std::printf("%-52s %9s %8s %6s %5s %5s\n", "file", "triangles", "emissive", "lights",
-              "mats", "warn");
+  std::printf("%-52s %9s %8s %6s %5s %5s\n", "file", "triangles", "emissive", "lights", "mats", "warn");
   std::set<std::string> seen;
   for (const fs::path& file : files) {
     const std::string rel = fs::relative(file, root).generic_string();
@@ -196,8 +197,8 @@ TEST(MgfSharedScenes, EveryMgfFileLoads) {
       ADD_FAILURE() << rel << ": " << e.what();
       continue;
     }
-    std::printf("%-52s %9zu %8zu %6u %5zu %5zu\n", rel.c_str(), s.NumTriangles(),
-                s.NumEmissiveTriangles(), s.num_lights, s.materials.size(), s.warnings.size());
+    std::printf("%-52s %9zu %8zu %6u %5zu %5zu\n", rel.c_str(), s.NumTriangles(), s.NumEmissiveTriangles(),
+                s.num_lights, s.materials.size(), s.warnings.size());
     // Consistency of the soup.
     ASSERT_EQ(s.triangle_material.size(), s.triangles.size());
     ASSERT_EQ(s.triangle_light.size(), s.triangles.size());
@@ -241,12 +242,11 @@ TEST(MgfSharedScenes, EveryMgfFileLoads) {
 // for benchmarks, not for a timed test on a shared machine).
 TEST(MgfSharedScenes, LargeScenesLoad) {
   const fs::path root = PF_MGF_CORPUS_DIR;
-  for (const char* rel : {"OscarChavarro-rpkCpp/office1/graz.mgf",
-                          "OscarChavarro-rpkCpp/salon/classroom.mgf"}) {
+  for (const char* rel :
+       {"OscarChavarro-rpkCpp/office1/graz.mgf", "OscarChavarro-rpkCpp/salon/classroom.mgf"}) {
     const auto t0 = std::chrono::steady_clock::now();
     const SceneDescription s = LoadMgf(root / rel);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     EXPECT_GT(s.NumTriangles(), 5000u) << rel;
     std::printf("%s: %zu triangles in %.0f ms\n", rel, s.NumTriangles(), seconds * 1e3);
   }
@@ -310,8 +310,7 @@ TEST(MgfErrors, MalformedInputsReportFileLineAndReason) {
       {"v a =\n p 0 0 0\nf a a\n", "bad.mgf:3", "f: expected at least 3 vertex names"},
       {"v a =\n p 0 0 0\nsph a 0\n", "bad.mgf:3", "sph: radius must not be zero"},
       {"v a =\n p 0 0 0\nsph a\n", "bad.mgf:3", "sph: expected 2 arguments"},
-      {"v a =\n p 0 0 0\nv b =\n p 0 0 1\ncyl a 0 b\n", "bad.mgf:5",
-       "cyl: radius must not be zero"},
+      {"v a =\n p 0 0 0\nv b =\n p 0 0 1\ncyl a 0 b\n", "bad.mgf:5", "cyl: radius must not be zero"},
       {"v a =\n p 0 0 0\ncyl a 1 a\n", "bad.mgf:3", "cyl: the end points coincide"},
       {"v a =\n p 0 0 0\nv b =\n p 0 0 1\ncone a 1 b -1\n", "bad.mgf:5", "opposite signs"},
       {"v a =\n p 0 0 0\nv b =\n p 0 0 1\ncone a 0 b 0\n", "bad.mgf:5", "both radii are zero"},
@@ -366,8 +365,7 @@ TEST(MgfErrors, ResourceLimitsStopBlowUps) {
       Load(sphere + "xf -a 1000 -t 1 0 0 -a 1000 -t 0 1 0\nsph c .1\nxf\n", o);
       ADD_FAILURE();
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("test.mgf:4: more than 10000 triangles"),
-                std::string::npos)
+      EXPECT_NE(std::string(e.what()).find("test.mgf:4: more than 10000 triangles"), std::string::npos)
           << e.what();
     }
   }
@@ -392,8 +390,7 @@ TEST(MgfErrors, ResourceLimitsStopBlowUps) {
                         (dir.path() / "arr.mgf").string(), o);
       ADD_FAILURE();
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("arr.mgf:2: more than 10000 entities"),
-                std::string::npos)
+      EXPECT_NE(std::string(e.what()).find("arr.mgf:2: more than 10000 entities"), std::string::npos)
           << e.what();
     }
   }
@@ -405,8 +402,7 @@ TEST(MgfErrors, ResourceLimitsStopBlowUps) {
       Load(face + "\n");
       ADD_FAILURE();
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("test.mgf:7: f: more than 16384 vertices"),
-                std::string::npos)
+      EXPECT_NE(std::string(e.what()).find("test.mgf:7: f: more than 16384 vertices"), std::string::npos)
           << e.what();
     }
   }
@@ -435,8 +431,7 @@ TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
     // Reported where the cycle closes: in b.mgf, line 2.
     EXPECT_EQ(e.where().line, 2);
     EXPECT_EQ(fs::path(e.where().file).filename(), "b.mgf");
-    EXPECT_NE(e.reason().find("include cycle: a.mgf -> b.mgf -> a.mgf"), std::string::npos)
-        << e.what();
+    EXPECT_NE(e.reason().find("include cycle: a.mgf -> b.mgf -> a.mgf"), std::string::npos) << e.what();
   }
   // Self include.
   dir.Write("self.mgf", "i self.mgf\n");
@@ -464,8 +459,7 @@ TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
     LoadMgf(dir.path() / "inner/scene.mgf", o);
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_NE(e.reason().find("resolves outside the scene folder"), std::string::npos)
-        << e.what();
+    EXPECT_NE(e.reason().find("resolves outside the scene folder"), std::string::npos) << e.what();
   }
   EXPECT_NO_THROW(LoadMgf(dir.path() / "inner/ok.mgf", o));
 
@@ -495,31 +489,28 @@ TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
 
 TEST(MgfWarnings, UnknownEntitiesDegenerateFacesAndMetals) {
   const SceneDescription s = Load(std::string(kUnitSquare) +
-                                  "frobnicate 1 2\n"      // line 10
-                                  "frobnicate 3\n"        // same kind: no second warning
+                                  "frobnicate 1 2\n"  // line 10
+                                  "frobnicate 3\n"    // same kind: no second warning
                                   "ies lamp.ies -t 0 0 1\n"
-                                  "f a b b a\n"           // line 13: no area
-                                  "f a b a\n"             // line 14: two distinct vertices
+                                  "f a b b a\n"             // line 13: no area
+                                  "f a b a\n"               // line 14: two distinct vertices
                                   "m metal =\n ir 0.5 3\n"  // line 16
                                   "f a b c d\n"
-                                  "o open\n");            // line 18, never closed
+                                  "o open\n");  // line 18, never closed
   ASSERT_EQ(s.warnings.size(), 6u);
   EXPECT_EQ(s.warnings[0], "test.mgf:10: unknown entity 'frobnicate' ignored");
   EXPECT_EQ(s.warnings[1].rfind("test.mgf:12: ies", 0), 0u) << s.warnings[1];
   EXPECT_EQ(s.warnings[2].rfind("test.mgf:13: f: degenerate face", 0), 0u) << s.warnings[2];
   EXPECT_EQ(s.warnings[3].rfind("test.mgf:14: f: degenerate face", 0), 0u) << s.warnings[3];
   EXPECT_EQ(s.warnings[4].rfind("test.mgf:16: ir: imaginary part", 0), 0u) << s.warnings[4];
-  EXPECT_EQ(s.warnings[5].rfind("test.mgf:18: 1 object context(s) not ended", 0), 0u)
-      << s.warnings[5];
+  EXPECT_EQ(s.warnings[5].rfind("test.mgf:18: 1 object context(s) not ended", 0), 0u) << s.warnings[5];
   EXPECT_EQ(s.NumTriangles(), 2u);
   EXPECT_FLOAT_EQ(s.materials[s.triangle_material[0]].ior, 0.5f);
 
   // Colours without luminance (the hospital scene has "cxy .4 0") fall back to grey.
-  const SceneDescription grey = Load(std::string(kUnitSquare) +
-                                     "m p =\n c\n  cxy .4 0\n rd .5\nf a b c d\n");
+  const SceneDescription grey = Load(std::string(kUnitSquare) + "m p =\n c\n  cxy .4 0\n rd .5\nf a b c d\n");
   ASSERT_EQ(grey.warnings.size(), 1u);
-  EXPECT_EQ(grey.warnings[0].rfind("test.mgf:12: cxy: y = 0 is a colour without luminance", 0),
-            0u)
+  EXPECT_EQ(grey.warnings[0].rfind("test.mgf:12: cxy: y = 0 is a colour without luminance", 0), 0u)
       << grey.warnings[0];
   EXPECT_NEAR(grey.materials[0].diffuse_reflectance.r, 0.5f, 1e-5f);
   EXPECT_NEAR(grey.materials[0].diffuse_reflectance.b, 0.5f, 1e-5f);
@@ -541,8 +532,7 @@ f a b c d e
 )");
   EXPECT_GT(bow.NumTriangles(), 0u);
   ASSERT_FALSE(bow.warnings.empty());
-  EXPECT_NE(bow.warnings[0].find("f: self-intersecting polygon"), std::string::npos)
-      << bow.warnings[0];
+  EXPECT_NE(bow.warnings[0].find("f: self-intersecting polygon"), std::string::npos) << bow.warnings[0];
 }
 
 // ---- 3. geometry -------------------------------------------------------------------------------
@@ -772,13 +762,11 @@ v cv3 =
 
 TEST(MgfTransforms, TranslateScaleRotateMirror) {
   const std::string pt = "v c =\n p 1 0 0\n";
-  auto centre = [&](const std::string& xf) {
-    return Centroid(Load(pt + "xf " + xf + "\nsph c .01\nxf\n"));
-  };
+  auto centre = [&](const std::string& xf) { return Centroid(Load(pt + "xf " + xf + "\nsph c .01\nxf\n")); };
   ExpectNear(centre("-t 1 2 3"), {2, 2, 3}, 1e-6);
   ExpectNear(centre("-s 2"), {2, 0, 0}, 1e-6);
-  ExpectNear(centre("-rz 90"), {0, 1, 0}, 1e-6);     // counter-clockwise about +z
-  ExpectNear(centre("-ry 90"), {0, 0, -1}, 1e-6);    // x -> -z about +y
+  ExpectNear(centre("-rz 90"), {0, 1, 0}, 1e-6);   // counter-clockwise about +z
+  ExpectNear(centre("-ry 90"), {0, 0, -1}, 1e-6);  // x -> -z about +y
   ExpectNear(centre("-rx 90"), {1, 0, 0}, 1e-6);
   ExpectNear(centre("-rz 30"), {std::cos(kPi / 6), std::sin(kPi / 6), 0}, 1e-6);
   ExpectNear(centre("-mx"), {-1, 0, 0}, 1e-6);
@@ -786,8 +774,8 @@ TEST(MgfTransforms, TranslateScaleRotateMirror) {
   ExpectNear(centre("-s 2 -t 1 0 0"), {3, 0, 0}, 1e-6);
   ExpectNear(centre("-t 1 0 0 -s 2"), {4, 0, 0}, 1e-6);
   // Nested xf: the enclosed transform is applied first (§2.2.2 example: ring at (5,-10,0)).
-  const SceneDescription ring = Load(
-      "xf -t 5 0 0\nv v1 =\n p 0 10 0\n n 0 0 1\nxf -rx 180\nring v1 0 2\nxf\nxf\n");
+  const SceneDescription ring =
+      Load("xf -t 5 0 0\nv v1 =\n p 0 10 0\n n 0 0 1\nxf -rx 180\nring v1 0 2\nxf\nxf\n");
   ExpectNear(Centroid(ring), {5, -10, 0}, 1e-6);
   for (size_t t = 0; t < ring.triangles.size(); ++t) EXPECT_LT(AreaVector(ring, t).z, 0.0);
   // -i N repeats: four quarter turns are the identity.
@@ -836,8 +824,8 @@ TEST(MgfTransforms, ArraysRepeatTheBlock) {
   ExpectNear(Vec3d(b.lo), {14.9, 29.9, 44.9}, 1e-4);
   ExpectNear(Vec3d(b.hi), {17.1, 33.1, 49.1}, 1e-4);
   // A block with redefinitions inside is re-executed: the vertex moves each time.
-  const SceneDescription moving = Load(
-      "v p =\n p 0 0 0\nxf -a 3 -t 10 0 0\nsph p .1\nv p\n p 0 1 0\nxf\n", o);
+  const SceneDescription moving =
+      Load("v p =\n p 0 0 0\nxf -a 3 -t 10 0 0\nsph p .1\nv p\n p 0 1 0\nxf\n", o);
   const Bounds3 mb = moving.ComputeBounds();
   EXPECT_NEAR(mb.lo.y, -0.1f, 1e-5f);  // first instance at y = 0
   EXPECT_NEAR(mb.hi.y, 1.1f, 1e-5f);   // later ones at y = 1
@@ -848,8 +836,8 @@ TEST(MgfTransforms, ArraysRepeatTheBlock) {
   EXPECT_NEAR(Centroid(circle).x, 0.0, 1e-6);
   EXPECT_NEAR(Centroid(circle).y, 0.0, 1e-6);
   // Nested arrays multiply.
-  const SceneDescription nested = Load(std::string(kUnitSquare) +
-                                       "xf -a 2 -t 0 0 1\nxf -a 3 -t 2 0 0\nf a b c d\nxf\nxf\n");
+  const SceneDescription nested =
+      Load(std::string(kUnitSquare) + "xf -a 2 -t 0 0 1\nxf -a 3 -t 2 0 0\nf a b c d\nxf\nxf\n");
   EXPECT_EQ(nested.NumTriangles(), 12u);
   EXPECT_NEAR(TotalArea(nested), 6.0, 1e-9);
 }
@@ -872,8 +860,8 @@ TEST(MgfIncludes, RelativeIncludesWithTransformsAndArrays) {
   EXPECT_FLOAT_EQ(b.hi.x, 11.0f);
   EXPECT_FLOAT_EQ(b.hi.y, 12.0f);  // third instance: y in [10, 12]
   // Through LoadMgfFromString, includes are relative to the virtual name's directory.
-  const SceneDescription v = LoadMgfFromString("i lib/square.mgf -t 0 0 1\n",
-                                               (dir.path() / "virtual.mgf").string());
+  const SceneDescription v =
+      LoadMgfFromString("i lib/square.mgf -t 0 0 1\n", (dir.path() / "virtual.mgf").string());
   EXPECT_EQ(v.NumTriangles(), 2u);
   EXPECT_FLOAT_EQ(v.ComputeBounds().lo.z, 1.0f);
   // Errors inside an included file name that file and line.
@@ -906,21 +894,22 @@ TEST(MgfSyntax, ContinuationCommentsAndLineEnds) {
     EXPECT_EQ(e.where().ToString(), "lines.mgf:6");
   }
   // Tabs, leading blanks and a '+' sign are fine.
-  const SceneDescription t = Load("\tv a =\n\t\tp\t+1 .5 -2.\n v b =\n p 0 0 0\n v c =\n p 0 1 0\n f a b c\n");
+  const SceneDescription t =
+      Load("\tv a =\n\t\tp\t+1 .5 -2.\n v b =\n p 0 0 0\n v c =\n p 0 1 0\n f a b c\n");
   EXPECT_FLOAT_EQ(t.positions[0].x, 1.0f);
 }
 
 TEST(MgfContexts, NamedContextsAreCapturedByValue) {
   const SceneDescription s = Load(std::string(kUnitSquare) +
                                   "m paint =\n rd .5\n"
-                                  "f a b c d\n"            // grey 0.5
-                                  "m paint\n rd .25\n"     // later change: earlier face unchanged
+                                  "f a b c d\n"         // grey 0.5
+                                  "m paint\n rd .25\n"  // later change: earlier face unchanged
                                   "f a b c d\n"
-                                  "m copy = paint\n"       // copy of the current values
-                                  "m paint\n rd .1\n"      // does not affect the copy
+                                  "m copy = paint\n"   // copy of the current values
+                                  "m paint\n rd .1\n"  // does not affect the copy
                                   "m copy\nf a b c d\n"
-                                  "v a\n p -1 0 0\n"       // moving a vertex after use
-                                  "m\nf a b c d\n");       // unnamed: back to black absorber
+                                  "v a\n p -1 0 0\n"  // moving a vertex after use
+                                  "m\nf a b c d\n");  // unnamed: back to black absorber
   ASSERT_EQ(s.NumTriangles(), 8u);
   auto rd = [&](size_t t) { return s.materials[s.triangle_material[t]].diffuse_reflectance; };
   EXPECT_NEAR(rd(0).g, 0.5f, 1e-5f);
@@ -940,8 +929,8 @@ TEST(MgfContexts, NamedContextsAreCapturedByValue) {
   const Rgb r = c.materials[c.triangle_material[0]].diffuse_reflectance;
   EXPECT_GT(r.r, r.b);
   // Identical materials are shared.
-  const SceneDescription d = Load(std::string(kUnitSquare) +
-                                  "m x =\n rd .3\nf a b c d\nm y = x\nm x\nf a b c d\n");
+  const SceneDescription d =
+      Load(std::string(kUnitSquare) + "m x =\n rd .3\nf a b c d\nm y = x\nm x\nf a b c d\n");
   EXPECT_EQ(d.materials.size(), 1u);
 }
 
@@ -978,8 +967,8 @@ TEST(MgfColour, FlatSpectrumIsNeutralAndBlackBodiesAreOnThePlanckianLocus) {
   EXPECT_NEAR(rgb.r, rgb.g, 0.005f);
   EXPECT_NEAR(rgb.b, rgb.g, 0.005f);
   // The same through the file: "cspec" with a flat spectrum gives a grey material.
-  const SceneDescription s = Load(std::string(kUnitSquare) +
-                                  "m g =\n c\n  cspec 400 700 1 1 1 1\n rd .5\nf a b c d\n");
+  const SceneDescription s =
+      Load(std::string(kUnitSquare) + "m g =\n c\n  cspec 400 700 1 1 1 1\n rd .5\nf a b c d\n");
   const Rgb g = s.materials[0].diffuse_reflectance;
   EXPECT_NEAR(g.r, 0.5f, 0.01f);
   EXPECT_NEAR(g.g, 0.5f, 0.01f);
@@ -1005,8 +994,8 @@ TEST(MgfColour, FlatSpectrumIsNeutralAndBlackBodiesAreOnThePlanckianLocus) {
   EXPECT_NEAR(y, 0.4074, 0.002);
   const SceneDescription a = Load(std::string(kUnitSquare) +
                                   "m l =\n c\n  cct 2856\n rd .5\nf a b c d\n"
-                                  "m s =\n c\n  cspec 380 780" + planck_words +
-                                  "\n rd .5\nf a b c d\n");
+                                  "m s =\n c\n  cspec 380 780" +
+                                  planck_words + "\n rd .5\nf a b c d\n");
   ASSERT_EQ(a.materials.size(), 2u);
   const Rgb cct = a.materials[0].diffuse_reflectance;
   const Rgb spec = a.materials[1].diffuse_reflectance;
@@ -1020,8 +1009,8 @@ TEST(MgfColour, FlatSpectrumIsNeutralAndBlackBodiesAreOnThePlanckianLocus) {
 TEST(MgfEmission, EdConvertsWithOneOverPiTimes179) {
   // Le = ed / (π · 179) × RGB(colour, Y = 1): ed = π·179 lm/m² of neutral colour is Le = 1.
   const double ed = kPi * mgf::kLuminousEfficacy;
-  const SceneDescription s = Load(std::string(kUnitSquare) + "m lamp =\n ed " +
-                                  std::to_string(ed) + "\nf a b c d\n");
+  const SceneDescription s =
+      Load(std::string(kUnitSquare) + "m lamp =\n ed " + std::to_string(ed) + "\nf a b c d\n");
   ASSERT_EQ(s.materials.size(), 1u);
   const Rgb e = s.materials[0].emission;
   EXPECT_NEAR(e.r, 1.0f, 1e-5f);
@@ -1031,8 +1020,8 @@ TEST(MgfEmission, EdConvertsWithOneOverPiTimes179) {
   EXPECT_EQ(s.triangle_light[0], 0u);
   EXPECT_EQ(s.triangle_light[1], 0u);  // one face = one light, both triangles
   // Coloured emitters keep luminance 1 per unit: Y of the RGB (spec weights) is ed/(π·179).
-  const SceneDescription c = Load(std::string(kUnitSquare) +
-                                  "m lamp =\n c\n  cxy .373 .385\n ed 1000\nf a b c d\n");
+  const SceneDescription c =
+      Load(std::string(kUnitSquare) + "m lamp =\n c\n  cxy .373 .385\n ed 1000\nf a b c d\n");
   const Rgb ce = c.materials[0].emission;
   const double Y = 0.26510582 * ce.r + 0.67010582 * ce.g + 0.06478836 * ce.b;
   EXPECT_NEAR(Y, 1000.0 / ed, 1e-4);
@@ -1062,8 +1051,8 @@ TEST(MgfMaterials, ValuesMapToTheMaterialAndAreEnergyConserving) {
   EXPECT_TRUE(m.one_sided);
   EXPECT_EQ(m.name, "glass");
   // Too much in one channel: scaled to 1 and warned.
-  const SceneDescription hot = Load(std::string(kUnitSquare) +
-                                    "m red =\n c\n  cxy .64 .33\n rd .6\n c\n rs .3 0\nf a b c d\n");
+  const SceneDescription hot =
+      Load(std::string(kUnitSquare) + "m red =\n c\n  cxy .64 .33\n rd .6\n c\n rs .3 0\nf a b c d\n");
   const Material& h = hot.materials[0];
   const Rgb sum = h.diffuse_reflectance + h.specular_reflectance;
   EXPECT_NEAR(sum.Max(), 1.0f, 1e-5f);

@@ -46,8 +46,10 @@ FurnaceSetup MakeFurnace(bool with_objects) {
     glass.name = "glass";
     glass.specular_transmittance = Rgb(1.0f);
     glass.ior = 1.5f;
-    AddSphere(f.scene, Vec3(-0.25f, 0.0f, -0.5f), 0.2f, 4, AddMaterial(f.scene, mirror), false, kNoLight, false);
-    AddSphere(f.scene, Vec3(0.25f, 0.0f, -0.5f), 0.2f, 4, AddMaterial(f.scene, glass), false, kNoLight, false);
+    AddSphere(f.scene, Vec3(-0.25f, 0.0f, -0.5f), 0.2f, 4, AddMaterial(f.scene, mirror), false, kNoLight,
+              false);
+    AddSphere(f.scene, Vec3(0.25f, 0.0f, -0.5f), 0.2f, 4, AddMaterial(f.scene, glass), false, kNoLight,
+              false);
   }
   f.camera.eye = Vec3(0.0f, 0.0f, 0.1f);
   f.camera.look_at = Vec3(0.0f, 0.0f, -1.0f);
@@ -98,11 +100,15 @@ void ExpectFurnaceWithObjects(float scale, const char* what) {
   ExpectFurnacePixels(RenderPath(f.scene, f.camera, 8192, {.rr_start_depth = 40}), what);
 }
 
-TEST(PathTracerFurnace, MirrorAndGlassAreInvisible) { ExpectFurnaceWithObjects(1.0f, "objects"); }
+TEST(PathTracerFurnace, MirrorAndGlassAreInvisible) {
+  ExpectFurnaceWithObjects(1.0f, "objects");
+}
 
 class PathTracerFurnaceScale : public ::testing::TestWithParam<float> {};
 
-TEST_P(PathTracerFurnaceScale, HoldsAtSceneScale) { ExpectFurnaceWithObjects(GetParam(), "scaled"); }
+TEST_P(PathTracerFurnaceScale, HoldsAtSceneScale) {
+  ExpectFurnaceWithObjects(GetParam(), "scaled");
+}
 
 INSTANTIATE_TEST_SUITE_P(Scales, PathTracerFurnaceScale, ::testing::Values(1e-3f, 1e4f));
 
@@ -144,7 +150,8 @@ TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
   const uint32_t light_id = AddMaterial(scene, light);
   AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
   // 0.2 m square light 1 m above the floor, facing down (-z): vertices clockwise seen from above.
-  const std::vector<Vec3> light_polygon = {{-0.1f, -0.1f, 1}, {-0.1f, 0.1f, 1}, {0.1f, 0.1f, 1}, {0.1f, -0.1f, 1}};
+  const std::vector<Vec3> light_polygon = {
+      {-0.1f, -0.1f, 1}, {-0.1f, 0.1f, 1}, {0.1f, 0.1f, 1}, {0.1f, -0.1f, 1}};
   AddQuad(scene, light_polygon[0], light_polygon[1], light_polygon[2], light_polygon[3], light_id, 0);
   scene.num_lights = 1;
 

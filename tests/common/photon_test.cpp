@@ -450,7 +450,8 @@ TEST_P(PhotonMapContractTest, QueryWithHintEqualsQueryForAnyHint) {
           const auto expected = BruteForceNearest(map->photons(), x, k, max_radius);
           ASSERT_EQ(heap.size(), expected.size()) << "hint " << hint << " k " << k;
           heap.Sort();
-          for (std::size_t j = 0; j < expected.size(); ++j) ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+          for (std::size_t j = 0; j < expected.size(); ++j)
+            ASSERT_EQ(heap[j].distance2, expected[j].distance2);
           // The hint sufficed iff the open ball of radius hint (< max_radius) holds k photons.
           const auto in_hint = BruteForceNearest(map->photons(), x, k, hint);
           const bool expect_used = hint > 0.0f && hint < max_radius && in_hint.size() == std::size_t(k);

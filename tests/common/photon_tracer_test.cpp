@@ -92,7 +92,8 @@ TEST(PhotonTracer, CausticClassificationFollowsTheThesisDefinition) {
   // Light facing down at z = 2, mirror facing up at z = 3 above it (light on both sides? no:
   // a second light quad facing up so that photons reach the mirror).
   AddQuad(s, {-0.5f, -0.5f, 2}, {-0.5f, 0.5f, 2}, {0.5f, 0.5f, 2}, {0.5f, -0.5f, 2}, light_id, 0);
-  AddQuad(s, {-0.5f, -0.5f, 2.001f}, {0.5f, -0.5f, 2.001f}, {0.5f, 0.5f, 2.001f}, {-0.5f, 0.5f, 2.001f}, light_id, 1);
+  AddQuad(s, {-0.5f, -0.5f, 2.001f}, {0.5f, -0.5f, 2.001f}, {0.5f, 0.5f, 2.001f}, {-0.5f, 0.5f, 2.001f},
+          light_id, 1);
   AddQuad(s, {-3, -3, 3}, {-3, 3, 3}, {3, 3, 3}, {3, -3, 3}, mirror_id);  // faces down
   s.num_lights = 2;
   const EmbreeScene accel(s);

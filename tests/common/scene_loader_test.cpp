@@ -32,8 +32,8 @@ const Material& FindMaterial(const SceneDescription& s, const std::string& name)
 
 float TriangleArea(const SceneDescription& s, size_t t) {
   const auto& tri = s.triangles[t];
-  return 0.5f * Length(Cross(s.positions[tri[1]] - s.positions[tri[0]],
-                             s.positions[tri[2]] - s.positions[tri[0]]));
+  return 0.5f *
+         Length(Cross(s.positions[tri[1]] - s.positions[tri[0]], s.positions[tri[2]] - s.positions[tri[0]]));
 }
 
 void ExpectRgbNear(const Rgb& actual, const Rgb& expected, float tol = 1e-6f) {
@@ -103,8 +103,8 @@ TEST(ObjLoaderTest, CornellBoxOriginal) {
     EXPECT_EQ(s.triangle_light[t], 0u);
     light_area += TriangleArea(s, t);
     const auto& tri = s.triangles[t];
-    const Vec3 n = Cross(s.positions[tri[1]] - s.positions[tri[0]],
-                         s.positions[tri[2]] - s.positions[tri[0]]);
+    const Vec3 n =
+        Cross(s.positions[tri[1]] - s.positions[tri[0]], s.positions[tri[2]] - s.positions[tri[0]]);
     EXPECT_LT(n.y, 0.0f) << "the light must face down into the box";
     EXPECT_EQ(s.materials[s.triangle_material[t]].name, "light");
   }
@@ -241,8 +241,7 @@ TEST(ObjLoaderTest, CornellSphereMirrorAndGlass) {
   EXPECT_TRUE(FindMaterial(bare, "rightSphere").specular_transmittance.IsBlack());
   bool warned = false;
   for (const std::string& w : bare.warnings)
-    warned = warned || (w.find("rightSphere") != std::string::npos &&
-                        w.find("Tf") != std::string::npos);
+    warned = warned || (w.find("rightSphere") != std::string::npos && w.find("Tf") != std::string::npos);
   EXPECT_TRUE(warned);
 
   // Per-vertex normals of the spheres are used (unit length).
@@ -302,8 +301,7 @@ TEST_F(ObjErrorTest, RelativeIndexBeforeStartAndMissingNormal) {
   EXPECT_THAT(ErrorOf([&] { LoadObj(rel); }), HasSubstr("rel.obj:4:"));
   const fs::path quad = Write("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 9\n");
   EXPECT_THAT(ErrorOf([&] { LoadObj(quad); }), HasSubstr("quad.obj:5:"));
-  const fs::path normal =
-      Write("normal.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//2\n");
+  const fs::path normal = Write("normal.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//2\n");
   EXPECT_THAT(ErrorOf([&] { LoadObj(normal); }), HasSubstr("normal.obj:5:"));
 }
 
@@ -416,8 +414,7 @@ TEST_F(ManifestTest, EachMalformedKeyIsNamed) {
       {R"({"geometry": "a.obj", "scale": "big"})", "key 'scale': expected a number"},
       {R"({"geometry": "a.obj", "cameras": {}})", "key 'cameras'"},
       {R"({"geometry": "a.obj", "cameras": [3]})", "key 'cameras[0]': expected an object"},
-      {R"({"geometry": "a.obj", "cameras": [{"look_at": [0, 0, 0]}]})",
-       "key 'cameras[0].eye': missing"},
+      {R"({"geometry": "a.obj", "cameras": [{"look_at": [0, 0, 0]}]})", "key 'cameras[0].eye': missing"},
       {R"({"geometry": "a.obj", "cameras": [{"eye": [0, 1], "look_at": [0, 0, 0]}]})",
        "key 'cameras[0].eye': expected 3 numbers"},
       {R"({"geometry": "a.obj", "cameras": [{"eye": [0, 1, "x"], "look_at": [0, 0, 0]}]})",
@@ -428,10 +425,8 @@ TEST_F(ManifestTest, EachMalformedKeyIsNamed) {
        "key 'cameras[1].look_at': expected 3 numbers"},
       {R"({"geometry": "a.obj", "cameras": [{"eye": [1, 1, 1], "look_at": [1, 1, 1]}]})",
        "key 'cameras[0].look_at': must differ from eye"},
-      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "up": [0, 0, 2]}]})",
-       "key 'cameras[0].up'"},
-      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "fov": 180}]})",
-       "key 'cameras[0].fov'"},
+      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "up": [0, 0, 2]}]})", "key 'cameras[0].up'"},
+      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "fov": 180}]})", "key 'cameras[0].fov'"},
       {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "fov": "wide"}]})",
        "key 'cameras[0].fov': expected a number"},
       {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "resolution": [0, 10]}]})",
@@ -440,25 +435,19 @@ TEST_F(ManifestTest, EachMalformedKeyIsNamed) {
        "key 'cameras[0].resolution'"},
       {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "resolution": [100000, 10]}]})",
        "key 'cameras[0].resolution'"},
-      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "name": ""}]})",
-       "key 'cameras[0].name'"},
-      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "name": "a"}, {)" + cam +
-           R"(, "name": "a"}]})",
+      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "name": ""}]})", "key 'cameras[0].name'"},
+      {R"({"geometry": "a.obj", "cameras": [{)" + cam + R"(, "name": "a"}, {)" + cam + R"(, "name": "a"}]})",
        "key 'cameras[1].name': duplicate"},
       {R"({"geometry": "a.obj", "settings": [1]})", "key 'settings'"},
       {R"({"geometry": "a.obj", "materials": []})", "key 'materials'"},
       {R"({"geometry": "a.obj", "materials": {"x": 1}})", "key 'materials.x'"},
-      {R"({"geometry": "a.obj", "materials": {"x": {"kind": "metal"}}})",
-       "key 'materials.x.kind'"},
-      {R"({"geometry": "a.obj", "materials": {"x": {"diffuse": [1, 2]}}})",
-       "key 'materials.x.diffuse'"},
+      {R"({"geometry": "a.obj", "materials": {"x": {"kind": "metal"}}})", "key 'materials.x.kind'"},
+      {R"({"geometry": "a.obj", "materials": {"x": {"diffuse": [1, 2]}}})", "key 'materials.x.diffuse'"},
       {R"({"geometry": "a.obj", "materials": {"x": {"emission": [1, -2, 0]}}})",
        "key 'materials.x.emission'"},
       {R"({"geometry": "a.obj", "materials": {"x": {"ior": 0}}})", "key 'materials.x.ior'"},
-      {R"({"geometry": "a.obj", "materials": {"x": {"roughness": -1}}})",
-       "key 'materials.x.roughness'"},
-      {R"({"geometry": "a.obj", "materials": {"x": {"kind": "glossy"}}})",
-       "key 'materials.x.roughness'"},
+      {R"({"geometry": "a.obj", "materials": {"x": {"roughness": -1}}})", "key 'materials.x.roughness'"},
+      {R"({"geometry": "a.obj", "materials": {"x": {"kind": "glossy"}}})", "key 'materials.x.roughness'"},
       {R"({"geometry": "a.obj", "notes": 5})", "key 'notes'"},
       {R"({"geometry": "a.obj", "notes": ["a", 5]})", "key 'notes[1]'"},
       {R"([1, 2])", "JSON object"},
@@ -503,15 +492,12 @@ TEST_F(LoadSceneTest, DispatchErrors) {
               HasSubstr("key 'geometry'"));
   EXPECT_THAT(ErrorOf([&] { LoadScene(Write("gone.json", R"({"geometry": "gone.obj"})")); }),
               HasSubstr("key 'geometry': file"));
-  EXPECT_THAT(ErrorOf([&] {
-                LoadScene(kScenes / "cornell-box" / "CornellBox-Original.obj", -2.0);
-              }),
+  EXPECT_THAT(ErrorOf([&] { LoadScene(kScenes / "cornell-box" / "CornellBox-Original.obj", -2.0); }),
               HasSubstr("scale"));
 }
 
 TEST_F(LoadSceneTest, ExtensionIsCaseInsensitive) {
-  fs::copy_file(kScenes / "cornell-box" / "CornellBox-Original.mtl",
-                dir_ / "CornellBox-Original.mtl");
+  fs::copy_file(kScenes / "cornell-box" / "CornellBox-Original.mtl", dir_ / "CornellBox-Original.mtl");
   fs::copy_file(kScenes / "cornell-box" / "CornellBox-Original.obj", dir_ / "BOX.OBJ");
   const SceneDescription s = LoadScene(dir_ / "BOX.OBJ");
   EXPECT_EQ(s.NumTriangles(), 36u);
@@ -576,14 +562,16 @@ TEST_F(LoadSceneTest, MaterialOverrides) {
   ExpectRgbNear(FindMaterial(s, "light").emission, Rgb(10.0f));
   EXPECT_EQ(s.num_lights, 1u);
 
-  EXPECT_THAT(
-      ErrorOf([&] { LoadScene(Write("u.json", R"({"geometry": ")" + obj +
-                                                  R"(", "materials": {"marble": {"kind": "mirror"}}})")); }),
-      HasSubstr("key 'materials.marble'"));
-  EXPECT_THAT(
-      ErrorOf([&] { LoadScene(Write("e.json", R"({"geometry": ")" + obj +
-                                                  R"(", "materials": {"floor": {"emission": 1}}})")); }),
-      HasSubstr("key 'materials.floor.emission'"));
+  EXPECT_THAT(ErrorOf([&] {
+                LoadScene(Write("u.json", R"({"geometry": ")" + obj +
+                                              R"(", "materials": {"marble": {"kind": "mirror"}}})"));
+              }),
+              HasSubstr("key 'materials.marble'"));
+  EXPECT_THAT(ErrorOf([&] {
+                LoadScene(Write(
+                    "e.json", R"({"geometry": ")" + obj + R"(", "materials": {"floor": {"emission": 1}}})"));
+              }),
+              HasSubstr("key 'materials.floor.emission'"));
 }
 
 // --- Default camera ----------------------------------------------------------------------
@@ -601,8 +589,7 @@ TEST(DefaultCameraTest, FramesTheCornellBoxFromTheOpenSide) {
   const Vec3 u = Cross(r, f);
   const float tan_half = std::tan(0.5f * cam.vfov_degrees * kPi / 180.0f);
   for (int i = 0; i < 8; ++i) {
-    const Vec3 corner((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y,
-                      (i & 4) ? b.hi.z : b.lo.z);
+    const Vec3 corner((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
     const Vec3 d = corner - cam.eye;
     const float depth = Dot(d, f);
     ASSERT_GT(depth, 0.0f);
@@ -635,8 +622,8 @@ TEST(CuratedScenesTest, FurnaceIsAClosedInwardEmitterWithEnergyConservingObjects
     const std::string& name = s.materials[s.triangle_material[t]].name;
     const auto& tri = s.triangles[t];
     const Vec3 centroid = (s.positions[tri[0]] + s.positions[tri[1]] + s.positions[tri[2]]) / 3.0f;
-    const Vec3 n = Cross(s.positions[tri[1]] - s.positions[tri[0]],
-                         s.positions[tri[2]] - s.positions[tri[0]]);
+    const Vec3 n =
+        Cross(s.positions[tri[1]] - s.positions[tri[0]], s.positions[tri[2]] - s.positions[tri[0]]);
     if (name == "furnace_wall") {
       ++per_material[0];
       EXPECT_LT(Dot(n, centroid), 0.0f) << "the furnace must face inward (front-side emission)";
@@ -658,8 +645,7 @@ TEST(CuratedScenesTest, FurnaceIsAClosedInwardEmitterWithEnergyConservingObjects
 TEST(CuratedScenesTest, EveryManifestLoads) {
   std::vector<fs::path> manifests;
   for (const auto& entry : fs::recursive_directory_iterator(kScenes))
-    if (entry.is_regular_file() && entry.path().extension() == ".json")
-      manifests.push_back(entry.path());
+    if (entry.is_regular_file() && entry.path().extension() == ".json") manifests.push_back(entry.path());
   std::sort(manifests.begin(), manifests.end());
   ASSERT_GE(manifests.size(), 6u);
   for (const fs::path& p : manifests) {
@@ -692,12 +678,11 @@ TEST(CuratedScenesTest, EveryManifestLoads) {
         EXPECT_LE(c.look_at[a], b.hi[a] + 1e-3f) << c.name;
       }
     }
-    std::cout << "[ scene    ] " << fs::relative(p, kScenes).string() << ": "
-              << s.NumTriangles() << " triangles, " << s.num_lights << " lights ("
-              << s.NumEmissiveTriangles() << " emissive triangles), " << s.materials.size()
-              << " materials, bounds [" << b.lo.x << " " << b.lo.y << " " << b.lo.z << "] - ["
-              << b.hi.x << " " << b.hi.y << " " << b.hi.z << "], " << s.warnings.size()
-              << " warnings\n";
+    std::cout << "[ scene    ] " << fs::relative(p, kScenes).string() << ": " << s.NumTriangles()
+              << " triangles, " << s.num_lights << " lights (" << s.NumEmissiveTriangles()
+              << " emissive triangles), " << s.materials.size() << " materials, bounds [" << b.lo.x << " "
+              << b.lo.y << " " << b.lo.z << "] - [" << b.hi.x << " " << b.hi.y << " " << b.hi.z << "], "
+              << s.warnings.size() << " warnings\n";
   }
 }
 

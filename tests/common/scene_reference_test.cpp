@@ -192,7 +192,8 @@ TEST(BundlePaths, AFileCannotAlsoBeAFolder) {
 TEST_F(SceneReferenceTest, ObjVerticesMustBeFiniteNumbers) {
   for (const char* bad : {"nan", "inf", "-inf", "1e999", "1e39", "0x1p3", "abc"}) {
     const fs::path p = Write("scene/bad.obj", std::string("v 0 0 0\nv 1 0 ") + bad + "\nv 0 1 0\nf 1 2 3\n");
-    EXPECT_THAT(LoadError(p), HasSubstr("bad.obj:2: v coordinate '" + std::string(bad) + "' is not a finite number"))
+    EXPECT_THAT(LoadError(p),
+                HasSubstr("bad.obj:2: v coordinate '" + std::string(bad) + "' is not a finite number"))
         << bad;
   }
   const fs::path n = Write("scene/badn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 nan 1\nf 1//1 2//1 3//1\n");

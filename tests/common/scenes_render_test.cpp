@@ -47,13 +47,12 @@ TEST_P(ShippedScene, RendersFiniteAndNotBlack) {
   EXPECT_EQ(stats.nonfinite_samples, 0u);
 }
 
-INSTANTIATE_TEST_SUITE_P(Scenes, ShippedScene, ::testing::ValuesIn(Manifests()),
-                         [](const auto& info) {
-                           std::string name = std::filesystem::path(info.param).stem().string();
-                           for (char& c : name)
-                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(Scenes, ShippedScene, ::testing::ValuesIn(Manifests()), [](const auto& info) {
+  std::string name = std::filesystem::path(info.param).stem().string();
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return name;
+});
 
 }  // namespace
 }  // namespace pf

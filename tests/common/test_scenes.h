@@ -39,8 +39,8 @@ inline void AddQuad(SceneDescription& s, Vec3 p0, Vec3 p1, Vec3 p2, Vec3 p3, uin
 // faces (and shading normals) point to the centre. `smooth` adds vertex normals; without them
 // the sphere is a closed polyhedron with flat facets (exact for furnace tests: shading normals
 // make a Lambertian surface lose or gain energy at grazing angles).
-inline void AddSphere(SceneDescription& s, Vec3 center, float radius, int subdivisions,
-                      uint32_t material, bool inward, uint32_t light = kNoLight, bool smooth = true) {
+inline void AddSphere(SceneDescription& s, Vec3 center, float radius, int subdivisions, uint32_t material,
+                      bool inward, uint32_t light = kNoLight, bool smooth = true) {
   std::vector<Vec3> verts = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
   std::vector<std::array<uint32_t, 3>> faces = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
                                                 {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};

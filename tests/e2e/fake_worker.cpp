@@ -19,10 +19,10 @@
 #include <thread>
 #include <vector>
 
-#include "rpc/grpc_channel.h"
 #include "common/plan/task_plan.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "proto/convert.h"
+#include "rpc/grpc_channel.h"
 
 namespace v1 = photonfarm::v1;
 using Clock = std::chrono::steady_clock;
@@ -41,7 +41,8 @@ uint64_t PixelsOfTask(const v1::Task& t) {
   return pf::CountPixels(pf::PixelSubsetFromProto(t.pixels(), "task.pixels"), cam.width, cam.height);
 }
 
-bool LeaseOne(v1::WorkerService::Stub& stub, const Options& o, double wait, v1::Task* task, grpc::Status* status) {
+bool LeaseOne(v1::WorkerService::Stub& stub, const Options& o, double wait, v1::Task* task,
+              grpc::Status* status) {
   v1::LeaseTaskRequest req;
   req.set_worker_id("fake-" + o.mode);
   req.set_threads(1);
@@ -60,7 +61,9 @@ int BadResult(const Options& o) {
   v1::Task task;
   grpc::Status st;
   if (!LeaseOne(*stub, o, o.wait, &task, &st)) {
-    std::printf("%s\n", nlohmann::json{{"error", "no task leased"}, {"status", pf::StatusToString(st)}}.dump().c_str());
+    std::printf(
+        "%s\n",
+        nlohmann::json{{"error", "no task leased"}, {"status", pf::StatusToString(st)}}.dump().c_str());
     return 1;
   }
   const uint64_t pixels = PixelsOfTask(task);
@@ -132,17 +135,18 @@ int Instant(const Options& o) {
   for (std::thread& t : threads) t.join();
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   const uint64_t c = completed.load();
-  nlohmann::json j = {{"mode", "instant"},
-                      {"concurrency", o.concurrency},
-                      {"leases", leases.load()},
-                      {"completed", c},
-                      {"merged", merged.load()},
-                      {"seconds", seconds},
-                      {"completions_per_second", c / seconds},
-                      {"result_bytes_per_task", c ? double(bytes.load()) / double(c) : 0.0},
-                      {"task_bytes_per_lease", leases ? double(task_bytes.load()) / double(leases.load()) : 0.0},
-                      {"pixels_per_task", c ? double(pixels.load()) / double(c) : 0.0},
-                      {"error", error}};
+  nlohmann::json j = {
+      {"mode", "instant"},
+      {"concurrency", o.concurrency},
+      {"leases", leases.load()},
+      {"completed", c},
+      {"merged", merged.load()},
+      {"seconds", seconds},
+      {"completions_per_second", c / seconds},
+      {"result_bytes_per_task", c ? double(bytes.load()) / double(c) : 0.0},
+      {"task_bytes_per_lease", leases ? double(task_bytes.load()) / double(leases.load()) : 0.0},
+      {"pixels_per_task", c ? double(pixels.load()) / double(c) : 0.0},
+      {"error", error}};
   std::printf("%s\n", j.dump().c_str());
   return merged.load() > 0 ? 0 : 1;
 }
@@ -155,7 +159,8 @@ int main(int argc, char** argv) {
   CLI::App app{"pf_fake_worker: speaks WorkerService without rendering (tests and benchmarks)"};
   app.add_option("--coordinator", o.coordinator, "HOST:PORT")->required();
   app.add_option("--token-file", token_file, "Bearer token file (default $PF_TOKEN)");
-  app.add_option("--mode", o.mode, "bad-size | nan | instant")->check(CLI::IsMember({"bad-size", "nan", "instant"}));
+  app.add_option("--mode", o.mode, "bad-size | nan | instant")
+      ->check(CLI::IsMember({"bad-size", "nan", "instant"}));
   app.add_option("--wait", o.wait, "bad-size/nan: seconds to wait for a task")->capture_default_str();
   app.add_option("--tasks", o.tasks, "instant: stop after this many merged results")->capture_default_str();
   app.add_option("--seconds", o.seconds, "instant: stop after this long")->capture_default_str();

@@ -31,17 +31,18 @@ JobArgs SlowJob() {
 }
 
 Image LocalReference(const TestDir& dir, const JobArgs& job) {
-  const RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
-                                 {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
-                          dir.path());
+  const RunResult r =
+      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
+                        {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
+                 dir.path());
   EXPECT_EQ(r.exit_code, 0) << r.err;
   return ReadImage(dir / "local.exr");
 }
 
 std::string Submit(const TestDir& dir, const std::string& address, const JobArgs& job) {
   const RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
-                                 {"--coordinator", address}),
-                          dir.path());
+                                        {"--coordinator", address}),
+                                 dir.path());
   EXPECT_EQ(r.exit_code, 0) << r.err;
   std::string id = r.out;
   while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
@@ -74,7 +75,8 @@ TEST(FarmFaults, KilledAndHungWorkersLoseOnlyTheirLeases) {
   TestDir dir;
   const JobArgs job = SlowJob();
   const Image reference = LocalReference(dir, job);
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--lease-seconds", "1.5", "--max-attempts", "10"});
+  CoordinatorProcess coordinator(dir / "data", dir.path(),
+                                 {"--lease-seconds", "1.5", "--max-attempts", "10"});
   const std::string job_id = Submit(dir, coordinator.address(), job);
   ASSERT_FALSE(job_id.empty());
 
@@ -170,12 +172,14 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
   const std::map<uint64_t, int> before = MergedTaskCounts(logs, job_id);
   std::vector<size_t> offsets;
   for (const fs::path& log : logs) offsets.push_back(ReadLines(log).size());
-  EXPECT_LT(before.size(), size_t(job.rounds * job.stride * job.stride)) << "the job finished before the crash";
+  EXPECT_LT(before.size(), size_t(job.rounds * job.stride * job.stride))
+      << "the job finished before the crash";
 
   // Restart on the same data dir and port; the workers reconnect by themselves.
   coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(),
                                                      std::vector<std::string>{"--lease-seconds", "3"}, port);
-  EXPECT_FALSE(Grep(coordinator->process().log(), "resumed").empty()) << ReadFile(coordinator->process().log());
+  EXPECT_FALSE(Grep(coordinator->process().log(), "resumed").empty())
+      << ReadFile(coordinator->process().log());
   FarmClient client(address, "");
   const v1::JobStatus st = WaitForJob(client, job_id, 120);
   ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
@@ -190,7 +194,8 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
       if (std::regex_search(lines[l], m, leased)) leased_after.insert(std::stoull(m[1].str()));
     }
   }
-  for (const auto& [task, count] : before) EXPECT_FALSE(leased_after.count(task)) << "task " << task << " re-run";
+  for (const auto& [task, count] : before)
+    EXPECT_FALSE(leased_after.count(task)) << "task " << task << " re-run";
   // No task acknowledged twice over both coordinator lives. (A result made durable just before
   // the crash, whose acknowledgement was lost, is merged but logged merged=false by its worker:
   // hence "at most once" per log line, and the exact sample count proves nothing was doubled.)
@@ -200,8 +205,8 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
   EXPECT_EQ(st.tasks_done(), st.tasks_total());
   EXPECT_EQ(st.samples_merged(), uint64_t(job.res) * job.res * job.spp * job.rounds);
   EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
-  std::printf("crash after %zu merged tasks; %zu tasks leased after the restart; %llu tasks in all\n", before.size(),
-              leased_after.size(), (unsigned long long)st.tasks_total());
+  std::printf("crash after %zu merged tasks; %zu tasks leased after the restart; %llu tasks in all\n",
+              before.size(), leased_after.size(), (unsigned long long)st.tasks_total());
   for (auto& w : workers) w->Signal(SIGTERM);
   for (auto& w : workers) EXPECT_TRUE(w->Wait(20).has_value());
 }
@@ -223,7 +228,8 @@ TEST(FarmFaults, WorkerSigtermHandsBackOrFinishesItsTask) {
   EXPECT_EQ(quick->Wait(5).value_or(-1), 0) << ReadFile(quick->log());
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 2.0);
   EXPECT_FALSE(Grep(quick->log(), "handed-back job=" + job_id).empty()) << ReadFile(quick->log());
-  EXPECT_TRUE(WaitUntil([&] { return !Grep(coordinator.process().log(), "shutting down.*re-queued").empty(); }, 5))
+  EXPECT_TRUE(
+      WaitUntil([&] { return !Grep(coordinator.process().log(), "shutting down.*re-queued").empty(); }, 5))
       << ReadFile(coordinator.process().log());
 
   // Default grace: SIGTERM mid-task finishes and reports the task, then exits 0.
@@ -231,7 +237,8 @@ TEST(FarmFaults, WorkerSigtermHandsBackOrFinishesItsTask) {
   ASSERT_TRUE(WaitUntil([&] { return MidTask(patient->log()); }, 30));
   patient->Signal(SIGTERM);
   EXPECT_EQ(patient->Wait(30).value_or(-1), 0) << ReadFile(patient->log());
-  EXPECT_EQ(Grep(patient->log(), "completed job=" + job_id + " .* merged=true").size(), 1u) << ReadFile(patient->log());
+  EXPECT_EQ(Grep(patient->log(), "completed job=" + job_id + " .* merged=true").size(), 1u)
+      << ReadFile(patient->log());
   EXPECT_EQ(Grep(patient->log(), "leased job=").size(), 1u) << "no new lease after SIGTERM";
 
   // The task handed back is done by the next worker; the job completes.

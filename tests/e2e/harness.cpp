@@ -27,11 +27,21 @@ static std::string BinaryIn(const char* built, const char* relative) {
   const char* dir = std::getenv("PF_E2E_BIN_DIR");
   return dir && *dir ? std::string(dir) + "/" + relative : std::string(built);
 }
-std::string Binaries::Pf() { return BinaryIn(PF_E2E_PF, "client/pf"); }
-std::string Binaries::Worker() { return BinaryIn(PF_E2E_WORKER, "worker/pf-worker"); }
-std::string Binaries::Coordinator() { return BinaryIn(PF_E2E_COORDINATOR, "server/pf-coordinator"); }
-std::string Binaries::FakeWorker() { return PF_E2E_FAKE_WORKER; }
-std::string Binaries::Scene() { return std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json"; }
+std::string Binaries::Pf() {
+  return BinaryIn(PF_E2E_PF, "client/pf");
+}
+std::string Binaries::Worker() {
+  return BinaryIn(PF_E2E_WORKER, "worker/pf-worker");
+}
+std::string Binaries::Coordinator() {
+  return BinaryIn(PF_E2E_COORDINATOR, "server/pf-coordinator");
+}
+std::string Binaries::FakeWorker() {
+  return PF_E2E_FAKE_WORKER;
+}
+std::string Binaries::Scene() {
+  return std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json";
+}
 
 TestDir::TestDir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
@@ -74,7 +84,8 @@ Process::Process(std::string name, std::vector<std::string> argv, fs::path log, 
   for (std::string& e : env_storage) envp.push_back(e.data());
   envp.push_back(nullptr);
   const int log_fd = ::open(log_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  const int out_fd = out.empty() ? log_fd : ::open(out.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  const int out_fd =
+      out.empty() ? log_fd : ::open(out.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
   if (log_fd < 0 || out_fd < 0) throw std::runtime_error("cannot open " + log_.string());
   const pid_t parent = getpid();
   pid_ = fork();
@@ -164,7 +175,8 @@ bool WaitUntil(const std::function<bool()>& predicate, double seconds) {
 }
 
 CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path& log_dir,
-                                       std::vector<std::string> extra_args, int port, const std::string& token_file) {
+                                       std::vector<std::string> extra_args, int port,
+                                       const std::string& token_file) {
   static int counter = 0;
   const std::string n = std::to_string(++counter);
   const fs::path out = log_dir / ("coordinator-" + n + ".out");
@@ -172,8 +184,9 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
                                    "--data-dir", data_dir.string()};
   if (!token_file.empty()) argv.insert(argv.end(), {"--client-token-file", token_file});
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
-  process_ = std::make_unique<Process>("pf-coordinator", argv, log_dir / ("coordinator-" + n + ".log"), out,
-                                       std::map<std::string, std::string>{{"PF_TOKEN", ""}, {"PF_CLIENT_TOKEN", ""}, {"PF_WORKER_TOKEN", ""}});
+  process_ = std::make_unique<Process>(
+      "pf-coordinator", argv, log_dir / ("coordinator-" + n + ".log"), out,
+      std::map<std::string, std::string>{{"PF_TOKEN", ""}, {"PF_CLIENT_TOKEN", ""}, {"PF_WORKER_TOKEN", ""}});
   const std::regex listening(R"(listening on ([0-9.]+):([0-9]+))");
   const bool ok = WaitUntil(
       [&] {
@@ -190,15 +203,25 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
 
 std::unique_ptr<Process> StartWorker(const std::string& address, const fs::path& dir, const std::string& id,
                                      std::vector<std::string> extra_args) {
-  std::vector<std::string> argv = {Binaries::Worker(), "--coordinator", address, "--threads", "1",
-                                   "--worker-id", id, "--cache-dir", (dir / ("cache-" + id)).string(),
-                                   "--poll-seconds", "1", "--max-backoff", "0.5"};
+  std::vector<std::string> argv = {Binaries::Worker(),
+                                   "--coordinator",
+                                   address,
+                                   "--threads",
+                                   "1",
+                                   "--worker-id",
+                                   id,
+                                   "--cache-dir",
+                                   (dir / ("cache-" + id)).string(),
+                                   "--poll-seconds",
+                                   "1",
+                                   "--max-backoff",
+                                   "0.5"};
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
   return std::make_unique<Process>(id, argv, dir / (id + ".log"));
 }
 
 RunResult RunCommand(const std::vector<std::string>& argv, const fs::path& dir, double timeout,
-              std::map<std::string, std::string> env) {
+                     std::map<std::string, std::string> env) {
   static int counter = 0;
   const std::string n = std::to_string(++counter);
   const fs::path out = dir / ("run-" + n + ".out"), err = dir / ("run-" + n + ".err");
@@ -211,32 +234,43 @@ RunResult RunCommand(const std::vector<std::string>& argv, const fs::path& dir, 
   return r;
 }
 
-Image ReadImage(const fs::path& path) { return ReadExr(path); }
-Image DecodeImage(const std::string& bytes) { return DecodeExrFromMemory(bytes); }
+Image ReadImage(const fs::path& path) {
+  return ReadExr(path);
+}
+Image DecodeImage(const std::string& bytes) {
+  return DecodeExrFromMemory(bytes);
+}
 
 ::testing::AssertionResult BitIdentical(const Image& a, const Image& b) {
   if (a.width() != b.width() || a.height() != b.height())
-    return ::testing::AssertionFailure() << "sizes differ: " << a.width() << "x" << a.height() << " vs " << b.width()
-                                         << "x" << b.height();
+    return ::testing::AssertionFailure()
+           << "sizes differ: " << a.width() << "x" << a.height() << " vs " << b.width() << "x" << b.height();
   for (int y = 0; y < a.height(); ++y)
     for (int x = 0; x < a.width(); ++x) {
       const Rgb& p = a.at(x, y);
       const Rgb& q = b.at(x, y);
       if (std::memcmp(&p, &q, sizeof(Rgb)) != 0)
-        return ::testing::AssertionFailure() << "pixel (" << x << "," << y << ") differs: (" << p.r << "," << p.g
-                                             << "," << p.b << ") vs (" << q.r << "," << q.g << "," << q.b << ")";
+        return ::testing::AssertionFailure()
+               << "pixel (" << x << "," << y << ") differs: (" << p.r << "," << p.g << "," << p.b << ") vs ("
+               << q.r << "," << q.g << "," << q.b << ")";
     }
   return ::testing::AssertionSuccess();
 }
 
 std::vector<std::string> JobArgs::ToFlags() const {
-  return {"--integrator", integrator, "--photons", std::to_string(photons), "--k", std::to_string(k),
-          "--plan", "skipping", "--stride", std::to_string(stride), "--rounds", std::to_string(rounds),
-          "--spp", std::to_string(spp), "--res", std::to_string(res) + "x" + std::to_string(res),
-          "--seed", std::to_string(seed)};
+  return {"--integrator", integrator,
+          "--photons",    std::to_string(photons),
+          "--k",          std::to_string(k),
+          "--plan",       "skipping",
+          "--stride",     std::to_string(stride),
+          "--rounds",     std::to_string(rounds),
+          "--spp",        std::to_string(spp),
+          "--res",        std::to_string(res) + "x" + std::to_string(res),
+          "--seed",       std::to_string(seed)};
 }
 
-std::map<uint64_t, int> MergedTaskCounts(const std::vector<fs::path>& worker_logs, const std::string& job_id) {
+std::map<uint64_t, int> MergedTaskCounts(const std::vector<fs::path>& worker_logs,
+                                         const std::string& job_id) {
   const std::regex re("completed job=" + job_id + " task=([0-9]+) attempt=[0-9]+ merged=true");
   std::map<uint64_t, int> counts;
   for (const fs::path& log : worker_logs)
@@ -251,7 +285,9 @@ std::map<uint64_t, int> MergedTaskCounts(const std::vector<fs::path>& worker_log
 
 namespace pf::e2e {
 
-void BecomeSubreaper() { prctl(PR_SET_CHILD_SUBREAPER, 1); }
+void BecomeSubreaper() {
+  prctl(PR_SET_CHILD_SUBREAPER, 1);
+}
 
 std::vector<std::string> LiveChildren() {
   // Reap zombies first (orphans re-parented to us that already exited).

@@ -81,7 +81,8 @@ bool WaitUntil(const std::function<bool()>& predicate, double seconds);
 class CoordinatorProcess {
  public:
   CoordinatorProcess(const std::filesystem::path& data_dir, const std::filesystem::path& log_dir,
-                     std::vector<std::string> extra_args = {}, int port = 0, const std::string& token_file = "");
+                     std::vector<std::string> extra_args = {}, int port = 0,
+                     const std::string& token_file = "");
   const std::string& address() const { return address_; }
   int port() const { return port_; }
   Process& process() { return *process_; }
@@ -101,8 +102,8 @@ struct RunResult {
   std::string out, err;
 };
 // Runs a command to completion (killed after `timeout`), capturing stdout and stderr.
-RunResult RunCommand(const std::vector<std::string>& argv, const std::filesystem::path& dir, double timeout = 120,
-              std::map<std::string, std::string> env = {});
+RunResult RunCommand(const std::vector<std::string>& argv, const std::filesystem::path& dir,
+                     double timeout = 120, std::map<std::string, std::string> env = {});
 
 inline std::vector<std::string> Concat(std::vector<std::string> a, const std::vector<std::string>& b) {
   a.insert(a.end(), b.begin(), b.end());

@@ -27,8 +27,8 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
   const JobArgs job;  // cornell-box 32x32, photon map, skipping S=2 x 2 rounds
   const std::vector<std::string> base = Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags());
 
-  const RunResult local = RunCommand(Concat(base, {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
-                              dir.path());
+  const RunResult local = RunCommand(
+      Concat(base, {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}), dir.path());
   ASSERT_EQ(local.exit_code, 0) << local.err;
   const Image reference = ReadImage(dir / "local.exr");
   double sum = 0;
@@ -37,8 +37,8 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
 
   for (int workers : {1, 2, 3}) {
     const std::string out = (dir / ("farm-" + std::to_string(workers) + ".exr")).string();
-    const RunResult r = RunCommand(Concat(base, {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "-q"}),
-                            dir.path());
+    const RunResult r = RunCommand(
+        Concat(base, {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "-q"}), dir.path());
     ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
     EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
     EXPECT_TRUE(std::filesystem::exists(dir / ("farm-" + std::to_string(workers) + ".png")));
@@ -48,14 +48,34 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
 
 TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
   TestDir dir;
-  const std::vector<std::string> base = {Binaries::Pf(), "render", Binaries::Scene(), "--integrator", "photonmap",
-                                         "--photons", "2000", "--k", "20", "--res", "24x16", "--plan",
-                                         "multiple-maps", "--maps", "2", "--tile", "8", "--spp", "1", "--seed", "3",
-                                         "--no-png", "-q"};
-  const RunResult local = RunCommand(Concat(base, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
+  const std::vector<std::string> base = {Binaries::Pf(),
+                                         "render",
+                                         Binaries::Scene(),
+                                         "--integrator",
+                                         "photonmap",
+                                         "--photons",
+                                         "2000",
+                                         "--k",
+                                         "20",
+                                         "--res",
+                                         "24x16",
+                                         "--plan",
+                                         "multiple-maps",
+                                         "--maps",
+                                         "2",
+                                         "--tile",
+                                         "8",
+                                         "--spp",
+                                         "1",
+                                         "--seed",
+                                         "3",
+                                         "--no-png",
+                                         "-q"};
+  const RunResult local =
+      RunCommand(Concat(base, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
   ASSERT_EQ(local.exit_code, 0) << local.err;
-  const RunResult farm = RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}),
-                             dir.path());
+  const RunResult farm = RunCommand(
+      Concat(base, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}), dir.path());
   ASSERT_EQ(farm.exit_code, 0) << farm.err;
   EXPECT_TRUE(BitIdentical(ReadImage(dir / "farm.exr"), ReadImage(dir / "local.exr")));
   ExpectNoProcessLeft();
@@ -65,13 +85,37 @@ TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
 // the neighbour-set cache, local pass, occlusion test and adaptive k give the local image.
 TEST_F(LocalFarmTest, ChapterFourEstimatorsMatchLocal) {
   TestDir dir;
-  const std::vector<std::string> base = {
-      Binaries::Pf(), "render", Binaries::Scene(), "--integrator", "photonmap", "--photons", "3000", "--k", "20",
-      "--res", "24x16", "--plan", "skipping", "--stride", "2", "--rounds", "1", "--spp", "1", "--seed", "5",
-      "--occlusion-test", "--adaptive-k-min", "6", "--no-png", "-q"};
-  const std::vector<std::string> chapter4 = Concat(base, {"--direct", "photon-direct", "--non-contributing", "each",
-                                                          "--photon-direct-k", "10", "--local-pass", "3"});
-  const RunResult local = RunCommand(Concat(chapter4, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
+  const std::vector<std::string> base = {Binaries::Pf(),
+                                         "render",
+                                         Binaries::Scene(),
+                                         "--integrator",
+                                         "photonmap",
+                                         "--photons",
+                                         "3000",
+                                         "--k",
+                                         "20",
+                                         "--res",
+                                         "24x16",
+                                         "--plan",
+                                         "skipping",
+                                         "--stride",
+                                         "2",
+                                         "--rounds",
+                                         "1",
+                                         "--spp",
+                                         "1",
+                                         "--seed",
+                                         "5",
+                                         "--occlusion-test",
+                                         "--adaptive-k-min",
+                                         "6",
+                                         "--no-png",
+                                         "-q"};
+  const std::vector<std::string> chapter4 =
+      Concat(base, {"--direct", "photon-direct", "--non-contributing", "each", "--photon-direct-k", "10",
+                    "--local-pass", "3"});
+  const RunResult local =
+      RunCommand(Concat(chapter4, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
   ASSERT_EQ(local.exit_code, 0) << local.err;
   const RunResult farm = RunCommand(
       Concat(chapter4, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}), dir.path());
@@ -79,8 +123,7 @@ TEST_F(LocalFarmTest, ChapterFourEstimatorsMatchLocal) {
   EXPECT_TRUE(BitIdentical(ReadImage(dir / "farm.exr"), ReadImage(dir / "local.exr")));
   // A different estimator is a different image (the options really reached the workers).
   const RunResult standalone = RunCommand(
-      Concat(base, {"--direct", "photon-map", "--local-only", "-o", (dir / "pm.exr").string()}),
-      dir.path());
+      Concat(base, {"--direct", "photon-map", "--local-only", "-o", (dir / "pm.exr").string()}), dir.path());
   ASSERT_EQ(standalone.exit_code, 0) << standalone.err;
   EXPECT_FALSE(BitIdentical(ReadImage(dir / "pm.exr"), ReadImage(dir / "local.exr")));
   ExpectNoProcessLeft();
@@ -92,8 +135,9 @@ TEST_F(LocalFarmTest, CtrlCStopsEverything) {
   job.photons = 200000;  // long enough to interrupt: many rounds of slow tasks
   job.rounds = 50;
   const std::string out = (dir / "out.exr").string();
-  Process pf("pf", Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
-                          {"--workers", "2", "--threads", "1", "-o", out, "-q", "--keep-farm-dir"}),
+  Process pf("pf",
+             Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
+                    {"--workers", "2", "--threads", "1", "-o", out, "-q", "--keep-farm-dir"}),
              dir / "pf.log");
   // Wait until a worker has finished a task (the farm is really running).
   std::string farm_dir;
@@ -103,7 +147,8 @@ TEST_F(LocalFarmTest, CtrlCStopsEverything) {
         const std::string log = ReadFile(dir / "pf.log");
         static const std::regex re(R"(logs in ([^)]+)\))");
         if (farm_dir.empty() && std::regex_search(log, m, re)) farm_dir = m[1];
-        return !farm_dir.empty() && !Grep(std::filesystem::path(farm_dir) / "worker-1.log", "completed").empty();
+        return !farm_dir.empty() &&
+               !Grep(std::filesystem::path(farm_dir) / "worker-1.log", "completed").empty();
       },
       60))
       << ReadFile(dir / "pf.log");
@@ -122,8 +167,9 @@ TEST_F(LocalFarmTest, KilledPfLeavesNothingBehind) {
   JobArgs job;
   job.photons = 200000;
   job.rounds = 50;
-  Process pf("pf", Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
-                          {"--workers", "2", "--threads", "1", "-o", (dir / "out.exr").string(), "-q"}),
+  Process pf("pf",
+             Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
+                    {"--workers", "2", "--threads", "1", "-o", (dir / "out.exr").string(), "-q"}),
              dir / "pf.log");
   ASSERT_TRUE(WaitUntil([&] { return ReadFile(dir / "pf.log").find("submitted") != std::string::npos; }, 60))
       << ReadFile(dir / "pf.log");
@@ -134,10 +180,10 @@ TEST_F(LocalFarmTest, KilledPfLeavesNothingBehind) {
 
 TEST_F(LocalFarmTest, BrokenWorkersFailCleanly) {
   TestDir dir;
-  const RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, JobArgs().ToFlags()),
-                                 {"--workers", "2", "--worker-bin", "/bin/false", "-o",
-                                  (dir / "out.exr").string(), "-q"}),
-                          dir.path(), 60);
+  const RunResult r = RunCommand(
+      Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, JobArgs().ToFlags()),
+             {"--workers", "2", "--worker-bin", "/bin/false", "-o", (dir / "out.exr").string(), "-q"}),
+      dir.path(), 60);
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("pf-worker #1 exited with status 1"), std::string::npos) << r.err;
   ExpectNoProcessLeft();

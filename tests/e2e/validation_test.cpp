@@ -47,12 +47,12 @@ grpc::Status Failure(const std::function<void()>& call) {
   return grpc::Status::OK;
 }
 
-#define EXPECT_REJECTED(call, code, field)                                                          \
-  do {                                                                                              \
-    const grpc::Status st_ = Failure([&] { call; });                                                \
-    EXPECT_EQ(st_.error_code(), grpc::StatusCode::code) << #call << ": " << StatusToString(st_);    \
-    EXPECT_NE(st_.error_message().find(field), std::string::npos)                                   \
-        << #call << ": message does not name '" << field << "': " << st_.error_message();          \
+#define EXPECT_REJECTED(call, code, field)                                                       \
+  do {                                                                                           \
+    const grpc::Status st_ = Failure([&] { call; });                                             \
+    EXPECT_EQ(st_.error_code(), grpc::StatusCode::code) << #call << ": " << StatusToString(st_); \
+    EXPECT_NE(st_.error_message().find(field), std::string::npos)                                \
+        << #call << ": message does not name '" << field << "': " << st_.error_message();        \
   } while (0)
 
 TEST(FarmValidation, BadJobsAreRejectedNamingTheField) {
@@ -117,9 +117,11 @@ TEST(FarmValidation, BadJobsAreRejectedNamingTheField) {
   EXPECT_REJECTED(client.UploadScene(bad), INVALID_ARGUMENT, "bad.mgf:3");
 
   // The same through the pf binary: exit 3 and the field on stderr; usage errors exit 2.
-  const std::vector<std::string> base = {Binaries::Pf(), "submit", Binaries::Scene(), "--coordinator",
-                                         coordinator.address(), "--integrator", "photonmap"};
-  RunResult r = RunCommand(Concat(base, {"--res", "32x32", "--plan", "skipping", "--stride", "100"}), dir.path());
+  const std::vector<std::string> base = {
+      Binaries::Pf(),        "submit",       Binaries::Scene(), "--coordinator",
+      coordinator.address(), "--integrator", "photonmap"};
+  RunResult r =
+      RunCommand(Concat(base, {"--res", "32x32", "--plan", "skipping", "--stride", "100"}), dir.path());
   EXPECT_EQ(r.exit_code, 3) << r.err;
   EXPECT_NE(r.err.find("plan.skipping.stride"), std::string::npos) << r.err;
   r = RunCommand(Concat(base, {"--photons", "-5"}), dir.path());
@@ -129,22 +131,19 @@ TEST(FarmValidation, BadJobsAreRejectedNamingTheField) {
   EXPECT_EQ(r.exit_code, 3) << r.err;
   EXPECT_NE(r.err.find("--res"), std::string::npos) << r.err;
   r = RunCommand({Binaries::Pf(), "get", "job-424242", "-o", (dir / "x.exr").string(), "--coordinator",
-           coordinator.address()},
-          dir.path());
+                  coordinator.address()},
+                 dir.path());
   EXPECT_EQ(r.exit_code, 3) << r.err;
   EXPECT_NE(r.err.find("NOT_FOUND"), std::string::npos) << r.err;
 }
 
 TEST(FarmValidation, WrongTokenIsUnauthenticated) {
   TestDir dir;
-  {
-    std::ofstream(dir / "token") << "s3cret-token\n";
-  }
-  {
-    std::ofstream(dir / "worker-token") << "w0rker-token\n";
-  }
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--worker-token-file", (dir / "worker-token").string()},
-                                 0, (dir / "token").string());
+  { std::ofstream(dir / "token") << "s3cret-token\n"; }
+  { std::ofstream(dir / "worker-token") << "w0rker-token\n"; }
+  CoordinatorProcess coordinator(dir / "data", dir.path(),
+                                 {"--worker-token-file", (dir / "worker-token").string()}, 0,
+                                 (dir / "token").string());
   FarmClient right(coordinator.address(), "s3cret-token");
   EXPECT_TRUE(right.ListJobs(true).empty());
   FarmClient wrong(coordinator.address(), "guess");
@@ -154,27 +153,28 @@ TEST(FarmValidation, WrongTokenIsUnauthenticated) {
 
   // pf: exit 1 with the code on stderr; the right token through PF_TOKEN works.
   RunResult r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator.address()}, dir.path(), 30,
-                    {{"PF_TOKEN", "guess"}});
+                           {{"PF_TOKEN", "guess"}});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("UNAUTHENTICATED"), std::string::npos) << r.err;
   r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator.address()}, dir.path(), 30,
-          {{"PF_TOKEN", "s3cret-token"}});
+                 {{"PF_TOKEN", "s3cret-token"}});
   EXPECT_EQ(r.exit_code, 0) << r.err;
 
   // A worker with the wrong token gets nothing, says why, and keeps trying (the operator may fix
   // the token file and restart it; it does not crash-loop); an empty token file is a usage error.
-  {
-    std::ofstream(dir / "wrong-token") << "guess\n";
-  }
-  auto worker = StartWorker(coordinator.address(), dir.path(), "w-wrong", {"--token-file", (dir / "wrong-token").string()});
-  EXPECT_TRUE(WaitUntil([&] { return !Grep(worker->log(), "UNAUTHENTICATED").empty(); }, 10)) << ReadFile(worker->log());
+  { std::ofstream(dir / "wrong-token") << "guess\n"; }
+  auto worker = StartWorker(coordinator.address(), dir.path(), "w-wrong",
+                            {"--token-file", (dir / "wrong-token").string()});
+  EXPECT_TRUE(WaitUntil([&] { return !Grep(worker->log(), "UNAUTHENTICATED").empty(); }, 10))
+      << ReadFile(worker->log());
   EXPECT_TRUE(worker->Running());
   worker->Signal(SIGTERM);
   EXPECT_EQ(worker->Wait(10).value_or(-1), 0);
   auto empty_token = StartWorker(coordinator.address(), dir.path(), "w-empty", {"--token-file", "/dev/null"});
   EXPECT_EQ(empty_token->Wait(10).value_or(-1), 2) << ReadFile(empty_token->log());
-  r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "nan", "--wait", "0.2"},
-          dir.path(), 30, {{"PF_TOKEN", "guess"}});
+  r = RunCommand(
+      {Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "nan", "--wait", "0.2"},
+      dir.path(), 30, {{"PF_TOKEN", "guess"}});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("UNAUTHENTICATED"), std::string::npos) << r.out << r.err;
 }
@@ -183,20 +183,22 @@ TEST(FarmValidation, WrongSizeAndNanResultsAreRejectedAndRerun) {
   TestDir dir;
   JobArgs job;
   job.rounds = 1;  // 4 tasks
-  const RunResult local = RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
-                                     {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
-                              dir.path());
+  const RunResult local =
+      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
+                        {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
+                 dir.path());
   ASSERT_EQ(local.exit_code, 0) << local.err;
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--max-attempts", "5"});
   RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
-                           {"--coordinator", coordinator.address()}),
-                    dir.path());
+                                  {"--coordinator", coordinator.address()}),
+                           dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string job_id = r.out.substr(0, r.out.find('\n'));
 
   std::vector<uint64_t> rejected_tasks;
   for (const char* mode : {"bad-size", "nan"}) {
-    r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", mode}, dir.path());
+    r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", mode},
+                   dir.path());
     ASSERT_EQ(r.exit_code, 0) << mode << ": " << r.out << r.err;
     const nlohmann::json j = nlohmann::json::parse(r.out);
     EXPECT_EQ(j["code"], "INVALID_ARGUMENT") << mode;
@@ -213,8 +215,8 @@ TEST(FarmValidation, WrongSizeAndNanResultsAreRejectedAndRerun) {
   ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
   // The rejected tasks were re-run by the real worker (attempt > 1) and merged once.
   for (uint64_t t : rejected_tasks)
-    EXPECT_FALSE(Grep(worker->log(), "completed job=" + job_id + " task=" + std::to_string(t) +
-                                         " attempt=[2-9] merged=true")
+    EXPECT_FALSE(Grep(worker->log(),
+                      "completed job=" + job_id + " task=" + std::to_string(t) + " attempt=[2-9] merged=true")
                      .empty())
         << "task " << t << "\n"
         << ReadFile(worker->log());

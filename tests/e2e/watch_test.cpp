@@ -23,17 +23,18 @@ TEST(FarmWatch, SnapshotsGetLessNoisyAndTheLastIsTheImage) {
   job.k = 40;
   job.rounds = 6;  // 24 tasks; the noise estimate needs >= 2 maps per pixel (round 2 on)
   CoordinatorProcess coordinator(dir / "data", dir.path());
-  const RunResult sub = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
-                                   {"--coordinator", coordinator.address()}),
-                            dir.path());
+  const RunResult sub =
+      RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
+                        {"--coordinator", coordinator.address()}),
+                 dir.path());
   ASSERT_EQ(sub.exit_code, 0) << sub.err;
   const std::string job_id = sub.out.substr(0, sub.out.find('\n'));
 
   // pf watch as a second observer, rewriting its EXR.
   const std::string watched = (dir / "watched.exr").string();
   Process pf_watch("pf-watch",
-                   {Binaries::Pf(), "watch", job_id, "-o", watched, "--json", "--interval", "0.05", "--coordinator",
-                    coordinator.address()},
+                   {Binaries::Pf(), "watch", job_id, "-o", watched, "--json", "--interval", "0.05",
+                    "--coordinator", coordinator.address()},
                    dir / "watch.err", dir / "watch.out");
 
   struct Snapshot {
@@ -57,8 +58,8 @@ TEST(FarmWatch, SnapshotsGetLessNoisyAndTheLastIsTheImage) {
     // One worker, started once the watch is subscribed (from this thread: see harness.h).
     if (!worker) worker = StartWorker(coordinator.address(), dir.path(), "w1");
     if (u.has_image() && !u.image().exr_bytes().empty())
-      snapshots.push_back({u.status().estimated_noise_rms(), u.status().rounds_done(), u.status().tasks_done(),
-                           u.image().exr_bytes()});
+      snapshots.push_back({u.status().estimated_noise_rms(), u.status().rounds_done(),
+                           u.status().tasks_done(), u.image().exr_bytes()});
   });
   {
     std::lock_guard lock(m);
@@ -76,8 +77,8 @@ TEST(FarmWatch, SnapshotsGetLessNoisyAndTheLastIsTheImage) {
   std::vector<double> noise;
   std::string trace;
   for (const Snapshot& s : snapshots) {
-    trace += "\n  tasks " + std::to_string(s.tasks_done) + " rounds " + std::to_string(s.rounds_done) + " noise " +
-             std::to_string(s.noise);
+    trace += "\n  tasks " + std::to_string(s.tasks_done) + " rounds " + std::to_string(s.rounds_done) +
+             " noise " + std::to_string(s.noise);
     if (s.noise >= 0 && (noise.empty() || s.noise != noise.back())) noise.push_back(s.noise);
   }
   std::printf("%zu snapshots, %zu distinct noise estimates:", snapshots.size(), noise.size());
@@ -110,9 +111,10 @@ TEST(FarmWatch, SnapshotsGetLessNoisyAndTheLastIsTheImage) {
 TEST(FarmWatch, SnapshotsLargerThanOneMessageArriveWhole) {
   TestDir dir;
   CoordinatorProcess coordinator(dir / "data", dir.path());
-  const RunResult sub = RunCommand({Binaries::Pf(), "submit", Binaries::Scene(), "--res", "512x512", "--spp", "1",
-                                    "--plan", "multiple-maps", "--tile", "128", "--coordinator", coordinator.address()},
-                                   dir.path());
+  const RunResult sub =
+      RunCommand({Binaries::Pf(), "submit", Binaries::Scene(), "--res", "512x512", "--spp", "1", "--plan",
+                  "multiple-maps", "--tile", "128", "--coordinator", coordinator.address()},
+                 dir.path());
   ASSERT_EQ(sub.exit_code, 0) << sub.err;
   const std::string job_id = sub.out.substr(0, sub.out.find('\n'));
   FarmClient client(coordinator.address(), "");

@@ -107,6 +107,8 @@ TEST(Convert, EverySettingRoundTrips) {
   pm.set_occlusion_test(true);
   pm.set_adaptive_k_min(10);
   pm.set_kd_split(v1::KD_SPLIT_CYCLE);
+  pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
+  s.set_sampler(v1::SAMPLER_INDEPENDENT);
   const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
   EXPECT_EQ(core.structure, PhotonMapKind::kGrid);
   EXPECT_EQ(core.caustic, CausticMapMode::kOff);

@@ -129,11 +129,15 @@ def main():
     commands = readme_commands(os.path.join(source, "README.md"))
     assert len(commands) >= 10, commands
     failures = []
+    # The examples run without credentials or a default coordinator: unset, not blank (a blank
+    # token is a start-up error, docs/security.md).
+    clean_env = {k: v for k, v in os.environ.items()
+                 if not (k.startswith("PF_") and (k.endswith("TOKEN") or k == "PF_COORDINATOR"))}
     with tempfile.TemporaryDirectory(prefix="pf-readme-") as tmp:
         coordinator = subprocess.Popen(
             [os.path.join(build, "server/pf-coordinator"), "--listen", "127.0.0.1:0", "--data-dir",
              os.path.join(tmp, "farm")], stdout=subprocess.PIPE, stderr=open(os.path.join(tmp, "coordinator.log"), "w"),
-            text=True, env={**os.environ, "PF_TOKEN": ""})
+            text=True, env=clean_env)
         workers = []
         try:
             m = re.match(r"listening on (\S+)", coordinator.stdout.readline())
@@ -160,7 +164,7 @@ def main():
                     argv.append(t)
                 start = time.monotonic()
                 r = subprocess.run(argv, cwd=tmp, capture_output=True, text=True, timeout=300,
-                                   env={**os.environ, "PF_TOKEN": "", "PF_COORDINATOR": ""})
+                                   env=clean_env)
                 shown = " ".join(tokens)
                 print(f"[{r.returncode}] {time.monotonic() - start:6.1f} s  {shown}", flush=True)
                 if r.returncode != 0:

@@ -1,8 +1,8 @@
 // Validation of client requests through the real RenderServiceImpl on an in-process gRPC server
 // (127.0.0.1:0, real channel, no mocks): each bad request gets the exact status code and a
 // message naming the field, and nothing is stored. Plus the bearer tokens and roles of both services.
-#include <grpcpp/generic/generic_stub.h>
 #include <gmock/gmock.h>
+#include <grpcpp/generic/generic_stub.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -15,8 +15,8 @@
 
 namespace pf::server {
 namespace {
-using ::testing::HasSubstr;
 using testing::Ctx;
+using ::testing::HasSubstr;
 using testing::LiveCoordinator;
 using testing::TempDir;
 namespace v1 = photonfarm::v1;
@@ -83,25 +83,35 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
       {"too many photons",
        [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photons(uint64_t(1) << 40); },
        C::RESOURCE_EXHAUSTED, "spec.settings.photon_map.photons: 1099511627776 exceeds the limit"},
-      {"zero k", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_k(0); }, C::INVALID_ARGUMENT,
-       "spec.settings.photon_map.k: must be >= 1"},
+      {"zero k", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_k(0); },
+       C::INVALID_ARGUMENT, "spec.settings.photon_map.k: must be >= 1"},
       {"no integrator", [](v1::JobSpec& s) { s.mutable_settings()->clear_integrator(); }, C::INVALID_ARGUMENT,
        "spec.settings.integrator:"},
-      {"unknown direct light", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_direct(v1::DirectLight(99)); },
+      {"unknown direct light",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_direct(v1::DirectLight(99)); },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.direct: unknown value"},
-      {"zero shadow rays", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_shadow_rays(0); },
+      {"zero shadow rays",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_shadow_rays(0); },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.shadow_rays: must be in 1..4096"},
-      {"uniform fraction 2", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_light_uniform_fraction(2); },
+      {"uniform fraction 2",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_light_uniform_fraction(2); },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.light_uniform_fraction: must be in [0, 1]"},
-      {"NaN cache", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photon_direct_cache(std::nan("")); },
+      {"NaN cache",
+       [](v1::JobSpec& s) {
+         s.mutable_settings()->mutable_photon_map()->set_photon_direct_cache(std::nan(""));
+       },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.photon_direct_cache: must be in [0, 1]"},
-      {"zero PhotonDirect k", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photon_direct_k(0); },
+      {"zero PhotonDirect k",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_photon_direct_k(0); },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.photon_direct_k: must be in 1..10000"},
-      {"local pass 5000", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_local_pass_rays(5000); },
+      {"local pass 5000",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_local_pass_rays(5000); },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.local_pass_rays: must be <= 4096"},
-      {"adaptive k above k", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_adaptive_k_min(21); },
+      {"adaptive k above k",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_adaptive_k_min(21); },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.adaptive_k_min: must be <= k (20)"},
-      {"unknown kd split", [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_kd_split(v1::KdSplit(7)); },
+      {"unknown kd split",
+       [](v1::JobSpec& s) { s.mutable_settings()->mutable_photon_map()->set_kd_split(v1::KdSplit(7)); },
        C::INVALID_ARGUMENT, "spec.settings.photon_map.kd_split: unknown value"},
       {"0x0 image with a camera",
        [](v1::JobSpec& s) {
@@ -126,8 +136,8 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
       {"fov 180", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(180); }, C::INVALID_ARGUMENT,
        "spec.camera.vfov_degrees"},
       // Issue #14: valid as doubles, 0 and 180 as the worker's floats.
-      {"fov 1e-300", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(1e-300); }, C::INVALID_ARGUMENT,
-       "spec.camera.vfov_degrees"},
+      {"fov 1e-300", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(1e-300); },
+       C::INVALID_ARGUMENT, "spec.camera.vfov_degrees"},
       {"fov 179.9999999", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(179.9999999); },
        C::INVALID_ARGUMENT, "spec.camera.vfov_degrees"},
       // Issue #14: names are logged; control characters would forge log lines or drive terminals.
@@ -142,8 +152,8 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
        C::INVALID_ARGUMENT, "spec.plan.skipping.stride: must be >= 1"},
       {"stride too large", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_stride(28); },
        C::INVALID_ARGUMENT, "spec.plan.skipping.stride: S² = 784 exceeds the number of pixels"},
-      {"rounds 0", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_rounds(0); }, C::INVALID_ARGUMENT,
-       "spec.plan.skipping.rounds: must be >= 1"},
+      {"rounds 0", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_rounds(0); },
+       C::INVALID_ARGUMENT, "spec.plan.skipping.rounds: must be >= 1"},
       {"spp 0", [](v1::JobSpec& s) { s.mutable_plan()->mutable_skipping()->set_samples_per_pixel(0); },
        C::INVALID_ARGUMENT, "spec.plan.skipping.samples_per_pixel: must be >= 1"},
       {"spp over limit",
@@ -176,7 +186,8 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
        C::INVALID_ARGUMENT, "spec.stop.target_noise_rms"},
       {"long name", [](v1::JobSpec& s) { s.set_name(std::string(300, 'n')); }, C::INVALID_ARGUMENT,
        "spec.name: longer than 256 bytes"},
-      {"no scene", [](v1::JobSpec& s) { s.clear_scene_hash(); }, C::INVALID_ARGUMENT, "spec.scene_hash: required"},
+      {"no scene", [](v1::JobSpec& s) { s.clear_scene_hash(); }, C::INVALID_ARGUMENT,
+       "spec.scene_hash: required"},
       {"malformed scene hash", [](v1::JobSpec& s) { s.set_scene_hash("xyz"); }, C::INVALID_ARGUMENT,
        "spec.scene_hash: must be 64 lowercase hex digits"},
       {"unknown scene hash", [](v1::JobSpec& s) { s.set_scene_hash(std::string(64, '0')); }, C::NOT_FOUND,
@@ -335,7 +346,8 @@ TEST_F(RenderServiceTest, UnknownJobsAreNotFound) {
   v1::CancelJobResponse cr;
   EXPECT_EQ(live_->render->CancelJob(Ctx().get(), cancel, &cr).error_code(), grpc::StatusCode::NOT_FOUND);
   get.set_job_id("");
-  EXPECT_EQ(live_->render->GetJob(Ctx().get(), get, &status).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(live_->render->GetJob(Ctx().get(), get, &status).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
   v1::GetImageRequest img;
   img.set_job_id("job-404");
   auto ctx = Ctx();

@@ -282,7 +282,8 @@ TEST_F(SchedulerTest, MaxRoundsSchedulesOnlyTheFirstRounds) {
 }
 
 TEST_F(SchedulerTest, TimeBudgetStopsSchedulingAndSucceedsWithWhatWasMerged) {
-  const std::string id = Submit(MakeConfig(MultipleMaps(10, 0), 4, 4, 0, StopRule{.time_budget_seconds = 50}));
+  const std::string id =
+      Submit(MakeConfig(MultipleMaps(10, 0), 4, 4, 0, StopRule{.time_budget_seconds = 50}));
   const Lease a = MustLease();
   EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
   const Lease b = MustLease();

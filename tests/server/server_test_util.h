@@ -33,8 +33,9 @@ class TempDir {
   TempDir() {
     static std::atomic<int> counter{0};
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("pf_server_test_" + std::to_string(::getpid()) + "_" +
-                                         (info ? std::string(info->name()) : "x") + "_" + std::to_string(counter++));
+    path_ = fs::temp_directory_path() /
+            ("pf_server_test_" + std::to_string(::getpid()) + "_" + (info ? std::string(info->name()) : "x") +
+             "_" + std::to_string(counter++));
     fs::remove_all(path_);
     fs::create_directories(path_);
   }
@@ -48,7 +49,8 @@ class TempDir {
   fs::path path_;
 };
 
-inline JobConfig MakeConfig(const PlanSpec& plan, int width, int height, int32_t priority = 0, StopRule stop = {}) {
+inline JobConfig MakeConfig(const PlanSpec& plan, int width, int height, int32_t priority = 0,
+                            StopRule stop = {}) {
   JobConfig c;
   c.scene_hash = std::string(64, 'a');
   c.scene_entry = "scene.mgf";
@@ -95,7 +97,9 @@ inline PlanSpec MultipleMaps(uint32_t maps, uint32_t tile, uint32_t spp = 1) {
 }
 
 // The Cornell box shipped in scenes/ (small, with a manifest camera).
-inline fs::path CornellManifest() { return fs::path(PF_SOURCE_DIR) / "scenes" / "cornell-box" / "cornell-box.json"; }
+inline fs::path CornellManifest() {
+  return fs::path(PF_SOURCE_DIR) / "scenes" / "cornell-box" / "cornell-box.json";
+}
 
 inline v1::SceneBundle ToProto(const SceneBundle& b) {
   v1::SceneBundle out;
@@ -128,8 +132,7 @@ class LiveCoordinator {
 // A client context with a deadline (every client call has one) and an optional bearer token.
 inline std::unique_ptr<grpc::ClientContext> Ctx(const std::string& token = "", double seconds = 20) {
   auto ctx = std::make_unique<grpc::ClientContext>();
-  ctx->set_deadline(std::chrono::system_clock::now() +
-                    std::chrono::milliseconds(int64_t(seconds * 1000)));
+  ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(int64_t(seconds * 1000)));
   if (!token.empty()) ctx->AddMetadata("authorization", "Bearer " + token);
   return ctx;
 }

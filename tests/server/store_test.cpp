@@ -59,8 +59,8 @@ v1::JobSpec SkippingSpec(uint32_t stride, uint32_t rounds) {
   return spec;
 }
 
-TaskRow Row(const std::string& job, uint64_t task, TaskState state = TaskState::kQueued, uint32_t attempts = 0,
-            uint32_t failures = 0, const std::string& error = "") {
+TaskRow Row(const std::string& job, uint64_t task, TaskState state = TaskState::kQueued,
+            uint32_t attempts = 0, uint32_t failures = 0, const std::string& error = "") {
   TaskRow r;
   r.job_id = job;
   r.task_id = task;
@@ -74,8 +74,13 @@ TaskRow Row(const std::string& job, uint64_t task, TaskState state = TaskState::
 // Stores a new job the way SubmitJob does: rows first, then visible to the scheduler.
 std::string SubmitStored(Scheduler& scheduler, SqliteStore& db, JobConfig config) {
   std::unique_ptr<Job> job = scheduler.PrepareJob(std::move(config));
-  JobRow row{job->id(), job->seq(), job->config().spec.SerializeAsString(), JobState::kQueued, "",
-             job->submitted_unix_ms(), 0};
+  JobRow row{job->id(),
+             job->seq(),
+             job->config().spec.SerializeAsString(),
+             JobState::kQueued,
+             "",
+             job->submitted_unix_ms(),
+             0};
   std::vector<TaskRow> tasks(job->num_tasks());
   for (uint64_t i = 0; i < tasks.size(); ++i) tasks[i] = Row(job->id(), i);
   db.InsertJob(row, tasks);
@@ -100,8 +105,9 @@ TEST(SqliteStore, RowsSurviveReopening) {
     db.InsertJob({"job-1", 1, std::string("spec\0bytes", 10), JobState::kQueued, "", 42, 0},
                  {Row("job-1", 0), Row("job-1", 1), Row("job-1", 2)});
     db.InsertJob({"job-2", 2, "s2", JobState::kQueued, "", 43, 0}, {Row("job-2", 0)});
-    db.Apply({{"job-1", 1, "", JobState::kFailed, "task 1 failed", 42, 12.5}},
-             {Row("job-1", 1, TaskState::kLeased, 3, 2, "lease expired"), Row("job-1", 2, TaskState::kDone, 1)});
+    db.Apply(
+        {{"job-1", 1, "", JobState::kFailed, "task 1 failed", 42, 12.5}},
+        {Row("job-1", 1, TaskState::kLeased, 3, 2, "lease expired"), Row("job-1", 2, TaskState::kDone, 1)});
   }
   SqliteStore db(file);
   const auto scenes = db.LoadScenes();
@@ -412,7 +418,6 @@ TEST(Recovery, FinishedJobsAreListedAndCorruptCheckpointsRestartTheJob) {
   }
 }
 
-
 // Issue #14: the job table is lost (SQLite file deleted with its WAL) while a job's journal and
 // checkpoint survive. Before, the id counter restarted, the next job got the old id and the old
 // journal was replayed into it (a wrong image that SUCCEEDED). Ids are random now: the new job
@@ -468,7 +473,7 @@ TEST(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {
     Persister persister(scheduler, db, cp_dir, clock, 0);
     id = SubmitStored(scheduler, db, ValidateJobSpec(spec, catalog));
     ASSERT_TRUE(scheduler.TryLease({"w", {}}).has_value());  // running from now
-    persister.FlushNow();                                      // the row says: running, 0 s
+    persister.FlushNow();                                    // the row says: running, 0 s
     clock.Advance(6);
     scheduler.Tick();
     persister.FlushNow();  // before the fix: nothing dirty, the row kept 0 s

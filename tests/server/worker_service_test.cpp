@@ -19,8 +19,8 @@
 
 namespace pf::server {
 namespace {
-using ::testing::HasSubstr;
 using testing::Ctx;
+using ::testing::HasSubstr;
 using testing::LiveCoordinator;
 using testing::TempDir;
 namespace v1 = photonfarm::v1;
@@ -97,7 +97,8 @@ grpc::Status Complete(LiveCoordinator& live, const v1::Task& task, const std::ve
 }
 
 std::vector<float> SyntheticFor(const v1::Task& task) {
-  return testing::SyntheticResult(TaskSpecFromProto(task), int(task.camera().width()), int(task.camera().height()));
+  return testing::SyntheticResult(TaskSpecFromProto(task), int(task.camera().width()),
+                                  int(task.camera().height()));
 }
 
 std::string GetImageBytes(LiveCoordinator& live, const std::string& id) {
@@ -131,9 +132,9 @@ class TestWorker {
       std::optional<v1::Task> task = Lease(*live_, 0.2, "test-worker");
       if (!task) break;
       const SceneRuntime& scene = Scene(task->scene_hash(), task->scene_entry());
-      const TaskOutput out =
-          ExecuteTask(scene, task->scene_hash(), CameraFromProto(task->camera(), "task.camera"),
-                      SettingsFromProto(task->settings(), "task.settings"), TaskSpecFromProto(*task), 1, &maps_);
+      const TaskOutput out = ExecuteTask(
+          scene, task->scene_hash(), CameraFromProto(task->camera(), "task.camera"),
+          SettingsFromProto(task->settings(), "task.settings"), TaskSpecFromProto(*task), 1, &maps_);
       ++executed_[task->task_id()];
       bool merged = false;
       EXPECT_TRUE(Complete(*live_, *task, out.rgb_sums, &merged).ok());
@@ -200,9 +201,10 @@ TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
   bool merged = true;
   grpc::Status st = Complete(*live_, *t1, {1, 2, 3}, &merged);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_EQ(st.error_message(),
-            "rgb_sums: result rejected, the task is re-queued: result: rgb_sums has 3 values, expected 1296 (3 per "
-            "pixel of the subset)");
+  EXPECT_EQ(
+      st.error_message(),
+      "rgb_sums: result rejected, the task is re-queued: result: rgb_sums has 3 values, expected 1296 (3 per "
+      "pixel of the subset)");
   EXPECT_FALSE(merged);
 
   std::optional<v1::Task> t2 = Lease(*live_);
@@ -265,7 +267,8 @@ TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
   EXPECT_THAT(st.error_message(), HasSubstr("wait_seconds"));
   v1::ExtendLeaseRequest ext;
   v1::ExtendLeaseResponse ext_resp;
-  EXPECT_EQ(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
   ext.set_lease_id("job-1.0.1.deadbeef");
   ASSERT_TRUE(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).ok());
   EXPECT_FALSE(ext_resp.ok()) << "unknown lease: stop";

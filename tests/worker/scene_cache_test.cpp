@@ -80,7 +80,8 @@ TEST_F(SceneCacheTest, RejectsAWrongBundleAndMalformedHashes) {
   EXPECT_THROW(cache.Get(std::string(64, 'a'), CountingFetcher(&calls)), InputError);  // hash mismatch
   EXPECT_EQ(calls, 1);
   EXPECT_TRUE(cache.CachedHashes().empty());
-  for (const std::string& bad : std::vector<std::string>{"../../etc", "", std::string(64, 'A'), std::string(63, 'a'), hash_ + "/x"})
+  for (const std::string& bad :
+       std::vector<std::string>{"../../etc", "", std::string(64, 'A'), std::string(63, 'a'), hash_ + "/x"})
     EXPECT_THROW(cache.Get(bad, CountingFetcher(&calls)), InputError) << bad;
   EXPECT_EQ(calls, 1);  // never fetched for a malformed hash
 }
