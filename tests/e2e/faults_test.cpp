@@ -128,12 +128,26 @@ TEST(FarmFaults, KilledAndHungWorkersLoseOnlyTheirLeases) {
   EXPECT_EQ(st.tasks_total(), uint64_t(job.rounds * job.stride * job.stride));
   EXPECT_EQ(st.samples_merged(), uint64_t(job.res) * job.res * job.spp * job.rounds);
   const std::map<uint64_t, int> merged = MergedTaskCounts(logs, job_id);
-  EXPECT_EQ(merged.size(), st.tasks_total());
+  // Workers log each merge they saw; a victim killed right after its result was merged never
+  // logs it, so the workers' logs may miss such tasks, but never show one twice.
+  EXPECT_LE(merged.size(), st.tasks_total());
   for (const auto& [task, count] : merged) EXPECT_EQ(count, 1) << "task " << task;
-  // Leases were lost: the killed tasks and the hung one were leased again (attempt > 1).
+  // The coordinator's own record agrees: each task merged once.
+  const fs::path coordinator_log = coordinator.process().log();
+  for (uint64_t t = 0; t < st.tasks_total(); ++t)
+    EXPECT_EQ(Grep(coordinator_log, "job " + job_id + " task " + std::to_string(t) + ": merged ").size(), 1u)
+        << "task " << t;
+  // Leases were lost: the hung worker's task and each killed worker's task were leased again
+  // (attempt > 1). A victim whose result the coordinator merged in the instant before SIGKILL
+  // (it dies before logging it) lost nothing, so its task is not retried: counted from the
+  // coordinator's log, which names the worker of each merge.
+  int merged_before_kill = 0;
+  for (int i = 0; i < kills; ++i)
+    if (!Grep(coordinator_log, "merged \\(attempt [0-9]+, worker victim-" + std::to_string(i) + ";").empty())
+      ++merged_before_kill;
   size_t retried = 0;
   for (const fs::path& log : logs) retried += Grep(log, "leased job=.* attempt=[2-9]").size();
-  EXPECT_GE(retried, 4u);
+  EXPECT_GE(retried, size_t(1 + kills - merged_before_kill));
 
   const std::string bytes = client.GetImage(job_id);
   EXPECT_TRUE(BitIdentical(DecodeImage(bytes), reference));
