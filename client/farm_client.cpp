@@ -25,23 +25,6 @@ bool IsFinalState(v1::JobState s) {
   return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
 }
 
-const char* JobStateName(v1::JobState s) {
-  switch (s) {
-    case v1::JOB_STATE_QUEUED:
-      return "queued";
-    case v1::JOB_STATE_RUNNING:
-      return "running";
-    case v1::JOB_STATE_SUCCEEDED:
-      return "succeeded";
-    case v1::JOB_STATE_FAILED:
-      return "failed";
-    case v1::JOB_STATE_CANCELLED:
-      return "cancelled";
-    default:
-      return "unknown";
-  }
-}
-
 FarmClient::FarmClient(const std::string& address, std::string token, double timeout_seconds, ClientTls tls)
     : channel_(MakeCoordinatorChannel(address, ChannelOptions{.token = "", .tls = std::move(tls)})),
       stub_(v1::RenderService::NewStub(channel_)),

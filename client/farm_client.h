@@ -14,6 +14,7 @@
 
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "proto/convert.h"
 #include "rpc/grpc_channel.h"
 
 namespace pf {
@@ -60,6 +61,5 @@ class FarmClient {
 };
 
 bool IsFinalState(photonfarm::v1::JobState s);
-const char* JobStateName(photonfarm::v1::JobState s);
 
 }  // namespace pf

@@ -27,6 +27,23 @@ void RequireAtLeastOne(uint64_t v, const std::string& field) {
 
 }  // namespace
 
+const char* JobStateName(v1::JobState s) {
+  switch (s) {
+    case v1::JOB_STATE_QUEUED:
+      return "queued";
+    case v1::JOB_STATE_RUNNING:
+      return "running";
+    case v1::JOB_STATE_SUCCEEDED:
+      return "succeeded";
+    case v1::JOB_STATE_FAILED:
+      return "failed";
+    case v1::JOB_STATE_CANCELLED:
+      return "cancelled";
+    default:
+      return "unknown";
+  }
+}
+
 CameraSpec CameraFromProto(const v1::Camera& c, const std::string& field) {
   CameraSpec cam;
   cam.eye = VecFromProto(c.eye(), field + ".eye");

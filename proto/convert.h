@@ -28,6 +28,9 @@ class LimitError : public InputError {
   using InputError::InputError;
 };
 
+// The lower-case name of a job state ("queued", "running", ...), as pf and the web page show it.
+const char* JobStateName(photonfarm::v1::JobState s);
+
 CameraSpec CameraFromProto(const photonfarm::v1::Camera& c, const std::string& field);
 void CameraToProto(const CameraSpec& c, photonfarm::v1::Camera* out);
 

@@ -8,6 +8,7 @@
 
 #include "common/core/error.h"
 #include "common/image/png_io.h"
+#include "proto/convert.h"
 #include "server/errors.h"
 #include "server/rpc/auth.h"
 #include "server/rpc/job_images.h"
@@ -46,23 +47,6 @@ std::string Escape(const std::string& text) {
   return out;
 }
 
-std::string StateName(v1::JobState s) {
-  switch (s) {
-    case v1::JOB_STATE_QUEUED:
-      return "queued";
-    case v1::JOB_STATE_RUNNING:
-      return "running";
-    case v1::JOB_STATE_SUCCEEDED:
-      return "succeeded";
-    case v1::JOB_STATE_FAILED:
-      return "failed";
-    case v1::JOB_STATE_CANCELLED:
-      return "cancelled";
-    default:
-      return "unknown";
-  }
-}
-
 std::string Duration(double s) {
   if (s < 0) return "?";
   if (s < 60) return fmt::format("{:.1f} s", s);
@@ -93,7 +77,7 @@ std::string Base64Decode(std::string_view in) {
 nlohmann::json JobJson(const v1::JobStatus& s) {
   return {{"job_id", s.job_id()},
           {"name", s.spec().name()},
-          {"state", StateName(s.state())},
+          {"state", pf::JobStateName(s.state())},
           {"failure_reason", s.failure_reason()},
           {"tasks",
            {{"total", s.tasks_total()},
@@ -162,7 +146,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
     html += fmt::format(
         "<figure><img id=\"preview-{0}\" alt=\"preview of {0}\" src=\"/jobs/{0}/preview.png?samples={1}\">"
         "<figcaption>{0} {2}</figcaption></figure>\n",
-        Escape(s.job_id()), s.samples_merged(), Escape(StateName(s.state())));
+        Escape(s.job_id()), s.samples_merged(), Escape(pf::JobStateName(s.state())));
   html += "</div>\n<h2>Jobs</h2>\n";
   if (jobs.empty())
     html += "<p>No jobs.</p>\n";
@@ -179,7 +163,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           "style=\"width:{:.0f}%\"></span></span> "
           "{:.1f}%</td><td>{}/{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></"
           "tr>\n",
-          Escape(s.job_id()), Escape(s.spec().name()), StateName(s.state()),
+          Escape(s.job_id()), Escape(s.spec().name()), pf::JobStateName(s.state()),
           s.failure_reason().empty() ? "" : ": " + Escape(s.failure_reason()), 100 * frac, 100 * frac,
           s.tasks_done(), s.tasks_total(), s.tasks_running(), s.tasks_queued(), s.tasks_cancelled(),
           Duration(s.elapsed_seconds()),
