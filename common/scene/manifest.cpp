@@ -195,6 +195,19 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
   } catch (const Json::parse_error& e) {
     throw InputError(SourceLocation{file_name, LineOfByte(text, e.byte == 0 ? 0 : e.byte - 1)},
                      "invalid JSON: " + StripExceptionId(e.what()));
+  } catch (const Json::exception& e) {
+    // Not a syntax error but a value the parser cannot hold (e.g. `1E400` overflows a double:
+    // out_of_range.406). nlohmann reports no byte offset for these, so point at the first line
+    // that contains the quoted token, if the message names one.
+    const std::string what = StripExceptionId(e.what());
+    int line = 0;
+    const size_t open = what.find('\'');
+    const size_t close = open == std::string::npos ? open : what.find('\'', open + 1);
+    if (close != std::string::npos) {
+      const size_t at = text.find(what.substr(open + 1, close - open - 1));
+      if (at != std::string::npos) line = LineOfByte(text, at);
+    }
+    throw InputError(SourceLocation{file_name, line}, "invalid JSON: " + what);
   }
 
   SceneManifest m;

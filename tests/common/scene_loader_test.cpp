@@ -472,6 +472,19 @@ TEST_F(ManifestTest, SyntaxErrorsCarryTheLine) {
   EXPECT_THAT(ErrorOf([&] { LoadManifest(dir_ / "absent.json"); }), HasSubstr("no such file"));
 }
 
+// Found by tests/fuzz/manifest_fuzz: a number too large for a double is not a parse_error but an
+// out_of_range from nlohmann, and used to escape ParseManifest and terminate the process.
+TEST_F(ManifestTest, NumberOverflowIsAnInputErrorWithTheLine) {
+  const fs::path p = Write("overflow.json", "{\n  \"geometry\": \"a.obj\",\n  \"scale\": 1.1E11111\n}\n");
+  try {
+    LoadManifest(p);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().line, 3);
+    EXPECT_THAT(e.what(), HasSubstr("overflow.json:3: invalid JSON: number overflow"));
+  }
+}
+
 // --- LoadScene: dispatch, scale, overrides ------------------------------------------------------
 
 using LoadSceneTest = TempDirTest;
