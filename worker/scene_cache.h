@@ -37,7 +37,7 @@ class SceneCache {
   std::shared_ptr<const SceneRuntime> Get(const std::string& hash, const Fetcher& fetch,
                                           std::string* source = nullptr);
 
-  // Hashes of the bundles on disk (for LeaseTaskRequest.cached_scene_hashes: affinity).
+  // Hashes of the bundles on disk (what a restarted worker finds again).
   std::vector<std::string> CachedHashes() const;
 
   // A hash is 64 lowercase hex digits (it becomes a directory name: nothing else is accepted).

@@ -156,7 +156,6 @@ std::optional<v1::Task> Worker::Lease(grpc::Status* status) {
   v1::LeaseTaskRequest req;
   req.set_worker_id(options_.worker_id);
   req.set_threads(uint32_t(options_.threads));
-  for (const std::string& h : scenes_.CachedHashes()) req.add_cached_scene_hashes(h);
   for (uint64_t s : maps_->CachedSeeds()) req.add_cached_map_seeds(s);
   req.set_wait_seconds(options_.poll_seconds);
   grpc::ClientContext ctx;

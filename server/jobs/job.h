@@ -20,6 +20,7 @@
 
 #include "common/plan/accumulator.h"
 #include "common/plan/task_plan.h"
+#include "server/jobs/eta_estimator.h"
 #include "server/jobs/job_spec.h"
 #include "server/store/records.h"
 
@@ -82,6 +83,9 @@ class Job {
   double ElapsedSeconds(double now) const;
   void RestoreElapsed(double seconds) { elapsed_before_ = seconds; }
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
+
+  // ETA from recent throughput (Scheduler: RecordCompletion on every merge of a live result).
+  EtaEstimator eta;
 
   // Stop rules.
   bool stopping = false;                    // time budget reached: nothing new is scheduled

@@ -249,7 +249,8 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
       job.SetNoise(acc->EstimatedNoiseRms(), now);
   }
   s.set_estimated_noise_rms(job.noise_cache);
-  // ETA from throughput: the rate of (merged + in-progress fractions) so far.
+  // ETA from recent throughput (server/jobs/eta_estimator.h says why); until two tasks are
+  // merged, from the average rate of (merged + in-progress fractions) so far.
   double eta = -1;
   if (!job.active()) {
     eta = 0;
@@ -257,8 +258,11 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
     double done_eff = double(done);
     for (const auto& [lease_id, ref] : leases_)
       if (ref.job == &job) done_eff += std::clamp(job.runtime(ref.task_id).progress, 0.0, 1.0);
-    const double remaining = job.stopping ? double(job.count(TaskState::kLeased)) : double(total) - done_eff;
-    if (done_eff > 0 && elapsed > 0) eta = std::max(0.0, elapsed * remaining / done_eff);
+    const double running = double(job.count(TaskState::kLeased));
+    const double remaining = job.stopping ? running : double(total) - done_eff;
+    double average = -1;
+    if (done_eff > 0 && elapsed > 0) average = std::max(0.0, elapsed * remaining / done_eff);
+    eta = job.eta.Eta(now, job.stopping ? running : double(total) - double(done), running, average);
     const double budget = job.config().stop.time_budget_seconds;
     if (budget > 0 && eta >= 0) eta = std::min(eta, std::max(0.0, budget - elapsed));
   }
@@ -474,6 +478,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
         ++counters_.merged;
         leases_.erase(lease_id);
         job.RecordMerge(task_id);
+        job.eta.RecordCompletion(now);
         result.status = CompleteStatus::kMerged;
         result.merge_seq = job.merge_seq();
         result.worker_id = job.runtime(task_id).worker_id;

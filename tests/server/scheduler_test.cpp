@@ -354,18 +354,77 @@ TEST_F(SchedulerTest, CancelStopsEverythingAndIsIdempotent) {
   EXPECT_THROW(scheduler_.Status("nope"), NotFoundError);
 }
 
-TEST_F(SchedulerTest, EtaFollowsThroughput) {
-  const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4));
+TEST_F(SchedulerTest, EtaBeforeARateIsKnown) {
+  // Two tasks (one map each), two workers: both running, so no warm rate can be measured before
+  // the end, and the average rate with heartbeat progress is the estimate.
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
   EXPECT_LT(scheduler_.Status(id).eta_seconds(), 0) << "unknown before any progress";
-  const Lease a = MustLease();
+  const Lease a = MustLease("w1");
+  const Lease b = MustLease("w2");
   clock_.Advance(10);
   EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
-  // 1 of 4 tasks in 10 s: 30 s to go.
-  EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 30.0, 1e-9);
+  // 1 of 2 tasks in 10 s, the other running: 10 s to go.
+  EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 10.0, 1e-9);
   EXPECT_NEAR(scheduler_.Status(id).elapsed_seconds(), 10.0, 1e-9);
-  const Lease b = MustLease();
   EXPECT_TRUE(scheduler_.Extend(b.lease_id, 0.5).ok);
-  EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 10.0 * 2.5 / 1.5, 1e-9);
+  EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 10.0 * 0.5 / 1.5, 1e-9);
+
+  // Four tasks on one worker: after the first, the rate would include the worker's start-up
+  // (map building), so the ETA stays unknown until a second result gives a warm rate.
+  const std::string four = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4));
+  EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kMerged);
+  const Lease c = MustLease("w1");
+  clock_.Advance(3);
+  EXPECT_EQ(CompleteOk(c).status, CompleteStatus::kMerged);
+  EXPECT_LT(scheduler_.Status(four).eta_seconds(), 0);
+  const Lease d = MustLease("w1");
+  clock_.Advance(1);
+  EXPECT_EQ(CompleteOk(d).status, CompleteStatus::kMerged);
+  EXPECT_NEAR(scheduler_.Status(four).eta_seconds(), 2.0, 1e-9) << "2 tasks left at 1 per s";
+}
+
+// The default farm job's shape: one worker builds its map once (1.2 s here), then renders tiles
+// of 0.5 s each. The average-rate formula counted that start-up in every tile (it said 11.7 s
+// after three tiles where 6.5 s remained); the throughput window must not.
+TEST_F(SchedulerTest, EtaIsNotInflatedByAWorkersStartUp) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 4), 16, 16));  // 16 tiles of 4×4
+  ASSERT_EQ(scheduler_.Status(id).tasks_total(), 16u);
+  constexpr double kStartUp = 1.2, kTile = 0.5;
+  for (int done = 1; done <= 15; ++done) {
+    const Lease lease = MustLease();
+    if (done >= 3) {
+      // Half way through this tile: the work since the last completion is credited.
+      clock_.Advance(kTile / 2);
+      const double truth = (16 - (done - 1)) * kTile - kTile / 2;
+      EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), truth, 0.05 * truth) << done - 1 << " tiles + ½";
+      clock_.Advance(kTile / 2);
+    } else {
+      clock_.Advance(kTile + (done == 1 ? kStartUp : 0.0));
+    }
+    ASSERT_EQ(CompleteOk(lease).status, CompleteStatus::kMerged);
+    if (done < 2) continue;  // one completion: no rate yet (the fallback)
+    const double truth = (16 - done) * kTile;
+    EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), truth, 0.05 * truth + 1e-9) << done << " tiles done";
+  }
+}
+
+TEST_F(SchedulerTest, EtaGrowsWhenTheNextResultIsOverdue) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 4), 16, 16));
+  for (int done = 0; done < 4; ++done) {
+    const Lease lease = MustLease();
+    clock_.Advance(1.0);
+    ASSERT_EQ(CompleteOk(lease).status, CompleteStatus::kMerged);
+  }
+  const Lease stuck = MustLease();
+  const double on_time = scheduler_.Status(id).eta_seconds();
+  EXPECT_NEAR(on_time, 12.0, 1e-6);
+  clock_.Advance(5.0);  // the tile that takes 1 s has taken 5 s
+  const double overdue = scheduler_.Status(id).eta_seconds();
+  EXPECT_GT(overdue, on_time) << "a stalled farm must not show a shrinking ETA";
+  // Completions at 1, 2, 3, 4 s; now 9 s: were one to come now, 4 in the 8 s since the first, so
+  // the rate is at most 0.5 per s; the running tile is credited as done: (12 − 1) / 0.5.
+  EXPECT_NEAR(overdue, 11.0 / 0.5, 1e-6);
+  (void)stuck;
 }
 
 TEST_F(SchedulerTest, MergedImageDoesNotDependOnCompletionOrder) {

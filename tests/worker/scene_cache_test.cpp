@@ -56,7 +56,7 @@ TEST_F(SceneCacheTest, SurvivesARestartOnDisk) {
   int calls = 0;
   { SceneCache(dir_, 2).Get(hash_, CountingFetcher(&calls)); }
   SceneCache again(dir_, 2);
-  EXPECT_EQ(again.CachedHashes(), std::vector<std::string>{hash_});  // reported for affinity
+  EXPECT_EQ(again.CachedHashes(), std::vector<std::string>{hash_});  // found again after a restart
   std::string source;
   again.Get(hash_, CountingFetcher(&calls), &source);
   EXPECT_EQ(source, "disk");
