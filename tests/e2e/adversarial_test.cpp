@@ -16,9 +16,9 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
-#include <mutex>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <random>
 #include <set>
 
@@ -99,8 +99,8 @@ class Adversary {
   // Hostile but valid UTF-8: NUL and control bytes, ESC sequences, quotes, backslashes,
   // right-to-left override, non-ASCII letters.
   std::string RandomText(size_t max_len) {
-    static const char* kPieces[] = {"\x1b[2J", "\n[error] forged", "\r", "'", "\\",
-                                    "\u202e", "\u00e9", "%s%n", "../", " ", "job-", "x"};
+    static const char* kPieces[] = {
+        "\x1b[2J", "\n[error] forged", "\r", "'", "\\", "\u202e", "\u00e9", "%s%n", "../", " ", "job-", "x"};
     std::string s;
     const size_t len = Pick(max_len + 1);
     while (s.size() < len) {
@@ -146,7 +146,8 @@ class Adversary {
     const double took = std::chrono::duration<double>(SteadyClock::now() - t0).count();
     slowest_excess = std::max(slowest_excess, took - deadline);
     if (took > deadline + 2.0)
-      failures.push_back(rpc + " took " + std::to_string(took) + " s (deadline " + std::to_string(deadline) + ")");
+      failures.push_back(rpc + " took " + std::to_string(took) + " s (deadline " + std::to_string(deadline) +
+                         ")");
     const auto code = st.error_code();
     ++codes_[rpc][StatusCodeName(code)];
     // Undecodable bytes are refused by gRPC itself before any handler runs (this gRPC answers
@@ -174,8 +175,8 @@ class Adversary {
       }
     }
     v1::RenderSettings* s = spec.mutable_settings();
-    s->set_integrator(OneOf<v1::Integrator>({v1::INTEGRATOR_PHOTONMAP, v1::INTEGRATOR_PATH,
-                                             v1::INTEGRATOR_UNSPECIFIED, v1::Integrator(77)}));
+    s->set_integrator(OneOf<v1::Integrator>(
+        {v1::INTEGRATOR_PHOTONMAP, v1::INTEGRATOR_PATH, v1::INTEGRATOR_UNSPECIFIED, v1::Integrator(77)}));
     s->mutable_photon_map()->set_photons(OneOf<uint64_t>({0, 1, 1000, uint64_t(1) << 40}));
     s->mutable_photon_map()->set_k(OneOf<uint32_t>({0, 1, 20, 4000000000u}));
     switch (Pick(4)) {
@@ -424,7 +425,8 @@ TEST(Adversarial, RandomRequestsGetAStatusInBoundedTimeAndTheCoordinatorStaysCor
   EXPECT_GT(adversary.codes().at("SubmitJob").count("OK"), 0u) << summary;
   EXPECT_GT(adversary.codes().at("SubmitJob").count("INVALID_ARGUMENT"), 0u) << summary;
 
-  // Still healthy: it answers (every job listed, page by page), and, with the adversary's jobs cancelled, a normal job renders exactly as locally.
+  // Still healthy: it answers (every job listed, page by page), and, with the adversary's jobs cancelled, a
+  // normal job renders exactly as locally.
   ASSERT_TRUE(coordinator.process().Running());
   const std::vector<v1::JobStatus> all = client.ListJobs(true, 7);
   for (const v1::JobStatus& s : all)
