@@ -140,8 +140,9 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
     std::lock_guard lock(mu_);
     index_[hash] = info;
   }
-  spdlog::info("scene {}: stored ({} files, {} bytes, entry {}, {} triangles, {} lights, brightest Le {:.6g})", hash,
-               info.files, info.bytes, info.entry, info.triangles, info.lights, info.max_emission);
+  spdlog::info(
+      "scene {}: stored ({} files, {} bytes, entry {}, {} triangles, {} lights, brightest Le {:.6g})", hash,
+      info.files, info.bytes, info.entry, info.triangles, info.lights, info.max_emission);
   return {info, true};
 }
 
