@@ -8,9 +8,11 @@
 #include <cmath>
 #include <condition_variable>
 #include <functional>
+#include <limits>
 #include <mutex>
 
 #include "proto/convert.h"
+#include "server/store/scene_store.h"
 #include "tests/server/server_test_util.h"
 
 namespace pf::server {
@@ -252,6 +254,23 @@ TEST_F(RenderServiceTest, TaskCapIsOneLimitExactlyAtTwoToTheTwenty) {
   // The local plan check (pf render) is the same function.
   EXPECT_EQ(limits::TaskCountProblem(limits::kMaxTasksPerJob), "");
   EXPECT_NE(limits::TaskCountProblem(limits::kMaxTasksPerJob + 1), "");
+}
+
+// Issue #14: the per-job result bound is 1024 x the scene's brightest emitter (the Cornell box:
+// Le = (17, 12, 4)), measured when the scene is uploaded; unknown (-1, an old database) = none.
+TEST_F(RenderServiceTest, TheResultBoundComesFromTheScenesBrightestEmitter) {
+  struct OneScene : SceneCatalog {
+    SceneInfo info;
+    std::optional<SceneInfo> FindScene(const std::string&) const override { return info; }
+  } catalog;
+  catalog.info.hash = hash_;
+  catalog.info.entry = "cornell-box.json";
+  catalog.info.max_emission = -1;
+  EXPECT_EQ(ValidateJobSpec(ValidSpec(), catalog).max_sample_radiance,
+            std::numeric_limits<double>::infinity());
+  // The uploaded Cornell box, through the coordinator's own catalog.
+  const JobConfig config = ValidateJobSpec(ValidSpec(), live_->coordinator->scenes());
+  EXPECT_EQ(config.max_sample_radiance, 1024.0 * 17.0);
 }
 
 // Issue #14: ListJobs pages (a full listing of 10k jobs was 4.4 MB, over gRPC's default 4 MiB).
