@@ -66,14 +66,23 @@ v1::JobStatus FarmClient::GetJob(const std::string& job_id) {
   return resp;
 }
 
-std::vector<v1::JobStatus> FarmClient::ListJobs(bool include_finished) {
+std::vector<v1::JobStatus> FarmClient::ListJobs(bool include_finished, uint32_t page_size) {
+  // Page by page (each answer stays far below gRPC's 4 MiB default, whatever the number of jobs).
+  std::vector<v1::JobStatus> jobs;
   v1::ListJobsRequest req;
   req.set_include_finished(include_finished);
-  grpc::ClientContext ctx;
-  PrepareContext(&ctx, token_, timeout_);
-  v1::ListJobsResponse resp;
-  Check(stub_->ListJobs(&ctx, req, &resp));
-  return {resp.jobs().begin(), resp.jobs().end()};
+  req.set_page_size(page_size);
+  do {
+    grpc::ClientContext ctx;
+    PrepareContext(&ctx, token_, timeout_);
+    v1::ListJobsResponse resp;
+    Check(stub_->ListJobs(&ctx, req, &resp));
+    jobs.insert(jobs.end(), resp.jobs().begin(), resp.jobs().end());
+    if (!resp.next_page_token().empty() && resp.next_page_token() == req.page_token())
+      throw SystemError("ListJobs: the coordinator answered the same page token twice");
+    req.set_page_token(resp.next_page_token());
+  } while (!req.page_token().empty());
+  return jobs;
 }
 
 v1::JobStatus FarmClient::CancelJob(const std::string& job_id) {

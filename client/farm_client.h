@@ -15,6 +15,7 @@
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "proto/convert.h"
+#include "proto/limits.h"
 #include "rpc/grpc_channel.h"
 
 namespace pf {
@@ -28,7 +29,9 @@ class FarmClient {
   photonfarm::v1::UploadSceneResponse UploadScene(const SceneBundle& bundle);
   std::string SubmitJob(const photonfarm::v1::JobSpec& spec);
   photonfarm::v1::JobStatus GetJob(const std::string& job_id);
-  std::vector<photonfarm::v1::JobStatus> ListJobs(bool include_finished);
+  // All jobs, fetched in pages of `page_size` (ListJobsRequest.page_size).
+  std::vector<photonfarm::v1::JobStatus> ListJobs(bool include_finished,
+                                                  uint32_t page_size = limits::kMaxListJobsPageSize);
   photonfarm::v1::JobStatus CancelJob(const std::string& job_id);
   std::vector<photonfarm::v1::WorkerInfo> ListWorkers();
   photonfarm::v1::ListJobEventsResponse ListJobEvents(const std::string& job_id);

@@ -31,6 +31,7 @@
 #include "common/scene/scene_loader.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
+#include "proto/limits.h"
 
 namespace pf {
 
@@ -181,6 +182,10 @@ int RunLocalPlan(const RenderArgs& a) {
     spdlog::warn(
         "--time-budget/--target-noise apply to farm jobs only; the local render runs the whole plan");
   ValidatePlan(plan, camera.width, camera.height);
+  // The farm's cap (proto/limits.h), so that a plan renders locally exactly when it can be submitted.
+  if (const std::string problem = limits::TaskCountProblem(CountTasks(plan, camera.width, camera.height));
+      !problem.empty())
+    throw InputError(problem);
   uint64_t total_pixels = 0, total_samples = 0;
   const std::vector<TaskSpec> tasks = ExpandPlan(plan, camera.width, camera.height, a.seed);
   for (const TaskSpec& t : tasks) {

@@ -4,6 +4,7 @@
 // Every string taken from a request is checked here before it is used, logged or echoed.
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -15,6 +16,31 @@ inline constexpr size_t kMaxIdBytes = 128;        // job_id, lease_id, scene_has
 inline constexpr size_t kMaxWorkerIdBytes = 256;  // LeaseTaskRequest.worker_id
 inline constexpr size_t kMaxJobNameBytes = 256;   // JobSpec.name
 inline constexpr size_t kMaxEchoBytes = 64;       // of an untrusted string quoted in a message or log
+inline constexpr size_t kMaxReasonBytes = 4096;   // FailTaskRequest.reason (cut, then sanitized)
+
+// Tasks of one job (JobSpec.plan expanded): the coordinator keeps a TaskSpec and a TaskRuntime
+// per task in memory and a row per task in SQLite. The one cap for the farm (SubmitJob,
+// RESOURCE_EXHAUSTED) and for `pf render`'s local plan (exit 3); common/plan/ has no cap of its
+// own. Exactly kMaxTasksPerJob tasks are accepted.
+inline constexpr uint64_t kMaxTasksPerJob = uint64_t(1) << 20;
+
+// The plausibility bound of a task result (docs/security.md, "Results"): a pixel's channel sum
+// over n samples above n × kResultRadianceFactor × (the scene's brightest emitter radiance) is
+// not merged unless a second worker reproduces it bit for bit. Not a physical limit of one
+// sample (Monte Carlo next-event and density estimates have unbounded tails), hence the
+// confirmation instead of a hard rejection.
+inline constexpr double kResultRadianceFactor = 1024;
+
+// ListJobs pages (ListJobsRequest.page_size): 0 asks for the default; more is capped.
+inline constexpr uint32_t kDefaultListJobsPageSize = 100;
+inline constexpr uint32_t kMaxListJobsPageSize = 1000;
+
+// "" if a plan of `tasks` tasks is within kMaxTasksPerJob, else the message (field spec.plan).
+inline std::string TaskCountProblem(uint64_t tasks) {
+  if (tasks <= kMaxTasksPerJob) return "";
+  return "spec.plan: " + std::to_string(tasks) + " tasks exceed the limit of " +
+         std::to_string(kMaxTasksPerJob) + " per job; use larger tiles or fewer maps/rounds";
+}
 }  // namespace pf::limits
 namespace pf {
 // Camera.vfov_degrees, checked after conversion to float (the worker's type).

@@ -523,6 +523,7 @@ void Worker::SendFail(const v1::Task& task, const std::string& ctx, const std::s
                       bool retryable) {
   v1::FailTaskRequest req;
   req.set_lease_id(task.lease_id());
+  req.set_worker_id(options_.worker_id);  // only the lease's holder may fail it
   req.set_reason(reason);
   req.set_retryable(retryable);
   for (int attempt = 0; attempt < 2; ++attempt) {

@@ -1,6 +1,7 @@
 #include "common/plan/accumulator.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "common/core/byte_codec.h"
@@ -24,23 +25,40 @@ Accumulator::Accumulator(int width, int height)
       lum_sum_(size_t(width) * height, 0.0),
       lum_sum2_(size_t(width) * height, 0.0) {}
 
-std::string Accumulator::ValidateTaskResult(std::span<const float> rgb_sums, uint64_t expected_pixels,
-                                            uint32_t samples) {
-  if (samples == 0) return "result: zero samples";
+ResultCheck Accumulator::ValidateTaskResult(std::span<const float> rgb_sums, uint64_t expected_pixels,
+                                            uint32_t samples, double max_sample_radiance) {
+  using V = ResultCheck::Verdict;
+  if (samples == 0) return {V::kInvalid, "result: zero samples"};
   if (rgb_sums.size() != expected_pixels * 3)
-    return "result: rgb_sums has " + std::to_string(rgb_sums.size()) + " values, expected " +
-           std::to_string(expected_pixels * 3) + " (3 per pixel of the subset)";
+    return {V::kInvalid, "result: rgb_sums has " + std::to_string(rgb_sums.size()) + " values, expected " +
+                             std::to_string(expected_pixels * 3) + " (3 per pixel of the subset)"};
+  // The bound in float arithmetic would round; in double it is exact enough for any samples.
+  const double bound = double(samples) * max_sample_radiance;
+  size_t first_implausible = rgb_sums.size();
   for (size_t i = 0; i < rgb_sums.size(); ++i) {
-    if (!std::isfinite(rgb_sums[i])) return "result: rgb_sums[" + std::to_string(i) + "] is not finite";
-    if (std::fabs(double(rgb_sums[i])) > kMaxTaskSum)
-      return "result: rgb_sums[" + std::to_string(i) + "] exceeds the accumulator range (2^30)";
+    const float v = rgb_sums[i];
+    if (!std::isfinite(v)) return {V::kInvalid, "result: rgb_sums[" + std::to_string(i) + "] is not finite"};
+    if (v < 0.0f)  // -0.0 passes: it is zero
+      return {V::kInvalid, "result: rgb_sums[" + std::to_string(i) + "] = " + std::to_string(v) +
+                               " is negative (radiance is never negative)"};
+    if (double(v) > kMaxTaskSum)
+      return {V::kInvalid,
+              "result: rgb_sums[" + std::to_string(i) + "] exceeds the accumulator range (2^30)"};
+    if (double(v) > bound && first_implausible == rgb_sums.size()) first_implausible = i;
   }
-  return "";
+  if (first_implausible < rgb_sums.size()) {
+    char text[160];
+    std::snprintf(
+        text, sizeof(text), "result: rgb_sums[%zu] = %.6g exceeds the job's bound %.6g (%u samples x %.6g)",
+        first_implausible, double(rgb_sums[first_implausible]), bound, samples, max_sample_radiance);
+    return {V::kImplausible, text};
+  }
+  return {};
 }
 
 void Accumulator::Add(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples) {
-  const std::string problem = ValidateTaskResult(rgb_sums, pixels.size(), samples);
-  if (!problem.empty()) throw InputError(problem);
+  const ResultCheck check = ValidateTaskResult(rgb_sums, pixels.size(), samples);
+  if (!check.ok()) throw InputError(check.reason);
   const size_t n = size_t(width_) * height_;
   for (uint32_t p : pixels)
     if (p >= n) throw InputError("result: pixel index " + std::to_string(p) + " outside the image");

@@ -5,7 +5,7 @@
 // Determinism (docs/design.md, G1): the sums are kept in 64-bit fixed point (2^-32 units), so
 // addition is exact and associative, and the merged image is bit-identical whatever order the
 // tasks complete in, however many workers ran them. Range: a pixel's channel sum must stay
-// within ±2^31 (checked per task: ValidateTaskResult rejects a task whose sums exceed 2^30).
+// within 2^31 (checked per task: ValidateTaskResult rejects a task whose sums exceed 2^30).
 //
 // Noise estimate (docs/design.md, §1 Error estimate): samples of a pixel from different maps are
 // independent, so the spread of the per-map pixel means (luminance) estimates the pixel's
@@ -13,6 +13,7 @@
 // of their mean. Kept in double: it only steers progress and the stop rule, never the image.
 
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <string_view>
@@ -22,14 +23,31 @@
 
 namespace pf {
 
+// What checking a task result found (Accumulator::ValidateTaskResult).
+struct ResultCheck {
+  enum class Verdict {
+    kOk,
+    kInvalid,      // wrong size, NaN/Inf, negative, outside the accumulator's range: never merged
+    kImplausible,  // above the job's bound: merged only if another worker reproduces it exactly
+  };
+  Verdict verdict = Verdict::kOk;
+  std::string reason;  // "" when kOk
+  bool ok() const { return verdict == Verdict::kOk; }
+};
+
 class Accumulator {
  public:
   Accumulator() = default;
   Accumulator(int width, int height);
 
-  // "" if a task result may be merged, else the reason (wrong size, NaN/Inf, out of range).
-  static std::string ValidateTaskResult(std::span<const float> rgb_sums, uint64_t expected_pixels,
-                                        uint32_t samples);
+  // Checks a task result before anything is merged: 3 values per pixel, each finite and ≥ 0
+  // (every estimator of the renderer is a sum of products of non-negative terms: emission,
+  // BSDF values, photon powers, MIS and roulette weights; the scene loaders reject negative
+  // colours), within the fixed-point range (2^30), and — kImplausible — at most
+  // samples × max_sample_radiance (the per-job bound, docs/security.md "Results").
+  static ResultCheck ValidateTaskResult(std::span<const float> rgb_sums, uint64_t expected_pixels,
+                                        uint32_t samples,
+                                        double max_sample_radiance = std::numeric_limits<double>::infinity());
 
   // Merges one task: rgb_sums holds 3 floats per pixel of `pixels` (same order), each the sum
   // over `samples` samples. Call ValidateTaskResult first; invalid input throws InputError.

@@ -11,7 +11,6 @@ namespace {
 constexpr uint64_t kMapTag = 0x6d6170;     // "map"
 constexpr uint64_t kPixTag = 0x706978;     // "pix"
 constexpr uint64_t kPermTag = 0x7065726d;  // "perm"
-constexpr uint64_t kMaxTasks = 1u << 24;
 
 std::vector<PixelSubset> Tiles(uint32_t tile_size, int width, int height) {
   std::vector<PixelSubset> tiles;
@@ -63,9 +62,6 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
       if (plan.samples_per_pixel < 1) throw InputError("plan.skipping.samples_per_pixel: must be >= 1");
       break;
   }
-  if (CountTasks(plan, width, height) > kMaxTasks)
-    throw InputError("plan: more than " + std::to_string(kMaxTasks) +
-                     " tasks; use larger tiles or fewer maps");
 }
 
 uint64_t CountTasks(const PlanSpec& plan, int width, int height) {

@@ -1,14 +1,26 @@
 #include "server/assembly/result_merger.h"
 
+#include <openssl/evp.h>
+
 #include "common/core/error.h"
 
 namespace pf::server {
 
-std::string ResultMerger::Validate(const TaskSpec& task, int width, int height,
-                                   std::span<const float> rgb_sums) {
-  if (task.sample_end <= task.sample_begin) return "task: empty sample range";
+ResultCheck ResultMerger::Validate(const TaskSpec& task, int width, int height,
+                                   std::span<const float> rgb_sums, double max_sample_radiance) {
+  if (task.sample_end <= task.sample_begin)
+    return {ResultCheck::Verdict::kInvalid, "task: empty sample range"};
   const uint64_t pixels = CountPixels(task.pixels, width, height);
-  return Accumulator::ValidateTaskResult(rgb_sums, pixels, task.sample_end - task.sample_begin);
+  return Accumulator::ValidateTaskResult(rgb_sums, pixels, task.sample_end - task.sample_begin,
+                                         max_sample_radiance);
+}
+
+std::string ResultMerger::Digest(std::span<const float> rgb_sums) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  if (EVP_Digest(rgb_sums.data(), rgb_sums.size_bytes(), md, &len, EVP_sha256(), nullptr) != 1)
+    throw SystemError("EVP_Digest(sha256) failed");
+  return std::string(reinterpret_cast<const char*>(md), len);
 }
 
 std::shared_ptr<const std::vector<uint32_t>> ResultMerger::Permutation(uint64_t seed, int width, int height) {
@@ -39,8 +51,9 @@ std::vector<uint32_t> ResultMerger::PixelsOfTask(const TaskSpec& task, int width
 }
 
 void ResultMerger::Merge(const TaskSpec& task, std::span<const float> rgb_sums, Accumulator& acc) {
-  const std::string problem = Validate(task, acc.width(), acc.height(), rgb_sums);
-  if (!problem.empty()) throw InputError(problem);
+  // The plausibility bound was applied by the caller (a confirmed result may exceed it).
+  const ResultCheck check = Validate(task, acc.width(), acc.height(), rgb_sums);
+  if (!check.ok()) throw InputError(check.reason);
   const std::vector<uint32_t> pixels = PixelsOfTask(task, acc.width(), acc.height());
   acc.Add(pixels, rgb_sums, task.sample_end - task.sample_begin);
 }

@@ -1,10 +1,12 @@
 #pragma once
 // Merging task results into a job's Accumulator (docs/design.md, §1 Merge).
 //
-// A result is validated before anything is changed: 3 finite floats per pixel of the task's
-// subset (the count from CountPixels, so a wrong size is caught without materialising pixels),
-// within the accumulator's range (Accumulator::ValidateTaskResult). An invalid result is rejected
-// whole; the scheduler then re-queues the task (attempt + 1) and logs the reason.
+// A result is validated before anything is changed: 3 finite, non-negative floats per pixel of
+// the task's subset (the count from CountPixels, so a wrong size is caught without materialising
+// pixels), within the accumulator's range and the job's plausibility bound
+// (Accumulator::ValidateTaskResult). An invalid result is rejected whole; the scheduler then
+// re-queues the task (attempt + 1) and logs the reason. An implausible one (above the bound) is
+// rejected the same way unless it is a bit-identical second delivery by another worker.
 //
 // Merging needs the subset's pixel indices in subset order (PixelsOf). For skipping tasks those
 // come from a permutation of all W·H pixels shared by the S² tasks of a round; the merger keeps
@@ -13,6 +15,7 @@
 // Not thread-safe: called under the Scheduler's lock.
 
 #include <cstdint>
+#include <limits>
 #include <list>
 #include <memory>
 #include <span>
@@ -28,8 +31,14 @@ class ResultMerger {
  public:
   explicit ResultMerger(size_t cached_permutations = 4) : capacity_(cached_permutations) {}
 
-  // "" if `rgb_sums` may be merged for `task` of a width × height job, else the reason.
-  static std::string Validate(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums);
+  // Whether `rgb_sums` may be merged for `task` of a width × height job
+  // (Accumulator::ValidateTaskResult; `max_sample_radiance` is JobConfig::max_sample_radiance).
+  static ResultCheck Validate(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums,
+                              double max_sample_radiance = std::numeric_limits<double>::infinity());
+
+  // SHA-256 of the result's bytes: an implausible result is merged only when another worker
+  // delivers the same digest (deterministic rendering makes an honest re-run bit-identical).
+  static std::string Digest(std::span<const float> rgb_sums);
 
   // Validates (throws InputError with the reason) and adds the result to `acc`.
   void Merge(const TaskSpec& task, std::span<const float> rgb_sums, Accumulator& acc);

@@ -35,6 +35,10 @@ struct TaskRuntime {
   double lease_deadline = 0;  // Clock::Now() seconds
   double progress = 0;        // 0..1 as reported by ExtendLease
   std::string last_error;
+  // The last result above the job's plausibility bound (ResultMerger::Digest) and the worker that
+  // sent it: a bit-identical result from another worker is merged (Scheduler::Complete).
+  std::string implausible_digest;
+  std::string implausible_worker;
 };
 
 class Job {

@@ -101,6 +101,7 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
                         " (upload it with UploadScene first)");
   job.scene_hash = hash;
   job.scene_entry = scene->entry;
+  if (scene->max_emission >= 0) job.max_sample_radiance = limits::kResultRadianceFactor * scene->max_emission;
 
   job.camera = ResolveCamera(spec, *scene);
   job.settings = SettingsFromProto(spec.settings(), "spec.settings");
@@ -113,9 +114,8 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
     RethrowUnderSpec(e);
   }
   const uint64_t tasks = CountTasks(job.plan, job.camera.width, job.camera.height);
-  if (tasks > kMaxTasksPerJob)
-    throw LimitError("spec.plan: " + std::to_string(tasks) + " tasks exceed the limit of " +
-                     std::to_string(kMaxTasksPerJob) + " per job; use larger tiles or fewer maps/rounds");
+  if (const std::string problem = limits::TaskCountProblem(tasks); !problem.empty())
+    throw LimitError(problem);
   const uint64_t task_pixels = MaxPixelsPerTask(job.plan, job.camera.width, job.camera.height);
   if (task_pixels > kMaxPixelsPerTask)
     throw LimitError(PlanField(job.plan) + ": a task of " + std::to_string(task_pixels) +

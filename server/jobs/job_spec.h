@@ -14,7 +14,7 @@
 //                        over kMaxImageSide / kMaxImagePixels (proto/convert.h)  RESOURCE_EXHAUSTED
 //   spec.settings        proto/convert.h SettingsFromProto (photons, k ≥ 1 and their limits)
 //   spec.plan            proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
-//                        more than kMaxTasksPerJob tasks, or a task of more than
+//                        more than limits::kMaxTasksPerJob tasks, or a task of more than
 //                        kMaxPixelsPerTask pixels                           RESOURCE_EXHAUSTED
 //   spec.stop            time_budget_seconds, target_noise_rms finite and ≥ 0
 //
@@ -23,6 +23,7 @@
 // larger images.
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,7 +36,6 @@
 
 namespace pf::server {
 
-inline constexpr uint64_t kMaxTasksPerJob = uint64_t(1) << 20;
 inline constexpr uint64_t kMaxPixelsPerTask = uint64_t(4) << 20;
 inline constexpr size_t kMaxJobNameBytes = limits::kMaxJobNameBytes;
 
@@ -45,6 +45,7 @@ struct SceneInfo {
   std::string entry;
   uint64_t triangles = 0;
   uint32_t lights = 0;
+  double max_emission = -1;  // the brightest emitter's largest channel (Le); -1 = unknown (old database)
   uint64_t bytes = 0;
   uint64_t files = 0;
   CameraSpec camera;  // the manifest's first camera, else DefaultCamera(scene)
@@ -76,6 +77,10 @@ struct JobConfig {
   int32_t priority = 0;
   // The spec as accepted, with the camera resolved: echoed in JobStatus.spec and stored.
   photonfarm::v1::JobSpec spec;
+  // The result bound (docs/security.md, "Results"): a task's per-pixel channel sum above
+  // samples × this is implausible. limits::kResultRadianceFactor × the scene's brightest
+  // emitter; infinite when the scene's emission is unknown (a database from before the bound).
+  double max_sample_radiance = std::numeric_limits<double>::infinity();
 
   // Rounds that are scheduled: min(plan rounds, stop.max_rounds) (max_rounds 0 = all).
   uint32_t ScheduledRounds() const;

@@ -4,6 +4,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <string_view>
+
 #include "common/core/error.h"
 #include "common/scene/scene_bundle.h"
 #include "server/errors.h"
@@ -23,6 +26,30 @@ grpc::Status Busy() {
 
 void RequireJobId(const std::string& id) {
   limits::CheckId(id, "job_id");
+}
+
+// ListJobs cursors: "p1." + the decimal sequence number of the page's last job. Opaque to
+// clients; anything else is refused without echoing it.
+constexpr std::string_view kPageTokenPrefix = "p1.";
+
+std::string PageToken(uint64_t last_seq) {
+  return std::string(kPageTokenPrefix) + std::to_string(last_seq);
+}
+
+uint64_t ParsePageToken(const std::string& token) {
+  if (token.empty()) return 0;
+  const std::string_view digits =
+      std::string_view(token).substr(std::min(token.size(), kPageTokenPrefix.size()));
+  bool ok = token.size() <= limits::kMaxIdBytes && token.rfind(kPageTokenPrefix, 0) == 0 && !digits.empty() &&
+            digits.size() <= 19 && digits[0] != '0';
+  uint64_t seq = 0;
+  for (const char c : digits) {
+    if (!ok) break;
+    ok = c >= '0' && c <= '9';
+    seq = seq * 10 + uint64_t(c - '0');
+  }
+  if (!ok) throw InputError("page_token: not a next_page_token of an earlier ListJobs answer");
+  return seq;
 }
 
 }  // namespace
@@ -112,8 +139,12 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobs(grpc::CallbackServerContex
                                                       v1::ListJobsResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded("ListJobs", [&] {
-    for (v1::JobStatus& s : ctx_.scheduler.List(request->include_finished()))
-      *response->add_jobs() = std::move(s);
+    const uint64_t after = ParsePageToken(request->page_token());
+    uint32_t size = request->page_size() == 0 ? limits::kDefaultListJobsPageSize : request->page_size();
+    size = std::min(size, limits::kMaxListJobsPageSize);
+    Scheduler::JobPage page = ctx_.scheduler.ListPage(request->include_finished(), after, size);
+    for (v1::JobStatus& s : page.jobs) *response->add_jobs() = std::move(s);
+    if (page.more) response->set_next_page_token(PageToken(page.last_seq));
     return grpc::Status::OK;
   });
   reactor->Finish(status);

@@ -17,8 +17,6 @@ namespace v1 = photonfarm::v1;
 
 namespace {
 
-constexpr size_t kMaxReasonBytes = 4096;
-
 void FillTask(const Lease& lease, v1::Task* task) {
   TaskSpecToProto(lease.task, task);
   task->set_job_id(lease.job_id);
@@ -171,9 +169,19 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("FailTask", [&] {
     RequireLeaseId(request->lease_id());
-    std::string reason = limits::Printable(request->reason(), kMaxReasonBytes);
+    limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
+    std::string reason = limits::Printable(request->reason(), limits::kMaxReasonBytes);
     if (reason.empty()) reason = "no reason given";
-    ctx_.scheduler.Fail(request->lease_id(), reason, request->retryable());
+    switch (ctx_.scheduler.Fail(request->lease_id(), request->worker_id(), reason, request->retryable())) {
+      case FailOutcome::kFailed:
+        return grpc::Status::OK;
+      case FailOutcome::kUnknownLease:
+        return grpc::Status(grpc::StatusCode::NOT_FOUND,
+                            "lease_id: unknown, expired or finished lease; nothing was changed");
+      case FailOutcome::kNotHolder:
+        return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                            "lease_id: the lease is held by another worker; nothing was changed");
+    }
     return grpc::Status::OK;
   });
   reactor->Finish(status);

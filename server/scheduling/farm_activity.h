@@ -26,7 +26,8 @@ class FarmActivity {
 
   // A LeaseTask call from `worker_id` (its peer address and threads).
   void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads);
-  // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned.
+  // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned,
+  // confirmed (a result above the job's bound reproduced by another worker, then merged).
   void TaskEvent(const std::string& job_id, const std::string& kind, uint64_t task_id, uint32_t attempt,
                  const std::string& worker_id, const std::string& detail = "");
   // The merged result's statistics (photons per second of the worker).

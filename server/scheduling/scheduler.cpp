@@ -284,6 +284,22 @@ std::vector<v1::JobStatus> Scheduler::List(bool include_finished) {
   return out;
 }
 
+Scheduler::JobPage Scheduler::ListPage(bool include_finished, uint64_t after_seq, size_t limit) {
+  std::lock_guard lock(mu_);
+  const double now = clock_.Now();
+  JobPage page;
+  for (Job* job : jobs_.InSubmissionOrder()) {
+    if (job->seq() <= after_seq || !(include_finished || job->active())) continue;
+    if (page.jobs.size() == limit) {
+      page.more = true;
+      break;
+    }
+    page.jobs.push_back(BuildStatus(*job, now));
+    page.last_seq = job->seq();
+  }
+  return page;
+}
+
 v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
   Effects fx;
   v1::JobStatus status;
@@ -456,8 +472,12 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
       const TaskSpec& task = job.task(task_id);
       result.job_id = job.id();
       result.task_id = task_id;
-      std::string problem =
-          ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, rgb_sums);
+      const ResultCheck check =
+          ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, rgb_sums,
+                                 job.config().max_sample_radiance);
+      std::string problem = check.reason;
+      if (check.verdict == ResultCheck::Verdict::kImplausible)
+        problem = ConfirmImplausible(job, task_id, rgb_sums, check);
       if (problem.empty()) {
         try {
           merger_.Merge(task, rgb_sums, job.accumulator());
@@ -497,6 +517,29 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   return result;
 }
 
+std::string Scheduler::ConfirmImplausible(Job& job, uint64_t task_id, std::span<const float> rgb_sums,
+                                          const ResultCheck& check) {
+  // Above the bound is not proof of a fault (estimator tails are unbounded, docs/security.md
+  // "Results"), and a rejection of an honest result would repeat on every retry (rendering is
+  // deterministic) until the job fails. So: not merged, re-run; merged when a different worker
+  // delivers the same bytes.
+  TaskRuntime& rt = job.runtime(task_id);
+  const std::string digest = ResultMerger::Digest(rgb_sums);
+  if (!rt.implausible_digest.empty() && digest == rt.implausible_digest &&
+      rt.worker_id != rt.implausible_worker) {
+    spdlog::warn(
+        "job {} task {}: result above the bound reproduced bit for bit by worker {} (first from {}): merged "
+        "({})",
+        job.id(), task_id, rt.worker_id, rt.implausible_worker, check.reason);
+    activity_.TaskEvent(job.id(), "confirmed", task_id, rt.attempts, rt.worker_id,
+                        "reproduced a result above the bound first sent by " + rt.implausible_worker);
+    return "";
+  }
+  rt.implausible_digest = digest;
+  rt.implausible_worker = rt.worker_id;
+  return check.reason + "; re-run, merged only if another worker reproduces it exactly";
+}
+
 void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now,
                             Effects& fx) {
   TaskRuntime& rt = job.runtime(task_id);
@@ -531,22 +574,32 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
   ServeWaiters(fx);
 }
 
-bool Scheduler::Fail(const std::string& lease_id, const std::string& reason, bool retryable) {
+FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& worker_id,
+                            const std::string& reason, bool retryable) {
   Effects fx;
-  bool known = false;
+  FailOutcome outcome = FailOutcome::kUnknownLease;
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
     if (LeaseRef* ref = FindLiveLease(lease_id, now, fx)) {
-      known = true;
       const TaskRuntime& rt = ref->job->runtime(ref->task_id);
-      activity_.TaskEvent(ref->job->id(), "failed", ref->task_id, rt.attempts, rt.worker_id,
-                          reason + (retryable ? "" : " (not retryable)"));
-      FailAttempt(*ref->job, ref->task_id, "worker: " + reason, retryable, now, fx);
+      if (rt.worker_id != worker_id) {
+        // A lease id that reached another worker (a log, a copied command line) does not let it
+        // end the task — with retryable = false, the whole job.
+        outcome = FailOutcome::kNotHolder;
+        spdlog::warn("job {} task {}: FailTask from worker {} refused: the lease is held by {}",
+                     ref->job->id(), ref->task_id, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
+                     rt.worker_id);
+      } else {
+        outcome = FailOutcome::kFailed;
+        activity_.TaskEvent(ref->job->id(), "failed", ref->task_id, rt.attempts, rt.worker_id,
+                            reason + (retryable ? "" : " (not retryable)"));
+        FailAttempt(*ref->job, ref->task_id, "worker: " + reason, retryable, now, fx);
+      }
     }
   }
   Run(fx);
-  return known;
+  return outcome;
 }
 
 void Scheduler::ReturnLease(const std::string& lease_id) {

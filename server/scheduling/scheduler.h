@@ -84,6 +84,8 @@ struct Lease {
   std::shared_ptr<const JobConfig> config;
 };
 
+enum class FailOutcome { kFailed, kUnknownLease, kNotHolder };
+
 struct ExtendResult {
   bool ok = false;
   double lease_seconds = 0;
@@ -134,6 +136,14 @@ class Scheduler {
   void ReserveJobSeq(uint64_t seq);
   photonfarm::v1::JobStatus Status(const std::string& job_id);  // NotFoundError if unknown
   std::vector<photonfarm::v1::JobStatus> List(bool include_finished);
+  // Up to `limit` jobs submitted after the job numbered `after_seq` (0 = from the first), in
+  // submission order; `more` if jobs are left after the page's last one (`last_seq`).
+  struct JobPage {
+    std::vector<photonfarm::v1::JobStatus> jobs;
+    uint64_t last_seq = 0;
+    bool more = false;
+  };
+  JobPage ListPage(bool include_finished, uint64_t after_seq, size_t limit);
   // Cancels queued and leased tasks; idempotent for finished jobs (returns their status).
   photonfarm::v1::JobStatus Cancel(const std::string& job_id);
   JobSnapshot Snapshot(const std::string& job_id, bool with_image);
@@ -147,8 +157,11 @@ class Scheduler {
   ExtendResult Extend(const std::string& lease_id, double progress);
   // Validates and merges (see the header comment). Never throws for bad results: kRejected.
   CompleteResult Complete(const std::string& lease_id, std::span<const float> rgb_sums);
-  // false if the lease is unknown (already expired, replaced or finished): nothing to do.
-  bool Fail(const std::string& lease_id, const std::string& reason, bool retryable);
+  // Only the holder of a live lease may fail its task: `worker_id` must be the worker it was
+  // leased to (LeaseRequest.worker_id). kUnknownLease (expired, replaced, finished or never
+  // issued) and kNotHolder change nothing.
+  FailOutcome Fail(const std::string& lease_id, const std::string& worker_id, const std::string& reason,
+                   bool retryable);
   // A lease that never reached its worker: back to the queue, no failure counted.
   void ReturnLease(const std::string& lease_id);
 
@@ -200,6 +213,10 @@ class Scheduler {
   void ServeWaiters(Effects& fx);
   std::optional<Lease> LeaseLocked(const LeaseRequest& request, double now, Effects& fx);
   bool CheckTimeBudget(Job& job, double now, Effects& fx);
+  // A result above the job's bound: "" if it reproduces, bit for bit, the last such result of the
+  // task from another worker (then it is merged), else the reason it is rejected (and records it).
+  std::string ConfirmImplausible(Job& job, uint64_t task_id, std::span<const float> rgb_sums,
+                                 const ResultCheck& check);
   // The current attempt of a leased task ended badly.
   void FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now,
                    Effects& fx);

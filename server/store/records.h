@@ -48,6 +48,7 @@ struct SceneRow {
   std::string default_camera;  // serialized photonfarm.v1.Camera: manifest camera or DefaultCamera
   std::string warnings;        // loader warnings, '\n'-separated
   int64_t created_unix_ms = 0;
+  double max_emission = -1;  // the brightest emitter's largest channel (Le); -1 = unknown
 };
 
 // One checkpoint file: the accumulator and the ids of exactly the tasks merged into it.

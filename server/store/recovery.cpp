@@ -76,11 +76,12 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
   for (const JournalEntry& e : entries) {
     if (e.task_id >= job.num_tasks() || job.runtime(e.task_id).state == TaskState::kDone) continue;
     const TaskSpec& task = job.task(e.task_id);
-    const std::string problem =
+    // No plausibility bound: a journaled result was accepted (possibly confirmed) before the crash.
+    const ResultCheck check =
         ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
-    if (!problem.empty()) {
+    if (!check.ok()) {
       spdlog::error("job {} task {}: journal entry invalid ({}); the task is re-run", job.id(), e.task_id,
-                    problem);
+                    check.reason);
       continue;
     }
     merger.Merge(task, e.rgb_sums, job.accumulator());

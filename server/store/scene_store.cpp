@@ -35,12 +35,22 @@ std::vector<std::string> Split(const std::string& text) {
   return out;
 }
 
+// The largest channel of any emitting material's Le: the scale of every radiance in the scene
+// (the per-job result bound, server/jobs/job_spec.h).
+double MaxEmission(const SceneDescription& scene) {
+  double m = 0;
+  for (const Material& mat : scene.materials)
+    for (int c = 0; c < 3; ++c) m = std::max(m, double(mat.emission[c]));
+  return m;
+}
+
 SceneInfo InfoFromRow(const SceneRow& row) {
   SceneInfo info;
   info.hash = row.hash;
   info.entry = row.entry;
   info.triangles = row.triangles;
   info.lights = row.lights;
+  info.max_emission = row.max_emission;
   info.bytes = row.bytes;
   info.files = row.files;
   info.warnings = Split(row.warnings);
@@ -102,6 +112,7 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   info.entry = bundle.entry;
   info.triangles = scene.NumTriangles();
   info.lights = scene.num_lights;
+  info.max_emission = MaxEmission(scene);
   info.bytes = bundle.TotalBytes();
   info.files = bundle.files.size();
   info.camera = scene.cameras.empty() ? DefaultCamera(scene) : scene.cameras.front();
@@ -118,6 +129,7 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   row.files = info.files;
   row.triangles = info.triangles;
   row.lights = info.lights;
+  row.max_emission = info.max_emission;
   photonfarm::v1::Camera cam;
   CameraToProto(info.camera, &cam);
   row.default_camera = cam.SerializeAsString();
@@ -128,8 +140,9 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
     std::lock_guard lock(mu_);
     index_[hash] = info;
   }
-  spdlog::info("scene {}: stored ({} files, {} bytes, entry {}, {} triangles, {} lights)", hash, info.files,
-               info.bytes, info.entry, info.triangles, info.lights);
+  spdlog::info(
+      "scene {}: stored ({} files, {} bytes, entry {}, {} triangles, {} lights, brightest Le {:.6g})", hash,
+      info.files, info.bytes, info.entry, info.triangles, info.lights, info.max_emission);
   return {info, true};
 }
 

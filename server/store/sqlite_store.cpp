@@ -19,7 +19,8 @@ CREATE TABLE IF NOT EXISTS scenes(
   lights INTEGER NOT NULL,
   default_camera BLOB NOT NULL,
   warnings TEXT NOT NULL,
-  created_unix_ms INTEGER NOT NULL);
+  created_unix_ms INTEGER NOT NULL,
+  max_emission REAL NOT NULL DEFAULT -1);
 CREATE TABLE IF NOT EXISTS jobs(
   id TEXT PRIMARY KEY,
   seq INTEGER NOT NULL UNIQUE,
@@ -153,6 +154,14 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
   Exec("PRAGMA synchronous = FULL");
   Exec("PRAGMA foreign_keys = ON");
   Exec(kSchema);
+  // Databases from before the result bound (issue #14) lack scenes.max_emission: -1 = unknown
+  // (no upper bound for jobs of those scenes; a new upload of the bundle does not change that).
+  bool has_max_emission = false;
+  {
+    Statement st(db_, "SELECT name FROM pragma_table_info('scenes')");
+    while (st.Step()) has_max_emission |= st.ColText(0) == "max_emission";
+  }
+  if (!has_max_emission) Exec("ALTER TABLE scenes ADD COLUMN max_emission REAL NOT NULL DEFAULT -1");
 }
 
 SqliteStore::~SqliteStore() {
@@ -173,7 +182,7 @@ void SqliteStore::PutScene(const SceneRow& s) {
   Statement(
       db_,
       "INSERT OR IGNORE INTO scenes(hash, entry, bytes, files, triangles, lights, default_camera, warnings, "
-      "created_unix_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)")
+      "created_unix_ms, max_emission) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)")
       .Text(1, s.hash)
       .Text(2, s.entry)
       .Int(3, int64_t(s.bytes))
@@ -183,6 +192,7 @@ void SqliteStore::PutScene(const SceneRow& s) {
       .Blob(7, s.default_camera)
       .Text(8, s.warnings)
       .Int(9, s.created_unix_ms)
+      .Real(10, s.max_emission)
       .Run();
 }
 
@@ -191,8 +201,8 @@ std::vector<SceneRow> SqliteStore::LoadScenes() {
   std::vector<SceneRow> out;
   Statement st(
       db_,
-      "SELECT hash, entry, bytes, files, triangles, lights, default_camera, warnings, created_unix_ms "
-      "FROM scenes ORDER BY created_unix_ms, hash");
+      "SELECT hash, entry, bytes, files, triangles, lights, default_camera, warnings, created_unix_ms, "
+      "max_emission FROM scenes ORDER BY created_unix_ms, hash");
   while (st.Step()) {
     SceneRow s;
     s.hash = st.ColText(0);
@@ -204,6 +214,7 @@ std::vector<SceneRow> SqliteStore::LoadScenes() {
     s.default_camera = st.ColBlob(6);
     s.warnings = st.ColText(7);
     s.created_unix_ms = st.ColInt(8);
+    s.max_emission = st.ColReal(9);
     out.push_back(std::move(s));
   }
   return out;

@@ -2,9 +2,12 @@
 // coordinator, the worker and the local renderer must agree on exactly.
 #include "common/plan/task_plan.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -155,15 +158,33 @@ TEST(Accumulator, WeightedAverageAndNoiseEstimate) {
 }
 
 TEST(Accumulator, RejectsBadResults) {
-  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>(5), 2, 1), "");
-  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, NAN}, 1, 1).find("not finite"),
-            std::string::npos);
-  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, INFINITY}, 1, 1), "");
-  EXPECT_NE(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, 3e9f}, 1, 1).find("range"),
-            std::string::npos);
-  EXPECT_EQ(Accumulator::ValidateTaskResult(std::vector<float>{1, 2, 3}, 1, 1), "");
+  using V = ResultCheck::Verdict;
+  auto check = [](std::vector<float> sums, uint64_t pixels, uint32_t samples,
+                  double bound = std::numeric_limits<double>::infinity()) {
+    return Accumulator::ValidateTaskResult(sums, pixels, samples, bound);
+  };
+  EXPECT_EQ(check(std::vector<float>(5), 2, 1).verdict, V::kInvalid);
+  EXPECT_THAT(check({1, 2, NAN}, 1, 1).reason, ::testing::HasSubstr("not finite"));
+  EXPECT_EQ(check({1, 2, INFINITY}, 1, 1).verdict, V::kInvalid);
+  EXPECT_THAT(check({1, 2, 3e9f}, 1, 1).reason, ::testing::HasSubstr("range"));
+  EXPECT_TRUE(check({1, 2, 3}, 1, 1).ok());
+  EXPECT_EQ(check({1, 2, 3}, 1, 1).reason, "");
+  // Issue #14: radiance is never negative; -0.0 is zero.
+  const ResultCheck negative = check({1, -1e-6f, 3}, 1, 1);
+  EXPECT_EQ(negative.verdict, V::kInvalid);
+  EXPECT_THAT(negative.reason, ::testing::HasSubstr("rgb_sums[1] = -0.000001 is negative"));
+  EXPECT_TRUE(check({-0.0f, 0, 0}, 1, 1).ok());
+  // The per-job bound scales with the task's samples: 4 samples × 10 = 40 per channel sum.
+  EXPECT_TRUE(check({40, 0, 40, 1, 2, 3}, 2, 4, 10).ok());
+  const ResultCheck above = check({40, 0, 40, 1, 40.01f, 3}, 2, 4, 10);
+  EXPECT_EQ(above.verdict, V::kImplausible);
+  EXPECT_THAT(above.reason,
+              ::testing::HasSubstr("rgb_sums[4] = 40.01 exceeds the job's bound 40 (4 samples x 10)"));
+  // Invalid beats implausible (a NaN after a value above the bound is still invalid).
+  EXPECT_EQ(check({1e6f, NAN, 0}, 1, 1, 10).verdict, V::kInvalid);
   Accumulator acc(2, 2);
   EXPECT_THROW(acc.Add(std::vector<uint32_t>{9}, std::vector<float>{1, 1, 1}, 1), InputError);
+  EXPECT_THROW(acc.Add(std::vector<uint32_t>{0}, std::vector<float>{1, -1, 1}, 1), InputError);
 }
 
 TEST(Accumulator, SerializeRoundTrip) {

@@ -158,6 +158,21 @@ TEST(Cli, FlagLimitsAreTheFarmsLimits) {
   EXPECT_NE(r.out.find("--k <= 10000"), std::string::npos) << r.out;
 }
 
+// Issue #14: one task cap (proto/limits.h, 2^20). A local plan of 2^20 + 1 = 17 x 61681 tasks is
+// refused at once (exit 3) with the farm's message; it used to start rendering (the plan code
+// allowed 2^24, the coordinator 2^20).
+TEST(Cli, LocalPlanTaskCapIsTheFarms) {
+  TestDir dir;
+  const RunResult r = RunCommand({Binaries::Pf(), "render", Binaries::Scene(), "--plan", "multiple-maps",
+                                  "--maps", "61681", "--tile", "1", "--res", "17x1", "--photons", "100",
+                                  "--local-only", "-o", (dir / "cap.exr").string(), "--no-png", "-q"},
+                                 dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("spec.plan: 1048577 tasks exceed the limit of 1048576 per job"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "cap.exr"));
+}
+
 TEST(Cli, PlainRenderRefusesPlanOptions) {
   TestDir dir;
   for (const std::vector<std::string>& extra :

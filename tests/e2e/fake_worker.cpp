@@ -2,6 +2,10 @@
 // rendering. Modes:
 //   bad-size   lease one task, complete it with one pixel too few        (e2e: must be rejected)
 //   nan        lease one task, complete it with a NaN in the first pixel (e2e: must be rejected)
+//   negative   lease one task, complete it with -1e9 in the first pixel  (e2e: must be rejected)
+//   huge       lease one task, complete it with 1e9 in the first pixel   (e2e: in the accumulator's
+//              range, but above the job's plausibility bound: rejected unless another worker
+//              (--worker-id) sends the same bytes)
 //   instant    lease and complete (zeros of the right size) as fast as possible with
 //              --concurrency threads, each with its own connection, until --tasks results were
 //              merged or --seconds passed; prints completions/s and bytes on the wire per task
@@ -30,7 +34,7 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 struct Options {
-  std::string coordinator, token, mode = "instant";
+  std::string coordinator, token, mode = "instant", worker_id;
   double wait = 5, seconds = 10;
   uint64_t tasks = 1000;
   int concurrency = 4;
@@ -44,7 +48,7 @@ uint64_t PixelsOfTask(const v1::Task& t) {
 bool LeaseOne(v1::WorkerService::Stub& stub, const Options& o, double wait, v1::Task* task,
               grpc::Status* status) {
   v1::LeaseTaskRequest req;
-  req.set_worker_id("fake-" + o.mode);
+  req.set_worker_id(o.worker_id.empty() ? "fake-" + o.mode : o.worker_id);
   req.set_threads(1);
   req.set_wait_seconds(wait);
   grpc::ClientContext ctx;
@@ -72,6 +76,8 @@ int BadResult(const Options& o) {
   const uint64_t n = o.mode == "bad-size" ? (pixels - 1) * 3 : pixels * 3;
   for (uint64_t i = 0; i < n; ++i) req.add_rgb_sums(0.25f);
   if (o.mode == "nan") req.set_rgb_sums(0, std::numeric_limits<float>::quiet_NaN());
+  if (o.mode == "negative") req.set_rgb_sums(0, -1e9f);
+  if (o.mode == "huge") req.set_rgb_sums(0, 1e9f);
   grpc::ClientContext ctx;
   pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));
   v1::CompleteTaskResponse resp;
@@ -159,9 +165,11 @@ int main(int argc, char** argv) {
   CLI::App app{"pf_fake_worker: speaks WorkerService without rendering (tests and benchmarks)"};
   app.add_option("--coordinator", o.coordinator, "HOST:PORT")->required();
   app.add_option("--token-file", token_file, "Bearer token file (default $PF_TOKEN)");
-  app.add_option("--mode", o.mode, "bad-size | nan | instant")
-      ->check(CLI::IsMember({"bad-size", "nan", "instant"}));
-  app.add_option("--wait", o.wait, "bad-size/nan: seconds to wait for a task")->capture_default_str();
+  app.add_option("--mode", o.mode, "bad-size | nan | negative | huge | instant")
+      ->check(CLI::IsMember({"bad-size", "nan", "negative", "huge", "instant"}));
+  app.add_option("--worker-id", o.worker_id, "worker_id in LeaseTask (default fake-MODE)");
+  app.add_option("--wait", o.wait, "bad-size/nan/negative/huge: seconds to wait for a task")
+      ->capture_default_str();
   app.add_option("--tasks", o.tasks, "instant: stop after this many merged results")->capture_default_str();
   app.add_option("--seconds", o.seconds, "instant: stop after this long")->capture_default_str();
   app.add_option("--concurrency", o.concurrency, "instant: parallel fake workers")->capture_default_str();

@@ -188,7 +188,7 @@ TEST(FarmValidation, WrongSizeAndNanResultsAreRejectedAndRerun) {
                         {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
                  dir.path());
   ASSERT_EQ(local.exit_code, 0) << local.err;
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--max-attempts", "5"});
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--max-attempts", "6"});
   RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
                                   {"--coordinator", coordinator.address()}),
                            dir.path());
@@ -196,18 +196,37 @@ TEST(FarmValidation, WrongSizeAndNanResultsAreRejectedAndRerun) {
   const std::string job_id = r.out.substr(0, r.out.find('\n'));
 
   std::vector<uint64_t> rejected_tasks;
-  for (const char* mode : {"bad-size", "nan"}) {
+  // Issue #14: -1e9 and 1e9 are finite and within the accumulator's range, so they used to be
+  // merged (the job succeeded with a mean of -125); now negative values are invalid and 1e9 is
+  // above the job's bound (1024 x the brightest emitter per sample).
+  for (const char* mode : {"bad-size", "nan", "negative", "huge"}) {
     r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", mode},
                    dir.path());
     ASSERT_EQ(r.exit_code, 0) << mode << ": " << r.out << r.err;
     const nlohmann::json j = nlohmann::json::parse(r.out);
     EXPECT_EQ(j["code"], "INVALID_ARGUMENT") << mode;
     EXPECT_NE(j["message"].get<std::string>().find("rgb_sums"), std::string::npos) << j.dump();
+    if (std::string(mode) == "negative") {
+      EXPECT_NE(j["message"].get<std::string>().find("is negative"), std::string::npos) << j.dump();
+    }
+    if (std::string(mode) == "huge") {
+      EXPECT_NE(j["message"].get<std::string>().find("exceeds the job's bound"), std::string::npos)
+          << j.dump();
+    }
     EXPECT_FALSE(j["merged"].get<bool>());
     rejected_tasks.push_back(j["task_id"].get<uint64_t>());
   }
   FarmClient client(coordinator.address(), "");
   EXPECT_EQ(client.GetJob(job_id).tasks_done(), 0u);
+  // Each rejection is visible to people: `pf events` lists it with its reason.
+  r = RunCommand({Binaries::Pf(), "events", job_id, "--coordinator", coordinator.address()}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  size_t rejections = 0;
+  for (size_t at = r.out.find(" rejected "); at != std::string::npos; at = r.out.find(" rejected ", at + 1))
+    ++rejections;
+  EXPECT_EQ(rejections, 4u) << r.out;
+  EXPECT_NE(r.out.find("is negative"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("exceeds the job's bound"), std::string::npos) << r.out;
 
   auto worker = StartWorker(coordinator.address(), dir.path(), "w1");
   v1::JobStatus st;

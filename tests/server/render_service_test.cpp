@@ -8,9 +8,11 @@
 #include <cmath>
 #include <condition_variable>
 #include <functional>
+#include <limits>
 #include <mutex>
 
 #include "proto/convert.h"
+#include "server/store/scene_store.h"
 #include "tests/server/server_test_util.h"
 
 namespace pf::server {
@@ -212,6 +214,126 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
   const grpc::Status st = Submit(ValidSpec(), &resp);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_THAT(resp.job_id(), ::testing::MatchesRegex("job-[0-9a-f]{32}"));
+}
+
+// One cap for tasks per job (proto/limits.h), exactly at the boundary: 2^20 tasks validate,
+// 2^20 + 1 = 17 · 61681 are RESOURCE_EXHAUSTED (the plan code used to allow 2^24, the farm 2^20).
+TEST_F(RenderServiceTest, TaskCapIsOneLimitExactlyAtTwoToTheTwenty) {
+  struct OneScene : SceneCatalog {
+    SceneInfo info;
+    std::optional<SceneInfo> FindScene(const std::string& hash) const override {
+      return hash == info.hash ? std::optional<SceneInfo>(info) : std::nullopt;
+    }
+  } catalog;
+  catalog.info.hash = hash_;
+  catalog.info.entry = "cornell-box.json";
+  auto maps_spec = [&](uint32_t maps, uint32_t width) {
+    v1::JobSpec spec = ValidSpec();
+    spec.mutable_camera()->set_width(width);
+    spec.mutable_camera()->set_height(1);
+    spec.mutable_plan()->mutable_multiple_maps()->set_maps(maps);
+    spec.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
+    spec.mutable_plan()->mutable_multiple_maps()->set_tile_size(1);
+    return spec;
+  };
+  ASSERT_EQ(limits::kMaxTasksPerJob, uint64_t(1) << 20);
+  // Exactly the limit: valid (checked without creating a million tasks).
+  const JobConfig at = ValidateJobSpec(maps_spec(65536, 16), catalog);
+  EXPECT_EQ(CountTasks(at.plan, at.camera.width, at.camera.height), limits::kMaxTasksPerJob);
+  // One more: refused, by the validation and by a live SubmitJob, naming the number and the limit.
+  const v1::JobSpec over = maps_spec(61681, 17);
+  try {
+    ValidateJobSpec(over, catalog);
+    ADD_FAILURE() << "2^20 + 1 tasks were accepted";
+  } catch (const LimitError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("spec.plan: 1048577 tasks exceed the limit of 1048576 per job"));
+  }
+  const grpc::Status st = Submit(over);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("1048577 tasks exceed the limit of 1048576"));
+  // The local plan check (pf render) is the same function.
+  EXPECT_EQ(limits::TaskCountProblem(limits::kMaxTasksPerJob), "");
+  EXPECT_NE(limits::TaskCountProblem(limits::kMaxTasksPerJob + 1), "");
+}
+
+// Issue #14: the per-job result bound is 1024 x the scene's brightest emitter (the Cornell box:
+// Le = (17, 12, 4)), measured when the scene is uploaded; unknown (-1, an old database) = none.
+TEST_F(RenderServiceTest, TheResultBoundComesFromTheScenesBrightestEmitter) {
+  struct OneScene : SceneCatalog {
+    SceneInfo info;
+    std::optional<SceneInfo> FindScene(const std::string&) const override { return info; }
+  } catalog;
+  catalog.info.hash = hash_;
+  catalog.info.entry = "cornell-box.json";
+  catalog.info.max_emission = -1;
+  EXPECT_EQ(ValidateJobSpec(ValidSpec(), catalog).max_sample_radiance,
+            std::numeric_limits<double>::infinity());
+  // The uploaded Cornell box, through the coordinator's own catalog.
+  const JobConfig config = ValidateJobSpec(ValidSpec(), live_->coordinator->scenes());
+  EXPECT_EQ(config.max_sample_radiance, 1024.0 * 17.0);
+}
+
+// Issue #14: ListJobs pages (a full listing of 10k jobs was 4.4 MB, over gRPC's default 4 MiB).
+TEST_F(RenderServiceTest, ListJobsPagesInSubmissionOrderAndRefusesForeignTokens) {
+  std::vector<std::string> submitted;
+  for (int i = 0; i < 7; ++i) {
+    v1::SubmitJobResponse resp;
+    ASSERT_TRUE(Submit(ValidSpec(), &resp).ok());
+    submitted.push_back(resp.job_id());
+  }
+  v1::CancelJobRequest cancel;
+  cancel.set_job_id(submitted[4]);  // finished: listed only with include_finished
+  v1::CancelJobResponse cancelled;
+  ASSERT_TRUE(live_->render->CancelJob(Ctx().get(), cancel, &cancelled).ok());
+
+  auto list_all = [&](bool include_finished, uint32_t page_size, std::vector<int>* page_sizes) {
+    std::vector<std::string> ids;
+    v1::ListJobsRequest req;
+    req.set_include_finished(include_finished);
+    req.set_page_size(page_size);
+    for (int guard = 0; guard < 100; ++guard) {
+      v1::ListJobsResponse resp;
+      const grpc::Status st = live_->render->ListJobs(Ctx().get(), req, &resp);
+      EXPECT_TRUE(st.ok()) << st.error_message();
+      page_sizes->push_back(resp.jobs_size());
+      for (const v1::JobStatus& j : resp.jobs()) ids.push_back(j.job_id());
+      if (resp.next_page_token().empty()) break;
+      req.set_page_token(resp.next_page_token());
+    }
+    return ids;
+  };
+  std::vector<int> sizes;
+  EXPECT_EQ(list_all(true, 3, &sizes), submitted);
+  EXPECT_EQ(sizes, (std::vector<int>{3, 3, 1}));
+  sizes.clear();
+  std::vector<std::string> active = submitted;
+  active.erase(active.begin() + 4);
+  EXPECT_EQ(list_all(false, 2, &sizes), active);
+  EXPECT_EQ(sizes, (std::vector<int>{2, 2, 2})) << "the last page is known to be last";
+  sizes.clear();
+  EXPECT_EQ(list_all(true, 0, &sizes), submitted) << "0 = the default page size";
+  EXPECT_EQ(sizes, (std::vector<int>{7}));
+  sizes.clear();
+  EXPECT_EQ(list_all(true, 4000000000u, &sizes), submitted) << "over the cap: capped, not refused";
+  EXPECT_EQ(limits::kMaxListJobsPageSize, 1000u);
+
+  for (const std::string& bad :
+       std::vector<std::string>{"garbage", "p1.", "p1.0", "p1.-3", "p1.12x", "p1.99999999999999999999",
+                                std::string(1000, 'p'), std::string("p1.1\n")}) {
+    v1::ListJobsRequest req;
+    req.set_page_token(bad);
+    v1::ListJobsResponse resp;
+    const grpc::Status st = live_->render->ListJobs(Ctx().get(), req, &resp);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << bad;
+    EXPECT_EQ(st.error_message(), "page_token: not a next_page_token of an earlier ListJobs answer") << bad;
+  }
+  // A token past the last job is a valid, empty last page.
+  v1::ListJobsRequest req;
+  req.set_page_token("p1.999");
+  v1::ListJobsResponse resp;
+  ASSERT_TRUE(live_->render->ListJobs(Ctx().get(), req, &resp).ok());
+  EXPECT_EQ(resp.jobs_size(), 0);
+  EXPECT_EQ(resp.next_page_token(), "");
 }
 
 TEST(SettingsConversion, EveryChapterFourSettingSurvivesTheRoundTrip) {

@@ -125,15 +125,71 @@ TEST_F(SchedulerTest, TooManyFailedAttemptsFailTheJobWithTheReason) {
 TEST_F(SchedulerTest, FailTaskRetriesThenNonRetryableFailsAtOnce) {
   const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
   const Lease a = MustLease();
-  EXPECT_TRUE(scheduler_.Fail(a.lease_id, "out of memory", /*retryable=*/true));
-  EXPECT_FALSE(scheduler_.Fail(a.lease_id, "again", true)) << "the lease is gone";
+  EXPECT_EQ(scheduler_.Fail(a.lease_id, "w1", "out of memory", /*retryable=*/true), FailOutcome::kFailed);
+  EXPECT_EQ(scheduler_.Fail(a.lease_id, "w1", "again", true), FailOutcome::kUnknownLease)
+      << "the lease is gone";
   const Lease b = MustLease();
   EXPECT_EQ(b.attempt, 2u);
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING);
-  EXPECT_TRUE(scheduler_.Fail(b.lease_id, "scene does not load", /*retryable=*/false));
+  EXPECT_EQ(scheduler_.Fail(b.lease_id, "w1", "scene does not load", /*retryable=*/false),
+            FailOutcome::kFailed);
   const v1::JobStatus s = scheduler_.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
   EXPECT_THAT(s.failure_reason(), HasSubstr("worker: scene does not load (not retryable)"));
+}
+
+// Only the lease's holder can fail its task: another worker presenting the lease id (even with
+// retryable = false) and an unknown lease id change nothing; the holder's result still merges.
+TEST_F(SchedulerTest, OnlyTheLeaseHolderCanFailItsTask) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease a = MustLease("holder");
+  EXPECT_EQ(scheduler_.Fail(a.lease_id, "stranger", "kill the job", /*retryable=*/false),
+            FailOutcome::kNotHolder);
+  EXPECT_EQ(scheduler_.Fail(a.lease_id + "x", "holder", "kill the job", false), FailOutcome::kUnknownLease);
+  v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(scheduler_.counters().failed_attempts, 0u);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged) << "the holder's lease is intact";
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// Issue #14: a result above the job's bound (samples × max_sample_radiance) is not merged and
+// the task is re-run; it is merged when a *different* worker delivers the same bytes (rendering is
+// deterministic, so an honest result above the bound reproduces), never on different bytes.
+TEST_F(SchedulerTest, ResultsAboveTheBoundMergeOnlyWhenAnotherWorkerReproducesThem) {
+  JobConfig config = MakeConfig(MultipleMaps(1, 0), 4, 4);
+  config.max_sample_radiance = 10;  // SyntheticResult stays below 2 per sample
+  const std::string id = Submit(config);
+  auto huge = [&](const Lease& lease, float value) {
+    std::vector<float> sums = SyntheticResult(lease.task, 4, 4);
+    sums[5] = value;
+    return sums;
+  };
+  const Lease a = MustLease("w1");
+  CompleteResult r = scheduler_.Complete(a.lease_id, huge(a, 1e8f));
+  EXPECT_EQ(r.status, CompleteStatus::kRejected);
+  EXPECT_THAT(r.reason, HasSubstr("rgb_sums[5] = 1e+08 exceeds the job's bound 10 (1 samples x 10)"));
+  EXPECT_THAT(r.reason, HasSubstr("merged only if another worker reproduces it exactly"));
+  const Lease b = MustLease("w1");
+  EXPECT_EQ(scheduler_.Complete(b.lease_id, huge(b, 1e8f)).status, CompleteStatus::kRejected)
+      << "the same worker cannot confirm its own result";
+  const Lease c = MustLease("w2");
+  EXPECT_EQ(scheduler_.Complete(c.lease_id, huge(c, 2e8f)).status, CompleteStatus::kRejected)
+      << "different bytes confirm nothing";
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_FAILED) << "3 attempts failed";
+
+  // Again with max_attempts room: w2's bytes reproduced by w3 are merged.
+  const std::string id2 = Submit(config);
+  const Lease d = MustLease("w2");
+  EXPECT_EQ(scheduler_.Complete(d.lease_id, huge(d, 2e8f)).status, CompleteStatus::kRejected);
+  const Lease e = MustLease("w3");
+  r = scheduler_.Complete(e.lease_id, huge(e, 2e8f));
+  EXPECT_EQ(r.status, CompleteStatus::kMerged) << r.reason;
+  EXPECT_EQ(scheduler_.Status(id2).state(), v1::JOB_STATE_SUCCEEDED);
+  bool confirmed = false;
+  for (const v1::TaskEvent& ev : scheduler_.activity().Events(id2))
+    confirmed |= ev.kind() == "confirmed" && ev.worker_id() == "w3";
+  EXPECT_TRUE(confirmed);
 }
 
 TEST_F(SchedulerTest, DuplicateResultsAreIgnoredAndMergedOnce) {

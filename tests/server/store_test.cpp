@@ -4,6 +4,7 @@
 // the crash.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <fstream>
 
@@ -133,6 +134,39 @@ TEST(SqliteStore, RowsSurviveReopening) {
   EXPECT_EQ(tasks[1].failures, 2u);
   EXPECT_EQ(tasks[1].last_error, "lease expired");
   EXPECT_EQ(tasks[2].state, TaskState::kDone);
+}
+
+// Issue #14: scenes.max_emission (the result bound's scale) is added to databases made before it
+// existed; their scenes read back as -1 (unknown: jobs of them get no upper bound), new ones
+// keep their value.
+TEST(SqliteStore, DatabasesWithoutMaxEmissionAreMigrated) {
+  TempDir dir;
+  const fs::path file = dir.path() / "coordinator.db";
+  {
+    sqlite3* raw = nullptr;
+    ASSERT_EQ(sqlite3_open(file.c_str(), &raw), SQLITE_OK);
+    const char* old_schema =
+        "CREATE TABLE scenes(hash TEXT PRIMARY KEY, entry TEXT NOT NULL, bytes INTEGER NOT NULL, "
+        "files INTEGER NOT NULL, triangles INTEGER NOT NULL, lights INTEGER NOT NULL, default_camera BLOB "
+        "NOT "
+        "NULL, warnings TEXT NOT NULL, created_unix_ms INTEGER NOT NULL);"
+        "INSERT INTO scenes VALUES('old', 'a.json', 1, 1, 36, 1, x'', '', 5);";
+    EXPECT_EQ(sqlite3_exec(raw, old_schema, nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(raw);
+  }
+  {
+    SqliteStore db(file);
+    SceneRow fresh{"new", "b.json", 1, 1, 36, 1, "", "", 6};
+    fresh.max_emission = 17;
+    db.PutScene(fresh);
+  }
+  SqliteStore db(file);  // a second open must not add the column again
+  const auto scenes = db.LoadScenes();
+  ASSERT_EQ(scenes.size(), 2u);
+  EXPECT_EQ(scenes[0].hash, "old");
+  EXPECT_EQ(scenes[0].max_emission, -1.0);
+  EXPECT_EQ(scenes[1].hash, "new");
+  EXPECT_EQ(scenes[1].max_emission, 17.0);
 }
 
 TEST(Checkpoint, RoundTripAndCorruptionIsDetected) {

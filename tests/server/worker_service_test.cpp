@@ -243,6 +243,7 @@ TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
   ASSERT_TRUE(t.has_value());
   v1::FailTaskRequest fail;
   fail.set_lease_id(t->lease_id());
+  fail.set_worker_id("w1");
   fail.set_reason("disk full\n[error] forged line \x1b[2J");
   fail.set_retryable(false);
   v1::FailTaskResponse failed;
@@ -252,6 +253,43 @@ TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
   EXPECT_THAT(s.failure_reason(), HasSubstr("disk full\\x0a[error] forged line \\x1b[2J"));
   EXPECT_EQ(s.failure_reason().find('\n'), std::string::npos);
   EXPECT_EQ(s.failure_reason().find('\x1b'), std::string::npos);
+}
+
+// Issue #14: FailTask(retryable = false) ends the whole job, so only the worker holding the lease
+// may send it. A stranger with the lease id is PERMISSION_DENIED, an unknown lease NOT_FOUND, a
+// missing worker_id INVALID_ARGUMENT; none of them changes the job, and the holder still merges.
+TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanFailItsTask) {
+  v1::Plan plan;
+  plan.mutable_multiple_maps()->set_maps(1);
+  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
+  std::optional<v1::Task> t = Lease(*live_, 0, "holder");
+  ASSERT_TRUE(t.has_value());
+  auto fail = [&](const std::string& lease_id, const std::string& worker_id) {
+    v1::FailTaskRequest req;
+    req.set_lease_id(lease_id);
+    req.set_worker_id(worker_id);
+    req.set_reason("sabotage");
+    req.set_retryable(false);
+    v1::FailTaskResponse resp;
+    return live_->worker->FailTask(Ctx().get(), req, &resp);
+  };
+  grpc::Status st = fail(t->lease_id(), "stranger");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("held by another worker; nothing was changed"));
+  EXPECT_THAT(st.error_message(), ::testing::Not(HasSubstr("holder"))) << "the holder is not revealed";
+  st = fail(t->lease_id(), "");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("worker_id: required"));
+  st = fail(t->job_id() + ".0.1.0123456789abcdef0123456789abcdef", "holder");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND) << st.error_message();
+  v1::JobStatus s = GetJob(*live_, id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << s.failure_reason();
+  EXPECT_EQ(s.failure_reason(), "");
+  bool merged = false;
+  EXPECT_TRUE(Complete(*live_, *t, SyntheticFor(*t), &merged).ok());
+  EXPECT_TRUE(merged) << "the holder's lease survived the stranger's FailTask";
+  EXPECT_EQ(GetJob(*live_, id).state(), v1::JOB_STATE_SUCCEEDED);
 }
 
 TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
