@@ -41,6 +41,11 @@ std::string Accumulator::ValidateTaskResult(std::span<const float> rgb_sums, uin
 void Accumulator::Add(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples) {
   const std::string problem = ValidateTaskResult(rgb_sums, pixels.size(), samples);
   if (!problem.empty()) throw InputError(problem);
+  AddValidated(pixels, rgb_sums, samples);
+}
+
+void Accumulator::AddValidated(std::span<const uint32_t> pixels, std::span<const float> rgb_sums,
+                               uint32_t samples) {
   const size_t n = size_t(width_) * height_;
   for (uint32_t p : pixels)
     if (p >= n) throw InputError("result: pixel index " + std::to_string(p) + " outside the image");

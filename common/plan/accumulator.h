@@ -32,8 +32,12 @@ class Accumulator {
                                         uint32_t samples);
 
   // Merges one task: rgb_sums holds 3 floats per pixel of `pixels` (same order), each the sum
-  // over `samples` samples. Call ValidateTaskResult first; invalid input throws InputError.
+  // over `samples` samples. Validates first (ValidateTaskResult); invalid input throws InputError.
   void Add(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples);
+  // Add for a result that already passed ValidateTaskResult for these pixels and samples (the
+  // coordinator checks each result once, where it arrives: server/assembly/result_merger.h).
+  // Pixel indices outside the image still throw InputError.
+  void AddValidated(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples);
 
   Image Resolve() const;             // Σ/n per pixel; black where n = 0
   double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps

@@ -27,7 +27,7 @@ std::shared_ptr<const std::vector<uint32_t>> ResultMerger::Permutation(uint64_t 
 
 std::vector<uint32_t> ResultMerger::PixelsOfTask(const TaskSpec& task, int width, int height) {
   const PixelSubset& s = task.pixels;
-  if (s.kind == PixelSubset::Kind::kTile) return PixelsOf(s, width, height);
+  if (s.kind != PixelSubset::Kind::kPermutationStride) return PixelsOf(s, width, height);
   const uint64_t n = uint64_t(width) * uint64_t(height);
   if (s.stride == 0 || s.offset >= n)
     throw InputError("pixels.permutation_stride: offset/stride out of range");
@@ -38,11 +38,18 @@ std::vector<uint32_t> ResultMerger::PixelsOfTask(const TaskSpec& task, int width
   return px;
 }
 
-void ResultMerger::Merge(const TaskSpec& task, std::span<const float> rgb_sums, Accumulator& acc) {
-  const std::string problem = Validate(task, acc.width(), acc.height(), rgb_sums);
-  if (!problem.empty()) throw InputError(problem);
+CheckedResult ResultMerger::Check(const TaskSpec& task, int width, int height,
+                                  std::span<const float> rgb_sums) {
+  CheckedResult out;
+  out.problem = Validate(task, width, height, rgb_sums);
+  if (out.problem.empty()) out.valid = ValidResult(task, rgb_sums);
+  return out;
+}
+
+void ResultMerger::Merge(const ValidResult& result, Accumulator& acc) {
+  const TaskSpec& task = result.task();
   const std::vector<uint32_t> pixels = PixelsOfTask(task, acc.width(), acc.height());
-  acc.Add(pixels, rgb_sums, task.sample_end - task.sample_begin);
+  acc.AddValidated(pixels, result.rgb_sums(), task.sample_end - task.sample_begin);
 }
 
 }  // namespace pf::server

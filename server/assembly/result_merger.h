@@ -1,10 +1,13 @@
 #pragma once
 // Merging task results into a job's Accumulator (docs/design.md, §1 Merge).
 //
-// A result is validated before anything is changed: 3 finite floats per pixel of the task's
-// subset (the count from CountPixels, so a wrong size is caught without materialising pixels),
-// within the accumulator's range (Accumulator::ValidateTaskResult). An invalid result is rejected
-// whole; the scheduler then re-queues the task (attempt + 1) and logs the reason.
+// A result is validated once, where it enters the coordinator (Scheduler::Complete for a
+// worker's result, recovery for a journal entry), before anything is changed: 3 finite floats per
+// pixel of the task's subset (the count from CountPixels, so a wrong size is caught without
+// materialising pixels), within the accumulator's range (Accumulator::ValidateTaskResult). An
+// invalid result is rejected whole; the scheduler then re-queues the task (attempt + 1) and logs
+// the reason. Check returns a ValidResult, the only thing Merge accepts: so a result cannot be
+// merged unchecked, and Merge (and Accumulator::AddValidated under it) do not check it again.
 //
 // Merging needs the subset's pixel indices in subset order (PixelsOf). For skipping tasks those
 // come from a permutation of all W·H pixels shared by the S² tasks of a round; the merger keeps
@@ -15,6 +18,7 @@
 #include <cstdint>
 #include <list>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -24,6 +28,26 @@
 
 namespace pf::server {
 
+// A task result that passed ResultMerger::Validate. Views `task` and the sums: use it while they
+// live (within one Complete or one journal entry).
+class ValidResult {
+ public:
+  const TaskSpec& task() const { return *task_; }
+  std::span<const float> rgb_sums() const { return rgb_sums_; }
+
+ private:
+  friend class ResultMerger;
+  ValidResult(const TaskSpec& task, std::span<const float> rgb_sums) : task_(&task), rgb_sums_(rgb_sums) {}
+  const TaskSpec* task_;
+  std::span<const float> rgb_sums_;
+};
+
+// Check's answer: a ValidResult, or why there is none.
+struct CheckedResult {
+  std::optional<ValidResult> valid;
+  std::string problem;  // set iff !valid
+};
+
 class ResultMerger {
  public:
   explicit ResultMerger(size_t cached_permutations = 4) : capacity_(cached_permutations) {}
@@ -31,8 +55,11 @@ class ResultMerger {
   // "" if `rgb_sums` may be merged for `task` of a width × height job, else the reason.
   static std::string Validate(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums);
 
-  // Validates (throws InputError with the reason) and adds the result to `acc`.
-  void Merge(const TaskSpec& task, std::span<const float> rgb_sums, Accumulator& acc);
+  // Validate, with the result wrapped for Merge when it passes.
+  static CheckedResult Check(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums);
+
+  // Adds a checked result to `acc` (of the job the result was checked for).
+  void Merge(const ValidResult& result, Accumulator& acc);
 
   // The pixel indices of `task`'s subset (cached permutations for skipping).
   std::vector<uint32_t> PixelsOfTask(const TaskSpec& task, int width, int height);

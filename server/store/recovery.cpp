@@ -76,14 +76,14 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
   for (const JournalEntry& e : entries) {
     if (e.task_id >= job.num_tasks() || job.runtime(e.task_id).state == TaskState::kDone) continue;
     const TaskSpec& task = job.task(e.task_id);
-    const std::string problem =
-        ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
-    if (!problem.empty()) {
+    const CheckedResult checked =
+        ResultMerger::Check(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
+    if (!checked.valid) {
       spdlog::error("job {} task {}: journal entry invalid ({}); the task is re-run", job.id(), e.task_id,
-                    problem);
+                    checked.problem);
       continue;
     }
-    merger.Merge(task, e.rgb_sums, job.accumulator());
+    merger.Merge(*checked.valid, job.accumulator());
     job.RecordMerge(e.task_id);
     ++merged;
   }
