@@ -13,12 +13,15 @@
 // of their mean. Kept in double: it only steers progress and the stop rule, never the image.
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "common/image/image.h"
+#include "common/plan/hierarchical.h"
+#include "common/plan/task_plan.h"
 
 namespace pf {
 
@@ -26,6 +29,9 @@ class Accumulator {
  public:
   Accumulator() = default;
   Accumulator(int width, int height);
+  // For a job's plan: the hierarchical plan (§4.5) assembles interpolation and details
+  // (HierarchicalAssembly); every other plan is the weighted mean above.
+  Accumulator(const PlanSpec& plan, int width, int height);
 
   // "" if a task result may be merged, else the reason (wrong size, NaN/Inf, out of range).
   static std::string ValidateTaskResult(std::span<const float> rgb_sums, uint64_t expected_pixels,
@@ -38,9 +44,14 @@ class Accumulator {
   // coordinator checks each result once, where it arrives: server/assembly/result_merger.h).
   // Pixel indices outside the image still throw InputError.
   void AddValidated(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples);
+  // The same for the result of `task` (the hierarchical assembly needs to know which task).
+  void AddValidated(const TaskSpec& task, std::span<const uint32_t> pixels, std::span<const float> rgb_sums,
+                    uint32_t samples);
+  // The hierarchical assembly, if the plan is hierarchical.
+  const HierarchicalAssembly* hierarchy() const { return hierarchy_ ? &*hierarchy_ : nullptr; }
 
   Image Resolve() const;             // Σ/n per pixel; black where n = 0
-  double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps
+  double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps, and for the hierarchical plan
   uint64_t samples_merged() const { return samples_merged_; }
   uint64_t tasks_merged() const { return tasks_merged_; }
   int width() const { return width_; }
@@ -48,7 +59,8 @@ class Accumulator {
 
   // Checkpoint format: little-endian binary with a magic, a version and the sizes.
   std::string Serialize() const;
-  static Accumulator Deserialize(std::string_view bytes);  // throws InputError if malformed
+  // Throws InputError if malformed; a hierarchical checkpoint needs its job's plan.
+  static Accumulator Deserialize(std::string_view bytes, const PlanSpec* plan = nullptr);
 
   bool operator==(const Accumulator& o) const = default;
 
@@ -61,6 +73,7 @@ class Accumulator {
   std::vector<double> lum_sum2_;   // Σ n·m²
   uint64_t samples_merged_ = 0;
   uint64_t tasks_merged_ = 0;
+  std::optional<HierarchicalAssembly> hierarchy_;
 };
 
 }  // namespace pf

@@ -49,7 +49,7 @@ CheckedResult ResultMerger::Check(const TaskSpec& task, int width, int height,
 void ResultMerger::Merge(const ValidResult& result, Accumulator& acc) {
   const TaskSpec& task = result.task();
   const std::vector<uint32_t> pixels = PixelsOfTask(task, acc.width(), acc.height());
-  acc.AddValidated(pixels, result.rgb_sums(), task.sample_end - task.sample_begin);
+  acc.AddValidated(task, pixels, result.rgb_sums(), task.sample_end - task.sample_begin);
 }
 
 }  // namespace pf::server

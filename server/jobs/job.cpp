@@ -11,9 +11,9 @@ Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, 
       config_(std::move(config)),
       tasks_(std::move(tasks)),
       runtime_(tasks_.size()),
-      accumulator_(with_accumulator
-                       ? std::make_unique<Accumulator>(config_->camera.width, config_->camera.height)
-                       : nullptr),
+      accumulator_(with_accumulator ? std::make_unique<Accumulator>(config_->plan, config_->camera.width,
+                                                                    config_->camera.height)
+                                    : nullptr),
       submitted_unix_ms_(submitted_unix_ms) {
   counts_[size_t(TaskState::kQueued)] = tasks_.size();
   for (const TaskSpec& t : tasks_) CountIntoGroup(t);

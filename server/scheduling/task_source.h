@@ -35,6 +35,17 @@ class StaticTaskSource final : public TaskSource {
   std::vector<TaskSpec> TasksAfterMerge(const Job&) override { return {}; }
 };
 
+// The hierarchical plan (§4.5; common/plan/hierarchical.h): once levels 1..l are complete, the
+// localization tasks of level l (HierarchicalTasks). Recomputed only when another level becomes
+// complete, so a merge usually costs nothing here.
+class HierarchicalTaskSource final : public TaskSource {
+ public:
+  std::vector<TaskSpec> TasksAfterMerge(const Job& job) override;
+
+ private:
+  uint32_t complete_levels_ = ~0u;  // levels 1..n complete when last asked
+};
+
 using TaskSourceFactory = std::function<std::unique_ptr<TaskSource>(const JobConfig&)>;
 
 // The source for a job's plan.
