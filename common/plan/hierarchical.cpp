@@ -215,7 +215,8 @@ void ValidateHierarchicalPlan(const PlanSpec& plan, int width, int height) {
                      std::to_string(kMaxMaps) + "); use fewer levels or samples");
 }
 
-std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed) {
+std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, int height,
+                                              uint64_t job_seed) {
   ValidateHierarchicalPlan(plan, width, height);
   const Hierarchy h(width, height, plan.levels, plan.dims);
   const HierarchySchedule s = MakeHierarchySchedule(plan);
@@ -304,7 +305,8 @@ bool HierarchicalAssembly::Add(const TaskSpec& task, std::span<const uint32_t> p
   if (!detail) {
     for (size_t i = 0; i < pixels.size(); ++i) {
       for (int c = 0; c < 3; ++c)
-        direct_[3 * size_t(pixels[i]) + c] += int64_t(std::llround(double(rgb_sums[3 * i + c]) * kFixedScale));
+        direct_[3 * size_t(pixels[i]) + c] +=
+            int64_t(std::llround(double(rgb_sums[3 * i + c]) * kFixedScale));
       direct_samples_[pixels[i]] += samples;
     }
     if (task.pixels.kind == PixelSubset::Kind::kHierarchyLevel) ++level_tasks_merged_[0];
@@ -453,8 +455,9 @@ void HierarchicalAssembly::DeserializeFrom(ByteReader& r) {
 
 bool HierarchicalAssembly::operator==(const HierarchicalAssembly& o) const {
   return direct_ == o.direct_ && direct_samples_ == o.direct_samples_ && detail_ == o.detail_ &&
-         interp_ == o.interp_ && detail2_ == o.detail2_ && detail_maps_ == o.detail_maps_ && merged_ == o.merged_ &&
-         samples_merged_ == o.samples_merged_ && level_tasks_merged_ == o.level_tasks_merged_;
+         interp_ == o.interp_ && detail2_ == o.detail2_ && detail_maps_ == o.detail_maps_ &&
+         merged_ == o.merged_ && samples_merged_ == o.samples_merged_ &&
+         level_tasks_merged_ == o.level_tasks_merged_;
 }
 
 }  // namespace pf

@@ -100,9 +100,9 @@ class Hierarchy {
 
 struct HierarchyStats {
   uint32_t nmax = 0;
-  double navg = 0;                    // samples per pixel (its own samples; localization excluded)
+  double navg = 0;                   // samples per pixel (its own samples; localization excluded)
   double evaluations_per_pixel = 0;  // rendered pixel samples per pixel, parents included
-  std::vector<uint64_t> points;       // per level
+  std::vector<uint64_t> points;      // per level
 };
 HierarchyStats ComputeHierarchyStats(const PlanSpec& plan, int width, int height);
 
@@ -142,7 +142,7 @@ class HierarchicalAssembly {
   std::vector<uint64_t> level_tasks_merged_;  // … of which merged
   std::vector<int64_t> direct_;               // 3 per pixel, fixed point
   std::vector<uint32_t> direct_samples_;
-  std::vector<int64_t> detail_;  // 3 per pixel: Σ_j d_j, fixed point
+  std::vector<int64_t> detail_;   // 3 per pixel: Σ_j d_j, fixed point
   std::vector<int64_t> interp_;   // per pixel: Σ_j luminance(Σ w f_j(q)), fixed point
   std::vector<int64_t> detail2_;  // per pixel: Σ_j luminance(d_j)², fixed point
   std::vector<uint32_t> detail_maps_;

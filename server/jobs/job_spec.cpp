@@ -150,7 +150,8 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
 std::vector<TaskSpec> ScheduledTasks(const JobConfig& config) {
   std::vector<TaskSpec> tasks =
       ExpandPlan(config.plan, config.camera.width, config.camera.height, config.seed);
-  const uint32_t rounds = config.ScheduledRounds();
+  // Rounds are skipping's; a hierarchical task's `round` is its level, all of which are scheduled.
+  const uint32_t rounds = config.plan.kind == PlanKind::kHierarchical ? ~0u : config.ScheduledRounds();
   tasks.erase(
       std::remove_if(tasks.begin(), tasks.end(), [&](const TaskSpec& t) { return t.round >= rounds; }),
       tasks.end());

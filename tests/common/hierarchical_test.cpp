@@ -40,11 +40,12 @@ double Gaussian(uint64_t key) {
   return std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2);
 }
 
-std::vector<float> RenderTask(const TaskSpec& t, const std::vector<uint32_t>& pixels, int width, const Render& f,
-                              uint64_t trial) {
+std::vector<float> RenderTask(const TaskSpec& t, const std::vector<uint32_t>& pixels, int width,
+                              const Render& f, uint64_t trial) {
   std::vector<float> sums(pixels.size() * 3);
   for (size_t i = 0; i < pixels.size(); ++i) {
-    const double v = f(pixels[i] % width, pixels[i] / width, t.map_index, trial) * (t.sample_end - t.sample_begin);
+    const double v =
+        f(pixels[i] % width, pixels[i] / width, t.map_index, trial) * (t.sample_end - t.sample_begin);
     for (int c = 0; c < 3; ++c) sums[3 * i + c] = float(v);
   }
   return sums;
@@ -231,7 +232,8 @@ TEST(Hierarchical, LocalizationFiresAtAStepAndNowhereOnARamp) {
       return g(x) + 0.02 * Gaussian(HashKey(map, y, x));
     };
   };
-  const HierarchicalAssembly ramp = RunPlan(plan, w, h, noisy([](uint32_t x) { return 0.2 + 0.6 * x / 64.0; }));
+  const HierarchicalAssembly ramp =
+      RunPlan(plan, w, h, noisy([](uint32_t x) { return 0.2 + 0.6 * x / 64.0; }));
   for (uint32_t l = 1; l <= 5; ++l) {
     EXPECT_TRUE(ramp.LevelComplete(l));
     EXPECT_TRUE(ramp.Localized(l).empty()) << "level " << l;
@@ -249,8 +251,9 @@ TEST(Hierarchical, LocalizationFiresAtAStepAndNowhereOnARamp) {
   for (uint32_t x : localized_x) EXPECT_TRUE(x > 32 && x < 64) << x;
   // Localization tasks exist (level-0 maps, explicit pixel lists), and at the step the image is
   // right to within the noise of n0 direct samples.
-  const bool has_list = std::any_of(step_tasks.begin(), step_tasks.end(),
-                                    [](const TaskSpec& t) { return t.pixels.kind == PixelSubset::Kind::kList; });
+  const bool has_list = std::any_of(step_tasks.begin(), step_tasks.end(), [](const TaskSpec& t) {
+    return t.pixels.kind == PixelSubset::Kind::kList;
+  });
   EXPECT_TRUE(has_list);
   const Image img = step.Resolve();
   for (uint32_t y = 0; y < uint32_t(h); ++y) {
