@@ -135,6 +135,10 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
   job.stop.target_noise_rms = spec.stop().target_noise_rms();
   // The noise estimate compares independent maps per pixel; a hierarchical pixel's value mixes
   // its parents' maps with its own details, which that estimate does not model.
+  if (job.plan.kind == PlanKind::kHierarchical && job.stop.max_rounds > 0)
+    throw InputError(
+        "spec.stop.max_rounds: the hierarchical plan has no rounds (its levels all belong to one image); use "
+        "time_budget_seconds");
   if (job.plan.kind == PlanKind::kHierarchical && job.stop.target_noise_rms > 0)
     throw InputError(
         "spec.stop.target_noise_rms: not available for the hierarchical plan (no noise estimate); use "
