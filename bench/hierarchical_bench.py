@@ -2,7 +2,7 @@
 """The thesis's hierarchical-photon-map table (Wald 1999, section 4.5) re-measured.
 
 513x513 (one scanline segment of 2^9 + 1 pixels), 10k photons per map, the 1-D hierarchy with
-L = 9, against multiple maps. For each of the thesis's navg (2.80, 3.75, 8.39) the schedule
+L = 9 (--dims 2: the 2-D hierarchy, one 513x513 cell), against multiple maps. For each of the thesis's navg (2.80, 3.75, 8.39) the schedule
 (n0, min_samples, decay) whose navg is closest (then Nmax closest to the thesis's 38 / 43 / 98) is
 rendered with `pf render --plan hierarchical --local-only`, with and without localization, and
 compared with multiple maps at
@@ -60,21 +60,24 @@ def schedule(n0, nmin, decay, levels):
     return n
 
 
-def stats_1d(n, levels):
-    """navg and evaluations per pixel of the 1-D hierarchy on a 2^L + 1 scanline."""
-    width = 2**levels + 1
-    samples = 2 * n[0] + sum(2 ** (l - 1) * n[l] for l in range(1, levels + 1))
-    evaluations = 2 * n[0] + sum((2**l + 1) * n[l] for l in range(1, levels + 1))
-    return samples / width, evaluations / width, sum(n)
+def stats(n, levels, dims):
+    """navg and evaluations per pixel of the hierarchy on (2^L + 1)^dims pixels (one segment):
+    level l has the grid of spacing 2^(L-l) minus the coarser grid; a detail task of level l
+    renders that whole grid (its points and their parents)."""
+    grid = [(2**l + 1) ** dims for l in range(levels + 1)]
+    points = [grid[0]] + [grid[l] - grid[l - 1] for l in range(1, levels + 1)]
+    samples = sum(p * m for p, m in zip(points, n))
+    evaluations = n[0] * grid[0] + sum(grid[l] * n[l] for l in range(1, levels + 1))
+    return samples / grid[-1], evaluations / grid[-1], sum(n)
 
 
-def choose(target_navg, target_nmax, levels):
+def choose(target_navg, target_nmax, levels, dims):
     best = None
     for n0 in range(1, 129):
         for nmin in range(1, min(n0, 12) + 1):
             for decay in (1.25, 1.5, 2.0, 3.0, 4.0):
                 n = schedule(n0, nmin, decay, levels)
-                navg, evals, nmax = stats_1d(n, levels)
+                navg, evals, nmax = stats(n, levels, dims)
                 key = (round(abs(navg - target_navg), 2), abs(nmax - target_nmax))
                 if best is None or key < best[0]:
                     best = (key, n0, nmin, decay, n, navg, evals, nmax)
@@ -90,6 +93,8 @@ def main():
     ap.add_argument("--k", type=int, default=50)
     ap.add_argument("--reference-maps", type=int, default=100)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--dims", type=int, default=1, choices=(1, 2), help="1-D (the thesis's table) or 2-D hierarchy")
+    ap.add_argument("--reference", help="reuse this reference EXR (made by an earlier run with the same settings)")
     ap.add_argument("--out", default=str(ROOT / "docs/results"))
     args = ap.parse_args()
     levels = int(round(math.log2(args.res - 1)))
@@ -106,18 +111,22 @@ def main():
         run(common + plan_flags + ["--seed", str(seed), "-o", str(out)])
         return out, time.monotonic() - t0
 
-    print(f"reference: {args.reference_maps} maps x {args.photons} photons ...", flush=True)
-    ref, ref_seconds = render("reference", ["--plan", "multiple-maps", "--maps", str(args.reference_maps), "--tile",
-                                            "64"], 999)
+    if args.reference:
+        ref, ref_seconds = pathlib.Path(args.reference).resolve(), 0.0
+    else:
+        print(f"reference: {args.reference_maps} maps x {args.photons} photons ...", flush=True)
+        ref, ref_seconds = render("reference", ["--plan", "multiple-maps", "--maps", str(args.reference_maps),
+                                                "--tile", "64"], 999)
 
     def judge(exr):
         d = json.loads(run([args.pf, "diff", str(exr), str(ref), "--json", "--scene", scene]).stdout)
         return {k: d[k] for k in ("rmse", "rmse_masked", "rmse_lowfreq", "rmse_display")}
 
     rows = []
+    # Nmax of the thesis's 1-D schedules; in 2-D the same n_l give a different navg.
     for navg_t, nmax_t, rms_h, maps_t, rms_mm in THESIS:
-        n0, nmin, decay, n, navg, evals, nmax = choose(navg_t, nmax_t, levels)
-        hflags = ["--plan", "hierarchical", "--dims", "1", "--levels", str(levels), "--base-samples", str(n0),
+        n0, nmin, decay, n, navg, evals, nmax = choose(navg_t, nmax_t, levels, args.dims)
+        hflags = ["--plan", "hierarchical", "--dims", str(args.dims), "--levels", str(levels), "--base-samples", str(n0),
                   "--min-samples", str(nmin), "--decay", str(decay), "--tile", "0"]
         entries = []
         for label, extra in (("hierarchical", []), ("hierarchical, no localization",
@@ -143,17 +152,18 @@ def main():
     result = {"scene": args.scene, "res": args.res, "photons": args.photons, "k": args.k,
               "reference_maps": args.reference_maps, "reference_seconds": ref_seconds, "seed": args.seed,
               "rows": rows, "reference_vs_itself": ref_self}
-    (out / "hierarchical.json").write_text(json.dumps(result, indent=2) + "\n")
+    stem = "hierarchical" if args.dims == 1 else "hierarchical-2d"
+    (out / f"{stem}.json").write_text(json.dumps(result, indent=2) + "\n")
     lines = [
         "# Hierarchical photon map vs multiple maps (Wald 1999, §4.5 table), re-measured",
         "",
-        f"{args.scene}, {args.res}×{args.res}, {args.photons} photons per map, k = {args.k}, 1-D hierarchy "
+        f"{args.scene}, {args.res}×{args.res}, {args.photons} photons per map, k = {args.k}, {args.dims}-D hierarchy "
         f"L = {levels}, seed {args.seed}, one run each (the machine is shared: times are indicative). "
         f"Reference: the mean of {args.reference_maps} independent maps of the same size (same bias, so the "
         "RMSE is the plans' noise, plus the reference's own ≈ 1/√"
         f"{args.reference_maps} of one map's). Reproduce: `bench/hierarchical_bench.py --res {args.res} "
-        f"--photons {args.photons} --reference-maps {args.reference_maps}` (writes this file and "
-        "hierarchical.json).",
+        f"--photons {args.photons} --reference-maps {args.reference_maps} --dims {args.dims}` (writes this "
+        f"file and {stem}.json).",
         "",
         "navg = samples per pixel (the thesis's cost measure); eval/px = rendered pixel samples per pixel, "
         "the parents' evaluations that the details need included (the real rendering cost).",
@@ -171,8 +181,8 @@ def main():
                          f"{e['nmax']} | {e['rmse']:.4f} | {e['rmse_masked']:.4f} | {e['rmse_lowfreq']:.4f} | "
                          f"{e['seconds']:.1f} |")
             head = ""
-    (out / "hierarchical.md").write_text("\n".join(lines) + "\n")
-    print(f"wrote {out / 'hierarchical.md'} and {out / 'hierarchical.json'}")
+    (out / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {out / (stem + '.md')} and {out / (stem + '.json')}")
 
 
 if __name__ == "__main__":

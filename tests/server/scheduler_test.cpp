@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "common/plan/hierarchical.h"
 #include "server/errors.h"
 #include "server/scheduling/clock.h"
 #include "tests/server/server_test_util.h"
@@ -524,6 +525,72 @@ TEST(SchedulerTaskSource, NoTasksAreCreatedAfterTheTimeBudget) {
             CompleteStatus::kMerged);
   EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(scheduler.Status(id).tasks_done(), 1u);
+  EXPECT_FALSE(scheduler.TryLease({"w", {}}).has_value());
+}
+
+}  // namespace
+}  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+PlanSpec SmallHierarchy() {
+  PlanSpec p;
+  p.kind = PlanKind::kHierarchical;
+  p.levels = 2;
+  p.dims = 2;
+  p.base_samples = 2;
+  p.min_samples = 1;
+  p.localize_threshold = 0.5;  // the synthetic results' noise localizes many pixels
+  p.localize_contrast = 0;
+  return p;
+}
+
+// The hierarchical plan through the scheduler (its own task source): localization tasks appear
+// after the levels complete, the job ends after them, and a snapshot shows the assembled image.
+TEST(SchedulerTaskSource, HierarchicalJobCreatesLocalizationTasksFromItsResults) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{});
+  std::unique_ptr<Job> job = scheduler.PrepareJob(testing::MakeConfig(SmallHierarchy(), 12, 10));
+  const std::string id = job->id();
+  const uint64_t static_tasks = job->num_tasks();
+  scheduler.AddJob(std::move(job));
+  EXPECT_EQ(scheduler.Status(id).tasks_total(), static_tasks);
+  HierarchicalAssembly expected(SmallHierarchy(), 12, 10);
+  while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
+    const std::vector<float> sums = SyntheticResult(lease->task, 12, 10);
+    expected.Add(lease->task, PixelsOf(lease->task.pixels, 12, 10), sums, 1);
+    ASSERT_EQ(scheduler.Complete(lease->lease_id, sums).status, CompleteStatus::kMerged);
+  }
+  const v1::JobStatus s = scheduler.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_GT(s.tasks_total(), static_tasks);
+  EXPECT_EQ(s.tasks_done(), s.tasks_total());
+  const JobSnapshot snap = scheduler.Snapshot(id, true);
+  ASSERT_TRUE(snap.image.has_value());
+  const Image want = expected.Resolve();
+  for (size_t p = 0; p < want.size(); ++p) ASSERT_TRUE(snap.image->image[p] == want[p]) << p;
+}
+
+TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{});
+  std::unique_ptr<Job> job = scheduler.PrepareJob(
+      testing::MakeConfig(SmallHierarchy(), 12, 10, 0, StopRule{.time_budget_seconds = 5}));
+  const std::string id = job->id();
+  const uint64_t static_tasks = job->num_tasks();
+  scheduler.AddJob(std::move(job));
+  std::vector<Lease> leases;
+  while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) leases.push_back(*lease);
+  ASSERT_EQ(leases.size(), static_tasks);
+  clock.Advance(6);
+  scheduler.Tick();
+  for (const Lease& l : leases)
+    ASSERT_EQ(scheduler.Complete(l.lease_id, SyntheticResult(l.task, 12, 10)).status,
+              CompleteStatus::kMerged);
+  const v1::JobStatus s = scheduler.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_total(), static_tasks) << "no localization after the budget";
   EXPECT_FALSE(scheduler.TryLease({"w", {}}).has_value());
 }
 
