@@ -119,6 +119,9 @@ TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
   coordinator->process().Signal(SIGKILL);
   coordinator->process().Wait(5);
   coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args, port);
+  EXPECT_FALSE(Grep(coordinator->process().log(), "resumed \\(RUNNING\\)").empty())
+      << "the crash came after the job ended\n"
+      << ReadFile(coordinator->process().log());
 
   FarmClient client(address, "");
   v1::JobStatus st;
