@@ -21,6 +21,7 @@
 #include "common/image/exr_io.h"
 #include "common/image/image_diff.h"
 #include "common/image/png_io.h"
+#include "common/plan/hierarchical.h"
 #include "common/plan/task_executor.h"
 #include "common/render/camera.h"
 #include "common/render/emitter_coverage.h"
@@ -194,6 +195,13 @@ int RunLocalPlan(const RenderArgs& a) {
     total_samples += n * (t.sample_end - t.sample_begin);
   }
   spdlog::info("plan {}: {} tasks, seed {}", DescribePlan(plan), tasks.size(), a.seed);
+  if (plan.kind == PlanKind::kHierarchical) {
+    const HierarchyStats st = ComputeHierarchyStats(plan, camera.width, camera.height);
+    spdlog::info(
+        "hierarchical: Nmax {} maps, navg {:.3f} samples per pixel, {:.3f} evaluations per pixel "
+        "(+ localization)",
+        st.nmax, st.navg, st.evaluations_per_pixel);
+  }
 
   const SceneRuntime runtime(std::move(job.scene));
   const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -235,12 +235,30 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
          "--plan", a.plan,
          "How the image is split into tasks (Wald 1999, 4.4): multiple-maps (--maps independent maps "
          "over --tile tiles, averaged), maps-in-turn (sample i from map i), skipping (per round a "
-         "seeded pixel permutation, stride^2 tasks each with its own map)")
-      ->check(CLI::IsMember({"multiple-maps", "maps-in-turn", "skipping"}));
+         "seeded pixel permutation, stride^2 tasks each with its own map), hierarchical (4.5: "
+         "multilevel sampling, every sample of a pixel from its own map, --levels/--dims/--base-samples/"
+         "--min-samples/--decay/--localize-*; --tile = rows per task)")
+      ->check(CLI::IsMember({"multiple-maps", "maps-in-turn", "skipping", "hierarchical"}));
   app->add_option("--maps", a.maps, "multiple-maps: number of independent maps")->capture_default_str();
   app->add_option("--stride", a.stride, "skipping: S (S^2 tasks per round)")->capture_default_str();
   app->add_option("--rounds", a.rounds, "skipping: rounds")->capture_default_str();
   app->add_option("--tile", a.tile, "multiple-maps, maps-in-turn: tile side in pixels (0 = whole image)")
+      ->capture_default_str();
+  app->add_option("--levels", a.levels, "hierarchical: L, level-0 points every 2^L pixels (1..16)")
+      ->capture_default_str();
+  app->add_option("--dims", a.dims, "hierarchical: 1 = scanlines (the thesis's version), 2 = image plane")
+      ->capture_default_str();
+  app->add_option("--base-samples", a.base_samples, "hierarchical: n0, maps (samples) of a level-0 point")
+      ->capture_default_str();
+  app->add_option("--min-samples", a.min_samples, "hierarchical: n_l never falls below this")
+      ->capture_default_str();
+  app->add_option("--decay", a.decay, "hierarchical: n_l = max(min-samples, ceil(n0 / decay^l))")
+      ->capture_default_str();
+  app->add_option("--localize-threshold", a.localize_threshold,
+                  "hierarchical: tau; resample a pixel directly if |detail| > tau x the level's noise ...")
+      ->capture_default_str();
+  app->add_option("--localize-contrast", a.localize_contrast,
+                  "hierarchical: ... and > kappa x |interpolation| (kappa = this)")
       ->capture_default_str();
   app->add_option("--max-rounds", a.max_rounds, "Stop rule: stop after this many rounds (0 = all)");
   app->add_option("--time-budget", a.time_budget,
@@ -296,6 +314,17 @@ PreparedJob PrepareJob(const RenderArgs& a) {
   } else if (plan == "maps-in-turn") {
     pl->mutable_maps_in_turn()->set_samples_per_pixel(a.spp);
     pl->mutable_maps_in_turn()->set_tile_size(a.tile);
+  } else if (plan == "hierarchical") {
+    v1::Hierarchical* h = pl->mutable_hierarchical();
+    h->set_levels(a.levels);
+    h->set_dims(a.dims);
+    h->set_base_samples(a.base_samples);
+    h->set_min_samples(a.min_samples);
+    h->set_decay(a.decay);
+    h->set_localize_threshold(a.localize_threshold);
+    h->set_localize_contrast(a.localize_contrast);
+    h->set_samples_per_pixel(a.spp);
+    h->set_rows_per_task(a.tile);
   } else {
     pl->mutable_skipping()->set_stride(a.stride);
     pl->mutable_skipping()->set_rounds(a.rounds);

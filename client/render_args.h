@@ -58,6 +58,14 @@ struct RenderArgs {
   uint32_t stride = 2;
   uint32_t rounds = 1;
   uint32_t tile = 64;
+  // Hierarchical plan (Wald 1999, 4.5; common/plan/hierarchical.h).
+  uint32_t levels = 4;
+  uint32_t dims = 2;
+  uint32_t base_samples = 8;
+  uint32_t min_samples = 1;
+  double decay = 2;
+  double localize_threshold = 4;
+  double localize_contrast = 0.25;
   // Stop rule and scheduling (farm).
   uint32_t max_rounds = 0;
   double time_budget = 0;

@@ -296,8 +296,24 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
       RequireAtLeastOne(out.rounds, field + ".skipping.rounds");
       check_spp(out.samples_per_pixel, field + ".skipping.samples_per_pixel");
       break;
+    case v1::Plan::kHierarchical: {
+      const v1::Hierarchical& h = p.hierarchical();
+      out.kind = PlanKind::kHierarchical;
+      out.levels = h.levels();
+      out.dims = h.dims();
+      out.base_samples = h.base_samples();
+      out.min_samples = h.min_samples();
+      out.decay = h.decay();
+      out.localize_threshold = h.localize_threshold();
+      out.localize_contrast = h.localize_contrast();
+      out.samples_per_pixel = h.samples_per_pixel();
+      out.tile_size = h.rows_per_task();
+      check_spp(out.samples_per_pixel, field + ".hierarchical.samples_per_pixel");
+      // The rest (ranges, map count) is checked by ValidatePlan with the image size.
+      break;
+    }
     default:
-      throw InputError(field + ": one of multiple_maps, maps_in_turn, skipping is required");
+      throw InputError(field + ": one of multiple_maps, maps_in_turn, skipping, hierarchical is required");
   }
   return out;
 }
@@ -324,6 +340,19 @@ void PlanToProto(const PlanSpec& p, v1::Plan* out) {
       m->set_samples_per_pixel(p.samples_per_pixel);
       break;
     }
+    case PlanKind::kHierarchical: {
+      auto* m = out->mutable_hierarchical();
+      m->set_levels(p.levels);
+      m->set_dims(p.dims);
+      m->set_base_samples(p.base_samples);
+      m->set_min_samples(p.min_samples);
+      m->set_decay(p.decay);
+      m->set_localize_threshold(p.localize_threshold);
+      m->set_localize_contrast(p.localize_contrast);
+      m->set_samples_per_pixel(p.samples_per_pixel);
+      m->set_rows_per_task(p.tile_size);
+      break;
+    }
   }
 }
 
@@ -343,8 +372,20 @@ PixelSubset PixelSubsetFromProto(const v1::PixelSubset& p, const std::string& fi
       out.offset = p.permutation_stride().offset();
       out.stride = p.permutation_stride().stride();
       break;
+    case v1::PixelSubset::kHierarchyLevel:
+      out.kind = PixelSubset::Kind::kHierarchyLevel;
+      out.level = p.hierarchy_level().level();
+      out.levels = p.hierarchy_level().levels();
+      out.dims = p.hierarchy_level().dims();
+      out.y0 = p.hierarchy_level().y0();
+      out.y1 = p.hierarchy_level().y1();
+      break;
+    case v1::PixelSubset::kList:
+      out.kind = PixelSubset::Kind::kList;
+      out.list.assign(p.list().indices().begin(), p.list().indices().end());
+      break;
     default:
-      throw InputError(field + ": tile or permutation_stride is required");
+      throw InputError(field + ": tile, permutation_stride, hierarchy_level or list is required");
   }
   return out;
 }
@@ -356,6 +397,15 @@ void PixelSubsetToProto(const PixelSubset& p, v1::PixelSubset* out) {
     t->set_y0(p.y0);
     t->set_x1(p.x1);
     t->set_y1(p.y1);
+  } else if (p.kind == PixelSubset::Kind::kHierarchyLevel) {
+    auto* h = out->mutable_hierarchy_level();
+    h->set_level(p.level);
+    h->set_levels(p.levels);
+    h->set_dims(p.dims);
+    h->set_y0(p.y0);
+    h->set_y1(p.y1);
+  } else if (p.kind == PixelSubset::Kind::kList) {
+    out->mutable_list()->mutable_indices()->Add(p.list.begin(), p.list.end());
   } else {
     auto* s = out->mutable_permutation_stride();
     s->set_permutation_seed(p.permutation_seed);

@@ -13,6 +13,7 @@ namespace {
 constexpr double kFixedScale = 4294967296.0;  // 2^32
 constexpr double kMaxTaskSum = 1073741824.0;  // 2^30
 constexpr char kMagic[8] = {'P', 'F', 'A', 'C', 'C', 'U', 'M', '1'};
+constexpr char kHierarchicalMagic[8] = {'P', 'F', 'A', 'C', 'C', 'H', 'L', '1'};
 
 }  // namespace
 
@@ -24,6 +25,25 @@ Accumulator::Accumulator(int width, int height)
       maps_(size_t(width) * height, 0),
       lum_sum_(size_t(width) * height, 0.0),
       lum_sum2_(size_t(width) * height, 0.0) {}
+
+Accumulator::Accumulator(const PlanSpec& plan, int width, int height) {
+  if (plan.kind != PlanKind::kHierarchical) {
+    *this = Accumulator(width, height);
+    return;
+  }
+  width_ = width;
+  height_ = height;
+  hierarchy_.emplace(plan, width, height);
+}
+
+void Accumulator::AddValidated(const TaskSpec& task, std::span<const uint32_t> pixels,
+                               std::span<const float> rgb_sums, uint32_t samples) {
+  if (!hierarchy_) return AddValidated(pixels, rgb_sums, samples);
+  if (hierarchy_->Add(task, pixels, rgb_sums, samples)) {
+    samples_merged_ += uint64_t(pixels.size()) * samples;
+    ++tasks_merged_;
+  }
+}
 
 ResultCheck Accumulator::ValidateTaskResult(std::span<const float> rgb_sums, uint64_t expected_pixels,
                                             uint32_t samples, double max_sample_radiance) {
@@ -59,6 +79,11 @@ ResultCheck Accumulator::ValidateTaskResult(std::span<const float> rgb_sums, uin
 void Accumulator::Add(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples) {
   const ResultCheck check = ValidateTaskResult(rgb_sums, pixels.size(), samples);
   if (!check.ok()) throw InputError(check.reason);
+  AddValidated(pixels, rgb_sums, samples);
+}
+
+void Accumulator::AddValidated(std::span<const uint32_t> pixels, std::span<const float> rgb_sums,
+                               uint32_t samples) {
   const size_t n = size_t(width_) * height_;
   for (uint32_t p : pixels)
     if (p >= n) throw InputError("result: pixel index " + std::to_string(p) + " outside the image");
@@ -77,6 +102,7 @@ void Accumulator::Add(std::span<const uint32_t> pixels, std::span<const float> r
 }
 
 Image Accumulator::Resolve() const {
+  if (hierarchy_) return hierarchy_->Resolve();
   Image img(width_, height_);
   for (size_t p = 0; p < img.size(); ++p) {
     if (samples_[p] == 0) continue;
@@ -88,6 +114,7 @@ Image Accumulator::Resolve() const {
 }
 
 double Accumulator::EstimatedNoiseRms() const {
+  if (hierarchy_) return -1;
   double sum_var = 0;
   size_t covered = 0;
   for (size_t p = 0; p < samples_.size(); ++p) {
@@ -104,6 +131,16 @@ double Accumulator::EstimatedNoiseRms() const {
 
 std::string Accumulator::Serialize() const {
   std::string out;
+  if (hierarchy_) {
+    ByteWriter w(out);
+    w.PutBytes(std::string_view(kHierarchicalMagic, sizeof(kHierarchicalMagic)));
+    w.Put<int32_t>(width_);
+    w.Put<int32_t>(height_);
+    w.Put<uint64_t>(samples_merged_);
+    w.Put<uint64_t>(tasks_merged_);
+    hierarchy_->SerializeTo(out);
+    return out;
+  }
   out.reserve(sizeof(kMagic) + 24 + sums_.size() * 8 + samples_.size() * 24);
   ByteWriter w(out);
   w.PutBytes(std::string_view(kMagic, sizeof(kMagic)));
@@ -119,7 +156,25 @@ std::string Accumulator::Serialize() const {
   return out;
 }
 
-Accumulator Accumulator::Deserialize(std::string_view in) {
+Accumulator Accumulator::Deserialize(std::string_view in, const PlanSpec* plan) {
+  if (in.size() >= sizeof(kHierarchicalMagic) &&
+      std::memcmp(in.data(), kHierarchicalMagic, sizeof(kHierarchicalMagic)) == 0) {
+    if (!plan || plan->kind != PlanKind::kHierarchical)
+      throw InputError("accumulator checkpoint: hierarchical, but the job's plan is not");
+    ByteReader r(in.substr(sizeof(kHierarchicalMagic)), "accumulator checkpoint");
+    const int32_t w = r.Get<int32_t>(), h = r.Get<int32_t>();
+    if (w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28))
+      throw InputError("accumulator checkpoint: bad size");
+    Accumulator a(*plan, w, h);
+    a.samples_merged_ = r.Get<uint64_t>();
+    a.tasks_merged_ = r.Get<uint64_t>();
+    a.hierarchy_->DeserializeFrom(r);
+    if (a.hierarchy_->tasks_merged() != a.tasks_merged_)
+      throw InputError("accumulator checkpoint: task counts disagree");
+    return a;
+  }
+  if (plan && plan->kind == PlanKind::kHierarchical)
+    throw InputError("accumulator checkpoint: not hierarchical, but the job's plan is");
   if (in.size() < sizeof(kMagic) || std::memcmp(in.data(), kMagic, sizeof(kMagic)) != 0)
     throw InputError("accumulator checkpoint: bad magic");
   ByteReader r(in.substr(sizeof(kMagic)), "accumulator checkpoint");

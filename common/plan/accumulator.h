@@ -14,12 +14,15 @@
 
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "common/image/image.h"
+#include "common/plan/hierarchical.h"
+#include "common/plan/task_plan.h"
 
 namespace pf {
 
@@ -39,6 +42,9 @@ class Accumulator {
  public:
   Accumulator() = default;
   Accumulator(int width, int height);
+  // For a job's plan: the hierarchical plan (§4.5) assembles interpolation and details
+  // (HierarchicalAssembly); every other plan is the weighted mean above.
+  Accumulator(const PlanSpec& plan, int width, int height);
 
   // Checks a task result before anything is merged: 3 values per pixel, each finite and ≥ 0
   // (every estimator of the renderer is a sum of products of non-negative terms: emission,
@@ -50,11 +56,20 @@ class Accumulator {
                                         double max_sample_radiance = std::numeric_limits<double>::infinity());
 
   // Merges one task: rgb_sums holds 3 floats per pixel of `pixels` (same order), each the sum
-  // over `samples` samples. Call ValidateTaskResult first; invalid input throws InputError.
+  // over `samples` samples. Validates first (ValidateTaskResult); invalid input throws InputError.
   void Add(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples);
+  // Add for a result that already passed ValidateTaskResult for these pixels and samples (the
+  // coordinator checks each result once, where it arrives: server/assembly/result_merger.h).
+  // Pixel indices outside the image still throw InputError.
+  void AddValidated(std::span<const uint32_t> pixels, std::span<const float> rgb_sums, uint32_t samples);
+  // The same for the result of `task` (the hierarchical assembly needs to know which task).
+  void AddValidated(const TaskSpec& task, std::span<const uint32_t> pixels, std::span<const float> rgb_sums,
+                    uint32_t samples);
+  // The hierarchical assembly, if the plan is hierarchical.
+  const HierarchicalAssembly* hierarchy() const { return hierarchy_ ? &*hierarchy_ : nullptr; }
 
   Image Resolve() const;             // Σ/n per pixel; black where n = 0
-  double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps
+  double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps, and for the hierarchical plan
   uint64_t samples_merged() const { return samples_merged_; }
   uint64_t tasks_merged() const { return tasks_merged_; }
   int width() const { return width_; }
@@ -62,7 +77,8 @@ class Accumulator {
 
   // Checkpoint format: little-endian binary with a magic, a version and the sizes.
   std::string Serialize() const;
-  static Accumulator Deserialize(std::string_view bytes);  // throws InputError if malformed
+  // Throws InputError if malformed; a hierarchical checkpoint needs its job's plan.
+  static Accumulator Deserialize(std::string_view bytes, const PlanSpec* plan = nullptr);
 
   bool operator==(const Accumulator& o) const = default;
 
@@ -75,6 +91,7 @@ class Accumulator {
   std::vector<double> lum_sum2_;   // Σ n·m²
   uint64_t samples_merged_ = 0;
   uint64_t tasks_merged_ = 0;
+  std::optional<HierarchicalAssembly> hierarchy_;
 };
 
 }  // namespace pf

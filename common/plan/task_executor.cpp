@@ -1,5 +1,7 @@
 #include "common/plan/task_executor.h"
 
+#include "common/plan/hierarchical.h"
+
 #include <chrono>
 #include <stdexcept>
 
@@ -182,8 +184,26 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
 Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
                         const JobRenderSettings& settings, const PlanSpec& plan, uint64_t seed, int threads,
                         std::atomic<uint64_t>* progress) {
-  Accumulator acc(camera.width, camera.height);
   PhotonMapCache cache(1);
+  if (plan.kind == PlanKind::kHierarchical) {
+    // Wald 1999, §4.5: the static tasks, then each level's localization tasks as the merged
+    // results imply them (the same HierarchicalTasks the coordinator asks after every merge).
+    HierarchicalAssembly assembly(plan, camera.width, camera.height);
+    size_t done = 0;
+    for (;;) {
+      const std::vector<TaskSpec> tasks =
+          HierarchicalTasks(plan, camera.width, camera.height, seed, assembly);
+      if (tasks.size() == done) break;
+      for (size_t i = done; i < tasks.size(); ++i) {
+        const TaskOutput out =
+            ExecuteTask(scene, "local", camera, settings, tasks[i], threads, &cache, progress);
+        assembly.Add(tasks[i], out.pixel_indices, out.rgb_sums, out.samples);
+      }
+      done = tasks.size();
+    }
+    return assembly.Resolve();
+  }
+  Accumulator acc(camera.width, camera.height);
   for (const TaskSpec& task : ExpandPlan(plan, camera.width, camera.height, seed)) {
     const TaskOutput out = ExecuteTask(scene, "local", camera, settings, task, threads, &cache, progress);
     acc.Add(out.pixel_indices, out.rgb_sums, out.samples);

@@ -4,6 +4,7 @@
 
 #include "common/core/error.h"
 #include "common/core/rng.h"
+#include "common/plan/hierarchical.h"
 
 namespace pf {
 namespace {
@@ -61,6 +62,9 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
       if (plan.rounds < 1) throw InputError("plan.skipping.rounds: must be >= 1");
       if (plan.samples_per_pixel < 1) throw InputError("plan.skipping.samples_per_pixel: must be >= 1");
       break;
+    case PlanKind::kHierarchical:
+      ValidateHierarchicalPlan(plan, width, height);
+      break;
   }
 }
 
@@ -72,6 +76,8 @@ uint64_t CountTasks(const PlanSpec& plan, int width, int height) {
       return uint64_t(plan.samples_per_pixel) * NumTiles(plan.tile_size, width, height);
     case PlanKind::kSkipping:
       return uint64_t(plan.rounds) * plan.stride * plan.stride;
+    case PlanKind::kHierarchical:
+      return CountHierarchicalStaticTasks(plan, width, height);
   }
   return 0;
 }
@@ -82,6 +88,7 @@ uint32_t CountRounds(const PlanSpec& plan) {
 
 std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed) {
   ValidatePlan(plan, width, height);
+  if (plan.kind == PlanKind::kHierarchical) return HierarchicalStaticTasks(plan, width, height, job_seed);
   std::vector<TaskSpec> tasks;
   tasks.reserve(CountTasks(plan, width, height));
   auto add = [&](uint32_t round, uint64_t map, const PixelSubset& px, uint32_t s0, uint32_t s1) {
@@ -125,6 +132,8 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
       }
       break;
     }
+    case PlanKind::kHierarchical:
+      break;  // above
   }
   return tasks;
 }
@@ -138,6 +147,8 @@ std::vector<uint32_t> PixelPermutation(uint64_t seed, uint32_t n) {
 }
 
 uint64_t CountPixels(const PixelSubset& s, int width, int height) {
+  if (s.kind == PixelSubset::Kind::kList) return s.list.size();
+  if (s.kind == PixelSubset::Kind::kHierarchyLevel) return PixelsOf(s, width, height).size();
   if (s.kind == PixelSubset::Kind::kTile)
     return s.x1 > s.x0 && s.y1 > s.y0 ? uint64_t(s.x1 - s.x0) * (s.y1 - s.y0) : 0;
   const uint64_t n = uint64_t(width) * uint64_t(height);
@@ -153,6 +164,19 @@ std::vector<uint32_t> PixelsOf(const PixelSubset& s, int width, int height) {
     for (uint32_t y = s.y0; y < s.y1; ++y)
       for (uint32_t x = s.x0; x < s.x1; ++x) px.push_back(y * uint32_t(width) + x);
     return px;
+  }
+  if (s.kind == PixelSubset::Kind::kHierarchyLevel) {
+    if (s.levels < 1 || s.levels > 16 || (s.dims != 1 && s.dims != 2) || s.level > s.levels || s.y0 >= s.y1 ||
+        s.y1 > uint32_t(height))
+      throw InputError("pixels.hierarchy_level: level, dims or rows out of range");
+    return Hierarchy(width, height, s.levels, s.dims).TaskPixels(s.level, s.y0, s.y1);
+  }
+  if (s.kind == PixelSubset::Kind::kList) {
+    const uint64_t n = uint64_t(width) * uint64_t(height);
+    for (size_t i = 0; i < s.list.size(); ++i)
+      if (s.list[i] >= n || (i > 0 && s.list[i] <= s.list[i - 1]))
+        throw InputError("pixels.list: indices must be ascending and inside the image");
+    return s.list;
   }
   const uint32_t n = uint32_t(width) * uint32_t(height);
   if (s.stride == 0 || s.offset >= n)
@@ -174,6 +198,18 @@ std::string DescribePlan(const PlanSpec& p) {
     case PlanKind::kSkipping:
       return "skipping: S=" + std::to_string(p.stride) + ", " + std::to_string(p.rounds) + " rounds, " +
              std::to_string(p.samples_per_pixel) + " spp per round";
+    case PlanKind::kHierarchical: {
+      const HierarchySchedule s = MakeHierarchySchedule(p);
+      std::string n;
+      for (uint32_t v : s.samples) {
+        if (!n.empty()) n += ',';
+        n += std::to_string(v);
+      }
+      return "hierarchical " + std::to_string(p.dims) + "-D: L=" + std::to_string(p.levels) + ", n_l=" + n +
+             " (Nmax " + std::to_string(s.nmax) + "), localize tau=" + std::to_string(p.localize_threshold) +
+             " kappa=" + std::to_string(p.localize_contrast) + ", rows per task " +
+             std::to_string(p.tile_size);
+    }
   }
   return "?";
 }

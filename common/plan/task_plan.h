@@ -10,6 +10,10 @@
 //  (b) kMapsInTurn: pixel sample i uses map i: task (map i, tile) renders sample [i, i+1).
 //  (c) kSkipping: per round a seeded permutation σ of all pixels; S² tasks per round, task
 //      `start` with its own new map and the pixels σ[start], σ[start+S²], … (§4.4).
+//  (d) kHierarchical: multilevel sampling over scanlines (1-D) or the image plane (2-D) with a
+//      different map for each sample of a pixel (§4.5; common/plan/hierarchical.h). ExpandPlan
+//      gives its static tasks (every level's detail tasks); the localization tasks follow from
+//      the merged results (HierarchicalTasks).
 //
 // Seeds: map m of a job has map seed HashKey(job_seed, "map", m) and its pixel samples draw
 // from streams keyed by HashKey(job_seed, "pix", m): samples of different maps are independent.
@@ -20,29 +24,42 @@
 
 namespace pf {
 
-enum class PlanKind { kMultipleMaps, kMapsInTurn, kSkipping };
+enum class PlanKind { kMultipleMaps, kMapsInTurn, kSkipping, kHierarchical };
 
 struct PlanSpec {
   PlanKind kind = PlanKind::kMultipleMaps;
   uint32_t maps = 1;               // kMultipleMaps: s
-  uint32_t samples_per_pixel = 1;  // per map (a), total (b), per task and pixel (c)
-  uint32_t tile_size = 0;          // (a), (b): 0 = one tile = whole image
+  uint32_t samples_per_pixel = 1;  // per map (a), total (b), per task and pixel (c), per map and pixel (d)
+  uint32_t tile_size = 0;          // (a), (b): 0 = one tile = whole image; (d): rows per task, 0 = all
   uint32_t stride = 1;             // (c): S
   uint32_t rounds = 1;             // (c)
+  // (d) hierarchical (schedule and localization rule: common/plan/hierarchical.h)
+  uint32_t levels = 4;              // L: level-0 points every 2^L pixels
+  uint32_t dims = 1;                // 1 = scanlines, 2 = image plane
+  uint32_t base_samples = 8;        // n0: maps (samples) of a level-0 point
+  uint32_t min_samples = 1;         // n_l never falls below this
+  double decay = 2;                 // n_l = max(min_samples, ceil(n0 / decay^l))
+  double localize_threshold = 4;    // τ: |detail| > τ · level noise …
+  double localize_contrast = 0.25;  // κ: … and > κ · |interpolation| ⇒ resample directly
 };
 
 struct PixelSubset {
-  enum class Kind { kTile, kPermutationStride } kind = Kind::kTile;
+  enum class Kind { kTile, kPermutationStride, kHierarchyLevel, kList } kind = Kind::kTile;
   // kTile: x ∈ [x0, x1), y ∈ [y0, y1), row-major.
   uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
   // kPermutationStride: σ[offset], σ[offset + stride], … of PixelPermutation(seed, W·H).
   uint64_t permutation_seed = 0;
   uint32_t offset = 0, stride = 1;
+  // kHierarchyLevel: the points of `level` (of a hierarchy with `levels`, `dims`) whose row is in
+  // [y0, y1), together with their parents, ascending (common/plan/hierarchical.h).
+  uint32_t level = 0, levels = 0, dims = 1;
+  // kList: these pixel indices, ascending (localization: chosen from merged results).
+  std::vector<uint32_t> list;
 };
 
 struct TaskSpec {
   uint64_t task_id = 0;  // index in the expansion: stable and unique within the job
-  uint32_t round = 0;    // skipping round (0 for other plans)
+  uint32_t round = 0;    // skipping round; hierarchical: the level (0 for other plans)
   uint64_t map_index = 0;
   uint64_t map_seed = 0;
   uint64_t pixel_seed = 0;

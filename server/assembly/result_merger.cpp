@@ -39,7 +39,7 @@ std::shared_ptr<const std::vector<uint32_t>> ResultMerger::Permutation(uint64_t 
 
 std::vector<uint32_t> ResultMerger::PixelsOfTask(const TaskSpec& task, int width, int height) {
   const PixelSubset& s = task.pixels;
-  if (s.kind == PixelSubset::Kind::kTile) return PixelsOf(s, width, height);
+  if (s.kind != PixelSubset::Kind::kPermutationStride) return PixelsOf(s, width, height);
   const uint64_t n = uint64_t(width) * uint64_t(height);
   if (s.stride == 0 || s.offset >= n)
     throw InputError("pixels.permutation_stride: offset/stride out of range");
@@ -50,12 +50,20 @@ std::vector<uint32_t> ResultMerger::PixelsOfTask(const TaskSpec& task, int width
   return px;
 }
 
-void ResultMerger::Merge(const TaskSpec& task, std::span<const float> rgb_sums, Accumulator& acc) {
-  // The plausibility bound was applied by the caller (a confirmed result may exceed it).
-  const ResultCheck check = Validate(task, acc.width(), acc.height(), rgb_sums);
-  if (!check.ok()) throw InputError(check.reason);
+CheckedResult ResultMerger::Check(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums,
+                                  double max_sample_radiance) {
+  CheckedResult out;
+  const ResultCheck check = Validate(task, width, height, rgb_sums, max_sample_radiance);
+  out.verdict = check.verdict;
+  out.problem = check.reason;
+  if (check.ok()) out.valid = ValidResult(task, rgb_sums);
+  return out;
+}
+
+void ResultMerger::Merge(const ValidResult& result, Accumulator& acc) {
+  const TaskSpec& task = result.task();
   const std::vector<uint32_t> pixels = PixelsOfTask(task, acc.width(), acc.height());
-  acc.Add(pixels, rgb_sums, task.sample_end - task.sample_begin);
+  acc.AddValidated(task, pixels, result.rgb_sums(), task.sample_end - task.sample_begin);
 }
 
 }  // namespace pf::server

@@ -1,12 +1,15 @@
 #pragma once
 // Merging task results into a job's Accumulator (docs/design.md, §1 Merge).
 //
-// A result is validated before anything is changed: 3 finite, non-negative floats per pixel of
-// the task's subset (the count from CountPixels, so a wrong size is caught without materialising
-// pixels), within the accumulator's range and the job's plausibility bound
-// (Accumulator::ValidateTaskResult). An invalid result is rejected whole; the scheduler then
-// re-queues the task (attempt + 1) and logs the reason. An implausible one (above the bound) is
-// rejected the same way unless it is a bit-identical second delivery by another worker.
+// A result is validated once, where it enters the coordinator (Scheduler::Complete for a
+// worker's result, recovery for a journal entry), before anything is changed: 3 finite,
+// non-negative floats per pixel of the task's subset (the count from CountPixels, so a wrong size
+// is caught without materialising pixels), within the accumulator's range and the job's
+// plausibility bound (Accumulator::ValidateTaskResult). An invalid result is rejected whole; the
+// scheduler then re-queues the task (attempt + 1) and logs the reason. An implausible one (above
+// the bound) is rejected the same way unless it is a bit-identical second delivery by another
+// worker. Check returns a ValidResult, the only thing Merge accepts: so a result cannot be merged
+// unchecked, and Merge (and Accumulator::AddValidated under it) do not check it again.
 //
 // Merging needs the subset's pixel indices in subset order (PixelsOf). For skipping tasks those
 // come from a permutation of all W·H pixels shared by the S² tasks of a round; the merger keeps
@@ -18,6 +21,7 @@
 #include <limits>
 #include <list>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -26,6 +30,27 @@
 #include "common/plan/task_plan.h"
 
 namespace pf::server {
+
+// A task result that passed ResultMerger::Validate. Views `task` and the sums: use it while they
+// live (within one Complete or one journal entry).
+class ValidResult {
+ public:
+  const TaskSpec& task() const { return *task_; }
+  std::span<const float> rgb_sums() const { return rgb_sums_; }
+
+ private:
+  friend class ResultMerger;
+  ValidResult(const TaskSpec& task, std::span<const float> rgb_sums) : task_(&task), rgb_sums_(rgb_sums) {}
+  const TaskSpec* task_;
+  std::span<const float> rgb_sums_;
+};
+
+// Check's answer: a ValidResult, or why there is none.
+struct CheckedResult {
+  std::optional<ValidResult> valid;
+  std::string problem;  // set iff !valid
+  ResultCheck::Verdict verdict = ResultCheck::Verdict::kOk;
+};
 
 class ResultMerger {
  public:
@@ -40,8 +65,13 @@ class ResultMerger {
   // delivers the same digest (deterministic rendering makes an honest re-run bit-identical).
   static std::string Digest(std::span<const float> rgb_sums);
 
-  // Validates (throws InputError with the reason) and adds the result to `acc`.
-  void Merge(const TaskSpec& task, std::span<const float> rgb_sums, Accumulator& acc);
+  // Validate, with the result wrapped for Merge when it passes. Without a bound (infinity) for a
+  // result whose implausibility was confirmed, and for journal entries (checked when they came in).
+  static CheckedResult Check(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums,
+                             double max_sample_radiance = std::numeric_limits<double>::infinity());
+
+  // Adds a checked result to `acc` (of the job the result was checked for).
+  void Merge(const ValidResult& result, Accumulator& acc);
 
   // The pixel indices of `task`'s subset (cached permutations for skipping).
   std::vector<uint32_t> PixelsOfTask(const TaskSpec& task, int width, int height);

@@ -11,15 +11,35 @@ Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, 
       config_(std::move(config)),
       tasks_(std::move(tasks)),
       runtime_(tasks_.size()),
-      accumulator_(with_accumulator
-                       ? std::make_unique<Accumulator>(config_->camera.width, config_->camera.height)
-                       : nullptr),
+      accumulator_(with_accumulator ? std::make_unique<Accumulator>(config_->plan, config_->camera.width,
+                                                                    config_->camera.height)
+                                    : nullptr),
       submitted_unix_ms_(submitted_unix_ms) {
   counts_[size_t(TaskState::kQueued)] = tasks_.size();
-  for (const TaskSpec& t : tasks_) {
-    const uint64_t g = GroupOf(t);
-    if (g >= group_remaining_.size()) group_remaining_.resize(g + 1, 0);
-    ++group_remaining_[g];
+  for (const TaskSpec& t : tasks_) CountIntoGroup(t);
+}
+
+void Job::CountIntoGroup(const TaskSpec& t) {
+  const uint64_t g = GroupOf(t);
+  if (g >= group_remaining_.size()) {
+    group_remaining_.resize(g + 1, 0);
+    group_total_.resize(g + 1, 0);
+  }
+  if (group_total_[g] > 0 && group_remaining_[g] == 0) --full_coverage_;  // complete no more
+  ++group_remaining_[g];
+  ++group_total_[g];
+}
+
+void Job::AppendTasks(const std::vector<TaskSpec>& tasks) {
+  for (const TaskSpec& t : tasks) {
+    if (t.task_id != tasks_.size())
+      throw std::logic_error("job " + id_ + ": appended task id " + std::to_string(t.task_id) +
+                             ", expected " + std::to_string(tasks_.size()));
+    tasks_.push_back(t);
+    runtime_.emplace_back();
+    ++counts_[size_t(TaskState::kQueued)];
+    dirty_tasks.insert(t.task_id);
+    CountIntoGroup(t);
   }
 }
 

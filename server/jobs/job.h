@@ -57,6 +57,9 @@ class Job {
   TaskRuntime& runtime(uint64_t id) { return runtime_.at(id); }
   const TaskRuntime& runtime(uint64_t id) const { return runtime_.at(id); }
   size_t num_tasks() const { return tasks_.size(); }
+  // Tasks a dynamic plan created from merged results (server/scheduling/task_source.h), QUEUED;
+  // their ids must continue the numbering (task_id = num_tasks(), +1, …): std::logic_error if not.
+  void AppendTasks(const std::vector<TaskSpec>& tasks);
 
   JobState state() const { return state_; }
   const std::string& failure_reason() const { return failure_reason_; }
@@ -130,6 +133,8 @@ class Job {
   uint64_t merge_seq_ = 0;
   // Coverage: per group (round for skipping, map index otherwise) tasks still unmerged.
   std::vector<uint64_t> group_remaining_;
+  std::vector<uint64_t> group_total_;
+  void CountIntoGroup(const TaskSpec& t);
   uint32_t full_coverage_ = 0;
   uint64_t GroupOf(const TaskSpec& t) const;
   double elapsed_before_ = 0;

@@ -61,6 +61,9 @@ uint64_t MaxPixelsPerTask(const PlanSpec& plan, int width, int height) {
     return (pixels + s2 - 1) / s2;
   }
   if (plan.tile_size == 0) return pixels;
+  // A band's points plus their parents, which lie on at most two other rows per point row.
+  if (plan.kind == PlanKind::kHierarchical)
+    return uint64_t(width) * std::min<uint64_t>(uint64_t(height), 3 * uint64_t(plan.tile_size));
   return uint64_t(std::min<uint64_t>(plan.tile_size, uint64_t(width))) *
          std::min<uint64_t>(plan.tile_size, uint64_t(height));
 }
@@ -73,6 +76,8 @@ std::string PlanField(const PlanSpec& plan) {
       return "spec.plan.maps_in_turn";
     case PlanKind::kSkipping:
       return "spec.plan.skipping";
+    case PlanKind::kHierarchical:
+      return "spec.plan.hierarchical";
   }
   return "spec.plan";
 }
@@ -128,6 +133,16 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
   job.stop.max_rounds = spec.stop().max_rounds();
   job.stop.time_budget_seconds = spec.stop().time_budget_seconds();
   job.stop.target_noise_rms = spec.stop().target_noise_rms();
+  // The noise estimate compares independent maps per pixel; a hierarchical pixel's value mixes
+  // its parents' maps with its own details, which that estimate does not model.
+  if (job.plan.kind == PlanKind::kHierarchical && job.stop.max_rounds > 0)
+    throw InputError(
+        "spec.stop.max_rounds: the hierarchical plan has no rounds (its levels all belong to one image); use "
+        "time_budget_seconds");
+  if (job.plan.kind == PlanKind::kHierarchical && job.stop.target_noise_rms > 0)
+    throw InputError(
+        "spec.stop.target_noise_rms: not available for the hierarchical plan (no noise estimate); use "
+        "time_budget_seconds");
 
   job.seed = spec.seed();
   job.priority = spec.priority();
@@ -139,7 +154,8 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
 std::vector<TaskSpec> ScheduledTasks(const JobConfig& config) {
   std::vector<TaskSpec> tasks =
       ExpandPlan(config.plan, config.camera.width, config.camera.height, config.seed);
-  const uint32_t rounds = config.ScheduledRounds();
+  // Rounds are skipping's; a hierarchical task's `round` is its level, all of which are scheduled.
+  const uint32_t rounds = config.plan.kind == PlanKind::kHierarchical ? ~0u : config.ScheduledRounds();
   tasks.erase(
       std::remove_if(tasks.begin(), tasks.end(), [&](const TaskSpec& t) { return t.round >= rounds; }),
       tasks.end());

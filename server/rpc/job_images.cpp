@@ -6,6 +6,7 @@
 
 #include "common/core/error.h"
 #include "photonfarm_version.h"
+#include "proto/convert.h"
 #include "server/assembly/image_snapshot.h"
 #include "server/errors.h"
 #include "server/store/checkpoint.h"
@@ -64,7 +65,8 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id,
       cp = ReadCheckpointFile(snap.checkpoint_path);
       if (cp && cp->job_id != job_id)
         throw DataLossError("job " + job_id + ": its stored image belongs to another job");
-      if (cp) stored = Accumulator::Deserialize(cp->accumulator);
+      const PlanSpec plan = PlanFromProto(snap.status.spec().plan(), "spec.plan");
+      if (cp) stored = Accumulator::Deserialize(cp->accumulator, &plan);
     } catch (const DataLossError&) {
       throw;
     } catch (const std::exception& e) {
@@ -77,7 +79,8 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id,
     if (!cp && snap.status.tasks_done() > 0)
       throw DataLossError("job " + job_id + ": its stored image is missing; the results are lost");
     Accumulator acc = stored ? std::move(*stored)
-                             : Accumulator(int(snap.status.spec().camera().width()),
+                             : Accumulator(PlanFromProto(snap.status.spec().plan(), "spec.plan"),
+                                           int(snap.status.spec().camera().width()),
                                            int(snap.status.spec().camera().height()));
     image = ResolveSnapshot(job_id, acc);
   }

@@ -8,7 +8,7 @@
 
 #include "common/core/error.h"
 #include "proto/limits.h"
-#include "server/jobs/random_id.h"
+#include "server/scheduling/stop_rules.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
@@ -33,8 +33,8 @@ v1::JobState ToProto(JobState s) {
 
 }  // namespace
 
-Scheduler::Scheduler(const Clock& clock, SchedulerOptions options)
-    : clock_(clock), options_(options), activity_(clock) {
+Scheduler::Scheduler(const Clock& clock, SchedulerOptions options, TaskSourceFactory task_sources)
+    : clock_(clock), options_(options), task_sources_(std::move(task_sources)), activity_(clock) {
   if (!(options_.lease_seconds > 0)) throw std::invalid_argument("Scheduler: lease_seconds must be > 0");
   if (options_.max_attempts < 1) throw std::invalid_argument("Scheduler: max_attempts must be >= 1");
 }
@@ -74,33 +74,17 @@ void Scheduler::Touch(Job& job, Effects& fx) {
 // Queue
 
 void Scheduler::Enqueue(Job& job, uint64_t task_id, Effects& fx) {
-  JobQueue& q = queues_[&job];
-  if (q.ids.empty()) ready_[{-int64_t(job.config().priority), job.seq()}] = &job;
-  q.ids.insert(task_id);
-  q.by_seed[job.task(task_id).map_seed].insert(task_id);
+  queue_.Push(job, task_id);
   Touch(job, fx);
 }
 
 void Scheduler::Dequeue(Job& job, uint64_t task_id) {
-  auto qit = queues_.find(&job);
-  if (qit == queues_.end()) return;
-  JobQueue& q = qit->second;
-  if (!q.ids.erase(task_id)) return;
-  const uint64_t seed = job.task(task_id).map_seed;
-  auto sit = q.by_seed.find(seed);
-  if (sit != q.by_seed.end()) {
-    sit->second.erase(task_id);
-    if (sit->second.empty()) q.by_seed.erase(sit);
-  }
-  if (q.ids.empty()) {
-    ready_.erase({-int64_t(job.config().priority), job.seq()});
-    queues_.erase(qit);
-  }
+  queue_.Remove(job, task_id);
 }
 
 void Scheduler::ServeWaiters(Effects& fx) {
   const double now = clock_.Now();
-  while (!waiters_.empty() && !ready_.empty()) {
+  while (!waiters_.empty() && !queue_.empty()) {
     auto it = waiters_.begin();
     std::optional<Lease> lease = LeaseLocked(it->second.request, now, fx);
     if (!lease) break;
@@ -109,14 +93,9 @@ void Scheduler::ServeWaiters(Effects& fx) {
   }
 }
 
-std::string Scheduler::NewLeaseId(const Job& job, uint64_t task_id, uint32_t attempt) {
-  // 128 bits from the CSPRNG: a lease id is the worker's only proof that it holds the task.
-  return job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + RandomHex(16);
-}
-
 bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
+  if (!TimeBudgetReached(job, now)) return false;
   const double budget = job.config().stop.time_budget_seconds;
-  if (budget <= 0 || job.stopping || !job.active() || job.ElapsedSeconds(now) < budget) return false;
   job.stopping = true;
   uint64_t cancelled = 0;
   for (uint64_t id = 0; id < job.num_tasks(); ++id) {
@@ -135,28 +114,20 @@ bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
 std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double now, Effects& fx) {
   if (shutdown_) return std::nullopt;
   ++counters_.lease_attempts;
-  while (!ready_.empty()) {
-    Job& job = *ready_.begin()->second;
+  while (!queue_.empty()) {
+    Job& job = queue_.FrontJob();
     if (CheckTimeBudget(job, now, fx)) continue;  // its queue is gone now
-    const JobQueue& q = queues_.at(&job);
-    uint64_t pick = *q.ids.begin();
-    bool affinity = false;
-    for (uint64_t seed : request.cached_map_seeds) {
-      auto it = q.by_seed.find(seed);
-      if (it == q.by_seed.end() || it->second.empty()) continue;
-      const uint64_t candidate = *it->second.begin();
-      if (!affinity || candidate < pick) pick = candidate;
-      affinity = true;
-    }
+    const TaskQueue::Pick chosen = queue_.Choose(job, request.cached_map_seeds);
+    const uint64_t pick = chosen.task_id;
+    const bool affinity = chosen.map_cached;
     Dequeue(job, pick);
     job.SetTaskState(pick, TaskState::kLeased);
     TaskRuntime& rt = job.runtime(pick);
     ++rt.attempts;
-    rt.lease_id = NewLeaseId(job, pick, rt.attempts);
+    rt.lease_id = leases_.Issue(job, pick, rt.attempts);
     rt.worker_id = request.worker_id;
     rt.lease_deadline = now + options_.lease_seconds;
     rt.progress = 0;
-    leases_[rt.lease_id] = {&job, pick};
     if (job.state() == JobState::kQueued) {
       job.TransitionTo(JobState::kRunning, now);
       spdlog::info("job {}: running", job.id());
@@ -205,9 +176,11 @@ void Scheduler::AddJob(std::unique_ptr<Job> job) {
   {
     std::lock_guard lock(mu_);
     Job& j = jobs_.Add(std::move(job));
+    sources_[&j] = task_sources_(j.config());
     if (j.active()) {
       for (uint64_t id = 0; id < j.num_tasks(); ++id)
         if (j.runtime(id).state == TaskState::kQueued) Enqueue(j, id, fx);
+      AddTasksFromSource(j, fx);  // recovery: the tasks the merged results had created
       const double now = clock_.Now();
       MaybeSucceed(j, now, fx);  // recovery: everything may already be merged
       ServeWaiters(fx);
@@ -255,9 +228,7 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   if (!job.active()) {
     eta = 0;
   } else {
-    double done_eff = double(done);
-    for (const auto& [lease_id, ref] : leases_)
-      if (ref.job == &job) done_eff += std::clamp(job.runtime(ref.task_id).progress, 0.0, 1.0);
+    const double done_eff = double(done) + leases_.ProgressOf(job);
     const double running = double(job.count(TaskState::kLeased));
     const double remaining = job.stopping ? running : double(total) - done_eff;
     double average = -1;
@@ -341,7 +312,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
       Dequeue(job, id);
       job.SetTaskState(id, TaskState::kCancelled);
     } else if (rt.state == TaskState::kLeased) {
-      leases_.erase(rt.lease_id);
+      leases_.Erase(rt.lease_id);
       job.SetTaskState(id, TaskState::kCancelled);
       activity_.TaskEvent(job.id(), "cancelled", id, rt.attempts, rt.worker_id, "the job ended while leased");
     }
@@ -363,17 +334,25 @@ void Scheduler::MaybeSucceed(Job& job, double now, Effects& fx) {
                job.stopping ? " (time budget)" : "");
 }
 
+void Scheduler::AddTasksFromSource(Job& job, Effects& fx) {
+  if (!job.active() || job.stopping) return;
+  auto it = sources_.find(&job);
+  if (it == sources_.end()) return;
+  const std::vector<TaskSpec> added = it->second->TasksAfterMerge(job);
+  if (added.empty()) return;
+  job.AppendTasks(added);
+  for (const TaskSpec& t : added) Enqueue(job, t.task_id, fx);
+  spdlog::info("job {}: {} tasks added from the merged results (ids {}..{})", job.id(), added.size(),
+               added.front().task_id, added.back().task_id);
+}
+
 void Scheduler::CheckNoiseTarget(Job& job, double now, Effects& fx) {
-  const double target = job.config().stop.target_noise_rms;
-  if (target <= 0 || !job.active() || job.full_coverage() < 2) return;
-  if (now - job.noise_target_checked_at < options_.noise_check_interval &&
-      job.count(TaskState::kQueued) + job.count(TaskState::kLeased) > 0)
-    return;
+  if (!NoiseTargetDue(job, now, options_.noise_check_interval)) return;
   job.noise_target_checked_at = now;
   job.SetNoise(job.accumulator().EstimatedNoiseRms(), now);
-  if (job.noise_cache >= 0 && job.noise_cache <= target) {
+  if (NoiseTargetMet(job)) {
     spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job.id(),
-                 job.noise_cache, target, job.count(TaskState::kDone));
+                 job.noise_cache, job.config().stop.target_noise_rms, job.count(TaskState::kDone));
     FinishJob(job, JobState::kSucceeded, "", now, fx);
   }
 }
@@ -422,11 +401,11 @@ void Scheduler::CancelWait(uint64_t waiter_id) {
   Run(fx);
 }
 
-Scheduler::LeaseRef* Scheduler::FindLiveLease(const std::string& lease_id, double now, Effects& fx) {
-  auto it = leases_.find(lease_id);
-  if (it == leases_.end()) return nullptr;
-  Job& job = *it->second.job;
-  const uint64_t task_id = it->second.task_id;
+LeaseTable::Entry* Scheduler::FindLiveLease(const std::string& lease_id, double now, Effects& fx) {
+  LeaseTable::Entry* entry = leases_.Find(lease_id);
+  if (!entry) return nullptr;
+  Job& job = *entry->job;
+  const uint64_t task_id = entry->task_id;
   if (now >= job.runtime(task_id).lease_deadline) {
     ++counters_.expired;
     activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
@@ -434,7 +413,7 @@ Scheduler::LeaseRef* Scheduler::FindLiveLease(const std::string& lease_id, doubl
     FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
     return nullptr;
   }
-  return &it->second;
+  return entry;
 }
 
 ExtendResult Scheduler::Extend(const std::string& lease_id, double progress) {
@@ -443,7 +422,7 @@ ExtendResult Scheduler::Extend(const std::string& lease_id, double progress) {
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
-    if (LeaseRef* ref = FindLiveLease(lease_id, now, fx)) {
+    if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       TaskRuntime& rt = ref->job->runtime(ref->task_id);
       rt.lease_deadline = now + options_.lease_seconds;
       rt.progress = std::isfinite(progress) ? std::clamp(progress, 0.0, 1.0) : 0.0;
@@ -460,7 +439,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
-    LeaseRef* ref = FindLiveLease(lease_id, now, fx);
+    LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx);
     if (!ref) {
       ++counters_.ignored;
       result.reason = "unknown, expired or finished lease";
@@ -472,17 +451,21 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
       const TaskSpec& task = job.task(task_id);
       result.job_id = job.id();
       result.task_id = task_id;
-      const ResultCheck check =
-          ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, rgb_sums,
-                                 job.config().max_sample_radiance);
-      std::string problem = check.reason;
-      if (check.verdict == ResultCheck::Verdict::kImplausible)
-        problem = ConfirmImplausible(job, task_id, rgb_sums, check);
-      if (problem.empty()) {
+      // The one check of a worker's result (the edge); Merge takes only a checked result.
+      const int width = job.config().camera.width, height = job.config().camera.height;
+      CheckedResult checked =
+          ResultMerger::Check(task, width, height, rgb_sums, job.config().max_sample_radiance);
+      std::string problem = checked.problem;
+      if (checked.verdict == ResultCheck::Verdict::kImplausible) {
+        problem = ConfirmImplausible(job, task_id, rgb_sums, ResultCheck{checked.verdict, checked.problem});
+        // Confirmed by a second worker's identical bytes: valid without the bound.
+        if (problem.empty()) checked = ResultMerger::Check(task, width, height, rgb_sums);
+      }
+      if (checked.valid) {
         try {
-          merger_.Merge(task, rgb_sums, job.accumulator());
+          merger_.Merge(*checked.valid, job.accumulator());
         } catch (const InputError& e) {
-          problem = e.what();
+          problem = e.what();  // the task's own pixel set is out of range: a coordinator bug
         }
       }
       if (!problem.empty()) {
@@ -496,7 +479,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
         FailAttempt(job, task_id, "rejected result: " + problem, true, now, fx);
       } else {
         ++counters_.merged;
-        leases_.erase(lease_id);
+        leases_.Erase(lease_id);
         job.RecordMerge(task_id);
         job.eta.RecordCompletion(now);
         result.status = CompleteStatus::kMerged;
@@ -507,6 +490,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
                      job.runtime(task_id).attempts, job.runtime(task_id).worker_id,
                      job.count(TaskState::kDone), job.num_tasks());
         Touch(job, fx);
+        AddTasksFromSource(job, fx);
         CheckNoiseTarget(job, now, fx);
         MaybeSucceed(job, now, fx);
         ServeWaiters(fx);
@@ -543,7 +527,7 @@ std::string Scheduler::ConfirmImplausible(Job& job, uint64_t task_id, std::span<
 void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now,
                             Effects& fx) {
   TaskRuntime& rt = job.runtime(task_id);
-  leases_.erase(rt.lease_id);
+  leases_.Erase(rt.lease_id);
   ++rt.failures;
   ++counters_.failed_attempts;
   rt.last_error = reason;
@@ -581,7 +565,7 @@ FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& work
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
-    if (LeaseRef* ref = FindLiveLease(lease_id, now, fx)) {
+    if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       const TaskRuntime& rt = ref->job->runtime(ref->task_id);
       if (rt.worker_id != worker_id) {
         // A lease id that reached another worker (a log, a copied command line) does not let it
@@ -606,11 +590,11 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
   Effects fx;
   {
     std::lock_guard lock(mu_);
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return;
-    Job& job = *it->second.job;
-    const uint64_t task_id = it->second.task_id;
-    leases_.erase(it);
+    LeaseTable::Entry* entry = leases_.Find(lease_id);
+    if (!entry) return;
+    Job& job = *entry->job;
+    const uint64_t task_id = entry->task_id;
+    leases_.Erase(lease_id);
     ++counters_.returned;
     activity_.TaskEvent(job.id(), "returned", task_id, job.runtime(task_id).attempts,
                         job.runtime(task_id).worker_id, "the lease never reached the worker");
@@ -630,14 +614,11 @@ void Scheduler::Tick() {
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
-    std::vector<std::string> expired;
-    for (const auto& [id, ref] : leases_)
-      if (now >= ref.job->runtime(ref.task_id).lease_deadline) expired.push_back(id);
-    for (const std::string& id : expired) {
-      auto it = leases_.find(id);
-      if (it == leases_.end()) continue;  // its job ended meanwhile
-      Job& job = *it->second.job;
-      const uint64_t task_id = it->second.task_id;
+    for (const std::string& id : leases_.Expired(now)) {
+      LeaseTable::Entry* entry = leases_.Find(id);
+      if (!entry) continue;  // its job ended meanwhile
+      Job& job = *entry->job;
+      const uint64_t task_id = entry->task_id;
       ++counters_.expired;
       activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
                           job.runtime(task_id).worker_id);

@@ -4,11 +4,13 @@
 // their accumulators (server/assembly/). gRPC-free and clock-injected, so every rule below is
 // unit-tested with a FakeClock and no sleeping (tests/server/scheduler_test.cpp).
 //
-// Queue. Jobs are served by priority (higher first), then submission order. Within the chosen
-// job a worker gets the lowest queued task id — unless it reported cached photon maps
-// (LeaseTaskRequest.cached_map_seeds) and a queued task of that job uses one of them: then the
-// lowest such task (map affinity; tiles of one map are adjacent in the plan). Affinity never
-// crosses jobs: a map seed means a map only together with the job's scene and settings.
+// This class is the facade and the one lock; the rules live in pieces beside it:
+//   task_source.h  where a job's tasks come from: all at submission (static plans), or created
+//                  from the merged results (dynamic plans), asked after every merge
+//   task_queue.h   queued tasks: priority, then submission order, then map affinity
+//   lease_table.h  lease id → task; which leases ran out
+//   stop_rules.h   max rounds, time budget, target noise
+//   farm_activity.h  workers and task events, for people
 //
 // Leases. A lease lasts lease_seconds; ExtendLease (heartbeat) renews it to now + lease_seconds.
 // A lease that runs out (checked on every Tick and whenever the lease is used) ends the attempt:
@@ -20,18 +22,13 @@
 //
 // Results. Only the current lease of a task can deliver its result; a task is merged at most
 // once. A result for an unknown, expired, replaced or already-merged lease is answered
-// kIgnored (CompleteTaskResponse.merged = false), never merged twice.
+// kIgnored (CompleteTaskResponse.merged = false), never merged twice. One merge path: Complete
+// checks a result once (ResultMerger::Check), merges the checked result, records it in the job,
+// then asks the job's task source for new tasks, then applies the stop rules.
 //
 // Long polls. LeaseOrWait answers at once if a task is queued, else parks the caller until a
-// task is queued (submit, re-queue) or its wait expires (Tick) — no busy waiting; callbacks
-// always run outside the lock, exactly once per waiter.
-//
-// Stop rules (JobSpec.stop): max_rounds — rounds ≥ max are never scheduled (server/jobs/
-// job_spec.h); time budget — once the job has been RUNNING that long nothing new is leased, the
-// queued tasks are cancelled, leased ones may finish, and the job SUCCEEDS with what was merged;
-// target noise — after a merge, once every pixel has ≥ 2 independent maps (two full rounds, or
-// two complete maps) and Accumulator::EstimatedNoiseRms() ≤ target, the job SUCCEEDS and its
-// remaining tasks are cancelled (the estimate is refreshed at most every noise_check_interval).
+// task is queued (submit, re-queue, a task source adding tasks) or its wait expires (Tick) — no
+// busy waiting; callbacks always run outside the lock, exactly once per waiter.
 //
 // Hooks: the change listener hears the id of every job that changed (WatchJob), the persist
 // listener that there is something to write (server/store/persister.h).
@@ -56,6 +53,9 @@
 #include "server/jobs/job_registry.h"
 #include "server/scheduling/clock.h"
 #include "server/scheduling/farm_activity.h"
+#include "server/scheduling/lease_table.h"
+#include "server/scheduling/task_queue.h"
+#include "server/scheduling/task_source.h"
 #include "server/store/records.h"
 
 namespace pf::server {
@@ -118,7 +118,8 @@ class Scheduler {
  public:
   using LeaseCallback = std::function<void(std::optional<Lease>)>;
 
-  Scheduler(const Clock& clock, SchedulerOptions options);
+  // `task_sources` makes each job's TaskSource (task_source.h) when the job is added.
+  Scheduler(const Clock& clock, SchedulerOptions options, TaskSourceFactory task_sources = MakeTaskSource);
   ~Scheduler();
   Scheduler(const Scheduler&) = delete;
   Scheduler& operator=(const Scheduler&) = delete;
@@ -192,14 +193,6 @@ class Scheduler {
     std::set<std::string> changed;
     bool persist = false;
   };
-  struct JobQueue {
-    std::set<uint64_t> ids;
-    std::unordered_map<uint64_t, std::set<uint64_t>> by_seed;
-  };
-  struct LeaseRef {
-    Job* job;
-    uint64_t task_id;
-  };
   struct Waiter {
     LeaseRequest request;
     double deadline;
@@ -225,8 +218,9 @@ class Scheduler {
   void MaybeSucceed(Job& job, double now, Effects& fx);
   void CheckNoiseTarget(Job& job, double now, Effects& fx);
   // The lease if it is current; expires it (and returns null) if it ran out.
-  LeaseRef* FindLiveLease(const std::string& lease_id, double now, Effects& fx);
-  std::string NewLeaseId(const Job& job, uint64_t task_id, uint32_t attempt);
+  LeaseTable::Entry* FindLiveLease(const std::string& lease_id, double now, Effects& fx);
+  // Appends and queues the tasks the job's source creates from its merged results.
+  void AddTasksFromSource(Job& job, Effects& fx);
   photonfarm::v1::JobStatus BuildStatus(Job& job, double now);
 
   const Clock& clock_;
@@ -234,9 +228,10 @@ class Scheduler {
   mutable std::mutex mu_;
   JobRegistry jobs_;
   ResultMerger merger_;
-  std::unordered_map<const Job*, JobQueue> queues_;
-  std::map<std::pair<int64_t, uint64_t>, Job*> ready_;  // (−priority, seq) of jobs with queued tasks
-  std::unordered_map<std::string, LeaseRef> leases_;
+  TaskSourceFactory task_sources_;
+  std::unordered_map<const Job*, std::unique_ptr<TaskSource>> sources_;
+  TaskQueue queue_;
+  LeaseTable leases_;
   std::map<uint64_t, Waiter> waiters_;  // oldest first
   uint64_t next_waiter_ = 1;
   bool shutdown_ = false;

@@ -5,6 +5,7 @@
 #include <set>
 
 #include "common/core/error.h"
+#include "common/plan/hierarchical.h"
 #include "server/assembly/result_merger.h"
 #include "server/store/checkpoint.h"
 #include "server/store/journal.h"
@@ -15,13 +16,26 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The tasks beyond the job's current ones that its plan creates from the results in `acc`
+// (the hierarchical plan's localization tasks; none for static plans).
+std::vector<TaskSpec> TasksCreatedFromResults(const Job& job, const Accumulator& acc) {
+  if (!acc.hierarchy()) return {};
+  const JobConfig& c = job.config();
+  std::vector<TaskSpec> all =
+      HierarchicalTasks(c.plan, c.camera.width, c.camera.height, c.seed, *acc.hierarchy());
+  if (all.size() <= job.num_tasks()) return {};
+  return std::vector<TaskSpec>(all.begin() + int64_t(job.num_tasks()), all.end());
+}
+
+uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, ResultMerger& merger);
+
 // Applies a checkpoint to a fresh job; false (job untouched) if it does not fit the job.
 bool ApplyCheckpoint(const Checkpoint& cp, Job& job, std::string* problem) {
   if (cp.job_id != job.id()) {
     *problem = "belongs to job '" + cp.job_id + "'";
     return false;
   }
-  auto acc = std::make_unique<Accumulator>(Accumulator::Deserialize(cp.accumulator));
+  auto acc = std::make_unique<Accumulator>(Accumulator::Deserialize(cp.accumulator, &job.config().plan));
   if (acc->width() != job.config().camera.width || acc->height() != job.config().camera.height) {
     *problem = "image size differs from the job's";
     return false;
@@ -31,11 +45,14 @@ bool ApplyCheckpoint(const Checkpoint& cp, Job& job, std::string* problem) {
                std::to_string(cp.merged_task_ids.size());
     return false;
   }
+  // A dynamic plan's tasks beyond the static ones follow from the merged results (task_source.h).
+  const std::vector<TaskSpec> created = TasksCreatedFromResults(job, *acc);
   for (uint64_t id : cp.merged_task_ids)
-    if (id >= job.num_tasks()) {
+    if (id >= job.num_tasks() + created.size()) {
       *problem = "task id " + std::to_string(id) + " outside the plan";
       return false;
     }
+  job.AppendTasks(created);
   job.set_accumulator(std::move(acc));
   for (uint64_t id : cp.merged_task_ids) job.RecordMerge(id);
   job.checkpoint_collected_seq = job.merge_seq();
@@ -73,18 +90,32 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
   }
   ResultMerger merger;
   uint64_t merged = 0;
+  // A dynamic plan creates tasks from merged results: entries for them apply once the entries
+  // they follow from have been merged, so replay until nothing changes.
+  for (bool again = true; again;) {
+    const uint64_t before = merged;
+    merged += ReplayEntries(entries, job, merger);
+    const std::vector<TaskSpec> created = TasksCreatedFromResults(job, job.accumulator());
+    job.AppendTasks(created);
+    again = merged > before && !created.empty();
+  }
+  return merged;
+}
+
+uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, ResultMerger& merger) {
+  uint64_t merged = 0;
   for (const JournalEntry& e : entries) {
     if (e.task_id >= job.num_tasks() || job.runtime(e.task_id).state == TaskState::kDone) continue;
     const TaskSpec& task = job.task(e.task_id);
     // No plausibility bound: a journaled result was accepted (possibly confirmed) before the crash.
-    const ResultCheck check =
-        ResultMerger::Validate(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
-    if (!check.ok()) {
+    const CheckedResult checked =
+        ResultMerger::Check(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
+    if (!checked.valid) {
       spdlog::error("job {} task {}: journal entry invalid ({}); the task is re-run", job.id(), e.task_id,
-                    check.reason);
+                    checked.problem);
       continue;
     }
-    merger.Merge(task, e.rgb_sums, job.accumulator());
+    merger.Merge(*checked.valid, job.accumulator());
     job.RecordMerge(e.task_id);
     ++merged;
   }

@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "common/plan/hierarchical.h"
 #include "server/errors.h"
 #include "server/scheduling/clock.h"
 #include "tests/server/server_test_util.h"
@@ -549,6 +550,163 @@ TEST(JobStateMachine, OnlyForwardTransitions) {
   EXPECT_FALSE(Job::CanTransition(JobState::kSucceeded, JobState::kRunning));
   EXPECT_FALSE(Job::CanTransition(JobState::kCancelled, JobState::kFailed));
   EXPECT_FALSE(Job::CanTransition(JobState::kFailed, JobState::kFailed));
+}
+
+}  // namespace
+}  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+// A dynamic plan in miniature: each merged task of map m < 3 creates the same tile with map
+// m + 1 — a pure function of which tasks are merged, as task_source.h requires.
+class ChainSource : public TaskSource {
+ public:
+  std::vector<TaskSpec> TasksAfterMerge(const Job& job) override {
+    std::vector<TaskSpec> added;
+    uint64_t next = job.num_tasks();
+    for (uint64_t id = 0; id < job.num_tasks(); ++id) {
+      const TaskSpec& t = job.task(id);
+      if (job.runtime(id).state != TaskState::kDone || t.map_index >= 3 || created_.count(id)) continue;
+      created_.insert(id);
+      TaskSpec child = t;
+      child.task_id = next++;
+      child.map_index = t.map_index + 1;
+      child.map_seed = MapSeed(job.config().seed, child.map_index);
+      child.pixel_seed = PixelSeed(job.config().seed, child.map_index);
+      added.push_back(child);
+    }
+    return added;
+  }
+
+ private:
+  std::set<uint64_t> created_;
+};
+
+TEST(SchedulerTaskSource, TasksCreatedFromResultsAreQueuedAndTheJobEndsAfterThem) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{},
+                      [](const JobConfig&) { return std::make_unique<ChainSource>(); });
+  std::unique_ptr<Job> job = scheduler.PrepareJob(testing::MakeConfig(testing::MultipleMaps(1, 2), 4, 4));
+  const std::string id = job->id();
+  scheduler.AddJob(std::move(job));
+  EXPECT_EQ(scheduler.Status(id).tasks_total(), 4u) << "2×2 tiles of map 0";
+  auto complete = [&](const Lease& lease) {
+    const auto& cam = lease.config->camera;
+    ASSERT_EQ(scheduler.Complete(lease.lease_id, SyntheticResult(lease.task, cam.width, cam.height)).status,
+              CompleteStatus::kMerged);
+  };
+  // All four leased: nothing is queued, so a long poll parks — and is answered by the task that
+  // the next merge creates.
+  std::vector<Lease> first;
+  for (int i = 0; i < 4; ++i) first.push_back(*scheduler.TryLease({"w", {}}));
+  std::optional<Lease> waited;
+  scheduler.LeaseOrWait({"poll", {}}, 10, [&](std::optional<Lease> l) { waited = std::move(l); });
+  EXPECT_FALSE(waited.has_value());
+  complete(first[0]);
+  ASSERT_TRUE(waited.has_value());
+  EXPECT_EQ(waited->task_id, 4u);
+  EXPECT_EQ(waited->task.map_index, 1u);
+  EXPECT_EQ(scheduler.Status(id).tasks_total(), 5u);
+  complete(*waited);
+  for (size_t i = 1; i < first.size(); ++i) complete(first[i]);
+  std::vector<uint64_t> maps;
+  while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
+    maps.push_back(lease->task.map_index);
+    EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_RUNNING);
+    complete(*lease);
+  }
+  const v1::JobStatus s = scheduler.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_total(), 16u) << "4 tiles × maps 0..3";
+  EXPECT_EQ(s.tasks_done(), 16u);
+  EXPECT_EQ(s.samples_merged(), 4u * 16u);
+  EXPECT_EQ(maps.size(), 11u);
+}
+
+TEST(SchedulerTaskSource, NoTasksAreCreatedAfterTheTimeBudget) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{},
+                      [](const JobConfig&) { return std::make_unique<ChainSource>(); });
+  std::unique_ptr<Job> job = scheduler.PrepareJob(
+      testing::MakeConfig(testing::MultipleMaps(1, 0), 4, 4, 0, StopRule{.time_budget_seconds = 5}));
+  const std::string id = job->id();
+  scheduler.AddJob(std::move(job));
+  std::optional<Lease> lease = scheduler.TryLease({"w", {}});
+  ASSERT_TRUE(lease.has_value());
+  clock.Advance(6);
+  scheduler.Tick();
+  ASSERT_EQ(scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, 4, 4)).status,
+            CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(scheduler.Status(id).tasks_done(), 1u);
+  EXPECT_FALSE(scheduler.TryLease({"w", {}}).has_value());
+}
+
+}  // namespace
+}  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+PlanSpec SmallHierarchy() {
+  PlanSpec p;
+  p.kind = PlanKind::kHierarchical;
+  p.levels = 2;
+  p.dims = 2;
+  p.base_samples = 2;
+  p.min_samples = 1;
+  p.localize_threshold = 0.5;  // the synthetic results' noise localizes many pixels
+  p.localize_contrast = 0;
+  return p;
+}
+
+// The hierarchical plan through the scheduler (its own task source): localization tasks appear
+// after the levels complete, the job ends after them, and a snapshot shows the assembled image.
+TEST(SchedulerTaskSource, HierarchicalJobCreatesLocalizationTasksFromItsResults) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{});
+  std::unique_ptr<Job> job = scheduler.PrepareJob(testing::MakeConfig(SmallHierarchy(), 12, 10));
+  const std::string id = job->id();
+  const uint64_t static_tasks = job->num_tasks();
+  scheduler.AddJob(std::move(job));
+  EXPECT_EQ(scheduler.Status(id).tasks_total(), static_tasks);
+  HierarchicalAssembly expected(SmallHierarchy(), 12, 10);
+  while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
+    const std::vector<float> sums = SyntheticResult(lease->task, 12, 10);
+    expected.Add(lease->task, PixelsOf(lease->task.pixels, 12, 10), sums, 1);
+    ASSERT_EQ(scheduler.Complete(lease->lease_id, sums).status, CompleteStatus::kMerged);
+  }
+  const v1::JobStatus s = scheduler.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_GT(s.tasks_total(), static_tasks);
+  EXPECT_EQ(s.tasks_done(), s.tasks_total());
+  const JobSnapshot snap = scheduler.Snapshot(id, true);
+  ASSERT_TRUE(snap.image.has_value());
+  const Image want = expected.Resolve();
+  for (size_t p = 0; p < want.size(); ++p) ASSERT_TRUE(snap.image->image[p] == want[p]) << p;
+}
+
+TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{});
+  std::unique_ptr<Job> job = scheduler.PrepareJob(
+      testing::MakeConfig(SmallHierarchy(), 12, 10, 0, StopRule{.time_budget_seconds = 5}));
+  const std::string id = job->id();
+  const uint64_t static_tasks = job->num_tasks();
+  scheduler.AddJob(std::move(job));
+  std::vector<Lease> leases;
+  while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) leases.push_back(*lease);
+  ASSERT_EQ(leases.size(), static_tasks);
+  clock.Advance(6);
+  scheduler.Tick();
+  for (const Lease& l : leases)
+    ASSERT_EQ(scheduler.Complete(l.lease_id, SyntheticResult(l.task, 12, 10)).status,
+              CompleteStatus::kMerged);
+  const v1::JobStatus s = scheduler.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_total(), static_tasks) << "no localization after the budget";
+  EXPECT_FALSE(scheduler.TryLease({"w", {}}).has_value());
 }
 
 }  // namespace

@@ -533,3 +533,83 @@ TEST(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {
 
 }  // namespace
 }  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+// The hierarchical plan (§4.5): localization tasks are created from merged results. A crash
+// after some of them were merged (checkpoint) and one more acknowledged (journal): recovery
+// re-derives the created tasks from those results, re-runs only the rest, and ends bit-identical
+// to a run without a crash.
+TEST(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
+  TempDir dir;
+  FakeClock clock;
+  FakeCatalog catalog;
+  v1::JobSpec spec = SkippingSpec(2, 1);
+  v1::Hierarchical* h = spec.mutable_plan()->mutable_hierarchical();
+  h->set_levels(2);
+  h->set_dims(2);
+  h->set_base_samples(2);
+  h->set_min_samples(1);
+  h->set_decay(2);
+  h->set_localize_threshold(0.5);  // low thresholds: the synthetic noise localizes many pixels
+  h->set_localize_contrast(0);
+  h->set_samples_per_pixel(1);
+  const JobConfig config = ValidateJobSpec(spec, catalog);
+  const uint64_t static_tasks = ScheduledTasks(config).size();
+
+  Scheduler reference(clock, {});
+  std::unique_ptr<Job> ref_job = reference.PrepareJob(config);
+  const std::string ref_id = ref_job->id();
+  reference.AddJob(std::move(ref_job));
+  while (std::optional<Lease> l = reference.TryLease({"w", {}})) Complete(reference, *l);
+  const v1::JobStatus ref_status = reference.Status(ref_id);
+  ASSERT_EQ(ref_status.state(), v1::JOB_STATE_SUCCEEDED);
+  ASSERT_GT(ref_status.tasks_total(), static_tasks + 2) << "localization tasks were created";
+
+  const fs::path db_file = dir.path() / "coordinator.db";
+  const fs::path cp_dir = dir.path() / "checkpoints";
+  std::string id;
+  uint64_t merged_before_crash = 0;
+  {
+    auto db = std::make_unique<SqliteStore>(db_file);
+    auto scheduler = std::make_unique<Scheduler>(clock, SchedulerOptions{});
+    auto persister = std::make_unique<Persister>(*scheduler, *db, cp_dir, clock, /*interval=*/0);
+    id = SubmitStored(*scheduler, *db, config);
+    // Everything static, and one created task: checkpointed.
+    for (uint64_t i = 0; i <= static_tasks; ++i) Complete(*scheduler, *scheduler->TryLease({"w1", {}}));
+    ASSERT_GT(scheduler->Status(id).tasks_total(), static_tasks + 1);
+    persister->FlushNow();
+    // One more created task, acknowledged through the journal.
+    const Lease journaled = *scheduler->TryLease({"w1", {}});
+    ASSERT_GE(journaled.task_id, static_tasks);
+    const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
+    ASSERT_EQ(scheduler->Complete(journaled.lease_id, sums).status, CompleteStatus::kMerged);
+    persister->JournalThenAck(id, journaled.task_id, sums, [] {});
+    persister->FlushNow(/*checkpoints_due=*/false);
+    merged_before_crash = static_tasks + 2;
+    persister->Abandon();
+  }
+
+  SqliteStore db(db_file);
+  Scheduler scheduler(clock, SchedulerOptions{});
+  const RecoveryReport report = RecoverJobs(db, catalog, cp_dir, scheduler, clock);
+  EXPECT_EQ(report.jobs_resumed, 1u);
+  EXPECT_EQ(report.tasks_merged, merged_before_crash);
+  EXPECT_EQ(report.tasks_from_journal, 1u);
+  while (std::optional<Lease> l = scheduler.TryLease({"w3", {}})) {
+    EXPECT_GE(l->task_id, merged_before_crash) << "merged before the crash, re-run";
+    Complete(scheduler, *l);
+  }
+  const v1::JobStatus s = scheduler.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_total(), ref_status.tasks_total());
+  EXPECT_EQ(s.samples_merged(), ref_status.samples_merged());
+  const JobSnapshot after = scheduler.Snapshot(id, true), ref = reference.Snapshot(ref_id, true);
+  ASSERT_TRUE(after.image && ref.image);
+  for (size_t p = 0; p < ref.image->image.size(); ++p)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(after.image->image[p][c], ref.image->image[p][c]) << p;
+}
+
+}  // namespace
+}  // namespace pf::server

@@ -1,0 +1,463 @@
+#include "common/plan/hierarchical.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "common/core/error.h"
+
+namespace pf {
+namespace {
+
+constexpr double kFixedScale = 4294967296.0;  // 2^32, as the Accumulator
+constexpr uint32_t kMaxLevels = 16;
+constexpr uint32_t kMaxMaps = 1u << 16;
+constexpr double kMadToSigma = 1.4826;  // MAD of a normal distribution × this = σ
+
+double Lum(double r, double g, double b) {
+  return 0.2126 * r + 0.7152 * g + 0.0722 * b;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + mid, v.end());
+  double m = v[mid];
+  if (v.size() % 2 == 0) m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + mid));
+  return m;
+}
+
+std::vector<std::pair<uint32_t, uint32_t>> Bands(const PlanSpec& plan, int height) {
+  std::vector<std::pair<uint32_t, uint32_t>> bands;
+  const uint32_t h = uint32_t(height);
+  const uint32_t step = plan.tile_size == 0 ? h : plan.tile_size;
+  for (uint32_t y = 0; y < h; y += step) bands.emplace_back(y, std::min(h, y + step));
+  return bands;
+}
+
+TaskSpec MakeTask(uint64_t id, uint32_t level, uint64_t map, uint64_t job_seed, const PlanSpec& plan) {
+  TaskSpec t;
+  t.task_id = id;
+  t.round = level;
+  t.map_index = map;
+  t.map_seed = MapSeed(job_seed, map);
+  t.pixel_seed = PixelSeed(job_seed, map);
+  t.sample_begin = 0;
+  t.sample_end = plan.samples_per_pixel;
+  return t;
+}
+
+}  // namespace
+
+HierarchySchedule MakeHierarchySchedule(const PlanSpec& plan) {
+  HierarchySchedule s;
+  double v = plan.base_samples;
+  uint64_t offset = 0;
+  for (uint32_t l = 0; l <= plan.levels; ++l) {
+    const uint32_t n = std::max(plan.min_samples, uint32_t(std::ceil(v - 1e-9)));
+    s.samples.push_back(n);
+    s.map_offset.push_back(offset);
+    offset += n;
+    v /= plan.decay;
+  }
+  s.nmax = uint32_t(std::min<uint64_t>(offset, ~uint32_t(0)));
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Structure
+
+Hierarchy::Axis Hierarchy::MakeAxis(uint32_t n, uint32_t levels) {
+  Axis ax;
+  ax.level.assign(n, 0);
+  ax.a.assign(n, 0);
+  ax.b.assign(n, 0);
+  ax.has_level.assign(levels + 1, false);
+  ax.has_level[0] = true;
+  const uint32_t step = 1u << levels;
+  // Iterative bisection (depth ≤ levels): intervals [a, b] with the depth of their midpoint.
+  struct Interval {
+    uint32_t a, b, depth;
+  };
+  std::vector<Interval> stack;
+  for (uint32_t a = 0; a + 1 < n; a += step) stack.push_back({a, std::min(a + step, n - 1), 1});
+  while (!stack.empty()) {
+    const Interval iv = stack.back();
+    stack.pop_back();
+    if (iv.b - iv.a < 2) continue;
+    const uint32_t m = iv.a + (iv.b - iv.a) / 2;
+    ax.level[m] = uint8_t(iv.depth);
+    ax.a[m] = iv.a;
+    ax.b[m] = iv.b;
+    ax.has_level[iv.depth] = true;
+    stack.push_back({iv.a, m, iv.depth + 1});
+    stack.push_back({m, iv.b, iv.depth + 1});
+  }
+  return ax;
+}
+
+Hierarchy::Hierarchy(int width, int height, uint32_t levels, uint32_t dims)
+    : width_(width), height_(height), levels_(levels), dims_(dims) {
+  if (width <= 0 || height <= 0 || levels > kMaxLevels || (dims != 1 && dims != 2))
+    throw InputError("hierarchy: bad size, levels or dims");
+  x_ = MakeAxis(uint32_t(width), levels);
+  if (dims == 2) y_ = MakeAxis(uint32_t(height), levels);
+}
+
+uint32_t Hierarchy::LevelOf(uint32_t pixel) const {
+  const uint32_t x = pixel % uint32_t(width_), y = pixel / uint32_t(width_);
+  return dims_ == 1 ? x_.level[x] : std::max(x_.level[x], y_.level[y]);
+}
+
+Hierarchy::Parents Hierarchy::ParentsOf(uint32_t pixel) const {
+  Parents p;
+  const uint32_t w = uint32_t(width_);
+  const uint32_t x = pixel % w, y = pixel / w;
+  const uint32_t lx = x_.level[x], ly = dims_ == 1 ? 0 : y_.level[y];
+  auto t_of = [](uint32_t v, uint32_t a, uint32_t b) { return double(v - a) / double(b - a); };
+  if (lx > ly) {
+    const double t = t_of(x, x_.a[x], x_.b[x]);
+    p.count = 2;
+    p.pixel = {y * w + x_.a[x], y * w + x_.b[x], 0, 0};
+    p.weight = {1 - t, t, 0, 0};
+  } else if (ly > lx) {
+    const double t = t_of(y, y_.a[y], y_.b[y]);
+    p.count = 2;
+    p.pixel = {y_.a[y] * w + x, y_.b[y] * w + x, 0, 0};
+    p.weight = {1 - t, t, 0, 0};
+  } else if (lx > 0) {
+    const double tx = t_of(x, x_.a[x], x_.b[x]), ty = t_of(y, y_.a[y], y_.b[y]);
+    const uint32_t ax = x_.a[x], bx = x_.b[x], ay = y_.a[y], by = y_.b[y];
+    p.count = 4;
+    p.pixel = {ay * w + ax, ay * w + bx, by * w + ax, by * w + bx};
+    p.weight = {(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty};
+  }
+  return p;
+}
+
+bool Hierarchy::HasPoints(uint32_t level, uint32_t y0, uint32_t y1) const {
+  if (level > levels_ || y0 >= y1) return false;
+  if (dims_ == 1) return x_.has_level[level];
+  for (uint32_t y = y0; y < y1 && y < uint32_t(height_); ++y) {
+    if (y_.level[y] == level) return true;
+    if (y_.level[y] < level && x_.has_level[level]) return true;
+  }
+  return false;
+}
+
+std::vector<uint32_t> Hierarchy::PointsOf(uint32_t level, uint32_t y0, uint32_t y1) const {
+  std::vector<uint32_t> out;
+  const uint32_t w = uint32_t(width_);
+  y1 = std::min(y1, uint32_t(height_));
+  for (uint32_t y = y0; y < y1; ++y)
+    for (uint32_t x = 0; x < w; ++x)
+      if (LevelOf(y * w + x) == level) out.push_back(y * w + x);
+  return out;
+}
+
+std::vector<uint32_t> Hierarchy::TaskPixels(uint32_t level, uint32_t y0, uint32_t y1) const {
+  std::vector<uint32_t> out = PointsOf(level, y0, y1);
+  if (level == 0) return out;
+  const size_t points = out.size();
+  for (size_t i = 0; i < points; ++i) {
+    const Parents p = ParentsOf(out[i]);
+    for (uint32_t k = 0; k < p.count; ++k) out.push_back(p.pixel[k]);
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+HierarchyStats ComputeHierarchyStats(const PlanSpec& plan, int width, int height) {
+  ValidateHierarchicalPlan(plan, width, height);
+  const Hierarchy h(width, height, plan.levels, plan.dims);
+  const HierarchySchedule s = MakeHierarchySchedule(plan);
+  HierarchyStats st;
+  st.nmax = s.nmax;
+  st.points.assign(plan.levels + 1, 0);
+  const double pixels = double(width) * height;
+  double samples = 0, evaluations = 0;
+  for (uint32_t l = 0; l <= plan.levels; ++l) {
+    st.points[l] = h.PointsOf(l, 0, uint32_t(height)).size();
+    samples += double(st.points[l]) * s.samples[l];
+    for (const auto& [y0, y1] : Bands(plan, height))
+      if (h.HasPoints(l, y0, y1)) evaluations += double(h.TaskPixels(l, y0, y1).size()) * s.samples[l];
+  }
+  st.navg = samples * plan.samples_per_pixel / pixels;
+  st.evaluations_per_pixel = evaluations * plan.samples_per_pixel / pixels;
+  return st;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tasks
+
+void ValidateHierarchicalPlan(const PlanSpec& plan, int width, int height) {
+  if (width <= 0 || height <= 0) throw InputError("camera: width and height must be positive");
+  if (plan.levels < 1 || plan.levels > kMaxLevels)
+    throw InputError("plan.hierarchical.levels: must be in [1, " + std::to_string(kMaxLevels) + "]");
+  if (plan.dims != 1 && plan.dims != 2) throw InputError("plan.hierarchical.dims: must be 1 or 2");
+  if (plan.base_samples < 1) throw InputError("plan.hierarchical.base_samples: must be >= 1");
+  if (plan.min_samples < 1 || plan.min_samples > plan.base_samples)
+    throw InputError("plan.hierarchical.min_samples: must be in [1, base_samples]");
+  if (!(plan.decay >= 1) || !std::isfinite(plan.decay))
+    throw InputError("plan.hierarchical.decay: must be a finite number >= 1");
+  if (!(plan.localize_threshold >= 0) || !std::isfinite(plan.localize_threshold))
+    throw InputError("plan.hierarchical.localize_threshold: must be a finite number >= 0");
+  if (!(plan.localize_contrast >= 0) || !std::isfinite(plan.localize_contrast))
+    throw InputError("plan.hierarchical.localize_contrast: must be a finite number >= 0");
+  if (plan.samples_per_pixel < 1) throw InputError("plan.hierarchical.samples_per_pixel: must be >= 1");
+  uint64_t maps = 0;
+  double v = plan.base_samples;
+  for (uint32_t l = 0; l <= plan.levels; ++l, v /= plan.decay)
+    maps += std::max<uint64_t>(plan.min_samples, uint64_t(std::ceil(v - 1e-9)));
+  if (maps > kMaxMaps)
+    throw InputError("plan.hierarchical: " + std::to_string(maps) + " maps in all (more than " +
+                     std::to_string(kMaxMaps) + "); use fewer levels or samples");
+}
+
+std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, int height,
+                                              uint64_t job_seed) {
+  ValidateHierarchicalPlan(plan, width, height);
+  const Hierarchy h(width, height, plan.levels, plan.dims);
+  const HierarchySchedule s = MakeHierarchySchedule(plan);
+  const auto bands = Bands(plan, height);
+  std::vector<TaskSpec> tasks;
+  // Level-major, then map, then band: the bands of one map are adjacent (map affinity), and the
+  // coarse levels (which localization and the fine levels' interpolation need) come first.
+  for (uint32_t l = 0; l <= plan.levels; ++l)
+    for (uint32_t j = 0; j < s.samples[l]; ++j)
+      for (const auto& [y0, y1] : bands) {
+        if (!h.HasPoints(l, y0, y1)) continue;
+        TaskSpec t = MakeTask(tasks.size(), l, s.map_offset[l] + j, job_seed, plan);
+        t.pixels.kind = PixelSubset::Kind::kHierarchyLevel;
+        t.pixels.level = l;
+        t.pixels.levels = plan.levels;
+        t.pixels.dims = plan.dims;
+        t.pixels.y0 = y0;
+        t.pixels.y1 = y1;
+        tasks.push_back(std::move(t));
+      }
+  return tasks;
+}
+
+uint64_t CountHierarchicalStaticTasks(const PlanSpec& plan, int width, int height) {
+  ValidateHierarchicalPlan(plan, width, height);
+  const Hierarchy h(width, height, plan.levels, plan.dims);
+  const HierarchySchedule s = MakeHierarchySchedule(plan);
+  uint64_t n = 0;
+  for (uint32_t l = 0; l <= plan.levels; ++l)
+    for (const auto& [y0, y1] : Bands(plan, height))
+      if (h.HasPoints(l, y0, y1)) n += s.samples[l];
+  return n;
+}
+
+std::vector<TaskSpec> HierarchicalTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed,
+                                        const HierarchicalAssembly& merged) {
+  std::vector<TaskSpec> tasks = HierarchicalStaticTasks(plan, width, height, job_seed);
+  const HierarchySchedule s = MakeHierarchySchedule(plan);
+  const auto bands = Bands(plan, height);
+  for (uint32_t l = 1; l <= plan.levels && merged.LevelComplete(l); ++l) {
+    const std::vector<uint32_t> localized = merged.Localized(l);
+    if (localized.empty()) continue;
+    // Resampled directly with the level-0 maps 0..n0−1: no pixel of level ≥ 1 ever used them.
+    for (uint32_t j = 0; j < s.samples[0]; ++j)
+      for (const auto& [y0, y1] : bands) {
+        const auto lo = std::lower_bound(localized.begin(), localized.end(), y0 * uint32_t(width));
+        const auto hi = std::lower_bound(localized.begin(), localized.end(), y1 * uint32_t(width));
+        if (lo == hi) continue;
+        TaskSpec t = MakeTask(tasks.size(), l, s.map_offset[0] + j, job_seed, plan);
+        t.pixels.kind = PixelSubset::Kind::kList;
+        t.pixels.list.assign(lo, hi);
+        tasks.push_back(std::move(t));
+      }
+  }
+  return tasks;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Assembly
+
+HierarchicalAssembly::HierarchicalAssembly(const PlanSpec& plan, int width, int height)
+    : plan_(plan), hierarchy_(width, height, plan.levels, plan.dims) {
+  ValidateHierarchicalPlan(plan, width, height);
+  const size_t n = size_t(width) * height;
+  level_tasks_.assign(plan.levels + 1, 0);
+  level_tasks_merged_.assign(plan.levels + 1, 0);
+  for (const TaskSpec& t : HierarchicalStaticTasks(plan, width, height, 0)) ++level_tasks_[t.round];
+  direct_.assign(3 * n, 0);
+  direct_samples_.assign(n, 0);
+  detail_.assign(3 * n, 0);
+  interp_.assign(n, 0);
+  detail2_.assign(n, 0);
+  detail_maps_.assign(n, 0);
+}
+
+bool HierarchicalAssembly::Add(const TaskSpec& task, std::span<const uint32_t> pixels,
+                               std::span<const float> rgb_sums, uint32_t samples) {
+  if (rgb_sums.size() != pixels.size() * 3 || samples == 0)
+    throw std::logic_error("HierarchicalAssembly::Add: unvalidated result");
+  if (!merged_.insert(task.task_id).second) return false;
+  const size_t n = direct_samples_.size();
+  for (uint32_t p : pixels)
+    if (p >= n) throw InputError("result: pixel index " + std::to_string(p) + " outside the image");
+  samples_merged_ += uint64_t(pixels.size()) * samples;
+  const bool detail = task.pixels.kind == PixelSubset::Kind::kHierarchyLevel && task.pixels.level > 0;
+  if (!detail) {
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      for (int c = 0; c < 3; ++c)
+        direct_[3 * size_t(pixels[i]) + c] +=
+            int64_t(std::llround(double(rgb_sums[3 * i + c]) * kFixedScale));
+      direct_samples_[pixels[i]] += samples;
+    }
+    if (task.pixels.kind == PixelSubset::Kind::kHierarchyLevel) ++level_tasks_merged_[0];
+    return true;
+  }
+  const uint32_t level = task.pixels.level;
+  const uint32_t w = uint32_t(hierarchy_.width());
+  const double inv = 1.0 / samples;
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const uint32_t p = pixels[i];
+    const uint32_t y = p / w;
+    if (y < task.pixels.y0 || y >= task.pixels.y1 || hierarchy_.LevelOf(p) != level) continue;  // a parent
+    const Hierarchy::Parents par = hierarchy_.ParentsOf(p);
+    double interp[3] = {0, 0, 0};
+    for (uint32_t k = 0; k < par.count; ++k) {
+      const auto it = std::lower_bound(pixels.begin(), pixels.end(), par.pixel[k]);
+      if (it == pixels.end() || *it != par.pixel[k])
+        throw std::logic_error("HierarchicalAssembly::Add: a parent is missing from the task's pixels");
+      const size_t j = size_t(it - pixels.begin());
+      for (int c = 0; c < 3; ++c) interp[c] += par.weight[k] * double(rgb_sums[3 * j + c]) * inv;
+    }
+    double d[3];
+    for (int c = 0; c < 3; ++c) {
+      d[c] = double(rgb_sums[3 * i + c]) * inv - interp[c];
+      detail_[3 * size_t(p) + c] += int64_t(std::llround(d[c] * kFixedScale));
+    }
+    const double dl = Lum(d[0], d[1], d[2]);
+    detail2_[p] += int64_t(std::llround(dl * dl * kFixedScale));
+    interp_[p] += int64_t(std::llround(Lum(interp[0], interp[1], interp[2]) * kFixedScale));
+    ++detail_maps_[p];
+  }
+  ++level_tasks_merged_[level];
+  return true;
+}
+
+bool HierarchicalAssembly::LevelComplete(uint32_t level) const {
+  return level < level_tasks_.size() && level_tasks_merged_[level] == level_tasks_[level];
+}
+
+HierarchicalAssembly::LevelDetail HierarchicalAssembly::DetailsOf(uint32_t level) const {
+  LevelDetail ld;
+  ld.points = hierarchy_.PointsOf(level, 0, uint32_t(hierarchy_.height()));
+  for (uint32_t p : ld.points) {
+    const double cnt = std::max<uint32_t>(1, detail_maps_[p]) * kFixedScale;
+    ld.d.push_back(Lum(double(detail_[3 * size_t(p)]), double(detail_[3 * size_t(p) + 1]),
+                       double(detail_[3 * size_t(p) + 2])) /
+                   cnt);
+    ld.interp.push_back(double(interp_[p]) / cnt);
+    const uint32_t m = detail_maps_[p];
+    if (m >= 2) {  // standard error of the mean detail (luminance), unbiased variance
+      const double mean = ld.d.back();
+      const double var = std::max(0.0, (double(detail2_[p]) / kFixedScale - m * mean * mean) / (m - 1));
+      ld.standard_error.push_back(std::sqrt(var / m));
+    }
+  }
+  return ld;
+}
+
+double HierarchicalAssembly::LevelNoise(uint32_t level) const {
+  const LevelDetail ld = DetailsOf(level);
+  if (!ld.points.empty() && ld.standard_error.size() == ld.points.size()) return Median(ld.standard_error);
+  const double med = Median(ld.d);
+  std::vector<double> dev(ld.d.size());
+  for (size_t i = 0; i < ld.d.size(); ++i) dev[i] = std::fabs(ld.d[i] - med);
+  return kMadToSigma * Median(std::move(dev));
+}
+
+std::vector<uint32_t> HierarchicalAssembly::Localized(uint32_t level) const {
+  std::vector<uint32_t> out;
+  if (level == 0 || !LevelComplete(level)) return out;
+  const LevelDetail ld = DetailsOf(level);
+  const double sigma = LevelNoise(level);
+  for (size_t i = 0; i < ld.points.size(); ++i) {
+    const double a = std::fabs(ld.d[i]);
+    if (a > plan_.localize_threshold * sigma && a > plan_.localize_contrast * std::fabs(ld.interp[i]))
+      out.push_back(ld.points[i]);
+  }
+  return out;
+}
+
+Image HierarchicalAssembly::Resolve() const {
+  const int width = hierarchy_.width(), height = hierarchy_.height();
+  const size_t n = size_t(width) * height;
+  std::vector<double> f(3 * n, 0.0);
+  for (uint32_t l = 0; l <= plan_.levels; ++l) {
+    for (uint32_t p : hierarchy_.PointsOf(l, 0, uint32_t(height))) {
+      double* fp = &f[3 * size_t(p)];
+      if (l == 0 || direct_samples_[p] > 0) {  // a level-0 point, or localized
+        if (direct_samples_[p] == 0) continue;
+        const double inv = 1.0 / (kFixedScale * direct_samples_[p]);
+        for (int c = 0; c < 3; ++c) fp[c] = double(direct_[3 * size_t(p) + c]) * inv;
+        continue;
+      }
+      const Hierarchy::Parents par = hierarchy_.ParentsOf(p);
+      for (uint32_t k = 0; k < par.count; ++k)
+        for (int c = 0; c < 3; ++c) fp[c] += par.weight[k] * f[3 * size_t(par.pixel[k]) + c];
+      if (detail_maps_[p] > 0) {
+        const double inv = 1.0 / (kFixedScale * detail_maps_[p]);
+        for (int c = 0; c < 3; ++c) fp[c] += double(detail_[3 * size_t(p) + c]) * inv;
+      }
+    }
+  }
+  Image img(width, height);
+  for (size_t p = 0; p < n; ++p) img[p] = Rgb(float(f[3 * p]), float(f[3 * p + 1]), float(f[3 * p + 2]));
+  return img;
+}
+
+void HierarchicalAssembly::SerializeTo(std::string& out) const {
+  ByteWriter w(out);
+  w.Put<uint64_t>(direct_samples_.size());
+  w.Put<uint64_t>(samples_merged_);
+  w.Put<uint64_t>(level_tasks_merged_.size());
+  w.PutArray<uint64_t>(level_tasks_merged_);
+  w.PutArray<int64_t>(direct_);
+  w.PutArray<uint32_t>(direct_samples_);
+  w.PutArray<int64_t>(detail_);
+  w.PutArray<int64_t>(interp_);
+  w.PutArray<int64_t>(detail2_);
+  w.PutArray<uint32_t>(detail_maps_);
+  w.Put<uint64_t>(merged_.size());
+  for (uint64_t id : merged_) w.Put<uint64_t>(id);
+}
+
+void HierarchicalAssembly::DeserializeFrom(ByteReader& r) {
+  const uint64_t n = r.Get<uint64_t>();
+  if (n != direct_samples_.size()) r.Fail("hierarchy size differs from the job's");
+  samples_merged_ = r.Get<uint64_t>();
+  if (r.Get<uint64_t>() != level_tasks_merged_.size()) r.Fail("hierarchy levels differ from the job's");
+  r.GetArray<uint64_t>(level_tasks_merged_);
+  // Per pixel: 3 + 3 + 1 + 1 int64 and 2 uint32; checked before reading (no huge allocation).
+  if (r.remaining() < n * (8 * sizeof(int64_t) + 2 * sizeof(uint32_t))) r.Fail("truncated");
+  r.GetArray<int64_t>(direct_);
+  r.GetArray<uint32_t>(direct_samples_);
+  r.GetArray<int64_t>(detail_);
+  r.GetArray<int64_t>(interp_);
+  r.GetArray<int64_t>(detail2_);
+  r.GetArray<uint32_t>(detail_maps_);
+  const uint64_t m = r.Get<uint64_t>();
+  if (m > r.remaining() / sizeof(uint64_t)) r.Fail("truncated");
+  merged_.clear();
+  for (uint64_t i = 0; i < m; ++i) merged_.insert(r.Get<uint64_t>());
+  if (r.remaining() != 0) r.Fail("trailing bytes");
+  for (uint32_t l = 0; l < level_tasks_merged_.size(); ++l)
+    if (level_tasks_merged_[l] > level_tasks_[l]) r.Fail("more tasks merged than the level has");
+}
+
+bool HierarchicalAssembly::operator==(const HierarchicalAssembly& o) const {
+  return direct_ == o.direct_ && direct_samples_ == o.direct_samples_ && detail_ == o.detail_ &&
+         interp_ == o.interp_ && detail2_ == o.detail2_ && detail_maps_ == o.detail_maps_ &&
+         merged_ == o.merged_ && samples_merged_ == o.samples_merged_ &&
+         level_tasks_merged_ == o.level_tasks_merged_;
+}
+
+}  // namespace pf

@@ -1,0 +1,170 @@
+#pragma once
+// The hierarchical photon map (Wald 1999, §4.5; Heinrich's multilevel integro-approximation after
+// Keller) as a plan of independent tasks (docs/renderer.md, "Hierarchical plan").
+//
+// Structure. Along an axis of n pixels, the level-0 points are every 2^L-th pixel and the last
+// one; each interval [a, b] between two points with b − a ≥ 2 is bisected at m = ⌊(a+b)/2⌋, and
+// m belongs to the next level, with parents a and b (weights 1 − t, t for t = (m−a)/(b−a); ½ on
+// the power-of-two segments of 2^L + 1 pixels the thesis uses). Levels run 0..L.
+//  1-D (dims = 1): every scanline on its own: pixel (x, y) has x's level and parents (a, y), (b, y).
+//  2-D (dims = 2): pixel (x, y) has level max(lx, ly); if lx > ly its parents are (ax, y), (bx, y);
+//      if ly > lx (x, ay), (x, by); if both are equal, the four corners, bilinearly weighted.
+//      Parents always belong to lower levels.
+//
+// Schedule. Level l gets n_l = max(min_samples, ⌈n0 / decay^l⌉) samples (n0 = base_samples),
+// sample j of level l from map M_l + j with M_l = Σ_{k<l} n_k, so every sample of a pixel comes
+// from a different map and Nmax = Σ_l n_l maps are used in all (HierarchyStats reports Nmax,
+// navg = mean samples per pixel, and the evaluations per pixel, which also count the parents'
+// evaluations that the details need).
+//
+// Details. A level-0 point is the mean of its n0 direct samples. A level-l point p is
+//     F(p) = Σ_q w_q F(q) + mean_j d_j(p),   d_j(p) = f_j(p) − Σ_q w_q f_j(q),
+// where f_j is the image rendered with map j: the detail uses the *same* map at p and its
+// parents, so where the image is smooth (and the photon map's low-frequency error is smooth)
+// d_j is small and has small variance, and F(p) inherits the many maps of the coarse points.
+// A detail task (map j, level l, row band) renders the band's level-l points and their parents
+// with map j; the assembly turns its sums into details.
+//
+// Localization. Once all detail tasks of level l are merged, let D(p) be p's mean detail and
+// I(p) the mean interpolation Σ w f_j(q) (luminance), and σ_l the level's noise: the median over
+// the level's points of the standard error of D(p) (from the spread of its n_l ≥ 2 per-map
+// details; the median, because the few points at a discontinuity have a large spread too), or,
+// with n_l = 1, 1.4826 · median |D − median D| (robust to the few discontinuity points, as long
+// as they are few). p is localized if |D(p)| > τ·σ_l and |D(p)| > κ·|I(p)| (τ = localize_threshold,
+// κ = localize_contrast): the detail is both far outside the level's noise and visible. A
+// localized pixel discards the interpolation: it is resampled directly with n0 samples from maps
+// 0..n0−1 (the level-0 maps, never used at that pixel before), and F(p) is their mean. Both
+// quantities are computed from the fixed-point sums, so the decision is the same for any merge
+// order, and the localization tasks of level l (ids after the static tasks, level by level) are
+// a pure function of the plan and the merged results (HierarchicalTasks).
+//
+// Assembly. Direct sums, detail sums and interpolation sums are kept in 64-bit fixed point
+// (2^-32), so merging is exact, order-independent, and idempotent per task (a task id merged
+// twice is ignored). Resolve evaluates F level by level.
+
+#include <array>
+#include <cstdint>
+#include <set>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/core/byte_codec.h"
+#include "common/image/image.h"
+#include "common/plan/task_plan.h"
+
+namespace pf {
+
+struct HierarchySchedule {
+  std::vector<uint32_t> samples;     // n_l, l = 0..L
+  std::vector<uint64_t> map_offset;  // M_l: first map of level l
+  uint32_t nmax = 0;                 // Σ n_l
+};
+HierarchySchedule MakeHierarchySchedule(const PlanSpec& plan);
+
+class Hierarchy {
+ public:
+  Hierarchy(int width, int height, uint32_t levels, uint32_t dims);
+
+  struct Parents {
+    uint32_t count = 0;
+    std::array<uint32_t, 4> pixel{};
+    std::array<double, 4> weight{};
+  };
+  uint32_t LevelOf(uint32_t pixel) const;
+  Parents ParentsOf(uint32_t pixel) const;
+  // The level-l points with row in [y0, y1), ascending.
+  std::vector<uint32_t> PointsOf(uint32_t level, uint32_t y0, uint32_t y1) const;
+  // Those points and their parents, ascending and unique: a detail task's pixel set.
+  std::vector<uint32_t> TaskPixels(uint32_t level, uint32_t y0, uint32_t y1) const;
+  // Whether any row of [y0, y1) has a level-l point.
+  bool HasPoints(uint32_t level, uint32_t y0, uint32_t y1) const;
+
+  uint32_t levels() const { return levels_; }
+  uint32_t dims() const { return dims_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  struct Axis {
+    std::vector<uint8_t> level;
+    std::vector<uint32_t> a, b;  // parents along the axis (level > 0)
+    std::vector<bool> has_level;
+  };
+  static Axis MakeAxis(uint32_t n, uint32_t levels);
+  int width_, height_;
+  uint32_t levels_, dims_;
+  Axis x_, y_;
+};
+
+struct HierarchyStats {
+  uint32_t nmax = 0;
+  double navg = 0;                   // samples per pixel (its own samples; localization excluded)
+  double evaluations_per_pixel = 0;  // rendered pixel samples per pixel, parents included
+  std::vector<uint64_t> points;      // per level
+};
+HierarchyStats ComputeHierarchyStats(const PlanSpec& plan, int width, int height);
+
+class HierarchicalAssembly {
+ public:
+  HierarchicalAssembly() = default;
+  HierarchicalAssembly(const PlanSpec& plan, int width, int height);
+
+  // Merges one task's result: rgb_sums has 3 floats per pixel of `pixels` (the task's subset,
+  // PixelsOf order), each the sum over `samples` samples. Caller has validated the sizes. A task
+  // id merged before is ignored (returns false).
+  bool Add(const TaskSpec& task, std::span<const uint32_t> pixels, std::span<const float> rgb_sums,
+           uint32_t samples);
+
+  Image Resolve() const;
+  // All detail tasks of `level` are merged (level 0: its direct tasks).
+  bool LevelComplete(uint32_t level) const;
+  // The localized points of a complete level ≥ 1 (see the header comment), ascending.
+  std::vector<uint32_t> Localized(uint32_t level) const;
+  // σ_l of a complete level ≥ 1.
+  double LevelNoise(uint32_t level) const;
+  uint64_t tasks_merged() const { return merged_.size(); }
+  uint64_t samples_merged() const { return samples_merged_; }
+  const Hierarchy& hierarchy() const { return hierarchy_; }
+
+  // Checkpoints (inside Accumulator::Serialize): the state after the plan, which the reader
+  // must construct the assembly with. DeserializeFrom throws InputError if the sizes disagree.
+  void SerializeTo(std::string& out) const;
+  void DeserializeFrom(ByteReader& in);
+
+  bool operator==(const HierarchicalAssembly& o) const;
+
+ private:
+  PlanSpec plan_;
+  Hierarchy hierarchy_{1, 1, 0, 1};
+  std::vector<uint64_t> level_tasks_;         // detail (direct for level 0) tasks per level
+  std::vector<uint64_t> level_tasks_merged_;  // … of which merged
+  std::vector<int64_t> direct_;               // 3 per pixel, fixed point
+  std::vector<uint32_t> direct_samples_;
+  std::vector<int64_t> detail_;   // 3 per pixel: Σ_j d_j, fixed point
+  std::vector<int64_t> interp_;   // per pixel: Σ_j luminance(Σ w f_j(q)), fixed point
+  std::vector<int64_t> detail2_;  // per pixel: Σ_j luminance(d_j)², fixed point
+  std::vector<uint32_t> detail_maps_;
+  std::set<uint64_t> merged_;
+  uint64_t samples_merged_ = 0;
+  struct LevelDetail {
+    std::vector<uint32_t> points;
+    std::vector<double> d, interp;
+    std::vector<double> standard_error;  // per point, if every point has ≥ 2 maps
+  };
+  LevelDetail DetailsOf(uint32_t level) const;
+};
+
+// Every task the plan has, given what is merged: the static tasks (ExpandPlan) and, for each
+// level l = 1, 2, … while levels 1..l are complete, level l's localization tasks. Ids are the
+// index in the result; a prefix of a later answer is always the earlier answer.
+std::vector<TaskSpec> HierarchicalTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed,
+                                        const HierarchicalAssembly& merged);
+
+// The static tasks (part of ExpandPlan).
+std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed);
+uint64_t CountHierarchicalStaticTasks(const PlanSpec& plan, int width, int height);
+void ValidateHierarchicalPlan(const PlanSpec& plan, int width, int height);
+
+}  // namespace pf

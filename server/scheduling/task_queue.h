@@ -1,0 +1,49 @@
+#pragma once
+// The queue of a Scheduler (server/scheduling/scheduler.h): which queued task a worker gets.
+//
+// Jobs are served by priority (higher first), then submission order. Within the chosen job a
+// worker gets the lowest queued task id — unless it reported cached photon maps and a queued
+// task of that job uses one of them: then the lowest such task (map affinity; tiles of one map
+// are adjacent in the plan). Affinity never crosses jobs: a map seed means a map only together
+// with the job's scene and settings.
+//
+// Only bookkeeping: task and job states are the Scheduler's. Not thread-safe (the Scheduler's
+// lock guards it).
+
+#include <cstdint>
+#include <map>
+#include <set>
+#include <span>
+#include <unordered_map>
+
+#include "server/jobs/job.h"
+
+namespace pf::server {
+
+class TaskQueue {
+ public:
+  struct Pick {
+    uint64_t task_id = 0;
+    bool map_cached = false;  // chosen by map affinity
+  };
+
+  void Push(Job& job, uint64_t task_id);
+  // No-op if the task is not queued.
+  void Remove(Job& job, uint64_t task_id);
+
+  bool empty() const { return ready_.empty(); }
+  // The job to serve next (highest priority, then oldest); requires !empty().
+  Job& FrontJob() const { return *ready_.begin()->second; }
+  // The task of `job` a worker with these cached map seeds gets (not removed); requires queued tasks.
+  Pick Choose(const Job& job, std::span<const uint64_t> cached_map_seeds) const;
+
+ private:
+  struct JobQueue {
+    std::set<uint64_t> ids;
+    std::unordered_map<uint64_t, std::set<uint64_t>> by_seed;
+  };
+  std::unordered_map<const Job*, JobQueue> queues_;
+  std::map<std::pair<int64_t, uint64_t>, Job*> ready_;  // (−priority, seq) of jobs with queued tasks
+};
+
+}  // namespace pf::server
