@@ -14,6 +14,7 @@ std::unique_ptr<PhotonMap> MakeFilled(const PhotonMapsOptions& o,
                                       std::initializer_list<const TracedPhotons*> lists,
                                       PhotonAttributes* attributes) {
   auto map = MakePhotonMap(o.kind, o.structure);
+  map->set_build_threads(o.tracing.threads);
   size_t n = 0;
   for (const auto* l : lists) n += l->size();
   // Compressing to 18 bytes (two arc functions and a frexp per photon) is independent per
