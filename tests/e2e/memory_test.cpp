@@ -35,8 +35,8 @@ TEST(CoordinatorMemory, TenQueued4096SquaredJobsStayUnderTheBound) {
   job.res = 4096;  // 16.7 Mpx: 787 MB per accumulator, 7.9 GB for ten if allocated at submit
   for (int i = 0; i < 10; ++i) {
     job.seed = uint64_t(i + 1);
-    const RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at),
-                                   dir.path());
+    const RunResult r = RunCommand(
+        Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at), dir.path());
     ASSERT_EQ(r.exit_code, 0) << r.err;
   }
   const RunResult list = RunCommand(Concat({Binaries::Pf(), "list"}, at), dir.path());
@@ -61,8 +61,8 @@ TEST(CoordinatorMemory, FinishedJobFreesItsAccumulatorAndKeepsItsImage) {
                            dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string id = r.out.substr(0, r.out.find('\n'));
-  r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "instant", "--tasks",
-                  "16", "--seconds", "60", "--concurrency", "2"},
+  r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "instant",
+                  "--tasks", "16", "--seconds", "60", "--concurrency", "2"},
                  dir.path(), 90);
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   r = RunCommand(Concat({Binaries::Pf(), "watch", id, "-q"}, at), dir.path(), 60);
