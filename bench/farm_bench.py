@@ -1,26 +1,39 @@
 #!/usr/bin/python3
 """farm_bench.py — the farm's benchmark: scaling, overhead and coordinator throughput.
 
-    bench/farm_bench.py [--build build] [--quick] [--json-out results.json]
+    bench/farm_bench.py [--build build] [--job default|skipping] [--repeat 3] [--render-only]
+                        [--quick] [--json-out results.json]
 
-1. Scaling and overhead on one machine, the same photon-map skipping job throughout (cornell-box
-   128x128, S=4 x 8 rounds = 128 tasks, 100k photons per map, 4 spp; >= 20 s on one core):
-     local-1   pf render --local-only --threads 1      (the single-process renderer, one core)
-     farm-1    pf render --workers 1 --threads 1       (coordinator + 1 worker of 1 thread)
-     farm-2    pf render --workers 2 --threads 1       (coordinator + 2 workers of 1 thread)
-     local-2   pf render --local-only --threads 2      (the single-process renderer, two cores)
-   Wall time of the whole command (farm start-up, upload, scheduling and shutdown included);
-   --repeat interleaved runs of each, the fastest counts (the machine may be shared). Also the CPU
-   time (user + system) of all processes of a run: on a shared machine the cleaner measure of
-   what the farm adds (coordinator, client, RPCs).
-   speedup = farm-1 / farm-2; overhead = farm-N / local-N - 1. All four images must be
-   bit-identical (checked).
+1. Scaling and overhead on one machine (issue #12's "Must show"), one render job throughout:
+     --job default (the default): the issue's default farm job — cornell-box 256x256, one photon map
+       of 1M photons, k 100, 16 spp, the default plan;
+     --job skipping: cornell-box 128x128, photon-map skipping S=4 x 8 rounds = 128 tasks, 100k
+       photons per map, 4 spp (--quick: 2 rounds).
+   Runs, each the whole `pf` command (farm start-up, upload, scheduling and shutdown included):
+     process-1  pf render --threads 1                 (one process, one thread)
+     process-2  pf render --threads 2                 (one process, two threads)
+     farm-1     pf render --workers 1 --threads 1     (coordinator + 1 worker of 1 thread)
+     farm-2     pf render --workers 2 --threads 1     (coordinator + 2 workers of 1 thread)
+   --repeat interleaved runs of each (so that load changes hit every variant alike); the MEDIAN
+   counts, the fastest is reported too. Also the CPU time (user + system) of all processes of a
+   run. Ratios: process-1/process-2 (target >= 1.85), farm-1/farm-2 (target >= 1.8), farm-2 vs
+   process-2 (target within 10 %). Images: process-2 must equal process-1 and farm-2 farm-1
+   bit for bit (checked, exit 1 otherwise); whether the farm's image equals the single process's
+   is reported. The load average before and after is recorded: on a shared 2-core machine the
+   wall-clock ratios are only meaningful when it is idle. Hence, when `perf` is installed (not a
+   dependency; --no-span to skip), every run is also sampled (perf record -e cpu-clock, 499 Hz,
+   all processes and threads of the command) and its SPAN is reported: the on-CPU time of its
+   busiest thread (single process) or busiest process (farm: 1-thread workers, each task on a
+   thread of its own), i.e. the wall time the run would take on an idle machine if that thread or
+   worker never waits (true of the single process, whose calling thread runs the serial parts; a
+   lower bound for the farm, whose workers may wait for leases or idle at the end). Span ratios
+   are what load cannot distort.
 2. The coordinator alone with instant workers (tests/e2e/pf_fake_worker --mode instant: lease,
    answer zeros of the right size at once, 4 connections in parallel), loopback only, bounded by
    a task count and a time limit: task completions per second, with durable acknowledgements
    (--checkpoint-ms 0: every merge checkpointed before the result is acknowledged) and with
    checkpoints batched every 100 ms; bytes on the wire per task (the CompleteTask payload and the
-   leased Task message) against the pixels in the subset.
+   leased Task message) against the pixels in the subset. Skipped with --render-only.
 Prints a table and the JSON; --json-out also writes the JSON to a file.
 """
 import argparse
@@ -30,6 +43,7 @@ import re
 import resource
 import shutil
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -52,6 +66,19 @@ def run(cmd, cpu=None, **kw):
     if r.returncode != 0:
         sys.exit(f"failed ({r.returncode}): {' '.join(cmd)}\n{r.stderr}")
     return dt, r
+
+
+def span_of(perf_data, by_process):
+    """On-CPU seconds of the busiest thread (by_process: of the busiest process) in a
+    `perf record -F 499` of a command and everything it started."""
+    r = subprocess.run(["perf", "script", "-i", perf_data, "-F", "pid,tid"], capture_output=True, text=True)
+    counts = {}
+    for line in r.stdout.split():  # "pid/tid" per sample
+        fields = line.split("/")
+        if len(fields) == 2:
+            key = fields[0] if by_process else fields[1]
+            counts[key] = counts.get(key, 0) + 1
+    return max(counts.values()) / 499.0 if counts else 0.0
 
 
 def start_coordinator(coord, data_dir, extra):
@@ -82,8 +109,11 @@ def main():
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the clean-up below
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--build", default=os.path.join(REPO, "build"))
-    ap.add_argument("--quick", action="store_true", help="a 4x smaller render job (for a smoke run)")
-    ap.add_argument("--repeat", type=int, default=3, help="runs of each render configuration (the fastest counts)")
+    ap.add_argument("--quick", action="store_true", help="--job skipping: 2 rounds instead of 8 (a smoke run)")
+    ap.add_argument("--job", choices=("default", "skipping"), default="default")
+    ap.add_argument("--repeat", type=int, default=3, help="runs of each render configuration (the median counts)")
+    ap.add_argument("--render-only", action="store_true", help="skip the coordinator throughput part")
+    ap.add_argument("--no-span", action="store_true", help="do not sample runs with perf")
     ap.add_argument("--json-out")
     a = ap.parse_args()
     pf = os.path.join(a.build, "client", "pf")
@@ -93,42 +123,74 @@ def main():
         if not os.access(b, os.X_OK):
             sys.exit(f"missing {b}: build first (cmake --build {a.build})")
     tmp = tempfile.mkdtemp(prefix="pf-farm-bench-")
-    results = {"machine": {"cores": os.cpu_count()}, "render": {}, "coordinator": []}
+    results = {"machine": {"cores": os.cpu_count(), "load_before": os.getloadavg()}, "render": {},
+               "coordinator": []}
     try:
-        rounds = 2 if a.quick else 8
-        job = ["--integrator", "photonmap", "--photons", "100000", "--k", "50", "--res", "128x128",
-               "--plan", "skipping", "--stride", "4", "--rounds", str(rounds), "--spp", "4", "--seed", "11",
-               "-q", "--no-png", "--log-level", "warn"]
-        results["render"]["job"] = f"cornell-box 128x128, skipping S=4 x {rounds} rounds ({16 * rounds} tasks), " \
-                                   "100k photons/map, k=50, 4 spp"
-        runs = [("local-1", ["--local-only", "--threads", "1"]), ("farm-1", ["--workers", "1", "--threads", "1"]),
-                ("farm-2", ["--workers", "2", "--threads", "1"]), ("local-2", ["--local-only", "--threads", "2"])]
-        # Interleaved repetitions, fastest of each: the machine may be shared.
+        common = ["-q", "--no-png", "--log-level", "warn"]
+        if a.job == "default":
+            job = ["--integrator", "photonmap", "--photons", "1000000", "--k", "100", "--res", "256x256",
+                   "--spp", "16", "--seed", "11"] + common
+            results["render"]["job"] = "cornell-box 256x256, one map of 1M photons, k 100, 16 spp, default plan"
+        else:
+            rounds = 2 if a.quick else 8
+            job = ["--integrator", "photonmap", "--photons", "100000", "--k", "50", "--res", "128x128",
+                   "--plan", "skipping", "--stride", "4", "--rounds", str(rounds), "--spp", "4",
+                   "--seed", "11"] + common
+            results["render"]["job"] = f"cornell-box 128x128, skipping S=4 x {rounds} rounds ({16 * rounds} " \
+                                       "tasks), 100k photons/map, k=50, 4 spp"
+        # A skipping job in one process needs --local-only (a plain render runs no plan).
+        local = ["--local-only"] if a.job == "skipping" else []
+        runs = [("process-1", local + ["--threads", "1"]), ("process-2", local + ["--threads", "2"]),
+                ("farm-1", ["--workers", "1", "--threads", "1"]), ("farm-2", ["--workers", "2", "--threads", "1"])]
+        use_span = not a.no_span and shutil.which("perf") is not None
         times = {name: [] for name, _ in runs}
         cpus = {name: [] for name, _ in runs}
+        spans = {name: [] for name, _ in runs}
         for rep in range(a.repeat):
             for name, flags in runs:
                 out = os.path.join(tmp, name + ".exr")
-                dt, _ = run([pf, "render", SCENE, "-o", out] + job + flags, cpu=cpus[name])
+                data = os.path.join(tmp, name + ".perf")
+                prefix = ["perf", "record", "-q", "-F", "499", "-e", "cpu-clock", "-o", data, "--"] if use_span else []
+                dt, _ = run(prefix + [pf, "render", SCENE, "-o", out] + job + flags, cpu=cpus[name])
                 times[name].append(round(dt, 3))
-                print(f"  {name:8s} {dt:8.2f} s wall {cpus[name][-1]:8.2f} s CPU", file=sys.stderr, flush=True)
-        for name, _ in runs:
-            results["render"][name + "_seconds"] = min(times[name])
-            results["render"][name + "_all_seconds"] = times[name]
-            results["render"][name + "_cpu_seconds"] = min(cpus[name])
-        for name, _ in runs[1:]:
-            _, r = run([pf, "diff", os.path.join(tmp, name + ".exr"), os.path.join(tmp, "local-1.exr"), "--json"])
-            if json.loads(r.stdout)["max_abs_error"] != 0:
-                sys.exit(f"{name}: image differs from local-1")
+                if use_span:
+                    # A 1-thread worker renders each task on a thread of its own: its busy time is
+                    # that of its process.
+                    spans[name].append(round(span_of(data, by_process=name.startswith("farm")), 3))
+                print(f"  {name:9s} {dt:8.2f} s wall {cpus[name][-1]:8.2f} s CPU"
+                      + (f" {spans[name][-1]:8.2f} s span" if use_span else ""), file=sys.stderr, flush=True)
         r = results["render"]
-        r["bit_identical"] = True
-        r["speedup_2_vs_1_workers"] = round(r["farm-1_seconds"] / r["farm-2_seconds"], 3)
-        r["overhead_farm1_vs_local1"] = round(r["farm-1_seconds"] / r["local-1_seconds"] - 1, 4)
-        r["overhead_farm2_vs_local2"] = round(r["farm-2_seconds"] / r["local-2_seconds"] - 1, 4)
-        r["cpu_overhead_farm1_vs_local1"] = round(r["farm-1_cpu_seconds"] / r["local-1_cpu_seconds"] - 1, 4)
-        r["cpu_overhead_farm2_vs_local1"] = round(r["farm-2_cpu_seconds"] / r["local-1_cpu_seconds"] - 1, 4)
+        for name, _ in runs:
+            r[name + "_seconds"] = statistics.median(times[name])
+            r[name + "_fastest_seconds"] = min(times[name])
+            r[name + "_all_seconds"] = times[name]
+            r[name + "_cpu_seconds"] = statistics.median(cpus[name])
+            if use_span:
+                r[name + "_span_seconds"] = statistics.median(spans[name])
+                r[name + "_all_span_seconds"] = spans[name]
+        if use_span:
+            r["span_speedup_process_2_vs_1_threads"] = round(r["process-1_span_seconds"] / r["process-2_span_seconds"], 3)
+            r["span_speedup_farm_2_vs_1_workers"] = round(r["farm-1_span_seconds"] / r["farm-2_span_seconds"], 3)
+            r["span_farm2_vs_process2"] = round(r["farm-2_span_seconds"] / r["process-2_span_seconds"] - 1, 4)
 
-        for ckpt in ("0", "100"):
+        def identical(x, y):
+            _, d = run([pf, "diff", os.path.join(tmp, x + ".exr"), os.path.join(tmp, y + ".exr"), "--json"])
+            return json.loads(d.stdout)["max_abs_error"] == 0
+
+        for x, y in (("process-2", "process-1"), ("farm-2", "farm-1")):
+            if not identical(x, y):
+                sys.exit(f"{x}: image differs from {y}")
+        r["bit_identical_threads_and_workers"] = True
+        r["farm_equals_process"] = identical("farm-1", "process-1")
+        r["speedup_process_2_vs_1_threads"] = round(r["process-1_seconds"] / r["process-2_seconds"], 3)
+        r["speedup_farm_2_vs_1_workers"] = round(r["farm-1_seconds"] / r["farm-2_seconds"], 3)
+        r["farm2_vs_process2"] = round(r["farm-2_seconds"] / r["process-2_seconds"] - 1, 4)
+        r["overhead_farm1_vs_process1"] = round(r["farm-1_seconds"] / r["process-1_seconds"] - 1, 4)
+        r["cpu_overhead_farm1_vs_process1"] = round(r["farm-1_cpu_seconds"] / r["process-1_cpu_seconds"] - 1, 4)
+        r["cpu_overhead_farm2_vs_process1"] = round(r["farm-2_cpu_seconds"] / r["process-1_cpu_seconds"] - 1, 4)
+        results["machine"]["load_after_render"] = os.getloadavg()
+
+        for ckpt in () if a.render_only else ("0", "100"):
             for stride, res in ((8, 64), (2, 64)):
                 d = tempfile.mkdtemp(dir=tmp)
                 p, addr = start_coordinator(coord, d, ["--checkpoint-ms", ckpt])
@@ -155,18 +217,31 @@ def main():
         shutil.rmtree(tmp, ignore_errors=True)
 
     r = results["render"]
-    print(f"\nRender: {r['job']} on {os.cpu_count()} cores (wall time of the whole command)")
-    print(f"  {'run':<40}{'wall s':>9}{'CPU s':>9}")
-    for name, label in (("local-1", "local, 1 thread"), ("farm-1", "pf render --workers 1 (1 thread)"),
-                        ("farm-2", "pf render --workers 2 (1 thread each)"), ("local-2", "local, 2 threads")):
-        print(f"  {label:<40}{r[name + '_seconds']:>9.2f}{r[name + '_cpu_seconds']:>9.2f}")
-    print(f"  speedup 2 vs 1 workers {r['speedup_2_vs_1_workers']:.2f}x;  farm overhead, wall: "
-          f"{100 * r['overhead_farm1_vs_local1']:+.1f} % (1 worker vs 1 thread), "
-          f"{100 * r['overhead_farm2_vs_local2']:+.1f} % (2 workers vs 2 threads);  CPU: "
-          f"{100 * r['cpu_overhead_farm1_vs_local1']:+.1f} % (1 worker), "
-          f"{100 * r['cpu_overhead_farm2_vs_local1']:+.1f} % (2 workers); images bit-identical")
-    print("\nCoordinator alone, 4 instant fake workers on loopback:")
-    print(f"  {'checkpoints':<14}{'px/task':>8}{'tasks/s':>10}{'result B/task':>15}{'B/pixel':>9}{'task B':>8}")
+    print(f"\nRender: {r['job']} on {os.cpu_count()} cores, median of {a.repeat} (wall time of the whole "
+          f"command); load {results['machine']['load_before'][0]:.2f} before, "
+          f"{results['machine']['load_after_render'][0]:.2f} after")
+    spanned = "process-1_span_seconds" in r
+    print(f"  {'run':<42}{'median s':>9}{'fastest s':>10}{'CPU s':>9}" + (f"{'span s':>9}" if spanned else ""))
+    for name, label in (("process-1", "pf render --threads 1"), ("process-2", "pf render --threads 2"),
+                        ("farm-1", "pf render --workers 1 --threads 1"),
+                        ("farm-2", "pf render --workers 2 --threads 1")):
+        print(f"  {label:<42}{r[name + '_seconds']:>9.2f}{r[name + '_fastest_seconds']:>10.2f}"
+              f"{r[name + '_cpu_seconds']:>9.2f}" + (f"{r[name + '_span_seconds']:>9.2f}" if spanned else ""))
+    sp = (lambda key, fmt: f"; span {fmt(r['span_' + key])}" if spanned else "")
+    print(f"  1 process, 2 vs 1 threads: wall {r['speedup_process_2_vs_1_threads']:.2f}x"
+          f"{sp('speedup_process_2_vs_1_threads', lambda v: f'{v:.2f}x')} (target >= 1.85)")
+    print(f"  2 vs 1 workers x 1 thread: wall {r['speedup_farm_2_vs_1_workers']:.2f}x"
+          f"{sp('speedup_farm_2_vs_1_workers', lambda v: f'{v:.2f}x')} (target >= 1.8)")
+    print(f"  2 workers vs 1 process of 2 threads: wall {100 * r['farm2_vs_process2']:+.1f} %"
+          f"{sp('farm2_vs_process2', lambda v: f'{100 * v:+.1f} %')} (target within 10 %)")
+    print(f"  farm overhead (1 worker vs 1 thread): wall {100 * r['overhead_farm1_vs_process1']:+.1f} %, CPU "
+          f"{100 * r['cpu_overhead_farm1_vs_process1']:+.1f} %; CPU of 2 workers vs 1 thread "
+          f"{100 * r['cpu_overhead_farm2_vs_process1']:+.1f} %")
+    print(f"  images bit-identical for 1/2 threads and 1/2 workers; farm image == process image: "
+          f"{'yes' if r['farm_equals_process'] else 'no'}")
+    if results["coordinator"]:
+        print("\nCoordinator alone, 4 instant fake workers on loopback:")
+        print(f"  {'checkpoints':<14}{'px/task':>8}{'tasks/s':>10}{'result B/task':>15}{'B/pixel':>9}{'task B':>8}")
     for row in results["coordinator"]:
         ck = "every merge" if row["checkpoint_ms"] == 0 else f"every {row['checkpoint_ms']} ms"
         print(f"  {ck:<14}{row['pixels_per_task']:>8.0f}{row['completions_per_second']:>10.1f}"

@@ -230,6 +230,7 @@ int Worker::Run() {
 }
 
 SceneBundle Worker::FetchBundle(const std::string& hash, const std::string& entry) {
+  if (entry.empty()) throw InputError("task for scene " + hash + " without scene_entry");
   grpc::ClientContext ctx;
   PrepareContext(&ctx, options_.token, Seconds(options_.fetch_timeout_seconds));
   v1::FetchSceneRequest req;
@@ -245,22 +246,13 @@ SceneBundle Worker::FetchBundle(const std::string& hash, const std::string& entr
   }
   const grpc::Status status = reader->Finish();
   if (!status.ok()) throw RpcError(status);
-  // The stream carries files only; the entry comes with the task (Task.scene_entry). The entry
-  // is part of the content hash, so a coordinator that does not send it is still understood:
-  // try the top-level .json, .mgf and .obj files until the hash matches.
-  std::vector<std::string> candidates;
-  if (!entry.empty()) candidates.push_back(entry);
-  for (const char* ext : {".json", ".mgf", ".obj"})
-    for (const auto& [path, content] : bundle.files) {
-      const std::filesystem::path p(path);
-      if (path.find('/') == std::string::npos && p.extension() == ext) candidates.push_back(path);
-    }
-  for (const std::string& entry : candidates) {
-    bundle.entry = entry;
-    if (BundleHash(bundle) == hash) return bundle;
-  }
-  throw InputError("FetchScene " + hash + ": no entry file of the " + std::to_string(bundle.files.size()) +
-                   " files received matches the hash");
+  // The stream carries files only; the entry comes with the task (Task.scene_entry, always set
+  // by the coordinator from its scene store) and is part of the content hash.
+  bundle.entry = entry;
+  if (BundleHash(bundle) != hash)
+    throw InputError("FetchScene " + hash + ": the " + std::to_string(bundle.files.size()) +
+                     " files received with entry " + entry + " do not match the hash");
+  return bundle;
 }
 
 Worker::Outcome Worker::RunTask(const v1::Task& task) {

@@ -1,9 +1,12 @@
 #include "common/photon/kdtree.h"
 
 #include <immintrin.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <limits>
 #include <stdexcept>
@@ -132,11 +135,20 @@ class BoxAccumulator {
 
 class Builder {
  public:
-  Builder(std::vector<Photon>& photons, KdSplitRule rule, std::vector<uint8_t>& axes)
-      : photons_(photons), n_(photons.size()), rule_(rule), axes_(axes) {}
+  // Subtrees of at least `parallel_min` photons have their two children built concurrently.
+  Builder(std::vector<Photon>& photons, KdSplitRule rule, std::vector<uint8_t>& axes, uint64_t parallel_min)
+      : photons_(photons), n_(photons.size()), rule_(rule), axes_(axes), parallel_min_(parallel_min) {}
+  // Another builder on the same tree, with its own small-subtree buffer (for a concurrent task).
+  Builder(const Builder& other) : Builder(other.photons_, other.rule_, other.axes_, other.parallel_min_) {}
+  Builder& operator=(const Builder&) = delete;
 
   // Wald 1999, §2.3, BuildTree(p, N, root, level): establish the kd-condition at `root` by
   // partitioning its subtree, then recurse into both children. Recursion depth ≤ 32.
+  //
+  // Threads: once `root` is split, its two subtrees own disjoint node sets (their level runs
+  // never overlap) and each one's final content depends only on the photons in its own nodes,
+  // so they can be built concurrently and the array is the same for any thread count or
+  // schedule. The top splits stay serial (one Select over the whole subtree each).
   void Build(uint64_t root, int level) {
     if (2 * root > n_) return;  // a leaf: nothing below it to partition
     const uint64_t size = SubtreeSize(root);
@@ -148,15 +160,26 @@ class Builder {
     int axis = level % 3;
     if (rule_ == KdSplitRule::kWidestExtent) {
       axis = WidestAxis(seq);
-      axes_[root >> 2] = uint8_t(axes_[root >> 2] | (axis << ((root & 3) * 2)));
+      StoreAxis(root, axis);
     }
     Select(seq, seq.left_size(), axis);
+    if (size >= parallel_min_) {
+      tbb::parallel_invoke([&] { Builder(*this).Build(2 * root, level + 1); },
+                           [&] { Build(2 * root + 1, level + 1); });
+      return;
+    }
     Build(2 * root, level + 1);
     Build(2 * root + 1, level + 1);
   }
 
  private:
   Photon& At(const Cursor& c) { return photons_[c.node - 1]; }
+  // Four nodes share a byte of the axis array, and nodes of concurrently built subtrees may
+  // be among them (siblings and first cousins): an atomic OR keeps every writer's bits.
+  void StoreAxis(uint64_t node, int axis) {
+    std::atomic_ref<uint8_t>(axes_[node >> 2])
+        .fetch_or(uint8_t(axis << ((node & 3) * 2)), std::memory_order_relaxed);
+  }
   float Key(const Cursor& c, int axis) { return photons_[c.node - 1].position[axis]; }
   void Swap(const Cursor& a, const Cursor& b) { std::swap(At(a), At(b)); }
 
@@ -251,7 +274,7 @@ class Builder {
       BoxAccumulator box;
       for (std::size_t i = 0; i < m; ++i) box.Add(photons[i]);
       axis = box.WidestAxis();
-      axes_[node >> 2] = uint8_t(axes_[node >> 2] | (axis << ((node & 3) * 2)));
+      StoreAxis(node, axis);
     }
     const std::size_t left = std::size_t(SubtreeSize(2 * node));
     std::nth_element(photons, photons + left, photons + m, [axis](const Photon& a, const Photon& b) {
@@ -270,7 +293,12 @@ class Builder {
   uint64_t n_;
   KdSplitRule rule_;
   std::vector<uint8_t>& axes_;
+  uint64_t parallel_min_;
 };
+
+// Below this many photons a subtree is built by the task that split its parent: a task costs
+// microseconds, a subtree of 32k photons milliseconds.
+constexpr uint64_t kParallelSubtree = 32768;
 
 }  // namespace
 
@@ -282,7 +310,12 @@ void KdTree::Build() {
   } else {
     axes_.shrink_to_fit();
   }
-  Builder(photons_, rule_, axes_).Build(1, 0);
+  if (build_threads_ == 1 || photons_.size() < 2 * kParallelSubtree) {
+    Builder(photons_, rule_, axes_, std::numeric_limits<uint64_t>::max()).Build(1, 0);
+    return;
+  }
+  tbb::task_arena arena(build_threads_ > 0 ? build_threads_ : tbb::task_arena::automatic);
+  arena.execute([&] { Builder(photons_, rule_, axes_, kParallelSubtree).Build(1, 0); });
 }
 
 int KdTree::SplitAxis(std::size_t node) const {

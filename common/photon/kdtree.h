@@ -21,6 +21,9 @@
 // O(N log N), no memory beyond the photon array except O(log N) bookkeeping per recursion
 // level and one fixed 18 KB buffer for subtrees of ≤ 1024 photons (and the axis array for
 // kWidestExtent).
+// With build_threads() ≠ 1 the two subtrees of every node heading ≥ 32k photons are balanced
+// concurrently (TBB); the top splits are serial. Each subtree's result depends only on its own
+// photons, so the array is the same for any thread count (tests/common/kdtree_test.cpp).
 //
 // Query: the thesis's backtracking search (§2.3.2): descend into the child on the query
 // point's side first, and visit the other child later only if its culling distance is still

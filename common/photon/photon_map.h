@@ -20,9 +20,10 @@
 //   for photons that would otherwise enter the heap;
 // * a query at a non-finite point finds nothing.
 //
-// Determinism (docs/design.md, G1): builds use no randomness and no threads, so the same
-// photons added in the same order give the same post-build order and the same query results
-// (including tie-breaking) on every run.
+// Determinism (docs/design.md, G1): builds use no randomness, and threads only on disjoint parts
+// whose result does not depend on timing, so the same photons added in the same order give the
+// same post-build order and the same query results (including tie-breaking) on every run and
+// for any build_threads().
 //
 // Threads: after PrepareForQuery the map is immutable and Query is const and touches no
 // shared mutable state, so any number of threads may query one map concurrently as long as
@@ -247,6 +248,10 @@ class PhotonMap {
     prepared_ = false;
   }
   void Reserve(std::size_t n) { photons_.reserve(n); }
+  // Threads PrepareForQuery may use (0 = all cores; default 1). The kd-tree balances disjoint
+  // subtrees concurrently; the post-build order is the same for any value (kdtree.h).
+  void set_build_threads(int threads) { build_threads_ = threads; }
+  int build_threads() const { return build_threads_; }
 
   // Builds the acceleration structure once, reordering the photons in place (§2.2). Throws
   // std::length_error beyond kMaxPhotons.
@@ -328,6 +333,7 @@ class PhotonMap {
 
   std::vector<Photon> photons_;  // one dynamic array (§2.2); reordered by Build
   bool prepared_ = false;
+  int build_threads_ = 1;
 
  private:
   static void CheckPosition(const Photon& p) {

@@ -5,15 +5,12 @@
 namespace pf::server {
 
 Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, std::vector<TaskSpec> tasks,
-         int64_t submitted_unix_ms, bool with_accumulator)
+         int64_t submitted_unix_ms)
     : id_(std::move(id)),
       seq_(seq),
       config_(std::move(config)),
       tasks_(std::move(tasks)),
       runtime_(tasks_.size()),
-      accumulator_(with_accumulator ? std::make_unique<Accumulator>(config_->plan, config_->camera.width,
-                                                                    config_->camera.height)
-                                    : nullptr),
       submitted_unix_ms_(submitted_unix_ms) {
   counts_[size_t(TaskState::kQueued)] = tasks_.size();
   for (const TaskSpec& t : tasks_) CountIntoGroup(t);
@@ -41,6 +38,20 @@ void Job::AppendTasks(const std::vector<TaskSpec>& tasks) {
     dirty_tasks.insert(t.task_id);
     CountIntoGroup(t);
   }
+}
+
+Accumulator& Job::accumulator() {
+  if (!accumulator_)
+    accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height);
+  return *accumulator_;
+}
+
+void Job::ReleaseAccumulator(const std::string& path) {
+  if (active() || !accumulator_ || checkpoint_written_seq != merge_seq_) return;
+  stored_samples_merged = accumulator_->samples_merged();
+  stored_noise_rms = noise_cache;
+  checkpoint_path = path;
+  accumulator_.reset();
 }
 
 uint64_t Job::GroupOf(const TaskSpec& t) const {

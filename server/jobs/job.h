@@ -43,10 +43,12 @@ struct TaskRuntime {
 
 class Job {
  public:
-  // `with_accumulator` = false for finished jobs reloaded from the store: their image is read
-  // from the checkpoint file on demand instead of being held in memory.
+  // No accumulator yet: it is allocated when the first result is merged (accumulator()), so a
+  // queued job costs O(tasks), not O(pixels) (a 4096² job's accumulator is ~787 MB), and freed
+  // once a finished job's final checkpoint is on disk (ReleaseAccumulator); from then on, as for
+  // finished jobs reloaded from the store, the image is read from the checkpoint file on demand.
   Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, std::vector<TaskSpec> tasks,
-      int64_t submitted_unix_ms, bool with_accumulator = true);
+      int64_t submitted_unix_ms);
 
   const std::string& id() const { return id_; }
   uint64_t seq() const { return seq_; }
@@ -74,10 +76,14 @@ class Job {
   void SetTaskState(uint64_t id, TaskState next);
   uint64_t count(TaskState s) const { return counts_[size_t(s)]; }
 
-  // Merge bookkeeping (the accumulator itself is changed by assembly/).
-  Accumulator& accumulator() { return *accumulator_; }
+  // Merge bookkeeping (the accumulator itself is changed by assembly/). accumulator() allocates
+  // an empty one if there is none (call it only to merge into it).
+  Accumulator& accumulator();
   const Accumulator* accumulator_if_loaded() const { return accumulator_.get(); }
   void set_accumulator(std::unique_ptr<Accumulator> acc) { accumulator_ = std::move(acc); }
+  // A finished job whose final checkpoint (all its merges) is written to `path`: drops the
+  // accumulator, keeping what the status needs. No-op for active jobs or stale checkpoints.
+  void ReleaseAccumulator(const std::string& path);
   void RecordMerge(uint64_t task_id);  // marks done, bumps merge_seq and coverage counters
   uint64_t merge_seq() const { return merge_seq_; }
   std::vector<uint64_t> MergedTaskIds() const;
@@ -116,6 +122,7 @@ class Job {
   double elapsed_marked_at = 0;
   std::set<uint64_t> dirty_tasks;
   uint64_t checkpoint_collected_seq = 0;  // merge_seq of the last checkpoint handed to the persister
+  uint64_t checkpoint_written_seq = 0;    // merge_seq of the last checkpoint known to be on disk
   std::string checkpoint_path;            // for jobs whose accumulator is not loaded (finished, reloaded)
   uint64_t stored_samples_merged = 0;     // their figures as last stored
   double stored_noise_rms = -1;

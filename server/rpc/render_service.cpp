@@ -6,9 +6,12 @@
 
 #include <algorithm>
 #include <string_view>
+#include <cstdio>
+#include <memory>
 
 #include "common/core/error.h"
 #include "common/scene/scene_bundle.h"
+#include "server/assembly/image_snapshot.h"
 #include "server/errors.h"
 #include "server/rpc/buffered_stream.h"
 #include "server/rpc/job_images.h"
@@ -202,8 +205,43 @@ grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(
     return grpc::Status::OK;
   });
   const std::string job_id = request->job_id();
-  return BufferedStreamReactor<v1::ImageChunk>::Start(ctx_.executor, "GetImage", precheck, [this, job_id] {
-    return EncodeJobImage(ctx_.scheduler, job_id).chunks;
+  // The EXR is encoded once into an anonymous temporary file (tmpfile: gone when closed, even if
+  // the coordinator dies) and streamed from there one chunk at a time, so an unread stream holds
+  // one chunk, not the whole image (buffered_stream.h).
+  return ChunkedStreamReactor<v1::ImageChunk>::Start(ctx_.executor, "GetImage", precheck, [this, job_id] {
+    v1::JobStatus status;
+    const ResolvedImage image = ResolveJobImage(ctx_.scheduler, job_id, &status);
+    struct State {
+      std::unique_ptr<std::FILE, int (*)(std::FILE*)> file{std::tmpfile(), &std::fclose};
+      uint64_t size = 0;
+      uint32_t count = 0, next = 0;
+      uint64_t samples_merged = 0;
+    };
+    auto state = std::make_shared<State>();
+    if (!state->file) throw SystemError("GetImage: cannot create a temporary file for the image");
+    {
+      const std::string exr = EncodeSnapshot(image);
+      if (std::fwrite(exr.data(), 1, exr.size(), state->file.get()) != exr.size() ||
+          std::fflush(state->file.get()) != 0)
+        throw SystemError("GetImage: cannot write the image to a temporary file");
+      state->size = exr.size();
+    }
+    std::rewind(state->file.get());
+    state->count = uint32_t(std::max<uint64_t>(1, (state->size + kImageChunkBytes - 1) / kImageChunkBytes));
+    state->samples_merged = image.samples_merged;
+    return ChunkedStreamReactor<v1::ImageChunk>::Source([state](v1::ImageChunk* chunk) {
+      State& s = *state;
+      if (s.next == s.count) return false;
+      const uint64_t offset = uint64_t(s.next) * kImageChunkBytes;
+      std::string bytes(size_t(std::min<uint64_t>(kImageChunkBytes, s.size - offset)), '\0');
+      if (std::fread(bytes.data(), 1, bytes.size(), s.file.get()) != bytes.size())
+        throw SystemError("GetImage: cannot read the image back from its temporary file");
+      chunk->set_index(s.next++);
+      chunk->set_count(s.count);
+      chunk->set_exr_bytes(std::move(bytes));
+      chunk->set_samples_merged(s.samples_merged);
+      return true;
+    });
   });
 }
 

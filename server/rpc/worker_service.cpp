@@ -5,6 +5,9 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
 #include <mutex>
 
 #include "common/core/error.h"
@@ -195,20 +198,43 @@ grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(
     return grpc::Status::OK;
   });
   const std::string hash = request->scene_hash();
-  return BufferedStreamReactor<v1::SceneFile>::Start(ctx_.executor, "FetchScene", precheck, [this, hash] {
-    const SceneBundle bundle = ctx_.scenes.ReadBundle(hash);
-    std::vector<v1::SceneFile> messages;
-    for (const auto& [path, content] : bundle.files) {
-      size_t pos = 0;
-      do {
-        v1::SceneFile f;
-        f.set_path(path);
-        f.set_content(content.substr(pos, kSceneChunkBytes));
-        messages.push_back(std::move(f));
-        pos += kSceneChunkBytes;
-      } while (pos < content.size());
-    }
-    return messages;
+  // Streamed from the stored files, one chunk of ≤ kSceneChunkBytes at a time (buffered_stream.h);
+  // a file larger than a chunk continues in the next message with the same path, an empty file
+  // is one empty message.
+  return ChunkedStreamReactor<v1::SceneFile>::Start(ctx_.executor, "FetchScene", precheck, [this, hash] {
+    struct State {
+      std::vector<std::pair<std::string, std::filesystem::path>> files;
+      size_t next = 0;  // index of the file being read
+      std::ifstream in;
+      bool sent = false;  // a message of files[next] was sent
+    };
+    auto state = std::make_shared<State>();
+    state->files = ctx_.scenes.ListFiles(hash);
+    return ChunkedStreamReactor<v1::SceneFile>::Source([state](v1::SceneFile* message) {
+      State& s = *state;
+      while (s.next < s.files.size()) {
+        const auto& [path, file] = s.files[s.next];
+        if (!s.in.is_open()) {
+          s.in.open(file, std::ios::binary);
+          if (!s.in) throw SystemError(file.string() + ": cannot read stored scene file");
+        }
+        std::string content(kSceneChunkBytes, '\0');
+        s.in.read(content.data(), std::streamsize(content.size()));
+        if (s.in.bad()) throw SystemError(file.string() + ": cannot read stored scene file");
+        content.resize(size_t(s.in.gcount()));
+        if (!content.empty() || !s.sent) {
+          message->set_path(path);
+          message->set_content(std::move(content));
+          s.sent = true;
+          return true;
+        }
+        s.in.close();
+        s.in.clear();
+        s.sent = false;
+        ++s.next;
+      }
+      return false;
+    });
   });
 }
 

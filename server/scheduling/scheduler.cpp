@@ -667,6 +667,9 @@ PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
       if (const Accumulator* acc = job->accumulator_if_loaded()) {
         row.samples_merged = acc->samples_merged();
         row.noise_rms = job->noise_cache;
+      } else {
+        row.samples_merged = job->stored_samples_merged;
+        row.noise_rms = job->stored_noise_rms;
       }
       batch.jobs.push_back(std::move(row));
       job->row_dirty = false;
@@ -676,6 +679,8 @@ PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
       batch.tasks.push_back({job->id(), id, rt.state, rt.attempts, rt.failures, rt.last_error});
     }
     job->dirty_tasks.clear();
+    // A job that ended after its last checkpoint was written (e.g. cancelled) frees its image now.
+    if (!job->active()) job->ReleaseAccumulator(job->checkpoint_path);
     const Accumulator* acc = job->accumulator_if_loaded();
     if (acc && job->merge_seq() > job->checkpoint_collected_seq && (checkpoints_due || !job->active())) {
       Checkpoint cp;
@@ -702,6 +707,15 @@ void Scheduler::CheckpointFailed(const std::string& job_id, uint64_t merge_seq) 
   std::lock_guard lock(mu_);
   if (Job* job = jobs_.Find(job_id))
     if (job->checkpoint_collected_seq == merge_seq) job->checkpoint_collected_seq = 0;
+}
+
+void Scheduler::CheckpointWritten(const std::string& job_id, uint64_t merge_seq, const std::string& path) {
+  std::lock_guard lock(mu_);
+  Job* job = jobs_.Find(job_id);
+  if (!job || merge_seq < job->checkpoint_written_seq) return;
+  job->checkpoint_written_seq = merge_seq;
+  job->checkpoint_path = path;
+  job->ReleaseAccumulator(path);  // a finished job's image now lives on disk only
 }
 
 bool Scheduler::HasUncheckpointedMerges() {

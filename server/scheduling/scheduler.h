@@ -177,6 +177,9 @@ class Scheduler {
   void RestoreDirty(const PersistBatch& batch);
   // A checkpoint could not be written: hand it out again next time.
   void CheckpointFailed(const std::string& job_id, uint64_t merge_seq);
+  // The checkpoint of `merge_seq` is on disk at `path`: a finished job with nothing merged since
+  // frees its accumulator (the image is read from the file from now on).
+  void CheckpointWritten(const std::string& job_id, uint64_t merge_seq, const std::string& path);
   bool HasUncheckpointedMerges();
 
   // No more leases; parked long polls are answered "no task".

@@ -243,6 +243,7 @@ void Persister::Flush(bool force_checkpoints) {
   for (const Checkpoint& cp : batch.checkpoints) {
     try {
       WriteCheckpointFile(CheckpointFile(cp.job_id), cp);
+      scheduler_.CheckpointWritten(cp.job_id, cp.merge_seq, CheckpointFile(cp.job_id).string());
       ++written;
       if (durable_acks()) TruncateJournal(cp.job_id);
       spdlog::debug("job {}: checkpoint of {} merges written", cp.job_id, cp.merged_task_ids.size());

@@ -56,6 +56,7 @@ bool ApplyCheckpoint(const Checkpoint& cp, Job& job, std::string* problem) {
   job.set_accumulator(std::move(acc));
   for (uint64_t id : cp.merged_task_ids) job.RecordMerge(id);
   job.checkpoint_collected_seq = job.merge_seq();
+  job.checkpoint_written_seq = job.merge_seq();
   return true;
 }
 
@@ -179,7 +180,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     std::vector<TaskSpec> tasks = ScheduledTasks(config);
     auto job =
         std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
-                              std::move(tasks), row.submitted_unix_ms, /*with_accumulator=*/!finished);
+                              std::move(tasks), row.submitted_unix_ms);
     const fs::path cp_file = Persister::CheckpointFile(checkpoint_dir, row.job_id);
     job->checkpoint_path = cp_file.string();
     const std::vector<TaskRow> rows = db.LoadTasks(row.job_id);

@@ -153,21 +153,28 @@ std::optional<SceneInfo> SceneStore::FindScene(const std::string& hash) const {
   return it->second;
 }
 
+std::vector<std::pair<std::string, fs::path>> SceneStore::ListFiles(const std::string& hash) const {
+  if (!FindScene(hash)) throw NotFoundError("scene_hash: unknown scene " + limits::Quote(hash));
+  const fs::path root = dir_ / hash;
+  std::vector<std::pair<std::string, fs::path>> files;
+  for (const auto& e : fs::recursive_directory_iterator(root))
+    if (e.is_regular_file()) files.emplace_back(e.path().lexically_relative(root).generic_string(), e.path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
 SceneBundle SceneStore::ReadBundle(const std::string& hash) const {
   const std::optional<SceneInfo> info = FindScene(hash);
   if (!info) throw NotFoundError("scene_hash: unknown scene " + limits::Quote(hash));
-  const fs::path root = dir_ / hash;
   SceneBundle bundle;
   bundle.entry = info->entry;
-  for (const auto& e : fs::recursive_directory_iterator(root)) {
-    if (!e.is_regular_file()) continue;
-    std::ifstream in(e.path(), std::ios::binary);
-    if (!in) throw SystemError(e.path().string() + ": cannot read stored scene file");
+  for (const auto& [path, file] : ListFiles(hash)) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw SystemError(file.string() + ": cannot read stored scene file");
     std::ostringstream ss;
     ss << in.rdbuf();
-    bundle.files.emplace_back(e.path().lexically_relative(root).generic_string(), std::move(ss).str());
+    bundle.files.emplace_back(path, std::move(ss).str());
   }
-  std::sort(bundle.files.begin(), bundle.files.end());
   return bundle;
 }
 

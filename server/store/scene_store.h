@@ -36,7 +36,10 @@ class SceneStore final : public SceneCatalog {
 
   UploadResult Upload(const SceneBundle& bundle);
   std::optional<SceneInfo> FindScene(const std::string& hash) const override;
-  // The stored files of a scene (FetchScene). NotFoundError naming scene_hash if unknown.
+  // The stored files of a scene: (bundle path, file on disk), sorted by bundle path (the order
+  // FetchScene streams them in). NotFoundError naming scene_hash if unknown.
+  std::vector<std::pair<std::string, std::filesystem::path>> ListFiles(const std::string& hash) const;
+  // The stored files of a scene, read into memory. NotFoundError naming scene_hash if unknown.
   SceneBundle ReadBundle(const std::string& hash) const;
   std::filesystem::path DirectoryOf(const std::string& hash) const { return dir_ / hash; }
 

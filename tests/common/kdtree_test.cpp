@@ -241,6 +241,57 @@ TEST(KdTreeTest, LargeTreeMatchesBruteForce) {
   }
 }
 
+// The parallel build (subtrees of ≥ 32k photons balanced concurrently) must give exactly the
+// serial array — and the same axis bits — for any thread count, and still be a valid
+// left-balanced kd-tree whose queries match brute force. Sizes straddle the parallel threshold
+// (2 × 32768) so that both the serial fallback and several parallel levels run, and the
+// widest-extent rule exercises concurrent writes to shared bytes of the axis array.
+TEST(KdTreeTest, ParallelBuildGivesTheSerialArrayForAnyThreadCount) {
+  const float inf = std::numeric_limits<float>::infinity();
+  for (KdSplitRule rule : {KdSplitRule::kLevelCycle, KdSplitRule::kWidestExtent}) {
+    for (const auto& [shape, n] :
+         {std::pair{Shape::kClustered, std::size_t(65535)}, std::pair{Shape::kUniform, std::size_t(300001)},
+          std::pair{Shape::kPlanar, std::size_t(140000)},
+          std::pair{Shape::kDuplicates, std::size_t(131072)}}) {
+      const std::vector<Photon> photons = Photons(shape, n, 11);
+      KdTree serial(rule);
+      serial.AddPhotons(photons);
+      serial.PrepareForQuery();
+      for (int threads : {2, 3, 0}) {
+        KdTree parallel(rule);
+        parallel.AddPhotons(photons);
+        parallel.set_build_threads(threads);
+        parallel.PrepareForQuery();
+        ASSERT_EQ(parallel.size(), n);
+        ASSERT_EQ(std::memcmp(serial.photons().data(), parallel.photons().data(), n * sizeof(Photon)), 0)
+            << "rule " << int(rule) << " shape " << int(shape) << " n " << n << " threads " << threads;
+        for (std::size_t node = 1; node <= n / 2; ++node)
+          ASSERT_EQ(serial.SplitAxis(node), parallel.SplitAxis(node)) << node;
+      }
+      KdTree tree(rule);
+      tree.AddPhotons(photons);
+      tree.set_build_threads(2);
+      tree.PrepareForQuery();
+      CheckKdCondition(tree);
+      CheckPermutation(photons, tree);
+      Rng rng(12, 12);
+      NearestPhotons heap;
+      for (int q = 0; q < 20; ++q) {
+        const Vec3 x = q % 4 == 0 ? tree.photon(rng.UniformInt(uint32_t(n))).Position()
+                                  : Vec3{rng.Uniform(), rng.Uniform(), rng.Uniform()};
+        for (int k : {1, 100}) {
+          tree.Query(x, k, inf, heap);
+          const auto expected = BruteForceNearest(tree.photons(), x, k, inf);
+          ASSERT_EQ(heap.size(), expected.size());
+          heap.Sort();
+          for (std::size_t j = 0; j < expected.size(); ++j)
+            ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+        }
+      }
+    }
+  }
+}
+
 TEST(KdTreeTest, QueryWithStatsEqualsQueryAndCounts) {
   // The instrumented search (benchmarks) is the same search: same heap, bit for bit, and its
   // counters are consistent (every insert and every far-child visit follows a node visit).

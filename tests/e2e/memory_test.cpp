@@ -1,0 +1,86 @@
+// Coordinator memory (issue #12, docs/farm.md "Coordinator memory"): a job's accumulator —
+// 47 bytes per pixel, ~787 MB for 4096² — is allocated when its first result arrives and freed
+// once the finished job's image is in its checkpoint file, so queued and finished jobs cost
+// O(tasks), not O(pixels). Measured on the real coordinator process (VmRSS).
+#include <fstream>
+#include <sstream>
+
+#include "tests/e2e/harness.h"
+
+namespace pf::e2e {
+namespace {
+
+// The documented bound (docs/farm.md): a coordinator with its jobs' task lists, SQLite, gRPC and
+// thread stacks stays well below it; one 2048² accumulator (197 MB) alone exceeds it.
+constexpr long kCoordinatorRssBoundMiB = 160;
+
+long RssMiB(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("VmRSS:", 0) == 0) {
+      std::istringstream fields(line.substr(6));
+      long kib = 0;
+      fields >> kib;
+      return kib / 1024;
+    }
+  return -1;
+}
+
+TEST(CoordinatorMemory, TenQueued4096SquaredJobsStayUnderTheBound) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const std::vector<std::string> at = {"--coordinator", coordinator.address()};
+  JobArgs job;
+  job.integrator = "path";
+  job.res = 4096;  // 16.7 Mpx: 787 MB per accumulator, 7.9 GB for ten if allocated at submit
+  for (int i = 0; i < 10; ++i) {
+    job.seed = uint64_t(i + 1);
+    const RunResult r = RunCommand(
+        Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at), dir.path());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const RunResult list = RunCommand(Concat({Binaries::Pf(), "list"}, at), dir.path());
+  ASSERT_EQ(list.exit_code, 0) << list.err;
+  const long rss = RssMiB(coordinator.process().pid());
+  ASSERT_GT(rss, 0);
+  EXPECT_LT(rss, kCoordinatorRssBoundMiB) << "coordinator RSS with 10 queued 4096² jobs: " << rss << " MiB";
+}
+
+// A job that ran to the end: its accumulator is freed once the final checkpoint is written, and
+// its image is still served (read from the checkpoint).
+TEST(CoordinatorMemory, FinishedJobFreesItsAccumulatorAndKeepsItsImage) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const std::vector<std::string> at = {"--coordinator", coordinator.address()};
+  JobArgs job;
+  job.integrator = "path";
+  job.res = 2048;  // 197 MB accumulator: more than the bound by itself
+  job.stride = 4;  // 16 tasks of 262k pixels (3 MB results)
+  job.rounds = 1;
+  RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at),
+                           dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string id = r.out.substr(0, r.out.find('\n'));
+  r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "instant",
+                  "--tasks", "16", "--seconds", "60", "--concurrency", "2"},
+                 dir.path(), 90);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  r = RunCommand(Concat({Binaries::Pf(), "watch", id, "-q"}, at), dir.path(), 60);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  long rss = -1;
+  EXPECT_TRUE(WaitUntil(
+      [&] {
+        rss = RssMiB(coordinator.process().pid());
+        return rss >= 0 && rss < kCoordinatorRssBoundMiB;
+      },
+      30))
+      << "coordinator RSS after the 2048² job finished: " << rss << " MiB";
+  r = RunCommand(Concat({Binaries::Pf(), "get", id, "-o", (dir / "done.exr").string()}, at), dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Image image = ReadImage(dir / "done.exr");
+  EXPECT_EQ(image.width(), 2048);
+  EXPECT_EQ(image.height(), 2048);
+}
+
+}  // namespace
+}  // namespace pf::e2e
