@@ -11,16 +11,11 @@
 #include "common/plan/task_plan.h"
 #include "common/scene/scene.h"
 #include "photonfarm/v1/farm.pb.h"
+#include "proto/limits.h"
 
 namespace pf {
 
-// Limits (documented in docs/farm.md); over them: RESOURCE_EXHAUSTED.
-inline constexpr uint32_t kMaxImageSide = 8192;
-inline constexpr uint64_t kMaxImagePixels = uint64_t(4096) * 4096;
-inline constexpr uint64_t kMaxPhotonsPerMap = uint64_t(1) << 28;
-inline constexpr uint32_t kMaxK = 10000;
-inline constexpr uint32_t kMaxShadowRays = 4096;  // also the local pass's rays
-inline constexpr uint32_t kMaxSamplesPerPixel = 1u << 16;
+// The limits of a job's values live with every other limit in proto/limits.h.
 
 // Thrown (instead of InputError) when a value is well-formed but over a limit.
 class LimitError : public InputError {

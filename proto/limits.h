@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "common/core/error.h"
+#include "common/scene/scene_bundle.h"
 
 namespace pf::limits {
 
@@ -31,6 +32,18 @@ inline constexpr uint64_t kMaxTasksPerJob = uint64_t(1) << 20;
 // confirmation instead of a hard rejection.
 inline constexpr double kResultRadianceFactor = 1024;
 
+// gRPC message sizes of the coordinator (server/coordinator.h says why these): receive = a 64 MiB
+// scene bundle or the largest task result, + 1 MiB framing; send = 16 MiB (images and bundles
+// stream in 1 MiB chunks; the largest unary answer is a ListJobs page).
+inline constexpr int kMaxReceiveMessageBytes = (64 << 20) + (1 << 20);
+inline constexpr int kMaxSendMessageBytes = 16 << 20;
+
+// Scene bundles: defined beside the bundle code (common/ cannot include proto/), named here so
+// that this file lists every limit.
+using pf::kMaxBundleBytes;
+using pf::kMaxBundleFiles;
+using pf::kMaxBundlePathBytes;
+
 // ListJobs pages (ListJobsRequest.page_size): 0 asks for the default; more is capped.
 inline constexpr uint32_t kDefaultListJobsPageSize = 100;
 inline constexpr uint32_t kMaxListJobsPageSize = 1000;
@@ -43,6 +56,13 @@ inline std::string TaskCountProblem(uint64_t tasks) {
 }
 }  // namespace pf::limits
 namespace pf {
+// A job's values (docs/farm.md; over them: RESOURCE_EXHAUSTED, LimitError in proto/convert.h).
+inline constexpr uint32_t kMaxImageSide = 8192;
+inline constexpr uint64_t kMaxImagePixels = uint64_t(4096) * 4096;
+inline constexpr uint64_t kMaxPhotonsPerMap = uint64_t(1) << 28;
+inline constexpr uint32_t kMaxK = 10000;
+inline constexpr uint32_t kMaxShadowRays = 4096;  // also the local pass's rays
+inline constexpr uint32_t kMaxSamplesPerPixel = 1u << 16;
 // Camera.vfov_degrees, checked after conversion to float (the worker's type).
 inline constexpr float kMinVfovDegrees = 0.001f;
 inline constexpr float kMaxVfovDegrees = 179.9f;

@@ -33,6 +33,7 @@
 #include <string>
 #include <thread>
 
+#include "proto/limits.h"
 #include "server/scheduling/clock.h"
 #include "server/store/recovery.h"
 
@@ -53,8 +54,9 @@ class RenderServiceImpl;
 class WorkerServiceImpl;
 class StatusHttpServer;
 
-inline constexpr int kMaxReceiveMessageBytes = (64 << 20) + (1 << 20);
-inline constexpr int kMaxSendMessageBytes = 16 << 20;
+// The message sizes are in proto/limits.h with every other limit.
+using limits::kMaxReceiveMessageBytes;
+using limits::kMaxSendMessageBytes;
 
 struct CoordinatorOptions {
   std::string listen = "127.0.0.1:0";
