@@ -33,6 +33,8 @@ namespace pf {
 
 inline constexpr uint32_t kPixelSlot = 0;
 inline constexpr int kPathVertexBudget = 2;
+// The renderer precomputes the seeds of every slot of the budget once per pixel (PixelStream).
+static_assert(1 + 9 * kPathVertexBudget <= int(sobol::kPixelSeedSlots));
 
 struct PathVertexSlots {
   uint32_t light_stratum, light_select, light_point, light_extra, gather_lobe, gather_dir, bsdf_lobe,

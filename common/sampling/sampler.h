@@ -96,6 +96,26 @@ constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalTables() {
 }
 inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascal = MakePascalTables();
 
+// The same products indexed by the bytes of the *bit-reversed* index h = ReverseBits(i):
+// kPascalOfReversed[b][t] = XOR of the reversed columns 31 - (8b + k) for the set bits k of t.
+// Point2D gets its shuffled index bit-reversed from the hash; reading the Pascal product straight
+// from it takes the bit reversal off the y coordinate's latency chain (it only feeds x now).
+constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalOfReversedTables() {
+  std::array<uint32_t, 32> column{};
+  column[0] = 1u;
+  for (int c = 1; c < 32; ++c) column[c] = column[c - 1] ^ (column[c - 1] << 1);
+  std::array<std::array<uint32_t, 256>, 4> t{};
+  for (int b = 0; b < 4; ++b)
+    for (uint32_t v = 0; v < 256; ++v) {
+      uint32_t x = 0;
+      for (int k = 0; k < 8; ++k)
+        if (v & (1u << k)) x ^= column[31 - (8 * b + k)];
+      t[b][v] = x;
+    }
+  return t;
+}
+inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascalOfReversed = MakePascalOfReversedTables();
+
 // Unscrambled Sobol dimensions 0 and 1 of index i, as 32-bit fractions.
 constexpr uint32_t VanDerCorput(uint32_t i) {
   return ReverseBits(i);
@@ -148,14 +168,43 @@ struct Point2 {
   uint32_t x, y;
 };
 constexpr Point2 Point2D(uint32_t reversed_index, const SlotSeeds2& s) {
-  const uint32_t j = ReverseBits(NestedHash(reversed_index, s.shuffle));
-  const uint32_t pascal_reversed =
-      kPascal[0][j & 255] ^ kPascal[1][(j >> 8) & 255] ^ kPascal[2][(j >> 16) & 255] ^ kPascal[3][j >> 24];
+  const uint32_t h = NestedHash(reversed_index, s.shuffle);  // ReverseBits(j)
+  const uint32_t j = ReverseBits(h);
+  const uint32_t pascal_reversed = kPascalOfReversed[0][h & 255] ^ kPascalOfReversed[1][(h >> 8) & 255] ^
+                                   kPascalOfReversed[2][(h >> 16) & 255] ^ kPascalOfReversed[3][h >> 24];
   return {ReverseBits(NestedHash(j, s.x) ^ s.shift_x),
           ReverseBits(NestedHash(pascal_reversed, s.y) ^ s.shift_y)};
 }
 
+// Everything of one pixel's stream that does not depend on the sample index: the keys and the
+// seeds of the first kPixelSeedSlots slots (the layout's budget, common/sampling/sample_layout.h).
+// The renderer computes it once per pixel and hands it to every sample's Sampler, so a number
+// costs the three nested hashes of its point and no per-slot key hashing. Values are exactly
+// those of Seeds2Of(key, slot): the same image with or without it.
+inline constexpr uint32_t kPixelSeedSlots = 19;
+
 }  // namespace sobol
+
+class Sampler;
+
+// Per-pixel state of the pixel-sample streams (see sobol::kPixelSeedSlots).
+class PixelStream {
+ public:
+  PixelStream(SamplerKind kind, uint64_t seed, uint32_t pixel)
+      : kind_(kind), pixel_key_(HashKey(seed, pixel)), key_(Mix64(pixel_key_ ^ kPixelTag)) {
+    if (kind_ == SamplerKind::kSobol)
+      for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots; ++slot)
+        seeds_[slot] = sobol::Seeds2Of(key_, slot);
+  }
+
+ private:
+  friend class Sampler;
+  static constexpr uint64_t kPixelTag = 0x736f626f6c;  // "sobol"
+
+  SamplerKind kind_;
+  uint64_t pixel_key_, key_;
+  std::array<sobol::SlotSeeds2, sobol::kPixelSeedSlots> seeds_{};
+};
 
 class Sampler {
  public:
@@ -163,7 +212,13 @@ class Sampler {
   // The independent stream is Rng::ForKey(HashKey(seed, pixel, sample)), as it always was.
   static Sampler ForPixelSample(SamplerKind kind, uint64_t seed, uint32_t pixel, uint32_t sample) {
     const uint64_t pixel_key = HashKey(seed, pixel);
-    return Sampler(kind, Mix64(pixel_key ^ kPixelTag), sample, HashKey(pixel_key, sample));
+    return Sampler(kind, Mix64(pixel_key ^ PixelStream::kPixelTag), sample, HashKey(pixel_key, sample));
+  }
+  // The same sampler (the same values) from the pixel's precomputed state; `pixel` must outlive it.
+  static Sampler ForPixelSample(const PixelStream& pixel, uint32_t sample) {
+    Sampler s(pixel.kind_, pixel.key_, sample, HashKey(pixel.pixel_key_, sample));
+    s.seeds_ = pixel.seeds_.data();
+    return s;
   }
   // Photon `photon` of the photon map traced with `map_seed`; independent stream
   // Rng::ForKey(HashKey(map_seed, photon, "photon")) as before.
@@ -176,6 +231,10 @@ class Sampler {
   float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
     uint32_t reversed;
     if (!LowDiscrepancy(slot, j, subs, &reversed)) return rng().Uniform();
+    if (seeds_ && slot < sobol::kPixelSeedSlots) {
+      const sobol::SlotSeeds2& t = seeds_[slot];
+      return sobol::ToFloat(sobol::Point1D(reversed, {t.shuffle, t.x, t.shift_x}));
+    }
     return sobol::ToFloat(sobol::Point1D(reversed, sobol::Seeds1Of(key_, slot)));
   }
   Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
@@ -184,7 +243,8 @@ class Sampler {
       const float u = rng().Uniform();
       return {u, rng().Uniform()};
     }
-    const sobol::Point2 p = sobol::Point2D(reversed, sobol::Seeds2Of(key_, slot));
+    const sobol::Point2 p = sobol::Point2D(
+        reversed, seeds_ && slot < sobol::kPixelSeedSlots ? seeds_[slot] : sobol::Seeds2Of(key_, slot));
     return {sobol::ToFloat(p.x), sobol::ToFloat(p.y)};
   }
   // The independent stream, for choices outside the layout (e.g. an exact UniformInt). Seeded on
@@ -199,7 +259,6 @@ class Sampler {
   SamplerKind kind() const { return kind_; }
 
  private:
-  static constexpr uint64_t kPixelTag = 0x736f626f6c;        // "sobol"
   static constexpr uint64_t kPhotonTag = 0x70686f746f6eull;  // "photon", as the photon tracer's key
 
   Sampler(SamplerKind kind, uint64_t key, uint32_t index, uint64_t rng_key)
@@ -226,6 +285,7 @@ class Sampler {
   bool rng_ready_ = false;
   uint32_t index_, reversed_index_;
   uint64_t key_, rng_key_;
+  const sobol::SlotSeeds2* seeds_ = nullptr;  // a PixelStream's seeds of the first kPixelSeedSlots slots
   Rng rng_;
 };
 
