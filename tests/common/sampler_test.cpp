@@ -287,9 +287,9 @@ TEST(SobolSampler, IntegratesASmoothFunctionFarBetterThanIndependentNumbers) {
 }
 
 TEST(SobolSampler, PrecomputedPixelStreamGivesExactlyTheSameValues) {
-  // The renderer's per-pixel PixelStream (seeds of the budget's slots computed once) must not
-  // change a single value: every slot inside and beyond the precomputed ones, sub-indices and
-  // the independent fallback stream, for both kinds.
+  // The renderer's per-pixel PixelStream (seeds of the budget's slots computed once, every such
+  // slot's point computed in one pass per sample) must not change a single value: every slot inside and
+  // beyond the precomputed ones, sub-indices and the independent fallback stream, for both kinds.
   for (SamplerKind kind : {SamplerKind::kSobol, SamplerKind::kIndependent})
     for (uint32_t pixel : {0u, 77u, 65535u}) {
       const PixelStream stream(kind, 42, pixel);
@@ -298,6 +298,9 @@ TEST(SobolSampler, PrecomputedPixelStreamGivesExactlyTheSameValues) {
         Sampler b = Sampler::ForPixelSample(stream, sample);
         for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots + 5; ++slot) {
           EXPECT_EQ(a.Get1D(slot), b.Get1D(slot)) << slot;
+          const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
+          EXPECT_EQ(qa.u, qb.u) << slot;
+          EXPECT_EQ(qa.v, qb.v) << slot;
           const Sample2 pa = a.Get2D(slot, 3, 8), pb = b.Get2D(slot, 3, 8);
           EXPECT_EQ(pa.u, pb.u) << slot;
           EXPECT_EQ(pa.v, pb.v) << slot;
