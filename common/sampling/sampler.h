@@ -190,6 +190,22 @@ struct SlotSeedLanes {
   alignas(16) std::array<uint32_t, kPixelSlotLanes> shuffle{}, x{}, shift_x{}, y{}, shift_y{};
 };
 
+// Which slot each lane holds. The first kEagerLanes lanes (computed for every sample) hold the
+// pixel and, per path vertex, the slots every integrator asks (sample_layout.h offsets 1, 2, 6,
+// 7, 8: light triangle and point, BSDF lobe and direction, roulette); the other lanes (light
+// stratum, PhotonDirect's extra light sample, gather lobe and direction: only the photon-map
+// integrator's estimators ask them) are computed on a sample's first request of one of them.
+// Lane 19 is padding (slot 19 is past the precomputed ones and never read from a lane).
+inline constexpr uint32_t kEagerLanes = 12;
+inline constexpr std::array<uint32_t, kPixelSlotLanes> kSlotOfLane = {0,  2, 3, 7, 8, 9,  11, 12, 16, 17,
+                                                                      18, 1, 4, 5, 6, 10, 13, 14, 15, 19};
+constexpr std::array<uint32_t, kPixelSlotLanes> MakeLaneOfSlot() {
+  std::array<uint32_t, kPixelSlotLanes> lane{};
+  for (uint32_t k = 0; k < kPixelSlotLanes; ++k) lane[kSlotOfLane[k]] = k;
+  return lane;
+}
+inline constexpr std::array<uint32_t, kPixelSlotLanes> kLaneOfSlot = MakeLaneOfSlot();
+
 // Point2D of every precomputed slot at once, as floats: exactly the values Point2D gives (a 1-D
 // slot's number is the x coordinate, exactly Point1D). One pass over independent slots instead
 // of one dependent chain of three hashes and three bit reversals per request: the hashes and
@@ -197,16 +213,18 @@ struct SlotSeedLanes {
 // sample pays a fraction of the latency it paid asking slot by slot, even though slots the
 // integrator never asks (another integrator's, or a path's second vertex after it ended) are
 // computed too.
+// Lanes [First, Last) only (see kSlotOfLane).
+template <uint32_t First, uint32_t Last>
 inline void PointsOfSlots(uint32_t reversed_index, const SlotSeedLanes& s, float* u, float* v) {
   alignas(16) std::array<uint32_t, kPixelSlotLanes> h, j, pascal_reversed;
-  for (uint32_t k = 0; k < kPixelSlotLanes; ++k) {
+  for (uint32_t k = First; k < Last; ++k) {
     h[k] = NestedHash(reversed_index, s.shuffle[k]);
     j[k] = ReverseBits(h[k]);
   }
-  for (uint32_t k = 0; k < kPixelSlotLanes; ++k)
+  for (uint32_t k = First; k < Last; ++k)
     pascal_reversed[k] = kPascalOfReversed[0][h[k] & 255] ^ kPascalOfReversed[1][(h[k] >> 8) & 255] ^
                          kPascalOfReversed[2][(h[k] >> 16) & 255] ^ kPascalOfReversed[3][h[k] >> 24];
-  for (uint32_t k = 0; k < kPixelSlotLanes; ++k) {
+  for (uint32_t k = First; k < Last; ++k) {
     u[k] = ToFloat(ReverseBits(NestedHash(j[k], s.x[k]) ^ s.shift_x[k]));
     v[k] = ToFloat(ReverseBits(NestedHash(pascal_reversed[k], s.y[k]) ^ s.shift_y[k]));
   }
@@ -224,11 +242,12 @@ class PixelStream {
     if (kind_ == SamplerKind::kSobol)
       for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots; ++slot) {
         const sobol::SlotSeeds2 t = seeds_[slot] = sobol::Seeds2Of(key_, slot);
-        lanes_.shuffle[slot] = t.shuffle;
-        lanes_.x[slot] = t.x;
-        lanes_.shift_x[slot] = t.shift_x;
-        lanes_.y[slot] = t.y;
-        lanes_.shift_y[slot] = t.shift_y;
+        const uint32_t lane = sobol::kLaneOfSlot[slot];
+        lanes_.shuffle[lane] = t.shuffle;
+        lanes_.x[lane] = t.x;
+        lanes_.shift_x[lane] = t.shift_x;
+        lanes_.y[lane] = t.y;
+        lanes_.shift_y[lane] = t.shift_y;
       }
   }
 
@@ -255,8 +274,9 @@ class Sampler {
     Sampler s(pixel.kind_, pixel.key_, sample, HashKey(pixel.pixel_key_, sample));
     s.seeds_ = pixel.seeds_.data();
     if (s.kind_ == SamplerKind::kSobol) {
-      sobol::PointsOfSlots(s.reversed_index_, pixel.lanes_, s.slot_u_.data(), s.slot_v_.data());
-      s.slots_ready_ = true;
+      s.lanes_ = &pixel.lanes_;
+      sobol::PointsOfSlots<0, sobol::kEagerLanes>(s.reversed_index_, pixel.lanes_, s.slot_u_.data(),
+                                                  s.slot_v_.data());
     }
     return s;
   }
@@ -269,7 +289,7 @@ class Sampler {
 
   // Number j of `subs` in slot `slot` (see the header comment), uniform in [0, 1).
   float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
-    if (slots_ready_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0) return slot_u_[slot];
+    if (lanes_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0) return slot_u_[Lane(slot)];
     uint32_t reversed;
     if (!LowDiscrepancy(slot, j, subs, &reversed)) return rng().Uniform();
     if (seeds_ && slot < sobol::kPixelSeedSlots) {
@@ -279,8 +299,10 @@ class Sampler {
     return sobol::ToFloat(sobol::Point1D(reversed, sobol::Seeds1Of(key_, slot)));
   }
   Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
-    if (slots_ready_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0)
-      return {slot_u_[slot], slot_v_[slot]};
+    if (lanes_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0) {
+      const uint32_t lane = Lane(slot);
+      return {slot_u_[lane], slot_v_[lane]};
+    }
     uint32_t reversed;
     if (!LowDiscrepancy(slot, j, subs, &reversed)) {
       const float u = rng().Uniform();
@@ -311,6 +333,17 @@ class Sampler {
         key_(key),
         rng_key_(rng_key) {}
 
+  // The lane of a precomputed slot, computing the lazy lanes on the sample's first request.
+  uint32_t Lane(uint32_t slot) {
+    const uint32_t lane = sobol::kLaneOfSlot[slot];
+    if (lane >= sobol::kEagerLanes && !lazy_lanes_ready_) {
+      sobol::PointsOfSlots<sobol::kEagerLanes, sobol::kPixelSlotLanes>(reversed_index_, *lanes_,
+                                                                       slot_u_.data(), slot_v_.data());
+      lazy_lanes_ready_ = true;
+    }
+    return lane;
+  }
+
   // The bit-reversed sequence index of number j of `subs`, if it has a low-discrepancy value.
   bool LowDiscrepancy(uint32_t slot, uint32_t j, uint32_t subs, uint32_t* reversed) const {
     if (kind_ != SamplerKind::kSobol || slot == kIndependentSlot || j >= subs) return false;
@@ -329,7 +362,10 @@ class Sampler {
   uint32_t index_, reversed_index_;
   uint64_t key_, rng_key_;
   const sobol::SlotSeeds2* seeds_ = nullptr;  // a PixelStream's seeds of the first kPixelSeedSlots slots
-  bool slots_ready_ = false;                  // slot_u_/slot_v_ hold every precomputed slot's point
+  // Set for a pixel sample of the Sobol kind: slot_u_/slot_v_ hold the points of the lanes
+  // [0, kEagerLanes) and, once lazy_lanes_ready_, of the others (by sobol::kLaneOfSlot).
+  const sobol::SlotSeedLanes* lanes_ = nullptr;
+  bool lazy_lanes_ready_ = false;
   std::array<float, sobol::kPixelSlotLanes> slot_u_, slot_v_;
   Rng rng_;
 };
