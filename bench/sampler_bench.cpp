@@ -3,7 +3,8 @@
 // integrator on the Cornell box), measured side by side in one run: the variants alternate
 // within every repeat, and the medians and their ratio are printed as a table and JSON.
 //
-//   build/bench/sampler_bench [--repeats 7] [--res 128] [--spp 8] [--json out.json]
+//   build/bench/sampler_bench [--repeats 7] [--res 128] [--spp 8] [--integrator path|photonmap]
+//                             [--json out.json]     (--integrator: time only that one)
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -37,18 +38,23 @@ double TimeIt(F&& f) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// ns per number: `samples` pixel samples, each asking `slots` slots once (as a path does).
+// ns per number: `samples` pixel samples (64 per pixel), each asking `slots` slots once (as a
+// path does); slots past sobol::kPixelSeedSlots hash their seeds per number.
 double NsPerNumber(SamplerKind kind, bool two_d, uint32_t samples, uint32_t slots, float* sink) {
   float acc = 0;
   const double s = TimeIt([&] {
-    for (uint32_t i = 0; i < samples; ++i) {
-      Sampler sampler = Sampler::ForPixelSample(kind, 7, i >> 6, i & 63);
-      for (uint32_t d = 0; d < slots; ++d) {
-        if (two_d) {
-          const Sample2 p = sampler.Get2D(d);
-          acc += p.u + p.v;
-        } else {
-          acc += sampler.Get1D(d);
+    for (uint32_t i = 0; i < samples; i += 64) {
+      // As the renderer: the pixel's keys and slot seeds once per pixel (64 samples).
+      const PixelStream pixel(kind, 7, i >> 6);
+      for (uint32_t s = 0; s < 64; ++s) {
+        Sampler sampler = Sampler::ForPixelSample(pixel, s);
+        for (uint32_t d = 0; d < slots; ++d) {
+          if (two_d) {
+            const Sample2 p = sampler.Get2D(d);
+            acc += p.u + p.v;
+          } else {
+            acc += sampler.Get1D(d);
+          }
         }
       }
     }
@@ -57,17 +63,18 @@ double NsPerNumber(SamplerKind kind, bool two_d, uint32_t samples, uint32_t slot
   return s * 1e9 / (double(samples) * slots);
 }
 
-int Run(int repeats, int res, uint32_t spp, const std::string& json_path) {
+int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::string& json_path) {
   nlohmann::json out;
   float sink = 0;
-  std::printf("sampler cost per number (1 thread, median of %d; 45 slots per sample as a 5-vertex path)\n",
-              repeats);
+  std::printf(
+      "sampler cost per number (1 thread, median of %d; the %u slots of the layout's budget per sample)\n",
+      repeats, sobol::kPixelSeedSlots);
   std::printf("%-12s %10s %10s\n", "sampler", "1-D ns", "2-D ns");
   for (SamplerKind kind : {SamplerKind::kIndependent, SamplerKind::kSobol}) {
     std::vector<double> one, two;
     for (int r = 0; r < repeats; ++r) {
-      one.push_back(NsPerNumber(kind, false, 1 << 16, 45, &sink));
-      two.push_back(NsPerNumber(kind, true, 1 << 16, 45, &sink));
+      one.push_back(NsPerNumber(kind, false, 1 << 16, sobol::kPixelSeedSlots, &sink));
+      two.push_back(NsPerNumber(kind, true, 1 << 16, sobol::kPixelSeedSlots, &sink));
     }
     std::printf("%-12s %10.2f %10.2f\n", SamplerName(kind), Median(one), Median(two));
     out["per_number"][SamplerName(kind)] = {{"ns_1d", Median(one)}, {"ns_2d", Median(two)}};
@@ -93,6 +100,7 @@ int Run(int repeats, int res, uint32_t spp, const std::string& json_path) {
   std::printf("%-10s %12s %12s %8s\n", "integrator", "independent", "sobol", "ratio");
   for (const Integrator* integrator :
        {static_cast<const Integrator*>(&path), static_cast<const Integrator*>(&photonmap)}) {
+    if (!only.empty() && only != integrator->name()) continue;
     std::vector<double> t[2];
     for (int r = 0; r < repeats; ++r)
       for (int k = 0; k < 2; ++k) {
@@ -122,7 +130,7 @@ int Run(int repeats, int res, uint32_t spp, const std::string& json_path) {
 int main(int argc, char** argv) {
   int repeats = 7, res = 128;
   uint32_t spp = 8;
-  std::string json;
+  std::string json, only;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i], v = argv[i + 1];
     if (k == "--repeats")
@@ -133,11 +141,16 @@ int main(int argc, char** argv) {
       spp = uint32_t(std::stoul(v));
     else if (k == "--json")
       json = v;
+    else if (k == "--integrator")
+      only = v;
     else {
-      std::fprintf(stderr, "usage: %s [--repeats 7] [--res 128] [--spp 8] [--json out.json]\n", argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--repeats 7] [--res 128] [--spp 8] [--integrator path|photonmap] [--json out.json]\n",
+          argv[0]);
       return 2;
     }
   }
   spdlog::set_level(spdlog::level::warn);
-  return pf::Run(repeats, res, spp, json);
+  return pf::Run(repeats, res, spp, only, json);
 }

@@ -34,8 +34,9 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std
         const int px = int(p % uint32_t(width)), py = int(p / uint32_t(width));
         ++t_pixel_epoch;
         Rgb sum = sums[i];
+        const PixelStream stream(sampler_kind, seed, p);  // the pixel's keys and slot seeds, once
         for (uint32_t s = sample_begin; s < sample_end; ++s) {
-          Sampler sampler = Sampler::ForPixelSample(sampler_kind, seed, p, s);
+          Sampler sampler = Sampler::ForPixelSample(stream, s);
           const Sample2 uv = sampler.Get2D(kPixelSlot);
           const Rgb L = integrator.Li(camera.GenerateRay(px, py, uv.u, uv.v), sampler, local.counters);
           if (L.IsFinite()) {

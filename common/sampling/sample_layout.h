@@ -33,6 +33,8 @@ namespace pf {
 
 inline constexpr uint32_t kPixelSlot = 0;
 inline constexpr int kPathVertexBudget = 2;
+// The renderer precomputes the seeds of every slot of the budget once per pixel (PixelStream).
+static_assert(1 + 9 * kPathVertexBudget <= int(sobol::kPixelSeedSlots));
 
 struct PathVertexSlots {
   uint32_t light_stratum, light_select, light_point, light_extra, gather_lobe, gather_dir, bsdf_lobe,
@@ -46,6 +48,20 @@ constexpr PathVertexSlots SlotsOfVertex(int depth) {
   const uint32_t b = 1 + 9 * uint32_t(depth);
   return {b, b + 1, b + 2, b + 3, b + 4, b + 5, b + 6, b + 7, b + 8};
 }
+
+// The renderer's pixel stream computes the slots every integrator asks first (sobol::kSlotOfLane): the pixel
+// and per vertex light_select, light_point, bsdf_lobe, bsdf_dir, roulette.
+static_assert(sobol::kLaneOfSlot[kPixelSlot] < sobol::kEagerLanes);
+static_assert(sobol::kLaneOfSlot[SlotsOfVertex(0).light_select] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(0).light_point] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(0).bsdf_lobe] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(0).bsdf_dir] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(0).roulette] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(1).light_select] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(1).light_point] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(1).bsdf_lobe] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(1).bsdf_dir] < sobol::kEagerLanes &&
+              sobol::kLaneOfSlot[SlotsOfVertex(1).roulette] < sobol::kEagerLanes);
 
 inline constexpr uint32_t kPhotonLightSlot = 0, kPhotonPointSlot = 1, kPhotonDirectionSlot = 2;
 inline constexpr int kPhotonBounceBudget = 8;

@@ -96,6 +96,26 @@ constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalTables() {
 }
 inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascal = MakePascalTables();
 
+// The same products indexed by the bytes of the *bit-reversed* index h = ReverseBits(i):
+// kPascalOfReversed[b][t] = XOR of the reversed columns 31 - (8b + k) for the set bits k of t.
+// Point2D gets its shuffled index bit-reversed from the hash; reading the Pascal product straight
+// from it takes the bit reversal off the y coordinate's latency chain (it only feeds x now).
+constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalOfReversedTables() {
+  std::array<uint32_t, 32> column{};
+  column[0] = 1u;
+  for (int c = 1; c < 32; ++c) column[c] = column[c - 1] ^ (column[c - 1] << 1);
+  std::array<std::array<uint32_t, 256>, 4> t{};
+  for (int b = 0; b < 4; ++b)
+    for (uint32_t v = 0; v < 256; ++v) {
+      uint32_t x = 0;
+      for (int k = 0; k < 8; ++k)
+        if (v & (1u << k)) x ^= column[31 - (8 * b + k)];
+      t[b][v] = x;
+    }
+  return t;
+}
+inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascalOfReversed = MakePascalOfReversedTables();
+
 // Unscrambled Sobol dimensions 0 and 1 of index i, as 32-bit fractions.
 constexpr uint32_t VanDerCorput(uint32_t i) {
   return ReverseBits(i);
@@ -148,14 +168,98 @@ struct Point2 {
   uint32_t x, y;
 };
 constexpr Point2 Point2D(uint32_t reversed_index, const SlotSeeds2& s) {
-  const uint32_t j = ReverseBits(NestedHash(reversed_index, s.shuffle));
-  const uint32_t pascal_reversed =
-      kPascal[0][j & 255] ^ kPascal[1][(j >> 8) & 255] ^ kPascal[2][(j >> 16) & 255] ^ kPascal[3][j >> 24];
+  const uint32_t h = NestedHash(reversed_index, s.shuffle);  // ReverseBits(j)
+  const uint32_t j = ReverseBits(h);
+  const uint32_t pascal_reversed = kPascalOfReversed[0][h & 255] ^ kPascalOfReversed[1][(h >> 8) & 255] ^
+                                   kPascalOfReversed[2][(h >> 16) & 255] ^ kPascalOfReversed[3][h >> 24];
   return {ReverseBits(NestedHash(j, s.x) ^ s.shift_x),
           ReverseBits(NestedHash(pascal_reversed, s.y) ^ s.shift_y)};
 }
 
+// Everything of one pixel's stream that does not depend on the sample index: the keys and the
+// seeds of the first kPixelSeedSlots slots (the layout's budget, common/sampling/sample_layout.h).
+// The renderer computes it once per pixel and hands it to every sample's Sampler, so a number
+// costs the three nested hashes of its point and no per-slot key hashing. Values are exactly
+// those of Seeds2Of(key, slot): the same image with or without it.
+inline constexpr uint32_t kPixelSeedSlots = 19;
+
+// The same seeds as lanes (structure of arrays, padded to a multiple of 4 slots), for
+// PointsOfSlots: the points of all precomputed slots of one sample in one pass.
+inline constexpr uint32_t kPixelSlotLanes = (kPixelSeedSlots + 3) / 4 * 4;
+struct SlotSeedLanes {
+  alignas(16) std::array<uint32_t, kPixelSlotLanes> shuffle{}, x{}, shift_x{}, y{}, shift_y{};
+};
+
+// Which slot each lane holds. The first kEagerLanes lanes (computed for every sample) hold the
+// pixel and, per path vertex, the slots every integrator asks (sample_layout.h offsets 1, 2, 6,
+// 7, 8: light triangle and point, BSDF lobe and direction, roulette); the other lanes (light
+// stratum, PhotonDirect's extra light sample, gather lobe and direction: only the photon-map
+// integrator's estimators ask them) are computed on a sample's first request of one of them.
+// Lane 19 is padding (slot 19 is past the precomputed ones and never read from a lane).
+inline constexpr uint32_t kEagerLanes = 12;
+inline constexpr std::array<uint32_t, kPixelSlotLanes> kSlotOfLane = {0,  2, 3, 7, 8, 9,  11, 12, 16, 17,
+                                                                      18, 1, 4, 5, 6, 10, 13, 14, 15, 19};
+constexpr std::array<uint32_t, kPixelSlotLanes> MakeLaneOfSlot() {
+  std::array<uint32_t, kPixelSlotLanes> lane{};
+  for (uint32_t k = 0; k < kPixelSlotLanes; ++k) lane[kSlotOfLane[k]] = k;
+  return lane;
+}
+inline constexpr std::array<uint32_t, kPixelSlotLanes> kLaneOfSlot = MakeLaneOfSlot();
+
+// Point2D of every precomputed slot at once, as floats: exactly the values Point2D gives (a 1-D
+// slot's number is the x coordinate, exactly Point1D). One pass over independent slots instead
+// of one dependent chain of three hashes and three bit reversals per request: the hashes and
+// bit reversals run as 4-lane vector code and overlap (the Pascal lookups stay scalar), so a
+// sample pays a fraction of the latency it paid asking slot by slot, even though slots the
+// integrator never asks (another integrator's, or a path's second vertex after it ended) are
+// computed too.
+// Lanes [First, Last) only (see kSlotOfLane).
+template <uint32_t First, uint32_t Last>
+inline void PointsOfSlots(uint32_t reversed_index, const SlotSeedLanes& s, float* u, float* v) {
+  alignas(16) std::array<uint32_t, kPixelSlotLanes> h, j, pascal_reversed;
+  for (uint32_t k = First; k < Last; ++k) {
+    h[k] = NestedHash(reversed_index, s.shuffle[k]);
+    j[k] = ReverseBits(h[k]);
+  }
+  for (uint32_t k = First; k < Last; ++k)
+    pascal_reversed[k] = kPascalOfReversed[0][h[k] & 255] ^ kPascalOfReversed[1][(h[k] >> 8) & 255] ^
+                         kPascalOfReversed[2][(h[k] >> 16) & 255] ^ kPascalOfReversed[3][h[k] >> 24];
+  for (uint32_t k = First; k < Last; ++k) {
+    u[k] = ToFloat(ReverseBits(NestedHash(j[k], s.x[k]) ^ s.shift_x[k]));
+    v[k] = ToFloat(ReverseBits(NestedHash(pascal_reversed[k], s.y[k]) ^ s.shift_y[k]));
+  }
+}
+
 }  // namespace sobol
+
+class Sampler;
+
+// Per-pixel state of the pixel-sample streams (see sobol::kPixelSeedSlots).
+class PixelStream {
+ public:
+  PixelStream(SamplerKind kind, uint64_t seed, uint32_t pixel)
+      : kind_(kind), pixel_key_(HashKey(seed, pixel)), key_(Mix64(pixel_key_ ^ kPixelTag)) {
+    if (kind_ == SamplerKind::kSobol)
+      for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots; ++slot) {
+        const sobol::SlotSeeds2 t = seeds_[slot] = sobol::Seeds2Of(key_, slot);
+        const uint32_t lane = sobol::kLaneOfSlot[slot];
+        lanes_.shuffle[lane] = t.shuffle;
+        lanes_.x[lane] = t.x;
+        lanes_.shift_x[lane] = t.shift_x;
+        lanes_.y[lane] = t.y;
+        lanes_.shift_y[lane] = t.shift_y;
+      }
+  }
+
+ private:
+  friend class Sampler;
+  static constexpr uint64_t kPixelTag = 0x736f626f6c;  // "sobol"
+
+  SamplerKind kind_;
+  uint64_t pixel_key_, key_;
+  std::array<sobol::SlotSeeds2, sobol::kPixelSeedSlots> seeds_{};
+  sobol::SlotSeedLanes lanes_;
+};
 
 class Sampler {
  public:
@@ -163,7 +267,18 @@ class Sampler {
   // The independent stream is Rng::ForKey(HashKey(seed, pixel, sample)), as it always was.
   static Sampler ForPixelSample(SamplerKind kind, uint64_t seed, uint32_t pixel, uint32_t sample) {
     const uint64_t pixel_key = HashKey(seed, pixel);
-    return Sampler(kind, Mix64(pixel_key ^ kPixelTag), sample, HashKey(pixel_key, sample));
+    return Sampler(kind, Mix64(pixel_key ^ PixelStream::kPixelTag), sample, HashKey(pixel_key, sample));
+  }
+  // The same sampler (the same values) from the pixel's precomputed state; `pixel` must outlive it.
+  static Sampler ForPixelSample(const PixelStream& pixel, uint32_t sample) {
+    Sampler s(pixel.kind_, pixel.key_, sample, HashKey(pixel.pixel_key_, sample));
+    s.seeds_ = pixel.seeds_.data();
+    if (s.kind_ == SamplerKind::kSobol) {
+      s.lanes_ = &pixel.lanes_;
+      sobol::PointsOfSlots<0, sobol::kEagerLanes>(s.reversed_index_, pixel.lanes_, s.slot_u_.data(),
+                                                  s.slot_v_.data());
+    }
+    return s;
   }
   // Photon `photon` of the photon map traced with `map_seed`; independent stream
   // Rng::ForKey(HashKey(map_seed, photon, "photon")) as before.
@@ -174,17 +289,27 @@ class Sampler {
 
   // Number j of `subs` in slot `slot` (see the header comment), uniform in [0, 1).
   float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+    if (lanes_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0) return slot_u_[Lane(slot)];
     uint32_t reversed;
     if (!LowDiscrepancy(slot, j, subs, &reversed)) return rng().Uniform();
+    if (seeds_ && slot < sobol::kPixelSeedSlots) {
+      const sobol::SlotSeeds2& t = seeds_[slot];
+      return sobol::ToFloat(sobol::Point1D(reversed, {t.shuffle, t.x, t.shift_x}));
+    }
     return sobol::ToFloat(sobol::Point1D(reversed, sobol::Seeds1Of(key_, slot)));
   }
   Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+    if (lanes_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0) {
+      const uint32_t lane = Lane(slot);
+      return {slot_u_[lane], slot_v_[lane]};
+    }
     uint32_t reversed;
     if (!LowDiscrepancy(slot, j, subs, &reversed)) {
       const float u = rng().Uniform();
       return {u, rng().Uniform()};
     }
-    const sobol::Point2 p = sobol::Point2D(reversed, sobol::Seeds2Of(key_, slot));
+    const sobol::Point2 p = sobol::Point2D(
+        reversed, seeds_ && slot < sobol::kPixelSeedSlots ? seeds_[slot] : sobol::Seeds2Of(key_, slot));
     return {sobol::ToFloat(p.x), sobol::ToFloat(p.y)};
   }
   // The independent stream, for choices outside the layout (e.g. an exact UniformInt). Seeded on
@@ -199,7 +324,6 @@ class Sampler {
   SamplerKind kind() const { return kind_; }
 
  private:
-  static constexpr uint64_t kPixelTag = 0x736f626f6c;        // "sobol"
   static constexpr uint64_t kPhotonTag = 0x70686f746f6eull;  // "photon", as the photon tracer's key
 
   Sampler(SamplerKind kind, uint64_t key, uint32_t index, uint64_t rng_key)
@@ -208,6 +332,17 @@ class Sampler {
         reversed_index_(sobol::ReverseBits(index)),
         key_(key),
         rng_key_(rng_key) {}
+
+  // The lane of a precomputed slot, computing the lazy lanes on the sample's first request.
+  uint32_t Lane(uint32_t slot) {
+    const uint32_t lane = sobol::kLaneOfSlot[slot];
+    if (lane >= sobol::kEagerLanes && !lazy_lanes_ready_) {
+      sobol::PointsOfSlots<sobol::kEagerLanes, sobol::kPixelSlotLanes>(reversed_index_, *lanes_,
+                                                                       slot_u_.data(), slot_v_.data());
+      lazy_lanes_ready_ = true;
+    }
+    return lane;
+  }
 
   // The bit-reversed sequence index of number j of `subs`, if it has a low-discrepancy value.
   bool LowDiscrepancy(uint32_t slot, uint32_t j, uint32_t subs, uint32_t* reversed) const {
@@ -226,6 +361,12 @@ class Sampler {
   bool rng_ready_ = false;
   uint32_t index_, reversed_index_;
   uint64_t key_, rng_key_;
+  const sobol::SlotSeeds2* seeds_ = nullptr;  // a PixelStream's seeds of the first kPixelSeedSlots slots
+  // Set for a pixel sample of the Sobol kind: slot_u_/slot_v_ hold the points of the lanes
+  // [0, kEagerLanes) and, once lazy_lanes_ready_, of the others (by sobol::kLaneOfSlot).
+  const sobol::SlotSeedLanes* lanes_ = nullptr;
+  bool lazy_lanes_ready_ = false;
+  std::array<float, sobol::kPixelSlotLanes> slot_u_, slot_v_;
   Rng rng_;
 };
 

@@ -286,6 +286,41 @@ TEST(SobolSampler, IntegratesASmoothFunctionFarBetterThanIndependentNumbers) {
   EXPECT_LT(sobol * 10, independent) << sobol << " vs " << independent;
 }
 
+TEST(SobolSampler, PrecomputedPixelStreamGivesExactlyTheSameValues) {
+  // The renderer's per-pixel PixelStream (seeds of the budget's slots computed once, every such
+  // slot's point computed in one pass per sample) must not change a single value: every slot inside and
+  // beyond the precomputed ones, sub-indices and the independent fallback stream, for both kinds.
+  for (SamplerKind kind : {SamplerKind::kSobol, SamplerKind::kIndependent})
+    for (uint32_t pixel : {0u, 77u, 65535u}) {
+      const PixelStream stream(kind, 42, pixel);
+      for (uint32_t sample : {0u, 1u, 5u, 1000u}) {
+        Sampler a = Sampler::ForPixelSample(kind, 42, pixel, sample);
+        Sampler b = Sampler::ForPixelSample(stream, sample);
+        for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots + 5; ++slot) {
+          EXPECT_EQ(a.Get1D(slot), b.Get1D(slot)) << slot;
+          const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
+          EXPECT_EQ(qa.u, qb.u) << slot;
+          EXPECT_EQ(qa.v, qb.v) << slot;
+          const Sample2 pa = a.Get2D(slot, 3, 8), pb = b.Get2D(slot, 3, 8);
+          EXPECT_EQ(pa.u, pb.u) << slot;
+          EXPECT_EQ(pa.v, pb.v) << slot;
+        }
+        EXPECT_EQ(a.Get1D(kIndependentSlot), b.Get1D(kIndependentSlot));
+      }
+    }
+}
+
+TEST(SobolSampler, PascalProductFromTheReversedIndexEqualsTheDirectOne) {
+  // Point2D reads dimension 1 from the bit-reversed index (kPascalOfReversed): the same points.
+  for (uint32_t i : {0u, 1u, 2u, 3u, 255u, 256u, 12345u, 0x80000000u, 0xdeadbeefu, 0xffffffffu}) {
+    const uint32_t h = sobol::ReverseBits(i);
+    const uint32_t via_reversed =
+        sobol::kPascalOfReversed[0][h & 255] ^ sobol::kPascalOfReversed[1][(h >> 8) & 255] ^
+        sobol::kPascalOfReversed[2][(h >> 16) & 255] ^ sobol::kPascalOfReversed[3][h >> 24];
+    EXPECT_EQ(sobol::ReverseBits(via_reversed), sobol::Pascal(i)) << i;
+  }
+}
+
 TEST(SamplerKind, NamesRoundTrip) {
   for (SamplerKind k : {SamplerKind::kSobol, SamplerKind::kIndependent}) {
     EXPECT_EQ(ParseSamplerKind(SamplerName(k)), k);
