@@ -29,8 +29,7 @@ struct FarmArgs {
 };
 
 // In-process (client/local_commands.cpp).
-int RunRender(const RenderArgs& a);     // the classic single-image render (no --plan)
-int RunLocalPlan(const RenderArgs& a);  // --local-only / --plan without --workers: the plan in-process
+int RunLocalPlan(const RenderArgs& a);  // every render without --workers: the job's plan in-process
 // `scene` (optional): the scene the images show, for the masked metrics (rmse_masked,
 // rmse_lowfreq); its camera `camera_name` (default: the first) at the images' resolution.
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,

@@ -78,98 +78,6 @@ void CheckOutputs(const RenderArgs& a) {
 
 }  // namespace
 
-int RunRender(const RenderArgs& a) {
-  const auto t0 = std::chrono::steady_clock::now();
-  CheckOutputs(a);
-  const SceneDescription scene = LoadScene(a.scene);
-  for (const std::string& w : scene.warnings) spdlog::warn("scene: {}", w);
-  const CameraSpec spec = ChooseCamera(scene, a);
-  const Camera camera(spec);
-  spdlog::info("scene {}: {} triangles, {} emitting, {} lights, {} materials", a.scene, scene.NumTriangles(),
-               scene.NumEmissiveTriangles(), scene.num_lights, scene.materials.size());
-  const EmbreeScene accel(scene);
-  const LightSampler lights(accel);
-  if (lights.empty()) spdlog::warn("the scene has no emitters: the image will be black");
-  const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-
-  std::unique_ptr<Integrator> integrator;
-  PhotonMaps maps;
-  JobRenderSettings settings;
-  if (a.integrator == "path") {
-    integrator = std::make_unique<PathTracer>(accel, lights);
-  } else if (a.integrator == "photonmap") {
-    // The same settings (and `auto` decisions) a farm job of these flags gets.
-    photonfarm::v1::RenderSettings rs;
-    RenderSettingsFromArgs(a, &rs);
-    settings = ResolveAndLog(SettingsFromProto(rs, "settings"), scene);
-    PhotonMapsOptions mo = settings.MapsOptions();
-    mo.tracing.map_seed = HashKey(a.seed, 0x6d6170 /* "map" */);
-    mo.tracing.threads = a.threads;
-    maps = PhotonMaps::Build(accel, lights, mo);
-    integrator = std::make_unique<PhotonMapIntegrator>(accel, &lights, maps,
-                                                       settings.IntegratorOptions(accel.bounds()));
-  } else {
-    throw InputError("--integrator: unknown integrator '" + a.integrator + "' (available: path, photonmap)");
-  }
-
-  RenderOptions options;
-  options.spp = a.spp;
-  options.seed = a.seed;
-  options.threads = a.threads;
-  options.sampler = a.sampler == "independent" ? SamplerKind::kIndependent : SamplerKind::kSobol;
-  std::atomic<uint64_t> progress{0};
-  RenderStats stats;
-  Image image;
-  {
-    ProgressBar bar(progress, uint64_t(spec.width) * spec.height, !a.quiet);
-    image = RenderImage(*integrator, camera, options, &stats, &progress);
-  }
-
-  const std::string output =
-      a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
-  ImageMetadata meta = {
-      {"scene", a.scene},
-      {"integrator", integrator->name()},
-      {"sampler", a.sampler},
-      {"spp", std::to_string(a.spp)},
-      {"seed", std::to_string(a.seed)},
-      {"camera.eye", FormatVec(spec.eye)},
-      {"camera.look_at", FormatVec(spec.look_at)},
-      {"camera.up", FormatVec(spec.up)},
-      {"camera.vfov_degrees", fmt::format("{}", spec.vfov_degrees)},
-      {"render_seconds", fmt::format("{:.3f}", stats.seconds)},
-      {"rays", std::to_string(stats.counters.rays + stats.counters.shadow_rays)},
-      {"nonfinite_samples", std::to_string(stats.nonfinite_samples)},
-  };
-  if (maps.global) {
-    meta["photons.emitted"] = std::to_string(maps.stats.emitted);
-    meta["photons.global"] = std::to_string(maps.stats.stored_global);
-    meta["photons.caustic"] = std::to_string(maps.stats.stored_caustic);
-    meta["photons.k"] = std::to_string(a.k);
-    meta["photons.map"] = a.map;
-    static constexpr const char* kDirectNames[] = {"photon-map", "mc", "photon-direct"};
-    meta["photons.direct"] = kDirectNames[int(*settings.direct)];
-    meta["photons.local_pass_rays"] = std::to_string(settings.local_pass_rays);
-    meta["photons.local_pass_lookup"] =
-        settings.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
-    meta["photons.occlusion_test"] = settings.occlusion_test ? "1" : "0";
-    meta["photons.adaptive_k_min"] = std::to_string(settings.adaptive_k_min);
-    meta["photons.trace_seconds"] = fmt::format("{:.3f}", maps.stats.trace_seconds);
-    meta["photons.build_seconds"] = fmt::format("{:.3f}", maps.stats.build_seconds);
-  }
-  AddProvenance(meta);
-  WriteExr(output, image, meta);
-  WritePreviewFor(output, a.png, a.no_png, image);
-
-  const uint64_t rays = stats.counters.rays + stats.counters.shadow_rays;
-  if (stats.nonfinite_samples > 0)
-    spdlog::warn("{} samples were NaN/Inf and were dropped", stats.nonfinite_samples);
-  std::printf("rendered %dx%d, %u spp, %s in %.2f s (+%.2f s load): %.2f M rays/s, %.2f M samples/s -> %s\n",
-              spec.width, spec.height, a.spp, integrator->name(), stats.seconds, load_seconds,
-              rays / stats.seconds * 1e-6, stats.samples / stats.seconds * 1e-6, output.c_str());
-  return kExitOk;
-}
-
 int RunLocalPlan(const RenderArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   CheckOutputs(a);
@@ -206,11 +114,12 @@ int RunLocalPlan(const RenderArgs& a) {
   const SceneRuntime runtime(std::move(job.scene));
   const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::atomic<uint64_t> progress{0};
+  LocalRenderTotals totals;
   Image image;
   const auto t1 = std::chrono::steady_clock::now();
   {
     ProgressBar bar(progress, total_pixels, !a.quiet);
-    image = RenderPlanLocally(runtime, camera, settings, plan, a.seed, a.threads, &progress);
+    image = RenderPlanLocally(runtime, camera, settings, plan, a.seed, a.threads, &progress, &totals);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   const std::string output =
@@ -224,19 +133,38 @@ int RunLocalPlan(const RenderArgs& a) {
       {"seed", std::to_string(a.seed)},
       {"tasks", std::to_string(tasks.size())},
       {"render_seconds", fmt::format("{:.3f}", seconds)},
+      {"rays", std::to_string(totals.rays)},
+      {"nonfinite_samples", std::to_string(totals.nonfinite_samples)},
       {"camera.eye", FormatVec(camera.eye)},
       {"camera.look_at", FormatVec(camera.look_at)},
       {"camera.up", FormatVec(camera.up)},
       {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
   if (a.integrator == "photonmap") {
+    const JobRenderSettings resolved = settings.Resolved(runtime.description);
     meta["photons.per_map"] = std::to_string(a.photons);
     meta["photons.k"] = std::to_string(a.k);
+    meta["photons.map"] = a.map;
+    meta["photons.maps_built"] = std::to_string(totals.maps_built);
+    meta["photons.emitted"] = std::to_string(totals.photons_emitted);
+    meta["photons.stored"] = std::to_string(totals.photons_stored);
+    static constexpr const char* kDirectNames[] = {"photon-map", "mc", "photon-direct"};
+    if (resolved.direct) meta["photons.direct"] = kDirectNames[int(*resolved.direct)];
+    meta["photons.local_pass_rays"] = std::to_string(resolved.local_pass_rays);
+    meta["photons.local_pass_lookup"] =
+        resolved.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
+    meta["photons.occlusion_test"] = resolved.occlusion_test ? "1" : "0";
+    meta["photons.adaptive_k_min"] = std::to_string(resolved.adaptive_k_min);
+    meta["photons.map_seconds"] = fmt::format("{:.3f}", totals.map_seconds);
   }
   AddProvenance(meta);
   WriteExr(output, image, meta);
   WritePreviewFor(output, a.png, a.no_png, image);
-  std::printf("rendered %dx%d locally, %s, %zu tasks in %.2f s (+%.2f s load) -> %s\n", camera.width,
-              camera.height, DescribePlan(plan).c_str(), tasks.size(), seconds, load_seconds, output.c_str());
+  if (totals.nonfinite_samples > 0)
+    spdlog::warn("{} samples were NaN/Inf and were dropped", totals.nonfinite_samples);
+  std::printf("rendered %dx%d locally, %s, %s, %zu tasks in %.2f s (+%.2f s load): %.2f M rays/s -> %s\n",
+              camera.width, camera.height, a.integrator.c_str(), DescribePlan(plan).c_str(), tasks.size(),
+              seconds, load_seconds, seconds > 0 ? double(totals.rays) / seconds * 1e-6 : 0.0,
+              output.c_str());
   return kExitOk;
 }
 

@@ -1,6 +1,6 @@
 // pf — the photonfarm command-line client.
 //
-//   pf render SCENE [options]                 render in this process (classic single image)
+//   pf render SCENE [options]                 the farm's default plan (one map, 64-px tiles), in this process
 //   pf render SCENE --plan P [--local-only]   the same plan a farm job runs, in this process
 //   pf render SCENE --workers N [--plan P]    start a coordinator + N workers on loopback, render, stop
 //   pf submit SCENE [options]                 upload the scene, submit a job, print its id
@@ -275,15 +275,16 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
     if (*render && ra.local_only && ra.workers > 0)
       throw CLI::ValidationError("--local-only", "cannot be combined with --workers");
-    // A plain render (no --plan, --local-only or --workers) runs every sample in this process:
-    // the plan and farm options would be silently ignored.
+    // A plain render (no --plan, --local-only or --workers) is the default plan in this process:
+    // the other plan and farm options would be silently ignored.
     if (*render && ra.workers == 0 && !ra.local_only && ra.plan.empty())
       for (const char* opt : {"--maps", "--stride", "--rounds", "--tile", "--max-rounds", "--time-budget",
                               "--target-noise", "--priority", "--name"})
         if (render->count(opt) > 0)
           throw CLI::ValidationError(
-              opt, std::string("applies to plan renders only (add --plan P, --local-only or "
-                               "--workers N); a plain render runs every sample here"));
+              opt, std::string(
+                       "applies to plan renders only (add --plan P, --local-only or "
+                       "--workers N); a plain render runs the default plan (one map, 64-pixel tiles) here"));
     for (auto [cmd, args] : {std::pair{render, &ra}, std::pair{submit, &sa}}) {
       args->spp_given = cmd->count("--spp") > 0;
       args->photons_given = cmd->count("--photons") > 0;
@@ -301,8 +302,9 @@ int main(int argc, char** argv) {
     if (*render) {
       ApplyManifestSettings(ra);
       if (ra.workers > 0) return RunFarmRender(ra);
-      if (ra.local_only || !ra.plan.empty()) return RunLocalPlan(ra);
-      return RunRender(ra);
+      // One render path: a plain render is the farm's default plan (multiple-maps, --maps 1, --tile
+      // 64) run here, so `pf render`, `--local-only` and `--workers N` give the same image.
+      return RunLocalPlan(ra);
     }
     if (*submit) {
       ApplyManifestSettings(sa);

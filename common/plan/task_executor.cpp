@@ -176,14 +176,28 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     out.rgb_sums[3 * i + 2] = sums[i].b;
   }
   out.rays = stats.counters.rays + stats.counters.shadow_rays;
+  out.nonfinite_samples = stats.nonfinite_samples;
   out.render_seconds = stats.seconds;
   out.pixel_indices = std::move(pixels);
   return out;
 }
 
+void LocalRenderTotals::Add(const TaskOutput& out) {
+  ++tasks;
+  if (!out.map_cache_hit && out.photons_emitted > 0) {
+    ++maps_built;
+    photons_emitted += out.photons_emitted;
+    photons_stored += out.photons_stored;
+  }
+  rays += out.rays;
+  nonfinite_samples += out.nonfinite_samples;
+  map_seconds += out.map_seconds;
+  render_seconds += out.render_seconds;
+}
+
 Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
                         const JobRenderSettings& settings, const PlanSpec& plan, uint64_t seed, int threads,
-                        std::atomic<uint64_t>* progress) {
+                        std::atomic<uint64_t>* progress, LocalRenderTotals* totals) {
   PhotonMapCache cache(1);
   if (plan.kind == PlanKind::kHierarchical) {
     // Wald 1999, §4.5: the static tasks, then each level's localization tasks as the merged
@@ -198,6 +212,7 @@ Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
         const TaskOutput out =
             ExecuteTask(scene, "local", camera, settings, tasks[i], threads, &cache, progress);
         assembly.Add(tasks[i], out.pixel_indices, out.rgb_sums, out.samples);
+        if (totals) totals->Add(out);
       }
       done = tasks.size();
     }
@@ -207,6 +222,7 @@ Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
   for (const TaskSpec& task : ExpandPlan(plan, camera.width, camera.height, seed)) {
     const TaskOutput out = ExecuteTask(scene, "local", camera, settings, task, threads, &cache, progress);
     acc.Add(out.pixel_indices, out.rgb_sums, out.samples);
+    if (totals) totals->Add(out);
   }
   return acc.Resolve();
 }

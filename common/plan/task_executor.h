@@ -109,8 +109,17 @@ struct TaskOutput {
   uint64_t pixels = 0;
   uint32_t samples = 0;  // per pixel
   uint64_t photons_emitted = 0, photons_stored = 0, rays = 0;
+  uint64_t nonfinite_samples = 0;  // NaN/Inf samples dropped (RenderStats)
   double map_seconds = 0, render_seconds = 0;
   bool map_cache_hit = false;
+};
+
+// What a local plan render did, summed over its tasks (for the EXR header and the summary line).
+struct LocalRenderTotals {
+  uint64_t tasks = 0, maps_built = 0, photons_emitted = 0, photons_stored = 0, rays = 0,
+           nonfinite_samples = 0;
+  double map_seconds = 0, render_seconds = 0;
+  void Add(const TaskOutput& out);
 };
 
 // Renders one task. `scene_key` identifies the scene for the cache (e.g. its bundle hash);
@@ -125,6 +134,6 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
 // The whole plan in this process, merged with the farm's Accumulator (same arithmetic).
 Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
                         const JobRenderSettings& settings, const PlanSpec& plan, uint64_t seed, int threads,
-                        std::atomic<uint64_t>* progress = nullptr);
+                        std::atomic<uint64_t>* progress = nullptr, LocalRenderTotals* totals = nullptr);
 
 }  // namespace pf

@@ -50,8 +50,8 @@ std::vector<uint32_t> ResultMerger::PixelsOfTask(const TaskSpec& task, int width
   return px;
 }
 
-CheckedResult ResultMerger::Check(const TaskSpec& task, int width, int height, std::span<const float> rgb_sums,
-                                  double max_sample_radiance) {
+CheckedResult ResultMerger::Check(const TaskSpec& task, int width, int height,
+                                  std::span<const float> rgb_sums, double max_sample_radiance) {
   CheckedResult out;
   const ResultCheck check = Validate(task, width, height, rgb_sums, max_sample_radiance);
   out.verdict = check.verdict;

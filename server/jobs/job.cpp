@@ -42,7 +42,8 @@ void Job::AppendTasks(const std::vector<TaskSpec>& tasks) {
 
 Accumulator& Job::accumulator() {
   if (!accumulator_)
-    accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height);
+    accumulator_ =
+        std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height);
   return *accumulator_;
 }
 

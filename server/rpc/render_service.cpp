@@ -5,9 +5,9 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <string_view>
 #include <cstdio>
 #include <memory>
+#include <string_view>
 
 #include "common/core/error.h"
 #include "common/scene/scene_bundle.h"

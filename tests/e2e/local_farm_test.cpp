@@ -44,6 +44,42 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
   }
 }
 
+// One render path: a plain `pf render` (no --plan, --local-only or --workers) is the farm's default
+// plan run in this process, so it equals a default farm job bit for bit — for the photon map (one
+// map, the same map seed) and for the path tracer (the same pixel seeds). Before, the plain render
+// had its own loop and map seed and matched neither.
+TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
+  TestDir dir;
+  for (const std::string integrator : {"photonmap", "path"}) {
+    const std::vector<std::string> base = {Binaries::Pf(),
+                                           "render",
+                                           Binaries::Scene(),
+                                           "--integrator",
+                                           integrator,
+                                           "--photons",
+                                           "3000",
+                                           "--k",
+                                           "20",
+                                           "--res",
+                                           "80x48",
+                                           "--spp",
+                                           "2",
+                                           "--seed",
+                                           "11",
+                                           "--no-png",
+                                           "-q"};  // 80x48: partial tiles
+    const std::string plain = (dir / (integrator + "-plain.exr")).string();
+    const RunResult r = RunCommand(Concat(base, {"-o", plain}), dir.path());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::string farm = (dir / (integrator + "-farm.exr")).string();
+    const RunResult f =
+        RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "-o", farm}), dir.path());
+    ASSERT_EQ(f.exit_code, 0) << f.err;
+    EXPECT_TRUE(BitIdentical(ReadImage(plain), ReadImage(farm))) << integrator;
+    ExpectNoProcessLeft();
+  }
+}
+
 // `pf render` of the shipped scene with the photon map (`photons`, k = 20) at 24x16, no PNG, quiet.
 std::vector<std::string> PhotonMapRender24x16(const std::string& photons,
                                               const std::vector<std::string>& more) {
