@@ -19,6 +19,13 @@ bool IsTransient(const grpc::Status& s) {
   return s.error_code() == grpc::StatusCode::UNAVAILABLE;
 }
 
+template <typename Request>
+Request WithJobId(const std::string& job_id) {
+  Request req;
+  req.set_job_id(job_id);
+  return req;
+}
+
 }  // namespace
 
 bool IsFinalState(v1::JobState s) {
@@ -31,6 +38,16 @@ FarmClient::FarmClient(const std::string& address, std::string token, double tim
       token_(std::move(token)),
       timeout_(Seconds(timeout_seconds)) {}
 
+template <typename Request, typename Response>
+Response FarmClient::Call(grpc::Status (Stub::*method)(grpc::ClientContext*, const Request&, Response*),
+                          const Request& req) {
+  grpc::ClientContext ctx;
+  PrepareContext(&ctx, token_, timeout_);
+  Response resp;
+  Check((stub_.get()->*method)(&ctx, req, &resp));
+  return resp;
+}
+
 v1::UploadSceneResponse FarmClient::UploadScene(const SceneBundle& bundle) {
   v1::UploadSceneRequest req;
   req.mutable_bundle()->set_entry(bundle.entry);
@@ -39,31 +56,17 @@ v1::UploadSceneResponse FarmClient::UploadScene(const SceneBundle& bundle) {
     f->set_path(path);
     f->set_content(content);
   }
-  grpc::ClientContext ctx;
-  PrepareContext(&ctx, token_, timeout_);
-  v1::UploadSceneResponse resp;
-  Check(stub_->UploadScene(&ctx, req, &resp));
-  return resp;
+  return Call(&Stub::UploadScene, req);
 }
 
 std::string FarmClient::SubmitJob(const v1::JobSpec& spec) {
   v1::SubmitJobRequest req;
   *req.mutable_spec() = spec;
-  grpc::ClientContext ctx;
-  PrepareContext(&ctx, token_, timeout_);
-  v1::SubmitJobResponse resp;
-  Check(stub_->SubmitJob(&ctx, req, &resp));
-  return resp.job_id();
+  return Call(&Stub::SubmitJob, req).job_id();
 }
 
 v1::JobStatus FarmClient::GetJob(const std::string& job_id) {
-  v1::GetJobRequest req;
-  req.set_job_id(job_id);
-  grpc::ClientContext ctx;
-  PrepareContext(&ctx, token_, timeout_);
-  v1::JobStatus resp;
-  Check(stub_->GetJob(&ctx, req, &resp));
-  return resp;
+  return Call(&Stub::GetJob, WithJobId<v1::GetJobRequest>(job_id));
 }
 
 std::vector<v1::JobStatus> FarmClient::ListJobs(bool include_finished, uint32_t page_size) {
@@ -73,10 +76,7 @@ std::vector<v1::JobStatus> FarmClient::ListJobs(bool include_finished, uint32_t 
   req.set_include_finished(include_finished);
   req.set_page_size(page_size);
   do {
-    grpc::ClientContext ctx;
-    PrepareContext(&ctx, token_, timeout_);
-    v1::ListJobsResponse resp;
-    Check(stub_->ListJobs(&ctx, req, &resp));
+    const v1::ListJobsResponse resp = Call(&Stub::ListJobs, req);
     jobs.insert(jobs.end(), resp.jobs().begin(), resp.jobs().end());
     if (!resp.next_page_token().empty() && resp.next_page_token() == req.page_token())
       throw SystemError("ListJobs: the coordinator answered the same page token twice");
@@ -86,39 +86,23 @@ std::vector<v1::JobStatus> FarmClient::ListJobs(bool include_finished, uint32_t 
 }
 
 v1::JobStatus FarmClient::CancelJob(const std::string& job_id) {
-  v1::CancelJobRequest req;
-  req.set_job_id(job_id);
-  grpc::ClientContext ctx;
-  PrepareContext(&ctx, token_, timeout_);
-  v1::CancelJobResponse resp;
-  Check(stub_->CancelJob(&ctx, req, &resp));
-  return resp.status();
+  return Call(&Stub::CancelJob, WithJobId<v1::CancelJobRequest>(job_id)).status();
 }
 
 std::vector<v1::WorkerInfo> FarmClient::ListWorkers() {
-  grpc::ClientContext ctx;
-  PrepareContext(&ctx, token_, timeout_);
-  v1::ListWorkersResponse resp;
-  Check(stub_->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp));
+  const v1::ListWorkersResponse resp = Call(&Stub::ListWorkers, v1::ListWorkersRequest());
   return {resp.workers().begin(), resp.workers().end()};
 }
 
 v1::ListJobEventsResponse FarmClient::ListJobEvents(const std::string& job_id) {
-  v1::ListJobEventsRequest req;
-  req.set_job_id(job_id);
-  grpc::ClientContext ctx;
-  PrepareContext(&ctx, token_, timeout_);
-  v1::ListJobEventsResponse resp;
-  Check(stub_->ListJobEvents(&ctx, req, &resp));
-  return resp;
+  return Call(&Stub::ListJobEvents, WithJobId<v1::ListJobEventsRequest>(job_id));
 }
 
 std::string FarmClient::GetImage(const std::string& job_id, uint64_t* samples_merged) {
-  v1::GetImageRequest req;
-  req.set_job_id(job_id);
   grpc::ClientContext ctx;
   PrepareContext(&ctx, token_, timeout_);
-  std::unique_ptr<grpc::ClientReader<v1::ImageChunk>> reader = stub_->GetImage(&ctx, req);
+  std::unique_ptr<grpc::ClientReader<v1::ImageChunk>> reader =
+      stub_->GetImage(&ctx, WithJobId<v1::GetImageRequest>(job_id));
   std::string bytes;
   v1::ImageChunk chunk;
   uint32_t expected = 0, count = 0;

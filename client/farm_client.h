@@ -54,6 +54,12 @@ class FarmClient {
   std::chrono::milliseconds timeout() const { return timeout_; }
 
  private:
+  using Stub = photonfarm::v1::RenderService::Stub;
+  // One unary call with the token and the per-call deadline; throws RpcError unless it is OK.
+  template <typename Request, typename Response>
+  Response Call(grpc::Status (Stub::*method)(grpc::ClientContext*, const Request&, Response*),
+                const Request& req);
+
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<photonfarm::v1::RenderService::Stub> stub_;
   std::string token_;

@@ -255,32 +255,44 @@ SceneBundle Worker::FetchBundle(const std::string& hash, const std::string& entr
   return bundle;
 }
 
+// A task in four steps: parse it, get its scene, log the settings chosen for `auto`, then render
+// it on a thread of its own under supervision (lease, grace period, stop requests) and report.
 Worker::Outcome Worker::RunTask(const v1::Task& task) {
   const std::string ctx = TaskContext(task);
   const Clock::time_point t0 = Clock::now();
+  const std::optional<ParsedTask> parsed = ParseTask(task, ctx);
+  if (!parsed) return Outcome::kDone;
+  spdlog::info("leased {} map={} pixels={} samples={} lease={:.1f}s", ctx, task.map_index(), parsed->pixels,
+               parsed->spec.sample_end - parsed->spec.sample_begin, task.lease_seconds());
+  std::shared_ptr<const SceneRuntime> scene;
+  if (const std::optional<Outcome> ended = GetScene(task, ctx, &scene)) return *ended;
+  LogAutoSettings(task, ctx, parsed->settings, *scene);
+  return ExecuteSupervised(task, ctx, *parsed, std::move(scene), t0);
+}
 
-  // Parse first: a task we cannot even read goes straight back as a permanent failure.
-  CameraSpec camera;
-  JobRenderSettings settings;
-  TaskSpec spec;
+// Parse first: a task we cannot even read goes straight back as a permanent failure.
+std::optional<Worker::ParsedTask> Worker::ParseTask(const v1::Task& task, const std::string& ctx) {
+  ParsedTask parsed;
   try {
-    camera = CameraFromProto(task.camera(), "task.camera");
-    settings = SettingsFromProto(task.settings(), "task.settings");
-    spec = TaskSpecFromProto(task);
+    parsed.camera = CameraFromProto(task.camera(), "task.camera");
+    parsed.settings = SettingsFromProto(task.settings(), "task.settings");
+    parsed.spec = TaskSpecFromProto(task);
   } catch (const InputError& e) {
     Fail(task, ctx, e.what(), false);
-    return Outcome::kDone;
+    return std::nullopt;
   }
-  const uint64_t pixels = CountPixels(spec.pixels, camera.width, camera.height);
-  spdlog::info("leased {} map={} pixels={} samples={} lease={:.1f}s", ctx, task.map_index(), pixels,
-               spec.sample_end - spec.sample_begin, task.lease_seconds());
+  parsed.pixels = CountPixels(parsed.spec.pixels, parsed.camera.width, parsed.camera.height);
+  return parsed;
+}
 
-  // Scene: memory, disk, or FetchScene.
+// Scene: memory, disk, or FetchScene. If that fails, the task ends here (failed, or left to
+// expire when the coordinator is unreachable) and the outcome says how.
+std::optional<Worker::Outcome> Worker::GetScene(const v1::Task& task, const std::string& ctx,
+                                                std::shared_ptr<const SceneRuntime>* scene) {
   SetState(State::kFetchingScene, ctx);
-  std::shared_ptr<const SceneRuntime> scene;
   try {
     std::string source;
-    scene = scenes_.Get(
+    *scene = scenes_.Get(
         task.scene_hash(), [&] { return FetchBundle(task.scene_hash(), task.scene_entry()); }, &source);
     if (source != "memory")
       spdlog::info("scene {} from {} for {}", task.scene_hash().substr(0, 12), source, ctx);
@@ -299,28 +311,68 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
     Fail(task, ctx, std::string("scene ") + task.scene_hash() + ": " + e.what(), true);
     return Outcome::kDone;
   }
+  return std::nullopt;
+}
 
-  if (task.job_id() != auto_logged_job_ && settings.integrator == IntegratorKind::kPhotonMap) {
-    auto_logged_job_ = task.job_id();  // once per job (every task resolves alike, ExecuteTask)
-    std::vector<AutoChoice> choices;
-    settings.Resolved(scene->description, &choices);
-    for (const AutoChoice& c : choices)
-      spdlog::info("{}: auto {} = {}: {}", ctx, c.setting, c.value, c.reason);
-  }
+void Worker::LogAutoSettings(const v1::Task& task, const std::string& ctx, const JobRenderSettings& settings,
+                             const SceneRuntime& scene) {
+  if (task.job_id() == auto_logged_job_ || settings.integrator != IntegratorKind::kPhotonMap) return;
+  auto_logged_job_ = task.job_id();  // once per job (every task resolves alike, ExecuteTask)
+  std::vector<AutoChoice> choices;
+  settings.Resolved(scene.description, &choices);
+  for (const AutoChoice& c : choices) spdlog::info("{}: auto {} = {}: {}", ctx, c.setting, c.value, c.reason);
+}
 
-  // Render on a thread of its own so that this thread can watch the lease, the grace period
-  // and the stop requests; a heartbeat thread extends the lease meanwhile.
+// Render on a thread of its own so that this thread can watch the lease, the grace period
+// and the stop requests; a heartbeat thread extends the lease meanwhile.
+Worker::Outcome Worker::ExecuteSupervised(const v1::Task& task, const std::string& ctx,
+                                          const ParsedTask& parsed, std::shared_ptr<const SceneRuntime> scene,
+                                          Clock::time_point t0) {
   const std::vector<uint64_t> cached = maps_->CachedSeeds();
-  const bool map_cached = settings.integrator == IntegratorKind::kPath ||
-                          std::find(cached.begin(), cached.end(), spec.map_seed) != cached.end();
+  const bool map_cached = parsed.settings.integrator == IntegratorKind::kPath ||
+                          std::find(cached.begin(), cached.end(), parsed.spec.map_seed) != cached.end();
   SetState(map_cached ? State::kRendering : State::kBuildingMap, ctx);
   auto exec = std::make_shared<Execution>();
-  exec->pixels = std::max<uint64_t>(pixels, 1);
+  exec->pixels = std::max<uint64_t>(parsed.pixels, 1);
   exec->lease_seconds = task.lease_seconds() > 0 ? task.lease_seconds() : 30.0;
   render_in_flight_ = true;
-  // The render thread owns what it uses (it is detached on a hand-back and may outlive *this).
-  std::thread render([exec, scene, camera, settings, spec, hash = task.scene_hash(), maps = maps_,
-                      threads = options_.threads] {
+  std::thread render =
+      StartRender(exec, std::move(scene), parsed, task.scene_hash(), maps_, options_.threads);
+  std::thread heartbeat([this, &task, ctx, exec] { Heartbeat(task, ctx, exec); });
+  auto stop_heartbeat = [&] {
+    {
+      std::lock_guard lock(exec->mutex);
+      exec->stop_heartbeat = true;
+      exec->cv.notify_all();
+    }
+    if (heartbeat.joinable()) heartbeat.join();
+  };
+
+  bool abandoned_logged = false, lease_lost = false;
+  if (SuperviseUntilHandBack(ctx, *exec, &abandoned_logged, &lease_lost)) {
+    stop_heartbeat();
+    if (!lease_lost) {
+      spdlog::info("handed-back {}: shutting down before the task finished", ctx);
+      SendFail(task, ctx, "worker " + options_.worker_id + " shutting down", true);
+      std::lock_guard slock(mutex_);
+      ++counters_.handed_back;
+    }
+    exec->cancel = true;  // the detached render stops soon instead of using the cores to the end
+    render.detach();      // render_in_flight_ stays true: main() exits without waiting for it
+    return Outcome::kStop;
+  }
+  render.join();
+  render_in_flight_ = false;
+  stop_heartbeat();
+  return FinishExecution(task, ctx, *exec, abandoned_logged, t0);
+}
+
+// The render thread owns what it uses (it is detached on a hand-back and may outlive *this).
+std::thread Worker::StartRender(std::shared_ptr<Execution> exec, std::shared_ptr<const SceneRuntime> scene,
+                                const ParsedTask& parsed, const std::string& scene_hash,
+                                std::shared_ptr<PhotonMapCache> maps, int threads) {
+  return std::thread([exec, scene, camera = parsed.camera, settings = parsed.settings, spec = parsed.spec,
+                      hash = scene_hash, maps, threads] {
     std::optional<TaskOutput> out;
     std::string error;
     bool retryable = true, cancelled = false;
@@ -344,67 +396,49 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
     exec->done = true;
     exec->cv.notify_all();
   });
-  std::thread heartbeat([this, &task, ctx, exec] { Heartbeat(task, ctx, exec); });
-  auto stop_heartbeat = [&] {
-    {
-      std::lock_guard lock(exec->mutex);
-      exec->stop_heartbeat = true;
-      exec->cv.notify_all();
-    }
-    if (heartbeat.joinable()) heartbeat.join();
-  };
+}
 
-  bool abandoned_logged = false;
+// Watches the render until it is done (false) or the task must be handed back because of a stop
+// request past its grace period or an abort (true). Cancels the render once the lease is lost.
+bool Worker::SuperviseUntilHandBack(const std::string& ctx, Execution& exec, bool* abandoned_logged,
+                                    bool* lease_lost) {
   while (true) {
-    std::unique_lock lock(exec->mutex);
-    exec->cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return exec->done; });
-    if (exec->done) break;
-    const bool lease_lost = exec->lease_lost;
+    std::unique_lock lock(exec.mutex);
+    exec.cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return exec.done; });
+    if (exec.done) return false;
+    *lease_lost = exec.lease_lost;
     lock.unlock();
-    if (state() == State::kBuildingMap && exec->progress.load() > 0) SetState(State::kRendering, ctx);
-    if (lease_lost && !abandoned_logged) {
-      abandoned_logged = true;
-      exec->cancel = true;
+    if (state() == State::kBuildingMap && exec.progress.load() > 0) SetState(State::kRendering, ctx);
+    if (*lease_lost && !*abandoned_logged) {
+      *abandoned_logged = true;
+      exec.cancel = true;
       spdlog::warn("abandoned {}: the coordinator says the lease is gone; rendering cancelled", ctx);
     }
-    bool hand_back = false;
-    {
-      std::lock_guard slock(mutex_);
-      hand_back = stop_.load() && (abort_.load() || Clock::now() >= stop_deadline_);
-    }
-    if (hand_back) {
-      stop_heartbeat();
-      if (!lease_lost) {
-        spdlog::info("handed-back {}: shutting down before the task finished", ctx);
-        SendFail(task, ctx, "worker " + options_.worker_id + " shutting down", true);
-        std::lock_guard slock(mutex_);
-        ++counters_.handed_back;
-      }
-      exec->cancel = true;  // the detached render stops soon instead of using the cores to the end
-      render.detach();      // render_in_flight_ stays true: main() exits without waiting for it
-      return Outcome::kStop;
-    }
+    std::lock_guard slock(mutex_);
+    if (stop_.load() && (abort_.load() || Clock::now() >= stop_deadline_)) return true;
   }
-  render.join();
-  render_in_flight_ = false;
-  stop_heartbeat();
+}
 
-  std::unique_lock lock(exec->mutex);
-  if (exec->lease_lost) {
+// After the render thread ended: drop the result if the lease is gone, fail the task if the
+// render failed, else report it.
+Worker::Outcome Worker::FinishExecution(const v1::Task& task, const std::string& ctx, Execution& exec,
+                                        bool abandoned_logged, Clock::time_point t0) {
+  std::unique_lock lock(exec.mutex);
+  if (exec.lease_lost) {
     std::lock_guard slock(mutex_);
     ++counters_.abandoned;
-    counters_.cancelled += exec->cancelled;
+    counters_.cancelled += exec.cancelled;
     if (!abandoned_logged) spdlog::warn("abandoned {}: the lease is gone; result dropped", ctx);
     return Outcome::kDone;
   }
-  if (!exec->output) {
-    const std::string error = exec->error;
-    const bool retryable = exec->error_retryable;
+  if (!exec.output) {
+    const std::string error = exec.error;
+    const bool retryable = exec.error_retryable;
     lock.unlock();
     Fail(task, ctx, error, retryable);
     return Outcome::kDone;
   }
-  const TaskOutput output = std::move(*exec->output);
+  const TaskOutput output = std::move(*exec.output);
   lock.unlock();
   spdlog::info("rendered {} pixels={} map_cache_hit={} map_s={:.3f} render_s={:.3f} total_s={:.3f}", ctx,
                output.pixels, output.map_cache_hit, output.map_seconds, output.render_seconds,

@@ -34,6 +34,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "common/plan/task_executor.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
@@ -105,7 +106,34 @@ class Worker {
   void BackoffSleep();
   // Returns nullopt on "no task now"; sets *status on RPC failure.
   std::optional<photonfarm::v1::Task> Lease(grpc::Status* status);
+  // A task's fields in core types (RunTask parses them first).
+  struct ParsedTask {
+    CameraSpec camera;
+    JobRenderSettings settings;
+    TaskSpec spec;
+    uint64_t pixels = 0;  // in the task's subset
+  };
+
+  // One leased task, start to end; its steps, in order, follow.
   Outcome RunTask(const photonfarm::v1::Task& task);
+  // nullopt: the task could not be read and was failed (permanently).
+  std::optional<ParsedTask> ParseTask(const photonfarm::v1::Task& task, const std::string& ctx);
+  // nullopt: *scene is set; else the task ended here and the outcome says how.
+  std::optional<Outcome> GetScene(const photonfarm::v1::Task& task, const std::string& ctx,
+                                  std::shared_ptr<const SceneRuntime>* scene);
+  // Logs what the job's `auto` settings resolve to, once per job.
+  void LogAutoSettings(const photonfarm::v1::Task& task, const std::string& ctx,
+                       const JobRenderSettings& settings, const SceneRuntime& scene);
+  Outcome ExecuteSupervised(const photonfarm::v1::Task& task, const std::string& ctx,
+                            const ParsedTask& parsed, std::shared_ptr<const SceneRuntime> scene,
+                            std::chrono::steady_clock::time_point t0);
+  static std::thread StartRender(std::shared_ptr<Execution> exec, std::shared_ptr<const SceneRuntime> scene,
+                                 const ParsedTask& parsed, const std::string& scene_hash,
+                                 std::shared_ptr<PhotonMapCache> maps, int threads);
+  bool SuperviseUntilHandBack(const std::string& ctx, Execution& exec, bool* abandoned_logged,
+                              bool* lease_lost);
+  Outcome FinishExecution(const photonfarm::v1::Task& task, const std::string& ctx, Execution& exec,
+                          bool abandoned_logged, std::chrono::steady_clock::time_point t0);
   Outcome Report(const photonfarm::v1::Task& task, const std::string& ctx, const TaskOutput& output);
   // Logs and counts a failure, then tells the coordinator (SendFail).
   void Fail(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& reason,

@@ -18,16 +18,18 @@ namespace pf {
 
 // Ward's reflection model plus transmission and emission (Wald 1999, §2.1; MGF `rd rs td ts
 // ed ir`). All reflectances/transmittances are linear RGB in [0,1] per channel.
+// Every member has an initializer, so a designated initializer (Material{.emission = ...}) may
+// name only some of them.
 struct Material {
-  std::string name;
-  Rgb diffuse_reflectance;              // ρd: Lambertian reflection.
-  Rgb specular_reflectance;             // ρs: mirror if specular_roughness == 0, else Ward lobe.
+  std::string name{};
+  Rgb diffuse_reflectance{};            // ρd: Lambertian reflection.
+  Rgb specular_reflectance{};           // ρs: mirror if specular_roughness == 0, else Ward lobe.
   float specular_roughness = 0.0f;      // Ward α of the reflection lobe (RMS slope).
-  Rgb diffuse_transmittance;            // τd: Lambertian transmission to the other side.
-  Rgb specular_transmittance;           // τs: specular transmission (refraction if ior != 1).
+  Rgb diffuse_transmittance{};          // τd: Lambertian transmission to the other side.
+  Rgb specular_transmittance{};         // τs: specular transmission (refraction if ior != 1).
   float transmission_roughness = 0.0f;  // MGF ts α; rendered as perfect transmission (documented).
   float ior = 1.0f;                     // Index of refraction inside (behind the front face).
-  Rgb emission;                         // Le in W/(m²·sr), emitted from the front side only.
+  Rgb emission{};                       // Le in W/(m²·sr), emitted from the front side only.
   bool one_sided = false;               // MGF `sides 1` (recorded; surfaces are shaded two-sided).
 
   bool IsEmissive() const { return !emission.IsBlack(); }

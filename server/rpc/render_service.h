@@ -6,6 +6,7 @@
 // and finishes the reactor from there. Errors are mapped by status_mapping.h.
 
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "server/rpc/handler_macros.h"
 #include "server/rpc/service_context.h"
 
 namespace pf::server {
@@ -14,31 +15,15 @@ class RenderServiceImpl final : public photonfarm::v1::RenderService::CallbackSe
  public:
   explicit RenderServiceImpl(ServiceContext context) : ctx_(context) {}
 
-  grpc::ServerUnaryReactor* UploadScene(grpc::CallbackServerContext* context,
-                                        const photonfarm::v1::UploadSceneRequest* request,
-                                        photonfarm::v1::UploadSceneResponse* response) override;
-  grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* context,
-                                      const photonfarm::v1::SubmitJobRequest* request,
-                                      photonfarm::v1::SubmitJobResponse* response) override;
-  grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* context,
-                                   const photonfarm::v1::GetJobRequest* request,
-                                   photonfarm::v1::JobStatus* response) override;
-  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* context,
-                                     const photonfarm::v1::ListJobsRequest* request,
-                                     photonfarm::v1::ListJobsResponse* response) override;
-  grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* context,
-                                      const photonfarm::v1::CancelJobRequest* request,
-                                      photonfarm::v1::CancelJobResponse* response) override;
-  grpc::ServerWriteReactor<photonfarm::v1::JobUpdate>* WatchJob(
-      grpc::CallbackServerContext* context, const photonfarm::v1::WatchJobRequest* request) override;
-  grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* context,
-                                        const photonfarm::v1::ListWorkersRequest* request,
-                                        photonfarm::v1::ListWorkersResponse* response) override;
-  grpc::ServerUnaryReactor* ListJobEvents(grpc::CallbackServerContext* context,
-                                          const photonfarm::v1::ListJobEventsRequest* request,
-                                          photonfarm::v1::ListJobEventsResponse* response) override;
-  grpc::ServerWriteReactor<photonfarm::v1::ImageChunk>* GetImage(
-      grpc::CallbackServerContext* context, const photonfarm::v1::GetImageRequest* request) override;
+  PF_UNARY_HANDLER(UploadScene, UploadSceneRequest, UploadSceneResponse);
+  PF_UNARY_HANDLER(SubmitJob, SubmitJobRequest, SubmitJobResponse);
+  PF_UNARY_HANDLER(GetJob, GetJobRequest, JobStatus);
+  PF_UNARY_HANDLER(ListJobs, ListJobsRequest, ListJobsResponse);
+  PF_UNARY_HANDLER(CancelJob, CancelJobRequest, CancelJobResponse);
+  PF_STREAM_HANDLER(WatchJob, WatchJobRequest, JobUpdate);
+  PF_UNARY_HANDLER(ListWorkers, ListWorkersRequest, ListWorkersResponse);
+  PF_UNARY_HANDLER(ListJobEvents, ListJobEventsRequest, ListJobEventsResponse);
+  PF_STREAM_HANDLER(GetImage, GetImageRequest, ImageChunk);
 
  private:
   ServiceContext ctx_;

@@ -17,6 +17,7 @@
 //                The entry file's path is Task.scene_entry.
 
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "server/rpc/handler_macros.h"
 #include "server/rpc/service_context.h"
 
 namespace pf::server {
@@ -28,20 +29,11 @@ class WorkerServiceImpl final : public photonfarm::v1::WorkerService::CallbackSe
  public:
   explicit WorkerServiceImpl(ServiceContext context) : ctx_(context) {}
 
-  grpc::ServerUnaryReactor* LeaseTask(grpc::CallbackServerContext* context,
-                                      const photonfarm::v1::LeaseTaskRequest* request,
-                                      photonfarm::v1::LeaseTaskResponse* response) override;
-  grpc::ServerUnaryReactor* ExtendLease(grpc::CallbackServerContext* context,
-                                        const photonfarm::v1::ExtendLeaseRequest* request,
-                                        photonfarm::v1::ExtendLeaseResponse* response) override;
-  grpc::ServerUnaryReactor* CompleteTask(grpc::CallbackServerContext* context,
-                                         const photonfarm::v1::CompleteTaskRequest* request,
-                                         photonfarm::v1::CompleteTaskResponse* response) override;
-  grpc::ServerUnaryReactor* FailTask(grpc::CallbackServerContext* context,
-                                     const photonfarm::v1::FailTaskRequest* request,
-                                     photonfarm::v1::FailTaskResponse* response) override;
-  grpc::ServerWriteReactor<photonfarm::v1::SceneFile>* FetchScene(
-      grpc::CallbackServerContext* context, const photonfarm::v1::FetchSceneRequest* request) override;
+  PF_UNARY_HANDLER(LeaseTask, LeaseTaskRequest, LeaseTaskResponse);
+  PF_UNARY_HANDLER(ExtendLease, ExtendLeaseRequest, ExtendLeaseResponse);
+  PF_UNARY_HANDLER(CompleteTask, CompleteTaskRequest, CompleteTaskResponse);
+  PF_UNARY_HANDLER(FailTask, FailTaskRequest, FailTaskResponse);
+  PF_STREAM_HANDLER(FetchScene, FetchSceneRequest, SceneFile);
 
  private:
   ServiceContext ctx_;

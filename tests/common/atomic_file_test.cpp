@@ -11,37 +11,17 @@
 #include <sstream>
 
 #include "common/core/error.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-class AtomicFileTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pf-atomic-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  static std::string Read(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
-  std::vector<std::string> Names() const {
-    std::vector<std::string> names;
-    for (const auto& e : fs::directory_iterator(dir_)) names.push_back(e.path().filename().string());
-    std::sort(names.begin(), names.end());
-    return names;
-  }
-  fs::path dir_;
-};
+using AtomicFileTest = test_util::TempDirTest;
+std::string Read(const fs::path& p) {
+  return test_util::ReadFileBytes(p);
+}
 
 TEST_F(AtomicFileTest, WritesAndReplacesTheWholeFileAndLeavesNoTemporary) {
   const fs::path file = dir_ / "image.exr";
@@ -51,33 +31,26 @@ TEST_F(AtomicFileTest, WritesAndReplacesTheWholeFileAndLeavesNoTemporary) {
   EXPECT_EQ(Read(file), "2");
   WriteFileAtomically(file, "");
   EXPECT_EQ(Read(file), "");
-  EXPECT_EQ(Names(), std::vector<std::string>{"image.exr"});
+  EXPECT_EQ(DirListing(), std::vector<std::string>{"image.exr"});
 }
 
 TEST_F(AtomicFileTest, AFailedRenameKeepsTheTargetAndRemovesTheTemporary) {
   // The target is a non-empty directory: rename(2) refuses, the write must fail cleanly.
   const fs::path target = dir_ / "busy";
   fs::create_directories(target / "inside");
-  try {
-    WriteFileAtomically(target, "bytes");
-    ADD_FAILURE() << "wrote over a directory";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("busy"));
-    EXPECT_THAT(e.what(), HasSubstr("rename"));
-  }
+  EXPECT_THAT([&] { (void)WriteFileAtomically(target, "bytes"); },
+              ::testing::ThrowsMessage<SystemError>(::testing::AllOf(HasSubstr("busy"), HasSubstr("rename"))))
+      << "wrote over a directory";
   EXPECT_TRUE(fs::is_directory(target / "inside"));
-  EXPECT_EQ(Names(), std::vector<std::string>{"busy"});
+  EXPECT_EQ(DirListing(), std::vector<std::string>{"busy"});
 }
 
 TEST_F(AtomicFileTest, AMissingFolderIsASystemErrorNamingThePath) {
   const fs::path file = dir_ / "no-such-folder" / "out.png";
-  try {
-    WriteFileAtomically(file, "bytes");
-    ADD_FAILURE() << "wrote into a missing folder";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("no-such-folder/out.png"));
-    EXPECT_THAT(e.what(), HasSubstr("open"));
-  }
+  EXPECT_THAT([&] { (void)WriteFileAtomically(file, "bytes"); },
+              ::testing::ThrowsMessage<SystemError>(
+                  ::testing::AllOf(HasSubstr("no-such-folder/out.png"), HasSubstr("open"))))
+      << "wrote into a missing folder";
 }
 
 TEST_F(AtomicFileTest, TemporaryNamesAreUniqueHiddenAndRecognised) {
@@ -103,7 +76,7 @@ TEST_F(AtomicFileTest, ADirectoryIsPublishedOnceAndTheLoserIsRemoved) {
   EXPECT_TRUE(PublishDirectory(first, target));
   EXPECT_FALSE(PublishDirectory(second, target));
   EXPECT_EQ(Read(target / "scene.mgf"), "first");
-  EXPECT_EQ(Names(), std::vector<std::string>{"abc123"});
+  EXPECT_EQ(DirListing(), std::vector<std::string>{"abc123"});
 }
 
 }  // namespace

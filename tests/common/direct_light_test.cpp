@@ -12,14 +12,16 @@
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
+#include "tests/common/furnace_local_pass.h"
 #include "tests/common/test_scenes.h"
 
 namespace pf {
 namespace {
 
+using testing::MapsFor;
+
 using testing::AddMaterial;
 using testing::AddQuad;
-using testing::AddSphere;
 
 // A black wall at x = 0.3, z in [0.2, 1.4], both faces: it hides lights on its right (x > 0.3)
 // from much of the floor's left half.
@@ -33,13 +35,10 @@ void AddBlackWall(SceneDescription& s, uint32_t black_id) {
 // are black: the floor receives direct light only, and the path tracer's image is exactly Ld.
 SceneDescription TwoLightScene() {
   SceneDescription s;
-  Material floor;
-  floor.diffuse_reflectance = Rgb(0.6f);
+  const Material floor{.diffuse_reflectance = Rgb(0.6f)};
   Material black;
-  Material bright;
-  bright.emission = Rgb(30.0f);
-  Material dim;
-  dim.emission = Rgb(8.0f, 10.0f, 12.0f);
+  const Material bright{.emission = Rgb(30.0f)};
+  const Material dim{.emission = Rgb(8.0f, 10.0f, 12.0f)};
   const uint32_t floor_id = AddMaterial(s, floor);
   const uint32_t black_id = AddMaterial(s, black);
   AddQuad(s, {-3, -3, 0}, {3, -3, 0}, {3, 3, 0}, {-3, 3, 0}, floor_id);
@@ -71,16 +70,6 @@ constexpr uint32_t kSpp = 64;  // photon-map images; the path tracer's get 4x
 Image PathImage(const EmbreeScene& accel, const LightSampler& lights, uint64_t seed) {
   return RenderImage(PathTracer(accel, lights), Camera(FloorCamera()),
                      RenderOptions{.spp = kSpp * 4, .seed = seed});
-}
-
-// The photon maps `io` needs: `photons` emitted, seeded by `seed`.
-PhotonMaps MapsFor(const EmbreeScene& accel, const LightSampler& lights, const PhotonMapIntegratorOptions& io,
-                   uint64_t photons, uint64_t seed) {
-  PhotonMapsOptions mo;
-  mo.tracing.photons = photons;
-  mo.tracing.map_seed = seed;
-  ConfigureMapsFor(io, &mo);
-  return PhotonMaps::Build(accel, lights, mo);
 }
 
 // The floor camera's image with photon maps of 20000 photons built for `io`, seeded by `seed`.
@@ -180,14 +169,12 @@ TEST(DirectLight, MonteCarloAndBothPhotonDirectVariantsAgreeWithThePathTracer) {
 // weight, or dropping those samples, is 10 %+ off on the right half, where the dim lights are).
 TEST(DirectLight, PhotonDirectNonContributingLightsAreWeightedRightWithFourLights) {
   SceneDescription s;
-  Material floor;
-  floor.diffuse_reflectance = Rgb(0.6f);
+  const Material floor{.diffuse_reflectance = Rgb(0.6f)};
   const uint32_t floor_id = AddMaterial(s, floor);
   const uint32_t black_id = AddMaterial(s, Material{});
   AddQuad(s, {-3, -3, 0}, {3, -3, 0}, {3, 3, 0}, {-3, 3, 0}, floor_id);
   const auto light = [&](float x, float y, float z, float half, Rgb le, uint32_t id) {
-    Material m;
-    m.emission = le;
+    const Material m{.emission = le};
     AddQuad(s, {x - half, y - half, z}, {x - half, y + half, z}, {x + half, y + half, z},
             {x + half, y - half, z}, AddMaterial(s, m), id);
   };
@@ -222,31 +209,7 @@ TEST(DirectLight, PhotonDirectNonContributingLightsAreWeightedRightWithFourLight
 
 // §4.3 in the furnace: final gathering from the photon-map estimate must give Le/(1−a).
 TEST(LocalPass, FurnaceAnalyticValueWithinOnePercent) {
-  SceneDescription s;
-  Material wall;
-  wall.diffuse_reflectance = Rgb(0.8f);
-  wall.emission = Rgb(1.0f);
-  AddSphere(s, Vec3(0.0f), 1.0f, 5, AddMaterial(s, wall), true, 0, false);
-  s.num_lights = 1;
-  const EmbreeScene accel(s);
-  const LightSampler lights(accel);
-  for (DirectLightMode mode : {DirectLightMode::kNone, DirectLightMode::kMonteCarlo}) {
-    PhotonMapIntegratorOptions io;
-    io.global.k = 50;
-    io.local_pass_rays = 16;
-    io.direct = mode;
-    io.direct_photons = io.global;
-    const PhotonMaps maps = MapsFor(accel, lights, io, 200000, 4);
-    const PhotonMapIntegrator integrator(accel, &lights, maps, io);
-    CameraSpec cam;
-    cam.eye = Vec3(0.0f);
-    cam.look_at = Vec3(0, 0, -1);
-    cam.width = cam.height = 4;
-    cam.vfov_degrees = 90;
-    const Image img = RenderImage(integrator, Camera(cam), RenderOptions{.spp = 64, .seed = 2});
-    for (size_t i = 0; i < img.size(); ++i)
-      ASSERT_NEAR(img[i].Mean(), 5.0f, 0.05f) << "pixel " << i << " direct mode " << int(mode);
-  }
+  testing::ExpectFurnaceLocalPassWithinOnePercent(LocalPassLookup::kFull, 0);
 }
 
 // The local pass at a surface whose glossy lobe is estimated from the maps (glossy depth 0):
@@ -257,14 +220,10 @@ TEST(LocalPass, FurnaceAnalyticValueWithinOnePercent) {
 // the local pass the images must agree. The glossy caustic counted twice was 70 % above.
 TEST(LocalPass, GlossyCausticsAreCountedOnce) {
   SceneDescription s;
-  Material floor;
-  floor.diffuse_reflectance = Rgb(0.3f);
-  floor.specular_reflectance = Rgb(0.5f);
-  floor.specular_roughness = 0.1f;
-  Material mirror;
-  mirror.specular_reflectance = Rgb(0.9f);
-  Material light;
-  light.emission = Rgb(20.0f);
+  const Material floor{
+      .diffuse_reflectance = Rgb(0.3f), .specular_reflectance = Rgb(0.5f), .specular_roughness = 0.1f};
+  const Material mirror{.specular_reflectance = Rgb(0.9f)};
+  const Material light{.emission = Rgb(20.0f)};
   AddQuad(s, {-3, -3, 0}, {3, -3, 0}, {3, 3, 0}, {-3, 3, 0}, AddMaterial(s, floor));
   AddQuad(s, {-3, -3, 2}, {-3, 3, 2}, {3, 3, 2}, {3, -3, 2}, AddMaterial(s, mirror));  // faces down
   AddQuad(s, {-0.3f, -0.3f, 0.8f}, {0.3f, -0.3f, 0.8f}, {0.3f, 0.3f, 0.8f}, {-0.3f, 0.3f, 0.8f},
@@ -303,10 +262,8 @@ TEST(LocalPass, GlossyCausticsAreCountedOnce) {
 // next to a dark room behind a thin wall.
 TEST(OcclusionTest, RemovesEnergyBleedingThroughAWall) {
   SceneDescription s;
-  Material floor;
-  floor.diffuse_reflectance = Rgb(0.5f);
-  Material light;
-  light.emission = Rgb(50.0f);
+  const Material floor{.diffuse_reflectance = Rgb(0.5f)};
+  const Material light{.emission = Rgb(50.0f)};
   const uint32_t floor_id = AddMaterial(s, floor);
   AddQuad(s, {-2, -1, 0}, {2, -1, 0}, {2, 1, 0}, {-2, 1, 0}, floor_id);
   // Thin wall at x = 0 (two faces), floor to ceiling; the light is on the x > 0 side.

@@ -21,14 +21,12 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 PlanSpec Plan(uint32_t levels, uint32_t dims, uint32_t n0, uint32_t nmin, double decay = 2) {
-  PlanSpec p;
-  p.kind = PlanKind::kHierarchical;
-  p.levels = levels;
-  p.dims = dims;
-  p.base_samples = n0;
-  p.min_samples = nmin;
-  p.decay = decay;
-  return p;
+  return PlanSpec{.kind = PlanKind::kHierarchical,
+                  .levels = levels,
+                  .dims = dims,
+                  .base_samples = n0,
+                  .min_samples = nmin,
+                  .decay = decay};
 }
 
 // Value of pixel (x, y) under map `map` in trial `trial` (one sample).

@@ -22,6 +22,7 @@
 #include "common/image/image.h"
 #include "common/image/image_diff.h"
 #include "common/image/png_io.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
@@ -29,37 +30,9 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-// A fresh directory per test, removed afterwards.
-class TempDirTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = std::string("pf_image_test_") + std::to_string(::getpid()) + "_" +
-                       info->test_suite_name() + "_" + info->name();
-    for (char& c : name) {
-      if (c == '/') c = '_';
-    }
-    dir_ = fs::path(::testing::TempDir()) / name;
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  std::vector<std::string> DirListing() const {
-    std::vector<std::string> names;
-    for (const auto& entry : fs::directory_iterator(dir_)) {
-      names.push_back(entry.path().filename().string());
-    }
-    std::sort(names.begin(), names.end());
-    return names;
-  }
-
-  fs::path dir_;
-};
-
+using test_util::TempDirTest;
 std::string ReadBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  return test_util::ReadFileBytes(path);
 }
 
 void WriteBytes(const fs::path& path, std::string_view bytes) {
@@ -196,12 +169,9 @@ TEST_F(ExrIoTest, AtomicWriteLeavesNoTemporaryFile) {
 
 TEST_F(ExrIoTest, WriteIntoMissingDirectoryIsSystemErrorWithPath) {
   const fs::path path = dir_ / "no_such_dir" / "out.exr";
-  try {
-    WriteExr(path, Image(2, 2));
-    FAIL() << "expected SystemError";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(path.string()));
-  }
+  EXPECT_THAT([&] { (void)WriteExr(path, Image(2, 2)); },
+              ::testing::ThrowsMessage<SystemError>(HasSubstr(path.string())))
+      << "expected SystemError";
   EXPECT_TRUE(DirListing().empty());
 }
 
@@ -213,23 +183,15 @@ TEST_F(ExrIoTest, EmptyImageIsInputError) {
 
 TEST_F(ExrIoTest, MissingFileIsSystemErrorWithPath) {
   const fs::path path = dir_ / "missing.exr";
-  try {
-    ReadExr(path);
-    FAIL() << "expected SystemError";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(path.string()));
-  }
+  EXPECT_THAT([&] { (void)ReadExr(path); }, ::testing::ThrowsMessage<SystemError>(HasSubstr(path.string())))
+      << "expected SystemError";
 }
 
 TEST_F(ExrIoTest, NonExrFileIsSystemErrorWithPath) {
   const fs::path path = dir_ / "not_an_image.exr";
   WriteBytes(path, "this is a text file, not an OpenEXR image\n");
-  try {
-    ReadExr(path);
-    FAIL() << "expected SystemError";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(path.string()));
-  }
+  EXPECT_THAT([&] { (void)ReadExr(path); }, ::testing::ThrowsMessage<SystemError>(HasSubstr(path.string())))
+      << "expected SystemError";
   EXPECT_THROW(DecodeExrFromMemory("\x76\x2f\x31\x01 and then garbage"), SystemError);
   EXPECT_THROW(DecodeExrFromMemory(""), SystemError);
 }
@@ -240,12 +202,8 @@ TEST_F(ExrIoTest, TruncatedFileIsSystemErrorWithPath) {
   const std::string bytes = EncodeExrToMemory(image, {{"k", "v"}}, ExrCompression::kNone);
   const fs::path path = dir_ / "truncated.exr";
   WriteBytes(path, std::string_view(bytes).substr(0, bytes.size() / 2));
-  try {
-    ReadExr(path);
-    FAIL() << "expected SystemError";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(path.string()));
-  }
+  EXPECT_THAT([&] { (void)ReadExr(path); }, ::testing::ThrowsMessage<SystemError>(HasSubstr(path.string())))
+      << "expected SystemError";
   // Every cut, from inside the magic number to the last byte, is an error and not a crash.
   for (size_t length : {size_t(0), size_t(3), size_t(8), size_t(40), size_t(200), bytes.size() / 3,
                         bytes.size() - 20, bytes.size() - 1}) {
@@ -392,13 +350,10 @@ TEST_F(ExrIoTest, MissingChannelIsSystemErrorNamingIt) {
   const std::string bytes = HandMadeExr::Build({"G", "R"}, {0, 0, 1, 1}, {0, 0, 1, 1}, CodedHalf);
   const fs::path path = dir_ / "no_blue.exr";
   WriteBytes(path, bytes);
-  try {
-    ReadExr(path);
-    FAIL() << "expected SystemError";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(path.string()));
-    EXPECT_THAT(e.what(), HasSubstr("missing channel \"B\""));
-  }
+  EXPECT_THAT([&] { (void)ReadExr(path); },
+              ::testing::ThrowsMessage<SystemError>(
+                  ::testing::AllOf(HasSubstr(path.string()), HasSubstr("missing channel \"B\""))))
+      << "expected SystemError";
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -513,20 +468,14 @@ TEST_F(PngIoTest, AutoExposureUsesThe99thPercentileLuminance) {
 TEST_F(PngIoTest, ErrorsAreReportedWithPath) {
   EXPECT_THROW(WritePngPreview(dir_ / "empty.png", Image()), InputError);
   const fs::path unwritable = dir_ / "no_such_dir" / "p.png";
-  try {
-    WritePngPreview(unwritable, Image(2, 2));
-    FAIL() << "expected SystemError";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(unwritable.string()));
-  }
+  EXPECT_THAT([&] { (void)WritePngPreview(unwritable, Image(2, 2)); },
+              ::testing::ThrowsMessage<SystemError>(HasSubstr(unwritable.string())))
+      << "expected SystemError";
   const fs::path not_png = dir_ / "text.png";
   WriteBytes(not_png, "not a png");
-  try {
-    ReadPng8(not_png);
-    FAIL() << "expected SystemError";
-  } catch (const SystemError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(not_png.string()));
-  }
+  EXPECT_THAT([&] { (void)ReadPng8(not_png); },
+              ::testing::ThrowsMessage<SystemError>(HasSubstr(not_png.string())))
+      << "expected SystemError";
   EXPECT_THROW(ReadPng8(dir_ / "missing.png"), SystemError);
   EXPECT_EQ(DirListing(), std::vector<std::string>{"text.png"});
 }
@@ -576,13 +525,9 @@ TEST(ImageDiffTest, IdenticalImagesHaveZeroError) {
 }
 
 TEST(ImageDiffTest, SizeMismatchIsInputErrorNamingBothSizes) {
-  try {
-    CompareImages(Image(3, 2), Image(2, 2));
-    FAIL() << "expected InputError";
-  } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("3x2"));
-    EXPECT_THAT(e.what(), HasSubstr("2x2"));
-  }
+  EXPECT_THAT([&] { (void)CompareImages(Image(3, 2), Image(2, 2)); },
+              ::testing::ThrowsMessage<InputError>(::testing::AllOf(HasSubstr("3x2"), HasSubstr("2x2"))))
+      << "expected InputError";
   EXPECT_THROW(FalseColourError(Image(1, 4), Image(4, 1), 1.0), InputError);
 }
 

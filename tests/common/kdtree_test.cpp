@@ -129,10 +129,12 @@ void CheckPermutation(std::vector<Photon> before, const KdTree& tree) {
   ASSERT_EQ(std::memcmp(before.data(), after.data(), before.size() * sizeof(Photon)), 0);
 }
 
-TEST(KdTreeTest, KdConditionAndShapeForEverySmallSize) {
+// Trees of every size in [first, last] (uniform, planar and duplicate photons, both split
+// rules) satisfy the kd-condition and hold a permutation of their input.
+void CheckTreesOfSizes(std::size_t first, std::size_t last) {
   for (KdSplitRule rule : {KdSplitRule::kLevelCycle, KdSplitRule::kWidestExtent}) {
     for (Shape shape : {Shape::kUniform, Shape::kPlanar, Shape::kDuplicates}) {
-      for (std::size_t n = 1; n <= 80; ++n) {
+      for (std::size_t n = first; n <= last; ++n) {
         SCOPED_TRACE(::testing::Message() << "rule " << int(rule) << " shape " << int(shape) << " n " << n);
         const auto photons = Photons(shape, n, n);
         const KdTree tree = BuildTree(photons, rule);
@@ -141,6 +143,10 @@ TEST(KdTreeTest, KdConditionAndShapeForEverySmallSize) {
       }
     }
   }
+}
+
+TEST(KdTreeTest, KdConditionAndShapeForEverySmallSize) {
+  ASSERT_NO_FATAL_FAILURE(CheckTreesOfSizes(1, 80));
   for (std::size_t n = 0; n <= 300; ++n) ASSERT_NO_FATAL_FAILURE(CheckLeftBalancedShape(n));
 }
 
@@ -148,17 +154,7 @@ TEST(KdTreeTest, KdConditionAndShapeForEverySmallSize) {
 // (kdtree.cpp); just above that size the sequence starts with runs of 1, 2, 4, ... nodes, so
 // every run boundary is crossed by the partition cursors.
 TEST(KdTreeTest, KdConditionJustAboveTheSmallSubtreeSize) {
-  for (KdSplitRule rule : {KdSplitRule::kLevelCycle, KdSplitRule::kWidestExtent}) {
-    for (Shape shape : {Shape::kUniform, Shape::kPlanar, Shape::kDuplicates}) {
-      for (std::size_t n = 1020; n <= 1120; ++n) {
-        SCOPED_TRACE(::testing::Message() << "rule " << int(rule) << " shape " << int(shape) << " n " << n);
-        const auto photons = Photons(shape, n, n);
-        const KdTree tree = BuildTree(photons, rule);
-        ASSERT_NO_FATAL_FAILURE(CheckKdCondition(tree));
-        ASSERT_NO_FATAL_FAILURE(CheckPermutation(photons, tree));
-      }
-    }
-  }
+  ASSERT_NO_FATAL_FAILURE(CheckTreesOfSizes(1020, 1120));
 }
 
 TEST(KdTreeTest, KdConditionForLargeAwkwardInputs) {
@@ -213,6 +209,17 @@ TEST(KdTreeTest, BuildIsDeterministic) {
   ASSERT_EQ(std::memcmp(a.photons().data(), b.photons().data(), photons.size() * sizeof(Photon)), 0);
 }
 
+// The tree's k nearest photons within `radius` of x have the squared distances, ascending, of
+// those brute force finds.
+void ExpectQueryMatchesBruteForce(const KdTree& tree, const Vec3& x, int k, float radius,
+                                  NearestPhotons& heap) {
+  tree.Query(x, k, radius, heap);
+  const auto expected = BruteForceNearest(tree.photons(), x, k, radius);
+  ASSERT_EQ(heap.size(), expected.size());
+  heap.Sort();
+  for (std::size_t j = 0; j < expected.size(); ++j) ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+}
+
 TEST(KdTreeTest, LargeTreeMatchesBruteForce) {
   const float inf = std::numeric_limits<float>::infinity();
   for (KdSplitRule rule : {KdSplitRule::kLevelCycle, KdSplitRule::kWidestExtent}) {
@@ -228,12 +235,7 @@ TEST(KdTreeTest, LargeTreeMatchesBruteForce) {
         if (q % 7 == 0) x = tree.photon(rng.UniformInt(uint32_t(tree.size()))).Position();
         for (int k : {1, 50, 500}) {
           for (float radius : {inf, 0.02f}) {
-            tree.Query(x, k, radius, heap);
-            const auto expected = BruteForceNearest(tree.photons(), x, k, radius);
-            ASSERT_EQ(heap.size(), expected.size());
-            heap.Sort();
-            for (std::size_t j = 0; j < expected.size(); ++j)
-              ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+            ASSERT_NO_FATAL_FAILURE(ExpectQueryMatchesBruteForce(tree, x, k, radius, heap));
           }
         }
       }
@@ -280,12 +282,7 @@ TEST(KdTreeTest, ParallelBuildGivesTheSerialArrayForAnyThreadCount) {
         const Vec3 x = q % 4 == 0 ? tree.photon(rng.UniformInt(uint32_t(n))).Position()
                                   : Vec3{rng.Uniform(), rng.Uniform(), rng.Uniform()};
         for (int k : {1, 100}) {
-          tree.Query(x, k, inf, heap);
-          const auto expected = BruteForceNearest(tree.photons(), x, k, inf);
-          ASSERT_EQ(heap.size(), expected.size());
-          heap.Sort();
-          for (std::size_t j = 0; j < expected.size(); ++j)
-            ASSERT_EQ(heap[j].distance2, expected[j].distance2);
+          ASSERT_NO_FATAL_FAILURE(ExpectQueryMatchesBruteForce(tree, x, k, inf, heap));
         }
       }
     }

@@ -5,6 +5,7 @@
 #include "common/scene/mgf_loader.h"
 #include "common/scene/mgf_color.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
 
@@ -22,6 +23,7 @@
 
 #include "common/core/error.h"
 #include "common/core/math.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
@@ -88,30 +90,29 @@ void ExpectNear(const Vec3d& a, const Vec3d& b, double tol) {
   EXPECT_NEAR(a.z, b.z, tol);
 }
 
-// A temporary directory removed at the end of the test.
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("pf_mgf_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
+// The InputError that LoadMgf throws (and a test failure if it loads).
+InputError MgfError(const fs::path& path, const MgfOptions& options = {}) {
+  try {
+    LoadMgf(path, options);
+  } catch (const InputError& e) {
+    return e;
   }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-  void Write(const std::string& rel, const std::string& text) const {
-    const fs::path p = path_ / rel;
-    fs::create_directories(p.parent_path());
-    std::ofstream(p, std::ios::binary) << text;
-  }
+  ADD_FAILURE() << path << " loaded";
+  return InputError(path.string() + " loaded");
+}
+std::string MgfErrorReason(const fs::path& path, const MgfOptions& options = {}) {
+  return MgfError(path, options).reason();
+}
 
- private:
-  fs::path path_;
+// A temporary directory removed at the end of the test.
+class TempDir : public test_util::TempDir {
+ public:
+  TempDir() : test_util::TempDir("pf_mgf_test") {}
 };
+
+// The MGF spec's unit cube example: the base face cv0..cv3 looks down -z (a prism of it extruded
+// by 1 to +z is the unit cube).
+const char* kCubeBase = "\nv cv0 =\n  p 0 0 0\nv cv1 =\n  p 0 1 0\nv cv2 =\n  p 1 1 0\nv cv3 =\n  p 1 0 0\n";
 
 const char* kUnitSquare = R"(
 v a =
@@ -181,13 +182,9 @@ TEST(MgfSharedScenes, EveryMgfFileLoads) {
     const std::string rel = fs::relative(file, root).generic_string();
     seen.insert(rel);
     if (const auto it = kFragments.find(rel); it != kFragments.end()) {
-      try {
-        LoadMgf(file);
-        ADD_FAILURE() << rel << " is listed as not standalone but loads";
-      } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find(it->second), std::string::npos) << e.what();
-        std::printf("%-52s %s\n", rel.c_str(), "(fragment / broken, see kFragments)");
-      }
+      const InputError e = MgfError(file);
+      EXPECT_NE(std::string(e.what()).find(it->second), std::string::npos) << e.what();
+      std::printf("%-52s %s\n", rel.c_str(), "(fragment / broken, see kFragments)");
       continue;
     }
     SceneDescription s;
@@ -424,10 +421,8 @@ TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
   TempDir dir;
   dir.Write("a.mgf", "# a\ni sub/b.mgf\n");
   dir.Write("sub/b.mgf", "\ni ../a.mgf\n");
-  try {
-    LoadMgf(dir.path() / "a.mgf");
-    ADD_FAILURE();
-  } catch (const InputError& e) {
+  {
+    const InputError e = MgfError(dir.path() / "a.mgf");
     // Reported where the cycle closes: in b.mgf, line 2.
     EXPECT_EQ(e.where().line, 2);
     EXPECT_EQ(fs::path(e.where().file).filename(), "b.mgf");
@@ -442,12 +437,8 @@ TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
     dir.Write("chain" + std::to_string(i) + ".mgf", "i chain" + std::to_string(i + 1) + ".mgf\n");
   }
   dir.Write("chain70.mgf", "# end\n");
-  try {
-    LoadMgf(dir.path() / "chain0.mgf");
-    ADD_FAILURE();
-  } catch (const InputError& e) {
-    EXPECT_NE(e.reason().find("includes nested deeper than 64"), std::string::npos) << e.what();
-  }
+  EXPECT_THAT(MgfErrorReason(dir.path() / "chain0.mgf"),
+              ::testing::HasSubstr("includes nested deeper than 64"));
 
   // An include that leaves the include root is refused; inside it is fine.
   dir.Write("inner/scene.mgf", "i ../a.mgf\n");
@@ -455,30 +446,19 @@ TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
   dir.Write("inner/sub2/leaf.mgf", "# nothing\n");
   MgfOptions o;
   o.include_root = dir.path() / "inner";
-  try {
-    LoadMgf(dir.path() / "inner/scene.mgf", o);
-    ADD_FAILURE();
-  } catch (const InputError& e) {
-    EXPECT_NE(e.reason().find("resolves outside the scene folder"), std::string::npos) << e.what();
-  }
+  EXPECT_THAT(MgfErrorReason(dir.path() / "inner/scene.mgf", o),
+              ::testing::HasSubstr("resolves outside the scene folder"));
   EXPECT_NO_THROW(LoadMgf(dir.path() / "inner/ok.mgf", o));
 
   // Missing top-level file and a directory as include.
   EXPECT_THROW(LoadMgf(dir.path() / "nope.mgf"), InputError);
   dir.Write("dirinc.mgf", "i sub\n");
-  try {
-    LoadMgf(dir.path() / "dirinc.mgf");
-    ADD_FAILURE();
-  } catch (const InputError& e) {
-    EXPECT_NE(e.reason().find("not a regular file"), std::string::npos) << e.what();
-  }
+  EXPECT_THAT(MgfErrorReason(dir.path() / "dirinc.mgf"), ::testing::HasSubstr("not a regular file"));
   // An included file must balance its own xf.
   dir.Write("unbalanced.mgf", "xf -t 1 0 0\n");
   dir.Write("top.mgf", "xf -t 0 1 0\ni unbalanced.mgf\nxf\n");
-  try {
-    LoadMgf(dir.path() / "top.mgf");
-    ADD_FAILURE();
-  } catch (const InputError& e) {
+  {
+    const InputError e = MgfError(dir.path() / "top.mgf");
     EXPECT_EQ(fs::path(e.where().file).filename(), "unbalanced.mgf");
     EXPECT_EQ(e.where().line, 1);
   }
@@ -733,16 +713,7 @@ TEST(MgfGeometry, CylinderConeRingTorusAreasAndOrientation) {
 
 TEST(MgfGeometry, PrismIsClosedAndOutward) {
   // The spec's unit cube example: the face looks down -z, extruded by 1 to +z.
-  const std::string cube = R"(
-v cv0 =
-  p 0 0 0
-v cv1 =
-  p 0 1 0
-v cv2 =
-  p 1 1 0
-v cv3 =
-  p 1 0 0
-)";
+  const std::string cube = kCubeBase;
   const SceneDescription s = Load(cube + "prism cv0 cv1 cv2 cv3 1\n");
   EXPECT_EQ(s.NumTriangles(), 12u);
   EXPECT_NEAR(TotalArea(s), 6.0, 1e-12);
@@ -788,16 +759,7 @@ TEST(MgfTransforms, TranslateScaleRotateMirror) {
 
 TEST(MgfTransforms, MirrorKeepsFacesOutward) {
   // A mirrored closed object stays outward (odd mirrors reverse the face order).
-  const std::string cube = R"(
-v cv0 =
-  p 0 0 0
-v cv1 =
-  p 0 1 0
-v cv2 =
-  p 1 1 0
-v cv3 =
-  p 1 0 0
-)";
+  const std::string cube = kCubeBase;
   for (const char* xf : {"-mx", "-my", "-mz", "-mx -my", "-s -1", "-mz -rx 33 -t 1 2 3"}) {
     const SceneDescription s = Load(cube + "xf " + xf + "\nprism cv0 cv1 cv2 cv3 1\nxf\n");
     EXPECT_NEAR(SignedVolume(s), 1.0, 1e-6) << xf;
@@ -867,10 +829,8 @@ TEST(MgfIncludes, RelativeIncludesWithTransformsAndArrays) {
   // Errors inside an included file name that file and line.
   dir.Write("lib/broken.mgf", "# ok\n\nsph nowhere 1\n");
   dir.Write("scene_broken.mgf", "i lib/broken.mgf\n");
-  try {
-    LoadMgf(dir.path() / "scene_broken.mgf");
-    ADD_FAILURE();
-  } catch (const InputError& e) {
+  {
+    const InputError e = MgfError(dir.path() / "scene_broken.mgf");
     EXPECT_EQ(fs::path(e.where().file).filename(), "broken.mgf");
     EXPECT_EQ(e.where().line, 3);
     EXPECT_NE(e.reason().find("undefined vertex 'nowhere'"), std::string::npos);

@@ -31,21 +31,14 @@ struct FurnaceSetup {
 // perfect mirror sphere and a lossless glass sphere inside, in view of the camera.
 FurnaceSetup MakeFurnace(bool with_objects) {
   FurnaceSetup f;
-  Material wall;
-  wall.name = "furnace-wall";
-  wall.diffuse_reflectance = Rgb(kFurnaceAlbedo);
-  wall.emission = Rgb(kFurnaceLe);
+  const Material wall{
+      .name = "furnace-wall", .diffuse_reflectance = Rgb(kFurnaceAlbedo), .emission = Rgb(kFurnaceLe)};
   const uint32_t wall_id = AddMaterial(f.scene, wall);
   AddSphere(f.scene, Vec3(0.0f), 1.0f, 5, wall_id, /*inward=*/true, /*light=*/0, /*smooth=*/false);
   f.scene.num_lights = 1;
   if (with_objects) {
-    Material mirror;
-    mirror.name = "mirror";
-    mirror.specular_reflectance = Rgb(1.0f);
-    Material glass;
-    glass.name = "glass";
-    glass.specular_transmittance = Rgb(1.0f);
-    glass.ior = 1.5f;
+    const Material mirror{.name = "mirror", .specular_reflectance = Rgb(1.0f)};
+    const Material glass{.name = "glass", .specular_transmittance = Rgb(1.0f), .ior = 1.5f};
     AddSphere(f.scene, Vec3(-0.25f, 0.0f, -0.5f), 0.2f, 4, AddMaterial(f.scene, mirror), false, kNoLight,
               false);
     AddSphere(f.scene, Vec3(0.25f, 0.0f, -0.5f), 0.2f, 4, AddMaterial(f.scene, glass), false, kNoLight,
@@ -140,12 +133,8 @@ double PolygonIrradiance(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
 
 TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
   SceneDescription scene;
-  Material floor;
-  floor.name = "floor";
-  floor.diffuse_reflectance = Rgb(0.5f);
-  Material light;
-  light.name = "light";
-  light.emission = Rgb(20.0f);
+  const Material floor{.name = "floor", .diffuse_reflectance = Rgb(0.5f)};
+  const Material light{.name = "light", .emission = Rgb(20.0f)};
   const uint32_t floor_id = AddMaterial(scene, floor);
   const uint32_t light_id = AddMaterial(scene, light);
   AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);

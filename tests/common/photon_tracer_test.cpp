@@ -16,16 +16,15 @@ namespace {
 
 using testing::AddMaterial;
 using testing::AddQuad;
-using testing::AddSphere;
 
-SceneDescription MakeFurnaceScene(float albedo) {
-  SceneDescription s;
-  Material wall;
-  wall.diffuse_reflectance = Rgb(albedo);
-  wall.emission = Rgb(1.0f);
-  AddSphere(s, Vec3(0.0f), 1.0f, 5, AddMaterial(s, wall), /*inward=*/true, 0, /*smooth=*/false);
-  s.num_lights = 1;
-  return s;
+using testing::FurnaceScene;
+
+// Maps of `photons` emitted photons with map seed `seed`, other options at their defaults.
+PhotonMapsOptions Emitting(uint64_t photons, uint64_t seed) {
+  PhotonMapsOptions mo;
+  mo.tracing.photons = photons;
+  mo.tracing.map_seed = seed;
+  return mo;
 }
 
 // Every emitted unit of power is stored once per diffuse bounce until absorbed: in a closed
@@ -33,7 +32,7 @@ SceneDescription MakeFurnaceScene(float albedo) {
 // total is ≈0.9·mean (geometric walk length), so with 200k photons the std of the sum is
 // 0.2 %: 1 % is a 5σ bound.
 TEST(PhotonTracer, FurnaceStoredPowerIsEmittedOverOneMinusAlbedo) {
-  const SceneDescription scene = MakeFurnaceScene(0.8f);
+  const SceneDescription scene = FurnaceScene(0.8f);
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   PhotonTracerOptions o;
@@ -53,7 +52,7 @@ TEST(PhotonTracer, FurnaceStoredPowerIsEmittedOverOneMinusAlbedo) {
 }
 
 TEST(PhotonTracer, SameSeedSamePhotonsForOneAndTwoThreads) {
-  const SceneDescription scene = MakeFurnaceScene(0.7f);
+  const SceneDescription scene = FurnaceScene(0.7f);
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   PhotonTracerOptions o;
@@ -84,12 +83,10 @@ TEST(PhotonTracer, SameSeedSamePhotonsForOneAndTwoThreads) {
 // any thread count (the furnace stores ~3 photons per emitted one: 150k photons, enough for
 // the parallel kd-tree build to split).
 TEST(PhotonMaps, SameMapsAndAttributesForAnyThreadCount) {
-  const SceneDescription scene = MakeFurnaceScene(0.7f);
+  const SceneDescription scene = FurnaceScene(0.7f);
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
-  PhotonMapsOptions mo;
-  mo.tracing.photons = 50000;
-  mo.tracing.map_seed = 5;
+  PhotonMapsOptions mo = Emitting(50000, 5);
   mo.separate_direct = true;
   mo.keep_light_ids = true;
   mo.keep_origins = true;
@@ -116,12 +113,9 @@ TEST(PhotonMaps, SameMapsAndAttributesForAnyThreadCount) {
 // ones arriving straight from the light are direct. With no singular surface there is none.
 TEST(PhotonTracer, CausticClassificationFollowsTheThesisDefinition) {
   SceneDescription s;
-  Material floor;
-  floor.diffuse_reflectance = Rgb(0.5f);
-  Material mirror;
-  mirror.specular_reflectance = Rgb(1.0f);
-  Material light;
-  light.emission = Rgb(10.0f);
+  const Material floor{.diffuse_reflectance = Rgb(0.5f)};
+  const Material mirror{.specular_reflectance = Rgb(1.0f)};
+  const Material light{.emission = Rgb(10.0f)};
   const uint32_t floor_id = AddMaterial(s, floor);
   const uint32_t mirror_id = AddMaterial(s, mirror);
   const uint32_t light_id = AddMaterial(s, light);
@@ -159,12 +153,10 @@ TEST(PhotonTracer, CausticClassificationFollowsTheThesisDefinition) {
 // also counts the k-th photon is high by k/(k−1) ≈ 1 %, which this bound would hide, so it is
 // checked on the image mean instead.
 TEST(PhotonMapIntegrator, FurnaceEstimateWithinTwoPercent) {
-  const SceneDescription scene = MakeFurnaceScene(0.8f);
+  const SceneDescription scene = FurnaceScene(0.8f);
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
-  PhotonMapsOptions mo;
-  mo.tracing.photons = 1000000;
-  mo.tracing.map_seed = 3;
+  const PhotonMapsOptions mo = Emitting(1000000, 3);
   const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
   EXPECT_EQ(maps.caustic, nullptr) << "diffuse-only scene: no caustic map";
   // The 18-byte photons (RGBE power) still hold the right total power.
@@ -175,11 +167,7 @@ TEST(PhotonMapIntegrator, FurnaceEstimateWithinTwoPercent) {
   PhotonMapIntegratorOptions io;
   io.global.k = 100;
   const PhotonMapIntegrator integrator(accel, maps, io);
-  CameraSpec cam;
-  cam.eye = Vec3(0.0f);
-  cam.look_at = Vec3(0, 0, -1);
-  cam.width = cam.height = 4;
-  cam.vfov_degrees = 90;
+  const CameraSpec cam = testing::FurnaceCamera();
   const Image img = RenderImage(integrator, Camera(cam), RenderOptions{.spp = 1024, .seed = 1});
   double mean = 0;
   for (size_t i = 0; i < img.size(); ++i) {

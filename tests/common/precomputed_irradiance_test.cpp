@@ -13,54 +13,19 @@
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
+#include "tests/common/furnace_local_pass.h"
 #include "tests/common/test_scenes.h"
 
 namespace pf {
 namespace {
 
-using testing::AddMaterial;
-using testing::AddSphere;
-
-PhotonMaps MapsFor(const EmbreeScene& accel, const LightSampler& lights, const PhotonMapIntegratorOptions& io,
-                   uint64_t photons, uint64_t seed) {
-  PhotonMapsOptions mo;
-  mo.tracing.photons = photons;
-  mo.tracing.map_seed = seed;
-  mo.tracing.threads = 2;
-  ConfigureMapsFor(io, &mo);
-  return PhotonMaps::Build(accel, lights, mo);
-}
+using testing::MapsFor;
 
 // §4.3 in the furnace with precomputed irradiance: Le/(1−a) = 5 within 1 %, as the full
 // lookup (LocalPass.FurnaceAnalyticValueWithinOnePercent). A wrong π or albedo factor in
 // L = ρ/π · E fails it.
 TEST(PrecomputedIrradiance, FurnaceAnalyticValueWithinOnePercent) {
-  SceneDescription s;
-  Material wall;
-  wall.diffuse_reflectance = Rgb(0.8f);
-  wall.emission = Rgb(1.0f);
-  AddSphere(s, Vec3(0.0f), 1.0f, 5, AddMaterial(s, wall), true, 0, false);
-  s.num_lights = 1;
-  const EmbreeScene accel(s);
-  const LightSampler lights(accel);
-  for (DirectLightMode mode : {DirectLightMode::kNone, DirectLightMode::kMonteCarlo}) {
-    PhotonMapIntegratorOptions io;
-    io.global.k = 50;
-    io.local_pass_rays = 16;
-    io.local_pass_lookup = LocalPassLookup::kPrecomputed;
-    io.direct = mode;
-    io.direct_photons = io.global;
-    const PhotonMaps maps = MapsFor(accel, lights, io, 200000, 4);
-    const PhotonMapIntegrator integrator(accel, &lights, maps, io);
-    CameraSpec cam;
-    cam.eye = Vec3(0.0f);
-    cam.look_at = Vec3(0, 0, -1);
-    cam.width = cam.height = 4;
-    cam.vfov_degrees = 90;
-    const Image img = RenderImage(integrator, Camera(cam), RenderOptions{.spp = 64, .seed = 2});
-    for (size_t i = 0; i < img.size(); ++i)
-      ASSERT_NEAR(img[i].Mean(), 5.0f, 0.05f) << "pixel " << i << " direct mode " << int(mode);
-  }
+  testing::ExpectFurnaceLocalPassWithinOnePercent(LocalPassLookup::kPrecomputed, 2);
 }
 
 class PrecomputedIrradianceCornell : public ::testing::Test {
@@ -103,7 +68,7 @@ class PrecomputedIrradianceCornell : public ::testing::Test {
 // byte (Design, property 1).
 TEST_F(PrecomputedIrradianceCornell, SameSitesForOneAndTwoThreads) {
   PhotonMapIntegratorOptions io;
-  const PhotonMaps maps = MapsFor(accel_, lights_, io, 20000, 7);
+  const PhotonMaps maps = MapsFor(accel_, lights_, io, 20000, 7, 2);
   const auto one = Build(accel_, maps, 1, 50);
   const auto two = Build(accel_, maps, 2, 50);
   ASSERT_GT(one->sites(), maps.global->size() / 4 * 9 / 10);  // nearly every 4th photon found its surface
@@ -119,7 +84,7 @@ TEST_F(PrecomputedIrradianceCornell, SameSitesForOneAndTwoThreads) {
 // sits up to a photon spacing·√4 away).
 TEST_F(PrecomputedIrradianceCornell, LookupAgreesWithFullEstimate) {
   PhotonMapIntegratorOptions io;
-  const PhotonMaps maps = MapsFor(accel_, lights_, io, 100000, 3);
+  const PhotonMaps maps = MapsFor(accel_, lights_, io, 100000, 3, 2);
   const int k = 50;
   const auto pre = Build(accel_, maps, 2, k);
   CameraSpec spec = scene_.cameras.front();

@@ -10,6 +10,7 @@
 #include <fstream>
 
 #include "common/core/error.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
@@ -28,20 +29,11 @@ constexpr const char* kLightMgf =
     "v e =\n p 0 0 2\nv f =\n p 0 1 2\nv g =\n p 1 1 2\nv h =\n p 1 0 2\n"
     "f e f g h\n";
 
-class SceneBundleTest : public ::testing::Test {
+class SceneBundleTest : public test_util::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("pf_bundle_test_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_ / "scene" / "parts");
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  void SetUp() override { fs::create_directories(dir_ / "scene" / "parts"); }
   fs::path Write(const std::string& rel, const std::string& content) {
-    const fs::path p = dir_ / "scene" / rel;
-    fs::create_directories(p.parent_path());
-    std::ofstream(p, std::ios::binary) << content;
-    return p;
+    return tmp_.Write("scene/" + rel, content);
   }
   SceneBundle Sample() {
     SceneBundle b;
@@ -49,7 +41,6 @@ class SceneBundleTest : public ::testing::Test {
     b.files = {{"main.mgf", kMainMgf}, {"parts/light.mgf", kLightMgf}};
     return b;
   }
-  fs::path dir_;
 };
 
 TEST_F(SceneBundleTest, CollectTakesEveryFileBelowTheEntryFolder) {
@@ -144,12 +135,8 @@ TEST_F(SceneBundleTest, PathTraversalAndBadNamesAreRejected) {
 TEST_F(SceneBundleTest, SizeLimitIsNamed) {
   SceneBundle big = Sample();
   big.files.emplace_back("big.bin", std::string(kMaxBundleBytes, 'x'));
-  try {
-    ValidateBundle(big);
-    ADD_FAILURE() << "accepted an over-limit bundle";
-  } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("64 MiB"));
-  }
+  EXPECT_THAT([&] { (void)ValidateBundle(big); }, ::testing::ThrowsMessage<InputError>(HasSubstr("64 MiB")))
+      << "accepted an over-limit bundle";
 }
 
 TEST_F(SceneBundleTest, WriteThenLoadRoundTrip) {

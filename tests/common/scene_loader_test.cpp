@@ -13,6 +13,7 @@
 #include "common/core/error.h"
 #include "common/scene/manifest.h"
 #include "common/scene/obj_loader.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
@@ -43,22 +44,9 @@ void ExpectRgbNear(const Rgb& actual, const Rgb& expected, float tol = 1e-6f) {
 }
 
 // A fresh directory per test for hand-written files.
-class TempDirTest : public ::testing::Test {
+class TempDirTest : public test_util::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           (std::string("pf_scene_loader_") + info->test_suite_name() + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  fs::path Write(const std::string& name, const std::string& text) const {
-    const fs::path p = dir_ / name;
-    std::ofstream(p, std::ios::binary) << text;
-    return p;
-  }
+  fs::path Write(const std::string& name, const std::string& text) const { return tmp_.Write(name, text); }
 
   // Copies the Cornell box OBJ + MTL into the test folder (a manifest may refer only to files
   // in its own folder, scene_reference.h); returns the OBJ's name relative to that folder.
@@ -79,8 +67,6 @@ class TempDirTest : public ::testing::Test {
     ADD_FAILURE() << "expected an InputError";
     return "";
   }
-
-  fs::path dir_;
 };
 
 // --- OBJ -----------------------------------------------------------------------------------
@@ -347,6 +333,17 @@ TEST_F(ObjErrorTest, EachEmissiveGroupIsOneLight) {
 
 using ManifestTest = TempDirTest;
 
+// LoadManifest(p) throws an InputError at line `line` whose message contains `text`.
+void ExpectManifestErrorAt(const fs::path& p, int line, const std::string& text) {
+  try {
+    LoadManifest(p);
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().line, line);
+    EXPECT_THAT(e.what(), HasSubstr(text));
+  }
+}
+
 TEST_F(ManifestTest, ParsesEveryKey) {
   const fs::path p = Write("m.json", R"({
     "version": 1,
@@ -462,13 +459,7 @@ TEST_F(ManifestTest, EachMalformedKeyIsNamed) {
 
 TEST_F(ManifestTest, SyntaxErrorsCarryTheLine) {
   const fs::path p = Write("syntax.json", "{\n  \"geometry\": \"a.obj\",\n  \"scale\": ,\n}\n");
-  try {
-    LoadManifest(p);
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.where().line, 3);
-    EXPECT_THAT(e.what(), HasSubstr("syntax.json:3: invalid JSON"));
-  }
+  ExpectManifestErrorAt(p, 3, "syntax.json:3: invalid JSON");
   EXPECT_THAT(ErrorOf([&] { LoadManifest(dir_ / "absent.json"); }), HasSubstr("no such file"));
 }
 
@@ -476,13 +467,7 @@ TEST_F(ManifestTest, SyntaxErrorsCarryTheLine) {
 // out_of_range from nlohmann, and used to escape ParseManifest and terminate the process.
 TEST_F(ManifestTest, NumberOverflowIsAnInputErrorWithTheLine) {
   const fs::path p = Write("overflow.json", "{\n  \"geometry\": \"a.obj\",\n  \"scale\": 1.1E11111\n}\n");
-  try {
-    LoadManifest(p);
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.where().line, 3);
-    EXPECT_THAT(e.what(), HasSubstr("overflow.json:3: invalid JSON: number overflow"));
-  }
+  ExpectManifestErrorAt(p, 3, "overflow.json:3: invalid JSON: number overflow");
 }
 
 // --- LoadScene: dispatch, scale, overrides ------------------------------------------------------

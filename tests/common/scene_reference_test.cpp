@@ -13,6 +13,7 @@
 #include "common/core/error.h"
 #include "common/scene/scene_bundle.h"
 #include "common/scene/scene_loader.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
@@ -28,24 +29,15 @@ constexpr const char* kQuadMgf =
 constexpr const char* kSecret = "SECRETWORD one two\nOTHERSECRET three\n";
 constexpr const char* kQuadObj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n";
 
-class SceneReferenceTest : public ::testing::Test {
+class SceneReferenceTest : public test_util::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("pf_reference_test_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
     fs::create_directories(dir_ / "scene");
     Write("outside/secret.mgf", kSecret);
     Write("outside/secret.obj", kQuadObj);
     Write("outside/secret.mtl", "newmtl SECRETMAT\nKd 1 0 0\n");
   }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path Write(const std::string& rel, const std::string& content) {
-    const fs::path p = dir_ / rel;
-    fs::create_directories(p.parent_path());
-    std::ofstream(p, std::ios::binary) << content;
-    return p;
-  }
+  fs::path Write(const std::string& rel, const std::string& content) { return tmp_.Write(rel, content); }
   // The message of the InputError LoadScene throws ("" if it loads).
   std::string LoadError(const fs::path& entry) {
     try {
@@ -66,7 +58,6 @@ class SceneReferenceTest : public ::testing::Test {
     }
     return msg;
   }
-  fs::path dir_;
 };
 
 TEST_F(SceneReferenceTest, MgfIncludeOutsideTheSceneFolderIsRefused) {

@@ -127,13 +127,19 @@ CameraSpec CentreCamera() {
   return cam;
 }
 
+// Photon-map settings with `photons` photons and a small gather (k = 20): quick to render.
+JobRenderSettings SmallGatherSettings(uint64_t photons) {
+  JobRenderSettings settings;
+  settings.photons = photons;
+  settings.k = 20;
+  return settings;
+}
+
 // Same plan and seed: any order of task execution gives the same image as RenderPlanLocally.
 TEST(TaskExecutor, SkippingPlanIsOrderIndependent) {
   const SceneRuntime scene(GlowingSphere());
   const CameraSpec cam = CentreCamera();
-  JobRenderSettings settings;
-  settings.photons = 5000;
-  settings.k = 20;
+  const JobRenderSettings settings = SmallGatherSettings(5000);
   const PlanSpec plan{.kind = PlanKind::kSkipping, .samples_per_pixel = 1, .stride = 2, .rounds = 2};
   const Image local = RenderPlanLocally(scene, cam, settings, plan, 77, 2);
   auto tasks = ExpandPlan(plan, cam.width, cam.height, 77);
@@ -155,16 +161,13 @@ TEST(TaskExecutor, HierarchicalPlanIsOrderIndependent) {
   CameraSpec cam = CentreCamera();
   cam.width = 17;
   cam.height = 9;
-  JobRenderSettings settings;
-  settings.photons = 2000;
-  settings.k = 20;
-  PlanSpec plan;
-  plan.kind = PlanKind::kHierarchical;
-  plan.levels = 3;
-  plan.dims = 2;
-  plan.base_samples = 4;
-  plan.min_samples = 1;
-  plan.tile_size = 4;
+  const JobRenderSettings settings = SmallGatherSettings(2000);
+  const PlanSpec plan{.kind = PlanKind::kHierarchical,
+                      .tile_size = 4,
+                      .levels = 3,
+                      .dims = 2,
+                      .base_samples = 4,
+                      .min_samples = 1};
   const Image local = RenderPlanLocally(scene, cam, settings, plan, 77, 2);
   HierarchicalAssembly acc(plan, cam.width, cam.height);
   size_t done = 0;
@@ -188,9 +191,7 @@ TEST(TaskExecutor, HierarchicalPlanIsOrderIndependent) {
 TEST(TaskExecutor, CancelStopsTheTaskAndCachesNoMap) {
   const SceneRuntime scene(GlowingSphere());
   const CameraSpec cam = CentreCamera();
-  JobRenderSettings settings;
-  settings.photons = 20000;
-  settings.k = 20;
+  const JobRenderSettings settings = SmallGatherSettings(20000);
   const TaskSpec task = ExpandPlan(PlanSpec{.kind = PlanKind::kMultipleMaps}, cam.width, cam.height, 5).at(0);
   PhotonMapCache cache(2);
   std::atomic<bool> cancel{true};

@@ -81,6 +81,29 @@ inline void AddSphere(SceneDescription& s, Vec3 center, float radius, int subdiv
   }
 }
 
+// A furnace (Wald 1999, §4.3 tests): a closed inward sphere of radius 1 at the origin, Lambertian
+// albedo `albedo` and emission 1 everywhere (flat facets: see AddSphere), so the radiance is
+// Le / (1 - albedo) at every point and in every direction.
+inline SceneDescription FurnaceScene(float albedo) {
+  SceneDescription s;
+  Material wall;
+  wall.diffuse_reflectance = Rgb(albedo);
+  wall.emission = Rgb(1.0f);
+  AddSphere(s, Vec3(0.0f), 1.0f, 5, AddMaterial(s, wall), /*inward=*/true, 0, /*smooth=*/false);
+  s.num_lights = 1;
+  return s;
+}
+
+// A 4x4 camera with a 90° field of view at the furnace's centre, looking down -z.
+inline CameraSpec FurnaceCamera() {
+  CameraSpec cam;
+  cam.eye = Vec3(0.0f);
+  cam.look_at = Vec3(0, 0, -1);
+  cam.width = cam.height = 4;
+  cam.vfov_degrees = 90;
+  return cam;
+}
+
 inline void ScaleScene(SceneDescription& s, CameraSpec& camera, float scale) {
   for (Vec3& p : s.positions) p *= scale;
   camera.eye *= scale;

@@ -27,6 +27,7 @@
 #include "proto/convert.h"
 #include "rpc/grpc_channel.h"
 #include "tests/e2e/harness.h"
+#include "tests/util/generic_call.h"
 
 namespace pf::e2e {
 namespace {
@@ -298,30 +299,29 @@ class Adversary {
     });
   }
 
+  // A unary RenderService call (`rpc`, 5 s deadline) whose request names job `id`.
+  template <typename Request, typename Response>
+  void UnaryJobCall(const std::string& rpc, const std::string& id,
+                    grpc::Status (v1::RenderService::Stub::*method)(grpc::ClientContext*, const Request&,
+                                                                    Response*)) {
+    Request req;
+    req.set_job_id(id);
+    Response resp;
+    Call(rpc, 5, [&](auto ctx) { return (render_.get()->*method)(ctx.get(), req, &resp); });
+  }
+
   void JobCalls() {
     const std::string id = RandomId();
     switch (Pick(4)) {
-      case 0: {
-        v1::GetJobRequest req;
-        req.set_job_id(id);
-        v1::JobStatus resp;
-        Call("GetJob", 5, [&](auto ctx) { return render_->GetJob(ctx.get(), req, &resp); });
+      case 0:
+        UnaryJobCall("GetJob", id, &v1::RenderService::Stub::GetJob);
         break;
-      }
-      case 1: {
-        v1::CancelJobRequest req;
-        req.set_job_id(id);
-        v1::CancelJobResponse resp;
-        Call("CancelJob", 5, [&](auto ctx) { return render_->CancelJob(ctx.get(), req, &resp); });
+      case 1:
+        UnaryJobCall("CancelJob", id, &v1::RenderService::Stub::CancelJob);
         break;
-      }
-      case 2: {
-        v1::ListJobEventsRequest req;
-        req.set_job_id(id);
-        v1::ListJobEventsResponse resp;
-        Call("ListJobEvents", 5, [&](auto ctx) { return render_->ListJobEvents(ctx.get(), req, &resp); });
+      case 2:
+        UnaryJobCall("ListJobEvents", id, &v1::RenderService::Stub::ListJobEvents);
         break;
-      }
       default: {
         v1::GetImageRequest req;
         req.set_job_id(id);
@@ -359,19 +359,7 @@ class Adversary {
     Call((empty ? "empty " : "raw ") + method, 0.5, [&](auto ctx) {
       grpc::Slice slice(bytes);
       grpc::ByteBuffer request(&slice, 1), response;
-      std::mutex mu;
-      std::condition_variable cv;
-      bool done = false;
-      grpc::Status result;
-      generic_.UnaryCall(ctx.get(), method, grpc::StubOptions(), &request, &response, [&](grpc::Status st) {
-        std::lock_guard lock(mu);
-        result = st;
-        done = true;
-        cv.notify_one();
-      });
-      std::unique_lock lock(mu);
-      cv.wait(lock, [&] { return done; });
-      return result;
+      return test_util::BlockingGenericCall(generic_, ctx.get(), method, &request, &response);
     });
   }
 
@@ -394,10 +382,7 @@ TEST(Adversarial, RandomRequestsGetAStatusInBoundedTimeAndTheCoordinatorStaysCor
   TestDir dir;
   JobArgs job;
   job.rounds = 1;
-  const RunResult local =
-      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
-                        {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
-                 dir.path());
+  const RunResult local = RenderLocally(dir, job.ToFlags());
   ASSERT_EQ(local.exit_code, 0) << local.err;
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--lease-seconds", "2"});
   FarmClient client(coordinator.address(), "");

@@ -31,10 +31,7 @@ JobArgs SlowJob() {
 }
 
 Image LocalReference(const TestDir& dir, const JobArgs& job) {
-  const RunResult r =
-      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
-                        {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
-                 dir.path());
+  const RunResult r = RenderLocally(dir, job.ToFlags());
   EXPECT_EQ(r.exit_code, 0) << r.err;
   return ReadImage(dir / "local.exr");
 }
@@ -47,28 +44,6 @@ std::string Submit(const TestDir& dir, const std::string& address, const JobArgs
   std::string id = r.out;
   while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
   return id;
-}
-
-// Task ids with a "leased" line in `log` not followed by its "completed" line: in flight.
-bool MidTask(const fs::path& log) {
-  const auto leased = Grep(log, "leased job=").size();
-  const auto done = Grep(log, "(completed|failed|abandoned) job=").size();
-  return leased > done;
-}
-
-v1::JobStatus WaitForJob(FarmClient& client, const std::string& id, double seconds) {
-  v1::JobStatus st;
-  WaitUntil(
-      [&] {
-        try {
-          st = client.GetJob(id);
-        } catch (const std::exception&) {
-          return false;
-        }
-        return IsFinalState(st.state());
-      },
-      seconds);
-  return st;
 }
 
 TEST(FarmFaults, KilledAndHungWorkersLoseOnlyTheirLeases) {
@@ -166,20 +141,11 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
   const std::string address = coordinator->address();
   const std::string job_id = Submit(dir, address, job);
   ASSERT_FALSE(job_id.empty());
-  std::vector<std::unique_ptr<Process>> workers;
   std::vector<fs::path> logs;
-  for (const char* id : {"w1", "w2"}) {
-    workers.push_back(StartWorker(address, dir.path(), id, {"--report-retry", "30"}));
-    logs.push_back(dir / (std::string(id) + ".log"));
-  }
+  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);
 
   // Crash once a third of the tasks are merged.
-  auto merged_count = [&] {
-    size_t n = 0;
-    for (const auto& [t, c] : MergedTaskCounts(logs, job_id)) n += c;
-    return n;
-  };
-  ASSERT_TRUE(WaitUntil([&] { return merged_count() >= 7; }, 120));
+  ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 7; }, 120));
   coordinator->process().Signal(SIGKILL);
   coordinator->process().Wait(5);
   // What was acknowledged before the crash, and where each log stands.

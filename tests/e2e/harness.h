@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "client/farm_client.h"
 #include "common/image/image.h"
 
 namespace pf::e2e {
@@ -115,6 +116,13 @@ Image ReadImage(const std::filesystem::path& path);
 Image DecodeImage(const std::string& exr_bytes);
 ::testing::AssertionResult BitIdentical(const Image& a, const Image& b);
 
+// The sum of all channels of all pixels (> 0: the image is not black).
+inline double PixelSum(const Image& image) {
+  double sum = 0;
+  for (const Rgb& c : image.pixels()) sum += c.r + c.g + c.b;
+  return sum;
+}
+
 // The photon-map skipping job the tests share: cornell-box at 32x32, stride 2, few photons.
 struct JobArgs {
   std::string integrator = "photonmap";
@@ -132,6 +140,26 @@ struct JobArgs {
 std::map<uint64_t, int> MergedTaskCounts(const std::vector<std::filesystem::path>& worker_logs,
                                          const std::string& job_id);
 
+// How many merged completions of `job_id` the worker logs hold in all (see MergedTaskCounts).
+inline size_t MergedTaskTotal(const std::vector<std::filesystem::path>& worker_logs,
+                              const std::string& job_id) {
+  size_t n = 0;
+  for (const auto& [task, count] : MergedTaskCounts(worker_logs, job_id)) n += size_t(count);
+  return n;
+}
+
+// Workers w1 and w2 (StartWorker) that retry their reports for 30 s, so that a result outlives
+// a coordinator restart; `logs` receives their log files.
+inline std::vector<std::unique_ptr<Process>> StartTwoPatientWorkers(
+    const std::string& address, const std::filesystem::path& dir, std::vector<std::filesystem::path>* logs) {
+  std::vector<std::unique_ptr<Process>> workers;
+  for (const char* id : {"w1", "w2"}) {
+    workers.push_back(StartWorker(address, dir, id, {"--report-retry", "30"}));
+    logs->push_back(dir / (std::string(id) + ".log"));
+  }
+  return workers;
+}
+
 }  // namespace pf::e2e
 
 namespace pf::e2e {
@@ -142,5 +170,36 @@ void BecomeSubreaper();
 // Children of this process that are still alive (zombies are reaped and not counted), with
 // their command lines.
 std::vector<std::string> LiveChildren();
+
+// `pf render --local-only` of the shipped scene with `flags`, written to <dir>/local.exr.
+inline RunResult RenderLocally(const TestDir& dir, const std::vector<std::string>& flags) {
+  return RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, flags),
+                           {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
+                    dir.path());
+}
+
+// Whether the worker log shows a task leased and not yet completed, failed or abandoned.
+inline bool MidTask(const std::filesystem::path& worker_log) {
+  const auto leased = Grep(worker_log, "leased job=").size();
+  const auto done = Grep(worker_log, "(completed|failed|abandoned) job=").size();
+  return leased > done;
+}
+
+// The job's status once it is final, or the last one seen after `seconds` (a coordinator that is
+// not reachable yet, e.g. restarting, counts as not final).
+inline photonfarm::v1::JobStatus WaitForJob(FarmClient& client, const std::string& id, double seconds) {
+  photonfarm::v1::JobStatus st;
+  WaitUntil(
+      [&] {
+        try {
+          st = client.GetJob(id);
+        } catch (const std::exception&) {
+          return false;
+        }
+        return IsFinalState(st.state());
+      },
+      seconds);
+  return st;
+}
 
 }  // namespace pf::e2e

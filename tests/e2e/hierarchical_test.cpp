@@ -46,10 +46,7 @@ std::vector<std::string> HierarchicalFlags(int photons) {
 }
 
 Image LocalReference(const TestDir& dir, const std::vector<std::string>& flags) {
-  const RunResult r =
-      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, flags),
-                        {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
-                 dir.path());
+  const RunResult r = RenderLocally(dir, flags);
   EXPECT_EQ(r.exit_code, 0) << r.err;
   return ReadImage(dir / "local.exr");
 }
@@ -58,9 +55,7 @@ TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
   TestDir dir;
   const std::vector<std::string> flags = HierarchicalFlags(2000);
   const Image reference = LocalReference(dir, flags);
-  double sum = 0;
-  for (const Rgb& c : reference.pixels()) sum += c.r + c.g + c.b;
-  ASSERT_GT(sum, 0.0) << "the reference image is black";
+  ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
   for (int workers : {1, 2, 3}) {
     const std::string out = (dir / ("farm-" + std::to_string(workers) + ".exr")).string();
     const RunResult r = RunCommand(
@@ -70,12 +65,6 @@ TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
     ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
     EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
   }
-}
-
-bool MidTask(const fs::path& log) {
-  const auto leased = Grep(log, "leased job=").size();
-  const auto done = Grep(log, "(completed|failed|abandoned) job=").size();
-  return leased > done;
 }
 
 TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
@@ -103,19 +92,10 @@ TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
   victim->Signal(SIGKILL);
   victim->Wait(5);
 
-  std::vector<std::unique_ptr<Process>> workers;
   std::vector<fs::path> logs;
-  for (const char* id : {"w1", "w2"}) {
-    workers.push_back(StartWorker(address, dir.path(), id, {"--report-retry", "30"}));
-    logs.push_back(dir / (std::string(id) + ".log"));
-  }
+  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);
   // The coordinator crashes once a few tasks are merged (the job has 40 static tasks).
-  auto merged = [&] {
-    size_t n = 0;
-    for (const auto& [t, c] : MergedTaskCounts(logs, job_id)) n += c;
-    return n;
-  };
-  ASSERT_TRUE(WaitUntil([&] { return merged() >= 12; }, 120));
+  ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 12; }, 120));
   coordinator->process().Signal(SIGKILL);
   coordinator->process().Wait(5);
   coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args, port);
@@ -124,17 +104,7 @@ TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
       << ReadFile(coordinator->process().log());
 
   FarmClient client(address, "");
-  v1::JobStatus st;
-  WaitUntil(
-      [&] {
-        try {
-          st = client.GetJob(job_id);
-        } catch (const std::exception&) {
-          return false;
-        }
-        return IsFinalState(st.state());
-      },
-      180);
+  const v1::JobStatus st = WaitForJob(client, job_id, 180);
   ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
   EXPECT_EQ(st.tasks_done(), st.tasks_total());
   // Localization tasks were created (by the first or the restarted coordinator) beyond the 40

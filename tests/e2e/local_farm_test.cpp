@@ -31,9 +31,7 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
       Concat(base, {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}), dir.path());
   ASSERT_EQ(local.exit_code, 0) << local.err;
   const Image reference = ReadImage(dir / "local.exr");
-  double sum = 0;
-  for (const Rgb& c : reference.pixels()) sum += c.r + c.g + c.b;
-  ASSERT_GT(sum, 0.0) << "the reference image is black";
+  ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
 
   for (int workers : {1, 2, 3}) {
     const std::string out = (dir / ("farm-" + std::to_string(workers) + ".exr")).string();
@@ -82,38 +80,30 @@ TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
   }
 }
 
-TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
-  TestDir dir;
-  const std::vector<std::string> base = {Binaries::Pf(),
-                                         "render",
-                                         Binaries::Scene(),
-                                         "--integrator",
-                                         "photonmap",
-                                         "--photons",
-                                         "2000",
-                                         "--k",
-                                         "20",
-                                         "--res",
-                                         "24x16",
-                                         "--plan",
-                                         "multiple-maps",
-                                         "--maps",
-                                         "2",
-                                         "--tile",
-                                         "8",
-                                         "--spp",
-                                         "1",
-                                         "--seed",
-                                         "3",
-                                         "--no-png",
-                                         "-q"};
+// `pf render` of the shipped scene with the photon map (`photons`, k = 20) at 24x16, no PNG, quiet.
+std::vector<std::string> PhotonMapRender24x16(const std::string& photons,
+                                              const std::vector<std::string>& more) {
+  return Concat({Binaries::Pf(), "render", Binaries::Scene(), "--integrator", "photonmap", "--photons",
+                 photons, "--k", "20", "--res", "24x16", "--no-png", "-q"},
+                more);
+}
+
+// `args` rendered with --local-only and on a farm of two one-thread workers: the same bits.
+void ExpectFarmMatchesLocal(const std::vector<std::string>& args, const TestDir& dir) {
   const RunResult local =
-      RunCommand(Concat(base, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
+      RunCommand(Concat(args, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
   ASSERT_EQ(local.exit_code, 0) << local.err;
   const RunResult farm = RunCommand(
-      Concat(base, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}), dir.path());
+      Concat(args, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}), dir.path());
   ASSERT_EQ(farm.exit_code, 0) << farm.err;
   EXPECT_TRUE(BitIdentical(ReadImage(dir / "farm.exr"), ReadImage(dir / "local.exr")));
+}
+
+TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
+  TestDir dir;
+  const std::vector<std::string> base = PhotonMapRender24x16(
+      "2000", {"--plan", "multiple-maps", "--maps", "2", "--tile", "8", "--spp", "1", "--seed", "3"});
+  ExpectFarmMatchesLocal(base, dir);
   ExpectNoProcessLeft();
 }
 
@@ -121,42 +111,13 @@ TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
 // the neighbour-set cache, local pass, occlusion test and adaptive k give the local image.
 TEST_F(LocalFarmTest, ChapterFourEstimatorsMatchLocal) {
   TestDir dir;
-  const std::vector<std::string> base = {Binaries::Pf(),
-                                         "render",
-                                         Binaries::Scene(),
-                                         "--integrator",
-                                         "photonmap",
-                                         "--photons",
-                                         "3000",
-                                         "--k",
-                                         "20",
-                                         "--res",
-                                         "24x16",
-                                         "--plan",
-                                         "skipping",
-                                         "--stride",
-                                         "2",
-                                         "--rounds",
-                                         "1",
-                                         "--spp",
-                                         "1",
-                                         "--seed",
-                                         "5",
-                                         "--occlusion-test",
-                                         "--adaptive-k-min",
-                                         "6",
-                                         "--no-png",
-                                         "-q"};
+  const std::vector<std::string> base =
+      PhotonMapRender24x16("3000", {"--plan", "skipping", "--stride", "2", "--rounds", "1", "--spp", "1",
+                                    "--seed", "5", "--occlusion-test", "--adaptive-k-min", "6"});
   const std::vector<std::string> chapter4 =
       Concat(base, {"--direct", "photon-direct", "--non-contributing", "each", "--photon-direct-k", "10",
                     "--local-pass", "3"});
-  const RunResult local =
-      RunCommand(Concat(chapter4, {"--local-only", "-o", (dir / "local.exr").string()}), dir.path());
-  ASSERT_EQ(local.exit_code, 0) << local.err;
-  const RunResult farm = RunCommand(
-      Concat(chapter4, {"--workers", "2", "--threads", "1", "-o", (dir / "farm.exr").string()}), dir.path());
-  ASSERT_EQ(farm.exit_code, 0) << farm.err;
-  EXPECT_TRUE(BitIdentical(ReadImage(dir / "farm.exr"), ReadImage(dir / "local.exr")));
+  ExpectFarmMatchesLocal(chapter4, dir);
   // A different estimator is a different image (the options really reached the workers).
   const RunResult standalone = RunCommand(
       Concat(base, {"--direct", "photon-map", "--local-only", "-o", (dir / "pm.exr").string()}), dir.path());

@@ -26,17 +26,30 @@ long RssMiB(pid_t pid) {
   return -1;
 }
 
-TEST(CoordinatorMemory, TenQueued4096SquaredJobsStayUnderTheBound) {
+// A coordinator of its own per test, and path-traced jobs submitted to it with `pf submit`.
+class CoordinatorMemory : public ::testing::Test {
+ protected:
+  static JobArgs PathJob() {
+    JobArgs job;
+    job.integrator = "path";
+    return job;
+  }
+  RunResult Submit(const JobArgs& job) {
+    return RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at),
+                      dir.path());
+  }
+
   TestDir dir;
-  CoordinatorProcess coordinator(dir / "data", dir.path());
+  CoordinatorProcess coordinator{dir / "data", dir.path()};
   const std::vector<std::string> at = {"--coordinator", coordinator.address()};
-  JobArgs job;
-  job.integrator = "path";
+};
+
+TEST_F(CoordinatorMemory, TenQueued4096SquaredJobsStayUnderTheBound) {
+  JobArgs job = PathJob();
   job.res = 4096;  // 16.7 Mpx: 787 MB per accumulator, 7.9 GB for ten if allocated at submit
   for (int i = 0; i < 10; ++i) {
     job.seed = uint64_t(i + 1);
-    const RunResult r = RunCommand(
-        Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at), dir.path());
+    const RunResult r = Submit(job);
     ASSERT_EQ(r.exit_code, 0) << r.err;
   }
   const RunResult list = RunCommand(Concat({Binaries::Pf(), "list"}, at), dir.path());
@@ -48,17 +61,12 @@ TEST(CoordinatorMemory, TenQueued4096SquaredJobsStayUnderTheBound) {
 
 // A job that ran to the end: its accumulator is freed once the final checkpoint is written, and
 // its image is still served (read from the checkpoint).
-TEST(CoordinatorMemory, FinishedJobFreesItsAccumulatorAndKeepsItsImage) {
-  TestDir dir;
-  CoordinatorProcess coordinator(dir / "data", dir.path());
-  const std::vector<std::string> at = {"--coordinator", coordinator.address()};
-  JobArgs job;
-  job.integrator = "path";
+TEST_F(CoordinatorMemory, FinishedJobFreesItsAccumulatorAndKeepsItsImage) {
+  JobArgs job = PathJob();
   job.res = 2048;  // 197 MB accumulator: more than the bound by itself
   job.stride = 4;  // 16 tasks of 262k pixels (3 MB results)
   job.rounds = 1;
-  RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()), at),
-                           dir.path());
+  RunResult r = Submit(job);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string id = r.out.substr(0, r.out.find('\n'));
   r = RunCommand({Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "instant",

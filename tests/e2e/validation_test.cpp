@@ -9,6 +9,7 @@
 
 #include "client/farm_client.h"
 #include "tests/e2e/harness.h"
+#include "tests/util/job_specs.h"
 
 namespace pf::e2e {
 namespace {
@@ -16,24 +17,8 @@ namespace fs = std::filesystem;
 namespace v1 = photonfarm::v1;
 
 v1::JobSpec ValidSpec(const std::string& hash) {
-  v1::JobSpec s;
+  v1::JobSpec s = test_util::CornellPhotonMapSpec(hash, 32, 32, /*rounds=*/1, /*seed=*/1);
   s.set_name("validation");
-  s.set_scene_hash(hash);
-  v1::Camera* c = s.mutable_camera();
-  c->mutable_eye()->set_y(1);
-  c->mutable_eye()->set_z(3.9);
-  c->mutable_look_at()->set_y(1);
-  c->mutable_up()->set_y(1);
-  c->set_vfov_degrees(39.3);
-  c->set_width(32);
-  c->set_height(32);
-  s.mutable_settings()->set_integrator(v1::INTEGRATOR_PHOTONMAP);
-  s.mutable_settings()->mutable_photon_map()->set_photons(1000);
-  s.mutable_settings()->mutable_photon_map()->set_k(20);
-  s.mutable_plan()->mutable_skipping()->set_stride(2);
-  s.mutable_plan()->mutable_skipping()->set_rounds(1);
-  s.mutable_plan()->mutable_skipping()->set_samples_per_pixel(1);
-  s.set_seed(1);
   return s;
 }
 
@@ -183,10 +168,7 @@ TEST(FarmValidation, WrongSizeAndNanResultsAreRejectedAndRerun) {
   TestDir dir;
   JobArgs job;
   job.rounds = 1;  // 4 tasks
-  const RunResult local =
-      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, job.ToFlags()),
-                        {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
-                 dir.path());
+  const RunResult local = RenderLocally(dir, job.ToFlags());
   ASSERT_EQ(local.exit_code, 0) << local.err;
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--max-attempts", "6"});
   RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),

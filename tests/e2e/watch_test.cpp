@@ -16,6 +16,27 @@ namespace pf::e2e {
 namespace {
 namespace v1 = photonfarm::v1;
 
+// client.Watch with a watchdog: a watch has no end of its own if the job never finishes, so it
+// is cancelled after 90 s.
+v1::JobStatus WatchAtMost90s(FarmClient& client, const std::string& job_id, bool include_images,
+                             const std::function<void(const v1::JobUpdate&)>& on_update) {
+  std::mutex m;
+  std::condition_variable cv;
+  bool done = false;
+  std::thread watchdog([&] {
+    std::unique_lock lock(m);
+    if (!cv.wait_for(lock, std::chrono::seconds(90), [&] { return done; })) client.Cancel();
+  });
+  const v1::JobStatus status = client.Watch(job_id, include_images, 0.05, on_update);
+  {
+    std::lock_guard lock(m);
+    done = true;
+  }
+  cv.notify_all();
+  watchdog.join();
+  return status;
+}
+
 TEST(FarmWatch, SnapshotsGetLessNoisyAndTheLastIsTheImage) {
   TestDir dir;
   JobArgs job;
@@ -46,27 +67,13 @@ TEST(FarmWatch, SnapshotsGetLessNoisyAndTheLastIsTheImage) {
   std::vector<Snapshot> snapshots;
   FarmClient client(coordinator.address(), "");
   std::unique_ptr<Process> worker;
-  // A watch has no end of its own if the job never finishes: give up after 90 s.
-  std::mutex m;
-  std::condition_variable cv;
-  bool done = false;
-  std::thread watchdog([&] {
-    std::unique_lock lock(m);
-    if (!cv.wait_for(lock, std::chrono::seconds(90), [&] { return done; })) client.Cancel();
-  });
-  const v1::JobStatus final_status = client.Watch(job_id, true, 0.05, [&](const v1::JobUpdate& u) {
+  const v1::JobStatus final_status = WatchAtMost90s(client, job_id, true, [&](const v1::JobUpdate& u) {
     // One worker, started once the watch is subscribed (from this thread: see harness.h).
     if (!worker) worker = StartWorker(coordinator.address(), dir.path(), "w1");
     if (u.has_image() && !u.image().exr_bytes().empty())
       snapshots.push_back({u.status().estimated_noise_rms(), u.status().rounds_done(),
                            u.status().tasks_done(), u.image().exr_bytes()});
   });
-  {
-    std::lock_guard lock(m);
-    done = true;
-  }
-  cv.notify_all();
-  watchdog.join();
   ASSERT_EQ(final_status.state(), v1::JOB_STATE_SUCCEEDED);
 
   // Several snapshots with a noise estimate, and the estimate comes down as maps accumulate.
@@ -166,24 +173,10 @@ TEST(FarmWatch, EtaTracksTheTimeThatRemains) {
     uint64_t done;
   };
   std::vector<Sample> samples;
-  // A watch has no end of its own if the job never finishes: give up after 90 s.
-  std::mutex m;
-  std::condition_variable cv;
-  bool done = false;
-  std::thread watchdog([&] {
-    std::unique_lock lock(m);
-    if (!cv.wait_for(lock, std::chrono::seconds(90), [&] { return done; })) client.Cancel();
-  });
-  const v1::JobStatus st = client.Watch(job_id, false, 0.05, [&](const v1::JobUpdate& u) {
+  const v1::JobStatus st = WatchAtMost90s(client, job_id, false, [&](const v1::JobUpdate& u) {
     if (!worker) worker = StartWorker(coordinator.address(), dir.path(), "w1");  // one thread
     samples.push_back({u.status().elapsed_seconds(), u.status().eta_seconds(), u.status().tasks_done()});
   });
-  {
-    std::lock_guard lock(m);
-    done = true;
-  }
-  cv.notify_all();
-  watchdog.join();
   ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED);
   ASSERT_EQ(st.tasks_total(), 16u);
   const double end = st.elapsed_seconds();

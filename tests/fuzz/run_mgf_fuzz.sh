@@ -29,18 +29,24 @@ printf 'v a =\n p 0 0 0\nv b =\n p 1 0 0\nv c =\n p 0 1 0\nf a b c\n' >"$run/inc
 printf 'i cycle.mgf\n' >"$run/cycle.mgf"
 printf 'xf -t 0 0 1\ni ../inc.mgf\nxf\n' >"$run/sub/part.mgf"
 
+# fuzz TARGET SECONDS [libFuzzer options...]: runs <build>/tests/fuzz/TARGET_fuzz in the current
+# directory on ./corpus and tests/fuzz/TARGET_corpus; exits with its status on a finding.
+fuzz() {
+  local target="$1" secs="$2" status=0
+  shift 2
+  "$build/tests/fuzz/${target}_fuzz" corpus "$repo/tests/fuzz/${target}_corpus" \
+    -max_total_time="$secs" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
+    -artifact_prefix=artifacts/ -print_final_stats=1 "$@" || status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "${target}_fuzz: FINDING (exit $status); reproducer(s) in $PWD/artifacts:" >&2
+    ls -1 artifacts >&2 || true
+    exit "$status"
+  fi
+  echo "${target}_fuzz: no findings in ${secs}s"
+}
+
 cd "$run"
-status=0
-"$build/tests/fuzz/mgf_fuzz" corpus "$repo/tests/fuzz/mgf_corpus" \
-  -max_total_time="$mgf_seconds" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
-  -dict="$repo/tests/fuzz/mgf.dict" \
-  -artifact_prefix=artifacts/ -print_final_stats=1 || status=$?
-if [ "$status" -ne 0 ]; then
-  echo "mgf_fuzz: FINDING (exit $status); reproducer(s):" >&2
-  ls -1 "$run/artifacts" >&2 || true
-  exit "$status"
-fi
-echo "mgf_fuzz: no findings in ${mgf_seconds}s"
+fuzz mgf "$mgf_seconds" -dict="$repo/tests/fuzz/mgf.dict"
 
 # The OBJ loader and the manifest parser, each in its own scratch folder (the OBJ harness writes
 # its input to a file there; `mtllib m.mtl` resolves inside it, anything else must be refused).
@@ -49,14 +55,5 @@ for target in obj manifest; do
   mkdir -p "$dir/corpus" "$dir/artifacts"
   [ "$target" = obj ] && printf 'newmtl lamp\nKe 1 1 1\nnewmtl wall\nKd .5 .5 .5\n' >"$dir/m.mtl"
   cd "$dir"
-  status=0
-  "$build/tests/fuzz/${target}_fuzz" corpus "$repo/tests/fuzz/${target}_corpus" \
-    -max_total_time="$other_seconds" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
-    -artifact_prefix=artifacts/ -print_final_stats=1 || status=$?
-  if [ "$status" -ne 0 ]; then
-    echo "${target}_fuzz: FINDING (exit $status); reproducer(s) in $dir/artifacts:" >&2
-    ls -1 "$dir/artifacts" >&2 || true
-    exit "$status"
-  fi
-  echo "${target}_fuzz: no findings in ${other_seconds}s"
+  fuzz "$target" "$other_seconds"
 done

@@ -14,6 +14,8 @@
 #include "proto/convert.h"
 #include "server/store/scene_store.h"
 #include "tests/server/server_test_util.h"
+#include "tests/util/generic_call.h"
+#include "tests/util/job_specs.h"
 
 namespace pf::server {
 namespace {
@@ -23,39 +25,10 @@ using testing::LiveCoordinator;
 using testing::TempDir;
 namespace v1 = photonfarm::v1;
 
-class RenderServiceTest : public ::testing::Test {
+class RenderServiceTest : public testing::LiveCoordinatorTest {
  protected:
-  void SetUp() override {
-    CoordinatorOptions o;
-    o.data_dir = dir_.path() / "data";
-    live_ = std::make_unique<LiveCoordinator>(o);
-    v1::UploadSceneRequest req;
-    *req.mutable_bundle() = testing::ToProto(CollectBundle(testing::CornellManifest()));
-    v1::UploadSceneResponse resp;
-    const grpc::Status st = live_->render->UploadScene(Ctx().get(), req, &resp);
-    ASSERT_TRUE(st.ok()) << st.error_message();
-    hash_ = resp.scene_hash();
-  }
-
   v1::JobSpec ValidSpec() const {
-    v1::JobSpec spec;
-    spec.set_scene_hash(hash_);
-    v1::Camera* cam = spec.mutable_camera();
-    cam->mutable_eye()->set_y(1);
-    cam->mutable_eye()->set_z(3.9);
-    cam->mutable_look_at()->set_y(1);
-    cam->mutable_up()->set_y(1);
-    cam->set_vfov_degrees(39.3);
-    cam->set_width(32);
-    cam->set_height(24);
-    spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PHOTONMAP);
-    spec.mutable_settings()->mutable_photon_map()->set_photons(1000);
-    spec.mutable_settings()->mutable_photon_map()->set_k(20);
-    spec.mutable_plan()->mutable_skipping()->set_stride(2);
-    spec.mutable_plan()->mutable_skipping()->set_rounds(2);
-    spec.mutable_plan()->mutable_skipping()->set_samples_per_pixel(1);
-    spec.set_seed(3);
-    return spec;
+    return test_util::CornellPhotonMapSpec(hash_, 32, 24, /*rounds=*/2, /*seed=*/3);
   }
 
   grpc::Status Submit(const v1::JobSpec& spec, v1::SubmitJobResponse* resp = nullptr) {
@@ -64,10 +37,6 @@ class RenderServiceTest : public ::testing::Test {
     v1::SubmitJobResponse ignored;
     return live_->render->SubmitJob(Ctx().get(), req, resp ? resp : &ignored);
   }
-
-  TempDir dir_;
-  std::unique_ptr<LiveCoordinator> live_;
-  std::string hash_;
 };
 
 struct BadCase {
@@ -607,19 +576,8 @@ TEST_F(TokenTest, HealthCheckIsOpen) {
   grpc::GenericStub stub(live_->channel);
   const grpc::Slice empty;
   grpc::ByteBuffer req(&empty, 1);
-  std::mutex mu;
-  std::condition_variable cv;
-  bool done = false;
-  grpc::Status status;
-  stub.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &req, &response,
-                 [&](grpc::Status s) {
-                   std::lock_guard lock(mu);
-                   status = s;
-                   done = true;
-                   cv.notify_all();
-                 });
-  std::unique_lock lock(mu);
-  cv.wait(lock, [&] { return done; });
+  const grpc::Status status =
+      test_util::BlockingGenericCall(stub, &ctx, "/grpc.health.v1.Health/Check", &req, &response);
   EXPECT_TRUE(status.ok()) << status.error_message();
   std::vector<grpc::Slice> slices;
   ASSERT_TRUE(response.Dump(&slices).ok());

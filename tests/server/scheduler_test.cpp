@@ -650,15 +650,13 @@ namespace pf::server {
 namespace {
 
 PlanSpec SmallHierarchy() {
-  PlanSpec p;
-  p.kind = PlanKind::kHierarchical;
-  p.levels = 2;
-  p.dims = 2;
-  p.base_samples = 2;
-  p.min_samples = 1;
-  p.localize_threshold = 0.5;  // the synthetic results' noise localizes many pixels
-  p.localize_contrast = 0;
-  return p;
+  return PlanSpec{.kind = PlanKind::kHierarchical,
+                  .levels = 2,
+                  .dims = 2,
+                  .base_samples = 2,
+                  .min_samples = 1,
+                  .localize_threshold = 0.5,  // the synthetic results' noise localizes many pixels
+                  .localize_contrast = 0};
 }
 
 // The hierarchical plan through the scheduler (its own task source): localization tasks appear

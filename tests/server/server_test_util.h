@@ -21,6 +21,7 @@
 #include "proto/convert.h"
 #include "server/coordinator.h"
 #include "server/jobs/job_spec.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf::server::testing {
 
@@ -28,25 +29,9 @@ namespace fs = std::filesystem;
 namespace v1 = photonfarm::v1;
 
 // A fresh directory per test, removed afterwards.
-class TempDir {
+class TempDir : public test_util::TempDir {
  public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("pf_server_test_" + std::to_string(::getpid()) + "_" + (info ? std::string(info->name()) : "x") +
-             "_" + std::to_string(counter++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
+  TempDir() : test_util::TempDir("pf_server_test") {}
 };
 
 inline JobConfig MakeConfig(const PlanSpec& plan, int width, int height, int32_t priority = 0,
@@ -79,21 +64,11 @@ inline std::vector<float> SyntheticResult(const TaskSpec& task, int width, int h
 }
 
 inline PlanSpec Skipping(uint32_t stride, uint32_t rounds, uint32_t spp = 1) {
-  PlanSpec p;
-  p.kind = PlanKind::kSkipping;
-  p.stride = stride;
-  p.rounds = rounds;
-  p.samples_per_pixel = spp;
-  return p;
+  return PlanSpec{.kind = PlanKind::kSkipping, .samples_per_pixel = spp, .stride = stride, .rounds = rounds};
 }
 
 inline PlanSpec MultipleMaps(uint32_t maps, uint32_t tile, uint32_t spp = 1) {
-  PlanSpec p;
-  p.kind = PlanKind::kMultipleMaps;
-  p.maps = maps;
-  p.tile_size = tile;
-  p.samples_per_pixel = spp;
-  return p;
+  return PlanSpec{.kind = PlanKind::kMultipleMaps, .maps = maps, .samples_per_pixel = spp, .tile_size = tile};
 }
 
 // The Cornell box shipped in scenes/ (small, with a manifest camera).
@@ -136,5 +111,31 @@ inline std::unique_ptr<grpc::ClientContext> Ctx(const std::string& token = "", d
   if (!token.empty()) ctx->AddMetadata("authorization", "Bearer " + token);
   return ctx;
 }
+
+// Uploads the shipped Cornell box through RenderService; returns its scene hash.
+inline std::string UploadCornell(LiveCoordinator& live) {
+  v1::UploadSceneRequest req;
+  *req.mutable_bundle() = ToProto(CollectBundle(CornellManifest()));
+  v1::UploadSceneResponse resp;
+  const grpc::Status st = live.render->UploadScene(Ctx().get(), req, &resp);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return resp.scene_hash();
+}
+
+// A fixture: an in-process coordinator in a fresh data folder with the Cornell box uploaded.
+class LiveCoordinatorTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    CoordinatorOptions o;
+    o.data_dir = dir_.path() / "data";
+    live_ = std::make_unique<LiveCoordinator>(o);
+    hash_ = UploadCornell(*live_);
+    ASSERT_FALSE(HasFailure()) << "the scene upload failed";
+  }
+
+  TempDir dir_;
+  std::unique_ptr<LiveCoordinator> live_;
+  std::string hash_;
+};
 
 }  // namespace pf::server::testing

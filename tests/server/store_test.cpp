@@ -205,12 +205,9 @@ TEST(Checkpoint, FilesAreWrittenAtomically) {
   for (const auto& e : fs::directory_iterator(dir.path()))
     EXPECT_FALSE(IsTemporaryName(e.path().filename().string())) << "left behind: " << e.path();
   std::ofstream(file, std::ios::binary | std::ios::trunc) << "garbage";
-  try {
-    ReadCheckpointFile(file);
-    ADD_FAILURE() << "read a corrupt checkpoint";
-  } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("job-1.acc"));
-  }
+  EXPECT_THAT([&] { (void)ReadCheckpointFile(file); },
+              ::testing::ThrowsMessage<InputError>(HasSubstr("job-1.acc")))
+      << "read a corrupt checkpoint";
 }
 
 TEST(Journal, EntriesRoundTripAndATornTailIsCut) {
@@ -298,10 +295,17 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   EXPECT_TRUE(late) << "after a stop: answered at once";
 }
 
-TEST(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
+// A coordinator's data folder (database and checkpoints) that outlives its crashes in a test.
+class Recovery : public ::testing::Test {
+ protected:
   TempDir dir;
   FakeClock clock;
   FakeCatalog catalog;
+  const fs::path db_file = dir.path() / "coordinator.db";
+  const fs::path cp_dir = dir.path() / "checkpoints";
+};
+
+TEST_F(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
   const JobConfig config = ValidateJobSpec(SkippingSpec(2, 3), catalog);  // 12 tasks of 30 pixels
 
   // The reference: the same job without a crash.
@@ -312,8 +316,6 @@ TEST(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
   while (std::optional<Lease> l = reference.TryLease({"w", {}})) Complete(reference, *l);
   ASSERT_EQ(reference.Status(ref_id).state(), v1::JOB_STATE_SUCCEEDED);
 
-  const fs::path db_file = dir.path() / "coordinator.db";
-  const fs::path cp_dir = dir.path() / "checkpoints";
   std::string id;
   std::vector<uint64_t> checkpointed;
   uint64_t leased_at_crash = 0;
@@ -387,12 +389,7 @@ TEST(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
   EXPECT_NE(scheduler.PrepareJob(config)->id(), id);
 }
 
-TEST(Recovery, FinishedJobsAreListedAndCorruptCheckpointsRestartTheJob) {
-  TempDir dir;
-  FakeClock clock;
-  FakeCatalog catalog;
-  const fs::path db_file = dir.path() / "coordinator.db";
-  const fs::path cp_dir = dir.path() / "checkpoints";
+TEST_F(Recovery, FinishedJobsAreListedAndCorruptCheckpointsRestartTheJob) {
   std::string done_id, broken_id;
   {
     SqliteStore db(db_file);
@@ -456,12 +453,7 @@ TEST(Recovery, FinishedJobsAreListedAndCorruptCheckpointsRestartTheJob) {
 // checkpoint survive. Before, the id counter restarted, the next job got the old id and the old
 // journal was replayed into it (a wrong image that SUCCEEDED). Ids are random now: the new job
 // gets another id, starts from zero merges, and the old files are set aside and reported.
-TEST(Recovery, ALostJobTableNeverReusesAnIdAndOldFilesAreSetAside) {
-  TempDir dir;
-  FakeClock clock;
-  FakeCatalog catalog;
-  const fs::path db_file = dir.path() / "coordinator.db";
-  const fs::path cp_dir = dir.path() / "checkpoints";
+TEST_F(Recovery, ALostJobTableNeverReusesAnIdAndOldFilesAreSetAside) {
   std::string old_id;
   {
     SqliteStore db(db_file);
@@ -492,12 +484,7 @@ TEST(Recovery, ALostJobTableNeverReusesAnIdAndOldFilesAreSetAside) {
 // Issue #14: elapsed time was saved only on state changes, so a time budget restarted with the
 // coordinator. Now a running job's elapsed time is persisted every kElapsedPersistSeconds and
 // the budget counts across a restart (the downtime does not).
-TEST(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {
-  TempDir dir;
-  FakeClock clock;
-  FakeCatalog catalog;
-  const fs::path db_file = dir.path() / "coordinator.db";
-  const fs::path cp_dir = dir.path() / "checkpoints";
+TEST_F(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {
   v1::JobSpec spec = SkippingSpec(1, 3);
   spec.mutable_stop()->set_time_budget_seconds(10);
   std::string id;
@@ -541,10 +528,7 @@ namespace {
 // after some of them were merged (checkpoint) and one more acknowledged (journal): recovery
 // re-derives the created tasks from those results, re-runs only the rest, and ends bit-identical
 // to a run without a crash.
-TEST(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
-  TempDir dir;
-  FakeClock clock;
-  FakeCatalog catalog;
+TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
   v1::JobSpec spec = SkippingSpec(2, 1);
   v1::Hierarchical* h = spec.mutable_plan()->mutable_hierarchical();
   h->set_levels(2);
@@ -567,8 +551,6 @@ TEST(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
   ASSERT_EQ(ref_status.state(), v1::JOB_STATE_SUCCEEDED);
   ASSERT_GT(ref_status.tasks_total(), static_tasks + 2) << "localization tasks were created";
 
-  const fs::path db_file = dir.path() / "coordinator.db";
-  const fs::path cp_dir = dir.path() / "checkpoints";
   std::string id;
   uint64_t merged_before_crash = 0;
   {

@@ -28,12 +28,15 @@ namespace v1 = photonfarm::v1;
 namespace fs = std::filesystem;
 
 std::string Upload(LiveCoordinator& live) {
-  v1::UploadSceneRequest req;
-  *req.mutable_bundle() = testing::ToProto(CollectBundle(testing::CornellManifest()));
-  v1::UploadSceneResponse resp;
-  const grpc::Status st = live.render->UploadScene(Ctx().get(), req, &resp);
-  EXPECT_TRUE(st.ok()) << st.error_message();
-  return resp.scene_hash();
+  return testing::UploadCornell(live);
+}
+
+// One map, one sample per pixel, one tile: a job of a single task.
+v1::Plan OneMapPlan() {
+  v1::Plan plan;
+  plan.mutable_multiple_maps()->set_maps(1);
+  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  return plan;
 }
 
 // The manifest camera at a small resolution.
@@ -177,23 +180,10 @@ class TestWorker {
   std::map<uint64_t, int> executed_;
 };
 
-class WorkerServiceTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    CoordinatorOptions o;
-    o.data_dir = dir_.path() / "data";
-    live_ = std::make_unique<LiveCoordinator>(o);
-    hash_ = Upload(*live_);
-  }
-  TempDir dir_;
-  std::unique_ptr<LiveCoordinator> live_;
-  std::string hash_;
-};
+using WorkerServiceTest = testing::LiveCoordinatorTest;
 
 TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
-  v1::Plan plan;
-  plan.mutable_multiple_maps()->set_maps(1);
-  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  v1::Plan plan = OneMapPlan();
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
   std::optional<v1::Task> t1 = Lease(*live_);
   ASSERT_TRUE(t1.has_value());
@@ -236,9 +226,7 @@ TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
 // Issue #14: a worker's failure reason is logged and shown by `pf`; control characters in it
 // would forge log lines or drive the user's terminal.
 TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
-  v1::Plan plan;
-  plan.mutable_multiple_maps()->set_maps(1);
-  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  v1::Plan plan = OneMapPlan();
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
   std::optional<v1::Task> t = Lease(*live_);
   ASSERT_TRUE(t.has_value());
@@ -260,9 +248,7 @@ TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
 // may send it. A stranger with the lease id is PERMISSION_DENIED, an unknown lease NOT_FOUND, a
 // missing worker_id INVALID_ARGUMENT; none of them changes the job, and the holder still merges.
 TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanFailItsTask) {
-  v1::Plan plan;
-  plan.mutable_multiple_maps()->set_maps(1);
-  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  v1::Plan plan = OneMapPlan();
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
   std::optional<v1::Task> t = Lease(*live_, 0, "holder");
   ASSERT_TRUE(t.has_value());
@@ -334,9 +320,7 @@ TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
   EXPECT_EQ(scheduler.counters().lease_attempts, attempts) << "the parked poll kept searching the queue";
   EXPECT_EQ(scheduler.counters().parked_polls, 1u);
   // It returns as soon as a job is submitted, long before its 20 s wait.
-  v1::Plan plan;
-  plan.mutable_multiple_maps()->set_maps(1);
-  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  v1::Plan plan = OneMapPlan();
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
   std::optional<v1::Task> task = poll.get();
   waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -358,9 +342,7 @@ TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
 }
 
 TEST_F(WorkerServiceTest, FetchSceneStreamsTheBundleOfTheTask) {
-  v1::Plan plan;
-  plan.mutable_multiple_maps()->set_maps(1);
-  plan.mutable_multiple_maps()->set_samples_per_pixel(1);
+  v1::Plan plan = OneMapPlan();
   SubmitOk(*live_, SmallSpec(hash_, plan));
   std::optional<v1::Task> task = Lease(*live_);
   ASSERT_TRUE(task.has_value());

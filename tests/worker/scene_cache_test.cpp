@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "common/core/error.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf::worker {
 namespace {
@@ -20,20 +21,18 @@ SceneBundle CornellBundle() {
 class SceneCacheTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pf-scene-cache-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(dir_);
     bundle_ = CornellBundle();
     hash_ = BundleHash(bundle_);
   }
-  void TearDown() override { fs::remove_all(dir_); }
   SceneCache::Fetcher CountingFetcher(int* calls) {
     return [this, calls] {
       ++*calls;
       return bundle_;
     };
   }
-  fs::path dir_;
+  // Not created: the cache makes its own directory.
+  test_util::TempDir tmp_{"pf-scene-cache"};
+  const fs::path dir_ = tmp_.path() / "cache";
   SceneBundle bundle_;
   std::string hash_;
 };

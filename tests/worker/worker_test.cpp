@@ -14,6 +14,7 @@
 
 #include "common/plan/task_plan.h"
 #include "proto/convert.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf::worker {
 namespace {
@@ -132,16 +133,18 @@ class FakeCoordinator final : public v1::WorkerService::Service {
 class WorkerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pf-worker-test-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(dir_);
     fake_ = std::make_unique<FakeCoordinator>(
         CollectBundle(fs::path(PF_SOURCE_DIR) / "scenes" / "cornell-box" / "cornell-box.json"));
     StartServer(0);
   }
   void TearDown() override {
     if (server_) server_->Shutdown(std::chrono::system_clock::now());
-    fs::remove_all(dir_);
+  }
+  // Polls `done` every 10 ms, at most `tries` times; returns its last answer.
+  template <typename Predicate>
+  static bool PollUntil(int tries, Predicate done) {
+    for (int i = 0; i < tries && !done(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    return done();
   }
   void StartServer(int port) {
     grpc::ServerBuilder builder;
@@ -187,20 +190,42 @@ class WorkerTest : public ::testing::Test {
                        int(t.camera().height()));
   }
 
-  fs::path dir_;
+  // Not created: the worker makes its cache directory.
+  test_util::TempDir tmp_{"pf-worker-test"};
+  const fs::path dir_ = tmp_.path() / "cache";
   std::unique_ptr<FakeCoordinator> fake_;
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
 };
 
+// A worker running on a thread of its own; Stop() asks it to stop and returns Run()'s exit code
+// (the destructor stops it too, so a failed assertion does not leave the thread running).
+class WorkerThread {
+ public:
+  explicit WorkerThread(Worker& worker) : worker_(worker), thread_([this] { code_ = worker_.Run(); }) {}
+  ~WorkerThread() {
+    if (thread_.joinable()) Stop();
+  }
+  WorkerThread(const WorkerThread&) = delete;
+  WorkerThread& operator=(const WorkerThread&) = delete;
+  int Stop() {
+    worker_.RequestStop();
+    thread_.join();
+    return code_;
+  }
+
+ private:
+  Worker& worker_;
+  int code_ = -1;
+  std::thread thread_;
+};
+
 // Runs the worker on a thread until `done` holds (or 30 s), then stops it.
 void RunUntil(Worker& worker, const std::function<bool()>& done, double timeout = 30) {
-  int code = -1;
-  std::thread t([&] { code = worker.Run(); });
+  WorkerThread running(worker);
   const Clock::time_point t0 = Clock::now();
   while (!done() && Since(t0) < timeout) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  worker.RequestStop();
-  t.join();
+  const int code = running.Stop();
   EXPECT_EQ(code, 0);
 }
 
@@ -252,16 +277,10 @@ TEST_F(WorkerTest, StopWithoutGraceHandsTheLeaseBack) {
   WorkerOptions o = Options();
   o.grace_seconds = 0;
   Worker worker(o);
-  int code = -1;
-  std::thread t([&] { code = worker.Run(); });
-  ASSERT_TRUE([&] {
-    for (int i = 0; i < 3000 && fake_->extends().empty(); ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    return !fake_->extends().empty();
-  }());
+  WorkerThread running(worker);
+  ASSERT_TRUE(PollUntil(3000, [&] { return !fake_->extends().empty(); }));
   const Clock::time_point t0 = Clock::now();
-  worker.RequestStop();
-  t.join();
+  const int code = running.Stop();
   EXPECT_LT(Since(t0), 1.0) << "a hand-back does not wait for the render";
   EXPECT_EQ(code, 0);
   ASSERT_EQ(fake_->fails().size(), 1u);
@@ -277,12 +296,9 @@ TEST_F(WorkerTest, StopWithGraceFinishesTheTask) {
   WorkerOptions o = Options();
   o.grace_seconds = 60;
   Worker worker(o);
-  int code = -1;
-  std::thread t([&] { code = worker.Run(); });
-  for (int i = 0; i < 3000 && fake_->extends().empty(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  worker.RequestStop();
-  t.join();
+  WorkerThread running(worker);
+  PollUntil(3000, [&] { return !fake_->extends().empty(); });
+  const int code = running.Stop();
   EXPECT_EQ(code, 0);
   EXPECT_EQ(fake_->completes().size(), 1u);
   EXPECT_TRUE(fake_->fails().empty());
@@ -293,14 +309,11 @@ TEST_F(WorkerTest, StopCancelsAnIdleLongPoll) {
   WorkerOptions o = Options();
   o.poll_seconds = 20;
   Worker worker(o);
-  int code = -1;
-  std::thread t([&] { code = worker.Run(); });
-  for (int i = 0; i < 500 && fake_->lease_requests().empty(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  WorkerThread running(worker);
+  PollUntil(500, [&] { return !fake_->lease_requests().empty(); });
   ASSERT_FALSE(fake_->lease_requests().empty());
   const Clock::time_point t0 = Clock::now();
-  worker.RequestStop();
-  t.join();
+  const int code = running.Stop();
   EXPECT_LT(Since(t0), 1.0);
   EXPECT_EQ(code, 0);
 }
@@ -310,17 +323,14 @@ TEST_F(WorkerTest, WaitsForAnAbsentCoordinatorAndConnectsWhenItAppears) {
   server_->Shutdown(std::chrono::system_clock::now());
   server_.reset();
   Worker worker(Options());
-  int code = -1;
-  std::thread t([&] { code = worker.Run(); });
+  WorkerThread running(worker);
   std::this_thread::sleep_for(std::chrono::milliseconds(800));
   EXPECT_TRUE(worker.state() == State::kConnecting || worker.state() == State::kBackoff)
       << StateName(worker.state());
   fake_->Offer(SlowTask(20000));
   StartServer(port);
-  for (int i = 0; i < 1000 && fake_->completes().empty(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  worker.RequestStop();
-  t.join();
+  PollUntil(1000, [&] { return !fake_->completes().empty(); });
+  const int code = running.Stop();
   EXPECT_EQ(code, 0);
   EXPECT_EQ(fake_->completes().size(), 1u);
 }

@@ -1,0 +1,69 @@
+#pragma once
+// Everything about *how* a job renders that is the same for all its tasks, and how its `auto`
+// settings become concrete for a scene (implemented in task_executor.cpp, which uses them).
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/photon/photon_maps.h"
+#include "common/render/photon_map_integrator.h"
+#include "common/sampling/sampler.h"
+#include "common/scene/scene.h"
+
+namespace pf {
+
+enum class IntegratorKind { kPath, kPhotonMap };
+
+// What an `auto` setting became for a scene, and why (logged by pf and pf-worker).
+struct AutoChoice {
+  std::string setting, value, reason;
+};
+
+// Direct light `auto`: PhotonDirect from this many lights on, Monte Carlo below (docs/renderer.md,
+// "auto settings"; measured in docs/results/estimators.md).
+inline constexpr int kPhotonDirectMinLights = 8;
+
+// Everything about *how* to render that is the same for all tasks of a job.
+struct JobRenderSettings {
+  IntegratorKind integrator = IntegratorKind::kPhotonMap;
+  // Pixel samples and photons (issue #11): Owen-scrambled Sobol by default.
+  SamplerKind sampler = SamplerKind::kSobol;
+  uint64_t photons = 200000;
+  PhotonMapKind structure = PhotonMapKind::kKdTree;
+  // Widest extent: 2-4x faster queries than level % 3 in rooms with axis-aligned walls
+  // (bench/photon_map_bench; the thesis suggests it for flat scenes, §2.3 footnote 2).
+  KdSplitRule kd_split = KdSplitRule::kWidestExtent;
+  CausticMapMode caustic = CausticMapMode::kAuto;
+  int k = 100;
+  float caustic_radius = 0.0f;  // 0 = DefaultCausticOptions
+  int glossy_depth = 1;
+  FeasibilityTest direction_test = FeasibilityTest::kInQuery;
+  // Chapter 4 (see photon_map_integrator.h and direct_light.h).
+  std::optional<DirectLightMode> direct;  // nullopt = auto (see Resolved)
+  int shadow_rays = 16;                   // MC: per shading point; PhotonDirect: N_total
+  float light_uniform_fraction = 0.0f;    // MC: defensive mixing β
+  int photon_direct_k = 50;
+  NonContributingMode non_contributing = NonContributingMode::kOneRandom;
+  float photon_direct_cache = 0.25f;                           // neighbour-set cache radius fraction; 0 = off
+  int local_pass_rays = 0;                                     // §4.3; 0 = off
+  LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;  // precomputed irradiance (Christensen 1999)
+  bool occlusion_test = false;                                 // §4.1.1
+  int adaptive_k_min = 0;                                      // §4.8; 0 = off
+
+  // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
+  // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.
+  JobRenderSettings Resolved(const SceneDescription& scene, std::vector<AutoChoice>* choices = nullptr) const;
+
+  // The integrator options these settings describe, for a scene with these bounds. Requires
+  // resolved settings (std::logic_error otherwise).
+  PhotonMapIntegratorOptions IntegratorOptions(const Bounds3& scene_bounds) const;
+  // The photon-map options (everything but the seed and threads).
+  PhotonMapsOptions MapsOptions() const;
+
+  // Stable text form of the settings that change a photon map (cache key).
+  std::string MapFingerprint() const;
+};
+
+}  // namespace pf
