@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_stats.h"
 #include "common/accel/embree_scene.h"
 #include "common/core/rng.h"
 #include "common/render/camera.h"
@@ -25,17 +26,8 @@
 namespace pf {
 namespace {
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : (v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]));
-}
-
-template <typename F>
-double TimeIt(F&& f) {
-  const auto t0 = std::chrono::steady_clock::now();
-  f();
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using bench::Median;
+using bench::TimeIt;
 
 struct SceneResult {
   std::string scene;

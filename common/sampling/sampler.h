@@ -80,7 +80,12 @@ constexpr uint32_t OwenScramble(uint32_t x, uint32_t seed) {
 // Generator columns of Sobol dimension 1 (the Pascal matrix mod 2), bit-reversed so that bit r
 // of column c is C(c, r) mod 2, tabulated per index byte: kPascal[b][t] = XOR of the reversed
 // columns 8b + k for the set bits k of t.
-constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalTables() {
+//
+// kPascalOfReversed: the same products indexed by the bytes of the *bit-reversed* index
+// h = ReverseBits(i): XOR of the reversed columns 31 − (8b + k) for the set bits k of t. Point2D
+// gets its shuffled index bit-reversed from the hash; reading the Pascal product straight from it
+// takes the bit reversal off the y coordinate's latency chain (it only feeds x now).
+constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalTables(bool of_reversed_index) {
   std::array<uint32_t, 32> column{};
   column[0] = 1u;
   for (int c = 1; c < 32; ++c) column[c] = column[c - 1] ^ (column[c - 1] << 1);
@@ -89,32 +94,13 @@ constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalTables() {
     for (uint32_t v = 0; v < 256; ++v) {
       uint32_t x = 0;
       for (int k = 0; k < 8; ++k)
-        if (v & (1u << k)) x ^= column[8 * b + k];
+        if (v & (1u << k)) x ^= column[of_reversed_index ? 31 - (8 * b + k) : 8 * b + k];
       t[b][v] = x;
     }
   return t;
 }
-inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascal = MakePascalTables();
-
-// The same products indexed by the bytes of the *bit-reversed* index h = ReverseBits(i):
-// kPascalOfReversed[b][t] = XOR of the reversed columns 31 - (8b + k) for the set bits k of t.
-// Point2D gets its shuffled index bit-reversed from the hash; reading the Pascal product straight
-// from it takes the bit reversal off the y coordinate's latency chain (it only feeds x now).
-constexpr std::array<std::array<uint32_t, 256>, 4> MakePascalOfReversedTables() {
-  std::array<uint32_t, 32> column{};
-  column[0] = 1u;
-  for (int c = 1; c < 32; ++c) column[c] = column[c - 1] ^ (column[c - 1] << 1);
-  std::array<std::array<uint32_t, 256>, 4> t{};
-  for (int b = 0; b < 4; ++b)
-    for (uint32_t v = 0; v < 256; ++v) {
-      uint32_t x = 0;
-      for (int k = 0; k < 8; ++k)
-        if (v & (1u << k)) x ^= column[31 - (8 * b + k)];
-      t[b][v] = x;
-    }
-  return t;
-}
-inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascalOfReversed = MakePascalOfReversedTables();
+inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascal = MakePascalTables(false);
+inline constexpr std::array<std::array<uint32_t, 256>, 4> kPascalOfReversed = MakePascalTables(true);
 
 // Unscrambled Sobol dimensions 0 and 1 of index i, as 32-bit fractions.
 constexpr uint32_t VanDerCorput(uint32_t i) {
