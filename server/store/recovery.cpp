@@ -96,7 +96,10 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
   for (bool again = true; again;) {
     const uint64_t before = merged;
     merged += ReplayEntries(entries, job, merger);
-    const std::vector<TaskSpec> created = TasksCreatedFromResults(job, job.accumulator());
+    // Without a loaded accumulator nothing was merged, so nothing can follow from results; asking
+    // job.accumulator() would allocate the image of every resumed job (the accumulator is lazy).
+    const Accumulator* acc = job.accumulator_if_loaded();
+    const std::vector<TaskSpec> created = acc ? TasksCreatedFromResults(job, *acc) : std::vector<TaskSpec>{};
     job.AppendTasks(created);
     again = merged > before && !created.empty();
   }

@@ -2,6 +2,8 @@
 // 47 bytes per pixel, ~787 MB for 4096² — is allocated when its first result arrives and freed
 // once the finished job's image is in its checkpoint file, so queued and finished jobs cost
 // O(tasks), not O(pixels). Measured on the real coordinator process (VmRSS).
+#include <signal.h>
+
 #include <fstream>
 #include <sstream>
 
@@ -57,6 +59,26 @@ TEST_F(CoordinatorMemory, TenQueued4096SquaredJobsStayUnderTheBound) {
   const long rss = RssMiB(coordinator.process().pid());
   ASSERT_GT(rss, 0);
   EXPECT_LT(rss, kCoordinatorRssBoundMiB) << "coordinator RSS with 10 queued 4096² jobs: " << rss << " MiB";
+}
+
+// Recovery must not allocate either: a queued job resumed after a restart has nothing merged, so
+// no image to hold (the recovery of a dynamic plan asked for the accumulator to derive created
+// tasks and allocated 787 MB for this job).
+TEST_F(CoordinatorMemory, AResumedQueuedJobDoesNotAllocateItsImage) {
+  JobArgs job = PathJob();
+  job.res = 4096;
+  const RunResult r = Submit(job);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  coordinator.process().Signal(SIGKILL);
+  ASSERT_TRUE(coordinator.process().Wait(20).has_value());
+  CoordinatorProcess again(dir / "data", dir.path());
+  const RunResult list = RunCommand({Binaries::Pf(), "list", "--coordinator", again.address()}, dir.path());
+  ASSERT_EQ(list.exit_code, 0) << list.err;
+  EXPECT_NE(list.out.find(r.out.substr(0, r.out.find('\n'))), std::string::npos) << "the job was resumed";
+  const long rss = RssMiB(again.process().pid());
+  ASSERT_GT(rss, 0);
+  EXPECT_LT(rss, kCoordinatorRssBoundMiB)
+      << "coordinator RSS after resuming a queued 4096² job: " << rss << " MiB";
 }
 
 // A job that ran to the end: its accumulator is freed once the final checkpoint is written, and
