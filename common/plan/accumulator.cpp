@@ -131,23 +131,19 @@ double Accumulator::EstimatedNoiseRms() const {
 
 std::string Accumulator::Serialize() const {
   std::string out;
-  if (hierarchy_) {
-    ByteWriter w(out);
-    w.PutBytes(std::string_view(kHierarchicalMagic, sizeof(kHierarchicalMagic)));
-    w.Put<int32_t>(width_);
-    w.Put<int32_t>(height_);
-    w.Put<uint64_t>(samples_merged_);
-    w.Put<uint64_t>(tasks_merged_);
-    hierarchy_->SerializeTo(out);
-    return out;
-  }
-  out.reserve(sizeof(kMagic) + 24 + sums_.size() * 8 + samples_.size() * 24);
+  if (!hierarchy_) out.reserve(sizeof(kMagic) + 24 + sums_.size() * 8 + samples_.size() * 24);
   ByteWriter w(out);
-  w.PutBytes(std::string_view(kMagic, sizeof(kMagic)));
+  // One header for both layouts; the magic says which body follows.
+  w.PutBytes(hierarchy_ ? std::string_view(kHierarchicalMagic, sizeof(kHierarchicalMagic))
+                        : std::string_view(kMagic, sizeof(kMagic)));
   w.Put<int32_t>(width_);
   w.Put<int32_t>(height_);
   w.Put<uint64_t>(samples_merged_);
   w.Put<uint64_t>(tasks_merged_);
+  if (hierarchy_) {
+    hierarchy_->SerializeTo(out);
+    return out;
+  }
   w.PutArray<int64_t>(sums_);
   w.PutArray<uint32_t>(samples_);
   w.PutArray<uint32_t>(maps_);
