@@ -46,20 +46,23 @@ def main():
                 run([args.pf, "render", manifest, "--integrator", "photonmap", "--photons", str(n), "--k", str(k),
                      "--spp", str(args.spp), "--res", args.res, "--kd-split", "widest", "-q", "-o", str(exr), "--png", str(out / f"{stem}.png")])
                 wall = time.monotonic() - t0
-                diff = json.loads(run([args.pf, "diff", str(exr), reference, "--json",
+                diff = json.loads(run([args.pf, "diff", str(exr), reference, "--json", "--scene", manifest,
                                        "--error-image", str(out / f"{stem}-error.png")]).stdout)
                 rows.append({"scene": scene, "photons": n, "k": k, "spp": args.spp, "rmse": diff["rmse"],
-                             "rmse_clamped": diff["rmse_clamped"],
+                             "rmse_clamped": diff["rmse_clamped"], "rmse_masked": diff["rmse_masked"],
+                             "rmse_lowfreq": diff["rmse_lowfreq"],
                              "relative_mse": diff["relative_mse"], "mean": diff["mean"],
                              "reference_mean": diff["reference_mean"], "wall_seconds": wall})
                 exr.unlink()  # keep the PNGs, not the EXRs
-                print(f"{scene:15s} N={n:>8d} k={k:>4d}  RMSE [0,1] {diff['rmse_clamped']:.4f}  RMSE {diff['rmse']:.4f}  relMSE {diff['relative_mse']:.4f}"
+                print(f"{scene:15s} N={n:>8d} k={k:>4d}  RMSE [0,1] {diff['rmse_clamped']:.4f}  RMSE {diff['rmse']:.4f}"
+                      f"  masked {diff['rmse_masked']:.4f}  lowfreq {diff['rmse_lowfreq']:.4f}  relMSE {diff['relative_mse']:.4f}"
                       f"  mean {diff['mean']:.4f} (ref {diff['reference_mean']:.4f})  {wall:6.1f} s", flush=True)
     (out / "photon_map_rmse.json").write_text(json.dumps(rows, indent=2) + "\n")
-    lines = ["| scene | photons N | k | RMSE, display range [0,1] | RMSE | relative MSE | mean / reference mean | wall time (s) |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| scene | photons N | k | RMSE, display range [0,1] | RMSE | rmse_masked | rmse_lowfreq | relative MSE | mean / reference mean | wall time (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['scene']} | {r['photons']:,} | {r['k']} | {r['rmse_clamped']:.4f} | {r['rmse']:.4f} | {r['relative_mse']:.4f} | "
+        lines.append(f"| {r['scene']} | {r['photons']:,} | {r['k']} | {r['rmse_clamped']:.4f} | {r['rmse']:.4f} | "
+                     f"{r['rmse_masked']:.4f} | {r['rmse_lowfreq']:.4f} | {r['relative_mse']:.4f} | "
                      f"{r['mean']:.4f} / {r['reference_mean']:.4f} | {r['wall_seconds']:.1f} |")
     (out / "photon_map_rmse.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -5,6 +5,13 @@
 //
 //   build/bench/sampler_bench [--repeats 7] [--res 128] [--spp 8] [--integrator path|photonmap]
 //                             [--json out.json]     (--integrator: time only that one)
+//                             [--clock wall|cpu] [--profile-kind sobol|independent]
+//   --clock cpu times the renders by the process's CPU time (the renders are single-threaded):
+//   on a loaded machine it leaves out the waits for a core that wall time counts.
+//   --profile-kind renders with that sampler only (no ratio): run it under callgrind or perf to
+//   count what one sampler's samples cost, e.g.
+//   valgrind --tool=callgrind build/bench/sampler_bench --repeats 1 --res 32 --spp 8
+//       --integrator photonmap --profile-kind sobol     (one command line)
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -13,6 +20,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,7 +63,8 @@ double NsPerNumber(SamplerKind kind, bool two_d, uint32_t samples, uint32_t slot
   return s * 1e9 / (double(samples) * slots);
 }
 
-int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::string& json_path) {
+int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::string& json_path,
+        std::optional<SamplerKind> profile_kind, bool cpu_clock) {
   nlohmann::json out;
   float sink = 0;
   std::printf(
@@ -63,6 +72,7 @@ int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::
       repeats, sobol::kPixelSeedSlots);
   std::printf("%-12s %10s %10s\n", "sampler", "1-D ns", "2-D ns");
   for (SamplerKind kind : {SamplerKind::kIndependent, SamplerKind::kSobol}) {
+    if (profile_kind && kind != *profile_kind) continue;
     std::vector<double> one, two;
     for (int r = 0; r < repeats; ++r) {
       one.push_back(NsPerNumber(kind, false, 1 << 16, sobol::kPixelSeedSlots, &sink));
@@ -87,8 +97,8 @@ int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::
   const PhotonMaps maps = PhotonMaps::Build(scene.accel, scene.lights, mo);
   const PhotonMapIntegrator photonmap(scene.accel, &scene.lights, maps,
                                       settings.IntegratorOptions(scene.accel.bounds()));
-  std::printf("\nrenderer, Cornell box %dx%d, %u spp, 1 thread: microseconds per sample (median of %d)\n",
-              res, res, spp, repeats);
+  std::printf("\nrenderer, Cornell box %dx%d, %u spp, 1 thread: microseconds per sample (%s, median of %d)\n",
+              res, res, spp, cpu_clock ? "process CPU time" : "wall time", repeats);
   std::printf("%-10s %12s %12s %8s\n", "integrator", "independent", "sobol", "ratio");
   for (const Integrator* integrator :
        {static_cast<const Integrator*>(&path), static_cast<const Integrator*>(&photonmap)}) {
@@ -97,12 +107,16 @@ int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::
     for (int r = 0; r < repeats; ++r)
       for (int k = 0; k < 2; ++k) {
         const SamplerKind kind = k == 0 ? SamplerKind::kIndependent : SamplerKind::kSobol;
+        if (profile_kind && kind != *profile_kind) {
+          t[k].push_back(0.0);
+          continue;
+        }
         std::vector<Rgb> sums(pixels.size());
-        t[k].push_back(TimeIt([&] {
-                         RenderPixels(*integrator, camera, pixels, 0, spp, 1, 1, sums, nullptr, nullptr,
-                                      kind);
-                       }) *
-                       1e6 / (double(pixels.size()) * spp));
+        auto render = [&] {
+          RenderPixels(*integrator, camera, pixels, 0, spp, 1, 1, sums, nullptr, nullptr, kind);
+        };
+        t[k].push_back((cpu_clock ? bench::CpuTimeIt(render) : TimeIt(render)) * 1e6 /
+                       (double(pixels.size()) * spp));
       }
     const double ind = Median(t[0]), sob = Median(t[1]);
     std::printf("%-10s %12.3f %12.3f %8.3f\n", integrator->name(), ind, sob, sob / ind);
@@ -110,7 +124,11 @@ int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::
                                            {"us_per_sample_sobol", sob},
                                            {"ratio_sobol_over_independent", sob / ind}};
   }
-  out["config"] = {{"repeats", repeats}, {"res", res}, {"spp", spp}, {"sink", sink}};
+  out["config"] = {{"repeats", repeats},
+                   {"res", res},
+                   {"spp", spp},
+                   {"clock", cpu_clock ? "cpu" : "wall"},
+                   {"sink", sink}};
   std::printf("\n%s\n", out.dump(1).c_str());
   if (!json_path.empty()) std::ofstream(json_path) << out.dump(1) << "\n";
   return 0;
@@ -123,6 +141,8 @@ int main(int argc, char** argv) {
   int repeats = 7, res = 128;
   uint32_t spp = 8;
   std::string json, only;
+  std::optional<pf::SamplerKind> profile_kind;
+  bool cpu_clock = false;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i], v = argv[i + 1];
     if (k == "--repeats")
@@ -135,14 +155,19 @@ int main(int argc, char** argv) {
       json = v;
     else if (k == "--integrator")
       only = v;
+    else if (k == "--clock" && (v == "cpu" || v == "wall"))
+      cpu_clock = v == "cpu";
+    else if (k == "--profile-kind" && pf::ParseSamplerKind(v))
+      profile_kind = pf::ParseSamplerKind(v);
     else {
       std::fprintf(
           stderr,
-          "usage: %s [--repeats 7] [--res 128] [--spp 8] [--integrator path|photonmap] [--json out.json]\n",
+          "usage: %s [--repeats 7] [--res 128] [--spp 8] [--integrator path|photonmap] [--json out.json]\n"
+          "          [--clock wall|cpu] [--profile-kind sobol|independent]\n",
           argv[0]);
       return 2;
     }
   }
   spdlog::set_level(spdlog::level::warn);
-  return pf::Run(repeats, res, spp, only, json);
+  return pf::Run(repeats, res, spp, only, json, profile_kind, cpu_clock);
 }

@@ -9,6 +9,8 @@ the plot docs/results/sampler_convergence.png.
 
   bench/sampler_convergence.py                # run everything (1 thread), then report
   bench/sampler_convergence.py --report-only  # redo table and plot from the JSON
+  bench/sampler_convergence.py --only cornell-sphere --no-photons
+                                              # rerun one scene; keep the JSON's other lines
 
 RMSE against scenes/*/reference-256.exr has the reference's own noise in it; it is taken out in
 quadrature: rmse_true = sqrt(max(rmse^2 - noise^2, 0)). The reference noise per metric comes from
@@ -38,7 +40,14 @@ METRICS = ["rmse", "rmse_edge", "rmse_masked", "rmse_lowfreq"]
 def run(args):
     tool = os.path.join(ROOT, args.build, "bench", "sampler_convergence_bench")
     lines = []
+    if args.only:
+        # Keep what is not rerun: the other scenes' lines and (with --no-photons) the photon rows.
+        old = json.load(open(os.path.join(RESULTS, "sampler_convergence.json")))
+        lines = [l for l in old if not (l["mode"] == "progressive" and l["name"] in args.only) and
+                 not (l["mode"] != "progressive" and not args.no_photons)]
     for name, scene, ref in SCENES:
+        if args.only and name not in args.only:
+            continue
         max_spp = args.max_spp if name == "cornell-box" else args.sphere_max_spp
         for sampler in SAMPLERS:
             cmd = [tool, "--scene", scene, "--reference", ref, "--sampler", sampler, "--max-spp",
@@ -48,7 +57,7 @@ def run(args):
             lines += [dict(json.loads(l), name=name) for l in out.splitlines() if l.strip()]
             save(lines)
     name, scene, ref = SCENES[0]
-    for standalone in ["1"]:
+    for standalone in ([] if args.no_photons else ["1"]):
         for sampler in SAMPLERS:
             cmd = [tool, "--scene", scene, "--reference", ref, "--photon-sampler", sampler, "--photons",
                    str(args.photons), "--spp", str(args.photon_spp), "--maps", str(args.maps), "--standalone",
@@ -183,13 +192,16 @@ def main():
     p.add_argument("--build", default="build")
     p.add_argument("--max-spp", type=int, default=1024)
     p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--sphere-max-spp", type=int, default=256)
+    p.add_argument("--sphere-max-spp", type=int, default=1024)
     p.add_argument("--photons", type=int, default=50000)
     p.add_argument("--photon-spp", type=int, default=4)
     p.add_argument("--maps", type=int, default=3)
     p.add_argument("--fit-from", type=int, default=16)
     p.add_argument("--fit-to", type=int, default=1024)
     p.add_argument("--report-only", action="store_true")
+    p.add_argument("--only", nargs="+", choices=[s[0] for s in SCENES],
+                   help="run only these scenes' progressive renders; the JSON's other lines are kept")
+    p.add_argument("--no-photons", action="store_true", help="skip the photon-emission experiment")
     args = p.parse_args()
     if args.report_only:
         lines = json.load(open(os.path.join(RESULTS, "sampler_convergence.json")))

@@ -63,6 +63,19 @@ static_assert(sobol::kLaneOfSlot[SlotsOfVertex(0).light_select] < sobol::kEagerL
               sobol::kLaneOfSlot[SlotsOfVertex(1).bsdf_dir] < sobol::kEagerLanes &&
               sobol::kLaneOfSlot[SlotsOfVertex(1).roulette] < sobol::kEagerLanes);
 
+// The 2-D slots of the budget sit in lanes whose y coordinate the pixel stream computes (the others
+// would take the slower per-request path).
+constexpr bool TwoDimensionalSlotsHaveY() {
+  if (!sobol::LaneHasY(sobol::kLaneOfSlot[kPixelSlot])) return false;
+  for (int d = 0; d < kPathVertexBudget; ++d) {
+    const PathVertexSlots v = SlotsOfVertex(d);
+    for (uint32_t slot : {v.light_point, v.light_extra, v.gather_dir, v.bsdf_dir})
+      if (!sobol::LaneHasY(sobol::kLaneOfSlot[slot])) return false;
+  }
+  return true;
+}
+static_assert(TwoDimensionalSlotsHaveY());
+
 inline constexpr uint32_t kPhotonLightSlot = 0, kPhotonPointSlot = 1, kPhotonDirectionSlot = 2;
 inline constexpr int kPhotonBounceBudget = 8;
 

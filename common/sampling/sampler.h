@@ -181,16 +181,22 @@ struct SlotSeedLanes {
 // 7, 8: light triangle and point, BSDF lobe and direction, roulette); the other lanes (light
 // stratum, PhotonDirect's extra light sample, gather lobe and direction: only the photon-map
 // integrator's estimators ask them) are computed on a sample's first request of one of them.
-// Lane 19 is padding (slot 19 is past the precomputed ones and never read from a lane).
-inline constexpr uint32_t kEagerLanes = 12;
-inline constexpr std::array<uint32_t, kPixelSlotLanes> kSlotOfLane = {0,  2, 3, 7, 8, 9,  11, 12, 16, 17,
-                                                                      18, 1, 4, 5, 6, 10, 13, 14, 15, 19};
+// Within each group the 2-D slots come first (lanes [0, kEager2D) and [kEagerLanes, kLazy2D)):
+// only they need the Pascal product and the y coordinate. Lane 19 is padding (slot 19 is past
+// the precomputed ones and never read from a lane).
+inline constexpr uint32_t kEagerLanes = 12, kEager2D = 5, kLazy2D = kEagerLanes + 4;
+inline constexpr std::array<uint32_t, kPixelSlotLanes> kSlotOfLane = {0,  3, 8, 12, 17, 2,  7, 9,  11, 16,
+                                                                      18, 1, 4, 6,  13, 15, 5, 10, 14, 19};
 constexpr std::array<uint32_t, kPixelSlotLanes> MakeLaneOfSlot() {
   std::array<uint32_t, kPixelSlotLanes> lane{};
   for (uint32_t k = 0; k < kPixelSlotLanes; ++k) lane[kSlotOfLane[k]] = k;
   return lane;
 }
 inline constexpr std::array<uint32_t, kPixelSlotLanes> kLaneOfSlot = MakeLaneOfSlot();
+// Whether a lane's y coordinate is computed (a 1-D slot asked as 2-D takes the per-request path).
+constexpr bool LaneHasY(uint32_t lane) {
+  return lane < kEager2D || (lane >= kEagerLanes && lane < kLazy2D);
+}
 
 // Point2D of every precomputed slot at once, as floats: exactly the values Point2D gives (a 1-D
 // slot's number is the x coordinate, exactly Point1D). One pass over independent slots instead
@@ -199,8 +205,8 @@ inline constexpr std::array<uint32_t, kPixelSlotLanes> kLaneOfSlot = MakeLaneOfS
 // sample pays a fraction of the latency it paid asking slot by slot, even though slots the
 // integrator never asks (another integrator's, or a path's second vertex after it ended) are
 // computed too.
-// Lanes [First, Last) only (see kSlotOfLane).
-template <uint32_t First, uint32_t Last>
+// Lanes [First, Last) only (see kSlotOfLane); v only for the 2-D lanes [First, Last2D).
+template <uint32_t First, uint32_t Last, uint32_t Last2D>
 inline void PointsOfSlots(uint32_t reversed_index, const SlotSeedLanes& s, float* u, float* v) {
   alignas(16) std::array<uint32_t, kPixelSlotLanes> h, j, pascal_reversed;
   for (uint32_t k = First; k < Last; ++k) {
@@ -208,13 +214,22 @@ inline void PointsOfSlots(uint32_t reversed_index, const SlotSeedLanes& s, float
     j[k] = ReverseBits(h[k]);
   }
   for (uint32_t k = First; k < Last; ++k)
+    u[k] = ToFloat(ReverseBits(NestedHash(j[k], s.x[k]) ^ s.shift_x[k]));
+  for (uint32_t k = First; k < Last2D; ++k)
     pascal_reversed[k] = kPascalOfReversed[0][h[k] & 255] ^ kPascalOfReversed[1][(h[k] >> 8) & 255] ^
                          kPascalOfReversed[2][(h[k] >> 16) & 255] ^ kPascalOfReversed[3][h[k] >> 24];
-  for (uint32_t k = First; k < Last; ++k) {
-    u[k] = ToFloat(ReverseBits(NestedHash(j[k], s.x[k]) ^ s.shift_x[k]));
+  for (uint32_t k = First; k < Last2D; ++k)
     v[k] = ToFloat(ReverseBits(NestedHash(pascal_reversed[k], s.y[k]) ^ s.shift_y[k]));
-  }
 }
+
+// The points of numbers j = 0 .. subs−1 of sample `index` in one slot (sequence indices
+// index·subs + j), as floats: exactly Point2D's values (u alone, Point1D's, when v is null).
+// 2 <= subs <= kMaxSubIndices, index·subs + subs − 1 < 2^32. For a power-of-two subs the
+// reversed index of number j is ReverseBits(index) >> log2(subs) | ReverseBits(j), which takes
+// one of the three bit reversals off every number. Compiled twice (sampler.cpp): for the build's
+// baseline (4 lanes) and for AVX2 (8 lanes), chosen at load time by the CPU.
+inline constexpr uint32_t kMaxSubIndices = 32;
+void PointsOfSubIndices(uint32_t index, uint32_t subs, const SlotSeeds2& s, float* u, float* v);
 
 }  // namespace sobol
 
@@ -261,8 +276,8 @@ class Sampler {
     s.seeds_ = pixel.seeds_.data();
     if (s.kind_ == SamplerKind::kSobol) {
       s.lanes_ = &pixel.lanes_;
-      sobol::PointsOfSlots<0, sobol::kEagerLanes>(s.reversed_index_, pixel.lanes_, s.slot_u_.data(),
-                                                  s.slot_v_.data());
+      sobol::PointsOfSlots<0, sobol::kEagerLanes, sobol::kEager2D>(s.reversed_index_, pixel.lanes_,
+                                                                   s.slot_u_.data(), s.slot_v_.data());
     }
     return s;
   }
@@ -274,29 +289,34 @@ class Sampler {
   }
 
   // Number j of `subs` in slot `slot` (see the header comment), uniform in [0, 1).
+  // The independent kind and the fallback slots take the first branch's test only.
   float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
-    if (lanes_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0) return slot_u_[Lane(slot)];
-    uint32_t reversed;
-    if (!LowDiscrepancy(slot, j, subs, &reversed)) return rng().Uniform();
-    if (seeds_ && slot < sobol::kPixelSeedSlots) {
-      const sobol::SlotSeeds2& t = seeds_[slot];
-      return sobol::ToFloat(sobol::Point1D(reversed, {t.shuffle, t.x, t.shift_x}));
+    if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
+      if (subs == 1) {
+        if (lanes_ && slot < sobol::kPixelSeedSlots) return slot_u_[Lane(slot)];
+        return sobol::ToFloat(sobol::Point1D(reversed_index_, SeedsOf1(slot)));
+      }
+      if (const SubBatch* b = Batch(slot, subs, false)) return b->u[j];
+      if (const std::optional<uint32_t> reversed = ReversedSubIndex(j, subs))
+        return sobol::ToFloat(sobol::Point1D(*reversed, SeedsOf1(slot)));
     }
-    return sobol::ToFloat(sobol::Point1D(reversed, sobol::Seeds1Of(key_, slot)));
+    return rng().Uniform();
   }
   Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
-    if (lanes_ && slot < sobol::kPixelSeedSlots && subs == 1 && j == 0) {
-      const uint32_t lane = Lane(slot);
-      return {slot_u_[lane], slot_v_[lane]};
+    if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
+      if (subs == 1) {
+        if (lanes_ && slot < sobol::kPixelSeedSlots && sobol::LaneHasY(sobol::kLaneOfSlot[slot])) {
+          const uint32_t lane = Lane(slot);
+          return {slot_u_[lane], slot_v_[lane]};
+        }
+        return ToSample(sobol::Point2D(reversed_index_, SeedsOf2(slot)));
+      }
+      if (const SubBatch* b = Batch(slot, subs, true)) return {b->u[j], b->v[j]};
+      if (const std::optional<uint32_t> reversed = ReversedSubIndex(j, subs))
+        return ToSample(sobol::Point2D(*reversed, SeedsOf2(slot)));
     }
-    uint32_t reversed;
-    if (!LowDiscrepancy(slot, j, subs, &reversed)) {
-      const float u = rng().Uniform();
-      return {u, rng().Uniform()};
-    }
-    const sobol::Point2 p = sobol::Point2D(
-        reversed, seeds_ && slot < sobol::kPixelSeedSlots ? seeds_[slot] : sobol::Seeds2Of(key_, slot));
-    return {sobol::ToFloat(p.x), sobol::ToFloat(p.y)};
+    const float u = rng().Uniform();
+    return {u, rng().Uniform()};
   }
   // The independent stream, for choices outside the layout (e.g. an exact UniformInt). Seeded on
   // first use: a Sobol sample whose slots are all within the budget never pays for it.
@@ -323,25 +343,55 @@ class Sampler {
   uint32_t Lane(uint32_t slot) {
     const uint32_t lane = sobol::kLaneOfSlot[slot];
     if (lane >= sobol::kEagerLanes && !lazy_lanes_ready_) {
-      sobol::PointsOfSlots<sobol::kEagerLanes, sobol::kPixelSlotLanes>(reversed_index_, *lanes_,
-                                                                       slot_u_.data(), slot_v_.data());
+      sobol::PointsOfSlots<sobol::kEagerLanes, sobol::kPixelSlotLanes, sobol::kLazy2D>(
+          reversed_index_, *lanes_, slot_u_.data(), slot_v_.data());
       lazy_lanes_ready_ = true;
     }
     return lane;
   }
 
-  // The bit-reversed sequence index of number j of `subs`, if it has a low-discrepancy value.
-  bool LowDiscrepancy(uint32_t slot, uint32_t j, uint32_t subs, uint32_t* reversed) const {
-    if (kind_ != SamplerKind::kSobol || slot == kIndependentSlot || j >= subs) return false;
-    if (subs == 1) {
-      *reversed = reversed_index_;
-      return true;
-    }
-    const uint64_t i = uint64_t(index_) * subs + j;
-    if (i >> 32) return false;
-    *reversed = sobol::ReverseBits(uint32_t(i));
-    return true;
+  // Sub-indexed numbers (N shadow rays, N_lp gather rays: Get*D(slot, j, subs) with 1 < subs <=
+  // kMaxBatch) are computed for all j < subs of a slot in one pass on the first request and read
+  // from here after: the same values as the per-request path (Point1D / Point2D at index
+  // index·subs + j), but the chains of the N numbers run side by side as vector code instead of
+  // one after the other. Direct-mapped by slot: the slots one vertex asks with sub-indices (light
+  // stratum, triangle, point; gather lobe, direction: sample_layout.h offsets 0, 1, 2, 4, 5 of
+  // 9) fall into different entries; a conflict only recomputes.
+  static constexpr uint32_t kMaxBatch = sobol::kMaxSubIndices, kBatches = 8;
+  struct SubBatch {
+    uint32_t slot = kIndependentSlot, subs = 0;
+    bool two_d = false;
+    std::array<float, kMaxBatch> u, v;
+  };
+  // Sobol kind, slot within the layout, 2 <= subs, j < subs (the caller checked).
+  const SubBatch* Batch(uint32_t slot, uint32_t subs, bool two_d) {
+    if (subs > kMaxBatch || (uint64_t(index_) * subs + subs - 1) >> 32) return nullptr;
+    SubBatch& b = batches_[slot % kBatches];
+    if (b.slot == slot && b.subs == subs && (b.two_d || !two_d)) return &b;
+    sobol::PointsOfSubIndices(index_, subs, SeedsOf2(slot), b.u.data(), two_d ? b.v.data() : nullptr);
+    b.slot = slot;
+    b.subs = subs;
+    b.two_d = two_d;
+    return &b;
   }
+
+  // The bit-reversed sequence index of number j < subs (index·subs + j), if below 2^32.
+  std::optional<uint32_t> ReversedSubIndex(uint32_t j, uint32_t subs) const {
+    const uint64_t i = uint64_t(index_) * subs + j;
+    if (i >> 32) return std::nullopt;
+    return sobol::ReverseBits(uint32_t(i));
+  }
+  sobol::SlotSeeds2 SeedsOf2(uint32_t slot) const {
+    return seeds_ && slot < sobol::kPixelSeedSlots ? seeds_[slot] : sobol::Seeds2Of(key_, slot);
+  }
+  sobol::SlotSeeds1 SeedsOf1(uint32_t slot) const {
+    if (seeds_ && slot < sobol::kPixelSeedSlots) {
+      const sobol::SlotSeeds2& t = seeds_[slot];
+      return {t.shuffle, t.x, t.shift_x};
+    }
+    return sobol::Seeds1Of(key_, slot);
+  }
+  static Sample2 ToSample(sobol::Point2 p) { return {sobol::ToFloat(p.x), sobol::ToFloat(p.y)}; }
 
   SamplerKind kind_;
   bool rng_ready_ = false;
@@ -349,10 +399,11 @@ class Sampler {
   uint64_t key_, rng_key_;
   const sobol::SlotSeeds2* seeds_ = nullptr;  // a PixelStream's seeds of the first kPixelSeedSlots slots
   // Set for a pixel sample of the Sobol kind: slot_u_/slot_v_ hold the points of the lanes
-  // [0, kEagerLanes) and, once lazy_lanes_ready_, of the others (by sobol::kLaneOfSlot).
+  // [0, kEagerLanes) and, once computed, of the lazy groups (by sobol::kLaneOfSlot).
   const sobol::SlotSeedLanes* lanes_ = nullptr;
   bool lazy_lanes_ready_ = false;
   std::array<float, sobol::kPixelSlotLanes> slot_u_, slot_v_;
+  std::array<SubBatch, kBatches> batches_;
   Rng rng_;
 };
 

@@ -83,6 +83,35 @@ TEST(SobolSampler, SubIndicesOfOneSampleAreANetAndSoAreAllSamplesTogether) {
   EXPECT_TRUE(IsNet(all, 10));
 }
 
+TEST(SobolSampler, SubIndexedNumbersComputedAsABatchEqualThePerRequestOnes) {
+  // Number j of N of sample i sits at index N·i + j of the slot's sequence, and the pixel stream's
+  // key does not depend on the sample: it must equal the single number of sample N·i + j. The
+  // sampler computes a slot's N numbers in one pass on the first request (Sampler::Batch); asked
+  // in any order, interleaved with other slots, as 1-D or 2-D, from a PixelStream or not, N up
+  // to and past the batch size (33: the per-request path), the values must not change.
+  for (uint32_t n : {2u, 3u, 16u, 32u, 33u})
+    for (uint32_t i : {0u, 1u, 5u, 1000u}) {
+      const PixelStream stream(SamplerKind::kSobol, 3, 5);
+      Sampler a = Sampler::ForPixelSample(SamplerKind::kSobol, 3, 5, i);
+      Sampler b = Sampler::ForPixelSample(stream, i);
+      for (uint32_t slot : {SlotsOfVertex(0).light_point, SlotsOfVertex(1).gather_dir, 25u})
+        for (uint32_t k = 0; k < n; ++k) {
+          const uint32_t j = (k * 7 + 3) % n;  // a scrambled order (a permutation when 7 ∤ n)
+          const Sample2 expected = Sampler::ForPixelSample(SamplerKind::kSobol, 3, 5, n * i + j).Get2D(slot);
+          const Sample2 pa = a.Get2D(slot, j, n);
+          const float ua = a.Get1D(SlotsOfVertex(0).light_stratum, j, n);  // another slot in between
+          const Sample2 pb = b.Get2D(slot, j, n);
+          ASSERT_EQ(pa.u, expected.u) << n << " " << i << " " << slot << " " << j;
+          ASSERT_EQ(pa.v, expected.v) << n << " " << i << " " << slot << " " << j;
+          ASSERT_EQ(pb.u, expected.u) << n << " " << i << " " << slot << " " << j;
+          ASSERT_EQ(pb.v, expected.v) << n << " " << i << " " << slot << " " << j;
+          ASSERT_EQ(b.Get1D(slot, j, n), expected.u) << n << " " << i << " " << slot << " " << j;
+          ASSERT_EQ(ua, Sampler::ForPixelSample(SamplerKind::kSobol, 3, 5, n * i + j)
+                            .Get1D(SlotsOfVertex(0).light_stratum));
+        }
+    }
+}
+
 TEST(SobolSampler, OneDimensionalSlotsAreStratified) {
   for (int m = 0; m <= 12; ++m) {
     std::vector<float> v;
