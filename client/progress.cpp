@@ -61,7 +61,7 @@ FarmProgress::FarmProgress(bool enabled) : enabled_(enabled), tty_(isatty(fileno
 
 void FarmProgress::Update(const photonfarm::v1::JobStatus& s) {
   if (!enabled_) return;
-  const double frac = s.tasks_total() ? double(s.tasks_done()) / double(s.tasks_total()) : 0.0;
+  const double frac = std::clamp(s.progress(), 0.0, 1.0);  // of the work (docs/farm.md, "ETA")
   const std::string noise =
       s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-";
   const std::string eta = s.eta_seconds() >= 0 ? FormatDuration(s.eta_seconds()) : "?";

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 
 #include "common/core/error.h"
@@ -254,24 +255,95 @@ uint64_t CountHierarchicalStaticTasks(const PlanSpec& plan, int width, int heigh
 std::vector<TaskSpec> HierarchicalTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed,
                                         const HierarchicalAssembly& merged) {
   std::vector<TaskSpec> tasks = HierarchicalStaticTasks(plan, width, height, job_seed);
+  for (uint32_t l = 1; l <= plan.levels; ++l)
+    if (!merged.LevelComplete(l)) return tasks;
+  // Every level is complete: the localized points of all levels, resampled map by map. One task
+  // per (level-0 map j, band) holding every level's localized points of the band, so each of the
+  // n0 maps is built once for all of them (per level, it was n0 builds per level with localized
+  // points: 1024 of a job's 1383 maps in docs/results/hierarchical-equal-time.md). A pixel's
+  // samples and the merged sums are the same either way: the image does not change.
+  std::vector<uint32_t> localized;
+  for (uint32_t l = 1; l <= plan.levels; ++l) {
+    const std::vector<uint32_t> at = merged.Localized(l);
+    localized.insert(localized.end(), at.begin(), at.end());
+  }
+  if (localized.empty()) return tasks;
+  std::sort(localized.begin(), localized.end());
   const HierarchySchedule s = MakeHierarchySchedule(plan);
   const auto bands = Bands(plan, height);
-  for (uint32_t l = 1; l <= plan.levels && merged.LevelComplete(l); ++l) {
-    const std::vector<uint32_t> localized = merged.Localized(l);
-    if (localized.empty()) continue;
-    // Resampled directly with the level-0 maps 0..n0−1: no pixel of level ≥ 1 ever used them.
-    for (uint32_t j = 0; j < s.samples[0]; ++j)
-      for (const auto& [y0, y1] : bands) {
-        const auto lo = std::lower_bound(localized.begin(), localized.end(), y0 * uint32_t(width));
-        const auto hi = std::lower_bound(localized.begin(), localized.end(), y1 * uint32_t(width));
-        if (lo == hi) continue;
-        TaskSpec t = MakeTask(tasks.size(), l, s.map_offset[0] + j, job_seed, plan);
-        t.pixels.kind = PixelSubset::Kind::kList;
-        t.pixels.list.assign(lo, hi);
-        tasks.push_back(std::move(t));
-      }
-  }
+  // Resampled directly with the level-0 maps 0..n0−1: no pixel of level ≥ 1 ever used them.
+  for (uint32_t j = 0; j < s.samples[0]; ++j)
+    for (const auto& [y0, y1] : bands) {
+      const auto lo = std::lower_bound(localized.begin(), localized.end(), y0 * uint32_t(width));
+      const auto hi = std::lower_bound(localized.begin(), localized.end(), y1 * uint32_t(width));
+      if (lo == hi) continue;
+      TaskSpec t = MakeTask(tasks.size(), plan.levels + 1, s.map_offset[0] + j, job_seed, plan);
+      t.pixels.kind = PixelSubset::Kind::kList;
+      t.pixels.list.assign(lo, hi);
+      tasks.push_back(std::move(t));
+    }
   return tasks;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Work (progress and ETA)
+
+uint64_t MapWork(uint64_t photons_per_map) {
+  return uint64_t(std::llround(kMapWorkPerPhoton * double(photons_per_map)));
+}
+
+std::vector<uint64_t> HierarchicalTaskWork(const PlanSpec& plan, int width, int height,
+                                           uint64_t photons_per_map, std::span<const TaskSpec> tasks) {
+  const Hierarchy h(width, height, plan.levels, plan.dims);
+  const uint64_t map = MapWork(photons_per_map);
+  // Every map of a level renders the same band pixels: count them once per (level, band).
+  std::map<std::array<uint32_t, 3>, uint64_t> band_pixels;
+  std::vector<uint64_t> work;
+  work.reserve(tasks.size());
+  for (const TaskSpec& t : tasks) {
+    uint64_t pixels = 0;
+    if (t.pixels.kind == PixelSubset::Kind::kHierarchyLevel) {
+      const std::array<uint32_t, 3> key{t.pixels.level, t.pixels.y0, t.pixels.y1};
+      auto it = band_pixels.find(key);
+      if (it == band_pixels.end())
+        it = band_pixels.emplace(key, h.TaskPixels(t.pixels.level, t.pixels.y0, t.pixels.y1).size()).first;
+      pixels = it->second;
+    } else {
+      pixels = CountPixels(t.pixels, width, height);
+    }
+    work.push_back(pixels * (t.sample_end - t.sample_begin) + map);
+  }
+  return work;
+}
+
+uint64_t ExpectedLocalizationWork(const PlanSpec& plan, int width, int height, uint64_t photons_per_map,
+                                  const HierarchicalAssembly* merged) {
+  const Hierarchy h(width, height, plan.levels, plan.dims);
+  const double g = plan.dims == 1 ? 1.5 : 3.0;
+  std::vector<double> points(plan.levels + 1, 0), count(plan.levels + 1, -1);
+  for (uint32_t l = 1; l <= plan.levels; ++l) {
+    points[l] = double(h.PointsOf(l, 0, uint32_t(height)).size());
+    if (merged && merged->LevelComplete(l)) count[l] = double(merged->Localized(l).size());
+  }
+  double known = 0, weight = 0;
+  for (uint32_t l = 1; l <= plan.levels; ++l)
+    if (count[l] >= 0) {
+      known += count[l];
+      weight += std::pow(g, l);
+    }
+  // Before any level is complete: as if every level-1 point were localized (the most it can show;
+  // measured 20-96 %). After: the fit, but at least one localized level-1 point's worth (a level
+  // without localized points says little about the finer ones: a thin feature falls between them).
+  const double a = weight > 0 ? std::max(1.0 / g, known / weight) : points[1] / g;
+  double localized = 0;
+  for (uint32_t l = 1; l <= plan.levels; ++l)
+    localized += count[l] >= 0 ? count[l] : std::min(points[l], a * std::pow(g, l));
+  const HierarchySchedule s = MakeHierarchySchedule(plan);
+  const double bands = double(Bands(plan, height).size());
+  // n0 tasks per band with localized points, each its pixels' samples and a map.
+  return uint64_t(std::llround(double(s.samples[0]) *
+                               (localized * plan.samples_per_pixel +
+                                std::min(bands, std::ceil(localized)) * double(MapWork(photons_per_map)))));
 }
 
 // ---------------------------------------------------------------------------------------------

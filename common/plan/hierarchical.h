@@ -35,8 +35,10 @@
 // localized pixel discards the interpolation: it is resampled directly with n0 samples from maps
 // 0..n0−1 (the level-0 maps, never used at that pixel before), and F(p) is their mean. Both
 // quantities are computed from the fixed-point sums, so the decision is the same for any merge
-// order, and the localization tasks of level l (ids after the static tasks, level by level) are
-// a pure function of the plan and the merged results (HierarchicalTasks).
+// order, and the localization tasks (ids after the static tasks; created once every level is
+// complete, one per level-0 map and band for the localized points of all levels, so each of those
+// maps is built once more, not once per level) are a pure function of the plan and the merged
+// results (HierarchicalTasks).
 //
 // Assembly. Direct sums, detail sums and interpolation sums are kept in 64-bit fixed point
 // (2^-32), so merging is exact, order-independent, and idempotent per task (a task id merged
@@ -156,11 +158,36 @@ class HierarchicalAssembly {
   LevelDetail DetailsOf(uint32_t level) const;
 };
 
-// Every task the plan has, given what is merged: the static tasks (ExpandPlan) and, for each
-// level l = 1, 2, … while levels 1..l are complete, level l's localization tasks. Ids are the
-// index in the result; a prefix of a later answer is always the earlier answer.
+// Every task the plan has, given what is merged: the static tasks (ExpandPlan) and, once every
+// level is complete, the localization tasks: per level-0 map j and row band, the band's localized
+// points of all levels (round = levels + 1). Ids are the index in the result; a prefix of a later
+// answer is always the earlier answer.
 std::vector<TaskSpec> HierarchicalTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed,
                                         const HierarchicalAssembly& merged);
+
+// Progress and ETA (docs/farm.md, "ETA"). This plan's tasks differ in cost by orders of magnitude
+// (a level-0 task renders a few points, a last-level task most of the image, a localization task a
+// list of pixels), and its localization tasks exist only once every level is complete, so the
+// coordinator counts *work*, not tasks. The work of a task is its pixel samples plus the cost of
+// its photon map in pixel samples: kMapWorkPerPhoton per photon (measured: a 10k-photon map costs
+// about what 1000-3000 pixel samples cost, Cornell box with Monte Carlo direct light; the ETA
+// test checks the estimate with a map cost 2.5x off). 0 photons = no map (the path integrator).
+inline constexpr double kMapWorkPerPhoton = 0.2;
+uint64_t MapWork(uint64_t photons_per_map);
+// The work of each task (in order).
+std::vector<uint64_t> HierarchicalTaskWork(const PlanSpec& plan, int width, int height,
+                                           uint64_t photons_per_map, std::span<const TaskSpec> tasks);
+// The expected work of the localization tasks, before they exist (HierarchicalTasks creates them
+// once every level is complete). Localized points of a complete level are known (Localized); those
+// of level l not yet complete are extrapolated as A·g^l, g = 1.5 in 1-D and 3 in 2-D: a
+// discontinuity meets 2^(dims−1) times more points at each finer level, and the counts measured on
+// the Cornell box (129², levels 1..7) grow by 1.1-1.5× (1-D) and 2.3-3× (2-D) per level, so g is
+// their upper end (an estimate that errs high is revised down, and the progress jumps forward
+// rather than back); A is fitted to the complete levels' counts (Σ count / Σ g^l, at least 1/g),
+// or, before level 1 is complete, as if every level-1 point were localized. Each level's estimate
+// is capped at its number of points. `merged` may be null (nothing merged yet).
+uint64_t ExpectedLocalizationWork(const PlanSpec& plan, int width, int height, uint64_t photons_per_map,
+                                  const HierarchicalAssembly* merged);
 
 // The static tasks (part of ExpandPlan).
 std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed);

@@ -2,6 +2,8 @@
 
 #include "common/plan/hierarchical.h"
 
+#include <spdlog/spdlog.h>
+
 #include <chrono>
 #include <stdexcept>
 
@@ -216,6 +218,15 @@ Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
       }
       done = tasks.size();
     }
+    std::string per_level;
+    uint64_t localized = 0;
+    for (uint32_t l = 1; l <= plan.levels; ++l) {
+      const size_t n = assembly.Localized(l).size();
+      localized += n;
+      if (l > 1) per_level += ',';
+      per_level += std::to_string(n);
+    }
+    spdlog::info("hierarchical: {} points localized (levels 1..{}: {})", localized, plan.levels, per_level);
     return assembly.Resolve();
   }
   Accumulator acc(camera.width, camera.height);

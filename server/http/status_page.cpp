@@ -85,7 +85,7 @@ nlohmann::json JobJson(const v1::JobStatus& s) {
             {"running", s.tasks_running()},
             {"queued", s.tasks_queued()},
             {"cancelled", s.tasks_cancelled()}}},
-          {"progress", s.tasks_total() ? double(s.tasks_done()) / double(s.tasks_total()) : 0.0},
+          {"progress", s.progress()},
           {"elapsed_seconds", s.elapsed_seconds()},
           {"eta_seconds", s.eta_seconds()},
           {"estimated_noise_rms", s.estimated_noise_rms()},
@@ -157,7 +157,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
         "th>"
         "<th>queued</th><th>cancelled</th><th>elapsed</th><th>ETA</th><th>noise</th></tr>\n";
     for (const v1::JobStatus& s : jobs) {
-      const double frac = s.tasks_total() ? double(s.tasks_done()) / double(s.tasks_total()) : 0.0;
+      const double frac = s.progress();
       html += fmt::format(
           "<tr><td>{}</td><td>{}</td><td>{}{}</td><td><span class=\"bar\"><span "
           "style=\"width:{:.0f}%\"></span></span> "

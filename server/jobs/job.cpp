@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "common/plan/hierarchical.h"
+
 namespace pf::server {
 
 Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, std::vector<TaskSpec> tasks,
@@ -14,6 +16,20 @@ Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, 
       submitted_unix_ms_(submitted_unix_ms) {
   counts_[size_t(TaskState::kQueued)] = tasks_.size();
   for (const TaskSpec& t : tasks_) CountIntoGroup(t);
+  AddWork(tasks_);
+}
+
+void Job::AddWork(const std::vector<TaskSpec>& tasks) {
+  const JobConfig& c = *config_;
+  if (c.plan.kind != PlanKind::kHierarchical) {
+    work_[size_t(TaskState::kQueued)] += tasks.size();
+    return;
+  }
+  const uint64_t photons = c.settings.integrator == IntegratorKind::kPhotonMap ? c.settings.photons : 0;
+  for (uint64_t w : HierarchicalTaskWork(c.plan, c.camera.width, c.camera.height, photons, tasks)) {
+    task_work_.push_back(w);
+    work_[size_t(TaskState::kQueued)] += w;
+  }
 }
 
 void Job::CountIntoGroup(const TaskSpec& t) {
@@ -38,6 +54,7 @@ void Job::AppendTasks(const std::vector<TaskSpec>& tasks) {
     dirty_tasks.insert(t.task_id);
     CountIntoGroup(t);
   }
+  AddWork(tasks);
 }
 
 Accumulator& Job::accumulator() {
@@ -100,6 +117,8 @@ void Job::SetTaskState(uint64_t id, TaskState next) {
   TaskRuntime& rt = runtime_.at(id);
   --counts_[size_t(rt.state)];
   ++counts_[size_t(next)];
+  work_[size_t(rt.state)] -= task_work(id);
+  work_[size_t(next)] += task_work(id);
   rt.state = next;
   if (next != TaskState::kLeased) {
     rt.lease_id.clear();

@@ -75,6 +75,10 @@ class Job {
   // Task state changes keep the counters right; every call marks the task dirty (persist).
   void SetTaskState(uint64_t id, TaskState next);
   uint64_t count(TaskState s) const { return counts_[size_t(s)]; }
+  // Work, for progress and the ETA: 1 per task, except for the hierarchical plan, whose tasks
+  // differ in cost by orders of magnitude: pixel samples plus its map (HierarchicalTaskWork).
+  uint64_t task_work(uint64_t id) const { return task_work_.empty() ? 1 : task_work_.at(id); }
+  uint64_t work(TaskState s) const { return work_[size_t(s)]; }
 
   // Merge bookkeeping (the accumulator itself is changed by assembly/). accumulator() allocates
   // an empty one if there is none (call it only to merge into it).
@@ -99,6 +103,9 @@ class Job {
 
   // ETA from recent throughput (Scheduler: RecordCompletion on every merge of a live result).
   EtaEstimator eta;
+  // The largest progress shown so far (JobStatus.progress never goes backwards when an estimate
+  // of work still to be created is revised up; the ETA uses the current estimate).
+  double progress_shown = 0;
 
   // Stop rules.
   bool stopping = false;                    // time budget reached: nothing new is scheduled
@@ -137,6 +144,9 @@ class Job {
   JobState state_ = JobState::kQueued;
   std::string failure_reason_;
   uint64_t counts_[5] = {0, 0, 0, 0, 0};
+  std::vector<uint64_t> task_work_;  // empty: 1 per task
+  uint64_t work_[5] = {0, 0, 0, 0, 0};
+  void AddWork(const std::vector<TaskSpec>& tasks);
   uint64_t merge_seq_ = 0;
   // Coverage: per group (round for skipping, map index otherwise) tasks still unmerged.
   std::vector<uint64_t> group_remaining_;

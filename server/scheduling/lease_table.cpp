@@ -28,7 +28,8 @@ std::vector<std::string> LeaseTable::Expired(double now) const {
 double LeaseTable::ProgressOf(const Job& job) const {
   double sum = 0;
   for (const auto& [id, e] : leases_)
-    if (e.job == &job) sum += std::clamp(job.runtime(e.task_id).progress, 0.0, 1.0);
+    if (e.job == &job)
+      sum += std::clamp(job.runtime(e.task_id).progress, 0.0, 1.0) * double(job.task_work(e.task_id));
   return sum;
 }
 

@@ -30,7 +30,7 @@ class LeaseTable {
 
   // Lease ids whose deadline is ≤ now.
   std::vector<std::string> Expired(double now) const;
-  // Σ reported progress (0..1) of the job's leased tasks (for the ETA).
+  // Σ reported progress (0..1) × work (Job::task_work) of the job's leased tasks (for the ETA).
   double ProgressOf(const Job& job) const;
 
  private:

@@ -222,18 +222,32 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
       job.SetNoise(acc->EstimatedNoiseRms(), now);
   }
   s.set_estimated_noise_rms(job.noise_cache);
+  // Progress and ETA count work (Job::task_work: tasks, or the hierarchical plan's pixel samples and
+  // maps), including what the plan's task source expects to create (its localization tasks).
+  const auto source = sources_.find(&job);
+  const double work_to_create = job.active() && !job.stopping && source != sources_.end()
+                                    ? double(source->second->WorkToCreate(job))
+                                    : 0.0;
+  const double work_done = double(job.work(TaskState::kDone));
+  const double work_total =
+      double(job.work(TaskState::kDone) + job.work(TaskState::kLeased) + job.work(TaskState::kQueued)) +
+      (job.active() ? 0.0 : double(job.work(TaskState::kCancelled))) + work_to_create;
+  job.progress_shown = std::max(job.progress_shown, job.state() == JobState::kSucceeded ? 1.0
+                                                    : work_total > 0 ? work_done / work_total
+                                                                     : 0.0);
+  s.set_progress(job.progress_shown);
   // ETA from recent throughput (server/jobs/eta_estimator.h says why); until two tasks are
   // merged, from the average rate of (merged + in-progress fractions) so far.
   double eta = -1;
   if (!job.active()) {
     eta = 0;
   } else {
-    const double done_eff = double(done) + leases_.ProgressOf(job);
-    const double running = double(job.count(TaskState::kLeased));
-    const double remaining = job.stopping ? running : double(total) - done_eff;
+    const double done_eff = work_done + leases_.ProgressOf(job);
+    const double running = double(job.work(TaskState::kLeased));
+    const double remaining = job.stopping ? running : work_total - done_eff;
     double average = -1;
     if (done_eff > 0 && elapsed > 0) average = std::max(0.0, elapsed * remaining / done_eff);
-    eta = job.eta.Eta(now, job.stopping ? running : double(total) - double(done), running, average);
+    eta = job.eta.Eta(now, job.stopping ? running : work_total - work_done, running, average);
     const double budget = job.config().stop.time_budget_seconds;
     if (budget > 0 && eta >= 0) eta = std::min(eta, std::max(0.0, budget - elapsed));
   }
@@ -481,7 +495,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
         ++counters_.merged;
         leases_.Erase(lease_id);
         job.RecordMerge(task_id);
-        job.eta.RecordCompletion(now);
+        job.eta.RecordCompletion(now, double(job.task_work(task_id)));
         result.status = CompleteStatus::kMerged;
         result.merge_seq = job.merge_seq();
         result.worker_id = job.runtime(task_id).worker_id;

@@ -27,6 +27,9 @@ class TaskSource {
   virtual ~TaskSource() = default;
   // Tasks to add now that `job`'s merged results are what they are; usually none.
   virtual std::vector<TaskSpec> TasksAfterMerge(const Job& job) = 0;
+  // The expected work (Job::task_work units) of the tasks this source has yet to create, for
+  // progress and the ETA; 0 when it will create none.
+  virtual uint64_t WorkToCreate(const Job&) { return 0; }
 };
 
 // The plans that expand completely at submission: nothing is ever added.
@@ -35,15 +38,22 @@ class StaticTaskSource final : public TaskSource {
   std::vector<TaskSpec> TasksAfterMerge(const Job&) override { return {}; }
 };
 
-// The hierarchical plan (§4.5; common/plan/hierarchical.h): once levels 1..l are complete, the
-// localization tasks of level l (HierarchicalTasks). Recomputed only when another level becomes
-// complete, so a merge usually costs nothing here.
+// The hierarchical plan (§4.5; common/plan/hierarchical.h): once every level is complete, the
+// localization tasks (HierarchicalTasks). Recomputed only when another level becomes complete, so
+// a merge usually costs nothing here.
 class HierarchicalTaskSource final : public TaskSource {
  public:
+  explicit HierarchicalTaskSource(const JobConfig& config);
   std::vector<TaskSpec> TasksAfterMerge(const Job& job) override;
+  // ExpectedLocalizationWork until the localization tasks exist; recomputed only when another
+  // level becomes complete.
+  uint64_t WorkToCreate(const Job& job) override;
 
  private:
+  uint64_t static_tasks_;
   uint32_t complete_levels_ = ~0u;  // levels 1..n complete when last asked
+  uint32_t work_levels_ = ~0u;      // … when the expected work was last computed
+  uint64_t work_ = 0;
 };
 
 using TaskSourceFactory = std::function<std::unique_ptr<TaskSource>(const JobConfig&)>;

@@ -2,13 +2,17 @@
 // localization tasks from merged results, and the image is bit-identical to the single-process
 // render of the same plan and seed (`pf render --local-only`)
 //  (a) for 1, 2 and 3 workers started by `pf render --workers N`;
-//  (b) with a worker SIGKILLed mid-task and the coordinator SIGKILLed and restarted mid-job.
+//  (b) with a worker SIGKILLed mid-task and the coordinator SIGKILLed and restarted mid-job;
+//  (c) both at once with three workers, the coordinator killed in the middle of a level.
 #include <signal.h>
 
 #include <algorithm>
+#include <regex>
+#include <set>
 #include <thread>
 
 #include "client/farm_client.h"
+#include "common/plan/hierarchical.h"
 #include "tests/e2e/harness.h"
 
 namespace pf::e2e {
@@ -113,6 +117,119 @@ TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
   EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
   for (auto& w : workers) w->Signal(SIGTERM);
   for (auto& w : workers) EXPECT_TRUE(w->Wait(20).has_value());
+}
+
+// HierarchicalFlags with n0 = 8 (n_l = 8, 4, 2, 1: 40 + 20 + 10 + 5 static tasks), so that a
+// level lasts long enough to be caught half merged, and its static tasks (the same PlanSpec the
+// flags describe): the test needs each task's level to know where a level starts and ends.
+std::vector<std::string> LongerLevelsFlags() {
+  std::vector<std::string> flags = HierarchicalFlags(100000);
+  *(std::find(flags.begin(), flags.end(), "--base-samples") + 1) = "8";
+  return flags;
+}
+std::vector<TaskSpec> StaticTasksOfLongerLevels() {
+  const PlanSpec plan{.kind = PlanKind::kHierarchical,
+                      .samples_per_pixel = 1,
+                      .tile_size = 8,
+                      .levels = 3,
+                      .dims = 2,
+                      .base_samples = 8,
+                      .min_samples = 1};
+  return HierarchicalStaticTasks(plan, 33, 33, 11);
+}
+
+// Per level: how many of its static tasks `merged` holds, and how many it has.
+std::vector<std::pair<size_t, size_t>> LevelProgress(const std::vector<TaskSpec>& tasks,
+                                                     const std::set<uint64_t>& merged) {
+  std::vector<std::pair<size_t, size_t>> levels;
+  for (const TaskSpec& t : tasks) {
+    if (levels.size() <= t.round) levels.resize(t.round + 1);
+    ++levels[t.round].second;
+    if (merged.count(t.task_id)) ++levels[t.round].first;
+  }
+  return levels;
+}
+
+// A level ≥ 1 with some of its tasks merged and at least `left` still to go ("mid-level"); -1 if none.
+int LevelInProgress(const std::vector<std::pair<size_t, size_t>>& levels, size_t left) {
+  for (size_t l = 1; l < levels.size(); ++l)
+    if (levels[l].first > 0 && levels[l].first + left <= levels[l].second) return int(l);
+  return -1;
+}
+
+// Issue #13's farm check in one run: three workers, one SIGKILLed mid-task, then the coordinator
+// SIGKILLed while a level ≥ 1 is partly merged and restarted on the same port and data; a
+// replacement worker joins. The killed worker's task is re-run (after its lease expired, or after
+// the restart), the restarted coordinator re-derives the level's state from its checkpoint and
+// journal and creates the localization tasks once every level is complete, and the image is the
+// local render's, bit for bit.
+TEST(HierarchicalFarm, ThreeWorkersKilledWorkerAndRestartMidLevelGiveTheLocalImage) {
+  TestDir dir;
+  const std::vector<std::string> flags = LongerLevelsFlags();
+  const Image reference = LocalReference(dir, flags);
+  const std::vector<TaskSpec> tasks = StaticTasksOfLongerLevels();
+  ASSERT_EQ(tasks.size(), 75u);
+  const std::vector<std::string> coordinator_args = {"--lease-seconds", "2", "--max-attempts", "10"};
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args);
+  const int port = coordinator->port();
+  const std::string address = coordinator->address();
+  const RunResult sub = RunCommand(
+      Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, flags), {"--coordinator", address}),
+      dir.path());
+  ASSERT_EQ(sub.exit_code, 0) << sub.err;
+  std::string job_id = sub.out;
+  while (!job_id.empty() && (job_id.back() == '\n' || job_id.back() == ' ')) job_id.pop_back();
+
+  std::vector<fs::path> logs;
+  std::vector<std::unique_ptr<Process>> workers;
+  for (const char* id : {"w1", "w2", "w3"}) {
+    workers.push_back(StartWorker(address, dir.path(), id, {"--report-retry", "30"}));
+    logs.push_back(dir / (std::string(id) + ".log"));
+  }
+  // w3 dies holding a lease.
+  ASSERT_TRUE(WaitUntil([&] { return MidTask(logs[2]); }, 60)) << ReadFile(logs[2]);
+  workers[2]->Signal(SIGKILL);
+  workers[2]->Wait(5);
+
+  // The coordinator dies while a level ≥ 1 is partly merged (at least 2 of its tasks to go).
+  auto merged_ids = [&] {
+    std::set<uint64_t> ids;
+    for (const auto& [task, count] : MergedTaskCounts(logs, job_id)) ids.insert(task);
+    return ids;
+  };
+  ASSERT_TRUE(WaitUntil([&] { return LevelInProgress(LevelProgress(tasks, merged_ids()), 2) >= 0; }, 120))
+      << "no level was ever seen half merged";
+  coordinator->process().Signal(SIGKILL);
+  coordinator->process().Wait(5);
+  // What the dead coordinator had merged, from its own log: a level was in progress.
+  std::set<uint64_t> merged_by_first;
+  const std::regex merged_line("job " + job_id + " task ([0-9]+): merged");
+  for (const std::string& line : ReadLines(coordinator->process().log())) {
+    std::smatch m;
+    if (std::regex_search(line, m, merged_line)) merged_by_first.insert(std::stoull(m[1].str()));
+  }
+  const auto levels = LevelProgress(tasks, merged_by_first);
+  ASSERT_GE(LevelInProgress(levels, 1), 1) << "the coordinator was not killed in the middle of a level";
+
+  coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args, port);
+  EXPECT_FALSE(Grep(coordinator->process().log(), "resumed \\(RUNNING\\)").empty())
+      << ReadFile(coordinator->process().log());
+  workers.push_back(StartWorker(address, dir.path(), "w4", {"--report-retry", "30"}));
+
+  FarmClient client(address, "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 180);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_EQ(st.tasks_done(), st.tasks_total());
+  EXPECT_GT(st.tasks_total(), 75u) << "localization tasks were created";
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  for (size_t i = 0; i < workers.size(); ++i) {
+    if (i != 2) workers[i]->Signal(SIGTERM);
+  }
+  for (size_t i = 0; i < workers.size(); ++i) {
+    if (i != 2) {
+      EXPECT_TRUE(workers[i]->Wait(20).has_value());
+    }
+  }
 }
 
 TEST(HierarchicalFarm, BadHierarchicalJobsAreRejectedNamingTheField) {

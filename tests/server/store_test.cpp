@@ -539,6 +539,7 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
   h->set_localize_threshold(0.5);  // low thresholds: the synthetic noise localizes many pixels
   h->set_localize_contrast(0);
   h->set_samples_per_pixel(1);
+  h->set_rows_per_task(4);  // 3 row bands: up to n0 × 3 localization tasks
   const JobConfig config = ValidateJobSpec(spec, catalog);
   const uint64_t static_tasks = ScheduledTasks(config).size();
 

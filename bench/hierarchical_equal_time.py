@@ -1,0 +1,320 @@
+#!/usr/bin/python3
+"""Hierarchical photon map vs skipping vs multiple maps at equal time (issue #13; Wald 1999, 4.4-4.5).
+
+For each scene (Cornell box, CornellBox-Sphere, scene8) every plan is rendered at several budgets
+with `pf render --plan P --local-only --threads 1`, with the same photons per map and the same k
+for all plans, and its error is measured with `pf diff --json --scene` (all three metrics: rmse,
+rmse_masked = without the lights and a 2-pixel band, rmse_lowfreq = 4x4 block means outside that
+mask) against two references:
+
+  * the converged path-traced reference scenes/<scene>/reference-*.exr: the total error a user
+    sees (photon-map bias included; the bias is the same for every plan, since all average maps
+    of the same size);
+  * the mean of --reference-maps independent maps of the same size ("noise reference"): the same
+    bias as every image here, so the error is the noise the plans leave, which is what they differ in.
+
+Plans (the budgets sweep the number of samples, hence maps, per pixel):
+
+    multiple-maps   --maps M                         M maps, every pixel sees all of them
+    skipping        --stride 4 --rounds R            R rounds of 16 maps, each on 1/16 of the pixels
+    hierarchical    --dims 2 --levels L  n_l = max(n_min, ceil(n0 / decay^l)) with n0 = 32 n_min
+                    (decay = 32^(1/L)): the thesis-like schedule
+    hierarchical-flat   the same with n0 = 4 n_min (fewer maps on the coarse levels)
+
+Time: the CPU time (user + system) of the whole `pf render` process, single-threaded: the machine
+is shared and its wall time says more about the neighbours than about the plan. Map building is
+included (the hierarchy builds Nmax maps, and the level-0 maps again for localization).
+
+Equal time: per plan, log(error) is interpolated piecewise-linearly in log(CPU time); at every
+multiple-maps point whose time lies inside another plan's measured range, the ratio
+error_plan(t) / error_mm(t) is the ratio of error x time at equal time (the issue's target:
+hierarchical low-frequency error x time <= 0.8 x that of multiple maps). The median ratio over
+those points is reported per scene, metric and reference.
+
+    tools/install-deps.sh --bench                  # matplotlib for the plots
+    bench/hierarchical_equal_time.py [--scenes cornell-box,cornell-sphere,scene8] [--seeds 1]
+    bench/hierarchical_equal_time.py --replot      # tables and plots again from the JSON
+
+Writes <out>/hierarchical-equal-time.json, .md and hierarchical-equal-time-<scene>.png.
+"""
+import argparse
+import json
+import math
+import pathlib
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SCENES = {  # name: (manifest, path-traced reference, resolution, hierarchy levels)
+    "cornell-box": ("scenes/cornell-box/cornell-box.json", "scenes/cornell-box/reference-256.exr", "256x256", 8),
+    "cornell-sphere": ("scenes/cornell-sphere/cornell-sphere.json", "scenes/cornell-sphere/reference-256.exr",
+                       "256x256", 8),
+    "scene8": ("scenes/scene8/scene8.json", "scenes/scene8/reference-320.exr", "320x240", 8),
+}
+MM_MAPS = (1, 2, 4, 8, 16, 32)
+SKIP_STRIDE = 4
+SKIP_ROUNDS = (1, 2, 4, 8, 16)
+HIER_MIN = (1, 2, 4)
+# Schedule families: plan family -> n0 / n_min (decay = that ^ (1/L)). "hierarchical" is the shape
+# that reproduced the thesis's table in 2-D (docs/results/hierarchical-2d.md: n0 / n_min = 38 over
+# 9 levels); "hierarchical-flat" spends fewer maps on the coarse levels (4x the finest level's
+# samples instead of 32x): chosen a priori from the cost of a map (see the .md), not from results.
+SCHEDULES = {
+    "hierarchical": 32,
+    "hierarchical-flat": 4,
+}
+METRICS = ("rmse", "rmse_masked", "rmse_lowfreq")
+REFERENCES = ("path", "noise")
+
+
+def run(cmd):
+    r = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, cwd=ROOT)
+    if r.returncode != 0:
+        sys.exit(f"failed ({r.returncode}): {' '.join(map(str, cmd))}\n{r.stderr[-3000:]}")
+    return r
+
+
+def timed(cmd):
+    """Runs cmd; returns (cpu seconds of the child, wall seconds)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.monotonic()
+    run(cmd)
+    wall = time.monotonic() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall
+
+
+def exr_attribute(path, name):
+    """A string attribute of an EXR header (name NUL "string" NUL, 4-byte length, bytes)."""
+    data = pathlib.Path(path).read_bytes()[:65536]
+    key = name.encode() + b"\x00string\x00"
+    i = data.find(key)
+    if i < 0:
+        return None
+    n = int.from_bytes(data[i + len(key):i + len(key) + 4], "little")
+    return data[i + len(key) + 4:i + len(key) + 4 + n].decode()
+
+
+def plans(levels):
+    out = [(f"multiple maps ({m})", "multiple-maps", ["--plan", "multiple-maps", "--maps", str(m), "--tile", "64"])
+           for m in MM_MAPS]
+    out += [(f"skipping (S {SKIP_STRIDE}, {r} rounds)", "skipping",
+             ["--plan", "skipping", "--stride", str(SKIP_STRIDE), "--rounds", str(r)]) for r in SKIP_ROUNDS]
+    for family, ratio in SCHEDULES.items():
+        decay = ratio ** (1.0 / levels)
+        out += [(f"{family} (n_min {n})", family,
+                 ["--plan", "hierarchical", "--dims", "2", "--levels", str(levels), "--base-samples", str(ratio * n),
+                  "--min-samples", str(n), "--decay", f"{decay:.6f}", "--tile", "0"]) for n in HIER_MIN]
+    return out
+
+
+def interpolate(points, t):
+    """log-log piecewise-linear interpolation of (time, error) points at time t; None outside."""
+    pts = sorted(points)
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+        if t0 <= t <= t1:
+            if t1 == t0:
+                return e0
+            a = (math.log(t) - math.log(t0)) / (math.log(t1) - math.log(t0))
+            return math.exp((1 - a) * math.log(e0) + a * math.log(e1))
+    return None
+
+
+def equal_time(rows, scene, family, metric, reference):
+    """Median over the multiple-maps points of error_family(t) / error_mm(t), and the points."""
+    def curve(f):
+        return [(r["cpu_seconds"], r[reference][metric]) for r in rows if r["scene"] == scene and r["family"] == f]
+    mm = curve("multiple-maps")
+    other = curve(family)
+    ratios = []
+    for t, e in mm:
+        o = interpolate(other, t)
+        if o is not None:
+            ratios.append((t, o / e))
+    return (statistics.median(r for _, r in ratios) if ratios else None), ratios
+
+
+def stem(tag):
+    return "hierarchical-equal-time" + (f"-{tag}" if tag else "")
+
+
+def plot(rows, scenes, out, name):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("no matplotlib: plots skipped (tools/install-deps.sh --bench)", file=sys.stderr)
+        return []
+    written = []
+    colours = {"multiple-maps": "tab:blue", "skipping": "tab:green", "hierarchical": "tab:red",
+               "hierarchical-flat": "tab:orange"}
+    for scene in scenes:
+        mine = [r for r in rows if r["scene"] == scene]
+        fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), squeeze=False)
+        for i, reference in enumerate(REFERENCES):
+            for j, metric in enumerate(METRICS):
+                ax = axes[i][j]
+                for family, colour in colours.items():
+                    pts = sorted((r["cpu_seconds"], r[reference][metric]) for r in mine if r["family"] == family)
+                    if pts:
+                        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=colour, label=family)
+                ax.set_xscale("log")
+                ax.set_yscale("log")
+                ax.grid(True, which="both", alpha=0.3)
+                ax.set_title(f"{metric} vs {'path-traced' if reference == 'path' else 'many-map'} reference",
+                             fontsize=9)
+                ax.set_xlabel("CPU seconds of pf render (1 thread)", fontsize=8)
+                ax.tick_params(labelsize=7)
+                if i == 0 and j == 0:
+                    ax.legend(fontsize=8)
+        first = mine[0]
+        fig.suptitle(f"{scene} {first['res']}: {first['photons']} photons per map, k {first['k']}; "
+                     "error against CPU time (lower left is better)", fontsize=10)
+        fig.tight_layout()
+        path = out / f"{name}-{scene}.png"
+        fig.savefig(path, dpi=80)
+        plt.close(fig)
+        written.append(path.name)
+    return written
+
+
+def write_reports(result, out):
+    rows, scenes = result["rows"], result["scenes"]
+    a = result["args"]
+    name = stem(a.get("tag", ""))
+    plots = plot(rows, scenes, out, name)
+    lines = [
+        "# Hierarchical vs skipping vs multiple maps at equal time (issue #13)",
+        "",
+        f"{a['photons']} photons per map and k = {a['k']} for every plan; seed(s) {a['seeds']}; `pf render "
+        "--local-only --threads 1`; time = CPU seconds (user + system) of the whole process, map building "
+        "included. Reproduce: `bench/hierarchical_equal_time.py "
+        f"--scenes {','.join(scenes)} --photons {a['photons']} --k {a['k']} --seeds {a['seeds']} "
+        f"--reference-maps {a['reference_maps']}"
+        + (f" --extra '{a['extra']}' --tag {a['tag']}" if a.get("extra") or a.get("tag") else "")
+        + f"` (writes this file, {name}.json and the plots)." + (f" Every image with `{a['extra']}`." if a.get("extra") else ""),
+        "",
+        "Two references: *path* = the converged path-traced scenes/<scene>/reference-*.exr (total error, the "
+        "photon-map bias included: the same for every plan); *noise* = the mean of "
+        f"{a['reference_maps']} maps of the same size (same bias: the error is the plans' noise).",
+        "",
+        "## Equal time: error ratio to multiple maps",
+        "",
+        "Median over the multiple-maps budgets inside the other plan's time range of error_plan(t) / "
+        "error_mm(t), log-log interpolated: the ratio of error × time at equal time. Target (issue #13): "
+        "hierarchical `rmse_lowfreq` ≤ 0.8.",
+        "",
+        "| scene | plan | reference | rmse | rmse_masked | rmse_lowfreq | MM points compared |",
+        "|---|---|---|---:|---:|---:|---:|",
+    ]
+    for scene in scenes:
+        for family in [f for f in ("skipping",) + tuple(SCHEDULES) if any(r["family"] == f for r in rows)]:
+            for reference in REFERENCES:
+                cells, count = [], 0
+                for metric in METRICS:
+                    med, pts = equal_time(rows, scene, family, metric, reference)
+                    cells.append("–" if med is None else f"{med:.2f}")
+                    count = max(count, len(pts))
+                lines.append(f"| {scene} | {family} | {reference} | {' | '.join(cells)} | {count} |")
+    lines += ["", "## Every run", ""]
+    for scene in scenes:
+        mine = [r for r in rows if r["scene"] == scene]
+        lines += [f"### {scene} ({mine[0]['res']})", "",
+                  "| plan | maps built | tasks | CPU s | wall s | rmse path | masked path | lowfreq path | "
+                  "rmse noise | masked noise | lowfreq noise |",
+                  "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        for r in mine:
+            p, n = r["path"], r["noise"]
+            lines.append(f"| {r['method']} | {r['maps_built']} | {r['tasks']} | {r['cpu_seconds']:.2f} | "
+                         f"{r['wall_seconds']:.1f} | {p['rmse']:.4f} | {p['rmse_masked']:.4f} | "
+                         f"{p['rmse_lowfreq']:.4f} | {n['rmse']:.4f} | {n['rmse_masked']:.4f} | "
+                         f"{n['rmse_lowfreq']:.4f} |")
+        lines.append("")
+        if f"{name}-{scene}.png" in plots:
+            lines += [f"![{scene}: error against CPU time]({name}-{scene}.png)", ""]
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {out / (name + '.md')} and {len(plots)} plots")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pf", default=str(ROOT / "build/client/pf"))
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--photons", type=int, default=10000)
+    ap.add_argument("--k", type=int, default=50)
+    ap.add_argument("--seeds", default="1", help="comma-separated; errors are the RMS over seeds, time the median")
+    ap.add_argument("--reference-maps", type=int, default=64)
+    ap.add_argument("--plans", default="multiple-maps,skipping," + ",".join(SCHEDULES))
+    ap.add_argument("--work", help="folder for the images (kept; noise references are reused from it)")
+    ap.add_argument("--out", default=str(ROOT / "docs/results"))
+    ap.add_argument("--extra", default="", help="more pf render flags for every image (e.g. '--local-pass 4')")
+    ap.add_argument("--tag", default="", help="output names hierarchical-equal-time-<tag>.* (default: no tag)")
+    ap.add_argument("--replot", action="store_true")
+    args = ap.parse_args()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        write_reports(json.loads((out / f"{stem(args.tag)}.json").read_text()), out)
+        return
+    work = pathlib.Path(args.work) if args.work else pathlib.Path(tempfile.mkdtemp(prefix="pf-hier-eq-"))
+    work.mkdir(parents=True, exist_ok=True)
+    seeds = [int(s) for s in args.seeds.split(",")]
+    wanted = set(args.plans.split(","))
+    scenes = [s for s in args.scenes.split(",") if s]
+    rows = []
+    for scene in scenes:
+        manifest, path_ref, res, levels = SCENES[scene]
+        common = [args.pf, "render", manifest, "--integrator", "photonmap", "--photons", str(args.photons), "--k",
+                  str(args.k), "--res", res, "--spp", "1", "--local-only", "--threads", "1", "--no-png", "-q"]
+        common += args.extra.split()
+        extra_key = args.extra.replace(" ", "").replace("-", "")
+        noise_ref = work / f"{scene}-noise-ref-{args.photons}-{args.k}-{args.reference_maps}{extra_key}.exr"
+        if not noise_ref.exists():
+            print(f"{scene}: noise reference, {args.reference_maps} maps ...", flush=True)
+            run(common + ["--plan", "multiple-maps", "--maps", str(args.reference_maps), "--tile", "64", "--seed",
+                          "999", "-o", str(noise_ref)])
+
+        def judge(exr, ref):
+            d = json.loads(run([args.pf, "diff", exr, ref, "--json", "--scene", manifest]).stdout)
+            return {k: d[k] for k in METRICS}
+
+        for method, family, flags in plans(levels):
+            if family not in wanted:
+                continue
+            cpus, walls, errs = [], [], {ref: {m: [] for m in METRICS} for ref in REFERENCES}
+            for seed in seeds:
+                exr = work / f"{scene}-{method.replace(' ', '_').replace(',', '')}-s{seed}.exr"
+                cpu, wall = timed(common + flags + ["--seed", str(seed), "-o", str(exr)])
+                cpus.append(cpu)
+                walls.append(wall)
+                for ref, path in (("path", path_ref), ("noise", noise_ref)):
+                    d = judge(exr, path)
+                    for m in METRICS:
+                        errs[ref][m].append(d[m])
+            row = {"scene": scene, "res": res, "photons": args.photons, "k": args.k, "method": method,
+                   "family": family, "flags": " ".join(flags), "cpu_seconds": statistics.median(cpus),
+                   "cpu_seconds_all": cpus, "wall_seconds": statistics.median(walls),
+                   "maps_built": int(exr_attribute(exr, "photons.maps_built") or 0),
+                   "tasks": int(exr_attribute(exr, "tasks") or 0)}
+            for ref in REFERENCES:  # RMS over seeds
+                row[ref] = {m: math.sqrt(sum(v * v for v in errs[ref][m]) / len(errs[ref][m])) for m in METRICS}
+            rows.append(row)
+            print(f"{scene:14s} {method:28s} maps {row['maps_built']:5d} cpu {row['cpu_seconds']:7.2f} s  "
+                  f"path {row['path']['rmse']:.4f}/{row['path']['rmse_masked']:.4f}/{row['path']['rmse_lowfreq']:.4f}"
+                  f"  noise {row['noise']['rmse']:.4f}/{row['noise']['rmse_masked']:.4f}/"
+                  f"{row['noise']['rmse_lowfreq']:.4f}", flush=True)
+    result = {"args": {"photons": args.photons, "k": args.k, "seeds": args.seeds,
+                       "reference_maps": args.reference_maps, "extra": args.extra, "tag": args.tag},
+              "scenes": scenes, "rows": rows}
+    (out / f"{stem(args.tag)}.json").write_text(json.dumps(result, indent=2) + "\n")
+    write_reports(result, out)
+
+
+if __name__ == "__main__":
+    main()
