@@ -35,7 +35,8 @@ std::optional<Rgb> IrradianceCache::Interpolate(const Vec3& x, const Vec3& n) co
 void IrradianceCache::Add(const Vec3& x, const Vec3& n, const Rgb& irradiance, double inverse_distance_sum,
                           int hits) {
   // Harmonic mean distance of the hits: R = hits / Σ 1/d.
-  float radius = inverse_distance_sum > 0.0 ? float(double(hits) / inverse_distance_sum) : options_.max_radius;
+  float radius =
+      inverse_distance_sum > 0.0 ? float(double(hits) / inverse_distance_sum) : options_.max_radius;
   radius = std::clamp(radius, options_.min_radius, std::max(options_.min_radius, options_.max_radius));
   records_.push_back(IrradianceRecord{x, n, irradiance, radius});
 }

@@ -20,6 +20,20 @@ NearestPhotons& Scratch() {
   return nearest;
 }
 
+// The k-th distance² of the last camera-path estimate of the pixel being rendered on this
+// thread, per map (global, caustic). Reset when the render driver moves to another pixel
+// (t_pixel_epoch): a hint from another pixel would make the heap order — the last bits of a
+// sum — depend on which pixels a thread rendered before.
+struct PixelRadii {
+  uint64_t epoch = ~uint64_t(0);
+  float radius2[2] = {0.0f, 0.0f};
+};
+PixelRadii& ThisPixelRadii() {
+  thread_local PixelRadii radii;
+  if (radii.epoch != t_pixel_epoch) radii = PixelRadii{t_pixel_epoch, {0.0f, 0.0f}};
+  return radii;
+}
+
 }  // namespace
 
 RadianceEstimateOptions DefaultCausticOptions(int k, const Bounds3& scene_bounds) {
@@ -118,19 +132,24 @@ Rgb PhotonMapIntegrator::GatherHitRadiance(const Bsdf& by, const Material& my, c
 }
 
 Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
-                                     bool include_direct_photons, TraceCounters& counters) const {
+                                     bool include_direct_photons, TraceCounters& counters,
+                                     bool camera_path) const {
   NearestPhotons& nearest = Scratch();
+  PixelRadii* radii = camera_path && options_.pixel_radius_hint ? &ThisPixelRadii() : nullptr;
   auto estimate = [&](const PhotonMap& map, const PhotonAttributes& attributes,
-                      const RadianceEstimateOptions& o) {
-    const EstimateContext context{attributes.origin.empty() ? nullptr : &attributes.origin, &scene_};
+                      const RadianceEstimateOptions& o, int hint_slot) {
+    EstimateContext context{attributes.origin.empty() ? nullptr : &attributes.origin, &scene_};
+    if (radii && hint_slot >= 0 && radii->radius2[hint_slot] > 0.0f)
+      context.radius_hint = kPixelRadiusHintScale * std::sqrt(radii->radius2[hint_slot]);
     const RadianceEstimateResult r = EstimateRadiance(map, bsdf, x, wo, lobes, o, nearest, context);
+    if (radii && hint_slot >= 0) radii->radius2[hint_slot] = r.photons_used > 0 ? r.radius2 : 0.0f;
     counters.shadow_rays += uint64_t(r.shadow_rays);
     return r.radiance;
   };
-  Rgb L = estimate(*maps_.global, maps_.global_attributes, options_.global);
+  Rgb L = estimate(*maps_.global, maps_.global_attributes, options_.global, 0);
   if (include_direct_photons && maps_.direct)
-    L += estimate(*maps_.direct, maps_.direct_attributes, options_.direct_photons);
-  if (maps_.caustic) L += estimate(*maps_.caustic, maps_.caustic_attributes, options_.caustic);
+    L += estimate(*maps_.direct, maps_.direct_attributes, options_.direct_photons, -1);
+  if (maps_.caustic) L += estimate(*maps_.caustic, maps_.caustic_attributes, options_.caustic, 1);
   return L;
 }
 
@@ -253,7 +272,8 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
         if (estimated & kLobeGlossyReflection)
           L += MapRadiance(bsdf, hit->position, wo, kLobeGlossyReflection, !separate_direct, counters);
       } else {
-        L += MapRadiance(bsdf, hit->position, wo, estimated, /*include_direct_photons=*/false, counters);
+        L += MapRadiance(bsdf, hit->position, wo, estimated, /*include_direct_photons=*/false, counters,
+                         /*camera_path=*/true);
       }
       radiance += throughput * L;
     }

@@ -57,7 +57,13 @@ struct PhotonMapIntegratorOptions {
   // by the block's cached irradiance where a record is close enough; a new gather (N_lp rays)
   // otherwise, which becomes a record. Only through RenderPixels (LiInBlock): Li alone gathers.
   IrradianceCacheOptions irradiance_cache;
+  // Radius hint (PhotonMap::QueryWithHint) for the estimates at a camera path's surfaces: the
+  // previous sample of the same pixel's k-th distance × kPixelRadiusHintScale. Exact (the same
+  // photons); off only to measure it (bench/radius_hint_bench).
+  bool pixel_radius_hint = true;
 };
+
+inline constexpr float kPixelRadiusHintScale = 1.2f;
 
 // Caustic estimate defaults: the same k, a maximum radius of 1 % of the scene's bounding-box
 // diagonal, and the thesis's threshold of 10 % of k photons (§4.1).
@@ -92,8 +98,10 @@ class PhotonMapIntegrator final : public Integrator {
  private:
   // Photon-map radiance leaving x towards wo through `lobes`: global (+ direct map when
   // `include_direct_photons`) + caustic.
+  // `camera_path`: x is a surface of the camera path (not a gather hit), whose global and
+  // caustic queries take the radius hint of the pixel's previous sample.
   Rgb MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
-                  bool include_direct_photons, TraceCounters& counters) const;
+                  bool include_direct_photons, TraceCounters& counters, bool camera_path = false) const;
   Rgb DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Sampler& sampler,
                   const PathVertexSlots& slots, TraceCounters& counters) const;
   Rgb Trace(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters, IrradianceCache* cache) const;

@@ -107,7 +107,7 @@ TEST(IrradianceCache, NormalsAndInFrontTestRejectRecords) {
   ASSERT_TRUE(cache.Interpolate(Vec3(0.1f, 0, 0), Vec3(0, 0, 1)).has_value());
   EXPECT_FLOAT_EQ(cache.Interpolate(Vec3(0.1f, 0, 0), Vec3(0, 0, 1))->g, 2.0f);
   EXPECT_FALSE(cache.Interpolate(Vec3(0.4f, 0, 0), Vec3(0, 0, 1)).has_value());  // too far: 0.4/1
-  const float tilt = 0.5f;                                                      // sqrt(1 − cos 0.5) = 0.34
+  const float tilt = 0.5f;                                                       // sqrt(1 − cos 0.5) = 0.34
   EXPECT_FALSE(cache.Interpolate(Vec3(0, 0, 0), Vec3(std::sin(tilt), 0, std::cos(tilt))).has_value());
   EXPECT_FALSE(cache.Interpolate(Vec3(0, 0, -0.1f), Vec3(0, 0, 1)).has_value());  // x behind the record
   EXPECT_TRUE(cache.Interpolate(Vec3(0, 0, 0.1f), Vec3(0, 0, 1)).has_value());    // x in front is fine
@@ -131,8 +131,8 @@ TEST(IrradianceCacheRender, FurnaceAnalyticValue) {
     const PhotonMaps maps = MapsFor(accel, lights, io, 200000, 4, 2);
     const PhotonMapIntegrator integrator(accel, &lights, maps, io);
     RenderStats stats;
-    const Image img =
-        RenderImage(integrator, Camera(testing::FurnaceCamera()), RenderOptions{.spp = 16, .seed = 2}, &stats);
+    const Image img = RenderImage(integrator, Camera(testing::FurnaceCamera()),
+                                  RenderOptions{.spp = 16, .seed = 2}, &stats);
     double mean = 0;
     for (size_t i = 0; i < img.size(); ++i) {
       EXPECT_NEAR(img[i].Mean(), 5.0f, 0.1f) << "pixel " << i << " direct mode " << int(mode);
@@ -179,7 +179,8 @@ class IrradianceCacheCornell : public ::testing::Test {
 };
 
 bool BitIdentical(const Image& a, const Image& b) {
-  return a.size() == b.size() && std::memcmp(a.pixels().data(), b.pixels().data(), a.size() * sizeof(Rgb)) == 0;
+  return a.size() == b.size() &&
+         std::memcmp(a.pixels().data(), b.pixels().data(), a.size() * sizeof(Rgb)) == 0;
 }
 
 // One cache per 16×16 block, filled in pixel order by one thread: 1 and 2 threads give the
@@ -208,7 +209,8 @@ TEST_F(IrradianceCacheCornell, SkipsGathersAndTheErrorParameterTradesCountForErr
 
   auto rmse = [&](const Image& img) {
     double se = 0;
-    for (size_t i = 0; i < pixels; ++i) se += double(img[i].Mean() - full[i].Mean()) * (img[i].Mean() - full[i].Mean());
+    for (size_t i = 0; i < pixels; ++i)
+      se += double(img[i].Mean() - full[i].Mean()) * (img[i].Mean() - full[i].Mean());
     return std::sqrt(se / double(pixels));
   };
   uint64_t previous_gathers = 0;
