@@ -72,13 +72,14 @@ int main(int argc, char** argv) {
   const std::vector<std::pair<std::string, std::string>> scenes = {
       {"cornell-box", root + "/scenes/cornell-box/cornell-box.json"},
       {"office3", root + "/scenes/office3/office3.json"}};
-  const std::vector<std::pair<std::string, PhotonMapKind>> structures = {{"kdtree", PhotonMapKind::kKdTree},
-                                                                         {"bucket", PhotonMapKind::kBucketKdTree}};
+  const std::vector<std::pair<std::string, PhotonMapKind>> structures = {
+      {"kdtree", PhotonMapKind::kKdTree}, {"bucket", PhotonMapKind::kBucketKdTree}};
   double load[3] = {0, 0, 0};
   getloadavg(load, 3);
-  std::printf("radius hint: %llu photons, k %d, %u spp, %dx%d, direct %s, 1 thread, process CPU s, median of %d "
-              "(load %.1f)\n",
-              (unsigned long long)photons, k, spp, res, res, direct.c_str(), repeats, load[0]);
+  std::printf(
+      "radius hint: %llu photons, k %d, %u spp, %dx%d, direct %s, 1 thread, process CPU s, median of %d "
+      "(load %.1f)\n",
+      (unsigned long long)photons, k, spp, res, res, direct.c_str(), repeats, load[0]);
   std::printf("%-12s %-8s %10s %10s %8s %14s\n", "scene", "map", "no hint s", "hint s", "speed-up",
               "max rel diff");
   nlohmann::json out = nlohmann::json::array();

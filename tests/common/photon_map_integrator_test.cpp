@@ -47,7 +47,8 @@ TEST(PixelRadiusHint, SamePhotonsAsWithoutAndDeterministic) {
       return RenderImage(integrator, camera, RenderOptions{.spp = 4, .seed = 5, .threads = threads});
     };
     const Image plain = render(false, 2), hinted = render(true, 2), hinted_one = render(true, 1);
-    ASSERT_EQ(std::memcmp(hinted.pixels().data(), hinted_one.pixels().data(), hinted.size() * sizeof(Rgb)), 0);
+    ASSERT_EQ(std::memcmp(hinted.pixels().data(), hinted_one.pixels().data(), hinted.size() * sizeof(Rgb)),
+              0);
     double sum = 0;
     for (size_t i = 0; i < plain.size(); ++i) {
       sum += plain[i].Mean();
