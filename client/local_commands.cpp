@@ -152,6 +152,9 @@ int RunLocalPlan(const RenderArgs& a) {
     meta["photons.local_pass_rays"] = std::to_string(resolved.local_pass_rays);
     meta["photons.local_pass_lookup"] =
         resolved.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
+    meta["photons.irradiance_cache_error"] = fmt::format("{}", resolved.irradiance_cache_error);
+    meta["photons.local_pass_gathers"] = std::to_string(totals.gathers);
+    meta["photons.cache_interpolations"] = std::to_string(totals.cache_interpolations);
     meta["photons.occlusion_test"] = resolved.occlusion_test ? "1" : "0";
     meta["photons.adaptive_k_min"] = std::to_string(resolved.adaptive_k_min);
     meta["photons.map_seconds"] = fmt::format("{:.3f}", totals.map_seconds);

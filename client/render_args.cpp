@@ -173,6 +173,15 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
          "1999)")
       ->capture_default_str()
       ->check(CLI::IsMember({"full", "precomputed"}));
+  app->add_flag("--irradiance-cache", a.irradiance_cache,
+                "local pass: irradiance caching (Ward 1988): a shading point interpolates the gathers of "
+                "nearby points of its 16x16-pixel block instead of gathering, where they are close enough "
+                "(--irradiance-cache-error)");
+  app->add_option("--irradiance-cache-error", a.irradiance_cache_error,
+                  "irradiance cache: Ward's a, the largest distance/R + normal deviation a cached gather "
+                  "is reused at (smaller = more gathers, less error)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.001f, 1.0f));
   app->add_flag("--occlusion-test", a.occlusion_test,
                 "photonmap: drop found photons whose origin is not visible from the point (4.1.1; "
                 "removes light bleeding through walls, one shadow ray per photon)");
@@ -219,6 +228,7 @@ void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
   pm->set_local_pass_rays(uint32_t(a.local_pass));
   pm->set_local_pass_lookup(a.local_pass_lookup == "precomputed" ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
                                                                  : v1::LOCAL_PASS_LOOKUP_FULL);
+  if (a.irradiance_cache) pm->set_irradiance_cache_error(a.irradiance_cache_error);
   pm->set_occlusion_test(a.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(a.adaptive_k_min));
 }

@@ -50,6 +50,8 @@ struct RenderArgs {
   float photon_direct_cache = 0.25f;
   int local_pass = 0;
   std::string local_pass_lookup = "full";
+  bool irradiance_cache = false;
+  float irradiance_cache_error = 0.2f;
   bool occlusion_test = false;
   int adaptive_k_min = 0;
   // Plan (farm and --local-only); plan.empty() = the classic single-process render.

@@ -209,6 +209,9 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
     default:
       throw InputError(f + ".local_pass_lookup: unknown value");
   }
+  if (!(pm.irradiance_cache_error() >= 0.0 && pm.irradiance_cache_error() <= 1.0))
+    throw InputError(f + ".irradiance_cache_error: must be in [0, 1] (0 = off)");
+  out.irradiance_cache_error = float(pm.irradiance_cache_error());
   out.occlusion_test = pm.occlusion_test();
   if (pm.adaptive_k_min() > pm.k())
     throw InputError(f + ".adaptive_k_min: must be <= k (" + std::to_string(pm.k()) + ")");
@@ -260,6 +263,7 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   pm->set_local_pass_lookup(s.local_pass_lookup == LocalPassLookup::kPrecomputed
                                 ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
                                 : v1::LOCAL_PASS_LOOKUP_FULL);
+  pm->set_irradiance_cache_error(s.irradiance_cache_error);
   pm->set_occlusion_test(s.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(s.adaptive_k_min));
   pm->set_kd_split(s.kd_split == KdSplitRule::kLevelCycle ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);

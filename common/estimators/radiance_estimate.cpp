@@ -37,7 +37,8 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   auto feasible = [&side](const Photon& p) { return Dot(p.Direction(), side) > 0.0f; };
   const auto filter = FunctionFilter([&](const Photon& p, std::size_t) { return feasible(p); });
   const bool in_query = test && options.direction_test == FeasibilityTest::kInQuery;
-  map.Query(x, options.k, options.max_radius, nearest, in_query ? &filter : nullptr);
+  map.QueryWithHint(x, options.k, options.max_radius, context.radius_hint, nearest,
+                    in_query ? &filter : nullptr);
 
   if (nearest.empty()) return result;
   if (options.min_fraction > 0.0f && float(nearest.size()) < options.min_fraction * float(options.k))

@@ -54,6 +54,11 @@ struct RadianceEstimateOptions {
 struct EstimateContext {
   const std::vector<Vec3>* origins = nullptr;  // for occlusion_test (post-build order)
   const EmbreeScene* scene = nullptr;          // for occlusion_test
+  // Searched first (PhotonMap::QueryWithHint): when the ball of this radius holds k feasible
+  // photons they are exactly the k nearest, found with most of the tree culled; otherwise the
+  // query runs again unhinted. The same photons either way (their heap order, and so the last
+  // bits of the sum, may differ). 0 = no hint.
+  float radius_hint = 0.0f;
 };
 
 struct RadianceEstimateResult {

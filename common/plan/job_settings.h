@@ -49,8 +49,10 @@ struct JobRenderSettings {
   float photon_direct_cache = 0.25f;                           // neighbour-set cache radius fraction; 0 = off
   int local_pass_rays = 0;                                     // §4.3; 0 = off
   LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;  // precomputed irradiance (Christensen 1999)
-  bool occlusion_test = false;                                 // §4.1.1
-  int adaptive_k_min = 0;                                      // §4.8; 0 = off
+  float irradiance_cache_error =
+      0.0f;                     // local pass: irradiance caching, Ward's a (irradiance_cache.h); 0 = off
+  bool occlusion_test = false;  // §4.1.1
+  int adaptive_k_min = 0;       // §4.8; 0 = off
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
   // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.

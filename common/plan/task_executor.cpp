@@ -86,6 +86,7 @@ PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& b
   io.photon_direct.max_radius = io.direct_photons.max_radius;  // same bound, same reason (direct_light.h)
   io.local_pass_rays = local_pass_rays;
   io.local_pass_lookup = local_pass_lookup;
+  io.irradiance_cache.error = irradiance_cache_error;
   return io;
 }
 
@@ -179,6 +180,8 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   }
   out.rays = stats.counters.rays + stats.counters.shadow_rays;
   out.nonfinite_samples = stats.nonfinite_samples;
+  out.gathers = stats.counters.gathers;
+  out.cache_interpolations = stats.counters.cache_interpolations;
   out.render_seconds = stats.seconds;
   out.pixel_indices = std::move(pixels);
   return out;
@@ -193,6 +196,8 @@ void LocalRenderTotals::Add(const TaskOutput& out) {
   }
   rays += out.rays;
   nonfinite_samples += out.nonfinite_samples;
+  gathers += out.gathers;
+  cache_interpolations += out.cache_interpolations;
   map_seconds += out.map_seconds;
   render_seconds += out.render_seconds;
 }

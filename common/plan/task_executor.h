@@ -28,7 +28,8 @@ struct TaskOutput {
   uint64_t pixels = 0;
   uint32_t samples = 0;  // per pixel
   uint64_t photons_emitted = 0, photons_stored = 0, rays = 0;
-  uint64_t nonfinite_samples = 0;  // NaN/Inf samples dropped (RenderStats)
+  uint64_t nonfinite_samples = 0;                  // NaN/Inf samples dropped (RenderStats)
+  uint64_t gathers = 0, cache_interpolations = 0;  // local pass (TraceCounters)
   double map_seconds = 0, render_seconds = 0;
   bool map_cache_hit = false;
 };
@@ -36,7 +37,7 @@ struct TaskOutput {
 // What a local plan render did, summed over its tasks (for the EXR header and the summary line).
 struct LocalRenderTotals {
   uint64_t tasks = 0, maps_built = 0, photons_emitted = 0, photons_stored = 0, rays = 0,
-           nonfinite_samples = 0;
+           nonfinite_samples = 0, gathers = 0, cache_interpolations = 0;
   double map_seconds = 0, render_seconds = 0;
   void Add(const TaskOutput& out);
 };

@@ -1,5 +1,7 @@
 #include "common/render/photon_map_integrator.h"
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "common/core/error.h"
@@ -16,6 +18,20 @@ constexpr uint32_t kSingularLobes =
 NearestPhotons& Scratch() {
   thread_local NearestPhotons nearest;
   return nearest;
+}
+
+// The k-th distance² of the last camera-path estimate of the pixel being rendered on this
+// thread, per map (global, caustic). Reset when the render driver moves to another pixel
+// (t_pixel_epoch): a hint from another pixel would make the heap order — the last bits of a
+// sum — depend on which pixels a thread rendered before.
+struct PixelRadii {
+  uint64_t epoch = ~uint64_t(0);
+  float radius2[2] = {0.0f, 0.0f};
+};
+PixelRadii& ThisPixelRadii() {
+  thread_local PixelRadii radii;
+  if (radii.epoch != t_pixel_epoch) radii = PixelRadii{t_pixel_epoch, {0.0f, 0.0f}};
+  return radii;
 }
 
 }  // namespace
@@ -59,6 +75,16 @@ PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSa
   }
   if (options_.local_pass_rays > 0 && options_.local_pass_lookup == LocalPassLookup::kPrecomputed)
     PreparePrecomputedIrradiance();
+  IrradianceCacheOptions& ic = options_.irradiance_cache;
+  if (ic.error < 0.0f || !std::isfinite(ic.error)) throw InputError("irradiance cache: error must be >= 0");
+  const float diagonal = std::max(Length(scene.bounds().Diagonal()), 1e-12f);
+  if (ic.min_radius <= 0.0f) ic.min_radius = kIrradianceCacheMinRadiusFraction * diagonal;
+  if (ic.max_radius <= 0.0f) ic.max_radius = kIrradianceCacheMaxRadiusFraction * diagonal;
+}
+
+std::unique_ptr<PixelBlockState> PhotonMapIntegrator::NewPixelBlockState() const {
+  if (options_.local_pass_rays <= 0 || options_.irradiance_cache.error <= 0.0f) return nullptr;
+  return std::make_unique<IrradianceCacheBlock>(options_.irradiance_cache);
 }
 
 PhotonMapIntegrator::~PhotonMapIntegrator() = default;
@@ -106,19 +132,24 @@ Rgb PhotonMapIntegrator::GatherHitRadiance(const Bsdf& by, const Material& my, c
 }
 
 Rgb PhotonMapIntegrator::MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
-                                     bool include_direct_photons, TraceCounters& counters) const {
+                                     bool include_direct_photons, TraceCounters& counters,
+                                     bool camera_path) const {
   NearestPhotons& nearest = Scratch();
+  PixelRadii* radii = camera_path && options_.pixel_radius_hint ? &ThisPixelRadii() : nullptr;
   auto estimate = [&](const PhotonMap& map, const PhotonAttributes& attributes,
-                      const RadianceEstimateOptions& o) {
-    const EstimateContext context{attributes.origin.empty() ? nullptr : &attributes.origin, &scene_};
+                      const RadianceEstimateOptions& o, int hint_slot) {
+    EstimateContext context{attributes.origin.empty() ? nullptr : &attributes.origin, &scene_};
+    if (radii && hint_slot >= 0 && radii->radius2[hint_slot] > 0.0f)
+      context.radius_hint = kPixelRadiusHintScale * std::sqrt(radii->radius2[hint_slot]);
     const RadianceEstimateResult r = EstimateRadiance(map, bsdf, x, wo, lobes, o, nearest, context);
+    if (radii && hint_slot >= 0) radii->radius2[hint_slot] = r.photons_used > 0 ? r.radius2 : 0.0f;
     counters.shadow_rays += uint64_t(r.shadow_rays);
     return r.radiance;
   };
-  Rgb L = estimate(*maps_.global, maps_.global_attributes, options_.global);
+  Rgb L = estimate(*maps_.global, maps_.global_attributes, options_.global, 0);
   if (include_direct_photons && maps_.direct)
-    L += estimate(*maps_.direct, maps_.direct_attributes, options_.direct_photons);
-  if (maps_.caustic) L += estimate(*maps_.caustic, maps_.caustic_attributes, options_.caustic);
+    L += estimate(*maps_.direct, maps_.direct_attributes, options_.direct_photons, -1);
+  if (maps_.caustic) L += estimate(*maps_.caustic, maps_.caustic_attributes, options_.caustic, 1);
   return L;
 }
 
@@ -131,12 +162,13 @@ Rgb PhotonMapIntegrator::DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3
   return Rgb(0.0f);
 }
 
-Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes,
-                                Sampler& sampler, const PathVertexSlots& slots,
-                                TraceCounters& counters) const {
+Rgb PhotonMapIntegrator::GatherRays(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes,
+                                    Sampler& sampler, const PathVertexSlots& slots, TraceCounters& counters,
+                                    double* inverse_distance_sum, int* hits) const {
   const SceneDescription& desc = scene_.description();
   const bool separate_direct = options_.direct != DirectLightMode::kNone;
   const int n = options_.local_pass_rays;
+  ++counters.gathers;
   Rgb sum(0.0f);
   for (int j = 0; j < n; ++j) {
     const float ul = sampler.Get1D(slots.gather_lobe, uint32_t(j), uint32_t(n));
@@ -147,6 +179,10 @@ Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const V
     ++counters.rays;
     const std::optional<SurfaceHit> y = scene_.Intersect(Ray{scene_.SpawnOrigin(hit, s->wi), s->wi});
     if (!y) continue;
+    if (inverse_distance_sum && y->t > 0.0f) {
+      *inverse_distance_sum += 1.0 / double(y->t);
+      ++*hits;
+    }
     const Material& my = desc.materials[y->material];
     Rgb Ly(0.0f);
     if (!separate_direct && my.IsEmissive() && y->front_face) Ly += my.emission;
@@ -158,7 +194,42 @@ Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const SurfaceHit& hit, const V
   return sum * (1.0f / float(n));
 }
 
+Rgb PhotonMapIntegrator::Gather(const Bsdf& bsdf, const Material& material, const SurfaceHit& hit,
+                                const Vec3& wo, uint32_t lobes, Sampler& sampler,
+                                const PathVertexSlots& slots, TraceCounters& counters,
+                                IrradianceCache* cache) const {
+  if (!cache || !material.diffuse_transmittance.IsBlack())
+    return GatherRays(bsdf, hit, wo, lobes, sampler, slots, counters, nullptr, nullptr);
+  // The diffuse part is ρd/π · E (Lambertian reflection): cache E/π, independent of ρd, on the
+  // side of the surface the gather rays leave (the lobe normal of bsdf.h).
+  const Vec3 ng = Dot(wo, hit.geometric_normal) >= 0.0f ? hit.geometric_normal : -hit.geometric_normal;
+  const Vec3 ns = Dot(hit.shading_normal, ng) >= 0.0f ? hit.shading_normal : -hit.shading_normal;
+  if (const std::optional<Rgb> e = cache->Interpolate(hit.position, ns)) {
+    ++counters.cache_interpolations;
+    return material.diffuse_reflectance * *e;
+  }
+  Material white;
+  white.diffuse_reflectance = Rgb(1.0f);
+  const Bsdf white_bsdf(white, hit.shading_normal, hit.geometric_normal);
+  double inverse_distance_sum = 0.0;
+  int hits = 0;
+  const Rgb e = GatherRays(white_bsdf, hit, wo, kLobeDiffuseReflection, sampler, slots, counters,
+                           &inverse_distance_sum, &hits);
+  cache->Add(hit.position, ns, e, inverse_distance_sum, hits);
+  return material.diffuse_reflectance * e;
+}
+
 Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const {
+  return Trace(camera_ray, sampler, counters, nullptr);
+}
+
+Rgb PhotonMapIntegrator::LiInBlock(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters,
+                                   PixelBlockState& block) const {
+  return Trace(camera_ray, sampler, counters, &static_cast<IrradianceCacheBlock&>(block).cache);
+}
+
+Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters,
+                               IrradianceCache* cache) const {
   const SceneDescription& desc = scene_.description();
   const bool separate_direct = options_.direct != DirectLightMode::kNone;
 
@@ -187,7 +258,7 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Sampler& sampler, TraceCounte
       if (separate_direct) L += DirectLight(bsdf, hit->position, wo, estimated, sampler, slots, counters);
       if (options_.local_pass_rays > 0 && !gathered && bsdf.HasLobes(kDiffuseLobes)) {
         gathered = true;
-        L += Gather(bsdf, *hit, wo, estimated, sampler, slots, counters);
+        L += Gather(bsdf, material, *hit, wo, estimated, sampler, slots, counters, cache);
         // Caustics through the diffuse lobes still come from the caustic map; a glossy lobe
         // estimated from the maps reads all of them (caustic map included) below.
         if (maps_.caustic) {
@@ -201,7 +272,8 @@ Rgb PhotonMapIntegrator::Li(const Ray& camera_ray, Sampler& sampler, TraceCounte
         if (estimated & kLobeGlossyReflection)
           L += MapRadiance(bsdf, hit->position, wo, kLobeGlossyReflection, !separate_direct, counters);
       } else {
-        L += MapRadiance(bsdf, hit->position, wo, estimated, /*include_direct_photons=*/false, counters);
+        L += MapRadiance(bsdf, hit->position, wo, estimated, /*include_direct_photons=*/false, counters,
+                         /*camera_path=*/true);
       }
       radiance += throughput * L;
     }

@@ -26,6 +26,7 @@
 #include "common/estimators/radiance_estimate.h"
 #include "common/photon/photon_maps.h"
 #include "common/render/integrator.h"
+#include "common/render/irradiance_cache.h"
 #include "common/render/light_sampler.h"
 #include "common/sampling/sample_layout.h"
 
@@ -51,7 +52,18 @@ struct PhotonMapIntegratorOptions {
   // built once per map on first use.
   LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;
   PrecomputedIrradianceOptions precomputed;
+  // Irradiance caching of the local pass (irradiance_cache.h; error = Ward's a, 0 = off): at a
+  // first estimated surface whose diffuse part is Lambertian reflection, the gather is replaced
+  // by the block's cached irradiance where a record is close enough; a new gather (N_lp rays)
+  // otherwise, which becomes a record. Only through RenderPixels (LiInBlock): Li alone gathers.
+  IrradianceCacheOptions irradiance_cache;
+  // Radius hint (PhotonMap::QueryWithHint) for the estimates at a camera path's surfaces: the
+  // previous sample of the same pixel's k-th distance × kPixelRadiusHintScale. Exact (the same
+  // photons); off only to measure it (bench/radius_hint_bench).
+  bool pixel_radius_hint = true;
 };
+
+inline constexpr float kPixelRadiusHintScale = 1.2f;
 
 // Caustic estimate defaults: the same k, a maximum radius of 1 % of the scene's bounding-box
 // diagonal, and the thesis's threshold of 10 % of k photons (§4.1).
@@ -78,17 +90,31 @@ class PhotonMapIntegrator final : public Integrator {
       : PhotonMapIntegrator(scene, nullptr, maps, options) {}
   ~PhotonMapIntegrator() override;
   Rgb Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const override;
+  std::unique_ptr<PixelBlockState> NewPixelBlockState() const override;
+  Rgb LiInBlock(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters,
+                PixelBlockState& block) const override;
   const char* name() const override { return "photonmap"; }
 
  private:
   // Photon-map radiance leaving x towards wo through `lobes`: global (+ direct map when
   // `include_direct_photons`) + caustic.
+  // `camera_path`: x is a surface of the camera path (not a gather hit), whose global and
+  // caustic queries take the radius hint of the pixel's previous sample.
   Rgb MapRadiance(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
-                  bool include_direct_photons, TraceCounters& counters) const;
+                  bool include_direct_photons, TraceCounters& counters, bool camera_path = false) const;
   Rgb DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Sampler& sampler,
                   const PathVertexSlots& slots, TraceCounters& counters) const;
-  Rgb Gather(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Sampler& sampler,
-             const PathVertexSlots& slots, TraceCounters& counters) const;
+  Rgb Trace(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters, IrradianceCache* cache) const;
+  // The local pass at x: the cache's interpolation or a new record when `cache` is given and
+  // x's diffuse part is Lambertian reflection, GatherRays otherwise.
+  Rgb Gather(const Bsdf& bsdf, const Material& material, const SurfaceHit& hit, const Vec3& wo,
+             uint32_t lobes, Sampler& sampler, const PathVertexSlots& slots, TraceCounters& counters,
+             IrradianceCache* cache) const;
+  // Mean of weight·L(y) over the N_lp gather rays sampled from `bsdf`'s diffuse lobes in `lobes`;
+  // adds Σ 1/distance and the number of hits (for the cache's R_i) when asked.
+  Rgb GatherRays(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes, Sampler& sampler,
+                 const PathVertexSlots& slots, TraceCounters& counters, double* inverse_distance_sum,
+                 int* hits) const;
   // The diffuse radiance leaving a gather hit y towards wo (local_pass_lookup).
   Rgb GatherHitRadiance(const Bsdf& by, const Material& my, const SurfaceHit& y, const Vec3& wo,
                         TraceCounters& counters) const;

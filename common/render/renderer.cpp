@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <chrono>
 #include <numeric>
 
@@ -24,32 +25,66 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std
   };
   tbb::enumerable_thread_specific<Local> locals;
   const int width = camera.width();
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels.size(), 16), [&](const auto& range) {
-      if (cancel && cancel->load(std::memory_order_relaxed)) return;
-      Local& local = locals.local();
-      for (size_t i = range.begin(); i != range.end(); ++i) {
-        const uint32_t p = pixels[i];
-        const int px = int(p % uint32_t(width)), py = int(p / uint32_t(width));
-        ++t_pixel_epoch;
-        Rgb sum = sums[i];
-        const PixelStream stream(sampler_kind, seed, p);  // the pixel's keys and slot seeds, once
-        for (uint32_t s = sample_begin; s < sample_end; ++s) {
-          Sampler sampler = Sampler::ForPixelSample(stream, s);
-          const Sample2 uv = sampler.Get2D(kPixelSlot);
-          const Rgb L = integrator.Li(camera.GenerateRay(px, py, uv.u, uv.v), sampler, local.counters);
-          if (L.IsFinite()) {
-            sum += L;
-          } else {
-            ++local.nonfinite;
-          }
-        }
-        sums[i] = sum;
+  // One pixel: its samples in order, summed into sums[i].
+  auto render_pixel = [&](size_t i, Local& local, PixelBlockState* block) {
+    const uint32_t p = pixels[i];
+    const int px = int(p % uint32_t(width)), py = int(p / uint32_t(width));
+    ++t_pixel_epoch;
+    Rgb sum = sums[i];
+    const PixelStream stream(sampler_kind, seed, p);  // the pixel's keys and slot seeds, once
+    for (uint32_t s = sample_begin; s < sample_end; ++s) {
+      Sampler sampler = Sampler::ForPixelSample(stream, s);
+      const Sample2 uv = sampler.Get2D(kPixelSlot);
+      const Ray ray = camera.GenerateRay(px, py, uv.u, uv.v);
+      const Rgb L = block ? integrator.LiInBlock(ray, sampler, local.counters, *block)
+                          : integrator.Li(ray, sampler, local.counters);
+      if (L.IsFinite()) {
+        sum += L;
+      } else {
+        ++local.nonfinite;
       }
-      if (progress) progress->fetch_add(range.size(), std::memory_order_relaxed);
+    }
+    sums[i] = sum;
+  };
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  if (!integrator.NewPixelBlockState()) {
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels.size(), 16), [&](const auto& range) {
+        if (cancel && cancel->load(std::memory_order_relaxed)) return;
+        Local& local = locals.local();
+        for (size_t i = range.begin(); i != range.end(); ++i) render_pixel(i, local, nullptr);
+        if (progress) progress->fetch_add(range.size(), std::memory_order_relaxed);
+      });
     });
-  });
+  } else {
+    // Pixel blocks (integrator.h, PixelBlockState): the subset's pixels grouped by the
+    // kPixelBlockSide² image tile they lie in, in subset order within a block; each block is
+    // rendered whole by one thread with a fresh state. Which pixels share a state thus depends
+    // only on the subset, never on threads or on the task's neighbours.
+    const uint32_t tiles_x = (uint32_t(width) + kPixelBlockSide - 1) / kPixelBlockSide;
+    auto block_of = [&](uint32_t p) {
+      return (p / uint32_t(width)) / kPixelBlockSide * tiles_x + (p % uint32_t(width)) / kPixelBlockSide;
+    };
+    std::vector<uint32_t> order(pixels.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](uint32_t a, uint32_t b) { return block_of(pixels[a]) < block_of(pixels[b]); });
+    std::vector<size_t> starts;
+    for (size_t j = 0; j < order.size(); ++j)
+      if (j == 0 || block_of(pixels[order[j]]) != block_of(pixels[order[j - 1]])) starts.push_back(j);
+    starts.push_back(order.size());
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, starts.size() - 1, 1), [&](const auto& range) {
+        Local& local = locals.local();
+        for (size_t b = range.begin(); b != range.end(); ++b) {
+          if (cancel && cancel->load(std::memory_order_relaxed)) return;
+          const std::unique_ptr<PixelBlockState> block = integrator.NewPixelBlockState();
+          for (size_t j = starts[b]; j != starts[b + 1]; ++j) render_pixel(order[j], local, block.get());
+          if (progress) progress->fetch_add(starts[b + 1] - starts[b], std::memory_order_relaxed);
+        }
+      });
+    });
+  }
   if (cancel && cancel->load()) throw Cancelled();
   RenderStats stats;
   for (const Local& l : locals) {

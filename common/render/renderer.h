@@ -19,6 +19,8 @@
 
 namespace pf {
 
+inline constexpr uint32_t kPixelBlockSide = 16;
+
 struct RenderOptions {
   uint32_t spp = 16;
   uint64_t seed = 1;
@@ -37,6 +39,9 @@ struct RenderStats {
 // into sums[i]. `progress`, if given, is incremented by the number of pixels finished.
 // `cancel`, if given, is checked before each block of 16 pixels; once it is set, the remaining
 // blocks are skipped and RenderPixels throws Cancelled (`sums` then holds a partial result).
+// An integrator with per-block state (Integrator::NewPixelBlockState, e.g. the irradiance cache)
+// gets one state per kPixelBlockSide² image tile of the listed pixels, the tile's pixels in
+// list order on one thread.
 RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std::span<const uint32_t> pixels,
                          uint32_t sample_begin, uint32_t sample_end, uint64_t seed, int threads,
                          std::span<Rgb> sums, std::atomic<uint64_t>* progress = nullptr,

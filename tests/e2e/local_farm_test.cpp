@@ -126,6 +126,22 @@ TEST_F(LocalFarmTest, ChapterFourEstimatorsMatchLocal) {
   ExpectNoProcessLeft();
 }
 
+// Irradiance caching (one cache per 16x16-pixel block of a task, filled in pixel order): the
+// farm of two one-thread workers gives the local render's bits; the cache really reached the
+// workers (the image differs from the uncached local pass).
+TEST_F(LocalFarmTest, IrradianceCacheMatchesLocal) {
+  TestDir dir;
+  const std::vector<std::string> base =
+      PhotonMapRender24x16("3000", {"--plan", "multiple-maps", "--maps", "2", "--tile", "12", "--spp", "2",
+                                    "--seed", "7", "--direct", "mc", "--local-pass", "4"});
+  ExpectFarmMatchesLocal(Concat(base, {"--irradiance-cache", "--irradiance-cache-error", "0.3"}), dir);
+  const RunResult uncached =
+      RunCommand(Concat(base, {"--local-only", "-o", (dir / "uncached.exr").string()}), dir.path());
+  ASSERT_EQ(uncached.exit_code, 0) << uncached.err;
+  EXPECT_FALSE(BitIdentical(ReadImage(dir / "uncached.exr"), ReadImage(dir / "local.exr")));
+  ExpectNoProcessLeft();
+}
+
 TEST_F(LocalFarmTest, CtrlCStopsEverything) {
   TestDir dir;
   JobArgs job;

@@ -108,6 +108,7 @@ TEST(Convert, EverySettingRoundTrips) {
   pm.set_adaptive_k_min(10);
   pm.set_kd_split(v1::KD_SPLIT_CYCLE);
   pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
+  pm.set_irradiance_cache_error(0.25);
   s.set_sampler(v1::SAMPLER_INDEPENDENT);
   const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
   EXPECT_EQ(core.structure, PhotonMapKind::kGrid);
@@ -116,6 +117,7 @@ TEST(Convert, EverySettingRoundTrips) {
   EXPECT_EQ(core.non_contributing, NonContributingMode::kEachOne);
   EXPECT_EQ(core.kd_split, KdSplitRule::kLevelCycle);
   EXPECT_EQ(core.local_pass_rays, 4);
+  EXPECT_EQ(core.irradiance_cache_error, 0.25f);
   EXPECT_TRUE(core.occlusion_test);
   v1::RenderSettings back;
   SettingsToProto(core, &back);
@@ -149,6 +151,10 @@ TEST(Convert, BadSettingsNameTheirField) {
               StartsWith(f + "photon_direct_cache:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_local_pass_rays(kMaxShadowRays + 1); }),
               StartsWith(f + "local_pass_rays:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_irradiance_cache_error(-0.1); }),
+              StartsWith(f + "irradiance_cache_error:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_irradiance_cache_error(NAN); }),
+              StartsWith(f + "irradiance_cache_error:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_adaptive_k_min(51); }),
               StartsWith(f + "adaptive_k_min:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_direct(static_cast<v1::DirectLight>(99)); }),
