@@ -16,7 +16,8 @@ namespace pf {
 // coordinates' magnitude (at 1e6 floats are 6.25 cm apart, and a photon map there collapses
 // its photons onto that lattice: docs/results/hard_cases.md). Cameras stay in world
 // coordinates (those in `description.cameras` too); ExecuteTask moves the one it renders
-// with. For every other scene origin is 0 and nothing moves.
+// with, and code that traces `accel` itself must move its camera by −origin likewise. For
+// every other scene origin is 0 and nothing moves.
 struct SceneRuntime {
   explicit SceneRuntime(SceneDescription description);
   Vec3 origin;  // world position of the local frame's origin (0 unless the scene is far away)
