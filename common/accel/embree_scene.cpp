@@ -133,7 +133,8 @@ std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
   hit.triangle = rh.hit.primID;
   const auto& tri = s.triangles[hit.triangle];
   const float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
-  hit.position = s.positions[tri[0]] * w + s.positions[tri[1]] * u + s.positions[tri[2]] * v;
+  // On the triangle's plane to ½ ulp, which the ray offsets rely on (ray.h).
+  hit.position = InterpolateOnTriangle(s.positions[tri[0]], s.positions[tri[1]], s.positions[tri[2]], u, v);
   hit.geometric_normal = face_normals_[hit.triangle];
   hit.front_face = Dot(ray.direction, hit.geometric_normal) < 0.0f;
   hit.shading_normal = hit.geometric_normal;

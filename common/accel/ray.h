@@ -2,8 +2,10 @@
 // Rays, hits and the robust ray-origin offset. No Embree here: accel/embree_scene.cpp is the
 // only file that includes Embree (docs/design.md, S3: one place per third-party library).
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 
 #include "common/core/math.h"
 
@@ -27,19 +29,62 @@ struct SurfaceHit {
   bool front_face = true;        // the ray arrived on the front side
 };
 
-// Moves a surface point off the surface along `normal` (unit, pointing to the side the next ray
-// leaves from) by an amount that covers the floating-point error of the intersection.
-// Intersection error is relative to the magnitude of the coordinates involved, so the offset is
-// too: ~2^-15 of the largest coordinate (plus a floor from the scene's own size, which covers
-// points near the origin of a large scene). This keeps scenes from 1e-3 m to 1e4 m free of acne
-// and of light leaks through closed surfaces (tests: furnace at three scales).
-// RayOffset is that amount at p.
+// Spacing of floats at |v|: one unit in the last place (ulp). Finite for every finite v.
+inline float Ulp(float v) {
+  const float a = std::fabs(v);
+  const float next = std::nextafter(a, std::numeric_limits<float>::infinity());
+  return std::isfinite(next) ? next - a : a - std::nextafter(a, 0.0f);
+}
+
+// Ray origins are moved off their surface by a bound on the rounding error of the surface
+// point, so that the next ray cannot hit the surface it leaves (self-intersection: acne,
+// self-shadowing) and yet misses no geometry nearby (light leaks in corners).
+//
+// The error of a point is relative to the *magnitude of its coordinates*, not to the size of
+// the scene: a 2 m room translated 1e6 m from the origin is drawn on a float lattice of
+// 6.25 cm. Hit points and light samples are interpolated in double from the triangle's float
+// vertices (a + u·(b−a) + v·(c−a) lies on the triangle's plane) and rounded once, so each
+// coordinate is within ½ ulp of the plane's point; projected on the normal n that is at most
+// ½·(|nx|+|ny|+|nz|)·ulp(max |p_i|). The offset is kRayOffsetUlps times the full ulp of that
+// (4× the bound), and the moved point is then rounded away from p in each component that moved
+// (as pbrt-v4 does), so the rounding of p + offset cannot undo it. Embree intersects in
+// coordinates relative to the ray origin (v0 − o is exact for nearby points), so its own error
+// scales with the triangle, not with the coordinates: the scene floor `scene_epsilon` (a
+// millionth of the scene's diagonal) covers it, and points near the origin of a large scene.
+//
+// Before (issue #15): a fixed 2^-15 of the largest coordinate, 256 ulps: 3 m at 1e5, 30 m at
+// 1e6, which threw rays out of a translated room (docs/results/hard_cases.md).
+inline constexpr float kRayOffsetUlps = 2.0f;
+
+// The offset along a unit vector `direction` at p (see above).
+inline float RayOffset(const Vec3& p, const Vec3& direction, float scene_epsilon) {
+  const float magnitude = MaxComponent(Vec3(std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)));
+  const float l1 = std::fabs(direction.x) + std::fabs(direction.y) + std::fabs(direction.z);
+  return std::max(kRayOffsetUlps * l1 * Ulp(magnitude), scene_epsilon);
+}
+// The largest offset over all directions (|n|₁ ≤ √3): how far an offset origin may be from p.
 inline float RayOffset(const Vec3& p, float scene_epsilon) {
   const float magnitude = MaxComponent(Vec3(std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)));
-  return std::max(magnitude * 0x1p-15f, scene_epsilon);
+  return std::max(kRayOffsetUlps * std::numbers::sqrt3_v<float> * Ulp(magnitude), scene_epsilon);
 }
+
+// Moves a surface point off its surface along `normal` (unit, pointing to the side the next
+// ray leaves from) by RayOffset, rounding each moved coordinate away from p.
 inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsilon) {
-  return p + normal * RayOffset(p, scene_epsilon);
+  const Vec3 offset = normal * RayOffset(p, normal, scene_epsilon);
+  Vec3 q = p + offset;
+  for (int i = 0; i < 3; ++i) {
+    if (offset[i] > 0.0f) q[i] = std::nextafter(q[i], std::numeric_limits<float>::infinity());
+    if (offset[i] < 0.0f) q[i] = std::nextafter(q[i], -std::numeric_limits<float>::infinity());
+  }
+  return q;
+}
+
+// p0 + u·(p1 − p0) + v·(p2 − p0) in double, rounded once: a point of the triangle's plane to
+// within ½ ulp per coordinate, whatever the magnitude of the coordinates (see above).
+inline Vec3 InterpolateOnTriangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, double u, double v) {
+  const Vec3d a(p0);
+  return Vec3(a + (Vec3d(p1) - a) * u + (Vec3d(p2) - a) * v);
 }
 
 }  // namespace pf

@@ -102,8 +102,24 @@ PhotonMapsOptions JobRenderSettings::MapsOptions() const {
   return mo;
 }
 
+namespace {
+
+// The local frame's origin for a scene (see scene_runtime.h): its bounds' centre if that is
+// farther from the world origin than the scene is large, else 0. Moves the positions.
+Vec3 MoveToLocalFrame(SceneDescription& d) {
+  const Bounds3 b = d.ComputeBounds();
+  if (b.Empty()) return Vec3(0.0f);
+  const Vec3 centre = b.Center();
+  const Vec3 far(std::fabs(centre.x), std::fabs(centre.y), std::fabs(centre.z));
+  if (!(MaxComponent(far) > MaxComponent(b.Diagonal()))) return Vec3(0.0f);
+  for (Vec3& p : d.positions) p -= centre;
+  return centre;
+}
+
+}  // namespace
+
 SceneRuntime::SceneRuntime(SceneDescription d)
-    : description(std::move(d)), accel(description), lights(accel) {}
+    : origin(MoveToLocalFrame(d)), description(std::move(d)), accel(description), lights(accel) {}
 
 std::shared_ptr<const PhotonMaps> PhotonMapCache::Find(const std::string& key) {
   std::lock_guard lock(mutex_);
@@ -140,7 +156,10 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                        PhotonMapCache* cache, std::atomic<uint64_t>* progress,
                        const std::atomic<bool>* cancel) {
   TaskOutput out;
-  const Camera camera(camera_spec);
+  CameraSpec local_camera = camera_spec;  // into the scene's local frame (scene_runtime.h)
+  local_camera.eye -= scene.origin;
+  local_camera.look_at -= scene.origin;
+  const Camera camera(local_camera);
   std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
   std::vector<Rgb> sums(pixels.size());
   RenderStats stats;

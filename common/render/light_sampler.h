@@ -68,7 +68,8 @@ class LightSampler {
 // Uniform point on a triangle from two uniforms (barycentric square-root mapping).
 inline Vec3 SampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, float u1, float u2) {
   const float su = std::sqrt(u1);
-  return a * (1.0f - su) + b * (su * (1.0f - u2)) + c * (su * u2);
+  // On the triangle's plane to ½ ulp at any magnitude of the coordinates (ray.h).
+  return InterpolateOnTriangle(a, b, c, double(su) * (1.0 - double(u2)), double(su) * double(u2));
 }
 
 }  // namespace pf
