@@ -84,6 +84,8 @@ int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::
 
   const SceneRuntime scene(LoadScene(std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json"));
   CameraSpec spec = scene.description.cameras.front();
+  spec.eye -= scene.origin;  // into the scene's local frame (scene_runtime.h; 0 for the Cornell box)
+  spec.look_at -= scene.origin;
   spec.width = spec.height = res;
   const Camera camera(spec);
   std::vector<uint32_t> pixels(size_t(res) * res);

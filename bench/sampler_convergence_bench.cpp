@@ -71,8 +71,14 @@ SamplerKind Kind(const std::string& name) {
 int Run(const Args& a) {
   const Image reference = ReadExr(a.reference);
   const SceneRuntime scene(LoadScene(a.scene));
+  // Traces scene.accel itself: a manifest camera moves into the scene's local frame (scene_runtime.h;
+  // DefaultCamera of the moved description is in it already).
   CameraSpec spec = scene.description.cameras.empty() ? DefaultCamera(scene.description)
                                                       : scene.description.cameras.front();
+  if (!scene.description.cameras.empty()) {
+    spec.eye -= scene.origin;
+    spec.look_at -= scene.origin;
+  }
   spec.width = reference.width();
   spec.height = reference.height();
   const Camera camera(spec);

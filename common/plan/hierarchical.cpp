@@ -261,7 +261,9 @@ std::vector<TaskSpec> HierarchicalTasks(const PlanSpec& plan, int width, int hei
   // per (level-0 map j, band) holding every level's localized points of the band, so each of the
   // n0 maps is built once for all of them (per level, it was n0 builds per level with localized
   // points: 1024 of a job's 1383 maps in docs/results/hierarchical-equal-time.md). A pixel's
-  // samples and the merged sums are the same either way: the image does not change.
+  // samples and the merged sums are the same either way: the image does not change — except with
+  // --irradiance-cache, whose per-block caches then hold several levels' points (still
+  // deterministic: a task's pixels and their order are a pure function of the plan).
   std::vector<uint32_t> localized;
   for (uint32_t l = 1; l <= plan.levels; ++l) {
     const std::vector<uint32_t> at = merged.Localized(l);

@@ -61,8 +61,10 @@ RenderResult RenderMean(SceneDescription scene, const CameraSpec& camera, Integr
   settings.photons = photons;
   settings.k = k;
   const PlanSpec plan{.kind = PlanKind::kMultipleMaps, .maps = 1, .samples_per_pixel = spp};
-  const Image img = RenderPlanLocally(runtime, camera, settings, plan, seed, 0);
+  LocalRenderTotals totals;
+  const Image img = RenderPlanLocally(runtime, camera, settings, plan, seed, 0, nullptr, &totals);
   RenderStats stats;
+  stats.nonfinite_samples = totals.nonfinite_samples;  // the samples RenderPixels dropped as NaN/Inf
   return Summarise(img, stats);
 }
 

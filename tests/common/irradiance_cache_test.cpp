@@ -114,8 +114,10 @@ TEST(IrradianceCache, NormalsAndInFrontTestRejectRecords) {
 }
 
 // The local pass with the cache in the furnace (albedo 0.8, Le = 1): every pixel Le/(1−a) = 5
-// within 2 % (each pixel interpolates records of 16 gather rays each, so a few records' photon
-// noise remains), and the image mean within 1 %. A wrong ρ or π factor in
+// within 6 % and the image mean within 1 %. Each pixel interpolates a few records of 16 gather
+// rays each, so their photon noise remains: over seeds 2–5 the 16 pixels' standard deviation was
+// 0.042–0.077 (0.8–1.5 %) and the largest deviation 0.155, so 0.3 is a 4σ bound per pixel; the
+// mean's bound 0.05 is > 3σ (σ ≈ 0.077/4). A wrong ρ or π factor in
 // the cached E/π (or a record gathered with the material's weights) fails it.
 TEST(IrradianceCacheRender, FurnaceAnalyticValue) {
   const SceneDescription s = testing::FurnaceScene(0.8f);
@@ -135,7 +137,7 @@ TEST(IrradianceCacheRender, FurnaceAnalyticValue) {
                                   RenderOptions{.spp = 16, .seed = 2}, &stats);
     double mean = 0;
     for (size_t i = 0; i < img.size(); ++i) {
-      EXPECT_NEAR(img[i].Mean(), 5.0f, 0.1f) << "pixel " << i << " direct mode " << int(mode);
+      EXPECT_NEAR(img[i].Mean(), 5.0f, 0.3f) << "pixel " << i << " direct mode " << int(mode);
       mean += img[i].Mean() / double(img.size());
     }
     EXPECT_NEAR(mean, 5.0, 0.05) << "direct mode " << int(mode);
