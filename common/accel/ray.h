@@ -2,6 +2,7 @@
 // Rays, hits and the robust ray-origin offset. No Embree here: accel/embree_scene.cpp is the
 // only file that includes Embree (docs/design.md, S3: one place per third-party library).
 
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -29,11 +30,26 @@ struct SurfaceHit {
   bool front_face = true;        // the ray arrived on the front side
 };
 
+// The next float above / below a finite v, by its bits (std::nextafter is a libm call; this is
+// on every spawned ray's path). -0 and +0 step to the smallest subnormal of the right sign.
+inline float NextFloatUp(float v) {
+  uint32_t b = std::bit_cast<uint32_t>(v);
+  if (b == 0x80000000u) b = 0;  // -0 → +0
+  b = v >= 0.0f ? b + 1 : b - 1;
+  return std::bit_cast<float>(b);
+}
+inline float NextFloatDown(float v) {
+  uint32_t b = std::bit_cast<uint32_t>(v);
+  if (b == 0) b = 0x80000000u;  // +0 → -0
+  b = v > 0.0f ? b - 1 : b + 1;
+  return std::bit_cast<float>(b);
+}
+
 // Spacing of floats at |v|: one unit in the last place (ulp). Finite for every finite v.
 inline float Ulp(float v) {
   const float a = std::fabs(v);
-  const float next = std::nextafter(a, std::numeric_limits<float>::infinity());
-  return std::isfinite(next) ? next - a : a - std::nextafter(a, 0.0f);
+  const float next = NextFloatUp(a);
+  return std::isfinite(next) ? next - a : a - NextFloatDown(a);
 }
 
 // Ray origins are moved off their surface by a bound on the rounding error of the surface
@@ -74,8 +90,8 @@ inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsil
   const Vec3 offset = normal * RayOffset(p, normal, scene_epsilon);
   Vec3 q = p + offset;
   for (int i = 0; i < 3; ++i) {
-    if (offset[i] > 0.0f) q[i] = std::nextafter(q[i], std::numeric_limits<float>::infinity());
-    if (offset[i] < 0.0f) q[i] = std::nextafter(q[i], -std::numeric_limits<float>::infinity());
+    if (offset[i] > 0.0f) q[i] = NextFloatUp(q[i]);
+    if (offset[i] < 0.0f) q[i] = NextFloatDown(q[i]);
   }
   return q;
 }

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -145,6 +146,39 @@ RenderResult RenderWorldMean(const SceneDescription& scene, const CameraSpec& ca
 }
 
 class HardCasesTranslatedWorld : public ::testing::TestWithParam<float> {};
+
+// The ray-offset code steps floats by their bits (NextFloatUp/Down, common/accel/ray.h); it must
+// agree with std::nextafter everywhere: zeros of both signs, subnormals, normals of every
+// magnitude, the largest float (up: infinity) and random bit patterns.
+TEST(HardCasesRayOffset, NextFloatMatchesNextafter) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  std::vector<float> values = {0.0f,
+                               -0.0f,
+                               std::numeric_limits<float>::denorm_min(),
+                               -std::numeric_limits<float>::denorm_min(),
+                               std::numeric_limits<float>::min(),
+                               1.0f,
+                               -1.0f,
+                               1e6f,
+                               -1e6f,
+                               3.0e38f,
+                               std::numeric_limits<float>::max(),
+                               -std::numeric_limits<float>::max()};
+  Rng rng = Rng::ForKey(7);
+  for (int i = 0; i < 100000; ++i) {
+    const float v = std::bit_cast<float>(rng.NextU32());
+    if (std::isfinite(v)) values.push_back(v);
+  }
+  for (float v : values) {
+    ASSERT_EQ(std::bit_cast<uint32_t>(NextFloatUp(v)), std::bit_cast<uint32_t>(std::nextafter(v, kInf))) << v;
+    ASSERT_EQ(std::bit_cast<uint32_t>(NextFloatDown(v)), std::bit_cast<uint32_t>(std::nextafter(v, -kInf)))
+        << v;
+  }
+  EXPECT_EQ(Ulp(1.0f), 0x1p-23f);
+  EXPECT_EQ(Ulp(-1e6f), 0.0625f);
+  EXPECT_GT(Ulp(std::numeric_limits<float>::max()), 0.0f);
+  EXPECT_TRUE(std::isfinite(Ulp(std::numeric_limits<float>::max())));
+}
 
 TEST_P(HardCasesTranslatedWorld, RayOffsetsHoldFarFromTheOrigin) {
   const RoomSetup original = SnappedRoom();
