@@ -41,12 +41,12 @@ import argparse
 import json
 import math
 import pathlib
-import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
+
+from bench_common import exr_string, run, timed
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SCENES = {  # name: (manifest, path-traced reference, resolution, hierarchy levels)
@@ -71,32 +71,7 @@ METRICS = ("rmse", "rmse_masked", "rmse_lowfreq")
 REFERENCES = ("path", "noise")
 
 
-def run(cmd):
-    r = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, cwd=ROOT)
-    if r.returncode != 0:
-        sys.exit(f"failed ({r.returncode}): {' '.join(map(str, cmd))}\n{r.stderr[-3000:]}")
-    return r
 
-
-def timed(cmd):
-    """Runs cmd; returns (cpu seconds of the child, wall seconds)."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.monotonic()
-    run(cmd)
-    wall = time.monotonic() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall
-
-
-def exr_attribute(path, name):
-    """A string attribute of an EXR header (name NUL "string" NUL, 4-byte length, bytes)."""
-    data = pathlib.Path(path).read_bytes()[:65536]
-    key = name.encode() + b"\x00string\x00"
-    i = data.find(key)
-    if i < 0:
-        return None
-    n = int.from_bytes(data[i + len(key):i + len(key) + 4], "little")
-    return data[i + len(key) + 4:i + len(key) + 4 + n].decode()
 
 
 def plans(levels):
@@ -300,8 +275,8 @@ def main():
             row = {"scene": scene, "res": res, "photons": args.photons, "k": args.k, "method": method,
                    "family": family, "flags": " ".join(flags), "cpu_seconds": statistics.median(cpus),
                    "cpu_seconds_all": cpus, "wall_seconds": statistics.median(walls),
-                   "maps_built": int(exr_attribute(exr, "photons.maps_built") or 0),
-                   "tasks": int(exr_attribute(exr, "tasks") or 0)}
+                   "maps_built": int(exr_string(exr, "photons.maps_built") or 0),
+                   "tasks": int(exr_string(exr, "tasks") or 0)}
             for ref in REFERENCES:  # RMS over seeds
                 row[ref] = {m: math.sqrt(sum(v * v for v in errs[ref][m]) / len(errs[ref][m])) for m in METRICS}
             rows.append(row)

@@ -24,10 +24,11 @@ import json
 import pathlib
 import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
+
+from bench_common import exr_string, run, timed
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SCENES = {  # name: (manifest, reference, resolution)
@@ -38,32 +39,7 @@ SCENES = {  # name: (manifest, reference, resolution)
 }
 
 
-def run(cmd):
-    r = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, cwd=ROOT)
-    if r.returncode != 0:
-        sys.exit(f"failed ({r.returncode}): {' '.join(map(str, cmd))}\n{r.stderr}")
-    return r
 
-
-def exr_string(path, name):
-    """An EXR string attribute: name NUL "string" NUL, a 4-byte little-endian length, the bytes."""
-    data = pathlib.Path(path).read_bytes()[:65536]
-    key = name.encode() + b"\x00string\x00"
-    i = data.find(key)
-    if i < 0:
-        return None
-    n = int.from_bytes(data[i + len(key):i + len(key) + 4], "little")
-    return data[i + len(key) + 4:i + len(key) + 4 + n].decode()
-
-
-def timed(cmd):
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.monotonic()
-    run(cmd)
-    wall = time.monotonic() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, wall
 
 
 def main():

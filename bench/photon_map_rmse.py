@@ -33,6 +33,8 @@ def main():
     ap.add_argument("--photons", default="100000,1000000")
     ap.add_argument("--k", default="50,200")
     ap.add_argument("--out", default="docs/results")
+    ap.add_argument("--direct", default="photon-map",
+                    help="pf render --direct: photon-map (the standalone map, §2.5; the default) or mc/auto")
     args = ap.parse_args()
     out = ROOT / args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -44,7 +46,7 @@ def main():
                 exr = out / f"{stem}.exr"
                 t0 = time.monotonic()
                 run([args.pf, "render", manifest, "--integrator", "photonmap", "--photons", str(n), "--k", str(k),
-                     "--spp", str(args.spp), "--res", args.res, "--kd-split", "widest", "-q", "-o", str(exr), "--png", str(out / f"{stem}.png")])
+                     "--spp", str(args.spp), "--res", args.res, "--kd-split", "widest", "--direct", args.direct, "-q", "-o", str(exr), "--png", str(out / f"{stem}.png")])
                 wall = time.monotonic() - t0
                 diff = json.loads(run([args.pf, "diff", str(exr), reference, "--json", "--scene", manifest,
                                        "--error-image", str(out / f"{stem}-error.png")]).stdout)
