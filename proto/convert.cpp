@@ -211,6 +211,11 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   }
   if (!(pm.irradiance_cache_error() >= 0.0 && pm.irradiance_cache_error() <= 1.0))
     throw InputError(f + ".irradiance_cache_error: must be in [0, 1] (0 = off)");
+  // The cache stores the local pass's gathers: without one it would be silently ignored.
+  if (pm.irradiance_cache_error() > 0.0 && pm.local_pass_rays() == 0)
+    throw InputError(
+        f +
+        ".irradiance_cache_error: caches the local pass's gathers; set local_pass_rays > 0 (--local-pass N)");
   out.irradiance_cache_error = float(pm.irradiance_cache_error());
   out.occlusion_test = pm.occlusion_test();
   if (pm.adaptive_k_min() > pm.k())

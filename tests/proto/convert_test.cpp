@@ -155,6 +155,11 @@ TEST(Convert, BadSettingsNameTheirField) {
               StartsWith(f + "irradiance_cache_error:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_irradiance_cache_error(NAN); }),
               StartsWith(f + "irradiance_cache_error:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) {
+                p.set_local_pass_rays(0);
+                p.set_irradiance_cache_error(0.2);
+              }),
+              StartsWith(f + "irradiance_cache_error: caches the local pass's gathers"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_adaptive_k_min(51); }),
               StartsWith(f + "adaptive_k_min:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_direct(static_cast<v1::DirectLight>(99)); }),
