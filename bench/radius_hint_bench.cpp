@@ -9,7 +9,6 @@
 //   build/bench/radius_hint_bench [--photons 200000] [--k 50] [--spp 4] [--res 128] [--repeats 5]
 //                                 [--direct none|mc] [--json out.json]
 #include <spdlog/spdlog.h>
-#include <time.h>
 
 #include <algorithm>
 #include <cmath>
@@ -26,16 +25,6 @@
 #include "common/scene/scene_loader.h"
 
 using namespace pf;
-
-namespace {
-
-double ProcessCpuSeconds() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   uint64_t photons = 200000;
@@ -109,9 +98,10 @@ int main(int argc, char** argv) {
           PhotonMapIntegratorOptions o = io;
           o.pixel_radius_hint = hint == 1;
           const PhotonMapIntegrator integrator(accel, &lights, maps, o);
-          const double t0 = ProcessCpuSeconds();
-          images[hint] = RenderImage(integrator, camera, RenderOptions{.spp = spp, .seed = 3, .threads = 1});
-          seconds[hint].push_back(ProcessCpuSeconds() - t0);
+          seconds[hint].push_back(bench::CpuTimeIt([&] {
+            images[hint] =
+                RenderImage(integrator, camera, RenderOptions{.spp = spp, .seed = 3, .threads = 1});
+          }));
         }
       }
       double max_rel = 0;
