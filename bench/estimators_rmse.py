@@ -4,8 +4,10 @@
 For every scene (Cornell box, CornellBox-Sphere, scene8, the SCENE10-like rooms and the
 INVISIBLEDATE-like pair of rooms) and every budget (photons, k, camera samples per pixel), renders
 each method with `pf render` (one process, one map, seed 1, all cores), times the whole command
-(median of --repeat runs: load, photon tracing, kd-tree build and rendering included), and compares
-with `pf diff --json` against scenes/<scene>/reference-*.exr:
+(median of --repeat runs: load, photon tracing, kd-tree build and rendering included) by its CPU
+time (user + system of the child: the machines are shared, and wall time counts the waits for a
+core; on an idle 2-core machine wall time is about CPU / 2) and by wall time, and compares with
+`pf diff --json --scene` against scenes/<scene>/reference-*.exr:
 
     standalone          --direct photon-map            direct light from the map (2.5)
     standalone+occl     ... --occlusion-test           origin visibility per photon (4.1.1)
@@ -27,7 +29,10 @@ PhotonDirect without its neighbour-set cache on scene10; and on scene10 (both bu
 Error columns: the display RMSE (pf diff's rmse_display: both images clamped to the reference's
 display white w = its median luminance / 0.18, RMSE / w; scale-free, so a dim scene is measured
 like a bright one, and lights seen directly, 8-17 in value, count no more than white, instead of
-their edge pixels' coverage noise dominating everything), the raw RMSE / reference mean,
+their edge pixels' coverage noise dominating everything), pf diff's rmse_masked (unclamped, without
+the emitters seen directly and a 2-pixel band around them: the noise where the eye looks) and
+rmse_lowfreq (the masked image's RMSE after 4x4 binning: the photon map's blotches, thesis 3.3.2),
+both / w, the raw RMSE / reference mean,
 mean / reference mean (bias), and the reference's own noise (RMSE of its two halves / 2, over w;
 no row can measure below it).
 
@@ -47,7 +52,9 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from bench_common import timed  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SCENES = {  # name: (manifest, reference, resolution)
@@ -137,20 +144,25 @@ class Measurer:
         exr = self.work / f"{scene}-{budget}-{len(self.done)}.exr"
         cmd = [self.args.pf, "render", manifest, "--photons", str(photons), "--k", str(k), "--spp", str(spp),
                "--res", res, "--seed", "1", "--threads", str(self.args.threads), "-q", "--no-png", "-o", str(exr)]
-        walls = []
+        cpus, walls = [], []
         for _ in range(self.args.repeat):
-            t0 = time.monotonic()
-            run(cmd + flags)
-            walls.append(time.monotonic() - t0)
-        diff = json.loads(run([self.args.pf, "diff", str(exr), reference, "--json"]).stdout)
+            cpu, wall = timed(cmd + flags)
+            cpus.append(cpu)
+            walls.append(wall)
+        diff = json.loads(run([self.args.pf, "diff", str(exr), reference, "--json", "--scene", manifest]).stdout)
+        white = diff["display_white"]
         row = {"scene": scene, "budget": budget, "method": method, "flags": " ".join(flags),
                "photons": 0 if "path" in flags else photons, "k": 0 if "path" in flags else k, "spp": spp,
+               "cpu_seconds": round(statistics.median(cpus), 3), "cpu_seconds_all": [round(c, 3) for c in cpus],
                "wall_seconds": round(statistics.median(walls), 3), "wall_seconds_all": [round(w, 3) for w in walls],
                "rmse": diff["rmse"], "rmse_clamped": diff["rmse_clamped"], "rmse_display": diff["rmse_display"],
+               "rmse_masked": diff["rmse_masked"], "rmse_lowfreq": diff["rmse_lowfreq"],
+               "masked_white": diff["rmse_masked"] / white, "lowfreq_white": diff["rmse_lowfreq"] / white,
                "nrmse": diff["rmse"] / diff["reference_mean"], "mean_ratio": diff["mean"] / diff["reference_mean"],
                "exr": str(exr)}
-        print(f"{scene:14s} {budget:5s} {method:26s} {row['wall_seconds']:7.2f} s  RMSE/mean {row['nrmse']:.4f}  "
-              f"RMSE/white {row['rmse_display']:.4f}  mean/ref {row['mean_ratio']:.4f}", flush=True)
+        print(f"{scene:14s} {budget:5s} {method:26s} {row['cpu_seconds']:7.2f} s CPU  RMSE/white "
+              f"{row['rmse_display']:.4f}  masked {row['masked_white']:.4f}  lowfreq {row['lowfreq_white']:.4f}  "
+              f"mean/ref {row['mean_ratio']:.4f}", flush=True)
         self.done[key] = row
         return dict(row)
 
@@ -164,7 +176,7 @@ def contact_sheet(pf, scene, rows, out, work, white):
     shown = [r for name in SHEET for r in rows if r["method"] == name]
     error_scale = 0.25 * white  # yellow = an error of a quarter of the display white
     cells = [("reference", reference, None, "")] + [
-        (r["method"], r["exr"], True, f"{r['wall_seconds']:.1f} s, RMSE/white {r['rmse_display']:.4f}, "
+        (r["method"], r["exr"], True, f"{r['cpu_seconds']:.1f} s CPU, RMSE/white {r['rmse_display']:.4f}, "
                                       f"mean {r['mean_ratio']:.3f}") for r in shown]
     cols = 3
     rows_of_cells = (len(cells) + cols - 1) // cols
@@ -213,7 +225,7 @@ def plot(rows, scenes, out):
         names = list(dict.fromkeys(r["method"] for r in mine if "rays)" not in r["method"]))
         cmap = plt.get_cmap("tab20")
         for i, method in enumerate(names):
-            pts = sorted((r["wall_seconds"], r["rmse_display"]) for r in mine if r["method"] == method)
+            pts = sorted((r["cpu_seconds"], r["rmse_display"]) for r in mine if r["method"] == method)
             ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=markers[i % len(markers)], color=cmap(i % 20),
                     label=method, linestyle=":" if method == "path" else "-")
         if mine[0].get("reference_noise_display"):
@@ -226,7 +238,7 @@ def plot(rows, scenes, out):
             ax2 = axes[0][1]
             for family, colour in (("mc", "tab:blue"), ("photon-direct", "tab:red")):
                 for budget, style in (("low", "-"), ("high", "--")):
-                    pts = sorted((r["wall_seconds"], r["rmse_display"], r["method"].split("(")[1].split()[0])
+                    pts = sorted((r["cpu_seconds"], r["rmse_display"], r["method"].split("(")[1].split()[0])
                                  for r in swept if r["method"].startswith(family + " (") and r["budget"] == budget)
                     if not pts:
                         continue
@@ -239,7 +251,7 @@ def plot(rows, scenes, out):
         for a in axes[0]:
             a.set_xscale("log")
             a.set_yscale("log")
-            a.set_xlabel("wall time of pf render, median (s)")
+            a.set_xlabel("CPU time of pf render (user + system, both threads), median (s)")
             a.set_ylabel("RMSE / display white (clamped at white)")
             a.grid(True, which="both", alpha=0.3)
         fig.tight_layout()
@@ -256,12 +268,14 @@ def write_reports(rows, scenes, out, sheets=()):
     for scene in scenes:
         mine = [r for r in rows if r["scene"] == scene]
         lines += [f"### {scene}", "",
-                  "| budget (photons / k / spp) | method | wall s (median) | RMSE / white | RMSE / mean | mean / ref |",
-                  "|---|---|---:|---:|---:|---:|"]
+                  "| budget (photons / k / spp) | method | CPU s (median) | wall s | RMSE / white | masked / white "
+                  "| low-freq / white | RMSE / mean | mean / ref |",
+                  "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
         for r in mine:
             budget = f"{r['photons'] // 1000}k / {r['k']} / {r['spp']}" if r["photons"] else f"{r['spp']} spp"
-            lines.append(f"| {r['budget']} ({budget}) | {r['method']} | {r['wall_seconds']:.2f} | "
-                         f"{r['rmse_display']:.4f} | {r['nrmse']:.4f} | {r['mean_ratio']:.3f} |")
+            lines.append(f"| {r['budget']} ({budget}) | {r['method']} | {r['cpu_seconds']:.2f} | "
+                         f"{r['wall_seconds']:.2f} | {r['rmse_display']:.4f} | {r['masked_white']:.4f} | "
+                         f"{r['lowfreq_white']:.4f} | {r['nrmse']:.4f} | {r['mean_ratio']:.3f} |")
         if mine[0].get("reference_noise_nrmse"):
             lines += ["", f"The reference's own noise: RMSE {mine[0]['reference_noise_rmse']:.5f} = "
                           f"{mine[0]['reference_noise_display']:.4f} of white = {mine[0]['reference_noise_nrmse']:.4f} "
