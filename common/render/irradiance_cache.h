@@ -14,9 +14,18 @@
 // Determinism: a cache lives for one block of pixels that one thread renders in a fixed order
 // (RenderPixels' pixel blocks, renderer.h), so its records depend only on the block's pixels,
 // their samples and the job's seeds — never on threads or workers.
+//
+// Lookup: record i can only be usable within a·R_i of x_i, so records are filed in a hashed grid
+// per radius level (level L holds R_i in [2^L, 2^{L+1}) · the smallest radius, with cells of
+// a · 2^{L+1} · that radius: a record covers at most 3 cells per axis) and a lookup reads one cell
+// per level. The usable candidates are summed in record order, so the result is bit-identical to
+// a scan over all records (test: IrradianceCache.GridLookupEqualsTheLinearScan) — without the
+// scan's cost, which grew with records × lookups, i.e. quadratically with the samples per block.
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "common/core/math.h"
@@ -49,7 +58,10 @@ class IrradianceCache {
   explicit IrradianceCache(const IrradianceCacheOptions& options) : options_(options) {}
 
   // Weighted mean E/π of the records usable at (x, n) (header comment); nullopt if none is.
+  // Not thread-safe (scratch space): a cache belongs to one pixel block, rendered by one thread.
   std::optional<Rgb> Interpolate(const Vec3& x, const Vec3& n) const;
+  // The same from a scan over every record (the definition; tests compare the two).
+  std::optional<Rgb> InterpolateLinearScan(const Vec3& x, const Vec3& n) const;
   // A record from a gather at (x, n): `irradiance` = E/π, `inverse_distance_sum` = Σ 1/d_j over
   // the gather rays that hit something (misses count as infinitely far), `hits` of them.
   void Add(const Vec3& x, const Vec3& n, const Rgb& irradiance, double inverse_distance_sum, int hits);
@@ -58,8 +70,16 @@ class IrradianceCache {
   const IrradianceCacheOptions& options() const { return options_; }
 
  private:
+  // Record i's contribution to the weighted mean at (x, n), or false if it is not usable.
+  bool Usable(const IrradianceRecord& r, const Vec3& x, const Vec3& n, float& weight) const;
+  int LevelOf(float radius) const;
+  float CellSize(int level) const;
+
   IrradianceCacheOptions options_;
   std::vector<IrradianceRecord> records_;
+  std::unordered_map<uint64_t, std::vector<uint32_t>> cells_;  // (level, cell) hash → record indices
+  uint32_t levels_used_ = 0;                                   // bit L: level L holds a record
+  mutable std::vector<uint32_t> candidates_;                   // Interpolate's scratch
 };
 
 // One cache per pixel block (PixelBlockState, integrator.h).

@@ -5,11 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <vector>
 
+#include "common/core/rng.h"
 #include "common/render/camera.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
@@ -111,6 +113,45 @@ TEST(IrradianceCache, NormalsAndInFrontTestRejectRecords) {
   EXPECT_FALSE(cache.Interpolate(Vec3(0, 0, 0), Vec3(std::sin(tilt), 0, std::cos(tilt))).has_value());
   EXPECT_FALSE(cache.Interpolate(Vec3(0, 0, -0.1f), Vec3(0, 0, 1)).has_value());  // x behind the record
   EXPECT_TRUE(cache.Interpolate(Vec3(0, 0, 0.1f), Vec3(0, 0, 1)).has_value());    // x in front is fine
+}
+
+// The hashed grid finds exactly the records a scan over all of them finds, and sums them in the
+// same order: bit-identical results for records of every radius level (R from the clamp's
+// minimum to its maximum), normals on three planes and points on and off them. Removing the
+// reach's padding in Add, or filing a record in fewer cells, makes lookups near a reach's edge
+// miss a record (the scan finds it) and fails this.
+TEST(IrradianceCache, GridLookupEqualsTheLinearScan) {
+  for (const float a : {0.05f, 0.2f, 0.6f}) {
+    IrradianceCacheOptions o;
+    o.error = a;
+    o.min_radius = 0.01f;
+    o.max_radius = 0.25f;
+    IrradianceCache cache(o);
+    Rng rng(7, 11);
+    const Vec3 normals[] = {Vec3(0, 0, 1), Vec3(0, 1, 0), Normalize(Vec3(1, 1, 0.2f))};
+    auto point = [&] { return Vec3(rng.Uniform() - 0.5f, rng.Uniform() - 0.5f, 0.05f * rng.Uniform()); };
+    for (int i = 0; i < 2000; ++i) {
+      // 1/R from 1/0.005 to 1/0.5: clamped at both ends, and every level between.
+      const double inverse_r = std::exp(std::log(2.0) + rng.UniformDouble() * std::log(100.0));
+      cache.Add(point(), normals[i % 3], Rgb(rng.Uniform(), rng.Uniform(), rng.Uniform()), inverse_r, 1);
+    }
+    int found = 0;
+    for (int q = 0; q < 20000; ++q) {
+      // Half the queries near a record (within 1.2 of its reach), half anywhere.
+      const IrradianceRecord& near = cache.records()[rng.UniformInt(uint32_t(cache.records().size()))];
+      const Vec3 offset =
+          Vec3(rng.Uniform() - 0.5f, rng.Uniform() - 0.5f, rng.Uniform() - 0.5f) * (2.4f * a * near.radius);
+      const Vec3 x = q % 2 == 0 ? near.position + offset : point();
+      const Vec3 n = q % 4 < 2 ? near.normal : normals[rng.UniformInt(3)];
+      const std::optional<Rgb> grid = cache.Interpolate(x, n), scan = cache.InterpolateLinearScan(x, n);
+      ASSERT_EQ(grid.has_value(), scan.has_value()) << "a " << a << " query " << q;
+      if (!grid) continue;
+      ++found;
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(std::bit_cast<uint32_t>((*grid)[c]), std::bit_cast<uint32_t>((*scan)[c]));
+    }
+    EXPECT_GT(found, 1000) << "a " << a << ": too few lookups found a record to test anything";
+  }
 }
 
 // The local pass with the cache in the furnace (albedo 0.8, Le = 1): every pixel Le/(1−a) = 5
