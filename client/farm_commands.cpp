@@ -46,6 +46,15 @@ FarmClient Connect(const FarmArgs& f) {
                     ResolveClientTls(f.tls_ca, f.tls_cert, f.tls_key));
 }
 
+// The job's plan as the coordinator stores it (for --plan auto: the chosen one).
+std::string PlanText(const v1::JobStatus& s) {
+  try {
+    return DescribePlan(PlanFromProto(s.spec().plan(), "spec.plan"));
+  } catch (const InputError&) {
+    return "unknown";
+  }
+}
+
 nlohmann::json StatusJson(const v1::JobStatus& s) {
   return {{"job_id", s.job_id()},
           {"name", s.spec().name()},
@@ -60,7 +69,9 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"estimated_noise_rms", s.estimated_noise_rms()},
           {"rounds_done", s.rounds_done()},
           {"priority", s.spec().priority()},
-          {"submitted_unix_ms", s.submitted_unix_ms()}};
+          {"submitted_unix_ms", s.submitted_unix_ms()},
+          {"plan", PlanText(s)},
+          {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()}};
 }
 
 std::string Summary(const v1::JobStatus& s) {
@@ -69,6 +80,9 @@ std::string Summary(const v1::JobStatus& s) {
                   s.tasks_done(), s.tasks_total(), s.samples_merged(), FormatDuration(s.elapsed_seconds()));
   if (s.estimated_noise_rms() >= 0) out += fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms());
   if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
+  out += "; plan " + PlanText(s);
+  if (s.spec().plan().has_chosen_by_auto())
+    out += " (auto: " + s.spec().plan().chosen_by_auto().reason() + ")";
   return out;
 }
 
@@ -396,7 +410,7 @@ int RunFarmRender(const RenderArgs& a) {
   Image image = DecodeExrFromMemory(bytes, &meta);
   meta["scene"] = a.scene;
   meta["integrator"] = a.integrator;
-  meta["plan"] = DescribePlan(PlanFromProto(job.spec.plan(), "spec.plan"));
+  meta["plan"] = DescribePlan(PlanFromProto(st.spec().plan(), "spec.plan"));  // as the coordinator chose it
   meta["seed"] = std::to_string(a.seed);
   meta["farm.workers"] = std::to_string(a.workers);
   meta["farm.job_id"] = st.job_id();

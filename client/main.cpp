@@ -150,6 +150,7 @@ int main(int argc, char** argv) {
                    "Keep the local farm's folder (logs, SQLite) afterwards");
 
   RenderArgs sa;
+  sa.submit = true;
   FarmArgs sf;
   CLI::App* submit =
       app.add_subcommand("submit", "Upload a scene and submit a render job; prints the job id");

@@ -3,12 +3,15 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <sstream>
 #include <variant>
 
 #include "common/core/error.h"
+#include "common/photon/photon_tracer.h"
+#include "common/plan/plan_choice.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
@@ -247,29 +250,34 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
          "over --tile tiles, averaged), maps-in-turn (sample i from map i), skipping (per round a "
          "seeded pixel permutation, stride^2 tasks each with its own map), hierarchical (4.5: "
          "multilevel sampling, every sample of a pixel from its own map, --levels/--dims/--base-samples/"
-         "--min-samples/--decay/--localize-*; --tile = rows per task)")
-      ->check(CLI::IsMember({"multiple-maps", "maps-in-turn", "skipping", "hierarchical"}));
-  app->add_option("--maps", a.maps, "multiple-maps: number of independent maps")->capture_default_str();
-  app->add_option("--stride", a.stride, "skipping: S (S^2 tasks per round)")->capture_default_str();
-  app->add_option("--rounds", a.rounds, "skipping: rounds")->capture_default_str();
-  app->add_option("--tile", a.tile, "multiple-maps, maps-in-turn: tile side in pixels (0 = whole image)")
-      ->capture_default_str();
-  app->add_option("--levels", a.levels, "hierarchical: L, level-0 points every 2^L pixels (1..16)")
-      ->capture_default_str();
-  app->add_option("--dims", a.dims, "hierarchical: 1 = scanlines (the thesis's version), 2 = image plane")
-      ->capture_default_str();
-  app->add_option("--base-samples", a.base_samples, "hierarchical: n0, maps (samples) of a level-0 point")
-      ->capture_default_str();
-  app->add_option("--min-samples", a.min_samples, "hierarchical: n_l never falls below this")
-      ->capture_default_str();
-  app->add_option("--decay", a.decay, "hierarchical: n_l = max(min-samples, ceil(n0 / decay^l))")
-      ->capture_default_str();
-  app->add_option("--localize-threshold", a.localize_threshold,
-                  "hierarchical: tau; resample a pixel directly if |detail| > tau x the level's noise ...")
-      ->capture_default_str();
-  app->add_option("--localize-contrast", a.localize_contrast,
-                  "hierarchical: ... and > kappa x |interpolation| (kappa = this)")
-      ->capture_default_str();
+         "--min-samples/--decay/--localize-*; --tile = rows per task), or auto (the default of --workers and "
+         "`pf submit`; --local-only defaults to multiple-maps): the coordinator picks the plan, the number "
+         "of "
+         "maps and photons per map from the scene, the workers and the stop rule, with --photons the budget "
+         "over all maps and --spp the samples per pixel over all maps (docs/farm.md, \"Choosing the plan\")")
+      ->check(CLI::IsMember({"auto", "multiple-maps", "maps-in-turn", "skipping", "hierarchical"}));
+  // Which plan-shape flags were given: --plan auto chooses them itself.
+  auto shape = [&a](CLI::Option* o) {
+    o->each([&a, name = o->get_name()](const std::string&) { a.plan_flags_given.push_back(name); });
+    return o->capture_default_str();
+  };
+  shape(app->add_option("--maps", a.maps, "multiple-maps: number of independent maps"));
+  shape(app->add_option("--stride", a.stride, "skipping: S (S^2 tasks per round)"));
+  shape(app->add_option("--rounds", a.rounds, "skipping: rounds"));
+  shape(app->add_option("--tile", a.tile,
+                        "multiple-maps, maps-in-turn: tile side in pixels (0 = whole image)"));
+  shape(app->add_option("--levels", a.levels, "hierarchical: L, level-0 points every 2^L pixels (1..16)"));
+  shape(app->add_option("--dims", a.dims,
+                        "hierarchical: 1 = scanlines (the thesis's version), 2 = image plane"));
+  shape(app->add_option("--base-samples", a.base_samples,
+                        "hierarchical: n0, maps (samples) of a level-0 point"));
+  shape(app->add_option("--min-samples", a.min_samples, "hierarchical: n_l never falls below this"));
+  shape(app->add_option("--decay", a.decay, "hierarchical: n_l = max(min-samples, ceil(n0 / decay^l))"));
+  shape(app->add_option(
+      "--localize-threshold", a.localize_threshold,
+      "hierarchical: tau; resample a pixel directly if |detail| > tau x the level's noise ..."));
+  shape(app->add_option("--localize-contrast", a.localize_contrast,
+                        "hierarchical: ... and > kappa x |interpolation| (kappa = this)"));
   app->add_option("--max-rounds", a.max_rounds, "Stop rule: stop after this many rounds (0 = all)");
   app->add_option("--time-budget", a.time_budget,
                   "Stop rule: seconds (0 = none; the image then depends on timing)");
@@ -315,9 +323,21 @@ PreparedJob PrepareJob(const RenderArgs& a) {
   // the workers decide alike from the same scene.
   ResolveAndLog(SettingsFromProto(s.settings(), "settings"), p.scene);
 
-  const std::string plan = a.plan.empty() ? "multiple-maps" : a.plan;
+  // --plan auto is the farm's default (issue #12: --workers, submit); --local-only and a plain
+  // render keep multiple maps unless asked.
+  const std::string plan = !a.plan.empty()                                ? a.plan
+                           : (a.workers > 0 && !a.local_only) || a.submit ? "auto"
+                                                                          : "multiple-maps";
   v1::Plan* pl = s.mutable_plan();
-  if (plan == "multiple-maps") {
+  if (plan == "auto") {
+    if (!a.plan_flags_given.empty())
+      throw InputError(
+          a.plan_flags_given.front() +
+          ": not used by --plan auto, which chooses the plan's shape (give --plan multiple-maps, "
+          "skipping, maps-in-turn or hierarchical to set it)");
+    pl->mutable_auto_plan()->set_workers(uint32_t(std::max(0, a.workers)));  // 0: the coordinator counts
+    pl->mutable_auto_plan()->set_samples_per_pixel(a.spp);
+  } else if (plan == "multiple-maps") {
     pl->mutable_multiple_maps()->set_maps(a.maps);
     pl->mutable_multiple_maps()->set_samples_per_pixel(a.spp);
     pl->mutable_multiple_maps()->set_tile_size(a.tile);
@@ -345,6 +365,13 @@ PreparedJob PrepareJob(const RenderArgs& a) {
   s.mutable_stop()->set_time_budget_seconds(a.time_budget);
   s.mutable_stop()->set_target_noise_rms(a.target_noise);
   s.set_priority(a.priority);
+  if ((a.local_only || (a.workers == 0 && !a.submit)) && s.plan().has_auto_plan()) {
+    // The coordinator's resolution, here: the local render runs the plan the farm would.
+    const CameraSpec cam = CameraFromProto(s.camera(), "spec.camera");
+    ResolveAutoPlan(&s, cam.width, cam.height, SceneNeedsCausticMap(p.scene) ? 1 : 0,
+                    uint32_t(std::max(1, a.workers)), kMapsCanBeShipped, "spec");
+    spdlog::info("plan auto: {}", s.plan().chosen_by_auto().reason());
+  }
   return p;
 }
 

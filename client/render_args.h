@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "common/plan/task_executor.h"
 #include "common/scene/scene.h"
@@ -80,6 +81,10 @@ struct RenderArgs {
   std::string coordinator_bin, worker_bin;
   std::vector<std::string> coordinator_args, worker_args;
   bool keep_farm_dir = false;
+  // --plan auto (issue #12): the plan-shape flags given on the command line (--maps, --stride, …),
+  // which auto would ignore: an error with it.
+  std::vector<std::string> plan_flags_given;
+  bool submit = false;  // `pf submit`: --plan defaults to auto, as with --workers
 };
 
 // A scene manifest's "settings" (spp for a plain render, photons, k) become the defaults of the

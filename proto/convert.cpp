@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common/core/error.h"
+#include "common/plan/plan_choice.h"
 #include "proto/limits.h"
 
 namespace pf {
@@ -321,8 +322,12 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
       // The rest (ranges, map count) is checked by ValidatePlan with the image size.
       break;
     }
+    case v1::Plan::kAutoPlan:
+      throw InputError(field +
+                       ".auto_plan: not resolved (the coordinator replaces it by the plan it chooses)");
     default:
-      throw InputError(field + ": one of multiple_maps, maps_in_turn, skipping, hierarchical is required");
+      throw InputError(field +
+                       ": one of multiple_maps, maps_in_turn, skipping, hierarchical, auto_plan is required");
   }
   return out;
 }
@@ -444,6 +449,53 @@ void TaskSpecToProto(const TaskSpec& spec, v1::Task* out) {
   PixelSubsetToProto(spec.pixels, out->mutable_pixels());
   out->set_sample_begin(spec.sample_begin);
   out->set_sample_end(spec.sample_end);
+}
+
+bool ResolveAutoPlan(v1::JobSpec* spec, int width, int height, int caustic_paths, uint32_t workers,
+                     bool maps_can_be_shipped, const std::string& field) {
+  if (!spec->plan().has_auto_plan()) return false;
+  const v1::PlanAuto a = spec->plan().auto_plan();
+  const std::string f = field + ".plan.auto_plan";
+  const JobRenderSettings settings = SettingsFromProto(spec->settings(), field + ".settings");
+  PlanChoiceInput in;
+  in.width = width;
+  in.height = height;
+  in.photon_map = settings.integrator == IntegratorKind::kPhotonMap;
+  in.photon_budget = in.photon_map ? settings.photons : 0;
+  if (a.samples_per_pixel() > kMaxSamplesPerPixel)
+    throw LimitError(f + ".samples_per_pixel: exceeds the limit " + std::to_string(kMaxSamplesPerPixel));
+  in.samples_per_pixel = a.samples_per_pixel();
+  in.workers = a.workers() > 0 ? a.workers() : workers;
+  in.caustic_map = in.photon_map && (settings.caustic == CausticMapMode::kOn ||
+                                     (settings.caustic == CausticMapMode::kAuto && caustic_paths != 0));
+  in.time_budget_seconds = spec->stop().time_budget_seconds();
+  in.target_noise_rms = spec->stop().target_noise_rms();
+  in.maps_can_be_shipped = maps_can_be_shipped;
+  PlanChoice choice;
+  try {
+    choice = ChoosePlan(in);
+  } catch (const InputError& e) {
+    // ChoosePlan names fields relative to the job ("plan.auto.workers"); the wire's message is
+    // auto_plan, and the budget is a setting.
+    std::string msg = e.what();
+    if (msg.rfind("plan.auto.", 0) == 0)
+      msg = f + "." + msg.substr(10);
+    else
+      msg = field + "." + msg;
+    throw InputError(msg);
+  }
+  v1::AutoPlanChoice record;
+  record.set_reason(choice.reason);
+  record.set_workers(in.workers);
+  record.set_photon_budget(in.photon_budget);
+  record.set_photons_per_map(choice.photons_per_map);
+  record.set_caustic_map(in.caustic_map);
+  record.set_maps_can_be_shipped(maps_can_be_shipped);
+  spec->mutable_plan()->Clear();
+  PlanToProto(choice.plan, spec->mutable_plan());
+  *spec->mutable_plan()->mutable_chosen_by_auto() = record;
+  if (in.photon_map) spec->mutable_settings()->mutable_photon_map()->set_photons(choice.photons_per_map);
+  return true;
 }
 
 }  // namespace pf

@@ -34,6 +34,14 @@ void SettingsToProto(const JobRenderSettings& s, photonfarm::v1::RenderSettings*
 
 PlanSpec PlanFromProto(const photonfarm::v1::Plan& p, const std::string& field);
 void PlanToProto(const PlanSpec& p, photonfarm::v1::Plan* out);
+// `spec.plan.auto_plan` (if set) replaced by the plan ChoosePlan (common/plan/plan_choice.h)
+// picks for a width × height image: the plan, settings.photon_map.photons = photons per map,
+// and plan.chosen_by_auto (the caller logs its reason). `caustic_paths`: the scene has specular
+// or glossy surfaces (-1 unknown: assumed). `workers` replaces auto_plan.workers = 0. Returns
+// false (no change) for a concrete plan. InputError naming the field under `field` (the spec's
+// path: "spec") for invalid input, e.g. "spec.plan.auto_plan.samples_per_pixel: must be >= 1".
+bool ResolveAutoPlan(photonfarm::v1::JobSpec* spec, int width, int height, int caustic_paths,
+                     uint32_t workers, bool maps_can_be_shipped, const std::string& field);
 
 PixelSubset PixelSubsetFromProto(const photonfarm::v1::PixelSubset& p, const std::string& field);
 void PixelSubsetToProto(const PixelSubset& p, photonfarm::v1::PixelSubset* out);

@@ -24,14 +24,19 @@ std::string ResultMerger::Digest(std::span<const float> rgb_sums) {
 }
 
 std::shared_ptr<const std::vector<uint32_t>> ResultMerger::Permutation(uint64_t seed, int width, int height) {
-  for (auto it = cache_.begin(); it != cache_.end(); ++it) {
-    if (it->seed == seed && it->width == width && it->height == height) {
-      cache_.splice(cache_.begin(), cache_, it);
-      return cache_.front().perm;
+  {
+    std::lock_guard lock(cache_mu_);
+    for (auto it = cache_.begin(); it != cache_.end(); ++it) {
+      if (it->seed == seed && it->width == width && it->height == height) {
+        cache_.splice(cache_.begin(), cache_, it);
+        return cache_.front().perm;
+      }
     }
   }
+  // Built (O(pixels)) outside the cache's lock; two threads may build the same one at once.
   auto perm = std::make_shared<const std::vector<uint32_t>>(
       PixelPermutation(seed, uint32_t(width) * uint32_t(height)));
+  std::lock_guard lock(cache_mu_);
   cache_.push_front({seed, width, height, perm});
   while (cache_.size() > capacity_) cache_.pop_back();
   return perm;
@@ -61,8 +66,12 @@ CheckedResult ResultMerger::Check(const TaskSpec& task, int width, int height,
 }
 
 void ResultMerger::Merge(const ValidResult& result, Accumulator& acc) {
+  const std::vector<uint32_t> pixels = PixelsOfTask(result.task(), acc.width(), acc.height());
+  Merge(result, pixels, acc);
+}
+
+void ResultMerger::Merge(const ValidResult& result, std::span<const uint32_t> pixels, Accumulator& acc) {
   const TaskSpec& task = result.task();
-  const std::vector<uint32_t> pixels = PixelsOfTask(task, acc.width(), acc.height());
   acc.AddValidated(task, pixels, result.rgb_sums(), task.sample_end - task.sample_begin);
 }
 

@@ -15,12 +15,14 @@
 // come from a permutation of all W·H pixels shared by the S² tasks of a round; the merger keeps
 // the last few permutations so a round costs one permutation, not S².
 //
-// Not thread-safe: called under the Scheduler's lock.
+// Thread-safe: Check and Merge are static, and the permutation cache has its own lock (the
+// Scheduler calls PixelsOfTask off its global lock, from many threads at once).
 
 #include <cstdint>
 #include <limits>
 #include <list>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
@@ -72,6 +74,8 @@ class ResultMerger {
 
   // Adds a checked result to `acc` (of the job the result was checked for).
   void Merge(const ValidResult& result, Accumulator& acc);
+  // The same with the task's pixels already computed (PixelsOfTask, each < width · height).
+  static void Merge(const ValidResult& result, std::span<const uint32_t> pixels, Accumulator& acc);
 
   // The pixel indices of `task`'s subset (cached permutations for skipping).
   std::vector<uint32_t> PixelsOfTask(const TaskSpec& task, int width, int height);
@@ -84,6 +88,7 @@ class ResultMerger {
   };
   std::shared_ptr<const std::vector<uint32_t>> Permutation(uint64_t seed, int width, int height);
   size_t capacity_;
+  std::mutex cache_mu_;
   std::list<CachedPermutation> cache_;  // most recent first
 };
 

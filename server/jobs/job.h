@@ -9,10 +9,14 @@
 // LEASED → QUEUED again (lease expired, failed, result rejected, lease returned), or CANCELLED
 // (job cancelled, stopped by a stop rule, or failed).
 //
-// Not thread-safe by itself: the Scheduler owns every Job and serialises access with its lock.
+// Not thread-safe by itself: the Scheduler owns every Job and serialises access with its lock,
+// except for the accumulator, which is guarded by the job's own image_mu so that the O(pixels)
+// work (merging a result, resolving a snapshot, serialising a checkpoint, the noise estimate)
+// runs off the Scheduler's lock (server/scheduling/scheduler.h, "Locks").
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -39,6 +43,10 @@ struct TaskRuntime {
   // sent it: a bit-identical result from another worker is merged (Scheduler::Complete).
   std::string implausible_digest;
   std::string implausible_worker;
+  // A result of the current lease is being checked and merged (Scheduler::Complete, between its
+  // claim and its commit): the lease does not expire, cannot be failed and a second result for
+  // it is ignored. The result arrived while the lease was live, so it decides the attempt.
+  bool merging = false;
 };
 
 class Job {
@@ -80,6 +88,9 @@ class Job {
   uint64_t task_work(uint64_t id) const { return task_work_.empty() ? 1 : task_work_.at(id); }
   uint64_t work(TaskState s) const { return work_[size_t(s)]; }
 
+  // Guards the accumulator (its content and whether it is loaded). Lock order: image_mu before the
+  // Scheduler's lock, never the other way round.
+  std::mutex image_mu;
   // Merge bookkeeping (the accumulator itself is changed by assembly/). accumulator() allocates
   // an empty one if there is none (call it only to merge into it).
   Accumulator& accumulator();
@@ -133,6 +144,11 @@ class Job {
   std::string checkpoint_path;            // for jobs whose accumulator is not loaded (finished, reloaded)
   uint64_t stored_samples_merged = 0;     // their figures as last stored
   double stored_noise_rms = -1;
+  // The accumulator's samples_merged as of its last merge, readable under the Scheduler's lock
+  // alone (the accumulator needs image_mu); equals stored_samples_merged once it is released.
+  uint64_t samples_merged = 0;
+  // The task source's WorkToCreate as of the last merge (hierarchical: it reads the accumulator).
+  uint64_t work_to_create = 0;
 
  private:
   std::string id_;

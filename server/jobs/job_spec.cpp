@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "common/core/error.h"
+#include "common/plan/plan_choice.h"
 #include "proto/convert.h"
 #include "server/errors.h"
 
@@ -89,7 +90,7 @@ uint32_t JobConfig::ScheduledRounds() const {
   return stop.max_rounds == 0 ? planned : std::min(planned, stop.max_rounds);
 }
 
-JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
+JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, uint32_t live_workers) {
   JobConfig job;
   limits::CheckText(spec.name(), "spec.name", kMaxJobNameBytes);
   job.name = spec.name();
@@ -109,6 +110,14 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes) {
   if (scene->max_emission >= 0) job.max_sample_radiance = limits::kResultRadianceFactor * scene->max_emission;
 
   job.camera = ResolveCamera(spec, *scene);
+  if (spec.plan().has_auto_plan()) {
+    // The chosen plan is what the job stores and echoes: a resumed job keeps it, the image does
+    // not depend on the farm at the time of the restart.
+    v1::JobSpec resolved = spec;
+    ResolveAutoPlan(&resolved, job.camera.width, job.camera.height, scene->caustic_paths,
+                    std::max(1u, live_workers), kMapsCanBeShipped, "spec");
+    return ValidateJobSpec(resolved, scenes, live_workers);
+  }
   job.settings = SettingsFromProto(spec.settings(), "spec.settings");
   job.plan = PlanFromProto(spec.plan(), "spec.plan");
   try {

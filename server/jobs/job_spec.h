@@ -13,7 +13,8 @@
 //                        (0, 180), width and height > 0)                    INVALID_ARGUMENT
 //                        over kMaxImageSide / kMaxImagePixels (proto/convert.h)  RESOURCE_EXHAUSTED
 //   spec.settings        proto/convert.h SettingsFromProto (photons, k ≥ 1 and their limits)
-//   spec.plan            proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
+//   spec.plan            auto_plan: replaced by the chosen plan (ResolveAutoPlan), then as that;
+//                        proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
 //                        more than limits::kMaxTasksPerJob tasks, or a task of more than
 //                        kMaxPixelsPerTask pixels                           RESOURCE_EXHAUSTED
 //   spec.stop            time_budget_seconds, target_noise_rms finite and ≥ 0
@@ -46,6 +47,7 @@ struct SceneInfo {
   uint64_t triangles = 0;
   uint32_t lights = 0;
   double max_emission = -1;  // the brightest emitter's largest channel (Le); -1 = unknown (old database)
+  int caustic_paths = -1;    // 1: specular or glossy surfaces (a caustic map is built); -1 = unknown
   uint64_t bytes = 0;
   uint64_t files = 0;
   CameraSpec camera;  // the manifest's first camera, else DefaultCamera(scene)
@@ -86,8 +88,11 @@ struct JobConfig {
   uint32_t ScheduledRounds() const;
 };
 
-// Throws InputError / LimitError / NotFoundError naming the field (rules above).
-JobConfig ValidateJobSpec(const photonfarm::v1::JobSpec& spec, const SceneCatalog& scenes);
+// Throws InputError / LimitError / NotFoundError naming the field (rules above). A plan of
+// `auto_plan` is resolved first (proto/convert.h ResolveAutoPlan, for `live_workers` workers when
+// it does not say how many): the returned config and its spec hold the chosen plan.
+JobConfig ValidateJobSpec(const photonfarm::v1::JobSpec& spec, const SceneCatalog& scenes,
+                          uint32_t live_workers = 1);
 
 // The tasks a job schedules: ExpandPlan restricted to rounds < ScheduledRounds(). Task ids are
 // the expansion's, so they are equal to the index in the result.

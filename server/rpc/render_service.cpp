@@ -89,7 +89,11 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
   // Validation is cheap (memory only) and happens here, before anything is stored.
   auto config = std::make_shared<JobConfig>();
   const grpc::Status valid = Guarded("SubmitJob", [&] {
-    *config = ValidateJobSpec(request->spec(), ctx_.scenes);
+    // --plan auto without a worker count plans for the workers seen in the last minute.
+    uint32_t live = 0;
+    for (const v1::WorkerInfo& w : ctx_.scheduler.activity().Workers())
+      if (w.seconds_since_seen() <= 60) ++live;
+    *config = ValidateJobSpec(request->spec(), ctx_.scenes, std::max(1u, live));
     return grpc::Status::OK;
   });
   if (!valid.ok()) {
@@ -115,6 +119,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
       spdlog::info("job {}: submitted{}: scene {}, {}x{}, {}, {} tasks, seed {}, priority {}", job->id(),
                    c.name.empty() ? "" : " '" + c.name + "'", c.scene_hash.substr(0, 12), c.camera.width,
                    c.camera.height, DescribePlan(c.plan), job->num_tasks(), c.seed, c.priority);
+      if (c.spec.plan().has_chosen_by_auto())
+        spdlog::info("job {}: plan auto: {}", job->id(), c.spec.plan().chosen_by_auto().reason());
       response->set_job_id(job->id());
       ctx_.scheduler.AddJob(std::move(job));
       return grpc::Status::OK;

@@ -177,6 +177,9 @@ void Scheduler::AddJob(std::unique_ptr<Job> job) {
     std::lock_guard lock(mu_);
     Job& j = jobs_.Add(std::move(job));
     sources_[&j] = task_sources_(j.config());
+    // Nobody else can reach the job yet: its accumulator may be read under this lock alone.
+    const Accumulator* acc = j.accumulator_if_loaded();
+    j.samples_merged = acc ? acc->samples_merged() : j.stored_samples_merged;
     if (j.active()) {
       for (uint64_t id = 0; id < j.num_tasks(); ++id)
         if (j.runtime(id).state == TaskState::kQueued) Enqueue(j, id, fx);
@@ -208,26 +211,14 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   s.set_elapsed_seconds(elapsed);
   s.set_rounds_done(job.rounds_done());
   s.set_submitted_unix_ms(job.submitted_unix_ms());
-  if (!job.accumulator_if_loaded()) {
-    s.set_samples_merged(job.stored_samples_merged);
-    job.noise_cache = job.stored_noise_rms;
-  }
-  if (const Accumulator* acc = job.accumulator_if_loaded()) {
-    s.set_samples_merged(acc->samples_merged());
-    // Refreshed (an O(pixels) pass) when stale and: the interval passed, another round or map
-    // became complete (the moments the estimate changes most), or the job is over.
-    const bool stale = job.noise_checked_seq != job.merge_seq();
-    if (stale && (now - job.noise_checked_at >= options_.noise_check_interval ||
-                  job.full_coverage() != job.noise_checked_coverage || !job.active()))
-      job.SetNoise(acc->EstimatedNoiseRms(), now);
-  }
+  s.set_samples_merged(job.samples_merged);
+  if (!job.accumulator_if_loaded()) job.noise_cache = job.stored_noise_rms;
+  // The estimate as last refreshed (RefreshNoise, outside this lock: it is an O(pixels) pass).
   s.set_estimated_noise_rms(job.noise_cache);
   // Progress and ETA count work (Job::task_work: tasks, or the hierarchical plan's pixel samples and
   // maps), including what the plan's task source expects to create (its localization tasks).
-  const auto source = sources_.find(&job);
-  const double work_to_create = job.active() && !job.stopping && source != sources_.end()
-                                    ? double(source->second->WorkToCreate(job))
-                                    : 0.0;
+  // As of the last merge (the hierarchical source reads the accumulator, guarded by image_mu).
+  const double work_to_create = job.active() && !job.stopping ? double(job.work_to_create) : 0.0;
   const double work_done = double(job.work(TaskState::kDone));
   const double work_total =
       double(job.work(TaskState::kDone) + job.work(TaskState::kLeased) + job.work(TaskState::kQueued)) +
@@ -255,12 +246,50 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   return s;
 }
 
-v1::JobStatus Scheduler::Status(const std::string& job_id) {
+Job& Scheduler::FindJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
-  return BuildStatus(jobs_.Get(job_id), clock_.Now());
+  return jobs_.Get(job_id);  // jobs are never removed: the reference outlives the lock
+}
+
+void Scheduler::RefreshNoise(Job& job) {
+  // Holding image_mu, every committed merge is in the accumulator (Complete commits and adds
+  // within one hold), so the estimate belongs to the merge_seq read here.
+  std::lock_guard image(job.image_mu);
+  const Accumulator* acc = job.accumulator_if_loaded();
+  if (!acc) return;
+  {
+    std::lock_guard lock(mu_);
+    // Refreshed when stale and: the interval passed, another round or map became complete (the
+    // moments the estimate changes most), or the job is over.
+    const bool stale = job.noise_checked_seq != job.merge_seq();
+    if (!stale || !(clock_.Now() - job.noise_checked_at >= options_.noise_check_interval ||
+                    job.full_coverage() != job.noise_checked_coverage || !job.active()))
+      return;
+  }
+  const double noise = acc->EstimatedNoiseRms();
+  std::lock_guard lock(mu_);
+  job.SetNoise(noise, clock_.Now());
+}
+
+v1::JobStatus Scheduler::Status(const std::string& job_id) {
+  Job& job = FindJob(job_id);
+  RefreshNoise(job);
+  std::lock_guard lock(mu_);
+  return BuildStatus(job, clock_.Now());
+}
+
+void Scheduler::RefreshNoiseOfAll(bool include_finished) {
+  std::vector<Job*> jobs;
+  {
+    std::lock_guard lock(mu_);
+    for (Job* job : jobs_.InSubmissionOrder())
+      if ((include_finished || job->active()) && job->accumulator_if_loaded()) jobs.push_back(job);
+  }
+  for (Job* job : jobs) RefreshNoise(*job);
 }
 
 std::vector<v1::JobStatus> Scheduler::List(bool include_finished) {
+  RefreshNoiseOfAll(include_finished);
   std::lock_guard lock(mu_);
   const double now = clock_.Now();
   std::vector<v1::JobStatus> out;
@@ -270,6 +299,7 @@ std::vector<v1::JobStatus> Scheduler::List(bool include_finished) {
 }
 
 Scheduler::JobPage Scheduler::ListPage(bool include_finished, uint64_t after_seq, size_t limit) {
+  RefreshNoiseOfAll(include_finished);
   std::lock_guard lock(mu_);
   const double now = clock_.Now();
   JobPage page;
@@ -287,34 +317,39 @@ Scheduler::JobPage Scheduler::ListPage(bool include_finished, uint64_t after_seq
 
 v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
   Effects fx;
-  v1::JobStatus status;
+  Job& job = FindJob(job_id);
   {
     std::lock_guard lock(mu_);
-    Job& job = jobs_.Get(job_id);
-    const double now = clock_.Now();
     if (job.active()) {
-      FinishJob(job, JobState::kCancelled, "", now, fx);
+      FinishJob(job, JobState::kCancelled, "", clock_.Now(), fx);
       spdlog::info("job {}: cancelled", job.id());
     }
-    status = BuildStatus(job, now);
   }
   Run(fx);
-  return status;
+  RefreshNoise(job);  // the final estimate
+  std::lock_guard lock(mu_);
+  return BuildStatus(job, clock_.Now());
 }
 
 JobSnapshot Scheduler::Snapshot(const std::string& job_id, bool with_image) {
-  std::lock_guard lock(mu_);
-  Job& job = jobs_.Get(job_id);
+  Job& job = FindJob(job_id);
   JobSnapshot snap;
-  const double now = clock_.Now();
-  if (with_image) {
-    if (const Accumulator* acc = job.accumulator_if_loaded()) {
-      snap.image = ResolveSnapshot(job.id(), *acc);
-      job.SetNoise(snap.image->noise_rms, now);  // the status says what the image says
-    } else {
-      snap.checkpoint_path = job.checkpoint_path;
-    }
+  if (!with_image) {
+    RefreshNoise(job);
+    std::lock_guard lock(mu_);
+    snap.status = BuildStatus(job, clock_.Now());
+    return snap;
   }
+  // The image is resolved (O(pixels)) under the job's image_mu only; the status is built under
+  // the scheduler's lock inside that hold, so both describe the same merges.
+  std::lock_guard image(job.image_mu);
+  if (const Accumulator* acc = job.accumulator_if_loaded()) snap.image = ResolveSnapshot(job.id(), *acc);
+  std::lock_guard lock(mu_);
+  const double now = clock_.Now();
+  if (snap.image)
+    job.SetNoise(snap.image->noise_rms, now);  // the status says what the image says
+  else
+    snap.checkpoint_path = job.checkpoint_path;
   snap.status = BuildStatus(job, now);
   return snap;
 }
@@ -334,9 +369,8 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
   if (state == JobState::kSucceeded && job.state() == JobState::kQueued)
     job.TransitionTo(JobState::kRunning, now);
   job.TransitionTo(state, now, reason);
-  if (job.accumulator_if_loaded()) {
-    job.SetNoise(job.accumulator().EstimatedNoiseRms(), now);
-  }
+  // The final noise estimate is an O(pixels) pass: computed off this lock by the next status,
+  // snapshot or persist (RefreshNoise, CollectPersistBatch), whichever comes first.
   Touch(job, fx);
 }
 
@@ -352,23 +386,15 @@ void Scheduler::AddTasksFromSource(Job& job, Effects& fx) {
   if (!job.active() || job.stopping) return;
   auto it = sources_.find(&job);
   if (it == sources_.end()) return;
+  // Called with the job's image_mu held (or before anyone else can reach the job): the
+  // hierarchical source reads the accumulator.
   const std::vector<TaskSpec> added = it->second->TasksAfterMerge(job);
+  if (!added.empty()) job.AppendTasks(added);
+  job.work_to_create = it->second->WorkToCreate(job);
   if (added.empty()) return;
-  job.AppendTasks(added);
   for (const TaskSpec& t : added) Enqueue(job, t.task_id, fx);
   spdlog::info("job {}: {} tasks added from the merged results (ids {}..{})", job.id(), added.size(),
                added.front().task_id, added.back().task_id);
-}
-
-void Scheduler::CheckNoiseTarget(Job& job, double now, Effects& fx) {
-  if (!NoiseTargetDue(job, now, options_.noise_check_interval)) return;
-  job.noise_target_checked_at = now;
-  job.SetNoise(job.accumulator().EstimatedNoiseRms(), now);
-  if (NoiseTargetMet(job)) {
-    spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job.id(),
-                 job.noise_cache, job.config().stop.target_noise_rms, job.count(TaskState::kDone));
-    FinishJob(job, JobState::kSucceeded, "", now, fx);
-  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -420,7 +446,8 @@ LeaseTable::Entry* Scheduler::FindLiveLease(const std::string& lease_id, double 
   if (!entry) return nullptr;
   Job& job = *entry->job;
   const uint64_t task_id = entry->task_id;
-  if (now >= job.runtime(task_id).lease_deadline) {
+  // A pinned lease's result arrived in time and is being merged: it decides the attempt.
+  if (now >= job.runtime(task_id).lease_deadline && !job.runtime(task_id).merging) {
     ++counters_.expired;
     activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
                         job.runtime(task_id).worker_id);
@@ -450,79 +477,155 @@ ExtendResult Scheduler::Extend(const std::string& lease_id, double progress) {
 CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const float> rgb_sums) {
   Effects fx;
   CompleteResult result;
+  // 1. Claim (global lock, O(1)): the lease must be live; it is pinned (TaskRuntime::merging) so
+  //    that it neither expires nor takes a second result while this one is checked.
+  Job* job = nullptr;
+  uint64_t task_id = 0;
+  TaskSpec task;  // a copy: the job's task vector may grow (AppendTasks) meanwhile
   {
     std::lock_guard lock(mu_);
-    const double now = clock_.Now();
-    LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx);
-    if (!ref) {
+    LeaseTable::Entry* ref = FindLiveLease(lease_id, clock_.Now(), fx);
+    if (!ref || ref->job->runtime(ref->task_id).merging) {
       ++counters_.ignored;
-      result.reason = "unknown, expired or finished lease";
+      result.reason =
+          ref ? "a result for this lease is already being merged" : "unknown, expired or finished lease";
       spdlog::info("result for lease {} ignored: {}", limits::Quote(lease_id, limits::kMaxIdBytes),
                    result.reason);
     } else {
-      Job& job = *ref->job;
-      const uint64_t task_id = ref->task_id;
-      const TaskSpec& task = job.task(task_id);
-      result.job_id = job.id();
-      result.task_id = task_id;
-      // The one check of a worker's result (the edge); Merge takes only a checked result.
-      const int width = job.config().camera.width, height = job.config().camera.height;
-      CheckedResult checked =
-          ResultMerger::Check(task, width, height, rgb_sums, job.config().max_sample_radiance);
-      std::string problem = checked.problem;
+      job = ref->job;
+      task_id = ref->task_id;
+      task = job->task(task_id);
+      job->runtime(task_id).merging = true;
+    }
+  }
+  if (!job) {
+    Run(fx);
+    return result;
+  }
+  result.job_id = job->id();
+  result.task_id = task_id;
+
+  // 2. Check (no lock, O(pixels)): the one check of a worker's result (the edge), and the pixel
+  //    indices the merge needs. The configuration is immutable.
+  const JobConfig& config = job->config();
+  const int width = config.camera.width, height = config.camera.height;
+  CheckedResult checked = ResultMerger::Check(task, width, height, rgb_sums, config.max_sample_radiance);
+  std::string digest;  // of a result above the bound that is valid apart from the bound
+  if (checked.verdict == ResultCheck::Verdict::kImplausible) {
+    CheckedResult unbounded = ResultMerger::Check(task, width, height, rgb_sums);
+    if (unbounded.valid) {
+      digest = ResultMerger::Digest(rgb_sums);
+      checked.valid = unbounded.valid;  // merged only once confirmed (below)
+    } else {
+      checked = std::move(unbounded);  // invalid anyway
+    }
+  }
+  std::string problem = checked.problem;
+  std::vector<uint32_t> pixels;
+  if (checked.valid) {
+    try {
+      pixels = merger_.PixelsOfTask(task, width, height);
+      const uint64_t image_pixels = uint64_t(width) * uint64_t(height);
+      for (uint32_t p : pixels)  // checked here: after the commit, the add must not fail
+        if (p >= image_pixels) throw InputError("pixels: index " + std::to_string(p) + " outside the image");
+    } catch (const InputError& e) {
+      problem = e.what();  // the task's own pixel set is out of range: a coordinator bug
+      checked = CheckedResult{std::nullopt, problem, ResultCheck::Verdict::kInvalid};
+    }
+  }
+  if (before_commit_for_test_) before_commit_for_test_(lease_id);
+
+  // 3. Commit (image_mu, then the global lock for O(1) bookkeeping), add (image_mu only,
+  //    O(pixels)), then the rules that follow a merge. Commit and add happen within one hold of
+  //    image_mu, so whoever holds it sees an accumulator that agrees with the job's merged tasks.
+  std::unique_lock image(job->image_mu);
+  bool merged = false;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    TaskRuntime& rt = job->runtime(task_id);
+    rt.merging = false;
+    if (rt.state != TaskState::kLeased || rt.lease_id != lease_id) {
+      // Only a job's end (cancel, failure, stop rule) takes a pinned lease away.
+      ++counters_.ignored;
+      result.reason = "the job ended while the result was checked";
+      spdlog::info("job {} task {}: result ignored: {}", job->id(), task_id, result.reason);
+    } else {
       if (checked.verdict == ResultCheck::Verdict::kImplausible) {
-        problem = ConfirmImplausible(job, task_id, rgb_sums, ResultCheck{checked.verdict, checked.problem});
-        // Confirmed by a second worker's identical bytes: valid without the bound.
-        if (problem.empty()) checked = ResultMerger::Check(task, width, height, rgb_sums);
-      }
-      if (checked.valid) {
-        try {
-          merger_.Merge(*checked.valid, job.accumulator());
-        } catch (const InputError& e) {
-          problem = e.what();  // the task's own pixel set is out of range: a coordinator bug
-        }
+        // Merged (valid without the bound) once a second worker's bytes are identical.
+        problem = ConfirmImplausible(*job, task_id, digest, ResultCheck{checked.verdict, checked.problem});
       }
       if (!problem.empty()) {
         ++counters_.rejected;
         result.status = CompleteStatus::kRejected;
         result.reason = problem;
-        spdlog::warn("job {} task {}: result of attempt {} rejected: {}", job.id(), task_id,
-                     job.runtime(task_id).attempts, problem);
-        activity_.TaskEvent(job.id(), "rejected", task_id, job.runtime(task_id).attempts,
-                            job.runtime(task_id).worker_id, problem);
-        FailAttempt(job, task_id, "rejected result: " + problem, true, now, fx);
+        spdlog::warn("job {} task {}: result of attempt {} rejected: {}", job->id(), task_id, rt.attempts,
+                     problem);
+        activity_.TaskEvent(job->id(), "rejected", task_id, rt.attempts, rt.worker_id, problem);
+        FailAttempt(*job, task_id, "rejected result: " + problem, true, now, fx);
       } else {
         ++counters_.merged;
         leases_.Erase(lease_id);
-        job.RecordMerge(task_id);
-        job.eta.RecordCompletion(now, double(job.task_work(task_id)));
+        job->RecordMerge(task_id);
+        job->eta.RecordCompletion(now, double(job->task_work(task_id)));
         result.status = CompleteStatus::kMerged;
-        result.merge_seq = job.merge_seq();
-        result.worker_id = job.runtime(task_id).worker_id;
-        activity_.TaskEvent(job.id(), "merged", task_id, job.runtime(task_id).attempts, result.worker_id);
-        spdlog::info("job {} task {}: merged (attempt {}, worker {}; {}/{} done)", job.id(), task_id,
-                     job.runtime(task_id).attempts, job.runtime(task_id).worker_id,
-                     job.count(TaskState::kDone), job.num_tasks());
-        Touch(job, fx);
-        AddTasksFromSource(job, fx);
-        CheckNoiseTarget(job, now, fx);
-        MaybeSucceed(job, now, fx);
-        ServeWaiters(fx);
+        result.merge_seq = job->merge_seq();
+        result.worker_id = rt.worker_id;
+        activity_.TaskEvent(job->id(), "merged", task_id, rt.attempts, result.worker_id);
+        spdlog::info("job {} task {}: merged (attempt {}, worker {}; {}/{} done)", job->id(), task_id,
+                     rt.attempts, rt.worker_id, job->count(TaskState::kDone), job->num_tasks());
+        Touch(*job, fx);
+        merged = true;
       }
     }
   }
+  if (merged) {
+    if (!job->accumulator_if_loaded()) {
+      // Allocated (O(pixels)) off the global lock; the pointer changes under both locks.
+      auto fresh = std::make_unique<Accumulator>(config.plan, width, height);
+      std::lock_guard lock(mu_);
+      job->set_accumulator(std::move(fresh));
+    }
+    Accumulator& acc = job->accumulator();
+    ResultMerger::Merge(*checked.valid, pixels, acc);
+    bool noise_due = false;
+    {
+      std::lock_guard lock(mu_);
+      job->samples_merged = acc.samples_merged();
+      noise_due = NoiseTargetDue(*job, clock_.Now(), options_.noise_check_interval);
+    }
+    const double noise = noise_due ? acc.EstimatedNoiseRms() : -1;  // O(pixels), off the lock
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    if (noise_due && job->active()) {
+      job->noise_target_checked_at = now;
+      job->SetNoise(noise, now);
+      if (NoiseTargetMet(*job)) {
+        spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job->id(),
+                     job->noise_cache, config.stop.target_noise_rms, job->count(TaskState::kDone));
+        FinishJob(*job, JobState::kSucceeded, "", now, fx);
+      }
+    }
+    AddTasksFromSource(*job, fx);
+    MaybeSucceed(*job, now, fx);
+    ServeWaiters(fx);
+  }
+  image.unlock();
   Run(fx);
   return result;
 }
 
-std::string Scheduler::ConfirmImplausible(Job& job, uint64_t task_id, std::span<const float> rgb_sums,
+void Scheduler::SetBeforeCommitHookForTest(std::function<void(const std::string& lease_id)> hook) {
+  before_commit_for_test_ = std::move(hook);
+}
+
+std::string Scheduler::ConfirmImplausible(Job& job, uint64_t task_id, const std::string& digest,
                                           const ResultCheck& check) {
   // Above the bound is not proof of a fault (estimator tails are unbounded, docs/security.md
   // "Results"), and a rejection of an honest result would repeat on every retry (rendering is
   // deterministic) until the job fails. So: not merged, re-run; merged when a different worker
   // delivers the same bytes.
   TaskRuntime& rt = job.runtime(task_id);
-  const std::string digest = ResultMerger::Digest(rgb_sums);
   if (!rt.implausible_digest.empty() && digest == rt.implausible_digest &&
       rt.worker_id != rt.implausible_worker) {
     spdlog::warn(
@@ -581,7 +684,12 @@ FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& work
     const double now = clock_.Now();
     if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       const TaskRuntime& rt = ref->job->runtime(ref->task_id);
-      if (rt.worker_id != worker_id) {
+      if (rt.merging) {
+        // The result it sent is being merged; that decides the attempt (kUnknownLease: the lease
+        // is as good as finished).
+        spdlog::info("job {} task {}: FailTask ignored: its result is being merged", ref->job->id(),
+                     ref->task_id);
+      } else if (rt.worker_id != worker_id) {
         // A lease id that reached another worker (a log, a copied command line) does not let it
         // end the task — with retryable = false, the whole job.
         outcome = FailOutcome::kNotHolder;
@@ -605,7 +713,7 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
   {
     std::lock_guard lock(mu_);
     LeaseTable::Entry* entry = leases_.Find(lease_id);
-    if (!entry) return;
+    if (!entry || entry->job->runtime(entry->task_id).merging) return;
     Job& job = *entry->job;
     const uint64_t task_id = entry->task_id;
     leases_.Erase(lease_id);
@@ -633,6 +741,7 @@ void Scheduler::Tick() {
       if (!entry) continue;  // its job ended meanwhile
       Job& job = *entry->job;
       const uint64_t task_id = entry->task_id;
+      if (job.runtime(task_id).merging) continue;  // its result arrived in time (Complete)
       ++counters_.expired;
       activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
                           job.runtime(task_id).worker_id);
@@ -667,9 +776,55 @@ void Scheduler::Tick() {
 
 PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
   PersistBatch batch;
+  // 1. Images, one job at a time under its image_mu (the global lock only for O(1) bookkeeping):
+  //    free what is on disk, the final noise estimate of a finished job, checkpoints.
+  std::vector<Job*> loaded;
+  {
+    std::lock_guard lock(mu_);
+    for (Job* job : jobs_.InSubmissionOrder())
+      if (job->accumulator_if_loaded()) loaded.push_back(job);
+  }
+  for (Job* job : loaded) {
+    std::lock_guard image(job->image_mu);
+    bool final_noise = false, checkpoint = false;
+    Checkpoint cp;
+    {
+      std::lock_guard lock(mu_);
+      if (!job->accumulator_if_loaded()) continue;
+      final_noise = !job->active() && job->noise_checked_seq != job->merge_seq();
+      checkpoint = job->merge_seq() > job->checkpoint_collected_seq && (checkpoints_due || !job->active());
+      if (checkpoint) {
+        cp.job_id = job->id();
+        cp.merge_seq = job->merge_seq();
+        cp.merged_task_ids = job->MergedTaskIds();
+        job->checkpoint_collected_seq = job->merge_seq();
+      }
+    }
+    const Accumulator& acc = *job->accumulator_if_loaded();
+    if (final_noise) {
+      const double noise = acc.EstimatedNoiseRms();
+      std::lock_guard lock(mu_);
+      job->SetNoise(noise, clock_.Now());
+      job->row_dirty = true;
+    }
+    if (checkpoint) {
+      cp.accumulator = acc.Serialize();
+      batch.checkpoints.push_back(std::move(cp));
+    }
+    // A job that ended after its last checkpoint was written (e.g. cancelled) frees its image now.
+    std::lock_guard lock(mu_);
+    if (!job->active()) job->ReleaseAccumulator(job->checkpoint_path);
+  }
+  // 2. Rows.
   std::lock_guard lock(mu_);
   for (Job* job : jobs_.InSubmissionOrder()) {
-    if (job->row_dirty) {
+    // A job that ended after step 1 looked at it: its final row waits for its final checkpoint
+    // and noise estimate (the persister drops a finished job's journal once its row is written).
+    // Its transition woke the persister, so the next flush writes both.
+    const bool held_back =
+        !job->active() && job->accumulator_if_loaded() &&
+        (job->merge_seq() > job->checkpoint_collected_seq || job->noise_checked_seq != job->merge_seq());
+    if (job->row_dirty && !held_back) {
       JobRow row;
       row.job_id = job->id();
       row.seq = job->seq();
@@ -678,13 +833,8 @@ PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
       row.failure_reason = job->failure_reason();
       row.submitted_unix_ms = job->submitted_unix_ms();
       row.elapsed_seconds = job->ElapsedSeconds(clock_.Now());
-      if (const Accumulator* acc = job->accumulator_if_loaded()) {
-        row.samples_merged = acc->samples_merged();
-        row.noise_rms = job->noise_cache;
-      } else {
-        row.samples_merged = job->stored_samples_merged;
-        row.noise_rms = job->stored_noise_rms;
-      }
+      row.samples_merged = job->samples_merged;
+      row.noise_rms = job->accumulator_if_loaded() ? job->noise_cache : job->stored_noise_rms;
       batch.jobs.push_back(std::move(row));
       job->row_dirty = false;
     }
@@ -693,18 +843,6 @@ PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
       batch.tasks.push_back({job->id(), id, rt.state, rt.attempts, rt.failures, rt.last_error});
     }
     job->dirty_tasks.clear();
-    // A job that ended after its last checkpoint was written (e.g. cancelled) frees its image now.
-    if (!job->active()) job->ReleaseAccumulator(job->checkpoint_path);
-    const Accumulator* acc = job->accumulator_if_loaded();
-    if (acc && job->merge_seq() > job->checkpoint_collected_seq && (checkpoints_due || !job->active())) {
-      Checkpoint cp;
-      cp.job_id = job->id();
-      cp.merge_seq = job->merge_seq();
-      cp.merged_task_ids = job->MergedTaskIds();
-      cp.accumulator = acc->Serialize();
-      job->checkpoint_collected_seq = job->merge_seq();
-      batch.checkpoints.push_back(std::move(cp));
-    }
   }
   return batch;
 }
@@ -724,9 +862,15 @@ void Scheduler::CheckpointFailed(const std::string& job_id, uint64_t merge_seq) 
 }
 
 void Scheduler::CheckpointWritten(const std::string& job_id, uint64_t merge_seq, const std::string& path) {
+  Job* job = nullptr;
+  {
+    std::lock_guard lock(mu_);
+    job = jobs_.Find(job_id);
+  }
+  if (!job) return;
+  std::lock_guard image(job->image_mu);  // freeing the accumulator changes it
   std::lock_guard lock(mu_);
-  Job* job = jobs_.Find(job_id);
-  if (!job || merge_seq < job->checkpoint_written_seq) return;
+  if (merge_seq < job->checkpoint_written_seq) return;
   job->checkpoint_written_seq = merge_seq;
   job->checkpoint_path = path;
   job->ReleaseAccumulator(path);  // a finished job's image now lives on disk only

@@ -26,6 +26,22 @@
 // checks a result once (ResultMerger::Check), merges the checked result, records it in the job,
 // then asks the job's task source for new tasks, then applies the stop rules.
 //
+// Locks. One global lock (mu_) guards the queue, the leases and every job's bookkeeping; it is held
+// only for O(1)/O(tasks) work. The O(pixels) work — checking a result's floats, merging it into
+// the accumulator, resolving an image snapshot, serialising a checkpoint, the noise estimate — runs
+// under the job's own image_mu (Job::image_mu), so results for different jobs merge in parallel
+// and leases, heartbeats and status calls never wait for a merge. Order: image_mu, then mu_;
+// never image_mu while holding mu_. Complete in three steps:
+//   1. claim (mu_): the lease must be live; it is pinned (TaskRuntime::merging): it does not
+//      expire, cannot be failed or returned, and another result for it is ignored;
+//   2. check (no lock): ResultMerger::Check, the digest of a result above the bound, the pixels;
+//   3. commit (image_mu, then mu_ briefly): if the job ended meanwhile the result is ignored (a
+//      cancelled job's late result is dropped), if it is invalid the attempt fails, else the task
+//      is DONE; then the add into the accumulator (image_mu only) and the rules that follow a
+//      merge (mu_ again). Commit and add lie within one hold of image_mu, so a holder of image_mu
+//      sees an accumulator that agrees with the job's merged tasks (checkpoints rely on it).
+// A result is decided exactly once: by its claim (ignored) or by its commit.
+//
 // Long polls. LeaseOrWait answers at once if a task is queued, else parks the caller until a
 // task is queued (submit, re-queue, a task source adding tasks) or its wait expires (Tick) — no
 // busy waiting; callbacks always run outside the lock, exactly once per waiter.
@@ -158,6 +174,9 @@ class Scheduler {
   ExtendResult Extend(const std::string& lease_id, double progress);
   // Validates and merges (see the header comment). Never throws for bad results: kRejected.
   CompleteResult Complete(const std::string& lease_id, std::span<const float> rgb_sums);
+  // Tests only: runs inside Complete between the check and the commit (no lock held), so a test
+  // can expire, cancel or complete other leases while a result is in flight. Set before use.
+  void SetBeforeCommitHookForTest(std::function<void(const std::string& lease_id)> hook);
   // Only the holder of a live lease may fail its task: `worker_id` must be the worker it was
   // leased to (LeaseRequest.worker_id). kUnknownLease (expired, replaced, finished or never
   // issued) and kNotHolder change nothing.
@@ -211,7 +230,7 @@ class Scheduler {
   bool CheckTimeBudget(Job& job, double now, Effects& fx);
   // A result above the job's bound: "" if it reproduces, bit for bit, the last such result of the
   // task from another worker (then it is merged), else the reason it is rejected (and records it).
-  std::string ConfirmImplausible(Job& job, uint64_t task_id, std::span<const float> rgb_sums,
+  std::string ConfirmImplausible(Job& job, uint64_t task_id, const std::string& digest,
                                  const ResultCheck& check);
   // The current attempt of a leased task ended badly.
   void FailAttempt(Job& job, uint64_t task_id, const std::string& reason, bool retryable, double now,
@@ -219,7 +238,12 @@ class Scheduler {
   // Ends the job: cancels every queued and leased task, then transitions.
   void FinishJob(Job& job, JobState state, const std::string& reason, double now, Effects& fx);
   void MaybeSucceed(Job& job, double now, Effects& fx);
-  void CheckNoiseTarget(Job& job, double now, Effects& fx);
+  // The job (jobs are never removed, so the reference stays valid without the lock).
+  Job& FindJob(const std::string& job_id);
+  // Brings the cached noise estimate up to date if stale (an O(pixels) pass under image_mu; call
+  // without mu_).
+  void RefreshNoise(Job& job);
+  void RefreshNoiseOfAll(bool include_finished);
   // The lease if it is current; expires it (and returns null) if it ran out.
   LeaseTable::Entry* FindLiveLease(const std::string& lease_id, double now, Effects& fx);
   // Appends and queues the tasks the job's source creates from its merged results.
@@ -230,7 +254,8 @@ class Scheduler {
   const SchedulerOptions options_;
   mutable std::mutex mu_;
   JobRegistry jobs_;
-  ResultMerger merger_;
+  ResultMerger merger_;  // thread-safe (its permutation cache has its own lock)
+  std::function<void(const std::string&)> before_commit_for_test_;
   TaskSourceFactory task_sources_;
   std::unordered_map<const Job*, std::unique_ptr<TaskSource>> sources_;
   TaskQueue queue_;

@@ -49,6 +49,7 @@ struct SceneRow {
   std::string warnings;        // loader warnings, '\n'-separated
   int64_t created_unix_ms = 0;
   double max_emission = -1;  // the brightest emitter's largest channel (Le); -1 = unknown
+  int caustic_paths = -1;    // 1 / 0: the scene has specular or glossy surfaces; -1 = unknown
 };
 
 // One checkpoint file: the accumulator and the ids of exactly the tasks merged into it.

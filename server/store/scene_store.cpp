@@ -10,6 +10,7 @@
 
 #include "common/core/atomic_file.h"
 #include "common/core/error.h"
+#include "common/photon/photon_tracer.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
 #include "server/errors.h"
@@ -51,6 +52,7 @@ SceneInfo InfoFromRow(const SceneRow& row) {
   info.triangles = row.triangles;
   info.lights = row.lights;
   info.max_emission = row.max_emission;
+  info.caustic_paths = row.caustic_paths;
   info.bytes = row.bytes;
   info.files = row.files;
   info.warnings = Split(row.warnings);
@@ -113,6 +115,7 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   info.triangles = scene.NumTriangles();
   info.lights = scene.num_lights;
   info.max_emission = MaxEmission(scene);
+  info.caustic_paths = SceneNeedsCausticMap(scene) ? 1 : 0;
   info.bytes = bundle.TotalBytes();
   info.files = bundle.files.size();
   info.camera = scene.cameras.empty() ? DefaultCamera(scene) : scene.cameras.front();
@@ -130,6 +133,7 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   row.triangles = info.triangles;
   row.lights = info.lights;
   row.max_emission = info.max_emission;
+  row.caustic_paths = info.caustic_paths;
   photonfarm::v1::Camera cam;
   CameraToProto(info.camera, &cam);
   row.default_camera = cam.SerializeAsString();

@@ -162,6 +162,13 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
     while (st.Step()) has_max_emission |= st.ColText(0) == "max_emission";
   }
   if (!has_max_emission) Exec("ALTER TABLE scenes ADD COLUMN max_emission REAL NOT NULL DEFAULT -1");
+  // … and before --plan auto (issue #12) scenes.caustic_paths: -1 = unknown (auto assumes a caustic map).
+  bool has_caustic_paths = false;
+  {
+    Statement st(db_, "SELECT name FROM pragma_table_info('scenes')");
+    while (st.Step()) has_caustic_paths |= st.ColText(0) == "caustic_paths";
+  }
+  if (!has_caustic_paths) Exec("ALTER TABLE scenes ADD COLUMN caustic_paths INTEGER NOT NULL DEFAULT -1");
 }
 
 SqliteStore::~SqliteStore() {
@@ -182,7 +189,7 @@ void SqliteStore::PutScene(const SceneRow& s) {
   Statement(
       db_,
       "INSERT OR IGNORE INTO scenes(hash, entry, bytes, files, triangles, lights, default_camera, warnings, "
-      "created_unix_ms, max_emission) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)")
+      "created_unix_ms, max_emission, caustic_paths) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)")
       .Text(1, s.hash)
       .Text(2, s.entry)
       .Int(3, int64_t(s.bytes))
@@ -193,6 +200,7 @@ void SqliteStore::PutScene(const SceneRow& s) {
       .Text(8, s.warnings)
       .Int(9, s.created_unix_ms)
       .Real(10, s.max_emission)
+      .Int(11, s.caustic_paths)
       .Run();
 }
 
@@ -202,7 +210,7 @@ std::vector<SceneRow> SqliteStore::LoadScenes() {
   Statement st(
       db_,
       "SELECT hash, entry, bytes, files, triangles, lights, default_camera, warnings, created_unix_ms, "
-      "max_emission FROM scenes ORDER BY created_unix_ms, hash");
+      "max_emission, caustic_paths FROM scenes ORDER BY created_unix_ms, hash");
   while (st.Step()) {
     SceneRow s;
     s.hash = st.ColText(0);
@@ -215,6 +223,7 @@ std::vector<SceneRow> SqliteStore::LoadScenes() {
     s.warnings = st.ColText(7);
     s.created_unix_ms = st.ColInt(8);
     s.max_emission = st.ColReal(9);
+    s.caustic_paths = int(st.ColInt(10));
     out.push_back(std::move(s));
   }
   return out;

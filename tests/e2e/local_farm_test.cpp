@@ -44,10 +44,11 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
   }
 }
 
-// One render path: a plain `pf render` (no --plan, --local-only or --workers) is the farm's default
-// plan run in this process, so it equals a default farm job bit for bit — for the photon map (one
-// map, the same map seed) and for the path tracer (the same pixel seeds). Before, the plain render
-// had its own loop and map seed and matched neither.
+// One render path: a plain `pf render` (no --plan, --local-only or --workers) is the farm's
+// multiple-maps plan with its defaults (1 map, 64-pixel tiles) run in this process, so it equals
+// that farm job bit for bit — for the photon map (one map, the same map seed) and for the path
+// tracer (the same pixel seeds). (The farm's own default is --plan auto since issue #12.) Before, the plain
+// render had its own loop and map seed and matched neither.
 TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
   TestDir dir;
   for (const std::string integrator : {"photonmap", "path"}) {
@@ -73,7 +74,8 @@ TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const std::string farm = (dir / (integrator + "-farm.exr")).string();
     const RunResult f =
-        RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "-o", farm}), dir.path());
+        RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "--plan", "multiple-maps", "-o", farm}),
+                   dir.path());
     ASSERT_EQ(f.exit_code, 0) << f.err;
     EXPECT_TRUE(BitIdentical(ReadImage(plain), ReadImage(farm))) << integrator;
     ExpectNoProcessLeft();
