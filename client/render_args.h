@@ -80,6 +80,8 @@ struct RenderArgs {
   std::string coordinator_bin, worker_bin;
   std::vector<std::string> coordinator_args, worker_args;
   bool keep_farm_dir = false;
+  // Issue #12 (mapship): --map-tracing auto|local|distributed.
+  std::string map_tracing = "auto";
 };
 
 // A scene manifest's "settings" (spp for a plain render, photons, k) become the defaults of the
