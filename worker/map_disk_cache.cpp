@@ -17,8 +17,9 @@ namespace {
 constexpr std::string_view kSuffix = ".pfmaps";
 
 bool ValidKey(const std::string& key) {
-  return key.size() == 64 &&
-         std::all_of(key.begin(), key.end(), [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+  return key.size() == 64 && std::all_of(key.begin(), key.end(), [](char c) {
+           return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+         });
 }
 
 }  // namespace
@@ -91,7 +92,8 @@ void MapDiskCache::EvictLocked() {
     if (total <= max_bytes_) break;
     fs::remove(f.path, ec);
     total -= f.bytes;
-    spdlog::info("map cache: evicted {} ({} bytes; limit {} bytes)", f.path.filename().string(), f.bytes, max_bytes_);
+    spdlog::info("map cache: evicted {} ({} bytes; limit {} bytes)", f.path.filename().string(), f.bytes,
+                 max_bytes_);
   }
 }
 

@@ -31,7 +31,8 @@ double SecondsSince(Clock::time_point t0) {
 }
 
 bool IsConnectionError(const grpc::Status& s) {
-  return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
+  return s.error_code() == grpc::StatusCode::UNAVAILABLE ||
+         s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
 }
 
 std::string Short(const std::string& key) {
@@ -47,8 +48,14 @@ class TransferError : public std::runtime_error {
 }  // namespace
 
 void Worker::TestPause(const char* where, const std::string& ctx) {
+  // "WHERE" pauses every time, "WHERE:TEXT" only where the task's context contains TEXT
+  // (e.g. "upload:piece=2/").
   const char* at = std::getenv("PF_TEST_PAUSE_AT");
-  if (!at || std::string(at) != where) return;
+  if (!at) return;
+  const std::string spec = at;
+  const size_t colon = spec.find(':');
+  if (spec.substr(0, colon) != where) return;
+  if (colon != std::string::npos && ctx.find(spec.substr(colon + 1)) == std::string::npos) return;
   spdlog::warn("test-pause at {} {} (PF_TEST_PAUSE_AT; test hook)", where, ctx);
   std::this_thread::sleep_for(std::chrono::seconds(120));
 }
@@ -79,8 +86,8 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
     Fail(task, ctx, e.what(), false);
     return Outcome::kDone;
   }
-  spdlog::info("leased-piece {} photons=[{}, {}) lease={:.1f}s", ctx, piece.photon_begin(), piece.photon_end(),
-               task.lease_seconds());
+  spdlog::info("leased-piece {} photons=[{}, {}) lease={:.1f}s", ctx, piece.photon_begin(),
+               piece.photon_end(), task.lease_seconds());
   std::shared_ptr<const SceneRuntime> scene;
   if (const std::optional<Outcome> ended = GetScene(task, ctx, &scene)) return *ended;
   SetState(State::kBuildingMap, ctx);
@@ -91,7 +98,8 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
     mo.tracing.map_seed = task.map_seed();
     mo.tracing.threads = options_.threads;
     TestPause("trace", ctx);
-    const PhotonChunk chunk = TracePhotonChunk(scene->accel, scene->lights, mo, piece.photon_begin(), piece.photon_end());
+    const PhotonChunk chunk =
+        TracePhotonChunk(scene->accel, scene->lights, mo, piece.photon_begin(), piece.photon_end());
     // Tracing only; a piece is not balanced here. Building costs about as much again (§2.3), which
     // the cost model's rate includes when it is measured from whole maps.
     ObserveTracing(piece.photon_end() - piece.photon_begin(), 2.0 * SecondsSince(t0));
@@ -117,8 +125,8 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
     Fail(task, ctx, "upload refused: " + StatusToString(status), true);
     return Outcome::kDone;
   }
-  spdlog::info("uploaded-piece {} accepted={} bytes={} trace_s={:.3f} upload_s={:.3f}", ctx, accepted ? "true" : "false",
-               bytes.size(), trace_s, SecondsSince(t1));
+  spdlog::info("uploaded-piece {} accepted={} bytes={} trace_s={:.3f} upload_s={:.3f}", ctx,
+               accepted ? "true" : "false", bytes.size(), trace_s, SecondsSince(t1));
   std::lock_guard lock(mutex_);
   ++counters_.chunks_traced;
   return Outcome::kDone;
@@ -173,8 +181,8 @@ std::string Worker::FetchMapBytes(const v1::MapRef& ref, const std::string& ctx)
     }
     if (refused.empty()) {
       if (part.offset() != bytes.size())
-        refused = "part " + std::to_string(index) + " at offset " + std::to_string(part.offset()) + ", expected " +
-                  std::to_string(bytes.size());
+        refused = "part " + std::to_string(index) + " at offset " + std::to_string(part.offset()) +
+                  ", expected " + std::to_string(bytes.size());
       else if (Sha256Hex(data) != part.sha256())
         refused = "part " + std::to_string(index) + ": checksum mismatch";
       else if (part.total_bytes() != ref.bytes() || part.digest() != ref.digest())
@@ -249,7 +257,8 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
   const double fetch_s = double(ref.bytes()) / bps;
   const bool fetch = fetch_s <= trace_s;
   spdlog::info(
-      "map {} for {}: {}: fetch {} bytes / {:.1f} MB/s{} = {:.3f} s vs trace {} photons x {:.3f} us{} = {:.3f} s",
+      "map {} for {}: {}: fetch {} bytes / {:.1f} MB/s{} = {:.3f} s vs trace {} photons x {:.3f} us{} = "
+      "{:.3f} s",
       Short(ref.map_key()), ctx, fetch ? "fetch" : "trace", ref.bytes(), bps / 1e6,
       bytes_per_second_ > 0 ? " (measured)" : " (default)", fetch_s, parsed.settings.photons, spp * 1e6,
       seconds_per_photon_ > 0 ? " (measured)" : " (default)", trace_s);

@@ -18,7 +18,8 @@ Sha256Hasher::Sha256Hasher() : ctx_(std::make_unique<Context>()) {
 Sha256Hasher::~Sha256Hasher() = default;
 
 void Sha256Hasher::Update(std::string_view bytes) {
-  if (EVP_DigestUpdate(ctx_->md.get(), bytes.data(), bytes.size()) != 1) throw SystemError("SHA-256: update failed");
+  if (EVP_DigestUpdate(ctx_->md.get(), bytes.data(), bytes.size()) != 1)
+    throw SystemError("SHA-256: update failed");
 }
 
 std::string Sha256Hasher::HexDigest() {

@@ -29,7 +29,8 @@ std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<
   std::vector<Photon> compact;
   compact.reserve(n);
   for (int k : lists)
-    for (const PhotonChunk& c : chunks) compact.insert(compact.end(), c.lists[k].photons.begin(), c.lists[k].photons.end());
+    for (const PhotonChunk& c : chunks)
+      compact.insert(compact.end(), c.lists[k].photons.begin(), c.lists[k].photons.end());
   map->AddPhotons(compact);
   std::vector<Photon>().swap(compact);
   if (!o.keep_light_ids && !o.keep_origins) {
@@ -56,8 +57,8 @@ std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<
 
 }  // namespace
 
-PhotonChunk TracePhotonChunk(const EmbreeScene& scene, const LightSampler& lights, const PhotonMapsOptions& options,
-                             uint64_t begin, uint64_t end) {
+PhotonChunk TracePhotonChunk(const EmbreeScene& scene, const LightSampler& lights,
+                             const PhotonMapsOptions& options, uint64_t begin, uint64_t end) {
   PhotonTracerOptions to = options.tracing;
   to.photon_begin = begin;
   to.photon_end = end;

@@ -31,7 +31,7 @@ struct PhotonChunk {
   uint64_t begin = 0, end = 0;  // photon indices of the map
   uint64_t rays = 0;
   std::array<double, 3> stored_power{};  // Σ Φ of the stored photons, full precision
-  Rgb emitted_power;                      // the lights' total power (the whole map's)
+  Rgb emitted_power;                     // the lights' total power (the whole map's)
   bool light_ids = false, origins = false;
   struct List {
     std::vector<Photon> photons;
@@ -43,8 +43,8 @@ struct PhotonChunk {
 
 // Traces photons [begin, end) of the map `options` describes (options.tracing.photons is the
 // whole map's count; begin a multiple of kPhotonTracingChunk).
-PhotonChunk TracePhotonChunk(const EmbreeScene& scene, const LightSampler& lights, const PhotonMapsOptions& options,
-                             uint64_t begin, uint64_t end);
+PhotonChunk TracePhotonChunk(const EmbreeScene& scene, const LightSampler& lights,
+                             const PhotonMapsOptions& options, uint64_t begin, uint64_t end);
 
 std::string SerializePhotonChunk(const PhotonChunk& chunk);
 // Throws InputError for malformed bytes.

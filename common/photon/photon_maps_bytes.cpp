@@ -73,7 +73,8 @@ std::unique_ptr<PhotonMap> GetMap(ByteReader& r, PhotonAttributes* attributes) {
     }
   }
   try {
-    return KdTree::FromBalanced(KdSplitRule(rule), KdCulling(culling), std::move(photons), std::move(axis_bytes));
+    return KdTree::FromBalanced(KdSplitRule(rule), KdCulling(culling), std::move(photons),
+                                std::move(axis_bytes));
   } catch (const std::invalid_argument& e) {
     r.Fail(e.what());
   }
@@ -103,7 +104,8 @@ std::string SerializePhotonMaps(const PhotonMaps& maps) {
   w.Put<uint32_t>(kPhotonMapsBytesVersion);
   w.Put<uint64_t>(maps.seed);
   const PhotonMapsStats& s = maps.stats;
-  for (uint64_t v : {s.emitted, s.stored_global, s.stored_caustic, s.stored_direct, s.rays}) w.Put<uint64_t>(v);
+  for (uint64_t v : {s.emitted, s.stored_global, s.stored_caustic, s.stored_direct, s.rays})
+    w.Put<uint64_t>(v);
   w.Put<double>(s.trace_seconds);
   w.Put<double>(s.build_seconds);
   for (const Rgb& c : {s.emitted_power, s.stored_power}) {
@@ -125,7 +127,8 @@ std::string SerializePhotonMaps(const PhotonMaps& maps) {
 
 PhotonMaps DeserializePhotonMaps(std::string_view bytes) {
   if (bytes.size() < kMagic.size() + 4 + kDigestBytes) throw InputError("photon maps: truncated");
-  if (bytes.substr(0, kMagic.size()) != kMagic) throw InputError("photon maps: not a photon map file (bad magic)");
+  if (bytes.substr(0, kMagic.size()) != kMagic)
+    throw InputError("photon maps: not a photon map file (bad magic)");
   const std::string_view body = bytes.substr(0, bytes.size() - kDigestBytes);
   {
     ByteReader header(bytes.substr(kMagic.size()), "photon maps");
@@ -137,9 +140,11 @@ PhotonMaps DeserializePhotonMaps(std::string_view bytes) {
   std::string digest;
   {
     const std::string hex = Sha256Hex(body);
-    for (size_t i = 0; i < kDigestBytes; ++i) digest.push_back(char(std::stoi(hex.substr(2 * i, 2), nullptr, 16)));
+    for (size_t i = 0; i < kDigestBytes; ++i)
+      digest.push_back(char(std::stoi(hex.substr(2 * i, 2), nullptr, 16)));
   }
-  if (digest != bytes.substr(body.size())) throw InputError("photon maps: digest mismatch (corrupt or truncated)");
+  if (digest != bytes.substr(body.size()))
+    throw InputError("photon maps: digest mismatch (corrupt or truncated)");
   ByteReader r(body.substr(kMagic.size() + 4), "photon maps");
   PhotonMaps maps;
   maps.seed = r.Get<uint64_t>();

@@ -179,8 +179,8 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
         m.chunks[c].state = Chunk::State::kDone;
         ++m.done;
       }
-  spdlog::info("job {} map {}: {} photons in {} pieces of {} ({} already traced on disk)", job.id(), map_index,
-               m.photons, m.chunks.size(), m.chunk_photons, m.done);
+  spdlog::info("job {} map {}: {} photons in {} pieces of {} ({} already traced on disk)", job.id(),
+               map_index, m.photons, m.chunks.size(), m.chunk_photons, m.done);
   if (m.done == m.chunks.size()) {
     m.state = Map::State::kBuilding;
     builder_.Post([this, key] { Build(key); });
@@ -238,8 +238,9 @@ std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, do
   c.chunk_count = uint32_t(m.chunks.size());
   lease.chunk = c;
   spdlog::info("job {} map {} piece {}/{}: leased to {} (photons [{}, {}), attempt {}, map {})", m.job_id,
-               m.map_index, pick, m.chunks.size(), limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), c.photon_begin, c.photon_end, chunk.attempts,
-               Short(m.key));
+               m.map_index, pick, m.chunks.size(),
+               limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), c.photon_begin, c.photon_end,
+               chunk.attempts, Short(m.key));
   return lease;
 }
 
@@ -255,12 +256,14 @@ std::optional<BuiltMap> DistributedMaps::MapFor(const std::string& job_id, uint6
 std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
   std::lock_guard lock(mu_);
   auto it = maps_.find(key);
-  if (it != maps_.end() && it->second.state == Map::State::kBuilt) return options_.dir / (key + std::string(kMapSuffix));
+  if (it != maps_.end() && it->second.state == Map::State::kBuilt)
+    return options_.dir / (key + std::string(kMapSuffix));
   if (on_disk_.count(key)) return options_.dir / (key + std::string(kMapSuffix));
   return std::nullopt;
 }
 
-DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_id, const std::string& bytes) {
+DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_id,
+                                                       const std::string& bytes) {
   std::string key;
   uint32_t index = 0;
   uint64_t begin = 0, end = 0;
@@ -272,7 +275,8 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     key = it->second.key;
     index = it->second.chunk;
     const Map& m = maps_.at(key);
-    if (m.state != Map::State::kTracing || m.chunks[index].state == Chunk::State::kDone) return Accepted::kLate;
+    if (m.state != Map::State::kTracing || m.chunks[index].state == Chunk::State::kDone)
+      return Accepted::kLate;
     begin = uint64_t(index) * m.chunk_photons;
     end = std::min(m.photons, begin + m.chunk_photons);
     const JobRenderSettings& s = m.config->settings;
@@ -283,8 +287,8 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   const PhotonChunk chunk = DeserializePhotonChunk(bytes);
   if (chunk.begin != begin || chunk.end != end)
     throw InputError("photons [" + std::to_string(chunk.begin) + ", " + std::to_string(chunk.end) +
-                     ") uploaded for the piece of photons [" + std::to_string(begin) + ", " + std::to_string(end) +
-                     ")");
+                     ") uploaded for the piece of photons [" + std::to_string(begin) + ", " +
+                     std::to_string(end) + ")");
   if ((light_ids && !chunk.light_ids) || (origins && !chunk.origins))
     throw InputError("the piece lacks the light ids or origins the job's estimators need");
   const fs::path file = ChunkFile(key, index);
@@ -349,8 +353,8 @@ void DistributedMaps::Build(const std::string& key) {
         m.state = Map::State::kTracing;
         m.chunks[c] = Chunk{};
         --m.done;
-        spdlog::warn("job {} map {} piece {}: stored piece unreadable ({}): traced again", job_id, map_index, c,
-                     e.what());
+        spdlog::warn("job {} map {} piece {}: stored piece unreadable ({}): traced again", job_id, map_index,
+                     c, e.what());
       }
     }
     if (pieces.size() != count) {
@@ -372,8 +376,7 @@ void DistributedMaps::Build(const std::string& key) {
         "job {} map {}: built once from {} pieces: {} global + {} caustic + {} direct photons, {} bytes, "
         "assemble+balance {:.3f} s, read+assemble+write {:.3f} s (map {})",
         job_id, map_index, count, maps.global->size(), maps.caustic ? maps.caustic->size() : 0,
-        maps.direct ? maps.direct->size() : 0, bytes.size(), maps.stats.build_seconds,
-        seconds, Short(key));
+        maps.direct ? maps.direct->size() : 0, bytes.size(), maps.stats.build_seconds, seconds, Short(key));
     {
       std::lock_guard lock(mu_);
       Map& m = maps_.at(key);
@@ -416,8 +419,8 @@ void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& w
   c.state = Chunk::State::kQueued;
   c.lease_id.clear();
   if (c.attempts >= options_.max_attempts)
-    LeaveToWorkersLocked(m, "piece " + std::to_string(index) + " failed " + std::to_string(c.attempts) + " times",
-                         release);
+    LeaveToWorkersLocked(
+        m, "piece " + std::to_string(index) + " failed " + std::to_string(c.attempts) + " times", release);
 }
 
 ExtendResult DistributedMaps::Extend(const std::string& lease_id) {

@@ -96,7 +96,8 @@ class DistributedMaps final : public MapTracingHook {
   void Stop();
 
   struct Counters {
-    uint64_t chunks_leased = 0, chunks_stored = 0, chunks_expired = 0, maps_built = 0, maps_left_to_workers = 0;
+    uint64_t chunks_leased = 0, chunks_stored = 0, chunks_expired = 0, maps_built = 0,
+             maps_left_to_workers = 0;
   };
   Counters counters() const;
 
@@ -130,7 +131,8 @@ class DistributedMaps final : public MapTracingHook {
   Map& MapOf(const Job& job, uint64_t map_index, const std::string& key);
   void RequeueLocked(Map& map, uint32_t chunk, const std::string& why,
                      std::vector<std::pair<std::string, uint64_t>>* release);
-  void LeaveToWorkersLocked(Map& map, const std::string& why, std::vector<std::pair<std::string, uint64_t>>* release);
+  void LeaveToWorkersLocked(Map& map, const std::string& why,
+                            std::vector<std::pair<std::string, uint64_t>>* release);
   std::filesystem::path ChunkFile(const std::string& key, uint32_t chunk) const;
   void Scan();
   void Build(const std::string& key);  // on builder_

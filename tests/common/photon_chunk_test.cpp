@@ -62,7 +62,8 @@ TEST(PhotonChunk, PiecesAssembleToTheOneProcessMap) {
                 Comparable(DeserializePhotonMaps(SerializePhotonMaps(whole))))
           << cuts.size() - 1 << " pieces";
       EXPECT_EQ(assembled.stats.rays, whole.stats.rays);
-      EXPECT_NEAR(assembled.stats.stored_power.r, whole.stats.stored_power.r, 1e-5 * whole.stats.stored_power.r);
+      EXPECT_NEAR(assembled.stats.stored_power.r, whole.stats.stored_power.r,
+                  1e-5 * whole.stats.stored_power.r);
     }
   }
 }

@@ -27,8 +27,8 @@ CameraSpec SmallCamera(const SceneDescription& d) {
 }
 
 bool SamePhotons(const PhotonMap& a, const PhotonMap& b) {
-  return a.size() == b.size() &&
-         (a.size() == 0 || std::memcmp(a.photons().data(), b.photons().data(), a.size() * sizeof(Photon)) == 0);
+  return a.size() == b.size() && (a.size() == 0 || std::memcmp(a.photons().data(), b.photons().data(),
+                                                               a.size() * sizeof(Photon)) == 0);
 }
 
 void ExpectSameMaps(const PhotonMaps& a, const PhotonMaps& b) {
@@ -41,7 +41,8 @@ void ExpectSameMaps(const PhotonMaps& a, const PhotonMaps& b) {
   if (a.direct) {
     EXPECT_TRUE(SamePhotons(*a.direct, *b.direct));
   }
-  EXPECT_EQ(dynamic_cast<const KdTree&>(*a.global).stored_axes(), dynamic_cast<const KdTree&>(*b.global).stored_axes());
+  EXPECT_EQ(dynamic_cast<const KdTree&>(*a.global).stored_axes(),
+            dynamic_cast<const KdTree&>(*b.global).stored_axes());
   EXPECT_EQ(a.direct_attributes.light, b.direct_attributes.light);
   EXPECT_EQ(a.global_attributes.origin.size(), b.global_attributes.origin.size());
   for (size_t i = 0; i < a.global_attributes.origin.size(); ++i)

@@ -3,7 +3,9 @@
 //    pieces and fetched (the default for a tiled map) and with every worker tracing its own;
 //  - a worker SIGKILLed while tracing a piece, while uploading it and while fetching the built
 //    map: the work is redone elsewhere and the image is bit-identical;
-//  - a map part whose checksum fails is refused and the map fetched again.
+//  - a map part whose checksum fails is refused and the map fetched again;
+//  - a coordinator SIGKILLed with some pieces stored resumes with only the missing ones traced,
+//    and one SIGKILLed after the map was built serves it from disk without tracing anything.
 // The kill points are made deterministic by the worker's test hook PF_TEST_PAUSE_AT (it sleeps
 // there, logging "test-pause at ..."); PF_TEST_CORRUPT_MAP_PART corrupts one received part.
 #include <signal.h>
@@ -20,9 +22,9 @@ namespace v1 = photonfarm::v1;
 
 // One map of 40000 photons (three pieces of 16384 with --map-chunk-photons 16384) over 6 tiles.
 std::vector<std::string> TiledJobFlags() {
-  return {"--integrator", "photonmap", "--photons", "40000", "--k",    "20", "--plan", "multiple-maps",
-          "--maps",       "1",         "--tile",    "16",    "--res", "48x32", "--spp", "1",
-          "--seed",       "9"};
+  return {"--integrator", "photonmap",     "--photons", "40000", "--k",    "20",
+          "--plan",       "multiple-maps", "--maps",    "1",     "--tile", "16",
+          "--res",        "48x32",         "--spp",     "1",     "--seed", "9"};
 }
 
 Image LocalReference(const TestDir& dir) {
@@ -31,11 +33,12 @@ Image LocalReference(const TestDir& dir) {
   return ReadImage(dir / "local.exr");
 }
 
-std::string Submit(const TestDir& dir, const std::string& address, const std::vector<std::string>& more = {}) {
-  const RunResult r = RunCommand(
-      Concat(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, TiledJobFlags()), more),
-             {"--coordinator", address}),
-      dir.path());
+std::string Submit(const TestDir& dir, const std::string& address,
+                   const std::vector<std::string>& more = {}) {
+  const RunResult r =
+      RunCommand(Concat(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, TiledJobFlags()), more),
+                        {"--coordinator", address}),
+                 dir.path());
   EXPECT_EQ(r.exit_code, 0) << r.err;
   std::string id = r.out;
   while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
@@ -43,12 +46,12 @@ std::string Submit(const TestDir& dir, const std::string& address, const std::ve
 }
 
 // StartWorker's command line, with environment variables (the test hooks).
-std::unique_ptr<Process> StartWorkerWithEnv(const std::string& address, const fs::path& dir, const std::string& id,
-                                            std::map<std::string, std::string> env) {
+std::unique_ptr<Process> StartWorkerWithEnv(const std::string& address, const fs::path& dir,
+                                            const std::string& id, std::map<std::string, std::string> env) {
   return std::make_unique<Process>(
       id,
-      std::vector<std::string>{Binaries::Worker(), "--coordinator", address, "--threads", "1", "--worker-id", id,
-                               "--cache-dir", (dir / ("cache-" + id)).string(), "--poll-seconds", "1",
+      std::vector<std::string>{Binaries::Worker(), "--coordinator", address, "--threads", "1", "--worker-id",
+                               id, "--cache-dir", (dir / ("cache-" + id)).string(), "--poll-seconds", "1",
                                "--max-backoff", "0.5"},
       dir / (id + ".log"), fs::path{}, std::move(env));
 }
@@ -112,10 +115,12 @@ TEST(MapTracingFarm, BitIdenticalForOneTwoThreeWorkersLocalTracedOnceOrByEachWor
 void KillWhile(const std::string& where) {
   TestDir dir;
   const Image reference = LocalReference(dir);
-  CoordinatorProcess coordinator(dir / "data", dir.path(),
-                                 {"--lease-seconds", "1.5", "--max-attempts", "5", "--map-chunk-photons", "16384"});
+  CoordinatorProcess coordinator(
+      dir / "data", dir.path(),
+      {"--lease-seconds", "1.5", "--max-attempts", "5", "--map-chunk-photons", "16384"});
   const std::string job_id = Submit(dir, coordinator.address());
-  auto victim = StartWorkerWithEnv(coordinator.address(), dir.path(), "victim", {{"PF_TEST_PAUSE_AT", where}});
+  auto victim =
+      StartWorkerWithEnv(coordinator.address(), dir.path(), "victim", {{"PF_TEST_PAUSE_AT", where}});
   ASSERT_TRUE(WaitUntil([&] { return Count(victim->log(), "test-pause at " + where) > 0; }, 60))
       << ReadFile(victim->log());
   victim->Signal(SIGKILL);
@@ -135,7 +140,8 @@ void KillWhile(const std::string& where) {
     EXPECT_EQ(Count(survivor->log(), "fetched: "), 1u);
   } else {
     // The victim's piece ran out and was traced again by the survivor.
-    EXPECT_GE(Count(clog, "piece [0-9]+: attempt 1 ended: lease expired \\(worker victim\\)"), 1u) << ReadFile(clog);
+    EXPECT_GE(Count(clog, "piece [0-9]+: attempt 1 ended: lease expired \\(worker victim\\)"), 1u)
+        << ReadFile(clog);
     EXPECT_GE(Count(clog, "piece [0-9]+/3: leased to .?survivor.? .*attempt 2"), 1u) << ReadFile(clog);
     EXPECT_EQ(Count(survivor->log(), "uploaded-piece .* accepted=true"), 3u);
   }
@@ -160,7 +166,8 @@ TEST(MapTracingFarm, CorruptMapPartIsRefusedAndFetchedAgain) {
   const Image reference = LocalReference(dir);
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--map-chunk-photons", "16384"});
   const std::string job_id = Submit(dir, coordinator.address());
-  auto worker = StartWorkerWithEnv(coordinator.address(), dir.path(), "w", {{"PF_TEST_CORRUPT_MAP_PART", "1"}});
+  auto worker =
+      StartWorkerWithEnv(coordinator.address(), dir.path(), "w", {{"PF_TEST_CORRUPT_MAP_PART", "1"}});
   FarmClient client(coordinator.address(), "");
   const v1::JobStatus st = WaitForJob(client, job_id, 120);
   ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
@@ -175,6 +182,59 @@ TEST(MapTracingFarm, CorruptMapPartIsRefusedAndFetchedAgain) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir / "cache-w" / "maps"), fs::directory_iterator{}), 1);
   worker->Signal(SIGTERM);
   EXPECT_TRUE(worker->Wait(20).has_value());
+}
+
+TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
+  TestDir dir;
+  const Image reference = LocalReference(dir);
+  const std::vector<std::string> args = {"--lease-seconds", "1.5", "--map-chunk-photons", "16384"};
+  auto life1 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args);
+  const int port = life1->port();
+  const std::string address = life1->address();
+  const std::string job_id = Submit(dir, address);
+  // Life 1: pieces 0 and 1 stored, then the coordinator dies (its worker too, paused before piece 2).
+  auto w1 = StartWorkerWithEnv(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
+  ASSERT_TRUE(WaitUntil([&] { return Count(w1->log(), "test-pause at upload") > 0; }, 60))
+      << ReadFile(w1->log());
+  const fs::path log1 = life1->process().log();
+  ASSERT_EQ(Count(log1, "piece [0-9]+: stored \\("), 2u) << ReadFile(log1);
+  life1->process().Signal(SIGKILL);
+  life1->process().Wait(5);
+  life1.reset();
+  w1->Signal(SIGKILL);
+  w1->Wait(5);
+
+  // Life 2: finds the two pieces, queues only piece 2; the map is built; its worker dies fetching.
+  auto life2 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args, port);
+  const fs::path log2 = life2->process().log();
+  EXPECT_EQ(Count(log2, "in 3 pieces of 16384 \\(2 already traced on disk\\)"), 1u) << ReadFile(log2);
+  auto w2 = StartWorkerWithEnv(address, dir.path(), "w2", {{"PF_TEST_PAUSE_AT", "fetch"}});
+  ASSERT_TRUE(WaitUntil([&] { return Count(w2->log(), "test-pause at fetch") > 0; }, 60))
+      << ReadFile(w2->log());
+  EXPECT_EQ(Count(w2->log(), "uploaded-piece .*piece=2/3 .*accepted=true"), 1u) << ReadFile(w2->log());
+  EXPECT_EQ(Count(w2->log(), "uploaded-piece"), 1u);
+  EXPECT_EQ(Count(log2, "built once from 3 pieces"), 1u) << ReadFile(log2);
+  life2->process().Signal(SIGKILL);
+  life2->process().Wait(5);
+  life2.reset();
+  w2->Signal(SIGKILL);
+  w2->Wait(5);
+
+  // Life 3: serves the built map from disk; nothing is traced again.
+  CoordinatorProcess life3(dir / "data", dir.path(), args, port);
+  const fs::path log3 = life3.process().log();
+  EXPECT_EQ(Count(log3, "built map [0-9a-f]+ found on disk"), 1u) << ReadFile(log3);
+  auto w3 = StartWorker(address, dir.path(), "w3");
+  FarmClient client(address, "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  EXPECT_EQ(st.samples_merged(), uint64_t(48 * 32));
+  EXPECT_EQ(Count(w3->log(), "uploaded-piece"), 0u);
+  EXPECT_EQ(Count(w3->log(), "fetched: "), 1u);
+  EXPECT_EQ(Count(log3, "built once"), 0u);
+  w3->Signal(SIGTERM);
+  EXPECT_TRUE(w3->Wait(20).has_value());
 }
 
 }  // namespace
