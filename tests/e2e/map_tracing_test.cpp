@@ -184,6 +184,34 @@ TEST(MapTracingFarm, CorruptMapPartIsRefusedAndFetchedAgain) {
   EXPECT_TRUE(worker->Wait(20).has_value());
 }
 
+// --map-tracing is a farm setting (usage error elsewhere); distributed needs the kd-tree (the only
+// map with a byte form): INVALID_ARGUMENT naming the field, pf exit 3.
+TEST(MapTracingFarm, MapTracingFlagIsCheckedWhereItMeansSomething) {
+  TestDir dir;
+  const RunResult plain =
+      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, TiledJobFlags()),
+                        {"--map-tracing", "local", "-o", (dir / "x.exr").string()}),
+                 dir.path());
+  EXPECT_EQ(plain.exit_code, 2) << plain.err;
+  EXPECT_NE(plain.err.find("--map-tracing"), std::string::npos) << plain.err;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const RunResult grid = RunCommand(
+      Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, TiledJobFlags()),
+             {"--map-tracing", "distributed", "--map", "grid", "--coordinator", coordinator.address()}),
+      dir.path());
+  EXPECT_EQ(grid.exit_code, 3) << grid.err;
+  EXPECT_NE(grid.err.find("photon_map.map_tracing: distributed tracing needs the kd-tree"), std::string::npos)
+      << grid.err;
+  // A grid job with auto tracing runs, each worker tracing its maps.
+  const std::string id = Submit(dir, coordinator.address(), {"--map", "grid"});
+  auto worker = StartWorker(coordinator.address(), dir.path(), "w");
+  FarmClient client(coordinator.address(), "");
+  EXPECT_EQ(WaitForJob(client, id, 120).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(Count(worker->log(), "leased-piece"), 0u);
+  worker->Signal(SIGTERM);
+  EXPECT_TRUE(worker->Wait(20).has_value());
+}
+
 TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   TestDir dir;
   const Image reference = LocalReference(dir);
