@@ -14,6 +14,8 @@
      process-2  pf render --threads 2                 (one process, two threads)
      farm-1     pf render --workers 1 --threads 1     (coordinator + 1 worker of 1 thread)
      farm-2     pf render --workers 2 --threads 1     (coordinator + 2 workers of 1 thread)
+     farm-2-local  the same with --map-tracing local  (each worker traces and balances the map, as
+                before issue #12's distributed tracing; for the side-by-side ratio)
    --repeat interleaved runs of each (so that load changes hit every variant alike); the MEDIAN
    counts, the fastest is reported too. Also the CPU time (user + system) of all processes of a
    run. Ratios: process-1/process-2 (target >= 1.85), farm-1/farm-2 (target >= 1.8), farm-2 vs
@@ -69,16 +71,25 @@ def run(cmd, cpu=None, **kw):
 
 
 def span_of(perf_data, by_process):
-    """On-CPU seconds of the busiest thread (by_process: of the busiest process) in a
-    `perf record -F 499` of a command and everything it started."""
-    r = subprocess.run(["perf", "script", "-i", perf_data, "-F", "pid,tid"], capture_output=True, text=True)
-    counts = {}
-    for line in r.stdout.split():  # "pid/tid" per sample
-        fields = line.split("/")
-        if len(fields) == 2:
-            key = fields[0] if by_process else fields[1]
-            counts[key] = counts.get(key, 0) + 1
-    return max(counts.values()) / 499.0 if counts else 0.0
+    """(On-CPU seconds of the busiest thread (by_process: of the busiest worker process), on-CPU
+    seconds of the pf-coordinator process) in a `perf record -F 499` of a command and everything
+    it started."""
+    r = subprocess.run(["perf", "script", "-i", perf_data, "-F", "pid,tid,comm"], capture_output=True, text=True)
+    counts, coordinator_pids = {}, set()
+    for line in r.stdout.splitlines():  # "comm pid/tid" per sample (comm may hold spaces)
+        fields = line.split()
+        ids = fields[-1].split("/") if fields else []
+        if len(ids) != 2 or not ids[0].isdigit():
+            continue
+        if " ".join(fields[:-1]) == "pf-coordinator":
+            coordinator_pids.add(ids[0])
+        key = ids[0] if by_process else ids[1]
+        counts[key] = counts.get(key, 0) + 1
+    # Issue #12: the coordinator now balances distributed maps, on the critical path while the
+    # workers wait; it is reported apart and not counted as a worker.
+    coordinator = sum(counts.get(pid, 0) for pid in coordinator_pids) if by_process else 0
+    workers = [n for key, n in counts.items() if key not in coordinator_pids] if by_process else list(counts.values())
+    return (max(workers) / 499.0 if workers else 0.0), coordinator / 499.0
 
 
 def start_coordinator(coord, data_dir, extra):
@@ -141,11 +152,14 @@ def main():
         # A skipping job in one process needs --local-only (a plain render runs no plan).
         local = ["--local-only"] if a.job == "skipping" else []
         runs = [("process-1", local + ["--threads", "1"]), ("process-2", local + ["--threads", "2"]),
-                ("farm-1", ["--workers", "1", "--threads", "1"]), ("farm-2", ["--workers", "2", "--threads", "1"])]
+                ("farm-1", ["--workers", "1", "--threads", "1"]), ("farm-2", ["--workers", "2", "--threads", "1"]),
+                # Issue #12: every worker traces and balances the map itself (as before distributed tracing).
+                ("farm-2-local", ["--workers", "2", "--threads", "1", "--map-tracing", "local"])]
         use_span = not a.no_span and shutil.which("perf") is not None
         times = {name: [] for name, _ in runs}
         cpus = {name: [] for name, _ in runs}
         spans = {name: [] for name, _ in runs}
+        coordinator_cpu = {name: [] for name, _ in runs}
         for rep in range(a.repeat):
             for name, flags in runs:
                 out = os.path.join(tmp, name + ".exr")
@@ -156,7 +170,9 @@ def main():
                 if use_span:
                     # A 1-thread worker renders each task on a thread of its own: its busy time is
                     # that of its process.
-                    spans[name].append(round(span_of(data, by_process=name.startswith("farm")), 3))
+                    span, coord_s = span_of(data, by_process=name.startswith("farm"))
+                    spans[name].append(round(span, 3))
+                    coordinator_cpu[name].append(round(coord_s, 3))
                 print(f"  {name:9s} {dt:8.2f} s wall {cpus[name][-1]:8.2f} s CPU"
                       + (f" {spans[name][-1]:8.2f} s span" if use_span else ""), file=sys.stderr, flush=True)
         r = results["render"]
@@ -168,7 +184,16 @@ def main():
             if use_span:
                 r[name + "_span_seconds"] = statistics.median(spans[name])
                 r[name + "_all_span_seconds"] = spans[name]
+                if name.startswith("farm"):
+                    # Upper bound of the critical path: the busiest worker plus all the coordinator's
+                    # CPU (its map balance is serial while the workers wait; the rest overlaps).
+                    r[name + "_coordinator_cpu_seconds"] = statistics.median(coordinator_cpu[name])
+                    r[name + "_span_plus_coordinator_seconds"] = statistics.median(
+                        [x + y for x, y in zip(spans[name], coordinator_cpu[name])])
         if use_span:
+            r["span_speedup_farm_2_vs_2_local"] = round(r["farm-2-local_span_seconds"] / r["farm-2_span_seconds"], 3)
+            r["span_plus_coordinator_speedup_farm_2_vs_1_workers"] = round(
+                r["farm-1_span_plus_coordinator_seconds"] / r["farm-2_span_plus_coordinator_seconds"], 3)
             r["span_speedup_process_2_vs_1_threads"] = round(r["process-1_span_seconds"] / r["process-2_span_seconds"], 3)
             r["span_speedup_farm_2_vs_1_workers"] = round(r["farm-1_span_seconds"] / r["farm-2_span_seconds"], 3)
             r["span_farm2_vs_process2"] = round(r["farm-2_span_seconds"] / r["process-2_span_seconds"] - 1, 4)
@@ -177,13 +202,14 @@ def main():
             _, d = run([pf, "diff", os.path.join(tmp, x + ".exr"), os.path.join(tmp, y + ".exr"), "--json"])
             return json.loads(d.stdout)["max_abs_error"] == 0
 
-        for x, y in (("process-2", "process-1"), ("farm-2", "farm-1")):
+        for x, y in (("process-2", "process-1"), ("farm-2", "farm-1"), ("farm-2-local", "farm-1")):
             if not identical(x, y):
                 sys.exit(f"{x}: image differs from {y}")
         r["bit_identical_threads_and_workers"] = True
         r["farm_equals_process"] = identical("farm-1", "process-1")
         r["speedup_process_2_vs_1_threads"] = round(r["process-1_seconds"] / r["process-2_seconds"], 3)
         r["speedup_farm_2_vs_1_workers"] = round(r["farm-1_seconds"] / r["farm-2_seconds"], 3)
+        r["speedup_farm_2_vs_2_local"] = round(r["farm-2-local_seconds"] / r["farm-2_seconds"], 3)
         r["farm2_vs_process2"] = round(r["farm-2_seconds"] / r["process-2_seconds"] - 1, 4)
         r["overhead_farm1_vs_process1"] = round(r["farm-1_seconds"] / r["process-1_seconds"] - 1, 4)
         r["cpu_overhead_farm1_vs_process1"] = round(r["farm-1_cpu_seconds"] / r["process-1_cpu_seconds"] - 1, 4)
@@ -221,17 +247,25 @@ def main():
           f"command); load {results['machine']['load_before'][0]:.2f} before, "
           f"{results['machine']['load_after_render'][0]:.2f} after")
     spanned = "process-1_span_seconds" in r
-    print(f"  {'run':<42}{'median s':>9}{'fastest s':>10}{'CPU s':>9}" + (f"{'span s':>9}" if spanned else ""))
+    print(f"  {'run':<58}{'median s':>9}{'fastest s':>10}{'CPU s':>9}"
+          + (f"{'span s':>9}{'coord s':>9}" if spanned else ""))
     for name, label in (("process-1", "pf render --threads 1"), ("process-2", "pf render --threads 2"),
                         ("farm-1", "pf render --workers 1 --threads 1"),
-                        ("farm-2", "pf render --workers 2 --threads 1")):
-        print(f"  {label:<42}{r[name + '_seconds']:>9.2f}{r[name + '_fastest_seconds']:>10.2f}"
-              f"{r[name + '_cpu_seconds']:>9.2f}" + (f"{r[name + '_span_seconds']:>9.2f}" if spanned else ""))
+                        ("farm-2", "pf render --workers 2 --threads 1"),
+                        ("farm-2-local", "pf render --workers 2 --threads 1 --map-tracing local")):
+        coord = f"{r[name + '_coordinator_cpu_seconds']:>9.2f}" if spanned and name.startswith("farm") else f"{'':>9}"
+        print(f"  {label:<58}{r[name + '_seconds']:>9.2f}{r[name + '_fastest_seconds']:>10.2f}"
+              f"{r[name + '_cpu_seconds']:>9.2f}" + (f"{r[name + '_span_seconds']:>9.2f}{coord}" if spanned else ""))
     sp = (lambda key, fmt: f"; span {fmt(r['span_' + key])}" if spanned else "")
     print(f"  1 process, 2 vs 1 threads: wall {r['speedup_process_2_vs_1_threads']:.2f}x"
           f"{sp('speedup_process_2_vs_1_threads', lambda v: f'{v:.2f}x')} (target >= 1.85)")
     print(f"  2 vs 1 workers x 1 thread: wall {r['speedup_farm_2_vs_1_workers']:.2f}x"
           f"{sp('speedup_farm_2_vs_1_workers', lambda v: f'{v:.2f}x')} (target >= 1.8)")
+    if spanned:
+        print(f"  2 vs 1 workers, busiest worker + all coordinator CPU: "
+              f"{r['span_plus_coordinator_speedup_farm_2_vs_1_workers']:.2f}x (the pessimistic bound)")
+    print(f"  2 workers, map traced once vs by each worker: wall {r['speedup_farm_2_vs_2_local']:.2f}x"
+          f"{sp('speedup_farm_2_vs_2_local', lambda v: f'{v:.2f}x')}")
     print(f"  2 workers vs 1 process of 2 threads: wall {100 * r['farm2_vs_process2']:+.1f} %"
           f"{sp('farm2_vs_process2', lambda v: f'{100 * v:+.1f} %')} (target within 10 %)")
     print(f"  farm overhead (1 worker vs 1 thread): wall {100 * r['overhead_farm1_vs_process1']:+.1f} %, CPU "

@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <deque>
@@ -97,16 +98,13 @@ LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
   }
 
   try {
-    std::vector<std::string> cargs = {"--listen",
-                                      "127.0.0.1:0",
-                                      "--data-dir",
-                                      (dir_ / "data").string(),
-                                      "--client-token-file",
-                                      token_file.string(),
-                                      "--worker-token-file",
-                                      worker_token_file.string(),
-                                      "--log-level",
-                                      options_.log_level};
+    std::vector<std::string> cargs = {
+        "--listen", "127.0.0.1:0", "--data-dir", (dir_ / "data").string(), "--client-token-file",
+        token_file.string(), "--worker-token-file", worker_token_file.string(), "--log-level",
+        options_.log_level,
+        // Issue #12: the workers wait for a distributed map while the
+        // coordinator balances it, so on one machine it may use their cores.
+        "--map-build-threads", std::to_string(std::max(1, options_.workers * options_.threads_per_worker))};
     cargs.insert(cargs.end(), options_.coordinator_args.begin(), options_.coordinator_args.end());
     const fs::path out = dir_ / "coordinator.out";
     Spawn("pf-coordinator", options_.coordinator_bin, cargs, out, dir_ / "coordinator.log");

@@ -234,6 +234,8 @@ void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
   if (a.irradiance_cache) pm->set_irradiance_cache_error(a.irradiance_cache_error);
   pm->set_occlusion_test(a.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(a.adaptive_k_min));
+  if (a.map_tracing != "auto")
+    pm->set_map_tracing(a.map_tracing == "local" ? v1::MAP_TRACING_LOCAL : v1::MAP_TRACING_DISTRIBUTED);
 }
 
 JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDescription& scene) {
@@ -284,6 +286,14 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--target-noise", a.target_noise, "Stop rule: estimated noise RMS to reach (0 = none)");
   app->add_option("--priority", a.priority, "Job priority (higher first)");
   app->add_option("--name", a.name, "Job name (default: the scene's file name)");
+  // Issue #12 (mapship).
+  app->add_option("--map-tracing", a.map_tracing,
+                  "farm, photonmap: who traces the photon maps: auto (traced once in pieces by the workers "
+                  "and built once by the coordinator when several tasks use a kd-tree map), local (each "
+                  "worker traces the maps of its tasks), distributed (always traced once; kdtree only). "
+                  "The image is the same")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "local", "distributed"}));
 }
 
 CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a) {

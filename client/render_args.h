@@ -85,6 +85,8 @@ struct RenderArgs {
   // which auto would ignore: an error with it.
   std::vector<std::string> plan_flags_given;
   bool submit = false;  // `pf submit`: --plan defaults to auto, as with --workers
+  // Issue #12 (mapship): --map-tracing auto|local|distributed.
+  std::string map_tracing = "auto";
 };
 
 // A scene manifest's "settings" (spp for a plain render, photons, k) become the defaults of the

@@ -233,6 +233,23 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
     default:
       throw InputError(f + ".kd_split: unknown value");
   }
+  switch (pm.map_tracing()) {
+    case v1::MAP_TRACING_UNSPECIFIED:
+    case v1::MAP_TRACING_AUTO:
+      out.map_tracing = MapTracingMode::kAuto;
+      break;
+    case v1::MAP_TRACING_LOCAL:
+      out.map_tracing = MapTracingMode::kLocal;
+      break;
+    case v1::MAP_TRACING_DISTRIBUTED:
+      if (out.structure != PhotonMapKind::kKdTree)
+        throw InputError(
+            f + ".map_tracing: distributed tracing needs the kd-tree structure (only its maps travel)");
+      out.map_tracing = MapTracingMode::kDistributed;
+      break;
+    default:
+      throw InputError(f + ".map_tracing: unknown value");
+  }
   return out;
 }
 
@@ -273,6 +290,9 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   pm->set_occlusion_test(s.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(s.adaptive_k_min));
   pm->set_kd_split(s.kd_split == KdSplitRule::kLevelCycle ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
+  if (s.map_tracing != MapTracingMode::kAuto)  // auto stays unset: specs stored before issue #12 read alike
+    pm->set_map_tracing(s.map_tracing == MapTracingMode::kLocal ? v1::MAP_TRACING_LOCAL
+                                                                : v1::MAP_TRACING_DISTRIBUTED);
 }
 
 PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {

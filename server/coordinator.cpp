@@ -1,5 +1,7 @@
 #include "server/coordinator.h"
+
 #include "server/http/status_page.h"
+#include "server/scheduling/distributed_maps.h"
 
 #include <fcntl.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
@@ -63,6 +65,15 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   so.lease_seconds = options_.lease_seconds;
   so.max_attempts = options_.max_attempts;
   scheduler_ = std::make_unique<Scheduler>(*clock_, so);
+  DistributedMapsOptions mo;
+  mo.dir = options_.data_dir / "maps";
+  mo.lease_seconds = options_.lease_seconds;
+  mo.max_attempts = options_.max_attempts;
+  mo.build_threads = options_.map_build_threads;
+  mo.chunk_photons = options_.map_chunk_photons;
+  maps_ = std::make_unique<DistributedMaps>(mo, *clock_, *scenes_);
+  maps_->SetScheduler(scheduler_.get());
+  scheduler_->SetMapTracingHook(maps_.get());
   persister_ = std::make_unique<Persister>(*scheduler_, *db_, options_.data_dir / "checkpoints", *clock_,
                                            options_.checkpoint_interval_seconds);
   executor_ = std::make_unique<Executor>(options_.executor_threads);
@@ -81,7 +92,7 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
         recovery_.jobs_failed);
   persister_->Start();
 
-  ServiceContext ctx{*scheduler_, *scenes_, *db_, *persister_, *executor_, *watches_, *clock_};
+  ServiceContext ctx{*scheduler_, *scenes_, *db_, *persister_, *executor_, *watches_, *clock_, *maps_};
   render_service_ = std::make_unique<RenderServiceImpl>(ctx);
   worker_service_ = std::make_unique<WorkerServiceImpl>(ctx);
 }
@@ -189,6 +200,7 @@ void Coordinator::TickLoop() {
     lock.unlock();
     try {
       scheduler_->Tick();
+      maps_->Tick();
       watches_->Tick();
     } catch (const std::exception& e) {
       spdlog::error("tick: {}", e.what());
@@ -226,6 +238,7 @@ void Coordinator::Stop(bool graceful) {
                           std::chrono::duration<double>(grace)));
   }
   if (tick_thread_.joinable()) tick_thread_.join();
+  maps_->Stop();
   executor_->Stop();
   if (graceful) persister_->Stop();
   if (server_) server_->Wait();

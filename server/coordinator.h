@@ -53,6 +53,7 @@ class RoleAuthProcessor;
 class RenderServiceImpl;
 class WorkerServiceImpl;
 class StatusHttpServer;
+class DistributedMaps;
 
 // The message sizes are in proto/limits.h with every other limit.
 using limits::kMaxReceiveMessageBytes;
@@ -78,6 +79,9 @@ struct CoordinatorOptions {
   double shutdown_grace_seconds = 5;
   const Clock* clock = nullptr;  // null: the system clock
   std::string http_listen;       // web status page (server/http/); empty: none
+  // Issue #12: photon maps traced once (server/scheduling/distributed_maps.h).
+  int map_build_threads = 1;           // threads of one map's assembly and balance
+  uint64_t map_chunk_photons = 65536;  // photons per traced piece
 };
 
 // True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"
@@ -105,6 +109,7 @@ class Coordinator {
   Scheduler& scheduler() { return *scheduler_; }
   Persister& persister() { return *persister_; }
   SceneStore& scenes() { return *scenes_; }
+  DistributedMaps& maps() { return *maps_; }
   int port() const { return port_; }
   int http_port() const { return http_port_; }  // 0 without --http
 
@@ -120,6 +125,7 @@ class Coordinator {
   std::unique_ptr<SqliteStore> db_;
   std::unique_ptr<SceneStore> scenes_;
   std::unique_ptr<Scheduler> scheduler_;
+  std::unique_ptr<DistributedMaps> maps_;
   std::unique_ptr<Persister> persister_;
   std::unique_ptr<Executor> executor_;
   std::unique_ptr<WatchHub> watches_;

@@ -87,6 +87,14 @@ int main(int argc, char** argv) {
       "Serve the web status page (jobs, workers, live previews) on [HOST:]PORT; HOST defaults to "
       "127.0.0.1, port 0 picks a free port; same token as gRPC (Bearer, or Basic with the token as "
       "password)");
+  app.add_option("--map-build-threads", options.map_build_threads,
+                 "Threads that assemble and balance one distributed photon map (0 = all cores)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1024));
+  app.add_option("--map-chunk-photons", options.map_chunk_photons,
+                 "Photons per traced piece of a distributed map (rounded up to a multiple of 4096)")
+      ->capture_default_str()
+      ->check(CLI::Range(uint64_t(4096), uint64_t(1) << 28));
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));

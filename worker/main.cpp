@@ -34,7 +34,8 @@ std::string DefaultWorkerId() {
 int main(int argc, char** argv) {
   pf::worker::WorkerOptions o;
   std::string token_file, tls_ca, tls_cert, tls_key, log_level = "info";
-  std::string cache_dir;
+  std::string cache_dir, map_cache_dir;
+  uint64_t map_cache_mb = 4096;
   int threads = 0;
   CLI::App app{
       "pf-worker — photonfarm render worker: leases tasks from a pf-coordinator (long poll), renders\n"
@@ -80,6 +81,13 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 86400.0));
   app.add_option("--max-tasks", o.max_tasks, "Exit 0 after this many tasks (0 = run until signalled)")
       ->capture_default_str();
+  app.add_option(
+      "--map-cache-dir", map_cache_dir,
+      "Built photon maps fetched from the coordinator, by content address (default: CACHE-DIR/maps)");
+  app.add_option("--map-cache-mb", map_cache_mb,
+                 "Size limit of --map-cache-dir in MiB; least recently used maps go first (0 = keep none)")
+      ->capture_default_str()
+      ->check(CLI::Range(uint64_t(0), uint64_t(1) << 30));
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
@@ -112,6 +120,8 @@ int main(int argc, char** argv) {
     const char* tmp = std::getenv("TMPDIR");
     o.cache_dir = cache_dir.empty() ? std::filesystem::path(tmp ? tmp : "/tmp") / "pf-worker-cache"
                                     : std::filesystem::path(cache_dir);
+    o.map_cache_dir = map_cache_dir;
+    o.map_cache_bytes = map_cache_mb << 20;
     pf::worker::Worker worker(o);
     std::thread([&worker, signals] {
       int count = 0;

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <thread>
 
 #include "common/core/error.h"
@@ -75,11 +76,15 @@ struct Worker::Execution {
 Worker::Worker(WorkerOptions options)
     : options_(std::move(options)),
       scenes_(options_.cache_dir, options_.scene_cache_capacity),
+      map_disk_(options_.map_cache_dir.empty() ? options_.cache_dir / "maps" : options_.map_cache_dir,
+                options_.map_cache_bytes),
       maps_(std::make_shared<PhotonMapCache>(options_.map_cache_capacity)),
       jitter_rng_(std::random_device{}()) {
   channel_ = MakeCoordinatorChannel(options_.coordinator,
                                     ChannelOptions{.token = options_.token, .tls = options_.tls});
   stub_ = v1::WorkerService::NewStub(channel_);
+  // Test hook (docs/farm.md): corrupt one part of the first map fetched, to show it refused.
+  corrupt_next_part_ = std::getenv("PF_TEST_CORRUPT_MAP_PART") != nullptr;
 }
 
 Worker::~Worker() = default;
@@ -258,6 +263,7 @@ SceneBundle Worker::FetchBundle(const std::string& hash, const std::string& entr
 // A task in four steps: parse it, get its scene, log the settings chosen for `auto`, then render
 // it on a thread of its own under supervision (lease, grace period, stop requests) and report.
 Worker::Outcome Worker::RunTask(const v1::Task& task) {
+  if (task.has_trace_chunk()) return RunTraceChunk(task);
   const std::string ctx = TaskContext(task);
   const Clock::time_point t0 = Clock::now();
   const std::optional<ParsedTask> parsed = ParseTask(task, ctx);
@@ -267,6 +273,8 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   std::shared_ptr<const SceneRuntime> scene;
   if (const std::optional<Outcome> ended = GetScene(task, ctx, &scene)) return *ended;
   LogAutoSettings(task, ctx, parsed->settings, *scene);
+  if (task.has_map() && parsed->settings.integrator == IntegratorKind::kPhotonMap)
+    if (const std::optional<Outcome> ended = ObtainMap(task, ctx, *parsed, *scene)) return *ended;
   return ExecuteSupervised(task, ctx, *parsed, std::move(scene), t0);
 }
 
@@ -440,6 +448,8 @@ Worker::Outcome Worker::FinishExecution(const v1::Task& task, const std::string&
   }
   const TaskOutput output = std::move(*exec.output);
   lock.unlock();
+  if (!output.map_cache_hit && output.photons_emitted > 0)
+    ObserveTracing(output.photons_emitted, output.map_seconds);
   spdlog::info("rendered {} pixels={} map_cache_hit={} map_s={:.3f} render_s={:.3f} total_s={:.3f}", ctx,
                output.pixels, output.map_cache_hit, output.map_seconds, output.render_seconds,
                SecondsSince(t0));

@@ -39,6 +39,7 @@
 #include "common/plan/task_executor.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "rpc/grpc_channel.h"
+#include "worker/map_disk_cache.h"
 #include "worker/scene_cache.h"
 
 namespace pf::worker {
@@ -71,11 +72,15 @@ struct WorkerOptions {
   size_t map_cache_capacity = 4;       // photon maps kept (LRU)
   size_t scene_cache_capacity = 2;     // SceneRuntimes kept in memory (LRU)
   uint64_t max_tasks = 0;  // exit 0 after this many reported tasks (0 = never); for batch schedulers
+  // Issue #12: built maps fetched from the coordinator, on disk by content address (LRU).
+  std::filesystem::path map_cache_dir;           // "" = <cache_dir>/maps
+  uint64_t map_cache_bytes = uint64_t(4) << 30;  // 0 = keep none on disk
 };
 
 struct WorkerCounters {
   uint64_t leased = 0, completed = 0, merged = 0, failed = 0, abandoned = 0, handed_back = 0;
   uint64_t cancelled = 0;  // abandoned tasks whose render was stopped before its end
+  uint64_t chunks_traced = 0, maps_fetched = 0, maps_from_disk = 0, map_parts_refused = 0;
 };
 
 class Worker {
@@ -142,6 +147,19 @@ class Worker {
                 bool retryable);
   void Heartbeat(const photonfarm::v1::Task& task, const std::string& ctx, std::shared_ptr<Execution> exec);
   SceneBundle FetchBundle(const std::string& hash, const std::string& entry);
+  // Issue #12 (worker_maps.cpp): a piece of a map to trace and upload; a built map to fetch.
+  Outcome RunTraceChunk(const photonfarm::v1::Task& task);
+  // Puts the task's map (Task.map) into maps_ from disk or by FetchMap, unless tracing it here is
+  // faster (cost model, logged); returns nullopt to go on rendering.
+  std::optional<Outcome> ObtainMap(const photonfarm::v1::Task& task, const std::string& ctx,
+                                   const ParsedTask& parsed, const SceneRuntime& scene);
+  std::string FetchMapBytes(const photonfarm::v1::MapRef& ref, const std::string& ctx);
+  bool UploadChunk(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& bytes,
+                   grpc::Status* status);
+  void ObserveTracing(uint64_t photons, double seconds);
+  // Test hook (docs/farm.md): PF_TEST_PAUSE_AT=trace|upload|fetch sleeps there (for SIGKILL tests).
+  void TestPause(const char* where, const std::string& ctx);
+
   bool stop_requested() const { return stop_.load(); }
   // Sleeps up to `d`, returning early (true) when stop/abort is requested.
   bool InterruptibleSleep(std::chrono::milliseconds d, bool wake_on_stop = true);
@@ -150,6 +168,11 @@ class Worker {
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<photonfarm::v1::WorkerService::Stub> stub_;
   SceneCache scenes_;
+  MapDiskCache map_disk_;
+  // Cost model of trace-or-fetch (issue #12), measured here: seconds per photon of tracing and
+  // building a map with options_.threads, and bytes per second of fetches. 0 = not measured yet.
+  double seconds_per_photon_ = 0, bytes_per_second_ = 0;
+  bool corrupt_next_part_ = false;        // PF_TEST_CORRUPT_MAP_PART (test hook, once per process)
   std::shared_ptr<PhotonMapCache> maps_;  // shared with a render thread that may outlive a hand-back
 
   std::atomic<State> state_{State::kConnecting};

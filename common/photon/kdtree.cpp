@@ -318,6 +318,25 @@ void KdTree::Build() {
   arena.execute([&] { Builder(photons_, rule_, axes_, kParallelSubtree).Build(1, 0); });
 }
 
+std::unique_ptr<KdTree> KdTree::FromBalanced(KdSplitRule rule, KdCulling culling, std::vector<Photon> photons,
+                                             std::vector<uint8_t> axes) {
+  if (photons.size() > kMaxPhotons) throw std::invalid_argument("KdTree::FromBalanced: too many photons");
+  const size_t want_axes =
+      rule == KdSplitRule::kWidestExtent && !photons.empty() ? photons.size() / 4 + 1 : 0;
+  if (axes.size() != want_axes)
+    throw std::invalid_argument("KdTree::FromBalanced: " + std::to_string(axes.size()) + " axis bytes for " +
+                                std::to_string(photons.size()) + " photons (expected " +
+                                std::to_string(want_axes) + ")");
+  for (const Photon& p : photons)
+    if (!IsFinite(p.Position()))
+      throw std::invalid_argument("KdTree::FromBalanced: non-finite photon position");
+  auto tree = std::make_unique<KdTree>(rule, culling);
+  tree->photons_ = std::move(photons);
+  tree->axes_ = std::move(axes);
+  tree->prepared_ = true;
+  return tree;
+}
+
 int KdTree::SplitAxis(std::size_t node) const {
   if (rule_ == KdSplitRule::kWidestExtent) return StoredAxis(node);
   return (std::bit_width(node) - 1) % 3;

@@ -68,6 +68,17 @@ class KdTree final : public PhotonMap {
   void QueryWithStats(const Vec3& x, int k, float max_radius, NearestPhotons& nearest, SearchStats* stats,
                       const PhotonFilter* filter = nullptr) const;
 
+  // The 2-bit split axes of kWidestExtent (empty for kLevelCycle), indexed by node number:
+  // with photons() the whole tree, what a serialized map carries (photon_maps_bytes.h).
+  const std::vector<uint8_t>& stored_axes() const { return axes_; }
+  // A prepared tree from an array that is already left-balanced in heap order (photons() and
+  // stored_axes() of a built tree): no build, the same queries bit for bit. Throws
+  // std::invalid_argument if the sizes do not fit (axes: photons / 4 + 1 bytes for
+  // kWidestExtent, none for kLevelCycle) or a position is not finite; the kd-condition itself
+  // is not checked (O(N log N)): the caller verifies the bytes' digest.
+  static std::unique_ptr<KdTree> FromBalanced(KdSplitRule rule, KdCulling culling,
+                                              std::vector<Photon> photons, std::vector<uint8_t> axes);
+
   std::size_t MemoryBytes() const override {
     return PhotonMap::MemoryBytes() + axes_.capacity() * sizeof(uint8_t);
   }

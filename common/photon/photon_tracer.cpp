@@ -5,6 +5,8 @@
 
 #include <array>
 #include <chrono>
+#include <stdexcept>
+#include <string>
 
 #include "common/core/error.h"
 #include "common/materials/bsdf.h"
@@ -32,7 +34,7 @@ bool SceneNeedsCausticMap(const SceneDescription& scene) {
 
 namespace {
 
-constexpr uint64_t kChunk = 4096;  // photons per work item: fixed, so output order is fixed
+constexpr uint64_t kChunk = kPhotonTracingChunk;
 
 struct ChunkOutput {
   std::vector<TracedPhoton> direct, indirect, caustic;
@@ -104,15 +106,22 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
                                  const PhotonTracerOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   PhotonTracingResult result;
+  const uint64_t range_end = options.photon_end == 0 ? options.photons : options.photon_end;
+  if (options.photon_begin % kChunk != 0 || options.photon_begin > range_end || range_end > options.photons)
+    throw std::invalid_argument("TracePhotons: photons [" + std::to_string(options.photon_begin) + ", " +
+                                std::to_string(range_end) + ") of " + std::to_string(options.photons) +
+                                " do not start at a multiple of " + std::to_string(kChunk));
   if (lights.empty() || options.photons == 0) return result;
-  const uint64_t chunks = (options.photons + kChunk - 1) / kChunk;
+  const uint64_t first_chunk = options.photon_begin / kChunk;
+  const uint64_t chunks = (range_end + kChunk - 1) / kChunk - first_chunk;
   std::vector<ChunkOutput> outputs(chunks);
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   arena.execute([&] {
     tbb::parallel_for(uint64_t(0), chunks, [&](uint64_t c) {
       if (options.cancel && options.cancel->load(std::memory_order_relaxed)) return;
-      const uint64_t end = std::min(options.photons, (c + 1) * kChunk);
-      for (uint64_t i = c * kChunk; i < end; ++i) TraceOne(scene, lights, options, i, outputs[c]);
+      const uint64_t end = std::min(range_end, (first_chunk + c + 1) * kChunk);
+      for (uint64_t i = (first_chunk + c) * kChunk; i < end; ++i)
+        TraceOne(scene, lights, options, i, outputs[c]);
     });
   });
   if (options.cancel && options.cancel->load()) throw Cancelled();
@@ -140,7 +149,7 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
       }
     });
   });
-  result.emitted = options.photons;
+  result.emitted = range_end - options.photon_begin;
   result.emitted_power = lights.total_power();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -68,6 +68,10 @@ struct UninitializedAllocator : std::allocator<T> {
 
 using TracedPhotons = std::vector<TracedPhoton, UninitializedAllocator<TracedPhoton>>;
 
+// Photons per work item of TracePhotons: fixed, so that the output order is fixed. A map traced
+// in pieces (distributed tracing, photon_chunk.h) is cut at multiples of it.
+inline constexpr uint64_t kPhotonTracingChunk = 4096;
+
 struct PhotonTracerOptions {
   uint64_t photons = 100000;  // emitted photons (not stored ones)
   uint64_t map_seed = 1;
@@ -76,6 +80,11 @@ struct PhotonTracerOptions {
   SamplerKind sampler = SamplerKind::kSobol;  // quasi-random emission and scattering (§2.2)
   // Checked before each chunk of photons; once set, TracePhotons throws Cancelled.
   const std::atomic<bool>* cancel = nullptr;
+  // Trace only the photons [photon_begin, photon_end) of the map's `photons` (photon_end 0 = all):
+  // a piece of the map, the same photons as in a whole trace. photon_begin must be a multiple of
+  // kPhotonTracingChunk (std::invalid_argument otherwise), so that the pieces concatenated in
+  // order are the whole trace's arrays (issue #12, distributed tracing).
+  uint64_t photon_begin = 0, photon_end = 0;
 };
 
 struct PhotonTracingResult {

@@ -16,6 +16,14 @@ namespace pf {
 
 enum class IntegratorKind { kPath, kPhotonMap };
 
+// Who traces a farm job's photon maps (issue #12; docs/farm.md "Photon maps traced once"). Never
+// changes the image: a map traced in pieces and built once is the map a worker builds alone.
+enum class MapTracingMode {
+  kAuto,         // distributed for kd-tree maps that more than one render task uses, else local
+  kLocal,        // every worker traces and builds the maps of its tasks
+  kDistributed,  // kd-tree maps: pieces traced by any worker, built once by the coordinator
+};
+
 // What an `auto` setting became for a scene, and why (logged by pf and pf-worker).
 struct AutoChoice {
   std::string setting, value, reason;
@@ -53,6 +61,8 @@ struct JobRenderSettings {
       0.0f;                     // local pass: irradiance caching, Ward's a (irradiance_cache.h); 0 = off
   bool occlusion_test = false;  // §4.1.1
   int adaptive_k_min = 0;       // §4.8; 0 = off
+  // Issue #12 (farm only; pf render --local-only traces in-process).
+  MapTracingMode map_tracing = MapTracingMode::kAuto;
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
   // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.

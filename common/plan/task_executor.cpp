@@ -151,6 +151,10 @@ size_t PhotonMapCache::size() const {
   return entries_.size();
 }
 
+std::string MapCacheKey(const std::string& scene_key, const JobRenderSettings& resolved, uint64_t map_seed) {
+  return scene_key + "|" + resolved.MapFingerprint() + "|" + std::to_string(map_seed);
+}
+
 TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera_spec,
                        const JobRenderSettings& settings_as_given, const TaskSpec& task, int threads,
                        PhotonMapCache* cache, std::atomic<uint64_t>* progress,
@@ -169,7 +173,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                          sums, progress, cancel, settings_as_given.sampler);
   } else {
     const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
-    const std::string key = scene_key + "|" + settings.MapFingerprint() + "|" + std::to_string(task.map_seed);
+    const std::string key = MapCacheKey(scene_key, settings, task.map_seed);
     std::shared_ptr<const PhotonMaps> maps = cache ? cache->Find(key) : nullptr;
     out.map_cache_hit = maps != nullptr;
     if (!maps) {

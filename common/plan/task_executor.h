@@ -42,6 +42,11 @@ struct LocalRenderTotals {
   void Add(const TaskOutput& out);
 };
 
+// The key under which ExecuteTask caches the maps of `map_seed` for a scene and *resolved*
+// settings (JobRenderSettings::Resolved): a map obtained elsewhere (fetched from the coordinator,
+// read from a disk cache) inserted under it is used as if it had been built here.
+std::string MapCacheKey(const std::string& scene_key, const JobRenderSettings& resolved, uint64_t map_seed);
+
 // Renders one task. `scene_key` identifies the scene for the cache (e.g. its bundle hash);
 // `cache` may be null. `progress` (optional) counts finished pixels. `cancel` (optional) stops
 // photon tracing and rendering soon after it is set: ExecuteTask then throws Cancelled and

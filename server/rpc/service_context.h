@@ -4,6 +4,7 @@
 
 #include "server/rpc/executor.h"
 #include "server/scheduling/clock.h"
+#include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/persister.h"
 #include "server/store/scene_store.h"
@@ -21,6 +22,7 @@ struct ServiceContext {
   Executor& executor;
   WatchHub& watches;
   const Clock& clock;
+  DistributedMaps& maps;  // issue #12: photon maps traced once
 };
 
 }  // namespace pf::server

@@ -11,7 +11,9 @@
 #include <mutex>
 
 #include "common/core/error.h"
+#include "common/core/sha256.h"
 #include "proto/convert.h"
+#include "server/errors.h"
 #include "server/rpc/buffered_stream.h"
 #include "server/rpc/status_mapping.h"
 
@@ -20,7 +22,33 @@ namespace v1 = photonfarm::v1;
 
 namespace {
 
-void FillTask(const Lease& lease, v1::Task* task) {
+void FillTask(const Lease& lease, v1::Task* task, DistributedMaps& maps) {
+  if (lease.chunk) {
+    // A piece of a map to trace: no pixels, no camera (Task.trace_chunk).
+    task->set_task_id(lease.task_id);
+    task->set_map_index(lease.task.map_index);
+    task->set_map_seed(lease.task.map_seed);
+    v1::TraceChunk* c = task->mutable_trace_chunk();
+    c->set_map_key(lease.chunk->map_key);
+    c->set_photon_begin(lease.chunk->photon_begin);
+    c->set_photon_end(lease.chunk->photon_end);
+    c->set_chunk_index(lease.chunk->chunk_index);
+    c->set_chunk_count(lease.chunk->chunk_count);
+    task->set_job_id(lease.job_id);
+    task->set_attempt(lease.attempt);
+    task->set_lease_id(lease.lease_id);
+    task->set_lease_seconds(lease.lease_seconds);
+    task->set_scene_hash(lease.config->scene_hash);
+    task->set_scene_entry(lease.config->scene_entry);
+    SettingsToProto(lease.config->settings, task->mutable_settings());
+    return;
+  }
+  if (const std::optional<BuiltMap> map = maps.MapFor(lease.job_id, lease.task.map_index)) {
+    v1::MapRef* ref = task->mutable_map();
+    ref->set_map_key(map->key);
+    ref->set_bytes(map->bytes);
+    ref->set_digest(map->digest);
+  }
   TaskSpecToProto(lease.task, task);
   task->set_job_id(lease.job_id);
   task->set_attempt(lease.attempt);
@@ -63,13 +91,15 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
     Scheduler* scheduler = &ctx.scheduler;
     // May run before LeaseOrWait returns; after Finish `this` may be gone, so only `state` and
     // locals are used below.
-    auto deliver = [this, context, response, scheduler](std::optional<Lease> lease) {
-      if (lease && context->IsCancelled()) {
+    DistributedMaps* maps = &ctx.maps;
+    auto deliver = [this, context, response, scheduler, maps](std::optional<Lease> lease) {
+      if (lease && context->IsCancelled() && !lease->chunk) {
+        // (An undelivered map piece is not returned: its lease runs out and it is traced again.)
         scheduler->ReturnLease(lease->lease_id);
         lease.reset();
       }
       if (lease) {
-        FillTask(*lease, response->mutable_task());
+        FillTask(*lease, response->mutable_task(), *maps);
         spdlog::debug("job {} task {}: lease {} sent", lease->job_id, lease->task_id, lease->lease_id);
       }
       Finish(grpc::Status::OK);
@@ -119,7 +149,9 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerCon
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("ExtendLease", [&] {
     RequireLeaseId(request->lease_id());
-    const ExtendResult r = ctx_.scheduler.Extend(request->lease_id(), request->progress());
+    const ExtendResult r = DistributedMaps::IsChunkLease(request->lease_id())
+                               ? ctx_.maps.Extend(request->lease_id())
+                               : ctx_.scheduler.Extend(request->lease_id(), request->progress());
     response->set_ok(r.ok);
     response->set_lease_seconds(r.lease_seconds);
     return grpc::Status::OK;
@@ -175,7 +207,11 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
     limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
     std::string reason = limits::Printable(request->reason(), limits::kMaxReasonBytes);
     if (reason.empty()) reason = "no reason given";
-    switch (ctx_.scheduler.Fail(request->lease_id(), request->worker_id(), reason, request->retryable())) {
+    const FailOutcome outcome =
+        DistributedMaps::IsChunkLease(request->lease_id())
+            ? ctx_.maps.Fail(request->lease_id(), request->worker_id(), reason)
+            : ctx_.scheduler.Fail(request->lease_id(), request->worker_id(), reason, request->retryable());
+    switch (outcome) {
       case FailOutcome::kFailed:
         return grpc::Status::OK;
       case FailOutcome::kUnknownLease:
@@ -234,6 +270,139 @@ grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(
         ++s.next;
       }
       return false;
+    });
+  });
+}
+
+namespace {
+
+// UploadPhotonChunk: collects the parts (cheap bookkeeping on gRPC's thread), then checks every
+// checksum, the whole digest and the piece itself on an executor thread (S4: callbacks do not block).
+class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkPart> {
+ public:
+  ChunkUploadReactor(ServiceContext& ctx, v1::UploadPhotonChunkResponse* response)
+      : ctx_(ctx), response_(response) {
+    StartRead(&part_);
+  }
+  void OnReadDone(bool ok) override {
+    if (!ok) {
+      if (!ctx_.executor.Post([this] { Finish(Verify()); }))
+        Finish(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down"));
+      return;
+    }
+    if (parts_ == 0) {
+      lease_id_ = part_.lease_id();
+      total_ = part_.total_bytes();
+      digest_ = part_.digest();
+      if (total_ > kMaxPhotonChunkBytes) {
+        Finish(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, "total_bytes: " + std::to_string(total_) +
+                                                                      " exceeds the limit " +
+                                                                      std::to_string(kMaxPhotonChunkBytes)));
+        return;
+      }
+      bytes_.reserve(size_t(total_));
+    }
+    if (part_.data().size() > kMapPartBytes || part_.offset() != bytes_.size() ||
+        bytes_.size() + part_.data().size() > total_) {
+      Finish(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "parts[" + std::to_string(parts_) + "]: offset " + std::to_string(part_.offset()) +
+                              " / size " + std::to_string(part_.data().size()) + " do not continue the " +
+                              std::to_string(bytes_.size()) + " bytes received (of " +
+                              std::to_string(total_) + ", parts ≤ 1 MiB)"));
+      return;
+    }
+    part_sums_.push_back(part_.sha256());
+    part_ends_.push_back(bytes_.size() + part_.data().size());
+    bytes_ += part_.data();
+    ++parts_;
+    StartRead(&part_);
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  grpc::Status Verify() {
+    return Guarded("UploadPhotonChunk", [&] {
+      RequireLeaseId(lease_id_);
+      size_t begin = 0;
+      for (size_t i = 0; i < part_sums_.size(); ++i) {
+        if (Sha256Hex(std::string_view(bytes_).substr(begin, part_ends_[i] - begin)) != part_sums_[i])
+          throw InputError("parts[" + std::to_string(i) +
+                           "].sha256: checksum mismatch: the piece is refused");
+        begin = part_ends_[i];
+      }
+      if (bytes_.size() != total_)
+        throw InputError("total_bytes: " + std::to_string(bytes_.size()) + " bytes received of " +
+                         std::to_string(total_));
+      if (Sha256Hex(bytes_) != digest_) throw InputError("digest: mismatch: the piece is refused");
+      const DistributedMaps::Accepted a = ctx_.maps.AcceptChunk(lease_id_, bytes_);
+      response_->set_accepted(a == DistributedMaps::Accepted::kStored);
+      return grpc::Status::OK;
+    });
+  }
+
+  ServiceContext& ctx_;
+  v1::UploadPhotonChunkResponse* response_;
+  v1::PhotonChunkPart part_;
+  std::string lease_id_, digest_, bytes_;
+  uint64_t total_ = 0;
+  size_t parts_ = 0;
+  std::vector<std::string> part_sums_;
+  std::vector<size_t> part_ends_;
+};
+
+}  // namespace
+
+grpc::ServerReadReactor<v1::PhotonChunkPart>* WorkerServiceImpl::UploadPhotonChunk(
+    grpc::CallbackServerContext* /*context*/, v1::UploadPhotonChunkResponse* response) {
+  return new ChunkUploadReactor(ctx_, response);
+}
+
+grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::CallbackServerContext* /*context*/,
+                                                                    const v1::FetchMapRequest* request) {
+  const grpc::Status precheck = Guarded("FetchMap", [&] {
+    limits::CheckId(request->map_key(), "map_key");
+    return grpc::Status::OK;
+  });
+  const std::string key = request->map_key();
+  // Streamed from the file one part at a time (like FetchScene), each part with its checksum.
+  return ChunkedStreamReactor<v1::MapBytes>::Start(ctx_.executor, "FetchMap", precheck, [this, key] {
+    const std::optional<std::filesystem::path> file = ctx_.maps.MapFile(key);
+    if (!file) throw NotFoundError("map_key: no built map " + key);
+    struct State {
+      std::ifstream in;
+      uint64_t offset = 0, total = 0;
+      std::string digest;
+      bool sent = false;
+    };
+    auto state = std::make_shared<State>();
+    state->in.open(*file, std::ios::binary);
+    if (!state->in) throw SystemError(file->string() + ": cannot read the built map");
+    state->total = std::filesystem::file_size(*file);
+    {
+      std::ifstream tail(*file, std::ios::binary);
+      tail.seekg(std::streamoff(state->total - std::min<uint64_t>(state->total, 32)));
+      std::string raw(32, '\0');
+      tail.read(raw.data(), 32);
+      static constexpr char kHex[] = "0123456789abcdef";
+      for (unsigned char c : raw) {
+        state->digest.push_back(kHex[c >> 4]);
+        state->digest.push_back(kHex[c & 15]);
+      }
+    }
+    return ChunkedStreamReactor<v1::MapBytes>::Source([state](v1::MapBytes* message) {
+      State& s = *state;
+      if (s.offset >= s.total && s.sent) return false;
+      std::string data(size_t(std::min<uint64_t>(kMapPartBytes, s.total - s.offset)), '\0');
+      s.in.read(data.data(), std::streamsize(data.size()));
+      if (!s.in) throw SystemError("cannot read the built map");
+      message->set_offset(s.offset);
+      message->set_sha256(Sha256Hex(data));
+      message->set_total_bytes(s.total);
+      message->set_digest(s.digest);
+      s.offset += data.size();
+      message->set_data(std::move(data));
+      s.sent = true;
+      return true;
     });
   });
 }

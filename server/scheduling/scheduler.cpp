@@ -74,6 +74,11 @@ void Scheduler::Touch(Job& job, Effects& fx) {
 // Queue
 
 void Scheduler::Enqueue(Job& job, uint64_t task_id, Effects& fx) {
+  if (map_hook_ && !map_hook_->RenderTaskReady(job, job.task(task_id))) {
+    held_[{job.id(), job.task(task_id).map_index}].push_back(task_id);
+    Touch(job, fx);
+    return;
+  }
   queue_.Push(job, task_id);
   Touch(job, fx);
 }
@@ -84,7 +89,7 @@ void Scheduler::Dequeue(Job& job, uint64_t task_id) {
 
 void Scheduler::ServeWaiters(Effects& fx) {
   const double now = clock_.Now();
-  while (!waiters_.empty() && !queue_.empty()) {
+  while (!waiters_.empty() && (!queue_.empty() || map_hook_)) {
     auto it = waiters_.begin();
     std::optional<Lease> lease = LeaseLocked(it->second.request, now, fx);
     if (!lease) break;
@@ -114,6 +119,8 @@ bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
 std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double now, Effects& fx) {
   if (shutdown_) return std::nullopt;
   ++counters_.lease_attempts;
+  if (map_hook_)
+    if (std::optional<Lease> chunk = map_hook_->LeaseChunk(request, now)) return chunk;
   while (!queue_.empty()) {
     Job& job = queue_.FrontJob();
     if (CheckTimeBudget(job, now, fx)) continue;  // its queue is gone now
@@ -890,6 +897,46 @@ void Scheduler::Shutdown() {
     shutdown_ = true;
     for (auto& [id, w] : waiters_) fx.callbacks.emplace_back(std::move(w.done), std::nullopt);
     waiters_.clear();
+  }
+  Run(fx);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Photon maps traced once (map_tracing_hook.h)
+
+void Scheduler::SetMapTracingHook(MapTracingHook* work) {
+  std::lock_guard lock(mu_);
+  map_hook_ = work;
+}
+
+void Scheduler::ReleaseMap(const std::string& job_id, uint64_t map_index) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    auto it = held_.find({job_id, map_index});
+    if (it == held_.end()) return;
+    const std::vector<uint64_t> ids = std::move(it->second);
+    held_.erase(it);
+    Job* job = jobs_.Find(job_id);
+    if (!job || !job->active()) return;
+    size_t released = 0;
+    for (uint64_t id : ids)
+      if (job->runtime(id).state == TaskState::kQueued) {
+        queue_.Push(*job, id);
+        ++released;
+      }
+    spdlog::info("job {}: map {} ready: {} render tasks queued", job_id, map_index, released);
+    Touch(*job, fx);
+    ServeWaiters(fx);
+  }
+  Run(fx);
+}
+
+void Scheduler::NotifyMapPieces() {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    ServeWaiters(fx);
   }
   Run(fx);
 }

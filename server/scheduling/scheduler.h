@@ -70,6 +70,7 @@
 #include "server/scheduling/clock.h"
 #include "server/scheduling/farm_activity.h"
 #include "server/scheduling/lease_table.h"
+#include "server/scheduling/map_tracing_hook.h"
 #include "server/scheduling/task_queue.h"
 #include "server/scheduling/task_source.h"
 #include "server/store/records.h"
@@ -98,6 +99,7 @@ struct Lease {
   double lease_seconds = 0;
   TaskSpec task;
   std::shared_ptr<const JobConfig> config;
+  std::optional<TraceChunkLease> chunk;  // a piece of a map to trace, not a render task (map_tracing_hook.h)
 };
 
 enum class FailOutcome { kFailed, kUnknownLease, kNotHolder };
@@ -204,6 +206,15 @@ class Scheduler {
   // No more leases; parked long polls are answered "no task".
   void Shutdown();
 
+  // --- Photon maps traced once (issue #12, map_tracing_hook.h) ---
+  // Set before jobs are added; `work` outlives the scheduler's use of it.
+  void SetMapTracingHook(MapTracingHook* work);
+  // The map `map_index` of the job is built (or left to its workers): its held render tasks join
+  // the queue. Call outside MapTracingHook's own lock.
+  void ReleaseMap(const std::string& job_id, uint64_t map_index);
+  // Map pieces were queued (or re-queued): parked long polls may now get one.
+  void NotifyMapPieces();
+
   SchedulerCounters counters() const;
   const SchedulerOptions& options() const { return options_; }
   // Workers and task events, for people (pf workers, pf events, the web page).
@@ -267,6 +278,9 @@ class Scheduler {
   FarmActivity activity_;
   std::function<void(const std::string&)> change_listener_;
   std::function<void()> persist_listener_;
+  MapTracingHook* map_hook_ = nullptr;
+  // Render tasks waiting for their map (MapTracingHook::RenderTaskReady), by job and map index.
+  std::map<std::pair<std::string, uint64_t>, std::vector<uint64_t>> held_;
 };
 
 }  // namespace pf::server

@@ -5,6 +5,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include "common/core/rng.h"
 #include "common/plan/hierarchical.h"
 #include "server/errors.h"
@@ -784,6 +786,67 @@ TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) 
   EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(s.tasks_total(), static_tasks) << "no localization after the budget";
   EXPECT_FALSE(scheduler.TryLease({"w", {}}).has_value());
+}
+
+}  // namespace
+}  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+// Issue #12 (map_tracing_hook.h): render tasks whose map is not ready are held out of the queue
+// (the hook's pieces are leased first, parked long polls get them), and ReleaseMap queues them;
+// a hook that says "ready" changes nothing.
+class FakeMapHook final : public MapTracingHook {
+ public:
+  bool RenderTaskReady(const Job& /*job*/, const TaskSpec& task) override {
+    return ready.count(task.map_index) > 0;
+  }
+  std::optional<Lease> LeaseChunk(const LeaseRequest& /*request*/, double /*now*/) override {
+    if (pieces == 0) return std::nullopt;
+    --pieces;
+    Lease l;
+    l.lease_id = "map-" + std::to_string(pieces);
+    l.chunk = TraceChunkLease{"key", 0, 4096, 0, 1};
+    return l;
+  }
+  std::set<uint64_t> ready;
+  int pieces = 0;
+};
+
+TEST_F(SchedulerTest, RenderTasksWaitForTheirMapAndPiecesComeFirst) {
+  FakeMapHook hook;
+  hook.pieces = 1;
+  hook.ready = {1};
+  scheduler_.SetMapTracingHook(&hook);
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 2), 4, 4));  // 2 maps x 4 tiles
+  const Lease piece = MustLease();
+  ASSERT_TRUE(piece.chunk.has_value()) << "pieces are served before render tasks";
+  for (int i = 0; i < 4; ++i) {
+    const Lease l = MustLease();
+    EXPECT_FALSE(l.chunk.has_value());
+    EXPECT_EQ(l.task.map_index, 1u) << "map 0 is not built yet";
+  }
+  EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value());
+  EXPECT_EQ(scheduler_.Status(id).tasks_queued(), 4u) << "held tasks still count as queued";
+  // A parked long poll is served when a piece appears, then when the map is released.
+  std::optional<Lease> parked;
+  bool answered = false;
+  scheduler_.LeaseOrWait({"w2", {}}, 10, [&](std::optional<Lease> l) {
+    parked = std::move(l);
+    answered = true;
+  });
+  EXPECT_FALSE(answered);
+  hook.pieces = 1;
+  scheduler_.NotifyMapPieces();
+  ASSERT_TRUE(answered);
+  ASSERT_TRUE(parked.has_value() && parked->chunk.has_value());
+  hook.ready.insert(0);
+  scheduler_.ReleaseMap(id, 0);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(MustLease().task.map_index, 0u);
+  scheduler_.ReleaseMap(id, 0);  // twice: nothing more
+  EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value());
+  scheduler_.SetMapTracingHook(nullptr);
 }
 
 }  // namespace

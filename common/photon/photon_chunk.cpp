@@ -1,0 +1,224 @@
+#include "common/photon/photon_chunk.h"
+
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/task_arena.h>
+
+#include <chrono>
+#include <cstring>
+#include <stdexcept>
+
+#include "common/core/byte_codec.h"
+
+namespace pf {
+namespace {
+
+constexpr std::string_view kMagic = "PFCHNK\r\n";
+constexpr uint32_t kVersion = 1;
+
+// The lists of `lists` (kinds) of all chunks concatenated in order: what PhotonMaps::Build's
+// MakeFilled adds to one map, already compressed; then built as it builds.
+std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<const PhotonChunk> chunks,
+                                          std::initializer_list<int> lists, PhotonAttributes* attributes) {
+  auto map = MakePhotonMap(o.kind, o.structure);
+  map->set_build_threads(o.tracing.threads);
+  size_t n = 0;
+  for (int k : lists)
+    for (const PhotonChunk& c : chunks) n += c.lists[k].photons.size();
+  std::vector<Photon> compact;
+  compact.reserve(n);
+  for (int k : lists)
+    for (const PhotonChunk& c : chunks)
+      compact.insert(compact.end(), c.lists[k].photons.begin(), c.lists[k].photons.end());
+  map->AddPhotons(compact);
+  std::vector<Photon>().swap(compact);
+  if (!o.keep_light_ids && !o.keep_origins) {
+    map->PrepareForQuery();
+    return map;
+  }
+  std::vector<uint32_t> original;
+  map->PrepareForQuery(&original);
+  std::vector<uint32_t> light;
+  std::vector<Vec3> origin;
+  for (int k : lists)
+    for (const PhotonChunk& c : chunks) {
+      if (o.keep_light_ids) light.insert(light.end(), c.lists[k].light.begin(), c.lists[k].light.end());
+      if (o.keep_origins) origin.insert(origin.end(), c.lists[k].origin.begin(), c.lists[k].origin.end());
+    }
+  if (o.keep_light_ids) attributes->light.resize(n);
+  if (o.keep_origins) attributes->origin.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (o.keep_light_ids) attributes->light[i] = light[original[i]];
+    if (o.keep_origins) attributes->origin[i] = origin[original[i]];
+  }
+  return map;
+}
+
+}  // namespace
+
+PhotonChunk TracePhotonChunk(const EmbreeScene& scene, const LightSampler& lights,
+                             const PhotonMapsOptions& options, uint64_t begin, uint64_t end) {
+  PhotonTracerOptions to = options.tracing;
+  to.photon_begin = begin;
+  to.photon_end = end;
+  if (end <= begin) throw std::invalid_argument("TracePhotonChunk: empty range");
+  const PhotonTracingResult traced = TracePhotons(scene, lights, to);
+  PhotonChunk chunk;
+  chunk.begin = begin;
+  chunk.end = end;
+  chunk.rays = traced.rays;
+  chunk.emitted_power = traced.emitted_power;
+  chunk.light_ids = options.keep_light_ids;
+  chunk.origins = options.keep_origins;
+  const std::array<const TracedPhotons*, 3> from = {&traced.direct, &traced.indirect, &traced.caustic};
+  for (int k = 0; k < 3; ++k) {
+    PhotonChunk::List& list = chunk.lists[k];
+    list.photons.reserve(from[k]->size());
+    for (const TracedPhoton& p : *from[k]) {
+      list.photons.push_back(Photon::Make(p.position, p.direction, p.power));
+      if (chunk.light_ids) list.light.push_back(p.light);
+      if (chunk.origins) list.origin.push_back(p.origin);
+      chunk.stored_power[0] += p.power.r;
+      chunk.stored_power[1] += p.power.g;
+      chunk.stored_power[2] += p.power.b;
+    }
+  }
+  return chunk;
+}
+
+std::string SerializePhotonChunk(const PhotonChunk& chunk) {
+  std::string out;
+  size_t photons = 0;
+  for (const auto& l : chunk.lists) photons += l.photons.size();
+  out.reserve(128 + photons * (sizeof(Photon) + 16));
+  ByteWriter w(out);
+  w.PutBytes(kMagic);
+  w.Put<uint32_t>(kVersion);
+  w.Put<uint64_t>(chunk.begin);
+  w.Put<uint64_t>(chunk.end);
+  w.Put<uint64_t>(chunk.rays);
+  for (double p : chunk.stored_power) w.Put<double>(p);
+  w.Put<float>(chunk.emitted_power.r);
+  w.Put<float>(chunk.emitted_power.g);
+  w.Put<float>(chunk.emitted_power.b);
+  w.Put<uint8_t>(chunk.light_ids);
+  w.Put<uint8_t>(chunk.origins);
+  w.Put<uint16_t>(0);
+  for (const PhotonChunk::List& l : chunk.lists) {
+    const uint64_t n = l.photons.size();
+    if ((chunk.light_ids && l.light.size() != n) || (chunk.origins && l.origin.size() != n))
+      throw std::logic_error("SerializePhotonChunk: attributes do not match the photons");
+    w.Put<uint64_t>(n);
+    w.PutBytes(std::string_view(reinterpret_cast<const char*>(l.photons.data()), n * sizeof(Photon)));
+    if (chunk.light_ids) w.PutArray<uint32_t>(l.light);
+    if (chunk.origins)
+      for (const Vec3& o : l.origin) {
+        w.Put<float>(o.x);
+        w.Put<float>(o.y);
+        w.Put<float>(o.z);
+      }
+  }
+  return out;
+}
+
+PhotonChunk DeserializePhotonChunk(std::string_view bytes) {
+  if (bytes.substr(0, kMagic.size()) != kMagic) throw InputError("photon chunk: bad magic");
+  ByteReader r(bytes.substr(kMagic.size()), "photon chunk");
+  if (const uint32_t v = r.Get<uint32_t>(); v != kVersion) r.Fail("format version " + std::to_string(v));
+  PhotonChunk chunk;
+  chunk.begin = r.Get<uint64_t>();
+  chunk.end = r.Get<uint64_t>();
+  chunk.rays = r.Get<uint64_t>();
+  for (double& p : chunk.stored_power) p = r.Get<double>();
+  chunk.emitted_power.r = r.Get<float>();
+  chunk.emitted_power.g = r.Get<float>();
+  chunk.emitted_power.b = r.Get<float>();
+  const uint8_t lights = r.Get<uint8_t>(), origins = r.Get<uint8_t>();
+  if (lights > 1 || origins > 1 || r.Get<uint16_t>() != 0) r.Fail("malformed header");
+  if (chunk.end <= chunk.begin || chunk.begin % kPhotonTracingChunk != 0) r.Fail("bad photon range");
+  chunk.light_ids = lights;
+  chunk.origins = origins;
+  for (PhotonChunk::List& l : chunk.lists) {
+    const uint64_t n = r.Get<uint64_t>();
+    // Checked before allocating: a corrupt count must not allocate what the bytes cannot hold.
+    if (n > chunk.end - chunk.begin + 1 || n * (sizeof(Photon) + 4 * lights + 12 * origins) > r.remaining())
+      r.Fail("truncated or corrupt list of " + std::to_string(n) + " photons");
+    l.photons.resize(n);
+    const std::string_view b = r.GetBytes(n * sizeof(Photon));
+    if (n > 0) std::memcpy(l.photons.data(), b.data(), b.size());
+    for (const Photon& p : l.photons)
+      if (!IsFinite(p.Position())) r.Fail("non-finite photon position");
+    if (lights) {
+      l.light.resize(n);
+      r.GetArray<uint32_t>(l.light);
+    }
+    if (origins) {
+      l.origin.resize(n);
+      for (Vec3& o : l.origin) {
+        o.x = r.Get<float>();
+        o.y = r.Get<float>();
+        o.z = r.Get<float>();
+      }
+    }
+  }
+  if (!r.empty()) r.Fail(std::to_string(r.remaining()) + " trailing bytes");
+  return chunk;
+}
+
+PhotonMaps AssemblePhotonMaps(std::span<const PhotonChunk> chunks, const PhotonMapsOptions& options) {
+  if (options.caustic == CausticMapMode::kAuto)
+    throw std::logic_error("AssemblePhotonMaps: the caustic map mode must be resolved");
+  uint64_t next = 0;
+  for (const PhotonChunk& c : chunks) {
+    if (c.begin != next)
+      throw InputError("photon chunks: photons [" + std::to_string(next) + ", " + std::to_string(c.begin) +
+                       ") are missing");
+    if ((options.keep_light_ids && !c.light_ids) || (options.keep_origins && !c.origins))
+      throw InputError("photon chunks: a chunk lacks the light ids or origins the maps need");
+    next = c.end;
+  }
+  if (next != options.tracing.photons)
+    throw InputError("photon chunks: cover " + std::to_string(next) + " of " +
+                     std::to_string(options.tracing.photons) + " photons");
+  PhotonMaps maps;
+  maps.seed = options.tracing.map_seed;
+  maps.stats.emitted = options.tracing.photons;
+  double power[3] = {0, 0, 0};
+  for (const PhotonChunk& c : chunks) {
+    maps.stats.rays += c.rays;
+    for (int i = 0; i < 3; ++i) power[i] += c.stored_power[i];
+  }
+  maps.stats.stored_power = Rgb(float(power[0]), float(power[1]), float(power[2]));
+  if (!chunks.empty()) maps.stats.emitted_power = chunks.front().emitted_power;
+  const auto t0 = std::chrono::steady_clock::now();
+  constexpr int kDirect = int(PhotonKind::kDirect), kIndirect = int(PhotonKind::kIndirect),
+                kCaustic = int(PhotonKind::kCaustic);
+  if (options.separate_direct) {
+    tbb::task_arena arena(options.tracing.threads > 0 ? options.tracing.threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+      tbb::parallel_invoke(
+          [&] { maps.global = FillFromChunks(options, chunks, {kIndirect}, &maps.global_attributes); },
+          [&] { maps.direct = FillFromChunks(options, chunks, {kDirect}, &maps.direct_attributes); });
+    });
+  } else {
+    maps.global = FillFromChunks(options, chunks, {kDirect, kIndirect}, &maps.global_attributes);
+  }
+  uint64_t caustic = 0, direct = 0;
+  for (const PhotonChunk& c : chunks) {
+    caustic += c.lists[kCaustic].photons.size();
+    direct += c.lists[kDirect].photons.size();
+  }
+  if (options.caustic == CausticMapMode::kOn) {
+    maps.caustic = FillFromChunks(options, chunks, {kCaustic}, &maps.caustic_attributes);
+  } else if (caustic > 0) {
+    spdlog::warn("photon maps: caustic map disabled: {} caustic photons dropped", caustic);
+  }
+  maps.stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  maps.stats.stored_global = maps.global->size();
+  maps.stats.stored_caustic = maps.caustic ? maps.caustic->size() : 0;
+  maps.stats.stored_direct = direct;
+  return maps;
+}
+
+}  // namespace pf

@@ -1,0 +1,480 @@
+#include "server/scheduling/distributed_maps.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <fstream>
+
+#include "common/core/atomic_file.h"
+#include "common/core/error.h"
+#include "common/core/sha256.h"
+#include "common/photon/photon_chunk.h"
+#include "common/photon/photon_maps_bytes.h"
+#include "common/scene/scene_bundle.h"
+#include "proto/convert.h"
+#include "proto/limits.h"
+
+namespace pf::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr std::string_view kLeasePrefix = "map-";
+constexpr std::string_view kMapSuffix = ".pfmaps";
+
+std::string ReadFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SystemError(path.string() + ": cannot read");
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw SystemError(path.string() + ": cannot read");
+  return bytes;
+}
+
+std::string Hex(std::string_view raw) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string hex;
+  for (unsigned char c : raw) {
+    hex.push_back(kHex[c >> 4]);
+    hex.push_back(kHex[c & 15]);
+  }
+  return hex;
+}
+
+// The digest of a map file: its trailer (SHA-256 of the content, photon_maps_bytes.h).
+std::string TrailerDigest(const fs::path& path, uint64_t size) {
+  if (size < 32) throw InputError(path.string() + ": too short for a photon map");
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(std::streamoff(size - 32));
+  std::string raw(32, '\0');
+  in.read(raw.data(), 32);
+  if (!in) throw SystemError(path.string() + ": cannot read");
+  return Hex(raw);
+}
+
+std::string Short(const std::string& key) {
+  return key.substr(0, 12);
+}
+
+}  // namespace
+
+std::string DistributedMapKey(const JobConfig& config, uint64_t map_seed) {
+  photonfarm::v1::RenderSettings settings;
+  SettingsToProto(config.settings, &settings);
+  settings.mutable_photon_map()->clear_map_tracing();  // who traces it does not change the map
+  std::string text = "photonfarm-map-v1\n" + config.scene_hash + "\n";
+  text += settings.SerializeAsString();
+  text += '\n';
+  text += std::to_string(map_seed);
+  return Sha256Hex(text);
+}
+
+DistributedMaps::DistributedMaps(DistributedMapsOptions options, const Clock& clock, SceneStore& scenes)
+    : options_(std::move(options)), clock_(clock), scenes_(scenes) {
+  const uint64_t unit = kPhotonTracingChunk;
+  options_.chunk_photons = std::max<uint64_t>(unit, (options_.chunk_photons + unit - 1) / unit * unit);
+  fs::create_directories(options_.dir);
+  Scan();
+}
+
+DistributedMaps::~DistributedMaps() {
+  Stop();
+}
+
+void DistributedMaps::Stop() {
+  builder_.Stop();
+}
+
+void DistributedMaps::Scan() {
+  for (const fs::directory_entry& e : fs::directory_iterator(options_.dir)) {
+    const std::string name = e.path().filename().string();
+    if (IsTemporaryName(name)) {
+      fs::remove_all(e.path());
+      continue;
+    }
+    if (e.is_regular_file() && name.size() == 64 + kMapSuffix.size() && name.ends_with(kMapSuffix)) {
+      const std::string key = name.substr(0, 64);
+      try {
+        const uint64_t size = e.file_size();
+        on_disk_[key] = BuiltMap{key, size, TrailerDigest(e.path(), size)};
+      } catch (const std::exception& ex) {
+        spdlog::warn("maps: ignoring {}: {}", e.path().string(), ex.what());
+      }
+    } else if (e.is_directory() && name.ends_with(".chunks")) {
+      const std::string key = name.substr(0, name.size() - 7);
+      for (const fs::directory_entry& c : fs::directory_iterator(e.path())) {
+        const std::string cname = c.path().filename().string();
+        if (IsTemporaryName(cname)) {
+          fs::remove(c.path());
+          continue;
+        }
+        try {
+          chunks_on_disk_[key].insert(uint32_t(std::stoul(cname)));
+        } catch (const std::exception&) {
+        }
+      }
+    }
+  }
+  if (!on_disk_.empty() || !chunks_on_disk_.empty())
+    spdlog::info("maps: {} built maps and traced pieces of {} maps found in {}", on_disk_.size(),
+                 chunks_on_disk_.size(), options_.dir.string());
+}
+
+bool DistributedMaps::IsChunkLease(const std::string& lease_id) {
+  return lease_id.starts_with(kLeasePrefix);
+}
+
+fs::path DistributedMaps::ChunkFile(const std::string& key, uint32_t chunk) const {
+  return options_.dir / (key + ".chunks") / std::to_string(chunk);
+}
+
+const std::string* DistributedMaps::KeyFor(const Job& job, uint64_t map_index) {
+  const JobConfig& config = job.config();
+  const JobRenderSettings& s = config.settings;
+  if (s.integrator != IntegratorKind::kPhotonMap || s.map_tracing == MapTracingMode::kLocal ||
+      !CanSerialize(s.structure) || s.photons == 0)
+    return nullptr;
+  const auto id = std::make_pair(job.id(), map_index);
+  if (auto it = keys_.find(id); it != keys_.end()) return &it->second;
+  if (s.map_tracing == MapTracingMode::kAuto) {
+    // Only maps that more than one render task uses: then building once saves work. Counted once
+    // per job (O(tasks)); only the shared maps are remembered.
+    auto [shared, first] = shared_maps_.try_emplace(job.id());
+    if (first) {
+      std::unordered_map<uint64_t, uint32_t> users;
+      for (const TaskSpec& t : job.tasks())
+        if (++users[t.map_index] == 2) shared->second.insert(t.map_index);
+    }
+    if (!shared->second.count(map_index)) return nullptr;
+  }
+  auto [it, inserted] = keys_.emplace(id, DistributedMapKey(config, MapSeed(config.seed, map_index)));
+  spdlog::info("job {} map {}: traced once, distributed ({}): key {}", job.id(), map_index,
+               s.map_tracing == MapTracingMode::kAuto ? "auto: several render tasks use it" : "job setting",
+               Short(it->second));
+  return &it->second;
+}
+
+DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index, const std::string& key) {
+  auto it = maps_.find(key);
+  if (it != maps_.end()) return it->second;
+  Map& m = maps_[key];
+  m.key = key;
+  m.seq = next_seq_++;
+  m.job_id = job.id();
+  m.map_index = map_index;
+  m.map_seed = MapSeed(job.config().seed, map_index);
+  m.config = job.shared_config();
+  m.photons = job.config().settings.photons;
+  m.chunk_photons = options_.chunk_photons;
+  if (auto built = on_disk_.find(key); built != on_disk_.end()) {
+    m.state = Map::State::kBuilt;
+    m.built = built->second;
+    spdlog::info("job {} map {}: built map {} found on disk ({} bytes)", job.id(), map_index, Short(key),
+                 m.built.bytes);
+    return m;
+  }
+  m.chunks.resize((m.photons + m.chunk_photons - 1) / m.chunk_photons);
+  if (auto found = chunks_on_disk_.find(key); found != chunks_on_disk_.end())
+    for (uint32_t c : found->second)
+      if (c < m.chunks.size()) {
+        m.chunks[c].state = Chunk::State::kDone;
+        ++m.done;
+      }
+  spdlog::info("job {} map {}: {} photons in {} pieces of {} ({} already traced on disk)", job.id(),
+               map_index, m.photons, m.chunks.size(), m.chunk_photons, m.done);
+  if (m.done == m.chunks.size()) {
+    m.state = Map::State::kBuilding;
+    builder_.Post([this, key] { Build(key); });
+  }
+  return m;
+}
+
+bool DistributedMaps::RenderTaskReady(const Job& job, const TaskSpec& task) {
+  std::lock_guard lock(mu_);
+  const std::string* key = KeyFor(job, task.map_index);
+  if (!key) return true;
+  Map& m = MapOf(job, task.map_index, *key);
+  if (m.state == Map::State::kBuilt || m.state == Map::State::kLeftToWorkers) return true;
+  m.waiting.insert({job.id(), task.map_index});
+  return false;
+}
+
+std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, double now) {
+  std::lock_guard lock(mu_);
+  const Map* best = nullptr;
+  uint32_t pick = 0;
+  for (auto& [key, m] : maps_) {
+    if (m.state != Map::State::kTracing || (best && m.seq > best->seq)) continue;
+    for (uint32_t c = 0; c < m.chunks.size(); ++c)
+      if (m.chunks[c].state == Chunk::State::kQueued) {
+        best = &m;
+        pick = c;
+        break;
+      }
+  }
+  if (!best) return std::nullopt;
+  Map& m = maps_.at(best->key);
+  Chunk& chunk = m.chunks[pick];
+  chunk.state = Chunk::State::kLeased;
+  ++chunk.attempts;
+  chunk.lease_id = std::string(kLeasePrefix) + std::to_string(next_lease_++);
+  chunk.worker_id = request.worker_id;
+  chunk.deadline = now + options_.lease_seconds;
+  leases_[chunk.lease_id] = LeaseRef{m.key, pick};
+  ++counters_.chunks_leased;
+  Lease lease;
+  lease.lease_id = chunk.lease_id;
+  lease.job_id = m.job_id;
+  lease.task_id = pick;
+  lease.attempt = chunk.attempts;
+  lease.lease_seconds = options_.lease_seconds;
+  lease.task.map_index = m.map_index;
+  lease.task.map_seed = m.map_seed;
+  lease.config = m.config;
+  TraceChunkLease c;
+  c.map_key = m.key;
+  c.photon_begin = uint64_t(pick) * m.chunk_photons;
+  c.photon_end = std::min(m.photons, c.photon_begin + m.chunk_photons);
+  c.chunk_index = pick;
+  c.chunk_count = uint32_t(m.chunks.size());
+  lease.chunk = c;
+  spdlog::info("job {} map {} piece {}/{}: leased to {} (photons [{}, {}), attempt {}, map {})", m.job_id,
+               m.map_index, pick, m.chunks.size(),
+               limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), c.photon_begin, c.photon_end,
+               chunk.attempts, Short(m.key));
+  return lease;
+}
+
+std::optional<BuiltMap> DistributedMaps::MapFor(const std::string& job_id, uint64_t map_index) {
+  std::lock_guard lock(mu_);
+  auto k = keys_.find({job_id, map_index});
+  if (k == keys_.end()) return std::nullopt;
+  auto it = maps_.find(k->second);
+  if (it == maps_.end() || it->second.state != Map::State::kBuilt) return std::nullopt;
+  return it->second.built;
+}
+
+std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
+  std::lock_guard lock(mu_);
+  auto it = maps_.find(key);
+  if (it != maps_.end() && it->second.state == Map::State::kBuilt)
+    return options_.dir / (key + std::string(kMapSuffix));
+  if (on_disk_.count(key)) return options_.dir / (key + std::string(kMapSuffix));
+  return std::nullopt;
+}
+
+DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_id,
+                                                       const std::string& bytes) {
+  std::string key;
+  uint32_t index = 0;
+  uint64_t begin = 0, end = 0;
+  bool light_ids = false, origins = false;
+  {
+    std::lock_guard lock(mu_);
+    auto it = leases_.find(lease_id);
+    if (it == leases_.end()) return Accepted::kLate;
+    key = it->second.key;
+    index = it->second.chunk;
+    const Map& m = maps_.at(key);
+    if (m.state != Map::State::kTracing || m.chunks[index].state == Chunk::State::kDone)
+      return Accepted::kLate;
+    begin = uint64_t(index) * m.chunk_photons;
+    end = std::min(m.photons, begin + m.chunk_photons);
+    const JobRenderSettings& s = m.config->settings;
+    light_ids = s.direct && *s.direct == DirectLightMode::kPhotonDirect;
+    origins = s.occlusion_test;
+  }
+  // Parsed and written outside the lock (O(photons) and I/O).
+  const PhotonChunk chunk = DeserializePhotonChunk(bytes);
+  if (chunk.begin != begin || chunk.end != end)
+    throw InputError("photons [" + std::to_string(chunk.begin) + ", " + std::to_string(chunk.end) +
+                     ") uploaded for the piece of photons [" + std::to_string(begin) + ", " +
+                     std::to_string(end) + ")");
+  if ((light_ids && !chunk.light_ids) || (origins && !chunk.origins))
+    throw InputError("the piece lacks the light ids or origins the job's estimators need");
+  const fs::path file = ChunkFile(key, index);
+  fs::create_directories(file.parent_path());
+  WriteFileAtomically(file, bytes);
+  bool build = false;
+  std::string job_id;
+  uint64_t map_index = 0;
+  size_t done = 0, total = 0;
+  {
+    std::lock_guard lock(mu_);
+    Map& m = maps_.at(key);
+    Chunk& c = m.chunks[index];
+    if (m.state != Map::State::kTracing || c.state == Chunk::State::kDone) return Accepted::kLate;
+    if (c.state == Chunk::State::kLeased) leases_.erase(c.lease_id);
+    leases_.erase(lease_id);
+    c.state = Chunk::State::kDone;
+    ++m.done;
+    ++counters_.chunks_stored;
+    done = m.done;
+    total = m.chunks.size();
+    job_id = m.job_id;
+    map_index = m.map_index;
+    if (m.done == m.chunks.size()) {
+      m.state = Map::State::kBuilding;
+      build = true;
+    }
+  }
+  spdlog::info("job {} map {} piece {}: stored ({} bytes, {}/{} pieces in)", job_id, map_index, index,
+               bytes.size(), done, total);
+  if (build) builder_.Post([this, key] { Build(key); });
+  return Accepted::kStored;
+}
+
+void DistributedMaps::Build(const std::string& key) {
+  std::shared_ptr<const JobConfig> config;
+  uint64_t map_seed = 0, map_index = 0;
+  size_t count = 0;
+  std::string job_id;
+  {
+    std::lock_guard lock(mu_);
+    const Map& m = maps_.at(key);
+    config = m.config;
+    map_seed = m.map_seed;
+    map_index = m.map_index;
+    count = m.chunks.size();
+    job_id = m.job_id;
+  }
+  std::vector<std::pair<std::string, uint64_t>> release;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    std::vector<PhotonChunk> pieces;
+    pieces.reserve(count);
+    for (uint32_t c = 0; c < count; ++c) {
+      try {
+        pieces.push_back(DeserializePhotonChunk(ReadFile(ChunkFile(key, c))));
+      } catch (const InputError& e) {
+        // A piece damaged on disk: trace it again.
+        fs::remove(ChunkFile(key, c));
+        std::lock_guard lock(mu_);
+        Map& m = maps_.at(key);
+        m.state = Map::State::kTracing;
+        m.chunks[c] = Chunk{};
+        --m.done;
+        spdlog::warn("job {} map {} piece {}: stored piece unreadable ({}): traced again", job_id, map_index,
+                     c, e.what());
+      }
+    }
+    if (pieces.size() != count) {
+      if (scheduler_) scheduler_->NotifyMapPieces();
+      return;
+    }
+    const SceneDescription scene = LoadBundle(scenes_.DirectoryOf(config->scene_hash), config->scene_entry);
+    PhotonMapsOptions mo = config->settings.Resolved(scene).MapsOptions();
+    mo.tracing.map_seed = map_seed;
+    mo.tracing.threads = options_.build_threads;
+    const PhotonMaps maps = AssemblePhotonMaps(pieces, mo);
+    std::vector<PhotonChunk>().swap(pieces);
+    const std::string bytes = SerializePhotonMaps(maps);
+    const fs::path file = options_.dir / (key + std::string(kMapSuffix));
+    WriteFileAtomically(file, bytes);
+    const BuiltMap built{key, bytes.size(), Hex(std::string_view(bytes).substr(bytes.size() - 32))};
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    spdlog::info(
+        "job {} map {}: built once from {} pieces: {} global + {} caustic + {} direct photons, {} bytes, "
+        "assemble+balance {:.3f} s, read+assemble+write {:.3f} s (map {})",
+        job_id, map_index, count, maps.global->size(), maps.caustic ? maps.caustic->size() : 0,
+        maps.direct ? maps.direct->size() : 0, bytes.size(), maps.stats.build_seconds, seconds, Short(key));
+    {
+      std::lock_guard lock(mu_);
+      Map& m = maps_.at(key);
+      m.state = Map::State::kBuilt;
+      m.built = built;
+      release.assign(m.waiting.begin(), m.waiting.end());
+      m.waiting.clear();
+      ++counters_.maps_built;
+    }
+    std::error_code ec;
+    fs::remove_all(options_.dir / (key + ".chunks"), ec);
+  } catch (const std::exception& e) {
+    std::lock_guard lock(mu_);
+    LeaveToWorkersLocked(maps_.at(key), std::string("assembly failed: ") + e.what(), &release);
+  }
+  Release(release);
+}
+
+void DistributedMaps::Release(const std::vector<std::pair<std::string, uint64_t>>& release) {
+  if (!scheduler_) return;
+  for (const auto& [job, index] : release) scheduler_->ReleaseMap(job, index);
+}
+
+void DistributedMaps::LeaveToWorkersLocked(Map& m, const std::string& why,
+                                           std::vector<std::pair<std::string, uint64_t>>* release) {
+  spdlog::warn("job {} map {}: left to the workers (each traces it): {}", m.job_id, m.map_index, why);
+  m.state = Map::State::kLeftToWorkers;
+  for (Chunk& c : m.chunks)
+    if (c.state == Chunk::State::kLeased) leases_.erase(c.lease_id);
+  release->insert(release->end(), m.waiting.begin(), m.waiting.end());
+  m.waiting.clear();
+  ++counters_.maps_left_to_workers;
+}
+
+void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& why,
+                                    std::vector<std::pair<std::string, uint64_t>>* release) {
+  Chunk& c = m.chunks[index];
+  leases_.erase(c.lease_id);
+  spdlog::warn("job {} map {} piece {}: attempt {} ended: {}", m.job_id, m.map_index, index, c.attempts, why);
+  c.state = Chunk::State::kQueued;
+  c.lease_id.clear();
+  if (c.attempts >= options_.max_attempts)
+    LeaveToWorkersLocked(
+        m, "piece " + std::to_string(index) + " failed " + std::to_string(c.attempts) + " times", release);
+}
+
+ExtendResult DistributedMaps::Extend(const std::string& lease_id) {
+  std::lock_guard lock(mu_);
+  auto it = leases_.find(lease_id);
+  if (it == leases_.end()) return {};
+  Chunk& c = maps_.at(it->second.key).chunks[it->second.chunk];
+  if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return {};
+  c.deadline = clock_.Now() + options_.lease_seconds;
+  return ExtendResult{true, options_.lease_seconds};
+}
+
+FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string& worker_id,
+                                  const std::string& reason) {
+  std::vector<std::pair<std::string, uint64_t>> release;
+  {
+    std::lock_guard lock(mu_);
+    auto it = leases_.find(lease_id);
+    if (it == leases_.end()) return FailOutcome::kUnknownLease;
+    Map& m = maps_.at(it->second.key);
+    const uint32_t index = it->second.chunk;
+    if (m.chunks[index].state != Chunk::State::kLeased || m.chunks[index].lease_id != lease_id)
+      return FailOutcome::kUnknownLease;
+    if (m.chunks[index].worker_id != worker_id) return FailOutcome::kNotHolder;
+    RequeueLocked(m, index, "failed by " + worker_id + ": " + reason, &release);
+  }
+  Release(release);
+  if (scheduler_) scheduler_->NotifyMapPieces();
+  return FailOutcome::kFailed;
+}
+
+void DistributedMaps::Tick() {
+  std::vector<std::pair<std::string, uint64_t>> release;
+  bool requeued = false;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    for (auto& [key, m] : maps_) {
+      if (m.state != Map::State::kTracing) continue;
+      for (uint32_t c = 0; c < m.chunks.size() && m.state == Map::State::kTracing; ++c)
+        if (m.chunks[c].state == Chunk::State::kLeased && now >= m.chunks[c].deadline) {
+          ++counters_.chunks_expired;
+          RequeueLocked(m, c, "lease expired (worker " + m.chunks[c].worker_id + ")", &release);
+          requeued = true;
+        }
+    }
+  }
+  Release(release);
+  if (requeued && scheduler_) scheduler_->NotifyMapPieces();
+}
+
+DistributedMaps::Counters DistributedMaps::counters() const {
+  std::lock_guard lock(mu_);
+  return counters_;
+}
+
+}  // namespace pf::server

@@ -1,0 +1,162 @@
+#pragma once
+// Photon maps traced once (issue #12; docs/farm.md "Photon maps traced once"): the coordinator's
+// side of distributed photon tracing.
+//
+//   job submitted ──▶ map pieces queued (TraceChunk tasks, served before render tasks)
+//   worker traces photons [b, e) ──UploadPhotonChunk──▶ piece checked, written to disk
+//   all pieces in ──▶ assembled and balanced once, here, on a thread of its own (never under
+//                     the scheduler's lock) ──▶ <data-dir>/maps/<key>.pfmaps
+//   ──▶ Scheduler::ReleaseMap: the render tasks of that map join the queue; their Task.map says
+//       where to fetch it (FetchMap) — or the worker traces it itself if that is faster.
+//
+// Which maps: MapTracingMode::kDistributed — every map of the job (kd-tree only, checked at
+// submission); kAuto — kd-tree photon maps that more than one of the job's render tasks uses
+// (a map used once gains nothing from travelling: its only user could trace it as fast).
+//
+// Key: hex SHA-256 of "photonfarm-map-v1", the scene hash, the job's render settings (proto,
+// map_tracing cleared) and the map seed: the settings with the scene decide every `auto`, so the
+// key names one map; jobs with the same scene, settings and seed share it.
+//
+// Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1);
+// after max_attempts, or if assembling fails, the map is left to the workers (its render tasks
+// are released without a built map and each worker traces it, as with kLocal) — never stuck.
+// Durability: pieces and built maps are files under `dir`; a restarted coordinator finds them
+// (Scan at start-up) and queues only the missing pieces. Leases are not durable (as for render
+// tasks). Nothing here touches samples: render results are merged by the Scheduler alone.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "server/jobs/job.h"
+#include "server/rpc/executor.h"
+#include "server/scheduling/clock.h"
+#include "server/scheduling/map_tracing_hook.h"
+#include "server/scheduling/scheduler.h"
+#include "server/store/scene_store.h"
+
+namespace pf::server {
+
+struct DistributedMapsOptions {
+  std::filesystem::path dir;  // <data-dir>/maps
+  double lease_seconds = 30;
+  uint32_t max_attempts = 3;
+  int build_threads = 1;           // threads of one assembly (the kd-tree balance), 0 = all cores
+  uint64_t chunk_photons = 65536;  // photons per piece, rounded up to a multiple of 4096
+};
+
+struct BuiltMap {
+  std::string key;
+  uint64_t bytes = 0;
+  std::string digest;  // hex SHA-256 of the byte form's content (its trailer)
+};
+
+class DistributedMaps final : public MapTracingHook {
+ public:
+  DistributedMaps(DistributedMapsOptions options, const Clock& clock, SceneStore& scenes);
+  ~DistributedMaps() override;
+  DistributedMaps(const DistributedMaps&) = delete;
+  DistributedMaps& operator=(const DistributedMaps&) = delete;
+
+  // Set once, before jobs are added.
+  void SetScheduler(Scheduler* scheduler) { scheduler_ = scheduler; }
+
+  // MapTracingHook (under the scheduler's lock).
+  bool RenderTaskReady(const Job& job, const TaskSpec& task) override;
+  std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now) override;
+
+  // Lease ids of map pieces start with this (ExtendLease / FailTask route by it).
+  static bool IsChunkLease(const std::string& lease_id);
+
+  // The built map a render task of `job_id` with this map index should fetch; nullopt if its
+  // workers trace it (not distributed, or left to them).
+  std::optional<BuiltMap> MapFor(const std::string& job_id, uint64_t map_index);
+  // The file of a built map, nullopt if there is none with that key.
+  std::optional<std::filesystem::path> MapFile(const std::string& key);
+
+  enum class Accepted { kStored, kLate };
+  // A piece's bytes (checksums already verified by the RPC): parsed, checked against its lease's
+  // range, written to disk. InputError for a malformed piece (nothing stored). kLate: the lease is
+  // unknown or the piece is already in. May start the map's assembly.
+  Accepted AcceptChunk(const std::string& lease_id, const std::string& bytes);
+  ExtendResult Extend(const std::string& lease_id);
+  FailOutcome Fail(const std::string& lease_id, const std::string& worker_id, const std::string& reason);
+
+  // Expires leases. Call periodically, outside the scheduler's lock.
+  void Tick();
+  // Waits for a running assembly; no new ones.
+  void Stop();
+
+  struct Counters {
+    uint64_t chunks_leased = 0, chunks_stored = 0, chunks_expired = 0, maps_built = 0,
+             maps_left_to_workers = 0;
+  };
+  Counters counters() const;
+
+ private:
+  struct Chunk {
+    enum class State { kQueued, kLeased, kDone } state = State::kQueued;
+    std::string lease_id, worker_id;
+    double deadline = 0;
+    uint32_t attempts = 0;
+  };
+  struct Map {
+    enum class State { kTracing, kBuilding, kBuilt, kLeftToWorkers } state = State::kTracing;
+    std::string key;
+    uint64_t seq = 0;  // creation order: pieces are served oldest map first
+    std::string job_id;
+    uint64_t map_index = 0, map_seed = 0;
+    std::shared_ptr<const JobConfig> config;
+    uint64_t photons = 0, chunk_photons = 0;
+    std::vector<Chunk> chunks;
+    size_t done = 0;
+    BuiltMap built;
+    std::set<std::pair<std::string, uint64_t>> waiting;  // (job, map index) to release once built
+  };
+  struct LeaseRef {
+    std::string key;
+    uint32_t chunk = 0;
+  };
+
+  // Under mu_.
+  const std::string* KeyFor(const Job& job, uint64_t map_index);  // null: not distributed
+  Map& MapOf(const Job& job, uint64_t map_index, const std::string& key);
+  void RequeueLocked(Map& map, uint32_t chunk, const std::string& why,
+                     std::vector<std::pair<std::string, uint64_t>>* release);
+  void LeaveToWorkersLocked(Map& map, const std::string& why,
+                            std::vector<std::pair<std::string, uint64_t>>* release);
+  std::filesystem::path ChunkFile(const std::string& key, uint32_t chunk) const;
+  void Scan();
+  void Build(const std::string& key);  // on builder_
+  void Release(const std::vector<std::pair<std::string, uint64_t>>& release);
+
+  DistributedMapsOptions options_;
+  const Clock& clock_;
+  SceneStore& scenes_;
+  Scheduler* scheduler_ = nullptr;
+  mutable std::mutex mu_;
+  std::map<std::string, Map> maps_;
+  uint64_t next_seq_ = 1, next_lease_ = 1;
+  std::unordered_map<std::string, LeaseRef> leases_;
+  // Per job and map index: the key of a distributed map.
+  std::map<std::pair<std::string, uint64_t>, std::string> keys_;
+  // kAuto jobs: the map indices more than one task uses.
+  std::unordered_map<std::string, std::unordered_set<uint64_t>> shared_maps_;
+  std::map<std::string, BuiltMap> on_disk_;                   // built maps found by Scan
+  std::map<std::string, std::set<uint32_t>> chunks_on_disk_;  // pieces found by Scan
+  Counters counters_;
+  Executor builder_{1};
+};
+
+// The content address of map `map_seed` of a job (see the header comment).
+std::string DistributedMapKey(const JobConfig& config, uint64_t map_seed);
+
+}  // namespace pf::server

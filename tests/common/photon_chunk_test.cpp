@@ -1,0 +1,92 @@
+// common/photon/photon_chunk.h: a map traced in pieces (any cut at multiples of the tracer's
+// chunk, pieces through their byte form) and assembled is the map one process builds, photon for
+// photon (and so renders bit-identically: tests/common/photon_maps_bytes_test.cpp renders
+// identical maps identically); gaps and bad bytes are InputErrors.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+
+#include "common/core/error.h"
+#include "common/photon/kdtree.h"
+#include "common/photon/photon_chunk.h"
+#include "common/photon/photon_maps_bytes.h"
+#include "common/plan/task_executor.h"
+#include "common/scene/scene_loader.h"
+
+namespace pf {
+namespace {
+
+SceneDescription Shipped(const std::string& rel) {
+  return LoadScene((std::filesystem::path(PF_SOURCE_DIR) / "scenes" / rel).string());
+}
+
+// The map bytes without the fields that legitimately differ (timings, float sum of the stored power).
+std::string Comparable(PhotonMaps maps) {
+  maps.stats.trace_seconds = maps.stats.build_seconds = 0;
+  maps.stats.stored_power = Rgb(0.0f);
+  return SerializePhotonMaps(maps);
+}
+
+TEST(PhotonChunk, PiecesAssembleToTheOneProcessMap) {
+  struct Case {
+    const char* scene;
+    std::optional<DirectLightMode> direct;
+    bool occlusion;
+  };
+  for (const Case& c : {Case{"cornell-box/cornell-box.json", std::nullopt, false},
+                        Case{"cornell-box/cornell-box.json", DirectLightMode::kPhotonDirect, true},
+                        Case{"cornell-sphere/cornell-sphere.json", DirectLightMode::kNone, false}}) {
+    SCOPED_TRACE(c.scene);
+    const SceneRuntime scene(Shipped(c.scene));
+    JobRenderSettings s;
+    s.photons = 30001;  // the last piece ends off the 4096 grid
+    s.direct = c.direct;
+    s.occlusion_test = c.occlusion;
+    PhotonMapsOptions mo = s.Resolved(scene.description).MapsOptions();
+    mo.tracing.map_seed = 99;
+    mo.tracing.threads = 2;
+    const PhotonMaps whole = PhotonMaps::Build(scene.accel, scene.lights, mo);
+    for (const std::vector<uint64_t>& cuts :
+         {std::vector<uint64_t>{0, 30001}, std::vector<uint64_t>{0, 4096, 8192, 30001},
+          std::vector<uint64_t>{0, 12288, 28672, 30001}}) {
+      std::vector<PhotonChunk> pieces;
+      for (size_t i = 0; i + 1 < cuts.size(); ++i) {
+        PhotonMapsOptions one = mo;
+        one.tracing.threads = 1;  // a piece's photons do not depend on threads either
+        pieces.push_back(DeserializePhotonChunk(
+            SerializePhotonChunk(TracePhotonChunk(scene.accel, scene.lights, one, cuts[i], cuts[i + 1]))));
+      }
+      const PhotonMaps assembled = AssemblePhotonMaps(pieces, mo);
+      EXPECT_EQ(Comparable(DeserializePhotonMaps(SerializePhotonMaps(assembled))),
+                Comparable(DeserializePhotonMaps(SerializePhotonMaps(whole))))
+          << cuts.size() - 1 << " pieces";
+      EXPECT_EQ(assembled.stats.rays, whole.stats.rays);
+      EXPECT_NEAR(assembled.stats.stored_power.r, whole.stats.stored_power.r,
+                  1e-5 * whole.stats.stored_power.r);
+    }
+  }
+}
+
+TEST(PhotonChunk, GapsMisalignedCutsAndBadBytesAreErrors) {
+  const SceneRuntime scene(Shipped("cornell-box/cornell-box.json"));
+  JobRenderSettings s;
+  s.photons = 10000;
+  PhotonMapsOptions mo = s.Resolved(scene.description).MapsOptions();
+  const PhotonChunk a = TracePhotonChunk(scene.accel, scene.lights, mo, 0, 4096);
+  const PhotonChunk c = TracePhotonChunk(scene.accel, scene.lights, mo, 8192, 10000);
+  EXPECT_THROW(AssemblePhotonMaps(std::vector<PhotonChunk>{a, c}, mo), InputError);
+  EXPECT_THROW(AssemblePhotonMaps(std::vector<PhotonChunk>{a}, mo), InputError);
+  EXPECT_THROW(TracePhotonChunk(scene.accel, scene.lights, mo, 100, 4096), std::invalid_argument);
+  const std::string bytes = SerializePhotonChunk(a);
+  for (size_t n : {size_t(0), size_t(10), size_t(60), bytes.size() / 2, bytes.size() - 1}) {
+    SCOPED_TRACE(n);
+    EXPECT_THROW(DeserializePhotonChunk(std::string_view(bytes).substr(0, n)), InputError);
+  }
+  std::string bad = bytes;
+  bad[12] = char(bad[12] ^ 1);  // begin (after the magic and version) no longer a multiple of 4096
+  EXPECT_THROW(DeserializePhotonChunk(bad), InputError);
+}
+
+}  // namespace
+}  // namespace pf

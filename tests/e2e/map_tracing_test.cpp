@@ -1,0 +1,269 @@
+// Photon maps traced once (issue #12, docs/farm.md "Photon maps traced once"), real processes:
+//  - images bit-identical for 1, 2, 3 workers and `pf render --local-only`, with the maps traced in
+//    pieces and fetched (the default for a tiled map) and with every worker tracing its own;
+//  - a worker SIGKILLed while tracing a piece, while uploading it and while fetching the built
+//    map: the work is redone elsewhere and the image is bit-identical;
+//  - a map part whose checksum fails is refused and the map fetched again;
+//  - a coordinator SIGKILLed with some pieces stored resumes with only the missing ones traced,
+//    and one SIGKILLed after the map was built serves it from disk without tracing anything.
+// The kill points are made deterministic by the worker's test hook PF_TEST_PAUSE_AT (it sleeps
+// there, logging "test-pause at ..."); PF_TEST_CORRUPT_MAP_PART corrupts one received part.
+#include <signal.h>
+
+#include <thread>
+
+#include "client/farm_client.h"
+#include "tests/e2e/harness.h"
+
+namespace pf::e2e {
+namespace {
+namespace fs = std::filesystem;
+namespace v1 = photonfarm::v1;
+
+// One map of 40000 photons (three pieces of 16384 with --map-chunk-photons 16384) over 6 tiles.
+std::vector<std::string> TiledJobFlags() {
+  return {"--integrator", "photonmap",     "--photons", "40000", "--k",    "20",
+          "--plan",       "multiple-maps", "--maps",    "1",     "--tile", "16",
+          "--res",        "48x32",         "--spp",     "1",     "--seed", "9"};
+}
+
+Image LocalReference(const TestDir& dir) {
+  const RunResult r = RenderLocally(dir, TiledJobFlags());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return ReadImage(dir / "local.exr");
+}
+
+std::string Submit(const TestDir& dir, const std::string& address,
+                   const std::vector<std::string>& more = {}) {
+  const RunResult r =
+      RunCommand(Concat(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, TiledJobFlags()), more),
+                        {"--coordinator", address}),
+                 dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::string id = r.out;
+  while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
+  return id;
+}
+
+// StartWorker's command line, with environment variables (the test hooks).
+std::unique_ptr<Process> StartWorkerWithEnv(const std::string& address, const fs::path& dir,
+                                            const std::string& id, std::map<std::string, std::string> env) {
+  return std::make_unique<Process>(
+      id,
+      std::vector<std::string>{Binaries::Worker(), "--coordinator", address, "--threads", "1", "--worker-id",
+                               id, "--cache-dir", (dir / ("cache-" + id)).string(), "--poll-seconds", "1",
+                               "--max-backoff", "0.5"},
+      dir / (id + ".log"), fs::path{}, std::move(env));
+}
+
+size_t Count(const fs::path& log, const std::string& re) {
+  return Grep(log, re).size();
+}
+
+TEST(MapTracingFarm, BitIdenticalForOneTwoThreeWorkersLocalTracedOnceOrByEachWorker) {
+  TestDir dir;
+  const Image reference = LocalReference(dir);
+  ASSERT_GT(PixelSum(reference), 0.0);
+  struct Run {
+    int workers;
+    std::string tracing;
+  };
+  for (const Run& run : {Run{1, "auto"}, Run{2, "auto"}, Run{3, "distributed"}, Run{2, "local"}}) {
+    SCOPED_TRACE(std::to_string(run.workers) + " workers, --map-tracing " + run.tracing);
+    const fs::path data = dir / ("data-" + std::to_string(run.workers) + run.tracing);
+    CoordinatorProcess coordinator(data, dir.path(), {"--map-chunk-photons", "16384"});
+    const std::string job_id = Submit(dir, coordinator.address(), {"--map-tracing", run.tracing});
+    ASSERT_FALSE(job_id.empty());
+    std::vector<std::unique_ptr<Process>> workers;
+    std::vector<fs::path> logs;
+    for (int w = 0; w < run.workers; ++w) {
+      const std::string id = run.tracing + std::to_string(run.workers) + "-w" + std::to_string(w);
+      workers.push_back(StartWorker(coordinator.address(), dir.path(), id));
+      logs.push_back(dir / (id + ".log"));
+    }
+    FarmClient client(coordinator.address(), "");
+    const v1::JobStatus st = WaitForJob(client, job_id, 120);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+    EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+    size_t pieces = 0, fetched = 0, decisions = 0;
+    for (const fs::path& log : logs) {
+      pieces += Count(log, "uploaded-piece .* accepted=true");
+      fetched += Count(log, "map [0-9a-f]+ for .* fetched: ");
+      decisions += Count(log, "map [0-9a-f]+ for job=.*: (fetch|trace): fetch [0-9]+ bytes");
+    }
+    const fs::path clog = coordinator.process().log();
+    if (run.tracing == "local") {
+      EXPECT_EQ(pieces, 0u);
+      EXPECT_EQ(fetched, 0u);
+      EXPECT_EQ(Count(clog, "built once"), 0u);
+    } else {
+      EXPECT_EQ(pieces, 3u) << "40000 photons in pieces of 16384, each traced once";
+      EXPECT_EQ(Count(clog, "built once from 3 pieces"), 1u) << ReadFile(clog);
+      // A worker that renders decides once per map (and logs the numbers), then fetches it once.
+      EXPECT_EQ(decisions, fetched);
+      EXPECT_GE(fetched, 1u);
+      EXPECT_LE(fetched, size_t(run.workers));
+      // The maps are on the coordinator's disk, the pieces gone.
+      EXPECT_EQ(std::distance(fs::directory_iterator(data / "maps"), fs::directory_iterator{}), 1);
+    }
+    for (auto& w : workers) w->Signal(SIGTERM);
+    for (auto& w : workers) EXPECT_TRUE(w->Wait(20).has_value());
+  }
+}
+
+// A worker paused at `where` (PF_TEST_PAUSE_AT) is SIGKILLed there; a second worker finishes.
+void KillWhile(const std::string& where) {
+  TestDir dir;
+  const Image reference = LocalReference(dir);
+  CoordinatorProcess coordinator(
+      dir / "data", dir.path(),
+      {"--lease-seconds", "1.5", "--max-attempts", "5", "--map-chunk-photons", "16384"});
+  const std::string job_id = Submit(dir, coordinator.address());
+  auto victim =
+      StartWorkerWithEnv(coordinator.address(), dir.path(), "victim", {{"PF_TEST_PAUSE_AT", where}});
+  ASSERT_TRUE(WaitUntil([&] { return Count(victim->log(), "test-pause at " + where) > 0; }, 60))
+      << ReadFile(victim->log());
+  victim->Signal(SIGKILL);
+  victim->Wait(5);
+  auto survivor = StartWorker(coordinator.address(), dir.path(), "survivor");
+  FarmClient client(coordinator.address(), "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  EXPECT_EQ(st.tasks_done(), st.tasks_total());
+  EXPECT_EQ(st.samples_merged(), uint64_t(48 * 32));
+  const fs::path clog = coordinator.process().log();
+  EXPECT_EQ(Count(clog, "built once from 3 pieces"), 1u) << ReadFile(clog);
+  if (where == "fetch") {
+    // The victim held a render lease: it ran out and the task ran again, merged once.
+    EXPECT_GE(Count(clog, "task [0-9]+: leased to .?survivor.? \\(attempt 2"), 1u) << ReadFile(clog);
+    EXPECT_EQ(Count(survivor->log(), "fetched: "), 1u);
+  } else {
+    // The victim's piece ran out and was traced again by the survivor.
+    EXPECT_GE(Count(clog, "piece [0-9]+: attempt 1 ended: lease expired \\(worker victim\\)"), 1u)
+        << ReadFile(clog);
+    EXPECT_GE(Count(clog, "piece [0-9]+/3: leased to .?survivor.? .*attempt 2"), 1u) << ReadFile(clog);
+    EXPECT_EQ(Count(survivor->log(), "uploaded-piece .* accepted=true"), 3u);
+  }
+  for (uint64_t t = 0; t < st.tasks_total(); ++t)
+    EXPECT_EQ(Count(clog, "job " + job_id + " task " + std::to_string(t) + ": merged "), 1u) << "task " << t;
+  survivor->Signal(SIGTERM);
+  EXPECT_TRUE(survivor->Wait(20).has_value());
+}
+
+TEST(MapTracingFarm, WorkerKilledWhileTracingAPieceIsRedone) {
+  KillWhile("trace");
+}
+TEST(MapTracingFarm, WorkerKilledWhileUploadingAPieceIsRedone) {
+  KillWhile("upload");
+}
+TEST(MapTracingFarm, WorkerKilledWhileFetchingTheMapIsRedone) {
+  KillWhile("fetch");
+}
+
+TEST(MapTracingFarm, CorruptMapPartIsRefusedAndFetchedAgain) {
+  TestDir dir;
+  const Image reference = LocalReference(dir);
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--map-chunk-photons", "16384"});
+  const std::string job_id = Submit(dir, coordinator.address());
+  auto worker =
+      StartWorkerWithEnv(coordinator.address(), dir.path(), "w", {{"PF_TEST_CORRUPT_MAP_PART", "1"}});
+  FarmClient client(coordinator.address(), "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  const fs::path log = worker->log();
+  EXPECT_EQ(Count(log, "corrupted on arrival"), 1u) << ReadFile(log);
+  EXPECT_EQ(Count(log, "part 0: checksum mismatch: refused \\(attempt 1 of 3\\): fetching again"), 1u)
+      << ReadFile(log);
+  EXPECT_EQ(Count(log, "fetched: .*\\(attempt 2\\)"), 1u) << ReadFile(log);
+  EXPECT_EQ(Count(log, "traced here instead"), 0u);
+  // The map went to the worker's disk cache, whole.
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir / "cache-w" / "maps"), fs::directory_iterator{}), 1);
+  worker->Signal(SIGTERM);
+  EXPECT_TRUE(worker->Wait(20).has_value());
+}
+
+// --map-tracing is a farm setting (usage error elsewhere); distributed needs the kd-tree (the only
+// map with a byte form): INVALID_ARGUMENT naming the field, pf exit 3.
+TEST(MapTracingFarm, MapTracingFlagIsCheckedWhereItMeansSomething) {
+  TestDir dir;
+  const RunResult plain =
+      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, TiledJobFlags()),
+                        {"--map-tracing", "local", "-o", (dir / "x.exr").string()}),
+                 dir.path());
+  EXPECT_EQ(plain.exit_code, 2) << plain.err;
+  EXPECT_NE(plain.err.find("--map-tracing"), std::string::npos) << plain.err;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const RunResult grid = RunCommand(
+      Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, TiledJobFlags()),
+             {"--map-tracing", "distributed", "--map", "grid", "--coordinator", coordinator.address()}),
+      dir.path());
+  EXPECT_EQ(grid.exit_code, 3) << grid.err;
+  EXPECT_NE(grid.err.find("photon_map.map_tracing: distributed tracing needs the kd-tree"), std::string::npos)
+      << grid.err;
+  // A grid job with auto tracing runs, each worker tracing its maps.
+  const std::string id = Submit(dir, coordinator.address(), {"--map", "grid"});
+  auto worker = StartWorker(coordinator.address(), dir.path(), "w");
+  FarmClient client(coordinator.address(), "");
+  EXPECT_EQ(WaitForJob(client, id, 120).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(Count(worker->log(), "leased-piece"), 0u);
+  worker->Signal(SIGTERM);
+  EXPECT_TRUE(worker->Wait(20).has_value());
+}
+
+TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
+  TestDir dir;
+  const Image reference = LocalReference(dir);
+  const std::vector<std::string> args = {"--lease-seconds", "1.5", "--map-chunk-photons", "16384"};
+  auto life1 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args);
+  const int port = life1->port();
+  const std::string address = life1->address();
+  const std::string job_id = Submit(dir, address);
+  // Life 1: pieces 0 and 1 stored, then the coordinator dies (its worker too, paused before piece 2).
+  auto w1 = StartWorkerWithEnv(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
+  ASSERT_TRUE(WaitUntil([&] { return Count(w1->log(), "test-pause at upload") > 0; }, 60))
+      << ReadFile(w1->log());
+  const fs::path log1 = life1->process().log();
+  ASSERT_EQ(Count(log1, "piece [0-9]+: stored \\("), 2u) << ReadFile(log1);
+  life1->process().Signal(SIGKILL);
+  life1->process().Wait(5);
+  life1.reset();
+  w1->Signal(SIGKILL);
+  w1->Wait(5);
+
+  // Life 2: finds the two pieces, queues only piece 2; the map is built; its worker dies fetching.
+  auto life2 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args, port);
+  const fs::path log2 = life2->process().log();
+  EXPECT_EQ(Count(log2, "in 3 pieces of 16384 \\(2 already traced on disk\\)"), 1u) << ReadFile(log2);
+  auto w2 = StartWorkerWithEnv(address, dir.path(), "w2", {{"PF_TEST_PAUSE_AT", "fetch"}});
+  ASSERT_TRUE(WaitUntil([&] { return Count(w2->log(), "test-pause at fetch") > 0; }, 60))
+      << ReadFile(w2->log());
+  EXPECT_EQ(Count(w2->log(), "uploaded-piece .*piece=2/3 .*accepted=true"), 1u) << ReadFile(w2->log());
+  EXPECT_EQ(Count(w2->log(), "uploaded-piece"), 1u);
+  EXPECT_EQ(Count(log2, "built once from 3 pieces"), 1u) << ReadFile(log2);
+  life2->process().Signal(SIGKILL);
+  life2->process().Wait(5);
+  life2.reset();
+  w2->Signal(SIGKILL);
+  w2->Wait(5);
+
+  // Life 3: serves the built map from disk; nothing is traced again.
+  CoordinatorProcess life3(dir / "data", dir.path(), args, port);
+  const fs::path log3 = life3.process().log();
+  EXPECT_EQ(Count(log3, "built map [0-9a-f]+ found on disk"), 1u) << ReadFile(log3);
+  auto w3 = StartWorker(address, dir.path(), "w3");
+  FarmClient client(address, "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  EXPECT_EQ(st.samples_merged(), uint64_t(48 * 32));
+  EXPECT_EQ(Count(w3->log(), "uploaded-piece"), 0u);
+  EXPECT_EQ(Count(w3->log(), "fetched: "), 1u);
+  EXPECT_EQ(Count(log3, "built once"), 0u);
+  w3->Signal(SIGTERM);
+  EXPECT_TRUE(w3->Wait(20).has_value());
+}
+
+}  // namespace
+}  // namespace pf::e2e
