@@ -141,7 +141,7 @@ def main():
         if a.job == "default":
             job = ["--integrator", "photonmap", "--photons", "1000000", "--k", "100", "--res", "256x256",
                    "--spp", "16", "--seed", "11"] + common
-            results["render"]["job"] = "cornell-box 256x256, one map of 1M photons, k 100, 16 spp, default plan"
+            results["render"]["job"] = "cornell-box 256x256, one map of 1M photons, k 100, 16 spp, --plan multiple-maps"
         else:
             rounds = 2 if a.quick else 8
             job = ["--integrator", "photonmap", "--photons", "100000", "--k", "50", "--res", "128x128",
@@ -151,6 +151,10 @@ def main():
                                        "tasks), 100k photons/map, k=50, 4 spp"
         # A skipping job in one process needs --local-only (a plain render runs no plan).
         local = ["--local-only"] if a.job == "skipping" else []
+        if a.job == "default":
+            # The issue's job is one shared 1M-photon map: name its plan, since the farm's own
+            # default is now --plan auto (which would cut the budget into per-task maps).
+            job += ["--plan", "multiple-maps"]
         runs = [("process-1", local + ["--threads", "1"]), ("process-2", local + ["--threads", "2"]),
                 ("farm-1", ["--workers", "1", "--threads", "1"]), ("farm-2", ["--workers", "2", "--threads", "1"]),
                 # Issue #12: every worker traces and balances the map itself (as before distributed tracing).
