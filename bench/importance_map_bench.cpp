@@ -4,7 +4,7 @@
 // inside a box of the xz plane (the viewed room). Prints one JSON object per row and a table; the
 // driver is bench/importance_rmse.py.
 //
-//   importance_map_bench --scene scenes/invisibledate/invisibledate.json --box 0,4,0,4 \
+//   importance_map_bench --scene scenes/invisibledate/invisibledate.json --box 0,4,0,4
 //       --photons 400000,2000000 [--threads 2] [--strength 4] [--min-probability 0.05]
 #include <spdlog/spdlog.h>
 
@@ -36,19 +36,26 @@ int Run(int argc, char** argv) {
   float strength = 4.0f, min_probability = 0.05f;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i], value = argv[i + 1];
-    if (flag == "--scene") scene_path = value;
-    else if (flag == "--box") box_text = value;
-    else if (flag == "--photons") photons_text = value;
-    else if (flag == "--threads") threads = std::stoi(value);
-    else if (flag == "--strength") strength = std::stof(value);
-    else if (flag == "--min-probability") min_probability = std::stof(value);
+    if (flag == "--scene")
+      scene_path = value;
+    else if (flag == "--box")
+      box_text = value;
+    else if (flag == "--photons")
+      photons_text = value;
+    else if (flag == "--threads")
+      threads = std::stoi(value);
+    else if (flag == "--strength")
+      strength = std::stof(value);
+    else if (flag == "--min-probability")
+      min_probability = std::stof(value);
     else {
       std::fprintf(stderr, "unknown flag %s\n", flag.c_str());
       return 2;
     }
   }
   if (scene_path.empty()) {
-    std::fprintf(stderr, "usage: importance_map_bench --scene MANIFEST [--box x0,x1,z0,z1] [--photons N,...]\n");
+    std::fprintf(stderr,
+                 "usage: importance_map_bench --scene MANIFEST [--box x0,x1,z0,z1] [--photons N,...]\n");
     return 2;
   }
   spdlog::set_level(spdlog::level::warn);
@@ -58,8 +65,8 @@ int Run(int argc, char** argv) {
   spec.look_at -= scene.origin;
   const Camera camera(spec);
   const std::vector<double> box = Numbers(box_text);
-  std::printf("%-10s %-10s %12s %12s %12s %10s %9s\n", "importance", "photons", "stored", "in box", "fraction",
-              "rejected", "trace s");
+  std::printf("%-10s %-10s %12s %12s %12s %10s %9s\n", "importance", "photons", "stored", "in box",
+              "fraction", "rejected", "trace s");
   for (double photons : Numbers(photons_text))
     for (ImportanceMode mode : {ImportanceMode::kOff, ImportanceMode::kOn}) {
       JobRenderSettings s;

@@ -42,8 +42,9 @@ Vec3 Facing(const SurfaceHit& hit, const Vec3& wo) {
   return Dot(hit.geometric_normal, wo) >= 0.0f ? hit.geometric_normal : -hit.geometric_normal;
 }
 
-void TraceImporton(const EmbreeScene& scene, const Camera& camera, const ImportanceOptions& o, uint64_t stream,
-                   SamplerKind kind, uint64_t index, uint64_t count, std::vector<Photon>& out) {
+void TraceImporton(const EmbreeScene& scene, const Camera& camera, const ImportanceOptions& o,
+                   uint64_t stream, SamplerKind kind, uint64_t index, uint64_t count,
+                   std::vector<Photon>& out) {
   const SceneDescription& desc = scene.description();
   Sampler sampler = Sampler::ForPhoton(kind, stream, index);
   const Sample2 u_image = sampler.Get2D(kImportonImageSlot);
@@ -77,7 +78,8 @@ void TraceImporton(const EmbreeScene& scene, const Camera& camera, const Importa
 // Density of the importons facing `facing` around x: Σ w / (π r²) over the k nearest.
 float Density(const PhotonMap& map, const Vec3& x, const Vec3& facing, int k, float max_radius,
               ImportanceScratch& scratch) {
-  const auto same_side = FunctionFilter([&](const Photon& p, std::size_t) { return Dot(p.Direction(), facing) > 0.0f; });
+  const auto same_side =
+      FunctionFilter([&](const Photon& p, std::size_t) { return Dot(p.Direction(), facing) > 0.0f; });
   map.Query(x, k, max_radius, scratch, &same_side);
   if (scratch.empty()) return 0.0f;
   float sum = 0.0f;
@@ -88,8 +90,9 @@ float Density(const PhotonMap& map, const Vec3& x, const Vec3& facing, int k, fl
 
 }  // namespace
 
-ImportanceMap ImportanceMap::Build(const EmbreeScene& scene, const Camera& camera, const ImportanceOptions& options,
-                                   uint64_t seed, SamplerKind sampler, int threads) {
+ImportanceMap ImportanceMap::Build(const EmbreeScene& scene, const Camera& camera,
+                                   const ImportanceOptions& options, uint64_t seed, SamplerKind sampler,
+                                   int threads) {
   const auto start = std::chrono::steady_clock::now();
   ImportanceMap map;
   map.options_ = options;
@@ -125,7 +128,8 @@ ImportanceMap ImportanceMap::Build(const EmbreeScene& scene, const Camera& camer
       tbb::parallel_for(uint64_t(0), samples, [&](uint64_t j) {
         thread_local ImportanceScratch scratch;
         const Photon& p = map.importons_->photon(j * stride);
-        density[j] = Density(*map.importons_, p.Position(), p.Direction(), map.options_.k, map.max_radius_, scratch);
+        density[j] =
+            Density(*map.importons_, p.Position(), p.Direction(), map.options_.k, map.max_radius_, scratch);
       });
     });
     double sum = 0;
@@ -164,7 +168,8 @@ float ImportanceMap::RelativeImportance(const Vec3& x, const Vec3& facing, Impor
   return Density(*importons_, x, facing, options_.k, max_radius_, scratch) * inverse_mean_;
 }
 
-float ImportanceMap::AcceptanceProbability(const Vec3& x, const Vec3& facing, ImportanceScratch& scratch) const {
+float ImportanceMap::AcceptanceProbability(const Vec3& x, const Vec3& facing,
+                                           ImportanceScratch& scratch) const {
   if (!importons_ || importons_->empty() || !(inverse_mean_ > 0.0f)) return 1.0f;
   if (!table_ || !IsFinite(x)) return ExactAcceptanceProbability(x, facing, scratch);
   uint64_t index = 0;
@@ -188,7 +193,8 @@ float ImportanceMap::AcceptanceProbability(const Vec3& x, const Vec3& facing, Im
   return p;
 }
 
-float ImportanceMap::ExactAcceptanceProbability(const Vec3& x, const Vec3& facing, ImportanceScratch& scratch) const {
+float ImportanceMap::ExactAcceptanceProbability(const Vec3& x, const Vec3& facing,
+                                                ImportanceScratch& scratch) const {
   if (!importons_ || importons_->empty() || !(inverse_mean_ > 0.0f)) return 1.0f;
   const float p = options_.strength * RelativeImportance(x, facing, scratch);
   return std::clamp(p, options_.min_probability, 1.0f);

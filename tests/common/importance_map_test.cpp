@@ -60,8 +60,8 @@ TwoRooms MakeTwoRooms() {
     quad(dz0, dz1, dy, 1.0f);
   }
   // ...and the door's reveal (jambs and lintel), facing into the opening.
-  AddQuad(s, {wl, 0, dz0}, {wr, 0, dz0}, {wr, dy, dz0}, {wl, dy, dz0}, white);  // +z
-  AddQuad(s, {wl, 0, dz1}, {wl, dy, dz1}, {wr, dy, dz1}, {wr, 0, dz1}, white);  // -z
+  AddQuad(s, {wl, 0, dz0}, {wr, 0, dz0}, {wr, dy, dz0}, {wl, dy, dz0}, white);    // +z
+  AddQuad(s, {wl, 0, dz1}, {wl, dy, dz1}, {wr, dy, dz1}, {wr, 0, dz1}, white);    // -z
   AddQuad(s, {wl, dy, dz0}, {wr, dy, dz0}, {wr, dy, dz1}, {wl, dy, dz1}, white);  // -y
   // The lamp in A, facing down.
   AddQuad(s, {-0.7f, 0.99f, 0.3f}, {-0.3f, 0.99f, 0.3f}, {-0.3f, 0.99f, 0.7f}, {-0.7f, 0.99f, 0.7f}, lamp, 0);
@@ -129,15 +129,21 @@ TEST(ImportanceMapTest, SameMapForAnyThreadCount) {
   const EmbreeScene accel(r.scene);
   const LightSampler lights(accel);
   const Camera camera(r.camera);
-  const PhotonMaps one = PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 40000, 7, 1), &camera);
-  const PhotonMaps two = PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 40000, 7, 2), &camera);
+  const PhotonMaps one =
+      PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 40000, 7, 1), &camera);
+  const PhotonMaps two =
+      PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 40000, 7, 2), &camera);
   ASSERT_TRUE(one.stats.importance);
   EXPECT_GT(one.stats.rejected, 0u);
   EXPECT_EQ(one.stats.rejected, two.stats.rejected);
   ASSERT_EQ(one.global->size(), two.global->size());
   ASSERT_EQ(one.direct->size(), two.direct->size());
-  EXPECT_EQ(std::memcmp(one.global->photons().data(), two.global->photons().data(), one.global->size() * sizeof(Photon)), 0);
-  EXPECT_EQ(std::memcmp(one.direct->photons().data(), two.direct->photons().data(), one.direct->size() * sizeof(Photon)), 0);
+  EXPECT_EQ(std::memcmp(one.global->photons().data(), two.global->photons().data(),
+                        one.global->size() * sizeof(Photon)),
+            0);
+  EXPECT_EQ(std::memcmp(one.direct->photons().data(), two.direct->photons().data(),
+                        one.direct->size() * sizeof(Photon)),
+            0);
 }
 
 // The importance map itself: high where the camera looks (B's back wall, the door wall), p_min in
@@ -174,8 +180,10 @@ TEST(ImportanceMapTest, StoredPowerInTheUnseenRoomIsUnbiased) {
   std::vector<double> on_a, off_a, on_b, off_b;
   uint64_t stored_a_on = 0, stored_a_off = 0;
   for (uint64_t seed = 1; seed <= 12; ++seed) {
-    const PhotonMaps on = PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 20000, seed, 0), &camera);
-    const PhotonMaps off = PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOff, 20000, seed, 0));
+    const PhotonMaps on =
+        PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 20000, seed, 0), &camera);
+    const PhotonMaps off =
+        PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOff, 20000, seed, 0));
     const RoomPower pon = PowerByRoom(on), poff = PowerByRoom(off);
     on_a.push_back(pon.a);
     off_a.push_back(poff.a);
@@ -188,9 +196,10 @@ TEST(ImportanceMapTest, StoredPowerInTheUnseenRoomIsUnbiased) {
                      b_off = Summarise(off_b);
   const double tol_a = 4.0 * std::hypot(a_on.standard_error, a_off.standard_error);
   const double tol_b = 4.0 * std::hypot(b_on.standard_error, b_off.standard_error);
-  std::printf("room A power: on %.6g ± %.2g, off %.6g ± %.2g (tolerance %.3g); photons stored in A: %llu vs %llu\n",
-              a_on.mean, a_on.standard_error, a_off.mean, a_off.standard_error, tol_a,
-              (unsigned long long)stored_a_on, (unsigned long long)stored_a_off);
+  std::printf(
+      "room A power: on %.6g ± %.2g, off %.6g ± %.2g (tolerance %.3g); photons stored in A: %llu vs %llu\n",
+      a_on.mean, a_on.standard_error, a_off.mean, a_off.standard_error, tol_a,
+      (unsigned long long)stored_a_on, (unsigned long long)stored_a_off);
   EXPECT_NEAR(a_on.mean, a_off.mean, tol_a) << "room A power, importance on vs off";
   EXPECT_NEAR(b_on.mean, b_off.mean, tol_b) << "room B power, importance on vs off";
   // The tolerance is tight enough to matter: well below the 2x a missing 1/p would cause.
@@ -227,7 +236,8 @@ TEST(ImportanceMapTest, ImageMeanMatchesThePathTracerWhereTheImportanceIsLow) {
   const Camera camera(r.camera);
   // The low-importance pixels: exact p at the primary hit through the pixel centre.
   const ImportanceOptions io{.mode = ImportanceMode::kOn, .min_probability = 0.05f, .strength = 1.0f};
-  const ImportanceMap importance = ImportanceMap::Build(runtime.accel, camera, io, 99, SamplerKind::kSobol, 0);
+  const ImportanceMap importance =
+      ImportanceMap::Build(runtime.accel, camera, io, 99, SamplerKind::kSobol, 0);
   std::vector<bool> low(size_t(camera.width() * camera.height()), false), low_b = low, all(low.size(), true);
   ImportanceScratch scratch;
   size_t low_pixels = 0;
@@ -237,7 +247,8 @@ TEST(ImportanceMapTest, ImageMeanMatchesThePathTracerWhereTheImportanceIsLow) {
       const std::optional<SurfaceHit> hit = runtime.accel.Intersect(ray);
       if (!hit) continue;
       const Vec3 wo = -ray.direction;
-      const Vec3 facing = Dot(hit->geometric_normal, wo) >= 0.0f ? hit->geometric_normal : -hit->geometric_normal;
+      const Vec3 facing =
+          Dot(hit->geometric_normal, wo) >= 0.0f ? hit->geometric_normal : -hit->geometric_normal;
       if (importance.ExactAcceptanceProbability(hit->position, facing, scratch) <= 0.5f) {
         low[size_t(y * camera.width() + x)] = true;
         // Those in room B: lit only through the door, where the map carries the most light.
@@ -280,14 +291,15 @@ TEST(ImportanceMapTest, ImageMeanMatchesThePathTracerWhereTheImportanceIsLow) {
   auto expect_agrees = [&](const std::vector<double>& pm, const std::vector<double>& pt, const char* what) {
     const MeanAndError a = Summarise(pm), b = Summarise(pt);
     const double tol = 4.0 * std::hypot(a.standard_error, b.standard_error) + kKernelBias * b.mean;
-    std::printf("%s: photon map %.6g ± %.2g, path tracer %.6g ± %.2g, tolerance %.3g (%.1f %%)\n", what, a.mean,
-                a.standard_error, b.mean, b.standard_error, tol, 100.0 * tol / b.mean);
+    std::printf("%s: photon map %.6g ± %.2g, path tracer %.6g ± %.2g, tolerance %.3g (%.1f %%)\n", what,
+                a.mean, a.standard_error, b.mean, b.standard_error, tol, 100.0 * tol / b.mean);
     EXPECT_NEAR(a.mean, b.mean, tol) << what << " (photon map ± " << a.standard_error << ", path ± "
                                      << b.standard_error << ")";
     return tol / b.mean;
   };
   const double tol_low = expect_agrees(on_low, pt_low, "importance on, low-importance pixels");
-  const double tol_low_b = expect_agrees(on_low_b, pt_low_b, "importance on, low-importance pixels in room B");
+  const double tol_low_b =
+      expect_agrees(on_low_b, pt_low_b, "importance on, low-importance pixels in room B");
   expect_agrees(on_all, pt_all, "importance on, whole image");
   expect_agrees(off_low_b, pt_low_b, "importance off, low-importance pixels in room B");
   expect_agrees(off_low, pt_low, "importance off, low-importance pixels");
