@@ -37,9 +37,17 @@ SCENES = {  # name: (manifest, reference, viewed box x0,x1,z0,z1, direct light o
 }
 
 
-def rows(scene, direct):
+def rows(scene, direct, row_set):
     """(name, pf render flags) of the photon-map rows."""
     pm = ["--integrator", "photonmap", "--direct", direct, "--k", "100", "--spp", "16"]
+    if row_set == "more-photons":  # where the importance rows go with more photons
+        occl = ["--occlusion-test"] if scene == "invisibledate" else []
+        tag = "+occl" if occl else ""
+        return [
+            (f"{direct}{tag} 8M +importance", pm + ["--photons", "8000000", "--importance", "on"] + occl),
+            (f"{direct}{tag} 8M +importance p_min 0.01",
+             pm + ["--photons", "8000000", "--importance", "on", "--importance-min-probability", "0.01"] + occl),
+        ]
     out = [
         (f"{direct} 400k", pm + ["--photons", "400000"]),
         (f"{direct} 2M +importance", pm + ["--photons", "2000000", "--importance", "on"]),
@@ -79,18 +87,22 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--out", default="docs/results")
+    ap.add_argument("--rows", default="main", choices=("main", "more-photons"),
+                    help="main: 400k without and 2M with importance; more-photons: 8M with importance "
+                         "(written to importance-more-photons.json)")
     args = ap.parse_args()
     result = {}
     with tempfile.TemporaryDirectory() as tmp:
         for scene in [s for s in args.scenes.split(",") if s]:
             manifest, reference, box, direct = SCENES[scene]
             maps = []
-            for line in run([args.map_bench, "--scene", manifest, "--box", box, "--photons", "400000,2000000",
+            counts = "400000,2000000" if args.rows == "main" else "8000000"
+            for line in run([args.map_bench, "--scene", manifest, "--box", box, "--photons", counts,
                              "--threads", str(args.threads)]).stdout.splitlines():
                 if line.startswith("JSON "):
                     maps.append(json.loads(line[5:]))
             table = []
-            for name, flags in rows(scene, direct):
+            for name, flags in rows(scene, direct, args.rows):
                 row = render_row(args.pf, manifest, reference, flags + ["--threads", str(args.threads)], tmp, name,
                                  args.repeat)
                 table.append(row)
@@ -99,14 +111,14 @@ def main():
             probe = render_row(args.pf, manifest, reference, ["--integrator", "path", "--spp", "64", "--threads",
                                                                str(args.threads)], tmp, "path 64 spp", args.repeat)
             table.append(probe)
-            for target in [r for r in table if "importance" in r["method"] and "2M" in r["method"]]:
+            for target in [r for r in table if "importance" in r["method"] and "400k" not in r["method"]]:
                 spp = max(1, int(round(64 * target["cpu_s"] / probe["cpu_s"])))
                 row = render_row(args.pf, manifest, reference, ["--integrator", "path", "--spp", str(spp), "--threads",
                                                                  str(args.threads)], tmp,
                                  f"path {spp} spp (= CPU of '{target['method']}')", args.repeat)
                 table.append(row)
             result[scene] = {"maps": maps, "renders": table}
-    out = ROOT / args.out / "importance.json"
+    out = ROOT / args.out / ("importance.json" if args.rows == "main" else "importance-more-photons.json")
     out.write_text(json.dumps(result, indent=1) + "\n")
     for scene, r in result.items():
         print(f"\n### {scene}\n")

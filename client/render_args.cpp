@@ -197,7 +197,7 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
          "diffuse photon hit is stored with probability p = clamp(s * importance/mean, p_min, 1) and "
          "power phi/p (unbiased; the walk goes on either way). Raise --photons with it: the map keeps "
          "fewer photons where the camera does not look. auto = on when a short pilot would drop more "
-         "than half of the hits (logged)")
+         "than 80% of the hits (logged)")
       ->capture_default_str()
       ->check(CLI::IsMember({"off", "on", "auto"}));
   app->add_option("--importance-min-probability", a.importance_min_probability,

@@ -63,9 +63,10 @@ struct ImportancePilot {
 };
 inline constexpr uint64_t kImportancePilotPhotons = 16384;
 inline constexpr uint64_t kImportancePilotImportons = 16384;
-// `auto` enables importance when the pilot would drop more than this share of the diffuse hits:
-// most photons land where the camera does not look.
-inline constexpr double kImportanceAutoThreshold = 0.5;
+// `auto` enables importance when the pilot would drop more than this share of the diffuse hits
+// (most photons land where the camera does not look; at 0.5 it also took office3 and scene8,
+// whose cameras see most of their rooms: docs/results/importance.md).
+inline constexpr double kImportanceAutoThreshold = 0.8;
 ImportancePilot RunImportancePilot(const EmbreeScene& scene, const LightSampler& lights, const Camera& camera,
                                    const PhotonMapsOptions& options);
 

@@ -310,3 +310,32 @@ TEST(ImportanceMapTest, ImageMeanMatchesThePathTracerWhereTheImportanceIsLow) {
 
 }  // namespace
 }  // namespace pf
+
+namespace pf {
+namespace {
+
+// `auto` (§4.7): the pilot finds most photon hits in the unseen room when the camera looks into
+// B, and few when it looks at the lit room A from its door; it enables importance exactly above
+// the threshold.
+TEST(ImportanceMapTest, AutoPilotSeesWhereThePhotonsLand) {
+  TwoRooms r = MakeTwoRooms();
+  const EmbreeScene accel(r.scene);
+  const LightSampler lights(accel);
+  PhotonMapsOptions mo = MapsOptionsOf(ImportanceMode::kAuto, 1000, 1, 0);
+  const ImportancePilot into_b = RunImportancePilot(accel, lights, Camera(r.camera), mo);
+  r.camera.eye = Vec3(0.0f, 0.5f, 0.5f);
+  r.camera.look_at = Vec3(-1.0f, 0.4f, 0.5f);
+  r.camera.vfov_degrees = 100.0f;
+  const ImportancePilot into_a = RunImportancePilot(accel, lights, Camera(r.camera), mo);
+  std::printf("pilot: camera in B %.3f, camera at A's door %.3f of the hits dropped\n",
+              into_b.rejected_fraction, into_a.rejected_fraction);
+  EXPECT_EQ(into_b.photons, kImportancePilotPhotons);
+  // Measured: 0.75 and 0.42 (B's large door lets a quarter of the hits into the seen room).
+  EXPECT_GT(into_b.rejected_fraction, 0.6);
+  EXPECT_LT(into_a.rejected_fraction, 0.5);
+  EXPECT_EQ(into_b.enable, into_b.rejected_fraction > kImportanceAutoThreshold);
+  EXPECT_FALSE(into_a.enable);
+}
+
+}  // namespace
+}  // namespace pf
