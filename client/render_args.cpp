@@ -194,6 +194,27 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
          "0 = off)")
       ->capture_default_str()
       ->check(CLI::Range(0, int(kMaxK)));
+  app->add_option(
+         "--importance", a.importance,
+         "photonmap: importance-driven maps (4.7): importons from the camera make an importance map; a "
+         "diffuse photon hit is stored with probability p = clamp(s * importance/mean, p_min, 1) and "
+         "power phi/p (unbiased; the walk goes on either way). Raise --photons with it: the map keeps "
+         "fewer photons where the camera does not look. auto = on when a short pilot would drop more "
+         "than 80% of the hits (logged)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"off", "on", "auto"}));
+  app->add_option("--importance-min-probability", a.importance_min_probability,
+                  "importance: p_min, the acceptance probability where nothing is seen (bounds the power "
+                  "of the photons there to phi/p_min)")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 1.0));
+  app->add_option("--importance-strength", a.importance_strength,
+                  "importance: s, every hit whose importance is at least 1/s of the mean is stored")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 1e6));
+  app->add_option("--importons", a.importons, "importance: importons per map (0 = one per pixel)")
+      ->capture_default_str()
+      ->check(CLI::Range(uint64_t(0), kMaxImportons));
 }
 
 void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
@@ -236,6 +257,12 @@ void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
   pm->set_adaptive_k_min(uint32_t(a.adaptive_k_min));
   if (a.map_tracing != "auto")
     pm->set_map_tracing(a.map_tracing == "local" ? v1::MAP_TRACING_LOCAL : v1::MAP_TRACING_DISTRIBUTED);
+  pm->set_importance(a.importance == "on"     ? v1::IMPORTANCE_MODE_ON
+                     : a.importance == "auto" ? v1::IMPORTANCE_MODE_AUTO
+                                              : v1::IMPORTANCE_MODE_OFF);
+  pm->set_importance_min_probability(a.importance_min_probability);
+  pm->set_importance_strength(a.importance_strength);
+  pm->set_importons(a.importons);
 }
 
 JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDescription& scene) {

@@ -55,6 +55,11 @@ struct RenderArgs {
   float irradiance_cache_error = 0.2f;
   bool occlusion_test = false;
   int adaptive_k_min = 0;
+  // Importance-driven photon maps (Wald 1999, §4.7).
+  std::string importance = "off";
+  double importance_min_probability = 0.05;
+  double importance_strength = 4.0;
+  uint64_t importons = 0;
   // Plan (farm and --local-only); plan.empty() = the classic single-process render.
   std::string plan;
   uint32_t maps = 1;

@@ -250,6 +250,36 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
     default:
       throw InputError(f + ".map_tracing: unknown value");
   }
+  switch (pm.importance()) {
+    case v1::IMPORTANCE_MODE_UNSPECIFIED:
+    case v1::IMPORTANCE_MODE_OFF:
+      out.importance = ImportanceMode::kOff;
+      break;
+    case v1::IMPORTANCE_MODE_ON:
+      out.importance = ImportanceMode::kOn;
+      break;
+    case v1::IMPORTANCE_MODE_AUTO:
+      out.importance = ImportanceMode::kAuto;
+      break;
+    default:
+      throw InputError(f + ".importance: unknown value");
+  }
+  if (pm.has_importance_min_probability()) {
+    if (!(pm.importance_min_probability() > 0.0 && pm.importance_min_probability() <= 1.0))
+      throw InputError(f + ".importance_min_probability: must be in (0, 1] (photons everywhere need p > 0)");
+    out.importance_min_probability = float(pm.importance_min_probability());
+  }
+  if (pm.has_importance_strength()) {
+    if (!(pm.importance_strength() > 0.0 && pm.importance_strength() <= 1e6))
+      throw InputError(f + ".importance_strength: must be in (0, 1e6]");
+    out.importance_strength = float(pm.importance_strength());
+  }
+  if (pm.importons() > kMaxImportons)
+    throw InputError(f + ".importons: must be <= " + std::to_string(kMaxImportons) + " (0 = one per pixel)");
+  out.importons = pm.importons();
+  if (out.map_tracing == MapTracingMode::kDistributed && out.importance != ImportanceMode::kOff)
+    throw InputError(f + ".map_tracing: distributed tracing does not build importance-driven maps (their "
+                         "importons come from the camera); use map_tracing auto or local with importance");
   return out;
 }
 
@@ -293,6 +323,12 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   if (s.map_tracing != MapTracingMode::kAuto)  // auto stays unset: specs stored before issue #12 read alike
     pm->set_map_tracing(s.map_tracing == MapTracingMode::kLocal ? v1::MAP_TRACING_LOCAL
                                                                 : v1::MAP_TRACING_DISTRIBUTED);
+  pm->set_importance(s.importance == ImportanceMode::kOn     ? v1::IMPORTANCE_MODE_ON
+                     : s.importance == ImportanceMode::kAuto ? v1::IMPORTANCE_MODE_AUTO
+                                                             : v1::IMPORTANCE_MODE_OFF);
+  pm->set_importance_min_probability(s.importance_min_probability);
+  pm->set_importance_strength(s.importance_strength);
+  pm->set_importons(s.importons);
 }
 
 PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {

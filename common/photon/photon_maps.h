@@ -7,8 +7,10 @@
 #include <mutex>
 #include <string>
 
+#include "common/photon/importance_map.h"
 #include "common/photon/photon_map.h"
 #include "common/photon/photon_tracer.h"
+#include "common/render/camera.h"
 
 namespace pf {
 
@@ -27,6 +29,8 @@ struct PhotonMapsOptions {
   // testing, §4.1.1). 4 and 12 bytes per photon.
   bool keep_light_ids = false;
   bool keep_origins = false;
+  // Importance-driven storing (Wald 1999, §4.7; importance_map.h): needs the camera.
+  ImportanceOptions importance;
 };
 
 // Attributes of the photons of one map, indexed like PhotonMap::photon(i) (post-build order).
@@ -41,7 +45,30 @@ struct PhotonMapsStats {
   double trace_seconds = 0, build_seconds = 0;
   uint64_t rays = 0;
   Rgb emitted_power, stored_power;  // stored_power: Σ Φ over all stored photons (before compression)
+  // Importance (§4.7): whether the map was thinned, the diffuse hits it did not store, and the
+  // importance map's size and build time (included in trace_seconds).
+  bool importance = false;
+  uint64_t rejected = 0;
+  uint64_t importons = 0;
+  double importance_seconds = 0;
 };
+
+// What `importance auto` measured and decided (§4.7): a pilot of kPilotPhotons photons traced
+// against a pilot importance map, both from fixed seeds (so every map of a job decides alike).
+struct ImportancePilot {
+  uint64_t photons = 0, stored = 0, rejected = 0;  // diffuse hits = stored + rejected
+  double rejected_fraction = 0;                    // ≈ 1 − mean acceptance probability
+  double seconds = 0;
+  bool enable = false;
+};
+inline constexpr uint64_t kImportancePilotPhotons = 16384;
+inline constexpr uint64_t kImportancePilotImportons = 16384;
+// `auto` enables importance when the pilot would drop more than this share of the diffuse hits
+// (most photons land where the camera does not look; at 0.5 it also took office3 and scene8,
+// whose cameras see most of their rooms: docs/results/importance.md).
+inline constexpr double kImportanceAutoThreshold = 0.8;
+ImportancePilot RunImportancePilot(const EmbreeScene& scene, const LightSampler& lights, const Camera& camera,
+                                   const PhotonMapsOptions& options);
 
 struct PhotonMaps {
   std::unique_ptr<PhotonMap> global;   // diffuse (+ direct unless separate_direct) photons
@@ -61,8 +88,9 @@ struct PhotonMaps {
   };
   std::shared_ptr<Derived> derived = std::make_shared<Derived>();
 
+  // `camera` (in the scene's frame) is required when options.importance.mode is not off.
   static PhotonMaps Build(const EmbreeScene& scene, const LightSampler& lights,
-                          const PhotonMapsOptions& options);
+                          const PhotonMapsOptions& options, const Camera* camera = nullptr);
 };
 
 }  // namespace pf

@@ -38,7 +38,8 @@ constexpr uint64_t kChunk = kPhotonTracingChunk;
 
 struct ChunkOutput {
   std::vector<TracedPhoton> direct, indirect, caustic;
-  uint64_t rays = 0;
+  uint64_t rays = 0, rejected = 0;
+  ImportanceScratch importance_scratch;  // the chunk's importance queries (one thread at a time)
 };
 
 // Cosine-weighted direction around n.
@@ -74,8 +75,23 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
     const Material& m = desc.materials[hit->material];
     const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
-    if (bsdf.HasDiffuse()) {
-      TracedPhoton p{hit->position, wo, power, previous, ls.light, PhotonKind::kIndirect};
+    bool store = bsdf.HasDiffuse();
+    Rgb stored_power = power;
+    if (store && o.importance) {
+      // Wald 1999, §4.7: stored with probability p and power Φ/p; the walk goes on either way.
+      const Vec3 facing =
+          Dot(hit->geometric_normal, wo) >= 0.0f ? hit->geometric_normal : -hit->geometric_normal;
+      const float p = o.importance->AcceptanceProbability(hit->position, facing, out.importance_scratch);
+      if (p < 1.0f) {
+        store = sampler.Get1D(SlotOfPhotonAcceptance(bounce)) < p;
+        if (store)
+          stored_power = power / p;
+        else
+          ++out.rejected;
+      }
+    }
+    if (store) {
+      TracedPhoton p{hit->position, wo, stored_power, previous, ls.light, PhotonKind::kIndirect};
       if (bounce == 0) {
         p.kind = PhotonKind::kDirect;
         out.direct.push_back(p);
@@ -134,6 +150,7 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
     offsets[c + 1] = {offsets[c][0] + outputs[c].direct.size(), offsets[c][1] + outputs[c].indirect.size(),
                       offsets[c][2] + outputs[c].caustic.size()};
     result.rays += outputs[c].rays;
+    result.rejected += outputs[c].rejected;
   }
   std::array<TracedPhotons*, 3> lists = {&result.direct, &result.indirect, &result.caustic};
   for (int k = 0; k < 3; ++k) lists[k]->resize(offsets[chunks][k]);

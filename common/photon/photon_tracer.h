@@ -13,6 +13,16 @@
 // *indirect* (global/diffuse map). Direct photons are kept apart so that estimators can exclude
 // them (separate direct light, §4.2) or use them (PhotonDirect, §4.2.3).
 //
+// Importance-driven storing (Wald 1999, §4.7; importance_map.h): with an importance map, a
+// diffuse hit is stored with probability p(x) and power Φ/p(x), decided by the sampler's
+// acceptance slot of that bounce; a rejected photon is not stored but *continues its walk
+// unchanged*. Only the storage is thinned: the walk (and so every later hit's expected power) is
+// exactly the walk without importance, and each store is unbiased on its own. Ending the walk at
+// a rejection would need the continuing photon's power scaled by 1/p as well (Russian roulette
+// on the path), which carries the heavy photons of unimportant regions into the important ones
+// (the light that reaches INVISIBLEDATE's viewed room bounces in the lit room first): noise
+// exactly where the image needs none.
+//
 // Determinism: photon i draws from Sampler::ForPhoton(sampler, map_seed, i) (index i of the map's
 // scrambled sequences, common/sampling/sample_layout.h); photons are traced in
 // fixed-size chunks in parallel and concatenated in chunk order, so the arrays are identical
@@ -26,6 +36,7 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/photon/importance_map.h"
 #include "common/render/light_sampler.h"
 #include "common/sampling/sampler.h"
 
@@ -85,13 +96,16 @@ struct PhotonTracerOptions {
   // kPhotonTracingChunk (std::invalid_argument otherwise), so that the pieces concatenated in
   // order are the whole trace's arrays (issue #12, distributed tracing).
   uint64_t photon_begin = 0, photon_end = 0;
+  // Importance-driven storing (§4.7); null = store every diffuse hit. Must outlive the call.
+  const ImportanceMap* importance = nullptr;
 };
 
 struct PhotonTracingResult {
   TracedPhotons direct, indirect, caustic;
   uint64_t emitted = 0;
   uint64_t rays = 0;
-  Rgb emitted_power;  // Σ Φ of emitted photons (== total light power)
+  uint64_t rejected = 0;  // diffuse hits not stored by the importance test (§4.7)
+  Rgb emitted_power;      // Σ Φ of emitted photons (== total light power)
   double seconds = 0;
 
   Rgb StoredPower() const;  // Σ Φ over all stored photons

@@ -63,6 +63,12 @@ struct JobRenderSettings {
   int adaptive_k_min = 0;       // §4.8; 0 = off
   // Issue #12 (farm only; pf render --local-only traces in-process).
   MapTracingMode map_tracing = MapTracingMode::kAuto;
+  // Importance-driven photon maps (§4.7; common/photon/importance_map.h). `auto` is decided per
+  // map by a pilot with fixed seeds (the same for every map of a job) and logged.
+  ImportanceMode importance = ImportanceMode::kOff;
+  float importance_min_probability = 0.05f;  // p_min
+  float importance_strength = 4.0f;          // s
+  uint64_t importons = 0;                    // 0 = one per pixel
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
   // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.
@@ -76,6 +82,8 @@ struct JobRenderSettings {
 
   // Stable text form of the settings that change a photon map (cache key).
   std::string MapFingerprint() const;
+  // Its importance part ("" when off).
+  std::string ImportanceFingerprint() const;
 };
 
 }  // namespace pf

@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <cstring>
 #include <stdexcept>
 
 #include "common/plan/accumulator.h"
@@ -20,7 +21,16 @@ std::string JobRenderSettings::MapFingerprint() const {
          ";kd=" + std::to_string(int(kd_split)) + ";caustic=" + std::to_string(int(caustic)) +
          ";k=" + std::to_string(k) + ";separate_direct=" + std::to_string(o.separate_direct) +
          ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins) +
-         ";sampler=" + SamplerName(sampler);
+         ";sampler=" + SamplerName(sampler) + ImportanceFingerprint();
+}
+
+std::string JobRenderSettings::ImportanceFingerprint() const {
+  if (importance == ImportanceMode::kOff) return "";
+  const PhotonMapsOptions o = MapsOptions();
+  return std::string(";importance=") + ImportanceModeName(importance) +
+         ";p_min=" + std::to_string(importance_min_probability) +
+         ";strength=" + std::to_string(importance_strength) + ";importons=" + std::to_string(importons) +
+         ";importon_bounces=" + std::to_string(o.importance.diffuse_bounces);
 }
 
 JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene,
@@ -99,10 +109,29 @@ PhotonMapsOptions JobRenderSettings::MapsOptions() const {
   mo.structure.grid.expected_k = k;
   mo.caustic = caustic;
   ConfigureMapsFor(IntegratorOptions(Bounds3()), &mo);
+  mo.importance.mode = importance;
+  mo.importance.min_probability = importance_min_probability;
+  mo.importance.strength = importance_strength;
+  mo.importance.importons = importons;
+  // The local pass reads the map at its gather rays' hits, one diffuse bounce from the visible
+  // points: the importons go one bounce further so that those hits count as important (§4.3).
+  mo.importance.diffuse_bounces = local_pass_rays > 0 ? 1 : 0;
   return mo;
 }
 
 namespace {
+
+// The camera as text for a map cache key (exact float bits).
+std::string CameraKey(const CameraSpec& c) {
+  std::string s;
+  for (float v : {c.eye.x, c.eye.y, c.eye.z, c.look_at.x, c.look_at.y, c.look_at.z, c.up.x, c.up.y, c.up.z,
+                  c.vfov_degrees}) {
+    uint32_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    s += std::to_string(bits) + ",";
+  }
+  return s;
+}
 
 // The local frame's origin for a scene (see scene_runtime.h): its bounds' centre if that is
 // farther from the world origin than the scene is large, else 0. Moves the positions.
@@ -173,7 +202,12 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                          sums, progress, cancel, settings_as_given.sampler);
   } else {
     const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
-    const std::string key = MapCacheKey(scene_key, settings, task.map_seed);
+    std::string key = MapCacheKey(scene_key, settings, task.map_seed);
+    // An importance-driven map depends on the camera too (its importons, §4.7); such maps are
+    // always traced where they are used (never distributed: MapTracingMode, job_settings.h).
+    if (settings.importance != ImportanceMode::kOff)
+      key += "|camera=" + std::to_string(camera.width()) + "x" + std::to_string(camera.height()) + "," +
+             CameraKey(local_camera);
     std::shared_ptr<const PhotonMaps> maps = cache ? cache->Find(key) : nullptr;
     out.map_cache_hit = maps != nullptr;
     if (!maps) {
@@ -181,7 +215,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
       mo.tracing.map_seed = task.map_seed;
       mo.tracing.threads = threads;
       mo.tracing.cancel = cancel;
-      maps = std::make_shared<const PhotonMaps>(PhotonMaps::Build(scene.accel, scene.lights, mo));
+      maps = std::make_shared<const PhotonMaps>(PhotonMaps::Build(scene.accel, scene.lights, mo, &camera));
       if (cache) cache->Insert(key, maps);
     }
     out.photons_emitted = maps->stats.emitted;

@@ -24,6 +24,13 @@
 //   slot 0 light stratum jitter (1-D), 1 point on the light (2-D), 2 emission direction (2-D);
 //   bounce b < kPhotonBounceBudget: 3 + 2b lobe (1-D, Russian roulette), 4 + 2b direction (2-D);
 //   later bounces: kIndependentSlot.
+//   Importance-driven storing (§4.7, only when on): bounce b < kPhotonBounceBudget: 3 + 2·budget + b
+//   acceptance of the store at that hit (1-D); later bounces: kIndependentSlot. Slots no other
+//   decision uses, so maps without importance stay bit-identical.
+//
+// Importons (importance map, §4.7; index = importon number, key = ImportonStreamSeed(map seed)):
+//   slot 0 image position (2-D, over the whole image); bounce b < kPhotonBounceBudget: 1 + 2b lobe
+//   (1-D), 2 + 2b direction (2-D); later bounces: kIndependentSlot.
 
 #include <cstdint>
 
@@ -85,6 +92,20 @@ struct PhotonBounceSlots {
 constexpr PhotonBounceSlots SlotsOfPhotonBounce(int bounce) {
   if (bounce < 0 || bounce >= kPhotonBounceBudget) return {kIndependentSlot, kIndependentSlot};
   return {3 + 2 * uint32_t(bounce), 4 + 2 * uint32_t(bounce)};
+}
+
+// Importance-driven storing (§4.7): the acceptance test of the store at photon bounce `bounce`.
+constexpr uint32_t SlotOfPhotonAcceptance(int bounce) {
+  if (bounce < 0 || bounce >= kPhotonBounceBudget) return kIndependentSlot;
+  return 3 + 2 * uint32_t(kPhotonBounceBudget) + uint32_t(bounce);
+}
+static_assert(SlotOfPhotonAcceptance(0) > SlotsOfPhotonBounce(kPhotonBounceBudget - 1).direction);
+
+// Importons (importance map, §4.7), in their own streams (ImportonStreamSeed).
+inline constexpr uint32_t kImportonImageSlot = 0;
+constexpr PhotonBounceSlots SlotsOfImportonBounce(int bounce) {
+  if (bounce < 0 || bounce >= kPhotonBounceBudget) return {kIndependentSlot, kIndependentSlot};
+  return {1 + 2 * uint32_t(bounce), 2 + 2 * uint32_t(bounce)};
 }
 
 }  // namespace pf

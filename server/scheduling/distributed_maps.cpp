@@ -130,8 +130,11 @@ fs::path DistributedMaps::ChunkFile(const std::string& key, uint32_t chunk) cons
 const std::string* DistributedMaps::KeyFor(const Job& job, uint64_t map_index) {
   const JobConfig& config = job.config();
   const JobRenderSettings& s = config.settings;
+  // An importance-driven map (§4.7) depends on the camera's importons, which a piece's tracer does
+  // not build: such maps are traced where they are used (distributed + importance is rejected
+  // at submission, proto/convert.cpp).
   if (s.integrator != IntegratorKind::kPhotonMap || s.map_tracing == MapTracingMode::kLocal ||
-      !CanSerialize(s.structure) || s.photons == 0)
+      s.importance != ImportanceMode::kOff || !CanSerialize(s.structure) || s.photons == 0)
     return nullptr;
   const auto id = std::make_pair(job.id(), map_index);
   if (auto it = keys_.find(id); it != keys_.end()) return &it->second;

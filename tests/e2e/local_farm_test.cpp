@@ -128,6 +128,24 @@ TEST_F(LocalFarmTest, ChapterFourEstimatorsMatchLocal) {
   ExpectNoProcessLeft();
 }
 
+// Importance-driven maps (§4.7; the importons come from the camera, per map seed): the farm of
+// two one-thread workers gives the local render's bits; the setting reached the workers (the
+// image differs from the map without importance).
+TEST_F(LocalFarmTest, ImportanceMatchesLocal) {
+  TestDir dir;
+  const std::vector<std::string> base =
+      PhotonMapRender24x16("3000", {"--plan", "multiple-maps", "--maps", "2", "--tile", "12", "--spp", "1",
+                                    "--seed", "3", "--direct", "mc"});
+  const std::vector<std::string> on =
+      Concat(base, {"--importance", "on", "--importance-strength", "0.5", "--importons", "300"});
+  ExpectFarmMatchesLocal(on, dir);
+  const RunResult off =
+      RunCommand(Concat(base, {"--local-only", "-o", (dir / "off.exr").string()}), dir.path());
+  ASSERT_EQ(off.exit_code, 0) << off.err;
+  EXPECT_FALSE(BitIdentical(ReadImage(dir / "off.exr"), ReadImage(dir / "local.exr")));
+  ExpectNoProcessLeft();
+}
+
 // Irradiance caching (one cache per 16x16-pixel block of a task, filled in pixel order): the
 // farm of two one-thread workers gives the local render's bits; the cache really reached the
 // workers (the image differs from the uncached local pass).

@@ -109,6 +109,10 @@ TEST(Convert, EverySettingRoundTrips) {
   pm.set_kd_split(v1::KD_SPLIT_CYCLE);
   pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
   pm.set_irradiance_cache_error(0.25);
+  pm.set_importance(v1::IMPORTANCE_MODE_AUTO);
+  pm.set_importance_min_probability(0.125);
+  pm.set_importance_strength(2.5);
+  pm.set_importons(5000);
   s.set_sampler(v1::SAMPLER_INDEPENDENT);
   const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
   EXPECT_EQ(core.structure, PhotonMapKind::kGrid);
@@ -119,6 +123,10 @@ TEST(Convert, EverySettingRoundTrips) {
   EXPECT_EQ(core.local_pass_rays, 4);
   EXPECT_EQ(core.irradiance_cache_error, 0.25f);
   EXPECT_TRUE(core.occlusion_test);
+  EXPECT_EQ(core.importance, ImportanceMode::kAuto);
+  EXPECT_EQ(core.importance_min_probability, 0.125f);
+  EXPECT_EQ(core.importance_strength, 2.5f);
+  EXPECT_EQ(core.importons, 5000u);
   v1::RenderSettings back;
   SettingsToProto(core, &back);
   EXPECT_EQ(SettingsFromProto(back, "x").MapFingerprint(), core.MapFingerprint());
@@ -164,6 +172,23 @@ TEST(Convert, BadSettingsNameTheirField) {
               StartsWith(f + "adaptive_k_min:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_direct(static_cast<v1::DirectLight>(99)); }),
               StartsWith(f + "direct:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_importance(static_cast<v1::ImportanceMode>(9)); }),
+              StartsWith(f + "importance:"));
+  // Distributed tracing builds maps without the camera's importons (§4.7).
+  for (v1::ImportanceMode mode : {v1::IMPORTANCE_MODE_ON, v1::IMPORTANCE_MODE_AUTO})
+    EXPECT_THAT(with([&](v1::PhotonMapSettings& p) {
+                  p.set_importance(mode);
+                  p.set_map_tracing(v1::MAP_TRACING_DISTRIBUTED);
+                }),
+                StartsWith(f + "map_tracing: distributed tracing does not build importance-driven maps"));
+  for (double bad : {0.0, -0.5, 1.5, double(NAN)})
+    EXPECT_THAT(with([&](v1::PhotonMapSettings& p) { p.set_importance_min_probability(bad); }),
+                StartsWith(f + "importance_min_probability:"));
+  for (double bad : {0.0, -1.0, 2e6, double(INFINITY), double(NAN)})
+    EXPECT_THAT(with([&](v1::PhotonMapSettings& p) { p.set_importance_strength(bad); }),
+                StartsWith(f + "importance_strength:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_importons(kMaxImportons + 1); }),
+              StartsWith(f + "importons:"));
   v1::RenderSettings none;
   EXPECT_THAT(ErrorOf([&] { SettingsFromProto(none, "spec.settings"); }),
               StartsWith("spec.settings.integrator:"));
