@@ -278,8 +278,9 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
     throw InputError(f + ".importons: must be <= " + std::to_string(kMaxImportons) + " (0 = one per pixel)");
   out.importons = pm.importons();
   if (out.map_tracing == MapTracingMode::kDistributed && out.importance != ImportanceMode::kOff)
-    throw InputError(f + ".map_tracing: distributed tracing does not build importance-driven maps (their "
-                         "importons come from the camera); use map_tracing auto or local with importance");
+    throw InputError(f +
+                     ".map_tracing: distributed tracing does not build importance-driven maps (their "
+                     "importons come from the camera); use map_tracing auto or local with importance");
   return out;
 }
 
