@@ -141,8 +141,11 @@ PhotonChunk DeserializePhotonChunk(std::string_view bytes) {
   chunk.origins = origins;
   for (PhotonChunk::List& l : chunk.lists) {
     const uint64_t n = r.Get<uint64_t>();
-    // Checked before allocating: a corrupt count must not allocate what the bytes cannot hold.
-    if (n > chunk.end - chunk.begin + 1 || n * (sizeof(Photon) + 4 * lights + 12 * origins) > r.remaining())
+    // Checked before allocating: a corrupt count must not allocate what the bytes cannot hold
+    // (divided, not multiplied: a huge count must not wrap). Not bounded by the photons emitted:
+    // a photon is stored at every diffuse bounce, so a bright closed room stores several per
+    // emitted photon (the furnace at albedo 0.8: ~4; test PhotonChunk.MoreStoredThanEmitted…).
+    if (n > r.remaining() / (sizeof(Photon) + 4 * lights + 12 * origins))
       r.Fail("truncated or corrupt list of " + std::to_string(n) + " photons");
     l.photons.resize(n);
     const std::string_view b = r.GetBytes(n * sizeof(Photon));

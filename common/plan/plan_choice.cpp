@@ -149,7 +149,8 @@ PlanChoice ChoosePlan(const PlanChoiceInput& in) {
       "workers{}",
       in.caustic_map ? "caustic map" : "budget too small to skip", maps, c.photons_per_map, budget,
       min_photons, spp / maps, c.plan.tile_size, n,
-      maps < n ? fmt::format("; {} workers share a map and each traces it", n) : "");
+      maps < n ? fmt::format("; {} workers share a map (traced once and fetched under --map-tracing auto)", n)
+               : "");
   return c;
 }
 

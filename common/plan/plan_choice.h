@@ -32,10 +32,11 @@ inline constexpr uint64_t kAutoTasksPerWorker = 4;
 // A task's result travels in one message (server/jobs/job_spec.h kMaxPixelsPerTask).
 inline constexpr uint64_t kAutoMaxPixelsPerTask = uint64_t(4) << 20;
 
-// Whether a map traced once can be fetched by the workers that render with it (issue #12, map
-// shipping): not yet, every worker traces the maps of its tasks. The coordinator and
-// `pf render --local-only --plan auto` pass it to ChoosePlan; switching it on makes auto choose
-// one large shared map (docs/farm.md, "Choosing the plan").
+// Whether auto should plan for one large shared map, traced once and fetched by the workers
+// (issue #12, map shipping, which exists: server/scheduling/distributed_maps.h). Off: per-task
+// maps use the same photon budget with no transfer and no coordinator balance on the critical
+// path (docs/farm.md, "Choosing the plan", says why and what switching it on changes). The
+// coordinator and `pf render --local-only --plan auto` pass it to ChoosePlan.
 inline constexpr bool kMapsCanBeShipped = false;
 
 struct PlanChoiceInput {

@@ -26,6 +26,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -153,7 +154,9 @@ class DistributedMaps final : public MapTracingHook {
   std::map<std::string, BuiltMap> on_disk_;                   // built maps found by Scan
   std::map<std::string, std::set<uint32_t>> chunks_on_disk_;  // pieces found by Scan
   Counters counters_;
-  Executor builder_{1};
+  // Unbounded queue: a refused Post would leave a map "building" with no build pending (its
+  // render tasks held forever); a queued build is a key, and maps are bounded by the jobs.
+  Executor builder_{1, std::numeric_limits<size_t>::max()};
 };
 
 // The content address of map `map_seed` of a job (see the header comment).
