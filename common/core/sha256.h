@@ -1,7 +1,7 @@
 #pragma once
 // SHA-256 (OpenSSL EVP) for content addresses and transfer checksums of binary artifacts
-// (photon maps and their chunks, docs/farm.md "Photon maps on the wire"). Scene bundles keep
-// their own copy in scene_bundle.cpp (their byte layout is documented there).
+// (photon maps and their chunks, docs/farm.md "Photon maps on the wire") and scene bundle hashes
+// (scene_bundle.cpp, whose byte layout is documented there).
 
 #include <memory>
 #include <string>

@@ -1,7 +1,5 @@
 #include "common/scene/scene_bundle.h"
 
-#include <openssl/evp.h>
-
 #include <algorithm>
 #include <cctype>
 #include <fstream>
@@ -10,6 +8,7 @@
 #include <sstream>
 
 #include "common/core/error.h"
+#include "common/core/sha256.h"
 #include "common/scene/scene_loader.h"
 #include "common/scene/scene_reference.h"
 
@@ -60,37 +59,19 @@ std::string PathProblem(const std::string& path) {
   return "";
 }
 
+// The bundle hash's hasher: SHA-256 (common/core/sha256.h) plus little-endian u64 fields.
 class Sha256 {
  public:
-  Sha256() : ctx_(EVP_MD_CTX_new(), &EVP_MD_CTX_free) {
-    if (!ctx_ || EVP_DigestInit_ex(ctx_.get(), EVP_sha256(), nullptr) != 1)
-      throw SystemError("SHA-256: OpenSSL initialisation failed");
-  }
-  void Update(std::string_view bytes) {
-    if (EVP_DigestUpdate(ctx_.get(), bytes.data(), bytes.size()) != 1)
-      throw SystemError("SHA-256: update failed");
-  }
+  void Update(std::string_view bytes) { hasher_.Update(bytes); }
   void UpdateU64(uint64_t v) {
     unsigned char le[8];
     for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>(v >> (8 * i));
     Update(std::string_view(reinterpret_cast<const char*>(le), 8));
   }
-  std::string HexDigest() {
-    unsigned char digest[EVP_MAX_MD_SIZE];
-    unsigned int len = 0;
-    if (EVP_DigestFinal_ex(ctx_.get(), digest, &len) != 1) throw SystemError("SHA-256: final failed");
-    static constexpr char kHex[] = "0123456789abcdef";
-    std::string hex;
-    hex.reserve(2 * len);
-    for (unsigned int i = 0; i < len; ++i) {
-      hex.push_back(kHex[digest[i] >> 4]);
-      hex.push_back(kHex[digest[i] & 15]);
-    }
-    return hex;
-  }
+  std::string HexDigest() { return hasher_.HexDigest(); }
 
  private:
-  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx_;
+  Sha256Hasher hasher_;
 };
 
 // Replaces every occurrence of `from` in `s` by `to`.
