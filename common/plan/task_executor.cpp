@@ -4,6 +4,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <bit>
 #include <chrono>
 #include <cstring>
 #include <stdexcept>
@@ -28,8 +29,10 @@ std::string JobRenderSettings::ImportanceFingerprint() const {
   if (importance == ImportanceMode::kOff) return "";
   const PhotonMapsOptions o = MapsOptions();
   return std::string(";importance=") + ImportanceModeName(importance) +
-         ";p_min=" + std::to_string(importance_min_probability) +
-         ";strength=" + std::to_string(importance_strength) + ";importons=" + std::to_string(importons) +
+         // Float bits, not std::to_string's 6 decimals: values closer than 1e-6 build other maps.
+         ";p_min=" + std::to_string(std::bit_cast<uint32_t>(importance_min_probability)) +
+         ";strength=" + std::to_string(std::bit_cast<uint32_t>(importance_strength)) +
+         ";importons=" + std::to_string(importons) +
          ";importon_bounces=" + std::to_string(o.importance.diffuse_bounces);
 }
 

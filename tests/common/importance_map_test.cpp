@@ -337,5 +337,21 @@ TEST(ImportanceMapTest, AutoPilotSeesWhereThePhotonsLand) {
   EXPECT_FALSE(into_a.enable);
 }
 
+// The map cache key tells apart importance parameters closer than std::to_string's 6 decimals
+// (two such jobs would otherwise share a cached map built with the other's parameters).
+TEST(ImportanceMapTest, FingerprintSeesTinyParameterDifferences) {
+  JobRenderSettings a;
+  a.importance = ImportanceMode::kOn;
+  a.importance_min_probability = 0.05f;
+  a.direct = DirectLightMode::kMonteCarlo;  // resolved (MapFingerprint reads the map options)
+  a.caustic = CausticMapMode::kOff;
+  JobRenderSettings b = a;
+  b.importance_min_probability = std::nextafter(0.05f, 1.0f);
+  EXPECT_NE(a.MapFingerprint(), b.MapFingerprint());
+  b = a;
+  b.importance_strength = std::nextafter(a.importance_strength, 0.0f);
+  EXPECT_NE(a.MapFingerprint(), b.MapFingerprint());
+}
+
 }  // namespace
 }  // namespace pf
