@@ -23,6 +23,14 @@ namespace v1 = photonfarm::v1;
 namespace {
 
 void FillTask(const Lease& lease, v1::Task* task, DistributedMaps& maps) {
+  // What every task carries: its lease, its scene and the job's settings.
+  task->set_job_id(lease.job_id);
+  task->set_attempt(lease.attempt);
+  task->set_lease_id(lease.lease_id);
+  task->set_lease_seconds(lease.lease_seconds);
+  task->set_scene_hash(lease.config->scene_hash);
+  task->set_scene_entry(lease.config->scene_entry);
+  SettingsToProto(lease.config->settings, task->mutable_settings());
   if (lease.chunk) {
     // A piece of a map to trace: no pixels, no camera (Task.trace_chunk).
     task->set_task_id(lease.task_id);
@@ -34,13 +42,6 @@ void FillTask(const Lease& lease, v1::Task* task, DistributedMaps& maps) {
     c->set_photon_end(lease.chunk->photon_end);
     c->set_chunk_index(lease.chunk->chunk_index);
     c->set_chunk_count(lease.chunk->chunk_count);
-    task->set_job_id(lease.job_id);
-    task->set_attempt(lease.attempt);
-    task->set_lease_id(lease.lease_id);
-    task->set_lease_seconds(lease.lease_seconds);
-    task->set_scene_hash(lease.config->scene_hash);
-    task->set_scene_entry(lease.config->scene_entry);
-    SettingsToProto(lease.config->settings, task->mutable_settings());
     return;
   }
   if (const std::optional<BuiltMap> map = maps.MapFor(lease.job_id, lease.task.map_index)) {
@@ -50,14 +51,7 @@ void FillTask(const Lease& lease, v1::Task* task, DistributedMaps& maps) {
     ref->set_digest(map->digest);
   }
   TaskSpecToProto(lease.task, task);
-  task->set_job_id(lease.job_id);
-  task->set_attempt(lease.attempt);
-  task->set_lease_id(lease.lease_id);
-  task->set_lease_seconds(lease.lease_seconds);
-  task->set_scene_hash(lease.config->scene_hash);
-  task->set_scene_entry(lease.config->scene_entry);
   CameraToProto(lease.config->camera, task->mutable_camera());
-  SettingsToProto(lease.config->settings, task->mutable_settings());
 }
 
 void RequireLeaseId(const std::string& id) {
