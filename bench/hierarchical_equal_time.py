@@ -35,6 +35,10 @@ those points is reported per scene, metric and reference.
     bench/hierarchical_equal_time.py [--scenes cornell-box,cornell-sphere,scene8] [--seeds 1]
     bench/hierarchical_equal_time.py --replot      # tables and plots again from the JSON
 
+--scale N renders every image at N times the scene's resolution (hierarchy levels + log2 N), where
+a map costs less against a pass over the image (the thesis measured at 513x513); the path-traced
+references exist at the native resolution only, so at N > 1 only the noise reference is used.
+
 Writes <out>/hierarchical-equal-time.json, .md and hierarchical-equal-time-<scene>.png.
 """
 import argparse
@@ -102,7 +106,8 @@ def interpolate(points, t):
 def equal_time(rows, scene, family, metric, reference):
     """Median over the multiple-maps points of error_family(t) / error_mm(t), and the points."""
     def curve(f):
-        return [(r["cpu_seconds"], r[reference][metric]) for r in rows if r["scene"] == scene and r["family"] == f]
+        return [(r["cpu_seconds"], r[reference][metric]) for r in rows
+                if r["scene"] == scene and r["family"] == f and r.get(reference) is not None]
     mm = curve("multiple-maps")
     other = curve(family)
     ratios = []
@@ -135,7 +140,8 @@ def plot(rows, scenes, out, name):
             for j, metric in enumerate(METRICS):
                 ax = axes[i][j]
                 for family, colour in colours.items():
-                    pts = sorted((r["cpu_seconds"], r[reference][metric]) for r in mine if r["family"] == family)
+                    pts = sorted((r["cpu_seconds"], r[reference][metric]) for r in mine
+                                 if r["family"] == family and r.get(reference) is not None)
                     if pts:
                         ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=colour, label=family)
                 ax.set_xscale("log")
@@ -171,6 +177,7 @@ def write_reports(result, out):
         "included. Reproduce: `bench/hierarchical_equal_time.py "
         f"--scenes {','.join(scenes)} --photons {a['photons']} --k {a['k']} --seeds {a['seeds']} "
         f"--reference-maps {a['reference_maps']}"
+        + (f" --scale {a['scale']}" if a.get("scale", 1) != 1 else "")
         + (f" --extra '{a['extra']}' --tag {a['tag']}" if a.get("extra") or a.get("tag") else "")
         + f"` (writes this file, {name}.json and the plots)." + (f" Every image with `{a['extra']}`." if a.get("extra") else ""),
         "",
@@ -204,11 +211,10 @@ def write_reports(result, out):
                   "rmse noise | masked noise | lowfreq noise |",
                   "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for r in mine:
-            p, n = r["path"], r["noise"]
+            def cells(d):
+                return " | ".join("–" if d is None else f"{d[m]:.4f}" for m in METRICS)
             lines.append(f"| {r['method']} | {r['maps_built']} | {r['tasks']} | {r['cpu_seconds']:.2f} | "
-                         f"{r['wall_seconds']:.1f} | {p['rmse']:.4f} | {p['rmse_masked']:.4f} | "
-                         f"{p['rmse_lowfreq']:.4f} | {n['rmse']:.4f} | {n['rmse_masked']:.4f} | "
-                         f"{n['rmse_lowfreq']:.4f} |")
+                         f"{r['wall_seconds']:.1f} | {cells(r['path'])} | {cells(r['noise'])} |")
         lines.append("")
         if f"{name}-{scene}.png" in plots:
             lines += [f"![{scene}: error against CPU time]({name}-{scene}.png)", ""]
@@ -229,6 +235,8 @@ def main():
     ap.add_argument("--work", help="folder for the images (kept; noise references are reused from it)")
     ap.add_argument("--out", default=str(ROOT / "docs/results"))
     ap.add_argument("--extra", default="", help="more pf render flags for every image (e.g. '--local-pass 4')")
+    ap.add_argument("--scale", type=int, default=1, choices=(1, 2, 4),
+                    help="render at this multiple of each scene's resolution (path reference skipped if > 1)")
     ap.add_argument("--tag", default="", help="output names hierarchical-equal-time-<tag>.* (default: no tag)")
     ap.add_argument("--replot", action="store_true")
     args = ap.parse_args()
@@ -245,6 +253,9 @@ def main():
     rows = []
     for scene in scenes:
         manifest, path_ref, res, levels = SCENES[scene]
+        if args.scale != 1:
+            w, h = (int(v) * args.scale for v in res.split("x"))
+            res, levels, path_ref = f"{w}x{h}", levels + int(math.log2(args.scale)), None
         common = [args.pf, "render", manifest, "--integrator", "photonmap", "--photons", str(args.photons), "--k",
                   str(args.k), "--res", res, "--spp", "1", "--local-only", "--threads", "1", "--no-png", "-q"]
         common += args.extra.split()
@@ -269,6 +280,8 @@ def main():
                 cpus.append(cpu)
                 walls.append(wall)
                 for ref, path in (("path", path_ref), ("noise", noise_ref)):
+                    if path is None:
+                        continue
                     d = judge(exr, path)
                     for m in METRICS:
                         errs[ref][m].append(d[m])
@@ -278,14 +291,17 @@ def main():
                    "maps_built": int(exr_string(exr, "photons.maps_built") or 0),
                    "tasks": int(exr_string(exr, "tasks") or 0)}
             for ref in REFERENCES:  # RMS over seeds
-                row[ref] = {m: math.sqrt(sum(v * v for v in errs[ref][m]) / len(errs[ref][m])) for m in METRICS}
+                row[ref] = {m: math.sqrt(sum(v * v for v in errs[ref][m]) / len(errs[ref][m])) for m in METRICS} \
+                    if errs[ref][METRICS[0]] else None
             rows.append(row)
+            pr = row["path"] or {m: float("nan") for m in METRICS}
             print(f"{scene:14s} {method:28s} maps {row['maps_built']:5d} cpu {row['cpu_seconds']:7.2f} s  "
-                  f"path {row['path']['rmse']:.4f}/{row['path']['rmse_masked']:.4f}/{row['path']['rmse_lowfreq']:.4f}"
+                  f"path {pr['rmse']:.4f}/{pr['rmse_masked']:.4f}/{pr['rmse_lowfreq']:.4f}"
                   f"  noise {row['noise']['rmse']:.4f}/{row['noise']['rmse_masked']:.4f}/"
                   f"{row['noise']['rmse_lowfreq']:.4f}", flush=True)
     result = {"args": {"photons": args.photons, "k": args.k, "seeds": args.seeds,
-                       "reference_maps": args.reference_maps, "extra": args.extra, "tag": args.tag},
+                       "reference_maps": args.reference_maps, "extra": args.extra, "tag": args.tag,
+                       "scale": args.scale},
               "scenes": scenes, "rows": rows}
     (out / f"{stem(args.tag)}.json").write_text(json.dumps(result, indent=2) + "\n")
     write_reports(result, out)

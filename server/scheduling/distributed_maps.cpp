@@ -22,6 +22,11 @@ namespace {
 constexpr std::string_view kLeasePrefix = "map-";
 constexpr std::string_view kMapSuffix = ".pfmaps";
 
+std::chrono::steady_clock::time_point Now() { return std::chrono::steady_clock::now(); }
+double Secs(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
 std::string ReadFile(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SystemError(path.string() + ": cannot read");
@@ -364,22 +369,27 @@ void DistributedMaps::Build(const std::string& key) {
       if (scheduler_) scheduler_->NotifyMapPieces();
       return;
     }
+    const auto t_read = std::chrono::steady_clock::now();
     const SceneDescription scene = LoadBundle(scenes_.DirectoryOf(config->scene_hash), config->scene_entry);
     PhotonMapsOptions mo = config->settings.Resolved(scene).MapsOptions();
     mo.tracing.map_seed = map_seed;
     mo.tracing.threads = options_.build_threads;
     const PhotonMaps maps = AssemblePhotonMaps(pieces, mo);
     std::vector<PhotonChunk>().swap(pieces);
+    const auto t_assembled = std::chrono::steady_clock::now();
     const std::string bytes = SerializePhotonMaps(maps);
+    const auto t_serialized = std::chrono::steady_clock::now();
     const fs::path file = options_.dir / (key + std::string(kMapSuffix));
     WriteFileAtomically(file, bytes);
     const BuiltMap built{key, bytes.size(), Hex(std::string_view(bytes).substr(bytes.size() - 32))};
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     spdlog::info(
         "job {} map {}: built once from {} pieces: {} global + {} caustic + {} direct photons, {} bytes, "
-        "assemble+balance {:.3f} s, read+assemble+write {:.3f} s (map {})",
+        "read {:.3f} s, assemble {:.3f} s (balance {:.3f} s), serialize {:.3f} s, write {:.3f} s: {:.3f} s "
+        "(map {})",
         job_id, map_index, count, maps.global->size(), maps.caustic ? maps.caustic->size() : 0,
-        maps.direct ? maps.direct->size() : 0, bytes.size(), maps.stats.build_seconds, seconds, Short(key));
+        maps.direct ? maps.direct->size() : 0, bytes.size(), Secs(t0, t_read), Secs(t_read, t_assembled),
+        maps.stats.build_seconds, Secs(t_assembled, t_serialized), Secs(t_serialized, Now()), seconds, Short(key));
     {
       std::lock_guard lock(mu_);
       Map& m = maps_.at(key);
