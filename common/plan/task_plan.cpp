@@ -86,6 +86,10 @@ uint32_t CountRounds(const PlanSpec& plan) {
   return plan.kind == PlanKind::kSkipping ? plan.rounds : 1;
 }
 
+uint32_t PlanExpansionVersion(const PlanSpec& plan) {
+  return plan.kind == PlanKind::kHierarchical ? 2 : 0;
+}
+
 std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed) {
   ValidatePlan(plan, width, height);
   if (plan.kind == PlanKind::kHierarchical) return HierarchicalStaticTasks(plan, width, height, job_seed);

@@ -73,6 +73,16 @@ uint64_t CountTasks(const PlanSpec& plan, int width, int height);
 uint32_t CountRounds(const PlanSpec& plan);  // 1 unless skipping
 std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed);
 
+// The version of `plan`'s expansion into tasks (task ids and what each task renders, including
+// the tasks a dynamic plan creates from results). A coordinator stores it with every job
+// (JobSpec.plan.expansion_version) and, after a restart, resumes a job's merged results only if
+// its own version is the same: a checkpoint lists task *ids*, which mean other tasks under
+// another expansion. Bump a plan's number whenever its expansion changes.
+//   static plans (a)-(c): 0, unchanged since the first release;
+//   hierarchical: 2 (1: localization tasks per level; 2: one batch per level-0 map and row band
+//   once all levels are complete, docs/renderer.md "Localization").
+uint32_t PlanExpansionVersion(const PlanSpec& plan);
+
 uint64_t MapSeed(uint64_t job_seed, uint64_t map_index);
 uint64_t PixelSeed(uint64_t job_seed, uint64_t map_index);
 

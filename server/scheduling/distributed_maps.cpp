@@ -22,7 +22,9 @@ namespace {
 constexpr std::string_view kLeasePrefix = "map-";
 constexpr std::string_view kMapSuffix = ".pfmaps";
 
-std::chrono::steady_clock::time_point Now() { return std::chrono::steady_clock::now(); }
+std::chrono::steady_clock::time_point Now() {
+  return std::chrono::steady_clock::now();
+}
 double Secs(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
@@ -389,7 +391,8 @@ void DistributedMaps::Build(const std::string& key) {
         "(map {})",
         job_id, map_index, count, maps.global->size(), maps.caustic ? maps.caustic->size() : 0,
         maps.direct ? maps.direct->size() : 0, bytes.size(), Secs(t0, t_read), Secs(t_read, t_assembled),
-        maps.stats.build_seconds, Secs(t_assembled, t_serialized), Secs(t_serialized, Now()), seconds, Short(key));
+        maps.stats.build_seconds, Secs(t_assembled, t_serialized), Secs(t_serialized, Now()), seconds,
+        Short(key));
     {
       std::lock_guard lock(mu_);
       Map& m = maps_.at(key);

@@ -163,6 +163,8 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
 // Jobs
 
 std::unique_ptr<Job> Scheduler::PrepareJob(JobConfig config) {
+  // The expansion that creates this job's tasks, stored with its spec (recovery.cpp compares it).
+  config.spec.mutable_plan()->set_expansion_version(PlanExpansionVersion(config.plan));
   std::vector<TaskSpec> tasks = ScheduledTasks(config);
   auto shared = std::make_shared<const JobConfig>(std::move(config));
   std::pair<uint64_t, std::string> id;

@@ -180,6 +180,29 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       }
       continue;
     }
+    // A checkpoint and a journal name merged tasks by id; under another version of the plan's
+    // expansion the ids mean other tasks (task_plan.h, PlanExpansionVersion). Such a job restarts
+    // from zero merges: its image stays right, only the work since its submit is redone.
+    const uint32_t stored_version = config.spec.plan().expansion_version();
+    const uint32_t current_version = PlanExpansionVersion(config.plan);
+    if (!finished && stored_version != current_version) {
+      std::error_code ec;
+      for (const fs::path& f : {Persister::CheckpointFile(checkpoint_dir, row.job_id),
+                                Persister::JournalFile(checkpoint_dir, row.job_id)})
+        if (fs::exists(f, ec)) {
+          fs::path aside = f;
+          aside += ".expansion-v" + std::to_string(stored_version);
+          fs::rename(f, aside, ec);
+        }
+      spdlog::warn(
+          "job {}: created under plan expansion version {}, this coordinator's is {}: its merged results "
+          "(checkpoint, journal) are set aside with the suffix .expansion-v{} and its tasks re-run",
+          row.job_id, stored_version, current_version, stored_version);
+      config.spec.mutable_plan()->set_expansion_version(current_version);
+      row.spec = config.spec.SerializeAsString();
+      db.UpdateJobSpec(row.job_id, row.spec);
+      ++report.jobs_reexpanded;
+    }
     std::vector<TaskSpec> tasks = ScheduledTasks(config);
     auto job =
         std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),

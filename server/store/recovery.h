@@ -32,6 +32,7 @@ struct RecoveryReport {
   uint64_t tasks_from_journal = 0;
   uint64_t tasks_requeued = 0;
   uint64_t journals_damaged = 0;  // damage before the end: acknowledged results lost (re-run)
+  uint64_t jobs_reexpanded = 0;   // stored under another plan expansion version: re-run from zero
 };
 
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes,

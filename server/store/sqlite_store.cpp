@@ -268,6 +268,11 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
   tx.Commit();
 }
 
+void SqliteStore::UpdateJobSpec(const std::string& job_id, const std::string& spec) {
+  std::lock_guard lock(mu_);
+  Statement(db_, "UPDATE jobs SET spec = ?2 WHERE id = ?1").Text(1, job_id).Blob(2, spec).Run();
+}
+
 std::vector<JobRow> SqliteStore::LoadJobs() {
   std::lock_guard lock(mu_);
   std::vector<JobRow> out;

@@ -44,6 +44,9 @@ class SqliteStore {
   // Updates of existing rows, in one transaction (jobs: state, failure reason, elapsed time,
   // samples merged, noise; tasks: upserted).
   void Apply(const std::vector<JobRow>& jobs, const std::vector<TaskRow>& tasks);
+  // Replaces a job's stored spec (recovery: a job re-expanded under this coordinator's plan
+  // expansion version, recovery.cpp).
+  void UpdateJobSpec(const std::string& job_id, const std::string& spec);
   std::vector<JobRow> LoadJobs();                             // in submission order
   std::vector<TaskRow> LoadTasks(const std::string& job_id);  // by task id
 

@@ -528,7 +528,8 @@ namespace {
 // after some of them were merged (checkpoint) and one more acknowledged (journal): recovery
 // re-derives the created tasks from those results, re-runs only the rest, and ends bit-identical
 // to a run without a crash.
-TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
+// A hierarchical job whose localization creates tasks from results (a dynamic plan).
+v1::JobSpec HierarchicalSpec() {
   v1::JobSpec spec = SkippingSpec(2, 1);
   v1::Hierarchical* h = spec.mutable_plan()->mutable_hierarchical();
   h->set_levels(2);
@@ -540,7 +541,11 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
   h->set_localize_contrast(0);
   h->set_samples_per_pixel(1);
   h->set_rows_per_task(4);  // 3 row bands: up to n0 × 3 localization tasks
-  const JobConfig config = ValidateJobSpec(spec, catalog);
+  return spec;
+}
+
+TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
+  const JobConfig config = ValidateJobSpec(HierarchicalSpec(), catalog);
   const uint64_t static_tasks = ScheduledTasks(config).size();
 
   Scheduler reference(clock, {});
@@ -590,6 +595,61 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
   EXPECT_EQ(s.samples_merged(), ref_status.samples_merged());
   const JobSnapshot after = scheduler.Snapshot(id, true), ref = reference.Snapshot(ref_id, true);
   ASSERT_TRUE(after.image && ref.image);
+  for (size_t p = 0; p < ref.image->image.size(); ++p)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(after.image->image[p][c], ref.image->image[p][c]) << p;
+}
+
+// A checkpoint names merged tasks by id. A job stored under another version of its plan's
+// expansion (task_plan.h PlanExpansionVersion) must not resume them: its results are set aside,
+// its tasks re-run, and it ends with the image of an uninterrupted run.
+TEST_F(Recovery, AJobOfAnotherPlanExpansionVersionIsReRunFromZero) {
+  const JobConfig config = ValidateJobSpec(HierarchicalSpec(), catalog);
+  ASSERT_EQ(PlanExpansionVersion(config.plan), 2u);
+  Scheduler reference(clock, {});
+  std::unique_ptr<Job> ref_job = reference.PrepareJob(config);
+  EXPECT_EQ(ref_job->config().spec.plan().expansion_version(), 2u) << "stamped at submit";
+  const std::string ref_id = ref_job->id();
+  reference.AddJob(std::move(ref_job));
+  while (std::optional<Lease> l = reference.TryLease({"w", {}})) Complete(reference, *l);
+  const JobSnapshot ref = reference.Snapshot(ref_id, true);
+  ASSERT_TRUE(ref.image);
+
+  std::string id;
+  {
+    auto db = std::make_unique<SqliteStore>(db_file);
+    auto scheduler = std::make_unique<Scheduler>(clock, SchedulerOptions{});
+    auto persister = std::make_unique<Persister>(*scheduler, *db, cp_dir, clock, /*interval=*/0);
+    id = SubmitStored(*scheduler, *db, config);
+    for (int i = 0; i < 3; ++i) Complete(*scheduler, *scheduler->TryLease({"w1", {}}));
+    persister->FlushNow();
+    persister->Abandon();
+  }
+  ASSERT_TRUE(fs::exists(Persister::CheckpointFile(cp_dir, id)));
+  // As if an older coordinator (expansion version 1) had stored the job.
+  {
+    SqliteStore db(db_file);
+    v1::JobSpec old_spec = config.spec;
+    old_spec.mutable_plan()->set_expansion_version(1);
+    db.UpdateJobSpec(id, old_spec.SerializeAsString());
+  }
+
+  SqliteStore db(db_file);
+  Scheduler scheduler(clock, SchedulerOptions{});
+  const RecoveryReport report = RecoverJobs(db, catalog, cp_dir, scheduler, clock);
+  EXPECT_EQ(report.jobs_reexpanded, 1u);
+  EXPECT_EQ(report.jobs_resumed, 1u);
+  EXPECT_EQ(report.tasks_merged, 0u) << "the old checkpoint's task ids are not trusted";
+  EXPECT_FALSE(fs::exists(Persister::CheckpointFile(cp_dir, id)));
+  fs::path aside = Persister::CheckpointFile(cp_dir, id);
+  aside += ".expansion-v1";
+  EXPECT_TRUE(fs::exists(aside)) << "set aside, not deleted";
+  v1::JobSpec stored;
+  ASSERT_TRUE(stored.ParseFromString(db.LoadJobs().at(0).spec));
+  EXPECT_EQ(stored.plan().expansion_version(), 2u) << "a second restart resumes normally";
+  while (std::optional<Lease> l = scheduler.TryLease({"w3", {}})) Complete(scheduler, *l);
+  EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+  const JobSnapshot after = scheduler.Snapshot(id, true);
+  ASSERT_TRUE(after.image);
   for (size_t p = 0; p < ref.image->image.size(); ++p)
     for (int c = 0; c < 3; ++c) ASSERT_EQ(after.image->image[p][c], ref.image->image[p][c]) << p;
 }
