@@ -72,16 +72,21 @@ PhotonChunk TracePhotonChunk(const EmbreeScene& scene, const LightSampler& light
   chunk.light_ids = options.keep_light_ids;
   chunk.origins = options.keep_origins;
   const std::array<const TracedPhotons*, 3> from = {&traced.direct, &traced.indirect, &traced.caustic};
+  // Direct photons that no map will hold (PhotonMapsOptions::direct_map) do not travel; their
+  // power still counts in stored_power, as in a one-process PhotonMaps::Build.
+  const bool drop_direct = options.separate_direct && !options.direct_map;
   for (int k = 0; k < 3; ++k) {
     PhotonChunk::List& list = chunk.lists[k];
-    list.photons.reserve(from[k]->size());
+    const bool drop = drop_direct && k == int(PhotonKind::kDirect);
+    if (!drop) list.photons.reserve(from[k]->size());
     for (const TracedPhoton& p : *from[k]) {
-      list.photons.push_back(Photon::Make(p.position, p.direction, p.power));
-      if (chunk.light_ids) list.light.push_back(p.light);
-      if (chunk.origins) list.origin.push_back(p.origin);
       chunk.stored_power[0] += p.power.r;
       chunk.stored_power[1] += p.power.g;
       chunk.stored_power[2] += p.power.b;
+      if (drop) continue;
+      list.photons.push_back(Photon::Make(p.position, p.direction, p.power));
+      if (chunk.light_ids) list.light.push_back(p.light);
+      if (chunk.origins) list.origin.push_back(p.origin);
     }
   }
   return chunk;
@@ -202,7 +207,10 @@ PhotonMaps AssemblePhotonMaps(std::span<const PhotonChunk> chunks, const PhotonM
     arena.execute([&] {
       tbb::parallel_invoke(
           [&] { maps.global = FillFromChunks(options, chunks, {kIndirect}, &maps.global_attributes); },
-          [&] { maps.direct = FillFromChunks(options, chunks, {kDirect}, &maps.direct_attributes); });
+          [&] {
+            if (options.direct_map)
+              maps.direct = FillFromChunks(options, chunks, {kDirect}, &maps.direct_attributes);
+          });
     });
   } else {
     maps.global = FillFromChunks(options, chunks, {kDirect, kIndirect}, &maps.global_attributes);
@@ -220,7 +228,7 @@ PhotonMaps AssemblePhotonMaps(std::span<const PhotonChunk> chunks, const PhotonM
   maps.stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   maps.stats.stored_global = maps.global->size();
   maps.stats.stored_caustic = maps.caustic ? maps.caustic->size() : 0;
-  maps.stats.stored_direct = direct;
+  maps.stats.stored_direct = maps.direct ? direct : 0;
   return maps;
 }
 

@@ -140,7 +140,9 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
     arena.execute([&] {
       tbb::parallel_invoke(
           [&] { maps.global = MakeFilled(options, {&traced.indirect}, &maps.global_attributes); },
-          [&] { maps.direct = MakeFilled(options, {&traced.direct}, &maps.direct_attributes); });
+          [&] {
+            if (options.direct_map) maps.direct = MakeFilled(options, {&traced.direct}, &maps.direct_attributes);
+          });
     });
   } else {
     maps.global = MakeFilled(options, {&traced.direct, &traced.indirect}, &maps.global_attributes);
@@ -155,7 +157,7 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
   maps.stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   maps.stats.stored_global = maps.global->size();
   maps.stats.stored_caustic = maps.caustic ? maps.caustic->size() : 0;
-  maps.stats.stored_direct = traced.direct.size();
+  maps.stats.stored_direct = maps.direct ? traced.direct.size() : 0;
   spdlog::info(
       "photon maps (seed {}): {} emitted, {} global + {} caustic stored ({} direct), trace {:.2f}s, build "
       "{:.2f}s",

@@ -22,7 +22,8 @@ std::string JobRenderSettings::MapFingerprint() const {
          ";kd=" + std::to_string(int(kd_split)) + ";caustic=" + std::to_string(int(caustic)) +
          ";k=" + std::to_string(k) + ";separate_direct=" + std::to_string(o.separate_direct) +
          ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins) +
-         ";sampler=" + SamplerName(sampler) + ImportanceFingerprint();
+         ";sampler=" + SamplerName(sampler) + (o.separate_direct && !o.direct_map ? ";direct_map=0" : "") +
+         ImportanceFingerprint();
 }
 
 std::string JobRenderSettings::ImportanceFingerprint() const {

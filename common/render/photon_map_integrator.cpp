@@ -52,8 +52,14 @@ RadianceEstimateOptions DefaultDirectPhotonOptions(const RadianceEstimateOptions
   return o;
 }
 
+bool DirectMapRead(const PhotonMapIntegratorOptions& options) {
+  return options.direct == DirectLightMode::kPhotonDirect ||
+         (options.direct != DirectLightMode::kNone && options.local_pass_rays > 0);
+}
+
 void ConfigureMapsFor(const PhotonMapIntegratorOptions& options, PhotonMapsOptions* maps) {
   maps->separate_direct = options.direct != DirectLightMode::kNone;
+  maps->direct_map = DirectMapRead(options);
   maps->keep_light_ids = options.direct == DirectLightMode::kPhotonDirect;
   maps->keep_origins = options.global.occlusion_test || options.caustic.occlusion_test;
 }
@@ -63,7 +69,7 @@ PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSa
     : scene_(scene), lights_(lights), maps_(maps), options_(options) {
   if (options.direct != DirectLightMode::kNone && !lights)
     throw InputError("direct light: a light sampler is required");
-  if (options.direct != DirectLightMode::kNone && !maps.direct)
+  if (DirectMapRead(options) && !maps.direct)
     throw InputError("direct light: the photon maps were built without a separate direct map");
   if (options.direct == DirectLightMode::kMonteCarlo)
     monte_carlo_ = std::make_unique<MonteCarloDirectLight>(scene, *lights, options.monte_carlo);

@@ -79,6 +79,9 @@ RadianceEstimateOptions DefaultDirectPhotonOptions(const RadianceEstimateOptions
 
 // What the photon maps of a given integrator configuration must contain.
 void ConfigureMapsFor(const PhotonMapIntegratorOptions& options, PhotonMapsOptions* maps);
+// Whether an estimator of `options` reads the separate direct map: PhotonDirect (§4.2.3), or the
+// local pass's gather hits (§4.3, precomputed irradiance included) next to separate direct light.
+bool DirectMapRead(const PhotonMapIntegratorOptions& options);
 
 class PhotonMapIntegrator final : public Integrator {
  public:

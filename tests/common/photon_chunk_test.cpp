@@ -34,8 +34,12 @@ TEST(PhotonChunk, PiecesAssembleToTheOneProcessMap) {
     const char* scene;
     std::optional<DirectLightMode> direct;
     bool occlusion;
+    uint32_t local_pass = 0;
   };
+  // Monte Carlo direct light (auto on the Cornell box) without a local pass stores no direct map;
+  // with the local pass it does (DirectMapRead).
   for (const Case& c : {Case{"cornell-box/cornell-box.json", std::nullopt, false},
+                        Case{"cornell-box/cornell-box.json", DirectLightMode::kMonteCarlo, false, 2},
                         Case{"cornell-box/cornell-box.json", DirectLightMode::kPhotonDirect, true},
                         Case{"cornell-sphere/cornell-sphere.json", DirectLightMode::kNone, false}}) {
     SCOPED_TRACE(c.scene);
@@ -44,6 +48,7 @@ TEST(PhotonChunk, PiecesAssembleToTheOneProcessMap) {
     s.photons = 30001;  // the last piece ends off the 4096 grid
     s.direct = c.direct;
     s.occlusion_test = c.occlusion;
+    s.local_pass_rays = c.local_pass;
     PhotonMapsOptions mo = s.Resolved(scene.description).MapsOptions();
     mo.tracing.map_seed = 99;
     mo.tracing.threads = 2;

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "common/core/error.h"
 #include "common/render/camera.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
@@ -57,6 +58,53 @@ TEST(PixelRadiusHint, SamePhotonsAsWithoutAndDeterministic) {
     }
     ASSERT_GT(sum, 0.0);
   }
+}
+
+// The separate direct map is built only when an estimator reads it (DirectMapRead): with Monte
+// Carlo direct light and no local pass nothing does, so it is dropped, and the image is the one
+// rendered with it present, bit for bit. PhotonDirect and the local pass still get it.
+TEST(DirectMap, BuiltOnlyWhenReadAndTheImageIsTheSameWithout) {
+  const SceneDescription scene =
+      LoadScene(std::filesystem::path(PF_SOURCE_DIR) / "scenes/cornell-box/cornell-box.json");
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  CameraSpec spec = scene.cameras.front();
+  spec.width = spec.height = 24;
+  const Camera camera(spec);
+  PhotonMapIntegratorOptions io;
+  io.global.k = 30;
+  io.direct = DirectLightMode::kMonteCarlo;
+  PhotonMapsOptions mo;
+  mo.tracing.photons = 20000;
+  mo.tracing.map_seed = 7;
+  ConfigureMapsFor(io, &mo);
+  EXPECT_TRUE(mo.separate_direct);
+  EXPECT_FALSE(mo.direct_map) << "Monte Carlo direct light without a local pass reads no direct photons";
+  const PhotonMaps without = PhotonMaps::Build(accel, lights, mo);
+  PhotonMapsOptions with_direct = mo;
+  with_direct.direct_map = true;
+  const PhotonMaps with = PhotonMaps::Build(accel, lights, with_direct);
+  ASSERT_FALSE(without.direct);
+  ASSERT_TRUE(with.direct);
+  EXPECT_GT(with.direct->size(), 0u);
+  ASSERT_EQ(without.global->size(), with.global->size());
+  for (size_t i = 0; i < with.global->size(); ++i)
+    ASSERT_EQ(std::memcmp(&without.global->photon(i), &with.global->photon(i), sizeof(Photon)), 0) << i;
+  auto render = [&](const PhotonMaps& maps) {
+    const PhotonMapIntegrator integrator(accel, &lights, maps, io);
+    return RenderImage(integrator, camera, RenderOptions{.spp = 2, .seed = 5, .threads = 2});
+  };
+  const Image a = render(without), b = render(with);
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(std::memcmp(a.pixels().data(), b.pixels().data(), a.size() * sizeof(Rgb)), 0);
+
+  PhotonMapIntegratorOptions local = io;
+  local.local_pass_rays = 2;
+  EXPECT_TRUE(DirectMapRead(local)) << "the local pass's gather hits read the direct photons";
+  PhotonMapIntegratorOptions photon_direct = io;
+  photon_direct.direct = DirectLightMode::kPhotonDirect;
+  EXPECT_TRUE(DirectMapRead(photon_direct));
+  EXPECT_THROW(PhotonMapIntegrator(accel, &lights, without, local), InputError);
 }
 
 }  // namespace
