@@ -141,7 +141,8 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
       tbb::parallel_invoke(
           [&] { maps.global = MakeFilled(options, {&traced.indirect}, &maps.global_attributes); },
           [&] {
-            if (options.direct_map) maps.direct = MakeFilled(options, {&traced.direct}, &maps.direct_attributes);
+            if (options.direct_map)
+              maps.direct = MakeFilled(options, {&traced.direct}, &maps.direct_attributes);
           });
     });
   } else {
