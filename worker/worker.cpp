@@ -270,12 +270,35 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   if (!parsed) return Outcome::kDone;
   spdlog::info("leased {} map={} pixels={} samples={} lease={:.1f}s", ctx, task.map_index(), parsed->pixels,
                parsed->spec.sample_end - parsed->spec.sample_begin, task.lease_seconds());
+  std::shared_ptr<Execution> exec = NewExecution(parsed->pixels, task.lease_seconds());
+  LeaseKeeper keeper(this, task, ctx, exec);
   std::shared_ptr<const SceneRuntime> scene;
   if (const std::optional<Outcome> ended = GetScene(task, ctx, &scene)) return *ended;
   LogAutoSettings(task, ctx, parsed->settings, *scene);
   if (task.has_map() && parsed->settings.integrator == IntegratorKind::kPhotonMap)
     if (const std::optional<Outcome> ended = ObtainMap(task, ctx, *parsed, *scene)) return *ended;
-  return ExecuteSupervised(task, ctx, *parsed, std::move(scene), t0);
+  return ExecuteSupervised(task, ctx, *parsed, std::move(scene), t0, std::move(exec), keeper);
+}
+
+std::shared_ptr<Worker::Execution> Worker::NewExecution(uint64_t pixels, double lease_seconds) {
+  auto exec = std::make_shared<Execution>();
+  exec->pixels = std::max<uint64_t>(pixels, 1);
+  exec->lease_seconds = lease_seconds > 0 ? lease_seconds : 30.0;
+  return exec;
+}
+
+Worker::LeaseKeeper::LeaseKeeper(Worker* worker, const v1::Task& task, std::string ctx,
+                                 std::shared_ptr<Execution> exec)
+    : exec_(exec),
+      thread_([worker, &task, ctx = std::move(ctx), exec] { worker->Heartbeat(task, ctx, exec); }) {}
+
+void Worker::LeaseKeeper::Stop() {
+  {
+    std::lock_guard lock(exec_->mutex);
+    exec_->stop_heartbeat = true;
+    exec_->cv.notify_all();
+  }
+  if (thread_.joinable()) thread_.join();
 }
 
 // Parse first: a task we cannot even read goes straight back as a permanent failure.
@@ -335,30 +358,19 @@ void Worker::LogAutoSettings(const v1::Task& task, const std::string& ctx, const
 // and the stop requests; a heartbeat thread extends the lease meanwhile.
 Worker::Outcome Worker::ExecuteSupervised(const v1::Task& task, const std::string& ctx,
                                           const ParsedTask& parsed, std::shared_ptr<const SceneRuntime> scene,
-                                          Clock::time_point t0) {
+                                          Clock::time_point t0, std::shared_ptr<Execution> exec,
+                                          LeaseKeeper& keeper) {
   const std::vector<uint64_t> cached = maps_->CachedSeeds();
   const bool map_cached = parsed.settings.integrator == IntegratorKind::kPath ||
                           std::find(cached.begin(), cached.end(), parsed.spec.map_seed) != cached.end();
   SetState(map_cached ? State::kRendering : State::kBuildingMap, ctx);
-  auto exec = std::make_shared<Execution>();
-  exec->pixels = std::max<uint64_t>(parsed.pixels, 1);
-  exec->lease_seconds = task.lease_seconds() > 0 ? task.lease_seconds() : 30.0;
   render_in_flight_ = true;
   std::thread render =
       StartRender(exec, std::move(scene), parsed, task.scene_hash(), maps_, options_.threads);
-  std::thread heartbeat([this, &task, ctx, exec] { Heartbeat(task, ctx, exec); });
-  auto stop_heartbeat = [&] {
-    {
-      std::lock_guard lock(exec->mutex);
-      exec->stop_heartbeat = true;
-      exec->cv.notify_all();
-    }
-    if (heartbeat.joinable()) heartbeat.join();
-  };
 
   bool abandoned_logged = false, lease_lost = false;
   if (SuperviseUntilHandBack(ctx, *exec, &abandoned_logged, &lease_lost)) {
-    stop_heartbeat();
+    keeper.Stop();
     if (!lease_lost) {
       spdlog::info("handed-back {}: shutting down before the task finished", ctx);
       SendFail(task, ctx, "worker " + options_.worker_id + " shutting down", true);
@@ -371,7 +383,7 @@ Worker::Outcome Worker::ExecuteSupervised(const v1::Task& task, const std::strin
   }
   render.join();
   render_in_flight_ = false;
-  stop_heartbeat();
+  keeper.Stop();
   return FinishExecution(task, ctx, *exec, abandoned_logged, t0);
 }
 

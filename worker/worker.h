@@ -6,13 +6,13 @@
 //       │   ▼ unreachable     │  └──────────────────┐                               ▼
 //     backoff (jittered) ◀────┘ UNAVAILABLE        reporting (CompleteTask) ◀── rendering
 //
-// and `stopping` after SIGTERM. Every RPC has a deadline. While a task renders (on a thread of
-// its own, using all the worker's threads), a heartbeat thread extends the lease every third of
-// its duration; if the coordinator answers that the lease is gone, the result is abandoned and
-// the render is cancelled (it stops within a block of pixels or a chunk of photons).
-// Results are the subset's pixel sums only (common/plan/task_executor.h), never a full image.
-// A finished result survives a coordinator outage: CompleteTask is retried with backoff for
-// `report_retry_seconds`.
+// and `stopping` after SIGTERM. Every RPC has a deadline. From the lease to the report (the
+// scene and map fetches, a piece's trace and upload, the render on a thread of its own using all
+// the worker's threads), a heartbeat thread extends the lease every third of its duration; if
+// the coordinator answers that the lease is gone, the result is abandoned and the render is cancelled (it
+// stops within a block of pixels or a chunk of photons). Results are the subset's pixel sums only
+// (common/plan/task_executor.h), never a full image. A finished result survives a coordinator outage:
+// CompleteTask is retried with backoff for `report_retry_seconds`.
 //
 // SIGTERM (RequestStop): no new leases; the current task is finished and reported if that
 // happens within `grace_seconds`, else its lease is handed back with FailTask(retryable).
@@ -105,6 +105,24 @@ class Worker {
  private:
   struct Execution;
   enum class Outcome { kDone, kConnectionLost, kStop };
+  // Keeps one task's lease alive on a thread of its own from the moment the task is leased until
+  // it is reported: the scene and map fetches and a piece's upload included, not only the render
+  // (a large map's fetch can take a good part of the lease). Stop() (or the destructor) ends it.
+  class LeaseKeeper {
+   public:
+    LeaseKeeper(Worker* worker, const photonfarm::v1::Task& task, std::string ctx,
+                std::shared_ptr<Execution> exec);
+    LeaseKeeper(const LeaseKeeper&) = delete;
+    LeaseKeeper& operator=(const LeaseKeeper&) = delete;
+    ~LeaseKeeper() { Stop(); }
+    void Stop();
+
+   private:
+    std::shared_ptr<Execution> exec_;
+    std::thread thread_;
+  };
+  // A task's shared execution state (defined in worker.cpp); lease_seconds <= 0 means 30 s.
+  static std::shared_ptr<Execution> NewExecution(uint64_t pixels, double lease_seconds);
 
   void SetState(State s, const std::string& context = "");
   bool WaitForConnection();
@@ -131,7 +149,8 @@ class Worker {
                        const JobRenderSettings& settings, const SceneRuntime& scene);
   Outcome ExecuteSupervised(const photonfarm::v1::Task& task, const std::string& ctx,
                             const ParsedTask& parsed, std::shared_ptr<const SceneRuntime> scene,
-                            std::chrono::steady_clock::time_point t0);
+                            std::chrono::steady_clock::time_point t0, std::shared_ptr<Execution> exec,
+                            LeaseKeeper& keeper);
   static std::thread StartRender(std::shared_ptr<Execution> exec, std::shared_ptr<const SceneRuntime> scene,
                                  const ParsedTask& parsed, const std::string& scene_hash,
                                  std::shared_ptr<PhotonMapCache> maps, int threads);
@@ -157,7 +176,8 @@ class Worker {
   bool UploadChunk(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& bytes,
                    grpc::Status* status);
   void ObserveTracing(uint64_t photons, double seconds);
-  // Test hook (docs/farm.md): PF_TEST_PAUSE_AT=trace|upload|fetch sleeps there (for SIGKILL tests).
+  // Test hook (docs/farm.md): PF_TEST_PAUSE_AT=trace|upload|fetch sleeps there (for SIGKILL tests),
+  // PF_TEST_PAUSE_SECONDS long (default 120).
   void TestPause(const char* where, const std::string& ctx);
 
   bool stop_requested() const { return stop_.load(); }

@@ -3,6 +3,7 @@
 // cache, by FetchMap, or by tracing it here when the cost model says that is faster.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <thread>
 
@@ -56,8 +57,12 @@ void Worker::TestPause(const char* where, const std::string& ctx) {
   const size_t colon = spec.find(':');
   if (spec.substr(0, colon) != where) return;
   if (colon != std::string::npos && ctx.find(spec.substr(colon + 1)) == std::string::npos) return;
-  spdlog::warn("test-pause at {} {} (PF_TEST_PAUSE_AT; test hook)", where, ctx);
-  std::this_thread::sleep_for(std::chrono::seconds(120));
+  // PF_TEST_PAUSE_SECONDS (default 120): a pause that ends, to stand for a slow step.
+  const char* seconds = std::getenv("PF_TEST_PAUSE_SECONDS");
+  const double pause = seconds ? std::clamp(std::atof(seconds), 0.0, 120.0) : 120.0;
+  spdlog::warn("test-pause at {} {} for {:.1f} s (PF_TEST_PAUSE_AT; test hook)", where, ctx, pause);
+  std::this_thread::sleep_for(std::chrono::duration<double>(pause));
+  spdlog::warn("test-pause over at {} {}", where, ctx);
 }
 
 void Worker::ObserveTracing(uint64_t photons, double seconds) {
@@ -88,6 +93,8 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
   }
   spdlog::info("leased-piece {} photons=[{}, {}) lease={:.1f}s", ctx, piece.photon_begin(),
                piece.photon_end(), task.lease_seconds());
+  // The lease is kept alive from here to the upload's end (scene fetch, trace, upload).
+  LeaseKeeper keeper(this, task, ctx, NewExecution(1, task.lease_seconds()));
   std::shared_ptr<const SceneRuntime> scene;
   if (const std::optional<Outcome> ended = GetScene(task, ctx, &scene)) return *ended;
   SetState(State::kBuildingMap, ctx);
@@ -117,6 +124,7 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
   grpc::Status status;
   const Clock::time_point t1 = Clock::now();
   const bool accepted = UploadChunk(task, ctx, bytes, &status);
+  keeper.Stop();
   if (!status.ok()) {
     if (IsConnectionError(status)) {
       spdlog::warn("UploadPhotonChunk {}: {}; the lease will expire", ctx, StatusToString(status));

@@ -294,7 +294,32 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
                                                                       std::to_string(kMaxPhotonChunkBytes)));
         return;
       }
-      bytes_.reserve(size_t(total_));
+      // Admitted before anything is buffered: a live piece lease, one stream at a time (a stale
+      // lease answers at once, accepted = false, as a late piece would after its upload).
+      const grpc::Status well_formed = Guarded("UploadPhotonChunk", [&] {
+        RequireLeaseId(lease_id_);
+        return grpc::Status::OK;
+      });
+      if (!well_formed.ok()) {
+        Finish(well_formed);
+        return;
+      }
+      switch (ctx_.maps.BeginUpload(lease_id_)) {
+        case DistributedMaps::UploadAdmission::kNotLive:
+          response_->set_accepted(false);
+          Finish(grpc::Status::OK);
+          return;
+        case DistributedMaps::UploadAdmission::kBusy:
+          Finish(grpc::Status(grpc::StatusCode::ALREADY_EXISTS,
+                              "lease_id: an upload for this piece lease is already in progress"));
+          return;
+        case DistributedMaps::UploadAdmission::kAdmitted:
+          admitted_ = true;
+          break;
+      }
+      // The declared size is reserved up to 16 MiB only; past that the buffer grows with the
+      // bytes that really arrive.
+      bytes_.reserve(size_t(std::min<uint64_t>(total_, uint64_t(16) << 20)));
     }
     if (part_.data().size() > kMapPartBytes || part_.offset() != bytes_.size() ||
         bytes_.size() + part_.data().size() > total_) {
@@ -311,7 +336,10 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
     ++parts_;
     StartRead(&part_);
   }
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    if (admitted_) ctx_.maps.EndUpload(lease_id_);
+    delete this;
+  }
 
  private:
   grpc::Status Verify() {
@@ -340,6 +368,7 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
   std::string lease_id_, digest_, bytes_;
   uint64_t total_ = 0;
   size_t parts_ = 0;
+  bool admitted_ = false;
   std::vector<std::string> part_sums_;
   std::vector<size_t> part_ends_;
 };

@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <fstream>
 
@@ -114,10 +116,16 @@ void DistributedMaps::Scan() {
           fs::remove(c.path());
           continue;
         }
-        try {
-          chunks_on_disk_[key].insert(uint32_t(std::stoul(cname)));
-        } catch (const std::exception&) {
-        }
+        // "BEGIN-END" (photons); other names (pieces named by index before, foreign files) are
+        // not pieces of any map now.
+        const size_t dash = cname.find('-');
+        uint64_t begin = 0, end = 0;
+        if (dash != std::string::npos &&
+            std::from_chars(cname.data(), cname.data() + dash, begin).ptr == cname.data() + dash &&
+            std::from_chars(cname.data() + dash + 1, cname.data() + cname.size(), end).ptr ==
+                cname.data() + cname.size() &&
+            end > begin)
+          chunks_on_disk_[key].insert({begin, end});
       }
     }
   }
@@ -130,8 +138,8 @@ bool DistributedMaps::IsChunkLease(const std::string& lease_id) {
   return lease_id.starts_with(kLeasePrefix);
 }
 
-fs::path DistributedMaps::ChunkFile(const std::string& key, uint32_t chunk) const {
-  return options_.dir / (key + ".chunks") / std::to_string(chunk);
+fs::path DistributedMaps::ChunkFile(const std::string& key, uint64_t begin, uint64_t end) const {
+  return options_.dir / (key + ".chunks") / (std::to_string(begin) + "-" + std::to_string(end));
 }
 
 const std::string* DistributedMaps::KeyFor(const Job& job, uint64_t map_index) {
@@ -169,6 +177,7 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
   Map& m = maps_[key];
   m.key = key;
   m.seq = next_seq_++;
+  tracing_[m.seq] = key;  // the initial state; SetStateLocked keeps the index from here on
   m.job_id = job.id();
   m.map_index = map_index;
   m.map_seed = MapSeed(job.config().seed, map_index);
@@ -176,7 +185,7 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
   m.photons = job.config().settings.photons;
   m.chunk_photons = options_.chunk_photons;
   if (auto built = on_disk_.find(key); built != on_disk_.end()) {
-    m.state = Map::State::kBuilt;
+    SetStateLocked(m, Map::State::kBuilt);
     m.built = built->second;
     spdlog::info("job {} map {}: built map {} found on disk ({} bytes)", job.id(), map_index, Short(key),
                  m.built.bytes);
@@ -184,15 +193,18 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
   }
   m.chunks.resize((m.photons + m.chunk_photons - 1) / m.chunk_photons);
   if (auto found = chunks_on_disk_.find(key); found != chunks_on_disk_.end())
-    for (uint32_t c : found->second)
-      if (c < m.chunks.size()) {
+    for (const auto& [begin, end] : found->second) {
+      const uint64_t c = begin / m.chunk_photons;
+      if (begin % m.chunk_photons == 0 && c < m.chunks.size() &&
+          end == std::min(m.photons, begin + m.chunk_photons) && m.chunks[c].state != Chunk::State::kDone) {
         m.chunks[c].state = Chunk::State::kDone;
         ++m.done;
       }
+    }
   spdlog::info("job {} map {}: {} photons in {} pieces of {} ({} already traced on disk)", job.id(),
                map_index, m.photons, m.chunks.size(), m.chunk_photons, m.done);
   if (m.done == m.chunks.size()) {
-    m.state = Map::State::kBuilding;
+    SetStateLocked(m, Map::State::kBuilding);
     builder_.Post([this, key] { Build(key); });
   }
   return m;
@@ -208,18 +220,26 @@ bool DistributedMaps::RenderTaskReady(const Job& job, const TaskSpec& task) {
   return false;
 }
 
+void DistributedMaps::SetStateLocked(Map& m, Map::State state) {
+  m.state = state;
+  if (state == Map::State::kTracing)
+    tracing_[m.seq] = m.key;
+  else
+    tracing_.erase(m.seq);
+}
+
 std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, double now) {
   std::lock_guard lock(mu_);
   const Map* best = nullptr;
   uint32_t pick = 0;
-  for (auto& [key, m] : maps_) {
-    if (m.state != Map::State::kTracing || (best && m.seq > best->seq)) continue;
-    for (uint32_t c = 0; c < m.chunks.size(); ++c)
+  for (const auto& [seq, key] : tracing_) {  // oldest map first
+    const Map& m = maps_.at(key);
+    for (uint32_t c = 0; c < m.chunks.size() && !best; ++c)
       if (m.chunks[c].state == Chunk::State::kQueued) {
         best = &m;
         pick = c;
-        break;
       }
+    if (best) break;
   }
   if (!best) return std::nullopt;
   Map& m = maps_.at(best->key);
@@ -272,6 +292,21 @@ std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
   return std::nullopt;
 }
 
+DistributedMaps::UploadAdmission DistributedMaps::BeginUpload(const std::string& lease_id) {
+  std::lock_guard lock(mu_);
+  auto it = leases_.find(lease_id);
+  if (it == leases_.end()) return UploadAdmission::kNotLive;
+  const Map& m = maps_.at(it->second.key);
+  if (m.state != Map::State::kTracing || m.chunks[it->second.chunk].state == Chunk::State::kDone)
+    return UploadAdmission::kNotLive;
+  return uploading_.insert(lease_id).second ? UploadAdmission::kAdmitted : UploadAdmission::kBusy;
+}
+
+void DistributedMaps::EndUpload(const std::string& lease_id) {
+  std::lock_guard lock(mu_);
+  uploading_.erase(lease_id);
+}
+
 DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_id,
                                                        const std::string& bytes) {
   std::string key;
@@ -301,7 +336,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
                      std::to_string(end) + ")");
   if ((light_ids && !chunk.light_ids) || (origins && !chunk.origins))
     throw InputError("the piece lacks the light ids or origins the job's estimators need");
-  const fs::path file = ChunkFile(key, index);
+  const fs::path file = ChunkFile(key, begin, end);
   fs::create_directories(file.parent_path());
   WriteFileAtomically(file, bytes);
   bool build = false;
@@ -323,7 +358,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     job_id = m.job_id;
     map_index = m.map_index;
     if (m.done == m.chunks.size()) {
-      m.state = Map::State::kBuilding;
+      SetStateLocked(m, Map::State::kBuilding);
       build = true;
     }
   }
@@ -335,7 +370,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
 
 void DistributedMaps::Build(const std::string& key) {
   std::shared_ptr<const JobConfig> config;
-  uint64_t map_seed = 0, map_index = 0;
+  uint64_t map_seed = 0, map_index = 0, photons = 0, chunk_photons = 1;
   size_t count = 0;
   std::string job_id;
   {
@@ -346,7 +381,13 @@ void DistributedMaps::Build(const std::string& key) {
     map_index = m.map_index;
     count = m.chunks.size();
     job_id = m.job_id;
+    photons = m.photons;
+    chunk_photons = m.chunk_photons;
   }
+  auto file_of = [&](uint32_t c) {
+    const uint64_t begin = uint64_t(c) * chunk_photons;
+    return ChunkFile(key, begin, std::min(photons, begin + chunk_photons));
+  };
   std::vector<std::pair<std::string, uint64_t>> release;
   const auto t0 = std::chrono::steady_clock::now();
   try {
@@ -354,13 +395,13 @@ void DistributedMaps::Build(const std::string& key) {
     pieces.reserve(count);
     for (uint32_t c = 0; c < count; ++c) {
       try {
-        pieces.push_back(DeserializePhotonChunk(ReadFile(ChunkFile(key, c))));
+        pieces.push_back(DeserializePhotonChunk(ReadFile(file_of(c))));
       } catch (const InputError& e) {
         // A piece damaged on disk: trace it again.
-        fs::remove(ChunkFile(key, c));
+        fs::remove(file_of(c));
         std::lock_guard lock(mu_);
         Map& m = maps_.at(key);
-        m.state = Map::State::kTracing;
+        SetStateLocked(m, Map::State::kTracing);
         m.chunks[c] = Chunk{};
         --m.done;
         spdlog::warn("job {} map {} piece {}: stored piece unreadable ({}): traced again", job_id, map_index,
@@ -396,7 +437,7 @@ void DistributedMaps::Build(const std::string& key) {
     {
       std::lock_guard lock(mu_);
       Map& m = maps_.at(key);
-      m.state = Map::State::kBuilt;
+      SetStateLocked(m, Map::State::kBuilt);
       m.built = built;
       release.assign(m.waiting.begin(), m.waiting.end());
       m.waiting.clear();
@@ -419,7 +460,7 @@ void DistributedMaps::Release(const std::vector<std::pair<std::string, uint64_t>
 void DistributedMaps::LeaveToWorkersLocked(Map& m, const std::string& why,
                                            std::vector<std::pair<std::string, uint64_t>>* release) {
   spdlog::warn("job {} map {}: left to the workers (each traces it): {}", m.job_id, m.map_index, why);
-  m.state = Map::State::kLeftToWorkers;
+  SetStateLocked(m, Map::State::kLeftToWorkers);
   for (Chunk& c : m.chunks)
     if (c.state == Chunk::State::kLeased) leases_.erase(c.lease_id);
   release->insert(release->end(), m.waiting.begin(), m.waiting.end());
@@ -474,8 +515,11 @@ void DistributedMaps::Tick() {
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
-    for (auto& [key, m] : maps_) {
-      if (m.state != Map::State::kTracing) continue;
+    std::vector<std::string> tracing;  // RequeueLocked may change a map's state (and tracing_)
+    tracing.reserve(tracing_.size());
+    for (const auto& [seq, key] : tracing_) tracing.push_back(key);
+    for (const std::string& key : tracing) {
+      Map& m = maps_.at(key);
       for (uint32_t c = 0; c < m.chunks.size() && m.state == Map::State::kTracing; ++c)
         if (m.chunks[c].state == Chunk::State::kLeased && now >= m.chunks[c].deadline) {
           ++counters_.chunks_expired;

@@ -83,6 +83,14 @@ class DistributedMaps final : public MapTracingHook {
   // The file of a built map, nullopt if there is none with that key.
   std::optional<std::filesystem::path> MapFile(const std::string& key);
 
+  // An upload's admission, checked on its first part before anything is buffered: only a live
+  // piece lease may upload, one stream at a time. So the coordinator buffers at most one piece per
+  // live piece lease (each ≤ kMaxPhotonChunkBytes), whatever a client declares or how many streams
+  // it opens. EndUpload(lease) once an admitted stream is over.
+  enum class UploadAdmission { kAdmitted, kNotLive, kBusy };
+  UploadAdmission BeginUpload(const std::string& lease_id);
+  void EndUpload(const std::string& lease_id);
+
   enum class Accepted { kStored, kLate };
   // A piece's bytes (checksums already verified by the RPC): parsed, checked against its lease's
   // range, written to disk. InputError for a malformed piece (nothing stored). kLate: the lease is
@@ -134,7 +142,9 @@ class DistributedMaps final : public MapTracingHook {
                      std::vector<std::pair<std::string, uint64_t>>* release);
   void LeaveToWorkersLocked(Map& map, const std::string& why,
                             std::vector<std::pair<std::string, uint64_t>>* release);
-  std::filesystem::path ChunkFile(const std::string& key, uint32_t chunk) const;
+  // A piece's file is named by its photon range, so pieces found on disk are reused only for the
+  // same range (a coordinator restarted with another --map-chunk-photons traces its pieces anew).
+  std::filesystem::path ChunkFile(const std::string& key, uint64_t begin, uint64_t end) const;
   void Scan();
   void Build(const std::string& key);  // on builder_
   void Release(const std::vector<std::pair<std::string, uint64_t>>& release);
@@ -145,14 +155,20 @@ class DistributedMaps final : public MapTracingHook {
   Scheduler* scheduler_ = nullptr;
   mutable std::mutex mu_;
   std::map<std::string, Map> maps_;
+  // The maps in state kTracing by creation order (seq → key): LeaseChunk and Tick look at these
+  // only, not at every map ever created. Kept in step by SetStateLocked.
+  std::map<uint64_t, std::string> tracing_;
+  void SetStateLocked(Map& m, Map::State state);
   uint64_t next_seq_ = 1, next_lease_ = 1;
   std::unordered_map<std::string, LeaseRef> leases_;
+  std::unordered_set<std::string> uploading_;  // leases with an admitted upload stream
   // Per job and map index: the key of a distributed map.
   std::map<std::pair<std::string, uint64_t>, std::string> keys_;
   // kAuto jobs: the map indices more than one task uses.
   std::unordered_map<std::string, std::unordered_set<uint64_t>> shared_maps_;
-  std::map<std::string, BuiltMap> on_disk_;                   // built maps found by Scan
-  std::map<std::string, std::set<uint32_t>> chunks_on_disk_;  // pieces found by Scan
+  std::map<std::string, BuiltMap> on_disk_;  // built maps found by Scan
+  std::map<std::string, std::set<std::pair<uint64_t, uint64_t>>>
+      chunks_on_disk_;  // photon ranges found by Scan
   Counters counters_;
   // Unbounded queue: a refused Post would leave a map "building" with no build pending (its
   // render tasks held forever); a queued build is a key, and maps are bounded by the jobs.

@@ -513,6 +513,24 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   }
   result.job_id = job->id();
   result.task_id = task_id;
+  // Until the commit, an exception (an allocation failing in the check, a hook in a test) must
+  // not leave the lease pinned: unpinned, it expires or takes a result again as any lease would.
+  struct Unpin {
+    Scheduler* self;
+    Job* job;
+    uint64_t task_id;
+    std::string lease_id;
+    bool armed = true;
+    ~Unpin() {
+      if (!armed) return;
+      std::lock_guard lock(self->mu_);
+      TaskRuntime& rt = job->runtime(task_id);
+      if (rt.lease_id == lease_id) rt.merging = false;
+      spdlog::error(
+          "job {} task {}: the result for lease {} could not be checked (exception); the lease stays live",
+          job->id(), task_id, limits::Quote(lease_id, limits::kMaxIdBytes));
+    }
+  } unpin{this, job, task_id, lease_id};
 
   // 2. Check (no lock, O(pixels)): the one check of a worker's result (the edge), and the pixel
   //    indices the merge needs. The configuration is immutable.
@@ -542,7 +560,13 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
       checked = CheckedResult{std::nullopt, problem, ResultCheck::Verdict::kInvalid};
     }
   }
+  // The job's first merge allocates its accumulator (O(pixels)) here, before the commit: once a
+  // task is recorded as merged nothing may fail, or its samples would be lost.
+  std::unique_ptr<Accumulator> fresh;
+  if (checked.valid && !job->accumulator_if_loaded())
+    fresh = std::make_unique<Accumulator>(config.plan, width, height);
   if (before_commit_for_test_) before_commit_for_test_(lease_id);
+  unpin.armed = false;  // from here on the commit below unpins
 
   // 3. Commit (image_mu, then the global lock for O(1) bookkeeping), add (image_mu only,
   //    O(pixels)), then the rules that follow a merge. Commit and add happen within one hold of
@@ -590,8 +614,10 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   }
   if (merged) {
     if (!job->accumulator_if_loaded()) {
-      // Allocated (O(pixels)) off the global lock; the pointer changes under both locks.
-      auto fresh = std::make_unique<Accumulator>(config.plan, width, height);
+      // Allocated before the commit (above); the pointer changes under both locks. A concurrent
+      // first merge may have installed one meanwhile: then ours is dropped (a job's image_mu
+      // orders the two, so `fresh` is set whenever none is loaded here).
+      if (!fresh) fresh = std::make_unique<Accumulator>(config.plan, width, height);  // not reached
       std::lock_guard lock(mu_);
       job->set_accumulator(std::move(fresh));
     }

@@ -13,6 +13,8 @@
 #include <thread>
 
 #include "client/farm_client.h"
+#include "photonfarm/v1/farm.grpc.pb.h"
+#include "rpc/grpc_channel.h"
 #include "tests/e2e/harness.h"
 
 namespace pf::e2e {
@@ -161,6 +163,112 @@ TEST(MapTracingFarm, WorkerKilledWhileFetchingTheMapIsRedone) {
   KillWhile("fetch");
 }
 
+// A slow step that is not the render (here: a 4 s pause in a piece's trace, or before the map's
+// fetch, with leases of 1.5 s) keeps its lease: the worker heartbeats from lease to report, so
+// nothing expires, nothing runs twice, and the one worker finishes the job at attempt 1 (before,
+// only the render was covered and these leases ran out mid-fetch).
+void SlowStepKeepsItsLease(const std::string& where) {
+  TestDir dir;
+  const Image reference = LocalReference(dir);
+  CoordinatorProcess coordinator(
+      dir / "data", dir.path(),
+      {"--lease-seconds", "1.5", "--max-attempts", "5", "--map-chunk-photons", "16384"});
+  const std::string job_id = Submit(dir, coordinator.address());
+  auto worker = StartWorkerWithEnv(coordinator.address(), dir.path(), "slow",
+                                   {{"PF_TEST_PAUSE_AT", where}, {"PF_TEST_PAUSE_SECONDS", "4"}});
+  FarmClient client(coordinator.address(), "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  const fs::path clog = coordinator.process().log();
+  ASSERT_GE(Count(worker->log(), "test-pause over at " + where), 1u) << ReadFile(worker->log());
+  EXPECT_EQ(Count(clog, "expired"), 0u) << ReadFile(clog);
+  EXPECT_EQ(Count(clog, "attempt 2"), 0u) << ReadFile(clog);
+  EXPECT_EQ(Count(worker->log(), "abandoned"), 0u) << ReadFile(worker->log());
+  EXPECT_EQ(st.samples_merged(), uint64_t(48 * 32));
+  worker->Signal(SIGTERM);
+  EXPECT_TRUE(worker->Wait(20).has_value());
+}
+
+TEST(MapTracingFarm, SlowPieceTraceKeepsItsLease) {
+  SlowStepKeepsItsLease("trace");
+}
+TEST(MapTracingFarm, SlowMapFetchKeepsItsLease) {
+  SlowStepKeepsItsLease("fetch");
+}
+
+// UploadPhotonChunk admits a stream on its first part, before buffering anything: a lease that is
+// not a live piece lease answers at once (accepted = false) whatever size it declares, and a live
+// lease takes one stream at a time (a second is ALREADY_EXISTS until the first is over). So the
+// coordinator buffers at most one piece per live piece lease.
+TEST(MapTracingFarm, UploadsAreAdmittedOnlyForALivePieceLeaseOneAtATime) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--map-chunk-photons", "16384"});
+  Submit(dir, coordinator.address());
+  const std::shared_ptr<grpc::Channel> channel = MakeCoordinatorChannel(coordinator.address(), {});
+  const std::unique_ptr<v1::WorkerService::Stub> stub = v1::WorkerService::NewStub(channel);
+  v1::LeaseTaskRequest lease_req;
+  lease_req.set_worker_id("raw");
+  lease_req.set_threads(1);
+  lease_req.set_wait_seconds(5);
+  v1::LeaseTaskResponse lease_resp;
+  {
+    grpc::ClientContext ctx;
+    PrepareContext(&ctx, "", Seconds(20));
+    ASSERT_TRUE(stub->LeaseTask(&ctx, lease_req, &lease_resp).ok());
+  }
+  ASSERT_TRUE(lease_resp.has_task() && lease_resp.task().has_trace_chunk()) << "pieces are leased first";
+  const std::string lease = lease_resp.task().lease_id();
+
+  struct Upload {
+    grpc::ClientContext ctx;
+    v1::UploadPhotonChunkResponse response;
+    std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer;
+  };
+  auto open = [&](const std::string& lease_id, uint64_t total) {
+    auto u = std::make_unique<Upload>();
+    PrepareContext(&u->ctx, "", Seconds(20));
+    u->writer = stub->UploadPhotonChunk(&u->ctx, &u->response);
+    v1::PhotonChunkPart part;
+    part.set_lease_id(lease_id);
+    part.set_total_bytes(total);
+    part.set_digest(std::string(64, '0'));
+    part.set_offset(0);
+    part.set_data("x");
+    part.set_sha256(std::string(64, '0'));
+    u->writer->Write(part);  // may fail if the server already finished: Finish says why
+    return u;
+  };
+  auto finish = [](Upload& u) {
+    u.writer->WritesDone();
+    return u.writer->Finish();
+  };
+
+  // A well-formed id of no live lease, declaring 512 MiB: answered at once, nothing stored.
+  auto forged = open("map-0123456789abcdef", uint64_t(512) << 20);
+  const grpc::Status forged_status = finish(*forged);
+  EXPECT_TRUE(forged_status.ok()) << forged_status.error_message();
+  EXPECT_FALSE(forged->response.accepted());
+
+  // The live lease: one stream admitted, a second refused while the first is open.
+  auto first = open(lease, 1000);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // its first part is read and admitted
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        auto second = open(lease, 1000);
+        const grpc::Status st = finish(*second);
+        return st.error_code() == grpc::StatusCode::ALREADY_EXISTS;
+      },
+      10))
+      << "a second upload for the same lease while the first is open";
+  const grpc::Status first_status = finish(*first);  // 1 byte of 1000: refused, and the stream is over
+  EXPECT_EQ(first_status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << first_status.error_message();
+  // Over: the lease takes a stream again (these bytes are no piece: INVALID_ARGUMENT, not ALREADY_EXISTS).
+  auto third = open(lease, 1);
+  const grpc::Status third_status = finish(*third);
+  EXPECT_EQ(third_status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << third_status.error_message();
+}
+
 TEST(MapTracingFarm, CorruptMapPartIsRefusedAndFetchedAgain) {
   TestDir dir;
   const Image reference = LocalReference(dir);
@@ -263,6 +371,44 @@ TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   EXPECT_EQ(Count(log3, "built once"), 0u);
   w3->Signal(SIGTERM);
   EXPECT_TRUE(w3->Wait(20).has_value());
+}
+
+// Pieces on disk are named by photon range: a coordinator restarted with another piece size
+// (--map-chunk-photons 16384 -> 8192) reuses none of them (the same index is another range now)
+// and traces the map anew; the image is the same. Named by index, life 2 counted 2 of its 5 pieces
+// as traced, and the map's assembly found photons missing.
+TEST(MapTracingFarm, RestartWithAnotherPieceSizeTracesThePiecesAnew) {
+  TestDir dir;
+  const Image reference = LocalReference(dir);
+  auto life1 = std::make_unique<CoordinatorProcess>(
+      dir / "data", dir.path(),
+      std::vector<std::string>{"--lease-seconds", "1.5", "--map-chunk-photons", "16384"});
+  const int port = life1->port();
+  const std::string address = life1->address();
+  const std::string job_id = Submit(dir, address);
+  auto w1 = StartWorkerWithEnv(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
+  ASSERT_TRUE(WaitUntil([&] { return Count(w1->log(), "test-pause at upload") > 0; }, 60))
+      << ReadFile(w1->log());
+  ASSERT_EQ(Count(life1->process().log(), "piece [0-9]+: stored \\("), 2u)
+      << ReadFile(life1->process().log());
+  life1->process().Signal(SIGKILL);
+  life1->process().Wait(5);
+  life1.reset();
+  w1->Signal(SIGKILL);
+  w1->Wait(5);
+
+  CoordinatorProcess life2(dir / "data", dir.path(),
+                           {"--lease-seconds", "1.5", "--map-chunk-photons", "8192"}, port);
+  const fs::path log2 = life2.process().log();
+  EXPECT_EQ(Count(log2, "in 5 pieces of 8192 \\(0 already traced on disk\\)"), 1u) << ReadFile(log2);
+  auto w2 = StartWorker(address, dir.path(), "w2");
+  FarmClient client(address, "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  EXPECT_EQ(Count(w2->log(), "uploaded-piece .* accepted=true"), 5u) << ReadFile(w2->log());
+  w2->Signal(SIGTERM);
+  EXPECT_TRUE(w2->Wait(20).has_value());
 }
 
 }  // namespace

@@ -239,6 +239,41 @@ TEST_F(SchedulerConcurrencyTest, ResultOfAJobCancelledWhileItWasCheckedIsDropped
   EXPECT_EQ(scheduler_.counters().ignored, 1u);
 }
 
+// An exception while a result is checked (between claim and commit: an allocation failing, here
+// the test hook) leaves the lease live and unpinned: it expires as any lease would, and a second
+// delivery of the result is merged once. Without the guard the lease stayed pinned for ever (it
+// never expired, every result was "already being merged") and the job never finished.
+TEST_F(SchedulerConcurrencyTest, AnExceptionWhileAResultIsCheckedLeavesTheLeaseLive) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 8, 8));
+  const Lease lease = scheduler_.TryLease({"w1", {}}).value();
+  const std::vector<float> sums = ResultOf(lease);
+  bool thrown = false;
+  scheduler_.SetBeforeCommitHookForTest([&](const std::string&) {
+    if (thrown) return;
+    thrown = true;
+    throw std::bad_alloc();
+  });
+  EXPECT_THROW(scheduler_.Complete(lease.lease_id, sums), std::bad_alloc);
+  EXPECT_EQ(scheduler_.counters().merged, 0u);
+  EXPECT_EQ(scheduler_.Status(id).tasks_done(), 0u);
+  EXPECT_EQ(scheduler_.Complete(lease.lease_id, sums).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(scheduler_.Status(id).samples_merged(), 64u);
+
+  // The same, and then the lease runs out: it expires (it is not pinned) and runs again.
+  const std::string id2 = Submit(MakeConfig(MultipleMaps(1, 0), 8, 8));
+  const Lease second = scheduler_.TryLease({"w1", {}}).value();
+  thrown = false;
+  EXPECT_THROW(scheduler_.Complete(second.lease_id, ResultOf(second)), std::bad_alloc);
+  clock_.Advance(31);
+  scheduler_.Tick();
+  const std::optional<Lease> again = scheduler_.TryLease({"w2", {}});
+  ASSERT_TRUE(again.has_value()) << "the lease expired and the task is leased again";
+  EXPECT_EQ(again->task_id, second.task_id);
+  EXPECT_EQ(scheduler_.Complete(again->lease_id, ResultOf(*again)).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Status(id2).samples_merged(), 64u);
+}
+
 // While a result is checked, a second copy is ignored and FailTask from its holder changes
 // nothing; the first copy is merged.
 TEST_F(SchedulerConcurrencyTest, SecondCopyAndFailTaskWhileAResultIsCheckedChangeNothing) {
