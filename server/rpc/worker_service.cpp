@@ -87,9 +87,12 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
     // locals are used below.
     DistributedMaps* maps = &ctx.maps;
     auto deliver = [this, context, response, scheduler, maps](std::optional<Lease> lease) {
-      if (lease && context->IsCancelled() && !lease->chunk) {
-        // (An undelivered map piece is not returned: its lease runs out and it is traced again.)
-        scheduler->ReturnLease(lease->lease_id);
+      if (lease && context->IsCancelled()) {
+        // Undelivered: queued again at once (a piece too), not left to run out.
+        if (lease->chunk)
+          maps->Return(lease->lease_id);
+        else
+          scheduler->ReturnLease(lease->lease_id);
         lease.reset();
       }
       if (lease) {

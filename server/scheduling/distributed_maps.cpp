@@ -490,6 +490,25 @@ ExtendResult DistributedMaps::Extend(const std::string& lease_id) {
   return ExtendResult{true, options_.lease_seconds};
 }
 
+void DistributedMaps::Return(const std::string& lease_id) {
+  {
+    std::lock_guard lock(mu_);
+    auto it = leases_.find(lease_id);
+    if (it == leases_.end()) return;
+    Map& m = maps_.at(it->second.key);
+    Chunk& c = m.chunks[it->second.chunk];
+    if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return;
+    leases_.erase(it);
+    c.state = Chunk::State::kQueued;
+    c.lease_id.clear();
+    --c.attempts;
+    ++counters_.chunks_returned;
+    spdlog::info("job {} map {} piece {}: lease {} never reached the worker: queued again", m.job_id,
+                 m.map_index, &c - m.chunks.data(), lease_id);
+  }
+  if (scheduler_) scheduler_->NotifyMapPieces();
+}
+
 FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string& worker_id,
                                   const std::string& reason) {
   std::vector<std::pair<std::string, uint64_t>> release;

@@ -97,6 +97,9 @@ class DistributedMaps final : public MapTracingHook {
   // unknown or the piece is already in. May start the map's assembly.
   Accepted AcceptChunk(const std::string& lease_id, const std::string& bytes);
   ExtendResult Extend(const std::string& lease_id);
+  // A piece lease that never reached its worker (the long poll was cancelled): queued again at
+  // once, its attempt not counted, instead of idling until the lease runs out.
+  void Return(const std::string& lease_id);
   FailOutcome Fail(const std::string& lease_id, const std::string& worker_id, const std::string& reason);
 
   // Expires leases. Call periodically, outside the scheduler's lock.
@@ -105,7 +108,7 @@ class DistributedMaps final : public MapTracingHook {
   void Stop();
 
   struct Counters {
-    uint64_t chunks_leased = 0, chunks_stored = 0, chunks_expired = 0, maps_built = 0,
+    uint64_t chunks_leased = 0, chunks_stored = 0, chunks_expired = 0, chunks_returned = 0, maps_built = 0,
              maps_left_to_workers = 0;
   };
   Counters counters() const;
