@@ -277,6 +277,12 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   LogAutoSettings(task, ctx, parsed->settings, *scene);
   if (task.has_map() && parsed->settings.integrator == IntegratorKind::kPhotonMap)
     if (const std::optional<Outcome> ended = ObtainMap(task, ctx, *parsed, *scene)) return *ended;
+  if (keeper.lost()) {  // e.g. the fetches outlasted a lease the coordinator could not extend
+    spdlog::warn("abandoned {}: the lease is gone before the render started", ctx);
+    std::lock_guard slock(mutex_);
+    ++counters_.abandoned;
+    return Outcome::kDone;
+  }
   return ExecuteSupervised(task, ctx, *parsed, std::move(scene), t0, std::move(exec), keeper);
 }
 
@@ -291,6 +297,11 @@ Worker::LeaseKeeper::LeaseKeeper(Worker* worker, const v1::Task& task, std::stri
                                  std::shared_ptr<Execution> exec)
     : exec_(exec),
       thread_([worker, &task, ctx = std::move(ctx), exec] { worker->Heartbeat(task, ctx, exec); }) {}
+
+bool Worker::LeaseKeeper::lost() const {
+  std::lock_guard lock(exec_->mutex);
+  return exec_->lease_lost;
+}
 
 void Worker::LeaseKeeper::Stop() {
   {

@@ -6,10 +6,10 @@
 //       │   ▼ unreachable     │  └──────────────────┐                               ▼
 //     backoff (jittered) ◀────┘ UNAVAILABLE        reporting (CompleteTask) ◀── rendering
 //
-// and `stopping` after SIGTERM. Every RPC has a deadline. From the lease to the report (the
-// scene and map fetches, a piece's trace and upload, the render on a thread of its own using all
-// the worker's threads), a heartbeat thread extends the lease every third of its duration; if
-// the coordinator answers that the lease is gone, the result is abandoned and the render is cancelled (it
+// and `stopping` after SIGTERM. Every RPC has a deadline. From the lease until the result is ready
+// (the scene and map fetches, a piece's trace and upload, the render on a thread of its own using
+// all the worker's threads), a heartbeat thread extends the lease every third of its duration; if
+// the coordinator answers that the lease is gone, the task is abandoned (the render cancelled) (it
 // stops within a block of pixels or a chunk of photons). Results are the subset's pixel sums only
 // (common/plan/task_executor.h), never a full image. A finished result survives a coordinator outage:
 // CompleteTask is retried with backoff for `report_retry_seconds`.
@@ -116,6 +116,8 @@ class Worker {
     LeaseKeeper& operator=(const LeaseKeeper&) = delete;
     ~LeaseKeeper() { Stop(); }
     void Stop();
+    // The coordinator said the lease is gone: whatever is still to do for the task is wasted.
+    bool lost() const;
 
    private:
     std::shared_ptr<Execution> exec_;

@@ -119,6 +119,12 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
     return Outcome::kDone;
   }
   const double trace_s = SecondsSince(t0);
+  if (keeper.lost()) {
+    spdlog::warn("abandoned {}: the piece lease is gone; not uploaded", ctx);
+    std::lock_guard lock(mutex_);
+    ++counters_.abandoned;
+    return Outcome::kDone;
+  }
   TestPause("upload", ctx);
   SetState(State::kReporting, ctx);
   grpc::Status status;

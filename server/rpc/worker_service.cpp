@@ -283,8 +283,8 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
   }
   void OnReadDone(bool ok) override {
     if (!ok) {
-      if (!ctx_.executor.Post([this] { Finish(Verify()); }))
-        Finish(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down"));
+      if (!ctx_.executor.Post([this] { End(Verify()); }))
+        End(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down"));
       return;
     }
     if (parts_ == 0) {
@@ -326,11 +326,11 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
     }
     if (part_.data().size() > kMapPartBytes || part_.offset() != bytes_.size() ||
         bytes_.size() + part_.data().size() > total_) {
-      Finish(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                          "parts[" + std::to_string(parts_) + "]: offset " + std::to_string(part_.offset()) +
-                              " / size " + std::to_string(part_.data().size()) + " do not continue the " +
-                              std::to_string(bytes_.size()) + " bytes received (of " +
-                              std::to_string(total_) + ", parts ≤ 1 MiB)"));
+      End(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                       "parts[" + std::to_string(parts_) + "]: offset " + std::to_string(part_.offset()) +
+                           " / size " + std::to_string(part_.data().size()) + " do not continue the " +
+                           std::to_string(bytes_.size()) + " bytes received (of " + std::to_string(total_) +
+                           ", parts ≤ 1 MiB)"));
       return;
     }
     part_sums_.push_back(part_.sha256());
@@ -340,11 +340,21 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
     StartRead(&part_);
   }
   void OnDone() override {
-    if (admitted_) ctx_.maps.EndUpload(lease_id_);
+    if (admitted_) ctx_.maps.EndUpload(lease_id_);  // not reached when End ran (admitted_ is false then)
     delete this;
   }
 
  private:
+  // Finishes an admitted stream: its admission is released first, so a client that opens the next
+  // stream as soon as it has this status is admitted.
+  void End(const grpc::Status& status) {
+    if (admitted_) {
+      ctx_.maps.EndUpload(lease_id_);
+      admitted_ = false;
+    }
+    Finish(status);
+  }
+
   grpc::Status Verify() {
     return Guarded("UploadPhotonChunk", [&] {
       RequireLeaseId(lease_id_);

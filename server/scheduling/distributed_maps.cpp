@@ -119,12 +119,13 @@ void DistributedMaps::Scan() {
         // "BEGIN-END" (photons); other names (pieces named by index before, foreign files) are
         // not pieces of any map now.
         const size_t dash = cname.find('-');
+        auto number = [](std::string_view text, uint64_t* value) {
+          const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), *value);
+          return !text.empty() && ec == std::errc{} && ptr == text.data() + text.size();
+        };
         uint64_t begin = 0, end = 0;
-        if (dash != std::string::npos &&
-            std::from_chars(cname.data(), cname.data() + dash, begin).ptr == cname.data() + dash &&
-            std::from_chars(cname.data() + dash + 1, cname.data() + cname.size(), end).ptr ==
-                cname.data() + cname.size() &&
-            end > begin)
+        if (dash != std::string::npos && number(std::string_view(cname).substr(0, dash), &begin) &&
+            number(std::string_view(cname).substr(dash + 1), &end) && end > begin)
           chunks_on_disk_[key].insert({begin, end});
       }
     }
@@ -396,9 +397,10 @@ void DistributedMaps::Build(const std::string& key) {
     for (uint32_t c = 0; c < count; ++c) {
       try {
         pieces.push_back(DeserializePhotonChunk(ReadFile(file_of(c))));
-      } catch (const InputError& e) {
-        // A piece damaged on disk: trace it again.
-        fs::remove(file_of(c));
+      } catch (const std::exception& e) {
+        // A piece damaged or gone on disk (InputError, SystemError): trace it again.
+        std::error_code ec;
+        fs::remove(file_of(c), ec);
         std::lock_guard lock(mu_);
         Map& m = maps_.at(key);
         SetStateLocked(m, Map::State::kTracing);

@@ -490,7 +490,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   //    that it neither expires nor takes a second result while this one is checked.
   Job* job = nullptr;
   uint64_t task_id = 0;
-  TaskSpec task;  // a copy: the job's task vector may grow (AppendTasks) meanwhile
+  TaskSpec task;                   // a copy: the job's task vector may grow (AppendTasks) meanwhile
+  bool needs_accumulator = false;  // read under the lock: the pointer changes under both locks
   {
     std::lock_guard lock(mu_);
     LeaseTable::Entry* ref = FindLiveLease(lease_id, clock_.Now(), fx);
@@ -505,6 +506,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
       task_id = ref->task_id;
       task = job->task(task_id);
       job->runtime(task_id).merging = true;
+      needs_accumulator = !job->accumulator_if_loaded();
     }
   }
   if (!job) {
@@ -523,12 +525,17 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
     bool armed = true;
     ~Unpin() {
       if (!armed) return;
-      std::lock_guard lock(self->mu_);
-      TaskRuntime& rt = job->runtime(task_id);
-      if (rt.lease_id == lease_id) rt.merging = false;
-      spdlog::error(
-          "job {} task {}: the result for lease {} could not be checked (exception); the lease stays live",
-          job->id(), task_id, limits::Quote(lease_id, limits::kMaxIdBytes));
+      {
+        std::lock_guard lock(self->mu_);
+        job->runtime(task_id).merging = false;  // as the commit does
+      }
+      try {  // a destructor must not throw, even if logging cannot allocate
+        spdlog::error(
+            "job {} task {}: the result for lease {} could not be checked (exception); the lease "
+            "stays live",
+            job->id(), task_id, limits::Quote(lease_id, limits::kMaxIdBytes));
+      } catch (...) {
+      }
     }
   } unpin{this, job, task_id, lease_id};
 
@@ -563,8 +570,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   // The job's first merge allocates its accumulator (O(pixels)) here, before the commit: once a
   // task is recorded as merged nothing may fail, or its samples would be lost.
   std::unique_ptr<Accumulator> fresh;
-  if (checked.valid && !job->accumulator_if_loaded())
-    fresh = std::make_unique<Accumulator>(config.plan, width, height);
+  if (checked.valid && needs_accumulator) fresh = std::make_unique<Accumulator>(config.plan, width, height);
   if (before_commit_for_test_) before_commit_for_test_(lease_id);
   unpin.armed = false;  // from here on the commit below unpins
 
@@ -615,8 +621,9 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   if (merged) {
     if (!job->accumulator_if_loaded()) {
       // Allocated before the commit (above); the pointer changes under both locks. A concurrent
-      // first merge may have installed one meanwhile: then ours is dropped (a job's image_mu
-      // orders the two, so `fresh` is set whenever none is loaded here).
+      // first merge may have installed one meanwhile: then ours is dropped. The fallback covers a
+      // claim that saw one loaded (it is released only for finished jobs, whose results the
+      // commit refuses).
       if (!fresh) fresh = std::make_unique<Accumulator>(config.plan, width, height);  // not reached
       std::lock_guard lock(mu_);
       job->set_accumulator(std::move(fresh));

@@ -23,8 +23,9 @@ class DistributedMapsTest : public ::testing::Test {
   DistributedMapsTest()
       : db_(dir_.path() / "farm.sqlite"),
         scenes_(dir_.path() / "scenes", db_, clock_),
-        maps_(DistributedMapsOptions{.dir = dir_.path() / "maps", .lease_seconds = 30, .chunk_photons = 16384},
-              clock_, scenes_) {}
+        maps_(
+            DistributedMapsOptions{.dir = dir_.path() / "maps", .lease_seconds = 30, .chunk_photons = 16384},
+            clock_, scenes_) {}
 
   // A job with one distributed map of `photons` (3 pieces of 16384 for 40000) over one tile.
   std::unique_ptr<Job> MakeJob(const std::string& id, uint64_t seq, uint64_t seed) {
@@ -36,8 +37,8 @@ class DistributedMapsTest : public ::testing::Test {
     TaskSpec task;
     task.map_index = 0;
     task.map_seed = MapSeed(seed, 0);
-    return std::make_unique<Job>(id, seq, std::make_shared<const JobConfig>(config), std::vector<TaskSpec>{task},
-                                 0);
+    return std::make_unique<Job>(id, seq, std::make_shared<const JobConfig>(config),
+                                 std::vector<TaskSpec>{task}, 0);
   }
 
   testing::TempDir dir_;
