@@ -20,6 +20,8 @@ Plans (the budgets sweep the number of samples, hence maps, per pixel):
     hierarchical    --dims 2 --levels L  n_l = max(n_min, ceil(n0 / decay^l)) with n0 = 32 n_min
                     (decay = 32^(1/L)): the thesis-like schedule
     hierarchical-flat   the same with n0 = 4 n_min (fewer maps on the coarse levels)
+    hierarchical-shallow  --levels 3, n0 = 16 n_min, decay 2 (n_l = 16, 8, 4, 2 x n_min): details
+                    no wider than 8 pixels, where the map's error is correlated
 
 Time: the CPU time (user + system) of the whole `pf render` process, single-threaded: the machine
 is shared and its wall time says more about the neighbours than about the plan. Map building is
@@ -67,9 +69,15 @@ HIER_MIN = (1, 2, 4)
 # that reproduced the thesis's table in 2-D (docs/results/hierarchical-2d.md: n0 / n_min = 38 over
 # 9 levels); "hierarchical-flat" spends fewer maps on the coarse levels (4x the finest level's
 # samples instead of 32x): chosen a priori from the cost of a map (see the .md), not from results.
-SCHEDULES = {
-    "hierarchical": 32,
-    "hierarchical-flat": 4,
+SCHEDULES = {  # family: (n0 / n_min, levels (None: the scene's), decay (None: (n0 / n_min)^(1/L)))
+    "hierarchical": (32, None, None),
+    "hierarchical-flat": (4, None, None),
+    # Fewer levels (docs/results/hierarchical-equal-time.md, "Shallow hierarchy"): level-0 points
+    # every 8 pixels, so every detail spans at most 8 pixels, less than a 10k-photon, k = 50
+    # estimate's radius on these images: the map's error is correlated across a detail and cancels.
+    # n_l = 16, 8, 4, 2 (x n_min): chosen on the Cornell box (seed 1) among L = 3..5, n0 = 8..32,
+    # decay 1.5..4.
+    "hierarchical-shallow": (16, 3, 2.0),
 }
 METRICS = ("rmse", "rmse_masked", "rmse_lowfreq")
 REFERENCES = ("path", "noise")
@@ -78,15 +86,16 @@ REFERENCES = ("path", "noise")
 
 
 
-def plans(levels):
+def plans(levels, scale_levels=0):
     out = [(f"multiple maps ({m})", "multiple-maps", ["--plan", "multiple-maps", "--maps", str(m), "--tile", "64"])
            for m in MM_MAPS]
     out += [(f"skipping (S {SKIP_STRIDE}, {r} rounds)", "skipping",
              ["--plan", "skipping", "--stride", str(SKIP_STRIDE), "--rounds", str(r)]) for r in SKIP_ROUNDS]
-    for family, ratio in SCHEDULES.items():
-        decay = ratio ** (1.0 / levels)
+    for family, (ratio, fixed_levels, fixed_decay) in SCHEDULES.items():
+        lv = levels if fixed_levels is None else fixed_levels + scale_levels
+        decay = fixed_decay if fixed_decay is not None else ratio ** (1.0 / lv)
         out += [(f"{family} (n_min {n})", family,
-                 ["--plan", "hierarchical", "--dims", "2", "--levels", str(levels), "--base-samples", str(ratio * n),
+                 ["--plan", "hierarchical", "--dims", "2", "--levels", str(lv), "--base-samples", str(ratio * n),
                   "--min-samples", str(n), "--decay", f"{decay:.6f}", "--tile", "0"]) for n in HIER_MIN]
     return out
 
@@ -132,7 +141,7 @@ def plot(rows, scenes, out, name):
         return []
     written = []
     colours = {"multiple-maps": "tab:blue", "skipping": "tab:green", "hierarchical": "tab:red",
-               "hierarchical-flat": "tab:orange"}
+               "hierarchical-flat": "tab:orange", "hierarchical-shallow": "tab:purple"}
     for scene in scenes:
         mine = [r for r in rows if r["scene"] == scene]
         fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), squeeze=False)
@@ -270,7 +279,7 @@ def main():
             d = json.loads(run([args.pf, "diff", exr, ref, "--json", "--scene", manifest]).stdout)
             return {k: d[k] for k in METRICS}
 
-        for method, family, flags in plans(levels):
+        for method, family, flags in plans(levels, int(math.log2(args.scale))):
             if family not in wanted:
                 continue
             cpus, walls, errs = [], [], {ref: {m: [] for m in METRICS} for ref in REFERENCES}
