@@ -178,6 +178,8 @@ def write_reports(result, out):
     a = result["args"]
     name = stem(a.get("tag", ""))
     plots = plot(rows, scenes, out, name)
+    default_families = ["multiple-maps", "skipping"] + list(SCHEDULES)
+    families = [f for f in default_families if any(r["family"] == f for r in rows)]
     lines = [
         "# Hierarchical vs skipping vs multiple maps at equal time (issue #13)",
         "",
@@ -186,6 +188,7 @@ def write_reports(result, out):
         "included. Reproduce: `bench/hierarchical_equal_time.py "
         f"--scenes {','.join(scenes)} --photons {a['photons']} --k {a['k']} --seeds {a['seeds']} "
         f"--reference-maps {a['reference_maps']}"
+        + (f" --plans {','.join(families)}" if families != default_families else "")
         + (f" --scale {a['scale']}" if a.get("scale", 1) != 1 else "")
         + (f" --extra '{a['extra']}' --tag {a['tag']}" if a.get("extra") or a.get("tag") else "")
         + f"` (writes this file, {name}.json and the plots)." + (f" Every image with `{a['extra']}`." if a.get("extra") else ""),
@@ -231,6 +234,35 @@ def write_reports(result, out):
     print(f"wrote {out / (name + '.md')} and {len(plots)} plots")
 
 
+def merge_runs(results):
+    """One result from runs with disjoint seeds: per (scene, method) the RMS error over every seed
+    (each run's row is already the RMS over its seeds) and the median of every CPU time."""
+    first = results[0]
+    seeds = [s for r in results for s in str(r["args"]["seeds"]).split(",")]
+    if len(set(seeds)) != len(seeds):
+        sys.exit("--merge: the runs share a seed")
+    for r in results[1:]:
+        if {k: v for k, v in r["args"].items() if k != "seeds"} != \
+                {k: v for k, v in first["args"].items() if k != "seeds"}:
+            sys.exit("--merge: the runs differ in more than their seeds")
+    rows = []
+    for row in first["rows"]:
+        same = [x for r in results for x in r["rows"] if x["scene"] == row["scene"] and x["method"] == row["method"]]
+        if len(same) != len(results):
+            sys.exit(f"--merge: {row['scene']} {row['method']} is not in every run")
+        n = [len(str(r["args"]["seeds"]).split(",")) for r in results]
+        merged = dict(row)
+        merged["cpu_seconds_all"] = [t for x in same for t in x["cpu_seconds_all"]]
+        merged["cpu_seconds"] = statistics.median(merged["cpu_seconds_all"])
+        merged["wall_seconds"] = statistics.median(x["wall_seconds"] for x in same)
+        for ref in REFERENCES:
+            if row.get(ref) is None:
+                continue
+            merged[ref] = {m: math.sqrt(sum(k * x[ref][m] ** 2 for k, x in zip(n, same)) / sum(n)) for m in METRICS}
+        rows.append(merged)
+    return {"args": dict(first["args"], seeds=",".join(seeds)), "scenes": first["scenes"], "rows": rows}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -248,9 +280,17 @@ def main():
                     help="render at this multiple of each scene's resolution (path reference skipped if > 1)")
     ap.add_argument("--tag", default="", help="output names hierarchical-equal-time-<tag>.* (default: no tag)")
     ap.add_argument("--replot", action="store_true")
+    ap.add_argument("--merge", nargs="+", metavar="JSON",
+                    help="combine runs of the same plans with different --seeds (e.g. run in parallel): errors "
+                         "RMS over all seeds, CPU time the median over all; writes the tables and plots to --out")
     args = ap.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.merge:
+        merged = merge_runs([json.loads(pathlib.Path(f).read_text()) for f in args.merge])
+        (out / f"{stem(merged['args'].get('tag', ''))}.json").write_text(json.dumps(merged, indent=2) + "\n")
+        write_reports(merged, out)
+        return
     if args.replot:
         write_reports(json.loads((out / f"{stem(args.tag)}.json").read_text()), out)
         return
