@@ -97,8 +97,8 @@ TEST(RenderPixelsStreams, SharedStreamsMakeADetailOfASmoothImageCancel) {
     double s = 0, s2 = 0, p = 0, p2 = 0;
     for (int seed = 1; seed <= kSeeds; ++seed) {
       std::vector<Rgb> sums(pixels.size());
-      RenderPixels(tracer, camera, pixels, 0, 1, uint64_t(seed), 1, sums, nullptr, nullptr, SamplerKind::kSobol,
-                   streams);
+      RenderPixels(tracer, camera, pixels, 0, 1, uint64_t(seed), 1, sums, nullptr, nullptr,
+                   SamplerKind::kSobol, streams);
       const double d = sums[1].Mean() - 0.5 * (sums[0].Mean() + sums[2].Mean());
       s += d;
       s2 += d * d;
