@@ -20,6 +20,8 @@ Plans (the budgets sweep the number of samples, hence maps, per pixel):
     hierarchical    --dims 2 --levels L  n_l = max(n_min, ceil(n0 / decay^l)) with n0 = 32 n_min
                     (decay = 32^(1/L)): the thesis-like schedule
     hierarchical-flat   the same with n0 = 4 n_min (fewer maps on the coarse levels)
+    hierarchical-shallow  --levels 3, n0 = 16 n_min, decay 2 (n_l = 16, 8, 4, 2 x n_min): details
+                    no wider than 8 pixels, where the map's error is correlated
 
 Time: the CPU time (user + system) of the whole `pf render` process, single-threaded: the machine
 is shared and its wall time says more about the neighbours than about the plan. Map building is
@@ -67,9 +69,15 @@ HIER_MIN = (1, 2, 4)
 # that reproduced the thesis's table in 2-D (docs/results/hierarchical-2d.md: n0 / n_min = 38 over
 # 9 levels); "hierarchical-flat" spends fewer maps on the coarse levels (4x the finest level's
 # samples instead of 32x): chosen a priori from the cost of a map (see the .md), not from results.
-SCHEDULES = {
-    "hierarchical": 32,
-    "hierarchical-flat": 4,
+SCHEDULES = {  # family: (n0 / n_min, levels (None: the scene's), decay (None: (n0 / n_min)^(1/L)))
+    "hierarchical": (32, None, None),
+    "hierarchical-flat": (4, None, None),
+    # Fewer levels (docs/results/hierarchical-equal-time.md, "Shallow hierarchy"): level-0 points
+    # every 8 pixels, so every detail spans at most 8 pixels, less than a 10k-photon, k = 50
+    # estimate's radius on these images: the map's error is correlated across a detail and cancels.
+    # n_l = 16, 8, 4, 2 (x n_min): chosen on the Cornell box (seed 1) among L = 3..5, n0 = 8..32,
+    # decay 1.5..4.
+    "hierarchical-shallow": (16, 3, 2.0),
 }
 METRICS = ("rmse", "rmse_masked", "rmse_lowfreq")
 REFERENCES = ("path", "noise")
@@ -78,15 +86,16 @@ REFERENCES = ("path", "noise")
 
 
 
-def plans(levels):
+def plans(levels, scale_levels=0):
     out = [(f"multiple maps ({m})", "multiple-maps", ["--plan", "multiple-maps", "--maps", str(m), "--tile", "64"])
            for m in MM_MAPS]
     out += [(f"skipping (S {SKIP_STRIDE}, {r} rounds)", "skipping",
              ["--plan", "skipping", "--stride", str(SKIP_STRIDE), "--rounds", str(r)]) for r in SKIP_ROUNDS]
-    for family, ratio in SCHEDULES.items():
-        decay = ratio ** (1.0 / levels)
+    for family, (ratio, fixed_levels, fixed_decay) in SCHEDULES.items():
+        lv = levels if fixed_levels is None else fixed_levels + scale_levels
+        decay = fixed_decay if fixed_decay is not None else ratio ** (1.0 / lv)
         out += [(f"{family} (n_min {n})", family,
-                 ["--plan", "hierarchical", "--dims", "2", "--levels", str(levels), "--base-samples", str(ratio * n),
+                 ["--plan", "hierarchical", "--dims", "2", "--levels", str(lv), "--base-samples", str(ratio * n),
                   "--min-samples", str(n), "--decay", f"{decay:.6f}", "--tile", "0"]) for n in HIER_MIN]
     return out
 
@@ -132,7 +141,7 @@ def plot(rows, scenes, out, name):
         return []
     written = []
     colours = {"multiple-maps": "tab:blue", "skipping": "tab:green", "hierarchical": "tab:red",
-               "hierarchical-flat": "tab:orange"}
+               "hierarchical-flat": "tab:orange", "hierarchical-shallow": "tab:purple"}
     for scene in scenes:
         mine = [r for r in rows if r["scene"] == scene]
         fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), squeeze=False)
@@ -169,6 +178,8 @@ def write_reports(result, out):
     a = result["args"]
     name = stem(a.get("tag", ""))
     plots = plot(rows, scenes, out, name)
+    default_families = ["multiple-maps", "skipping"] + list(SCHEDULES)
+    families = [f for f in default_families if any(r["family"] == f for r in rows)]
     lines = [
         "# Hierarchical vs skipping vs multiple maps at equal time (issue #13)",
         "",
@@ -177,6 +188,7 @@ def write_reports(result, out):
         "included. Reproduce: `bench/hierarchical_equal_time.py "
         f"--scenes {','.join(scenes)} --photons {a['photons']} --k {a['k']} --seeds {a['seeds']} "
         f"--reference-maps {a['reference_maps']}"
+        + (f" --plans {','.join(families)}" if families != default_families else "")
         + (f" --scale {a['scale']}" if a.get("scale", 1) != 1 else "")
         + (f" --extra '{a['extra']}' --tag {a['tag']}" if a.get("extra") or a.get("tag") else "")
         + f"` (writes this file, {name}.json and the plots)." + (f" Every image with `{a['extra']}`." if a.get("extra") else ""),
@@ -222,6 +234,35 @@ def write_reports(result, out):
     print(f"wrote {out / (name + '.md')} and {len(plots)} plots")
 
 
+def merge_runs(results):
+    """One result from runs with disjoint seeds: per (scene, method) the RMS error over every seed
+    (each run's row is already the RMS over its seeds) and the median of every CPU time."""
+    first = results[0]
+    seeds = [s for r in results for s in str(r["args"]["seeds"]).split(",")]
+    if len(set(seeds)) != len(seeds):
+        sys.exit("--merge: the runs share a seed")
+    for r in results[1:]:
+        if {k: v for k, v in r["args"].items() if k != "seeds"} != \
+                {k: v for k, v in first["args"].items() if k != "seeds"}:
+            sys.exit("--merge: the runs differ in more than their seeds")
+    rows = []
+    for row in first["rows"]:
+        same = [x for r in results for x in r["rows"] if x["scene"] == row["scene"] and x["method"] == row["method"]]
+        if len(same) != len(results):
+            sys.exit(f"--merge: {row['scene']} {row['method']} is not in every run")
+        n = [len(str(r["args"]["seeds"]).split(",")) for r in results]
+        merged = dict(row)
+        merged["cpu_seconds_all"] = [t for x in same for t in x["cpu_seconds_all"]]
+        merged["cpu_seconds"] = statistics.median(merged["cpu_seconds_all"])
+        merged["wall_seconds"] = statistics.median(x["wall_seconds"] for x in same)
+        for ref in REFERENCES:
+            if row.get(ref) is None:
+                continue
+            merged[ref] = {m: math.sqrt(sum(k * x[ref][m] ** 2 for k, x in zip(n, same)) / sum(n)) for m in METRICS}
+        rows.append(merged)
+    return {"args": dict(first["args"], seeds=",".join(seeds)), "scenes": first["scenes"], "rows": rows}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -239,9 +280,17 @@ def main():
                     help="render at this multiple of each scene's resolution (path reference skipped if > 1)")
     ap.add_argument("--tag", default="", help="output names hierarchical-equal-time-<tag>.* (default: no tag)")
     ap.add_argument("--replot", action="store_true")
+    ap.add_argument("--merge", nargs="+", metavar="JSON",
+                    help="combine runs of the same plans with different --seeds (e.g. run in parallel): errors "
+                         "RMS over all seeds, CPU time the median over all; writes the tables and plots to --out")
     args = ap.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.merge:
+        merged = merge_runs([json.loads(pathlib.Path(f).read_text()) for f in args.merge])
+        (out / f"{stem(merged['args'].get('tag', ''))}.json").write_text(json.dumps(merged, indent=2) + "\n")
+        write_reports(merged, out)
+        return
     if args.replot:
         write_reports(json.loads((out / f"{stem(args.tag)}.json").read_text()), out)
         return
@@ -270,7 +319,7 @@ def main():
             d = json.loads(run([args.pf, "diff", exr, ref, "--json", "--scene", manifest]).stdout)
             return {k: d[k] for k in METRICS}
 
-        for method, family, flags in plans(levels):
+        for method, family, flags in plans(levels, int(math.log2(args.scale))):
             if family not in wanted:
                 continue
             cpus, walls, errs = [], [], {ref: {m: [] for m in METRICS} for ref in REFERENCES}

@@ -23,7 +23,10 @@
 // parents, so where the image is smooth (and the photon map's low-frequency error is smooth)
 // d_j is small and has small variance, and F(p) inherits the many maps of the coarse points.
 // A detail task (map j, level l, row band) renders the band's level-l points and their parents
-// with map j; the assembly turns its sums into details.
+// with map j and with one shared random-number stream (PixelStreams::kShared, renderer.h; the
+// task executor decides it): the same map cancels the map's error in d_j, the same random numbers
+// cancel the Monte Carlo noise of direct light and sub-pixel position, which would otherwise add
+// three times. The assembly turns the task's sums into details.
 //
 // Localization. Once all detail tasks of level l are merged, let D(p) be p's mean detail and
 // I(p) the mean interpolation Σ w f_j(q) (luminance), and σ_l the level's noise: the median over

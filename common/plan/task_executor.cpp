@@ -199,11 +199,18 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   const Camera camera(local_camera);
   std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
   std::vector<Rgb> sums(pixels.size());
+  // A hierarchical detail task renders level-l points and their parents with one map: common
+  // random numbers there (PixelStreams::kShared, renderer.h) so that the detail's Monte Carlo
+  // noise cancels like the map's error does (Wald 1999, §4.5; docs/renderer.md "Hierarchical
+  // plan"). Level-0 and localization tasks estimate pixels directly: independent streams.
+  const PixelStreams streams = task.pixels.kind == PixelSubset::Kind::kHierarchyLevel && task.pixels.level > 0
+                                   ? PixelStreams::kShared
+                                   : PixelStreams::kPerPixel;
   RenderStats stats;
   if (settings_as_given.integrator == IntegratorKind::kPath) {
     const PathTracer tracer(scene.accel, scene.lights);
     stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
-                         sums, progress, cancel, settings_as_given.sampler);
+                         sums, progress, cancel, settings_as_given.sampler, streams);
   } else {
     const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
     std::string key = MapCacheKey(scene_key, settings, task.map_seed);
@@ -229,7 +236,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     integrator_options.precomputed.threads = threads;
     const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps, integrator_options);
     stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed,
-                         threads, sums, progress, cancel, settings.sampler);
+                         threads, sums, progress, cancel, settings.sampler, streams);
   }
   out.pixels = pixels.size();
   out.samples = task.sample_end - task.sample_begin;

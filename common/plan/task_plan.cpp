@@ -87,7 +87,7 @@ uint32_t CountRounds(const PlanSpec& plan) {
 }
 
 uint32_t PlanExpansionVersion(const PlanSpec& plan) {
-  return plan.kind == PlanKind::kHierarchical ? 2 : 0;
+  return plan.kind == PlanKind::kHierarchical ? 3 : 0;
 }
 
 std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed) {

@@ -79,8 +79,9 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
 // its own version is the same: a checkpoint lists task *ids*, which mean other tasks under
 // another expansion. Bump a plan's number whenever its expansion changes.
 //   static plans (a)-(c): 0, unchanged since the first release;
-//   hierarchical: 2 (1: localization tasks per level; 2: one batch per level-0 map and row band
-//   once all levels are complete, docs/renderer.md "Localization").
+//   hierarchical: 3 (1: localization tasks per level; 2: one batch per level-0 map and row band
+//   once all levels are complete, docs/renderer.md "Localization"; 3: a detail task's pixels
+//   share one random-number stream, renderer.h PixelStreams — same ids, other pixel values).
 uint32_t PlanExpansionVersion(const PlanSpec& plan);
 
 uint64_t MapSeed(uint64_t job_seed, uint64_t map_index);

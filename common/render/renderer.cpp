@@ -17,7 +17,7 @@ namespace pf {
 RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std::span<const uint32_t> pixels,
                          uint32_t sample_begin, uint32_t sample_end, uint64_t seed, int threads,
                          std::span<Rgb> sums, std::atomic<uint64_t>* progress,
-                         const std::atomic<bool>* cancel, SamplerKind sampler_kind) {
+                         const std::atomic<bool>* cancel, SamplerKind sampler_kind, PixelStreams streams) {
   const auto start = std::chrono::steady_clock::now();
   struct Local {
     TraceCounters counters;
@@ -31,7 +31,8 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std
     const int px = int(p % uint32_t(width)), py = int(p / uint32_t(width));
     ++t_pixel_epoch;
     Rgb sum = sums[i];
-    const PixelStream stream(sampler_kind, seed, p);  // the pixel's keys and slot seeds, once
+    // The pixel's keys and slot seeds, once (PixelStreams: the pixel's own or the call's shared one).
+    const PixelStream stream(sampler_kind, seed, streams == PixelStreams::kShared ? kSharedStreamPixel : p);
     for (uint32_t s = sample_begin; s < sample_end; ++s) {
       Sampler sampler = Sampler::ForPixelSample(stream, s);
       const Sample2 uv = sampler.Get2D(kPixelSlot);

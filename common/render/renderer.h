@@ -28,6 +28,19 @@ struct RenderOptions {
   SamplerKind sampler = SamplerKind::kSobol;
 };
 
+// Which random numbers the pixels of one RenderPixels call draw.
+//  kPerPixel: sample s of pixel p from Sampler::ForPixelSample(kind, seed, p, s): independent
+//             pixels, white noise (the default; every plan except a hierarchy's details).
+//  kShared:   every listed pixel draws sample s from the same stream (seed, kSharedStreamPixel, s):
+//             the same sub-pixel offset, light samples and BSDF samples at every pixel. Common
+//             random numbers for a hierarchical detail f_j(p) − Σ w f_j(q) (Wald 1999, §4.5): the
+//             thesis uses the same map at p and its parents so that the map's error cancels in the
+//             detail; the same random numbers make the Monte Carlo part (direct light's shadow rays,
+//             §4.2.1) cancel too wherever the image is smooth, instead of adding three times.
+enum class PixelStreams { kPerPixel, kShared };
+// No pixel index reaches it (images are far smaller than 2^32 pixels).
+inline constexpr uint32_t kSharedStreamPixel = 0xffffffffu;
+
 struct RenderStats {
   double seconds = 0;
   uint64_t samples = 0;
@@ -45,8 +58,8 @@ struct RenderStats {
 RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std::span<const uint32_t> pixels,
                          uint32_t sample_begin, uint32_t sample_end, uint64_t seed, int threads,
                          std::span<Rgb> sums, std::atomic<uint64_t>* progress = nullptr,
-                         const std::atomic<bool>* cancel = nullptr,
-                         SamplerKind sampler = SamplerKind::kSobol);
+                         const std::atomic<bool>* cancel = nullptr, SamplerKind sampler = SamplerKind::kSobol,
+                         PixelStreams streams = PixelStreams::kPerPixel);
 
 // Whole image, averaged over options.spp samples per pixel.
 Image RenderImage(const Integrator& integrator, const Camera& camera, const RenderOptions& options,

@@ -604,10 +604,10 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
 // its tasks re-run, and it ends with the image of an uninterrupted run.
 TEST_F(Recovery, AJobOfAnotherPlanExpansionVersionIsReRunFromZero) {
   const JobConfig config = ValidateJobSpec(HierarchicalSpec(), catalog);
-  ASSERT_EQ(PlanExpansionVersion(config.plan), 2u);
+  ASSERT_EQ(PlanExpansionVersion(config.plan), 3u);
   Scheduler reference(clock, {});
   std::unique_ptr<Job> ref_job = reference.PrepareJob(config);
-  EXPECT_EQ(ref_job->config().spec.plan().expansion_version(), 2u) << "stamped at submit";
+  EXPECT_EQ(ref_job->config().spec.plan().expansion_version(), 3u) << "stamped at submit";
   const std::string ref_id = ref_job->id();
   reference.AddJob(std::move(ref_job));
   while (std::optional<Lease> l = reference.TryLease({"w", {}})) Complete(reference, *l);
@@ -625,11 +625,12 @@ TEST_F(Recovery, AJobOfAnotherPlanExpansionVersionIsReRunFromZero) {
     persister->Abandon();
   }
   ASSERT_TRUE(fs::exists(Persister::CheckpointFile(cp_dir, id)));
-  // As if an older coordinator (expansion version 1) had stored the job.
+  // As if an older coordinator (expansion version 2: detail tasks with independent pixel streams)
+  // had stored the job.
   {
     SqliteStore db(db_file);
     v1::JobSpec old_spec = config.spec;
-    old_spec.mutable_plan()->set_expansion_version(1);
+    old_spec.mutable_plan()->set_expansion_version(2);
     db.UpdateJobSpec(id, old_spec.SerializeAsString());
   }
 
@@ -641,11 +642,11 @@ TEST_F(Recovery, AJobOfAnotherPlanExpansionVersionIsReRunFromZero) {
   EXPECT_EQ(report.tasks_merged, 0u) << "the old checkpoint's task ids are not trusted";
   EXPECT_FALSE(fs::exists(Persister::CheckpointFile(cp_dir, id)));
   fs::path aside = Persister::CheckpointFile(cp_dir, id);
-  aside += ".expansion-v1";
+  aside += ".expansion-v2";
   EXPECT_TRUE(fs::exists(aside)) << "set aside, not deleted";
   v1::JobSpec stored;
   ASSERT_TRUE(stored.ParseFromString(db.LoadJobs().at(0).spec));
-  EXPECT_EQ(stored.plan().expansion_version(), 2u) << "a second restart resumes normally";
+  EXPECT_EQ(stored.plan().expansion_version(), 3u) << "a second restart resumes normally";
   while (std::optional<Lease> l = scheduler.TryLease({"w3", {}})) Complete(scheduler, *l);
   EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
   const JobSnapshot after = scheduler.Snapshot(id, true);
