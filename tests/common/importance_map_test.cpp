@@ -129,11 +129,16 @@ TEST(ImportanceMapTest, SameMapForAnyThreadCount) {
   const EmbreeScene accel(r.scene);
   const LightSampler lights(accel);
   const Camera camera(r.camera);
-  const PhotonMaps one =
-      PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 40000, 7, 1), &camera);
-  const PhotonMaps two =
-      PhotonMaps::Build(accel, lights, MapsOptionsOf(ImportanceMode::kOn, 40000, 7, 2), &camera);
+  // The separate direct map too (built only when an estimator reads it: asked for here).
+  auto options = [](int threads) {
+    PhotonMapsOptions o = MapsOptionsOf(ImportanceMode::kOn, 40000, 7, threads);
+    o.direct_map = true;
+    return o;
+  };
+  const PhotonMaps one = PhotonMaps::Build(accel, lights, options(1), &camera);
+  const PhotonMaps two = PhotonMaps::Build(accel, lights, options(2), &camera);
   ASSERT_TRUE(one.stats.importance);
+  ASSERT_TRUE(one.direct && two.direct);
   EXPECT_GT(one.stats.rejected, 0u);
   EXPECT_EQ(one.stats.rejected, two.stats.rejected);
   ASSERT_EQ(one.global->size(), two.global->size());
