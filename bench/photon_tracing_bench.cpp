@@ -3,7 +3,12 @@
 // across machines), median of --repeats runs, next to the thesis's Table 2.1 random-walk
 // times. Table + JSON.
 //
-//   build/bench/photon_tracing_bench [--photons 200000] [--repeats 3] [--json out.json]
+//   build/bench/photon_tracing_bench [--photons 200000] [--repeats 3] [--clock wall|cpu] [--scenes a,b]
+//                                  [--json out.json]
+//
+// --clock cpu times each trace by the process's CPU time instead of the wall clock: the trace
+// runs on one thread, so on a shared, loaded machine this leaves out the time spent waiting for
+// a core (compare with embree_bench --clock cpu for the ratio to the raw Embree ray rate).
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -13,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_stats.h"
 #include "common/accel/embree_scene.h"
 #include "common/photon/photon_tracer.h"
 #include "common/render/light_sampler.h"
@@ -29,16 +35,26 @@ int main(int argc, char** argv) {
   uint64_t photons = 200000;
   int repeats = 3;
   std::string json_path;
+  bool cpu_clock = false;
+  std::string only;  // --scenes a,b: a subset (e.g. one scene per `perf record`)
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--photons" && i + 1 < argc)
+    if (a == "--clock" && i + 1 < argc &&
+        (std::string(argv[i + 1]) == "cpu" || std::string(argv[i + 1]) == "wall"))
+      cpu_clock = std::string(argv[++i]) == "cpu";
+    else if (a == "--scenes" && i + 1 < argc)
+      only = std::string(",").append(argv[++i]).append(",");
+    else if (a == "--photons" && i + 1 < argc)
       photons = std::stoull(argv[++i]);
     else if (a == "--repeats" && i + 1 < argc)
       repeats = std::max(1, std::atoi(argv[++i]));
     else if (a == "--json" && i + 1 < argc)
       json_path = argv[++i];
     else {
-      std::fprintf(stderr, "usage: %s [--photons N] [--repeats R] [--json out.json]\n", argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--photons N] [--repeats R] [--clock wall|cpu] [--scenes a,b] [--json out.json]\n",
+          argv[0]);
       return 2;
     }
   }
@@ -49,11 +65,12 @@ int main(int argc, char** argv) {
       {"cornell-sphere", root + "/scenes/cornell-sphere/cornell-sphere.json"},
       {"office3", root + "/scenes/office3/office3.json"}};
   nlohmann::json out = nlohmann::json::array();
-  std::printf("photon tracing, 1 thread, %llu photons, median of %d runs\n", (unsigned long long)photons,
-              repeats);
+  std::printf("photon tracing, 1 thread, %llu photons, median of %d runs, %s clock\n",
+              (unsigned long long)photons, repeats, cpu_clock ? "cpu" : "wall");
   std::printf("%-15s %12s %12s %12s %10s %14s\n", "scene", "emitted k/s", "stored k/s", "rays M/s",
               "stored/em.", "s per 100k st.");
   for (const auto& [name, path] : scenes) {
+    if (!only.empty() && only.find("," + name + ",") == std::string::npos) continue;
     const pf::SceneDescription scene = pf::LoadScene(path);
     const pf::EmbreeScene accel(scene);
     const pf::LightSampler lights(accel);
@@ -64,11 +81,13 @@ int main(int argc, char** argv) {
       o.photons = photons;
       o.map_seed = uint64_t(r + 1);
       o.threads = 1;
-      const pf::PhotonTracingResult res = pf::TracePhotons(accel, lights, o);
+      pf::PhotonTracingResult res;
+      const double cpu_seconds = pf::bench::CpuTimeIt([&] { res = pf::TracePhotons(accel, lights, o); });
+      const double seconds = cpu_clock ? cpu_seconds : res.seconds;
       const double stored = double(res.direct.size() + res.indirect.size() + res.caustic.size());
-      emitted_rate.push_back(double(res.emitted) / res.seconds);
-      stored_rate.push_back(stored / res.seconds);
-      ray_rate.push_back(double(res.rays) / res.seconds);
+      emitted_rate.push_back(double(res.emitted) / seconds);
+      stored_rate.push_back(stored / seconds);
+      ray_rate.push_back(double(res.rays) / seconds);
       stored_per_emitted = stored / double(res.emitted);
     }
     const double st = Median(stored_rate);
@@ -81,6 +100,7 @@ int main(int argc, char** argv) {
                    {"rays_per_s", Median(ray_rate)},
                    {"stored_per_emitted", stored_per_emitted},
                    {"threads", 1},
+                   {"clock", cpu_clock ? "cpu" : "wall"},
                    {"repeats", repeats}});
   }
   std::printf("thesis Table 2.1 (DEC Alpha 333 MHz): RandomWalk 100k photons 5 s, 700k 30 s\n");

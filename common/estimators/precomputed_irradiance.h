@@ -44,6 +44,14 @@ struct PrecomputedIrradianceOptions {
   // order, and the first one visible from y serves (one shadow ray each): a site behind a
   // wall would carry the other room's light into this one. 0 = no visibility test (nearest).
   int candidates = 4;
+  // The sites' own estimates drop photons whose origin the site cannot see (Wald 1999, §4.1.1;
+  // needs photon origins in the maps: ConfigureMapsFor keeps them). Read by the photon map
+  // integrator, which builds the sites (Build itself only calls the RadianceFn). Without it the
+  // sites next to a wall carry the light of the room behind it into every gather that reads
+  // them (INVISIBLEDATE low budget: RMSE/white 0.570 without, 0.483 with, the full local pass
+  // 0.558); where nothing bleeds it only darkens the sites in corners a little (scene8 0.0184 →
+  // 0.0189). docs/results/kernel.md §2.
+  bool occlusion_test = true;
   int threads = 0;  // for the precomputation; 0 = TBB's default
 };
 

@@ -75,6 +75,7 @@
 #include "common/materials/bsdf.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace pf {
@@ -93,6 +94,12 @@ float SelectionMean(const Rgb& c) {
 
 bool IsUsableVector(const Vec3& v) {
   return IsFinite(v) && LengthSquared(v) > 1e-20f;
+}
+
+bool SameBits(const Vec3& a, const Vec3& b) {
+  return std::bit_cast<uint32_t>(a.x) == std::bit_cast<uint32_t>(b.x) &&
+         std::bit_cast<uint32_t>(a.y) == std::bit_cast<uint32_t>(b.y) &&
+         std::bit_cast<uint32_t>(a.z) == std::bit_cast<uint32_t>(b.z);
 }
 
 Vec3 Reflect(const Vec3& wo, const Vec3& n) {
@@ -147,62 +154,75 @@ float FresnelDielectric(float cos_i, float eta) {
   return std::clamp(0.5f * (r_perp * r_perp + r_par * r_par), 0.0f, 1.0f);
 }
 
-Bsdf::Bsdf(const Material& material, const Vec3& ns, const Vec3& ng) : material_(&material) {
+BsdfLobes BsdfLobes::Of(const Material& material) {
+  BsdfLobes l;
+  l.glossy = material.specular_roughness >= kMinGlossyAlpha;  // false for NaN
+  l.alpha = l.glossy ? material.specular_roughness : 0.0f;
+  if (!std::isfinite(l.alpha)) {
+    l.glossy = false;
+    l.alpha = 0.0f;
+  }
+
+  l.mean[kSlotDiffuseR] = SelectionMean(material.diffuse_reflectance);
+  l.mean[kSlotSpecularR] = SelectionMean(material.specular_reflectance);
+  l.mean[kSlotDiffuseT] = SelectionMean(material.diffuse_transmittance);
+  l.mean[kSlotSpecularT] = SelectionMean(material.specular_transmittance);
+
+  const float ior = material.ior;
+  l.dielectric =
+      l.mean[kSlotSpecularT] > 0.0f && std::isfinite(ior) && ior > 0.0f && std::abs(ior - 1.0f) > kThinIorEps;
+  if (l.dielectric) {
+    // Only the Fresnel lobe; SampleDielectric computes its roulette probabilities per wo.
+    l.mean[kSlotDiffuseR] = l.mean[kSlotSpecularR] = l.mean[kSlotDiffuseT] = 0.0f;
+    l.p_normalized[kSlotSpecularT] = 1.0f;
+    l.p_roulette[kSlotSpecularT] = std::min(1.0f, l.mean[kSlotSpecularT]);
+    return l;
+  }
+  float sum = 0.0f;
+  for (float m : l.mean) sum += m;
+  if (!(sum > 0.0f) || !std::isfinite(sum)) return l;  // black: every probability stays 0
+  for (int i = 0; i < kNumSlots; ++i) {
+    l.p_normalized[i] = l.mean[i] / sum;
+    l.p_roulette[i] = sum > 1.0f ? l.mean[i] / sum : l.mean[i];
+  }
+  return l;
+}
+
+Bsdf::Bsdf(const Material& material, const Vec3& ns, const Vec3& ng)
+    : Bsdf(material, BsdfLobes::Of(material), ns, ng) {}
+
+Bsdf::Bsdf(const Material& material, const BsdfLobes& lobes, const Vec3& ns, const Vec3& ng)
+    : material_(&material), lobes_(lobes) {
   valid_ = IsUsableVector(ng);
   ng_ = valid_ ? Normalize(ng) : Vec3(0, 0, 1);
   ns_ = ng_;
-  if (IsUsableVector(ns)) {
+  // Flat triangles pass ns == ng: normalising the same vector again would give ng_ bit for bit
+  // (and pass both tests below), so skip it (every hit of a scene without vertex normals).
+  // Compared bit for bit: an interpolated ns equal to ng but for the sign of a zero is
+  // normalised as before (Frame's copysign tells −0 from +0).
+  if (!SameBits(ns, ng) && IsUsableVector(ns)) {
     Vec3 n = Normalize(ns);
     if (Dot(n, ng_) < 0.0f) n = -n;
     if (Dot(n, ng_) > 1e-3f) ns_ = n;  // a shading normal (nearly) in the surface plane is unusable
   }
-
-  glossy_ = material.specular_roughness >= kMinGlossyAlpha;  // false for NaN
-  alpha_ = glossy_ ? material.specular_roughness : 0.0f;
-  if (!std::isfinite(alpha_)) {
-    glossy_ = false;
-    alpha_ = 0.0f;
-  }
-
-  mean_[kSlotDiffuseR] = SelectionMean(material.diffuse_reflectance);
-  mean_[kSlotSpecularR] = SelectionMean(material.specular_reflectance);
-  mean_[kSlotDiffuseT] = SelectionMean(material.diffuse_transmittance);
-  mean_[kSlotSpecularT] = SelectionMean(material.specular_transmittance);
-
-  const float ior = material.ior;
-  dielectric_ =
-      mean_[kSlotSpecularT] > 0.0f && std::isfinite(ior) && ior > 0.0f && std::abs(ior - 1.0f) > kThinIorEps;
-  if (dielectric_) {
-    // Only the Fresnel lobe; SampleDielectric computes its roulette probabilities per wo.
-    mean_[kSlotDiffuseR] = mean_[kSlotSpecularR] = mean_[kSlotDiffuseT] = 0.0f;
-    p_normalized_[kSlotSpecularT] = 1.0f;
-    p_roulette_[kSlotSpecularT] = std::min(1.0f, mean_[kSlotSpecularT]);
-    return;
-  }
-  float sum = 0.0f;
-  for (float m : mean_) sum += m;
-  if (!(sum > 0.0f) || !std::isfinite(sum)) return;  // black: every probability stays 0
-  for (int i = 0; i < kNumSlots; ++i) {
-    p_normalized_[i] = mean_[i] / sum;
-    p_roulette_[i] = sum > 1.0f ? mean_[i] / sum : mean_[i];
-  }
 }
 
 bool Bsdf::HasNonDelta() const {
-  return valid_ && !dielectric_ &&
-         (mean_[kSlotDiffuseR] > 0.0f || (glossy_ && mean_[kSlotSpecularR] > 0.0f) ||
-          mean_[kSlotDiffuseT] > 0.0f);
+  return valid_ && !lobes_.dielectric &&
+         (lobes_.mean[kSlotDiffuseR] > 0.0f || (lobes_.glossy && lobes_.mean[kSlotSpecularR] > 0.0f) ||
+          lobes_.mean[kSlotDiffuseT] > 0.0f);
 }
 
 bool Bsdf::HasDiffuse() const {
-  return valid_ && !dielectric_ && (mean_[kSlotDiffuseR] > 0.0f || mean_[kSlotDiffuseT] > 0.0f);
+  return valid_ && !lobes_.dielectric &&
+         (lobes_.mean[kSlotDiffuseR] > 0.0f || lobes_.mean[kSlotDiffuseT] > 0.0f);
 }
 
 bool Bsdf::HasLobes(uint32_t lobes) const {
   if (!valid_) return false;
-  if (dielectric_) return (lobes & (kLobeSpecularReflection | kLobeSpecularTransmission)) != 0;
+  if (lobes_.dielectric) return (lobes & (kLobeSpecularReflection | kLobeSpecularTransmission)) != 0;
   for (int i = 0; i < kNumSlots; ++i) {
-    if (mean_[i] > 0.0f && (SlotLobe(i) & lobes) != 0) return true;
+    if (lobes_.mean[i] > 0.0f && (SlotLobe(i) & lobes) != 0) return true;
   }
   return false;
 }
@@ -212,7 +232,7 @@ uint32_t Bsdf::SlotLobe(int slot) const {
     case kSlotDiffuseR:
       return kLobeDiffuseReflection;
     case kSlotSpecularR:
-      return glossy_ ? kLobeGlossyReflection : kLobeSpecularReflection;
+      return lobes_.glossy ? kLobeGlossyReflection : kLobeSpecularReflection;
     case kSlotDiffuseT:
       return kLobeDiffuseTransmission;
     case kSlotSpecularT:
@@ -223,7 +243,11 @@ uint32_t Bsdf::SlotLobe(int slot) const {
 }
 
 void Bsdf::SelectionProbabilities(Mode mode, uint32_t lobes, float probs[kNumSlots]) const {
-  const float* base = mode == Mode::kNormalized ? p_normalized_ : p_roulette_;
+  const float* base = mode == Mode::kNormalized ? lobes_.p_normalized : lobes_.p_roulette;
+  if (lobes == kLobeAll) {  // nothing removed: the stored probabilities as they are (photon walk)
+    for (int i = 0; i < kNumSlots; ++i) probs[i] = base[i];
+    return;
+  }
   float sum = 0.0f;
   bool restricted = false;
   for (int i = 0; i < kNumSlots; ++i) {
@@ -255,21 +279,21 @@ void Bsdf::EvalPdf(const Vec3& wo, const Vec3& wi, uint32_t lobes, const float* 
   *pdf = 0.0f;
   Vec3 n;
   float side;
-  if (dielectric_ || !LobeNormal(wo, &n, &side)) return;
+  if (lobes_.dielectric || !LobeNormal(wo, &n, &side)) return;
   const float cos_g = Dot(wi, ng_) * side;
   const Material& m = *material_;
   if (cos_g > 0.0f) {  // reflection
-    if ((lobes & kLobeDiffuseReflection) && mean_[kSlotDiffuseR] > 0.0f) {
+    if ((lobes & kLobeDiffuseReflection) && lobes_.mean[kSlotDiffuseR] > 0.0f) {
       *f += m.diffuse_reflectance * kInvPi;
       *pdf += probs[kSlotDiffuseR] * std::max(0.0f, Dot(wi, n)) * kInvPi;
     }
-    if ((lobes & kLobeGlossyReflection) && glossy_ && mean_[kSlotSpecularR] > 0.0f) {
-      const WardValue ward = WardLobe(wo, wi, n, alpha_);
+    if ((lobes & kLobeGlossyReflection) && lobes_.glossy && lobes_.mean[kSlotSpecularR] > 0.0f) {
+      const WardValue ward = WardLobe(wo, wi, n, lobes_.alpha);
       *f += m.specular_reflectance * ward.f;
       *pdf += probs[kSlotSpecularR] * ward.pdf;
     }
   } else if (cos_g < 0.0f) {  // transmission
-    if ((lobes & kLobeDiffuseTransmission) && mean_[kSlotDiffuseT] > 0.0f) {
+    if ((lobes & kLobeDiffuseTransmission) && lobes_.mean[kSlotDiffuseT] > 0.0f) {
       *f += m.diffuse_transmittance * kInvPi;
       *pdf += probs[kSlotDiffuseT] * std::max(0.0f, -Dot(wi, n)) * kInvPi;
     }
@@ -287,14 +311,14 @@ Rgb Bsdf::Eval(const Vec3& wo, const Vec3& wi) const {
 Rgb Bsdf::EvalLobes(const Vec3& wo, const Vec3& wi, uint32_t lobes) const {
   Rgb f;
   float pdf;
-  EvalPdf(wo, wi, lobes, p_normalized_, &f, &pdf);
+  EvalPdf(wo, wi, lobes, lobes_.p_normalized, &f, &pdf);
   return f;
 }
 
 float Bsdf::Pdf(const Vec3& wo, const Vec3& wi) const {
   Rgb f;
   float pdf;
-  EvalPdf(wo, wi, kNonDeltaLobes, p_normalized_, &f, &pdf);
+  EvalPdf(wo, wi, kNonDeltaLobes, lobes_.p_normalized, &f, &pdf);
   return pdf;
 }
 
@@ -311,7 +335,7 @@ std::optional<BsdfSample> Bsdf::SampleDielectric(const Vec3& wo, const Vec3& n, 
   float p_reflect = reflect_allowed ? fresnel : 0.0f;
   float p_refract = refract_allowed ? 1.0f - fresnel : 0.0f;
   if (mode == Mode::kRussianRoulette) {
-    p_refract *= p_roulette_[kSlotSpecularT];  // min(1, mean τs) > 0; the rest is absorption
+    p_refract *= lobes_.p_roulette[kSlotSpecularT];  // min(1, mean τs) > 0; the rest is absorption
   } else if (!(reflect_allowed && refract_allowed)) {
     const float sum = p_reflect + p_refract;  // renormalise over the allowed branch
     if (!(sum > 0.0f)) return std::nullopt;
@@ -355,7 +379,7 @@ std::optional<BsdfSample> Bsdf::Sample(const Vec3& wo, float u_lobe, float u1, f
   Vec3 n;
   float side;
   if (!LobeNormal(wo, &n, &side)) return std::nullopt;
-  if (dielectric_) return SampleDielectric(wo, n, side, u_lobe, mode, lobes);
+  if (lobes_.dielectric) return SampleDielectric(wo, n, side, u_lobe, mode, lobes);
 
   // Lobe selection: walk the cumulative probabilities. In kNormalized a u_lobe beyond the
   // (rounded) sum picks the last lobe; in kRussianRoulette it is absorption.
@@ -393,10 +417,10 @@ std::optional<BsdfSample> Bsdf::Sample(const Vec3& wo, float u_lobe, float u1, f
       break;
     }
     case kSlotSpecularR:
-      if (glossy_) {
+      if (lobes_.glossy) {
         // Ward's half-vector sampling; ln(1 − u1) has the law of ln u1 and is finite on [0,1)
         // (1 − u1 is exact for the 24-bit uniforms of Rng).
-        const float tan2 = -alpha_ * alpha_ * std::log(1.0f - u1);
+        const float tan2 = -lobes_.alpha * lobes_.alpha * std::log(1.0f - u1);
         const float cos_d = 1.0f / std::sqrt(1.0f + tan2);
         const float sin_d = std::sqrt(tan2) * cos_d;
         const float phi = kTwoPi * u2;

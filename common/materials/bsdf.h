@@ -46,6 +46,24 @@ struct BsdfSample {
   bool is_delta = false;
 };
 
+// What a Bsdf takes from its Material alone: the lobe kinds and the selection probabilities
+// (channel means of ρd, ρs, τd, τs, §2.2). The same for every hit on the material, so a loop
+// that builds a Bsdf at every hit (the photon walk of §2.2: 8 % of its time went to these means)
+// computes them once per material with Of() and hands them to the constructor below; the values
+// are those the plain constructor computes, so either way gives the same Bsdf bit for bit.
+struct BsdfLobes {
+  enum Slot { kSlotDiffuseR = 0, kSlotSpecularR, kSlotDiffuseT, kSlotSpecularT, kNumSlots };
+
+  static BsdfLobes Of(const Material& material);
+
+  float alpha = 0.0f;                  // Ward α of the reflection lobe; 0 = mirror
+  bool glossy = false;                 // ρs is a Ward lobe (α >= 1e-4), else a mirror
+  bool dielectric = false;             // τs with ior != 1: Fresnel dielectric only
+  float mean[kNumSlots] = {};          // channel means of ρd, ρs, τd, τs (>= 0)
+  float p_normalized[kNumSlots] = {};  // Mode::kNormalized selection probabilities
+  float p_roulette[kNumSlots] = {};    // Mode::kRussianRoulette selection probabilities
+};
+
 class Bsdf {
  public:
   enum class Mode { kNormalized, kRussianRoulette };
@@ -53,6 +71,8 @@ class Bsdf {
   // `ng`: geometric normal of the triangle's front face (unit). `ns`: shading normal (unit;
   // flipped by the constructor into ng's hemisphere if needed). The material outlives the Bsdf.
   Bsdf(const Material& material, const Vec3& ns, const Vec3& ng);
+  // The same Bsdf from the material's precomputed lobes (`lobes` must be BsdfLobes::Of(material)).
+  Bsdf(const Material& material, const BsdfLobes& lobes, const Vec3& ns, const Vec3& ng);
 
   // f(wo, wi) of the non-delta lobes, without cosine. Zero if wi and wo are on the wrong sides
   // for every lobe (judged against the geometric normal).
@@ -88,7 +108,9 @@ class Bsdf {
 
  private:
   // Lobe slots (bsdf.cpp explains the selection rules).
-  enum Slot { kSlotDiffuseR = 0, kSlotSpecularR, kSlotDiffuseT, kSlotSpecularT, kNumSlots };
+  static constexpr int kSlotDiffuseR = BsdfLobes::kSlotDiffuseR, kSlotSpecularR = BsdfLobes::kSlotSpecularR,
+                       kSlotDiffuseT = BsdfLobes::kSlotDiffuseT, kSlotSpecularT = BsdfLobes::kSlotSpecularT,
+                       kNumSlots = BsdfLobes::kNumSlots;
 
   // The normal that orients the lobes for this wo: the shading normal on wo's side of ng (ng
   // itself if wo is below that shading hemisphere). `side` = sign(wo·ng). False if wo lies in
@@ -105,13 +127,8 @@ class Bsdf {
 
   const Material* material_;
   Vec3 ns_, ng_;
-  float alpha_ = 0.0f;                  // Ward α of the reflection lobe; 0 = mirror
-  bool glossy_ = false;                 // ρs is a Ward lobe (α >= 1e-4), else a mirror
-  bool dielectric_ = false;             // τs with ior != 1: Fresnel dielectric only
-  bool valid_ = false;                  // ng usable
-  float mean_[kNumSlots] = {};          // channel means of ρd, ρs, τd, τs (>= 0)
-  float p_normalized_[kNumSlots] = {};  // Mode::kNormalized selection probabilities
-  float p_roulette_[kNumSlots] = {};    // Mode::kRussianRoulette selection probabilities
+  bool valid_ = false;  // ng usable
+  BsdfLobes lobes_;
 };
 
 // Fresnel reflectance of a dielectric interface for unpolarised light. cos_i >= 0 is the cosine

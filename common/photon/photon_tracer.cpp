@@ -37,7 +37,7 @@ namespace {
 constexpr uint64_t kChunk = kPhotonTracingChunk;
 
 struct ChunkOutput {
-  std::vector<TracedPhoton> direct, indirect, caustic;
+  TracedPhotons direct, indirect, caustic;
   uint64_t rays = 0, rejected = 0;
   ImportanceScratch importance_scratch;  // the chunk's importance queries (one thread at a time)
 };
@@ -49,10 +49,23 @@ Vec3 SampleCosineHemisphere(const Vec3& n, float u1, float u2) {
   return Frame(n).ToWorld(Vec3(r * std::cos(phi), r * std::sin(phi), z));
 }
 
+// What every photon of one trace shares, computed once per TracePhotons call rather than at
+// every photon or hit: the sampler's per-slot seeds of the map (sampler.h, PhotonStream) and
+// each material's lobe selection means (§2.2, bsdf.h, BsdfLobes). Both give exactly the values
+// the per-photon / per-hit computation gave, so the maps are unchanged bit for bit.
+struct TraceShared {
+  TraceShared(const SceneDescription& desc, const PhotonTracerOptions& o) : stream(o.sampler, o.map_seed) {
+    lobes.reserve(desc.materials.size());
+    for (const Material& m : desc.materials) lobes.push_back(BsdfLobes::Of(m));
+  }
+  PhotonStream stream;
+  std::vector<BsdfLobes> lobes;  // by material index
+};
+
 void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
-              uint64_t index, ChunkOutput& out) {
+              const TraceShared& shared, uint64_t index, ChunkOutput& out) {
   const SceneDescription& desc = scene.description();
-  Sampler sampler = Sampler::ForPhoton(o.sampler, o.map_seed, index);
+  Sampler sampler = Sampler::ForPhoton(shared.stream, index);
   // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
   // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
   const double jitter = o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
@@ -73,7 +86,7 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
     const std::optional<SurfaceHit> hit = scene.Intersect(ray);
     if (!hit) return;
     const Material& m = desc.materials[hit->material];
-    const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
+    const Bsdf bsdf(m, shared.lobes[hit->material], hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
     bool store = bsdf.HasDiffuse();
     Rgb stored_power = power;
@@ -131,13 +144,51 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
   const uint64_t first_chunk = options.photon_begin / kChunk;
   const uint64_t chunks = (range_end + kChunk - 1) / kChunk - first_chunk;
   std::vector<ChunkOutput> outputs(chunks);
+  const TraceShared shared(scene.description(), options);
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  if (arena.max_concurrency() == 1) {
+    // One thread traces the chunks in order anyway: straight into the result arrays, which
+    // then need neither the per-chunk buffers nor the concatenation below (each photon's 56
+    // bytes written once instead of twice, and half the page faults: a fifth of a 1-thread
+    // trace's time went to faults and copies, docs/results/kernel.md §4). Same arrays.
+    ChunkOutput out;
+    for (uint64_t c = 0; c < chunks; ++c) {
+      if (options.cancel && options.cancel->load(std::memory_order_relaxed)) throw Cancelled();
+      const uint64_t end = std::min(range_end, (first_chunk + c + 1) * kChunk);
+      for (uint64_t i = (first_chunk + c) * kChunk; i < end; ++i)
+        TraceOne(scene, lights, options, shared, i, out);
+      if (c == 0 && chunks > 1) {
+        // Room for the whole trace at the first chunk's rate, +25 %: address space only (pages
+        // are touched as photons fill them); a growing vector would copy and fault its old buffers.
+        const auto room = [&](size_t n) { return n + n * (chunks - 1) + n * chunks / 4 + 16; };
+        out.direct.reserve(room(out.direct.size()));
+        out.indirect.reserve(room(out.indirect.size()));
+        out.caustic.reserve(room(out.caustic.size()));
+      }
+    }
+    result.direct = std::move(out.direct);
+    result.indirect = std::move(out.indirect);
+    result.caustic = std::move(out.caustic);
+    result.rays = out.rays;
+    result.rejected = out.rejected;
+    result.emitted = range_end - options.photon_begin;
+    result.emitted_power = lights.total_power();
+    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  }
   arena.execute([&] {
     tbb::parallel_for(uint64_t(0), chunks, [&](uint64_t c) {
       if (options.cancel && options.cancel->load(std::memory_order_relaxed)) return;
       const uint64_t end = std::min(range_end, (first_chunk + c + 1) * kChunk);
+      // Room for the usual counts up front (a photon stores at most one direct photon, and
+      // about one indirect one in the scenes we measured): a growing vector copies itself
+      // and page-faults in every buffer it outgrows, which was ~1/3 of the memory traffic
+      // of a trace. Reserving only takes address space; pages are touched as they are filled.
+      ChunkOutput& out = outputs[c];
+      out.direct.reserve(kChunk);
+      out.indirect.reserve(2 * kChunk);
       for (uint64_t i = (first_chunk + c) * kChunk; i < end; ++i)
-        TraceOne(scene, lights, options, i, outputs[c]);
+        TraceOne(scene, lights, options, shared, i, out);
     });
   });
   if (options.cancel && options.cancel->load()) throw Cancelled();
@@ -157,12 +208,12 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
   arena.execute([&] {
     tbb::parallel_for(uint64_t(0), chunks, [&](uint64_t c) {
       ChunkOutput& out = outputs[c];
-      const std::array<std::vector<TracedPhoton>*, 3> from = {&out.direct, &out.indirect, &out.caustic};
+      const std::array<TracedPhotons*, 3> from = {&out.direct, &out.indirect, &out.caustic};
       for (int k = 0; k < 3; ++k) {
         // memmove (trivially copyable), which also begins the lifetimes of the photons in the
         // uninitialised memory of *lists[k].
         std::copy(from[k]->begin(), from[k]->end(), lists[k]->begin() + std::ptrdiff_t(offsets[c][k]));
-        std::vector<TracedPhoton>().swap(*from[k]);  // peak memory: free each chunk once copied
+        TracedPhotons().swap(*from[k]);  // peak memory: free each chunk once copied
       }
     });
   });

@@ -61,7 +61,12 @@ void ConfigureMapsFor(const PhotonMapIntegratorOptions& options, PhotonMapsOptio
   maps->separate_direct = options.direct != DirectLightMode::kNone;
   maps->direct_map = DirectMapRead(options);
   maps->keep_light_ids = options.direct == DirectLightMode::kPhotonDirect;
-  maps->keep_origins = options.global.occlusion_test || options.caustic.occlusion_test;
+  // Origins also for the precomputed irradiance's sites when they are estimated with the
+  // occlusion test (PreparePrecomputedIrradiance).
+  maps->keep_origins =
+      options.global.occlusion_test || options.caustic.occlusion_test ||
+      (options.local_pass_rays > 0 && options.local_pass_lookup == LocalPassLookup::kPrecomputed &&
+       options.precomputed.occlusion_test);
 }
 
 PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSampler* lights,
@@ -107,17 +112,34 @@ void PhotonMapIntegrator::PreparePrecomputedIrradiance() {
   const std::string key = "precomputed-irradiance|" + describe(options_.global) + "|" +
                           describe(options_.direct_photons) + "|" + describe(options_.caustic) + "|" +
                           std::to_string(p.stride) + "," + std::to_string(p.normal_cos) + "," +
-                          std::to_string(p.max_radius_fraction) + "," + std::to_string(p.candidates);
+                          std::to_string(p.max_radius_fraction) + "," + std::to_string(p.candidates) + "," +
+                          std::to_string(p.occlusion_test);
   PhotonMaps::Derived& slot = *maps_.derived;
   std::lock_guard lock(slot.mutex);
   if (slot.key == key && slot.value) {
     precomputed_ = std::static_pointer_cast<const PrecomputedIrradiance>(slot.value);
     return;
   }
-  precomputed_ =
-      PrecomputedIrradiance::Build(scene_, maps_, p, [this](const Bsdf& white, const Vec3& x, const Vec3& n) {
-        TraceCounters unused;
-        return MapRadiance(white, x, n, kLobeDiffuseReflection, /*include_direct_photons=*/true, unused);
+  // With p.occlusion_test the sites' estimates drop photons whose origin x cannot see (Wald
+  // 1999, §4.1.1), whatever the camera path does: a site is estimated once and read by many
+  // gather rays, so its k shadow rays are paid once per map, and without the test the sites next
+  // to a wall carry the light of the room behind it into every gather that reads them
+  // (precomputed_irradiance.h; docs/results/kernel.md §2).
+  RadianceEstimateOptions global = options_.global, direct = options_.direct_photons,
+                          caustic = options_.caustic;
+  if (p.occlusion_test) global.occlusion_test = direct.occlusion_test = caustic.occlusion_test = true;
+  precomputed_ = PrecomputedIrradiance::Build(
+      scene_, maps_, p, [this, global, direct, caustic](const Bsdf& white, const Vec3& x, const Vec3& n) {
+        NearestPhotons& nearest = Scratch();
+        auto estimate = [&](const PhotonMap& map, const PhotonAttributes& attributes,
+                            const RadianceEstimateOptions& o) {
+          const EstimateContext context{attributes.origin.empty() ? nullptr : &attributes.origin, &scene_};
+          return EstimateRadiance(map, white, x, n, kLobeDiffuseReflection, o, nearest, context).radiance;
+        };
+        Rgb L = estimate(*maps_.global, maps_.global_attributes, global);
+        if (maps_.direct) L += estimate(*maps_.direct, maps_.direct_attributes, direct);
+        if (maps_.caustic) L += estimate(*maps_.caustic, maps_.caustic_attributes, caustic);
+        return L;
       });
   slot.key = key;
   slot.value = precomputed_;

@@ -262,6 +262,24 @@ class PixelStream {
   sobol::SlotSeedLanes lanes_;
 };
 
+// Per-map state of the photon streams: the map's key and the seeds of the first
+// sobol::kPixelSeedSlots slots — exactly the photon layout's light, point and direction slots
+// and the lobe and direction slots of the kPhotonBounceBudget budgeted bounces
+// (sample_layout.h). Without it every request of a photon recomputes its slot's seeds from the
+// key (a 64-bit multiply-xorshift round or two per number, the same for all photons of the map);
+// the photon tracer computes them once per map. Values are exactly those of
+// Sampler::ForPhoton(kind, map_seed, i): the same map with or without it.
+class PhotonStream {
+ public:
+  PhotonStream(SamplerKind kind, uint64_t map_seed);
+
+ private:
+  friend class Sampler;
+  SamplerKind kind_;
+  uint64_t map_seed_, key_;
+  std::array<sobol::SlotSeeds2, sobol::kPixelSeedSlots> seeds_{};
+};
+
 class Sampler {
  public:
   // Sample `sample` of pixel `pixel` (y·W + x) of the stream family `seed` (a job's pixel seed).
@@ -286,6 +304,13 @@ class Sampler {
   static Sampler ForPhoton(SamplerKind kind, uint64_t map_seed, uint64_t photon) {
     return Sampler(photon >> 32 ? SamplerKind::kIndependent : kind, HashKey(map_seed, kPhotonTag),
                    uint32_t(photon), HashKey(map_seed, photon, kPhotonTag));
+  }
+  // The same sampler (the same values) from the map's precomputed state; `stream` must outlive it.
+  static Sampler ForPhoton(const PhotonStream& stream, uint64_t photon) {
+    Sampler s(photon >> 32 ? SamplerKind::kIndependent : stream.kind_, stream.key_, uint32_t(photon),
+              HashKey(stream.map_seed_, photon, kPhotonTag));
+    s.seeds_ = stream.seeds_.data();
+    return s;
   }
 
   // Number j of `subs` in slot `slot` (see the header comment), uniform in [0, 1).
@@ -405,6 +430,13 @@ class Sampler {
   std::array<float, sobol::kPixelSlotLanes> slot_u_, slot_v_;
   std::array<SubBatch, kBatches> batches_;
   Rng rng_;
+
+  friend class PhotonStream;
 };
+
+inline PhotonStream::PhotonStream(SamplerKind kind, uint64_t map_seed)
+    : kind_(kind), map_seed_(map_seed), key_(HashKey(map_seed, Sampler::kPhotonTag)) {
+  for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots; ++slot) seeds_[slot] = sobol::Seeds2Of(key_, slot);
+}
 
 }  // namespace pf

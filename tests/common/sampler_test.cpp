@@ -339,6 +339,30 @@ TEST(SobolSampler, PrecomputedPixelStreamGivesExactlyTheSameValues) {
     }
 }
 
+TEST(SobolSampler, PrecomputedPhotonStreamGivesExactlyTheSameValues) {
+  // The photon tracer's per-map PhotonStream (the budget's slot seeds computed once per map) must
+  // not change a single value of any photon: slots inside and beyond the precomputed ones,
+  // sub-indices, the independent fallback, photon numbers past 2^32 (independent kind), both kinds.
+  for (SamplerKind kind : {SamplerKind::kSobol, SamplerKind::kIndependent})
+    for (uint64_t map_seed : {1ull, 42ull, 0x9e3779b97f4a7c15ull}) {
+      const PhotonStream stream(kind, map_seed);
+      for (uint64_t photon : {0ull, 1ull, 4095ull, 123457ull, 0xffffffffull, (1ull << 32) + 5}) {
+        Sampler a = Sampler::ForPhoton(kind, map_seed, photon);
+        Sampler b = Sampler::ForPhoton(stream, photon);
+        for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots + 5; ++slot) {
+          EXPECT_EQ(a.Get1D(slot), b.Get1D(slot)) << slot;
+          const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
+          EXPECT_EQ(qa.u, qb.u) << slot;
+          EXPECT_EQ(qa.v, qb.v) << slot;
+          const Sample2 pa = a.Get2D(slot, 3, 8), pb = b.Get2D(slot, 3, 8);
+          EXPECT_EQ(pa.u, pb.u) << slot;
+          EXPECT_EQ(pa.v, pb.v) << slot;
+        }
+        EXPECT_EQ(a.Get1D(kIndependentSlot), b.Get1D(kIndependentSlot));
+      }
+    }
+}
+
 TEST(SobolSampler, PascalProductFromTheReversedIndexEqualsTheDirectOne) {
   // Point2D reads dimension 1 from the bit-reversed index (kPascalOfReversed): the same points.
   for (uint32_t i : {0u, 1u, 2u, 3u, 255u, 256u, 12345u, 0x80000000u, 0xdeadbeefu, 0xffffffffu}) {
