@@ -12,11 +12,12 @@ machine is shared, so wall time is not used). Rows without splitting use N, 2N, 
 a split row is compared with the no-splitting row of the same CPU time by interpolation
 ("equal-time ratio": the no-splitting curve's region RMSE at the split row's CPU time, log-log
 interpolated, over the split row's). One map seed per row; --repeat R renders R seeds and
-reports medians.
+reports medians (default 3).
 
 Writes <out>/caustic_splitting.json, <out>/caustic_splitting.md (table) and, with matplotlib,
-<out>/caustic-splitting-<scene>-images.png: a contact sheet of the caustic region (no splitting,
-brute and Metropolis at the largest S, each over its error image) showing Metropolis's artifacts.
+<out>/caustic-splitting-<scene>-images.png: a contact sheet (no splitting, brute and Metropolis at
+the largest S, Metropolis with N/5 photons — the thesis's artifact case — and no splitting at 8N,
+each over its error image) showing Metropolis's artifacts.
 
     bench/caustic_splitting.py [--scenes cornell-sphere,bathroom] [--splits 4,8,16,20] [--repeat 1]
 """
@@ -34,10 +35,13 @@ from bench_common import ROOT, run, timed
 # render flags shared by every row.
 SCENES = {
     "cornell-sphere": ("scenes/cornell-sphere/cornell-sphere.json", "scenes/cornell-sphere/reference-256.exr",
-                       "128,176,200,226", 50000, ["--res", "256x256", "--spp", "4", "--k", "50", "--direct", "mc"]),
+                       "150,195,225,226", 50000, ["--res", "256x256", "--spp", "4", "--k", "50", "--direct", "mc"]),
     "bathroom": ("scenes/bathroom/bathroom.json", "scenes/bathroom/reference-160.exr", "0,0,160,120", 50000,
                  ["--res", "160x120", "--spp", "4", "--k", "50", "--direct", "mc"]),
 }
+
+
+TAG = ""
 
 
 def diff(pf, image, reference, manifest, region=None):
@@ -49,27 +53,32 @@ def diff(pf, image, reference, manifest, region=None):
 
 
 def rows(base, splits):
-    none = [(f"none {m}N", m, 1, "brute") for m in (1, 2, 4, 8)]
+    """(name, photons as a multiple of the base, S, method); photons may be a fraction."""
+    none = [(f"none {m}N", m, 1, "brute") for m in (1, 2, 4, 8, 16)]
     brute = [(f"brute S={s}", 1, s, "brute") for s in splits]
     metropolis = [(f"metropolis S={s}", 1, s, "metropolis") for s in splits]
-    return none + brute + metropolis
+    # The thesis's artifact case (Figure 4.11): few photons, a high ratio. Not an equal-time row.
+    artifact = [(f"metropolis S={max(splits)} at N/5", 0.2, max(splits), "metropolis")]
+    return none + brute + metropolis + artifact
 
 
 def render_row(args, scene, name, mult, split, method, tmp):
     manifest, reference, region, base, flags = SCENES[scene]
-    cmd_flags = ["--integrator", "photonmap", "--photons", str(base * mult), *flags, "--threads", str(args.threads)]
+    photons = int(round(base * mult))
+    cmd_flags = ["--integrator", "photonmap", "--photons", str(photons), *flags, "--threads", str(args.threads)]
     if split > 1:
         cmd_flags += ["--caustic-split", str(split), "--caustic-split-method", method]
     samples = []
     for seed in range(1, args.repeat + 1):
-        image = pathlib.Path(tmp) / f"{scene}-{name.replace(' ', '_').replace('=', '')}-{seed}.exr"
+        safe = "".join(c if c.isalnum() else "_" for c in name)
+        image = pathlib.Path(tmp) / f"{scene}-{safe}-{seed}.exr"
         cpu, wall = timed([args.pf, "render", manifest, *cmd_flags, "--seed", str(seed), "-o", image, "--no-png",
                            "-q"])
         whole = diff(args.pf, image, reference, manifest)
         part = diff(args.pf, image, reference, manifest, region)
         samples.append({"cpu_s": cpu, "wall_s": wall, "whole": whole, "region": part, "exr": str(image)})
     med = lambda f: statistics.median(f(s) for s in samples)
-    row = {"method": name, "photons": base * mult, "split": split, "split_method": method,
+    row = {"method": name, "photons": photons, "split": split, "split_method": method,
            "flags": " ".join(cmd_flags), "cpu_s": med(lambda s: s["cpu_s"]), "wall_s": med(lambda s: s["wall_s"]),
            "exr": samples[0]["exr"]}
     for part in ("whole", "region"):
@@ -100,40 +109,49 @@ def equal_time_ratio(none_rows, row, key):
 
 
 def contact_sheet(pf, scene, table, out, work):
-    """Crops of the caustic region (no splitting, brute and Metropolis at the largest S) at the
-    reference's exposure, each over its error image on one scale."""
+    """Whole images (no splitting, brute and Metropolis at the largest S, Metropolis with few
+    photons, no splitting at 8N) at the reference's exposure, each over its error image on one
+    scale; the caustic region outlined."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.image as mpimg
+    import matplotlib.patches as patches
     import matplotlib.pyplot as plt
     manifest, reference, region, _, _ = SCENES[scene]
     x0, y0, x1, y1 = map(int, region.split(","))
     s_max = max(r["split"] for r in table)
-    shown = [r for r in table if r["method"] == "none 1N"] + \
-            [r for r in table if r["split"] == s_max] + [r for r in table if r["method"] == "none 8N"]
-    ref_mean = diff(pf, reference, reference, manifest, region)["mean"]
-    scale = 2.0 * ref_mean
+    names = ["none 1N", f"brute S={s_max}", f"metropolis S={s_max}", f"metropolis S={s_max} at N/5", "none 8N"]
+    shown = [r for n in names for r in table if r["method"] == n]
+    scale = 2.0 * diff(pf, reference, reference, manifest, region)["mean"]
     cells = [("reference", reference, "")] + [
-        (r["method"], r["exr"], f"{r['cpu_s']:.1f} s CPU, region RMSE {r['region_rmse']:.3g}") for r in shown]
-    fig, axes = plt.subplots(2, len(cells), figsize=(2.6 * len(cells), 5.4), gridspec_kw={"hspace": 0.15,
-                                                                                        "wspace": 0.04})
+        (r["method"], r["exr"], f"{r['photons'] // 1000}k photons, {r['cpu_s']:.1f} s CPU\n"
+                                f"region RMSE {r['region_rmse']:.3g}, mean/ref {r['region_mean_ratio']:.3f}")
+        for r in shown]
+    cols = 3
+    grid = (len(cells) + cols - 1) // cols
+    fig, axes = plt.subplots(2 * grid, cols, figsize=(3.1 * cols, 2 * grid * 3.25),
+                             gridspec_kw={"hspace": 0.22, "wspace": 0.03})
     for ax in axes.flat:
         ax.axis("off")
     for i, (name, exr, caption) in enumerate(cells):
+        top, bottom = axes[2 * (i // cols)][i % cols], axes[2 * (i // cols) + 1][i % cols]
         img, err = work / f"{scene}-sheet-{i}.png", work / f"{scene}-sheet-{i}-error.png"
         run([pf, "preview", exr, "-o", img, "--exposure-of", reference])
-        axes[0][i].imshow(mpimg.imread(img)[y0:y1, x0:x1])
-        axes[0][i].set_title(f"{name}\n{caption}" if caption else name, fontsize=7)
+        top.imshow(mpimg.imread(img), interpolation="nearest")
+        top.add_patch(patches.Rectangle((x0 - 0.5, y0 - 0.5), x1 - x0, y1 - y0, fill=False, lw=0.6, ec="yellow"))
+        top.set_title(f"{name}\n{caption}" if caption else name, fontsize=7)
         if caption:
             run([pf, "diff", exr, reference, "--error-image", err, "--error-scale", f"{scale:.6g}"])
-            axes[1][i].imshow(mpimg.imread(err)[y0:y1, x0:x1])
+            bottom.imshow(mpimg.imread(err), interpolation="nearest")
         else:
-            axes[1][i].text(0.5, 0.5, f"below: |image - reference|\n0 (purple) to {scale:.3g} (yellow,\n"
-                                      f"2x the region's mean)", ha="center", va="center", fontsize=7,
-                            transform=axes[1][i].transAxes)
-    fig.suptitle(f"{scene}: caustic region {region} (pixels); one exposure for all", fontsize=8)
-    path = out / f"caustic-splitting-{scene}-images.png"
-    fig.savefig(path, dpi=90)
+            bottom.text(0.5, 0.5, f"below each image: |image - reference|\n0 (purple) to {scale:.3g} (yellow:\n"
+                                  f"2x the caustic region's mean)", ha="center", va="center", fontsize=7,
+                        transform=bottom.transAxes)
+    fig.suptitle(f"{scene}: caustic region {region} outlined; one exposure for all.\nMetropolis: the start "
+                 f"points of rare chains act as secondary lights (blotches)", fontsize=8)
+    path = out / f"caustic-splitting-{scene}{TAG}-images.png"
+    fig.subplots_adjust(top=1 - 0.5 / fig.get_figheight(), bottom=0.01, left=0.01, right=0.99)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return path.name
 
@@ -144,18 +162,25 @@ def main():
     ap.add_argument("--pf", default="build/client/pf")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--splits", default="4,8,16,20")
+    ap.add_argument("--photons", type=int, default=0, help="base N (default: per scene, 50000)")
+    ap.add_argument("--tag", default="", help="suffix of the output names (e.g. -200k)")
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", default="docs/results")
     args = ap.parse_args()
+    global TAG
+    TAG = args.tag
     splits = [int(s) for s in args.splits.split(",")]
     out = ROOT / args.out
     result, sheets = {}, {}
+    out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         for scene in [s for s in args.scenes.split(",") if s]:
+            if args.photons:
+                SCENES[scene] = SCENES[scene][:3] + (args.photons,) + SCENES[scene][4:]
             table = [render_row(args, scene, *r, tmp) for r in rows(SCENES[scene][3], splits)]
             none = [r for r in table if r["split"] == 1]
-            for r in table:
+            for r in table:  # (the N/5 artifact row too, for completeness)
                 for key in ("region_rmse", "region_rmse_lowfreq", "whole_rmse_masked"):
                     r[f"equal_time_{key}"] = equal_time_ratio(none, r, key)
             result[scene] = {"manifest": SCENES[scene][0], "reference": SCENES[scene][1],
@@ -166,7 +191,7 @@ def main():
                 print("no matplotlib: contact sheet skipped (tools/install-deps.sh --bench)", file=sys.stderr)
     for r in (row for s in result.values() for row in s["rows"]):
         r.pop("exr", None)
-    (out / "caustic_splitting.json").write_text(json.dumps(result, indent=1) + "\n")
+    (out / f"caustic_splitting{args.tag}.json").write_text(json.dumps(result, indent=1) + "\n")
     lines = []
     for scene, r in result.items():
         lines += [f"### {scene} (caustic region {r['region']})", "",
@@ -181,7 +206,7 @@ def main():
         if scene in sheets:
             lines += ["", f"![{scene}: caustic region]({sheets[scene]})"]
         lines.append("")
-    (out / "caustic_splitting_table.md").write_text("\n".join(lines) + "\n")
+    (out / f"caustic_splitting{args.tag}_table.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

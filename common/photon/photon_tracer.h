@@ -104,8 +104,10 @@ const char* CausticSplitMethodName(CausticSplitMethod m);
 
 // Metropolis splitting's jitter of the start direction (§4.6.2, "an exponential distribution"):
 // the angle between the old and the new direction is θ_max·(θ_min/θ_max)^u, u uniform, about a
-// uniform azimuth — a symmetric proposal (its density depends only on the angle).
-inline constexpr float kMetropolisJitterMin = 1e-3f, kMetropolisJitterMax = 0.1f;  // radians
+// uniform azimuth — a symmetric proposal (its density depends only on the angle). Wide enough that
+// a chain's states spread beyond one estimate's k-nearest disk (with 0.001-0.1 rad they piled up:
+// k photons then hold only ~k/S independent chains; docs/results/caustic_splitting.md).
+inline constexpr float kMetropolisJitterMin = 0.01f, kMetropolisJitterMax = 0.5f;  // radians
 
 struct PhotonTracerOptions {
   uint64_t photons = 100000;  // emitted photons (not stored ones)
