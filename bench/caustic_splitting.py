@@ -150,7 +150,7 @@ def contact_sheet(pf, scene, table, out, work):
     fig.suptitle(f"{scene}: caustic region {region} outlined; one exposure for all.\nMetropolis: the start "
                  f"points of rare chains act as secondary lights (blotches)", fontsize=8)
     path = out / f"caustic-splitting-{scene}{TAG}-images.png"
-    fig.subplots_adjust(top=1 - 0.5 / fig.get_figheight(), bottom=0.01, left=0.01, right=0.99)
+    fig.subplots_adjust(top=1 - 1.1 / fig.get_figheight(), bottom=0.01, left=0.01, right=0.99)
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path.name
