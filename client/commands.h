@@ -33,8 +33,8 @@ int RunLocalPlan(const RenderArgs& a);  // every render without --workers: the j
 // `scene` (optional): the scene the images show, for the masked metrics (rmse_masked,
 // rmse_lowfreq); its camera `camera_name` (default: the first) at the images' resolution.
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
-            double error_scale, bool json, const std::string& scene = "",
-            const std::string& camera_name = "");
+            double error_scale, bool json, const std::string& scene = "", const std::string& camera_name = "",
+            const std::vector<int>& region = {});
 // Inputs without "spp" in their header weigh `assume_spp` (0: refused with InputError).
 int RunMerge(const std::vector<std::string>& inputs, const std::string& output, double assume_spp = 0);
 // PNG of an EXR: auto exposure of `image`, or of `exposure_of` (so renders of one scene share

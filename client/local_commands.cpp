@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <unistd.h>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -158,6 +159,9 @@ int RunLocalPlan(const RenderArgs& a) {
     meta["photons.occlusion_test"] = resolved.occlusion_test ? "1" : "0";
     meta["photons.adaptive_k_min"] = std::to_string(resolved.adaptive_k_min);
     meta["photons.map_seconds"] = fmt::format("{:.3f}", totals.map_seconds);
+    meta["photons.caustic_split"] = std::to_string(resolved.caustic_split);
+    if (resolved.caustic_split > 1)
+      meta["photons.caustic_split_method"] = CausticSplitMethodName(resolved.caustic_split_method);
   }
   AddProvenance(meta);
   WriteExr(output, image, meta);
@@ -171,10 +175,24 @@ int RunLocalPlan(const RenderArgs& a) {
   return kExitOk;
 }
 
+namespace {
+
+// The pixels [x0, x1) × [y0, y1) of an image (pf diff --region).
+Image Crop(const Image& image, const std::array<int, 4>& r) {
+  Image out(r[2] - r[0], r[3] - r[1]);
+  for (int y = r[1]; y < r[3]; ++y)
+    for (int x = r[0]; x < r[2]; ++x) out.at(x - r[0], y - r[1]) = image.at(x, y);
+  return out;
+}
+
+}  // namespace
+
 int RunDiff(const std::string& a_path, const std::string& ref_path, const std::string& error_image,
-            double error_scale, bool json, const std::string& scene_path, const std::string& camera_name) {
-  const Image a = ReadExr(a_path);
-  const Image ref = ReadExr(ref_path);
+            double error_scale, bool json, const std::string& scene_path, const std::string& camera_name,
+            const std::vector<int>& region) {
+  Image a = ReadExr(a_path);
+  Image ref = ReadExr(ref_path);
+  const int full_width = ref.width();
   std::vector<uint8_t> excluded;
   if (!scene_path.empty()) {
     RenderArgs args;
@@ -185,6 +203,25 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
     spec.height = ref.height();
     const EmbreeScene accel(scene);
     excluded = EmitterExclusionMask(EmitterCoverage(accel, Camera(spec)), spec.width, spec.height);
+  }
+  if (!region.empty()) {
+    // A part of the image, e.g. a caustic (issue #15): every metric over its pixels only; the
+    // emitter mask is traced at the full resolution first, so its band is where it was.
+    const std::array<int, 4> r = {region[0], region[1], region[2], region[3]};
+    if (a.width() != ref.width() || a.height() != ref.height())
+      throw InputError(a_path + ": size differs from the reference");
+    if (!(0 <= r[0] && r[0] < r[2] && r[2] <= ref.width() && 0 <= r[1] && r[1] < r[3] &&
+          r[3] <= ref.height()))
+      throw InputError("--region: x0,y0,x1,y1 must satisfy 0 <= x0 < x1 <= width, 0 <= y0 < y1 <= height");
+    a = Crop(a, r);
+    ref = Crop(ref, r);
+    if (!excluded.empty()) {
+      std::vector<uint8_t> cropped;
+      for (int y = r[1]; y < r[3]; ++y)
+        for (int x = r[0]; x < r[2]; ++x)
+          cropped.push_back(excluded[size_t(y) * size_t(full_width) + size_t(x)]);
+      excluded = std::move(cropped);
+    }
   }
   const ImageDiffStats d = CompareImages(a, ref, excluded.empty() ? nullptr : &excluded);
   if (json) {

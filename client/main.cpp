@@ -234,6 +234,11 @@ int main(int argc, char** argv) {
           "are found by tracing the scene's camera at the images' resolution")
       ->check(CLI::ExistingFile);
   diff->add_option("--camera", diff_camera, "With --scene: the named camera (default: the scene's first)");
+  std::vector<int> diff_region;
+  diff->add_option("--region", diff_region,
+                   "Compare only the pixels x0 <= x < x1, y0 <= y < y1 (e.g. a caustic): x0,y0,x1,y1")
+      ->delimiter(',')
+      ->expected(4);
 
   std::vector<std::string> merge_inputs;
   std::string merge_output;
@@ -322,7 +327,8 @@ int main(int argc, char** argv) {
     if (*get) return RunGet(gf, get_job, get_out, get_png);
     if (*list) return RunList(lf, list_all, list_json);
     if (*cancel) return RunCancel(cf, cancel_job);
-    if (*diff) return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera);
+    if (*diff)
+      return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera, diff_region);
     if (*info) return RunInfo(info_scene);
     if (*merge) return RunMerge(merge_inputs, merge_output, merge_assume_spp);
     if (*preview) return RunPreview(preview_in, preview_out, preview_ref, preview_stops);

@@ -60,6 +60,9 @@ struct RenderArgs {
   double importance_min_probability = 0.05;
   double importance_strength = 4.0;
   uint64_t importons = 0;
+  // Caustic splitting (Wald 1999, §4.6).
+  uint32_t caustic_split = 1;
+  std::string caustic_split_method = "brute";
   // Plan (farm and --local-only); plan.empty() = the classic single-process render.
   std::string plan;
   uint32_t maps = 1;

@@ -277,6 +277,33 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   if (pm.importons() > kMaxImportons)
     throw InputError(f + ".importons: must be <= " + std::to_string(kMaxImportons) + " (0 = one per pixel)");
   out.importons = pm.importons();
+  // Wald 1999, §4.6: caustic splitting.
+  if (pm.caustic_split() > kMaxCausticSplit)
+    throw InputError(f + ".caustic_split: must be in [1, " + std::to_string(kMaxCausticSplit) +
+                     "] (0 or 1 = off)");
+  out.caustic_split = std::max<uint32_t>(1, pm.caustic_split());
+  switch (pm.caustic_split_method()) {
+    case v1::CAUSTIC_SPLIT_METHOD_UNSPECIFIED:
+    case v1::CAUSTIC_SPLIT_METHOD_BRUTE:
+      out.caustic_split_method = CausticSplitMethod::kBrute;
+      break;
+    case v1::CAUSTIC_SPLIT_METHOD_METROPOLIS:
+      out.caustic_split_method = CausticSplitMethod::kMetropolis;
+      break;
+    default:
+      throw InputError(f + ".caustic_split_method: unknown value");
+  }
+  if (out.caustic_split > 1 && out.caustic_split_method == CausticSplitMethod::kBrute &&
+      out.photons * out.caustic_split > kMaxPhotonsPerMap)
+    throw LimitError(
+        f + ".caustic_split: photons × caustic_split = " + std::to_string(out.photons * out.caustic_split) +
+        " photons emitted exceeds the limit " + std::to_string(kMaxPhotonsPerMap));
+  if (out.caustic_split > 1 && out.caustic_split_method == CausticSplitMethod::kMetropolis &&
+      out.importance != ImportanceMode::kOff)
+    throw InputError(
+        f +
+        ".caustic_split_method: Metropolis splitting is not combined with importance-driven maps "
+        "(its mutated chains would need their own acceptance draws); use brute or importance off");
   if (out.map_tracing == MapTracingMode::kDistributed && out.importance != ImportanceMode::kOff)
     throw InputError(f +
                      ".map_tracing: distributed tracing does not build importance-driven maps (their "
@@ -330,6 +357,13 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   pm->set_importance_min_probability(s.importance_min_probability);
   pm->set_importance_strength(s.importance_strength);
   pm->set_importons(s.importons);
+  // Unset when off, so specs without splitting serialise exactly as before the setting existed.
+  if (s.caustic_split > 1) {
+    pm->set_caustic_split(s.caustic_split);
+    pm->set_caustic_split_method(s.caustic_split_method == CausticSplitMethod::kMetropolis
+                                     ? v1::CAUSTIC_SPLIT_METHOD_METROPOLIS
+                                     : v1::CAUSTIC_SPLIT_METHOD_BRUTE);
+  }
 }
 
 PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {

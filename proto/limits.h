@@ -60,6 +60,9 @@ namespace pf {
 inline constexpr uint32_t kMaxImageSide = 8192;
 inline constexpr uint64_t kMaxImagePixels = uint64_t(4096) * 4096;
 inline constexpr uint64_t kMaxPhotonsPerMap = uint64_t(1) << 28;
+// Caustic splitting (§4.6): the thesis found 4-20 sufficient; brute force emits S·photons, which
+// must stay within kMaxPhotonsPerMap as well.
+inline constexpr uint32_t kMaxCausticSplit = 256;
 inline constexpr uint32_t kMaxK = 10000;
 inline constexpr uint32_t kMaxShadowRays = 4096;  // also the local pass's rays
 inline constexpr uint32_t kMaxSamplesPerPixel = 1u << 16;

@@ -1,11 +1,17 @@
 #!/usr/bin/env python3
-"""Generates the SCENE10-like and INVISIBLEDATE-like test scenes (chapter-4 estimators, docs/results/estimators.md) as MGF.
+"""Generates the SCENE10-like, INVISIBLEDATE-like, BATHROOM-like and SCENE5-like test scenes as MGF
+(chapter-4 estimators, docs/results/estimators.md; caustic splitting, docs/results/caustic_splitting.md).
 
 SCENE10 (Wald 1999, §5): a 10x10 array of small diffuse rooms, each with its own ceiling light,
 doors between neighbouring rooms. INVISIBLEDATE: two rooms side by side; the viewed room has no
 light of its own and is lit only through a narrow gap of a nearly closed door from the next room.
 
-    tools/gen_rooms.py            # writes scenes/scene10/scene10.mgf, scenes/invisibledate/invisibledate.mgf
+BATHROOM-like (§4.6): a small bathroom lit by two lamps inside clear glass bulbs (a glass shell
+around an emitting sphere), so every photon passes glass before its first diffuse hit: the direct
+light is entirely caustic, and shadow rays cannot reach the lamps. SCENE5-like: a glass sphere of
+96 % transmission on a floor under one small ceiling light, its caustic beside it.
+
+    tools/gen_rooms.py            # writes scenes/{scene10,invisibledate,bathroom,scene5}/*.mgf
 
 Units: metres, y up. Walls are single two-sided faces.
 """
@@ -19,12 +25,34 @@ class Mgf:
         self.lines = []
         self.n = 0
 
-    def material(self, name, rd=None, ed=None):
+    def material(self, name, rd=None, ed=None, rs=None, ts=None, ir=None):
         self.lines += [f"m {name} =", "  c"]
         if rd is not None:
             self.lines.append(f"  rd {rd}")
         if ed is not None:
             self.lines.append(f"  ed {ed}")
+        if rs is not None:
+            self.lines.append(f"  rs {rs} 0")
+        if ts is not None:
+            self.lines.append(f"  ts {ts} 0")
+        if ir is not None:
+            self.lines.append(f"  ir {ir} 0")
+
+    def sphere(self, centre, radius):
+        """MGF sph; a negative radius points the normals (the front faces) inwards."""
+        name = f"v{self.n}"
+        self.n += 1
+        self.lines += [f"v {name} =", f"  p {centre[0]:.4f} {centre[1]:.4f} {centre[2]:.4f}",
+                       f"sph {name} {radius:.4f}"]
+
+    def box(self, x0, x1, y0, y1, z0, z1):
+        """Closed axis-aligned box, faces outwards."""
+        self.quad_y(x0, x1, z0, z1, y1, down=False)
+        self.quad_y(x0, x1, z0, z1, y0, down=True)
+        self.face((x0, y0, z0), (x0, y1, z0), (x1, y1, z0), (x1, y0, z0))  # -z
+        self.face((x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1))  # +z
+        self.face((x0, y0, z0), (x0, y0, z1), (x0, y1, z1), (x0, y1, z0))  # -x
+        self.face((x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1))  # +x
 
     def use(self, name):
         self.lines.append(f"m {name}")
@@ -122,6 +150,76 @@ def invisible_date(size=4.0, height=2.5, gap=0.05, door_top=2.0):
     return m
 
 
+def bathroom(w=3.0, d=3.0, height=2.5, bulb=0.2, glass=0.015, lamp=0.12):
+    """BATHROOM-like: a 3 x 2.5 x 3 m room (x, y up, z); a mirror on the back wall (z = 0) above a
+    vanity, a bathtub along the left wall, two lamps on the back wall's left and right of the
+    mirror, each an emitting sphere inside a clear glass bulb (outer surface facing out, inner
+    surface facing in: the glass is a shell and the lamp sits in air)."""
+    m = Mgf()
+    m.material("tiles", rd=0.6)
+    m.material("wall", rd=0.75)
+    m.material("ceiling", rd=0.8)
+    m.material("tub", rd=0.85)
+    m.material("vanity", rd=0.5)
+    m.material("mirror", rs=0.9)
+    m.material("bulb_glass", ts=1, ir=1.5)
+    # ed in lm/m²: Le = ed/(π·179) ≈ 40 W/(m²·sr).
+    m.material("lamp", ed=22500)
+    m.use("tiles")
+    m.quad_y(0, w, 0, d, 0.0, down=False)
+    m.use("ceiling")
+    m.quad_y(0, w, 0, d, height, down=True)
+    m.use("wall")
+    m.wall_x(0, 0, d, 0, height)
+    m.wall_x(w, 0, d, 0, height)
+    m.wall_z(0, 0, w, 0, height)
+    m.wall_z(d, 0, w, 0, height)
+    m.use("tub")
+    m.box(0.0, 0.75, 0.0, 0.55, 0.6, 2.4)
+    m.use("vanity")
+    m.box(1.1, 2.3, 0.0, 0.85, 0.0, 0.5)
+    m.use("mirror")
+    m.face((1.2, 1.05, 0.005), (2.2, 1.05, 0.005), (2.2, 2.05, 0.005), (1.2, 2.05, 0.005))
+    for x in (0.8, 2.6):
+        centre = (x, 1.75, 0.35)
+        m.use("bulb_glass")
+        m.sphere(centre, bulb)
+        m.sphere(centre, -(bulb - glass))
+        m.use("lamp")
+        m.sphere(centre, lamp)
+    return m
+
+
+def scene5(size=3.0, height=2.5, radius=0.3, light=0.3, pedestal=0.3):
+    """SCENE5-like: a glass sphere (96 % specular transmission, ior 1.5) on a thin pedestal in a
+    3 x 2.5 x 3 m room; one small ceiling light off to the side, so the sphere focuses it into a
+    caustic on the floor beside the pedestal."""
+    m = Mgf()
+    m.material("floor", rd=0.6)
+    m.material("wall", rd=0.7)
+    m.material("ceiling", rd=0.8)
+    m.material("glass", ts=0.96, ir=1.5)
+    m.material("pedestal", rd=0.5)
+    m.material("lamp", ed=40000)
+    m.use("floor")
+    m.quad_y(0, size, 0, size, 0.0, down=False)
+    m.use("ceiling")
+    m.quad_y(0, size, 0, size, height, down=True)
+    m.use("wall")
+    m.wall_x(0, 0, size, 0, height)
+    m.wall_x(size, 0, size, 0, height)
+    m.wall_z(0, 0, size, 0, height)
+    m.wall_z(size, 0, size, 0, height)
+    m.use("pedestal")
+    m.box(size / 2 - 0.08, size / 2 + 0.08, 0.0, pedestal, size / 2 - 0.08, size / 2 + 0.08)
+    m.use("glass")
+    m.sphere((size / 2, pedestal + radius, size / 2), radius)
+    m.use("lamp")
+    lx, lz = size / 2 - 1.2, size / 2 - 0.3
+    m.quad_y(lx - light / 2, lx + light / 2, lz - light / 2, lz + light / 2, height - 0.01, down=True)
+    return m
+
+
 def main():
     scene10().write(ROOT / "scenes/scene10/scene10.mgf",
                     ["SCENE10-like: 10x10 diffuse rooms (4 x 4 x 2.5 m), one 0.5 m ceiling light each,",
@@ -129,6 +227,14 @@ def main():
     invisible_date().write(ROOT / "scenes/invisibledate/invisibledate.mgf",
                            ["INVISIBLEDATE-like: two 4 x 4 x 2.5 m rooms; the left one is lit only through a",
                             "5 cm door gap from the right one. Generated by tools/gen_rooms.py (photonfarm)."])
+    (ROOT / "scenes/bathroom").mkdir(exist_ok=True)
+    bathroom().write(ROOT / "scenes/bathroom/bathroom.mgf",
+                     ["BATHROOM-like: 3 x 2.5 x 3 m; two lamps inside clear glass bulbs (every photon passes",
+                      "glass first), a mirror, a tub and a vanity. Generated by tools/gen_rooms.py (photonfarm)."])
+    (ROOT / "scenes/scene5").mkdir(exist_ok=True)
+    scene5().write(ROOT / "scenes/scene5/scene5.mgf",
+                   ["SCENE5-like: a 96 %-transmissive glass sphere on a pedestal in a 3 x 2.5 x 3 m room, one",
+                    "small ceiling light. Generated by tools/gen_rooms.py (photonfarm)."])
 
 
 if __name__ == "__main__":

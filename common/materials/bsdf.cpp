@@ -322,6 +322,33 @@ float Bsdf::Pdf(const Vec3& wo, const Vec3& wi) const {
   return pdf;
 }
 
+float Bsdf::RouletteProbability(const Vec3& wo, uint32_t lobes) const {
+  Vec3 n;
+  float side;
+  if (!LobeNormal(wo, &n, &side)) return 0.0f;
+  if (lobes_.dielectric) {
+    // The branch probabilities of SampleDielectric in kRussianRoulette (F does not depend on τs).
+    const float eta = side > 0.0f ? material_->ior : 1.0f / material_->ior;
+    const float fresnel = FresnelDielectric(Dot(wo, n), eta);
+    float p = 0.0f;
+    if ((lobes & kLobeSpecularReflection) != 0) p += fresnel;
+    if ((lobes & kLobeSpecularTransmission) != 0) p += (1.0f - fresnel) * lobes_.p_roulette[kSlotSpecularT];
+    return p;
+  }
+  float probs[kNumSlots];
+  SelectionProbabilities(Mode::kRussianRoulette, lobes, probs);
+  float p = 0.0f;
+  for (float q : probs) p += q;
+  return p;
+}
+
+std::optional<Vec3> Bsdf::LobeAxis(const Vec3& wo) const {
+  Vec3 n;
+  float side;
+  if (!LobeNormal(wo, &n, &side)) return std::nullopt;
+  return n;
+}
+
 std::optional<BsdfSample> Bsdf::SampleDielectric(const Vec3& wo, const Vec3& n, float side, float u_lobe,
                                                  Mode mode, uint32_t lobes) const {
   const Rgb& tau = material_->specular_transmittance;

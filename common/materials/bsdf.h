@@ -91,6 +91,14 @@ class Bsdf {
   std::optional<BsdfSample> Sample(const Vec3& wo, float u_lobe, float u1, float u2, Mode mode,
                                    uint32_t lobes) const;
 
+  // Probability that Sample(wo, u, ·, ·, kRussianRoulette) picks a lobe of `lobes` (a LobeFlags
+  // mask) for a uniform u: the photon walk's lobe-choice probability (§2.2). Metropolis caustic
+  // splitting (Wald 1999, §4.6.2) needs it as a function of wo for its acceptance ratio.
+  float RouletteProbability(const Vec3& wo, uint32_t lobes) const;
+  // The axis of the cosine lobes for this wo (the shading normal on wo's side, or the geometric
+  // one when wo is below the shading hemisphere); nullopt for wo in the surface plane.
+  std::optional<Vec3> LobeAxis(const Vec3& wo) const;
+
   bool HasNonDelta() const;             // has any lobe that Eval can see (next-event estimation useful)
   bool HasDiffuse() const;              // diffuse reflection or transmission (photon storage, §2.2)
   bool HasLobes(uint32_t lobes) const;  // has any lobe of the LobeFlags mask (delta ones too)

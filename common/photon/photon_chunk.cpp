@@ -192,6 +192,8 @@ PhotonMaps AssemblePhotonMaps(std::span<const PhotonChunk> chunks, const PhotonM
   PhotonMaps maps;
   maps.seed = options.tracing.map_seed;
   maps.stats.emitted = options.tracing.photons;
+  if (options.tracing.caustic_split > 1 && options.tracing.caustic_split_method == CausticSplitMethod::kBrute)
+    maps.stats.emitted *= options.tracing.caustic_split;  // S·N left the lights (§4.6.1)
   double power[3] = {0, 0, 0};
   for (const PhotonChunk& c : chunks) {
     maps.stats.rays += c.rays;

@@ -164,6 +164,13 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
       "{:.2f}s",
       options.tracing.map_seed, traced.emitted, maps.stats.stored_global, maps.stats.stored_caustic,
       maps.stats.stored_direct, traced.seconds, maps.stats.build_seconds);
+  if (options.tracing.caustic_split > 1)
+    spdlog::info(
+        "caustic splitting (seed {}): S = {} by {}: {} caustic photons; {} chains split, {} of {} mutations "
+        "accepted",
+        options.tracing.map_seed, options.tracing.caustic_split,
+        CausticSplitMethodName(options.tracing.caustic_split_method), traced.caustic.size(), traced.chains,
+        traced.accepted, traced.mutations);
   if (importance)
     spdlog::info(
         "importance (seed {}): {} importons stored of {} traced ({:.2f}s); {} diffuse hits not stored "

@@ -32,13 +32,22 @@ bool SceneNeedsCausticMap(const SceneDescription& scene) {
   return false;
 }
 
+const char* CausticSplitMethodName(CausticSplitMethod m) {
+  return m == CausticSplitMethod::kMetropolis ? "metropolis" : "brute";
+}
+
 namespace {
 
 constexpr uint64_t kChunk = kPhotonTracingChunk;
+constexpr uint64_t kSplitTag = 0x73706c6974ull;     // "split": brute force's choice j*
+constexpr uint64_t kMetropolisTag = 0x6d636d63ull;  // "mcmc": Metropolis mutations
+constexpr uint32_t kSingularLobes =
+    kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
 
 struct ChunkOutput {
   TracedPhotons direct, indirect, caustic;
   uint64_t rays = 0, rejected = 0;
+  uint64_t chains = 0, mutations = 0, accepted = 0;
   ImportanceScratch importance_scratch;  // the chunk's importance queries (one thread at a time)
 };
 
@@ -62,29 +71,198 @@ struct TraceShared {
   std::vector<BsdfLobes> lobes;  // by material index
 };
 
-void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
-              const TraceShared& shared, uint64_t index, ChunkOutput& out) {
+// Where a singular chain starts (Wald 1999, §4.6.2): the light, or a Lambertian diffuse bounce.
+// Its direction ω was drawn with a density ∝ max(0, ω·axis) on the side `side` (emission: the
+// light's normal; a bounce: the Bsdf's lobe axis, sidedness against the geometric normal).
+struct ChainStart {
+  Vec3 position, ray_origin_light;  // the vertex; the light's offset origin (emission only)
+  std::optional<SurfaceHit> hit;    // the bounce's hit (nullopt: emission)
+  std::optional<Bsdf> bsdf;         // the bounce's Bsdf, for the diffuse weight at a new ω
+  Vec3 wo, axis, side;
+  Rgb power;             // emission: Φ leaving the light; bounce: Φ arriving (before the diffuse weight)
+  Rgb diffuse_roulette;  // bounce: 1/P(diffuse lobe) (the RR selection, constant in ω)
+  Vec3 direction;        // ω of the original walk
+};
+
+// What a chain did after its start: the characteristic (singular lobes at h1..h_{n-1}), how it
+// ended (escaped after the last singular lobe, or a non-singular choice at h_n), its probability
+// factor Q = Π P(lobe k) · P(end), and its caustic stores (at h2..hn).
+struct ChainState {
+  std::vector<uint32_t> lobes;
+  bool escaped = false;
+  bool splittable = true;  // no glossy lobe (not a function of ω alone) and no cap reached
+  double q = 1.0;
+  Vec3 direction;
+  std::vector<TracedPhoton> stores;
+};
+
+// The start's density (up to its constant) for direction w: 0 where the walk could not go.
+double StartDensity(const ChainStart& c, const Vec3& w) {
+  if (!(Dot(w, c.side) > 0.0f)) return 0.0;
+  return std::max(0.0, double(Dot(w, c.axis)));
+}
+
+// Φ leaving the start in direction w (the diffuse bounce's RR weight depends on w only when the
+// lobe axis is not the shading normal).
+Rgb StartPower(const ChainStart& c, const Vec3& w) {
+  if (!c.bsdf) return c.power;
+  const float cos_axis = Dot(w, c.axis);
+  if (!(cos_axis > 0.0f)) return Rgb(0.0f);
+  const Rgb f = c.bsdf->EvalLobes(c.wo, w, kLobeDiffuseReflection);
+  return c.power * f * (c.bsdf->AbsCosTheta(w) * kPi / cos_axis) * c.diffuse_roulette;
+}
+
+// Traces the chain of `like`'s characteristic from the start in direction w; false when the
+// geometry does not give that characteristic (Q = 0).
+bool TraceChain(const EmbreeScene& scene, const ChainStart& c, const ChainState& like, const Vec3& w,
+                uint32_t light, ChunkOutput& out, ChainState* result) {
+  const SceneDescription& desc = scene.description();
+  result->lobes = like.lobes;
+  result->escaped = like.escaped;
+  result->direction = w;
+  result->stores.clear();
+  result->q = 1.0;
+  Rgb power = StartPower(c, w);
+  if (power.IsBlack()) return false;
+  Vec3 previous = c.position;
+  Ray ray{c.hit ? scene.SpawnOrigin(*c.hit, w) : c.ray_origin_light, w};
+  const size_t n = like.lobes.size();
+  for (size_t i = 0; i <= n; ++i) {
+    ++out.rays;
+    const std::optional<SurfaceHit> hit = scene.Intersect(ray);
+    if (!hit) return i == n && like.escaped;
+    if (i == n && like.escaped) return false;
+    const Material& m = desc.materials[hit->material];
+    const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
+    const Vec3 wo = -ray.direction;
+    if (i >= 1 && bsdf.HasDiffuse())
+      result->stores.push_back({hit->position, wo, power, previous, light, PhotonKind::kCaustic});
+    if (i == n) {
+      result->q *= 1.0 - double(bsdf.RouletteProbability(wo, kSingularLobes));
+      return result->q > 0.0;
+    }
+    const std::optional<BsdfSample> s =
+        bsdf.Sample(wo, 0.0f, 0.5f, 0.5f, Bsdf::Mode::kRussianRoulette, like.lobes[i]);
+    if (!s || s->lobe != like.lobes[i] || !(s->pdf > 0.0f)) return false;
+    result->q *= double(s->pdf);
+    power *= s->weight;
+    if (power.IsBlack() || !power.IsFinite()) return false;
+    previous = hit->position;
+    ray = Ray{scene.SpawnOrigin(*hit, s->wi), s->wi};
+  }
+  return false;
+}
+
+// A direction at angle θ (exponentially distributed between the jitter bounds) from w.
+Vec3 JitterDirection(const Vec3& w, Rng& rng) {
+  const float u1 = rng.Uniform(), u2 = rng.Uniform();
+  const float theta =
+      kMetropolisJitterMax * std::exp(std::log(kMetropolisJitterMin / kMetropolisJitterMax) * u1);
+  const float phi = kTwoPi * u2;
+  const float st = std::sin(theta);
+  return Normalize(Frame(w).ToWorld(Vec3(st * std::cos(phi), st * std::sin(phi), std::cos(theta))));
+}
+
+void StoreWeighted(const std::vector<TracedPhoton>& stores, float scale, ChunkOutput& out) {
+  for (TracedPhoton p : stores) {
+    p.power *= scale;
+    out.caustic.push_back(p);
+  }
+}
+
+// Wald 1999, §4.6.2: S states of a Markov chain over the start direction whose stationary
+// density is pdf(ω)·Q(ω) restricted to the characteristic — the density the original chain was
+// drawn from, given its characteristic — so each state is distributed as the original and the
+// weighted mean of their stores has the original's expectation (docs/renderer.md).
+void SplitChain(const EmbreeScene& scene, const ChainStart& c, ChainState& original, uint32_t split,
+                uint32_t light, Rng& rng, ChunkOutput& out) {
+  ++out.chains;
+  ChainState current = std::move(original), proposal;
+  double current_density = StartDensity(c, current.direction) * current.q;
+  uint32_t weight = 1;
+  const float scale = 1.0f / float(split);
+  for (uint32_t t = 1; t < split; ++t) {
+    ++out.mutations;
+    const Vec3 w = JitterDirection(current.direction, rng);
+    const float u = rng.Uniform();
+    const double start_density = StartDensity(c, w);
+    if (start_density > 0.0 && TraceChain(scene, c, current, w, light, out, &proposal)) {
+      const double density = start_density * proposal.q;
+      if (double(u) * current_density < density) {
+        ++out.accepted;
+        StoreWeighted(current.stores, float(weight) * scale, out);
+        std::swap(current, proposal);
+        current_density = density;
+        weight = 1;
+        continue;
+      }
+    }
+    ++weight;
+  }
+  StoreWeighted(current.stores, float(weight) * scale, out);
+}
+
+void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
+                  const TraceShared& shared, uint64_t index, uint64_t emitted, bool keep_noncaustic,
+                  float noncaustic_scale, uint64_t map_photon, ChunkOutput& out) {
   const SceneDescription& desc = scene.description();
   Sampler sampler = Sampler::ForPhoton(shared.stream, index);
   // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
   // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
   const double jitter = o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
                                                          : sampler.rng().UniformDouble();
-  const float u_select = float((double(index) + jitter) / double(o.photons));
+  const float u_select = float((double(index) + jitter) / double(emitted));
   const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
   const LightSample ls = lights.Sample(std::min(u_select, 0x1.fffffep-1f), u_point.u, u_point.v);
   // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
-  Rgb power = ls.radiance * (kPi / (ls.pdf_area * float(o.photons)));
+  Rgb power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));
   const Sample2 u_dir = sampler.Get2D(kPhotonDirectionSlot);
   Vec3 dir = SampleCosineHemisphere(ls.normal, u_dir.u, u_dir.v);
   Vec3 previous = ls.position;
   Ray ray{OffsetRayOrigin(ls.position, ls.normal, scene.epsilon()), dir};
 
+  // Metropolis splitting (§4.6.2): the chain being walked, if any.
+  const bool metropolis = o.caustic_split > 1 && o.caustic_split_method == CausticSplitMethod::kMetropolis;
+  std::optional<ChainStart> chain;
+  ChainState state;
+  std::optional<Rng> mutations;
+  auto begin_chain = [&](ChainStart start) {
+    chain = std::move(start);
+    state = ChainState();
+    state.direction = chain->direction;
+  };
+  auto end_chain = [&](bool escaped) {
+    if (!chain) return;
+    if (!state.lobes.empty()) {
+      state.escaped = escaped;
+      if (state.splittable && state.q > 0.0) {
+        if (!mutations) mutations = Rng::ForKey(HashKey(o.map_seed, map_photon, kMetropolisTag, index));
+        SplitChain(scene, *chain, state, o.caustic_split, ls.light, *mutations, out);
+      } else {
+        StoreWeighted(state.stores, 1.0f, out);
+      }
+    }
+    chain.reset();
+  };
+  if (metropolis) {
+    ChainStart start;
+    start.position = ls.position;
+    start.ray_origin_light = ray.origin;
+    start.axis = ls.normal;
+    start.side = ls.normal;
+    start.power = power;
+    start.direction = dir;
+    begin_chain(std::move(start));
+  }
+
   bool any_singular_since_diffuse = false;
   for (int bounce = 0; bounce < o.max_bounces; ++bounce) {
     ++out.rays;
     const std::optional<SurfaceHit> hit = scene.Intersect(ray);
-    if (!hit) return;
+    if (!hit) {
+      end_chain(true);
+      return;
+    }
     const Material& m = desc.materials[hit->material];
     const Bsdf bsdf(m, shared.lobes[hit->material], hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
@@ -105,28 +283,86 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
     }
     if (store) {
       TracedPhoton p{hit->position, wo, stored_power, previous, ls.light, PhotonKind::kIndirect};
-      if (bounce == 0) {
-        p.kind = PhotonKind::kDirect;
-        out.direct.push_back(p);
-      } else if (any_singular_since_diffuse) {
+      const bool caustic = bounce > 0 && any_singular_since_diffuse;
+      if (caustic) {
         p.kind = PhotonKind::kCaustic;
-        out.caustic.push_back(p);
-      } else {
-        out.indirect.push_back(p);
+        if (chain)
+          state.stores.push_back(p);  // weighted when the chain ends
+        else
+          out.caustic.push_back(p);
+      } else if (keep_noncaustic) {
+        // Brute-force splitting (§4.6.1): kept for one emitted photon of S, at S× the power.
+        if (noncaustic_scale != 1.0f) p.power *= noncaustic_scale;
+        if (bounce == 0) {
+          p.kind = PhotonKind::kDirect;
+          out.direct.push_back(p);
+        } else {
+          out.indirect.push_back(p);
+        }
       }
     }
     const PhotonBounceSlots slots = SlotsOfPhotonBounce(bounce);
     const float ul = sampler.Get1D(slots.lobe);
     const Sample2 u = sampler.Get2D(slots.direction);
     const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u.u, u.v, Bsdf::Mode::kRussianRoulette);
+    if (chain) {
+      if (s && IsSingular(s->lobe)) {
+        // The chain goes on: its characteristic and its probability factor grow.
+        state.lobes.push_back(s->lobe);
+        state.q *= double(s->pdf);
+        if (s->lobe == kLobeGlossyReflection) state.splittable = false;
+      } else {
+        if (!state.lobes.empty()) state.q *= 1.0 - double(bsdf.RouletteProbability(wo, kSingularLobes));
+        end_chain(false);
+      }
+    }
     if (!s) return;  // absorbed
+    const Rgb arriving = power;
     power *= s->weight;
-    if (power.IsBlack() || !power.IsFinite()) return;
+    if (power.IsBlack() || !power.IsFinite()) {
+      if (chain) state.splittable = false;
+      end_chain(false);
+      return;
+    }
+    if (metropolis && s->lobe == kLobeDiffuseReflection) {
+      if (const std::optional<Vec3> axis = bsdf.LobeAxis(wo)) {
+        ChainStart start;
+        start.position = hit->position;
+        start.hit = *hit;
+        start.bsdf = bsdf;
+        start.wo = wo;
+        start.axis = *axis;
+        start.side = Dot(wo, hit->geometric_normal) > 0.0f ? hit->geometric_normal : -hit->geometric_normal;
+        start.power = arriving;
+        start.diffuse_roulette = Rgb(1.0f / bsdf.RouletteProbability(wo, kLobeDiffuseReflection));
+        start.direction = s->wi;
+        begin_chain(std::move(start));
+      }
+    }
     // A diffuse bounce resets the caustic test; a singular one makes the next store caustic.
     any_singular_since_diffuse = IsSingular(s->lobe);
     previous = hit->position;
     ray = Ray{scene.SpawnOrigin(*hit, s->wi), s->wi};
   }
+  if (chain) state.splittable = false;  // the bounce cap ended it: stored unsplit
+  end_chain(false);
+}
+
+void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
+              const TraceShared& shared, uint64_t index, ChunkOutput& out) {
+  const uint32_t split = std::max<uint32_t>(1, o.caustic_split);
+  if (split == 1 || o.caustic_split_method == CausticSplitMethod::kMetropolis) {
+    TraceEmitted(scene, lights, o, shared, index, o.photons, true, 1.0f, index, out);
+    return;
+  }
+  // Wald 1999, §4.6.1: map photon i stands for the emitted photons i·S .. i·S + S − 1; the one
+  // whose non-caustic stores are kept is chosen uniformly (probability 1/S each, so the global
+  // map is unbiased) and exactly one per map photon (so it keeps the size of an N-photon map).
+  Rng rng = Rng::ForKey(HashKey(o.map_seed, index, kSplitTag));
+  const uint32_t keep = rng.UniformInt(split);
+  for (uint32_t j = 0; j < split; ++j)
+    TraceEmitted(scene, lights, o, shared, index * split + j, o.photons * split, j == keep, float(split),
+                 index, out);
 }
 
 }  // namespace
@@ -140,6 +376,9 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
     throw std::invalid_argument("TracePhotons: photons [" + std::to_string(options.photon_begin) + ", " +
                                 std::to_string(range_end) + ") of " + std::to_string(options.photons) +
                                 " do not start at a multiple of " + std::to_string(kChunk));
+  if (options.caustic_split > 1 && options.caustic_split_method == CausticSplitMethod::kMetropolis &&
+      options.importance)
+    throw std::invalid_argument("TracePhotons: Metropolis caustic splitting with importance-driven storing");
   if (lights.empty() || options.photons == 0) return result;
   const uint64_t first_chunk = options.photon_begin / kChunk;
   const uint64_t chunks = (range_end + kChunk - 1) / kChunk - first_chunk;
@@ -202,6 +441,9 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
                       offsets[c][2] + outputs[c].caustic.size()};
     result.rays += outputs[c].rays;
     result.rejected += outputs[c].rejected;
+    result.chains += outputs[c].chains;
+    result.mutations += outputs[c].mutations;
+    result.accepted += outputs[c].accepted;
   }
   std::array<TracedPhotons*, 3> lists = {&result.direct, &result.indirect, &result.caustic};
   for (int k = 0; k < 3; ++k) lists[k]->resize(offsets[chunks][k]);
@@ -218,6 +460,8 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
     });
   });
   result.emitted = range_end - options.photon_begin;
+  if (options.caustic_split > 1 && options.caustic_split_method == CausticSplitMethod::kBrute)
+    result.emitted *= options.caustic_split;
   result.emitted_power = lights.total_power();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

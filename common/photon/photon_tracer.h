@@ -23,6 +23,22 @@
 // (the light that reaches INVISIBLEDATE's viewed room bounces in the lit room first): noise
 // exactly where the image needs none.
 //
+// Caustic splitting (Wald 1999, §4.6), S = caustic_split > 1:
+//  * brute force (§4.6.1): map photon i stands for the S emitted photons i·S + j (j < S) of an
+//    S·N-photon trace (their own sampler indices, light strata and power Φ/(S·N)). Every caustic
+//    store is kept; the non-caustic (direct and global) stores are kept for exactly one of the S,
+//    j* uniform from Rng(map seed, i), at S× the power: each emitted photon's are kept with
+//    probability 1/S, so the global map is unbiased and has the size of an N-photon map, and the
+//    caustic map has S× the photons.
+//  * Metropolis (§4.6.2): N photons; each singular chain (a start — the light, or a Lambertian
+//    diffuse bounce — followed by ≥ 1 singular delta bounces until the walk chooses a
+//    non-singular lobe or leaves the scene) is mutated S − 1 times by an exponential jitter of
+//    its start direction; a mutation is traced along the same characteristic (the same lobe
+//    types) and accepted with the Metropolis–Hastings ratio of pdf(ω)·P(characteristic | ω);
+//    each of the S states stores its caustic photons with power × (its weight)/S. Why that is
+//    unbiased and what remains: docs/renderer.md, "Caustic splitting".
+// Map photon i's arrays are still a function of (map seed, i) alone, so pieces assemble exactly.
+//
 // Determinism: photon i draws from Sampler::ForPhoton(sampler, map_seed, i) (index i of the map's
 // scrambled sequences, common/sampling/sample_layout.h); photons are traced in
 // fixed-size chunks in parallel and concatenated in chunk order, so the arrays are identical
@@ -83,6 +99,16 @@ using TracedPhotons = std::vector<TracedPhoton, UninitializedAllocator<TracedPho
 // in pieces (distributed tracing, photon_chunk.h) is cut at multiples of it.
 inline constexpr uint64_t kPhotonTracingChunk = 4096;
 
+enum class CausticSplitMethod : uint8_t { kBrute = 0, kMetropolis = 1 };
+const char* CausticSplitMethodName(CausticSplitMethod m);
+
+// Metropolis splitting's jitter of the start direction (§4.6.2, "an exponential distribution"):
+// the angle between the old and the new direction is θ_max·(θ_min/θ_max)^u, u uniform, about a
+// uniform azimuth — a symmetric proposal (its density depends only on the angle). Wide enough that
+// a chain's states spread beyond one estimate's k-nearest disk (with 0.001-0.1 rad they piled up:
+// k photons then hold only ~k/S independent chains; docs/results/caustic_splitting.md).
+inline constexpr float kMetropolisJitterMin = 0.01f, kMetropolisJitterMax = 0.5f;  // radians
+
 struct PhotonTracerOptions {
   uint64_t photons = 100000;  // emitted photons (not stored ones)
   uint64_t map_seed = 1;
@@ -98,14 +124,21 @@ struct PhotonTracerOptions {
   uint64_t photon_begin = 0, photon_end = 0;
   // Importance-driven storing (§4.7); null = store every diffuse hit. Must outlive the call.
   const ImportanceMap* importance = nullptr;
+  // Caustic splitting (§4.6): S = 1 is off (bit-identical to no splitting). With brute force,
+  // `photons` stays N (the map's photon indices) and S·N photons are emitted; photon_begin/end
+  // count map photons. Metropolis cannot be combined with `importance` (std::invalid_argument).
+  uint32_t caustic_split = 1;
+  CausticSplitMethod caustic_split_method = CausticSplitMethod::kBrute;
 };
 
 struct PhotonTracingResult {
   TracedPhotons direct, indirect, caustic;
-  uint64_t emitted = 0;
+  uint64_t emitted = 0;  // photons leaving the lights (S·N with brute-force splitting)
   uint64_t rays = 0;
   uint64_t rejected = 0;  // diffuse hits not stored by the importance test (§4.7)
-  Rgb emitted_power;      // Σ Φ of emitted photons (== total light power)
+  // Metropolis splitting (§4.6.2): singular chains split, mutations tried and accepted.
+  uint64_t chains = 0, mutations = 0, accepted = 0;
+  Rgb emitted_power;  // Σ Φ of emitted photons (== total light power)
   double seconds = 0;
 
   Rgb StoredPower() const;  // Σ Φ over all stored photons

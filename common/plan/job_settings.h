@@ -69,6 +69,9 @@ struct JobRenderSettings {
   float importance_min_probability = 0.05f;  // p_min
   float importance_strength = 4.0f;          // s
   uint64_t importons = 0;                    // 0 = one per pixel
+  // Caustic splitting (Wald 1999, §4.6; photon_tracer.h): S× the caustic photons; 1 = off.
+  uint32_t caustic_split = 1;
+  CausticSplitMethod caustic_split_method = CausticSplitMethod::kBrute;
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
   // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.
@@ -84,6 +87,8 @@ struct JobRenderSettings {
   std::string MapFingerprint() const;
   // Its importance part ("" when off).
   std::string ImportanceFingerprint() const;
+  // Its caustic-splitting part ("" when S = 1).
+  std::string CausticSplitFingerprint() const;
 };
 
 }  // namespace pf

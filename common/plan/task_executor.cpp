@@ -23,7 +23,14 @@ std::string JobRenderSettings::MapFingerprint() const {
          ";k=" + std::to_string(k) + ";separate_direct=" + std::to_string(o.separate_direct) +
          ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins) +
          ";sampler=" + SamplerName(sampler) + (o.separate_direct && !o.direct_map ? ";direct_map=0" : "") +
-         ImportanceFingerprint();
+         ImportanceFingerprint() + CausticSplitFingerprint();
+}
+
+std::string JobRenderSettings::CausticSplitFingerprint() const {
+  // S = 1 builds the maps of no splitting bit for bit: the same key as before the setting existed.
+  if (caustic_split <= 1) return "";
+  return ";caustic_split=" + std::to_string(caustic_split) +
+         ";split_method=" + CausticSplitMethodName(caustic_split_method);
 }
 
 std::string JobRenderSettings::ImportanceFingerprint() const {
@@ -108,6 +115,8 @@ PhotonMapsOptions JobRenderSettings::MapsOptions() const {
   PhotonMapsOptions mo;
   mo.tracing.photons = photons;
   mo.tracing.sampler = sampler;
+  mo.tracing.caustic_split = caustic_split;
+  mo.tracing.caustic_split_method = caustic_split_method;
   mo.kind = structure;
   mo.structure.kd_split_rule = kd_split;
   mo.structure.grid.expected_k = k;

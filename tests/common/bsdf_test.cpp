@@ -985,5 +985,44 @@ TEST(BsdfLobes, PrecomputedLobesGiveTheSameSamples) {
   }
 }
 
+// RouletteProbability (Metropolis caustic splitting's acceptance ratio, Wald 1999, §4.6.2) is the
+// frequency with which Sample in kRussianRoulette picks a lobe of the mask: for a dielectric at
+// several angles from both sides (Fresnel), and for a mix of diffuse, mirror and thin
+// transmission, within 4 binomial standard deviations of 200k uniform lobe numbers.
+TEST(BsdfRussianRoulette, RouletteProbabilityIsTheSamplingFrequency) {
+  struct Case {
+    Material m;
+    Vec3 wo;
+    uint32_t mask;
+  };
+  Material mix = Glossy(0.3f, 0.0f);  // mirror
+  mix.diffuse_reflectance = Rgb(0.4f, 0.2f, 0.3f);
+  mix.specular_transmittance = Rgb(0.1f);  // thin
+  constexpr uint32_t kSingular = kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
+  const std::vector<Case> cases = {
+      {Dielectric(0.9f, 1.5f), FromCos(0.9f), kLobeSpecularReflection},
+      {Dielectric(0.9f, 1.5f), FromCos(0.2f), kLobeSpecularReflection},
+      {Dielectric(0.9f, 1.5f), FromCos(0.2f), kLobeSpecularTransmission},
+      {Dielectric(0.9f, 1.5f), -FromCos(0.5f), kSingular},  // from inside
+      {Dielectric(0.9f, 1.5f), -FromCos(0.1f), kSingular},  // inside, total internal reflection
+      {mix, FromCos(0.6f), kSingular},
+      {mix, FromCos(0.6f), kLobeDiffuseReflection},
+  };
+  const int n = 200'000;
+  for (size_t c = 0; c < cases.size(); ++c) {
+    const Bsdf bsdf(cases[c].m, kUp, kUp);
+    const double p = bsdf.RouletteProbability(cases[c].wo, cases[c].mask);
+    Rng rng(11, c);
+    int hits = 0;
+    for (int i = 0; i < n; ++i) {
+      const std::optional<BsdfSample> s =
+          bsdf.Sample(cases[c].wo, rng.Uniform(), rng.Uniform(), rng.Uniform(), Bsdf::Mode::kRussianRoulette);
+      if (s && (s->lobe & cases[c].mask) != 0) ++hits;
+    }
+    const double f = double(hits) / n;
+    EXPECT_NEAR(f, p, 4.0 * std::sqrt(std::max(p * (1.0 - p), 1e-6) / n) + 1e-6) << "case " << c;
+  }
+}
+
 }  // namespace
 }  // namespace pf

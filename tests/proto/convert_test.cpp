@@ -266,3 +266,67 @@ TEST(Convert, TasksRoundTripAndRefuseEmptySampleRanges) {
 
 }  // namespace
 }  // namespace pf
+
+namespace pf {
+namespace {
+
+// Caustic splitting (Wald 1999, §4.6; issue #15): both methods round-trip, S = 1 (or unset) is
+// off and serialises as before the setting existed, bad values name their field.
+TEST(Convert, CausticSplitRoundTripsAndIsValidated) {
+  for (v1::CausticSplitMethod method :
+       {v1::CAUSTIC_SPLIT_METHOD_BRUTE, v1::CAUSTIC_SPLIT_METHOD_METROPOLIS}) {
+    v1::RenderSettings s = GoodSettings();
+    s.mutable_photon_map()->set_caustic_split(12);
+    s.mutable_photon_map()->set_caustic_split_method(method);
+    s.mutable_photon_map()->set_direct(v1::DIRECT_LIGHT_MONTE_CARLO);  // the fingerprint needs it resolved
+    const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
+    EXPECT_EQ(core.caustic_split, 12u);
+    EXPECT_EQ(core.caustic_split_method, method == v1::CAUSTIC_SPLIT_METHOD_METROPOLIS
+                                             ? CausticSplitMethod::kMetropolis
+                                             : CausticSplitMethod::kBrute);
+    v1::RenderSettings back;
+    SettingsToProto(core, &back);
+    EXPECT_EQ(back.photon_map().caustic_split(), 12u);
+    EXPECT_EQ(back.photon_map().caustic_split_method(), method);
+    EXPECT_EQ(SettingsFromProto(back, "x").MapFingerprint(), core.MapFingerprint());
+  }
+  for (uint32_t off : {0u, 1u}) {
+    v1::RenderSettings s = GoodSettings();
+    s.mutable_photon_map()->set_caustic_split(off);
+    const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
+    EXPECT_EQ(core.caustic_split, 1u);
+    v1::RenderSettings back;
+    SettingsToProto(core, &back);
+    EXPECT_EQ(back.photon_map().caustic_split(), 0u);
+    EXPECT_EQ(back.photon_map().caustic_split_method(), v1::CAUSTIC_SPLIT_METHOD_UNSPECIFIED);
+  }
+  auto with = [](auto edit) {
+    v1::RenderSettings s = GoodSettings();
+    edit(*s.mutable_photon_map());
+    return ErrorOf([&] { SettingsFromProto(s, "spec.settings"); });
+  };
+  const std::string f = "spec.settings.photon_map.";
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_caustic_split(kMaxCausticSplit + 1); }),
+              StartsWith(f + "caustic_split:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) {
+                p.set_caustic_split(4);
+                p.set_caustic_split_method(static_cast<v1::CausticSplitMethod>(7));
+              }),
+              StartsWith(f + "caustic_split_method:"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) {
+                p.set_caustic_split(4);
+                p.set_caustic_split_method(v1::CAUSTIC_SPLIT_METHOD_METROPOLIS);
+                p.set_importance(v1::IMPORTANCE_MODE_ON);
+              }),
+              StartsWith(f + "caustic_split_method: Metropolis splitting is not combined with importance"));
+  v1::RenderSettings many = GoodSettings();
+  many.mutable_photon_map()->set_photons(kMaxPhotonsPerMap / 8 + 1);
+  many.mutable_photon_map()->set_caustic_split(8);
+  EXPECT_THAT(ErrorOf<LimitError>([&] { SettingsFromProto(many, "spec.settings"); }),
+              StartsWith(f + "caustic_split:"));
+  many.mutable_photon_map()->set_caustic_split_method(v1::CAUSTIC_SPLIT_METHOD_METROPOLIS);  // emits N only
+  EXPECT_NO_THROW(SettingsFromProto(many, "spec.settings"));
+}
+
+}  // namespace
+}  // namespace pf
