@@ -384,6 +384,21 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
   const uint64_t chunks = (range_end + kChunk - 1) / kChunk - first_chunk;
   std::vector<ChunkOutput> outputs(chunks);
   const TraceShared shared(scene.description(), options);
+  // The counts and totals, the same for both paths below (one thread, or chunks concatenated).
+  const auto add_counts = [](const ChunkOutput& out, PhotonTracingResult* r) {
+    r->rays += out.rays;
+    r->rejected += out.rejected;
+    r->chains += out.chains;
+    r->mutations += out.mutations;
+    r->accepted += out.accepted;
+  };
+  const auto finish = [&](PhotonTracingResult* r) {
+    r->emitted = range_end - options.photon_begin;
+    if (options.caustic_split > 1 && options.caustic_split_method == CausticSplitMethod::kBrute)
+      r->emitted *= options.caustic_split;  // §4.6.1: S emitted photons per map photon
+    r->emitted_power = lights.total_power();
+    r->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   if (arena.max_concurrency() == 1) {
     // One thread traces the chunks in order anyway: straight into the result arrays, which
@@ -408,11 +423,8 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
     result.direct = std::move(out.direct);
     result.indirect = std::move(out.indirect);
     result.caustic = std::move(out.caustic);
-    result.rays = out.rays;
-    result.rejected = out.rejected;
-    result.emitted = range_end - options.photon_begin;
-    result.emitted_power = lights.total_power();
-    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    add_counts(out, &result);
+    finish(&result);
     return result;
   }
   arena.execute([&] {
@@ -439,11 +451,7 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
   for (uint64_t c = 0; c < chunks; ++c) {
     offsets[c + 1] = {offsets[c][0] + outputs[c].direct.size(), offsets[c][1] + outputs[c].indirect.size(),
                       offsets[c][2] + outputs[c].caustic.size()};
-    result.rays += outputs[c].rays;
-    result.rejected += outputs[c].rejected;
-    result.chains += outputs[c].chains;
-    result.mutations += outputs[c].mutations;
-    result.accepted += outputs[c].accepted;
+    add_counts(outputs[c], &result);
   }
   std::array<TracedPhotons*, 3> lists = {&result.direct, &result.indirect, &result.caustic};
   for (int k = 0; k < 3; ++k) lists[k]->resize(offsets[chunks][k]);
@@ -459,11 +467,7 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
       }
     });
   });
-  result.emitted = range_end - options.photon_begin;
-  if (options.caustic_split > 1 && options.caustic_split_method == CausticSplitMethod::kBrute)
-    result.emitted *= options.caustic_split;
-  result.emitted_power = lights.total_power();
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  finish(&result);
   return result;
 }
 

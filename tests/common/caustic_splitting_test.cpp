@@ -230,6 +230,13 @@ TEST(CausticSplitting, SamePhotonsForAnyThreadCount) {
       EXPECT_TRUE(Same(one.indirect, many.indirect)) << threads;
       EXPECT_TRUE(Same(one.caustic, many.caustic)) << threads;
       EXPECT_EQ(one.rays, many.rays);
+      // The counts too: one thread takes a path of its own (straight into the result arrays),
+      // and the emitted count goes into the map's bytes.
+      EXPECT_EQ(one.emitted, many.emitted) << threads;
+      EXPECT_EQ(one.rejected, many.rejected) << threads;
+      EXPECT_EQ(one.chains, many.chains) << threads;
+      EXPECT_EQ(one.mutations, many.mutations) << threads;
+      EXPECT_EQ(one.accepted, many.accepted) << threads;
     }
   }
 }
