@@ -42,6 +42,16 @@ void ParseResolution(const std::string& text, int& width, int& height) {
                      " pixels");
 }
 
+// --tail-tile: -1 = on a farm (--workers without --local-only, or submit) half the tile when that
+// is a multiple of the pixel block (16), so the image is the same as without; 0 elsewhere (one
+// process renders a tile's pixels on all its threads: it has no tail to shorten).
+uint32_t TailTileFor(const RenderArgs& a) {
+  if (a.tail_tile >= 0) return uint32_t(a.tail_tile);
+  const bool farm = (a.workers > 0 && !a.local_only) || a.submit;
+  const uint32_t half = a.tile / 2;
+  return farm && a.tile >= 32 && half % 16 == 0 ? half : 0;
+}
+
 }  // namespace
 
 std::string FormatVec(const Vec3& v) {
@@ -311,6 +321,11 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
   shape(app->add_option("--rounds", a.rounds, "skipping: rounds"));
   shape(app->add_option("--tile", a.tile,
                         "multiple-maps, maps-in-turn: tile side in pixels (0 = whole image)"));
+  shape(app->add_option("--tail-tile", a.tail_tile,
+                        "multiple-maps: the last map's last row of tiles in tiles of this side, so a "
+                        "farm's workers finish together (the image is the same); -1 = tile/2 with "
+                        "--workers or submit when that is a multiple of 16, else 0 (off)")
+            ->check(CLI::Range(-1, 1 << 16)));
   shape(app->add_option("--levels", a.levels, "hierarchical: L, level-0 points every 2^L pixels (1..16)"));
   shape(app->add_option("--dims", a.dims,
                         "hierarchical: 1 = scanlines (the thesis's version), 2 = image plane"));
@@ -394,6 +409,7 @@ PreparedJob PrepareJob(const RenderArgs& a) {
     pl->mutable_multiple_maps()->set_maps(a.maps);
     pl->mutable_multiple_maps()->set_samples_per_pixel(a.spp);
     pl->mutable_multiple_maps()->set_tile_size(a.tile);
+    pl->mutable_multiple_maps()->set_tail_tile_size(TailTileFor(a));
   } else if (plan == "maps-in-turn") {
     pl->mutable_maps_in_turn()->set_samples_per_pixel(a.spp);
     pl->mutable_maps_in_turn()->set_tile_size(a.tile);

@@ -69,6 +69,7 @@ struct RenderArgs {
   uint32_t stride = 2;
   uint32_t rounds = 1;
   uint32_t tile = 64;
+  int tail_tile = -1;  // multiple-maps: -1 = tile/2 on a farm (tail tiles), 0 = off
   // Hierarchical plan (Wald 1999, 4.5; common/plan/hierarchical.h).
   uint32_t levels = 4;
   uint32_t dims = 2;

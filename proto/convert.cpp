@@ -379,6 +379,7 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
       out.maps = p.multiple_maps().maps();
       out.samples_per_pixel = p.multiple_maps().samples_per_pixel();
       out.tile_size = p.multiple_maps().tile_size();
+      out.tail_tile_size = p.multiple_maps().tail_tile_size();
       RequireAtLeastOne(out.maps, field + ".multiple_maps.maps");
       check_spp(out.samples_per_pixel, field + ".multiple_maps.samples_per_pixel");
       break;
@@ -430,6 +431,7 @@ void PlanToProto(const PlanSpec& p, v1::Plan* out) {
       m->set_maps(p.maps);
       m->set_samples_per_pixel(p.samples_per_pixel);
       m->set_tile_size(p.tile_size);
+      m->set_tail_tile_size(p.tail_tile_size);
       break;
     }
     case PlanKind::kMapsInTurn: {

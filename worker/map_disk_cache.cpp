@@ -52,7 +52,10 @@ void MapDiskCache::Put(const std::string& key, std::string_view bytes) {
   const fs::path path = PathOf(key);
   if (bytes.size() > max_bytes_) return;
   std::lock_guard lock(mu_);
-  WriteFileAtomically(path, bytes);
+  // Not fsynced (atomic_file.h, Durability): every read of the cache checks the map's digest and
+  // a bad file is removed and fetched again, while a 12 MB flush here delayed the first render
+  // of every worker by ~25 ms (docs/results/farm.md).
+  WriteFileAtomically(path, bytes, Durability::kVolatile);
   EvictLocked();
 }
 

@@ -47,7 +47,7 @@ void SyncParentDirectory(const fs::path& path) {
   ::close(dfd);
 }
 
-void WriteFileAtomically(const fs::path& path, std::string_view bytes) {
+void WriteFileAtomically(const fs::path& path, std::string_view bytes, Durability durability) {
   const fs::path tmp = TemporarySibling(path);
   const auto fail = [&](const char* step, int err) {
     ::unlink(tmp.c_str());
@@ -66,14 +66,15 @@ void WriteFileAtomically(const fs::path& path, std::string_view bytes) {
     }
     done += size_t(n);
   }
-  if (::fsync(fd) != 0) {
+  const bool durable = durability == Durability::kDurable;
+  if (durable && ::fsync(fd) != 0) {
     const int err = errno;
     ::close(fd);
     fail("fsync", err);
   }
   if (::close(fd) != 0) fail("close", errno);
   if (::rename(tmp.c_str(), path.c_str()) != 0) fail("rename", errno);
-  SyncParentDirectory(path);
+  if (durable) SyncParentDirectory(path);
 }
 
 bool PublishDirectory(const fs::path& tmp, const fs::path& target) {

@@ -14,9 +14,16 @@
 
 namespace pf {
 
+// Whether the written file must survive a power cut. kVolatile skips both fsyncs and keeps the
+// rename's atomicity only: for caches whose every read is verified (a worker's photon-map disk
+// cache checks the map's digest and discards a bad file), where an fsync would only put a disk
+// flush on the critical path of a render.
+enum class Durability { kDurable, kVolatile };
+
 // Throws SystemError naming the path, the failed step and the OS reason; the temporary is
 // removed on failure and the target is left as it was.
-void WriteFileAtomically(const std::filesystem::path& path, std::string_view bytes);
+void WriteFileAtomically(const std::filesystem::path& path, std::string_view bytes,
+                         Durability durability = Durability::kDurable);
 
 // A fresh temporary name beside `path`, unique within the process and across processes.
 std::filesystem::path TemporarySibling(const std::filesystem::path& path);

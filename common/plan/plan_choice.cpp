@@ -38,12 +38,15 @@ uint32_t TileFor(int width, int height, uint32_t maps, uint32_t workers) {
   return 16;
 }
 
-PlanSpec MultipleMapsPlan(uint32_t maps, uint32_t spp_per_map, uint32_t tile) {
+// With several workers the last map's last row of tiles is cut in half-size tiles (task_plan.h,
+// tail_tile_size): the workers then finish within a small tile of each other.
+PlanSpec MultipleMapsPlan(uint32_t maps, uint32_t spp_per_map, uint32_t tile, uint32_t workers) {
   PlanSpec p;
   p.kind = PlanKind::kMultipleMaps;
   p.maps = maps;
   p.samples_per_pixel = spp_per_map;
   p.tile_size = tile;
+  if (workers > 1 && tile >= 32 && (tile / 2) % 16 == 0) p.tail_tile_size = tile / 2;
   return p;
 }
 
@@ -62,7 +65,7 @@ PlanChoice ChoosePlan(const PlanChoiceInput& in) {
   PlanChoice c;
 
   if (!in.photon_map) {
-    c.plan = MultipleMapsPlan(1, spp, TileFor(in.width, in.height, 1, n));
+    c.plan = MultipleMapsPlan(1, spp, TileFor(in.width, in.height, 1, n), n);
     c.reason = fmt::format(
         "path tracer: no photon map to split; one pass of {} spp in {}-pixel tiles for {} workers", spp,
         c.plan.tile_size, n);
@@ -76,7 +79,7 @@ PlanChoice ChoosePlan(const PlanChoiceInput& in) {
     // Traced once, fetched by every worker: the whole budget in as few maps as possible (the
     // denser the map, the smaller its bias, §4.4), the workers share it by tiles.
     const uint32_t maps = LargestDivisorAtMost(spp, min_maps);
-    c.plan = MultipleMapsPlan(maps, spp / maps, TileFor(in.width, in.height, maps, n));
+    c.plan = MultipleMapsPlan(maps, spp / maps, TileFor(in.width, in.height, maps, n), n);
     c.photons_per_map = budget / maps;
     c.reason = fmt::format(
         "maps are shipped: {} map(s) of {} photons traced once and fetched by {} workers, {} spp each, "
@@ -141,7 +144,7 @@ PlanChoice ChoosePlan(const PlanChoiceInput& in) {
   const uint64_t map_cap = std::max<uint64_t>(1, budget / min_photons);
   const uint64_t want_maps = progressive ? map_cap : std::min<uint64_t>(std::max(n, min_maps), map_cap);
   const uint32_t maps = LargestDivisorAtMost(spp, want_maps);
-  c.plan = MultipleMapsPlan(maps, spp / maps, TileFor(in.width, in.height, maps, n));
+  c.plan = MultipleMapsPlan(maps, spp / maps, TileFor(in.width, in.height, maps, n), n);
   c.photons_per_map = budget / maps;
   c.reason = fmt::format(
       "{}: multiple maps, {} maps of {} photons (budget {}, >= {} per map), {} spp each, {}-pixel tiles for "

@@ -5,6 +5,7 @@
 #include "common/core/error.h"
 #include "common/core/rng.h"
 #include "common/plan/hierarchical.h"
+#include "common/render/renderer.h"
 
 namespace pf {
 namespace {
@@ -35,6 +36,47 @@ uint64_t NumTiles(uint32_t tile_size, int width, int height) {
   return uint64_t((width + tile_size - 1) / tile_size) * ((height + tile_size - 1) / tile_size);
 }
 
+// The tiles of the multiple-maps plan's last map: the same tiles, except the last row of them,
+// each cut into tail×tail tiles (clipped at the image border) in row-major order within it. The
+// pixels and their order of rendering within a pixel block are those of the uncut tiles: tail is
+// a multiple of kPixelBlockSide, so every 16×16 block (renderer.h, PixelBlockState) stays whole.
+std::vector<PixelSubset> TilesWithTail(uint32_t tile_size, uint32_t tail, int width, int height) {
+  std::vector<PixelSubset> tiles = Tiles(tile_size, width, height);
+  if (tail == 0 || tile_size == 0) return tiles;
+  const uint32_t last_row_y0 = tiles.back().y0;
+  std::vector<PixelSubset> out;
+  out.reserve(tiles.size());
+  for (const PixelSubset& t : tiles) {
+    if (t.y0 != last_row_y0) {
+      out.push_back(t);
+      continue;
+    }
+    for (uint32_t y = t.y0; y < t.y1; y += tail)
+      for (uint32_t x = t.x0; x < t.x1; x += tail) {
+        PixelSubset s = t;
+        s.x0 = x;
+        s.y0 = y;
+        s.x1 = std::min(x + tail, t.x1);
+        s.y1 = std::min(y + tail, t.y1);
+        out.push_back(s);
+      }
+  }
+  return out;
+}
+
+uint64_t NumTailTiles(uint32_t tile_size, uint32_t tail, int width, int height) {
+  if (tail == 0 || tile_size == 0) return NumTiles(tile_size, width, height);
+  const uint64_t cols = (uint64_t(width) + tile_size - 1) / tile_size;
+  const uint64_t rows = (uint64_t(height) + tile_size - 1) / tile_size;
+  const uint64_t last_h = uint64_t(height) - (rows - 1) * tile_size;
+  uint64_t cut = 0;  // tail tiles in the last row of tiles
+  for (uint64_t c = 0; c < cols; ++c) {
+    const uint64_t w = std::min<uint64_t>(tile_size, uint64_t(width) - c * tile_size);
+    cut += ((w + tail - 1) / tail) * ((last_h + tail - 1) / tail);
+  }
+  return (rows - 1) * cols + cut;
+}
+
 }  // namespace
 
 uint64_t MapSeed(uint64_t job_seed, uint64_t map_index) {
@@ -50,9 +92,17 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
     case PlanKind::kMultipleMaps:
       if (plan.maps < 1) throw InputError("plan.multiple_maps.maps: must be >= 1");
       if (plan.samples_per_pixel < 1) throw InputError("plan.multiple_maps.samples_per_pixel: must be >= 1");
+      if (plan.tail_tile_size != 0 &&
+          (plan.tile_size == 0 || plan.tail_tile_size >= plan.tile_size ||
+           plan.tile_size % plan.tail_tile_size != 0 || plan.tail_tile_size % kPixelBlockSide != 0))
+        throw InputError("plan.multiple_maps.tail_tile_size: " + std::to_string(plan.tail_tile_size) +
+                         " must be 0 or a multiple of " + std::to_string(kPixelBlockSide) +
+                         " smaller than tile_size (" + std::to_string(plan.tile_size) + ") that divides it");
       break;
     case PlanKind::kMapsInTurn:
       if (plan.samples_per_pixel < 1) throw InputError("plan.maps_in_turn.samples_per_pixel: must be >= 1");
+      if (plan.tail_tile_size != 0)
+        throw InputError("plan.maps_in_turn: tail tiles are a multiple-maps option");
       break;
     case PlanKind::kSkipping:
       if (plan.stride < 1) throw InputError("plan.skipping.stride: must be >= 1");
@@ -71,7 +121,8 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
 uint64_t CountTasks(const PlanSpec& plan, int width, int height) {
   switch (plan.kind) {
     case PlanKind::kMultipleMaps:
-      return uint64_t(plan.maps) * NumTiles(plan.tile_size, width, height);
+      return uint64_t(plan.maps - 1) * NumTiles(plan.tile_size, width, height) +
+             NumTailTiles(plan.tile_size, plan.tail_tile_size, width, height);
     case PlanKind::kMapsInTurn:
       return uint64_t(plan.samples_per_pixel) * NumTiles(plan.tile_size, width, height);
     case PlanKind::kSkipping:
@@ -111,9 +162,12 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
     case PlanKind::kMultipleMaps: {
       const auto tiles = Tiles(plan.tile_size, width, height);
       // Map-major order: the tiles of one map are adjacent, so a worker that has built map m
-      // tends to lease its other tiles next (map affinity).
-      for (uint32_t m = 0; m < plan.maps; ++m)
+      // tends to lease its other tiles next (map affinity). The last map ends in tail tiles
+      // (PlanSpec::tail_tile_size): tasks are leased in id order, so those are the last ones.
+      for (uint32_t m = 0; m + 1 < plan.maps; ++m)
         for (const PixelSubset& t : tiles) add(0, m, t, 0, plan.samples_per_pixel);
+      for (const PixelSubset& t : TilesWithTail(plan.tile_size, plan.tail_tile_size, width, height))
+        add(0, plan.maps - 1, t, 0, plan.samples_per_pixel);
       break;
     }
     case PlanKind::kMapsInTurn: {
@@ -195,7 +249,8 @@ std::string DescribePlan(const PlanSpec& p) {
   switch (p.kind) {
     case PlanKind::kMultipleMaps:
       return "multiple maps: " + std::to_string(p.maps) + " maps x " + std::to_string(p.samples_per_pixel) +
-             " spp, tile " + std::to_string(p.tile_size);
+             " spp, tile " + std::to_string(p.tile_size) +
+             (p.tail_tile_size ? " (last row " + std::to_string(p.tail_tile_size) + ")" : "");
     case PlanKind::kMapsInTurn:
       return "maps in turn: " + std::to_string(p.samples_per_pixel) + " maps/spp, tile " +
              std::to_string(p.tile_size);

@@ -31,8 +31,14 @@ struct PlanSpec {
   uint32_t maps = 1;               // kMultipleMaps: s
   uint32_t samples_per_pixel = 1;  // per map (a), total (b), per task and pixel (c), per map and pixel (d)
   uint32_t tile_size = 0;          // (a), (b): 0 = one tile = whole image; (d): rows per task, 0 = all
-  uint32_t stride = 1;             // (c): S
-  uint32_t rounds = 1;             // (c)
+  // (a): the last row of tiles of the last map in tiles of this side (0 = like the others), so
+  // that a farm's workers run out of work together: the tail where one worker renders the last
+  // big tile while the others idle shrinks to a small one. A multiple of kPixelBlockSide (16)
+  // that divides tile_size, so the image is bit-identical to the plan without it (docs/farm.md,
+  // "Tail tiles").
+  uint32_t tail_tile_size = 0;
+  uint32_t stride = 1;  // (c): S
+  uint32_t rounds = 1;  // (c)
   // (d) hierarchical (schedule and localization rule: common/plan/hierarchical.h)
   uint32_t levels = 4;              // L: level-0 points every 2^L pixels
   uint32_t dims = 1;                // 1 = scanlines, 2 = image plane
@@ -78,7 +84,8 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
 // (JobSpec.plan.expansion_version) and, after a restart, resumes a job's merged results only if
 // its own version is the same: a checkpoint lists task *ids*, which mean other tasks under
 // another expansion. Bump a plan's number whenever its expansion changes.
-//   static plans (a)-(c): 0, unchanged since the first release;
+//   static plans (a)-(c): 0, unchanged since the first release (tail tiles, PlanSpec::
+//   tail_tile_size, are part of the stored plan: a job without them expands as before);
 //   hierarchical: 3 (1: localization tasks per level; 2: one batch per level-0 map and row band
 //   once all levels are complete, docs/renderer.md "Localization"; 3: a detail task's pixels
 //   share one random-number stream, renderer.h PixelStreams — same ids, other pixel values).

@@ -154,6 +154,49 @@ TEST(TaskExecutor, SkippingPlanIsOrderIndependent) {
   EXPECT_GT(local[0].r, 0.5f);
 }
 
+// Tail tiles (PlanSpec::tail_tile_size) only regroup the last map's last row of pixels into
+// smaller tasks: the image is bit-identical to the plan without them, also with the irradiance
+// cache, whose per-16×16-block state would differ if a tail tile cut a block (renderer.h). The
+// image (40×36, tile 32, tail 16) has a clipped last row and column, so the cut meets borders.
+TEST(TaskExecutor, TailTilesGiveTheSameImage) {
+  const SceneRuntime scene(GlowingSphere());
+  CameraSpec cam = CentreCamera();
+  cam.width = 40;
+  cam.height = 36;
+  JobRenderSettings settings = SmallGatherSettings(4000);
+  settings.local_pass_rays = 4;
+  settings.irradiance_cache_error = 0.3f;
+  const PlanSpec plain{.kind = PlanKind::kMultipleMaps, .maps = 2, .samples_per_pixel = 1, .tile_size = 32};
+  PlanSpec tail = plain;
+  tail.tail_tile_size = 16;
+  ASSERT_GT(CountTasks(tail, cam.width, cam.height), CountTasks(plain, cam.width, cam.height));
+  const Image a = RenderPlanLocally(scene, cam, settings, plain, 5, 2);
+  const Image b = RenderPlanLocally(scene, cam, settings, tail, 5, 1);
+  for (size_t i = 0; i < a.size(); ++i) ASSERT_TRUE(a[i] == b[i]) << i;
+  // Tail tiles of another side than a pixel block's multiple are refused, because they would not
+  // be the same: the control below cuts every tile into 8×8 tasks by hand, through the blocks,
+  // and the irradiance cache's image changes (so the equality above is not vacuous).
+  PlanSpec bad = plain;
+  bad.tail_tile_size = 8;
+  EXPECT_THROW(RenderPlanLocally(scene, cam, settings, bad, 5, 1), InputError);
+  Accumulator acc(cam.width, cam.height);
+  for (const TaskSpec& t : ExpandPlan(plain, cam.width, cam.height, 5))
+    for (uint32_t y = t.pixels.y0; y < t.pixels.y1; y += 8)
+      for (uint32_t x = t.pixels.x0; x < t.pixels.x1; x += 8) {
+        TaskSpec part = t;
+        part.pixels.x0 = x;
+        part.pixels.y0 = y;
+        part.pixels.x1 = std::min(x + 8, t.pixels.x1);
+        part.pixels.y1 = std::min(y + 8, t.pixels.y1);
+        const TaskOutput out = ExecuteTask(scene, "x", cam, settings, part, 1);
+        acc.Add(PixelsOf(part.pixels, cam.width, cam.height), out.rgb_sums, out.samples);
+      }
+  const Image cut = acc.Resolve();
+  size_t differ = 0;
+  for (size_t i = 0; i < a.size(); ++i) differ += a[i] == cut[i] ? 0 : 1;
+  EXPECT_GT(differ, a.size() / 10) << "8x8 tasks through the 16x16 cache blocks should change the image";
+}
+
 // The hierarchical plan (§4.5) on a real scene: RenderPlanLocally equals executing its tasks in
 // reverse order (static tasks, then the localization tasks the merged results imply), bit for bit.
 TEST(TaskExecutor, HierarchicalPlanIsOrderIndependent) {

@@ -56,6 +56,51 @@ TEST(TaskPlan, MapsInTurnUseMapIForSampleI) {
   }
 }
 
+// Tail tiles: every pixel still once per map; only the last map's last row of tiles is cut, into
+// tiles of at most tail×tail, and those are the expansion's last tasks (leased last).
+TEST(TaskPlan, TailTilesCutOnlyTheLastRowOfTheLastMap) {
+  struct Case {
+    int w, h;
+    uint32_t tile, tail;
+  };
+  for (const Case c :
+       {Case{256, 256, 64, 32}, Case{200, 150, 64, 32}, Case{100, 70, 64, 16}, Case{48, 20, 32, 16}}) {
+    SCOPED_TRACE(std::to_string(c.w) + "x" + std::to_string(c.h));
+    const PlanSpec plain{
+        .kind = PlanKind::kMultipleMaps, .maps = 2, .samples_per_pixel = 3, .tile_size = c.tile};
+    PlanSpec plan = plain;
+    plan.tail_tile_size = c.tail;
+    ExpectCoverage(plan, c.w, c.h, 6, 2);
+    const auto tasks = ExpandPlan(plan, c.w, c.h, 42);
+    const auto before = ExpandPlan(plain, c.w, c.h, 42);
+    const uint32_t cols = (uint32_t(c.w) + c.tile - 1) / c.tile, rows = (uint32_t(c.h) + c.tile - 1) / c.tile;
+    const uint32_t last_row_y0 = (rows - 1) * c.tile;
+    const size_t per_map = size_t(cols) * rows, kept = per_map + size_t(cols) * (rows - 1);
+    ASSERT_GT(tasks.size(), before.size());
+    // Map 0 and map 1's rows above the last: the very same tasks as without tail tiles.
+    for (size_t i = 0; i < kept; ++i) {
+      EXPECT_EQ(tasks[i].map_index, before[i].map_index);
+      EXPECT_EQ(PixelsOf(tasks[i].pixels, c.w, c.h), PixelsOf(before[i].pixels, c.w, c.h));
+    }
+    // The rest: map 1, inside the last row, at most tail × tail, and the same pixel set as the
+    // uncut last row.
+    std::vector<uint32_t> cut, uncut;
+    for (size_t i = kept; i < tasks.size(); ++i) {
+      const PixelSubset& t = tasks[i].pixels;
+      EXPECT_EQ(tasks[i].map_index, 1u);
+      EXPECT_GE(t.y0, last_row_y0);
+      EXPECT_LE(t.x1 - t.x0, c.tail);
+      EXPECT_LE(t.y1 - t.y0, c.tail);
+      for (uint32_t p : PixelsOf(t, c.w, c.h)) cut.push_back(p);
+    }
+    for (size_t i = kept; i < before.size(); ++i)
+      for (uint32_t p : PixelsOf(before[i].pixels, c.w, c.h)) uncut.push_back(p);
+    std::sort(cut.begin(), cut.end());
+    std::sort(uncut.begin(), uncut.end());
+    EXPECT_EQ(cut, uncut);
+  }
+}
+
 // §4.4: per round S² tasks, each with its own map, each with every S²-th pixel of σ.
 TEST(TaskPlan, SkippingIsThesisSection44) {
   const PlanSpec plan{.kind = PlanKind::kSkipping, .samples_per_pixel = 2, .stride = 3, .rounds = 4};
@@ -115,6 +160,19 @@ TEST(TaskPlan, InvalidPlansNameTheField) {
   EXPECT_NE(message({.kind = PlanKind::kMapsInTurn, .samples_per_pixel = 0}, 4, 4).find("samples_per_pixel"),
             std::string::npos);
   EXPECT_NE(message({}, 0, 4).find("camera"), std::string::npos);
+  // Tail tiles: a multiple of the 16-pixel block below the tile that divides it, multiple maps only.
+  const std::string tail = "plan.multiple_maps.tail_tile_size";
+  for (const auto& [tile, t] :
+       std::vector<std::pair<uint32_t, uint32_t>>{{64, 8}, {64, 24}, {64, 64}, {64, 128}, {0, 16}, {48, 32}})
+    EXPECT_NE(
+        message({.kind = PlanKind::kMultipleMaps, .tile_size = tile, .tail_tile_size = t}, 64, 64).find(tail),
+        std::string::npos)
+        << tile << " " << t;
+  EXPECT_EQ(message({.kind = PlanKind::kMultipleMaps, .tile_size = 64, .tail_tile_size = 16}, 64, 64),
+            "no error");
+  EXPECT_NE(message({.kind = PlanKind::kMapsInTurn, .tile_size = 64, .tail_tile_size = 32}, 64, 64)
+                .find("maps_in_turn"),
+            std::string::npos);
 }
 
 TEST(Accumulator, OrderOfMergingDoesNotChangeABit) {

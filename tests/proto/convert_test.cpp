@@ -208,6 +208,7 @@ TEST(Convert, PlansRoundTripAndNameTheirField) {
     p.maps = 3;
     p.samples_per_pixel = 5;
     p.tile_size = 16;
+    if (kind == PlanKind::kMultipleMaps) p.tail_tile_size = 16;  // carried, checked by ValidatePlan
     p.stride = 4;
     p.rounds = 2;
     v1::Plan proto;
@@ -215,6 +216,7 @@ TEST(Convert, PlansRoundTripAndNameTheirField) {
     const PlanSpec back = PlanFromProto(proto, "spec.plan");
     EXPECT_EQ(back.kind, kind);
     EXPECT_EQ(back.samples_per_pixel, 5u);
+    EXPECT_EQ(back.tail_tile_size, p.tail_tile_size);
     v1::Plan again;
     PlanToProto(back, &again);
     EXPECT_EQ(again.SerializeAsString(), proto.SerializeAsString());

@@ -151,6 +151,14 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
          s.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
        },
        C::RESOURCE_EXHAUSTED, "spec.plan.multiple_maps: a task of 16777216 pixels exceeds the limit"},
+      {"tail tiles that cut a pixel block",
+       [](v1::JobSpec& s) {
+         s.mutable_plan()->mutable_multiple_maps()->set_maps(1);
+         s.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
+         s.mutable_plan()->mutable_multiple_maps()->set_tile_size(32);
+         s.mutable_plan()->mutable_multiple_maps()->set_tail_tile_size(8);
+       },
+       C::INVALID_ARGUMENT, "spec.plan.multiple_maps.tail_tile_size: 8 must be 0 or a multiple of 16"},
       {"negative time budget", [](v1::JobSpec& s) { s.mutable_stop()->set_time_budget_seconds(-1); },
        C::INVALID_ARGUMENT, "spec.stop.time_budget_seconds: must be a finite number >= 0"},
       {"NaN noise target", [](v1::JobSpec& s) { s.mutable_stop()->set_target_noise_rms(std::nan("")); },
