@@ -227,12 +227,15 @@ def scene5(size=3.0, height=2.5, radius=0.3, light=0.3, pedestal=0.3):
     return m
 
 
-def conference(w=8.0, d=6.0, height=3.0, panel=0.6, sign_w=0.28, sign_h=0.08):
+def conference(w=8.0, d=6.0, height=3.0, panel=0.6, sign_w=0.28, sign_h=0.08, sign_y=2.85):
     """CONFERENCE-like: an 8 x 3 x 6 m room (x, y up, z); a 4 x 1.2 m table with eight chairs, six
     0.6 m ceiling panels (Le = 10), and on the far wall (x = 8) two doors, each with an exit sign
-    above it: a 0.36 x 0.2 m housing whose front carries a 0.28 x 0.08 m emitter of Le = 100
-    (green), under a 0.2 m deep hood with side cheeks. The signs are 10x the panels' radiance on
-    1/16 of a panel's area: 17 % of the emitted power, most of it landing within 0.2 m of them."""
+    above it, under the ceiling: a 0.36 x 0.2 m housing whose front carries a 0.28 x 0.08 m emitter
+    of Le = 100 (green), under a 0.2 m deep hood with side cheeks whose top is 5 cm below the
+    ceiling. The signs are 10x the panels' radiance on 1/16 of a panel's area (about 11 % of the
+    emitted power), and much of their light lands on the hood's underside: a dense photon cluster
+    facing down like the ceiling 5 cm above it, so the ceiling's k-nearest-photon disks (which
+    keep photons arriving from the front side, §4.1) take it in: overmodulation (§3.3.5)."""
     m = Mgf()
     m.material("carpet", rd=0.3)
     m.material("wall", rd=0.7)
@@ -281,15 +284,17 @@ def conference(w=8.0, d=6.0, height=3.0, panel=0.6, sign_w=0.28, sign_h=0.08):
     for zc in (1.25, 4.75):
         m.use("door")  # 0.9 x 2.1 m, 1 cm in front of the wall
         m.wall_x(w - 0.01, zc - 0.45, zc + 0.45, 0.0, 2.1)
-        # Housing 6 cm deep on the wall, y 2.2-2.4; the hood (a top plate and two cheeks, 0.2 m deep).
+        # Housing 6 cm deep on the wall, 0.2 m high around sign_y; the hood (a top plate and two
+        # cheeks, 0.2 m deep).
+        y0, y1 = sign_y - 0.1, sign_y + 0.1
         m.use("housing")
-        m.box(w - 0.06, w, 2.2, 2.4, zc - 0.18, zc + 0.18)
-        m.face((w - 0.2, 2.4, zc - 0.2), (w - 0.2, 2.4, zc + 0.2), (w, 2.4, zc + 0.2), (w, 2.4, zc - 0.2))
-        m.face((w - 0.2, 2.2, zc - 0.2), (w - 0.2, 2.4, zc - 0.2), (w, 2.4, zc - 0.2), (w, 2.2, zc - 0.2))
-        m.face((w - 0.2, 2.2, zc + 0.2), (w, 2.2, zc + 0.2), (w, 2.4, zc + 0.2), (w - 0.2, 2.4, zc + 0.2))
+        m.box(w - 0.06, w, y0, y1, zc - 0.18, zc + 0.18)
+        m.face((w - 0.2, y1, zc - 0.2), (w - 0.2, y1, zc + 0.2), (w, y1, zc + 0.2), (w, y1, zc - 0.2))
+        m.face((w - 0.2, y0, zc - 0.2), (w - 0.2, y1, zc - 0.2), (w, y1, zc - 0.2), (w, y0, zc - 0.2))
+        m.face((w - 0.2, y0, zc + 0.2), (w, y0, zc + 0.2), (w, y1, zc + 0.2), (w - 0.2, y1, zc + 0.2))
         # The emitter, 1 mm in front of the housing, facing the room (-x).
         m.use("exit_sign")
-        m.wall_x(w - 0.061, zc - sign_w / 2, zc + sign_w / 2, 2.3 - sign_h / 2, 2.3 + sign_h / 2)
+        m.wall_x(w - 0.061, zc - sign_w / 2, zc + sign_w / 2, sign_y - sign_h / 2, sign_y + sign_h / 2)
     return m
 
 
