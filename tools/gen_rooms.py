@@ -232,8 +232,8 @@ def conference(w=8.0, d=6.0, height=3.0, panel=0.6, sign_w=0.28, sign_h=0.08, si
     0.6 m ceiling panels (Le = 10), and on the far wall (x = 8) two doors, each with an exit sign
     above it, under the ceiling: a 0.36 x 0.2 m housing whose front carries a 0.28 x 0.08 m emitter
     of Le = 100 (green), under a 0.2 m deep hood with side cheeks whose top is 5 cm below the
-    ceiling. The signs are 10x the panels' radiance on 1/16 of a panel's area (about 11 % of the
-    emitted power), and much of their light lands on the hood's underside: a dense photon cluster
+    ceiling. The signs are 10x the panels' radiance on 1/16 of a panel's area, and much of their
+    light lands on the hood's underside: a dense photon cluster
     facing down like the ceiling 5 cm above it, so the ceiling's k-nearest-photon disks (which
     keep photons arriving from the front side, §4.1) take it in: overmodulation (§3.3.5)."""
     m = Mgf()
