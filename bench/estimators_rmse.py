@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """RMSE against the path-traced reference and wall time, per chapter-4 estimator.
 
-For every scene (Cornell box, CornellBox-Sphere, scene8, the SCENE10-like rooms and the
-INVISIBLEDATE-like pair of rooms) and every budget (photons, k, camera samples per pixel), renders
+For every scene (Cornell box, CornellBox-Sphere, scene8, the SCENE10-like rooms, the
+INVISIBLEDATE-like pair of rooms, the BATHROOM-like room and the CONFERENCE-like room) and every budget (photons, k, camera samples per pixel), renders
 each method with `pf render` (one process, one map, seed 1, all cores), times the whole command
 (median of --repeat runs: load, photon tracing, kd-tree build and rendering included) by its CPU
 time (user + system of the child: the machines are shared, and wall time counts the waits for a
@@ -26,6 +26,15 @@ PhotonDirect without its neighbour-set cache on scene10; and on scene10 (both bu
 (the first budget) a shadow-ray sweep, Monte Carlo at 16/64/256 rays against PhotonDirect at
 4/16/64 (the claim of 4.2.3: PhotonDirect reaches Monte Carlo's error in less time).
 
+Issue #15's methods, on the scenes they are for:
+    importance-driven maps (4.7), INVISIBLEDATE-like: mc+occl+importance (the budget's photons) and
+        mc+occl+importance x20 (20x the photons, p_min 0.01: docs/results/importance.md's best row);
+        scene10: photon-direct+importance and photon-direct+importance x5
+    caustic splitting (4.6), CornellBox-Sphere and the BATHROOM-like scene: mc+split-brute S=8 and
+        mc+split-metropolis S=8 (`--caustic-split 8`, the budget's photons)
+    and the path tracer at about the CPU time of the importance rows: path x6 (INVISIBLEDATE) and
+    path x2 (scene10), 6x and 2x the `path` row's spp
+
 Error columns: the display RMSE (pf diff's rmse_display: both images clamped to the reference's
 display white w = its median luminance / 0.18, RMSE / w; scale-free, so a dim scene is measured
 like a bright one, and lights seen directly, 8-17 in value, count no more than white, instead of
@@ -43,6 +52,8 @@ the reference's exposure, over their error images on one scale (estimators-<scen
     tools/install-deps.sh --bench        # matplotlib for the plots
     bench/estimators_rmse.py [--scenes cornell-box,scene10] [--budgets low,high] [--repeat 3]
     bench/estimators_rmse.py --replot    # table and plots again from estimators.json
+    bench/estimators_rmse.py --merge --scenes bathroom --budgets low --methods mc,path --repeat 1
+                                         # add (or replace) rows in estimators.json, keep the others
 """
 import argparse
 import json
@@ -63,6 +74,8 @@ SCENES = {  # name: (manifest, reference, resolution)
     "scene8": ("scenes/scene8/scene8.json", "scenes/scene8/reference-320.exr", "320x240"),
     "scene10": ("scenes/scene10/scene10.json", "scenes/scene10/reference-320.exr", "320x240"),
     "invisibledate": ("scenes/invisibledate/invisibledate.json", "scenes/invisibledate/reference-320.exr", "320x240"),
+    "bathroom": ("scenes/bathroom/bathroom.json", "scenes/bathroom/reference-160.exr", "160x120"),
+    "conference": ("scenes/conference/conference.json", "scenes/conference/reference-160.exr", "160x120"),
 }
 BUDGETS = {  # name: (photons, k, spp)
     "low": (100_000, 50, 4),
@@ -73,7 +86,9 @@ SHADOW_RAY_SWEEP = {"scene10": ("low", "high"), "scene8": ("low",)}  # scene: bu
 MC_RAYS = (16, 64, 256)
 PHOTON_DIRECT_RAYS = (4, 16, 64)
 # The methods the contact sheets show (the last budget), in this order.
-SHEET = ("standalone", "standalone+occl", "mc", "photon-direct", "mc+local-pass", "mc+occl", "mc+adaptive-k", "path")
+SHEET = ("standalone", "standalone+occl", "mc", "photon-direct", "mc+local-pass", "mc+occl", "mc+adaptive-k", "path",
+         "mc+occl+importance x20", "photon-direct+importance x5", "mc+split-brute S=8", "mc+split-metropolis S=8")
+CAUSTIC_SPLIT = 8  # a representative S (Wald 1999, 4.6: 4-20 suffice); docs/results/caustic_splitting.md
 
 
 def methods(scene, k):
@@ -95,7 +110,36 @@ def methods(scene, k):
         rows.append(("mc+local-pass+occl", pm + ["--direct", "mc", "--local-pass", "8", "--occlusion-test"]))
     if scene == "scene10":  # the thesis's x20 of the neighbour-set cache (4.2.3)
         rows.append(("photon-direct (no cache)", pm + ["--direct", "photon-direct", "--photon-direct-cache", "0"]))
+    # Importance-driven maps (4.7) keep fewer photons where the camera does not look, so they are
+    # meant to be used with more emitted photons: the "xN" rows emit N times the budget's photons
+    # (a --photons in the flags overrides the budget's; importance.md measured 5-20x).
+    if scene == "invisibledate":
+        occl = pm + ["--direct", "mc", "--occlusion-test", "--importance", "on"]
+        rows.append(("mc+occl+importance", occl))
+        rows.append(("mc+occl+importance x20", occl + ["--importance-min-probability", "0.01", "--photons", "x20"]))
+        # The path tracer at about that row's CPU time (6x the `path` row's spp), measured rather
+        # than extrapolated.
+        rows.append(("path x6", ["--integrator", "path", "--spp", "x6"]))
+    if scene == "scene10":
+        pd = pm + ["--direct", "photon-direct", "--importance", "on"]
+        rows.append(("photon-direct+importance", pd))
+        rows.append(("photon-direct+importance x5", pd + ["--photons", "x5"]))
+        rows.append(("path x2", ["--integrator", "path", "--spp", "x2"]))
+    if scene in ("cornell-sphere", "bathroom"):  # caustic splitting (4.6) at the budget's photons
+        for method in ("brute", "metropolis"):
+            rows.append((f"mc+split-{method} S={CAUSTIC_SPLIT}",
+                         pm + ["--direct", "mc", "--caustic-split", str(CAUSTIC_SPLIT), "--caustic-split-method", method]))
     return rows
+
+
+def override(flags, option, base):
+    """A row's own value of `option` (--photons, --spp) and its flags without it: "xN" in the
+    flags is N times the budget's `base`, a number replaces it, no mention keeps `base`."""
+    if option not in flags:
+        return base, flags
+    i = flags.index(option)
+    value = flags[i + 1]
+    return (base * int(value[1:]) if value.startswith("x") else int(value)), flags[:i] + flags[i + 2:]
 
 
 def sweep(scene, budget):
@@ -142,11 +186,13 @@ class Measurer:
         if key in self.done:
             return dict(self.done[key], method=method)
         exr = self.work / f"{scene}-{budget}-{len(self.done)}.exr"
+        photons, render_flags = override(flags, "--photons", photons)
+        spp, render_flags = override(render_flags, "--spp", spp)
         cmd = [self.args.pf, "render", manifest, "--photons", str(photons), "--k", str(k), "--spp", str(spp),
                "--res", res, "--seed", "1", "--threads", str(self.args.threads), "-q", "--no-png", "-o", str(exr)]
         cpus, walls = [], []
         for _ in range(self.args.repeat):
-            cpu, wall = timed(cmd + flags)
+            cpu, wall = timed(cmd + render_flags)
             cpus.append(cpu)
             walls.append(wall)
         diff = json.loads(run([self.args.pf, "diff", str(exr), reference, "--json", "--scene", manifest]).stdout)
@@ -174,6 +220,8 @@ def contact_sheet(pf, scene, rows, out, work, white):
     import matplotlib.image as mpimg
     reference = SCENES[scene][1]
     shown = [r for name in SHEET for r in rows if r["method"] == name]
+    if not shown:
+        return None
     error_scale = 0.25 * white  # yellow = an error of a quarter of the display white
     cells = [("reference", reference, None, "")] + [
         (r["method"], r["exr"], True, f"{r['cpu_seconds']:.1f} s CPU, RMSE/white {r['rmse_display']:.4f}, "
@@ -301,6 +349,10 @@ def main():
     ap.add_argument("--methods", default="", help="only these rows (comma-separated method names; default all)")
     ap.add_argument("--map", default="", help="photon map structure for every photonmap row (pf render --map)")
     ap.add_argument("--replot", action="store_true", help="only rewrite the table and plots from <out>/estimators.json")
+    ap.add_argument("--merge", action="store_true",
+                    help="add this run's rows to <out>/estimators.json (replacing rows of the same scene, budget "
+                         "and method) instead of overwriting it; a scene's contact sheet is redrawn only when this run "
+                         "measures all of its rows")
     args = ap.parse_args()
     out = ROOT / args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -317,6 +369,8 @@ def main():
         if b not in BUDGETS:
             sys.exit(f"unknown budget {b} (have {', '.join(BUDGETS)})")
     wanted = {m for m in args.methods.split(",") if m}
+    old = json.loads((out / "estimators.json").read_text()) if args.merge and (out / "estimators.json").exists() else []
+    old_scenes = list(dict.fromkeys(r["scene"] for r in old))
     work = pathlib.Path(tempfile.mkdtemp(prefix="pf-estimators-"))
     try:
         measurer = Measurer(args, work)
@@ -339,14 +393,24 @@ def main():
                 r["reference_noise_nrmse"] = noise / ref_mean if noise else None
                 r["reference_noise_display"] = noise / white if noise else None
                 r["display_white"] = white
-            try:
-                sheets.append(contact_sheet(args.pf, scene, [r for r in mine if r["budget"] == budgets[-1]], out, work,
-                                            white))
-            except ImportError:
-                print("no matplotlib: contact sheets skipped (tools/install-deps.sh --bench)", file=sys.stderr)
+            # A merged run that measures only a slice of a scene's rows keeps the scene's sheet.
+            measured = {(r["budget"], r["method"]) for r in mine}
+            if not any(r["scene"] == scene and (r["budget"], r["method"]) not in measured for r in old):
+                try:
+                    sheets.append(contact_sheet(args.pf, scene, [r for r in mine if r["budget"] == budgets[-1]],
+                                                out, work, white))
+                except ImportError:
+                    print("no matplotlib: contact sheets skipped (tools/install-deps.sh --bench)", file=sys.stderr)
             rows += mine
         for r in rows:
             del r["exr"]
+        if args.merge:
+            new = {(r["scene"], r["budget"], r["method"]): r for r in rows}
+            kept = [r for r in old if (r["scene"], r["budget"], r["method"]) not in new]
+            rows = kept + rows
+            rows.sort(key=lambda r: (list(dict.fromkeys([*old_scenes, *scenes])).index(r["scene"]),
+                                     list(BUDGETS).index(r["budget"])))  # stable: methods keep their order
+            scenes = list(dict.fromkeys(r["scene"] for r in rows))
         (out / "estimators.json").write_text(json.dumps(rows, indent=2) + "\n")
         write_reports(rows, scenes, out, sheets)
     finally:

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Generates the SCENE10-like, INVISIBLEDATE-like, BATHROOM-like and SCENE5-like test scenes as MGF
-(chapter-4 estimators, docs/results/estimators.md; caustic splitting, docs/results/caustic_splitting.md).
+"""Generates the SCENE10-like, INVISIBLEDATE-like, BATHROOM-like, SCENE5-like and CONFERENCE-like test
+scenes as MGF (chapter-4 estimators, docs/results/estimators.md; caustic splitting,
+docs/results/caustic_splitting.md; overmodulation, docs/results/conference.md).
 
 SCENE10 (Wald 1999, §5): a 10x10 array of small diffuse rooms, each with its own ceiling light,
 doors between neighbouring rooms. INVISIBLEDATE: two rooms side by side; the viewed room has no
@@ -11,7 +12,12 @@ around an emitting sphere), so every photon passes glass before its first diffus
 light is entirely caustic, and shadow rays cannot reach the lamps. SCENE5-like: a glass sphere of
 96 % transmission on a floor under one small ceiling light, its caustic beside it.
 
-    tools/gen_rooms.py            # writes scenes/{scene10,invisibledate,bathroom,scene5}/*.mgf
+CONFERENCE-like (§3.3.5, §5): a meeting room with a long table, chairs and six ceiling panels, and
+two small, very bright exit signs above the doors, each under a little hood: the hood and the
+sign's housing sit right at the emitter and collect a dense cluster of its photons, where the
+radiance estimate's 1/(πr²) overmodulates (the thesis's "exit" letters on the sign).
+
+    tools/gen_rooms.py            # writes scenes/{scene10,invisibledate,bathroom,scene5,conference}/*.mgf
 
 Units: metres, y up. Walls are single two-sided faces.
 """
@@ -25,8 +31,9 @@ class Mgf:
         self.lines = []
         self.n = 0
 
-    def material(self, name, rd=None, ed=None, rs=None, ts=None, ir=None):
-        self.lines += [f"m {name} =", "  c"]
+    def material(self, name, rd=None, ed=None, rs=None, ts=None, ir=None, cxy=None):
+        """`cxy` (CIE x, y) colours every component; the default `c` is neutral grey."""
+        self.lines += [f"m {name} =", f"  cxy {cxy[0]} {cxy[1]}" if cxy else "  c"]
         if rd is not None:
             self.lines.append(f"  rd {rd}")
         if ed is not None:
@@ -220,6 +227,77 @@ def scene5(size=3.0, height=2.5, radius=0.3, light=0.3, pedestal=0.3):
     return m
 
 
+def conference(w=8.0, d=6.0, height=3.0, panel=0.6, sign_w=0.28, sign_h=0.08, sign_y=2.85):
+    """CONFERENCE-like: an 8 x 3 x 6 m room (x, y up, z); a 4 x 1.2 m table with eight chairs, six
+    0.6 m ceiling panels (Le = 10), and on the far wall (x = 8) two doors, each with an exit sign
+    above it, under the ceiling: a 0.36 x 0.2 m housing whose front carries a 0.28 x 0.08 m emitter
+    of Le = 100 (green), under a 0.2 m deep hood with side cheeks whose top is 5 cm below the
+    ceiling. The signs are 10x the panels' radiance on 1/16 of a panel's area, and much of their
+    light lands on the hood's underside: a dense photon cluster
+    facing down like the ceiling 5 cm above it, so the ceiling's k-nearest-photon disks (which
+    keep photons arriving from the front side, §4.1) take it in: overmodulation (§3.3.5)."""
+    m = Mgf()
+    m.material("carpet", rd=0.3)
+    m.material("wall", rd=0.7)
+    m.material("ceiling", rd=0.8)
+    m.material("door", rd=0.35)
+    m.material("wood", rd=0.5)
+    m.material("chair", rd=0.4)
+    m.material("housing", rd=0.8)
+    # ed in lm/m²: Le = ed/(π·179) ≈ 10 W/(m²·sr) for 5622 (the panels).
+    m.material("panel", ed=5622)
+    # Exit signs: luminance Le = 56235/(π·179) = 100 W/(m²·sr), green (CIE x 0.3, y 0.5: inside the
+    # sRGB gamut, so the RGB emission keeps that luminance).
+    m.material("exit_sign", ed=56235, cxy=(0.3, 0.5))
+    m.use("carpet")
+    m.quad_y(0, w, 0, d, 0.0, down=False)
+    m.use("ceiling")
+    m.quad_y(0, w, 0, d, height, down=True)
+    m.use("wall")
+    m.wall_x(0, 0, d, 0, height)
+    m.wall_x(w, 0, d, 0, height)
+    m.wall_z(0, 0, w, 0, height)
+    m.wall_z(d, 0, w, 0, height)
+    # The table: top and four legs.
+    m.use("wood")
+    tx0, tx1, tz0, tz1 = 2.0, 6.0, 2.4, 3.6
+    m.box(tx0, tx1, 0.72, 0.76, tz0, tz1)
+    for x in (tx0 + 0.1, tx1 - 0.16):
+        for z in (tz0 + 0.1, tz1 - 0.16):
+            m.box(x, x + 0.06, 0.0, 0.72, z, z + 0.06)
+    # Four chairs along each long side, facing the table: seat, back, legs.
+    m.use("chair")
+    for x in (2.5, 3.5, 4.5, 5.5):
+        for side in (-1, 1):
+            zc = (tz0 - 0.35) if side < 0 else (tz1 + 0.35)
+            x0, x1, z0, z1 = x - 0.22, x + 0.22, zc - 0.22, zc + 0.22
+            m.box(x0, x1, 0.43, 0.47, z0, z1)
+            bz = z0 if side < 0 else z1 - 0.04  # the back on the side away from the table
+            m.box(x0, x1, 0.47, 0.95, bz, bz + 0.04)
+            for lx in (x0, x1 - 0.03):
+                for lz in (z0, z1 - 0.03):
+                    m.box(lx, lx + 0.03, 0.0, 0.43, lz, lz + 0.03)
+    m.use("panel")
+    for x in (2.0, 4.0, 6.0):
+        for z in (2.0, 4.0):
+            m.quad_y(x - panel / 2, x + panel / 2, z - panel / 2, z + panel / 2, height - 0.01, down=True)
+    for zc in (1.25, 4.75):
+        m.use("door")  # 0.9 x 2.1 m, 1 cm in front of the wall
+        m.wall_x(w - 0.01, zc - 0.45, zc + 0.45, 0.0, 2.1)
+        # Housing 6 cm deep on the wall, 0.2 m high around sign_y; the hood (a top plate and two
+        # cheeks, 0.2 m deep).
+        y0, y1 = sign_y - 0.1, sign_y + 0.1
+        m.use("housing")
+        m.box(w - 0.06, w, y0, y1, zc - 0.18, zc + 0.18)
+        m.face((w - 0.2, y1, zc - 0.2), (w - 0.2, y1, zc + 0.2), (w, y1, zc + 0.2), (w, y1, zc - 0.2))
+        m.face((w - 0.2, y0, zc - 0.2), (w - 0.2, y1, zc - 0.2), (w, y1, zc - 0.2), (w, y0, zc - 0.2))
+        m.face((w - 0.2, y0, zc + 0.2), (w, y0, zc + 0.2), (w, y1, zc + 0.2), (w - 0.2, y1, zc + 0.2))
+        # The emitter, 1 mm in front of the housing, facing the room (-x).
+        m.use("exit_sign")
+        m.wall_x(w - 0.061, zc - sign_w / 2, zc + sign_w / 2, sign_y - sign_h / 2, sign_y + sign_h / 2)
+    return m
+
+
 def main():
     scene10().write(ROOT / "scenes/scene10/scene10.mgf",
                     ["SCENE10-like: 10x10 diffuse rooms (4 x 4 x 2.5 m), one 0.5 m ceiling light each,",
@@ -235,6 +313,11 @@ def main():
     scene5().write(ROOT / "scenes/scene5/scene5.mgf",
                    ["SCENE5-like: a 96 %-transmissive glass sphere on a pedestal in a 3 x 2.5 x 3 m room, one",
                     "small ceiling light. Generated by tools/gen_rooms.py (photonfarm)."])
+    (ROOT / "scenes/conference").mkdir(exist_ok=True)
+    conference().write(ROOT / "scenes/conference/conference.mgf",
+                       ["CONFERENCE-like: 8 x 3 x 6 m meeting room, a table and eight chairs, six ceiling panels,",
+                        "two small very bright exit signs under hoods above the doors (overmodulation, Wald 1999",
+                        "3.3.5). Generated by tools/gen_rooms.py (photonfarm)."])
 
 
 if __name__ == "__main__":
