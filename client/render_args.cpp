@@ -42,12 +42,14 @@ void ParseResolution(const std::string& text, int& width, int& height) {
                      " pixels");
 }
 
-// --tail-tile: -1 = on a farm (--workers without --local-only, or submit) half the tile when that
-// is a multiple of the pixel block (16), so the image is the same as without; 0 elsewhere (one
-// process renders a tile's pixels on all its threads: it has no tail to shorten).
+// --tail-tile: -1 = on a farm of several workers (--workers N > 1 without --local-only, or submit:
+// any number) half the tile when that is a multiple of the pixel block (16), so the image is the
+// same as without; 0 elsewhere (one process renders a tile's pixels on all its threads and one
+// worker has nobody waiting for it: neither has a tail to shorten). `--plan auto` decides on the
+// coordinator (plan_choice.cpp), with the same rule.
 uint32_t TailTileFor(const RenderArgs& a) {
   if (a.tail_tile >= 0) return uint32_t(a.tail_tile);
-  const bool farm = (a.workers > 0 && !a.local_only) || a.submit;
+  const bool farm = (a.workers > 1 && !a.local_only) || a.submit;
   const uint32_t half = a.tile / 2;
   return farm && a.tile >= 32 && half % 16 == 0 ? half : 0;
 }
@@ -324,7 +326,7 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
   shape(app->add_option("--tail-tile", a.tail_tile,
                         "multiple-maps: the last map's last row of tiles in tiles of this side, so a "
                         "farm's workers finish together (the image is the same); -1 = tile/2 with "
-                        "--workers or submit when that is a multiple of 16, else 0 (off)")
+                        "--workers N > 1 or submit when that is a multiple of 16, else 0 (off)")
             ->check(CLI::Range(-1, 1 << 16)));
   shape(app->add_option("--levels", a.levels, "hierarchical: L, level-0 points every 2^L pixels (1..16)"));
   shape(app->add_option("--dims", a.dims,

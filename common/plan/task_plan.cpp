@@ -88,6 +88,8 @@ uint64_t PixelSeed(uint64_t job_seed, uint64_t map_index) {
 
 void ValidatePlan(const PlanSpec& plan, int width, int height) {
   if (width <= 0 || height <= 0) throw InputError("camera: width and height must be positive");
+  if (plan.tail_tile_size != 0 && plan.kind != PlanKind::kMultipleMaps)
+    throw InputError("plan: tail tiles (tail_tile_size) are a multiple-maps option");
   switch (plan.kind) {
     case PlanKind::kMultipleMaps:
       if (plan.maps < 1) throw InputError("plan.multiple_maps.maps: must be >= 1");
@@ -101,8 +103,6 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
       break;
     case PlanKind::kMapsInTurn:
       if (plan.samples_per_pixel < 1) throw InputError("plan.maps_in_turn.samples_per_pixel: must be >= 1");
-      if (plan.tail_tile_size != 0)
-        throw InputError("plan.maps_in_turn: tail tiles are a multiple-maps option");
       break;
     case PlanKind::kSkipping:
       if (plan.stride < 1) throw InputError("plan.skipping.stride: must be >= 1");
@@ -138,7 +138,8 @@ uint32_t CountRounds(const PlanSpec& plan) {
 }
 
 uint32_t PlanExpansionVersion(const PlanSpec& plan) {
-  return plan.kind == PlanKind::kHierarchical ? 3 : 0;
+  if (plan.kind == PlanKind::kHierarchical) return 3;
+  return plan.kind == PlanKind::kMultipleMaps && plan.tail_tile_size != 0 ? 1 : 0;
 }
 
 std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed) {
@@ -163,7 +164,8 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
       const auto tiles = Tiles(plan.tile_size, width, height);
       // Map-major order: the tiles of one map are adjacent, so a worker that has built map m
       // tends to lease its other tiles next (map affinity). The last map ends in tail tiles
-      // (PlanSpec::tail_tile_size): tasks are leased in id order, so those are the last ones.
+      // (PlanSpec::tail_tile_size): tasks are leased in id order (map affinity aside, docs/farm.md),
+      // so those are the last ones.
       for (uint32_t m = 0; m + 1 < plan.maps; ++m)
         for (const PixelSubset& t : tiles) add(0, m, t, 0, plan.samples_per_pixel);
       for (const PixelSubset& t : TilesWithTail(plan.tile_size, plan.tail_tile_size, width, height))

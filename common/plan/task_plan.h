@@ -84,8 +84,10 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
 // (JobSpec.plan.expansion_version) and, after a restart, resumes a job's merged results only if
 // its own version is the same: a checkpoint lists task *ids*, which mean other tasks under
 // another expansion. Bump a plan's number whenever its expansion changes.
-//   static plans (a)-(c): 0, unchanged since the first release (tail tiles, PlanSpec::
-//   tail_tile_size, are part of the stored plan: a job without them expands as before);
+//   static plans (a)-(c): 0, unchanged since the first release; multiple maps with tail tiles
+//   (PlanSpec::tail_tile_size): 1 — a job without them expands and is versioned as before, and
+//   a coordinator that predates the field (it would expand whole tiles under the same ids) sets
+//   such a job's checkpoint aside instead of taking a tail tile's id for a whole tile;
 //   hierarchical: 3 (1: localization tasks per level; 2: one batch per level-0 map and row band
 //   once all levels are complete, docs/renderer.md "Localization"; 3: a detail task's pixels
 //   share one random-number stream, renderer.h PixelStreams — same ids, other pixel values).

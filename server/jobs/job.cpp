@@ -21,6 +21,18 @@ Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, 
 
 void Job::AddWork(const std::vector<TaskSpec>& tasks) {
   const JobConfig& c = *config_;
+  if (c.plan.kind == PlanKind::kMultipleMaps && c.plan.tail_tile_size != 0) {
+    // Tail tiles (task_plan.h) are a quarter of a tile or less: progress and ETA count pixel
+    // samples, as for the hierarchical plan, or the last 25 % of the pixels would read 57 % of
+    // the job (the default farm job: 12 tiles + 16 tail tiles).
+    for (const TaskSpec& t : tasks) {
+      const uint64_t w =
+          CountPixels(t.pixels, c.camera.width, c.camera.height) * (t.sample_end - t.sample_begin);
+      task_work_.push_back(w);
+      work_[size_t(TaskState::kQueued)] += w;
+    }
+    return;
+  }
   if (c.plan.kind != PlanKind::kHierarchical) {
     work_[size_t(TaskState::kQueued)] += tasks.size();
     return;

@@ -65,39 +65,43 @@ TEST(TaskPlan, TailTilesCutOnlyTheLastRowOfTheLastMap) {
   };
   for (const Case c :
        {Case{256, 256, 64, 32}, Case{200, 150, 64, 32}, Case{100, 70, 64, 16}, Case{48, 20, 32, 16}}) {
-    SCOPED_TRACE(std::to_string(c.w) + "x" + std::to_string(c.h));
-    const PlanSpec plain{
-        .kind = PlanKind::kMultipleMaps, .maps = 2, .samples_per_pixel = 3, .tile_size = c.tile};
-    PlanSpec plan = plain;
-    plan.tail_tile_size = c.tail;
-    ExpectCoverage(plan, c.w, c.h, 6, 2);
-    const auto tasks = ExpandPlan(plan, c.w, c.h, 42);
-    const auto before = ExpandPlan(plain, c.w, c.h, 42);
-    const uint32_t cols = (uint32_t(c.w) + c.tile - 1) / c.tile, rows = (uint32_t(c.h) + c.tile - 1) / c.tile;
-    const uint32_t last_row_y0 = (rows - 1) * c.tile;
-    const size_t per_map = size_t(cols) * rows, kept = per_map + size_t(cols) * (rows - 1);
-    ASSERT_GT(tasks.size(), before.size());
-    // Map 0 and map 1's rows above the last: the very same tasks as without tail tiles.
-    for (size_t i = 0; i < kept; ++i) {
-      EXPECT_EQ(tasks[i].map_index, before[i].map_index);
-      EXPECT_EQ(PixelsOf(tasks[i].pixels, c.w, c.h), PixelsOf(before[i].pixels, c.w, c.h));
+    for (const uint32_t maps : {1u, 2u}) {
+      SCOPED_TRACE(std::to_string(c.w) + "x" + std::to_string(c.h) + ", maps " + std::to_string(maps));
+      const PlanSpec plain{
+          .kind = PlanKind::kMultipleMaps, .maps = maps, .samples_per_pixel = 3, .tile_size = c.tile};
+      PlanSpec plan = plain;
+      plan.tail_tile_size = c.tail;
+      ExpectCoverage(plan, c.w, c.h, 3 * maps, maps);
+      const auto tasks = ExpandPlan(plan, c.w, c.h, 42);
+      const auto before = ExpandPlan(plain, c.w, c.h, 42);
+      const uint32_t cols = (uint32_t(c.w) + c.tile - 1) / c.tile,
+                     rows = (uint32_t(c.h) + c.tile - 1) / c.tile;
+      const uint32_t last_row_y0 = (rows - 1) * c.tile;
+      const size_t per_map = size_t(cols) * rows, kept = per_map * (maps - 1) + size_t(cols) * (rows - 1);
+      ASSERT_GT(tasks.size(), before.size());
+      // The maps before the last, and the last one's rows above its last: the very same tasks as
+      // without tail tiles.
+      for (size_t i = 0; i < kept; ++i) {
+        EXPECT_EQ(tasks[i].map_index, before[i].map_index);
+        EXPECT_EQ(PixelsOf(tasks[i].pixels, c.w, c.h), PixelsOf(before[i].pixels, c.w, c.h));
+      }
+      // The rest: the last map, inside the last row, at most tail × tail, and the same pixel set
+      // as the uncut last row.
+      std::vector<uint32_t> cut, uncut;
+      for (size_t i = kept; i < tasks.size(); ++i) {
+        const PixelSubset& t = tasks[i].pixels;
+        EXPECT_EQ(tasks[i].map_index, maps - 1);
+        EXPECT_GE(t.y0, last_row_y0);
+        EXPECT_LE(t.x1 - t.x0, c.tail);
+        EXPECT_LE(t.y1 - t.y0, c.tail);
+        for (uint32_t p : PixelsOf(t, c.w, c.h)) cut.push_back(p);
+      }
+      for (size_t i = kept; i < before.size(); ++i)
+        for (uint32_t p : PixelsOf(before[i].pixels, c.w, c.h)) uncut.push_back(p);
+      std::sort(cut.begin(), cut.end());
+      std::sort(uncut.begin(), uncut.end());
+      EXPECT_EQ(cut, uncut);
     }
-    // The rest: map 1, inside the last row, at most tail × tail, and the same pixel set as the
-    // uncut last row.
-    std::vector<uint32_t> cut, uncut;
-    for (size_t i = kept; i < tasks.size(); ++i) {
-      const PixelSubset& t = tasks[i].pixels;
-      EXPECT_EQ(tasks[i].map_index, 1u);
-      EXPECT_GE(t.y0, last_row_y0);
-      EXPECT_LE(t.x1 - t.x0, c.tail);
-      EXPECT_LE(t.y1 - t.y0, c.tail);
-      for (uint32_t p : PixelsOf(t, c.w, c.h)) cut.push_back(p);
-    }
-    for (size_t i = kept; i < before.size(); ++i)
-      for (uint32_t p : PixelsOf(before[i].pixels, c.w, c.h)) uncut.push_back(p);
-    std::sort(cut.begin(), cut.end());
-    std::sort(uncut.begin(), uncut.end());
-    EXPECT_EQ(cut, uncut);
   }
 }
 
@@ -170,9 +174,21 @@ TEST(TaskPlan, InvalidPlansNameTheField) {
         << tile << " " << t;
   EXPECT_EQ(message({.kind = PlanKind::kMultipleMaps, .tile_size = 64, .tail_tile_size = 16}, 64, 64),
             "no error");
-  EXPECT_NE(message({.kind = PlanKind::kMapsInTurn, .tile_size = 64, .tail_tile_size = 32}, 64, 64)
-                .find("maps_in_turn"),
-            std::string::npos);
+  for (const PlanKind kind : {PlanKind::kMapsInTurn, PlanKind::kSkipping, PlanKind::kHierarchical})
+    EXPECT_NE(
+        message({.kind = kind, .tile_size = 64, .tail_tile_size = 32}, 64, 64).find("multiple-maps option"),
+        std::string::npos);
+}
+
+// A job stored with tail tiles has expansion version 1, one without keeps 0: a coordinator that
+// predates tail tiles (it would expand whole tiles under the tail tiles' ids) sets its checkpoint
+// aside rather than resume it (server/store/recovery.cpp).
+TEST(TaskPlan, TailTilesHaveTheirOwnExpansionVersion) {
+  const PlanSpec plain{.kind = PlanKind::kMultipleMaps, .tile_size = 64};
+  PlanSpec tail = plain;
+  tail.tail_tile_size = 32;
+  EXPECT_EQ(PlanExpansionVersion(plain), 0u);
+  EXPECT_EQ(PlanExpansionVersion(tail), 1u);
 }
 
 TEST(Accumulator, OrderOfMergingDoesNotChangeABit) {

@@ -159,11 +159,28 @@ namespace {
 TEST(FarmWatch, EtaTracksTheTimeThatRemains) {
   TestDir dir;
   CoordinatorProcess coordinator(dir / "data", dir.path());
-  const RunResult sub =
-      RunCommand({Binaries::Pf(), "submit", Binaries::Scene(), "--integrator", "photonmap", "--photons",
-                  "1000000", "--k", "50", "--res", "128x128", "--spp", "8", "--plan", "multiple-maps",
-                  "--tile", "32", "--coordinator", coordinator.address()},
-                 dir.path());
+  const RunResult sub = RunCommand({Binaries::Pf(),
+                                    "submit",
+                                    Binaries::Scene(),
+                                    "--integrator",
+                                    "photonmap",
+                                    "--photons",
+                                    "1000000",
+                                    "--k",
+                                    "50",
+                                    "--res",
+                                    "128x128",
+                                    "--spp",
+                                    "8",
+                                    "--plan",
+                                    "multiple-maps",
+                                    "--tile",
+                                    "32",
+                                    "--tail-tile",
+                                    "0",
+                                    "--coordinator",
+                                    coordinator.address()},
+                                   dir.path());
   ASSERT_EQ(sub.exit_code, 0) << sub.err;
   const std::string job_id = sub.out.substr(0, sub.out.find('\n'));
   FarmClient client(coordinator.address(), "");

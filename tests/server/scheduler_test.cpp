@@ -766,6 +766,31 @@ TEST(SchedulerEta, HierarchicalProgressIsMonotoneAndItsEtaWithinTwiceTheTruth) {
   EXPECT_GT(checked, 100u);
 }
 
+// Issue #12, tail tiles: the default farm job's 12 tiles of 64² and 16 tail tiles of 32². Its
+// progress counts pixel samples, not tasks: with the 12 whole tiles merged, 3/4 of the pixels are
+// done (counting tasks it read 12/28 = 43 %), and each tail tile adds 1/64.
+TEST(SchedulerEta, TailTilesCountTheirPixels) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{.lease_seconds = 1e6});
+  const int w = 256, h = 256;
+  std::unique_ptr<Job> job = scheduler.PrepareJob(MakeConfig(
+      PlanSpec{
+          .kind = PlanKind::kMultipleMaps, .samples_per_pixel = 2, .tile_size = 64, .tail_tile_size = 32},
+      w, h));
+  const std::string id = job->id();
+  ASSERT_EQ(job->num_tasks(), 28u);
+  scheduler.AddJob(std::move(job));
+  for (int i = 0; i < 13; ++i) {
+    std::optional<Lease> lease = scheduler.TryLease({"w", {}});
+    ASSERT_TRUE(lease.has_value());
+    ASSERT_EQ(lease->task.task_id, uint64_t(i)) << "tasks are leased in id order: the tail tiles last";
+    ASSERT_EQ(scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, w, h)).status,
+              CompleteStatus::kMerged);
+    if (i == 11) EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75);
+  }
+  EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75 + 1.0 / 64);
+}
+
 TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) {
   FakeClock clock;
   Scheduler scheduler(clock, SchedulerOptions{});
