@@ -168,6 +168,55 @@ TEST(PrecomputedIrradiance, CoplanarSitesAreVisibleWhateverTheirRounding) {
   EXPECT_EQ(served, tried);
 }
 
+// The lookup averages the first `average` visible sites among the `candidates` nearest agreeing
+// ones, in distance order. Sites on a floor carry E = 1, 2, 8, 4 at distances 0.1, 0.2, 0.3,
+// 0.35 from y, and a small wall hides the fourth from y: the mean of the visible three is
+// 11/3; average = 1 reads the nearest (1). Fails if the occluded site is counted (15/4), if the
+// sites are not taken nearest first, or if the sum is not divided by the count.
+TEST(PrecomputedIrradiance, AveragesTheVisibleNearestSites) {
+  SceneDescription scene;
+  Material grey;
+  grey.diffuse_reflectance = Rgb(0.5f);
+  const uint32_t m = AddMaterial(scene, grey);
+  AddQuad(scene, {-4, -4, 0}, {4, -4, 0}, {4, 4, 0}, {-4, 4, 0}, m);                      // floor, facing +z
+  AddQuad(scene, {0.2f, 0.8f, 0}, {0.2f, 1.2f, 0}, {0.2f, 1.2f, 1}, {0.2f, 0.8f, 1}, m);  // hides C
+  const EmbreeScene accel(scene);
+  struct Site {
+    Vec3 p;
+    float e;
+  };
+  const std::vector<Site> sites = {{{0.1f, 1, 0}, 1},    // A, 0.1 from y
+                                   {{-0.2f, 1, 0}, 2},   // B, 0.2
+                                   {{0, 1.3f, 0}, 8},    // D, 0.3
+                                   {{0.35f, 1, 0}, 4},   // C, 0.35, behind the wall
+                                   {{0, 0.4f, 0}, 16}};  // E, 0.6: not among the 4 nearest
+  PhotonMaps maps;
+  maps.global = std::make_unique<BucketKdTree>(BucketKdOptions{});
+  for (const Site& site : sites) maps.global->AddPhoton(site.p, Vec3(0, 0, 1), Rgb(1.0f));
+  maps.global->PrepareForQuery();
+  auto build = [&](int average) {
+    PrecomputedIrradianceOptions o;
+    o.stride = 1;
+    o.threads = 1;
+    o.max_radius_fraction = 0.5f;
+    o.candidates = 4;
+    o.average = average;
+    return PrecomputedIrradiance::Build(accel, maps, o, [&](const Bsdf&, const Vec3& x, const Vec3&) {
+      for (const Site& site : sites)
+        if (Length(site.p - x) < 1e-4f) return Rgb(site.e / kPi);
+      return Rgb(0.0f);
+    });
+  };
+  NearestPhotons nearest;
+  const Vec3 y(0, 1, 0), n(0, 0, 1);
+  const std::optional<Rgb> four = build(4)->Lookup(y, n, nearest);
+  ASSERT_TRUE(four.has_value());
+  EXPECT_NEAR(four->g, 11.0f / 3.0f, 11.0f / 3.0f / 128.0f);  // RGBE: within 2^-8, plus the π
+  const std::optional<Rgb> one = build(1)->Lookup(y, n, nearest);
+  ASSERT_TRUE(one.has_value());
+  EXPECT_NEAR(one->g, 1.0f, 1.0f / 128.0f);
+}
+
 // Two closed rooms side by side, x < -0.01 (B, a dim ceiling light) and x > 0.01 (A, a light 100×
 // brighter), split by a solid wall 0.02 thick: no light crosses it. Camera in B, looking at B's
 // floor along the wall.
