@@ -4,7 +4,8 @@
 // gather ray, i.e. N_lp full k-NN radiance estimates per camera sample. Instead, the
 // irradiance E is estimated once per map at a subset of the photon positions ("sites", every
 // `stride`-th photon of the global map and of the direct map when it is separate), and a
-// gather hit y then costs one nearest-site lookup: L(y) = ρd(y)/π · E(site).
+// gather hit y then costs one nearest-site lookup: L(y) = ρd(y)/π · E(site) (here: the mean E
+// of the few nearest sites visible from y, see below).
 //
 // Sites are stored as 18-byte photons in a photon map of their own (bucket_kdtree.h): the
 // position is the site's, the "direction" bytes hold the site's surface normal on its lit side
