@@ -184,8 +184,8 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option(
          "--local-pass-lookup", a.local_pass_lookup,
          "local pass: what a gather ray reads at its hit: full (the photon-map estimate) or precomputed "
-         "(irradiance at every 4th photon, estimated once per map; one nearest-site lookup, Christensen "
-         "1999)")
+         "(irradiance at every 4th photon, estimated once per map; one 4-nearest-site lookup, the mean of "
+         "the sites visible from the hit, Christensen 1999)")
       ->capture_default_str()
       ->check(CLI::IsMember({"full", "precomputed"}));
   app->add_flag("--irradiance-cache", a.irradiance_cache,

@@ -4,20 +4,22 @@
 // gather ray, i.e. N_lp full k-NN radiance estimates per camera sample. Instead, the
 // irradiance E is estimated once per map at a subset of the photon positions ("sites", every
 // `stride`-th photon of the global map and of the direct map when it is separate), and a
-// gather hit y then costs one nearest-site lookup: L(y) = ρd(y)/π · E(site).
+// gather hit y then costs one nearest-site lookup: L(y) = ρd(y)/π · E(site) (here: the mean E
+// of the few nearest sites visible from y, see below).
 //
 // Sites are stored as 18-byte photons in a photon map of their own (bucket_kdtree.h): the
 // position is the site's, the "direction" bytes hold the site's surface normal on its lit side
 // (0.8° quantisation, photon.h) and the "power" bytes E in RGBE (2^-8 relative). The photon
 // record does not carry a surface normal, so each site finds its own with one short ray along
 // the photon's incoming direction through its position (the photon was stored where that ray
-// hit). A lookup takes the nearest site whose normal agrees with y's side (cos ≥ normal_cos,
-// in-query filter, §4.1) within max_radius and that is visible from y (a shadow ray, as the
-// occlusion test of §4.1.1: the nearest site may lie across a thin wall, in a brighter room);
-// without one the caller falls back to the full estimate.
+// hit). A lookup takes the `candidates` nearest sites whose normal agrees with y's side
+// (cos ≥ normal_cos, in-query filter, §4.1) within max_radius, keeps those visible from y (a
+// shadow ray each, as the occlusion test of §4.1.1: a site may lie across a thin wall, in a
+// brighter room) and averages the first `average` of them; without one the caller falls back
+// to the full estimate.
 //
-// Bias: E is the estimate at the site, not at y (a nearest-neighbour interpolation over a
-// distance of about the photon spacing times √stride) and is RGBE-rounded; both are far below
+// Bias: E is the estimate at the sites, not at y (an interpolation over a distance of about
+// the photon spacing times √(stride·average)) and is RGBE-rounded; both are far below
 // the k-NN estimate's own blur radius. Measured in docs/results/local_pass.md.
 //
 // Determinism: each site's E is a pure function of the maps (the estimate involves no random
@@ -44,6 +46,14 @@ struct PrecomputedIrradianceOptions {
   // order, and the first one visible from y serves (one shadow ray each): a site behind a
   // wall would carry the other room's light into this one. 0 = no visibility test (nearest).
   int candidates = 4;
+  // Of those, the first `average` visible ones are averaged (1 = the nearest visible site, as
+  // Christensen 1999). Each site's E is a k-NN estimate with its own noise, and a gather hit
+  // reading one site repeats that noise over the site's whole neighbourhood; the mean of 4
+  // spreads over the area of about 4·stride = 16 photons, well inside the k = 50 disk each
+  // site already averages over. Low budget (100k photons, k = 50), RMSE/white: Cornell 0.01863
+  // (nearest) → 0.01844 (4; the full local pass 0.01856), INVISIBLEDATE 0.4506 → 0.4523, for
+  // +5-13 % CPU time: docs/results/kernel.md §2.
+  int average = 4;
   // The sites' own estimates drop photons whose origin the site cannot see (Wald 1999, §4.1.1;
   // needs photon origins in the maps: ConfigureMapsFor keeps them). Read by the photon map
   // integrator, which builds the sites (Build itself only calls the RadianceFn). Without it the
@@ -76,6 +86,7 @@ class PrecomputedIrradiance {
   std::unique_ptr<PhotonMap> sites_;
   const EmbreeScene* scene_ = nullptr;
   int candidates_ = 4;
+  int average_ = 4;
   float normal_cos_ = 0.75f;
   float max_radius_ = 0.0f;
   double build_seconds_ = 0.0;

@@ -113,7 +113,7 @@ void PhotonMapIntegrator::PreparePrecomputedIrradiance() {
                           describe(options_.direct_photons) + "|" + describe(options_.caustic) + "|" +
                           std::to_string(p.stride) + "," + std::to_string(p.normal_cos) + "," +
                           std::to_string(p.max_radius_fraction) + "," + std::to_string(p.candidates) + "," +
-                          std::to_string(p.occlusion_test);
+                          std::to_string(p.average) + "," + std::to_string(p.occlusion_test);
   PhotonMaps::Derived& slot = *maps_.derived;
   std::lock_guard lock(slot.mutex);
   if (slot.key == key && slot.value) {
