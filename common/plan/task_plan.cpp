@@ -87,7 +87,8 @@ uint32_t CountRounds(const PlanSpec& plan) {
 }
 
 uint32_t PlanExpansionVersion(const PlanSpec& plan) {
-  return plan.kind == PlanKind::kHierarchical ? 3 : 0;
+  if (plan.kind != PlanKind::kHierarchical) return 0;
+  return plan.hierarchy_part == HierarchyPart::kIndirect ? 4 : 3;
 }
 
 std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, uint64_t job_seed) {
@@ -212,7 +213,11 @@ std::string DescribePlan(const PlanSpec& p) {
       return "hierarchical " + std::to_string(p.dims) + "-D: L=" + std::to_string(p.levels) + ", n_l=" + n +
              " (Nmax " + std::to_string(s.nmax) + "), localize tau=" + std::to_string(p.localize_threshold) +
              " kappa=" + std::to_string(p.localize_contrast) + ", rows per task " +
-             std::to_string(p.tile_size);
+             std::to_string(p.tile_size) +
+             (p.hierarchy_part == HierarchyPart::kIndirect
+                  ? ", photon-map part only (emission + direct light per pixel, " +
+                        std::to_string(p.direct_samples) + " spp)"
+                  : "");
     }
   }
   return "?";

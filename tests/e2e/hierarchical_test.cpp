@@ -83,6 +83,33 @@ TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
   }
 }
 
+// --hier-part indirect (common/plan/hierarchical.h, "Parts"): the emission + direct light tasks
+// and the map-part levels travel with their part (Task.part) and merge into the same image as
+// the local render, for any worker count; and the split differs from the whole-radiance plan
+// (the flag reaches the workers).
+TEST(HierarchicalFarm, IndirectPartBitIdenticalForOneAndThreeWorkersAndLocal) {
+  TestDir dir;
+  std::vector<std::string> flags = HierarchicalFlags(2000);
+  const Image whole = LocalReference(dir, flags);
+  flags.insert(flags.end(), {"--hier-part", "indirect", "--hier-direct-samples", "2"});
+  const Image reference = LocalReference(dir, flags);
+  ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
+  EXPECT_FALSE(BitIdentical(whole, reference));
+  // Both estimate the same radiance: their image sums agree to 10 % (two renders of 2000-photon
+  // maps; a missing or doubled part would be off by a third or more: direct light is more than
+  // half of the Cornell box's light).
+  EXPECT_NEAR(PixelSum(reference) / PixelSum(whole), 1.0, 0.1);
+  for (int workers : {1, 3}) {
+    const std::string out = (dir / ("farm-indirect-" + std::to_string(workers) + ".exr")).string();
+    const RunResult r = RunCommand(
+        Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, flags),
+               {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "--no-png", "-q"}),
+        dir.path());
+    ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
+    EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
+  }
+}
+
 TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
   TestDir dir;
   const std::vector<std::string> flags = HierarchicalFlags(40000);  // tasks of ~0.1-0.3 s
