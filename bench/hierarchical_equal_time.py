@@ -22,6 +22,8 @@ Plans (the budgets sweep the number of samples, hence maps, per pixel):
     hierarchical-flat   the same with n0 = 4 n_min (fewer maps on the coarse levels)
     hierarchical-shallow  --levels 3, n0 = 16 n_min, decay 2 (n_l = 16, 8, 4, 2 x n_min): details
                     no wider than 8 pixels, where the map's error is correlated
+    hierarchical-shallow-indirect  the same over the photon-map part only (--hier-part indirect);
+                    emission + direct light per pixel, DIRECT_PER_NMIN x n_min samples
 
 Time: the CPU time (user + system) of the whole `pf render` process, single-threaded: the machine
 is shared and its wall time says more about the neighbours than about the plan. Map building is
@@ -72,13 +74,20 @@ HIER_MIN = (1, 2, 4)
 SCHEDULES = {  # family: (n0 / n_min, levels (None: the scene's), decay (None: (n0 / n_min)^(1/L)))
     "hierarchical": (32, None, None),
     "hierarchical-flat": (4, None, None),
-    # Fewer levels (docs/results/hierarchical-equal-time.md, "Shallow hierarchy"): level-0 points
+    # Fewer levels (docs/results/hierarchical-equal-time-crn.md, "Fewer levels"): level-0 points
     # every 8 pixels, so every detail spans at most 8 pixels, less than a 10k-photon, k = 50
     # estimate's radius on these images: the map's error is correlated across a detail and cancels.
     # n_l = 16, 8, 4, 2 (x n_min): chosen on the Cornell box (seed 1) among L = 3..5, n0 = 8..32,
     # decay 1.5..4.
     "hierarchical-shallow": (16, 3, 2.0),
+    # The same schedule over the photon-map part only (--hier-part indirect; common/plan/hierarchical.h,
+    # "Parts"): emission + direct light per pixel with DIRECT_PER_NMIN x n_min samples, added at assembly.
+    "hierarchical-shallow-indirect": (16, 3, 2.0),
 }
+# hierarchical-shallow-indirect: emission + direct light samples per pixel per n_min. 2, 4 and 8 were
+# run on all three scenes (seeds 1 and 2): 2 leaves the light seen in CornellBox-Sphere's spheres
+# noisy, 8 costs too much on the Cornell box; 4 is the default (docs/results/hierarchical-equal-time.md).
+DIRECT_PER_NMIN = 4
 METRICS = ("rmse", "rmse_masked", "rmse_lowfreq")
 REFERENCES = ("path", "noise")
 
@@ -94,10 +103,19 @@ def plans(levels, scale_levels=0):
     for family, (ratio, fixed_levels, fixed_decay) in SCHEDULES.items():
         lv = levels if fixed_levels is None else fixed_levels + scale_levels
         decay = fixed_decay if fixed_decay is not None else ratio ** (1.0 / lv)
+        def part(n):
+            if not family.endswith("-indirect"):
+                return []
+            return ["--hier-part", "indirect", "--hier-direct-samples", str(DIRECT_PER_NMIN * n)]
         out += [(f"{family} (n_min {n})", family,
                  ["--plan", "hierarchical", "--dims", "2", "--levels", str(lv), "--base-samples", str(ratio * n),
-                  "--min-samples", str(n), "--decay", f"{decay:.6f}", "--tile", "0"]) for n in HIER_MIN]
+                  "--min-samples", str(n), "--decay", f"{decay:.6f}", "--tile", "0"] + part(n)) for n in HIER_MIN]
     return out
+
+
+def set_direct_per_nmin(n):
+    global DIRECT_PER_NMIN
+    DIRECT_PER_NMIN = n
 
 
 def interpolate(points, t):
@@ -141,7 +159,8 @@ def plot(rows, scenes, out, name):
         return []
     written = []
     colours = {"multiple-maps": "tab:blue", "skipping": "tab:green", "hierarchical": "tab:red",
-               "hierarchical-flat": "tab:orange", "hierarchical-shallow": "tab:purple"}
+               "hierarchical-flat": "tab:orange", "hierarchical-shallow": "tab:purple",
+               "hierarchical-shallow-indirect": "tab:brown"}
     for scene in scenes:
         mine = [r for r in rows if r["scene"] == scene]
         fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), squeeze=False)
@@ -190,6 +209,8 @@ def write_reports(result, out):
         f"--reference-maps {a['reference_maps']}"
         + (f" --plans {','.join(families)}" if families != default_families else "")
         + (f" --scale {a['scale']}" if a.get("scale", 1) != 1 else "")
+        + (f" --direct-per-nmin {a['direct_per_nmin']}"
+           if "hierarchical-shallow-indirect" in families and a.get("direct_per_nmin", 4) != 4 else "")
         + (f" --extra '{a['extra']}' --tag {a['tag']}" if a.get("extra") or a.get("tag") else "")
         + f"` (writes this file, {name}.json and the plots)." + (f" Every image with `{a['extra']}`." if a.get("extra") else ""),
         "",
@@ -279,11 +300,14 @@ def main():
     ap.add_argument("--scale", type=int, default=1, choices=(1, 2, 4),
                     help="render at this multiple of each scene's resolution (path reference skipped if > 1)")
     ap.add_argument("--tag", default="", help="output names hierarchical-equal-time-<tag>.* (default: no tag)")
+    ap.add_argument("--direct-per-nmin", type=int, default=DIRECT_PER_NMIN,
+                    help="hierarchical-shallow-indirect: emission + direct light samples per pixel per n_min")
     ap.add_argument("--replot", action="store_true")
     ap.add_argument("--merge", nargs="+", metavar="JSON",
                     help="combine runs of the same plans with different --seeds (e.g. run in parallel): errors "
                          "RMS over all seeds, CPU time the median over all; writes the tables and plots to --out")
     args = ap.parse_args()
+    set_direct_per_nmin(args.direct_per_nmin)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.merge:
@@ -350,7 +374,7 @@ def main():
                   f"{row['noise']['rmse_lowfreq']:.4f}", flush=True)
     result = {"args": {"photons": args.photons, "k": args.k, "seeds": args.seeds,
                        "reference_maps": args.reference_maps, "extra": args.extra, "tag": args.tag,
-                       "scale": args.scale},
+                       "scale": args.scale, "direct_per_nmin": args.direct_per_nmin},
               "scenes": scenes, "rows": rows}
     (out / f"{stem(args.tag)}.json").write_text(json.dumps(result, indent=2) + "\n")
     write_reports(result, out)

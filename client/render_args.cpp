@@ -340,6 +340,16 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
       "hierarchical: tau; resample a pixel directly if |detail| > tau x the level's noise ..."));
   shape(app->add_option("--localize-contrast", a.localize_contrast,
                         "hierarchical: ... and > kappa x |interpolation| (kappa = this)"));
+  shape(
+      app->add_option("--hier-part", a.hier_part,
+                      "hierarchical: what the levels render: all (the whole radiance) or indirect (the "
+                      "photon-map part only; emission and direct light per pixel with --hier-direct-samples "
+                      "samples, added at assembly: the hierarchy cures the map's low-frequency noise, direct "
+                      "light is white noise a detail would add up)")
+          ->check(CLI::IsMember({"all", "indirect"})));
+  shape(app->add_option("--hier-direct-samples", a.hier_direct_samples,
+                        "hierarchical, --hier-part indirect: emission + direct light samples per pixel")
+            ->check(CLI::Range(1u, kMaxSamplesPerPixel)));
   app->add_option("--max-rounds", a.max_rounds, "Stop rule: stop after this many rounds (0 = all)");
   app->add_option("--time-budget", a.time_budget,
                   "Stop rule: seconds (0 = none; the image then depends on timing)");
@@ -426,6 +436,10 @@ PreparedJob PrepareJob(const RenderArgs& a) {
     h->set_localize_contrast(a.localize_contrast);
     h->set_samples_per_pixel(a.spp);
     h->set_rows_per_task(a.tile);
+    if (a.hier_part == "indirect") {
+      h->set_part(v1::HIERARCHY_PART_INDIRECT);
+      h->set_direct_samples_per_pixel(a.hier_direct_samples);
+    }
   } else {
     pl->mutable_skipping()->set_stride(a.stride);
     pl->mutable_skipping()->set_rounds(a.rounds);

@@ -78,6 +78,8 @@ struct RenderArgs {
   double decay = 2;
   double localize_threshold = 4;
   double localize_contrast = 0.25;
+  std::string hier_part = "all";     // all | indirect (common/plan/hierarchical.h, "Parts")
+  uint32_t hier_direct_samples = 1;  // with indirect: emission + direct light samples per pixel
   // Stop rule and scheduling (farm).
   uint32_t max_rounds = 0;
   double time_budget = 0;

@@ -411,6 +411,20 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
       out.samples_per_pixel = h.samples_per_pixel();
       out.tile_size = h.rows_per_task();
       check_spp(out.samples_per_pixel, field + ".hierarchical.samples_per_pixel");
+      switch (h.part()) {
+        case v1::HIERARCHY_PART_ALL:
+          out.hierarchy_part = HierarchyPart::kAll;
+          break;
+        case v1::HIERARCHY_PART_INDIRECT:
+          out.hierarchy_part = HierarchyPart::kIndirect;
+          break;
+        default:
+          throw InputError(field + ".hierarchical.part: unknown value " + std::to_string(int(h.part())));
+      }
+      out.direct_samples = h.direct_samples_per_pixel();
+      if (out.direct_samples > kMaxSamplesPerPixel)
+        throw LimitError(field + ".hierarchical.direct_samples_per_pixel: exceeds the limit " +
+                         std::to_string(kMaxSamplesPerPixel));
       // The rest (ranges, map count) is checked by ValidatePlan with the image size.
       break;
     }
@@ -458,6 +472,9 @@ void PlanToProto(const PlanSpec& p, v1::Plan* out) {
       m->set_localize_contrast(p.localize_contrast);
       m->set_samples_per_pixel(p.samples_per_pixel);
       m->set_rows_per_task(p.tile_size);
+      // Unset for part all: such plans serialise exactly as before the setting existed.
+      if (p.hierarchy_part == HierarchyPart::kIndirect) m->set_part(v1::HIERARCHY_PART_INDIRECT);
+      m->set_direct_samples_per_pixel(p.direct_samples);
       break;
     }
   }
@@ -531,6 +548,19 @@ TaskSpec TaskSpecFromProto(const v1::Task& t) {
   s.sample_begin = t.sample_begin();
   s.sample_end = t.sample_end();
   if (s.sample_end <= s.sample_begin) throw InputError("task.sample_end: must be > sample_begin");
+  switch (t.part()) {
+    case v1::RADIANCE_PART_ALL:
+      s.part = RadiancePart::kAll;
+      break;
+    case v1::RADIANCE_PART_MAPPED:
+      s.part = RadiancePart::kMapped;
+      break;
+    case v1::RADIANCE_PART_UNMAPPED:
+      s.part = RadiancePart::kUnmapped;
+      break;
+    default:
+      throw InputError("task.part: unknown value " + std::to_string(int(t.part())));
+  }
   return s;
 }
 
@@ -542,6 +572,9 @@ void TaskSpecToProto(const TaskSpec& spec, v1::Task* out) {
   PixelSubsetToProto(spec.pixels, out->mutable_pixels());
   out->set_sample_begin(spec.sample_begin);
   out->set_sample_end(spec.sample_end);
+  out->set_part(spec.part == RadiancePart::kMapped     ? v1::RADIANCE_PART_MAPPED
+                : spec.part == RadiancePart::kUnmapped ? v1::RADIANCE_PART_UNMAPPED
+                                                       : v1::RADIANCE_PART_ALL);
 }
 
 bool ResolveAutoPlan(v1::JobSpec* spec, int width, int height, int caustic_paths, uint32_t workers,

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "common/core/error.h"
+#include "common/core/rng.h"
 
 namespace pf {
 namespace {
@@ -13,7 +14,8 @@ namespace {
 constexpr double kFixedScale = 4294967296.0;  // 2^32, as the Accumulator
 constexpr uint32_t kMaxLevels = 16;
 constexpr uint32_t kMaxMaps = 1u << 16;
-constexpr double kMadToSigma = 1.4826;  // MAD of a normal distribution × this = σ
+constexpr double kMadToSigma = 1.4826;       // MAD of a normal distribution × this = σ
+constexpr uint64_t kUnmappedTag = 0x6c6974;  // "lit": the pixel streams of the emission + direct light tasks
 
 double Lum(double r, double g, double b) {
   return 0.2126 * r + 0.7152 * g + 0.0722 * b;
@@ -207,6 +209,11 @@ void ValidateHierarchicalPlan(const PlanSpec& plan, int width, int height) {
   if (!(plan.localize_contrast >= 0) || !std::isfinite(plan.localize_contrast))
     throw InputError("plan.hierarchical.localize_contrast: must be a finite number >= 0");
   if (plan.samples_per_pixel < 1) throw InputError("plan.hierarchical.samples_per_pixel: must be >= 1");
+  if (plan.hierarchy_part == HierarchyPart::kIndirect && plan.direct_samples < 1)
+    throw InputError("plan.hierarchical.direct_samples: must be >= 1 with part indirect");
+  if (plan.hierarchy_part == HierarchyPart::kAll && plan.direct_samples != 0)
+    throw InputError(
+        "plan.hierarchical.direct_samples: only with part indirect (the levels render all light)");
   uint64_t maps = 0;
   double v = plan.base_samples;
   for (uint32_t l = 0; l <= plan.levels; ++l, v /= plan.decay)
@@ -223,6 +230,25 @@ std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, i
   const HierarchySchedule s = MakeHierarchySchedule(plan);
   const auto bands = Bands(plan, height);
   std::vector<TaskSpec> tasks;
+  const bool split = plan.hierarchy_part == HierarchyPart::kIndirect;
+  if (split) {
+    // Emission and direct light per pixel (header, "Parts"), first: a time budget that stops the
+    // hierarchy early still has them. Their map index is the first level-0 map, read only by
+    // PhotonDirect's light choice (§4.2.3) and built anyway; independent per-pixel streams of
+    // their own (not map 0's: that map's level-0 samples draw from PixelSeed(job_seed, 0)).
+    for (size_t b = 0; b < bands.size(); ++b) {
+      TaskSpec t = MakeTask(tasks.size(), 0, s.map_offset[0], job_seed, plan);
+      t.pixel_seed = HashKey(job_seed, kUnmappedTag, b);
+      t.sample_end = plan.direct_samples;
+      t.part = RadiancePart::kUnmapped;
+      t.pixels.kind = PixelSubset::Kind::kTile;
+      t.pixels.x0 = 0;
+      t.pixels.x1 = uint32_t(width);
+      t.pixels.y0 = bands[b].first;
+      t.pixels.y1 = bands[b].second;
+      tasks.push_back(std::move(t));
+    }
+  }
   // Level-major, then map, then band: the bands of one map are adjacent (map affinity), and the
   // coarse levels (which localization and the fine levels' interpolation need) come first.
   for (uint32_t l = 0; l <= plan.levels; ++l)
@@ -236,6 +262,7 @@ std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, i
         t.pixels.dims = plan.dims;
         t.pixels.y0 = y0;
         t.pixels.y1 = y1;
+        if (split) t.part = RadiancePart::kMapped;
         tasks.push_back(std::move(t));
       }
   return tasks;
@@ -245,7 +272,7 @@ uint64_t CountHierarchicalStaticTasks(const PlanSpec& plan, int width, int heigh
   ValidateHierarchicalPlan(plan, width, height);
   const Hierarchy h(width, height, plan.levels, plan.dims);
   const HierarchySchedule s = MakeHierarchySchedule(plan);
-  uint64_t n = 0;
+  uint64_t n = plan.hierarchy_part == HierarchyPart::kIndirect ? Bands(plan, height).size() : 0;
   for (uint32_t l = 0; l <= plan.levels; ++l)
     for (const auto& [y0, y1] : Bands(plan, height))
       if (h.HasPoints(l, y0, y1)) n += s.samples[l];
@@ -282,6 +309,7 @@ std::vector<TaskSpec> HierarchicalTasks(const PlanSpec& plan, int width, int hei
       TaskSpec t = MakeTask(tasks.size(), plan.levels + 1, s.map_offset[0] + j, job_seed, plan);
       t.pixels.kind = PixelSubset::Kind::kList;
       t.pixels.list.assign(lo, hi);
+      if (plan.hierarchy_part == HierarchyPart::kIndirect) t.part = RadiancePart::kMapped;
       tasks.push_back(std::move(t));
     }
   return tasks;
@@ -313,7 +341,8 @@ std::vector<uint64_t> HierarchicalTaskWork(const PlanSpec& plan, int width, int 
     } else {
       pixels = CountPixels(t.pixels, width, height);
     }
-    work.push_back(pixels * (t.sample_end - t.sample_begin) + map);
+    // Emission + direct light tasks build no map (unless PhotonDirect, which this estimate ignores).
+    work.push_back(pixels * (t.sample_end - t.sample_begin) + (t.part == RadiancePart::kUnmapped ? 0 : map));
   }
   return work;
 }
@@ -357,13 +386,18 @@ HierarchicalAssembly::HierarchicalAssembly(const PlanSpec& plan, int width, int 
   const size_t n = size_t(width) * height;
   level_tasks_.assign(plan.levels + 1, 0);
   level_tasks_merged_.assign(plan.levels + 1, 0);
-  for (const TaskSpec& t : HierarchicalStaticTasks(plan, width, height, 0)) ++level_tasks_[t.round];
+  for (const TaskSpec& t : HierarchicalStaticTasks(plan, width, height, 0))
+    if (t.part != RadiancePart::kUnmapped) ++level_tasks_[t.round];
   direct_.assign(3 * n, 0);
   direct_samples_.assign(n, 0);
   detail_.assign(3 * n, 0);
   interp_.assign(n, 0);
   detail2_.assign(n, 0);
   detail_maps_.assign(n, 0);
+  if (plan.hierarchy_part == HierarchyPart::kIndirect) {
+    unmapped_.assign(3 * n, 0);
+    unmapped_samples_.assign(n, 0);
+  }
 }
 
 bool HierarchicalAssembly::Add(const TaskSpec& task, std::span<const uint32_t> pixels,
@@ -375,6 +409,18 @@ bool HierarchicalAssembly::Add(const TaskSpec& task, std::span<const uint32_t> p
   for (uint32_t p : pixels)
     if (p >= n) throw InputError("result: pixel index " + std::to_string(p) + " outside the image");
   samples_merged_ += uint64_t(pixels.size()) * samples;
+  if (task.part == RadiancePart::kUnmapped) {
+    if (unmapped_samples_.empty())
+      throw std::logic_error(
+          "HierarchicalAssembly::Add: an emission + direct light task in a plan without them");
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      for (int c = 0; c < 3; ++c)
+        unmapped_[3 * size_t(pixels[i]) + c] +=
+            int64_t(std::llround(double(rgb_sums[3 * i + c]) * kFixedScale));
+      unmapped_samples_[pixels[i]] += samples;
+    }
+    return true;
+  }
   const bool detail = task.pixels.kind == PixelSubset::Kind::kHierarchyLevel && task.pixels.level > 0;
   if (!detail) {
     for (size_t i = 0; i < pixels.size(); ++i) {
@@ -483,6 +529,13 @@ Image HierarchicalAssembly::Resolve() const {
       }
     }
   }
+  // HierarchyPart::kIndirect: the hierarchy above is the map part; emission + direct light, the
+  // per-pixel mean of their own tasks, is added here.
+  for (size_t p = 0; p < unmapped_samples_.size(); ++p) {
+    if (unmapped_samples_[p] == 0) continue;
+    const double inv = 1.0 / (kFixedScale * unmapped_samples_[p]);
+    for (int c = 0; c < 3; ++c) f[3 * p + c] += double(unmapped_[3 * p + c]) * inv;
+  }
   Image img(width, height);
   for (size_t p = 0; p < n; ++p) img[p] = Rgb(float(f[3 * p]), float(f[3 * p + 1]), float(f[3 * p + 2]));
   return img;
@@ -500,6 +553,11 @@ void HierarchicalAssembly::SerializeTo(std::string& out) const {
   w.PutArray<int64_t>(interp_);
   w.PutArray<int64_t>(detail2_);
   w.PutArray<uint32_t>(detail_maps_);
+  // Only in plans that have them (the reader knows the plan): kAll checkpoints are unchanged.
+  if (!unmapped_samples_.empty()) {
+    w.PutArray<int64_t>(unmapped_);
+    w.PutArray<uint32_t>(unmapped_samples_);
+  }
   w.Put<uint64_t>(merged_.size());
   for (uint64_t id : merged_) w.Put<uint64_t>(id);
 }
@@ -518,6 +576,11 @@ void HierarchicalAssembly::DeserializeFrom(ByteReader& r) {
   r.GetArray<int64_t>(interp_);
   r.GetArray<int64_t>(detail2_);
   r.GetArray<uint32_t>(detail_maps_);
+  if (!unmapped_samples_.empty()) {
+    if (r.remaining() < n * (3 * sizeof(int64_t) + sizeof(uint32_t))) r.Fail("truncated");
+    r.GetArray<int64_t>(unmapped_);
+    r.GetArray<uint32_t>(unmapped_samples_);
+  }
   const uint64_t m = r.Get<uint64_t>();
   if (m > r.remaining() / sizeof(uint64_t)) r.Fail("truncated");
   merged_.clear();
@@ -530,8 +593,8 @@ void HierarchicalAssembly::DeserializeFrom(ByteReader& r) {
 bool HierarchicalAssembly::operator==(const HierarchicalAssembly& o) const {
   return direct_ == o.direct_ && direct_samples_ == o.direct_samples_ && detail_ == o.detail_ &&
          interp_ == o.interp_ && detail2_ == o.detail2_ && detail_maps_ == o.detail_maps_ &&
-         merged_ == o.merged_ && samples_merged_ == o.samples_merged_ &&
-         level_tasks_merged_ == o.level_tasks_merged_;
+         unmapped_ == o.unmapped_ && unmapped_samples_ == o.unmapped_samples_ && merged_ == o.merged_ &&
+         samples_merged_ == o.samples_merged_ && level_tasks_merged_ == o.level_tasks_merged_;
 }
 
 }  // namespace pf

@@ -43,9 +43,21 @@
 // maps is built once more, not once per level) are a pure function of the plan and the merged
 // results (HierarchicalTasks).
 //
-// Assembly. Direct sums, detail sums and interpolation sums are kept in 64-bit fixed point
-// (2^-32), so merging is exact, order-independent, and idempotent per task (a task id merged
-// twice is ignored). Resolve evaluates F level by level.
+// Parts (HierarchyPart, task_plan.h). With kAll every task renders the whole radiance. With
+// kIndirect the levels and localization render only the photon-map part (RadiancePart::kMapped:
+// global and caustic estimates, local pass), and emission + direct light (kUnmapped) is rendered
+// per pixel with direct_samples independent samples by tasks of its own (one per row band, ids
+// before the levels'), added to the hierarchy's value at assembly. Why: the hierarchy cures the
+// photon map's low-frequency error (details with the same map cancel it); direct light (§4.2.1:
+// Monte Carlo shadow rays) and the sub-pixel position are white noise, which a detail adds up to
+// (1 + Σ w²)/n_l times wherever common random numbers do not cancel it (shadow edges, glossy
+// highlights), and a direct-light edge is a visible detail that localization resamples with n0
+// full samples; the map part is smooth across shadow edges.
+//
+// Assembly. Direct sums, detail sums and interpolation sums (and with kIndirect the per-pixel
+// emission + direct light sums) are kept in 64-bit fixed point (2^-32), so merging is exact,
+// order-independent, and idempotent per task (a task id merged twice is ignored). Resolve
+// evaluates F level by level and adds the per-pixel part.
 
 #include <array>
 #include <cstdint>
@@ -151,6 +163,9 @@ class HierarchicalAssembly {
   std::vector<int64_t> interp_;   // per pixel: Σ_j luminance(Σ w f_j(q)), fixed point
   std::vector<int64_t> detail2_;  // per pixel: Σ_j luminance(d_j)², fixed point
   std::vector<uint32_t> detail_maps_;
+  // HierarchyPart::kIndirect only (empty otherwise): emission + direct light sums per pixel.
+  std::vector<int64_t> unmapped_;  // 3 per pixel, fixed point
+  std::vector<uint32_t> unmapped_samples_;
   std::set<uint64_t> merged_;
   uint64_t samples_merged_ = 0;
   struct LevelDetail {

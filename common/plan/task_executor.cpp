@@ -216,6 +216,11 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                                    ? PixelStreams::kShared
                                    : PixelStreams::kPerPixel;
   RenderStats stats;
+  if (settings_as_given.integrator == IntegratorKind::kPath && task.part != RadiancePart::kAll)
+    throw InputError(
+        "plan.hierarchical.part: indirect splits the photon-map shader's radiance; the path integrator has "
+        "no "
+        "photon map (use part all)");
   if (settings_as_given.integrator == IntegratorKind::kPath) {
     const PathTracer tracer(scene.accel, scene.lights);
     stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
@@ -228,8 +233,14 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     if (settings.importance != ImportanceMode::kOff)
       key += "|camera=" + std::to_string(camera.width()) + "x" + std::to_string(camera.height()) + "," +
              CameraKey(local_camera);
-    std::shared_ptr<const PhotonMaps> maps = cache ? cache->Find(key) : nullptr;
-    out.map_cache_hit = maps != nullptr;
+    // Emission + direct light alone (radiance_part.h) reads no map, except PhotonDirect's light
+    // choice (§4.2.3), which reads the direct photons.
+    const bool needs_map =
+        task.part != RadiancePart::kUnmapped || settings.direct == DirectLightMode::kPhotonDirect;
+    std::shared_ptr<const PhotonMaps> maps = !needs_map ? std::make_shared<const PhotonMaps>()
+                                             : cache    ? cache->Find(key)
+                                                        : nullptr;
+    out.map_cache_hit = needs_map && maps != nullptr;
     if (!maps) {
       PhotonMapsOptions mo = settings.MapsOptions();
       mo.tracing.map_seed = task.map_seed;
@@ -243,6 +254,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     out.map_seconds = out.map_cache_hit ? 0.0 : maps->stats.trace_seconds + maps->stats.build_seconds;
     PhotonMapIntegratorOptions integrator_options = settings.IntegratorOptions(scene.accel.bounds());
     integrator_options.precomputed.threads = threads;
+    integrator_options.part = task.part;
     const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps, integrator_options);
     stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed,
                          threads, sums, progress, cancel, settings.sampler, streams);

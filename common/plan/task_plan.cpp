@@ -138,7 +138,7 @@ uint32_t CountRounds(const PlanSpec& plan) {
 }
 
 uint32_t PlanExpansionVersion(const PlanSpec& plan) {
-  if (plan.kind == PlanKind::kHierarchical) return 3;
+  if (plan.kind == PlanKind::kHierarchical) return plan.hierarchy_part == HierarchyPart::kIndirect ? 4 : 3;
   return plan.kind == PlanKind::kMultipleMaps && plan.tail_tile_size != 0 ? 1 : 0;
 }
 
@@ -269,7 +269,11 @@ std::string DescribePlan(const PlanSpec& p) {
       return "hierarchical " + std::to_string(p.dims) + "-D: L=" + std::to_string(p.levels) + ", n_l=" + n +
              " (Nmax " + std::to_string(s.nmax) + "), localize tau=" + std::to_string(p.localize_threshold) +
              " kappa=" + std::to_string(p.localize_contrast) + ", rows per task " +
-             std::to_string(p.tile_size);
+             std::to_string(p.tile_size) +
+             (p.hierarchy_part == HierarchyPart::kIndirect
+                  ? ", photon-map part only (emission + direct light per pixel, " +
+                        std::to_string(p.direct_samples) + " spp)"
+                  : "");
     }
   }
   return "?";

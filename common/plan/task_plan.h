@@ -22,9 +22,16 @@
 #include <string>
 #include <vector>
 
+#include "common/render/radiance_part.h"
+
 namespace pf {
 
 enum class PlanKind { kMultipleMaps, kMapsInTurn, kSkipping, kHierarchical };
+
+// What the hierarchical plan's levels render (common/plan/hierarchical.h, "Parts"): the whole
+// radiance, or only its photon-map part, with emission and direct light rendered per pixel by
+// tasks of their own (direct_samples per pixel) and added at assembly.
+enum class HierarchyPart { kAll, kIndirect };
 
 struct PlanSpec {
   PlanKind kind = PlanKind::kMultipleMaps;
@@ -47,6 +54,8 @@ struct PlanSpec {
   double decay = 2;                 // n_l = max(min_samples, ceil(n0 / decay^l))
   double localize_threshold = 4;    // τ: |detail| > τ · level noise …
   double localize_contrast = 0.25;  // κ: … and > κ · |interpolation| ⇒ resample directly
+  HierarchyPart hierarchy_part = HierarchyPart::kAll;
+  uint32_t direct_samples = 0;  // kIndirect: samples per pixel of the emission + direct light pass (≥ 1)
 };
 
 struct PixelSubset {
@@ -71,6 +80,10 @@ struct TaskSpec {
   uint64_t pixel_seed = 0;
   PixelSubset pixels;
   uint32_t sample_begin = 0, sample_end = 1;
+  // Which part of the radiance the task renders (radiance_part.h): kAll except in a hierarchical
+  // plan with HierarchyPart::kIndirect (its levels and localization: kMapped; its per-pixel
+  // emission + direct light tasks: kUnmapped).
+  RadiancePart part = RadiancePart::kAll;
 };
 
 // Throws InputError naming the field ("plan.skipping.stride: must be ≥ 1") for invalid plans.
@@ -90,7 +103,9 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
 //   such a job's checkpoint aside instead of taking a tail tile's id for a whole tile;
 //   hierarchical: 3 (1: localization tasks per level; 2: one batch per level-0 map and row band
 //   once all levels are complete, docs/renderer.md "Localization"; 3: a detail task's pixels
-//   share one random-number stream, renderer.h PixelStreams — same ids, other pixel values).
+//   share one random-number stream, renderer.h PixelStreams — same ids, other pixel values);
+//   4 with HierarchyPart::kIndirect (emission + direct light tasks first, the levels render the
+//   map part only: other ids and values; kAll keeps 3, its tasks are unchanged).
 uint32_t PlanExpansionVersion(const PlanSpec& plan);
 
 uint64_t MapSeed(uint64_t job_seed, uint64_t map_index);

@@ -84,7 +84,8 @@ PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSa
     photon_direct_ = std::make_unique<PhotonDirectLight>(scene, *lights, *maps.direct,
                                                          maps.direct_attributes.light, options.photon_direct);
   }
-  if (options_.local_pass_rays > 0 && options_.local_pass_lookup == LocalPassLookup::kPrecomputed)
+  if (options_.local_pass_rays > 0 && options_.local_pass_lookup == LocalPassLookup::kPrecomputed &&
+      options_.part != RadiancePart::kUnmapped)
     PreparePrecomputedIrradiance();
   IrradianceCacheOptions& ic = options_.irradiance_cache;
   if (ic.error < 0.0f || !std::isfinite(ic.error)) throw InputError("irradiance cache: error must be >= 0");
@@ -260,6 +261,10 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
                                IrradianceCache* cache) const {
   const SceneDescription& desc = scene_.description();
   const bool separate_direct = options_.direct != DirectLightMode::kNone;
+  // radiance_part.h: the map part and the rest follow the same singular chain (each with its own
+  // random choices when rendered apart), so each is an unbiased estimate of its share.
+  const bool unmapped_part = options_.part != RadiancePart::kMapped;
+  const bool mapped_part = options_.part != RadiancePart::kUnmapped;
 
   Rgb radiance(0.0f), throughput(1.0f);
   Ray ray = camera_ray;
@@ -273,7 +278,7 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
     const PathVertexSlots slots = SlotsOfVertex(depth);
     // Every path reaching here came from the camera through singular bounces only, so
     // emission is never counted twice (diffuse bounces end the path in an estimate).
-    if (material.IsEmissive() && hit->front_face) radiance += throughput * material.emission;
+    if (unmapped_part && material.IsEmissive() && hit->front_face) radiance += throughput * material.emission;
 
     const Bsdf bsdf(material, hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
@@ -283,8 +288,11 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
 
     if (bsdf.HasLobes(estimated)) {
       Rgb L(0.0f);
-      if (separate_direct) L += DirectLight(bsdf, hit->position, wo, estimated, sampler, slots, counters);
-      if (options_.local_pass_rays > 0 && !gathered && bsdf.HasLobes(kDiffuseLobes)) {
+      if (separate_direct && unmapped_part)
+        L += DirectLight(bsdf, hit->position, wo, estimated, sampler, slots, counters);
+      if (!mapped_part) {
+        // Only emission and direct light: no estimate, no gather.
+      } else if (options_.local_pass_rays > 0 && !gathered && bsdf.HasLobes(kDiffuseLobes)) {
         gathered = true;
         L += Gather(bsdf, material, *hit, wo, estimated, sampler, slots, counters, cache);
         // Caustics through the diffuse lobes still come from the caustic map; a glossy lobe

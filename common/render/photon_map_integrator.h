@@ -28,6 +28,7 @@
 #include "common/render/integrator.h"
 #include "common/render/irradiance_cache.h"
 #include "common/render/light_sampler.h"
+#include "common/render/radiance_part.h"
 #include "common/sampling/sample_layout.h"
 
 namespace pf {
@@ -61,6 +62,9 @@ struct PhotonMapIntegratorOptions {
   // previous sample of the same pixel's k-th distance × kPixelRadiusHintScale. Exact (the same
   // photons); off only to measure it (bench/radius_hint_bench).
   bool pixel_radius_hint = true;
+  // Which part of the radiance Li returns (radiance_part.h). kUnmapped never reads the maps
+  // unless direct light is PhotonDirect (its light choice reads the direct photons).
+  RadiancePart part = RadiancePart::kAll;
 };
 
 inline constexpr float kPixelRadiusHintScale = 1.2f;

@@ -127,6 +127,12 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   } catch (const InputError& e) {
     RethrowUnderSpec(e);
   }
+  // The split hierarchy renders the photon-map shader's two parts apart (radiance_part.h).
+  if (job.plan.kind == PlanKind::kHierarchical && job.plan.hierarchy_part == HierarchyPart::kIndirect &&
+      job.settings.integrator != IntegratorKind::kPhotonMap)
+    throw InputError(
+        "spec.plan.hierarchical.part: indirect needs the photonmap integrator (the path tracer has no "
+        "photon-map part)");
   const uint64_t tasks = CountTasks(job.plan, job.camera.width, job.camera.height);
   if (const std::string problem = limits::TaskCountProblem(tasks); !problem.empty())
     throw LimitError(problem);

@@ -321,6 +321,103 @@ TEST(Hierarchical, AccumulatorMergesAndCheckpointsTheAssembly) {
   EXPECT_THROW(Accumulator::Deserialize(bytes, &other), InputError);
 }
 
+// HierarchyPart::kIndirect (hierarchical.h, "Parts"): the levels and localization see only the
+// map part; the per-pixel part (here a checkerboard, the worst case for a hierarchy: every detail
+// would be a discontinuity) comes from its own tasks and is added at assembly. The image must be
+// exactly the kAll hierarchy of the map part plus the per-pixel part's mean, localization must
+// follow the map part only, and the merge must be order-independent and checkpoint bit for bit.
+TEST(Hierarchical, IndirectPartHierarchyOfTheMapPartPlusThePerPixelPart) {
+  const int w = 33, h = 17;
+  PlanSpec all = Plan(4, 2, 4, 1);
+  all.tile_size = 5;
+  PlanSpec split = all;
+  split.hierarchy_part = HierarchyPart::kIndirect;
+  split.direct_samples = 3;
+  // Map part: a step at x = 20 (localized) plus per-map noise.
+  const Render mapped = [](uint32_t x, uint32_t y, uint64_t map, uint64_t) {
+    return (x > 20 ? 0.9 : 0.1) + 0.05 * Gaussian(HashKey(map, y, x)) + 0.01 * y;
+  };
+  auto checker = [](uint32_t x, uint32_t y) { return ((x + y) % 2) ? 0.7 : 0.05; };
+  auto run = [&](bool reverse, std::vector<TaskSpec>* all_tasks) {
+    HierarchicalAssembly acc(split, w, h);
+    size_t done = 0;
+    for (;;) {
+      std::vector<TaskSpec> tasks = HierarchicalTasks(split, w, h, 5, acc);
+      if (tasks.size() == done) {
+        *all_tasks = tasks;
+        return acc;
+      }
+      std::vector<TaskSpec> batch(tasks.begin() + done, tasks.end());
+      if (reverse) std::reverse(batch.begin(), batch.end());
+      for (const TaskSpec& t : batch) {
+        const std::vector<uint32_t> px = PixelsOf(t.pixels, w, h);
+        const uint32_t n = t.sample_end - t.sample_begin;
+        std::vector<float> sums;
+        if (t.part == RadiancePart::kUnmapped) {
+          for (uint32_t p : px)
+            for (int c = 0; c < 3; ++c) sums.push_back(float(checker(p % w, p / w) * n));
+        } else {
+          sums = RenderTask(t, px, w, mapped, 0);
+        }
+        acc.Add(t, px, sums, n);
+      }
+      done = tasks.size();
+    }
+  };
+  std::vector<TaskSpec> tasks, reversed_tasks, all_tasks;
+  const HierarchicalAssembly a = run(false, &tasks);
+  const HierarchicalAssembly b = run(true, &reversed_tasks);
+  const HierarchicalAssembly reference = RunPlan(all, w, h, mapped, 0, false, &all_tasks);
+  // Tasks: one per-pixel task per row band first (3 samples, all pixels once), then the kAll plan's
+  // tasks with the map part only, localization included (the same points: the checkerboard is not
+  // in the hierarchy).
+  const size_t bands = (h + 4) / 5;
+  ASSERT_EQ(tasks.size(), all_tasks.size() + bands);
+  std::vector<uint32_t> covered(size_t(w) * h, 0);
+  for (size_t i = 0; i < tasks.size(); ++i) {
+    EXPECT_EQ(tasks[i].task_id, i);
+    EXPECT_EQ(tasks[i].part, i < bands ? RadiancePart::kUnmapped : RadiancePart::kMapped) << i;
+    if (i < bands) {
+      EXPECT_EQ(tasks[i].sample_end - tasks[i].sample_begin, 3u);
+      for (uint32_t p : PixelsOf(tasks[i].pixels, w, h)) ++covered[p];
+    } else {
+      EXPECT_EQ(tasks[i].map_seed, all_tasks[i - bands].map_seed);
+      EXPECT_EQ(tasks[i].pixels.list, all_tasks[i - bands].pixels.list);
+    }
+  }
+  for (uint32_t c : covered) ASSERT_EQ(c, 1u);
+  for (uint32_t l = 1; l <= 4; ++l) EXPECT_EQ(a.Localized(l), reference.Localized(l)) << l;
+  EXPECT_FALSE(reference.Localized(1).empty() && reference.Localized(2).empty() &&
+               reference.Localized(3).empty() && reference.Localized(4).empty())
+      << "the map part's step is localized";
+  const Image ia = a.Resolve(), ib = b.Resolve(), ir = reference.Resolve();
+  for (uint32_t p = 0; p < ia.size(); ++p) {
+    ASSERT_TRUE(ia[p] == ib[p]) << "merge order, pixel " << p;
+    ASSERT_NEAR(ia[p].g, ir[p].g + checker(p % w, p / w), 1e-6) << p;
+  }
+  EXPECT_TRUE(a == b);
+  // Checkpoints carry the per-pixel part; a plan without it refuses them.
+  Accumulator acc(split, w, h);
+  for (const TaskSpec& t : tasks) {
+    const std::vector<uint32_t> px = PixelsOf(t.pixels, w, h);
+    const uint32_t n = t.sample_end - t.sample_begin;
+    std::vector<float> sums;
+    if (t.part == RadiancePart::kUnmapped) {
+      for (uint32_t p : px)
+        for (int c = 0; c < 3; ++c) sums.push_back(float(checker(p % w, p / w) * n));
+    } else {
+      sums = RenderTask(t, px, w, mapped, 0);
+    }
+    acc.AddValidated(t, px, sums, n);
+  }
+  EXPECT_TRUE(*acc.hierarchy() == a);
+  const std::string bytes = acc.Serialize();
+  EXPECT_TRUE(Accumulator::Deserialize(bytes, &split) == acc);
+  EXPECT_THROW(Accumulator::Deserialize(bytes, &all), InputError);
+  EXPECT_EQ(PlanExpansionVersion(split), 4u);
+  EXPECT_EQ(PlanExpansionVersion(all), 3u);
+}
+
 TEST(Hierarchical, InvalidPlansNameTheField) {
   auto err = [](PlanSpec p) {
     try {
@@ -335,6 +432,14 @@ TEST(Hierarchical, InvalidPlansNameTheField) {
   EXPECT_NE(err(Plan(3, 1, 4, 5)).find("plan.hierarchical.min_samples"), std::string::npos);
   EXPECT_NE(err(Plan(3, 1, 4, 1, 0.5)).find("plan.hierarchical.decay"), std::string::npos);
   EXPECT_EQ(err(Plan(3, 1, 4, 1)), "");
+  PlanSpec split = Plan(3, 1, 4, 1);
+  split.hierarchy_part = HierarchyPart::kIndirect;
+  EXPECT_NE(err(split).find("plan.hierarchical.direct_samples"), std::string::npos) << "0 samples";
+  split.direct_samples = 2;
+  EXPECT_EQ(err(split), "");
+  PlanSpec all = Plan(3, 1, 4, 1);
+  all.direct_samples = 2;
+  EXPECT_NE(err(all).find("plan.hierarchical.direct_samples"), std::string::npos) << "without part indirect";
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // The photon-map integrator's pixel radius hint (photon_map_integrator.h, pixel_radius_hint):
 // each camera-path estimate first searches the ball of the previous sample's k-th distance.
+// Its radiance parts (radiance_part.h) add up to the whole.
 #include "common/render/photon_map_integrator.h"
 
 #include <gtest/gtest.h>
@@ -105,6 +106,56 @@ TEST(DirectMap, BuiltOnlyWhenReadAndTheImageIsTheSameWithout) {
   photon_direct.direct = DirectLightMode::kPhotonDirect;
   EXPECT_TRUE(DirectMapRead(photon_direct));
   EXPECT_THROW(PhotonMapIntegrator(accel, &lights, without, local), InputError);
+}
+
+// radiance_part.h: the photon-map part and the emission + direct light part add up to the whole
+// radiance. With the same random streams each pixel's parts sum to the kAll value up to float
+// rounding (every random number is drawn by slot, so leaving one part out does not shift the
+// other's numbers): a dropped or doubled term (emission seen through the glass sphere, direct light
+// at a surface behind a mirror, a caustic) would show as a difference of its size. The emission +
+// direct light part reads no map: with empty maps it is the same bits.
+TEST(RadianceParts, MappedPlusUnmappedIsTheWholeRadiance) {
+  const SceneDescription scene =
+      LoadScene(std::filesystem::path(PF_SOURCE_DIR) / "scenes/cornell-sphere/cornell-sphere.json");
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  CameraSpec spec = scene.cameras.front();
+  spec.width = spec.height = 32;
+  const Camera camera(spec);
+  PhotonMapIntegratorOptions io;
+  io.global.k = 30;
+  io.caustic = DefaultCausticOptions(30, accel.bounds());
+  io.direct = DirectLightMode::kMonteCarlo;
+  io.monte_carlo.shadow_rays = 4;
+  PhotonMapsOptions mo;
+  mo.tracing.photons = 20000;
+  mo.tracing.map_seed = 3;
+  mo.caustic = CausticMapMode::kOn;
+  ConfigureMapsFor(io, &mo);
+  const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
+  ASSERT_TRUE(maps.caustic);
+  const PhotonMaps empty;
+  auto render = [&](RadiancePart part, const PhotonMaps& m) {
+    PhotonMapIntegratorOptions o = io;
+    o.part = part;
+    const PhotonMapIntegrator integrator(accel, &lights, m, o);
+    return RenderImage(integrator, camera, RenderOptions{.spp = 4, .seed = 5, .threads = 2});
+  };
+  const Image all = render(RadiancePart::kAll, maps), mapped = render(RadiancePart::kMapped, maps),
+              unmapped = render(RadiancePart::kUnmapped, maps),
+              unmapped_no_map = render(RadiancePart::kUnmapped, empty);
+  EXPECT_EQ(std::memcmp(unmapped.pixels().data(), unmapped_no_map.pixels().data(), all.size() * sizeof(Rgb)),
+            0);
+  double sum_mapped = 0, sum_unmapped = 0;
+  for (size_t i = 0; i < all.size(); ++i) {
+    sum_mapped += mapped[i].Mean();
+    sum_unmapped += unmapped[i].Mean();
+    for (int c = 0; c < 3; ++c)
+      ASSERT_NEAR(mapped[i][c] + unmapped[i][c], all[i][c], 1e-5 * std::max(1e-2f, all[i][c]))
+          << "pixel " << i;
+  }
+  EXPECT_GT(sum_mapped, 0.05 * sum_unmapped) << "both parts carry light";
+  EXPECT_GT(sum_unmapped, 0.05 * sum_mapped);
 }
 
 }  // namespace

@@ -266,6 +266,56 @@ TEST(Convert, TasksRoundTripAndRefuseEmptySampleRanges) {
   EXPECT_THAT(ErrorOf([&] { TaskSpecFromProto(proto); }), StartsWith("task.pixels:"));
 }
 
+// The hierarchical plan's part (hierarchical.h, "Parts") and a task's radiance part round-trip;
+// part all serialises as before the setting existed; bad values name their field.
+TEST(Convert, HierarchyPartAndTaskPartRoundTrip) {
+  PlanSpec p;
+  p.kind = PlanKind::kHierarchical;
+  p.levels = 3;
+  p.dims = 2;
+  p.base_samples = 16;
+  p.min_samples = 1;
+  v1::Plan all;
+  PlanToProto(p, &all);
+  EXPECT_EQ(all.hierarchical().part(), v1::HIERARCHY_PART_ALL);
+  EXPECT_EQ(all.hierarchical().direct_samples_per_pixel(), 0u);
+  EXPECT_EQ(PlanFromProto(all, "spec.plan").hierarchy_part, HierarchyPart::kAll);
+  p.hierarchy_part = HierarchyPart::kIndirect;
+  p.direct_samples = 3;
+  v1::Plan split;
+  PlanToProto(p, &split);
+  const PlanSpec back = PlanFromProto(split, "spec.plan");
+  EXPECT_EQ(back.hierarchy_part, HierarchyPart::kIndirect);
+  EXPECT_EQ(back.direct_samples, 3u);
+  v1::Plan again;
+  PlanToProto(back, &again);
+  EXPECT_EQ(again.SerializeAsString(), split.SerializeAsString());
+  split.mutable_hierarchical()->set_part(static_cast<v1::HierarchyPart>(7));
+  EXPECT_THAT(ErrorOf([&] { PlanFromProto(split, "spec.plan"); }),
+              StartsWith("spec.plan.hierarchical.part:"));
+  split.mutable_hierarchical()->set_part(v1::HIERARCHY_PART_INDIRECT);
+  split.mutable_hierarchical()->set_direct_samples_per_pixel(kMaxSamplesPerPixel + 1);
+  EXPECT_THAT(ErrorOf<LimitError>([&] { PlanFromProto(split, "spec.plan"); }),
+              StartsWith("spec.plan.hierarchical.direct_samples_per_pixel:"));
+
+  for (const RadiancePart part : {RadiancePart::kAll, RadiancePart::kMapped, RadiancePart::kUnmapped}) {
+    TaskSpec t;
+    t.pixels.kind = PixelSubset::Kind::kTile;
+    t.pixels.x1 = t.pixels.y1 = 4;
+    t.part = part;
+    v1::Task proto;
+    TaskSpecToProto(t, &proto);
+    EXPECT_EQ(TaskSpecFromProto(proto).part, part);
+  }
+  v1::Task bad;
+  TaskSpec t;
+  t.pixels.kind = PixelSubset::Kind::kTile;
+  t.pixels.x1 = t.pixels.y1 = 4;
+  TaskSpecToProto(t, &bad);
+  bad.set_part(static_cast<v1::RadiancePart>(9));
+  EXPECT_THAT(ErrorOf([&] { TaskSpecFromProto(bad); }), StartsWith("task.part:"));
+}
+
 }  // namespace
 }  // namespace pf
 
