@@ -786,7 +786,9 @@ TEST(SchedulerEta, TailTilesCountTheirPixels) {
     ASSERT_EQ(lease->task.task_id, uint64_t(i)) << "tasks are leased in id order: the tail tiles last";
     ASSERT_EQ(scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, w, h)).status,
               CompleteStatus::kMerged);
-    if (i == 11) EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75);
+    if (i == 11) {
+      EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75);
+    }
   }
   EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75 + 1.0 / 64);
 }
