@@ -118,9 +118,11 @@ TEST(HierarchicalFarm, IndirectPartBitIdenticalForOneAndThreeWorkersAndLocal) {
   }
 }
 
-TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
+// A worker SIGKILLed mid-task, then the coordinator SIGKILLed after 12 merges and
+// restarted on the same port and data: the job ends with the local image, bit for bit.
+// `static_tasks`: the plan's tasks before any localization.
+void KilledWorkerAndCoordinatorRestart(const std::vector<std::string>& flags, uint64_t static_tasks) {
   TestDir dir;
-  const std::vector<std::string> flags = HierarchicalFlags(40000);  // tasks of ~0.1-0.3 s
   const Image reference = LocalReference(dir, flags);
   const std::vector<std::string> coordinator_args = {"--lease-seconds", "2", "--max-attempts", "10"};
   auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args);
@@ -130,7 +132,8 @@ TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
   ASSERT_FALSE(job_id.empty());
   {
     FarmClient client(address, "");
-    EXPECT_EQ(client.GetJob(job_id).tasks_total(), 40u) << "every level's detail tasks from the start";
+    EXPECT_EQ(client.GetJob(job_id).tasks_total(), static_tasks)
+        << "every level's detail tasks from the start";
   }
 
   // A victim, SIGKILLed while it holds a lease.
@@ -154,12 +157,25 @@ TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
   const v1::JobStatus st = WaitForJob(client, job_id, 180);
   ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
   EXPECT_EQ(st.tasks_done(), st.tasks_total());
-  // Localization tasks were created (by the first or the restarted coordinator) beyond the 40
+  // Localization tasks were created (by the first or the restarted coordinator) beyond the
   // static ones.
-  EXPECT_GT(st.tasks_total(), 40u);
+  EXPECT_GT(st.tasks_total(), static_tasks);
   EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
   for (auto& w : workers) w->Signal(SIGTERM);
   for (auto& w : workers) EXPECT_TRUE(w->Wait(20).has_value());
+}
+
+TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
+  KilledWorkerAndCoordinatorRestart(HierarchicalFlags(40000), 40);  // tasks of ~0.1-0.3 s
+}
+
+// The same with --hier-part indirect: its emission + direct light tasks (one per row band of 8:
+// 5 more static tasks, leased first) and the separate per-pixel part in the checkpoint must
+// survive the killed worker and the restart as the map-part levels do.
+TEST(HierarchicalFarm, IndirectPartKilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
+  std::vector<std::string> flags = HierarchicalFlags(40000);
+  flags.insert(flags.end(), {"--hier-part", "indirect", "--hier-direct-samples", "2"});
+  KilledWorkerAndCoordinatorRestart(flags, 45);
 }
 
 // HierarchicalFlags with n0 = 8 (n_l = 8, 4, 2, 1: 40 + 20 + 10 + 5 static tasks), so that a
