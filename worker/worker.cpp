@@ -519,6 +519,7 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
   SetState(State::kReporting, ctx);
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
+  req.set_part(task.part());  // what was rendered (TaskSpecFromProto accepted this part)
   req.mutable_rgb_sums()->Assign(output.rgb_sums.begin(), output.rgb_sums.end());
   v1::TaskStats* st = req.mutable_stats();
   st->set_photons_emitted(output.photons_emitted);

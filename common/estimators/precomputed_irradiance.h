@@ -43,7 +43,7 @@ struct PrecomputedIrradianceOptions {
   float normal_cos = 0.75f;           // a site serves y only if cos(normal_site, normal_y) ≥ this
   float max_radius_fraction = 0.05f;  // lookup radius, fraction of the scene's diagonal
   // Candidates per lookup: the nearest `candidates` agreeing sites are tried in distance
-  // order, and the first one visible from y serves (one shadow ray each): a site behind a
+  // order, one shadow ray each, and only visible ones serve (`average` below): a site behind a
   // wall would carry the other room's light into this one. 0 = no visibility test (nearest).
   int candidates = 4;
   // Of those, the first `average` visible ones are averaged (1 = the nearest visible site, as

@@ -210,10 +210,10 @@ void ValidateHierarchicalPlan(const PlanSpec& plan, int width, int height) {
     throw InputError("plan.hierarchical.localize_contrast: must be a finite number >= 0");
   if (plan.samples_per_pixel < 1) throw InputError("plan.hierarchical.samples_per_pixel: must be >= 1");
   if (plan.hierarchy_part == HierarchyPart::kIndirect && plan.direct_samples < 1)
-    throw InputError("plan.hierarchical.direct_samples: must be >= 1 with part indirect");
+    throw InputError("plan.hierarchical.direct_samples_per_pixel: must be >= 1 with part indirect");
   if (plan.hierarchy_part == HierarchyPart::kAll && plan.direct_samples != 0)
     throw InputError(
-        "plan.hierarchical.direct_samples: only with part indirect (the levels render all light)");
+        "plan.hierarchical.direct_samples_per_pixel: only with part indirect (the levels render all light)");
   uint64_t maps = 0;
   double v = plan.base_samples;
   for (uint32_t l = 0; l <= plan.levels; ++l, v /= plan.decay)

@@ -221,6 +221,10 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
         "plan.hierarchical.part: indirect splits the photon-map shader's radiance; the path integrator has "
         "no "
         "photon map (use part all)");
+  if (task.part != RadiancePart::kAll && settings_as_given.local_pass_rays > 0)
+    throw InputError(
+        "plan.hierarchical.part: indirect is not available with the local pass: its parts do not add up "
+        "to the whole radiance yet (docs/renderer.md)");
   if (settings_as_given.integrator == IntegratorKind::kPath) {
     const PathTracer tracer(scene.accel, scene.lights);
     stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,

@@ -74,7 +74,12 @@ PhotonMapIntegrator::PhotonMapIntegrator(const EmbreeScene& scene, const LightSa
     : scene_(scene), lights_(lights), maps_(maps), options_(options) {
   if (options.direct != DirectLightMode::kNone && !lights)
     throw InputError("direct light: a light sampler is required");
-  if (DirectMapRead(options) && !maps.direct)
+  // An emission + direct light task (RadiancePart::kUnmapped, radiance_part.h) reads no direct
+  // map unless PhotonDirect chooses its lights from it: the local pass that makes
+  // DirectMapRead true belongs to the mapped part, and such a task gets empty maps.
+  const bool reads_direct_map = DirectMapRead(options) && (options.part != RadiancePart::kUnmapped ||
+                                                           options.direct == DirectLightMode::kPhotonDirect);
+  if (reads_direct_map && !maps.direct)
     throw InputError("direct light: the photon maps were built without a separate direct map");
   if (options.direct == DirectLightMode::kMonteCarlo)
     monte_carlo_ = std::make_unique<MonteCarloDirectLight>(scene, *lights, options.monte_carlo);

@@ -164,9 +164,23 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
   CompleteResult result;
   grpc::Status status = Guarded("CompleteTask", [&] {
     RequireLeaseId(request->lease_id());
+    RadiancePart part = RadiancePart::kAll;
+    switch (request->part()) {
+      case v1::RADIANCE_PART_ALL:
+        break;
+      case v1::RADIANCE_PART_MAPPED:
+        part = RadiancePart::kMapped;
+        break;
+      case v1::RADIANCE_PART_UNMAPPED:
+        part = RadiancePart::kUnmapped;
+        break;
+      default:
+        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                            "part: unknown value " + std::to_string(int(request->part())));
+    }
     const auto& sums = request->rgb_sums();
     result = ctx_.scheduler.Complete(request->lease_id(),
-                                     std::span<const float>(sums.data(), size_t(sums.size())));
+                                     std::span<const float>(sums.data(), size_t(sums.size())), part);
     if (result.status == CompleteStatus::kRejected)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           "rgb_sums: result rejected, the task is re-queued: " + result.reason);

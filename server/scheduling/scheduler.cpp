@@ -105,6 +105,11 @@ bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
   uint64_t cancelled = 0;
   for (uint64_t id = 0; id < job.num_tasks(); ++id) {
     if (job.runtime(id).state != TaskState::kQueued) continue;
+    // A hierarchical job's emission + direct light tasks (part indirect, radiance_part.h) are the
+    // only ones of their pixels: cancelled, those pixels would lose their light sources and
+    // direct light, where every other task only adds samples. They stay queued (they are cheap,
+    // no map, and leased first anyway), so the job ends after them.
+    if (job.task(id).part == RadiancePart::kUnmapped) continue;
     Dequeue(job, id);
     job.SetTaskState(id, TaskState::kCancelled);
     ++cancelled;
@@ -483,7 +488,8 @@ ExtendResult Scheduler::Extend(const std::string& lease_id, double progress) {
   return result;
 }
 
-CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const float> rgb_sums) {
+CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const float> rgb_sums,
+                                   RadiancePart part) {
   Effects fx;
   CompleteResult result;
   // 1. Claim (global lock, O(1)): the lease must be live; it is pinned (TaskRuntime::merging) so
@@ -544,6 +550,17 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   const JobConfig& config = job->config();
   const int width = config.camera.width, height = config.camera.height;
   CheckedResult checked = ResultMerger::Check(task, width, height, rgb_sums, config.max_sample_radiance);
+  if (part != task.part && checked.valid) {
+    // Hierarchical plan with part indirect (radiance_part.h): a worker that does not know
+    // Task.part renders everything, and its sums would count emission and direct light twice.
+    const auto name = [](RadiancePart p) {
+      return p == RadiancePart::kMapped ? "mapped" : p == RadiancePart::kUnmapped ? "unmapped" : "all";
+    };
+    checked = CheckedResult{std::nullopt,
+                            std::string("part: the result is of part ") + name(part) + ", the task's is " +
+                                name(task.part) + " (a worker older than Task.part? upgrade it)",
+                            ResultCheck::Verdict::kInvalid};
+  }
   std::string digest;  // of a result above the bound that is valid apart from the bound
   if (checked.verdict == ResultCheck::Verdict::kImplausible) {
     CheckedResult unbounded = ResultMerger::Check(task, width, height, rgb_sums);
@@ -693,7 +710,7 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
   const uint32_t attempt = rt.attempts;
   Touch(job, fx);
   if (!job.active()) return;
-  if (job.stopping) {
+  if (job.stopping && job.task(task_id).part != RadiancePart::kUnmapped) {  // see CheckTimeBudget
     job.SetTaskState(task_id, TaskState::kCancelled);
     spdlog::info("job {} task {}: attempt {} ended ({}); not retried (time budget reached)", job.id(),
                  task_id, attempt, reason);

@@ -175,7 +175,10 @@ class Scheduler {
   void CancelWait(uint64_t waiter_id);
   ExtendResult Extend(const std::string& lease_id, double progress);
   // Validates and merges (see the header comment). Never throws for bad results: kRejected.
-  CompleteResult Complete(const std::string& lease_id, std::span<const float> rgb_sums);
+  // `part`: the part of the radiance the worker says it rendered (CompleteTaskRequest.part); a
+  // result for another part than the task's is rejected (an old worker ignores Task.part).
+  CompleteResult Complete(const std::string& lease_id, std::span<const float> rgb_sums,
+                          RadiancePart part = RadiancePart::kAll);
   // Tests only: runs inside Complete between the check and the commit (no lock held), so a test
   // can expire, cancel or complete other leases while a result is in flight. Set before use.
   void SetBeforeCommitHookForTest(std::function<void(const std::string& lease_id)> hook);

@@ -434,12 +434,13 @@ TEST(Hierarchical, InvalidPlansNameTheField) {
   EXPECT_EQ(err(Plan(3, 1, 4, 1)), "");
   PlanSpec split = Plan(3, 1, 4, 1);
   split.hierarchy_part = HierarchyPart::kIndirect;
-  EXPECT_NE(err(split).find("plan.hierarchical.direct_samples"), std::string::npos) << "0 samples";
+  EXPECT_NE(err(split).find("plan.hierarchical.direct_samples_per_pixel"), std::string::npos) << "0 samples";
   split.direct_samples = 2;
   EXPECT_EQ(err(split), "");
   PlanSpec all = Plan(3, 1, 4, 1);
   all.direct_samples = 2;
-  EXPECT_NE(err(all).find("plan.hierarchical.direct_samples"), std::string::npos) << "without part indirect";
+  EXPECT_NE(err(all).find("plan.hierarchical.direct_samples_per_pixel"), std::string::npos)
+      << "without part indirect";
 }
 
 }  // namespace

@@ -73,6 +73,7 @@ int BadResult(const Options& o) {
   const uint64_t pixels = PixelsOfTask(task);
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
+  req.set_part(task.part());  // as a real worker echoes it
   const uint64_t n = o.mode == "bad-size" ? (pixels - 1) * 3 : pixels * 3;
   for (uint64_t i = 0; i < n; ++i) req.add_rgb_sums(0.25f);
   if (o.mode == "nan") req.set_rgb_sums(0, std::numeric_limits<float>::quiet_NaN());
@@ -122,6 +123,7 @@ int Instant(const Options& o) {
         const uint64_t n = PixelsOfTask(task);
         req.Clear();
         req.set_lease_id(task.lease_id());
+        req.set_part(task.part());
         req.mutable_rgb_sums()->Resize(int(n * 3), 0.0f);
         grpc::ClientContext ctx;
         pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));

@@ -151,6 +151,20 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
          s.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
        },
        C::RESOURCE_EXHAUSTED, "spec.plan.multiple_maps: a task of 16777216 pixels exceeds the limit"},
+      {"hierarchy of the map part with the local pass",
+       [](v1::JobSpec& s) {
+         v1::Hierarchical* h = s.mutable_plan()->mutable_hierarchical();
+         h->set_levels(2);
+         h->set_dims(2);
+         h->set_base_samples(2);
+         h->set_min_samples(1);
+         h->set_decay(2);
+         h->set_samples_per_pixel(1);
+         h->set_part(v1::HIERARCHY_PART_INDIRECT);
+         h->set_direct_samples_per_pixel(2);
+         s.mutable_settings()->mutable_photon_map()->set_local_pass_rays(4);
+       },
+       C::INVALID_ARGUMENT, "spec.plan.hierarchical.part: indirect is not available with the local pass"},
       {"tail tiles that cut a pixel block",
        [](v1::JobSpec& s) {
          s.mutable_plan()->mutable_multiple_maps()->set_maps(1);

@@ -793,6 +793,76 @@ TEST(SchedulerEta, TailTilesCountTheirPixels) {
   EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75 + 1.0 / 64);
 }
 
+// --hier-part indirect: a result must be of the task's radiance part (CompleteTaskRequest.part).
+// A worker older than Task.part renders the whole radiance and echoes nothing (part all): its
+// result for an emission + direct light task is rejected and the task re-queued, never merged
+// (merged, it would add emission and direct light twice); the right part then merges.
+TEST(SchedulerTaskSource, AResultOfAnotherRadiancePartIsRejected) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{});
+  PlanSpec plan = SmallHierarchy();
+  plan.hierarchy_part = HierarchyPart::kIndirect;
+  plan.direct_samples = 2;
+  std::unique_ptr<Job> job = scheduler.PrepareJob(testing::MakeConfig(plan, 12, 10));
+  const std::string id = job->id();
+  scheduler.AddJob(std::move(job));
+  std::optional<Lease> lease = scheduler.TryLease({"w", {}});
+  ASSERT_TRUE(lease.has_value());
+  ASSERT_EQ(lease->task.part, RadiancePart::kUnmapped) << "the per-pixel tasks come first";
+  const CompleteResult old_worker =
+      scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, 12, 10), RadiancePart::kAll);
+  EXPECT_EQ(old_worker.status, CompleteStatus::kRejected);
+  EXPECT_NE(old_worker.reason.find("part"), std::string::npos) << old_worker.reason;
+  EXPECT_EQ(scheduler.Status(id).tasks_done(), 0u);
+  std::optional<Lease> again = scheduler.TryLease({"w", {}});
+  ASSERT_TRUE(again.has_value());
+  ASSERT_EQ(again->task.task_id, lease->task.task_id) << "re-queued";
+  EXPECT_EQ(scheduler.Complete(again->lease_id, SyntheticResult(again->task, 12, 10), RadiancePart::kUnmapped)
+                .status,
+            CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler.Status(id).tasks_done(), 1u);
+}
+
+// --hier-part indirect under a time budget: when it is reached, the levels' queued tasks are
+// cancelled but the emission + direct light tasks are not (the only ones of their pixels: without
+// them the image would miss its light sources there); the job ends once they are merged.
+TEST(SchedulerTaskSource, TimeBudgetKeepsTheEmissionAndDirectLightTasks) {
+  FakeClock clock;
+  Scheduler scheduler(clock, SchedulerOptions{});
+  PlanSpec plan = SmallHierarchy();
+  plan.hierarchy_part = HierarchyPart::kIndirect;
+  plan.direct_samples = 2;
+  std::unique_ptr<Job> job =
+      scheduler.PrepareJob(testing::MakeConfig(plan, 12, 10, 0, StopRule{.time_budget_seconds = 5}));
+  const std::string id = job->id();
+  uint64_t unmapped = 0;
+  for (uint64_t t = 0; t < job->num_tasks(); ++t) unmapped += job->task(t).part == RadiancePart::kUnmapped;
+  ASSERT_GT(unmapped, 0u);
+  ASSERT_LT(unmapped, job->num_tasks());
+  scheduler.AddJob(std::move(job));
+  // The budget counts from the job's start (its first lease): one emission + direct light task.
+  std::optional<Lease> first = scheduler.TryLease({"w", {}});
+  ASSERT_TRUE(first.has_value());
+  ASSERT_EQ(first->task.part, RadiancePart::kUnmapped);
+  ASSERT_EQ(
+      scheduler.Complete(first->lease_id, SyntheticResult(first->task, 12, 10), first->task.part).status,
+      CompleteStatus::kMerged);
+  clock.Advance(6);
+  scheduler.Tick();
+  uint64_t leased = 1;
+  while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
+    EXPECT_EQ(lease->task.part, RadiancePart::kUnmapped);
+    ASSERT_EQ(
+        scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, 12, 10), lease->task.part).status,
+        CompleteStatus::kMerged);
+    ++leased;
+  }
+  EXPECT_EQ(leased, unmapped);
+  const v1::JobStatus s = scheduler.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(s.tasks_done(), unmapped);
+}
+
 TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) {
   FakeClock clock;
   Scheduler scheduler(clock, SchedulerOptions{});
