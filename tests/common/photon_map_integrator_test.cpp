@@ -125,51 +125,41 @@ TEST(RadianceParts, MappedPlusUnmappedIsTheWholeRadiance) {
   CameraSpec spec = scene.cameras.front();
   spec.width = spec.height = 32;
   const Camera camera(spec);
-  struct Variant {
-    int local_pass_rays;
-    float irradiance_cache_error;
+  PhotonMapIntegratorOptions io;
+  io.global.k = 30;
+  io.caustic = DefaultCausticOptions(30, accel.bounds());
+  io.direct = DirectLightMode::kMonteCarlo;
+  io.monte_carlo.shadow_rays = 4;
+  PhotonMapsOptions mo;
+  mo.tracing.photons = 20000;
+  mo.tracing.map_seed = 3;
+  mo.caustic = CausticMapMode::kOn;
+  ConfigureMapsFor(io, &mo);
+  const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
+  ASSERT_TRUE(maps.caustic);
+  ASSERT_FALSE(maps.direct) << "no local pass: no direct map is read";
+  const PhotonMaps empty;
+  auto render = [&](RadiancePart part, const PhotonMaps& m) {
+    PhotonMapIntegratorOptions o = io;
+    o.part = part;
+    const PhotonMapIntegrator integrator(accel, &lights, m, o);
+    return RenderImage(integrator, camera, RenderOptions{.spp = 4, .seed = 5, .threads = 2});
   };
-  for (const Variant v : {Variant{0, 0.0f}}) {
-    SCOPED_TRACE("local pass " + std::to_string(v.local_pass_rays) + ", irradiance cache " +
-                 std::to_string(v.irradiance_cache_error));
-    PhotonMapIntegratorOptions io;
-    io.global.k = 30;
-    io.caustic = DefaultCausticOptions(30, accel.bounds());
-    io.direct = DirectLightMode::kMonteCarlo;
-    io.monte_carlo.shadow_rays = 4;
-    io.local_pass_rays = v.local_pass_rays;
-    io.irradiance_cache.error = v.irradiance_cache_error;
-    PhotonMapsOptions mo;
-    mo.tracing.photons = 20000;
-    mo.tracing.map_seed = 3;
-    mo.caustic = CausticMapMode::kOn;
-    ConfigureMapsFor(io, &mo);
-    const PhotonMaps maps = PhotonMaps::Build(accel, lights, mo);
-    ASSERT_TRUE(maps.caustic);
-    ASSERT_EQ(bool(maps.direct), v.local_pass_rays > 0) << "the local pass reads the direct map";
-    const PhotonMaps empty;
-    auto render = [&](RadiancePart part, const PhotonMaps& m) {
-      PhotonMapIntegratorOptions o = io;
-      o.part = part;
-      const PhotonMapIntegrator integrator(accel, &lights, m, o);
-      return RenderImage(integrator, camera, RenderOptions{.spp = 4, .seed = 5, .threads = 2});
-    };
-    const Image all = render(RadiancePart::kAll, maps), mapped = render(RadiancePart::kMapped, maps),
-                unmapped = render(RadiancePart::kUnmapped, maps),
-                unmapped_no_map = render(RadiancePart::kUnmapped, empty);
-    EXPECT_EQ(
-        std::memcmp(unmapped.pixels().data(), unmapped_no_map.pixels().data(), all.size() * sizeof(Rgb)), 0);
-    double sum_mapped = 0, sum_unmapped = 0;
-    for (size_t i = 0; i < all.size(); ++i) {
-      sum_mapped += mapped[i].Mean();
-      sum_unmapped += unmapped[i].Mean();
-      for (int c = 0; c < 3; ++c)
-        ASSERT_NEAR(mapped[i][c] + unmapped[i][c], all[i][c], 1e-5 * std::max(1e-2f, all[i][c]))
-            << "pixel " << i;
-    }
-    EXPECT_GT(sum_mapped, 0.05 * sum_unmapped) << "both parts carry light";
-    EXPECT_GT(sum_unmapped, 0.05 * sum_mapped);
+  const Image all = render(RadiancePart::kAll, maps), mapped = render(RadiancePart::kMapped, maps),
+              unmapped = render(RadiancePart::kUnmapped, maps),
+              unmapped_no_map = render(RadiancePart::kUnmapped, empty);
+  EXPECT_EQ(std::memcmp(unmapped.pixels().data(), unmapped_no_map.pixels().data(), all.size() * sizeof(Rgb)),
+            0);
+  double sum_mapped = 0, sum_unmapped = 0;
+  for (size_t i = 0; i < all.size(); ++i) {
+    sum_mapped += mapped[i].Mean();
+    sum_unmapped += unmapped[i].Mean();
+    for (int c = 0; c < 3; ++c)
+      ASSERT_NEAR(mapped[i][c] + unmapped[i][c], all[i][c], 1e-5 * std::max(1e-2f, all[i][c]))
+          << "pixel " << i;
   }
+  EXPECT_GT(sum_mapped, 0.05 * sum_unmapped) << "both parts carry light";
+  EXPECT_GT(sum_unmapped, 0.05 * sum_mapped);
 }
 
 // With the local pass (§4.3), also with the irradiance cache, the maps hold a direct map for the
