@@ -153,6 +153,8 @@ int RunLocalPlan(const RenderArgs& a) {
     meta["photons.local_pass_rays"] = std::to_string(resolved.local_pass_rays);
     meta["photons.local_pass_lookup"] =
         resolved.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
+    if (resolved.local_pass_lookup == LocalPassLookup::kPrecomputed)
+      meta["photons.site_occlusion_test"] = resolved.site_occlusion_test ? "1" : "0";
     meta["photons.irradiance_cache_error"] = fmt::format("{}", resolved.irradiance_cache_error);
     meta["photons.local_pass_gathers"] = std::to_string(totals.gathers);
     meta["photons.cache_interpolations"] = std::to_string(totals.cache_interpolations);

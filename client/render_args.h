@@ -51,6 +51,7 @@ struct RenderArgs {
   float photon_direct_cache = 0.25f;
   int local_pass = 0;
   std::string local_pass_lookup = "full";
+  std::string site_occlusion_test = "on";
   bool irradiance_cache = false;
   float irradiance_cache_error = 0.2f;
   bool occlusion_test = false;

@@ -210,6 +210,23 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
     default:
       throw InputError(f + ".local_pass_lookup: unknown value");
   }
+  switch (pm.site_occlusion_test()) {
+    case v1::SITE_OCCLUSION_TEST_UNSPECIFIED:
+    case v1::SITE_OCCLUSION_TEST_ON:
+      out.site_occlusion_test = true;
+      break;
+    case v1::SITE_OCCLUSION_TEST_OFF:
+      // Without precomputed sites there is nothing to switch off: refuse instead of ignoring it.
+      if (out.local_pass_lookup != LocalPassLookup::kPrecomputed)
+        throw InputError(
+            f +
+            ".site_occlusion_test: OFF applies to the precomputed sites only; set "
+            "local_pass_lookup = LOCAL_PASS_LOOKUP_PRECOMPUTED (--local-pass-lookup precomputed)");
+      out.site_occlusion_test = false;
+      break;
+    default:
+      throw InputError(f + ".site_occlusion_test: unknown value");
+  }
   if (!(pm.irradiance_cache_error() >= 0.0 && pm.irradiance_cache_error() <= 1.0))
     throw InputError(f + ".irradiance_cache_error: must be in [0, 1] (0 = off)");
   // The cache stores the local pass's gathers: without one it would be silently ignored.
@@ -344,6 +361,7 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   pm->set_local_pass_lookup(s.local_pass_lookup == LocalPassLookup::kPrecomputed
                                 ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
                                 : v1::LOCAL_PASS_LOOKUP_FULL);
+  if (!s.site_occlusion_test) pm->set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);  // ON is the default
   pm->set_irradiance_cache_error(s.irradiance_cache_error);
   pm->set_occlusion_test(s.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(s.adaptive_k_min));

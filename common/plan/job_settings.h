@@ -57,6 +57,7 @@ struct JobRenderSettings {
   float photon_direct_cache = 0.25f;                           // neighbour-set cache radius fraction; 0 = off
   int local_pass_rays = 0;                                     // §4.3; 0 = off
   LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;  // precomputed irradiance (Christensen 1999)
+  bool site_occlusion_test = true;  // precomputed sites drop photons of unseen origin (§4.1.1)
   float irradiance_cache_error =
       0.0f;                     // local pass: irradiance caching, Ward's a (irradiance_cache.h); 0 = off
   bool occlusion_test = false;  // §4.1.1

@@ -107,6 +107,7 @@ PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& b
   io.photon_direct.max_radius = io.direct_photons.max_radius;  // same bound, same reason (direct_light.h)
   io.local_pass_rays = local_pass_rays;
   io.local_pass_lookup = local_pass_lookup;
+  io.precomputed.occlusion_test = site_occlusion_test;
   io.irradiance_cache.error = irradiance_cache_error;
   return io;
 }

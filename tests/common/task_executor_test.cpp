@@ -107,6 +107,28 @@ TEST(AutoSettings, ChapterFourSettingsReachTheIntegratorAndTheMaps) {
   EXPECT_NE(s.MapFingerprint(), standalone.MapFingerprint());
 }
 
+// The precomputed sites' occlusion test (§4.1.1) reaches the sites' options, and the maps keep
+// the photons' origins exactly when the sites need them.
+TEST(AutoSettings, SiteOcclusionTestReachesTheSitesAndDecidesTheOrigins) {
+  JobRenderSettings s;
+  s.direct = DirectLightMode::kMonteCarlo;
+  s.local_pass_rays = 8;
+  s.local_pass_lookup = LocalPassLookup::kPrecomputed;
+  Bounds3 b;
+  b.Extend(Vec3(0, 0, 0));
+  b.Extend(Vec3(1, 1, 1));
+  ASSERT_TRUE(s.site_occlusion_test);  // the default
+  EXPECT_TRUE(s.IntegratorOptions(b).precomputed.occlusion_test);
+  EXPECT_TRUE(s.MapsOptions().keep_origins);
+  JobRenderSettings off = s;
+  off.site_occlusion_test = false;
+  EXPECT_FALSE(off.IntegratorOptions(b).precomputed.occlusion_test);
+  EXPECT_FALSE(off.MapsOptions().keep_origins);  // nothing else reads the origins
+  EXPECT_NE(s.MapFingerprint(), off.MapFingerprint());
+  off.occlusion_test = true;  // the camera path's own test still needs them
+  EXPECT_TRUE(off.MapsOptions().keep_origins);
+}
+
 // A furnace: inside a glowing sphere (ρ = 0.5, Le = 1: L = 2 everywhere), seen from its centre.
 SceneDescription GlowingSphere() {
   SceneDescription s;

@@ -108,6 +108,7 @@ TEST(Convert, EverySettingRoundTrips) {
   pm.set_adaptive_k_min(10);
   pm.set_kd_split(v1::KD_SPLIT_CYCLE);
   pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
+  pm.set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
   pm.set_irradiance_cache_error(0.25);
   pm.set_importance(v1::IMPORTANCE_MODE_AUTO);
   pm.set_importance_min_probability(0.125);
@@ -123,6 +124,7 @@ TEST(Convert, EverySettingRoundTrips) {
   EXPECT_EQ(core.local_pass_rays, 4);
   EXPECT_EQ(core.irradiance_cache_error, 0.25f);
   EXPECT_TRUE(core.occlusion_test);
+  EXPECT_FALSE(core.site_occlusion_test);
   EXPECT_EQ(core.importance, ImportanceMode::kAuto);
   EXPECT_EQ(core.importance_min_probability, 0.125f);
   EXPECT_EQ(core.importance_strength, 2.5f);
@@ -168,6 +170,15 @@ TEST(Convert, BadSettingsNameTheirField) {
                 p.set_irradiance_cache_error(0.2);
               }),
               StartsWith(f + "irradiance_cache_error: caches the local pass's gathers"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) {
+                p.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_FULL);
+                p.set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
+              }),
+              StartsWith(f + "site_occlusion_test: OFF applies to the precomputed sites only"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) {
+                p.set_site_occlusion_test(static_cast<v1::SiteOcclusionTest>(7));
+              }),
+              StartsWith(f + "site_occlusion_test: unknown value"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_adaptive_k_min(51); }),
               StartsWith(f + "adaptive_k_min:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_direct(static_cast<v1::DirectLight>(99)); }),
