@@ -17,6 +17,8 @@ core; on an idle 2-core machine wall time is about CPU / 2) and by wall time, an
     mc+local-pass       --direct mc --local-pass 8     final gathering (4.3)
     mc+local-pass+precomputed  ... --local-pass-lookup precomputed   gather hits read the irradiance
                         precomputed at every 4th photon (Christensen 1999)
+    mc+local-pass+precomputed-nosite  ... --site-occlusion-test off   the sites' estimates without
+                        the occlusion test (4.1.1): for scenes where nothing bleeds through walls
     mc+occl             --direct mc --occlusion-test
     mc+adaptive-k       --direct mc --adaptive-k-min k/5   (4.8)
     path                --integrator path, 4x the budget's spp (what the same machine does without maps)
@@ -103,6 +105,9 @@ def methods(scene, k):
         ("mc+local-pass", pm + ["--direct", "mc", "--local-pass", "8"]),
         ("mc+local-pass+precomputed",
          pm + ["--direct", "mc", "--local-pass", "8", "--local-pass-lookup", "precomputed"]),
+        ("mc+local-pass+precomputed-nosite",
+         pm + ["--direct", "mc", "--local-pass", "8", "--local-pass-lookup", "precomputed",
+               "--site-occlusion-test", "off"]),
         ("mc+occl", pm + ["--direct", "mc", "--occlusion-test"]),
         ("mc+adaptive-k", pm + ["--direct", "mc", "--adaptive-k-min", str(max(1, k // 5))]),
     ]
@@ -405,9 +410,11 @@ def main():
         for r in rows:
             del r["exr"]
         if args.merge:
+            # A re-measured row takes the place of the row it replaces; new rows go last.
             new = {(r["scene"], r["budget"], r["method"]): r for r in rows}
-            kept = [r for r in old if (r["scene"], r["budget"], r["method"]) not in new]
-            rows = kept + rows
+            replaced = [new.get((r["scene"], r["budget"], r["method"]), r) for r in old]
+            in_old = {(r["scene"], r["budget"], r["method"]) for r in old}
+            rows = replaced + [r for r in rows if (r["scene"], r["budget"], r["method"]) not in in_old]
             rows.sort(key=lambda r: (list(dict.fromkeys([*old_scenes, *scenes])).index(r["scene"]),
                                      list(BUDGETS).index(r["budget"])))  # stable: methods keep their order
             scenes = list(dict.fromkeys(r["scene"] for r in rows))
