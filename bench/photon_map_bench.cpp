@@ -139,7 +139,7 @@ struct Config {
   std::string json_path;
   std::string cache_dir;
   std::vector<std::string> scenes = {"cornell-box", "office3"};
-  int leaf_size = 8;               // --leaf: photons per bucket of the bucketed kd-trees
+  int leaf_size = BucketKdOptions{}.leaf_size;  // --leaf: photons per bucket of the bucketed kd-trees
   std::vector<std::size_t> sizes;  // --sizes: photon counts (default 100k,1M,10M; --quick 100k,1M)
   // --profile
   std::string profile;
@@ -632,8 +632,9 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
   std::printf(
       "(mismatches: queries whose k-th neighbour distance differs from nanoflann's; must be 0.\n"
       " bucket mid+hint: the bucket mid tree queried with QueryWithHint, hint = %.1f x the previous\n"
-      " query's k-th distance; hint-misses: queries re-run unbounded because the hint held < k)\n",
-      double(kHintGrow));
+      " query's k-th distance; hint-misses: queries re-run unbounded because the hint held < k;\n"
+      " bucket trees: leaf size %d)\n",
+      double(kHintGrow), config.leaf_size);
   std::printf("Load average (1/5/15 min): before %s, after %s\n\n", load_before.c_str(), load_after.c_str());
   long bad = 0;
   for (const QueryRow& r : query_rows) bad += r.mismatches;
@@ -661,6 +662,8 @@ int Run(const Config& config) {
       "1.4.3, KDTreeSingleIndexAdaptor, leaf_max_size 10, L2_Simple_Adaptor<float>, uint32 indices";
   out["grid_rule"] = "photons_per_voxel = 2.2*sqrt(expected_k); queries use a grid built with expected_k = k";
   out["loadavg_start"] = LoadAverage();
+  out["bucket_leaf_size"] = config.leaf_size;
+  out["hint_grow"] = kHintGrow;
   int status = 0;
   for (auto& w : workloads) {
     nlohmann::json& section = out["workloads"].emplace_back();
