@@ -176,8 +176,9 @@ class NearestPhotons {
 // The first pass of QueryWithHint without a heap (used by BucketKdTree::DoQueryBall).
 //
 // Inside a ball that holds a bit more than k photons (a good hint: the k-th distance of a
-// neighbouring query × 1.2 holds ~1.44 k photons on a surface), the heap of Query is mostly
-// overhead: every photon is sifted in, and a third of them are evicted again. Instead every
+// neighbouring query × 1.2 holds ~1.44 k photons on a surface), the heap of Query (the
+// thesis's PhotonList, Wald 1999 §2.3.2) is mostly overhead: every photon is sifted in, and a
+// third of them are evicted again, with an unpredictable branch at every level. Instead every
 // candidate of the ball is appended to a flat buffer, and the k nearest are selected once at
 // the end, in O(count): the candidates are counted into bins by distance² while they are
 // appended (bins linear in d², i.e. in the area of a disk, so photons on a surface fill them
@@ -339,8 +340,8 @@ enum class BucketSplit {
 struct BucketKdOptions {
   // Photons per bucket at most, in [1, 64]. 32: four 8-wide SIMD steps per bucket. Larger
   // buckets mean fewer inner nodes to descend and cull; measured on 1M real photons
-  // (docs/results/kernel.md §1) the hinted pass (QueryWithHint) is ~1.4–1.7× faster than with
-  // 8, and a plain Query is as fast or faster, for k = 10 … 500.
+  // (docs/results/kernel.md §1) the hinted pass (QueryWithHint) is ~1.15–1.4× faster than with
+  // 8, and a plain Query about as fast or faster (0.90–1.01× the time), for k = 10 … 500.
   int leaf_size = 32;
   BucketSplit split = BucketSplit::kMedian;
   // Use the AVX2 bucket kernel where the CPU has it (false: always the SSE one, e.g. to test
