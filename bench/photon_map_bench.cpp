@@ -37,6 +37,8 @@
 //     nanoflann) and run the query set once through pf_bench_profile_queries(), for
 //     `valgrind --tool=callgrind --toggle-collect=pf_bench_profile_queries`; prints kd-tree
 //     traversal statistics (nodes visited per query). Use with --cache.
+//   --leaf L: photons per bucket of the bucketed kd-trees (default: BucketKdOptions' 32).
+//   --hint-grow G: the hinted queries' hint = G × the previous query's k-th distance (1.2).
 
 #include <spdlog/spdlog.h>
 #include <nanoflann.hpp>
@@ -139,7 +141,7 @@ struct Config {
   std::string json_path;
   std::string cache_dir;
   std::vector<std::string> scenes = {"cornell-box", "office3"};
-  int leaf_size = 8;               // --leaf: photons per bucket of the bucketed kd-trees
+  int leaf_size = BucketKdOptions{}.leaf_size;  // --leaf: photons per bucket of the bucketed kd-trees
   std::vector<std::size_t> sizes;  // --sizes: photon counts (default 100k,1M,10M; --quick 100k,1M)
   // --profile
   std::string profile;
@@ -212,7 +214,9 @@ Stopwatch::Lap QueryOurs(const PhotonMap& map, const std::vector<Vec3>& points, 
 // PhotonMap::QueryWithHint with the previous query's k-th distance × kHintGrow as the hint
 // (the queries are camera hits in scan-line order: each one's predecessor is a neighbouring
 // pixel, as for a renderer's thread walking its tile). Exact; misses re-query unbounded.
+// (--hint-grow overrides it, to measure the trade-off: a smaller ball against more misses.)
 constexpr float kHintGrow = 1.2f;
+float g_hint_grow = kHintGrow;
 Stopwatch::Lap QueryOursHinted(const PhotonMap& map, const std::vector<Vec3>& points, int k,
                                std::vector<float>& kth, std::size_t* misses = nullptr) {
   NearestPhotons heap;
@@ -224,7 +228,7 @@ Stopwatch::Lap QueryOursHinted(const PhotonMap& map, const std::vector<Vec3>& po
   for (std::size_t i = 0; i < points.size(); ++i) {
     missed += map.QueryWithHint(points[i], k, std::numeric_limits<float>::infinity(), hint, heap) ? 0 : 1;
     kth[i] = heap.MaxDistanceSquared();
-    hint = kHintGrow * std::sqrt(kth[i]);
+    hint = g_hint_grow * std::sqrt(kth[i]);
   }
   const Stopwatch::Lap lap = watch.Elapsed();
   if (misses != nullptr) *misses = missed;
@@ -632,8 +636,9 @@ int RunWorkload(const Config& config, Workload& workload, nlohmann::json& out) {
   std::printf(
       "(mismatches: queries whose k-th neighbour distance differs from nanoflann's; must be 0.\n"
       " bucket mid+hint: the bucket mid tree queried with QueryWithHint, hint = %.1f x the previous\n"
-      " query's k-th distance; hint-misses: queries re-run unbounded because the hint held < k)\n",
-      double(kHintGrow));
+      " query's k-th distance; hint-misses: queries re-run unbounded because the hint held < k;\n"
+      " bucket trees: leaf size %d)\n",
+      double(g_hint_grow), config.leaf_size);
   std::printf("Load average (1/5/15 min): before %s, after %s\n\n", load_before.c_str(), load_after.c_str());
   long bad = 0;
   for (const QueryRow& r : query_rows) bad += r.mismatches;
@@ -661,6 +666,8 @@ int Run(const Config& config) {
       "1.4.3, KDTreeSingleIndexAdaptor, leaf_max_size 10, L2_Simple_Adaptor<float>, uint32 indices";
   out["grid_rule"] = "photons_per_voxel = 2.2*sqrt(expected_k); queries use a grid built with expected_k = k";
   out["loadavg_start"] = LoadAverage();
+  out["bucket_leaf_size"] = config.leaf_size;
+  out["hint_grow"] = g_hint_grow;
   int status = 0;
   for (auto& w : workloads) {
     nlohmann::json& section = out["workloads"].emplace_back();
@@ -686,7 +693,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: %s [--quick] [--synthetic] [--scenes a,b] [--reps N] [--json out.json] [--wall]\n"
                  "          [--grid-sweep] [--cache DIR] [--profile STRUCT [--n N] [--k K]] [--leaf L]\n"
-                 "          [--sizes 100000,1000000]\n",
+                 "          [--sizes 100000,1000000] [--hint-grow 1.2]\n",
                  argv[0]);
     return 1;
   };
@@ -723,6 +730,8 @@ int main(int argc, char** argv) {
       std::stringstream list(argv[++i]);
       for (std::string v; std::getline(list, v, ',');)
         if (!v.empty()) config.sizes.push_back(std::size_t(std::atoll(v.c_str())));
+    } else if (arg == "--hint-grow" && has_value) {
+      pf::g_hint_grow = std::clamp(float(std::atof(argv[++i])), 1.0f, 4.0f);
     } else if (arg == "--k" && has_value) {
       config.profile_k = std::max(1, std::atoi(argv[++i]));
     } else {

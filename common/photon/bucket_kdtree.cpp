@@ -100,6 +100,22 @@ class Builder {
   int max_depth_ = 0;
 };
 
+// Candidate sinks of Search (bucket_kdtree_search.inc).
+// HeapSink: the bounded max-heap of Query (Wald 1999, §2.3.2): the bound tightens at every
+// insert once the heap is full.
+struct HeapSink {
+  NearestPhotons& nearest;
+  float Bound() const { return nearest.BoundSquared(); }
+  float Add(uint32_t i, float d2) {
+    nearest.Insert(i, d2);
+    return nearest.BoundSquared();
+  }
+};
+
+// BallSink: QueryWithHint's first pass: every candidate of the hint ball into a flat
+// buffer, the k nearest selected once at the end (BallCollector, photon_map.h).
+using BallSink = BallCollector;
+
 namespace sse {
 
 struct QueryLanes {
@@ -195,10 +211,18 @@ void BucketKdTree::Build() {
 
 void BucketKdTree::DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const {
   if (avx2_) {
-    avx2::Search(nodes_.data(), xs_.data(), ys_.data(), zs_.data(), photons_.data(), x, nearest, filter);
+    avx2::SearchHeap(nodes_.data(), xs_.data(), ys_.data(), zs_.data(), photons_.data(), x, nearest, filter);
   } else {
-    sse::Search(nodes_.data(), xs_.data(), ys_.data(), zs_.data(), photons_.data(), x, nearest, filter);
+    sse::SearchHeap(nodes_.data(), xs_.data(), ys_.data(), zs_.data(), photons_.data(), x, nearest, filter);
   }
+}
+
+bool BucketKdTree::DoQueryBall(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const {
+  if (avx2_)
+    return avx2::SearchBall(nodes_.data(), xs_.data(), ys_.data(), zs_.data(), photons_.data(), x, nearest,
+                            filter);
+  return sse::SearchBall(nodes_.data(), xs_.data(), ys_.data(), zs_.data(), photons_.data(), x, nearest,
+                         filter);
 }
 
 }  // namespace pf

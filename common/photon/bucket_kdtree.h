@@ -68,6 +68,9 @@ class BucketKdTree final : public PhotonMap {
  protected:
   void Build() override;
   void DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const override;
+  // QueryWithHint's first pass without a heap: the hint ball's photons into a flat buffer, the
+  // k nearest selected once (BallCollector).
+  bool DoQueryBall(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const override;
 
  private:
   BucketKdOptions options_;

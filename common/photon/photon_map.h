@@ -34,6 +34,8 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <iterator>
+#include <limits>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -100,7 +102,9 @@ class NearestPhotons {
   // estimate Σ ΔΦ / (π r²) (§2.5).
   float MaxDistanceSquared() const { return size_ == 0 ? 0.0f : heap_[0].distance2; }
 
-  // The entries in heap order (the first one is the farthest). Use Sort() for distance order.
+  // The entries, the first one the farthest: after Query in max-heap order, after a
+  // QueryWithHint the rest in no particular order (BallCollector). Use Sort() for distance
+  // order.
   std::span<const Entry> entries() const { return {heap_.data(), size_}; }
   const Entry& operator[](std::size_t i) const { return heap_[i]; }
 
@@ -127,6 +131,7 @@ class NearestPhotons {
 
  private:
   friend class GridPhotonMap;
+  friend class BallCollector;
 
   // Places e, the new last entry at position i, by moving its larger ancestors down.
   static void SiftUp(Entry* h, std::size_t i, Entry e) {
@@ -168,6 +173,132 @@ class NearestPhotons {
   } grid_;
 };
 
+// The first pass of QueryWithHint without a heap (used by BucketKdTree::DoQueryBall).
+//
+// Inside a ball that holds a bit more than k photons (a good hint: the k-th distance of a
+// neighbouring query × 1.2 holds ~1.44 k photons on a surface), the heap of Query (the
+// thesis's PhotonList, Wald 1999 §2.3.2) is mostly overhead: every photon is sifted in, and a
+// third of them are evicted again, with an unpredictable branch at every level. Instead every
+// candidate of the ball is appended to a flat buffer, and the k nearest are selected once at
+// the end, in O(count): the candidates are counted into bins by distance² while they are
+// appended (bins linear in d², i.e. in the area of a disk, so photons on a surface fill them
+// about evenly), the bin holding the k-th candidate is found from the counts, the bins below
+// it are compacted to the front in one branch-free pass and only that one bin (a few
+// entries) is ordered with nth_element. Bins are monotonic in d², so the result is exactly
+// the k first in (distance², index) order: the same set on every run, ties at the k-th
+// distance keeping the lower index.
+//
+// The buffer holds Capacity(k) entries: when it is full, the k nearest so far are kept and
+// their k-th distance² becomes the bound (exact: a photon at ≥ that bound cannot be among the
+// k nearest). A good hint never fills it; the cap bounds memory and time for a far too large
+// hint (e.g. one holding all N photons).
+//
+// The result is NearestPhotons' with the farthest entry first (the radiance estimate excludes
+// it, §2.5) and the others in no particular order; it is not a heap.
+class BallCollector {
+ public:
+  static constexpr int kBins = 64;
+  static std::size_t Capacity(std::size_t k) { return std::max<std::size_t>(4 * k, k + 64); }
+
+  // `nearest` is Reset to k ≥ 1 and the ball's radius (its BoundSquared() > 0).
+  explicit BallCollector(NearestPhotons& nearest)
+      : nearest_(nearest),
+        k_(nearest.k()),
+        capacity_(Capacity(nearest.k())),
+        bound2_(nearest.BoundSquared()) {
+    // The buffer and, behind it, the selection's scratch (grows only, like the heap).
+    if (nearest.heap_.size() < 2 * capacity_) nearest.heap_.resize(2 * capacity_);
+    buffer_ = nearest.heap_.data();
+    // A denormal bound makes the scale +inf (and 0·inf NaN), +inf makes it 0: one bin then,
+    // i.e. a plain nth_element over all candidates; still exact.
+    scale_ = float(kBins) / bound2_;
+    if (!(scale_ <= std::numeric_limits<float>::max())) scale_ = 0.0f;
+  }
+
+  // The exclusive bound: a candidate must have d2 < Bound().
+  float Bound() const { return bound2_; }
+  std::size_t size() const { return size_; }
+
+  // Appends a candidate (d2 < Bound()); returns the bound from then on.
+  float Add(uint32_t index, float d2) {
+    buffer_[size_] = {index, d2};
+    ++histogram_[Bin(d2)];
+    if (++size_ == capacity_) Compact();
+    return bound2_;
+  }
+
+  // Ends the pass: if the ball held at least k candidates, the k nearest become `nearest`'s
+  // result and it returns true; otherwise `nearest` is left empty and it returns false.
+  bool Finish() {
+    if (size_ < k_) {
+      nearest_.size_ = 0;
+      return false;
+    }
+    if (size_ > k_) {
+      Select();
+    } else {
+      // Exactly k: only the farthest must come first.
+      std::size_t far = 0;
+      for (std::size_t i = 1; i < k_; ++i)
+        if (Closer(buffer_[far], buffer_[i])) far = i;
+      std::swap(buffer_[0], buffer_[far]);
+    }
+    nearest_.size_ = k_;
+    nearest_.bound2_ = buffer_[0].distance2;
+    return true;
+  }
+
+ private:
+  using Entry = NearestPhotons::Entry;
+  static bool Closer(const Entry& a, const Entry& b) {
+    return a.distance2 < b.distance2 || (a.distance2 == b.distance2 && a.index < b.index);
+  }
+  // Monotonic in d2 (a product with a positive constant and truncation both are), < kBins.
+  int Bin(float d2) const { return std::min(int(d2 * scale_), kBins - 1); }
+
+  // The k nearest of buffer_[0, size_) (size_ > k) to buffer_[0, k), the farthest of them
+  // first.
+  void Select() {
+    int kth_bin = 0;
+    std::size_t below = 0;  // candidates in the bins before kth_bin
+    while (below + histogram_[kth_bin] < k_) below += histogram_[kth_bin++];
+    Entry* const side = buffer_ + capacity_;
+    std::size_t front = 0, in_bin = 0;
+    for (std::size_t i = 0; i < size_; ++i) {
+      const Entry e = buffer_[i];
+      const int bin = Bin(e.distance2);
+      buffer_[front] = e;  // front ≤ i: compaction in place
+      front += bin < kth_bin ? 1 : 0;
+      side[in_bin] = e;
+      in_bin += bin == kth_bin ? 1 : 0;
+    }
+    const std::size_t need = k_ - below;  // 1 ≤ need ≤ in_bin
+    std::nth_element(side, side + (need - 1), side + in_bin,
+                     [](const Entry& a, const Entry& b) { return Closer(a, b); });
+    std::copy(side, side + need, buffer_ + below);
+    // side[need − 1] is the k-th: every entry of a lower bin is closer (bins are monotonic).
+    std::swap(buffer_[0], buffer_[k_ - 1]);
+  }
+
+  // The buffer is full: keep the k nearest, bound = their k-th distance², recount the bins.
+  void Compact() {
+    Select();
+    bound2_ = buffer_[0].distance2;
+    size_ = k_;
+    std::fill(std::begin(histogram_), std::end(histogram_), 0u);
+    for (std::size_t i = 0; i < k_; ++i) ++histogram_[Bin(buffer_[i].distance2)];
+  }
+
+  NearestPhotons& nearest_;
+  std::size_t k_;
+  std::size_t capacity_;
+  float bound2_;
+  float scale_ = 0.0f;
+  Entry* buffer_ = nullptr;
+  std::size_t size_ = 0;
+  uint32_t histogram_[kBins] = {};
+};
+
 // kKdTree: the thesis's left-balanced kd-tree (kdtree.h); kGrid: the regular grid (grid.h);
 // kBucketKdTree: a bucketed, unbalanced kd-tree with SIMD bucket tests (bucket_kdtree.h).
 enum class PhotonMapKind { kKdTree, kGrid, kBucketKdTree };
@@ -207,7 +338,11 @@ enum class BucketSplit {
 };
 
 struct BucketKdOptions {
-  int leaf_size = 8;  // photons per bucket at most, in [1, 64]
+  // Photons per bucket at most, in [1, 64]. 32: four 8-wide SIMD steps per bucket. Larger
+  // buckets mean fewer inner nodes to descend and cull; measured on 1M real photons
+  // (docs/results/kernel.md §1) the hinted pass (QueryWithHint) is ~1.15–1.4× faster than with
+  // 8, and a plain Query about as fast or faster (0.90–1.01× the time), for k = 10 … 500.
+  int leaf_size = 32;
   BucketSplit split = BucketSplit::kMedian;
   // Use the AVX2 bucket kernel where the CPU has it (false: always the SSE one, e.g. to test
   // it on an AVX2 machine).
@@ -302,11 +437,20 @@ class PhotonMap {
   // result is exactly Query's; otherwise it searches again with max_radius. A good hint culls
   // most of the tree from the start and spares the heap the photons that would enter it only
   // to be evicted. Returns true iff the hint sufficed.
+  //
+  // The first pass goes through DoQueryBall, which a map may implement without a heap (the
+  // bucket kd-tree does: BallCollector). Its result is the same set as Query's up to ties at
+  // the k-th distance, the farthest entry first, but the others may come in another order
+  // than a plain Query's (so a sum over them may differ in the last bits).
   bool QueryWithHint(const Vec3& x, int k, float max_radius, float hint_radius, NearestPhotons& nearest,
                      const PhotonFilter* filter = nullptr) const {
     if (hint_radius > 0.0f && hint_radius < max_radius) {
-      Query(x, k, hint_radius, nearest, filter);
-      if (nearest.full()) return true;
+      nearest.Reset(k, hint_radius);
+      if (!prepared_) throw std::logic_error("PhotonMap::QueryWithHint before PrepareForQuery");
+      if (nearest.k() == 0) return true;  // the empty result is complete
+      if (!photons_.empty() && IsFinite(x) && nearest.BoundSquared() > 0.0f &&
+          DoQueryBall(x, nearest, filter))
+        return true;
     }
     Query(x, k, max_radius, nearest, filter);
     return false;
@@ -330,6 +474,14 @@ class PhotonMap {
   virtual void Build() = 0;
   // Called by Query with k ≥ 1, a finite x, a non-empty map and `nearest` already Reset.
   virtual void DoQuery(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const = 0;
+  // The first pass of QueryWithHint, with the same preconditions as DoQuery (`nearest` Reset
+  // to k and the hint radius): returns true iff the ball holds k accepted photons, which are
+  // then the result. The default is the heap query; a map may override it (see
+  // BallCollector).
+  virtual bool DoQueryBall(const Vec3& x, NearestPhotons& nearest, const PhotonFilter* filter) const {
+    DoQuery(x, nearest, filter);
+    return nearest.full();
+  }
 
   std::vector<Photon> photons_;  // one dynamic array (§2.2); reordered by Build
   bool prepared_ = false;

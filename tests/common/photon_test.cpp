@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <thread>
@@ -463,6 +464,214 @@ TEST_P(PhotonMapContractTest, QueryWithHintEqualsQueryForAnyHint) {
   }
   EXPECT_GT(hits, 100);
   EXPECT_GT(misses, 100);
+}
+
+// The distances² of all photons accepted by `filter` around x, ascending (brute force).
+std::vector<float> SortedDistances(const PhotonMap& map, const Vec3& x,
+                                   const PhotonFilter* filter = nullptr) {
+  std::vector<float> d2;
+  for (std::size_t i = 0; i < map.size(); ++i)
+    if (filter == nullptr || filter->Accept(map.photon(i), i))
+      d2.push_back(DistanceSquared(map.photon(i), x));
+  std::sort(d2.begin(), d2.end());
+  return d2;
+}
+
+// A hint radius whose open ball (DistanceSquared < hint², as the maps test it) holds exactly
+// the `count` nearest accepted photons, if one exists (not if the count-th and the next
+// distance tie, or lie too close for a float radius between them).
+std::optional<float> HintHolding(const std::vector<float>& sorted_d2, std::size_t count) {
+  if (count > sorted_d2.size()) return std::nullopt;
+  const float inner = count == 0 ? 0.0f : std::sqrt(sorted_d2[count - 1]);
+  const float outer = count < sorted_d2.size() ? std::sqrt(sorted_d2[count]) : 2.0f * inner + 1.0f;
+  float hint = 0.5f * (inner + outer);
+  const auto holds = [&](float h) {
+    const auto inside = std::lower_bound(sorted_d2.begin(), sorted_d2.end(), h * h) - sorted_d2.begin();
+    return h > 0.0f && std::size_t(inside) == count;
+  };
+  for (int step = 0; step < 8 && !holds(hint); ++step) hint = std::nextafter(hint, outer);
+  if (!holds(hint)) return std::nullopt;
+  return hint;
+}
+
+// Checks a QueryWithHint result against brute force: the same distance multiset, the farthest
+// entry first (the renderer sums all but entries()[0]), only accepted photons, none twice.
+void ExpectHintedMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, float max_radius, float hint,
+                                   NearestPhotons& heap, const PhotonFilter* filter, bool expect_used) {
+  const bool used = map.QueryWithHint(x, k, max_radius, hint, heap, filter);
+  ASSERT_EQ(used, expect_used) << "hint " << hint << " k " << k << " max_radius " << max_radius;
+  const auto expected = BruteForceNearest(map.photons(), x, k, max_radius, filter);
+  ASSERT_EQ(heap.size(), expected.size()) << "hint " << hint << " k " << k;
+  for (std::size_t j = 1; j < heap.size(); ++j) ASSERT_LE(heap[j].distance2, heap[0].distance2);
+  if (!heap.empty()) {
+    ASSERT_EQ(heap.MaxDistanceSquared(), expected.back().distance2);
+  }
+  std::vector<uint32_t> seen;
+  for (const auto& e : heap.entries()) {
+    ASSERT_EQ(e.distance2, DistanceSquared(map.photon(e.index), x));
+    if (filter != nullptr) {
+      ASSERT_TRUE(filter->Accept(map.photon(e.index), e.index));
+    }
+    seen.push_back(e.index);
+  }
+  std::sort(seen.begin(), seen.end());
+  ASSERT_EQ(std::adjacent_find(seen.begin(), seen.end()), seen.end()) << "photon found twice";
+  heap.Sort();
+  for (std::size_t j = 0; j < expected.size(); ++j)
+    ASSERT_EQ(heap[j].distance2, expected[j].distance2) << "rank " << j;
+}
+
+// The hinted pass at its edges (the bucket tree answers it without a heap, from a flat buffer
+// of the ball's photons, NearestPhotons::FinishBall): a ball holding exactly k photons (used),
+// k − 1 (not used: the full query runs), every photon of the map (the buffer fills and is
+// compacted many times), exactly the buffer's capacity and one more, and a max_radius below
+// the hint (the hint is ignored).
+TEST_P(PhotonMapContractTest, QueryWithHintAtTheBallsEdges) {
+  const float inf = std::numeric_limits<float>::infinity();
+  const auto photons = MakePhotons(Layout::kClustered, 3000, 41);
+  const auto map = Build(photons);
+  NearestPhotons heap;
+  int exact_hints = 0;  // hints that held exactly the intended count (the others are skipped)
+  for (const Vec3& x : MakeQueries(map->photons(), 40, 17)) {
+    const auto d2 = SortedDistances(*map, x);
+    for (int k : {1, 2, 7, 50, 200}) {
+      SCOPED_TRACE(k);
+      const std::size_t uk = std::size_t(k);
+      const std::size_t capacity = BallCollector::Capacity(uk);
+      ASSERT_GT(capacity, uk);
+      auto try_count = [&](std::size_t count, bool expect_used) {
+        if (const auto hint = HintHolding(d2, count)) {
+          ++exact_hints;
+          ExpectHintedMatchesBruteForce(*map, x, k, inf, *hint, heap, nullptr, expect_used);
+        }
+      };
+      ASSERT_NO_FATAL_FAILURE(try_count(uk, true));
+      ASSERT_NO_FATAL_FAILURE(try_count(uk - 1, false));
+      for (std::size_t count : {capacity - 1, capacity, capacity + 1, 2 * capacity + 3})
+        ASSERT_NO_FATAL_FAILURE(try_count(count, true));
+      // Every photon in the ball.
+      ASSERT_NO_FATAL_FAILURE(ExpectHintedMatchesBruteForce(*map, x, k, inf, 1e30f, heap, nullptr, true));
+      // max_radius below the hint: the hint is not used, the result is max_radius's.
+      const float kth = std::sqrt(d2[uk - 1]);
+      ASSERT_NO_FATAL_FAILURE(
+          ExpectHintedMatchesBruteForce(*map, x, k, 0.5f * kth, 2.0f * kth, heap, nullptr, false));
+      ASSERT_NO_FATAL_FAILURE(ExpectHintedMatchesBruteForce(*map, x, k, 2.0f * kth, 2.0f * kth, heap, nullptr,
+                                                            false));  // hint == max_radius: not used
+    }
+  }
+  EXPECT_GT(exact_hints, 600);  // of 40 × 5 × 6 tried
+}
+
+// A filter that rejects photons inside the hint ball: the ball must hold k *accepted* photons
+// for the hint to suffice. Hints holding k accepted photons but many more photons in all, and
+// hints holding k photons of which some are rejected (must re-query).
+TEST_P(PhotonMapContractTest, QueryWithHintCountsOnlyAcceptedPhotons) {
+  const float inf = std::numeric_limits<float>::infinity();
+  const auto photons = MakePhotons(Layout::kClustered, 3000, 43);
+  const auto map = Build(photons);
+  const auto one_in_three = FunctionFilter([](const Photon&, std::size_t i) { return i % 3 == 0; });
+  const auto from_above = FunctionFilter([](const Photon& p, std::size_t) { return p.Direction().z > 0.0f; });
+  NearestPhotons heap;
+  int exact_hints = 0;
+  for (const PhotonFilter* filter :
+       {static_cast<const PhotonFilter*>(&one_in_three), static_cast<const PhotonFilter*>(&from_above)}) {
+    for (const Vec3& x : MakeQueries(map->photons(), 40, 19)) {
+      const auto accepted = SortedDistances(*map, x, filter);
+      const auto all = SortedDistances(*map, x);
+      for (int k : {1, 10, 60}) {
+        SCOPED_TRACE(k);
+        const std::size_t uk = std::size_t(k);
+        // Holds exactly k accepted photons (and about 3× or 2× as many photons in all).
+        if (const auto hint = HintHolding(accepted, uk)) {
+          ++exact_hints;
+          ASSERT_NO_FATAL_FAILURE(ExpectHintedMatchesBruteForce(*map, x, k, inf, *hint, heap, filter, true));
+        }
+        // Holds k − 1 accepted photons: re-query.
+        if (const auto hint = HintHolding(accepted, uk - 1)) {
+          ASSERT_NO_FATAL_FAILURE(ExpectHintedMatchesBruteForce(*map, x, k, inf, *hint, heap, filter, false));
+        }
+        // Holds k photons in all, fewer accepted ones (unless the k nearest are all accepted).
+        if (const auto hint = HintHolding(all, uk)) {
+          const bool enough = accepted.size() >= uk && accepted[uk - 1] < *hint * *hint;
+          ASSERT_NO_FATAL_FAILURE(
+              ExpectHintedMatchesBruteForce(*map, x, k, inf, *hint, heap, filter, enough));
+        }
+      }
+    }
+  }
+  EXPECT_GT(exact_hints, 150);  // of 2 × 40 × 3 tried
+}
+
+// BallCollector (the hinted pass without a heap) against a sort: the k nearest of the
+// candidates, the farthest first, "fewer than k" reported as such; candidate counts below,
+// at and above the buffer's capacity (which compacts it to the k nearest and lowers the
+// bound). Coarse distances: many ties. Without a compaction the ties at the k-th distance
+// keep the lower index; with one, a later candidate at the lowered bound is refused (the
+// caller tests d2 < Bound()), so only the distances are compared then.
+TEST(BallCollectorTest, KeepsTheKNearestCandidates) {
+  Rng rng(5, 5);
+  NearestPhotons heap;
+  for (int k : {1, 3, 20, 100}) {
+    const std::size_t uk = std::size_t(k);
+    const std::size_t capacity = BallCollector::Capacity(uk);
+    for (std::size_t count :
+         {std::size_t(0), uk - 1, uk, uk + 1, capacity - 1, capacity, capacity + 1, 5 * capacity + 7}) {
+      SCOPED_TRACE(testing::Message() << "k " << k << " count " << count);
+      heap.Reset(k, std::sqrt(8.0f));  // bound² ≈ 8: every distance² below (0 … 7) is a candidate
+      BallCollector ball(heap);
+      const float initial_bound = ball.Bound();
+      ASSERT_GT(initial_bound, 7.0f);
+      std::vector<NearestPhotons::Entry> offered;
+      bool compacted = false;
+      for (std::size_t i = 0; i < count; ++i) {
+        // Distinct indices in a scrambled order (1000003 is prime).
+        const NearestPhotons::Entry e{uint32_t(i * 7919 % 1000003), float(rng.UniformInt(8))};
+        offered.push_back(e);
+        if (e.distance2 < ball.Bound()) ball.Add(e.index, e.distance2);
+        compacted = compacted || ball.Bound() < initial_bound;
+      }
+      EXPECT_EQ(compacted, count >= capacity);
+      const bool full = ball.Finish();
+      ASSERT_EQ(full, count >= uk);
+      if (!full) {
+        EXPECT_EQ(heap.size(), 0u);
+        continue;
+      }
+      ASSERT_EQ(heap.size(), uk);
+      for (std::size_t j = 1; j < uk; ++j) ASSERT_LE(heap[j].distance2, heap[0].distance2);
+      EXPECT_EQ(heap.BoundSquared(), heap.MaxDistanceSquared());
+      std::sort(offered.begin(), offered.end(), [](const auto& a, const auto& b) {
+        return a.distance2 < b.distance2 || (a.distance2 == b.distance2 && a.index < b.index);
+      });
+      heap.Sort();
+      for (std::size_t j = 0; j < uk; ++j) {
+        ASSERT_EQ(heap[j].distance2, offered[j].distance2) << j;
+        if (!compacted) {
+          ASSERT_EQ(heap[j].index, offered[j].index) << j;
+        }
+      }
+    }
+  }
+}
+
+// Degenerate bounds: a ball radius whose square is denormal or overflows to +inf (the bins'
+// scale would be +inf or 0) must still select exactly.
+TEST(BallCollectorTest, DenormalAndInfiniteBounds) {
+  NearestPhotons heap;
+  for (float radius : {1e-20f, 1e30f}) {
+    SCOPED_TRACE(radius);
+    heap.Reset(3, radius);
+    ASSERT_GT(heap.BoundSquared(), 0.0f);
+    BallCollector ball(heap);
+    const float m = std::min(ball.Bound(), 1e38f);
+    const std::vector<float> d2 = {0.0f, m * 0.5f, 0.0f, m * 0.25f, m * 0.75f};
+    for (std::size_t i = 0; i < d2.size(); ++i) ball.Add(uint32_t(i), d2[i]);
+    ASSERT_TRUE(ball.Finish());
+    heap.Sort();
+    EXPECT_EQ(heap[0].index, 0u);
+    EXPECT_EQ(heap[1].index, 2u);
+    EXPECT_EQ(heap[2].index, 3u);
+  }
 }
 
 TEST_P(PhotonMapContractTest, InQueryFilterAlwaysFillsTheHeap) {
