@@ -222,6 +222,16 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
             f +
             ".site_occlusion_test: OFF applies to the precomputed sites only; set "
             "local_pass_lookup = LOCAL_PASS_LOOKUP_PRECOMPUTED (--local-pass-lookup precomputed)");
+      if (pm.local_pass_rays() == 0)
+        throw InputError(f +
+                         ".site_occlusion_test: OFF applies to the local pass's precomputed sites; set "
+                         "local_pass_rays > 0 (--local-pass N)");
+      // The camera path's test is applied to the sites' estimates too (they are the same
+      // estimates, precomputed), so OFF would be silently ignored.
+      if (pm.occlusion_test())
+        throw InputError(f +
+                         ".site_occlusion_test: OFF contradicts occlusion_test = true, which tests the "
+                         "sites' photons too; drop one of them");
       out.site_occlusion_test = false;
       break;
     default:

@@ -184,9 +184,10 @@ class NearestPhotons {
 // appended (bins linear in d², i.e. in the area of a disk, so photons on a surface fill them
 // about evenly), the bin holding the k-th candidate is found from the counts, the bins below
 // it are compacted to the front in one branch-free pass and only that one bin (a few
-// entries) is ordered with nth_element. Bins are monotonic in d², so the result is exactly
-// the k first in (distance², index) order: the same set on every run, ties at the k-th
-// distance keeping the lower index.
+// entries) is ordered with nth_element. Bins are monotonic in d², so the result is k nearest
+// photons, the same set on every run. Ties at the k-th distance keep the lower index unless the
+// buffer filled (below): after that a later candidate at the lowered bound is refused, so on
+// duplicate positions a hinted and an unhinted query may pick different (equally near) photons.
 //
 // The buffer holds Capacity(k) entries: when it is full, the k nearest so far are kept and
 // their k-th distance² becomes the bound (exact: a photon at ≥ that bound cannot be among the
@@ -339,9 +340,11 @@ enum class BucketSplit {
 
 struct BucketKdOptions {
   // Photons per bucket at most, in [1, 64]. 32: four 8-wide SIMD steps per bucket. Larger
-  // buckets mean fewer inner nodes to descend and cull; measured on 1M real photons
-  // (docs/results/kernel.md §1) the hinted pass (QueryWithHint) is ~1.15–1.4× faster than with
-  // 8, and a plain Query about as fast or faster (0.90–1.01× the time), for k = 10 … 500.
+  // buckets mean fewer inner nodes to descend and cull. photon_map_bench on 1M real photons
+  // (docs/results/kernel.md §1, runs new1-3 against newleaf8, loaded machine): the hinted pass
+  // (QueryWithHint) is faster at k ≥ 50 (k = 50: 2.66 → 1.81–2.47 µs on Cornell), about even
+  // at k = 10; a plain Query is 2–10 % slower at k = 10 and at Cornell's k = 500. The renderer
+  // queries hinted, at k = 50 … 100.
   int leaf_size = 32;
   BucketSplit split = BucketSplit::kMedian;
   // Use the AVX2 bucket kernel where the CPU has it (false: always the SSE one, e.g. to test

@@ -300,18 +300,22 @@ std::vector<MapVariant> AllVariants() {
   fine_grid.grid.photons_per_voxel = 2.0f;  // many voxels: long seed fills
   PhotonMapOptions coarse_grid;
   coarse_grid.grid.photons_per_voxel = 400.0f;
-  return {{"KdLevelCycle", PhotonMapKind::kKdTree, {}},
-          {"KdWidest", PhotonMapKind::kKdTree, widest},
-          {"KdPlaneCulling", PhotonMapKind::kKdTree, plane_culling},
-          {"Grid", PhotonMapKind::kGrid, {}},
-          {"GridFine", PhotonMapKind::kGrid, fine_grid},
-          {"GridCoarse", PhotonMapKind::kGrid, coarse_grid},
-          {"BucketMedian", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMedian, 8, true)},
-          {"BucketMidpoint", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 8, true)},
-          {"BucketMidpointSse", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 8, false)},
-          {"BucketMedianLeaf13Sse", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMedian, 13, false)},
-          {"BucketMidpointLeaf1", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 1, true)},
-          {"BucketMidpointLeaf64", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 64, true)}};
+  return {
+      {"KdLevelCycle", PhotonMapKind::kKdTree, {}},
+      {"KdWidest", PhotonMapKind::kKdTree, widest},
+      {"KdPlaneCulling", PhotonMapKind::kKdTree, plane_culling},
+      {"Grid", PhotonMapKind::kGrid, {}},
+      {"GridFine", PhotonMapKind::kGrid, fine_grid},
+      {"GridCoarse", PhotonMapKind::kGrid, coarse_grid},
+      {"BucketMedian", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMedian, 8, true)},
+      {"BucketMidpoint", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 8, true)},
+      {"BucketMidpointSse", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 8, false)},
+      {"BucketMedianLeaf13Sse", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMedian, 13, false)},
+      {"BucketMidpointLeaf1", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 1, true)},
+      {"BucketMidpointLeaf64", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 64, true)},
+      // The shipped default bucket size (BucketKdOptions), on both SIMD kernels.
+      {"BucketMedianLeaf32", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMedian, 32, true)},
+      {"BucketMidpointLeaf32Sse", PhotonMapKind::kBucketKdTree, Bucket(BucketSplit::kMidpoint, 32, false)}};
 }
 
 Photon MakeTestPhoton(const Vec3& p, Rng& rng) {
@@ -522,7 +526,7 @@ void ExpectHintedMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, f
 }
 
 // The hinted pass at its edges (the bucket tree answers it without a heap, from a flat buffer
-// of the ball's photons, NearestPhotons::FinishBall): a ball holding exactly k photons (used),
+// of the ball's photons, BallCollector::Finish): a ball holding exactly k photons (used),
 // k − 1 (not used: the full query runs), every photon of the map (the buffer fills and is
 // compacted many times), exactly the buffer's capacity and one more, and a max_radius below
 // the hint (the hint is ignored).
@@ -701,13 +705,32 @@ TEST_P(PhotonMapContractTest, TinyMaps) {
     map->Query({0, 0, 0}, 10, inf, heap);
     EXPECT_EQ(heap.size(), 0u);
     EXPECT_EQ(map->size(), 0u);
+    map->QueryWithHint({0, 0, 0}, 10, inf, 0.5f, heap);
+    EXPECT_EQ(heap.size(), 0u);
   }
-  // N = 1 .. 40, N < k and N ≥ k, including every small tree shape.
+  // N = 1 .. 40, N < k and N ≥ k, including every small tree shape; hinted queries (a ball
+  // holding fewer than k, about k, or all photons) give the same distances as plain ones.
+  NearestPhotons hinted;
+  auto sorted_distances = [](NearestPhotons& h) {
+    std::vector<float> d;
+    for (const auto& e : h.entries()) d.push_back(e.distance2);
+    std::sort(d.begin(), d.end());
+    return d;
+  };
   for (std::size_t n = 1; n <= 40; ++n) {
     const auto photons = MakePhotons(Layout::kUniform, n, 1000 + n);
     const auto map = Build(photons);
     for (const Vec3& x : MakeQueries(map->photons(), 12, n)) {
-      for (int k : {1, 3, 7, 50}) ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, inf, heap));
+      for (int k : {1, 3, 7, 50}) {
+        ASSERT_NO_FATAL_FAILURE(ExpectMatchesBruteForce(*map, x, k, inf, heap));
+        map->Query(x, k, inf, heap);
+        for (float hint : {0.05f, 0.3f, 10.0f}) {
+          map->QueryWithHint(x, k, inf, hint, hinted);
+          ASSERT_EQ(sorted_distances(hinted), sorted_distances(heap))
+              << "n " << n << " k " << k << " hint " << hint;
+          ASSERT_EQ(hinted.MaxDistanceSquared(), heap.MaxDistanceSquared());
+        }
+      }
     }
   }
   // One photon, repeated: every distance ties.
@@ -724,6 +747,12 @@ TEST_P(PhotonMapContractTest, DegenerateQueries) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   map->Query({nan, 0, 0}, 10, 1.0f, heap);
   EXPECT_EQ(heap.size(), 0u);
+  map->QueryWithHint({nan, 0, 0}, 10, 1.0f, 0.1f, heap);
+  EXPECT_EQ(heap.size(), 0u);
+  map->QueryWithHint({0.5f, 0.5f, 0.5f}, 10, 1.0f, std::numeric_limits<float>::infinity(), heap);
+  EXPECT_EQ(heap.size(), 10u);
+  map->QueryWithHint({0.5f, 0.5f, 0.5f}, 10, 1.0f, nan, heap);
+  EXPECT_EQ(heap.size(), 10u);
   map->Query({0.5f, 0.5f, 0.5f}, 0, 1.0f, heap);
   EXPECT_EQ(heap.size(), 0u);
   map->Query({0.5f, 0.5f, 0.5f}, 10, 0.0f, heap);
@@ -760,14 +789,20 @@ TEST_P(PhotonMapContractTest, LifecycleAndErrors) {
 TEST_P(PhotonMapContractTest, ConcurrentQueriesAgreeWithSequential) {
   const auto map = Build(MakePhotons(Layout::kClustered, 20000, 21));
   const auto queries = MakeQueries(map->photons(), 400, 22);
+  // Plain and hinted queries (the hinted pass keeps its ball buffer in the per-thread
+  // NearestPhotons: no state may leak between threads or queries).
   auto run = [&](std::size_t begin, std::size_t step, std::vector<float>& out) {
     NearestPhotons heap;  // one per thread
     for (std::size_t i = begin; i < queries.size(); i += step) {
       map->Query(queries[i], 30, 0.2f, heap);
-      out[i] = heap.MaxDistanceSquared() + float(heap.size());
+      out[2 * i] = heap.MaxDistanceSquared() + float(heap.size());
+      map->QueryWithHint(queries[i], 30, 0.2f, 0.03f + 0.0001f * float(i), heap);
+      float sum = 0.0f;
+      for (const auto& e : heap.entries()) sum += e.distance2;
+      out[2 * i + 1] = sum + float(heap.size());
     }
   };
-  std::vector<float> sequential(queries.size()), parallel(queries.size());
+  std::vector<float> sequential(2 * queries.size()), parallel(2 * queries.size());
   run(0, 1, sequential);
   std::vector<std::thread> threads;
   for (std::size_t t = 0; t < 4; ++t) threads.emplace_back(run, t, 4, std::ref(parallel));

@@ -108,7 +108,6 @@ TEST(Convert, EverySettingRoundTrips) {
   pm.set_adaptive_k_min(10);
   pm.set_kd_split(v1::KD_SPLIT_CYCLE);
   pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
-  pm.set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
   pm.set_irradiance_cache_error(0.25);
   pm.set_importance(v1::IMPORTANCE_MODE_AUTO);
   pm.set_importance_min_probability(0.125);
@@ -124,7 +123,7 @@ TEST(Convert, EverySettingRoundTrips) {
   EXPECT_EQ(core.local_pass_rays, 4);
   EXPECT_EQ(core.irradiance_cache_error, 0.25f);
   EXPECT_TRUE(core.occlusion_test);
-  EXPECT_FALSE(core.site_occlusion_test);
+  EXPECT_TRUE(core.site_occlusion_test);  // OFF contradicts occlusion_test: its own test below
   EXPECT_EQ(core.importance, ImportanceMode::kAuto);
   EXPECT_EQ(core.importance_min_probability, 0.125f);
   EXPECT_EQ(core.importance_strength, 2.5f);
@@ -137,6 +136,24 @@ TEST(Convert, EverySettingRoundTrips) {
   v1::RenderSettings path;
   path.set_integrator(v1::INTEGRATOR_PATH);
   EXPECT_EQ(SettingsFromProto(path, "s").integrator, IntegratorKind::kPath);
+}
+
+TEST(Convert, SiteOcclusionTestOffRoundTrips) {
+  v1::RenderSettings s = GoodSettings();
+  v1::PhotonMapSettings& pm = *s.mutable_photon_map();
+  pm.set_local_pass_rays(8);
+  pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
+  pm.set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
+  const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
+  EXPECT_FALSE(core.site_occlusion_test);
+  v1::RenderSettings back;
+  SettingsToProto(core, &back);
+  EXPECT_EQ(back.photon_map().site_occlusion_test(), v1::SITE_OCCLUSION_TEST_OFF);
+  EXPECT_FALSE(SettingsFromProto(back, "x").site_occlusion_test);
+  // ON is the default and is written as such (unset): older readers see the same setting.
+  pm.clear_site_occlusion_test();
+  SettingsToProto(SettingsFromProto(s, "spec.settings"), &back);
+  EXPECT_EQ(back.photon_map().site_occlusion_test(), v1::SITE_OCCLUSION_TEST_UNSPECIFIED);
 }
 
 TEST(Convert, BadSettingsNameTheirField) {
@@ -179,6 +196,20 @@ TEST(Convert, BadSettingsNameTheirField) {
                 p.set_site_occlusion_test(static_cast<v1::SiteOcclusionTest>(7));
               }),
               StartsWith(f + "site_occlusion_test: unknown value"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) {
+                p.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
+                p.set_local_pass_rays(0);
+                p.set_irradiance_cache_error(0.0);
+                p.set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
+              }),
+              StartsWith(f + "site_occlusion_test: OFF applies to the local pass's precomputed sites"));
+  EXPECT_THAT(with([](v1::PhotonMapSettings& p) {
+                p.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
+                p.set_local_pass_rays(8);
+                p.set_occlusion_test(true);
+                p.set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
+              }),
+              StartsWith(f + "site_occlusion_test: OFF contradicts occlusion_test = true"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_adaptive_k_min(51); }),
               StartsWith(f + "adaptive_k_min:"));
   EXPECT_THAT(with([](v1::PhotonMapSettings& p) { p.set_direct(static_cast<v1::DirectLight>(99)); }),
