@@ -193,8 +193,13 @@ Bsdf::Bsdf(const Material& material, const Vec3& ns, const Vec3& ng)
 
 Bsdf::Bsdf(const Material& material, const BsdfLobes& lobes, const Vec3& ns, const Vec3& ng)
     : material_(&material), lobes_(lobes) {
-  valid_ = IsUsableVector(ng);
-  ng_ = valid_ ? Normalize(ng) : Vec3(0, 0, 1);
+  // IsUsableVector(ng) spelled out, to reuse its squared length: a unit ng (EmbreeScene's face
+  // normals, whenever their squared length rounds to exactly 1) has Length 1 and v / 1 == v, so
+  // Normalize would return it bit for bit. The square root and the three divisions were a
+  // measurable part of every photon bounce (§2.2; docs/results/kernel.md §4).
+  const float ng_length2 = LengthSquared(ng);
+  valid_ = IsFinite(ng) && ng_length2 > 1e-20f;
+  ng_ = !valid_ ? Vec3(0, 0, 1) : ng_length2 == 1.0f ? ng : Normalize(ng);
   ns_ = ng_;
   // Flat triangles pass ns == ng: normalising the same vector again would give ng_ bit for bit
   // (and pass both tests below), so skip it (every hit of a scene without vertex normals).

@@ -198,6 +198,21 @@ constexpr bool LaneHasY(uint32_t lane) {
   return lane < kEager2D || (lane >= kEagerLanes && lane < kLazy2D);
 }
 
+// The photon streams' lanes (PhotonStream, sample_layout.h's photon slots): the slots every photon
+// of a closed scene asks — light stratum (0), point (1), direction (2) and the lobe and direction
+// slots of bounces 0 and 1 (3–6) — and bounce 2's lobe (7), which fills the second 4-lane group.
+// The 2-D slots come first (lanes [0, kPhotonEager2D)). Later bounces (a minority of photons)
+// take the per-request path with the stream's precomputed seeds. Wald 1999, §2.2: the emission
+// and the first bounces are where every photon spends its random numbers.
+inline constexpr uint32_t kPhotonEagerLanes = 8, kPhotonEager2D = 4;
+inline constexpr std::array<uint32_t, kPhotonEagerLanes> kPhotonSlotOfLane = {1, 2, 4, 6, 0, 3, 5, 7};
+constexpr std::array<uint32_t, kPhotonEagerLanes> MakePhotonLaneOfSlot() {
+  std::array<uint32_t, kPhotonEagerLanes> lane{};
+  for (uint32_t k = 0; k < kPhotonEagerLanes; ++k) lane[kPhotonSlotOfLane[k]] = k;
+  return lane;
+}
+inline constexpr std::array<uint32_t, kPhotonEagerLanes> kPhotonLaneOfSlot = MakePhotonLaneOfSlot();
+
 // Point2D of every precomputed slot at once, as floats: exactly the values Point2D gives (a 1-D
 // slot's number is the x coordinate, exactly Point1D). One pass over independent slots instead
 // of one dependent chain of three hashes and three bit reversals per request: the hashes and
@@ -278,6 +293,7 @@ class PhotonStream {
   SamplerKind kind_;
   uint64_t map_seed_, key_;
   std::array<sobol::SlotSeeds2, sobol::kPixelSeedSlots> seeds_{};
+  sobol::SlotSeedLanes lanes_;  // the seeds of the photon lanes [0, kPhotonEagerLanes)
 };
 
 class Sampler {
@@ -306,10 +322,22 @@ class Sampler {
                    uint32_t(photon), HashKey(map_seed, photon, kPhotonTag));
   }
   // The same sampler (the same values) from the map's precomputed state; `stream` must outlive it.
+  // The Sobol kind computes the photon lanes (sobol::kPhotonSlotOfLane) in one vector pass, as
+  // ForPixelSample does for a sample's eager slots: one pass over 8 independent slots instead of
+  // a dependent chain of hashes and bit reversals per request (docs/results/kernel.md §4).
   static Sampler ForPhoton(const PhotonStream& stream, uint64_t photon) {
+    // The fallback stream's key, HashKey(map seed, photon, "photon"), is hashed on the stream's
+    // first use (rng()): a photon whose numbers all come from the budget's slots never needs it.
     Sampler s(photon >> 32 ? SamplerKind::kIndependent : stream.kind_, stream.key_, uint32_t(photon),
-              HashKey(stream.map_seed_, photon, kPhotonTag));
+              stream.map_seed_);
+    s.rng_key_photon_ = photon;
+    s.rng_key_pending_ = true;
     s.seeds_ = stream.seeds_.data();
+    if (s.kind_ == SamplerKind::kSobol) {
+      s.photon_lanes_ = true;
+      sobol::PointsOfSlots<0, sobol::kPhotonEagerLanes, sobol::kPhotonEager2D>(
+          s.reversed_index_, stream.lanes_, s.slot_u_.data(), s.slot_v_.data());
+    }
     return s;
   }
 
@@ -318,6 +346,7 @@ class Sampler {
   float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
     if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
       if (subs == 1) {
+        if (photon_lanes_ && slot < sobol::kPhotonEagerLanes) return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
         if (lanes_ && slot < sobol::kPixelSeedSlots) return slot_u_[Lane(slot)];
         return sobol::ToFloat(sobol::Point1D(reversed_index_, SeedsOf1(slot)));
       }
@@ -330,6 +359,11 @@ class Sampler {
   Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
     if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
       if (subs == 1) {
+        if (photon_lanes_ && slot < sobol::kPhotonEagerLanes &&
+            sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
+          const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
+          return {slot_u_[lane], slot_v_[lane]};
+        }
         if (lanes_ && slot < sobol::kPixelSeedSlots && sobol::LaneHasY(sobol::kLaneOfSlot[slot])) {
           const uint32_t lane = Lane(slot);
           return {slot_u_[lane], slot_v_[lane]};
@@ -347,6 +381,7 @@ class Sampler {
   // first use: a Sobol sample whose slots are all within the budget never pays for it.
   Rng& rng() {
     if (!rng_ready_) {
+      if (rng_key_pending_) rng_key_ = HashKey(rng_key_, rng_key_photon_, kPhotonTag);
       rng_ = Rng::ForKey(rng_key_);
       rng_ready_ = true;
     }
@@ -420,13 +455,18 @@ class Sampler {
 
   SamplerKind kind_;
   bool rng_ready_ = false;
+  // ForPhoton(PhotonStream): rng_key_ holds the map seed until rng() hashes the key from it.
+  bool rng_key_pending_ = false;
   uint32_t index_, reversed_index_;
   uint64_t key_, rng_key_;
+  uint64_t rng_key_photon_ = 0;
   const sobol::SlotSeeds2* seeds_ = nullptr;  // a PixelStream's seeds of the first kPixelSeedSlots slots
   // Set for a pixel sample of the Sobol kind: slot_u_/slot_v_ hold the points of the lanes
   // [0, kEagerLanes) and, once computed, of the lazy groups (by sobol::kLaneOfSlot).
   const sobol::SlotSeedLanes* lanes_ = nullptr;
   bool lazy_lanes_ready_ = false;
+  // Set for a photon of the Sobol kind: slot_u_/slot_v_ hold the photon lanes (sobol::kPhotonSlotOfLane).
+  bool photon_lanes_ = false;
   std::array<float, sobol::kPixelSlotLanes> slot_u_, slot_v_;
   std::array<SubBatch, kBatches> batches_;
   Rng rng_;
@@ -437,6 +477,14 @@ class Sampler {
 inline PhotonStream::PhotonStream(SamplerKind kind, uint64_t map_seed)
     : kind_(kind), map_seed_(map_seed), key_(HashKey(map_seed, Sampler::kPhotonTag)) {
   for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots; ++slot) seeds_[slot] = sobol::Seeds2Of(key_, slot);
+  for (uint32_t lane = 0; lane < sobol::kPhotonEagerLanes; ++lane) {
+    const sobol::SlotSeeds2& t = seeds_[sobol::kPhotonSlotOfLane[lane]];
+    lanes_.shuffle[lane] = t.shuffle;
+    lanes_.x[lane] = t.x;
+    lanes_.shift_x[lane] = t.shift_x;
+    lanes_.y[lane] = t.y;
+    lanes_.shift_y[lane] = t.shift_y;
+  }
 }
 
 }  // namespace pf
