@@ -74,11 +74,9 @@ void AppendPhoton(TracedPhotons& list, const Vec3& position, const Vec3& directi
   std::memcpy(reinterpret_cast<unsigned char*>(&p) + offsetof(TracedPhoton, light), &tail, sizeof tail);
 }
 
-// Cosine-weighted direction around n.
+// Cosine-weighted direction around n (the emitter's cosine lobe, §2.2), azimuth by SinCos2Pi.
 Vec3 SampleCosineHemisphere(const Vec3& n, float u1, float u2) {
-  const float r = std::sqrt(u1), phi = kTwoPi * u2;
-  const float z = std::sqrt(std::max(0.0f, 1.0f - u1));
-  return Frame(n).ToWorld(Vec3(r * std::cos(phi), r * std::sin(phi), z));
+  return Frame(n).ToWorld(CosineHemisphereFast(u1, u2));
 }
 
 // What every photon of one trace shares, computed once per TracePhotons call rather than at
