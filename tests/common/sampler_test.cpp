@@ -386,6 +386,30 @@ TEST(SobolSampler, PhotonLanesGiveTheScalarPointsForManyPhotons) {
   }
 }
 
+#if defined(__SSSE3__) && defined(__SSE4_1__)
+// The 4-lane hash and bit reversal of PointsOfSlots against the scalar ones, bit for bit, on
+// 400k random words and seeds plus the edge words (0, all ones, single bits).
+TEST(SobolSampler, VectorHashAndBitReversalEqualTheScalarOnes) {
+  Rng rng(99, 1);
+  std::vector<uint32_t> words = {0u, 0xffffffffu, 0x80000000u, 1u, 0x0f0f0f0fu, 0x12345678u};
+  for (int i = 0; i < 400000; ++i) words.push_back(rng.NextU32());
+  for (size_t i = 0; i + 4 <= words.size(); i += 4) {
+    alignas(16) uint32_t in[4], seeds[4], reversed[4], hashed[4];
+    for (int l = 0; l < 4; ++l) {
+      in[l] = words[i + l];
+      seeds[l] = words[(i + l * 7 + 1) % words.size()];
+    }
+    _mm_store_si128(reinterpret_cast<__m128i*>(reversed), sobol::ReverseBits4(sobol::Load4(in)));
+    _mm_store_si128(reinterpret_cast<__m128i*>(hashed),
+                    sobol::NestedHash4(sobol::Load4(in), sobol::Load4(seeds)));
+    for (int l = 0; l < 4; ++l) {
+      ASSERT_EQ(reversed[l], sobol::ReverseBits(in[l])) << in[l];
+      ASSERT_EQ(hashed[l], sobol::NestedHash(in[l], seeds[l])) << in[l] << " " << seeds[l];
+    }
+  }
+}
+#endif
+
 TEST(SobolSampler, PascalProductFromTheReversedIndexEqualsTheDirectOne) {
   // Point2D reads dimension 1 from the bit-reversed index (kPascalOfReversed): the same points.
   for (uint32_t i : {0u, 1u, 2u, 3u, 255u, 256u, 12345u, 0x80000000u, 0xdeadbeefu, 0xffffffffu}) {
