@@ -151,6 +151,38 @@ constexpr Rgb operator*(float s, const Rgb& c) {
   return c * s;
 }
 
+// sin(2πu) and cos(2πu) for u in [0, 1], without a libm call: the azimuth of the photon walk's
+// cosine lobes (Wald 1999, §2.2), one per photon ray, where libm's sincosf was ~4 % of a trace
+// (docs/results/kernel.md §4). u·4 = q + x with q an integer (u·4 is exact, and so is x = u·4 − q)
+// and |x| <= ½ (+ rounding of the + ½), so 2πu = q·π/2 + θ with θ = x·π/2 in [−π/4, π/4], where
+// the Taylor polynomials of sin to θ⁹ and of cos to θ⁸ leave < 3e-8 (half an ulp of 1); the
+// quadrant q mod 4 swaps and negates them. Plain float operations: the same bits on every run.
+// Within 2.5e-7 of sin and cos (test SinCos2Pi.MatchesDoublePrecision).
+inline void SinCos2Pi(float u, float* sin_out, float* cos_out) {
+  const float a = u * 4.0f;
+  const float q = float(int(a + 0.5f));
+  const float x = a - q, x2 = x * x;
+  const float sp =
+      x *
+      (1.5707963f + x2 * (-0.64596410f + x2 * (0.079692626f + x2 * (-0.0046817541f + x2 * 0.00016044118f))));
+  const float cp =
+      1.0f + x2 * (-1.2337006f + x2 * (0.25366951f + x2 * (-0.020863481f + x2 * 0.00091926027f)));
+  const int quadrant = int(q) & 3;
+  const float s0 = (quadrant & 1) ? cp : sp, c0 = (quadrant & 1) ? sp : cp;
+  *sin_out = (quadrant & 2) ? -s0 : s0;
+  *cos_out = (quadrant == 1 || quadrant == 2) ? -c0 : c0;
+}
+
+// Cosine-weighted direction about +z (local frame) for the particle walks (photons, importons:
+// Bsdf::Mode::kRussianRoulette, and the photons' emission), with SinCos2Pi's azimuth: the same
+// distribution as r·(cos 2πu2, sin 2πu2), r = √u1, z = √(1 − u1), to within SinCos2Pi's 2.5e-7.
+inline Vec3 CosineHemisphereFast(float u1, float u2) {
+  const float r = std::sqrt(u1);
+  float s, c;
+  SinCos2Pi(u2, &s, &c);
+  return {r * c, r * s, std::sqrt(std::max(0.0f, 1.0f - u1))};
+}
+
 // Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
 struct Frame {
   Vec3 s, t, n;

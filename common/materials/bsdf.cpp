@@ -193,8 +193,13 @@ Bsdf::Bsdf(const Material& material, const Vec3& ns, const Vec3& ng)
 
 Bsdf::Bsdf(const Material& material, const BsdfLobes& lobes, const Vec3& ns, const Vec3& ng)
     : material_(&material), lobes_(lobes) {
-  valid_ = IsUsableVector(ng);
-  ng_ = valid_ ? Normalize(ng) : Vec3(0, 0, 1);
+  // IsUsableVector(ng) spelled out, to reuse its squared length: a unit ng (EmbreeScene's face
+  // normals, whenever their squared length rounds to exactly 1) has Length 1 and v / 1 == v, so
+  // Normalize would return it bit for bit. The square root and the three divisions were a
+  // measurable part of every photon bounce (§2.2; docs/results/kernel.md §4).
+  const float ng_length2 = LengthSquared(ng);
+  valid_ = IsFinite(ng) && ng_length2 > 1e-20f;
+  ng_ = !valid_ ? Vec3(0, 0, 1) : ng_length2 == 1.0f ? ng : Normalize(ng);
   ns_ = ng_;
   // Flat triangles pass ns == ng: normalising the same vector again would give ng_ bit for bit
   // (and pass both tests below), so skip it (every hit of a scene without vertex normals).
@@ -263,13 +268,15 @@ void Bsdf::SelectionProbabilities(Mode mode, uint32_t lobes, float probs[kNumSlo
   }
 }
 
-bool Bsdf::LobeNormal(const Vec3& wo, Vec3* n, float* side) const {
+bool Bsdf::LobeNormal(const Vec3& wo, Vec3* n, float* side, bool* shading) const {
   if (!valid_) return false;
   const float cos_g = Dot(wo, ng_);
   if (!(std::abs(cos_g) > 0.0f)) return false;  // in the plane, or NaN
   *side = cos_g > 0.0f ? 1.0f : -1.0f;
   const Vec3 ns = ns_ * *side;
-  *n = Dot(wo, ns) > 0.0f ? ns : ng_ * *side;
+  const bool use_shading = Dot(wo, ns) > 0.0f;
+  *n = use_shading ? ns : ng_ * *side;
+  if (shading) *shading = use_shading;
   return true;
 }
 
@@ -405,8 +412,13 @@ std::optional<BsdfSample> Bsdf::Sample(const Vec3& wo, float u_lobe, float u1, f
                                        uint32_t lobes) const {
   Vec3 n;
   float side;
-  if (!LobeNormal(wo, &n, &side)) return std::nullopt;
+  bool n_is_shading = false;
+  if (!LobeNormal(wo, &n, &side, &n_is_shading)) return std::nullopt;
   if (lobes_.dielectric) return SampleDielectric(wo, n, side, u_lobe, mode, lobes);
+  // The particle walks (photons, importons, §2.2) sample the cosine lobes with the polynomial
+  // azimuth (CosineHemisphereFast); camera paths keep libm's, so rendered camera paths and the
+  // scenes' references stay bit for bit.
+  const bool walk = mode == Mode::kRussianRoulette;
 
   // Lobe selection: walk the cumulative probabilities. In kNormalized a u_lobe beyond the
   // (rounded) sum picks the last lobe; in kRussianRoulette it is absorption.
@@ -434,11 +446,11 @@ std::optional<BsdfSample> Bsdf::Sample(const Vec3& wo, float u_lobe, float u1, f
   const Frame frame(n);
   switch (slot) {
     case kSlotDiffuseR:
-      s.wi = frame.ToWorld(SampleCosineHemisphere(u1, u2));
+      s.wi = frame.ToWorld(walk ? CosineHemisphereFast(u1, u2) : SampleCosineHemisphere(u1, u2));
       s.lobe = kLobeDiffuseReflection;
       break;
     case kSlotDiffuseT: {
-      const Vec3 local = SampleCosineHemisphere(u1, u2);
+      const Vec3 local = walk ? CosineHemisphereFast(u1, u2) : SampleCosineHemisphere(u1, u2);
       s.wi = frame.ToWorld({local.x, local.y, -local.z});
       s.lobe = kLobeDiffuseTransmission;
       break;
@@ -481,6 +493,16 @@ std::optional<BsdfSample> Bsdf::Sample(const Vec3& wo, float u_lobe, float u1, f
 
   if (s.is_delta) {
     s.pdf = p_slot;
+  } else if (walk && n_is_shading && (slot == kSlotDiffuseR || slot == kSlotDiffuseT)) {
+    // Wald 1999, §2.2: a diffuse lobe chosen by Russian roulette scales the power by ρ/P per
+    // channel. f·|cos θi|/pdf with f = ρ/π, pdf = P·cos/π about the lobe axis n, and |cos θi|
+    // against ns = n (n is the shading normal here), is ρ/P analytically: no EvalPdf (whose
+    // rounded quotient differed from ρ/P in the last bits). With n = ng (wo below the shading
+    // hemisphere) |cos θi| is against ns ≠ n, and EvalPdf below gives the full weight.
+    const float cos_n = slot == kSlotDiffuseR ? Dot(s.wi, n) : -Dot(s.wi, n);
+    if (!(cos_n > 0.0f)) return std::nullopt;  // where EvalPdf's pdf is 0
+    s.pdf = p_slot * cos_n * kInvPi;
+    s.weight = (slot == kSlotDiffuseR ? m.diffuse_reflectance : m.diffuse_transmittance) / p_slot;
   } else {
     Rgb f;
     float pdf;

@@ -123,7 +123,8 @@ class Bsdf {
   // The normal that orients the lobes for this wo: the shading normal on wo's side of ng (ng
   // itself if wo is below that shading hemisphere). `side` = sign(wo·ng). False if wo lies in
   // the surface plane or the Bsdf is degenerate.
-  bool LobeNormal(const Vec3& wo, Vec3* n, float* side) const;
+  // `shading` (optional): whether *n is the shading normal (not ng).
+  bool LobeNormal(const Vec3& wo, Vec3* n, float* side, bool* shading = nullptr) const;
   // The LobeFlags bit of a (non-dielectric) slot.
   uint32_t SlotLobe(int slot) const;
   // Selection probabilities of `mode` restricted to `lobes` (see the restricted Sample).

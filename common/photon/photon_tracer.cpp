@@ -4,7 +4,10 @@
 #include <tbb/task_arena.h>
 
 #include <array>
+#include <bit>
 #include <chrono>
+#include <cstddef>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -51,11 +54,29 @@ struct ChunkOutput {
   ImportanceScratch importance_scratch;  // the chunk's importance queries (one thread at a time)
 };
 
-// Cosine-weighted direction around n.
+// Appends a stored photon (§2.2) by writing its fields straight into the array's memory
+// (UninitializedAllocator: emplace_back() leaves it unwritten) instead of copying a temporary
+// built on the stack: the copy's 16-byte loads of the temporary's 12- and 4-byte stores stalled
+// on store forwarding at every stored photon (docs/results/kernel.md §4). The light id, the kind
+// and the 3 padding bytes are one 8-byte store, the padding zero, so that equal arrays are equal
+// byte for byte (the tracer's memcmp test of thread counts).
+static_assert(offsetof(TracedPhoton, kind) == offsetof(TracedPhoton, light) + 4 &&
+              sizeof(TracedPhoton) == offsetof(TracedPhoton, light) + 8 &&
+              std::endian::native == std::endian::little);
+void AppendPhoton(TracedPhotons& list, const Vec3& position, const Vec3& direction, const Rgb& power,
+                  const Vec3& origin, uint32_t light, PhotonKind kind) {
+  TracedPhoton& p = list.emplace_back();
+  p.position = position;
+  p.direction = direction;
+  p.power = power;
+  p.origin = origin;
+  const uint64_t tail = uint64_t(light) | uint64_t(kind) << 32;
+  std::memcpy(reinterpret_cast<unsigned char*>(&p) + offsetof(TracedPhoton, light), &tail, sizeof tail);
+}
+
+// Cosine-weighted direction around n (the emitter's cosine lobe, §2.2), azimuth by SinCos2Pi.
 Vec3 SampleCosineHemisphere(const Vec3& n, float u1, float u2) {
-  const float r = std::sqrt(u1), phi = kTwoPi * u2;
-  const float z = std::sqrt(std::max(0.0f, 1.0f - u1));
-  return Frame(n).ToWorld(Vec3(r * std::cos(phi), r * std::sin(phi), z));
+  return Frame(n).ToWorld(CosineHemisphereFast(u1, u2));
 }
 
 // What every photon of one trace shares, computed once per TracePhotons call rather than at
@@ -221,28 +242,37 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
   Vec3 previous = ls.position;
   Ray ray{OffsetRayOrigin(ls.position, ls.normal, scene.epsilon()), dir};
 
-  // Metropolis splitting (§4.6.2): the chain being walked, if any.
+  // Metropolis splitting (§4.6.2): the chain being walked, if any. Its state is allocated by the
+  // Metropolis walk only: as locals (or in a std::optional, whose storage GCC zeroes) its ~400
+  // bytes were cleared for every photon of a plain walk (docs/results/kernel.md §4).
   const bool metropolis = o.caustic_split > 1 && o.caustic_split_method == CausticSplitMethod::kMetropolis;
-  std::optional<ChainStart> chain;
-  ChainState state;
-  std::optional<Rng> mutations;
-  auto begin_chain = [&](ChainStart start) {
-    chain = std::move(start);
-    state = ChainState();
-    state.direction = chain->direction;
+  struct MetropolisWalk {
+    std::optional<ChainStart> chain;
+    ChainState state;
+    std::optional<Rng> mutations;
+  };
+  const std::unique_ptr<MetropolisWalk> walk = metropolis ? std::make_unique<MetropolisWalk>() : nullptr;
+  MetropolisWalk* const mw = walk.get();
+  const auto in_chain = [mw] { return mw && mw->chain; };
+  auto begin_chain = [mw](ChainStart start) {
+    mw->chain = std::move(start);
+    mw->state = ChainState();
+    mw->state.direction = mw->chain->direction;
   };
   auto end_chain = [&](bool escaped) {
-    if (!chain) return;
+    if (!in_chain()) return;
+    ChainState& state = mw->state;
     if (!state.lobes.empty()) {
       state.escaped = escaped;
       if (state.splittable && state.q > 0.0) {
-        if (!mutations) mutations = Rng::ForKey(HashKey(o.map_seed, map_photon, kMetropolisTag, index));
-        SplitChain(scene, *chain, state, o.caustic_split, ls.light, *mutations, out);
+        if (!mw->mutations)
+          mw->mutations = Rng::ForKey(HashKey(o.map_seed, map_photon, kMetropolisTag, index));
+        SplitChain(scene, *mw->chain, state, o.caustic_split, ls.light, *mw->mutations, out);
       } else {
         StoreWeighted(state.stores, 1.0f, out);
       }
     }
-    chain.reset();
+    mw->chain.reset();
   };
   if (metropolis) {
     ChainStart start;
@@ -282,30 +312,26 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
       }
     }
     if (store) {
-      TracedPhoton p{hit->position, wo, stored_power, previous, ls.light, PhotonKind::kIndirect};
       const bool caustic = bounce > 0 && any_singular_since_diffuse;
-      if (caustic) {
-        p.kind = PhotonKind::kCaustic;
-        if (chain)
-          state.stores.push_back(p);  // weighted when the chain ends
-        else
-          out.caustic.push_back(p);
+      if (caustic && in_chain()) {
+        // Weighted when the chain ends.
+        mw->state.stores.push_back(
+            {hit->position, wo, stored_power, previous, ls.light, PhotonKind::kCaustic});
+      } else if (caustic) {
+        AppendPhoton(out.caustic, hit->position, wo, stored_power, previous, ls.light, PhotonKind::kCaustic);
       } else if (keep_noncaustic) {
         // Brute-force splitting (§4.6.1): kept for one emitted photon of S, at S× the power.
-        if (noncaustic_scale != 1.0f) p.power *= noncaustic_scale;
-        if (bounce == 0) {
-          p.kind = PhotonKind::kDirect;
-          out.direct.push_back(p);
-        } else {
-          out.indirect.push_back(p);
-        }
+        if (noncaustic_scale != 1.0f) stored_power *= noncaustic_scale;
+        AppendPhoton(bounce == 0 ? out.direct : out.indirect, hit->position, wo, stored_power, previous,
+                     ls.light, bounce == 0 ? PhotonKind::kDirect : PhotonKind::kIndirect);
       }
     }
     const PhotonBounceSlots slots = SlotsOfPhotonBounce(bounce);
     const float ul = sampler.Get1D(slots.lobe);
     const Sample2 u = sampler.Get2D(slots.direction);
     const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u.u, u.v, Bsdf::Mode::kRussianRoulette);
-    if (chain) {
+    if (in_chain()) {
+      ChainState& state = mw->state;
       if (s && IsSingular(s->lobe)) {
         // The chain goes on: its characteristic and its probability factor grow.
         state.lobes.push_back(s->lobe);
@@ -320,7 +346,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
     const Rgb arriving = power;
     power *= s->weight;
     if (power.IsBlack() || !power.IsFinite()) {
-      if (chain) state.splittable = false;
+      if (in_chain()) mw->state.splittable = false;
       end_chain(false);
       return;
     }
@@ -344,7 +370,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
     previous = hit->position;
     ray = Ray{scene.SpawnOrigin(*hit, s->wi), s->wi};
   }
-  if (chain) state.splittable = false;  // the bounce cap ended it: stored unsplit
+  if (in_chain()) mw->state.splittable = false;  // the bounce cap ended it: stored unsplit
   end_chain(false);
 }
 

@@ -100,6 +100,11 @@ constexpr uint32_t SlotOfPhotonAcceptance(int bounce) {
   return 3 + 2 * uint32_t(kPhotonBounceBudget) + uint32_t(bounce);
 }
 static_assert(SlotOfPhotonAcceptance(0) > SlotsOfPhotonBounce(kPhotonBounceBudget - 1).direction);
+// The photon lanes (sampler.h, sobol::kPhotonSlotOfLane) hold the 2-D slots in 2-D lanes.
+static_assert(sobol::kPhotonLaneOfSlot[kPhotonPointSlot] < sobol::kPhotonEager2D &&
+              sobol::kPhotonLaneOfSlot[kPhotonDirectionSlot] < sobol::kPhotonEager2D &&
+              sobol::kPhotonLaneOfSlot[SlotsOfPhotonBounce(0).direction] < sobol::kPhotonEager2D &&
+              sobol::kPhotonLaneOfSlot[SlotsOfPhotonBounce(1).direction] < sobol::kPhotonEager2D);
 
 // Importons (importance map, §4.7), in their own streams (ImportonStreamSeed).
 inline constexpr uint32_t kImportonImageSlot = 0;

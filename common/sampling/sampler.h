@@ -30,6 +30,10 @@
 #include <optional>
 #include <string_view>
 
+#if defined(__SSSE3__) && defined(__SSE4_1__)
+#include <immintrin.h>
+#endif
+
 #include "common/core/rng.h"
 
 namespace pf {
@@ -198,6 +202,21 @@ constexpr bool LaneHasY(uint32_t lane) {
   return lane < kEager2D || (lane >= kEagerLanes && lane < kLazy2D);
 }
 
+// The photon streams' lanes (PhotonStream, sample_layout.h's photon slots): the slots every photon
+// of a closed scene asks — light stratum (0), point (1), direction (2) and the lobe and direction
+// slots of bounces 0 and 1 (3–6) — and bounce 2's lobe (7), which fills the second 4-lane group.
+// The 2-D slots come first (lanes [0, kPhotonEager2D)). Later bounces (a minority of photons)
+// take the per-request path with the stream's precomputed seeds. Wald 1999, §2.2: the emission
+// and the first bounces are where every photon spends its random numbers.
+inline constexpr uint32_t kPhotonEagerLanes = 8, kPhotonEager2D = 4;
+inline constexpr std::array<uint32_t, kPhotonEagerLanes> kPhotonSlotOfLane = {1, 2, 4, 6, 0, 3, 5, 7};
+constexpr std::array<uint32_t, kPhotonEagerLanes> MakePhotonLaneOfSlot() {
+  std::array<uint32_t, kPhotonEagerLanes> lane{};
+  for (uint32_t k = 0; k < kPhotonEagerLanes; ++k) lane[kPhotonSlotOfLane[k]] = k;
+  return lane;
+}
+inline constexpr std::array<uint32_t, kPhotonEagerLanes> kPhotonLaneOfSlot = MakePhotonLaneOfSlot();
+
 // Point2D of every precomputed slot at once, as floats: exactly the values Point2D gives (a 1-D
 // slot's number is the x coordinate, exactly Point1D). One pass over independent slots instead
 // of one dependent chain of three hashes and three bit reversals per request: the hashes and
@@ -206,8 +225,61 @@ constexpr bool LaneHasY(uint32_t lane) {
 // integrator never asks (another integrator's, or a path's second vertex after it ended) are
 // computed too.
 // Lanes [First, Last) only (see kSlotOfLane); v only for the 2-D lanes [First, Last2D).
+#if defined(__SSSE3__) && defined(__SSE4_1__)
+// 4-lane forms of NestedHash, ReverseBits and ToFloat (SSE4.1 / SSSE3, in the x86-64-v2
+// baseline): the same bits as the scalar functions. GCC's own vectorisation of the loops below
+// reversed bits with 15 shifts and masks per vector and spilled every step to the stack; here a
+// bit reversal is two nibble lookups and a byte shuffle (pshufb), which took ~40 % off the
+// photon walk's Sobol points (docs/results/kernel.md §4).
+inline __m128i NestedHash4(__m128i v, __m128i seed) {
+  v = _mm_add_epi32(v, seed);
+  v = _mm_xor_si128(v, _mm_mullo_epi32(v, _mm_set1_epi32(int(0x89025cc0u))));
+  v = _mm_xor_si128(v, _mm_mullo_epi32(v, _mm_set1_epi32(int(0x1c9756ceu))));
+  return _mm_mullo_epi32(v, _mm_or_si128(_mm_srli_epi32(seed, 15), _mm_set1_epi32(1)));
+}
+inline __m128i ReverseBits4(__m128i v) {
+  const __m128i nibble = _mm_set1_epi8(0x0f);
+  // A byte's reversal is (its low nibble reversed) << 4 | (its high nibble reversed).
+  const __m128i low_reversed_high =
+      _mm_setr_epi8(0x00, char(0x80), 0x40, char(0xc0), 0x20, char(0xa0), 0x60, char(0xe0), 0x10, char(0x90),
+                    0x50, char(0xd0), 0x30, char(0xb0), 0x70, char(0xf0));
+  const __m128i high_reversed_low =
+      _mm_setr_epi8(0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf);
+  const __m128i low = _mm_and_si128(v, nibble), high = _mm_and_si128(_mm_srli_epi16(v, 4), nibble);
+  const __m128i bytes =
+      _mm_or_si128(_mm_shuffle_epi8(low_reversed_high, low), _mm_shuffle_epi8(high_reversed_low, high));
+  return _mm_shuffle_epi8(bytes, _mm_setr_epi8(3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12));
+}
+inline __m128 ToFloat4(__m128i x) {
+  return _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(x, 8)), _mm_set1_ps(0x1p-24f));
+}
+inline __m128i Load4(const uint32_t* p) {
+  return _mm_load_si128(reinterpret_cast<const __m128i*>(p));
+}
+#endif
+
 template <uint32_t First, uint32_t Last, uint32_t Last2D>
 inline void PointsOfSlots(uint32_t reversed_index, const SlotSeedLanes& s, float* u, float* v) {
+#if defined(__SSSE3__) && defined(__SSE4_1__)
+  // Groups of 4 lanes (First and Last are multiples of 4); the y coordinates of a group's lanes
+  // past Last2D are computed too and never read (LaneHasY).
+  static_assert(First % 4 == 0 && Last % 4 == 0 && Last2D <= Last);
+  const __m128i index = _mm_set1_epi32(int(reversed_index));
+  for (uint32_t k = First; k < Last; k += 4) {
+    const __m128i h = NestedHash4(index, Load4(&s.shuffle[k]));
+    const __m128i x = NestedHash4(ReverseBits4(h), Load4(&s.x[k]));
+    _mm_storeu_ps(u + k, ToFloat4(ReverseBits4(_mm_xor_si128(x, Load4(&s.shift_x[k])))));
+    if (k < Last2D) {
+      alignas(16) uint32_t hs[4], pascal_reversed[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(hs), h);
+      for (int l = 0; l < 4; ++l)
+        pascal_reversed[l] = kPascalOfReversed[0][hs[l] & 255] ^ kPascalOfReversed[1][(hs[l] >> 8) & 255] ^
+                             kPascalOfReversed[2][(hs[l] >> 16) & 255] ^ kPascalOfReversed[3][hs[l] >> 24];
+      const __m128i y = NestedHash4(Load4(pascal_reversed), Load4(&s.y[k]));
+      _mm_storeu_ps(v + k, ToFloat4(ReverseBits4(_mm_xor_si128(y, Load4(&s.shift_y[k])))));
+    }
+  }
+#else
   alignas(16) std::array<uint32_t, kPixelSlotLanes> h, j, pascal_reversed;
   for (uint32_t k = First; k < Last; ++k) {
     h[k] = NestedHash(reversed_index, s.shuffle[k]);
@@ -220,6 +292,7 @@ inline void PointsOfSlots(uint32_t reversed_index, const SlotSeedLanes& s, float
                          kPascalOfReversed[2][(h[k] >> 16) & 255] ^ kPascalOfReversed[3][h[k] >> 24];
   for (uint32_t k = First; k < Last2D; ++k)
     v[k] = ToFloat(ReverseBits(NestedHash(pascal_reversed[k], s.y[k]) ^ s.shift_y[k]));
+#endif
 }
 
 // The points of numbers j = 0 .. subs−1 of sample `index` in one slot (sequence indices
@@ -278,6 +351,7 @@ class PhotonStream {
   SamplerKind kind_;
   uint64_t map_seed_, key_;
   std::array<sobol::SlotSeeds2, sobol::kPixelSeedSlots> seeds_{};
+  sobol::SlotSeedLanes lanes_;  // the seeds of the photon lanes [0, kPhotonEagerLanes)
 };
 
 class Sampler {
@@ -306,18 +380,49 @@ class Sampler {
                    uint32_t(photon), HashKey(map_seed, photon, kPhotonTag));
   }
   // The same sampler (the same values) from the map's precomputed state; `stream` must outlive it.
+  // The Sobol kind computes the photon lanes (sobol::kPhotonSlotOfLane) in one vector pass, as
+  // ForPixelSample does for a sample's eager slots: one pass over 8 independent slots instead of
+  // a dependent chain of hashes and bit reversals per request (docs/results/kernel.md §4).
   static Sampler ForPhoton(const PhotonStream& stream, uint64_t photon) {
+    // The fallback stream's key, HashKey(map seed, photon, "photon"), is hashed on the stream's
+    // first use (rng()): a photon whose numbers all come from the budget's slots never needs it.
     Sampler s(photon >> 32 ? SamplerKind::kIndependent : stream.kind_, stream.key_, uint32_t(photon),
-              HashKey(stream.map_seed_, photon, kPhotonTag));
+              stream.map_seed_);
+    s.rng_key_photon_ = photon;
+    s.rng_key_pending_ = true;
     s.seeds_ = stream.seeds_.data();
+    if (s.kind_ == SamplerKind::kSobol) {
+      s.photon_lanes_ = true;
+      sobol::PointsOfSlots<0, sobol::kPhotonEagerLanes, sobol::kPhotonEager2D>(
+          s.reversed_index_, stream.lanes_, s.slot_u_.data(), s.slot_v_.data());
+    }
     return s;
   }
 
   // Number j of `subs` in slot `slot` (see the header comment), uniform in [0, 1).
   // The independent kind and the fallback slots take the first branch's test only.
+  // A photon lane (photon_lanes_ implies the Sobol kind; subs == 1 implies j == 0) is read
+  // inline; everything else takes the out-of-line general path, which GCC does not inline (the
+  // photon walk called it for each of its numbers, docs/results/kernel.md §4).
   float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+    if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes)
+      return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
+    return Get1DGeneral(slot, j, subs);
+  }
+  Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+    if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes &&
+        sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
+      const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
+      return {slot_u_[lane], slot_v_[lane]};
+    }
+    return Get2DGeneral(slot, j, subs);
+  }
+
+ private:
+  float Get1DGeneral(uint32_t slot, uint32_t j, uint32_t subs) {
     if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
       if (subs == 1) {
+        if (photon_lanes_ && slot < sobol::kPhotonEagerLanes) return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
         if (lanes_ && slot < sobol::kPixelSeedSlots) return slot_u_[Lane(slot)];
         return sobol::ToFloat(sobol::Point1D(reversed_index_, SeedsOf1(slot)));
       }
@@ -327,9 +432,14 @@ class Sampler {
     }
     return rng().Uniform();
   }
-  Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+  Sample2 Get2DGeneral(uint32_t slot, uint32_t j, uint32_t subs) {
     if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
       if (subs == 1) {
+        if (photon_lanes_ && slot < sobol::kPhotonEagerLanes &&
+            sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
+          const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
+          return {slot_u_[lane], slot_v_[lane]};
+        }
         if (lanes_ && slot < sobol::kPixelSeedSlots && sobol::LaneHasY(sobol::kLaneOfSlot[slot])) {
           const uint32_t lane = Lane(slot);
           return {slot_u_[lane], slot_v_[lane]};
@@ -343,10 +453,13 @@ class Sampler {
     const float u = rng().Uniform();
     return {u, rng().Uniform()};
   }
+
+ public:
   // The independent stream, for choices outside the layout (e.g. an exact UniformInt). Seeded on
   // first use: a Sobol sample whose slots are all within the budget never pays for it.
   Rng& rng() {
     if (!rng_ready_) {
+      if (rng_key_pending_) rng_key_ = HashKey(rng_key_, rng_key_photon_, kPhotonTag);
       rng_ = Rng::ForKey(rng_key_);
       rng_ready_ = true;
     }
@@ -420,13 +533,18 @@ class Sampler {
 
   SamplerKind kind_;
   bool rng_ready_ = false;
+  // ForPhoton(PhotonStream): rng_key_ holds the map seed until rng() hashes the key from it.
+  bool rng_key_pending_ = false;
   uint32_t index_, reversed_index_;
   uint64_t key_, rng_key_;
+  uint64_t rng_key_photon_ = 0;
   const sobol::SlotSeeds2* seeds_ = nullptr;  // a PixelStream's seeds of the first kPixelSeedSlots slots
   // Set for a pixel sample of the Sobol kind: slot_u_/slot_v_ hold the points of the lanes
   // [0, kEagerLanes) and, once computed, of the lazy groups (by sobol::kLaneOfSlot).
   const sobol::SlotSeedLanes* lanes_ = nullptr;
   bool lazy_lanes_ready_ = false;
+  // Set for a photon of the Sobol kind: slot_u_/slot_v_ hold the photon lanes (sobol::kPhotonSlotOfLane).
+  bool photon_lanes_ = false;
   std::array<float, sobol::kPixelSlotLanes> slot_u_, slot_v_;
   std::array<SubBatch, kBatches> batches_;
   Rng rng_;
@@ -437,6 +555,14 @@ class Sampler {
 inline PhotonStream::PhotonStream(SamplerKind kind, uint64_t map_seed)
     : kind_(kind), map_seed_(map_seed), key_(HashKey(map_seed, Sampler::kPhotonTag)) {
   for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots; ++slot) seeds_[slot] = sobol::Seeds2Of(key_, slot);
+  for (uint32_t lane = 0; lane < sobol::kPhotonEagerLanes; ++lane) {
+    const sobol::SlotSeeds2& t = seeds_[sobol::kPhotonSlotOfLane[lane]];
+    lanes_.shuffle[lane] = t.shuffle;
+    lanes_.x[lane] = t.x;
+    lanes_.shift_x[lane] = t.shift_x;
+    lanes_.y[lane] = t.y;
+    lanes_.shift_y[lane] = t.shift_y;
+  }
 }
 
 }  // namespace pf

@@ -165,6 +165,9 @@ struct ChiCase {
   Material material;
   Vec3 wo;
   Vec3 ns = kUp;
+  // kRussianRoulette (the particle walks' mode, with its own cosine-lobe azimuth): the survivors'
+  // directions have the density RouletteProbability·Pdf; the absorbed join the rejected cell.
+  Bsdf::Mode mode = Bsdf::Mode::kNormalized;
 };
 
 std::vector<ChiCase> ChiCases() {
@@ -208,6 +211,16 @@ std::vector<ChiCase> ChiCases() {
     cases.push_back({"tilted_shading_normal_fallback", m, FromCos(0.35f, 3.0f), tilted});
   }
   cases.push_back({"glossy_back_side", Glossy(0.9f, 0.2f), FromCos(-0.6f, 1.0f)});
+  // The particle walks' sampling of every case with a diffuse lobe (bsdf.cpp: polynomial azimuth,
+  // analytic ρ/P weight).
+  const size_t normalized = cases.size();
+  for (size_t i = 0; i < normalized; ++i) {
+    ChiCase c = cases[i];
+    if (c.material.diffuse_reflectance.IsBlack() && c.material.diffuse_transmittance.IsBlack()) continue;
+    c.name += "_roulette";
+    c.mode = Bsdf::Mode::kRussianRoulette;
+    cases.push_back(c);
+  }
   return cases;
 }
 
@@ -229,7 +242,7 @@ TEST_P(BsdfChiSquareTest, SampleMatchesPdf) {
   Rng rng(0x5eed, NameSeed(c.name));
   for (int i = 0; i < kSamples; ++i) {
     const float ul = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-    const auto s = bsdf.Sample(wo, ul, u1, u2);
+    const auto s = bsdf.Sample(wo, ul, u1, u2, c.mode);
     if (!s) {
       observed[num_bins] += 1;
       continue;
@@ -250,6 +263,8 @@ TEST_P(BsdfChiSquareTest, SampleMatchesPdf) {
   // side) until two successive levels agree; nodes are pulled in from the bin edges by a hair
   // so that θ = π/2 (the discontinuity at the surface plane) is never evaluated.
   const double dt = kPiD / kThetaBins, dp = 2 * kPiD / kPhiBins;
+  const double survival =
+      c.mode == Bsdf::Mode::kRussianRoulette ? double(bsdf.RouletteProbability(wo, kLobeAll)) : 1.0;
   auto simpson = [&](double t0, double t1, double p0, double p1, int sub) {
     const double ht = (t1 - t0) / sub, hp = (p1 - p0) / sub;
     std::vector<double> cp(sub + 1), sp(sub + 1);
@@ -282,8 +297,8 @@ TEST_P(BsdfChiSquareTest, SampleMatchesPdf) {
         coarse = fine;
         fine = simpson(t0, t1, p0, p1, sub);
       }
-      expected[ti * kPhiBins + pi] = fine * kSamples;
-      total += fine;
+      expected[ti * kPhiBins + pi] = fine * survival * kSamples;
+      total += fine * survival;
     }
   }
   expected[num_bins] = std::max(0.0, 1.0 - total) * kSamples;
@@ -507,6 +522,43 @@ TEST(BsdfConsistency, WeightEqualsEvalCosOverPdf) {
     }
   }
   EXPECT_GT(checked, 80000);
+}
+
+// The particle walks' weights and pdfs (kRussianRoulette) agree with Eval and Pdf: weight =
+// f_lobe·|cos θi|/pdf and pdf = P_lobe·pdf_lobe, for the diffuse lobes' analytic ρ/P (lobe axis =
+// shading normal) and for the fallback through EvalPdf (wo below the shading hemisphere, where
+// |cos θi| is taken against ns, not the axis). Relative 1e-4: the analytic ρ/P and the quotient
+// differ only by rounding; a weight of ρ/P where the fallback is due is off by |wi·ns|/|wi·ng|.
+TEST(BsdfConsistency, RouletteWeightEqualsEvalCosOverPdf) {
+  Material dt;
+  dt.diffuse_transmittance = Rgb(0.6f, 0.3f, 0.2f);
+  const Vec3 tilted = Normalize(Vec3(0.6f, 0.1f, 1.0f));
+  const Material cases[] = {Diffuse(0.7f), dt};
+  Rng rng(23, 8);
+  int checked = 0, fallback = 0;
+  for (const Material& m : cases)
+    for (const Vec3& ns : {kUp, tilted}) {
+      const Bsdf bsdf(m, ns, kUp);
+      const float p_lobe = bsdf.RouletteProbability(kUp, kLobeAll);  // one lobe: its mean
+      for (int i = 0; i < 20000; ++i) {
+        const Vec3 wo = UniformSphere(rng);
+        const auto s =
+            bsdf.Sample(wo, rng.Uniform(), rng.Uniform(), rng.Uniform(), Bsdf::Mode::kRussianRoulette);
+        if (!s) continue;
+        const float pdf = p_lobe * bsdf.Pdf(wo, s->wi);
+        const Rgb f = bsdf.Eval(wo, s->wi);
+        ASSERT_GT(pdf, 0.0f);
+        EXPECT_NEAR(s->pdf, pdf, 1e-4f * pdf);
+        for (int ch = 0; ch < 3; ++ch) {
+          const float expected = f[ch] * bsdf.AbsCosTheta(s->wi) / pdf;
+          ASSERT_NEAR(s->weight[ch], expected, 1e-4f * expected);
+        }
+        fallback += Dot(wo, ns) * Dot(wo, kUp) < 0.0f;
+        ++checked;
+      }
+    }
+  EXPECT_GT(checked, 40000);
+  EXPECT_GT(fallback, 1000);  // the EvalPdf fallback was exercised
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -363,6 +363,53 @@ TEST(SobolSampler, PrecomputedPhotonStreamGivesExactlyTheSameValues) {
     }
 }
 
+TEST(SobolSampler, PhotonLanesGiveTheScalarPointsForManyPhotons) {
+  // The photon lanes (sobol::kPhotonSlotOfLane: slots 0-7 of every photon in one vector pass) must
+  // give exactly Point1D / Point2D of the scalar path for every photon, whatever the order of the
+  // requests: 4096 photon numbers spread over [0, 2^32) and three map seeds. A lane holding
+  // another slot's seeds, a 2-D slot in a lane without y, or a wrong bit reversal changes values.
+  Rng pick(7, 11);
+  for (uint64_t map_seed : {3ull, 77ull, 0x123456789abcdefull}) {
+    const PhotonStream stream(SamplerKind::kSobol, map_seed);
+    for (int n = 0; n < 4096; ++n) {
+      const uint64_t photon = n < 64 ? uint64_t(n) : pick.NextU32();
+      Sampler a = Sampler::ForPhoton(SamplerKind::kSobol, map_seed, photon);
+      Sampler b = Sampler::ForPhoton(stream, photon);
+      for (uint32_t k = 0; k < sobol::kPhotonEagerLanes; ++k) {
+        const uint32_t slot = (n % 2 == 0) ? k : sobol::kPhotonEagerLanes - 1 - k;  // both orders
+        ASSERT_EQ(a.Get1D(slot), b.Get1D(slot)) << photon << " " << slot;
+        const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
+        ASSERT_EQ(qa.u, qb.u) << photon << " " << slot;
+        ASSERT_EQ(qa.v, qb.v) << photon << " " << slot;
+      }
+    }
+  }
+}
+
+#if defined(__SSSE3__) && defined(__SSE4_1__)
+// The 4-lane hash and bit reversal of PointsOfSlots against the scalar ones, bit for bit, on
+// 400k random words and seeds plus the edge words (0, all ones, single bits).
+TEST(SobolSampler, VectorHashAndBitReversalEqualTheScalarOnes) {
+  Rng rng(99, 1);
+  std::vector<uint32_t> words = {0u, 0xffffffffu, 0x80000000u, 1u, 0x0f0f0f0fu, 0x12345678u};
+  for (int i = 0; i < 400000; ++i) words.push_back(rng.NextU32());
+  for (size_t i = 0; i + 4 <= words.size(); i += 4) {
+    alignas(16) uint32_t in[4], seeds[4], reversed[4], hashed[4];
+    for (int l = 0; l < 4; ++l) {
+      in[l] = words[i + l];
+      seeds[l] = words[(i + l * 7 + 1) % words.size()];
+    }
+    _mm_store_si128(reinterpret_cast<__m128i*>(reversed), sobol::ReverseBits4(sobol::Load4(in)));
+    _mm_store_si128(reinterpret_cast<__m128i*>(hashed),
+                    sobol::NestedHash4(sobol::Load4(in), sobol::Load4(seeds)));
+    for (int l = 0; l < 4; ++l) {
+      ASSERT_EQ(reversed[l], sobol::ReverseBits(in[l])) << in[l];
+      ASSERT_EQ(hashed[l], sobol::NestedHash(in[l], seeds[l])) << in[l] << " " << seeds[l];
+    }
+  }
+}
+#endif
+
 TEST(SobolSampler, PascalProductFromTheReversedIndexEqualsTheDirectOne) {
   // Point2D reads dimension 1 from the bit-reversed index (kPascalOfReversed): the same points.
   for (uint32_t i : {0u, 1u, 2u, 3u, 255u, 256u, 12345u, 0x80000000u, 0xdeadbeefu, 0xffffffffu}) {
