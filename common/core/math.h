@@ -151,16 +151,19 @@ constexpr Rgb operator*(float s, const Rgb& c) {
   return c * s;
 }
 
-// sin(2πu) and cos(2πu) for u in [0, 1], without a libm call: the azimuth of the photon walk's
-// cosine lobes (Wald 1999, §2.2), one per photon ray, where libm's sincosf was ~4 % of a trace
-// (docs/results/kernel.md §4). u·4 = q + x with q an integer (u·4 is exact, and so is x = u·4 − q)
-// and |x| <= ½ (+ rounding of the + ½), so 2πu = q·π/2 + θ with θ = x·π/2 in [−π/4, π/4], where
-// the Taylor polynomials of sin to θ⁹ and of cos to θ⁸ leave < 3e-8 (half an ulp of 1); the
-// quadrant q mod 4 swaps and negates them. Plain float operations: the same bits on every run.
+// sin(2πu) and cos(2πu) for u in [0, 1] (the samplers' range; outside it the reduction below is
+// not exact), without a libm call: the azimuth of the photon walk's cosine lobes (Wald 1999,
+// §2.2), one per photon ray (libm's sincosf there and EvalPdf in the roulette weight were 4 % of
+// a trace's instructions together: docs/results/kernel.md §4). u·4 = q + x with q an integer (u·4 is exact,
+// and so is x = u·4 − q) and |x| <= ½ (+ rounding of the + ½), so 2πu = q·π/2 + θ with θ = x·π/2 in [−π/4,
+// π/4], where the Taylor polynomials of sin to θ⁹ and of cos to θ⁸ leave < 3e-8 (half an ulp of 1); the
+// quadrant q mod 4 swaps and negates them. Plain float operations: the same bits on every run
+// of one binary (a build that lets the compiler contract to FMA, e.g. PF_NATIVE, may round
+// differently, as for all float code: a farm runs one build).
 // Within 2.5e-7 of sin and cos (test SinCos2Pi.MatchesDoublePrecision).
 inline void SinCos2Pi(float u, float* sin_out, float* cos_out) {
   const float a = u * 4.0f;
-  const float q = float(int(a + 0.5f));
+  const float q = std::floor(a + 0.5f);  // = int(a + ½) on [0, 1]; no int overflow elsewhere
   const float x = a - q, x2 = x * x;
   const float sp =
       x *

@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cstddef>
 #include <cstring>
+#include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -47,8 +49,13 @@ constexpr uint64_t kMetropolisTag = 0x6d636d63ull;  // "mcmc": Metropolis mutati
 constexpr uint32_t kSingularLobes =
     kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
 
+struct MetropolisWalk;  // below, with the chains it walks
+
 struct ChunkOutput {
   TracedPhotons direct, indirect, caustic;
+  // Metropolis splitting's per-photon state (§4.6.2), allocated at the chunk's first Metropolis
+  // photon and reset for each one after it: no allocation per photon.
+  std::unique_ptr<MetropolisWalk> metropolis_walk;
   uint64_t rays = 0, rejected = 0;
   uint64_t chains = 0, mutations = 0, accepted = 0;
   ImportanceScratch importance_scratch;  // the chunk's importance queries (one thread at a time)
@@ -58,8 +65,8 @@ struct ChunkOutput {
 // (UninitializedAllocator: emplace_back() leaves it unwritten) instead of copying a temporary
 // built on the stack: the copy's 16-byte loads of the temporary's 12- and 4-byte stores stalled
 // on store forwarding at every stored photon (docs/results/kernel.md §4). The light id, the kind
-// and the 3 padding bytes are one 8-byte store, the padding zero, so that equal arrays are equal
-// byte for byte (the tracer's memcmp test of thread counts).
+// and the 3 bytes of TracedPhoton::pad are one 8-byte store, the pad zero as in every other
+// TracedPhoton, so that equal arrays are equal byte for byte (the tracer's memcmp test).
 static_assert(offsetof(TracedPhoton, kind) == offsetof(TracedPhoton, light) + 4 &&
               sizeof(TracedPhoton) == offsetof(TracedPhoton, light) + 8 &&
               std::endian::native == std::endian::little);
@@ -118,6 +125,13 @@ struct ChainState {
 };
 
 // The start's density (up to its constant) for direction w: 0 where the walk could not go.
+// The chain a Metropolis photon walk is in, if any (§4.6.2; ChunkOutput::metropolis_walk).
+struct MetropolisWalk {
+  std::optional<ChainStart> chain;
+  ChainState state;
+  std::optional<Rng> mutations;
+};
+
 double StartDensity(const ChainStart& c, const Vec3& w) {
   if (!(Dot(w, c.side) > 0.0f)) return 0.0;
   return std::max(0.0, double(Dot(w, c.axis)));
@@ -246,13 +260,14 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
   // Metropolis walk only: as locals (or in a std::optional, whose storage GCC zeroes) its ~400
   // bytes were cleared for every photon of a plain walk (docs/results/kernel.md §4).
   const bool metropolis = o.caustic_split > 1 && o.caustic_split_method == CausticSplitMethod::kMetropolis;
-  struct MetropolisWalk {
-    std::optional<ChainStart> chain;
-    ChainState state;
-    std::optional<Rng> mutations;
-  };
-  const std::unique_ptr<MetropolisWalk> walk = metropolis ? std::make_unique<MetropolisWalk>() : nullptr;
-  MetropolisWalk* const mw = walk.get();
+  MetropolisWalk* mw = nullptr;
+  if (metropolis) {
+    if (!out.metropolis_walk) out.metropolis_walk = std::make_unique<MetropolisWalk>();
+    mw = out.metropolis_walk.get();
+    mw->chain.reset();  // a fresh walk: begin_chain resets the state, the mutations are set with it
+    mw->mutations.reset();
+    mw->state = ChainState();
+  }
   const auto in_chain = [mw] { return mw && mw->chain; };
   auto begin_chain = [mw](ChainStart start) {
     mw->chain = std::move(start);

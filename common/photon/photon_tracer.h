@@ -68,6 +68,9 @@ struct TracedPhoton {
   Vec3 origin;         // previous vertex of the path (occlusion testing, §4.1.1)
   uint32_t light = 0;  // emitting light id (PhotonDirect, §4.2.3)
   PhotonKind kind = PhotonKind::kIndirect;
+  // Explicit, zero-initialised padding: arrays of equal photons are equal byte for byte however
+  // each photon was made (aggregate, copy or AppendPhoton), so tests can compare them with memcmp.
+  uint8_t pad[3] = {};
 };
 
 // An allocator whose value-initialising construct() does nothing, for arrays that are sized

@@ -559,6 +559,34 @@ TEST(BsdfConsistency, RouletteWeightEqualsEvalCosOverPdf) {
     }
   EXPECT_GT(checked, 40000);
   EXPECT_GT(fallback, 1000);  // the EvalPdf fallback was exercised
+
+  // Several lobes (diffuse reflection and transmission beside a glossy one), shading normal
+  // upright and tilted: a diffuse sample's weight is its own lobe's ρ over its own selection
+  // probability, the channel mean of that ρ (§2.2) — not over the total survival probability.
+  Material mixed = Glossy(0.3f, 0.2f);
+  mixed.diffuse_reflectance = Rgb(0.5f, 0.3f, 0.2f);
+  mixed.diffuse_transmittance = Rgb(0.1f, 0.2f, 0.05f);
+  int diffuse_checked = 0;
+  for (const Vec3& ns : {kUp, tilted}) {
+    const Bsdf bsdf(mixed, ns, kUp);
+    for (int i = 0; i < 20000; ++i) {
+      const Vec3 wo = UniformSphere(rng);
+      if (Dot(wo, ns) * Dot(wo, kUp) <= 0.0f) continue;  // the fallback: checked above
+      const auto s =
+          bsdf.Sample(wo, rng.Uniform(), rng.Uniform(), rng.Uniform(), Bsdf::Mode::kRussianRoulette);
+      if (!s) continue;
+      const Rgb* rho = s->lobe == kLobeDiffuseReflection     ? &mixed.diffuse_reflectance
+                       : s->lobe == kLobeDiffuseTransmission ? &mixed.diffuse_transmittance
+                                                             : nullptr;
+      if (rho == nullptr) continue;
+      for (int ch = 0; ch < 3; ++ch) {
+        const float expected = (*rho)[ch] / rho->Mean();
+        ASSERT_NEAR(s->weight[ch], expected, 1e-4f * expected) << "lobe " << s->lobe << " channel " << ch;
+      }
+      ++diffuse_checked;
+    }
+  }
+  EXPECT_GT(diffuse_checked, 8000);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -152,8 +152,9 @@ TEST(Convert, SiteOcclusionTestOffRoundTrips) {
   EXPECT_FALSE(SettingsFromProto(back, "x").site_occlusion_test);
   // ON is the default and is written as such (unset): older readers see the same setting.
   pm.clear_site_occlusion_test();
-  SettingsToProto(SettingsFromProto(s, "spec.settings"), &back);
-  EXPECT_EQ(back.photon_map().site_occlusion_test(), v1::SITE_OCCLUSION_TEST_UNSPECIFIED);
+  v1::RenderSettings on;
+  SettingsToProto(SettingsFromProto(s, "spec.settings"), &on);
+  EXPECT_EQ(on.photon_map().site_occlusion_test(), v1::SITE_OCCLUSION_TEST_UNSPECIFIED);
 }
 
 TEST(Convert, BadSettingsNameTheirField) {
