@@ -383,14 +383,10 @@ std::vector<Vec3> MakeQueries(std::span<const Photon> photons, std::size_t n, ui
   return q;
 }
 
-// Compares one query with brute force: same distance multiset, consistent entries.
-void ExpectMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, float radius, NearestPhotons& heap,
-                             const PhotonFilter* filter = nullptr) {
-  map.Query(x, k, radius, heap, filter);
-  const auto expected = BruteForceNearest(map.photons(), x, k, radius, filter);
-  ASSERT_EQ(heap.size(), expected.size())
-      << "x=" << x.x << "," << x.y << "," << x.z << " k=" << k << " r=" << radius;
-  for (std::size_t j = 1; j < heap.size(); ++j) ASSERT_LE(heap[j].distance2, heap[(j - 1) / 2].distance2);
+// The entries of a finished query against brute force's `expected`: each entry's distance is
+// its photon's, only accepted photons, none twice, and the same distance multiset.
+void ExpectEntriesMatch(const PhotonMap& map, const Vec3& x, NearestPhotons& heap,
+                        const std::vector<NearestPhotons::Entry>& expected, const PhotonFilter* filter) {
   std::vector<uint32_t> seen;
   for (const auto& e : heap.entries()) {
     ASSERT_LT(e.index, map.size());
@@ -405,6 +401,17 @@ void ExpectMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, float r
   heap.Sort();
   for (std::size_t j = 0; j < expected.size(); ++j)
     ASSERT_EQ(heap[j].distance2, expected[j].distance2) << "rank " << j;
+}
+
+// Compares one query with brute force: same distance multiset, consistent entries.
+void ExpectMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, float radius, NearestPhotons& heap,
+                             const PhotonFilter* filter = nullptr) {
+  map.Query(x, k, radius, heap, filter);
+  const auto expected = BruteForceNearest(map.photons(), x, k, radius, filter);
+  ASSERT_EQ(heap.size(), expected.size())
+      << "x=" << x.x << "," << x.y << "," << x.z << " k=" << k << " r=" << radius;
+  for (std::size_t j = 1; j < heap.size(); ++j) ASSERT_LE(heap[j].distance2, heap[(j - 1) / 2].distance2);
+  ASSERT_NO_FATAL_FAILURE(ExpectEntriesMatch(map, x, heap, expected, filter));
 }
 
 class PhotonMapContractTest : public ::testing::TestWithParam<MapVariant> {
@@ -510,19 +517,7 @@ void ExpectHintedMatchesBruteForce(const PhotonMap& map, const Vec3& x, int k, f
   if (!heap.empty()) {
     ASSERT_EQ(heap.MaxDistanceSquared(), expected.back().distance2);
   }
-  std::vector<uint32_t> seen;
-  for (const auto& e : heap.entries()) {
-    ASSERT_EQ(e.distance2, DistanceSquared(map.photon(e.index), x));
-    if (filter != nullptr) {
-      ASSERT_TRUE(filter->Accept(map.photon(e.index), e.index));
-    }
-    seen.push_back(e.index);
-  }
-  std::sort(seen.begin(), seen.end());
-  ASSERT_EQ(std::adjacent_find(seen.begin(), seen.end()), seen.end()) << "photon found twice";
-  heap.Sort();
-  for (std::size_t j = 0; j < expected.size(); ++j)
-    ASSERT_EQ(heap[j].distance2, expected[j].distance2) << "rank " << j;
+  ASSERT_NO_FATAL_FAILURE(ExpectEntriesMatch(map, x, heap, expected, filter));
 }
 
 // The hinted pass at its edges (the bucket tree answers it without a heap, from a flat buffer
