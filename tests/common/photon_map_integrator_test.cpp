@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <string>
 
 #include "common/core/error.h"
 #include "common/render/camera.h"
@@ -18,18 +19,34 @@
 namespace pf {
 namespace {
 
+// A shipped scene (scenes/<name>/<name>.json) on Embree with its light sampler, seen by its
+// manifest camera at size × size pixels: the set-up every test below starts from.
+struct ShippedScene {
+  ShippedScene(const std::string& name, int size)
+      : scene(LoadScene(std::filesystem::path(PF_SOURCE_DIR) / "scenes" / name / (name + ".json"))),
+        accel(scene),
+        lights(accel),
+        camera(SquareCamera(scene, size)) {}
+  static CameraSpec SquareCamera(const SceneDescription& s, int size) {
+    CameraSpec spec = s.cameras.front();
+    spec.width = spec.height = size;
+    return spec;
+  }
+  SceneDescription scene;
+  EmbreeScene accel;
+  LightSampler lights;
+  Camera camera;
+};
+
 // The hint finds the same photons, so the image equals the unhinted one up to the summation
 // order of the same powers (relative 1e-5; a hint that lost or added a photon changes a pixel
 // by ~1/k = 3 %), on both map structures and with the caustic map's bounded queries. The hint
 // lives per pixel, so 1 and 2 threads still give the same bits.
 TEST(PixelRadiusHint, SamePhotonsAsWithoutAndDeterministic) {
-  const SceneDescription scene =
-      LoadScene(std::filesystem::path(PF_SOURCE_DIR) / "scenes/cornell-sphere/cornell-sphere.json");
-  const EmbreeScene accel(scene);
-  const LightSampler lights(accel);
-  CameraSpec spec = scene.cameras.front();
-  spec.width = spec.height = 32;
-  const Camera camera(spec);
+  const ShippedScene shipped("cornell-sphere", 32);
+  const EmbreeScene& accel = shipped.accel;
+  const LightSampler& lights = shipped.lights;
+  const Camera& camera = shipped.camera;
   for (PhotonMapKind kind : {PhotonMapKind::kKdTree, PhotonMapKind::kBucketKdTree}) {
     PhotonMapIntegratorOptions io;
     io.global.k = 30;
@@ -65,13 +82,10 @@ TEST(PixelRadiusHint, SamePhotonsAsWithoutAndDeterministic) {
 // Carlo direct light and no local pass nothing does, so it is dropped, and the image is the one
 // rendered with it present, bit for bit. PhotonDirect and the local pass still get it.
 TEST(DirectMap, BuiltOnlyWhenReadAndTheImageIsTheSameWithout) {
-  const SceneDescription scene =
-      LoadScene(std::filesystem::path(PF_SOURCE_DIR) / "scenes/cornell-box/cornell-box.json");
-  const EmbreeScene accel(scene);
-  const LightSampler lights(accel);
-  CameraSpec spec = scene.cameras.front();
-  spec.width = spec.height = 24;
-  const Camera camera(spec);
+  const ShippedScene shipped("cornell-box", 24);
+  const EmbreeScene& accel = shipped.accel;
+  const LightSampler& lights = shipped.lights;
+  const Camera& camera = shipped.camera;
   PhotonMapIntegratorOptions io;
   io.global.k = 30;
   io.direct = DirectLightMode::kMonteCarlo;
@@ -118,13 +132,10 @@ TEST(DirectMap, BuiltOnlyWhenReadAndTheImageIsTheSameWithout) {
 // pixels), so --hier-part indirect refuses the local pass (job_spec.cpp, task_executor.cpp);
 // LocalPassUnmappedPartNeedsNoMap below keeps what does hold there.
 TEST(RadianceParts, MappedPlusUnmappedIsTheWholeRadiance) {
-  const SceneDescription scene =
-      LoadScene(std::filesystem::path(PF_SOURCE_DIR) / "scenes/cornell-sphere/cornell-sphere.json");
-  const EmbreeScene accel(scene);
-  const LightSampler lights(accel);
-  CameraSpec spec = scene.cameras.front();
-  spec.width = spec.height = 32;
-  const Camera camera(spec);
+  const ShippedScene shipped("cornell-sphere", 32);
+  const EmbreeScene& accel = shipped.accel;
+  const LightSampler& lights = shipped.lights;
+  const Camera& camera = shipped.camera;
   PhotonMapIntegratorOptions io;
   io.global.k = 30;
   io.caustic = DefaultCausticOptions(30, accel.bounds());
@@ -166,13 +177,10 @@ TEST(RadianceParts, MappedPlusUnmappedIsTheWholeRadiance) {
 // mapped part's gathers; the emission + direct light part reads none of it and renders the same
 // bits with empty maps (it threw before: the integrator asked for a direct map it never reads).
 TEST(RadianceParts, LocalPassUnmappedPartNeedsNoMap) {
-  const SceneDescription scene =
-      LoadScene(std::filesystem::path(PF_SOURCE_DIR) / "scenes/cornell-sphere/cornell-sphere.json");
-  const EmbreeScene accel(scene);
-  const LightSampler lights(accel);
-  CameraSpec spec = scene.cameras.front();
-  spec.width = spec.height = 16;
-  const Camera camera(spec);
+  const ShippedScene shipped("cornell-sphere", 16);
+  const EmbreeScene& accel = shipped.accel;
+  const LightSampler& lights = shipped.lights;
+  const Camera& camera = shipped.camera;
   for (const float cache : {0.0f, 0.3f}) {
     PhotonMapIntegratorOptions io;
     io.global.k = 30;

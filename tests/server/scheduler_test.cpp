@@ -662,6 +662,15 @@ PlanSpec SmallHierarchy() {
                   .localize_contrast = 0};
 }
 
+// SmallHierarchy on the photon-map part only (--hier-part indirect), with 2 samples per pixel
+// for the emission + direct light tasks.
+PlanSpec SmallIndirectHierarchy() {
+  PlanSpec plan = SmallHierarchy();
+  plan.hierarchy_part = HierarchyPart::kIndirect;
+  plan.direct_samples = 2;
+  return plan;
+}
+
 // The hierarchical plan through the scheduler (its own task source): localization tasks appear
 // after the levels complete, the job ends after them, and a snapshot shows the assembled image.
 TEST(SchedulerTaskSource, HierarchicalJobCreatesLocalizationTasksFromItsResults) {
@@ -800,9 +809,7 @@ TEST(SchedulerEta, TailTilesCountTheirPixels) {
 TEST(SchedulerTaskSource, AResultOfAnotherRadiancePartIsRejected) {
   FakeClock clock;
   Scheduler scheduler(clock, SchedulerOptions{});
-  PlanSpec plan = SmallHierarchy();
-  plan.hierarchy_part = HierarchyPart::kIndirect;
-  plan.direct_samples = 2;
+  const PlanSpec plan = SmallIndirectHierarchy();
   std::unique_ptr<Job> job = scheduler.PrepareJob(testing::MakeConfig(plan, 12, 10));
   const std::string id = job->id();
   scheduler.AddJob(std::move(job));
@@ -829,9 +836,7 @@ TEST(SchedulerTaskSource, AResultOfAnotherRadiancePartIsRejected) {
 TEST(SchedulerTaskSource, TimeBudgetKeepsTheEmissionAndDirectLightTasks) {
   FakeClock clock;
   Scheduler scheduler(clock, SchedulerOptions{});
-  PlanSpec plan = SmallHierarchy();
-  plan.hierarchy_part = HierarchyPart::kIndirect;
-  plan.direct_samples = 2;
+  const PlanSpec plan = SmallIndirectHierarchy();
   std::unique_ptr<Job> job =
       scheduler.PrepareJob(testing::MakeConfig(plan, 12, 10, 0, StopRule{.time_budget_seconds = 5}));
   const std::string id = job->id();
