@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "bench/bench_stats.h"
+#include "bench/raw_rays.h"
 #include "common/accel/embree_scene.h"
 #include "common/core/rng.h"
 #include "common/render/camera.h"
@@ -66,15 +67,14 @@ SceneResult BenchScene(const std::string& name, const std::string& path, int res
   for (int y = 0; y < res; ++y)
     for (int x = 0; x < res; ++x)
       camera_rays.push_back(camera.GenerateRay(x, y, rng.Uniform(), rng.Uniform()));
+  // The incoherent secondary rays (bench/raw_rays.h, which photon_tracing_bench measures too).
+  {
+    Rng secondary_rng(42, 2);
+    secondary = bench::IncoherentSecondaryRays(accel, camera, res, secondary_rng);
+  }
   for (const Ray& cr : camera_rays) {
     const auto hit = accel.Intersect(cr);
     if (!hit) continue;
-    Vec3 n = hit->geometric_normal;
-    if (Dot(n, cr.direction) > 0) n = -n;
-    const float u1 = rng.Uniform(), u2 = rng.Uniform();
-    const float rr = std::sqrt(u1), phi = kTwoPi * u2;
-    const Vec3 d = Frame(n).ToWorld(Vec3(rr * std::cos(phi), rr * std::sin(phi), std::sqrt(1 - u1)));
-    secondary.push_back(Ray{accel.SpawnOrigin(*hit, d), d});
     if (!lights.empty()) {
       const LightSample ls = lights.Sample(rng.Uniform(), rng.Uniform(), rng.Uniform());
       const Vec3 o = accel.SpawnOrigin(*hit, ls.position - hit->position);
@@ -89,7 +89,10 @@ SceneResult BenchScene(const std::string& name, const std::string& path, int res
     for (int i = 0; i < repeats; ++i)
       t.push_back(Time([&] {
         size_t hits = 0;
-        for (const Ray& ray : rays) hits += occl ? accel.Occluded(ray) : accel.Intersect(ray).has_value();
+        if (occl)
+          for (const Ray& ray : rays) hits += accel.Occluded(ray);
+        else
+          hits = bench::IntersectAll(accel, rays);
         sink = sink + hits;
       }));
     return rays.size() / Median(t);

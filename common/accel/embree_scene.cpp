@@ -106,24 +106,51 @@ EmbreeScene::EmbreeScene(const SceneDescription& scene)
 
 EmbreeScene::~EmbreeScene() = default;
 
+namespace {
+
+void SetRay(const Ray& ray, RTCRayHit* rh) {
+  rh->ray.org_x = ray.origin.x;
+  rh->ray.org_y = ray.origin.y;
+  rh->ray.org_z = ray.origin.z;
+  rh->ray.dir_x = ray.direction.x;
+  rh->ray.dir_y = ray.direction.y;
+  rh->ray.dir_z = ray.direction.z;
+  rh->ray.tnear = 0.0f;
+  rh->ray.tfar = ray.t_max;
+  rh->ray.time = 0.0f;
+  rh->ray.mask = 0xffffffffu;
+  rh->ray.id = 0;
+  rh->ray.flags = 0;
+  rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+}
+
+}  // namespace
+
+bool EmbreeScene::InterpolatedNormal(uint32_t triangle, float u, float v, const Vec3& ng, Vec3* n) const {
+  const SceneDescription& s = *scene_;
+  if (s.normals.empty()) return false;
+  const auto& tri = s.triangles[triangle];
+  const Vec3& n0 = s.normals[tri[0]];
+  const Vec3& n1 = s.normals[tri[1]];
+  const Vec3& n2 = s.normals[tri[2]];
+  const Vec3 zero(0.0f);
+  if (n0 == zero || n1 == zero || n2 == zero) return false;
+  const float w = 1.0f - u - v;
+  const Vec3 sum = n0 * w + n1 * u + n2 * v;
+  const float len = Length(sum);
+  if (!(len > 1e-12f && std::isfinite(len))) return false;
+  const Vec3 unit = sum / len;
+  // Shading normals live in the front face's hemisphere.
+  *n = Dot(unit, ng) >= 0 ? unit : -unit;
+  return true;
+}
+
 std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh;
-  rh.ray.org_x = ray.origin.x;
-  rh.ray.org_y = ray.origin.y;
-  rh.ray.org_z = ray.origin.z;
-  rh.ray.dir_x = ray.direction.x;
-  rh.ray.dir_y = ray.direction.y;
-  rh.ray.dir_z = ray.direction.z;
-  rh.ray.tnear = 0.0f;
-  rh.ray.tfar = ray.t_max;
-  rh.ray.time = 0.0f;
-  rh.ray.mask = 0xffffffffu;
-  rh.ray.id = 0;
-  rh.ray.flags = 0;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  SetRay(ray, &rh);
   rtcIntersect1(embree_->scene, &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
 
@@ -132,30 +159,37 @@ std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
   hit.t = rh.ray.tfar;
   hit.triangle = rh.hit.primID;
   const auto& tri = s.triangles[hit.triangle];
-  const float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
   // On the triangle's plane to ½ ulp, which the ray offsets rely on (ray.h).
-  hit.position = InterpolateOnTriangle(s.positions[tri[0]], s.positions[tri[1]], s.positions[tri[2]], u, v);
+  hit.position = InterpolateOnTriangle(s.positions[tri[0]], s.positions[tri[1]], s.positions[tri[2]],
+                                       rh.hit.u, rh.hit.v);
   hit.geometric_normal = face_normals_[hit.triangle];
   hit.front_face = Dot(ray.direction, hit.geometric_normal) < 0.0f;
-  hit.shading_normal = hit.geometric_normal;
-  if (!s.normals.empty()) {
-    const Vec3& n0 = s.normals[tri[0]];
-    const Vec3& n1 = s.normals[tri[1]];
-    const Vec3& n2 = s.normals[tri[2]];
-    const Vec3 zero(0.0f);
-    if (!(n0 == zero) && !(n1 == zero) && !(n2 == zero)) {
-      Vec3 n = n0 * w + n1 * u + n2 * v;
-      const float len = Length(n);
-      if (len > 1e-12f && std::isfinite(len)) {
-        n = n / len;
-        // Shading normals live in the front face's hemisphere.
-        hit.shading_normal = Dot(n, hit.geometric_normal) >= 0 ? n : -n;
-      }
-    }
-  }
+  if (s.normals.empty() ||
+      !InterpolatedNormal(hit.triangle, rh.hit.u, rh.hit.v, hit.geometric_normal, &hit.shading_normal))
+    hit.shading_normal = hit.geometric_normal;
   hit.material = s.triangle_material[hit.triangle];
   hit.light = s.triangle_light.empty() ? kNoLight : s.triangle_light[hit.triangle];
   return hit;
+}
+
+bool EmbreeScene::IntersectWalk(const Ray& ray, WalkHit* hit) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit rh;
+  SetRay(ray, &rh);
+  rtcIntersect1(embree_->scene, &context, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  const SceneDescription& s = *scene_;
+  const uint32_t triangle = rh.hit.primID;
+  const auto& tri = s.triangles[triangle];
+  hit->position = InterpolateOnTriangle(s.positions[tri[0]], s.positions[tri[1]], s.positions[tri[2]],
+                                        rh.hit.u, rh.hit.v);
+  hit->geometric_normal = face_normals_[triangle];
+  hit->interpolated = !s.normals.empty() && InterpolatedNormal(triangle, rh.hit.u, rh.hit.v,
+                                                               hit->geometric_normal, &hit->shading_normal);
+  if (!hit->interpolated) hit->shading_normal = hit->geometric_normal;
+  hit->material = s.triangle_material[triangle];
+  return true;
 }
 
 bool EmbreeScene::Occluded(const Ray& ray) const {

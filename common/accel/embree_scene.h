@@ -21,6 +21,9 @@ class EmbreeScene {
 
   // Closest hit along the ray in (0, t_max], or nullopt.
   std::optional<SurfaceHit> Intersect(const Ray& ray) const;
+  // The same closest hit for a particle walk: false for a miss, else *hit holds Intersect's
+  // position, normals and material (WalkHit). The photon tracer's rays take this one.
+  bool IntersectWalk(const Ray& ray, WalkHit* hit) const;
   // True if anything blocks the ray in (0, t_max).
   bool Occluded(const Ray& ray) const;
   // Visibility between two surface points, each offset along its normal towards the other.
@@ -40,6 +43,9 @@ class EmbreeScene {
 
  private:
   struct EmbreeHandles;
+  // The triangle's vertex normals at barycentrics (u, v), on ng's side; false (and *n untouched)
+  // when the scene has none, one is zero, or the interpolation is degenerate.
+  bool InterpolatedNormal(uint32_t triangle, float u, float v, const Vec3& ng, Vec3* n) const;
   const SceneDescription* scene_;
   std::unique_ptr<EmbreeHandles> embree_;
   std::vector<Vec3> face_normals_;

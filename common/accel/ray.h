@@ -8,6 +8,10 @@
 #include <limits>
 #include <numbers>
 
+#if defined(__SSE4_1__)
+#include <immintrin.h>
+#endif
+
 #include "common/core/math.h"
 
 namespace pf {
@@ -28,6 +32,17 @@ struct SurfaceHit {
   uint32_t material = 0;
   uint32_t light = 0xffffffffu;  // kNoLight unless the triangle emits
   bool front_face = true;        // the ray arrived on the front side
+};
+
+// What a particle walk (the photon walk of Wald 1999, §2.2) reads of a hit: SurfaceHit's fields
+// of the same names, with the same values, and none of the rest (t, triangle, front face, light),
+// which EmbreeScene::IntersectWalk does not look up (docs/results/kernel.md §4).
+struct WalkHit {
+  Vec3 position;
+  Vec3 geometric_normal;
+  Vec3 shading_normal;
+  uint32_t material = 0;
+  bool interpolated = false;  // shading_normal came from vertex normals (else it is ng, bit for bit)
 };
 
 // The next float above / below a finite v, by its bits (std::nextafter is a libm call; this is
@@ -86,7 +101,7 @@ inline float RayOffset(const Vec3& p, float scene_epsilon) {
 
 // Moves a surface point off its surface along `normal` (unit, pointing to the side the next
 // ray leaves from) by RayOffset, rounding each moved coordinate away from p.
-inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsilon) {
+inline Vec3 OffsetRayOriginScalar(const Vec3& p, const Vec3& normal, float scene_epsilon) {
   const Vec3 offset = normal * RayOffset(p, normal, scene_epsilon);
   Vec3 q = p + offset;
   for (int i = 0; i < 3; ++i) {
@@ -95,6 +110,38 @@ inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsil
   }
   return q;
 }
+#if defined(__SSE4_1__)
+// The same bits as OffsetRayOriginScalar (test HardCasesRayOffset.VectorOffsetEqualsTheScalarOne),
+// without its six data-dependent branches per ray: which coordinates move up or down depends on
+// the normal's signs, which a photon walk or a path changes at every bounce, so they were
+// mispredicted at every spawned ray (docs/results/kernel.md §4). The steps of NextFloatUp/Down
+// on all three coordinates at once: −0 → +0 (up) or +0 → −0 (down), then ±1 on the bits.
+inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsilon) {
+  const float step = RayOffset(p, normal, scene_epsilon);
+  const __m128 offset = _mm_mul_ps(_mm_setr_ps(normal.x, normal.y, normal.z, 0.0f), _mm_set1_ps(step));
+  const __m128 q = _mm_add_ps(_mm_setr_ps(p.x, p.y, p.z, 0.0f), offset);
+  const __m128 zero = _mm_setzero_ps();
+  const __m128i bits = _mm_castps_si128(q), sign = _mm_set1_epi32(int(0x80000000u)), one = _mm_set1_epi32(1);
+  // Up: b (−0 as +0) + 1 where q >= 0, − 1 elsewhere: b − 2·mask − 1 with mask = −1 or 0.
+  const __m128i up_base = _mm_andnot_si128(_mm_cmpeq_epi32(bits, sign), bits);
+  const __m128i ge = _mm_castps_si128(_mm_cmpge_ps(q, zero));
+  const __m128i up = _mm_sub_epi32(_mm_sub_epi32(up_base, _mm_add_epi32(ge, ge)), one);
+  // Down: b (+0 as −0) − 1 where q > 0, + 1 elsewhere: b + 2·mask + 1.
+  const __m128i down_base =
+      _mm_or_si128(bits, _mm_and_si128(_mm_cmpeq_epi32(bits, _mm_setzero_si128()), sign));
+  const __m128i gt = _mm_castps_si128(_mm_cmpgt_ps(q, zero));
+  const __m128i down = _mm_add_epi32(_mm_add_epi32(down_base, _mm_add_epi32(gt, gt)), one);
+  __m128i r = _mm_blendv_epi8(bits, down, _mm_castps_si128(_mm_cmplt_ps(offset, zero)));
+  r = _mm_blendv_epi8(r, up, _mm_castps_si128(_mm_cmpgt_ps(offset, zero)));
+  alignas(16) float out[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(out), r);
+  return {out[0], out[1], out[2]};
+}
+#else
+inline Vec3 OffsetRayOrigin(const Vec3& p, const Vec3& normal, float scene_epsilon) {
+  return OffsetRayOriginScalar(p, normal, scene_epsilon);
+}
+#endif
 
 // p0 + u·(p1 − p0) + v·(p2 − p0) in double, rounded once: a point of the triangle's plane to
 // within ½ ulp per coordinate, whatever the magnitude of the coordinates (see above).

@@ -140,6 +140,66 @@ class Bsdf {
   BsdfLobes lobes_;
 };
 
+// Bsdf::Sample in Mode::kRussianRoulette at a hit on a flat triangle, without building a Bsdf:
+// the photon walk's per-hit roulette (Wald 1999, §2.2) for its two commonest outcomes. Made once
+// per material (Of); At() gives, for a hit whose shading normal is its geometric normal bit for
+// bit:
+//   kAbsorbed — Sample would return nullopt (u_lobe past the roulette's lobes, or wo or the
+//               sampled wi on the wrong side);
+//   kDiffuse  — Sample would choose the diffuse reflection lobe, the first of its cdf walk, and
+//               return exactly *wi and `diffuse_weight` (ρd/P: with ns = ng the lobe normal is
+//               the shading normal on wo's side, bsdf.cpp);
+//   kBsdf     — any other case (another lobe, a dielectric, an unusable ng): call Bsdf::Sample.
+// The same floating-point operations as Sample, in the same order, so the photons are the same
+// bit for bit (BsdfWalkRoulette tests); a photon bounce built a Bsdf and walked Sample's general
+// path, a third of a Cornell photon ray outside Embree (docs/results/kernel.md §4).
+struct WalkRoulette {
+  enum class Outcome { kAbsorbed, kDiffuse, kBsdf };
+
+  static WalkRoulette Of(const Material& material, const BsdfLobes& lobes) {
+    WalkRoulette w;
+    w.dielectric = lobes.dielectric;
+    w.has_diffuse = !lobes.dielectric && (lobes.mean[BsdfLobes::kSlotDiffuseR] > 0.0f ||
+                                          lobes.mean[BsdfLobes::kSlotDiffuseT] > 0.0f);
+    w.p_diffuse = lobes.p_roulette[BsdfLobes::kSlotDiffuseR];
+    w.diffuse_weight = material.diffuse_reflectance / w.p_diffuse;
+    // Sample's cdf walk: the positive probabilities summed in slot order; u_lobe below the
+    // running sum picks that slot, past the last sum it is absorption.
+    for (float p : lobes.p_roulette)
+      if (p > 0.0f) w.absorb_from += p;
+    return w;
+  }
+
+  // Whether Bsdf(material, ·, ng).HasDiffuse() holds: the hit stores a photon (§2.2).
+  static bool UsableNormal(const Vec3& ng) { return IsFinite(ng) && LengthSquared(ng) > 1e-20f; }
+  bool Stores(const Vec3& ng) const { return has_diffuse && UsableNormal(ng); }
+
+  // `ng`: the hit's geometric normal as the Bsdf constructor gets it; `flat`: its shading normal
+  // is ng bit for bit.
+  Outcome At(const Vec3& ng, bool flat, const Vec3& wo, float u_lobe, float u1, float u2, Vec3* wi) const {
+    if (dielectric) return Outcome::kBsdf;
+    const float ng2 = LengthSquared(ng);
+    if (!(IsFinite(ng) && ng2 > 1e-20f)) return Outcome::kBsdf;
+    if (!(u_lobe < absorb_from)) return Outcome::kAbsorbed;  // whatever the normals
+    if (!flat || !(u_lobe < p_diffuse)) return Outcome::kBsdf;
+    const Vec3 n_g = ng2 == 1.0f ? ng : Normalize(ng);  // the constructor's ng_
+    const float cos_g = Dot(wo, n_g);
+    if (!(std::abs(cos_g) > 0.0f)) return Outcome::kAbsorbed;  // wo in the surface plane
+    const float side = cos_g > 0.0f ? 1.0f : -1.0f;
+    const Vec3 n = n_g * side;  // ns_ * side: the shading normal on wo's side
+    *wi = Frame(n).ToWorld(CosineHemisphereFast(u1, u2));
+    if (!(Dot(*wi, n_g) * side > 0.0f) || !(Dot(*wi, n) > 0.0f)) return Outcome::kAbsorbed;
+    if (!diffuse_weight.IsFinite() || !IsFinite(*wi)) return Outcome::kAbsorbed;
+    return Outcome::kDiffuse;
+  }
+
+  bool dielectric = false;
+  bool has_diffuse = false;
+  float p_diffuse = 0.0f;    // the roulette's probability of the diffuse reflection lobe
+  float absorb_from = 0.0f;  // u_lobe >= this: absorbed
+  Rgb diffuse_weight;        // ρd / p_diffuse: Sample's weight for that lobe, the same division
+};
+
 // Fresnel reflectance of a dielectric interface for unpolarised light. cos_i >= 0 is the cosine
 // on the incident side, eta = n_transmitted / n_incident. Returns 1 on total internal reflection.
 float FresnelDielectric(float cos_i, float eta);

@@ -86,17 +86,54 @@ Vec3 SampleCosineHemisphere(const Vec3& n, float u1, float u2) {
   return Frame(n).ToWorld(CosineHemisphereFast(u1, u2));
 }
 
+// Per emitting triangle (LightSampler::EmitterIndex's numbering), what every photon leaving it
+// shares: the vertices its point is sampled between, the emission frame, and Φ of one photon —
+// the values LightSampler::Sample and Emit compute per photon, computed here once.
+struct Emitter {
+  Vec3 a, b, c;
+  Vec3 normal;
+  Frame frame;
+  Rgb power;
+  uint32_t light = 0;
+};
+
 // What every photon of one trace shares, computed once per TracePhotons call rather than at
 // every photon or hit: the sampler's per-slot seeds of the map (sampler.h, PhotonStream) and
 // each material's lobe selection means (§2.2, bsdf.h, BsdfLobes). Both give exactly the values
 // the per-photon / per-hit computation gave, so the maps are unchanged bit for bit.
+//
+// The plain walk (no Metropolis chain) also takes from it each material's WalkRoulette (bsdf.h):
+// a flat hit's roulette without building a Bsdf.
 struct TraceShared {
-  TraceShared(const SceneDescription& desc, const PhotonTracerOptions& o) : stream(o.sampler, o.map_seed) {
+  TraceShared(const SceneDescription& desc, const LightSampler& lights, const PhotonTracerOptions& o)
+      : stream(o.sampler, o.map_seed),
+        emitted(o.caustic_split > 1 && o.caustic_split_method == CausticSplitMethod::kBrute
+                    ? o.photons * o.caustic_split
+                    : o.photons) {
+    emitters.reserve(lights.num_emitting_triangles());
+    for (size_t i = 0; i < lights.num_emitting_triangles(); ++i) {
+      const LightSample ls = lights.EmitterSample(i, 0.0f, 0.0f);
+      const auto& t = desc.triangles[ls.triangle];
+      Emitter e;
+      e.a = desc.positions[t[0]];
+      e.b = desc.positions[t[1]];
+      e.c = desc.positions[t[2]];
+      e.normal = ls.normal;
+      e.frame = Frame(ls.normal);
+      e.power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));  // as Emit
+      e.light = ls.light;
+      emitters.push_back(e);
+    }
     lobes.reserve(desc.materials.size());
-    for (const Material& m : desc.materials) lobes.push_back(BsdfLobes::Of(m));
+    walk.reserve(desc.materials.size());
+    for (const Material& m : desc.materials)
+      walk.push_back(WalkRoulette::Of(m, lobes.emplace_back(BsdfLobes::Of(m))));
   }
   PhotonStream stream;
-  std::vector<BsdfLobes> lobes;  // by material index
+  uint64_t emitted;  // photons emitted by the plain walks of this trace (§4.6.1: N·S when split)
+  std::vector<Emitter> emitters;   // by LightSampler::EmitterIndex
+  std::vector<BsdfLobes> lobes;    // by material index
+  std::vector<WalkRoulette> walk;  // by material index
 };
 
 // Where a singular chain starts (Wald 1999, §4.6.2): the light, or a Lambertian diffuse bounce.
@@ -237,24 +274,155 @@ void SplitChain(const EmbreeScene& scene, const ChainStart& c, ChainState& origi
   StoreWeighted(current.stores, float(weight) * scale, out);
 }
 
+// A photon leaving its light (§2.2): the light and point, Φ, and the first ray.
+struct Emission {
+  LightSample light;
+  Rgb power;
+  Ray ray;
+};
+// Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
+// N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
+float LightChoice(double jitter, uint64_t index, uint64_t emitted) {
+  return std::min(float((double(index) + jitter) / double(emitted)), 0x1.fffffep-1f);
+}
+float LightChoice(const PhotonTracerOptions& o, Sampler& sampler, uint64_t index, uint64_t emitted) {
+  return LightChoice(o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
+                                                      : sampler.rng().UniformDouble(),
+                     index, emitted);
+}
+
+// What TraceRange computes ahead for a photon of a batch: its Sobol lanes (PhotonStream::Lanes)
+// and its emitter (the trace's emitter table, at LightSampler::EmitterIndex of its light choice).
+// (Computing the point and the first ray ahead too was slower: 51–59 % of the raw ray rate
+// against 60–62 % on Cornell, docs/results/kernel.md §4.)
+struct PhotonStart {
+  PhotonLanes lanes;
+  const Emitter* emitter = nullptr;
+};
+
+Emission Emit(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
+              Sampler& sampler, uint64_t index, uint64_t emitted) {
+  const float u_select = LightChoice(o, sampler, index, emitted);
+  const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
+  Emission e;
+  e.light = lights.Sample(u_select, u_point.u, u_point.v);
+  // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
+  e.power = e.light.radiance * (kPi / (e.light.pdf_area * float(emitted)));
+  const Sample2 u_dir = sampler.Get2D(kPhotonDirectionSlot);
+  e.ray = Ray{OffsetRayOrigin(e.light.position, e.light.normal, scene.epsilon()),
+              SampleCosineHemisphere(e.light.normal, u_dir.u, u_dir.v)};
+  return e;
+}
+
+// Importance-driven storing (Wald 1999, §4.7): a storing hit keeps its photon with probability
+// p at power Φ/p (the walk goes on either way). False: this photon is not stored.
+bool AcceptByImportance(const PhotonTracerOptions& o, Sampler& sampler, int bounce, const Vec3& position,
+                        const Vec3& ng, const Vec3& wo, Rgb* stored_power, ChunkOutput& out) {
+  const Vec3 facing = Dot(ng, wo) >= 0.0f ? ng : -ng;
+  const float p = o.importance->AcceptanceProbability(position, facing, out.importance_scratch);
+  if (!(p < 1.0f)) return true;
+  if (!(sampler.Get1D(SlotOfPhotonAcceptance(bounce)) < p)) {
+    ++out.rejected;
+    return false;
+  }
+  *stored_power = *stored_power / p;
+  return true;
+}
+
+// A photon stored outside a Metropolis chain: a caustic one (§2.2: the path since the last
+// diffuse bounce was singular), or a direct or indirect one, kept only by the emitted photon
+// that keeps them under brute-force splitting (§4.6.1), at S× its power.
+void StorePhoton(ChunkOutput& out, int bounce, bool caustic, bool keep_noncaustic, float noncaustic_scale,
+                 const Vec3& position, const Vec3& wo, Rgb power, const Vec3& previous, uint32_t light) {
+  if (caustic) {
+    AppendPhoton(out.caustic, position, wo, power, previous, light, PhotonKind::kCaustic);
+  } else if (keep_noncaustic) {
+    if (noncaustic_scale != 1.0f) power *= noncaustic_scale;
+    AppendPhoton(bounce == 0 ? out.direct : out.indirect, position, wo, power, previous, light,
+                 bounce == 0 ? PhotonKind::kDirect : PhotonKind::kIndirect);
+  }
+}
+
+// The photon random walk of Wald 1999, §2.2, without Metropolis splitting (TraceEmitted below
+// walks that one). Exactly TraceEmitted's photons, cheaper per photon and per hit: the emission
+// from the trace's emitter table, the hit from IntersectWalk, and the roulette of a flat hit from
+// WalkRoulette (bsdf.h) — Bsdf::Sample only for the outcomes it leaves to it (another lobe than
+// diffuse reflection, smooth or dielectric hits). Same numbers in the same order: the same map.
+// `start`: the photon's lanes and emitter computed ahead (TraceRange), or null.
+void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
+                    const TraceShared& shared, uint64_t index, uint64_t emitted, bool keep_noncaustic,
+                    float noncaustic_scale, ChunkOutput& out, const PhotonStart* start = nullptr) {
+  const SceneDescription& desc = scene.description();
+  Sampler sampler = start ? Sampler::ForPhoton(shared.stream, index, start->lanes)
+                          : Sampler::ForPhoton(shared.stream, index);
+  // Emit's photon, from the trace's emitter table: the same numbers in the same order.
+  const Emitter& em =
+      start ? *start->emitter : shared.emitters[lights.EmitterIndex(LightChoice(o, sampler, index, emitted))];
+  const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
+  Vec3 previous = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
+  const Sample2 u_dir = sampler.Get2D(kPhotonDirectionSlot);
+  Ray ray{OffsetRayOrigin(previous, em.normal, scene.epsilon()),
+          em.frame.ToWorld(CosineHemisphereFast(u_dir.u, u_dir.v))};
+  Rgb power = em.power;
+  const uint32_t light = em.light;
+  bool any_singular_since_diffuse = false;
+  WalkHit hit;
+  for (int bounce = 0; bounce < o.max_bounces; ++bounce) {
+    ++out.rays;
+    if (!scene.IntersectWalk(ray, &hit)) return;
+    const WalkRoulette& roulette = shared.walk[hit.material];
+    const Vec3 wo = -ray.direction;
+    if (roulette.Stores(hit.geometric_normal)) {
+      Rgb stored_power = power;
+      if (!o.importance ||
+          AcceptByImportance(o, sampler, bounce, hit.position, hit.geometric_normal, wo, &stored_power, out))
+        StorePhoton(out, bounce, bounce > 0 && any_singular_since_diffuse, keep_noncaustic, noncaustic_scale,
+                    hit.position, wo, stored_power, previous, light);
+    }
+    const PhotonBounceSlots slots = SlotsOfPhotonBounce(bounce);
+    const float ul = sampler.Get1D(slots.lobe);
+    const Sample2 u = sampler.Get2D(slots.direction);
+    Vec3 wi;
+    Rgb weight;
+    uint32_t lobe;
+    const WalkRoulette::Outcome outcome =
+        roulette.At(hit.geometric_normal, !hit.interpolated, wo, ul, u.u, u.v, &wi);
+    if (outcome == WalkRoulette::Outcome::kAbsorbed) return;
+    if (outcome == WalkRoulette::Outcome::kDiffuse) {
+      weight = roulette.diffuse_weight;
+      lobe = kLobeDiffuseReflection;
+    } else {
+      const Bsdf bsdf(desc.materials[hit.material], shared.lobes[hit.material], hit.shading_normal,
+                      hit.geometric_normal);
+      const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u.u, u.v, Bsdf::Mode::kRussianRoulette);
+      if (!s) return;  // absorbed
+      wi = s->wi;
+      weight = s->weight;
+      lobe = s->lobe;
+    }
+    power *= weight;
+    if (power.IsBlack() || !power.IsFinite()) return;
+    // A diffuse bounce resets the caustic test; a singular one makes the next store caustic.
+    any_singular_since_diffuse = IsSingular(lobe);
+    previous = hit.position;
+    const Vec3& n = hit.geometric_normal;
+    ray = Ray{OffsetRayOrigin(hit.position, Dot(wi, n) >= 0 ? n : -n, scene.epsilon()), wi};
+  }
+}
+
+// The walk with Metropolis caustic splitting (§4.6.2): TracePlainWalk's photons, and each
+// singular chain's stores weighted by the chain's Markov walk.
 void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
                   const TraceShared& shared, uint64_t index, uint64_t emitted, bool keep_noncaustic,
                   float noncaustic_scale, uint64_t map_photon, ChunkOutput& out) {
   const SceneDescription& desc = scene.description();
   Sampler sampler = Sampler::ForPhoton(shared.stream, index);
-  // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
-  // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
-  const double jitter = o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
-                                                         : sampler.rng().UniformDouble();
-  const float u_select = float((double(index) + jitter) / double(emitted));
-  const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
-  const LightSample ls = lights.Sample(std::min(u_select, 0x1.fffffep-1f), u_point.u, u_point.v);
-  // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
-  Rgb power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));
-  const Sample2 u_dir = sampler.Get2D(kPhotonDirectionSlot);
-  Vec3 dir = SampleCosineHemisphere(ls.normal, u_dir.u, u_dir.v);
+  const Emission e = Emit(scene, lights, o, sampler, index, emitted);
+  const LightSample& ls = e.light;
+  Rgb power = e.power;
+  const Vec3 dir = e.ray.direction;
   Vec3 previous = ls.position;
-  Ray ray{OffsetRayOrigin(ls.position, ls.normal, scene.epsilon()), dir};
+  Ray ray = e.ray;
 
   // Metropolis splitting (§4.6.2): the chain being walked, if any. Its state is allocated by the
   // Metropolis walk only: as locals (or in a std::optional, whose storage GCC zeroes) its ~400
@@ -311,34 +479,19 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
     const Material& m = desc.materials[hit->material];
     const Bsdf bsdf(m, shared.lobes[hit->material], hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
-    bool store = bsdf.HasDiffuse();
     Rgb stored_power = power;
-    if (store && o.importance) {
-      // Wald 1999, §4.7: stored with probability p and power Φ/p; the walk goes on either way.
-      const Vec3 facing =
-          Dot(hit->geometric_normal, wo) >= 0.0f ? hit->geometric_normal : -hit->geometric_normal;
-      const float p = o.importance->AcceptanceProbability(hit->position, facing, out.importance_scratch);
-      if (p < 1.0f) {
-        store = sampler.Get1D(SlotOfPhotonAcceptance(bounce)) < p;
-        if (store)
-          stored_power = power / p;
-        else
-          ++out.rejected;
-      }
-    }
-    if (store) {
+    // (Metropolis splitting and importance-driven storing are never combined: TracePhotons.)
+    if (bsdf.HasDiffuse() &&
+        (!o.importance || AcceptByImportance(o, sampler, bounce, hit->position, hit->geometric_normal, wo,
+                                             &stored_power, out))) {
       const bool caustic = bounce > 0 && any_singular_since_diffuse;
       if (caustic && in_chain()) {
         // Weighted when the chain ends.
         mw->state.stores.push_back(
             {hit->position, wo, stored_power, previous, ls.light, PhotonKind::kCaustic});
-      } else if (caustic) {
-        AppendPhoton(out.caustic, hit->position, wo, stored_power, previous, ls.light, PhotonKind::kCaustic);
-      } else if (keep_noncaustic) {
-        // Brute-force splitting (§4.6.1): kept for one emitted photon of S, at S× the power.
-        if (noncaustic_scale != 1.0f) stored_power *= noncaustic_scale;
-        AppendPhoton(bounce == 0 ? out.direct : out.indirect, hit->position, wo, stored_power, previous,
-                     ls.light, bounce == 0 ? PhotonKind::kDirect : PhotonKind::kIndirect);
+      } else {
+        StorePhoton(out, bounce, caustic, keep_noncaustic, noncaustic_scale, hit->position, wo, stored_power,
+                    previous, ls.light);
       }
     }
     const PhotonBounceSlots slots = SlotsOfPhotonBounce(bounce);
@@ -392,8 +545,12 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
 void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
               const TraceShared& shared, uint64_t index, ChunkOutput& out) {
   const uint32_t split = std::max<uint32_t>(1, o.caustic_split);
-  if (split == 1 || o.caustic_split_method == CausticSplitMethod::kMetropolis) {
+  if (split > 1 && o.caustic_split_method == CausticSplitMethod::kMetropolis) {
     TraceEmitted(scene, lights, o, shared, index, o.photons, true, 1.0f, index, out);
+    return;
+  }
+  if (split == 1) {
+    TracePlainWalk(scene, lights, o, shared, index, shared.emitted, true, 1.0f, out);
     return;
   }
   // Wald 1999, §4.6.1: map photon i stands for the emitted photons i·S .. i·S + S − 1; the one
@@ -402,8 +559,32 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
   Rng rng = Rng::ForKey(HashKey(o.map_seed, index, kSplitTag));
   const uint32_t keep = rng.UniformInt(split);
   for (uint32_t j = 0; j < split; ++j)
-    TraceEmitted(scene, lights, o, shared, index * split + j, o.photons * split, j == keep, float(split),
-                 index, out);
+    TracePlainWalk(scene, lights, o, shared, index * split + j, shared.emitted, j == keep, float(split), out);
+}
+
+// Photons [begin, end) in order, into `out`. The plain walk's photons (no splitting) go in
+// batches: first every photon's Sobol lanes and light choice in one loop, where the photons'
+// independent hash chains and divisions overlap, then the walks — the same numbers as each walk
+// computing its own (docs/results/kernel.md §4).
+void TraceRange(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
+                const TraceShared& shared, uint64_t begin, uint64_t end, ChunkOutput& out) {
+  if (o.caustic_split > 1 || end <= begin || !shared.stream.HasLanes(end - 1)) {
+    for (uint64_t i = begin; i < end; ++i) TraceOne(scene, lights, o, shared, i, out);
+    return;
+  }
+  constexpr uint64_t kBatch = 16;
+  std::array<PhotonStart, kBatch> starts;
+  for (uint64_t b = begin; b < end; b += kBatch) {
+    const uint64_t n = std::min(kBatch, end - b);
+    for (uint64_t k = 0; k < n; ++k) {
+      shared.stream.Lanes(b + k, &starts[k].lanes);
+      // The light stratum's jitter as the walk's sampler would read it (Sampler::ForPhoton with lanes).
+      const double jitter = starts[k].lanes.u[sobol::kPhotonLaneOfSlot[kPhotonLightSlot]];
+      starts[k].emitter = &shared.emitters[lights.EmitterIndex(LightChoice(jitter, b + k, shared.emitted))];
+    }
+    for (uint64_t k = 0; k < n; ++k)
+      TracePlainWalk(scene, lights, o, shared, b + k, shared.emitted, true, 1.0f, out, &starts[k]);
+  }
 }
 
 }  // namespace
@@ -424,7 +605,7 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
   const uint64_t first_chunk = options.photon_begin / kChunk;
   const uint64_t chunks = (range_end + kChunk - 1) / kChunk - first_chunk;
   std::vector<ChunkOutput> outputs(chunks);
-  const TraceShared shared(scene.description(), options);
+  const TraceShared shared(scene.description(), lights, options);
   // The counts and totals, the same for both paths below (one thread, or chunks concatenated).
   const auto add_counts = [](const ChunkOutput& out, PhotonTracingResult* r) {
     r->rays += out.rays;
@@ -450,8 +631,7 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
     for (uint64_t c = 0; c < chunks; ++c) {
       if (options.cancel && options.cancel->load(std::memory_order_relaxed)) throw Cancelled();
       const uint64_t end = std::min(range_end, (first_chunk + c + 1) * kChunk);
-      for (uint64_t i = (first_chunk + c) * kChunk; i < end; ++i)
-        TraceOne(scene, lights, options, shared, i, out);
+      TraceRange(scene, lights, options, shared, (first_chunk + c) * kChunk, end, out);
       if (c == 0 && chunks > 1) {
         // Room for the whole trace at the first chunk's rate, +25 %: address space only (pages
         // are touched as photons fill them); a growing vector would copy and fault its old buffers.
@@ -479,8 +659,7 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
       ChunkOutput& out = outputs[c];
       out.direct.reserve(kChunk);
       out.indirect.reserve(2 * kChunk);
-      for (uint64_t i = (first_chunk + c) * kChunk; i < end; ++i)
-        TraceOne(scene, lights, options, shared, i, out);
+      TraceRange(scene, lights, options, shared, (first_chunk + c) * kChunk, end, out);
     });
   });
   if (options.cancel && options.cancel->load()) throw Cancelled();

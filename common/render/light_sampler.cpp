@@ -88,9 +88,11 @@ size_t LightSampler::LightIndex(uint32_t scene_light_id) const {
 }
 
 LightSample LightSampler::Sample(float u_select, float u1, float u2) const {
-  const size_t i =
-      std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(), cdf_.size() - 1);
-  const uint32_t tri = triangles_[i];
+  return EmitterSample(EmitterIndex(u_select), u1, u2);
+}
+
+LightSample LightSampler::EmitterSample(size_t emitter, float u1, float u2) const {
+  const uint32_t tri = triangles_[emitter];
   return MakeSample(tri, u1, u2, select_prob_by_tri_[tri]);
 }
 

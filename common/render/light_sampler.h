@@ -4,6 +4,7 @@
 // Used for next-event estimation (path tracer, §4.2.1 direct light) and for photon emission
 // (§2.2: photons per light ∝ its power).
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -28,6 +29,14 @@ class LightSampler {
   bool empty() const { return triangles_.empty(); }
   // Picks an emitter triangle ∝ power with u_select, then a uniform point with (u1, u2).
   LightSample Sample(float u_select, float u1, float u2) const;
+  // Sample(u_select, u1, u2) in two steps, EmitterSample(EmitterIndex(u_select), u1, u2): which
+  // emitting triangle (0 .. num_emitting_triangles() − 1) u_select picks, and the sample on it.
+  // For callers that keep per emitter what does not depend on the point (the photon tracer).
+  size_t EmitterIndex(float u_select) const {
+    return std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(),
+                            cdf_.size() - 1);
+  }
+  LightSample EmitterSample(size_t emitter, float u1, float u2) const;
   // Density per unit area of sampling this point on triangle `tri` (0 if it does not emit).
   float PdfArea(uint32_t tri) const;
   // Total emitted power Σ π·A·Le (RGB), W.

@@ -25,6 +25,7 @@
 //
 // A value depends only on (kind, key, index, slot, j): never on threads, workers or order.
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -342,9 +343,27 @@ class PixelStream {
 // key (a 64-bit multiply-xorshift round or two per number, the same for all photons of the map);
 // the photon tracer computes them once per map. Values are exactly those of
 // Sampler::ForPhoton(kind, map_seed, i): the same map with or without it.
+//
+// A photon's lanes can also be computed ahead (Lanes) and handed to ForPhoton: a caller tracing
+// many photons in a row (the photon tracer) computes a batch of photons' lanes in one loop, where
+// the photons' hash chains overlap. Computed inside ForPhoton, one photon's chain (three dependent
+// vector multiplies per hash, ~150 cycles) was a latency its walk waited for before its first ray
+// (docs/results/kernel.md §4).
+struct PhotonLanes {
+  alignas(16) std::array<float, sobol::kPhotonEagerLanes> u, v;  // v: the 2-D lanes' y
+};
+
 class PhotonStream {
  public:
   PhotonStream(SamplerKind kind, uint64_t map_seed);
+
+  // Whether ForPhoton(*this, photon) reads lanes (the Sobol kind, a 32-bit index).
+  bool HasLanes(uint64_t photon) const { return kind_ == SamplerKind::kSobol && !(photon >> 32); }
+  // The lanes of `photon` (HasLanes(photon)): what ForPhoton(*this, photon) computes.
+  void Lanes(uint64_t photon, PhotonLanes* lanes) const {
+    sobol::PointsOfSlots<0, sobol::kPhotonEagerLanes, sobol::kPhotonEager2D>(
+        sobol::ReverseBits(uint32_t(photon)), lanes_, lanes->u.data(), lanes->v.data());
+  }
 
  private:
   friend class Sampler;
@@ -384,18 +403,18 @@ class Sampler {
   // ForPixelSample does for a sample's eager slots: one pass over 8 independent slots instead of
   // a dependent chain of hashes and bit reversals per request (docs/results/kernel.md §4).
   static Sampler ForPhoton(const PhotonStream& stream, uint64_t photon) {
-    // The fallback stream's key, HashKey(map seed, photon, "photon"), is hashed on the stream's
-    // first use (rng()): a photon whose numbers all come from the budget's slots never needs it.
-    Sampler s(photon >> 32 ? SamplerKind::kIndependent : stream.kind_, stream.key_, uint32_t(photon),
-              stream.map_seed_);
-    s.rng_key_photon_ = photon;
-    s.rng_key_pending_ = true;
-    s.seeds_ = stream.seeds_.data();
-    if (s.kind_ == SamplerKind::kSobol) {
-      s.photon_lanes_ = true;
+    Sampler s = ForPhotonWithoutLanes(stream, photon);
+    if (s.photon_lanes_)
       sobol::PointsOfSlots<0, sobol::kPhotonEagerLanes, sobol::kPhotonEager2D>(
           s.reversed_index_, stream.lanes_, s.slot_u_.data(), s.slot_v_.data());
-    }
+    return s;
+  }
+  // The same sampler from lanes computed ahead: `lanes` must be stream.Lanes(photon)
+  // (stream.HasLanes(photon)).
+  static Sampler ForPhoton(const PhotonStream& stream, uint64_t photon, const PhotonLanes& lanes) {
+    Sampler s = ForPhotonWithoutLanes(stream, photon);
+    std::copy(lanes.u.begin(), lanes.u.end(), s.slot_u_.begin());
+    std::copy(lanes.v.begin(), lanes.v.begin() + sobol::kPhotonEager2D, s.slot_v_.begin());
     return s;
   }
 
@@ -403,13 +422,14 @@ class Sampler {
   // The independent kind and the fallback slots take the first branch's test only.
   // A photon lane (photon_lanes_ implies the Sobol kind; subs == 1 implies j == 0) is read
   // inline; everything else takes the out-of-line general path, which GCC does not inline (the
-  // photon walk called it for each of its numbers, docs/results/kernel.md §4).
-  float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+  // photon walk called it for each of its numbers, docs/results/kernel.md §4). always_inline:
+  // in a large caller (the photon walk) GCC's budget otherwise keeps these two out of line too.
+  [[gnu::always_inline]] float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
     if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes)
       return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
     return Get1DGeneral(slot, j, subs);
   }
-  Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+  [[gnu::always_inline]] Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
     if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes &&
         sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
       const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
@@ -496,20 +516,25 @@ class Sampler {
   // stratum, triangle, point; gather lobe, direction: sample_layout.h offsets 0, 1, 2, 4, 5 of
   // 9) fall into different entries; a conflict only recomputes.
   static constexpr uint32_t kMaxBatch = sobol::kMaxSubIndices, kBatches = 8;
+  // An entry is read only once its bit in batches_filled_ is set: a Sampler is made for every
+  // photon and camera sample, and most never ask a sub-indexed number, so nothing of the ~2 KiB
+  // of entries is written up front (the eight headers' initialisation was 1 % of a photon walk).
   struct SubBatch {
-    uint32_t slot = kIndependentSlot, subs = 0;
-    bool two_d = false;
+    uint32_t slot, subs;
+    bool two_d;
     std::array<float, kMaxBatch> u, v;
   };
   // Sobol kind, slot within the layout, 2 <= subs, j < subs (the caller checked).
   const SubBatch* Batch(uint32_t slot, uint32_t subs, bool two_d) {
     if (subs > kMaxBatch || (uint64_t(index_) * subs + subs - 1) >> 32) return nullptr;
-    SubBatch& b = batches_[slot % kBatches];
-    if (b.slot == slot && b.subs == subs && (b.two_d || !two_d)) return &b;
+    const uint32_t entry = slot % kBatches;
+    SubBatch& b = batches_[entry];
+    if ((batches_filled_ >> entry & 1u) && b.slot == slot && b.subs == subs && (b.two_d || !two_d)) return &b;
     sobol::PointsOfSubIndices(index_, subs, SeedsOf2(slot), b.u.data(), two_d ? b.v.data() : nullptr);
     b.slot = slot;
     b.subs = subs;
     b.two_d = two_d;
+    batches_filled_ |= 1u << entry;
     return &b;
   }
 
@@ -531,6 +556,19 @@ class Sampler {
   }
   static Sample2 ToSample(sobol::Point2 p) { return {sobol::ToFloat(p.x), sobol::ToFloat(p.y)}; }
 
+  // ForPhoton's sampler before its lanes are filled in. The fallback stream's key,
+  // HashKey(map seed, photon, "photon"), is hashed on the stream's first use (rng()): a photon
+  // whose numbers all come from the budget's slots never needs it.
+  static Sampler ForPhotonWithoutLanes(const PhotonStream& stream, uint64_t photon) {
+    Sampler s(photon >> 32 ? SamplerKind::kIndependent : stream.kind_, stream.key_, uint32_t(photon),
+              stream.map_seed_);
+    s.rng_key_photon_ = photon;
+    s.rng_key_pending_ = true;
+    s.seeds_ = stream.seeds_.data();
+    s.photon_lanes_ = s.kind_ == SamplerKind::kSobol;
+    return s;
+  }
+
   SamplerKind kind_;
   bool rng_ready_ = false;
   // ForPhoton(PhotonStream): rng_key_ holds the map seed until rng() hashes the key from it.
@@ -547,6 +585,7 @@ class Sampler {
   bool photon_lanes_ = false;
   std::array<float, sobol::kPixelSlotLanes> slot_u_, slot_v_;
   std::array<SubBatch, kBatches> batches_;
+  uint32_t batches_filled_ = 0;  // bit e: batches_[e] holds a batch
   Rng rng_;
 
   friend class PhotonStream;

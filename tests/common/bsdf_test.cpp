@@ -1065,6 +1065,84 @@ TEST(BsdfLobes, PrecomputedLobesGiveTheSameSamples) {
   }
 }
 
+// The photon walk's roulette shortcut (WalkRoulette, bsdf.h) must be Bsdf::Sample in
+// kRussianRoulette wherever it answers: kAbsorbed only where Sample returns nullopt, kDiffuse only
+// where Sample picks diffuse reflection, with the same wi and weight bit for bit (the photon maps
+// must not change). Every kind of material; unit, axis-aligned (squared length exactly 1),
+// unnormalised, zero and NaN normals; wo on both sides and in the plane; flat and smooth hits.
+// And it must answer often enough to matter: on a plain diffuse material most bounces.
+TEST(BsdfWalkRoulette, AgreesWithSampleBitForBit) {
+  Material coloured = Diffuse(0.5f);
+  coloured.diffuse_reflectance = Rgb(0.8f, 0.3f, 0.1f);
+  Material translucent = Diffuse(0.4f);
+  translucent.diffuse_transmittance = Rgb(0.3f);
+  Material glass;
+  glass.specular_transmittance = Rgb(0.9f);
+  glass.ior = 1.5f;
+  Material bright;  // means summing past 1: the roulette probabilities are rescaled, nothing absorbs
+  bright.diffuse_reflectance = Rgb(0.8f);
+  bright.specular_reflectance = Rgb(0.6f);
+  bright.specular_roughness = 0.2f;
+  const std::vector<Material> materials = {Diffuse(0.5f),      coloured, translucent, Glossy(0.4f, 0.1f),
+                                           Glossy(0.9f, 0.0f), glass,    bright,      Material{}};
+  Rng rng(23, 7);
+  for (size_t mi = 0; mi < materials.size(); ++mi) {
+    const Material& m = materials[mi];
+    const BsdfLobes lobes = BsdfLobes::Of(m);
+    const WalkRoulette roulette = WalkRoulette::Of(m, lobes);
+    int counts[3] = {};
+    for (int i = 0; i < 20000; ++i) {
+      Vec3 ng = UniformSphere(rng);
+      switch (i % 10) {
+        case 0:
+          ng = Vec3(0.0f, i % 20 ? 1.0f : -1.0f, 0.0f);
+          break;  // exactly unit
+        case 1:
+          ng = ng * 3.0f;
+          break;  // not unit
+        case 2:
+          if (i % 1000 == 2) ng = Vec3(0.0f);
+          break;  // unusable
+        case 3:
+          if (i % 1000 == 3) ng = Vec3(std::nanf(""), 0.0f, 1.0f);
+          break;
+        default:
+          break;
+      }
+      const bool flat = i % 7 != 0;
+      const Vec3 ns = flat ? ng : UniformSphere(rng);
+      Vec3 wo = UniformSphere(rng);
+      if (i % 97 == 0) wo = Normalize(Cross(ng, Vec3(0.3f, 0.5f, 0.8f)));  // in the surface plane
+      const float ul = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
+      const Bsdf bsdf(m, lobes, ns, ng);
+      EXPECT_EQ(roulette.Stores(ng), bsdf.HasDiffuse()) << "material " << mi;
+      Vec3 wi;
+      const WalkRoulette::Outcome outcome = roulette.At(ng, flat, wo, ul, u1, u2, &wi);
+      ++counts[int(outcome)];
+      if (outcome == WalkRoulette::Outcome::kBsdf) continue;
+      const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u1, u2, Bsdf::Mode::kRussianRoulette);
+      if (outcome == WalkRoulette::Outcome::kAbsorbed) {
+        EXPECT_FALSE(s.has_value()) << "material " << mi << " sample " << i;
+        continue;
+      }
+      ASSERT_TRUE(s.has_value()) << "material " << mi << " sample " << i;
+      EXPECT_EQ(s->lobe, kLobeDiffuseReflection);
+      EXPECT_TRUE(SameBits(s->wi, wi)) << "material " << mi << " sample " << i;
+      EXPECT_EQ(std::bit_cast<uint32_t>(s->weight.r), std::bit_cast<uint32_t>(roulette.diffuse_weight.r));
+      EXPECT_EQ(std::bit_cast<uint32_t>(s->weight.g), std::bit_cast<uint32_t>(roulette.diffuse_weight.g));
+      EXPECT_EQ(std::bit_cast<uint32_t>(s->weight.b), std::bit_cast<uint32_t>(roulette.diffuse_weight.b));
+    }
+    if (mi == 0) {
+      // Plain diffuse, ρ = 0.5: about half the bounces absorbed, most of the rest diffuse here.
+      EXPECT_GT(counts[int(WalkRoulette::Outcome::kAbsorbed)], 8000);
+      EXPECT_GT(counts[int(WalkRoulette::Outcome::kDiffuse)], 6000);
+    }
+    if (mi == 5) {
+      EXPECT_EQ(counts[int(WalkRoulette::Outcome::kBsdf)], 20000);  // glass: always the Bsdf
+    }
+  }
+}
+
 // RouletteProbability (Metropolis caustic splitting's acceptance ratio, Wald 1999, §4.6.2) is the
 // frequency with which Sample in kRussianRoulette picks a lobe of the mask: for a dielectric at
 // several angles from both sides (Fresnel), and for a mix of diffuse, mirror and thin

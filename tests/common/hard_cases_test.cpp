@@ -180,6 +180,38 @@ TEST(HardCasesRayOffset, NextFloatMatchesNextafter) {
   EXPECT_TRUE(std::isfinite(Ulp(std::numeric_limits<float>::max())));
 }
 
+// OffsetRayOrigin's vector form must give OffsetRayOriginScalar's bits: normals with zero,
+// negative-zero and mixed-sign components, points at, near and far from the origin (on and off
+// zero coordinates, so the ±0 steps happen), scene floors from tiny to large.
+TEST(HardCasesRayOffset, VectorOffsetEqualsTheScalarOne) {
+  Rng rng(5, 9);
+  const std::vector<float> scales = {0.0f, 1e-30f, 1e-6f, 1.0f, 3.7f, 1e5f, 1e6f};
+  int moved_to_other_sign = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const float scale = scales[size_t(i) % scales.size()];
+    Vec3 p(scale * (2 * rng.Uniform() - 1), scale * (2 * rng.Uniform() - 1), scale * (2 * rng.Uniform() - 1));
+    if (i % 5 == 0) p.y = i % 10 ? 0.0f : -0.0f;
+    Vec3 n = Normalize(Vec3(2 * rng.Uniform() - 1, 2 * rng.Uniform() - 1, 2 * rng.Uniform() - 1));
+    switch (i % 4) {
+      case 0:
+        n = Vec3(0.0f, i % 8 ? 1.0f : -1.0f, 0.0f);
+        break;
+      case 1:
+        n = Vec3(-0.0f, 0.0f, i % 8 == 1 ? -1.0f : 1.0f);
+        break;
+      default:
+        break;
+    }
+    const float eps = i % 3 == 0 ? 1e-30f : i % 3 == 1 ? 1e-6f : 0.5f;
+    const Vec3 a = OffsetRayOrigin(p, n, eps), b = OffsetRayOriginScalar(p, n, eps);
+    ASSERT_EQ(std::bit_cast<uint32_t>(a.x), std::bit_cast<uint32_t>(b.x)) << i;
+    ASSERT_EQ(std::bit_cast<uint32_t>(a.y), std::bit_cast<uint32_t>(b.y)) << i;
+    ASSERT_EQ(std::bit_cast<uint32_t>(a.z), std::bit_cast<uint32_t>(b.z)) << i;
+    moved_to_other_sign += std::signbit(a.y) != std::signbit(p.y);
+  }
+  EXPECT_GT(moved_to_other_sign, 1000);  // the ±0 and sign-crossing steps were exercised
+}
+
 TEST_P(HardCasesTranslatedWorld, RayOffsetsHoldFarFromTheOrigin) {
   const RoomSetup original = SnappedRoom();
   RoomSetup moved = SnappedRoom();

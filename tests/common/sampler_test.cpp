@@ -369,18 +369,34 @@ TEST(SobolSampler, PhotonLanesGiveTheScalarPointsForManyPhotons) {
   // requests: 4096 photon numbers spread over [0, 2^32) and three map seeds. A lane holding
   // another slot's seeds, a 2-D slot in a lane without y, or a wrong bit reversal changes values.
   Rng pick(7, 11);
+  EXPECT_FALSE(PhotonStream(SamplerKind::kSobol, 3).HasLanes(uint64_t(1) << 32));  // the independent fallback
+  EXPECT_FALSE(PhotonStream(SamplerKind::kIndependent, 3).HasLanes(5));
   for (uint64_t map_seed : {3ull, 77ull, 0x123456789abcdefull}) {
     const PhotonStream stream(SamplerKind::kSobol, map_seed);
     for (int n = 0; n < 4096; ++n) {
       const uint64_t photon = n < 64 ? uint64_t(n) : pick.NextU32();
       Sampler a = Sampler::ForPhoton(SamplerKind::kSobol, map_seed, photon);
       Sampler b = Sampler::ForPhoton(stream, photon);
+      // The lanes computed ahead (the photon tracer's batches) and handed to ForPhoton.
+      ASSERT_TRUE(stream.HasLanes(photon));
+      PhotonLanes lanes;
+      stream.Lanes(photon, &lanes);
+      Sampler c = Sampler::ForPhoton(stream, photon, lanes);
       for (uint32_t k = 0; k < sobol::kPhotonEagerLanes; ++k) {
         const uint32_t slot = (n % 2 == 0) ? k : sobol::kPhotonEagerLanes - 1 - k;  // both orders
         ASSERT_EQ(a.Get1D(slot), b.Get1D(slot)) << photon << " " << slot;
-        const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
+        ASSERT_EQ(a.Get1D(slot), c.Get1D(slot)) << photon << " " << slot;
+        const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot), qc = c.Get2D(slot);
         ASSERT_EQ(qa.u, qb.u) << photon << " " << slot;
         ASSERT_EQ(qa.v, qb.v) << photon << " " << slot;
+        ASSERT_EQ(qa.u, qc.u) << photon << " " << slot;
+        ASSERT_EQ(qa.v, qc.v) << photon << " " << slot;
+      }
+      // Beyond the lanes (later bounces' slots) the three samplers agree too.
+      for (uint32_t slot = sobol::kPhotonEagerLanes; slot < 30; ++slot) {
+        const Sample2 qa = a.Get2D(slot), qc = c.Get2D(slot);
+        ASSERT_EQ(qa.u, qc.u) << photon << " " << slot;
+        ASSERT_EQ(qa.v, qc.v) << photon << " " << slot;
       }
     }
   }
