@@ -358,9 +358,9 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   // Emit's photon, from the trace's emitter table: the same numbers in the same order.
   const Emitter& em =
       start ? *start->emitter : shared.emitters[lights.EmitterIndex(LightChoice(o, sampler, index, emitted))];
-  const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
+  const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
   Vec3 previous = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
-  const Sample2 u_dir = sampler.Get2D(kPhotonDirectionSlot);
+  const Sample2 u_dir = sampler.PhotonGet2D(kPhotonDirectionSlot);
   Ray ray{OffsetRayOrigin(previous, em.normal, scene.epsilon()),
           em.frame.ToWorld(CosineHemisphereFast(u_dir.u, u_dir.v))};
   Rgb power = em.power;
@@ -380,8 +380,8 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
                     hit.position, wo, stored_power, previous, light);
     }
     const PhotonBounceSlots slots = SlotsOfPhotonBounce(bounce);
-    const float ul = sampler.Get1D(slots.lobe);
-    const Sample2 u = sampler.Get2D(slots.direction);
+    const float ul = sampler.PhotonGet1D(slots.lobe);
+    const Sample2 u = sampler.PhotonGet2D(slots.direction);
     Vec3 wi;
     Rgb weight;
     uint32_t lobe;

@@ -422,20 +422,34 @@ class Sampler {
   // The independent kind and the fallback slots take the first branch's test only.
   // A photon lane (photon_lanes_ implies the Sobol kind; subs == 1 implies j == 0) is read
   // inline; everything else takes the out-of-line general path, which GCC does not inline (the
-  // photon walk called it for each of its numbers, docs/results/kernel.md §4). always_inline:
-  // in a large caller (the photon walk) GCC's budget otherwise keeps these two out of line too.
-  [[gnu::always_inline]] float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+  // photon walk called it for each of its numbers, docs/results/kernel.md §4).
+  float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
     if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes)
       return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
     return Get1DGeneral(slot, j, subs);
   }
-  [[gnu::always_inline]] Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
+  Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
     if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes &&
         sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
       const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
       return {slot_u_[lane], slot_v_[lane]};
     }
     return Get2DGeneral(slot, j, subs);
+  }
+  // Get1D(slot) / Get2D(slot), forced inline: in the photon walk GCC's budget otherwise keeps
+  // Get1D and Get2D themselves out of line, a call per number; forcing those two inline
+  // everywhere made GCC stop inlining their general path into the camera sample loop instead
+  // (+3 % instructions of a path-traced image), so the walk has its own.
+  [[gnu::always_inline]] float PhotonGet1D(uint32_t slot) {
+    if (photon_lanes_ && slot < sobol::kPhotonEagerLanes) return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
+    return Get1DGeneral(slot, 0, 1);
+  }
+  [[gnu::always_inline]] Sample2 PhotonGet2D(uint32_t slot) {
+    if (photon_lanes_ && slot < sobol::kPhotonEagerLanes && sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
+      const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
+      return {slot_u_[lane], slot_v_[lane]};
+    }
+    return Get2DGeneral(slot, 0, 1);
   }
 
  private:
