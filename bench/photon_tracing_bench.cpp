@@ -4,7 +4,7 @@
 // times. Table + JSON.
 //
 //   build/bench/photon_tracing_bench [--photons 200000] [--repeats 3] [--clock wall|cpu] [--scenes a,b]
-//                                  [--json out.json]
+//                                  [--no-raw] [--json out.json]
 //
 // --clock cpu times each trace by the process's CPU time instead of the wall clock: the trace
 // runs on one thread, so on a shared, loaded machine this leaves out the time spent waiting for
@@ -47,7 +47,8 @@ int main(int argc, char** argv) {
   int repeats = 3;
   std::string json_path;
   bool cpu_clock = false;
-  std::string only;  // --scenes a,b: a subset (e.g. one scene per `perf record`)
+  int raw_passes = 5;  // --no-raw: 0 (profile the trace alone)
+  std::string only;    // --scenes a,b: a subset (e.g. one scene per `perf record`)
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--clock" && i + 1 < argc &&
@@ -59,13 +60,15 @@ int main(int argc, char** argv) {
       photons = std::stoull(argv[++i]);
     else if (a == "--repeats" && i + 1 < argc)
       repeats = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--no-raw")
+      raw_passes = 0;
     else if (a == "--json" && i + 1 < argc)
       json_path = argv[++i];
     else {
-      std::fprintf(
-          stderr,
-          "usage: %s [--photons N] [--repeats R] [--clock wall|cpu] [--scenes a,b] [--json out.json]\n",
-          argv[0]);
+      std::fprintf(stderr,
+                   "usage: %s [--photons N] [--repeats R] [--clock wall|cpu] [--scenes a,b] [--no-raw] "
+                   "[--json out.json]\n",
+                   argv[0]);
       return 2;
     }
   }
@@ -85,7 +88,8 @@ int main(int argc, char** argv) {
     const pf::SceneDescription scene = pf::LoadScene(path);
     const pf::EmbreeScene accel(scene);
     const pf::LightSampler lights(accel);
-    constexpr int kRawRes = 256, kRawPasses = 5;
+    constexpr int kRawRes = 256;
+    const int kRawPasses = raw_passes;
     pf::CameraSpec spec = scene.cameras.empty() ? pf::DefaultCamera(scene) : scene.cameras.front();
     spec.width = spec.height = kRawRes;
     pf::Rng raw_rng(42, 2);  // embree_bench's secondary rays
@@ -93,6 +97,7 @@ int main(int argc, char** argv) {
         pf::bench::IncoherentSecondaryRays(accel, pf::Camera(spec), kRawRes, raw_rng);
     volatile size_t sink = 0;
     const auto raw_rate = [&] {
+      if (kRawPasses == 0) return 0.0;
       const auto run = [&] { sink = sink + pf::bench::IntersectAll(accel, raw_rays, kRawPasses); };
       const double t = cpu_clock ? pf::bench::CpuTimeIt(run) : pf::bench::TimeIt(run);
       return double(raw_rays.size()) * kRawPasses / t;
@@ -114,20 +119,24 @@ int main(int argc, char** argv) {
       ray_rate.push_back(double(res.rays) / seconds);
       stored_per_emitted = stored / double(res.emitted);
       const double raw_here = 0.5 * (raw_before + raw_rate());
-      raw.push_back(raw_here);
-      ratio.push_back(ray_rate.back() / raw_here);
+      if (raw_here > 0) {
+        raw.push_back(raw_here);
+        ratio.push_back(ray_rate.back() / raw_here);
+      }
     }
     const double st = Median(stored_rate);
+    const double raw_median = raw.empty() ? 0.0 : Median(raw),
+                 ratio_median = ratio.empty() ? 0.0 : Median(ratio);
     std::printf("%-15s %12.1f %12.1f %12.2f %10.2f %14.3f %12.2f %8.1f%%\n", name.c_str(),
                 Median(emitted_rate) * 1e-3, st * 1e-3, Median(ray_rate) * 1e-6, stored_per_emitted, 1e5 / st,
-                Median(raw) * 1e-6, 100 * Median(ratio));
+                raw_median * 1e-6, 100 * ratio_median);
     out.push_back({{"scene", name},
                    {"photons_emitted", photons},
                    {"emitted_per_s", Median(emitted_rate)},
                    {"stored_per_s", st},
                    {"rays_per_s", Median(ray_rate)},
-                   {"raw_rays_per_s", Median(raw)},
-                   {"ratio_to_raw", Median(ratio)},
+                   {"raw_rays_per_s", raw_median},
+                   {"ratio_to_raw", ratio_median},
                    {"runs_rays_per_s", ray_rate},
                    {"runs_raw_rays_per_s", raw},
                    {"runs_ratio_to_raw", ratio},

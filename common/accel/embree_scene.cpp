@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include <atomic>
+#include <bit>
 #include <cstring>
 #include <mutex>
 #include <string>
@@ -119,6 +120,8 @@ void SetRay(const Ray& ray, RTCRayHit* rh) {
 #if defined(__SSE2__)
   _mm_store_ps(&rh->ray.org_x, _mm_setr_ps(ray.origin.x, ray.origin.y, ray.origin.z, 0.0f));
   _mm_store_ps(&rh->ray.dir_x, _mm_setr_ps(ray.direction.x, ray.direction.y, ray.direction.z, 0.0f));
+  _mm_store_si128(reinterpret_cast<__m128i*>(&rh->ray.tfar),
+                  _mm_setr_epi32(std::bit_cast<int>(ray.t_max), -1, 0, 0));  // tfar, mask, id, flags
 #else
   rh->ray.org_x = ray.origin.x;
   rh->ray.org_y = ray.origin.y;
@@ -128,11 +131,11 @@ void SetRay(const Ray& ray, RTCRayHit* rh) {
   rh->ray.dir_y = ray.direction.y;
   rh->ray.dir_z = ray.direction.z;
   rh->ray.time = 0.0f;
-#endif
   rh->ray.tfar = ray.t_max;
   rh->ray.mask = 0xffffffffu;
   rh->ray.id = 0;
   rh->ray.flags = 0;
+#endif
   rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
 }
