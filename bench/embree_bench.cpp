@@ -4,6 +4,10 @@
 //
 //   build/bench/embree_bench [--repeats 5] [--json out.json] [--res 256] [--clock wall|cpu]
 //
+// The secondary rays are bench/raw_rays.h's (photon_tracing_bench measures the same set), drawn
+// from their own random stream since 2026-11-26 (docs/results/kernel.md §4, Run 3): the secondary
+// and shadow ray sets differ from earlier runs' (the same distribution, other rays).
+//
 // --clock cpu times the ray loops by the process's CPU time (they run on one thread): on a shared,
 // loaded machine the wall clock also counts the time spent waiting for a core.
 #include <spdlog/spdlog.h>

@@ -32,7 +32,6 @@
 #include "common/photon/photon_tracer.h"
 #include "common/render/camera.h"
 #include "common/render/light_sampler.h"
-#include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
 
 namespace {

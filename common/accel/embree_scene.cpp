@@ -112,30 +112,33 @@ EmbreeScene::~EmbreeScene() = default;
 
 namespace {
 
-// Embree reads (org, tnear) and (dir, time) as 16-byte vectors: written as one 16-byte store
-// each, those reads are forwarded from the store buffer; written float by float, each ray's
-// first loads waited for the stores to reach the cache (a store-forwarding stall, the largest
-// sample of the wrapper in `perf record` of photon_tracing_bench, docs/results/kernel.md §4).
-void SetRay(const Ray& ray, RTCRayHit* rh) {
+// Embree reads (org, tnear), (dir, time) and (tfar, mask, id, flags) as 16-byte vectors: written
+// as one 16-byte store each, those reads are forwarded from the store buffer; written float by
+// float, each ray's first loads waited for the stores to reach the cache (a store-forwarding
+// stall: embree_bench's incoherent rays 8.2 → 11 M/s on Cornell, docs/results/kernel.md §4, Run 3).
+void SetRay(const Ray& ray, RTCRay* r) {
 #if defined(__SSE2__)
-  _mm_store_ps(&rh->ray.org_x, _mm_setr_ps(ray.origin.x, ray.origin.y, ray.origin.z, 0.0f));
-  _mm_store_ps(&rh->ray.dir_x, _mm_setr_ps(ray.direction.x, ray.direction.y, ray.direction.z, 0.0f));
-  _mm_store_si128(reinterpret_cast<__m128i*>(&rh->ray.tfar),
+  _mm_store_ps(&r->org_x, _mm_setr_ps(ray.origin.x, ray.origin.y, ray.origin.z, 0.0f));
+  _mm_store_ps(&r->dir_x, _mm_setr_ps(ray.direction.x, ray.direction.y, ray.direction.z, 0.0f));
+  _mm_store_si128(reinterpret_cast<__m128i*>(&r->tfar),
                   _mm_setr_epi32(std::bit_cast<int>(ray.t_max), -1, 0, 0));  // tfar, mask, id, flags
 #else
-  rh->ray.org_x = ray.origin.x;
-  rh->ray.org_y = ray.origin.y;
-  rh->ray.org_z = ray.origin.z;
-  rh->ray.tnear = 0.0f;
-  rh->ray.dir_x = ray.direction.x;
-  rh->ray.dir_y = ray.direction.y;
-  rh->ray.dir_z = ray.direction.z;
-  rh->ray.time = 0.0f;
-  rh->ray.tfar = ray.t_max;
-  rh->ray.mask = 0xffffffffu;
-  rh->ray.id = 0;
-  rh->ray.flags = 0;
+  r->org_x = ray.origin.x;
+  r->org_y = ray.origin.y;
+  r->org_z = ray.origin.z;
+  r->tnear = 0.0f;
+  r->dir_x = ray.direction.x;
+  r->dir_y = ray.direction.y;
+  r->dir_z = ray.direction.z;
+  r->time = 0.0f;
+  r->tfar = ray.t_max;
+  r->mask = 0xffffffffu;
+  r->id = 0;
+  r->flags = 0;
 #endif
+}
+void SetRay(const Ray& ray, RTCRayHit* rh) {
+  SetRay(ray, &rh->ray);
   rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
 }
@@ -179,7 +182,7 @@ std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
                                        rh.hit.u, rh.hit.v);
   hit.geometric_normal = face_normals_[hit.triangle];
   hit.front_face = Dot(ray.direction, hit.geometric_normal) < 0.0f;
-  if (s.normals.empty() ||
+  if (s.normals.empty() ||  // (InterpolatedNormal checks it too; tested here, no call per ray)
       !InterpolatedNormal(hit.triangle, rh.hit.u, rh.hit.v, hit.geometric_normal, &hit.shading_normal))
     hit.shading_normal = hit.geometric_normal;
   hit.material = s.triangle_material[hit.triangle];
@@ -200,6 +203,7 @@ bool EmbreeScene::IntersectWalk(const Ray& ray, WalkHit* hit) const {
   hit->position = InterpolateOnTriangle(s.positions[tri[0]], s.positions[tri[1]], s.positions[tri[2]],
                                         rh.hit.u, rh.hit.v);
   hit->geometric_normal = face_normals_[triangle];
+  // (normals.empty() tested here too: no call per ray in a scene without vertex normals)
   hit->interpolated = !s.normals.empty() && InterpolatedNormal(triangle, rh.hit.u, rh.hit.v,
                                                                hit->geometric_normal, &hit->shading_normal);
   if (!hit->interpolated) hit->shading_normal = hit->geometric_normal;
@@ -211,18 +215,7 @@ bool EmbreeScene::Occluded(const Ray& ray) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRay r;
-  r.org_x = ray.origin.x;
-  r.org_y = ray.origin.y;
-  r.org_z = ray.origin.z;
-  r.dir_x = ray.direction.x;
-  r.dir_y = ray.direction.y;
-  r.dir_z = ray.direction.z;
-  r.tnear = 0.0f;
-  r.tfar = ray.t_max;
-  r.time = 0.0f;
-  r.mask = 0xffffffffu;
-  r.id = 0;
-  r.flags = 0;
+  SetRay(ray, &r);
   rtcOccluded1(embree_->scene, &context, &r);
   return r.tfar < 0.0f;  // Embree sets tfar = -inf on occlusion
 }

@@ -149,10 +149,12 @@ class Bsdf {
 //   kDiffuse  — Sample would choose the diffuse reflection lobe, the first of its cdf walk, and
 //               return exactly *wi and `diffuse_weight` (ρd/P: with ns = ng the lobe normal is
 //               the shading normal on wo's side, bsdf.cpp);
-//   kBsdf     — any other case (another lobe, a dielectric, an unusable ng): call Bsdf::Sample.
-// The same floating-point operations as Sample, in the same order, so the photons are the same
-// bit for bit (BsdfWalkRoulette tests); a photon bounce built a Bsdf and walked Sample's general
-// path, a third of a Cornell photon ray outside Embree (docs/results/kernel.md §4).
+//   kBsdf     — any other case (another lobe, a smooth hit, a dielectric, an unusable ng): call
+//               Bsdf::Sample.
+// The same floating-point operations as Sample, in the same order (and no FMA contraction,
+// CMakeLists.txt), so the photons are the same bit for bit (BsdfWalkRoulette tests); a photon
+// bounce built a Bsdf and walked Sample's general path, a third of a Cornell photon ray's
+// instructions outside Embree (docs/results/kernel.md §4, Run 3).
 struct WalkRoulette {
   enum class Outcome { kAbsorbed, kDiffuse, kBsdf };
 

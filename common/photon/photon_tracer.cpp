@@ -99,11 +99,10 @@ struct Emitter {
 
 // What every photon of one trace shares, computed once per TracePhotons call rather than at
 // every photon or hit: the sampler's per-slot seeds of the map (sampler.h, PhotonStream) and
-// each material's lobe selection means (§2.2, bsdf.h, BsdfLobes). Both give exactly the values
-// the per-photon / per-hit computation gave, so the maps are unchanged bit for bit.
-//
-// The plain walk (no Metropolis chain) also takes from it each material's WalkRoulette (bsdf.h):
-// a flat hit's roulette without building a Bsdf.
+// each material's lobe selection means (§2.2, bsdf.h, BsdfLobes); for the plain walk (no
+// Metropolis chain) also the emitter table (Emitter) and each material's WalkRoulette (bsdf.h: a
+// flat hit's roulette without building a Bsdf). Each gives exactly the values the per-photon /
+// per-hit computation gives, so the maps are the same bit for bit.
 struct TraceShared {
   TraceShared(const SceneDescription& desc, const LightSampler& lights, const PhotonTracerOptions& o)
       : stream(o.sampler, o.map_seed),
@@ -130,7 +129,7 @@ struct TraceShared {
       walk.push_back(WalkRoulette::Of(m, lobes.emplace_back(BsdfLobes::Of(m))));
   }
   PhotonStream stream;
-  uint64_t emitted;  // photons emitted by the plain walks of this trace (§4.6.1: N·S when split)
+  uint64_t emitted;  // the plain walks' emitted photons of the whole map, N (§4.6.1: N·S when split)
   std::vector<Emitter> emitters;   // by LightSampler::EmitterIndex
   std::vector<BsdfLobes> lobes;    // by material index
   std::vector<WalkRoulette> walk;  // by material index
@@ -344,20 +343,23 @@ void StorePhoton(ChunkOutput& out, int bounce, bool caustic, bool keep_noncausti
 }
 
 // The photon random walk of Wald 1999, §2.2, without Metropolis splitting (TraceEmitted below
-// walks that one). Exactly TraceEmitted's photons, cheaper per photon and per hit: the emission
-// from the trace's emitter table, the hit from IntersectWalk, and the roulette of a flat hit from
-// WalkRoulette (bsdf.h) — Bsdf::Sample only for the outcomes it leaves to it (another lobe than
-// diffuse reflection, smooth or dielectric hits). Same numbers in the same order: the same map.
+// walks that one, and with it the photons every trace took before this function existed: the
+// same photons bit for bit, test PhotonTracer.PlainWalkStoresTheGeneralWalksPhotons). Cheaper per
+// photon and per hit: the emission from the trace's emitter table, the hit from IntersectWalk,
+// and the roulette of a flat hit from WalkRoulette (bsdf.h) — Bsdf::Sample only for the outcomes
+// it leaves to it (another lobe than diffuse reflection, smooth or dielectric hits). Same numbers
+// in the same order: the same map.
 // `start`: the photon's lanes and emitter computed ahead (TraceRange), or null.
 void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
-                    const TraceShared& shared, uint64_t index, uint64_t emitted, bool keep_noncaustic,
-                    float noncaustic_scale, ChunkOutput& out, const PhotonStart* start = nullptr) {
+                    const TraceShared& shared, uint64_t index, bool keep_noncaustic, float noncaustic_scale,
+                    ChunkOutput& out, const PhotonStart* start = nullptr) {
   const SceneDescription& desc = scene.description();
   Sampler sampler = start ? Sampler::ForPhoton(shared.stream, index, start->lanes)
                           : Sampler::ForPhoton(shared.stream, index);
   // Emit's photon, from the trace's emitter table: the same numbers in the same order.
   const Emitter& em =
-      start ? *start->emitter : shared.emitters[lights.EmitterIndex(LightChoice(o, sampler, index, emitted))];
+      start ? *start->emitter
+            : shared.emitters[lights.EmitterIndex(LightChoice(o, sampler, index, shared.emitted))];
   const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
   Vec3 previous = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
   const Sample2 u_dir = sampler.PhotonGet2D(kPhotonDirectionSlot);
@@ -410,11 +412,16 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   }
 }
 
-// The walk with Metropolis caustic splitting (§4.6.2): TracePlainWalk's photons, and each
-// singular chain's stores weighted by the chain's Markov walk.
+// The walk with Metropolis caustic splitting (§4.6.2): TracePlainWalk's walks with LightSampler,
+// Intersect and a Bsdf at every hit (the chains need the Bsdf), the same direct and indirect
+// stores, and each singular chain's caustic stores weighted by the chain's Markov walk.
 void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
-                  const TraceShared& shared, uint64_t index, uint64_t emitted, bool keep_noncaustic,
-                  float noncaustic_scale, uint64_t map_photon, ChunkOutput& out) {
+                  const TraceShared& shared, uint64_t index, ChunkOutput& out) {
+  // Metropolis splitting emits N photons (§4.6.2) and keeps every store: map photon i is emitted
+  // photon i.
+  const uint64_t emitted = o.photons, map_photon = index;
+  const bool keep_noncaustic = true;
+  const float noncaustic_scale = 1.0f;
   const SceneDescription& desc = scene.description();
   Sampler sampler = Sampler::ForPhoton(shared.stream, index);
   const Emission e = Emit(scene, lights, o, sampler, index, emitted);
@@ -546,11 +553,11 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
               const TraceShared& shared, uint64_t index, ChunkOutput& out) {
   const uint32_t split = std::max<uint32_t>(1, o.caustic_split);
   if (split > 1 && o.caustic_split_method == CausticSplitMethod::kMetropolis) {
-    TraceEmitted(scene, lights, o, shared, index, o.photons, true, 1.0f, index, out);
+    TraceEmitted(scene, lights, o, shared, index, out);
     return;
   }
   if (split == 1) {
-    TracePlainWalk(scene, lights, o, shared, index, shared.emitted, true, 1.0f, out);
+    TracePlainWalk(scene, lights, o, shared, index, true, 1.0f, out);
     return;
   }
   // Wald 1999, §4.6.1: map photon i stands for the emitted photons i·S .. i·S + S − 1; the one
@@ -559,7 +566,7 @@ void TraceOne(const EmbreeScene& scene, const LightSampler& lights, const Photon
   Rng rng = Rng::ForKey(HashKey(o.map_seed, index, kSplitTag));
   const uint32_t keep = rng.UniformInt(split);
   for (uint32_t j = 0; j < split; ++j)
-    TracePlainWalk(scene, lights, o, shared, index * split + j, shared.emitted, j == keep, float(split), out);
+    TracePlainWalk(scene, lights, o, shared, index * split + j, j == keep, float(split), out);
 }
 
 // Photons [begin, end) in order, into `out`. The plain walk's photons (no splitting) go in
@@ -583,7 +590,7 @@ void TraceRange(const EmbreeScene& scene, const LightSampler& lights, const Phot
       starts[k].emitter = &shared.emitters[lights.EmitterIndex(LightChoice(jitter, b + k, shared.emitted))];
     }
     for (uint64_t k = 0; k < n; ++k)
-      TracePlainWalk(scene, lights, o, shared, b + k, shared.emitted, true, 1.0f, out, &starts[k]);
+      TracePlainWalk(scene, lights, o, shared, b + k, true, 1.0f, out, &starts[k]);
   }
 }
 

@@ -350,8 +350,10 @@ class PixelStream {
 // vector multiplies per hash, ~150 cycles) was a latency its walk waited for before its first ray
 // (docs/results/kernel.md §4).
 struct PhotonLanes {
-  alignas(16) std::array<float, sobol::kPhotonEagerLanes> u, v;  // v: the 2-D lanes' y
+  alignas(16) std::array<float, sobol::kPhotonEagerLanes> u;
+  alignas(16) std::array<float, sobol::kPhotonEager2D> v;  // the 2-D lanes' y
 };
+static_assert(sobol::kPhotonEager2D == 4, "PointsOfSlots writes y for one group of 4 lanes");
 
 class PhotonStream {
  public:
@@ -414,7 +416,7 @@ class Sampler {
   static Sampler ForPhoton(const PhotonStream& stream, uint64_t photon, const PhotonLanes& lanes) {
     Sampler s = ForPhotonWithoutLanes(stream, photon);
     std::copy(lanes.u.begin(), lanes.u.end(), s.slot_u_.begin());
-    std::copy(lanes.v.begin(), lanes.v.begin() + sobol::kPhotonEager2D, s.slot_v_.begin());
+    std::copy(lanes.v.begin(), lanes.v.end(), s.slot_v_.begin());
     return s;
   }
 
@@ -445,7 +447,8 @@ class Sampler {
     return Get1DGeneral(slot, 0, 1);
   }
   [[gnu::always_inline]] Sample2 PhotonGet2D(uint32_t slot) {
-    if (photon_lanes_ && slot < sobol::kPhotonEagerLanes && sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
+    if (photon_lanes_ && slot < sobol::kPhotonEagerLanes &&
+        sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
       const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
       return {slot_u_[lane], slot_v_[lane]};
     }
@@ -532,7 +535,8 @@ class Sampler {
   static constexpr uint32_t kMaxBatch = sobol::kMaxSubIndices, kBatches = 8;
   // An entry is read only once its bit in batches_filled_ is set: a Sampler is made for every
   // photon and camera sample, and most never ask a sub-indexed number, so nothing of the ~2 KiB
-  // of entries is written up front (the eight headers' initialisation was 1 % of a photon walk).
+  // of entries is written up front (the eight headers' initialisation was 1 % of a photon walk's
+  // instructions). Like slot_u_/slot_v_, unfilled entries are copied with the Sampler unread.
   struct SubBatch {
     uint32_t slot, subs;
     bool two_d;

@@ -371,6 +371,17 @@ TEST(SobolSampler, PhotonLanesGiveTheScalarPointsForManyPhotons) {
   Rng pick(7, 11);
   EXPECT_FALSE(PhotonStream(SamplerKind::kSobol, 3).HasLanes(uint64_t(1) << 32));  // the independent fallback
   EXPECT_FALSE(PhotonStream(SamplerKind::kIndependent, 3).HasLanes(5));
+  {
+    // The independent kind: PhotonGet*D draw from the photon's stream in request order, as Get*D.
+    const PhotonStream independent(SamplerKind::kIndependent, 3);
+    Sampler a = Sampler::ForPhoton(independent, 12), b = Sampler::ForPhoton(independent, 12);
+    for (uint32_t slot = 0; slot < 12; ++slot) {
+      ASSERT_EQ(a.Get1D(slot), b.PhotonGet1D(slot)) << slot;
+      const Sample2 qa = a.Get2D(slot), qb = b.PhotonGet2D(slot);
+      ASSERT_EQ(qa.u, qb.u) << slot;
+      ASSERT_EQ(qa.v, qb.v) << slot;
+    }
+  }
   for (uint64_t map_seed : {3ull, 77ull, 0x123456789abcdefull}) {
     const PhotonStream stream(SamplerKind::kSobol, map_seed);
     for (int n = 0; n < 4096; ++n) {
@@ -392,11 +403,16 @@ TEST(SobolSampler, PhotonLanesGiveTheScalarPointsForManyPhotons) {
         ASSERT_EQ(qa.u, qc.u) << photon << " " << slot;
         ASSERT_EQ(qa.v, qc.v) << photon << " " << slot;
       }
-      // Beyond the lanes (later bounces' slots) the three samplers agree too.
-      for (uint32_t slot = sobol::kPhotonEagerLanes; slot < 30; ++slot) {
-        const Sample2 qa = a.Get2D(slot), qc = c.Get2D(slot);
+      // Beyond the lanes (later bounces' slots) the samplers agree too, and the photon walk's
+      // forced-inline reads (PhotonGet1D/2D) give Get1D/Get2D's numbers.
+      Sampler d = Sampler::ForPhoton(stream, photon, lanes);
+      for (uint32_t slot = 0; slot < 30; ++slot) {
+        const Sample2 qa = a.Get2D(slot), qc = c.Get2D(slot), qd = d.PhotonGet2D(slot);
         ASSERT_EQ(qa.u, qc.u) << photon << " " << slot;
         ASSERT_EQ(qa.v, qc.v) << photon << " " << slot;
+        ASSERT_EQ(qa.u, qd.u) << photon << " " << slot;
+        ASSERT_EQ(qa.v, qd.v) << photon << " " << slot;
+        ASSERT_EQ(a.Get1D(slot), d.PhotonGet1D(slot)) << photon << " " << slot;
       }
     }
   }
