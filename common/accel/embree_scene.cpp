@@ -147,7 +147,6 @@ void SetRay(const Ray& ray, RTCRayHit* rh) {
 
 bool EmbreeScene::InterpolatedNormal(uint32_t triangle, float u, float v, const Vec3& ng, Vec3* n) const {
   const SceneDescription& s = *scene_;
-  if (s.normals.empty()) return false;
   const auto& tri = s.triangles[triangle];
   const Vec3& n0 = s.normals[tri[0]];
   const Vec3& n1 = s.normals[tri[1]];
@@ -182,7 +181,7 @@ std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
                                        rh.hit.u, rh.hit.v);
   hit.geometric_normal = face_normals_[hit.triangle];
   hit.front_face = Dot(ray.direction, hit.geometric_normal) < 0.0f;
-  if (s.normals.empty() ||  // (InterpolatedNormal checks it too; tested here, no call per ray)
+  if (s.normals.empty() ||
       !InterpolatedNormal(hit.triangle, rh.hit.u, rh.hit.v, hit.geometric_normal, &hit.shading_normal))
     hit.shading_normal = hit.geometric_normal;
   hit.material = s.triangle_material[hit.triangle];
@@ -203,7 +202,6 @@ bool EmbreeScene::IntersectWalk(const Ray& ray, WalkHit* hit) const {
   hit->position = InterpolateOnTriangle(s.positions[tri[0]], s.positions[tri[1]], s.positions[tri[2]],
                                         rh.hit.u, rh.hit.v);
   hit->geometric_normal = face_normals_[triangle];
-  // (normals.empty() tested here too: no call per ray in a scene without vertex normals)
   hit->interpolated = !s.normals.empty() && InterpolatedNormal(triangle, rh.hit.u, rh.hit.v,
                                                                hit->geometric_normal, &hit->shading_normal);
   if (!hit->interpolated) hit->shading_normal = hit->geometric_normal;

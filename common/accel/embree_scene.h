@@ -44,7 +44,8 @@ class EmbreeScene {
  private:
   struct EmbreeHandles;
   // The triangle's vertex normals at barycentrics (u, v), on ng's side; false (and *n untouched)
-  // when the scene has none, one is zero, or the interpolation is degenerate.
+  // when one is zero or the interpolation is degenerate. Only for a scene with vertex normals
+  // (the callers test that, so a scene without them makes no call per ray).
   bool InterpolatedNormal(uint32_t triangle, float u, float v, const Vec3& ng, Vec3* n) const;
   const SceneDescription* scene_;
   std::unique_ptr<EmbreeHandles> embree_;

@@ -112,7 +112,7 @@ inline Vec3 OffsetRayOriginScalar(const Vec3& p, const Vec3& normal, float scene
 }
 #if defined(__SSE4_1__)
 // The same bits as OffsetRayOriginScalar for a finite p and normal (test
-// HardCasesRayOffset.VectorOffsetEqualsTheScalarOne; a NaN may come out with another sign bit),
+// HardCasesRayOffset.OffsetRayOriginStepsEachMovedCoordinateAway; a NaN may come out with another sign bit),
 // without its six data-dependent branches per ray: which coordinates move up or down depends on
 // the normal's signs, which a photon walk or a path changes at every bounce, so they were
 // mispredicted at every spawned ray (docs/results/kernel.md §4). The steps of NextFloatUp/Down

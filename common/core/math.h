@@ -157,9 +157,8 @@ constexpr Rgb operator*(float s, const Rgb& c) {
 // a trace's instructions together: docs/results/kernel.md §4). u·4 = q + x with q an integer (u·4 is exact,
 // and so is x = u·4 − q) and |x| <= ½ (+ rounding of the + ½), so 2πu = q·π/2 + θ with θ = x·π/2 in [−π/4,
 // π/4], where the Taylor polynomials of sin to θ⁹ and of cos to θ⁸ leave < 3e-8 (half an ulp of 1); the
-// quadrant q mod 4 swaps and negates them. Plain float operations: the same bits on every run
-// of one binary (a build that lets the compiler contract to FMA, e.g. PF_NATIVE, may round
-// differently, as for all float code: a farm runs one build).
+// quadrant q mod 4 swaps and negates them. Plain float operations, never contracted to FMA
+// (-ffp-contract=off, CMakeLists.txt): the same bits on every build.
 // Within 2.5e-7 of sin and cos (test SinCos2Pi.MatchesDoublePrecision).
 inline void SinCos2Pi(float u, float* sin_out, float* cos_out) {
   const float a = u * 4.0f;

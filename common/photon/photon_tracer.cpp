@@ -81,14 +81,10 @@ void AppendPhoton(TracedPhotons& list, const Vec3& position, const Vec3& directi
   std::memcpy(reinterpret_cast<unsigned char*>(&p) + offsetof(TracedPhoton, light), &tail, sizeof tail);
 }
 
-// Cosine-weighted direction around n (the emitter's cosine lobe, §2.2), azimuth by SinCos2Pi.
-Vec3 SampleCosineHemisphere(const Vec3& n, float u1, float u2) {
-  return Frame(n).ToWorld(CosineHemisphereFast(u1, u2));
-}
-
 // Per emitting triangle (LightSampler::EmitterIndex's numbering), what every photon leaving it
-// shares: the vertices its point is sampled between, the emission frame, and Φ of one photon —
-// the values LightSampler::Sample and Emit compute per photon, computed here once.
+// shares: the vertices its point is sampled between, the emission frame (the cosine lobe, §2.2),
+// and Φ of one photon — what LightSampler::Sample and the power formula gave per photon
+// (test PhotonTracer.EmissionIsTheLightSamplersSample), computed here once.
 struct Emitter {
   Vec3 a, b, c;
   Vec3 normal;
@@ -119,7 +115,8 @@ struct TraceShared {
       e.c = desc.positions[t[2]];
       e.normal = ls.normal;
       e.frame = Frame(ls.normal);
-      e.power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));  // as Emit
+      // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
+      e.power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));
       e.light = ls.light;
       emitters.push_back(e);
     }
@@ -129,7 +126,7 @@ struct TraceShared {
       walk.push_back(WalkRoulette::Of(m, lobes.emplace_back(BsdfLobes::Of(m))));
   }
   PhotonStream stream;
-  uint64_t emitted;  // the plain walks' emitted photons of the whole map, N (§4.6.1: N·S when split)
+  uint64_t emitted;  // emitted photons of the whole map, N (§4.6.1: N·S when split by brute force)
   std::vector<Emitter> emitters;   // by LightSampler::EmitterIndex
   std::vector<BsdfLobes> lobes;    // by material index
   std::vector<WalkRoulette> walk;  // by material index
@@ -273,12 +270,6 @@ void SplitChain(const EmbreeScene& scene, const ChainStart& c, ChainState& origi
   StoreWeighted(current.stores, float(weight) * scale, out);
 }
 
-// A photon leaving its light (§2.2): the light and point, Φ, and the first ray.
-struct Emission {
-  LightSample light;
-  Rgb power;
-  Ray ray;
-};
 // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
 // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
 float LightChoice(double jitter, uint64_t index, uint64_t emitted) {
@@ -299,17 +290,26 @@ struct PhotonStart {
   const Emitter* emitter = nullptr;
 };
 
-Emission Emit(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
-              Sampler& sampler, uint64_t index, uint64_t emitted) {
-  const float u_select = LightChoice(o, sampler, index, emitted);
-  const Sample2 u_point = sampler.Get2D(kPhotonPointSlot);
+// The photon's emitter, from its light stratum (the photon's first number).
+const Emitter& ChooseEmitter(const LightSampler& lights, const PhotonTracerOptions& o,
+                             const TraceShared& shared, Sampler& sampler, uint64_t index) {
+  return shared.emitters[lights.EmitterIndex(LightChoice(o, sampler, index, shared.emitted))];
+}
+
+// A photon leaving emitter `em` (§2.2): a uniform point on it and a cosine-distributed first ray,
+// from the photon's point and direction numbers. Forced inline: out of line (two callers), the
+// call and the returned struct were 1.6 % of a Cornell trace's instructions.
+struct Emission {
+  Vec3 position;
+  Ray ray;
+};
+[[gnu::always_inline]] inline Emission Emit(const Emitter& em, Sampler& sampler, float epsilon) {
   Emission e;
-  e.light = lights.Sample(u_select, u_point.u, u_point.v);
-  // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
-  e.power = e.light.radiance * (kPi / (e.light.pdf_area * float(emitted)));
-  const Sample2 u_dir = sampler.Get2D(kPhotonDirectionSlot);
-  e.ray = Ray{OffsetRayOrigin(e.light.position, e.light.normal, scene.epsilon()),
-              SampleCosineHemisphere(e.light.normal, u_dir.u, u_dir.v)};
+  const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
+  e.position = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
+  const Sample2 u_dir = sampler.PhotonGet2D(kPhotonDirectionSlot);
+  e.ray = Ray{OffsetRayOrigin(e.position, em.normal, epsilon),
+              em.frame.ToWorld(CosineHemisphereFast(u_dir.u, u_dir.v))};
   return e;
 }
 
@@ -343,12 +343,11 @@ void StorePhoton(ChunkOutput& out, int bounce, bool caustic, bool keep_noncausti
 }
 
 // The photon random walk of Wald 1999, §2.2, without Metropolis splitting (TraceEmitted below
-// walks that one, and with it the photons every trace took before this function existed: the
-// same photons bit for bit, test PhotonTracer.PlainWalkStoresTheGeneralWalksPhotons). Cheaper per
-// photon and per hit: the emission from the trace's emitter table, the hit from IntersectWalk,
-// and the roulette of a flat hit from WalkRoulette (bsdf.h) — Bsdf::Sample only for the outcomes
-// it leaves to it (another lobe than diffuse reflection, smooth or dielectric hits). Same numbers
-// in the same order: the same map.
+// walks that one, with Intersect and a Bsdf at every hit as every trace did before this function
+// existed: the same photons bit for bit, test PhotonTracer.PlainWalkStoresTheGeneralWalksPhotons).
+// Cheaper per hit: the hit from IntersectWalk and the roulette of a flat hit from WalkRoulette
+// (bsdf.h) — Bsdf::Sample only for the outcomes it leaves to it (another lobe than diffuse
+// reflection, smooth or dielectric hits). Same numbers in the same order: the same map.
 // `start`: the photon's lanes and emitter computed ahead (TraceRange), or null.
 void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
                     const TraceShared& shared, uint64_t index, bool keep_noncaustic, float noncaustic_scale,
@@ -356,15 +355,10 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   const SceneDescription& desc = scene.description();
   Sampler sampler = start ? Sampler::ForPhoton(shared.stream, index, start->lanes)
                           : Sampler::ForPhoton(shared.stream, index);
-  // Emit's photon, from the trace's emitter table: the same numbers in the same order.
-  const Emitter& em =
-      start ? *start->emitter
-            : shared.emitters[lights.EmitterIndex(LightChoice(o, sampler, index, shared.emitted))];
-  const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
-  Vec3 previous = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
-  const Sample2 u_dir = sampler.PhotonGet2D(kPhotonDirectionSlot);
-  Ray ray{OffsetRayOrigin(previous, em.normal, scene.epsilon()),
-          em.frame.ToWorld(CosineHemisphereFast(u_dir.u, u_dir.v))};
+  const Emitter& em = start ? *start->emitter : ChooseEmitter(lights, o, shared, sampler, index);
+  const Emission e = Emit(em, sampler, scene.epsilon());
+  Vec3 previous = e.position;
+  Ray ray = e.ray;
   Rgb power = em.power;
   const uint32_t light = em.light;
   bool any_singular_since_diffuse = false;
@@ -412,23 +406,23 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   }
 }
 
-// The walk with Metropolis caustic splitting (§4.6.2): TracePlainWalk's walks with LightSampler,
-// Intersect and a Bsdf at every hit (the chains need the Bsdf), the same direct and indirect
-// stores, and each singular chain's caustic stores weighted by the chain's Markov walk.
+// The walk with Metropolis caustic splitting (§4.6.2): TracePlainWalk's walks with Intersect and
+// a Bsdf at every hit (the chains need the Bsdf), the same direct and indirect stores, and each
+// singular chain's caustic stores weighted by the chain's Markov walk.
 void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const PhotonTracerOptions& o,
                   const TraceShared& shared, uint64_t index, ChunkOutput& out) {
   // Metropolis splitting emits N photons (§4.6.2) and keeps every store: map photon i is emitted
   // photon i.
-  const uint64_t emitted = o.photons, map_photon = index;
+  const uint64_t map_photon = index;
   const bool keep_noncaustic = true;
   const float noncaustic_scale = 1.0f;
   const SceneDescription& desc = scene.description();
   Sampler sampler = Sampler::ForPhoton(shared.stream, index);
-  const Emission e = Emit(scene, lights, o, sampler, index, emitted);
-  const LightSample& ls = e.light;
-  Rgb power = e.power;
+  const Emitter& em = ChooseEmitter(lights, o, shared, sampler, index);
+  const Emission e = Emit(em, sampler, scene.epsilon());
+  Rgb power = em.power;
   const Vec3 dir = e.ray.direction;
-  Vec3 previous = ls.position;
+  Vec3 previous = e.position;
   Ray ray = e.ray;
 
   // Metropolis splitting (§4.6.2): the chain being walked, if any. Its state is allocated by the
@@ -457,7 +451,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
       if (state.splittable && state.q > 0.0) {
         if (!mw->mutations)
           mw->mutations = Rng::ForKey(HashKey(o.map_seed, map_photon, kMetropolisTag, index));
-        SplitChain(scene, *mw->chain, state, o.caustic_split, ls.light, *mw->mutations, out);
+        SplitChain(scene, *mw->chain, state, o.caustic_split, em.light, *mw->mutations, out);
       } else {
         StoreWeighted(state.stores, 1.0f, out);
       }
@@ -466,10 +460,10 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
   };
   if (metropolis) {
     ChainStart start;
-    start.position = ls.position;
+    start.position = e.position;
     start.ray_origin_light = ray.origin;
-    start.axis = ls.normal;
-    start.side = ls.normal;
+    start.axis = em.normal;
+    start.side = em.normal;
     start.power = power;
     start.direction = dir;
     begin_chain(std::move(start));
@@ -495,10 +489,10 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
       if (caustic && in_chain()) {
         // Weighted when the chain ends.
         mw->state.stores.push_back(
-            {hit->position, wo, stored_power, previous, ls.light, PhotonKind::kCaustic});
+            {hit->position, wo, stored_power, previous, em.light, PhotonKind::kCaustic});
       } else {
         StorePhoton(out, bounce, caustic, keep_noncaustic, noncaustic_scale, hit->position, wo, stored_power,
-                    previous, ls.light);
+                    previous, em.light);
       }
     }
     const PhotonBounceSlots slots = SlotsOfPhotonBounce(bounce);

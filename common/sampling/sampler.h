@@ -426,16 +426,11 @@ class Sampler {
   // inline; everything else takes the out-of-line general path, which GCC does not inline (the
   // photon walk called it for each of its numbers, docs/results/kernel.md §4).
   float Get1D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
-    if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes)
-      return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
+    if (subs == 1 && j == 0 && IsPhotonLane(slot)) return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
     return Get1DGeneral(slot, j, subs);
   }
   Sample2 Get2D(uint32_t slot, uint32_t j = 0, uint32_t subs = 1) {
-    if (photon_lanes_ && subs == 1 && j == 0 && slot < sobol::kPhotonEagerLanes &&
-        sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
-      const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
-      return {slot_u_[lane], slot_v_[lane]};
-    }
+    if (subs == 1 && j == 0 && IsPhotonLane2D(slot)) return PhotonLane2D(slot);
     return Get2DGeneral(slot, j, subs);
   }
   // Get1D(slot) / Get2D(slot), forced inline: in the photon walk GCC's budget otherwise keeps
@@ -443,23 +438,31 @@ class Sampler {
   // everywhere made GCC stop inlining their general path into the camera sample loop instead
   // (+3 % instructions of a path-traced image), so the walk has its own.
   [[gnu::always_inline]] float PhotonGet1D(uint32_t slot) {
-    if (photon_lanes_ && slot < sobol::kPhotonEagerLanes) return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
+    if (IsPhotonLane(slot)) return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
     return Get1DGeneral(slot, 0, 1);
   }
   [[gnu::always_inline]] Sample2 PhotonGet2D(uint32_t slot) {
-    if (photon_lanes_ && slot < sobol::kPhotonEagerLanes &&
-        sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
-      const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
-      return {slot_u_[lane], slot_v_[lane]};
-    }
+    if (IsPhotonLane2D(slot)) return PhotonLane2D(slot);
     return Get2DGeneral(slot, 0, 1);
   }
 
  private:
+  // Whether number 0 of `slot` is read from the photon lanes (photon_lanes_ implies the Sobol
+  // kind), as 1-D or as 2-D (only the first kPhotonEager2D lanes hold y).
+  bool IsPhotonLane(uint32_t slot) const { return photon_lanes_ && slot < sobol::kPhotonEagerLanes; }
+  bool IsPhotonLane2D(uint32_t slot) const {
+    return IsPhotonLane(slot) && sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D;
+  }
+  Sample2 PhotonLane2D(uint32_t slot) const {
+    const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
+    return {slot_u_[lane], slot_v_[lane]};
+  }
+
+  // Everything the inline readers above leave: the pixel lanes, the per-request points,
+  // sub-indexed numbers and the independent stream (photon lanes never reach here).
   float Get1DGeneral(uint32_t slot, uint32_t j, uint32_t subs) {
     if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
       if (subs == 1) {
-        if (photon_lanes_ && slot < sobol::kPhotonEagerLanes) return slot_u_[sobol::kPhotonLaneOfSlot[slot]];
         if (lanes_ && slot < sobol::kPixelSeedSlots) return slot_u_[Lane(slot)];
         return sobol::ToFloat(sobol::Point1D(reversed_index_, SeedsOf1(slot)));
       }
@@ -472,11 +475,6 @@ class Sampler {
   Sample2 Get2DGeneral(uint32_t slot, uint32_t j, uint32_t subs) {
     if (kind_ == SamplerKind::kSobol && slot != kIndependentSlot && j < subs) {
       if (subs == 1) {
-        if (photon_lanes_ && slot < sobol::kPhotonEagerLanes &&
-            sobol::kPhotonLaneOfSlot[slot] < sobol::kPhotonEager2D) {
-          const uint32_t lane = sobol::kPhotonLaneOfSlot[slot];
-          return {slot_u_[lane], slot_v_[lane]};
-        }
         if (lanes_ && slot < sobol::kPixelSeedSlots && sobol::LaneHasY(sobol::kLaneOfSlot[slot])) {
           const uint32_t lane = Lane(slot);
           return {slot_u_[lane], slot_v_[lane]};

@@ -4,11 +4,16 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
+#include <vector>
 
 #include "common/photon/photon_maps.h"
+#include "common/render/light_sampler.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
+#include "common/sampling/sample_layout.h"
+#include "common/sampling/sampler.h"
 #include "common/scene/scene_loader.h"
 #include "tests/common/test_scenes.h"
 
@@ -79,10 +84,52 @@ TEST(PhotonTracer, SameSeedSamePhotonsForOneAndTwoThreads) {
   EXPECT_FALSE(same(one.indirect, other.indirect)) << "another seed must give other photons";
 }
 
-// The plain walk (TracePlainWalk: emitter table, IntersectWalk, WalkRoulette, Sobol lanes and
-// light choice computed ahead in batches) must store exactly the photons of the general walk that
-// Metropolis caustic splitting takes (TraceEmitted: LightSampler::Sample, Intersect, a Bsdf at
-// every hit, lanes computed per photon): Metropolis splitting changes only the caustic stores, so
+// Photon i leaves the light LightSampler::Sample gives for its stratified light choice
+// u = (i + ξ)/N and its point numbers (§2.2: photons per emitter ∝ power, a uniform point on it),
+// with Φ = Le·π/(pdf_area·N): the tracer's emitter table must give exactly that point and power.
+// In the closed furnace (a sphere of 8192 emitting triangles of different areas) every photon's
+// first hit stores it, so direct photon i is emitted photon i and its origin is the light point.
+// Both paths: the Sobol lanes computed ahead in batches, and the independent sampler.
+TEST(PhotonTracer, EmissionIsTheLightSamplersSample) {
+  const SceneDescription scene = FurnaceScene(0.5f);
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  ASSERT_GT(lights.num_emitting_triangles(), 10u);
+  for (SamplerKind kind : {SamplerKind::kSobol, SamplerKind::kIndependent}) {
+    PhotonTracerOptions o;
+    o.photons = 5000;
+    o.map_seed = 21;
+    o.sampler = kind;
+    o.threads = 1;
+    const PhotonTracingResult r = TracePhotons(accel, lights, o);
+    ASSERT_EQ(r.direct.size(), o.photons);
+    size_t emitters_seen = 0;
+    std::vector<bool> seen(accel.description().NumTriangles(), false);
+    for (uint64_t i = 0; i < o.photons; ++i) {
+      Sampler sampler = Sampler::ForPhoton(kind, o.map_seed, i);
+      const double jitter = kind == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
+                                                        : sampler.rng().UniformDouble();
+      const float u = std::min(float((double(i) + jitter) / double(o.photons)), 0x1.fffffep-1f);
+      const Sample2 point = sampler.Get2D(kPhotonPointSlot);
+      const LightSample ls = lights.Sample(u, point.u, point.v);
+      const Rgb power = ls.radiance * (kPi / (ls.pdf_area * float(o.photons)));
+      const TracedPhoton& p = r.direct[i];
+      ASSERT_EQ(std::memcmp(&p.origin, &ls.position, sizeof(Vec3)), 0) << i;
+      ASSERT_EQ(std::memcmp(&p.power, &power, sizeof(Rgb)), 0) << i;
+      ASSERT_EQ(p.light, ls.light) << i;
+      if (!seen[ls.triangle]) {
+        seen[ls.triangle] = true;
+        ++emitters_seen;
+      }
+    }
+    EXPECT_GT(emitters_seen, 4000u);  // photons left from thousands of the 8192 emitters
+  }
+}
+
+// The plain walk (TracePlainWalk: IntersectWalk, WalkRoulette, Sobol lanes and light choice
+// computed ahead in batches) must store exactly the photons of the general walk that Metropolis
+// caustic splitting takes (TraceEmitted: Intersect, a Bsdf at every hit, lanes computed per
+// photon; the emission both share is checked above): Metropolis splitting changes only the caustic stores, so
 // the direct and indirect arrays of both are the same walks. Shipped scenes with flat diffuse
 // walls (cornell-box), smooth vertex normals and a mirror and a glass sphere (cornell-sphere) and
 // several lights (office3); both sampler kinds; the bounce cap; one and two threads.
