@@ -4,7 +4,7 @@
 // times. Table + JSON.
 //
 //   build/bench/photon_tracing_bench [--photons 200000] [--repeats 3] [--clock wall|cpu] [--scenes a,b]
-//                                  [--no-raw] [--json out.json]
+//                                  [--no-raw] [--no-floor] [--json out.json]
 //
 // --clock cpu times each trace by the process's CPU time instead of the wall clock: the trace
 // runs on one thread, so on a shared, loaded machine this leaves out the time spent waiting for
@@ -17,6 +17,12 @@
 // table quotes the median ratio. Measured side by side like this, a slower or faster spell of
 // this shared machine moves both rates (separate embree_bench runs minutes apart scattered
 // by ±25 %, docs/results/kernel.md §4).
+//
+// Floor (columns `floor M/s`, `floor`): in the same repeat, bench/floor_walk.h's minimal photon
+// walk — the same Embree wrapper and ray parts, one PCG stream instead of the Sobol sampler, no
+// Bsdf lobes or caustic bookkeeping — timed the same way and divided by the same raw rate: how
+// close to the raw rate a scalar, one-ray-at-a-time walk can come at all, next to the tracer's
+// ratio. --no-floor leaves it out.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -27,6 +33,7 @@
 #include <vector>
 
 #include "bench/bench_stats.h"
+#include "bench/floor_walk.h"
 #include "bench/raw_rays.h"
 #include "common/accel/embree_scene.h"
 #include "common/photon/photon_tracer.h"
@@ -47,7 +54,8 @@ int main(int argc, char** argv) {
   std::string json_path;
   bool cpu_clock = false;
   int raw_passes = 5;  // --no-raw: 0 (profile the trace alone)
-  std::string only;    // --scenes a,b: a subset (e.g. one scene per `perf record`)
+  bool floor_walk = true;
+  std::string only;  // --scenes a,b: a subset (e.g. one scene per `perf record`)
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--clock" && i + 1 < argc &&
@@ -61,12 +69,14 @@ int main(int argc, char** argv) {
       repeats = std::max(1, std::atoi(argv[++i]));
     else if (a == "--no-raw")
       raw_passes = 0;
+    else if (a == "--no-floor")
+      floor_walk = false;
     else if (a == "--json" && i + 1 < argc)
       json_path = argv[++i];
     else {
       std::fprintf(stderr,
                    "usage: %s [--photons N] [--repeats R] [--clock wall|cpu] [--scenes a,b] [--no-raw] "
-                   "[--json out.json]\n",
+                   "[--no-floor] [--json out.json]\n",
                    argv[0]);
       return 2;
     }
@@ -80,8 +90,8 @@ int main(int argc, char** argv) {
   nlohmann::json out = nlohmann::json::array();
   std::printf("photon tracing, 1 thread, %llu photons, median of %d runs, %s clock\n",
               (unsigned long long)photons, repeats, cpu_clock ? "cpu" : "wall");
-  std::printf("%-15s %12s %12s %12s %10s %14s %12s %9s\n", "scene", "emitted k/s", "stored k/s", "rays M/s",
-              "stored/em.", "s per 100k st.", "raw M/s", "ratio");
+  std::printf("%-15s %12s %12s %12s %10s %14s %12s %9s %10s %7s\n", "scene", "emitted k/s", "stored k/s",
+              "rays M/s", "stored/em.", "s per 100k st.", "raw M/s", "ratio", "floor M/s", "floor");
   for (const auto& [name, path] : scenes) {
     if (!only.empty() && only.find("," + name + ",") == std::string::npos) continue;
     const pf::SceneDescription scene = pf::LoadScene(path);
@@ -101,8 +111,8 @@ int main(int argc, char** argv) {
       const double t = cpu_clock ? pf::bench::CpuTimeIt(run) : pf::bench::TimeIt(run);
       return double(raw_rays.size()) * kRawPasses / t;
     };
-    std::vector<double> emitted_rate, stored_rate, ray_rate, raw, ratio;
-    double stored_per_emitted = 0;
+    std::vector<double> emitted_rate, stored_rate, ray_rate, raw, ratio, floor_rate, floor_ratio;
+    double stored_per_emitted = 0, rays_per_emitted = 0, floor_rays_per_emitted = 0;
     for (int r = 0; r < repeats; ++r) {
       const double raw_before = raw_rate();
       pf::PhotonTracerOptions o;
@@ -117,18 +127,30 @@ int main(int argc, char** argv) {
       stored_rate.push_back(stored / seconds);
       ray_rate.push_back(double(res.rays) / seconds);
       stored_per_emitted = stored / double(res.emitted);
+      rays_per_emitted = double(res.rays) / double(res.emitted);
+      res = pf::PhotonTracingResult();
+      if (floor_walk) {
+        pf::bench::FloorWalkResult floor;
+        const auto run = [&] { floor = pf::bench::FloorWalk(accel, lights, photons, uint64_t(r + 1)); };
+        const double t = cpu_clock ? pf::bench::CpuTimeIt(run) : pf::bench::TimeIt(run);
+        floor_rate.push_back(double(floor.rays) / t);
+        floor_rays_per_emitted = double(floor.rays) / double(photons);
+      }
       const double raw_here = 0.5 * (raw_before + raw_rate());
       if (raw_here > 0) {
         raw.push_back(raw_here);
         ratio.push_back(ray_rate.back() / raw_here);
+        if (floor_walk) floor_ratio.push_back(floor_rate.back() / raw_here);
       }
     }
     const double st = Median(stored_rate);
     const double raw_median = raw.empty() ? 0.0 : Median(raw),
                  ratio_median = ratio.empty() ? 0.0 : Median(ratio);
-    std::printf("%-15s %12.1f %12.1f %12.2f %10.2f %14.3f %12.2f %8.1f%%\n", name.c_str(),
+    const double floor_median = floor_rate.empty() ? 0.0 : Median(floor_rate),
+                 floor_ratio_median = floor_ratio.empty() ? 0.0 : Median(floor_ratio);
+    std::printf("%-15s %12.1f %12.1f %12.2f %10.2f %14.3f %12.2f %8.1f%% %10.2f %6.1f%%\n", name.c_str(),
                 Median(emitted_rate) * 1e-3, st * 1e-3, Median(ray_rate) * 1e-6, stored_per_emitted, 1e5 / st,
-                raw_median * 1e-6, 100 * ratio_median);
+                raw_median * 1e-6, 100 * ratio_median, floor_median * 1e-6, 100 * floor_ratio_median);
     out.push_back({{"scene", name},
                    {"photons_emitted", photons},
                    {"emitted_per_s", Median(emitted_rate)},
@@ -139,7 +161,13 @@ int main(int argc, char** argv) {
                    {"runs_rays_per_s", ray_rate},
                    {"runs_raw_rays_per_s", raw},
                    {"runs_ratio_to_raw", ratio},
+                   {"floor_rays_per_s", floor_median},
+                   {"floor_ratio_to_raw", floor_ratio_median},
+                   {"runs_floor_rays_per_s", floor_rate},
+                   {"runs_floor_ratio_to_raw", floor_ratio},
                    {"stored_per_emitted", stored_per_emitted},
+                   {"rays_per_emitted", rays_per_emitted},
+                   {"floor_rays_per_emitted", floor_rays_per_emitted},
                    {"threads", 1},
                    {"clock", cpu_clock ? "cpu" : "wall"},
                    {"repeats", repeats}});
