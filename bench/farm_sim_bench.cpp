@@ -45,6 +45,7 @@
 #include "bench/bench_stats.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "photonfarm_version.h"
 
 extern char** environ;
 
@@ -235,6 +236,7 @@ RunResult RunOnce(const Options& o, int n, uint64_t tasks_wanted, const std::vec
       while (completed.load() < total) {
         v1::LeaseTaskRequest lreq;
         lreq.set_worker_id("sim-" + std::to_string(w));
+        lreq.set_worker_version(PF_VERSION);
         lreq.set_threads(1);
         lreq.set_wait_seconds(0.5);
         v1::LeaseTaskResponse lresp;

@@ -258,7 +258,8 @@ int RunWorkers(const FarmArgs& f, bool json) {
                      {"photons_emitted", w.photons_emitted()},
                      {"busy_seconds", w.busy_seconds()},
                      {"photons_per_second", w.photons_per_second()},
-                     {"seconds_since_seen", w.seconds_since_seen()}});
+                     {"seconds_since_seen", w.seconds_since_seen()},
+                     {"version", w.version()}});
     std::printf("%s\n", arr.dump(2).c_str());
     return kExitOk;
   }
@@ -266,15 +267,15 @@ int RunWorkers(const FarmArgs& f, bool json) {
     std::printf("no workers have contacted this coordinator since it started\n");
     return kExitOk;
   }
-  std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE",
-              "FAILED", "PHOTONS/S", "SEEN");
+  std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s  %s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE",
+              "FAILED", "PHOTONS/S", "SEEN", "BUILD");
   for (const v1::WorkerInfo& w : workers)
     std::printf(
-        "%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s\n", w.worker_id().c_str(), w.peer().c_str(),
+        "%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s  %s\n", w.worker_id().c_str(), w.peer().c_str(),
         w.threads(),
         w.busy() ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id()).c_str() : "idle",
         (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(), w.photons_per_second(),
-        (FormatDuration(w.seconds_since_seen()) + " ago").c_str());
+        (FormatDuration(w.seconds_since_seen()) + " ago").c_str(), w.version().c_str());
   return kExitOk;
 }
 

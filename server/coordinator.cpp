@@ -16,6 +16,7 @@
 #include <chrono>
 
 #include "common/core/error.h"
+#include "photonfarm_version.h"
 #include "server/rpc/auth.h"
 #include "server/rpc/executor.h"
 #include "server/rpc/render_service.h"
@@ -92,7 +93,16 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
         recovery_.jobs_failed);
   persister_->Start();
 
-  ServiceContext ctx{*scheduler_, *scenes_, *db_, *persister_, *executor_, *watches_, *clock_, *maps_};
+  ServiceContext ctx{.scheduler = *scheduler_,
+                     .scenes = *scenes_,
+                     .db = *db_,
+                     .persister = *persister_,
+                     .executor = *executor_,
+                     .watches = *watches_,
+                     .clock = *clock_,
+                     .maps = *maps_,
+                     .build_version = PF_VERSION,
+                     .allow_mixed_versions = options_.allow_mixed_versions};
   render_service_ = std::make_unique<RenderServiceImpl>(ctx);
   worker_service_ = std::make_unique<WorkerServiceImpl>(ctx);
 }

@@ -82,6 +82,9 @@ struct CoordinatorOptions {
   // Issue #12: photon maps traced once (server/scheduling/distributed_maps.h).
   int map_build_threads = 1;           // threads of one map's assembly and balance
   uint64_t map_chunk_photons = 65536;  // photons per traced piece
+  // Lease to workers of another build too (LeaseTaskRequest.worker_version; docs/farm.md
+  // "Upgrades"). Off: such a worker's LeaseTask is FAILED_PRECONDITION.
+  bool allow_mixed_versions = false;
 };
 
 // True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"

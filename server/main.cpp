@@ -4,6 +4,7 @@
 //                  [--client-token-file FILE] [--worker-token-file FILE]
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]] [--insecure]
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
+//                  [--allow-mixed-versions]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
 // :0; with --http a second line, "http on HOST:PORT", for the web status page) — and logs to stderr, one line
@@ -95,6 +96,11 @@ int main(int argc, char** argv) {
                  "Photons per traced piece of a distributed map (rounded up to a multiple of 4096)")
       ->capture_default_str()
       ->check(CLI::Range(uint64_t(4096), uint64_t(1) << 28));
+  app.add_flag("--allow-mixed-versions", options.allow_mixed_versions,
+               "Lease to workers of another build too. By default a worker whose `pf-worker --version` "
+               "differs from this coordinator's (" PF_VERSION
+               ") is refused and exits with code 4: two builds may trace other photons or estimate "
+               "differently, and one job's image would mix them");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));

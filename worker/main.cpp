@@ -4,7 +4,8 @@
 //
 // Signals: SIGTERM or SIGINT = finish the current task within --grace (else hand its lease
 // back), then exit 0; a second signal hands the lease back at once.
-// Exit codes: 0 stopped by a signal (or --max-tasks reached), 2 usage error, 1 start-up failure.
+// Exit codes: 0 stopped by a signal (or --max-tasks reached), 2 usage error, 1 start-up failure,
+// 4 the coordinator refused this worker's build (another `--version`; docs/farm.md, "Upgrades").
 #include <pthread.h>
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
@@ -42,7 +43,8 @@ int main(int argc, char** argv) {
       "their pixel subsets with its own photon maps, reports the pixel sums.\n\n"
       "  pf-worker --coordinator 127.0.0.1:7000 --cache-dir /var/cache/pf-worker\n\n"
       "SIGTERM/SIGINT: finish the current task within --grace or hand it back, then exit 0.\n"
-      "Exit codes: 0 stopped, 1 start-up failure, 2 usage error."};
+      "Exit codes: 0 stopped, 1 start-up failure, 2 usage error, 4 the coordinator runs another\n"
+      "build (`--version`) and refuses this one: farms run one build (docs/farm.md, Upgrades)."};
   app.add_option("--coordinator", o.coordinator, "Coordinator address HOST:PORT")
       ->required()
       ->check(CLI::Validator([](std::string& v) { return pf::CoordinatorAddressProblem(v); }, "HOST:PORT"));

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "common/core/error.h"
+#include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "rpc/grpc_channel.h"
 
@@ -163,6 +164,7 @@ std::optional<v1::Task> Worker::Lease(grpc::Status* status) {
   req.set_threads(uint32_t(options_.threads));
   for (uint64_t s : maps_->CachedSeeds()) req.add_cached_map_seeds(s);
   req.set_wait_seconds(options_.poll_seconds);
+  req.set_worker_version(PF_VERSION);
   grpc::ClientContext ctx;
   PrepareContext(&ctx, options_.token, Seconds(options_.poll_seconds + options_.rpc_timeout_seconds));
   {
@@ -193,6 +195,11 @@ int Worker::Run() {
     std::optional<v1::Task> task = Lease(&status);
     if (!status.ok()) {
       if (stop_requested()) break;
+      if (status.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
+        spdlog::error("LeaseTask: {}; exiting (code {})", StatusToString(status), kExitRefusedBuild);
+        SetState(State::kStopping);
+        return kExitRefusedBuild;
+      }
       if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
           status.error_code() == grpc::StatusCode::PERMISSION_DENIED) {
         // A wrong token will not fix itself, but an operator may rotate it: keep trying slowly.

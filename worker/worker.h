@@ -83,6 +83,11 @@ struct WorkerCounters {
   uint64_t chunks_traced = 0, maps_fetched = 0, maps_from_disk = 0, map_parts_refused = 0;
 };
 
+// Run()'s exit code when the coordinator refuses this worker's build (LeaseTask
+// FAILED_PRECONDITION: LeaseTaskRequest.worker_version, docs/farm.md "Upgrades"). Waiting would
+// not help — the binary cannot change — so the worker exits and its supervisor sees why.
+inline constexpr int kExitRefusedBuild = 4;
+
 class Worker {
  public:
   explicit Worker(WorkerOptions options);
@@ -90,7 +95,8 @@ class Worker {
   Worker(const Worker&) = delete;
   Worker& operator=(const Worker&) = delete;
 
-  // The pull loop; returns the exit code (0 after a stop request or max_tasks).
+  // The pull loop; returns the exit code (0 after a stop request or max_tasks,
+  // kExitRefusedBuild when the coordinator refuses this build).
   int Run();
   // Thread-safe (called from the signal thread, not from a signal handler).
   void RequestStop();

@@ -98,6 +98,7 @@ nlohmann::json WorkerJson(const v1::WorkerInfo& w) {
   return {{"worker_id", w.worker_id()},
           {"host", w.peer()},
           {"threads", w.threads()},
+          {"version", w.version()},
           {"busy", w.busy()},
           {"current_job_id", w.current_job_id()},
           {"current_task_id", w.current_task_id()},
@@ -180,14 +181,15 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
     html +=
         "<table id=\"workers\"><tr><th>worker</th><th>host</th><th>threads</th><th>current "
         "task</th><th>tasks "
-        "done</th><th>failed</th><th>photons/s</th><th>last seen</th></tr>\n";
+        "done</th><th>failed</th><th>photons/s</th><th>last seen</th><th>build</th></tr>\n";
     for (const v1::WorkerInfo& w : workers)
       html += fmt::format(
           "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4g}</td><td>{} "
-          "ago</td></tr>\n",
+          "ago</td><td>{}</td></tr>\n",
           Escape(w.worker_id()), Escape(w.peer()), w.threads(),
           w.busy() ? Escape(w.current_job_id()) + " task " + std::to_string(w.current_task_id()) : "idle",
-          w.tasks_done(), w.tasks_failed(), w.photons_per_second(), Duration(w.seconds_since_seen()));
+          w.tasks_done(), w.tasks_failed(), w.photons_per_second(), Duration(w.seconds_since_seen()),
+          Escape(w.version()));
     html += "</table>\n";
   }
   html += "</body></html>\n";

@@ -2,6 +2,8 @@
 // What the gRPC service classes forward to: the coordinator's parts, owned by Coordinator.
 // Authentication is not among them: gRPC checks it before any handler runs (server/rpc/auth.h).
 
+#include <string>
+
 #include "server/rpc/executor.h"
 #include "server/scheduling/clock.h"
 #include "server/scheduling/distributed_maps.h"
@@ -23,6 +25,10 @@ struct ServiceContext {
   WatchHub& watches;
   const Clock& clock;
   DistributedMaps& maps;  // issue #12: photon maps traced once
+  // Which workers get leases: only those of `build_version` (the coordinator's PF_VERSION)
+  // unless `allow_mixed_versions` (LeaseTaskRequest.worker_version, docs/farm.md "Upgrades").
+  std::string build_version;
+  bool allow_mixed_versions = false;
 };
 
 }  // namespace pf::server

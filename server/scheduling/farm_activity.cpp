@@ -20,11 +20,13 @@ FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
   return w;
 }
 
-void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads) {
+void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
+                              const std::string& version) {
   std::lock_guard lock(mu_);
   Worker& w = WorkerLocked(worker_id);
   w.info.set_peer(peer);
   w.info.set_threads(threads);
+  w.info.set_version(version);
   w.last_seen = clock_.Now();
 }
 

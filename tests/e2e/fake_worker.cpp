@@ -25,6 +25,7 @@
 
 #include "common/plan/task_plan.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "rpc/grpc_channel.h"
 
@@ -49,6 +50,7 @@ bool LeaseOne(v1::WorkerService::Stub& stub, const Options& o, double wait, v1::
               grpc::Status* status) {
   v1::LeaseTaskRequest req;
   req.set_worker_id(o.worker_id.empty() ? "fake-" + o.mode : o.worker_id);
+  req.set_worker_version(PF_VERSION);
   req.set_threads(1);
   req.set_wait_seconds(wait);
   grpc::ClientContext ctx;

@@ -14,6 +14,7 @@
 
 #include "client/farm_client.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "photonfarm_version.h"
 #include "rpc/grpc_channel.h"
 #include "tests/e2e/harness.h"
 
@@ -209,6 +210,7 @@ TEST(MapTracingFarm, UploadsAreAdmittedOnlyForALivePieceLeaseOneAtATime) {
   const std::unique_ptr<v1::WorkerService::Stub> stub = v1::WorkerService::NewStub(channel);
   v1::LeaseTaskRequest lease_req;
   lease_req.set_worker_id("raw");
+  lease_req.set_worker_version(PF_VERSION);
   lease_req.set_threads(1);
   lease_req.set_wait_seconds(5);
   v1::LeaseTaskResponse lease_resp;

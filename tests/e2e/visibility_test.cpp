@@ -7,6 +7,7 @@
 #include <set>
 #include <thread>
 
+#include "photonfarm_version.h"
 #include "tests/e2e/harness.h"
 
 namespace pf::e2e {
@@ -51,6 +52,9 @@ TEST(Visibility, WorkersAndEventsShowWhoRanWhatAndTheRetries) {
   EXPECT_GT(by_id["w1"]["photons_per_second"].get<double>() + by_id["w2"]["photons_per_second"].get<double>(),
             0);
   EXPECT_NE(by_id["w1"]["peer"].get<std::string>().find("127.0.0.1"), std::string::npos) << r.out;
+  // Each real worker names its build, the coordinator's own (docs/farm.md, "Upgrades").
+  EXPECT_EQ(by_id["w1"]["version"], PF_VERSION) << r.out;
+  EXPECT_EQ(by_id["w2"]["version"], PF_VERSION) << r.out;
 
   r = RunCommand(Concat({Binaries::Pf(), "events", id, "--json"}, at), dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -11,6 +11,7 @@
 #include <limits>
 #include <mutex>
 
+#include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "server/store/scene_store.h"
 #include "tests/server/server_test_util.h"
@@ -553,6 +554,7 @@ TEST_F(TokenTest, EachServiceRequiresItsRolesToken) {
     expect(live_->render->UploadScene(Ctx(token).get(), v1::UploadSceneRequest(), &upload));
     v1::LeaseTaskRequest lease_req;
     lease_req.set_worker_id("w");
+    lease_req.set_worker_version(PF_VERSION);
     v1::LeaseTaskResponse lease;
     expect_worker(live_->worker->LeaseTask(Ctx(token).get(), lease_req, &lease));
     v1::ExtendLeaseRequest extend_req;

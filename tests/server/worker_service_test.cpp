@@ -9,11 +9,13 @@
 #include <fstream>
 #include <future>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "common/image/exr_io.h"
 #include "common/plan/task_executor.h"
 #include "common/scene/scene_bundle.h"
+#include "photonfarm_version.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/persister.h"
 #include "tests/server/server_test_util.h"
@@ -81,6 +83,7 @@ v1::JobStatus GetJob(LiveCoordinator& live, const std::string& id) {
 std::optional<v1::Task> Lease(LiveCoordinator& live, double wait = 0, const std::string& worker = "w1") {
   v1::LeaseTaskRequest req;
   req.set_worker_id(worker);
+  req.set_worker_version(PF_VERSION);
   req.set_wait_seconds(wait);
   v1::LeaseTaskResponse resp;
   const grpc::Status st = live.worker->LeaseTask(Ctx("", wait + 10).get(), req, &resp);
@@ -286,6 +289,7 @@ TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(st.error_message(), "worker_id: required");
   req.set_worker_id("w");
+  req.set_worker_version(PF_VERSION);
   req.set_wait_seconds(-1);
   st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
@@ -297,6 +301,66 @@ TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
   ext.set_lease_id("job-1.0.1.deadbeef");
   ASSERT_TRUE(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).ok());
   EXPECT_FALSE(ext_resp.ok()) << "unknown lease: stop";
+}
+
+// Farms run one build (docs/farm.md, "Upgrades"): a worker of another build, or one too old to
+// say which, gets FAILED_PRECONDITION naming both builds and is not listed as a worker of the
+// farm; a worker of the coordinator's build gets its (empty) answer and is listed with its build.
+TEST_F(WorkerServiceTest, LeasesGoOnlyToWorkersOfTheCoordinatorsBuild) {
+  const auto listed = [&](const std::string& id) -> std::optional<v1::WorkerInfo> {
+    v1::ListWorkersResponse workers;
+    EXPECT_TRUE(live_->render->ListWorkers(Ctx().get(), v1::ListWorkersRequest(), &workers).ok());
+    for (const v1::WorkerInfo& w : workers.workers())
+      if (w.worker_id() == id) return w;
+    return std::nullopt;
+  };
+  v1::LeaseTaskRequest req;
+  req.set_worker_id("old-worker");
+  req.set_wait_seconds(0);
+  v1::LeaseTaskResponse resp;
+  req.set_worker_version("0.0.1-elsewhere");
+  grpc::Status st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("'0.0.1-elsewhere'"));
+  EXPECT_THAT(st.error_message(), HasSubstr(std::string("'") + PF_VERSION + "'"));
+  EXPECT_THAT(st.error_message(), HasSubstr("--allow-mixed-versions"));
+  req.clear_worker_version();  // a worker older than the field
+  st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("build is none"));
+  req.set_worker_version(std::string(PF_VERSION) + "\n");  // listed and logged: printable only
+  st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("worker_version"));
+  EXPECT_FALSE(listed("old-worker")) << "a refused worker is not a worker of the farm";
+
+  req.set_worker_version(PF_VERSION);
+  st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_FALSE(resp.has_task()) << "no job was submitted";
+  const std::optional<v1::WorkerInfo> w = listed("old-worker");
+  ASSERT_TRUE(w);
+  EXPECT_EQ(w->version(), PF_VERSION);
+}
+
+// --allow-mixed-versions: the operator's choice to lease to other builds too (listed with theirs).
+TEST(WorkerServiceMixedVersions, AllowMixedVersionsLeasesToOtherBuilds) {
+  TempDir dir;
+  CoordinatorOptions o;
+  o.data_dir = dir.path() / "data";
+  o.allow_mixed_versions = true;
+  LiveCoordinator live(o);
+  v1::LeaseTaskRequest req;
+  req.set_worker_id("other-build");
+  req.set_worker_version("0.0.1-elsewhere");
+  req.set_wait_seconds(0);
+  v1::LeaseTaskResponse resp;
+  const grpc::Status st = live.worker->LeaseTask(Ctx().get(), req, &resp);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  v1::ListWorkersResponse workers;
+  ASSERT_TRUE(live.render->ListWorkers(Ctx().get(), v1::ListWorkersRequest(), &workers).ok());
+  ASSERT_EQ(workers.workers_size(), 1);
+  EXPECT_EQ(workers.workers(0).version(), "0.0.1-elsewhere");
 }
 
 TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
@@ -334,6 +398,7 @@ TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
   {
     v1::LeaseTaskRequest req;
     req.set_worker_id("impatient");
+    req.set_worker_version(PF_VERSION);
     req.set_wait_seconds(20);
     v1::LeaseTaskResponse resp;
     const grpc::Status st = live_->worker->LeaseTask(Ctx("", 0.3).get(), req, &resp);

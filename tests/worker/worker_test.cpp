@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "common/plan/task_plan.h"
+#include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "tests/util/temp_dir.h"
 
@@ -39,9 +40,16 @@ class FakeCoordinator final : public v1::WorkerService::Service {
     offered_.push_back(std::move(task));
   }
   void set_extend_ok(bool ok) { extend_ok_ = ok; }
+  // Answer every lease as a coordinator of another build does (FAILED_PRECONDITION).
+  void set_refuse_build(bool refuse) { refuse_build_ = refuse; }
 
   grpc::Status LeaseTask(grpc::ServerContext* ctx, const v1::LeaseTaskRequest* req,
                          v1::LeaseTaskResponse* resp) override {
+    if (refuse_build_) {
+      std::lock_guard lock(mu_);
+      lease_requests_.push_back(*req);
+      return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "worker_version: another build");
+    }
     const Clock::time_point until = Clock::now() + std::chrono::milliseconds(int(req->wait_seconds() * 1000));
     while (Clock::now() < until && !ctx->IsCancelled()) {
       {
@@ -123,6 +131,7 @@ class FakeCoordinator final : public v1::WorkerService::Service {
   std::vector<v1::Task> offered_;
   Clock::time_point leased_at_ = Clock::now();
   std::atomic<bool> extend_ok_{true};
+  std::atomic<bool> refuse_build_{false};
   std::vector<double> extends_, progress_;
   std::vector<v1::CompleteTaskRequest> completes_;
   std::vector<v1::FailTaskRequest> fails_;
@@ -257,6 +266,22 @@ TEST_F(WorkerTest, HeartbeatsAtAThirdOfTheLeaseAndReportsOnlyTheSubset) {
   EXPECT_NE(std::find(last.cached_map_seeds().begin(), last.cached_map_seeds().end(), task.map_seed()),
             last.cached_map_seeds().end());
   EXPECT_EQ(worker.counters().merged, 1u);
+}
+
+// Every poll names this worker's build (LeaseTaskRequest.worker_version); a coordinator of
+// another build refuses it (FAILED_PRECONDITION), and since waiting cannot change the binary the
+// worker stops polling and Run() ends with kExitRefusedBuild (pf-worker's exit code 4).
+TEST_F(WorkerTest, ExitsWithItsOwnCodeWhenTheCoordinatorRefusesItsBuild) {
+  fake_->set_refuse_build(true);
+  Worker worker(Options());
+  WorkerThread running(worker);
+  const Clock::time_point t0 = Clock::now();
+  while (worker.state() != State::kStopping && Since(t0) < 10)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_EQ(running.Stop(), kExitRefusedBuild);
+  const std::vector<v1::LeaseTaskRequest> polls = fake_->lease_requests();
+  ASSERT_EQ(polls.size(), 1u) << "the worker kept polling a coordinator that refuses its build";
+  EXPECT_EQ(polls[0].worker_version(), PF_VERSION);
 }
 
 TEST_F(WorkerTest, AbandonsTheResultWhenTheLeaseIsGone) {
