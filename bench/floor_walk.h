@@ -1,23 +1,29 @@
 #pragma once
 // The floor of a photon walk's own cost (issue #18: "photon tracing at >= 60 % of the raw
-// incoherent Embree ray rate"): the least a photon random walk (Wald 1999, §2.2) can do per ray
-// and still be one — a point on an emitter and a cosine-distributed first direction, then at
+// incoherent Embree ray rate"): about the least a photon random walk (Wald 1999, §2.2) can do per
+// ray and still be one — a point on an emitter and a cosine-distributed first direction, then at
 // every hit EmbreeScene::IntersectWalk (position, normal, material: what any walk needs), the
-// photon's 56-byte record appended, Russian roulette on the material's diffuse albedo (specular
-// materials absorb: compare it on diffuse scenes such as Cornell and office3), a new
-// cosine direction about the facing normal and an offset origin. Its numbers come from one PCG32
-// stream (Rng) instead of the tracer's Owen-scrambled Sobol lanes, and it has no Bsdf lobes,
-// caustic flag, light stratification or importance test. It is not a photon tracer (its map is
-// not the tracer's): it measures how close to the raw ray rate any scalar, one-ray-at-a-time
-// walk built from the same parts can come, so the tracer's ratio can be read against it.
+// photon's 56-byte record written in place where the material stores photons, Russian roulette
+// with the tracer's own survival probability (the material's roulette lobes, WalkRoulette), a new
+// cosine direction about the facing normal and an offset origin, up to the tracer's bounce cap.
+// Its numbers come from one PCG32 stream (Rng) instead of the tracer's Owen-scrambled Sobol
+// lanes, and it has no light stratification, no lobe choice or Bsdf (a surviving photon leaves
+// every surface — glass and mirrors too — diffusely), no caustic flag, no importance test. So it
+// traces about as many rays per photon and stores about as many photons as the tracer (the bench
+// prints both) with none of the tracer's bookkeeping. It is not a photon tracer (its map is not
+// the tracer's): it measures how close to the raw ray rate a scalar, one-ray-at-a-time walk built
+// from the same parts comes, so that the tracer's ratio can be read against it.
 
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "common/accel/embree_scene.h"
 #include "common/accel/ray.h"
 #include "common/core/math.h"
 #include "common/core/rng.h"
+#include "common/materials/bsdf.h"
 #include "common/photon/photon_tracer.h"
 #include "common/render/light_sampler.h"
 
@@ -34,6 +40,8 @@ inline FloorWalkResult FloorWalk(const EmbreeScene& scene, const LightSampler& l
     Vec3 a, b, c, normal;
     Frame frame;
   };
+  FloorWalkResult result;
+  if (lights.empty() || photons == 0) return result;
   const SceneDescription& desc = scene.description();
   std::vector<Emitter> emitters;
   for (size_t i = 0; i < lights.num_emitting_triangles(); ++i) {
@@ -42,17 +50,19 @@ inline FloorWalkResult FloorWalk(const EmbreeScene& scene, const LightSampler& l
     emitters.push_back(
         {desc.positions[t[0]], desc.positions[t[1]], desc.positions[t[2]], ls.normal, Frame(ls.normal)});
   }
-  // P(survive) = the channel mean of ρd, as the tracer's roulette on a diffuse surface (§2.2,
-  // BsdfLobes), so both walks trace about as many rays per photon; weight ρd / P.
-  std::vector<float> survive;
-  std::vector<Rgb> weight;
+  // Per material, the tracer's roulette (WalkRoulette::Of): P(survive) = the sum of its lobes'
+  // roulette probabilities, stored where it has a diffuse lobe; the weight ρd / P(diffuse).
+  struct Surface {
+    float survive = 0.0f;
+    bool stores = false;
+    Rgb weight;
+  };
+  std::vector<Surface> surfaces;
   for (const Material& m : desc.materials) {
-    const Rgb& rho = m.diffuse_reflectance;
-    const float p = (rho.r + rho.g + rho.b) / 3.0f;
-    survive.push_back(p);
-    weight.push_back(p > 0.0f ? rho * (1.0f / p) : Rgb(0.0f));
+    const WalkRoulette w = WalkRoulette::Of(m, BsdfLobes::Of(m));
+    surfaces.push_back({w.absorb_from, w.has_diffuse, w.p_diffuse > 0.0f ? w.diffuse_weight : Rgb(1.0f)});
   }
-  FloorWalkResult result;
+  const int max_bounces = PhotonTracerOptions().max_bounces;
   result.photons.reserve(photons * 2);
   Rng rng(seed, 7);
   const Rgb power(1.0f / float(photons));
@@ -64,14 +74,25 @@ inline FloorWalkResult FloorWalk(const EmbreeScene& scene, const LightSampler& l
     Vec3 previous = SampleTriangle(em.a, em.b, em.c, u1, u2);
     Ray ray{OffsetRayOrigin(previous, em.normal, epsilon), em.frame.ToWorld(CosineHemisphereFast(u3, u4))};
     Rgb phi = power;
-    for (int bounce = 0; bounce < 8; ++bounce) {
+    for (int bounce = 0; bounce < max_bounces; ++bounce) {
       ++result.rays;
       if (!scene.IntersectWalk(ray, &hit)) break;
+      const Surface& surface = surfaces[hit.material];
       const Vec3 wo = -ray.direction;
-      result.photons.push_back({hit.position, wo, phi, previous, 0, PhotonKind::kIndirect});
+      if (surface.stores) {
+        // Written in place, as the tracer's AppendPhoton does (a temporary copied in stalls on
+        // store forwarding at every photon, docs/results/kernel.md §4).
+        TracedPhoton& p = result.photons.emplace_back();
+        p.position = hit.position;
+        p.direction = wo;
+        p.power = phi;
+        p.origin = previous;
+        const uint64_t tail = uint64_t(bounce == 0 ? PhotonKind::kDirect : PhotonKind::kIndirect) << 32;
+        std::memcpy(reinterpret_cast<unsigned char*>(&p) + offsetof(TracedPhoton, light), &tail, sizeof tail);
+      }
       const float u_rr = rng.Uniform(), v1 = rng.Uniform(), v2 = rng.Uniform();
-      if (!(u_rr < survive[hit.material])) break;
-      phi *= weight[hit.material];
+      if (!(u_rr < surface.survive)) break;
+      phi *= surface.weight;
       const Vec3 n = Dot(wo, hit.geometric_normal) >= 0.0f ? hit.geometric_normal : -hit.geometric_normal;
       previous = hit.position;
       ray = Ray{OffsetRayOrigin(hit.position, n, epsilon), Frame(n).ToWorld(CosineHemisphereFast(v1, v2))};

@@ -24,6 +24,7 @@
 // close to the raw rate a scalar, one-ray-at-a-time walk can come at all, next to the tracer's
 // ratio. --no-floor leaves it out.
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -42,6 +43,11 @@
 #include "common/scene/scene_loader.h"
 
 namespace {
+long MinorFaults() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_minflt;
+}
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
@@ -114,30 +120,43 @@ int main(int argc, char** argv) {
       return double(raw_rays.size()) * kRawPasses / t;
     };
     std::vector<double> emitted_rate, stored_rate, ray_rate, raw, ratio, floor_rate, floor_ratio;
-    double stored_per_emitted = 0, rays_per_emitted = 0, floor_rays_per_emitted = 0;
+    std::vector<double> faults, floor_faults;  // minor page faults of each run (result arrays)
+    double stored_per_emitted = 0, rays_per_emitted = 0, floor_rays_per_emitted = 0,
+           floor_stored_per_emitted = 0;
     for (int r = 0; r < repeats; ++r) {
       const double raw_before = raw_rate();
-      pf::PhotonTracerOptions o;
-      o.photons = photons;
-      o.map_seed = uint64_t(r + 1);
-      o.threads = 1;
-      pf::PhotonTracingResult res;
-      const double cpu_seconds = pf::bench::CpuTimeIt([&] { res = pf::TracePhotons(accel, lights, o); });
-      const double seconds = cpu_clock ? cpu_seconds : res.seconds;
-      const double stored = double(res.direct.size() + res.indirect.size() + res.caustic.size());
-      emitted_rate.push_back(double(res.emitted) / seconds);
-      stored_rate.push_back(stored / seconds);
-      ray_rate.push_back(double(res.rays) / seconds);
-      stored_per_emitted = stored / double(res.emitted);
-      rays_per_emitted = double(res.rays) / double(res.emitted);
-      res = pf::PhotonTracingResult();
-      if (floor_walk) {
-        pf::bench::FloorWalkResult floor;
-        const auto run = [&] { floor = pf::bench::FloorWalk(accel, lights, photons, uint64_t(r + 1)); };
+      const auto trace = [&] {
+        pf::PhotonTracerOptions o;
+        o.photons = photons;
+        o.map_seed = uint64_t(r + 1);
+        o.threads = 1;
+        pf::PhotonTracingResult res;
+        const long faults_before = MinorFaults();
+        const double cpu_seconds = pf::bench::CpuTimeIt([&] { res = pf::TracePhotons(accel, lights, o); });
+        faults.push_back(double(MinorFaults() - faults_before));
+        const double seconds = cpu_clock ? cpu_seconds : res.seconds;
+        const double stored = double(res.direct.size() + res.indirect.size() + res.caustic.size());
+        emitted_rate.push_back(double(res.emitted) / seconds);
+        stored_rate.push_back(stored / seconds);
+        ray_rate.push_back(double(res.rays) / seconds);
+        stored_per_emitted = stored / double(res.emitted);
+        rays_per_emitted = double(res.rays) / double(res.emitted);
+      };
+      const auto floor = [&] {
+        pf::bench::FloorWalkResult walked;
+        const auto run = [&] { walked = pf::bench::FloorWalk(accel, lights, photons, uint64_t(r + 1)); };
+        const long faults_before = MinorFaults();
         const double t = cpu_clock ? pf::bench::CpuTimeIt(run) : pf::bench::TimeIt(run);
-        floor_rate.push_back(double(floor.rays) / t);
-        floor_rays_per_emitted = double(floor.rays) / double(photons);
-      }
+        floor_faults.push_back(double(MinorFaults() - faults_before));
+        floor_rate.push_back(double(walked.rays) / t);
+        floor_rays_per_emitted = double(walked.rays) / double(photons);
+        floor_stored_per_emitted = double(walked.photons.size()) / double(photons);
+      };
+      // Alternated, so that neither always runs first after the raw rays (or after the other's
+      // freed arrays, which decide how many of the next run's pages fault).
+      if (floor_walk && r % 2 == 1) floor();
+      trace();
+      if (floor_walk && r % 2 == 0) floor();
       const double raw_here = 0.5 * (raw_before + raw_rate());
       if (raw_here > 0) {
         raw.push_back(raw_here);
@@ -170,6 +189,9 @@ int main(int argc, char** argv) {
                    {"stored_per_emitted", stored_per_emitted},
                    {"rays_per_emitted", rays_per_emitted},
                    {"floor_rays_per_emitted", floor_rays_per_emitted},
+                   {"floor_stored_per_emitted", floor_stored_per_emitted},
+                   {"runs_minor_faults", faults},
+                   {"runs_floor_minor_faults", floor_faults},
                    {"threads", 1},
                    {"clock", cpu_clock ? "cpu" : "wall"},
                    {"repeats", repeats}});

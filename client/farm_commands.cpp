@@ -120,11 +120,18 @@ v1::JobStatus WatchWithProgress(FarmClient& client, const std::string& job_id, c
         if (!hinted && u.status().state() == v1::JOB_STATE_QUEUED && u.status().tasks_running() == 0) {
           hinted = true;
           try {
-            if (client.ListWorkers().empty())
+            const std::vector<v1::WorkerInfo> workers = client.ListWorkers();
+            const bool any_usable = std::any_of(workers.begin(), workers.end(),
+                                                [](const v1::WorkerInfo& w) { return !w.refused(); });
+            if (workers.empty())
               spdlog::warn(
                   "no worker has contacted the coordinator yet, so the job waits (ETA unknown): start one "
                   "with "
                   "pf-worker --coordinator HOST:PORT");
+            else if (!any_usable)
+              spdlog::warn(
+                  "the coordinator refused every worker that contacted it (another build: see pf workers), "
+                  "so the job waits: start workers of the coordinator's build (docs/farm.md, Upgrades)");
           } catch (const RpcError&) {  // an older coordinator without ListWorkers: no hint
           }
         }
@@ -259,7 +266,8 @@ int RunWorkers(const FarmArgs& f, bool json) {
                      {"busy_seconds", w.busy_seconds()},
                      {"photons_per_second", w.photons_per_second()},
                      {"seconds_since_seen", w.seconds_since_seen()},
-                     {"version", w.version()}});
+                     {"version", w.version()},
+                     {"refused", w.refused()}});
     std::printf("%s\n", arr.dump(2).c_str());
     return kExitOk;
   }
@@ -270,12 +278,14 @@ int RunWorkers(const FarmArgs& f, bool json) {
   std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s  %s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE",
               "FAILED", "PHOTONS/S", "SEEN", "BUILD");
   for (const v1::WorkerInfo& w : workers)
-    std::printf(
-        "%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s  %s\n", w.worker_id().c_str(), w.peer().c_str(),
-        w.threads(),
-        w.busy() ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id()).c_str() : "idle",
-        (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(), w.photons_per_second(),
-        (FormatDuration(w.seconds_since_seen()) + " ago").c_str(), w.version().c_str());
+    std::printf("%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s  %s\n", w.worker_id().c_str(),
+                w.peer().c_str(), w.threads(),
+                w.refused() ? "refused (build)"
+                : w.busy()  ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id()).c_str()
+                            : "idle",
+                (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(),
+                w.photons_per_second(), (FormatDuration(w.seconds_since_seen()) + " ago").c_str(),
+                w.version().c_str());
   return kExitOk;
 }
 

@@ -189,16 +189,19 @@ int Worker::Run() {
   spdlog::info("worker {} starting: coordinator {}, {} threads, cache {}", options_.worker_id,
                options_.coordinator, options_.threads, options_.cache_dir.string());
   uint64_t reported = 0;
+  int exit_code = 0;
   while (!stop_requested()) {
     if (!WaitForConnection()) break;
     grpc::Status status;
     std::optional<v1::Task> task = Lease(&status);
     if (!status.ok()) {
       if (stop_requested()) break;
-      if (status.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
+      if (status.error_code() == grpc::StatusCode::FAILED_PRECONDITION &&
+          status.error_message().rfind("worker_version:", 0) == 0) {
+        // Another build (docs/farm.md, "Upgrades"): polling again cannot change this binary.
         spdlog::error("LeaseTask: {}; exiting (code {})", StatusToString(status), kExitRefusedBuild);
-        SetState(State::kStopping);
-        return kExitRefusedBuild;
+        exit_code = kExitRefusedBuild;
+        break;
       }
       if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
           status.error_code() == grpc::StatusCode::PERMISSION_DENIED) {
@@ -238,7 +241,7 @@ int Worker::Run() {
       "worker {} stopped: {} leased, {} completed ({} merged), {} failed, {} abandoned ({} cancelled), {} "
       "handed back",
       options_.worker_id, c.leased, c.completed, c.merged, c.failed, c.abandoned, c.cancelled, c.handed_back);
-  return 0;
+  return exit_code;
 }
 
 SceneBundle Worker::FetchBundle(const std::string& hash, const std::string& entry) {

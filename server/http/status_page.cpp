@@ -99,6 +99,7 @@ nlohmann::json WorkerJson(const v1::WorkerInfo& w) {
           {"host", w.peer()},
           {"threads", w.threads()},
           {"version", w.version()},
+          {"refused", w.refused()},
           {"busy", w.busy()},
           {"current_job_id", w.current_job_id()},
           {"current_task_id", w.current_task_id()},
@@ -187,7 +188,9 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4g}</td><td>{} "
           "ago</td><td>{}</td></tr>\n",
           Escape(w.worker_id()), Escape(w.peer()), w.threads(),
-          w.busy() ? Escape(w.current_job_id()) + " task " + std::to_string(w.current_task_id()) : "idle",
+          w.refused() ? std::string("refused: another build")
+          : w.busy()  ? Escape(w.current_job_id()) + " task " + std::to_string(w.current_task_id())
+                      : "idle",
           w.tasks_done(), w.tasks_failed(), w.photons_per_second(), Duration(w.seconds_since_seen()),
           Escape(w.version()));
     html += "</table>\n";

@@ -92,7 +92,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
     // --plan auto without a worker count plans for the workers seen in the last minute.
     uint32_t live = 0;
     for (const v1::WorkerInfo& w : ctx_.scheduler.activity().Workers())
-      if (w.seconds_since_seen() <= 60) ++live;
+      if (w.seconds_since_seen() <= 60 && !w.refused()) ++live;
     *config = ValidateJobSpec(request->spec(), ctx_.scenes, std::max(1u, live));
     return grpc::Status::OK;
   });

@@ -69,23 +69,28 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
     double wait = 0;
     const grpc::Status status = Guarded("LeaseTask", [&] {
       limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
-      // Printable ASCII without spaces, as an id: it is logged and listed (pf workers, the web page).
-      if (!request->worker_version().empty())
-        limits::CheckId(request->worker_version(), "worker_version", limits::kMaxIdBytes);
-      if (!ctx.allow_mixed_versions && request->worker_version() != ctx.build_version) {
-        // Farms run one build (docs/farm.md, "Upgrades"): another build may trace other photons
-        // or estimate differently, and this job's image would mix the two. Refused before the
-        // worker is counted as seen, so it never shows as an idle worker of the farm.
-        const std::string worker_build = request->worker_version().empty()
-                                             ? "none (older than the check)"
-                                             : limits::Quote(request->worker_version());
-        spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'",
-                     limits::Quote(request->worker_id()), worker_build, ctx.build_version);
-        return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                            "worker_version: this worker's build is " + worker_build +
-                                ", the coordinator's '" + ctx.build_version +
-                                "'; farms run one build (docs/farm.md, Upgrades): run workers of the "
-                                "coordinator's build, or start the coordinator with --allow-mixed-versions");
+      // The coordinator's own version string is taken as it is; any other must be printable ASCII
+      // without spaces, as an id: it is logged and listed (pf workers, the web page).
+      const std::string& version = request->worker_version();
+      if (version != ctx.build_version) {
+        if (!version.empty()) limits::CheckId(version, "worker_version", limits::kMaxIdBytes);
+        if (!ctx.allow_mixed_versions) {
+          // Farms run one build (docs/farm.md, "Upgrades"): another build may trace other photons
+          // or estimate differently, and a job's image would mix the two. Listed as refused (never
+          // as an idle worker of the farm) so that pf workers and the web page say why.
+          const std::string worker_build =
+              version.empty() ? "none (older than the check)" : limits::Quote(version);
+          ctx.scheduler.activity().WorkerRefused(request->worker_id(), context->peer(), request->threads(),
+                                                 version);
+          spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'",
+                       limits::Quote(request->worker_id()), worker_build, ctx.build_version);
+          return grpc::Status(
+              grpc::StatusCode::FAILED_PRECONDITION,
+              "worker_version: this worker's build is " + worker_build + ", the coordinator's '" +
+                  ctx.build_version +
+                  "'; farms run one build (docs/farm.md, Upgrades): run workers of the "
+                  "coordinator's build, or start the coordinator with --allow-mixed-versions");
+        }
       }
       wait = request->wait_seconds();
       if (!std::isfinite(wait) || wait < 0) throw InputError("wait_seconds: must be a finite number >= 0");

@@ -13,6 +13,7 @@
 #include "common/photon/photon_chunk.h"
 #include "common/photon/photon_maps_bytes.h"
 #include "common/scene/scene_bundle.h"
+#include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "proto/limits.h"
 
@@ -70,7 +71,9 @@ std::string DistributedMapKey(const JobConfig& config, uint64_t map_seed) {
   photonfarm::v1::RenderSettings settings;
   SettingsToProto(config.settings, &settings);
   settings.mutable_photon_map()->clear_map_tracing();  // who traces it does not change the map
-  std::string text = "photonfarm-map-v1\n" + config.scene_hash + "\n";
+  // The build too: a map on disk traced by another build (before an upgrade) may hold other
+  // photons, and is never reused by this one (docs/farm.md, Upgrades).
+  std::string text = "photonfarm-map-v1\n" + std::string(PF_VERSION) + "\n" + config.scene_hash + "\n";
   text += settings.SerializeAsString();
   text += '\n';
   text += std::to_string(map_seed);

@@ -13,9 +13,10 @@
 // submission); kAuto — kd-tree photon maps that more than one of the job's render tasks uses
 // (a map used once gains nothing from travelling: its only user could trace it as fast).
 //
-// Key: hex SHA-256 of "photonfarm-map-v1", the scene hash, the job's render settings (proto,
-// map_tracing cleared) and the map seed: the settings with the scene decide every `auto`, so the
-// key names one map; jobs with the same scene, settings and seed share it.
+// Key: hex SHA-256 of "photonfarm-map-v1", the coordinator's build (PF_VERSION: a map traced by
+// another build before an upgrade is never reused), the scene hash, the job's render settings
+// (proto, map_tracing cleared) and the map seed: the settings with the scene decide every `auto`,
+// so the key names one map; jobs with the same scene, settings and seed share it.
 //
 // Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1);
 // after max_attempts, or if assembling fails, the map is left to the workers (its render tasks

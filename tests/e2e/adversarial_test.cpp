@@ -222,7 +222,8 @@ class Adversary {
     v1::LeaseTaskRequest req;
     req.set_worker_id(Pick(4) == 0 ? RandomId() : "adversary-" + std::to_string(Pick(3)));
     req.set_wait_seconds(RandomSeconds());
-    // Mostly the coordinator's build; else another build, none or junk (FAILED_PRECONDITION).
+    // Mostly the coordinator's build; else another build or none (FAILED_PRECONDITION), or junk
+    // that is no version string at all (INVALID_ARGUMENT).
     req.set_worker_version(Pick(4) != 0 ? std::string(PF_VERSION) : Coin() ? RandomId() : std::string());
     req.set_threads(OneOf<uint32_t>({0, 1, 4294967295u}));
     for (int i = 0; i < int(Pick(3)); ++i) req.add_cached_map_seeds(rng_());

@@ -304,8 +304,9 @@ TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
 }
 
 // Farms run one build (docs/farm.md, "Upgrades"): a worker of another build, or one too old to
-// say which, gets FAILED_PRECONDITION naming both builds and is not listed as a worker of the
-// farm; a worker of the coordinator's build gets its (empty) answer and is listed with its build.
+// say which, gets FAILED_PRECONDITION naming both builds and is listed as refused (with the build
+// it named); a worker of the coordinator's build gets its (empty) answer and is listed with its
+// build, no longer refused.
 TEST_F(WorkerServiceTest, LeasesGoOnlyToWorkersOfTheCoordinatorsBuild) {
   const auto listed = [&](const std::string& id) -> std::optional<v1::WorkerInfo> {
     v1::ListWorkersResponse workers;
@@ -324,6 +325,10 @@ TEST_F(WorkerServiceTest, LeasesGoOnlyToWorkersOfTheCoordinatorsBuild) {
   EXPECT_THAT(st.error_message(), HasSubstr("'0.0.1-elsewhere'"));
   EXPECT_THAT(st.error_message(), HasSubstr(std::string("'") + PF_VERSION + "'"));
   EXPECT_THAT(st.error_message(), HasSubstr("--allow-mixed-versions"));
+  std::optional<v1::WorkerInfo> w = listed("old-worker");
+  ASSERT_TRUE(w);
+  EXPECT_TRUE(w->refused());
+  EXPECT_EQ(w->version(), "0.0.1-elsewhere");
   req.clear_worker_version();  // a worker older than the field
   st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << st.error_message();
@@ -332,14 +337,18 @@ TEST_F(WorkerServiceTest, LeasesGoOnlyToWorkersOfTheCoordinatorsBuild) {
   st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
   EXPECT_THAT(st.error_message(), HasSubstr("worker_version"));
-  EXPECT_FALSE(listed("old-worker")) << "a refused worker is not a worker of the farm";
+  w = listed("old-worker");
+  ASSERT_TRUE(w);
+  EXPECT_TRUE(w->refused());
+  EXPECT_EQ(w->version(), "") << "the last refusal's build (none); the malformed one is not recorded";
 
   req.set_worker_version(PF_VERSION);
   st = live_->worker->LeaseTask(Ctx().get(), req, &resp);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_FALSE(resp.has_task()) << "no job was submitted";
-  const std::optional<v1::WorkerInfo> w = listed("old-worker");
+  w = listed("old-worker");
   ASSERT_TRUE(w);
+  EXPECT_FALSE(w->refused());
   EXPECT_EQ(w->version(), PF_VERSION);
 }
 

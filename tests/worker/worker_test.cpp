@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <string>
 #include <thread>
 
 #include "common/plan/task_plan.h"
@@ -40,15 +41,21 @@ class FakeCoordinator final : public v1::WorkerService::Service {
     offered_.push_back(std::move(task));
   }
   void set_extend_ok(bool ok) { extend_ok_ = ok; }
-  // Answer every lease as a coordinator of another build does (FAILED_PRECONDITION).
-  void set_refuse_build(bool refuse) { refuse_build_ = refuse; }
+  // Answer every lease with FAILED_PRECONDITION and this message ("worker_version: …" is what a
+  // coordinator of another build says); empty: lease normally.
+  void set_refusal(std::string message) {
+    std::lock_guard lock(mu_);
+    refusal_ = std::move(message);
+  }
 
   grpc::Status LeaseTask(grpc::ServerContext* ctx, const v1::LeaseTaskRequest* req,
                          v1::LeaseTaskResponse* resp) override {
-    if (refuse_build_) {
+    {
       std::lock_guard lock(mu_);
-      lease_requests_.push_back(*req);
-      return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, "worker_version: another build");
+      if (!refusal_.empty()) {
+        lease_requests_.push_back(*req);
+        return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, refusal_);
+      }
     }
     const Clock::time_point until = Clock::now() + std::chrono::milliseconds(int(req->wait_seconds() * 1000));
     while (Clock::now() < until && !ctx->IsCancelled()) {
@@ -131,7 +138,7 @@ class FakeCoordinator final : public v1::WorkerService::Service {
   std::vector<v1::Task> offered_;
   Clock::time_point leased_at_ = Clock::now();
   std::atomic<bool> extend_ok_{true};
-  std::atomic<bool> refuse_build_{false};
+  std::string refusal_;
   std::vector<double> extends_, progress_;
   std::vector<v1::CompleteTaskRequest> completes_;
   std::vector<v1::FailTaskRequest> fails_;
@@ -272,7 +279,7 @@ TEST_F(WorkerTest, HeartbeatsAtAThirdOfTheLeaseAndReportsOnlyTheSubset) {
 // another build refuses it (FAILED_PRECONDITION), and since waiting cannot change the binary the
 // worker stops polling and Run() ends with kExitRefusedBuild (pf-worker's exit code 4).
 TEST_F(WorkerTest, ExitsWithItsOwnCodeWhenTheCoordinatorRefusesItsBuild) {
-  fake_->set_refuse_build(true);
+  fake_->set_refusal("worker_version: this worker's build is 'x', the coordinator's 'y'");
   Worker worker(Options());
   WorkerThread running(worker);
   const Clock::time_point t0 = Clock::now();
@@ -282,6 +289,16 @@ TEST_F(WorkerTest, ExitsWithItsOwnCodeWhenTheCoordinatorRefusesItsBuild) {
   const std::vector<v1::LeaseTaskRequest> polls = fake_->lease_requests();
   ASSERT_EQ(polls.size(), 1u) << "the worker kept polling a coordinator that refuses its build";
   EXPECT_EQ(polls[0].worker_version(), PF_VERSION);
+}
+
+// Only the build refusal ends the worker: any other FAILED_PRECONDITION is retried like other
+// errors (a future precondition must not take the farm's workers down).
+TEST_F(WorkerTest, KeepsPollingAfterOtherPreconditionFailures) {
+  fake_->set_refusal("something else is not ready");
+  Worker worker(Options());
+  RunUntil(
+      worker, [&] { return fake_->lease_requests().size() >= 3; }, 10);  // expects exit code 0
+  EXPECT_GE(fake_->lease_requests().size(), 3u);
 }
 
 TEST_F(WorkerTest, AbandonsTheResultWhenTheLeaseIsGone) {
