@@ -80,8 +80,9 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
           // as an idle worker of the farm) so that pf workers and the web page say why.
           const std::string worker_build =
               version.empty() ? "none (older than the check)" : limits::Quote(version);
-          ctx.scheduler.activity().WorkerRefused(request->worker_id(), context->peer(), request->threads(),
-                                                 version);
+          ctx.scheduler.activity().WorkerSeen(request->worker_id(), context->peer(), request->threads(),
+                                              version,
+                                              /*refused=*/true);
           spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'",
                        limits::Quote(request->worker_id()), worker_build, ctx.build_version);
           return grpc::Status(

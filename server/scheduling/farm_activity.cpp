@@ -21,24 +21,13 @@ FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
 }
 
 void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
-                              const std::string& version) {
+                              const std::string& version, bool refused) {
   std::lock_guard lock(mu_);
   Worker& w = WorkerLocked(worker_id);
   w.info.set_peer(peer);
   w.info.set_threads(threads);
   w.info.set_version(version);
-  w.info.set_refused(false);
-  w.last_seen = clock_.Now();
-}
-
-void FarmActivity::WorkerRefused(const std::string& worker_id, const std::string& peer, uint32_t threads,
-                                 const std::string& version) {
-  std::lock_guard lock(mu_);
-  Worker& w = WorkerLocked(worker_id);
-  w.info.set_peer(peer);
-  w.info.set_threads(threads);
-  w.info.set_version(version);
-  w.info.set_refused(true);
+  w.info.set_refused(refused);
   w.last_seen = clock_.Now();
 }
 

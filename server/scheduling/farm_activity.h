@@ -24,13 +24,11 @@ class FarmActivity {
  public:
   explicit FarmActivity(const Clock& clock) : clock_(clock) {}
 
-  // A LeaseTask call from `worker_id` (its peer address and threads).
-  void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
-                  const std::string& version);
-  // A worker whose lease the coordinator refused (another build): listed with refused = true and
+  // A LeaseTask call from `worker_id` (its peer address, threads and version string).
+  // `refused`: the coordinator refused its lease (another build): listed with refused = true and
   // its version, so `pf workers` and the web page say why it gets no work (docs/farm.md, Upgrades).
-  void WorkerRefused(const std::string& worker_id, const std::string& peer, uint32_t threads,
-                     const std::string& version);
+  void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
+                  const std::string& version, bool refused = false);
   // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned,
   // confirmed (a result above the job's bound reproduced by another worker, then merged).
   void TaskEvent(const std::string& job_id, const std::string& kind, uint64_t task_id, uint32_t attempt,
