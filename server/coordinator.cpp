@@ -65,6 +65,7 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   SchedulerOptions so;
   so.lease_seconds = options_.lease_seconds;
   so.max_attempts = options_.max_attempts;
+  so.build = PF_VERSION;
   scheduler_ = std::make_unique<Scheduler>(*clock_, so);
   DistributedMapsOptions mo;
   mo.dir = options_.data_dir / "maps";
@@ -84,13 +85,14 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
   scheduler_->SetChangeListener([w = watches_.get()](const std::string& job_id) { w->Notify(job_id); });
 
-  recovery_ = RecoverJobs(*db_, *scenes_, options_.data_dir / "checkpoints", *scheduler_, *clock_);
+  recovery_ = RecoverJobs(*db_, *scenes_, options_.data_dir / "checkpoints", *scheduler_, *clock_,
+                          /*keep_other_builds=*/options_.allow_mixed_versions);
   if (recovery_.jobs_resumed + recovery_.jobs_finished + recovery_.jobs_failed > 0)
     spdlog::info(
-        "recovered {} unfinished jobs ({} tasks merged from checkpoints, {} re-queued), {} finished, {} "
-        "could not be resumed",
-        recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_finished,
-        recovery_.jobs_failed);
+        "recovered {} unfinished jobs ({} tasks merged from checkpoints, {} re-queued; {} begun by another "
+        "build re-run), {} finished, {} could not be resumed",
+        recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_other_build,
+        recovery_.jobs_finished, recovery_.jobs_failed);
   persister_->Start();
 
   ServiceContext ctx{.scheduler = *scheduler_,

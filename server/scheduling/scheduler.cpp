@@ -170,6 +170,7 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
 std::unique_ptr<Job> Scheduler::PrepareJob(JobConfig config) {
   // The expansion that creates this job's tasks, stored with its spec (recovery.cpp compares it).
   config.spec.mutable_plan()->set_expansion_version(PlanExpansionVersion(config.plan));
+  config.spec.mutable_plan()->set_build(options_.build);  // whose workers render it (recovery.cpp)
   std::vector<TaskSpec> tasks = ScheduledTasks(config);
   auto shared = std::make_shared<const JobConfig>(std::move(config));
   std::pair<uint64_t, std::string> id;

@@ -84,6 +84,8 @@ struct SchedulerOptions {
   double lease_seconds = 30;
   uint32_t max_attempts = 3;
   double noise_check_interval = 0.5;  // seconds between noise estimates of one job
+  // Stamped into every job's stored spec (JobSpec.plan.build): the coordinator's PF_VERSION.
+  std::string build = {};
 };
 
 struct LeaseRequest {

@@ -6,6 +6,7 @@
 
 #include "common/core/error.h"
 #include "common/plan/hierarchical.h"
+#include "proto/limits.h"
 #include "server/assembly/result_merger.h"
 #include "server/store/checkpoint.h"
 #include "server/store/journal.h"
@@ -155,7 +156,7 @@ static void SetAsideOrphans(const fs::path& checkpoint_dir, const std::vector<Jo
 }
 
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
-                           Scheduler& scheduler, const Clock& clock) {
+                           Scheduler& scheduler, const Clock& clock, bool keep_other_builds) {
   RecoveryReport report;
   const double now = clock.Now();
   std::vector<JobRow> rows = db.LoadJobs();
@@ -181,27 +182,46 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       continue;
     }
     // A checkpoint and a journal name merged tasks by id; under another version of the plan's
-    // expansion the ids mean other tasks (task_plan.h, PlanExpansionVersion). Such a job restarts
-    // from zero merges: its image stays right, only the work since its submit is redone.
+    // expansion the ids mean other tasks (task_plan.h, PlanExpansionVersion). And results merged
+    // by another build's workers may differ from this build's (other photons, another estimate):
+    // a job begun under another build would mix the two (docs/farm.md, Upgrades). Either way the
+    // job restarts from zero merges: its image stays right, only the work since its submit is
+    // redone.
     const uint32_t stored_version = config.spec.plan().expansion_version();
     const uint32_t current_version = PlanExpansionVersion(config.plan);
-    if (!finished && stored_version != current_version) {
+    const std::string& stored_build = config.spec.plan().build();
+    const std::string& current_build = scheduler.options().build;
+    const bool other_expansion = stored_version != current_version;
+    const bool other_build = stored_build != current_build && !keep_other_builds;
+    if (!finished && (other_expansion || other_build)) {
+      const std::string suffix =
+          other_expansion ? ".expansion-v" + std::to_string(stored_version) : std::string(".other-build");
       std::error_code ec;
       for (const fs::path& f : {Persister::CheckpointFile(checkpoint_dir, row.job_id),
                                 Persister::JournalFile(checkpoint_dir, row.job_id)})
         if (fs::exists(f, ec)) {
           fs::path aside = f;
-          aside += ".expansion-v" + std::to_string(stored_version);
+          aside += suffix;
           fs::rename(f, aside, ec);
         }
-      spdlog::warn(
-          "job {}: created under plan expansion version {}, this coordinator's is {}: its merged results "
-          "(checkpoint, journal) are set aside with the suffix .expansion-v{} and its tasks re-run",
-          row.job_id, stored_version, current_version, stored_version);
+      if (other_expansion) {
+        spdlog::warn(
+            "job {}: created under plan expansion version {}, this coordinator's is {}: its merged results "
+            "(checkpoint, journal) are set aside with the suffix {} and its tasks re-run",
+            row.job_id, stored_version, current_version, suffix);
+        ++report.jobs_reexpanded;
+      } else {
+        spdlog::warn(
+            "job {}: begun by build {}, this coordinator is '{}': its merged results (checkpoint, journal) "
+            "are set aside with the suffix {} and its tasks re-run (--allow-mixed-versions keeps them)",
+            row.job_id, stored_build.empty() ? std::string("(unrecorded)") : limits::Quote(stored_build),
+            current_build, suffix);
+        ++report.jobs_other_build;
+      }
       config.spec.mutable_plan()->set_expansion_version(current_version);
+      config.spec.mutable_plan()->set_build(current_build);
       row.spec = config.spec.SerializeAsString();
       db.UpdateJobSpec(row.job_id, row.spec);
-      ++report.jobs_reexpanded;
     }
     std::vector<TaskSpec> tasks = ScheduledTasks(config);
     auto job =

@@ -518,6 +518,66 @@ TEST_F(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {
   EXPECT_NE(scheduler.Status(id).state(), v1::JOB_STATE_RUNNING) << "11 s: the budget is spent";
 }
 
+// A job begun by another build's coordinator (and so rendered by that build's workers) must not
+// mix its merged results with this build's (docs/farm.md, Upgrades): they are set aside and its
+// tasks re-run — unless the coordinator keeps other builds (--allow-mixed-versions), which resumes
+// them as before.
+TEST_F(Recovery, AJobBegunByAnotherBuildIsReRunFromZeroUnlessMixedBuildsAreAllowed) {
+  const JobConfig config = ValidateJobSpec(SkippingSpec(2, 3), catalog);  // 12 tasks
+  SchedulerOptions old_build, new_build;
+  old_build.build = "0.1.0-old";
+  new_build.build = "0.1.0-new";
+  const auto crash_after_three = [&](const fs::path& root) {
+    auto db = std::make_unique<SqliteStore>(root / "coordinator.db");
+    auto scheduler = std::make_unique<Scheduler>(clock, old_build);
+    auto persister =
+        std::make_unique<Persister>(*scheduler, *db, root / "checkpoints", clock, /*interval=*/0);
+    const std::string id = SubmitStored(*scheduler, *db, config);
+    for (int i = 0; i < 3; ++i) Complete(*scheduler, *scheduler->TryLease({"w1", {}}));
+    persister->FlushNow();
+    persister->Abandon();
+    return id;
+  };
+
+  const std::string id = crash_after_three(dir.path());
+  {
+    SqliteStore db(db_file);
+    v1::JobSpec stored;
+    ASSERT_TRUE(stored.ParseFromString(db.LoadJobs().at(0).spec));
+    EXPECT_EQ(stored.plan().build(), "0.1.0-old") << "stamped at submit";
+  }
+  SqliteStore db(db_file);
+  Scheduler scheduler(clock, new_build);
+  const RecoveryReport report = RecoverJobs(db, catalog, cp_dir, scheduler, clock);
+  EXPECT_EQ(report.jobs_other_build, 1u);
+  EXPECT_EQ(report.jobs_reexpanded, 0u);
+  EXPECT_EQ(report.tasks_merged, 0u) << "another build's results are not merged into this build's";
+  fs::path aside = Persister::CheckpointFile(cp_dir, id);
+  aside += ".other-build";
+  EXPECT_TRUE(fs::exists(aside)) << "set aside, not deleted";
+  v1::JobSpec stored;
+  ASSERT_TRUE(stored.ParseFromString(db.LoadJobs().at(0).spec));
+  EXPECT_EQ(stored.plan().build(), "0.1.0-new") << "a second restart resumes normally";
+  uint64_t rerun = 0;
+  while (std::optional<Lease> l = scheduler.TryLease({"w2", {}})) {
+    Complete(scheduler, *l);
+    ++rerun;
+  }
+  EXPECT_EQ(rerun, 12u);
+  EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+
+  // The same crash, recovered by a coordinator that keeps other builds: resumed as it was.
+  TempDir mixed;
+  const std::string mixed_id = crash_after_three(mixed.path());
+  SqliteStore mixed_db(mixed.path() / "coordinator.db");
+  Scheduler keeping(clock, new_build);
+  const RecoveryReport kept = RecoverJobs(mixed_db, catalog, mixed.path() / "checkpoints", keeping, clock,
+                                          /*keep_other_builds=*/true);
+  EXPECT_EQ(kept.jobs_other_build, 0u);
+  EXPECT_EQ(kept.tasks_merged, 3u);
+  EXPECT_EQ(keeping.Status(mixed_id).tasks_done(), 3u);
+}
+
 }  // namespace
 }  // namespace pf::server
 
