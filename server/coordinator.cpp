@@ -89,10 +89,11 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
                           /*keep_other_builds=*/options_.allow_mixed_versions);
   if (recovery_.jobs_resumed + recovery_.jobs_finished + recovery_.jobs_failed > 0)
     spdlog::info(
-        "recovered {} unfinished jobs ({} tasks merged from checkpoints, {} re-queued; {} begun by another "
-        "build re-run), {} finished, {} could not be resumed",
-        recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_other_build,
-        recovery_.jobs_finished, recovery_.jobs_failed);
+        "recovered {} unfinished jobs ({} tasks merged from checkpoints, {} re-queued; re-run from zero: {} "
+        "of "
+        "another plan expansion, {} of another build), {} finished, {} could not be resumed",
+        recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_reexpanded,
+        recovery_.jobs_other_build, recovery_.jobs_finished, recovery_.jobs_failed);
   persister_->Start();
 
   ServiceContext ctx{.scheduler = *scheduler_,

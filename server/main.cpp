@@ -100,7 +100,8 @@ int main(int argc, char** argv) {
                "Lease to workers of another build too. By default a worker whose `pf-worker --version` "
                "differs from this coordinator's (" PF_VERSION
                ") is refused and exits with code 4: two builds may trace other photons or estimate "
-               "differently, and one job's image would mix them");
+               "differently, and one job's image would mix them. Also resumes, at start-up, jobs submitted "
+               "under another build instead of re-running them");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));

@@ -155,6 +155,32 @@ static void SetAsideOrphans(const fs::path& checkpoint_dir, const std::vector<Jo
   }
 }
 
+namespace {
+
+enum class SetAsideResult { kAbsent, kMoved, kStuck };
+
+// Moves a job's file out of recovery's way: to the first free name of `f` + suffix, then
+// + suffix + ".1", ".2", … (a second upgrade must not overwrite the first one's results); removed
+// if it cannot be moved. kStuck: it is still there, and resuming would read it.
+SetAsideResult SetAside(const fs::path& f, const std::string& suffix) {
+  std::error_code ec;
+  if (!fs::exists(f, ec)) return SetAsideResult::kAbsent;
+  for (int n = 0; n < 1000; ++n) {
+    fs::path aside = f;
+    aside += suffix;
+    if (n > 0) aside += "." + std::to_string(n);
+    if (fs::exists(aside, ec)) continue;
+    fs::rename(f, aside, ec);
+    if (!ec) return SetAsideResult::kMoved;
+    break;
+  }
+  spdlog::error("{}: cannot be set aside; removing it", f.string());
+  fs::remove(f, ec);
+  return fs::exists(f, ec) ? SetAsideResult::kStuck : SetAsideResult::kMoved;
+}
+
+}  // namespace
+
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
                            Scheduler& scheduler, const Clock& clock, bool keep_other_builds) {
   RecoveryReport report;
@@ -183,41 +209,59 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     }
     // A checkpoint and a journal name merged tasks by id; under another version of the plan's
     // expansion the ids mean other tasks (task_plan.h, PlanExpansionVersion). And results merged
-    // by another build's workers may differ from this build's (other photons, another estimate):
-    // a job begun under another build would mix the two (docs/farm.md, Upgrades). Either way the
-    // job restarts from zero merges: its image stays right, only the work since its submit is
-    // redone.
+    // under another coordinator build came from that build's workers, which may trace other
+    // photons or estimate differently (docs/farm.md, Upgrades). Either way the job restarts from
+    // zero merges: its image stays right, all of its work is redone.
     const uint32_t stored_version = config.spec.plan().expansion_version();
     const uint32_t current_version = PlanExpansionVersion(config.plan);
-    const std::string& stored_build = config.spec.plan().build();
+    const std::string stored_build = config.spec.plan().build();
     const std::string& current_build = scheduler.options().build;
     const bool other_expansion = stored_version != current_version;
-    const bool other_build = stored_build != current_build && !keep_other_builds;
-    if (!finished && (other_expansion || other_build)) {
+    const bool builds_differ = stored_build != current_build;
+    const std::string build_named = stored_build.empty() ? "(unrecorded)" : limits::Quote(stored_build);
+    const bool from_zero = !finished && (other_expansion || (builds_differ && !keep_other_builds));
+    if (from_zero) {
       const std::string suffix =
           other_expansion ? ".expansion-v" + std::to_string(stored_version) : std::string(".other-build");
-      std::error_code ec;
+      bool moved = false, stuck = false;
       for (const fs::path& f : {Persister::CheckpointFile(checkpoint_dir, row.job_id),
-                                Persister::JournalFile(checkpoint_dir, row.job_id)})
-        if (fs::exists(f, ec)) {
-          fs::path aside = f;
-          aside += suffix;
-          fs::rename(f, aside, ec);
-        }
+                                Persister::JournalFile(checkpoint_dir, row.job_id)}) {
+        const SetAsideResult r = SetAside(f, suffix);
+        moved = moved || r == SetAsideResult::kMoved;
+        stuck = stuck || r == SetAsideResult::kStuck;
+      }
+      if (stuck) {
+        // Its old results could be neither moved nor removed: resuming would merge them.
+        spdlog::error("job {}: its merged results could not be set aside; the job fails", row.job_id);
+        row.state = JobState::kFailed;
+        row.failure_reason = "cannot be resumed after a restart: its old results could not be set aside";
+        db.Apply({row}, {});
+        ++report.jobs_failed;
+        continue;
+      }
+      const std::string what =
+          moved ? "its merged results (checkpoint, journal) are set aside with the suffix " + suffix +
+                      " (or " + suffix + ".N) and its tasks re-run"
+                : "it had merged nothing yet; its tasks run under this build";
       if (other_expansion) {
-        spdlog::warn(
-            "job {}: created under plan expansion version {}, this coordinator's is {}: its merged results "
-            "(checkpoint, journal) are set aside with the suffix {} and its tasks re-run",
-            row.job_id, stored_version, current_version, suffix);
+        spdlog::warn("job {}: created under plan expansion version {}, this coordinator's is {}: {}",
+                     row.job_id, stored_version, current_version, what);
         ++report.jobs_reexpanded;
       } else {
         spdlog::warn(
-            "job {}: begun by build {}, this coordinator is '{}': its merged results (checkpoint, journal) "
-            "are set aside with the suffix {} and its tasks re-run (--allow-mixed-versions keeps them)",
-            row.job_id, stored_build.empty() ? std::string("(unrecorded)") : limits::Quote(stored_build),
-            current_build, suffix);
+            "job {}: submitted under build {}, this coordinator is '{}': {} (--allow-mixed-versions "
+            "keeps them)",
+            row.job_id, build_named, current_build, what);
         ++report.jobs_other_build;
       }
+    } else if (!finished && builds_differ) {
+      spdlog::warn(
+          "job {}: submitted under build {}, resumed by '{}' (--allow-mixed-versions): its image mixes "
+          "the two builds",
+          row.job_id, build_named, current_build);
+    }
+    if (!finished && (other_expansion || builds_differ)) {
+      // Stamped with this build from now on: a later restart of the same build resumes it.
       config.spec.mutable_plan()->set_expansion_version(current_version);
       config.spec.mutable_plan()->set_build(current_build);
       row.spec = config.spec.SerializeAsString();
@@ -265,9 +309,11 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     for (const TaskRow& t : rows) {
       if (t.task_id >= job->num_tasks()) continue;
       TaskRuntime& rt = job->runtime(t.task_id);
-      rt.attempts = t.attempts;
-      rt.failures = t.failures;
-      rt.last_error = t.last_error;
+      if (!from_zero) {  // a job re-run from zero starts its attempts afresh too
+        rt.attempts = t.attempts;
+        rt.failures = t.failures;
+        rt.last_error = t.last_error;
+      }
       if (rt.state != t.state) job->dirty_tasks.insert(t.task_id);  // e.g. leased before the crash
     }
     job->RestoreState(row.state, row.failure_reason, now);

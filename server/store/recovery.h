@@ -33,12 +33,13 @@ struct RecoveryReport {
   uint64_t tasks_requeued = 0;
   uint64_t journals_damaged = 0;  // damage before the end: acknowledged results lost (re-run)
   uint64_t jobs_reexpanded = 0;   // stored under another plan expansion version: re-run from zero
-  uint64_t jobs_other_build = 0;  // begun by another build (JobSpec.plan.build): re-run from zero
+  uint64_t jobs_other_build = 0;  // submitted under another build (JobSpec.plan.build): re-run from zero
 };
 
-// `build`: this coordinator's (scheduler.options().build). An unfinished job begun under another
-// build has its merged results set aside and its tasks re-run, unless `keep_other_builds`
-// (--allow-mixed-versions): one job's image never mixes two builds (docs/farm.md, Upgrades).
+// An unfinished job submitted under another coordinator build than scheduler.options().build has
+// its merged results set aside and its tasks re-run — unless `keep_other_builds`
+// (--allow-mixed-versions), which resumes it, its image then mixing the builds. Either way it is
+// stamped with this build from then on (docs/farm.md, Upgrades).
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes,
                            const std::filesystem::path& checkpoint_dir, Scheduler& scheduler,
                            const Clock& clock, bool keep_other_builds = false);

@@ -7,6 +7,7 @@
 #include <sqlite3.h>
 
 #include <fstream>
+#include <optional>
 
 #include "common/core/atomic_file.h"
 #include "common/core/error.h"
@@ -518,77 +519,6 @@ TEST_F(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {
   EXPECT_NE(scheduler.Status(id).state(), v1::JOB_STATE_RUNNING) << "11 s: the budget is spent";
 }
 
-// A job begun by another build's coordinator (and so rendered by that build's workers) must not
-// mix its merged results with this build's (docs/farm.md, Upgrades): they are set aside and its
-// tasks re-run — unless the coordinator keeps other builds (--allow-mixed-versions), which resumes
-// them as before.
-TEST_F(Recovery, AJobBegunByAnotherBuildIsReRunFromZeroUnlessMixedBuildsAreAllowed) {
-  const JobConfig config = ValidateJobSpec(SkippingSpec(2, 3), catalog);  // 12 tasks
-  SchedulerOptions old_build, new_build;
-  old_build.build = "0.1.0-old";
-  new_build.build = "0.1.0-new";
-  const auto crash_after_three = [&](const fs::path& root) {
-    auto db = std::make_unique<SqliteStore>(root / "coordinator.db");
-    auto scheduler = std::make_unique<Scheduler>(clock, old_build);
-    auto persister =
-        std::make_unique<Persister>(*scheduler, *db, root / "checkpoints", clock, /*interval=*/0);
-    const std::string id = SubmitStored(*scheduler, *db, config);
-    for (int i = 0; i < 3; ++i) Complete(*scheduler, *scheduler->TryLease({"w1", {}}));
-    persister->FlushNow();
-    persister->Abandon();
-    return id;
-  };
-
-  const std::string id = crash_after_three(dir.path());
-  {
-    SqliteStore db(db_file);
-    v1::JobSpec stored;
-    ASSERT_TRUE(stored.ParseFromString(db.LoadJobs().at(0).spec));
-    EXPECT_EQ(stored.plan().build(), "0.1.0-old") << "stamped at submit";
-  }
-  SqliteStore db(db_file);
-  Scheduler scheduler(clock, new_build);
-  const RecoveryReport report = RecoverJobs(db, catalog, cp_dir, scheduler, clock);
-  EXPECT_EQ(report.jobs_other_build, 1u);
-  EXPECT_EQ(report.jobs_reexpanded, 0u);
-  EXPECT_EQ(report.tasks_merged, 0u) << "another build's results are not merged into this build's";
-  fs::path aside = Persister::CheckpointFile(cp_dir, id);
-  aside += ".other-build";
-  EXPECT_TRUE(fs::exists(aside)) << "set aside, not deleted";
-  v1::JobSpec stored;
-  ASSERT_TRUE(stored.ParseFromString(db.LoadJobs().at(0).spec));
-  EXPECT_EQ(stored.plan().build(), "0.1.0-new") << "a second restart resumes normally";
-  uint64_t rerun = 0;
-  while (std::optional<Lease> l = scheduler.TryLease({"w2", {}})) {
-    Complete(scheduler, *l);
-    ++rerun;
-  }
-  EXPECT_EQ(rerun, 12u);
-  EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
-
-  // The same crash, recovered by a coordinator that keeps other builds: resumed as it was.
-  TempDir mixed;
-  const std::string mixed_id = crash_after_three(mixed.path());
-  SqliteStore mixed_db(mixed.path() / "coordinator.db");
-  Scheduler keeping(clock, new_build);
-  const RecoveryReport kept = RecoverJobs(mixed_db, catalog, mixed.path() / "checkpoints", keeping, clock,
-                                          /*keep_other_builds=*/true);
-  EXPECT_EQ(kept.jobs_other_build, 0u);
-  EXPECT_EQ(kept.tasks_merged, 3u);
-  EXPECT_EQ(keeping.Status(mixed_id).tasks_done(), 3u);
-}
-
-}  // namespace
-}  // namespace pf::server
-
-namespace pf::server {
-namespace {
-
-// The hierarchical plan (§4.5): localization tasks are created from merged results. A crash
-// after some of them were merged (checkpoint) and one more acknowledged (journal): recovery
-// re-derives the created tasks from those results, re-runs only the rest, and ends bit-identical
-// to a run without a crash.
-// A hierarchical job whose localization creates tasks from results (a dynamic plan).
 v1::JobSpec HierarchicalSpec() {
   v1::JobSpec spec = SkippingSpec(2, 1);
   v1::Hierarchical* h = spec.mutable_plan()->mutable_hierarchical();
@@ -713,6 +643,88 @@ TEST_F(Recovery, AJobOfAnotherPlanExpansionVersionIsReRunFromZero) {
   ASSERT_TRUE(after.image);
   for (size_t p = 0; p < ref.image->image.size(); ++p)
     for (int c = 0; c < 3; ++c) ASSERT_EQ(after.image->image[p][c], ref.image->image[p][c]) << p;
+}
+
+// A job submitted under another coordinator build (so rendered by that build's workers) must not
+// mix its merged results with this build's (docs/farm.md, Upgrades): they are set aside, its tasks
+// re-run with fresh attempts, and it ends with the image of an uninterrupted run; a job stored
+// before the field (no build) counts as another build. A coordinator that keeps other builds
+// (--allow-mixed-versions) resumes it instead, and re-stamps it so that its next restart resumes.
+TEST_F(Recovery, AJobSubmittedUnderAnotherBuildIsReRunFromZeroUnlessMixedBuildsAreAllowed) {
+  const JobConfig config = ValidateJobSpec(SkippingSpec(2, 3), catalog);  // 12 tasks
+  SchedulerOptions old_build, new_build;
+  old_build.build = "0.1.0-old";
+  new_build.build = "0.1.0-new";
+  Scheduler reference(clock, new_build);
+  std::unique_ptr<Job> ref_job = reference.PrepareJob(config);
+  const std::string ref_id = ref_job->id();
+  reference.AddJob(std::move(ref_job));
+  while (std::optional<Lease> l = reference.TryLease({"w", {}})) Complete(reference, *l);
+  const JobSnapshot ref = reference.Snapshot(ref_id, true);
+  ASSERT_TRUE(ref.image);
+  const auto stored_spec = [](SqliteStore& db) {
+    v1::JobSpec spec;
+    EXPECT_TRUE(spec.ParseFromString(db.LoadJobs().at(0).spec));
+    return spec;
+  };
+  // Submitted under `build` (nullopt: stored before the field), 3 tasks merged and checkpointed.
+  const auto crash_after_three = [&](const fs::path& root, const std::optional<std::string>& build) {
+    auto db = std::make_unique<SqliteStore>(root / "coordinator.db");
+    SchedulerOptions o;
+    o.build = build.value_or("");
+    auto scheduler = std::make_unique<Scheduler>(clock, o);
+    auto persister =
+        std::make_unique<Persister>(*scheduler, *db, root / "checkpoints", clock, /*interval=*/0);
+    const std::string id = SubmitStored(*scheduler, *db, config);
+    EXPECT_EQ(stored_spec(*db).plan().build(), o.build) << "stamped at submit";
+    for (int i = 0; i < 3; ++i) Complete(*scheduler, *scheduler->TryLease({"w1", {}}));
+    persister->FlushNow();
+    persister->Abandon();
+    return id;
+  };
+
+  for (const std::optional<std::string>& stored :
+       {std::optional<std::string>("0.1.0-old"), std::optional<std::string>()}) {
+    SCOPED_TRACE(stored.value_or("(stored before the field)"));
+    TempDir root;
+    const std::string id = crash_after_three(root.path(), stored);
+    SqliteStore db(root.path() / "coordinator.db");
+    Scheduler scheduler(clock, new_build);
+    const RecoveryReport report = RecoverJobs(db, catalog, root.path() / "checkpoints", scheduler, clock);
+    EXPECT_EQ(report.jobs_resumed, 1u);
+    EXPECT_EQ(report.jobs_other_build, 1u);
+    EXPECT_EQ(report.jobs_reexpanded, 0u);
+    EXPECT_EQ(report.tasks_merged, 0u) << "another build's results are not merged into this build's";
+    fs::path aside = Persister::CheckpointFile(root.path() / "checkpoints", id);
+    aside += ".other-build";
+    EXPECT_TRUE(fs::exists(aside)) << "set aside, not deleted";
+    EXPECT_EQ(stored_spec(db).plan().build(), "0.1.0-new") << "a second restart resumes normally";
+    uint64_t rerun = 0;
+    while (std::optional<Lease> l = scheduler.TryLease({"w2", {}})) {
+      EXPECT_EQ(l->attempt, 1u) << "task " << l->task_id << ": attempts start afresh";
+      Complete(scheduler, *l);
+      ++rerun;
+    }
+    EXPECT_EQ(rerun, 12u);
+    EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+    const JobSnapshot after = scheduler.Snapshot(id, true);
+    ASSERT_TRUE(after.image);
+    for (size_t p = 0; p < ref.image->image.size(); ++p)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(after.image->image[p][c], ref.image->image[p][c]) << p;
+  }
+
+  // The same crash, recovered by a coordinator that keeps other builds: resumed as it was, and
+  // stamped with the new build.
+  TempDir mixed;
+  const std::string mixed_id = crash_after_three(mixed.path(), "0.1.0-old");
+  SqliteStore mixed_db(mixed.path() / "coordinator.db");
+  Scheduler keeping(clock, new_build);
+  const RecoveryReport kept = RecoverJobs(mixed_db, catalog, mixed.path() / "checkpoints", keeping, clock,
+                                          /*keep_other_builds=*/true);
+  EXPECT_EQ(kept.jobs_other_build, 0u);
+  EXPECT_EQ(kept.tasks_merged, 3u);
+  EXPECT_EQ(keeping.Status(mixed_id).tasks_done(), 3u);
+  EXPECT_EQ(stored_spec(mixed_db).plan().build(), "0.1.0-new");
 }
 
 }  // namespace
