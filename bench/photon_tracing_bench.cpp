@@ -123,6 +123,13 @@ int main(int argc, char** argv) {
     std::vector<double> faults, floor_faults;  // minor page faults of each run (result arrays)
     double stored_per_emitted = 0, rays_per_emitted = 0, floor_rays_per_emitted = 0,
            floor_stored_per_emitted = 0;
+    // Seconds of `run` on the chosen clock; its minor page faults appended to *fault_counts.
+    const auto timed = [&](const auto& run, std::vector<double>* fault_counts) {
+      const long faults_before = MinorFaults();
+      const double t = cpu_clock ? pf::bench::CpuTimeIt(run) : pf::bench::TimeIt(run);
+      fault_counts->push_back(double(MinorFaults() - faults_before));
+      return t;
+    };
     for (int r = 0; r < repeats; ++r) {
       const double raw_before = raw_rate();
       const auto trace = [&] {
@@ -131,10 +138,7 @@ int main(int argc, char** argv) {
         o.map_seed = uint64_t(r + 1);
         o.threads = 1;
         pf::PhotonTracingResult res;
-        const long faults_before = MinorFaults();
-        const double cpu_seconds = pf::bench::CpuTimeIt([&] { res = pf::TracePhotons(accel, lights, o); });
-        faults.push_back(double(MinorFaults() - faults_before));
-        const double seconds = cpu_clock ? cpu_seconds : res.seconds;
+        const double seconds = timed([&] { res = pf::TracePhotons(accel, lights, o); }, &faults);
         const double stored = double(res.direct.size() + res.indirect.size() + res.caustic.size());
         emitted_rate.push_back(double(res.emitted) / seconds);
         stored_rate.push_back(stored / seconds);
@@ -145,9 +149,7 @@ int main(int argc, char** argv) {
       const auto floor = [&] {
         pf::bench::FloorWalkResult walked;
         const auto run = [&] { walked = pf::bench::FloorWalk(accel, lights, photons, uint64_t(r + 1)); };
-        const long faults_before = MinorFaults();
-        const double t = cpu_clock ? pf::bench::CpuTimeIt(run) : pf::bench::TimeIt(run);
-        floor_faults.push_back(double(MinorFaults() - faults_before));
+        const double t = timed(run, &floor_faults);  // before walked.rays is read
         floor_rate.push_back(double(walked.rays) / t);
         floor_rays_per_emitted = double(walked.rays) / double(photons);
         floor_stored_per_emitted = double(walked.photons.size()) / double(photons);

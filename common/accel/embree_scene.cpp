@@ -137,10 +137,15 @@ void SetRay(const Ray& ray, RTCRay* r) {
   r->flags = 0;
 #endif
 }
-void SetRay(const Ray& ray, RTCRayHit* rh) {
+// The closest hit of `ray` into *rh; false for a miss (Intersect and IntersectWalk).
+bool IntersectClosest(RTCScene scene, const Ray& ray, RTCRayHit* rh) {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
   SetRay(ray, &rh->ray);
   rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(scene, &context, rh);
+  return rh->hit.geomID != RTC_INVALID_GEOMETRY_ID;
 }
 
 }  // namespace
@@ -164,12 +169,8 @@ bool EmbreeScene::InterpolatedNormal(uint32_t triangle, float u, float v, const 
 }
 
 std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
   RTCRayHit rh;
-  SetRay(ray, &rh);
-  rtcIntersect1(embree_->scene, &context, &rh);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  if (!IntersectClosest(embree_->scene, ray, &rh)) return std::nullopt;
 
   const SceneDescription& s = *scene_;
   SurfaceHit hit;
@@ -190,12 +191,8 @@ std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
 }
 
 bool EmbreeScene::IntersectWalk(const Ray& ray, WalkHit* hit) const {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
   RTCRayHit rh;
-  SetRay(ray, &rh);
-  rtcIntersect1(embree_->scene, &context, &rh);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  if (!IntersectClosest(embree_->scene, ray, &rh)) return false;
   const SceneDescription& s = *scene_;
   const uint32_t triangle = rh.hit.primID;
   const auto& tri = s.triangles[triangle];

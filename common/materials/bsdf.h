@@ -180,11 +180,10 @@ struct WalkRoulette {
   // is ng bit for bit.
   Outcome At(const Vec3& ng, bool flat, const Vec3& wo, float u_lobe, float u1, float u2, Vec3* wi) const {
     if (dielectric) return Outcome::kBsdf;
-    const float ng2 = LengthSquared(ng);
-    if (!(IsFinite(ng) && ng2 > 1e-20f)) return Outcome::kBsdf;
+    if (!UsableNormal(ng)) return Outcome::kBsdf;
     if (!(u_lobe < absorb_from)) return Outcome::kAbsorbed;  // whatever the normals
     if (!flat || !(u_lobe < p_diffuse)) return Outcome::kBsdf;
-    const Vec3 n_g = ng2 == 1.0f ? ng : Normalize(ng);  // the constructor's ng_
+    const Vec3 n_g = LengthSquared(ng) == 1.0f ? ng : Normalize(ng);  // the constructor's ng_
     const float cos_g = Dot(wo, n_g);
     if (!(std::abs(cos_g) > 0.0f)) return Outcome::kAbsorbed;  // wo in the surface plane
     const float side = cos_g > 0.0f ? 1.0f : -1.0f;

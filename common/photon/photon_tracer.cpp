@@ -41,6 +41,27 @@ const char* CausticSplitMethodName(CausticSplitMethod m) {
   return m == CausticSplitMethod::kMetropolis ? "metropolis" : "brute";
 }
 
+std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const LightSampler& lights,
+                                          uint64_t emitted) {
+  std::vector<PhotonEmitter> emitters;
+  emitters.reserve(lights.num_emitting_triangles());
+  for (size_t i = 0; i < lights.num_emitting_triangles(); ++i) {
+    const LightSample ls = lights.EmitterSample(i, 0.0f, 0.0f);
+    const auto& t = desc.triangles[ls.triangle];
+    PhotonEmitter e;
+    e.a = desc.positions[t[0]];
+    e.b = desc.positions[t[1]];
+    e.c = desc.positions[t[2]];
+    e.normal = ls.normal;
+    e.frame = Frame(ls.normal);
+    // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
+    e.power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));
+    e.light = ls.light;
+    emitters.push_back(e);
+  }
+  return emitters;
+}
+
 namespace {
 
 constexpr uint64_t kChunk = kPhotonTracingChunk;
@@ -61,38 +82,6 @@ struct ChunkOutput {
   ImportanceScratch importance_scratch;  // the chunk's importance queries (one thread at a time)
 };
 
-// Appends a stored photon (§2.2) by writing its fields straight into the array's memory
-// (UninitializedAllocator: emplace_back() leaves it unwritten) instead of copying a temporary
-// built on the stack: the copy's 16-byte loads of the temporary's 12- and 4-byte stores stalled
-// on store forwarding at every stored photon (docs/results/kernel.md §4). The light id, the kind
-// and the 3 bytes of TracedPhoton::pad are one 8-byte store, the pad zero as in every other
-// TracedPhoton, so that equal arrays are equal byte for byte (the tracer's memcmp test).
-static_assert(offsetof(TracedPhoton, kind) == offsetof(TracedPhoton, light) + 4 &&
-              sizeof(TracedPhoton) == offsetof(TracedPhoton, light) + 8 &&
-              std::endian::native == std::endian::little);
-void AppendPhoton(TracedPhotons& list, const Vec3& position, const Vec3& direction, const Rgb& power,
-                  const Vec3& origin, uint32_t light, PhotonKind kind) {
-  TracedPhoton& p = list.emplace_back();
-  p.position = position;
-  p.direction = direction;
-  p.power = power;
-  p.origin = origin;
-  const uint64_t tail = uint64_t(light) | uint64_t(kind) << 32;
-  std::memcpy(reinterpret_cast<unsigned char*>(&p) + offsetof(TracedPhoton, light), &tail, sizeof tail);
-}
-
-// Per emitting triangle (LightSampler::EmitterIndex's numbering), what every photon leaving it
-// shares: the vertices its point is sampled between, the emission frame (the cosine lobe, §2.2),
-// and Φ of one photon — what LightSampler::Sample and the power formula gave per photon
-// (test PhotonTracer.EmissionIsTheLightSamplersSample), computed here once.
-struct Emitter {
-  Vec3 a, b, c;
-  Vec3 normal;
-  Frame frame;
-  Rgb power;
-  uint32_t light = 0;
-};
-
 // What every photon of one trace shares, computed once per TracePhotons call rather than at
 // every photon or hit: the sampler's per-slot seeds of the map (sampler.h, PhotonStream) and
 // each material's lobe selection means (§2.2, bsdf.h, BsdfLobes); for the plain walk (no
@@ -104,22 +93,8 @@ struct TraceShared {
       : stream(o.sampler, o.map_seed),
         emitted(o.caustic_split > 1 && o.caustic_split_method == CausticSplitMethod::kBrute
                     ? o.photons * o.caustic_split
-                    : o.photons) {
-    emitters.reserve(lights.num_emitting_triangles());
-    for (size_t i = 0; i < lights.num_emitting_triangles(); ++i) {
-      const LightSample ls = lights.EmitterSample(i, 0.0f, 0.0f);
-      const auto& t = desc.triangles[ls.triangle];
-      Emitter e;
-      e.a = desc.positions[t[0]];
-      e.b = desc.positions[t[1]];
-      e.c = desc.positions[t[2]];
-      e.normal = ls.normal;
-      e.frame = Frame(ls.normal);
-      // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
-      e.power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));
-      e.light = ls.light;
-      emitters.push_back(e);
-    }
+                    : o.photons),
+        emitters(PhotonEmitters(desc, lights, emitted)) {
     lobes.reserve(desc.materials.size());
     walk.reserve(desc.materials.size());
     for (const Material& m : desc.materials)
@@ -127,9 +102,9 @@ struct TraceShared {
   }
   PhotonStream stream;
   uint64_t emitted;  // emitted photons of the whole map, N (§4.6.1: N·S when split by brute force)
-  std::vector<Emitter> emitters;   // by LightSampler::EmitterIndex
-  std::vector<BsdfLobes> lobes;    // by material index
-  std::vector<WalkRoulette> walk;  // by material index
+  std::vector<PhotonEmitter> emitters;  // by LightSampler::EmitterIndex
+  std::vector<BsdfLobes> lobes;         // by material index
+  std::vector<WalkRoulette> walk;       // by material index
 };
 
 // Where a singular chain starts (Wald 1999, §4.6.2): the light, or a Lambertian diffuse bounce.
@@ -275,11 +250,6 @@ void SplitChain(const EmbreeScene& scene, const ChainStart& c, ChainState& origi
 float LightChoice(double jitter, uint64_t index, uint64_t emitted) {
   return std::min(float((double(index) + jitter) / double(emitted)), 0x1.fffffep-1f);
 }
-float LightChoice(const PhotonTracerOptions& o, Sampler& sampler, uint64_t index, uint64_t emitted) {
-  return LightChoice(o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
-                                                      : sampler.rng().UniformDouble(),
-                     index, emitted);
-}
 
 // What TraceRange computes ahead for a photon of a batch: its Sobol lanes (PhotonStream::Lanes)
 // and its emitter (the trace's emitter table, at LightSampler::EmitterIndex of its light choice).
@@ -287,13 +257,20 @@ float LightChoice(const PhotonTracerOptions& o, Sampler& sampler, uint64_t index
 // against 60–62 % on Cornell, docs/results/kernel.md §4.)
 struct PhotonStart {
   PhotonLanes lanes;
-  const Emitter* emitter = nullptr;
+  const PhotonEmitter* emitter = nullptr;
 };
 
-// The photon's emitter, from its light stratum (the photon's first number).
-const Emitter& ChooseEmitter(const LightSampler& lights, const PhotonTracerOptions& o,
-                             const TraceShared& shared, Sampler& sampler, uint64_t index) {
-  return shared.emitters[lights.EmitterIndex(LightChoice(o, sampler, index, shared.emitted))];
+// The photon's emitter, from its light stratum's jitter (the photon's first number).
+const PhotonEmitter& EmitterOf(const LightSampler& lights, const TraceShared& shared, double jitter,
+                               uint64_t index) {
+  return shared.emitters[lights.EmitterIndex(LightChoice(jitter, index, shared.emitted))];
+}
+const PhotonEmitter& ChooseEmitter(const LightSampler& lights, const PhotonTracerOptions& o,
+                                   const TraceShared& shared, Sampler& sampler, uint64_t index) {
+  return EmitterOf(lights, shared,
+                   o.sampler == SamplerKind::kSobol ? double(sampler.Get1D(kPhotonLightSlot))
+                                                    : sampler.rng().UniformDouble(),
+                   index);
 }
 
 // A photon leaving emitter `em` (§2.2): a uniform point on it and a cosine-distributed first ray,
@@ -303,7 +280,7 @@ struct Emission {
   Vec3 position;
   Ray ray;
 };
-[[gnu::always_inline]] inline Emission Emit(const Emitter& em, Sampler& sampler, float epsilon) {
+[[gnu::always_inline]] inline Emission Emit(const PhotonEmitter& em, Sampler& sampler, float epsilon) {
   Emission e;
   const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
   e.position = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
@@ -355,7 +332,7 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   const SceneDescription& desc = scene.description();
   Sampler sampler = start ? Sampler::ForPhoton(shared.stream, index, start->lanes)
                           : Sampler::ForPhoton(shared.stream, index);
-  const Emitter& em = start ? *start->emitter : ChooseEmitter(lights, o, shared, sampler, index);
+  const PhotonEmitter& em = start ? *start->emitter : ChooseEmitter(lights, o, shared, sampler, index);
   const Emission e = Emit(em, sampler, scene.epsilon());
   Vec3 previous = e.position;
   Ray ray = e.ray;
@@ -418,7 +395,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
   const float noncaustic_scale = 1.0f;
   const SceneDescription& desc = scene.description();
   Sampler sampler = Sampler::ForPhoton(shared.stream, index);
-  const Emitter& em = ChooseEmitter(lights, o, shared, sampler, index);
+  const PhotonEmitter& em = ChooseEmitter(lights, o, shared, sampler, index);
   const Emission e = Emit(em, sampler, scene.epsilon());
   Rgb power = em.power;
   const Vec3 dir = e.ray.direction;
@@ -581,7 +558,7 @@ void TraceRange(const EmbreeScene& scene, const LightSampler& lights, const Phot
       shared.stream.Lanes(b + k, &starts[k].lanes);
       // The light stratum's jitter as the walk's sampler would read it (Sampler::ForPhoton with lanes).
       const double jitter = starts[k].lanes.u[sobol::kPhotonLaneOfSlot[kPhotonLightSlot]];
-      starts[k].emitter = &shared.emitters[lights.EmitterIndex(LightChoice(jitter, b + k, shared.emitted))];
+      starts[k].emitter = &EmitterOf(lights, shared, jitter, b + k);
     }
     for (uint64_t k = 0; k < n; ++k)
       TracePlainWalk(scene, lights, o, shared, b + k, true, 1.0f, out, &starts[k]);

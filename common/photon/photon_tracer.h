@@ -45,7 +45,10 @@
 // for any thread count.
 
 #include <atomic>
+#include <bit>
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <type_traits>
 #include <utility>
@@ -98,6 +101,26 @@ struct UninitializedAllocator : std::allocator<T> {
 
 using TracedPhotons = std::vector<TracedPhoton, UninitializedAllocator<TracedPhoton>>;
 
+// Appends a traced photon (§2.2) by writing its fields straight into the array's memory
+// (UninitializedAllocator: emplace_back() leaves it unwritten) instead of copying a temporary
+// built on the stack: the copy's 16-byte loads of the temporary's 12- and 4-byte stores stalled
+// on store forwarding at every stored photon (docs/results/kernel.md §4). The light id, the kind
+// and the 3 bytes of TracedPhoton::pad are one 8-byte store, the pad zero as in every other
+// TracedPhoton, so that equal arrays are equal byte for byte (the tracer's memcmp test).
+static_assert(offsetof(TracedPhoton, kind) == offsetof(TracedPhoton, light) + 4 &&
+              sizeof(TracedPhoton) == offsetof(TracedPhoton, light) + 8 &&
+              std::endian::native == std::endian::little);
+inline void AppendPhoton(TracedPhotons& list, const Vec3& position, const Vec3& direction, const Rgb& power,
+                         const Vec3& origin, uint32_t light, PhotonKind kind) {
+  TracedPhoton& p = list.emplace_back();
+  p.position = position;
+  p.direction = direction;
+  p.power = power;
+  p.origin = origin;
+  const uint64_t tail = uint64_t(light) | uint64_t(kind) << 32;
+  std::memcpy(reinterpret_cast<unsigned char*>(&p) + offsetof(TracedPhoton, light), &tail, sizeof tail);
+}
+
 // Photons per work item of TracePhotons: fixed, so that the output order is fixed. A map traced
 // in pieces (distributed tracing, photon_chunk.h) is cut at multiples of it.
 inline constexpr uint64_t kPhotonTracingChunk = 4096;
@@ -146,6 +169,20 @@ struct PhotonTracingResult {
 
   Rgb StoredPower() const;  // Σ Φ over all stored photons
 };
+
+// Per emitting triangle (LightSampler::EmitterIndex's numbering), what every photon leaving it
+// shares: the vertices its point is sampled between, the emission frame (the cosine lobe, §2.2),
+// and Φ of one photon of `emitted` — what LightSampler::Sample and the power formula give per
+// photon (test PhotonTracer.EmissionIsTheLightSamplersSample), computed once per trace.
+struct PhotonEmitter {
+  Vec3 a, b, c;
+  Vec3 normal;
+  Frame frame;
+  Rgb power;
+  uint32_t light = 0;
+};
+std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const LightSampler& lights,
+                                          uint64_t emitted);
 
 // Whether the scene has any singular surface a photon could bounce off before landing on a
 // diffuse one. If not, no photon can ever be caustic and the caustic map is not built

@@ -127,6 +127,28 @@ uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, Resul
   return merged;
 }
 
+enum class SetAsideResult { kAbsent, kMoved, kStuck };
+
+// Moves a job's file out of recovery's way: to the first free name of `f` + suffix, then
+// + suffix + ".1", ".2", … (a second upgrade must not overwrite the first one's results); removed
+// if it cannot be moved. kStuck: it is still there, and resuming would read it.
+SetAsideResult SetAside(const fs::path& f, const std::string& suffix) {
+  std::error_code ec;
+  if (!fs::exists(f, ec)) return SetAsideResult::kAbsent;
+  for (int n = 0; n < 1000; ++n) {
+    fs::path aside = f;
+    aside += suffix;
+    if (n > 0) aside += "." + std::to_string(n);
+    if (fs::exists(aside, ec)) continue;
+    fs::rename(f, aside, ec);
+    if (!ec) return SetAsideResult::kMoved;
+    break;
+  }
+  spdlog::error("{}: cannot be set aside; removing it", f.string());
+  fs::remove(f, ec);
+  return fs::exists(f, ec) ? SetAsideResult::kStuck : SetAsideResult::kMoved;
+}
+
 }  // namespace
 
 // Checkpoints and journals whose job has no row (the job table was lost or restored from an
@@ -154,32 +176,6 @@ static void SetAsideOrphans(const fs::path& checkpoint_dir, const std::vector<Jo
         rename_ec ? "left in place: " + rename_ec.message() : "kept as " + aside.filename().string());
   }
 }
-
-namespace {
-
-enum class SetAsideResult { kAbsent, kMoved, kStuck };
-
-// Moves a job's file out of recovery's way: to the first free name of `f` + suffix, then
-// + suffix + ".1", ".2", … (a second upgrade must not overwrite the first one's results); removed
-// if it cannot be moved. kStuck: it is still there, and resuming would read it.
-SetAsideResult SetAside(const fs::path& f, const std::string& suffix) {
-  std::error_code ec;
-  if (!fs::exists(f, ec)) return SetAsideResult::kAbsent;
-  for (int n = 0; n < 1000; ++n) {
-    fs::path aside = f;
-    aside += suffix;
-    if (n > 0) aside += "." + std::to_string(n);
-    if (fs::exists(aside, ec)) continue;
-    fs::rename(f, aside, ec);
-    if (!ec) return SetAsideResult::kMoved;
-    break;
-  }
-  spdlog::error("{}: cannot be set aside; removing it", f.string());
-  fs::remove(f, ec);
-  return fs::exists(f, ec) ? SetAsideResult::kStuck : SetAsideResult::kMoved;
-}
-
-}  // namespace
 
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
                            Scheduler& scheduler, const Clock& clock, bool keep_other_builds) {
