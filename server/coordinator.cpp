@@ -77,7 +77,8 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   maps_->SetScheduler(scheduler_.get());
   scheduler_->SetMapTracingHook(maps_.get());
   persister_ = std::make_unique<Persister>(*scheduler_, *db_, options_.data_dir / "checkpoints", *clock_,
-                                           options_.checkpoint_interval_seconds);
+                                           options_.checkpoint_interval_seconds,
+                                           options_.files ? *options_.files : SystemFiles());
   executor_ = std::make_unique<Executor>(options_.executor_threads);
   watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_);
   auth_ = std::make_shared<RoleAuthProcessor>(RoleTokens{options_.client_token, options_.worker_token},
@@ -94,6 +95,12 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
         "another plan expansion, {} of another build), {} finished, {} could not be resumed",
         recovery_.jobs_resumed, recovery_.tasks_merged, recovery_.tasks_requeued, recovery_.jobs_reexpanded,
         recovery_.jobs_other_build, recovery_.jobs_finished, recovery_.jobs_failed);
+  if (recovery_.acknowledged_lost + recovery_.jobs_rerendered + recovery_.images_lost > 0)
+    spdlog::error(
+        "DATA LOSS at start-up (see the lines above): {} acknowledged results lost (re-run), {} finished "
+        "jobs "
+        "rendered again from zero, {} images of failed or cancelled jobs lost",
+        recovery_.acknowledged_lost, recovery_.jobs_rerendered, recovery_.images_lost);
   persister_->Start();
 
   ServiceContext ctx{.scheduler = *scheduler_,
@@ -253,11 +260,12 @@ void Coordinator::Stop(bool graceful) {
   if (tick_thread_.joinable()) tick_thread_.join();
   maps_->Stop();
   executor_->Stop();
-  if (graceful) persister_->Stop();
+  const bool flushed = graceful && persister_->Stop();
   if (server_) server_->Wait();
   {
     std::lock_guard lock(mu_);
     stopped_ = true;
+    stored_everything_ = flushed;
   }
   cv_.notify_all();
   if (graceful) spdlog::info("stopped");
@@ -266,6 +274,11 @@ void Coordinator::Stop(bool graceful) {
 void Coordinator::Wait() {
   std::unique_lock lock(mu_);
   cv_.wait(lock, [&] { return stopped_; });
+}
+
+bool Coordinator::StoredEverything() {
+  std::lock_guard lock(mu_);
+  return stored_everything_;
 }
 
 }  // namespace pf::server

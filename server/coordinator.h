@@ -22,7 +22,8 @@
 //
 // Shutdown (SIGTERM/SIGINT in main): health NOT_SERVING, no new leases, parked long polls and
 // watches answered, in-flight RPCs drained (≤ 5 s), background work drained, final flush of rows
-// and checkpoints. Leased tasks are re-queued at the next start without counting an attempt.
+// and checkpoints (StoredEverything says whether it stored everything). Leased tasks are
+// re-queued at the next start without counting an attempt.
 
 #include <grpcpp/security/server_credentials.h>
 
@@ -33,6 +34,7 @@
 #include <string>
 #include <thread>
 
+#include "common/core/file_layer.h"
 #include "proto/limits.h"
 #include "server/scheduling/clock.h"
 #include "server/store/recovery.h"
@@ -78,7 +80,10 @@ struct CoordinatorOptions {
   size_t executor_threads = 2;
   double shutdown_grace_seconds = 5;
   const Clock* clock = nullptr;  // null: the system clock
-  std::string http_listen;       // web status page (server/http/); empty: none
+  // The system calls of the result journal and checkpoints; null: the real ones (tests inject
+  // faults through it: tests/server/storage_faults_test.cpp).
+  FileLayer* files = nullptr;
+  std::string http_listen;  // web status page (server/http/); empty: none
   // Issue #12: photon maps traced once (server/scheduling/distributed_maps.h).
   int map_build_threads = 1;           // threads of one map's assembly and balance
   uint64_t map_chunk_photons = 65536;  // photons per traced piece
@@ -107,6 +112,9 @@ class Coordinator {
   void SimulateCrash();
   // Blocks until Shutdown (or SimulateCrash) has completed.
   void Wait();
+  // After a stop: whether the final flush stored every merged result, checkpoint and row (false
+  // after SimulateCrash). pf-coordinator exits 1 if not: what was not stored is re-run.
+  bool StoredEverything();
 
   const RecoveryReport& recovery() const { return recovery_; }
   Scheduler& scheduler() { return *scheduler_; }
@@ -145,6 +153,7 @@ class Coordinator {
   std::condition_variable cv_;
   bool stopping_ = false;
   bool stopped_ = false;
+  bool stored_everything_ = false;
   std::thread tick_thread_;
 };
 

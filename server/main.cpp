@@ -154,7 +154,9 @@ int main(int argc, char** argv) {
     });
     coordinator.Wait();  // returns once the signal thread's Shutdown has completed
     signal_thread.join();
-    return 0;
+    // Exit 1 when the final flush could not store everything (a full disk): the tasks whose results
+    // were not stored run again at the next start, but an operator must see that it happened.
+    return coordinator.StoredEverything() ? 0 : 1;
   } catch (const std::exception& e) {
     spdlog::critical("{}", e.what());
     return 1;

@@ -12,6 +12,8 @@
 #include <string>
 #include <string_view>
 
+#include "common/core/file_layer.h"
+
 namespace pf {
 
 // Whether the written file must survive a power cut. kVolatile skips both fsyncs and keeps the
@@ -20,10 +22,11 @@ namespace pf {
 // flush on the critical path of a render.
 enum class Durability { kDurable, kVolatile };
 
-// Throws SystemError naming the path, the failed step and the OS reason; the temporary is
-// removed on failure and the target is left as it was.
+// Throws StorageError (common/core/error.h) naming the path, the failed step and the OS reason;
+// the temporary is removed on failure and the target is left as it was. Every system call goes
+// through `files` (common/core/file_layer.h), so tests can fail any step.
 void WriteFileAtomically(const std::filesystem::path& path, std::string_view bytes,
-                         Durability durability = Durability::kDurable);
+                         Durability durability = Durability::kDurable, FileLayer& files = SystemFiles());
 
 // A fresh temporary name beside `path`, unique within the process and across processes.
 std::filesystem::path TemporarySibling(const std::filesystem::path& path);
@@ -35,7 +38,9 @@ bool IsTemporaryName(std::string_view filename);
 // whoever published first wins. Throws SystemError for other failures.
 bool PublishDirectory(const std::filesystem::path& tmp, const std::filesystem::path& target);
 
-// fsync(2) of the directory that holds `path` (best effort: some file systems refuse it).
-void SyncParentDirectory(const std::filesystem::path& path);
+// fsync(2) of the directory that holds `path`, so that a rename or a new file in it survives a
+// power cut. Returns 0, or the errno of a real failure (EIO, ENOSPC…); a file system that does
+// not sync directories at all (EINVAL, EROFS on the directory handle) counts as success.
+int SyncParentDirectory(const std::filesystem::path& path, FileLayer& files = SystemFiles());
 
 }  // namespace pf

@@ -42,4 +42,17 @@ class SystemError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A file could not be written, synced or renamed: the disk is full or failing (the errno says
+// which). Nothing was half-done: the write paths that throw it leave the old state in place
+// (common/core/atomic_file.h), so the same call may succeed once space is freed. The coordinator
+// answers UNAVAILABLE for it, not INTERNAL (server/rpc/status_mapping.h).
+class StorageError : public SystemError {
+ public:
+  StorageError(const std::string& what, int error_number) : SystemError(what), error_number_(error_number) {}
+  int error_number() const { return error_number_; }
+
+ private:
+  int error_number_;
+};
+
 }  // namespace pf

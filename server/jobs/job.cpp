@@ -132,6 +132,7 @@ void Job::SetTaskState(uint64_t id, TaskState next) {
   work_[size_t(rt.state)] -= task_work(id);
   work_[size_t(next)] += task_work(id);
   rt.state = next;
+  if (next != TaskState::kDone) rt.stored = false;
   if (next != TaskState::kLeased) {
     rt.lease_id.clear();
     rt.lease_deadline = 0;
@@ -145,6 +146,13 @@ void Job::RecordMerge(uint64_t task_id) {
   ++merge_seq_;
   uint64_t& remaining = group_remaining_.at(GroupOf(tasks_.at(task_id)));
   if (--remaining == 0) ++full_coverage_;
+}
+
+void Job::MarkStored(uint64_t task_id) {
+  TaskRuntime& rt = runtime_.at(task_id);
+  if (rt.state != TaskState::kDone || rt.stored) return;
+  rt.stored = true;
+  dirty_tasks.insert(task_id);
 }
 
 std::vector<uint64_t> Job::MergedTaskIds() const {

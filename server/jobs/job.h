@@ -47,6 +47,10 @@ struct TaskRuntime {
   // claim and its commit): the lease does not expire, cannot be failed and a second result for
   // it is ignored. The result arrived while the lease was live, so it decides the attempt.
   bool merging = false;
+  // DONE and its result is on disk (in the job's journal or a verified checkpoint). Only then is
+  // its row written as DONE, so a DONE row always names a stored result and recovery can tell
+  // acknowledged results that were lost (docs/farm.md, "Durability").
+  bool stored = false;
 };
 
 class Job {
@@ -100,6 +104,8 @@ class Job {
   // accumulator, keeping what the status needs. No-op for active jobs or stale checkpoints.
   void ReleaseAccumulator(const std::string& path);
   void RecordMerge(uint64_t task_id);  // marks done, bumps merge_seq and coverage counters
+  // The merged task's result is on disk: its DONE row may be written.
+  void MarkStored(uint64_t task_id);
   uint64_t merge_seq() const { return merge_seq_; }
   std::vector<uint64_t> MergedTaskIds() const;
   // Rounds (skipping) or maps (other plans) whose every task is merged: every pixel has that
@@ -140,9 +146,21 @@ class Job {
   double elapsed_marked_at = 0;
   std::set<uint64_t> dirty_tasks;
   uint64_t checkpoint_collected_seq = 0;  // merge_seq of the last checkpoint handed to the persister
-  uint64_t checkpoint_written_seq = 0;    // merge_seq of the last checkpoint known to be on disk
-  std::string checkpoint_path;            // for jobs whose accumulator is not loaded (finished, reloaded)
-  uint64_t stored_samples_merged = 0;     // their figures as last stored
+  uint64_t checkpoint_written_seq = 0;    // merge_seq of the last checkpoint on disk and verified
+  // The seal of that checkpoint (server/store/checkpoint.h): stored with the job's row, checked
+  // whenever the image is read back from the file.
+  CheckpointSeal checkpoint_seal;
+  std::string checkpoint_path;  // for jobs whose accumulator is not loaded (finished, reloaded)
+  // Storage (docs/farm.md, "Durability"): why the last write of the job's results (journal,
+  // checkpoint) or of its rows failed, "" once a later one succeeded. Shown in the job's status.
+  std::string results_storage_error;
+  std::string rows_storage_error;
+  // A result of the job could be stored neither in the journal nor in a checkpoint: no new
+  // leases until a checkpoint of the job is written (the queue holds the job's tasks back).
+  bool paused_for_storage = false;
+  // The last checkpoint failed: try again at every flush instead of waiting until one is due.
+  bool checkpoint_retry = false;
+  uint64_t stored_samples_merged = 0;  // their figures as last stored
   double stored_noise_rms = -1;
   // The accumulator's samples_merged as of its last merge, readable under the Scheduler's lock
   // alone (the accumulator needs image_mu); equals stored_samples_merged once it is released.

@@ -57,27 +57,29 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id,
   if (snap.image) {
     image = std::move(*snap.image);
   } else {
-    // A finished job's image lives only in its checkpoint: a damaged, foreign or missing one
-    // means acknowledged results are lost (DATA_LOSS, no server path in the message).
+    // A finished job's image lives only in its checkpoint, served only if the file carries the
+    // seal stored with the job (docs/farm.md "Durability"): a damaged, missing, foreign or older
+    // file means acknowledged results are lost (DATA_LOSS, no server path in the message).
     std::optional<Checkpoint> cp;
     std::optional<Accumulator> stored;
+    const std::string problem = VerifyCheckpointFile(snap.checkpoint_path, snap.checkpoint_seal, &cp);
+    const bool succeeded = snap.status.state() == photonfarm::v1::JOB_STATE_SUCCEEDED;
+    const auto lost = [&](const std::string& what) {
+      return DataLossError(
+          "job " + job_id + ": its stored image " + what + "; the results are lost" +
+          (succeeded ? " (the coordinator renders the job again from zero when it restarts)" : ""));
+    };
+    if (!problem.empty()) throw lost(problem);
+    if (cp && cp->job_id != job_id) throw lost("belongs to another job");
     try {
-      cp = ReadCheckpointFile(snap.checkpoint_path);
-      if (cp && cp->job_id != job_id)
-        throw DataLossError("job " + job_id + ": its stored image belongs to another job");
       const PlanSpec plan = PlanFromProto(snap.status.spec().plan(), "spec.plan");
       if (cp) stored = Accumulator::Deserialize(cp->accumulator, &plan);
-    } catch (const DataLossError&) {
-      throw;
     } catch (const std::exception& e) {
-      std::string reason = e.what();
-      if (const size_t colon = reason.rfind("checkpoint:"); colon != std::string::npos)
-        reason = reason.substr(colon);
-      throw DataLossError("job " + job_id + ": its stored image is damaged (" + reason +
-                          "); the results are lost");
+      throw lost(std::string("is damaged (") + e.what() + ")");
     }
-    if (!cp && snap.status.tasks_done() > 0)
-      throw DataLossError("job " + job_id + ": its stored image is missing; the results are lost");
+    if (stored && stored->samples_merged() != snap.status.samples_merged())
+      throw lost("holds " + std::to_string(stored->samples_merged()) + " samples, " +
+                 std::to_string(snap.status.samples_merged()) + " expected");
     Accumulator acc = stored ? std::move(*stored)
                              : Accumulator(PlanFromProto(snap.status.spec().plan(), "spec.plan"),
                                            int(snap.status.spec().camera().width()),

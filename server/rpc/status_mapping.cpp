@@ -27,6 +27,10 @@ grpc::Status StatusFromException(std::exception_ptr error, std::string_view rpc)
     return {grpc::StatusCode::DATA_LOSS, e.what()};
   } catch (const UnavailableError& e) {
     return {grpc::StatusCode::UNAVAILABLE, e.what()};
+  } catch (const StorageError& e) {
+    // A full or failing disk: nothing was half-written, the same call may succeed later.
+    spdlog::error("{}: UNAVAILABLE: storage: {}", rpc, e.what());
+    return {grpc::StatusCode::UNAVAILABLE, std::string("the coordinator cannot store this now: ") + e.what()};
   } catch (const std::bad_alloc&) {
     spdlog::error("{}: out of memory", rpc);
     return {grpc::StatusCode::RESOURCE_EXHAUSTED, "out of memory"};

@@ -224,10 +224,23 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
                                         st.map_seconds() + st.render_seconds());
   response->set_merged(true);
   if (ctx_.persister.durable_acks()) {
+    // merged = true only once the result is stored (docs/farm.md "Durability", D1). Not stored:
+    // UNAVAILABLE, so the worker never counts it as merged; it is in this coordinator's memory
+    // and stored when the disk allows, or re-run after a restart (never counted twice).
     const auto& sums = request->rgb_sums();
-    ctx_.persister.JournalThenAck(result.job_id, result.task_id,
-                                  std::span<const float>(sums.data(), size_t(sums.size())),
-                                  [reactor] { reactor->Finish(grpc::Status::OK); });
+    ctx_.persister.JournalThenAck(
+        result.job_id, result.task_id, std::span<const float>(sums.data(), size_t(sums.size())),
+        [reactor, job = result.job_id, task = result.task_id](const std::string& not_stored) {
+          if (not_stored.empty()) {
+            reactor->Finish(grpc::Status::OK);
+            return;
+          }
+          spdlog::warn("job {} task {}: result merged but not stored ({}): answered UNAVAILABLE", job, task,
+                       not_stored);
+          reactor->Finish(grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                                       "the coordinator merged the result but could not store it (" +
+                                           not_stored + "); it is not acknowledged"));
+        });
   } else {
     reactor->Finish(grpc::Status::OK);
   }

@@ -230,6 +230,11 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   if (!job.accumulator_if_loaded()) job.noise_cache = job.stored_noise_rms;
   // The estimate as last refreshed (RefreshNoise, outside this lock: it is an O(pixels) pass).
   s.set_estimated_noise_rms(job.noise_cache);
+  s.set_storage_error(job.results_storage_error.empty() ? job.rows_storage_error
+                      : job.rows_storage_error.empty()
+                          ? job.results_storage_error
+                          : job.results_storage_error + "; " + job.rows_storage_error);
+  s.set_paused_for_storage(job.paused_for_storage);
   // Progress and ETA count work (Job::task_work: tasks, or the hierarchical plan's pixel samples and
   // maps), including what the plan's task source expects to create (its localization tasks).
   // As of the last merge (the hierarchical source reads the accumulator, guarded by image_mu).
@@ -363,8 +368,10 @@ JobSnapshot Scheduler::Snapshot(const std::string& job_id, bool with_image) {
   const double now = clock_.Now();
   if (snap.image)
     job.SetNoise(snap.image->noise_rms, now);  // the status says what the image says
-  else
+  else {
     snap.checkpoint_path = job.checkpoint_path;
+    snap.checkpoint_seal = job.checkpoint_seal;
+  }
   snap.status = BuildStatus(job, now);
   return snap;
 }
@@ -834,10 +841,10 @@ void Scheduler::Tick() {
 // ---------------------------------------------------------------------------------------------
 // Persistence
 
-PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
-  PersistBatch batch;
-  // 1. Images, one job at a time under its image_mu (the global lock only for O(1) bookkeeping):
-  //    free what is on disk, the final noise estimate of a finished job, checkpoints.
+std::vector<Checkpoint> Scheduler::CollectCheckpoints(bool due) {
+  std::vector<Checkpoint> out;
+  // One job at a time under its image_mu (the global lock only for O(1) bookkeeping): free what
+  // is on disk, the final noise estimate of a finished job, checkpoints.
   std::vector<Job*> loaded;
   {
     std::lock_guard lock(mu_);
@@ -852,12 +859,14 @@ PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
       std::lock_guard lock(mu_);
       if (!job->accumulator_if_loaded()) continue;
       final_noise = !job->active() && job->noise_checked_seq != job->merge_seq();
-      checkpoint = job->merge_seq() > job->checkpoint_collected_seq && (checkpoints_due || !job->active());
+      checkpoint = job->merge_seq() > job->checkpoint_collected_seq &&
+                   (due || !job->active() || job->checkpoint_retry);
       if (checkpoint) {
         cp.job_id = job->id();
         cp.merge_seq = job->merge_seq();
         cp.merged_task_ids = job->MergedTaskIds();
         job->checkpoint_collected_seq = job->merge_seq();
+        job->checkpoint_retry = false;
       }
     }
     const Accumulator& acc = *job->accumulator_if_loaded();
@@ -869,21 +878,103 @@ PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
     }
     if (checkpoint) {
       cp.accumulator = acc.Serialize();
-      batch.checkpoints.push_back(std::move(cp));
+      out.push_back(std::move(cp));
     }
-    // A job that ended after its last checkpoint was written (e.g. cancelled) frees its image now.
+    // A job that ended after its last checkpoint was stored (e.g. cancelled) frees its image now.
     std::lock_guard lock(mu_);
     if (!job->active()) job->ReleaseAccumulator(job->checkpoint_path);
   }
-  // 2. Rows.
+  return out;
+}
+
+void Scheduler::CheckpointStored(const Checkpoint& cp, const CheckpointSeal& seal, const std::string& path) {
+  Job* job = nullptr;
+  {
+    std::lock_guard lock(mu_);
+    job = jobs_.Find(cp.job_id);
+  }
+  if (!job) return;
+  Effects fx;
+  {
+    std::lock_guard image(job->image_mu);  // freeing the accumulator changes it
+    std::lock_guard lock(mu_);
+    if (cp.merge_seq < job->checkpoint_written_seq) return;
+    job->checkpoint_written_seq = cp.merge_seq;
+    job->checkpoint_seal = seal;
+    job->checkpoint_path = path;
+    job->row_dirty = true;  // the row carries the seal
+    for (uint64_t id : cp.merged_task_ids)
+      if (id < job->num_tasks()) job->MarkStored(id);
+    if (!job->results_storage_error.empty()) fx.changed.insert(job->id());
+    job->results_storage_error.clear();
+    if (job->paused_for_storage) {
+      job->paused_for_storage = false;
+      queue_.Unhold(*job);
+      spdlog::info("job {}: its results are stored again: resumed", job->id());
+      ServeWaiters(fx);
+    }
+    job->ReleaseAccumulator(path);  // a finished job's image now lives on disk only
+  }
+  Run(fx);
+}
+
+void Scheduler::CheckpointNotStored(const std::string& job_id, uint64_t merge_seq,
+                                    const std::string& reason) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    Job* job = jobs_.Find(job_id);
+    if (!job) return;
+    if (job->checkpoint_collected_seq == merge_seq)
+      job->checkpoint_collected_seq = job->checkpoint_written_seq;
+    job->checkpoint_retry = true;
+    job->results_storage_error = "checkpoint not stored: " + reason;
+    fx.changed.insert(job->id());  // no persist wake: the persister retries on its own timer
+  }
+  Run(fx);
+}
+
+void Scheduler::ResultsJournaled(const std::string& job_id, std::span<const uint64_t> task_ids) {
+  std::lock_guard lock(mu_);
+  Job* job = jobs_.Find(job_id);
+  if (!job) return;
+  for (uint64_t id : task_ids)
+    if (id < job->num_tasks()) job->MarkStored(id);
+}
+
+void Scheduler::ResultsNotStored(const std::string& job_id, const std::string& reason) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    Job* job = jobs_.Find(job_id);
+    if (!job) return;
+    job->results_storage_error = "results not stored: " + reason;
+    job->checkpoint_retry = true;
+    if (job->active() && !job->paused_for_storage) {
+      job->paused_for_storage = true;
+      queue_.Hold(*job);
+      spdlog::error("job {}: paused: its results cannot be stored ({}); no new leases until they can",
+                    job->id(), reason);
+    }
+    fx.changed.insert(job->id());
+  }
+  Run(fx);
+}
+
+void Scheduler::ForceCheckpoint(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  if (Job* job = jobs_.Find(job_id)) job->checkpoint_retry = true;
+}
+
+RowBatch Scheduler::CollectRows() {
+  RowBatch batch;
   std::lock_guard lock(mu_);
   for (Job* job : jobs_.InSubmissionOrder()) {
-    // A job that ended after step 1 looked at it: its final row waits for its final checkpoint
-    // and noise estimate (the persister drops a finished job's journal once its row is written).
-    // Its transition woke the persister, so the next flush writes both.
+    // A finished job's final row waits for its final checkpoint to be stored, and for its final
+    // noise estimate (docs/farm.md "Durability", D2). Its transition woke the persister.
     const bool held_back =
-        !job->active() && job->accumulator_if_loaded() &&
-        (job->merge_seq() > job->checkpoint_collected_seq || job->noise_checked_seq != job->merge_seq());
+        !job->active() && (job->merge_seq() > job->checkpoint_written_seq ||
+                           (job->accumulator_if_loaded() && job->noise_checked_seq != job->merge_seq()));
     if (job->row_dirty && !held_back) {
       JobRow row;
       row.job_id = job->id();
@@ -895,45 +986,45 @@ PersistBatch Scheduler::CollectPersistBatch(bool checkpoints_due) {
       row.elapsed_seconds = job->ElapsedSeconds(clock_.Now());
       row.samples_merged = job->samples_merged;
       row.noise_rms = job->accumulator_if_loaded() ? job->noise_cache : job->stored_noise_rms;
+      row.checkpoint = job->checkpoint_seal;
       batch.jobs.push_back(std::move(row));
       job->row_dirty = false;
     }
-    for (uint64_t id : job->dirty_tasks) {
-      const TaskRuntime& rt = job->runtime(id);
-      batch.tasks.push_back({job->id(), id, rt.state, rt.attempts, rt.failures, rt.last_error});
+    // A DONE row names a stored result (D2): a merged task whose result is not on disk yet waits.
+    for (auto it = job->dirty_tasks.begin(); it != job->dirty_tasks.end();) {
+      const TaskRuntime& rt = job->runtime(*it);
+      if (rt.state == TaskState::kDone && !rt.stored) {
+        ++it;
+        continue;
+      }
+      batch.tasks.push_back({job->id(), *it, rt.state, rt.attempts, rt.failures, rt.last_error});
+      it = job->dirty_tasks.erase(it);
     }
-    job->dirty_tasks.clear();
   }
   return batch;
 }
 
-void Scheduler::RestoreDirty(const PersistBatch& batch) {
+void Scheduler::RowsNotStored(const RowBatch& rows, const std::string& reason) {
   std::lock_guard lock(mu_);
-  for (const JobRow& row : batch.jobs)
-    if (Job* job = jobs_.Find(row.job_id)) job->row_dirty = true;
-  for (const TaskRow& row : batch.tasks)
-    if (Job* job = jobs_.Find(row.job_id)) job->dirty_tasks.insert(row.task_id);
+  const std::string why = "rows not stored: " + reason;
+  for (const JobRow& row : rows.jobs)
+    if (Job* job = jobs_.Find(row.job_id)) {
+      job->row_dirty = true;
+      job->rows_storage_error = why;
+    }
+  for (const TaskRow& row : rows.tasks)
+    if (Job* job = jobs_.Find(row.job_id)) {
+      job->dirty_tasks.insert(row.task_id);
+      job->rows_storage_error = why;
+    }
 }
 
-void Scheduler::CheckpointFailed(const std::string& job_id, uint64_t merge_seq) {
+void Scheduler::RowsStored(const RowBatch& rows) {
   std::lock_guard lock(mu_);
-  if (Job* job = jobs_.Find(job_id))
-    if (job->checkpoint_collected_seq == merge_seq) job->checkpoint_collected_seq = 0;
-}
-
-void Scheduler::CheckpointWritten(const std::string& job_id, uint64_t merge_seq, const std::string& path) {
-  Job* job = nullptr;
-  {
-    std::lock_guard lock(mu_);
-    job = jobs_.Find(job_id);
-  }
-  if (!job) return;
-  std::lock_guard image(job->image_mu);  // freeing the accumulator changes it
-  std::lock_guard lock(mu_);
-  if (merge_seq < job->checkpoint_written_seq) return;
-  job->checkpoint_written_seq = merge_seq;
-  job->checkpoint_path = path;
-  job->ReleaseAccumulator(path);  // a finished job's image now lives on disk only
+  for (const JobRow& row : rows.jobs)
+    if (Job* job = jobs_.Find(row.job_id)) job->rows_storage_error.clear();
+  for (const TaskRow& row : rows.tasks)
+    if (Job* job = jobs_.Find(row.job_id)) job->rows_storage_error.clear();
 }
 
 bool Scheduler::HasUncheckpointedMerges() {

@@ -73,6 +73,7 @@
 #include "server/scheduling/map_tracing_hook.h"
 #include "server/scheduling/task_queue.h"
 #include "server/scheduling/task_source.h"
+#include "server/store/persist_source.h"
 #include "server/store/records.h"
 
 namespace pf::server {
@@ -126,6 +127,7 @@ struct JobSnapshot {
   photonfarm::v1::JobStatus status;
   std::optional<ResolvedImage> image;  // if requested and the accumulator is in memory
   std::string checkpoint_path;         // else: read the image from here (finished, reloaded jobs)
+  CheckpointSeal checkpoint_seal;      // … and only if the file carries this seal
 };
 
 struct SchedulerCounters {
@@ -134,13 +136,13 @@ struct SchedulerCounters {
   uint64_t parked_polls = 0;    // long polls waiting right now
 };
 
-class Scheduler {
+class Scheduler final : public PersistSource {
  public:
   using LeaseCallback = std::function<void(std::optional<Lease>)>;
 
   // `task_sources` makes each job's TaskSource (task_source.h) when the job is added.
   Scheduler(const Clock& clock, SchedulerOptions options, TaskSourceFactory task_sources = MakeTaskSource);
-  ~Scheduler();
+  ~Scheduler() override;
   Scheduler(const Scheduler&) = delete;
   Scheduler& operator=(const Scheduler&) = delete;
 
@@ -195,17 +197,17 @@ class Scheduler {
   // --- Time --- expires leases, long polls and time budgets. Call periodically.
   void Tick();
 
-  // --- Persistence ---
-  // Rows that changed since the last call, and checkpoints of jobs with new merges when
-  // `checkpoints_due` (always for jobs that just finished).
-  PersistBatch CollectPersistBatch(bool checkpoints_due);
-  // The rows of `batch` could not be written: hand them out again next time.
-  void RestoreDirty(const PersistBatch& batch);
-  // A checkpoint could not be written: hand it out again next time.
-  void CheckpointFailed(const std::string& job_id, uint64_t merge_seq);
-  // The checkpoint of `merge_seq` is on disk at `path`: a finished job with nothing merged since
-  // frees its accumulator (the image is read from the file from now on).
-  void CheckpointWritten(const std::string& job_id, uint64_t merge_seq, const std::string& path);
+  // --- Persistence (server/store/persist_source.h; the rules: docs/farm.md "Durability") ---
+  std::vector<Checkpoint> CollectCheckpoints(bool due) override;
+  void CheckpointStored(const Checkpoint& checkpoint, const CheckpointSeal& seal,
+                        const std::string& path) override;
+  void CheckpointNotStored(const std::string& job_id, uint64_t merge_seq, const std::string& reason) override;
+  void ResultsJournaled(const std::string& job_id, std::span<const uint64_t> task_ids) override;
+  void ResultsNotStored(const std::string& job_id, const std::string& reason) override;
+  void ForceCheckpoint(const std::string& job_id) override;
+  RowBatch CollectRows() override;
+  void RowsNotStored(const RowBatch& rows, const std::string& reason) override;
+  void RowsStored(const RowBatch& rows) override;
   bool HasUncheckpointedMerges();
 
   // No more leases; parked long polls are answered "no task".

@@ -4,7 +4,7 @@ namespace pf::server {
 
 void TaskQueue::Push(Job& job, uint64_t task_id) {
   JobQueue& q = queues_[&job];
-  if (q.ids.empty()) ready_[{-int64_t(job.config().priority), job.seq()}] = &job;
+  if (q.ids.empty() && !held_.count(&job)) ready_[Key(job)] = &job;
   q.ids.insert(task_id);
   q.by_seed[job.task(task_id).map_seed].insert(task_id);
 }
@@ -20,9 +20,19 @@ void TaskQueue::Remove(Job& job, uint64_t task_id) {
     if (sit->second.empty()) q.by_seed.erase(sit);
   }
   if (q.ids.empty()) {
-    ready_.erase({-int64_t(job.config().priority), job.seq()});
+    ready_.erase(Key(job));
     queues_.erase(qit);
   }
+}
+
+void TaskQueue::Hold(const Job& job) {
+  held_.insert(&job);
+  ready_.erase(Key(job));
+}
+
+void TaskQueue::Unhold(Job& job) {
+  if (!held_.erase(&job)) return;
+  if (auto it = queues_.find(&job); it != queues_.end() && !it->second.ids.empty()) ready_[Key(job)] = &job;
 }
 
 TaskQueue::Pick TaskQueue::Choose(const Job& job, std::span<const uint64_t> cached_map_seeds) const {

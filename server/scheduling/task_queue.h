@@ -30,6 +30,10 @@ class TaskQueue {
   void Push(Job& job, uint64_t task_id);
   // No-op if the task is not queued.
   void Remove(Job& job, uint64_t task_id);
+  // A held job keeps its queued tasks but is never served (a job whose results cannot be stored,
+  // docs/farm.md "Durability"), until Unhold. Both idempotent.
+  void Hold(const Job& job);
+  void Unhold(Job& job);
 
   bool empty() const { return ready_.empty(); }
   // The job to serve next (highest priority, then oldest); requires !empty().
@@ -43,7 +47,12 @@ class TaskQueue {
     std::unordered_map<uint64_t, std::set<uint64_t>> by_seed;
   };
   std::unordered_map<const Job*, JobQueue> queues_;
-  std::map<std::pair<int64_t, uint64_t>, Job*> ready_;  // (−priority, seq) of jobs with queued tasks
+  std::map<std::pair<int64_t, uint64_t>, Job*>
+      ready_;  // (−priority, seq) of jobs with queued tasks, not held
+  std::set<const Job*> held_;
+  static std::pair<int64_t, uint64_t> Key(const Job& job) {
+    return {-int64_t(job.config().priority), job.seq()};
+  }
 };
 
 }  // namespace pf::server

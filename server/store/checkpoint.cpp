@@ -1,5 +1,6 @@
 #include "server/store/checkpoint.h"
 
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -36,12 +37,13 @@ std::string EncodeCheckpoint(const Checkpoint& cp) {
   return out;
 }
 
-Checkpoint DecodeCheckpoint(std::string_view bytes) {
+Checkpoint DecodeCheckpoint(std::string_view bytes, CheckpointSeal* seal) {
   if (bytes.size() < sizeof(kMagic) + 8 || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0)
     throw InputError("checkpoint: bad magic");
   const uint64_t stored = LoadLittleEndian<uint64_t>(bytes.data() + bytes.size() - 8);
   if (stored != Checksum64(bytes.substr(0, bytes.size() - 8)))
     throw InputError("checkpoint: checksum mismatch");
+  if (seal) seal->digest = stored;
   ByteReader in(bytes.substr(sizeof(kMagic), bytes.size() - sizeof(kMagic) - 8), "checkpoint");
   const uint32_t version = in.Get<uint32_t>();
   if (version != kVersion) throw InputError("checkpoint: unsupported version " + std::to_string(version));
@@ -60,25 +62,72 @@ Checkpoint DecodeCheckpoint(std::string_view bytes) {
   const uint64_t acc_len = in.Get<uint64_t>();
   cp.accumulator = std::string(in.GetBytes(acc_len));
   if (!in.empty()) in.Fail("trailing bytes");
+  if (seal) seal->tasks = cp.merged_task_ids.size();
   return cp;
 }
 
-void WriteCheckpointFile(const fs::path& file, const Checkpoint& cp) {
-  WriteFileAtomically(file, EncodeCheckpoint(cp));
-}
+namespace {
 
-std::optional<Checkpoint> ReadCheckpointFile(const fs::path& file) {
+std::optional<std::string> ReadBytes(const fs::path& file) {
   std::error_code ec;
   if (!fs::exists(file, ec)) return std::nullopt;
   std::ifstream in(file, std::ios::binary);
   if (!in) throw SystemError(file.string() + ": cannot open checkpoint");
   std::ostringstream ss;
   ss << in.rdbuf();
+  if (!in && !in.eof()) throw SystemError(file.string() + ": cannot read checkpoint");
+  return std::move(ss).str();
+}
+
+}  // namespace
+
+CheckpointSeal WriteCheckpointFile(const fs::path& file, const Checkpoint& cp, FileLayer& files) {
+  const std::string bytes = EncodeCheckpoint(cp);
+  WriteFileAtomically(file, bytes, Durability::kDurable, files);
+  // Read back before anything relies on it (the journal it replaces is truncated after this).
+  std::optional<std::string> back;
   try {
-    return DecodeCheckpoint(ss.str());
+    back = ReadBytes(file);
+  } catch (const std::exception& e) {
+    throw StorageError(file.string() + ": written but not readable back: " + e.what(), EIO);
+  }
+  if (!back || *back != bytes)
+    throw StorageError(file.string() + ": read back differs from what was written", EIO);
+  CheckpointSeal seal;
+  DecodeCheckpoint(bytes, &seal);
+  return seal;
+}
+
+std::optional<Checkpoint> ReadCheckpointFile(const fs::path& file, CheckpointSeal* seal) {
+  const std::optional<std::string> bytes = ReadBytes(file);
+  if (!bytes) return std::nullopt;
+  try {
+    return DecodeCheckpoint(*bytes, seal);
   } catch (const InputError& e) {
     throw InputError(file.string() + ": " + e.what());
   }
+}
+
+std::string VerifyCheckpointFile(const fs::path& file, const CheckpointSeal& expected,
+                                 std::optional<Checkpoint>* checkpoint) {
+  std::optional<Checkpoint> cp;
+  CheckpointSeal seal;
+  try {
+    std::optional<std::string> bytes = ReadBytes(file);
+    if (bytes) cp = DecodeCheckpoint(*bytes, &seal);
+  } catch (const std::exception& e) {
+    std::string reason = e.what();
+    if (const size_t at = reason.rfind("checkpoint:"); at != std::string::npos) reason = reason.substr(at);
+    return "is damaged (" + reason + ")";
+  }
+  if (!cp) return expected.tasks == 0 ? "" : "is missing";
+  if (seal.tasks != expected.tasks)
+    return "holds " + std::to_string(seal.tasks) + " tasks, " + std::to_string(expected.tasks) + " expected";
+  if (expected.digest != 0 && seal.digest != expected.digest)
+    return "is another checkpoint (digest " + DigestText(seal.digest) + ", " + DigestText(expected.digest) +
+           " expected)";
+  if (checkpoint) *checkpoint = std::move(cp);
+  return "";
 }
 
 }  // namespace pf::server

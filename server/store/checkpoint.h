@@ -21,17 +21,30 @@
 #include <string>
 #include <string_view>
 
+#include "common/core/file_layer.h"
 #include "server/store/records.h"
 
 namespace pf::server {
 
 std::string EncodeCheckpoint(const Checkpoint& checkpoint);
-// Throws InputError ("checkpoint: ...") if the bytes are not a valid checkpoint.
-Checkpoint DecodeCheckpoint(std::string_view bytes);
+// Throws InputError ("checkpoint: ...") if the bytes are not a valid checkpoint. `seal`
+// (optional): what identifies these bytes (records.h).
+Checkpoint DecodeCheckpoint(std::string_view bytes, CheckpointSeal* seal = nullptr);
 
-// SystemError if the file system fails.
-void WriteCheckpointFile(const std::filesystem::path& file, const Checkpoint& checkpoint);
+// Writes the file atomically and durably through `files`, reads it back and checks that it holds
+// exactly the bytes written; returns their seal. StorageError if any step fails (the old file,
+// if any, is then still in place).
+CheckpointSeal WriteCheckpointFile(const std::filesystem::path& file, const Checkpoint& checkpoint,
+                                   FileLayer& files = SystemFiles());
 // nullopt if the file does not exist; InputError if it is corrupt; SystemError if unreadable.
-std::optional<Checkpoint> ReadCheckpointFile(const std::filesystem::path& file);
+std::optional<Checkpoint> ReadCheckpointFile(const std::filesystem::path& file,
+                                             CheckpointSeal* seal = nullptr);
+
+// The file at `file` is the checkpoint `expected` names (same task count and digest), else
+// DataLossError-worthy text: "" if it is, else why not ("missing", "damaged (…)", "holds 7 tasks,
+// 96 expected", "is another checkpoint (digest …)"). A seal of 0 tasks expects no file or an
+// empty one. On success `checkpoint` (optional) receives the decoded file.
+std::string VerifyCheckpointFile(const std::filesystem::path& file, const CheckpointSeal& expected,
+                                 std::optional<Checkpoint>* checkpoint = nullptr);
 
 }  // namespace pf::server

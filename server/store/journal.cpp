@@ -1,8 +1,12 @@
 #include "server/store/journal.h"
 
+#include <fcntl.h>
+
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <system_error>
 
 #include "common/core/byte_codec.h"
 #include "common/core/error.h"
@@ -69,6 +73,108 @@ std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uin
   }
   *valid_bytes = pos;
   return entries;
+}
+
+JournalWriter::JournalWriter(std::filesystem::path file, FileLayer& files)
+    : file_(std::move(file)), files_(files) {}
+
+JournalWriter::~JournalWriter() {
+  if (fd_ >= 0) files_.Close(fd_);
+}
+
+void JournalWriter::Break() {
+  broken_ = true;
+  if (fd_ >= 0) files_.Close(fd_);
+  fd_ = -1;
+}
+
+bool JournalWriter::Open(std::string* problem) {
+  // A journal left by an earlier run was cut back to its last good entry by recovery; if that
+  // cut failed, it is done here, before anything is appended behind a torn entry.
+  uint64_t valid = 0;
+  try {
+    ReadJournalFile(file_, &valid);
+  } catch (const std::exception& e) {
+    *problem = std::string("cannot read the journal: ") + e.what();
+    Break();
+    return false;
+  }
+  fd_ = files_.Open(file_.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) {
+    *problem = "cannot open the journal: " + std::system_category().message(errno);
+    Break();
+    return false;
+  }
+  std::error_code ec;
+  const uint64_t size = std::filesystem::file_size(file_, ec);
+  if (!ec && size > valid && files_.Ftruncate(fd_, off_t(valid)) != 0) {
+    *problem = "cannot cut the journal's torn tail: " + std::system_category().message(errno);
+    Break();
+    return false;
+  }
+  end_ = valid;
+  return true;
+}
+
+bool JournalWriter::Append(std::string_view entry, std::string* problem) {
+  if (broken_) {
+    *problem = "the journal is out of service until the next checkpoint";
+    return false;
+  }
+  if (fd_ < 0 && !Open(problem)) return false;
+  if (WriteAllAt(files_, fd_, entry.data(), entry.size(), off_t(end_))) {
+    end_ += entry.size();
+    appended_ += entry.size();
+    return true;
+  }
+  *problem = "journal write: " + std::system_category().message(errno);
+  if (files_.Ftruncate(fd_, off_t(end_)) != 0) {
+    *problem += "; the torn entry cannot be cut off (" + std::system_category().message(errno) + ")";
+    Break();
+  }
+  return false;
+}
+
+bool JournalWriter::Sync(std::string* problem) {
+  if (broken_ || fd_ < 0) return !broken_;
+  if (files_.Fdatasync(fd_) == 0) return true;
+  *problem = "journal fdatasync: " + std::system_category().message(errno);
+  Break();
+  return false;
+}
+
+bool JournalWriter::Reset(std::string* problem) {
+  if (!broken_) {
+    if (fd_ < 0) {
+      std::error_code ec;
+      if (!std::filesystem::exists(file_, ec)) return true;  // nothing was ever appended
+      if (!Open(problem)) return false;
+    }
+    if (files_.Ftruncate(fd_, 0) == 0 && files_.Fdatasync(fd_) == 0) {
+      end_ = 0;
+      appended_ = 0;
+      return true;
+    }
+    *problem = "cannot empty the journal: " + std::system_category().message(errno);
+    Break();
+  }
+  if (files_.Unlink(file_.c_str()) != 0 && errno != ENOENT) {
+    *problem = "cannot remove the journal: " + std::system_category().message(errno);
+    return false;
+  }
+  broken_ = false;
+  end_ = 0;
+  appended_ = 0;
+  return true;
+}
+
+void JournalWriter::Remove() {
+  if (fd_ >= 0) files_.Close(fd_);
+  fd_ = -1;
+  files_.Unlink(file_.c_str());
+  broken_ = false;
+  end_ = 0;
+  appended_ = 0;
 }
 
 }  // namespace pf::server

@@ -23,7 +23,10 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
+
+#include "common/core/file_layer.h"
 
 namespace pf::server {
 
@@ -42,5 +45,43 @@ std::string EncodeJournalEntry(uint64_t task_id, std::span<const float> rgb_sums
 // that were acknowledged are unreadable: *damaged = true.
 std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uint64_t* valid_bytes,
                                           bool* damaged = nullptr);
+
+// Appends entries to one job's journal, through a FileLayer, and never after a bad byte: an entry
+// that could not be written whole is cut off again, so an entry that follows it is readable (a
+// torn entry followed by good ones would read as damage, and hide them). If the cut fails too, or
+// a sync fails (after a failed fdatasync the kernel may have dropped the unsynced pages, so the
+// file's content is unknown), the writer is *broken*: it takes no entry until Reset, after a
+// verified checkpoint holds everything the file did, removes the file. Not thread-safe (the
+// persister's flush lock guards it).
+class JournalWriter {
+ public:
+  JournalWriter(std::filesystem::path file, FileLayer& files);
+  ~JournalWriter();
+  JournalWriter(const JournalWriter&) = delete;
+  JournalWriter& operator=(const JournalWriter&) = delete;
+
+  // False, with the reason, if the entry is not in the file (nor any part of it, unless broken).
+  bool Append(std::string_view entry, std::string* problem);
+  // fdatasync of the entries appended since the last sync; false (and broken) if it fails.
+  bool Sync(std::string* problem);
+  // Every entry is held by a verified checkpoint: empties the journal (or, if broken, removes the
+  // file). False if that fails; the entries left behind are harmless (replay skips merged tasks).
+  bool Reset(std::string* problem);
+  // Closes and removes the file (the job is finished and its final checkpoint verified).
+  void Remove();
+
+  bool broken() const { return broken_; }
+  uint64_t bytes_since_reset() const { return appended_; }
+
+ private:
+  bool Open(std::string* problem);
+  void Break();
+  std::filesystem::path file_;
+  FileLayer& files_;
+  int fd_ = -1;
+  uint64_t end_ = 0;       // offset just after the last good entry
+  uint64_t appended_ = 0;  // bytes appended since the last reset
+  bool broken_ = false;
+};
 
 }  // namespace pf::server

@@ -1,37 +1,31 @@
 #include "server/store/persister.h"
 
-#include <fcntl.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
-#include <cstring>
 #include <set>
 
 #include "common/core/error.h"
 #include "server/store/checkpoint.h"
-#include "server/store/journal.h"
 
 namespace pf::server {
 namespace fs = std::filesystem;
 
-Persister::Persister(Scheduler& scheduler, SqliteStore& db, fs::path checkpoint_dir, const Clock& clock,
-                     double checkpoint_interval_seconds)
-    : scheduler_(scheduler),
+Persister::Persister(PersistSource& source, SqliteStore& db, fs::path checkpoint_dir, const Clock& clock,
+                     double checkpoint_interval_seconds, FileLayer& files)
+    : source_(source),
       db_(db),
       checkpoint_dir_(std::move(checkpoint_dir)),
       clock_(clock),
       interval_(checkpoint_interval_seconds),
+      files_(files),
       last_checkpoint_(clock.Now()) {
   fs::create_directories(checkpoint_dir_);
 }
 
 Persister::~Persister() {
   Stop();
-  std::lock_guard lock(flush_mu_);
-  for (auto& [job, j] : journals_)
-    if (j.fd >= 0) ::close(j.fd);
 }
 
 fs::path Persister::CheckpointFile(const fs::path& dir, const std::string& job_id) {
@@ -48,20 +42,28 @@ void Persister::Start() {
   thread_ = std::thread([this] { Loop(); });
 }
 
-void Persister::Stop() {
+bool Persister::Stop() {
   {
     std::lock_guard lock(mu_);
-    if (stop_) return;
+    if (stop_) return stopped_ok_;
     stop_ = true;
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  bool ok = false;
   try {
-    Flush(true);
+    ok = Flush(true);
   } catch (const std::exception& e) {
     spdlog::error("final flush failed: {}", e.what());
   }
-  ReleasePending();  // only left if the journal could not be written
+  if (!ok)
+    spdlog::error(
+        "final flush incomplete: some results, checkpoints or rows are not stored (see above); the tasks "
+        "they hold are re-run at the next start");
+  ReleasePending("the coordinator stopped before the result was stored");
+  std::lock_guard lock(mu_);
+  stopped_ok_ = ok;
+  return ok;
 }
 
 void Persister::Abandon() {
@@ -71,17 +73,17 @@ void Persister::Abandon() {
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
-  ReleasePending();
+  ReleasePending("the coordinator stopped before the result was stored");
 }
 
-void Persister::ReleasePending() {
+void Persister::ReleasePending(const std::string& why) {
   std::vector<Pending> left;
   {
     std::lock_guard lock(mu_);
     left.swap(pending_);
   }
-  if (!left.empty()) spdlog::warn("{} results acknowledged without being journaled", left.size());
-  for (Pending& p : left) p.ack();
+  if (!left.empty()) spdlog::warn("{} results answered as not stored: {}", left.size(), why);
+  for (Pending& p : left) p.ack(why);
 }
 
 void Persister::Wake() {
@@ -93,7 +95,7 @@ void Persister::Wake() {
 }
 
 void Persister::JournalThenAck(const std::string& job_id, uint64_t task_id, std::span<const float> rgb_sums,
-                               std::function<void()> ack) {
+                               Ack ack) {
   {
     std::lock_guard lock(mu_);
     if (!stop_) {
@@ -104,7 +106,7 @@ void Persister::JournalThenAck(const std::string& job_id, uint64_t task_id, std:
       return;
     }
   }
-  ack();
+  ack("the coordinator is stopping");
 }
 
 uint64_t Persister::checkpoints_written() const {
@@ -117,16 +119,17 @@ uint64_t Persister::journal_entries_written() const {
   return journal_entries_written_;
 }
 
-void Persister::FlushNow(bool checkpoints_due) {
-  Flush(checkpoints_due);
+bool Persister::FlushNow(bool checkpoints_due) {
+  return Flush(checkpoints_due);
 }
 
 void Persister::Loop() {
   std::unique_lock lock(mu_);
   while (!stop_) {
     // Rows and journal entries are written whenever something changed; checkpoints when due —
-    // the timed wake-up catches merges that were not due at the last flush.
-    const double timeout = interval_ > 0 ? interval_ : 1.0;
+    // the timed wake-up catches merges that were not due at the last flush, and retries what
+    // failed (D4).
+    const double timeout = interval_ > 0 ? std::min(interval_, 1.0) : 1.0;
     cv_.wait_for(lock, std::chrono::duration<double>(timeout), [&] { return woken_ || stop_; });
     if (stop_) break;
     woken_ = false;
@@ -141,136 +144,141 @@ void Persister::Loop() {
   }
 }
 
-void Persister::WriteJournal(std::vector<Pending>& pending, std::vector<std::function<void()>>* acks,
-                             std::vector<std::function<void()>>* after_checkpoint, bool* force_checkpoints) {
-  std::set<std::string> touched, failed;
-  for (Pending& p : pending) {
-    if (failed.count(p.job_id)) {
-      after_checkpoint->push_back(std::move(p.ack));
+JournalWriter& Persister::Journal(const std::string& job_id) {
+  std::unique_ptr<JournalWriter>& j = journals_[job_id];
+  if (!j) j = std::make_unique<JournalWriter>(JournalFile(checkpoint_dir_, job_id), files_);
+  return *j;
+}
+
+bool Persister::WriteJournal(std::vector<Pending>& pending, std::vector<Ack>* stored,
+                             std::vector<Waiting>* waiting) {
+  // Appends per job, then one sync per job; a job whose journal fails falls back to a checkpoint
+  // for all of this flush's results (the appended ones may be lost with the failed sync).
+  std::map<std::string, std::string> failed;
+  std::map<std::string, std::vector<size_t>> appended;
+  for (size_t i = 0; i < pending.size(); ++i) {
+    Pending& p = pending[i];
+    if (failed.count(p.job_id)) continue;
+    JournalWriter& journal = Journal(p.job_id);
+    std::string problem;
+    if (journal.Append(EncodeJournalEntry(p.task_id, p.rgb_sums), &problem))
+      appended[p.job_id].push_back(i);
+    else
+      failed[p.job_id] = problem;
+  }
+  std::vector<uint64_t> ids;
+  for (auto& [job, indices] : appended) {
+    std::string problem;
+    if (failed.count(job) || !Journal(job).Sync(&problem)) {
+      if (!failed.count(job)) failed[job] = problem;
       continue;
     }
-    JournalState& j = journals_[p.job_id];
-    const fs::path file = JournalFile(checkpoint_dir_, p.job_id);
-    if (j.fd < 0) j.fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-    const std::string entry = EncodeJournalEntry(p.task_id, p.rgb_sums);
-    size_t done = 0;
-    while (j.fd >= 0 && done < entry.size()) {
-      const ssize_t n = ::write(j.fd, entry.data() + done, entry.size() - done);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) break;
-      done += size_t(n);
-    }
-    if (done != entry.size()) {
-      spdlog::error("job {}: journal {} not writable ({}); checkpointing instead", p.job_id, file.string(),
-                    std::strerror(errno));
-      failed.insert(p.job_id);
-      *force_checkpoints = true;
-      after_checkpoint->push_back(std::move(p.ack));
-      continue;
-    }
-    j.bytes += entry.size();
-    if (j.bytes >= kJournalSnapshotBytes) *force_checkpoints = true;
-    touched.insert(p.job_id);
-    acks->push_back(std::move(p.ack));
+    ids.clear();
+    for (size_t i : indices) ids.push_back(pending[i].task_id);
+    source_.ResultsJournaled(job, ids);
+    for (size_t i : indices) stored->push_back(std::move(pending[i].ack));
+    if (Journal(job).bytes_since_reset() >= kJournalSnapshotBytes) source_.ForceCheckpoint(job);
   }
-  for (const std::string& job : touched) {
-    JournalState& j = journals_[job];
-    if (failed.count(job) || ::fdatasync(j.fd) != 0) {
-      if (!failed.count(job)) spdlog::error("job {}: journal fdatasync failed; checkpointing instead", job);
-      failed.insert(job);
-      *force_checkpoints = true;
-    }
+  for (const auto& [job, problem] : failed) {
+    spdlog::error("job {}: results not journaled ({}); checkpointing instead", job, problem);
+    source_.ForceCheckpoint(job);
   }
-  if (!failed.empty()) {
-    // Some entries are not durable: answer everything of this group after the checkpoint.
-    for (auto& ack : *acks) after_checkpoint->push_back(std::move(ack));
-    acks->clear();
-  }
+  for (Pending& p : pending)
+    if (auto f = failed.find(p.job_id); f != failed.end())
+      waiting->push_back({p.job_id, f->second, std::move(p.ack)});
   std::lock_guard lock(mu_);
-  journal_entries_written_ += pending.size();
+  journal_entries_written_ += stored->size();
+  return failed.empty();
 }
 
-void Persister::TruncateJournal(const std::string& job_id) {
-  auto it = journals_.find(job_id);
-  if (it != journals_.end() && it->second.fd >= 0) {
-    if (::ftruncate(it->second.fd, 0) == 0) ::fdatasync(it->second.fd);
-    it->second.bytes = 0;
-    return;
-  }
-  std::error_code ec;
-  const fs::path file = JournalFile(checkpoint_dir_, job_id);
-  if (fs::exists(file, ec)) fs::resize_file(file, 0, ec);
-}
-
-void Persister::CloseJournal(const std::string& job_id, bool remove) {
-  auto it = journals_.find(job_id);
-  if (it != journals_.end()) {
-    if (it->second.fd >= 0) ::close(it->second.fd);
-    journals_.erase(it);
-  }
-  if (remove) {
-    std::error_code ec;
-    fs::remove(JournalFile(checkpoint_dir_, job_id), ec);
-  }
-}
-
-void Persister::Flush(bool force_checkpoints) {
+bool Persister::Flush(bool force_checkpoints) {
   std::lock_guard flush_lock(flush_mu_);
+  bool ok = true;
   std::vector<Pending> pending;
   {
     std::lock_guard lock(mu_);
     pending.swap(pending_);
   }
   // 1. Journal.
-  std::vector<std::function<void()>> acks, after_checkpoint;
-  if (!pending.empty()) WriteJournal(pending, &acks, &after_checkpoint, &force_checkpoints);
-  for (auto& ack : acks) ack();
+  std::vector<Ack> stored;
+  std::vector<Waiting> waiting;
+  if (!pending.empty()) ok = WriteJournal(pending, &stored, &waiting) && ok;
+  for (Ack& ack : stored) ack("");
 
   // 2. Checkpoints.
   const double now = clock_.Now();
   bool due = force_checkpoints;
   {
     std::lock_guard lock(mu_);
-    if (interval_ > 0)
-      due = due || now - last_checkpoint_ >= interval_;
-    else
-      due = due || now - last_checkpoint_ >= kSnapshotSeconds;
+    due = due || now - last_checkpoint_ >= (interval_ > 0 ? interval_ : kSnapshotSeconds);
     if (due) last_checkpoint_ = now;
   }
-  PersistBatch batch = scheduler_.CollectPersistBatch(due);
+  std::set<std::string> checkpointed;
+  std::map<std::string, std::string> not_checkpointed;
   size_t written = 0;
-  std::set<std::string> failed_checkpoints;
-  for (const Checkpoint& cp : batch.checkpoints) {
+  for (const Checkpoint& cp : source_.CollectCheckpoints(due)) {
+    const fs::path file = CheckpointFile(cp.job_id);
     try {
-      WriteCheckpointFile(CheckpointFile(cp.job_id), cp);
-      scheduler_.CheckpointWritten(cp.job_id, cp.merge_seq, CheckpointFile(cp.job_id).string());
+      const CheckpointSeal seal = WriteCheckpointFile(file, cp, files_);
+      source_.CheckpointStored(cp, seal, file.string());
+      checkpointed.insert(cp.job_id);
       ++written;
-      if (durable_acks()) TruncateJournal(cp.job_id);
       spdlog::debug("job {}: checkpoint of {} merges written", cp.job_id, cp.merged_task_ids.size());
     } catch (const std::exception& e) {
-      spdlog::error("job {}: checkpoint failed: {}", cp.job_id, e.what());
-      scheduler_.CheckpointFailed(cp.job_id, cp.merge_seq);
-      failed_checkpoints.insert(cp.job_id);
+      spdlog::error("job {}: checkpoint not stored: {}", cp.job_id, e.what());
+      source_.CheckpointNotStored(cp.job_id, cp.merge_seq, e.what());
+      not_checkpointed[cp.job_id] = e.what();
+      ok = false;
+      continue;
+    }
+    // D3: the journal is emptied only now that a verified checkpoint holds all of it.
+    if (durable_acks()) {
+      std::string problem;
+      if (!Journal(cp.job_id).Reset(&problem))
+        spdlog::warn(
+            "job {}: journal not emptied after its checkpoint ({}); its entries are in the checkpoint",
+            cp.job_id, problem);
     }
   }
   {
     std::lock_guard lock(mu_);
     checkpoints_written_ += written;
   }
-  for (auto& ack : after_checkpoint) ack();
+  for (Waiting& w : waiting) {
+    if (checkpointed.count(w.job_id)) {
+      w.ack("");
+      continue;
+    }
+    auto f = not_checkpointed.find(w.job_id);
+    const std::string why = w.journal_problem + "; checkpoint: " +
+                            (f != not_checkpointed.end() ? f->second : std::string("not written"));
+    source_.ResultsNotStored(w.job_id, why);
+    w.ack(why);
+  }
 
   // 3. Rows.
+  const RowBatch rows = source_.CollectRows();
+  if (rows.empty()) return ok;
   try {
-    db_.Apply(batch.jobs, batch.tasks);
-  } catch (...) {
-    scheduler_.RestoreDirty(batch);  // written with the next flush
-    throw;
+    db_.Apply(rows.jobs, rows.tasks);
+  } catch (const std::exception& e) {
+    spdlog::error("rows not stored ({} jobs, {} tasks): {}", rows.jobs.size(), rows.tasks.size(), e.what());
+    source_.RowsNotStored(rows, e.what());
+    return false;
   }
-  // A finished job's final checkpoint is on disk (CollectPersistBatch hands it out with the
-  // final row): its journal is no longer needed.
-  for (const JobRow& row : batch.jobs)
-    if (IsTerminal(row.state) && !failed_checkpoints.count(row.job_id))
-      CloseJournal(row.job_id, /*remove=*/true);
+  source_.RowsStored(rows);
+  // A finished job's final row is written only after its final checkpoint was stored (D2): its
+  // journal is no longer needed.
+  for (const JobRow& row : rows.jobs) {
+    if (!IsTerminal(row.state)) continue;
+    if (auto it = journals_.find(row.job_id); it != journals_.end()) {
+      it->second->Remove();
+      journals_.erase(it);
+    } else {
+      files_.Unlink(JournalFile(checkpoint_dir_, row.job_id).c_str());
+    }
+  }
+  return ok;
 }
 
 }  // namespace pf::server

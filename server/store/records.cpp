@@ -36,4 +36,23 @@ bool IsTerminal(JobState s) {
   return s == JobState::kSucceeded || s == JobState::kFailed || s == JobState::kCancelled;
 }
 
+std::string DigestText(uint64_t digest) {
+  if (digest == 0) return "";
+  static const char* hex = "0123456789abcdef";
+  std::string out(16, '0');
+  for (int i = 15; i >= 0; --i, digest >>= 4) out[size_t(i)] = hex[digest & 15];
+  return out;
+}
+
+uint64_t DigestFromText(const std::string& text) {
+  if (text.size() != 16) return 0;
+  uint64_t v = 0;
+  for (char c : text) {
+    const int d = c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
+    if (d < 0) return 0;
+    v = v << 4 | uint64_t(d);
+  }
+  return v;
+}
+
 }  // namespace pf::server

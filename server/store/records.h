@@ -17,6 +17,20 @@ const char* JobStateName(JobState s);
 const char* TaskStateName(TaskState s);
 bool IsTerminal(JobState s);
 
+// What identifies the content of a checkpoint file (server/store/checkpoint.h): how many tasks
+// it holds and the checksum its last 8 bytes carry, a digest of all the bytes before them. The
+// row of a job keeps the seal of its last verified checkpoint; a finished job's image is served
+// or recovered only from a file with that seal (docs/farm.md, "Durability").
+struct CheckpointSeal {
+  uint64_t tasks = 0;
+  uint64_t digest = 0;  // 0: none (no checkpoint yet, or a row stored before seals existed)
+  bool operator==(const CheckpointSeal&) const = default;
+};
+// A digest as 16 hex digits ("" for 0), as the jobs table stores it (SQLite integers are signed);
+// anything but 16 hex digits reads as 0.
+std::string DigestText(uint64_t digest);
+uint64_t DigestFromText(const std::string& text);
+
 struct JobRow {
   std::string job_id;
   uint64_t seq = 0;  // submission order (also the number in the id)
@@ -27,6 +41,7 @@ struct JobRow {
   double elapsed_seconds = 0;   // running time accumulated so far
   uint64_t samples_merged = 0;  // for the status of finished jobs (their accumulator stays on disk)
   double noise_rms = -1;
+  CheckpointSeal checkpoint;  // of the job's last verified checkpoint
 };
 
 struct TaskRow {
@@ -60,12 +75,11 @@ struct Checkpoint {
   std::string accumulator;                // Accumulator::Serialize()
 };
 
-// Everything that changed since the last flush.
-struct PersistBatch {
+// The rows that changed since the last flush.
+struct RowBatch {
   std::vector<JobRow> jobs;
   std::vector<TaskRow> tasks;
-  std::vector<Checkpoint> checkpoints;
-  bool empty() const { return jobs.empty() && tasks.empty() && checkpoints.empty(); }
+  bool empty() const { return jobs.empty() && tasks.empty(); }
 };
 
 }  // namespace pf::server

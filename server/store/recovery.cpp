@@ -31,7 +31,7 @@ std::vector<TaskSpec> TasksCreatedFromResults(const Job& job, const Accumulator&
 uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, ResultMerger& merger);
 
 // Applies a checkpoint to a fresh job; false (job untouched) if it does not fit the job.
-bool ApplyCheckpoint(const Checkpoint& cp, Job& job, std::string* problem) {
+bool ApplyCheckpoint(const Checkpoint& cp, const CheckpointSeal& seal, Job& job, std::string* problem) {
   if (cp.job_id != job.id()) {
     *problem = "belongs to job '" + cp.job_id + "'";
     return false;
@@ -55,9 +55,13 @@ bool ApplyCheckpoint(const Checkpoint& cp, Job& job, std::string* problem) {
     }
   job.AppendTasks(created);
   job.set_accumulator(std::move(acc));
-  for (uint64_t id : cp.merged_task_ids) job.RecordMerge(id);
+  for (uint64_t id : cp.merged_task_ids) {
+    job.RecordMerge(id);
+    job.MarkStored(id);
+  }
   job.checkpoint_collected_seq = job.merge_seq();
   job.checkpoint_written_seq = job.merge_seq();
+  job.checkpoint_seal = seal;
   return true;
 }
 
@@ -82,9 +86,10 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
     fs::copy_file(file, kept, fs::copy_options::overwrite_existing, ec);
     spdlog::error(
         "job {}: DATA LOSS: journal damaged after byte {} of {} (acknowledged results unreadable); "
-        "{} entries kept, the other tasks are re-run; damaged file kept as {}",
-        job.id(), valid, fs::file_size(file, ec), entries.size(), kept.filename().string());
-    fs::resize_file(file, valid, ec);
+        "{} entries kept, the other tasks are re-run; damaged file {}",
+        job.id(), valid, fs::file_size(file, ec), entries.size(),
+        ec ? "could not be copied (" + ec.message() + ")" : "kept as " + kept.filename().string());
+    if (!ec) fs::resize_file(file, valid, ec);
   } else if (fs::exists(file, ec) && fs::file_size(file, ec) > valid) {
     spdlog::warn("job {}: journal ends in a torn entry (an unacknowledged result); cut at {} bytes", job.id(),
                  valid);
@@ -122,6 +127,7 @@ uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, Resul
     }
     merger.Merge(*checked.valid, job.accumulator());
     job.RecordMerge(e.task_id);
+    job.MarkStored(e.task_id);  // it is in the journal
     ++merged;
   }
   return merged;
@@ -177,6 +183,15 @@ static void SetAsideOrphans(const fs::path& checkpoint_dir, const std::vector<Jo
   }
 }
 
+// The seal a finished job's checkpoint must have: the row's, or — for a row stored before seals —
+// as many tasks as its task rows call done (rows are written DONE only for stored results).
+CheckpointSeal ExpectedSeal(const JobRow& row, const std::vector<TaskRow>& tasks) {
+  if (row.checkpoint.digest != 0) return row.checkpoint;
+  CheckpointSeal seal;
+  for (const TaskRow& t : tasks) seal.tasks += t.state == TaskState::kDone;
+  return seal;
+}
+
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
                            Scheduler& scheduler, const Clock& clock, bool keep_other_builds) {
   RecoveryReport report;
@@ -185,7 +200,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
   SetAsideOrphans(checkpoint_dir, rows);
   for (JobRow& row : rows) {
     scheduler.ReserveJobSeq(row.seq);
-    const bool finished = IsTerminal(row.state);
+    bool finished = IsTerminal(row.state);
     JobConfig config;
     try {
       photonfarm::v1::JobSpec spec;
@@ -203,6 +218,36 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       }
       continue;
     }
+    const fs::path cp_file = Persister::CheckpointFile(checkpoint_dir, row.job_id);
+    const fs::path journal_file = Persister::JournalFile(checkpoint_dir, row.job_id);
+    const std::vector<TaskRow> task_rows = db.LoadTasks(row.job_id);
+    // A finished job is served from its checkpoint only if the file is the one its row was sealed
+    // with (docs/farm.md "Durability"). If not (damaged, missing, an older file put back), the
+    // results are lost: a SUCCEEDED job is rendered again from zero — its spec and seed give the
+    // same image — and a failed or cancelled one keeps its state and answers DATA_LOSS.
+    const CheckpointSeal expected_seal = ExpectedSeal(row, task_rows);
+    bool rerender = false, image_ok = false;
+    if (finished) {
+      const std::string problem = VerifyCheckpointFile(cp_file, expected_seal);
+      image_ok = problem.empty();
+      if (!problem.empty() && row.state == JobState::kSucceeded) {
+        spdlog::error(
+            "job {}: DATA LOSS: its final image {}; rendering it again from zero (the same spec and seed "
+            "give "
+            "the same image); the file is kept with the suffix .damaged",
+            row.job_id, problem);
+        for (const fs::path& f : {cp_file, journal_file}) SetAside(f, ".damaged");
+        rerender = true;
+        finished = false;
+        row.state = JobState::kQueued;
+        row.failure_reason.clear();
+        ++report.jobs_rerendered;
+      } else if (!problem.empty()) {
+        spdlog::error("job {}: DATA LOSS: its stored image {}; the job stays {} and its image is not served",
+                      row.job_id, problem, JobStateName(row.state));
+        ++report.images_lost;
+      }
+    }
     // A checkpoint and a journal name merged tasks by id; under another version of the plan's
     // expansion the ids mean other tasks (task_plan.h, PlanExpansionVersion). And results merged
     // under another coordinator build came from that build's workers, which may trace other
@@ -215,13 +260,13 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     const bool other_expansion = stored_version != current_version;
     const bool builds_differ = stored_build != current_build;
     const std::string build_named = stored_build.empty() ? "(unrecorded)" : limits::Quote(stored_build);
-    const bool from_zero = !finished && (other_expansion || (builds_differ && !keep_other_builds));
-    if (from_zero) {
+    const bool from_zero =
+        rerender || (!finished && (other_expansion || (builds_differ && !keep_other_builds)));
+    if (from_zero && !rerender) {
       const std::string suffix =
           other_expansion ? ".expansion-v" + std::to_string(stored_version) : std::string(".other-build");
       bool moved = false, stuck = false;
-      for (const fs::path& f : {Persister::CheckpointFile(checkpoint_dir, row.job_id),
-                                Persister::JournalFile(checkpoint_dir, row.job_id)}) {
+      for (const fs::path& f : {cp_file, journal_file}) {
         const SetAsideResult r = SetAside(f, suffix);
         moved = moved || r == SetAsideResult::kMoved;
         stuck = stuck || r == SetAsideResult::kStuck;
@@ -267,12 +312,10 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     auto job =
         std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
                               std::move(tasks), row.submitted_unix_ms);
-    const fs::path cp_file = Persister::CheckpointFile(checkpoint_dir, row.job_id);
     job->checkpoint_path = cp_file.string();
-    const std::vector<TaskRow> rows = db.LoadTasks(row.job_id);
 
     if (finished) {
-      for (const TaskRow& t : rows)
+      for (const TaskRow& t : task_rows)
         if (t.task_id < job->num_tasks() && t.state != TaskState::kQueued)
           job->SetTaskState(t.task_id, t.state);
       job->dirty_tasks.clear();
@@ -280,17 +323,21 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       job->RestoreElapsed(row.elapsed_seconds);
       job->stored_samples_merged = row.samples_merged;
       job->stored_noise_rms = row.noise_rms;
+      job->checkpoint_seal = expected_seal;
+      // Its verified final checkpoint holds it all; a journal is kept beside a lost image.
       std::error_code ec;
-      fs::remove(Persister::JournalFile(checkpoint_dir, row.job_id), ec);  // its final checkpoint has it all
+      if (image_ok) fs::remove(journal_file, ec);
       ++report.jobs_finished;
       scheduler.AddJob(std::move(job));
       continue;
     }
 
+    // A job rendered again from zero reads nothing of its lost image, even if it could not be set aside.
     try {
-      if (std::optional<Checkpoint> cp = ReadCheckpointFile(cp_file)) {
+      CheckpointSeal seal;
+      if (std::optional<Checkpoint> cp = rerender ? std::nullopt : ReadCheckpointFile(cp_file, &seal)) {
         std::string problem;
-        if (!ApplyCheckpoint(*cp, *job, &problem))
+        if (!ApplyCheckpoint(*cp, seal, *job, &problem))
           spdlog::error("job {}: checkpoint {} {}; restarting the job from zero merges", row.job_id,
                         cp_file.string(), problem);
       }
@@ -299,21 +346,35 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
                     e.what());
     }
     const uint64_t from_checkpoint = job->count(TaskState::kDone);
-    const uint64_t journaled =
-        ReplayJournal(Persister::JournalFile(checkpoint_dir, row.job_id), *job, report);
+    const uint64_t journaled = rerender ? 0 : ReplayJournal(journal_file, *job, report);
+    // The journal's entries go into the next checkpoint, which then empties the journal.
+    if (journaled > 0) job->checkpoint_retry = true;
     job->dirty_tasks.clear();
-    for (const TaskRow& t : rows) {
+    uint64_t acknowledged_lost = 0;
+    for (const TaskRow& t : task_rows) {
       if (t.task_id >= job->num_tasks()) continue;
       TaskRuntime& rt = job->runtime(t.task_id);
       if (!from_zero) {  // a job re-run from zero starts its attempts afresh too
         rt.attempts = t.attempts;
         rt.failures = t.failures;
         rt.last_error = t.last_error;
+        // A DONE row is written only for a stored result (persister.h, D2): one that neither the
+        // checkpoint nor the journal holds was acknowledged and is lost.
+        if (t.state == TaskState::kDone && rt.state != TaskState::kDone) ++acknowledged_lost;
       }
       if (rt.state != t.state) job->dirty_tasks.insert(t.task_id);  // e.g. leased before the crash
     }
+    if (acknowledged_lost > 0) {
+      spdlog::error(
+          "job {}: DATA LOSS: {} results acknowledged as stored are in neither the checkpoint nor the "
+          "journal "
+          "(files damaged, truncated or replaced?); those tasks are re-run, the image stays right",
+          row.job_id, acknowledged_lost);
+      report.acknowledged_lost += acknowledged_lost;
+    }
     job->RestoreState(row.state, row.failure_reason, now);
-    job->RestoreElapsed(row.elapsed_seconds);
+    job->RestoreElapsed(rerender ? 0.0 : row.elapsed_seconds);
+    if (rerender) job->row_dirty = true;  // stored as QUEUED again
     const uint64_t merged = job->count(TaskState::kDone);
     const uint64_t requeued = job->count(TaskState::kQueued);
     report.tasks_merged += merged;

@@ -11,8 +11,13 @@
 //    counts come from the database (a coordinator crash does not count as a failed attempt).
 //    A corrupt checkpoint is logged and the job restarts from zero merges (never double counts).
 //    A job whose spec no longer validates (e.g. its scene folder was deleted) is marked FAILED.
+//    A DONE task row names a stored result (persister.h, D2): one the files do not hold is a lost
+//    acknowledged result, logged as DATA LOSS and re-run.
 //  - Finished jobs are listed with their final state; their image is read from the checkpoint
-//    file when asked for (not held in memory).
+//    file when asked for (not held in memory), and only if the file carries the seal stored in
+//    the job's row. A SUCCEEDED job whose file does not is rendered again from zero (same spec,
+//    same seed: the same image, unless a time budget cut it); a failed or cancelled one answers
+//    DATA_LOSS for its image.
 
 #include <cstdint>
 #include <filesystem>
@@ -34,6 +39,10 @@ struct RecoveryReport {
   uint64_t journals_damaged = 0;  // damage before the end: acknowledged results lost (re-run)
   uint64_t jobs_reexpanded = 0;   // stored under another plan expansion version: re-run from zero
   uint64_t jobs_other_build = 0;  // submitted under another build (JobSpec.plan.build): re-run from zero
+  // DATA LOSS (each logged as an error; docs/farm.md "Durability"):
+  uint64_t acknowledged_lost = 0;  // DONE rows whose result neither checkpoint nor journal holds (re-run)
+  uint64_t jobs_rerendered = 0;    // SUCCEEDED jobs whose final image failed its seal: rendered again
+  uint64_t images_lost = 0;        // failed or cancelled jobs whose image failed its seal: not served
 };
 
 // An unfinished job submitted under another coordinator build than scheduler.options().build has

@@ -2,10 +2,26 @@
 
 #include <sqlite3.h>
 
+#include <cerrno>
+
 #include "common/core/error.h"
 
 namespace pf::server {
 namespace {
+
+// A full or failing disk is a StorageError (the coordinator keeps serving and retries: docs/farm.md
+// "Durability"); anything else a SystemError.
+[[noreturn]] void Fail(int rc, const std::string& what) {
+  switch (rc & 0xff) {
+    case SQLITE_FULL:
+      throw StorageError(what, ENOSPC);
+    case SQLITE_IOERR:
+    case SQLITE_CANTOPEN:
+      throw StorageError(what, EIO);
+    default:
+      throw SystemError(what);
+  }
+}
 
 constexpr const char* kSchema = R"sql(
 CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -30,7 +46,9 @@ CREATE TABLE IF NOT EXISTS jobs(
   submitted_unix_ms INTEGER NOT NULL,
   elapsed_seconds REAL NOT NULL,
   samples_merged INTEGER NOT NULL DEFAULT 0,
-  noise_rms REAL NOT NULL DEFAULT -1);
+  noise_rms REAL NOT NULL DEFAULT -1,
+  checkpoint_tasks INTEGER NOT NULL DEFAULT 0,
+  checkpoint_digest TEXT NOT NULL DEFAULT '');
 CREATE TABLE IF NOT EXISTS tasks(
   job_id TEXT NOT NULL,
   task_id INTEGER NOT NULL,
@@ -73,7 +91,7 @@ class Statement {
     const int rc = sqlite3_step(stmt_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    throw SystemError(std::string("sqlite: step '") + sqlite3_sql(stmt_) + "': " + sqlite3_errmsg(db_));
+    Fail(rc, std::string("sqlite: step '") + sqlite3_sql(stmt_) + "': " + sqlite3_errmsg(db_));
   }
   void Run() {
     while (Step()) {
@@ -115,10 +133,10 @@ class Transaction {
  private:
   void Exec(const char* sql) {
     char* err = nullptr;
-    if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    if (const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err); rc != SQLITE_OK) {
       std::string msg = err ? err : "unknown error";
       sqlite3_free(err);
-      throw SystemError(std::string("sqlite: ") + sql + ": " + msg);
+      Fail(rc, std::string("sqlite: ") + sql + ": " + msg);
     }
   }
   sqlite3* db_;
@@ -169,6 +187,17 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
     while (st.Step()) has_caustic_paths |= st.ColText(0) == "caustic_paths";
   }
   if (!has_caustic_paths) Exec("ALTER TABLE scenes ADD COLUMN caustic_paths INTEGER NOT NULL DEFAULT -1");
+  // … and before checkpoint seals (docs/farm.md "Durability") jobs.checkpoint_tasks and
+  // jobs.checkpoint_digest: '' = no seal recorded (recovery then checks the task rows instead).
+  bool has_seal = false;
+  {
+    Statement st(db_, "SELECT name FROM pragma_table_info('jobs')");
+    while (st.Step()) has_seal |= st.ColText(0) == "checkpoint_digest";
+  }
+  if (!has_seal) {
+    Exec("ALTER TABLE jobs ADD COLUMN checkpoint_tasks INTEGER NOT NULL DEFAULT 0");
+    Exec("ALTER TABLE jobs ADD COLUMN checkpoint_digest TEXT NOT NULL DEFAULT ''");
+  }
 }
 
 SqliteStore::~SqliteStore() {
@@ -177,10 +206,10 @@ SqliteStore::~SqliteStore() {
 
 void SqliteStore::Exec(const char* sql) {
   char* err = nullptr;
-  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+  if (const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err); rc != SQLITE_OK) {
     std::string msg = err ? err : "unknown error";
     sqlite3_free(err);
-    throw SystemError(path_ + ": " + msg);
+    Fail(rc, path_ + ": " + msg);
   }
 }
 
@@ -254,7 +283,7 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
   Transaction tx(db_);
   Statement job(db_,
                 "UPDATE jobs SET state = ?2, failure_reason = ?3, elapsed_seconds = ?4, samples_merged = ?5, "
-                "noise_rms = ?6 WHERE id = ?1");
+                "noise_rms = ?6, checkpoint_tasks = ?7, checkpoint_digest = ?8 WHERE id = ?1");
   for (const JobRow& j : jobs)
     job.Text(1, j.job_id)
         .Int(2, int(j.state))
@@ -262,6 +291,8 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
         .Real(4, j.elapsed_seconds)
         .Int(5, int64_t(j.samples_merged))
         .Real(6, j.noise_rms)
+        .Int(7, int64_t(j.checkpoint.tasks))
+        .Text(8, DigestText(j.checkpoint.digest))
         .Run();
   Statement task(db_, kUpsertTask);
   for (const TaskRow& t : tasks) UpsertTask(task, t);
@@ -279,7 +310,7 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
   Statement st(
       db_,
       "SELECT id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds, samples_merged, "
-      "noise_rms FROM jobs ORDER BY seq");
+      "noise_rms, checkpoint_tasks, checkpoint_digest FROM jobs ORDER BY seq");
   while (st.Step()) {
     JobRow j;
     j.job_id = st.ColText(0);
@@ -291,6 +322,8 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
     j.elapsed_seconds = st.ColReal(6);
     j.samples_merged = uint64_t(st.ColInt(7));
     j.noise_rms = st.ColReal(8);
+    j.checkpoint.tasks = uint64_t(st.ColInt(9));
+    j.checkpoint.digest = DigestFromText(st.ColText(10));
     out.push_back(std::move(j));
   }
   return out;

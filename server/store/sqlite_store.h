@@ -7,7 +7,8 @@
 //   scenes(hash TEXT PRIMARY KEY, entry, bytes, files, triangles, lights,
 //          default_camera BLOB, warnings TEXT, created_unix_ms)
 //   jobs(id TEXT PRIMARY KEY, seq INTEGER UNIQUE, spec BLOB, state INTEGER, failure_reason,
-//        submitted_unix_ms, elapsed_seconds, samples_merged, noise_rms)
+//        submitted_unix_ms, elapsed_seconds, samples_merged, noise_rms,
+//        checkpoint_tasks, checkpoint_digest)    the seal of the job's last stored checkpoint
 //   tasks(job_id, task_id, state INTEGER, attempts, failures, last_error,
 //         PRIMARY KEY (job_id, task_id)) WITHOUT ROWID
 //
@@ -15,7 +16,8 @@
 // checkpoint is the authority on which tasks are merged; `tasks.state` is informational for
 // merged tasks and authoritative for attempts/failures.
 //
-// Thread-safe (one connection behind a mutex). Errors are SystemError naming the statement.
+// Thread-safe (one connection behind a mutex). Errors are SystemError naming the statement;
+// StorageError when the disk is full or failing (SQLITE_FULL, SQLITE_IOERR).
 
 #include <filesystem>
 #include <mutex>

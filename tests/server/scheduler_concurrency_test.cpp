@@ -126,7 +126,7 @@ TEST_F(SchedulerConcurrencyTest, ConcurrentLeasesAndCompletionsOfTwoJobsEqualThe
   std::atomic<bool> stop_persist{false};
   std::atomic<size_t> checkpoints{0};
   auto collect = [&] {
-    for (const Checkpoint& cp : scheduler_.CollectPersistBatch(/*checkpoints_due=*/true).checkpoints) {
+    for (const Checkpoint& cp : scheduler_.CollectCheckpoints(/*due=*/true)) {
       const JobConfig& c = cp.job_id == id_a ? a : b;
       const Accumulator acc = Accumulator::Deserialize(cp.accumulator, &c.plan);
       // Commit and add lie within one hold of image_mu: the list and the image agree.

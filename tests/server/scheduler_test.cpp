@@ -514,33 +514,77 @@ TEST_F(SchedulerTest, MergedImageDoesNotDependOnCompletionOrder) {
   EXPECT_EQ(EncodeSnapshot(*a.image), EncodeSnapshot(b_as_a));
 }
 
-TEST_F(SchedulerTest, PersistBatchCarriesChangedRowsAndCheckpoints) {
+TEST_F(SchedulerTest, PersistenceHandsOutChangedRowsAndCheckpoints) {
   const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
-  EXPECT_TRUE(scheduler_.CollectPersistBatch(true).checkpoints.empty());
+  EXPECT_TRUE(scheduler_.CollectCheckpoints(true).empty());
   const Lease a = MustLease();
-  PersistBatch batch = scheduler_.CollectPersistBatch(true);
-  ASSERT_EQ(batch.tasks.size(), 1u);
-  EXPECT_EQ(batch.tasks[0].state, TaskState::kLeased);
-  EXPECT_EQ(batch.tasks[0].attempts, 1u);
-  ASSERT_EQ(batch.jobs.size(), 1u);
-  EXPECT_EQ(batch.jobs[0].state, JobState::kRunning);
+  RowBatch rows = scheduler_.CollectRows();
+  ASSERT_EQ(rows.tasks.size(), 1u);
+  EXPECT_EQ(rows.tasks[0].state, TaskState::kLeased);
+  EXPECT_EQ(rows.tasks[0].attempts, 1u);
+  ASSERT_EQ(rows.jobs.size(), 1u);
+  EXPECT_EQ(rows.jobs[0].state, JobState::kRunning);
   EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
-  batch = scheduler_.CollectPersistBatch(/*checkpoints_due=*/false);
-  EXPECT_TRUE(batch.checkpoints.empty()) << "not due yet";
+  EXPECT_TRUE(scheduler_.CollectCheckpoints(/*due=*/false).empty()) << "not due yet";
+  EXPECT_TRUE(scheduler_.CollectRows().tasks.empty()) << "a DONE row waits until its result is stored";
   EXPECT_TRUE(scheduler_.HasUncheckpointedMerges());
-  batch = scheduler_.CollectPersistBatch(true);
-  ASSERT_EQ(batch.checkpoints.size(), 1u);
-  EXPECT_EQ(batch.checkpoints[0].job_id, id);
-  EXPECT_EQ(batch.checkpoints[0].merged_task_ids, std::vector<uint64_t>{a.task_id});
-  EXPECT_EQ(batch.checkpoints[0].merge_seq, 1u);
+  const uint64_t journaled[] = {a.task_id};
+  scheduler_.ResultsJournaled(id, journaled);
+  rows = scheduler_.CollectRows();
+  ASSERT_EQ(rows.tasks.size(), 1u);
+  EXPECT_EQ(rows.tasks[0].state, TaskState::kDone);
+  std::vector<Checkpoint> cps = scheduler_.CollectCheckpoints(true);
+  ASSERT_EQ(cps.size(), 1u);
+  EXPECT_EQ(cps[0].job_id, id);
+  EXPECT_EQ(cps[0].merged_task_ids, std::vector<uint64_t>{a.task_id});
+  EXPECT_EQ(cps[0].merge_seq, 1u);
   EXPECT_FALSE(scheduler_.HasUncheckpointedMerges());
-  // A finished job is checkpointed even when checkpoints are not due.
+  // A finished job is checkpointed even when checkpoints are not due; its final row and its last
+  // DONE row wait until that checkpoint is stored, and the row carries the checkpoint's seal.
   EXPECT_EQ(CompleteOk(MustLease()).status, CompleteStatus::kMerged);
-  batch = scheduler_.CollectPersistBatch(false);
-  ASSERT_EQ(batch.checkpoints.size(), 1u);
-  EXPECT_EQ(batch.checkpoints[0].merged_task_ids.size(), 2u);
-  ASSERT_EQ(batch.jobs.size(), 1u);
-  EXPECT_EQ(batch.jobs[0].state, JobState::kSucceeded);
+  cps = scheduler_.CollectCheckpoints(false);
+  ASSERT_EQ(cps.size(), 1u);
+  EXPECT_EQ(cps[0].merged_task_ids.size(), 2u);
+  rows = scheduler_.CollectRows();
+  EXPECT_TRUE(rows.jobs.empty()) << "the final row waits for the final checkpoint";
+  EXPECT_TRUE(rows.tasks.empty());
+  scheduler_.CheckpointNotStored(id, cps[0].merge_seq, "No space left on device");
+  EXPECT_THAT(scheduler_.Status(id).storage_error(), HasSubstr("No space left on device"));
+  EXPECT_TRUE(scheduler_.CollectRows().jobs.empty()) << "still not stored";
+  cps = scheduler_.CollectCheckpoints(false);
+  ASSERT_EQ(cps.size(), 1u) << "a failed checkpoint is collected again at the next flush";
+  const CheckpointSeal seal{2, 0x1234};
+  scheduler_.CheckpointStored(cps[0], seal, "/x.acc");
+  rows = scheduler_.CollectRows();
+  ASSERT_EQ(rows.jobs.size(), 1u);
+  EXPECT_EQ(rows.jobs[0].state, JobState::kSucceeded);
+  EXPECT_EQ(rows.jobs[0].checkpoint, seal);
+  ASSERT_EQ(rows.tasks.size(), 1u);
+  EXPECT_EQ(rows.tasks[0].state, TaskState::kDone);
+  EXPECT_EQ(scheduler_.Status(id).storage_error(), "");
+}
+
+TEST_F(SchedulerTest, AJobWhoseResultsCannotBeStoredGetsNoLeasesUntilACheckpointIsStored) {
+  const std::string paused = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4));
+  const Lease a = MustLease();
+  ASSERT_EQ(a.job_id, paused);
+  EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
+  scheduler_.ResultsNotStored(paused, "journal write: No space left on device");
+  const v1::JobStatus status = scheduler_.Status(paused);
+  EXPECT_TRUE(status.paused_for_storage());
+  EXPECT_THAT(status.storage_error(), HasSubstr("No space left on device"));
+  EXPECT_FALSE(scheduler_.TryLease({"w", {}}).has_value()) << "its queued tasks are held back";
+  const std::string other = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const std::optional<Lease> b = scheduler_.TryLease({"w", {}});
+  ASSERT_TRUE(b.has_value()) << "other jobs are served";
+  EXPECT_EQ(b->job_id, other);
+  const std::vector<Checkpoint> cps = scheduler_.CollectCheckpoints(/*due=*/false);
+  ASSERT_EQ(cps.size(), 1u) << "the paused job's checkpoint is tried at the next flush";
+  scheduler_.CheckpointStored(cps[0], CheckpointSeal{1, 7}, "/p.acc");
+  EXPECT_FALSE(scheduler_.Status(paused).paused_for_storage());
+  const std::optional<Lease> c = scheduler_.TryLease({"w", {}});
+  ASSERT_TRUE(c.has_value());
+  EXPECT_EQ(c->job_id, paused) << "resumed";
 }
 
 TEST(JobStateMachine, OnlyForwardTransitions) {

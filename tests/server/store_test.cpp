@@ -274,7 +274,8 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   const std::vector<float> sums = SyntheticResult(lease.task, 12, 10);
   ASSERT_EQ(scheduler.Complete(lease.lease_id, sums).status, CompleteStatus::kMerged);
   bool acked = false;
-  persister.JournalThenAck(id, lease.task_id, sums, [&] { acked = true; });
+  persister.JournalThenAck(id, lease.task_id, sums,
+                           [&](const std::string& not_stored) { acked = not_stored.empty(); });
   EXPECT_FALSE(acked) << "nothing on disk yet";
   persister.FlushNow(/*checkpoints_due=*/false);
   EXPECT_TRUE(acked);
@@ -291,9 +292,9 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   EXPECT_EQ(cp->merged_task_ids, std::vector<uint64_t>{lease.task_id});
   EXPECT_TRUE(ReadJournalFile(Persister::JournalFile(dir.path() / "checkpoints", id), &valid).empty());
   persister.Abandon();
-  bool late = false;
-  persister.JournalThenAck(id, 1, sums, [&] { late = true; });
-  EXPECT_TRUE(late) << "after a stop: answered at once";
+  std::string late = "not called";
+  persister.JournalThenAck(id, 1, sums, [&](const std::string& not_stored) { late = not_stored; });
+  EXPECT_THAT(late, HasSubstr("stopping")) << "after a stop: answered at once, as not stored";
 }
 
 // A coordinator's data folder (database and checkpoints) that outlives its crashes in a test.
@@ -337,7 +338,7 @@ TEST_F(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
     const Lease journaled = *scheduler->TryLease({"w1", {}});
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
     ASSERT_EQ(scheduler->Complete(journaled.lease_id, sums).status, CompleteStatus::kMerged);
-    persister->JournalThenAck(id, journaled.task_id, sums, [] {});
+    persister->JournalThenAck(id, journaled.task_id, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     checkpointed.push_back(journaled.task_id);
     // Merged in memory but never journaled (so never acknowledged): lost by the crash, must be
@@ -563,7 +564,7 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
     ASSERT_GE(journaled.task_id, static_tasks);
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
     ASSERT_EQ(scheduler->Complete(journaled.lease_id, sums).status, CompleteStatus::kMerged);
-    persister->JournalThenAck(id, journaled.task_id, sums, [] {});
+    persister->JournalThenAck(id, journaled.task_id, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     merged_before_crash = static_tasks + 2;
     persister->Abandon();
