@@ -30,7 +30,8 @@ class PersistSource {
   virtual void CheckpointStored(const Checkpoint& checkpoint, const CheckpointSeal& seal,
                                 const std::string& path) = 0;
   // The checkpoint could not be written: collected again at the next flush.
-  virtual void CheckpointNotStored(const std::string& job_id, uint64_t merge_seq, const std::string& reason) = 0;
+  virtual void CheckpointNotStored(const std::string& job_id, uint64_t merge_seq,
+                                   const std::string& reason) = 0;
 
   // These merged results are in the job's journal, synced.
   virtual void ResultsJournaled(const std::string& job_id, std::span<const uint64_t> task_ids) = 0;

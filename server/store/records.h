@@ -41,7 +41,7 @@ struct JobRow {
   double elapsed_seconds = 0;   // running time accumulated so far
   uint64_t samples_merged = 0;  // for the status of finished jobs (their accumulator stays on disk)
   double noise_rms = -1;
-  CheckpointSeal checkpoint;  // of the job's last verified checkpoint
+  CheckpointSeal checkpoint = {};  // of the job's last verified checkpoint
 };
 
 struct TaskRow {

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,38 @@ inline PlanSpec Skipping(uint32_t stride, uint32_t rounds, uint32_t spp = 1) {
 
 inline PlanSpec MultipleMaps(uint32_t maps, uint32_t tile, uint32_t spp = 1) {
   return PlanSpec{.kind = PlanKind::kMultipleMaps, .maps = maps, .samples_per_pixel = spp, .tile_size = tile};
+}
+
+// A scene catalog that knows one scene, kHash, without files (jobs of it are never rendered).
+inline const std::string kHash(64, 'b');
+class FakeCatalog final : public SceneCatalog {
+ public:
+  std::optional<SceneInfo> FindScene(const std::string& hash) const override {
+    if (hash != kHash) return std::nullopt;
+    SceneInfo info;
+    info.hash = kHash;
+    info.entry = "scene.mgf";
+    return info;
+  }
+};
+
+// A 12 x 10 path-traced job of kHash with the skipping plan, 2 samples per pixel.
+inline v1::JobSpec SkippingSpec(uint32_t stride, uint32_t rounds) {
+  v1::JobSpec spec;
+  spec.set_name("crash test");
+  spec.set_scene_hash(kHash);
+  v1::Camera* cam = spec.mutable_camera();
+  cam->mutable_eye()->set_z(5);
+  cam->mutable_up()->set_y(1);
+  cam->set_vfov_degrees(40);
+  cam->set_width(12);
+  cam->set_height(10);
+  spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PATH);
+  spec.mutable_plan()->mutable_skipping()->set_stride(stride);
+  spec.mutable_plan()->mutable_skipping()->set_rounds(rounds);
+  spec.mutable_plan()->mutable_skipping()->set_samples_per_pixel(2);
+  spec.set_seed(11);
+  return spec;
 }
 
 // The Cornell box shipped in scenes/ (small, with a manifest camera).

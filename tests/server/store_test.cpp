@@ -20,6 +20,7 @@
 #include "server/store/persister.h"
 #include "server/store/recovery.h"
 #include "server/store/sqlite_store.h"
+#include "tests/server/faulty_storage.h"
 #include "tests/server/server_test_util.h"
 
 namespace pf::server {
@@ -30,36 +31,9 @@ using testing::TempDir;
 namespace fs = std::filesystem;
 namespace v1 = photonfarm::v1;
 
-const std::string kHash(64, 'b');
-
-class FakeCatalog final : public SceneCatalog {
- public:
-  std::optional<SceneInfo> FindScene(const std::string& hash) const override {
-    if (hash != kHash) return std::nullopt;
-    SceneInfo info;
-    info.hash = kHash;
-    info.entry = "scene.mgf";
-    return info;
-  }
-};
-
-v1::JobSpec SkippingSpec(uint32_t stride, uint32_t rounds) {
-  v1::JobSpec spec;
-  spec.set_name("crash test");
-  spec.set_scene_hash(kHash);
-  v1::Camera* cam = spec.mutable_camera();
-  cam->mutable_eye()->set_z(5);
-  cam->mutable_up()->set_y(1);
-  cam->set_vfov_degrees(40);
-  cam->set_width(12);
-  cam->set_height(10);
-  spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PATH);
-  spec.mutable_plan()->mutable_skipping()->set_stride(stride);
-  spec.mutable_plan()->mutable_skipping()->set_rounds(rounds);
-  spec.mutable_plan()->mutable_skipping()->set_samples_per_pixel(2);
-  spec.set_seed(11);
-  return spec;
-}
+using testing::FakeCatalog;
+using testing::kHash;
+using testing::SkippingSpec;
 
 TaskRow Row(const std::string& job, uint64_t task, TaskState state = TaskState::kQueued,
             uint32_t attempts = 0, uint32_t failures = 0, const std::string& error = "") {
@@ -260,6 +234,45 @@ TEST(Journal, DamageBeforeTheEndIsNotATornTail) {
   std::ofstream(file, std::ios::binary | std::ios::trunc) << a << b << last;
   EXPECT_EQ(ReadJournalFile(file, &valid, &damaged).size(), 2u);
   EXPECT_FALSE(damaged);
+}
+
+// An entry that could not be written whole is cut off, so a later, shorter entry is not followed
+// by the torn one's bytes (which would read as damage and hide what follows).
+TEST(JournalWriter, ATornAppendLeavesNothingBehindAShorterEntry) {
+  TempDir dir;
+  const fs::path file = dir.path() / "j.journal";
+  testing::FaultInjector faults;
+  testing::FaultyFiles files(faults);
+  JournalWriter journal(file, files);
+  const std::vector<float> big(300, 1.5f), small(3, 2.5f);
+  std::string problem;
+  ASSERT_TRUE(journal.Append(EncodeJournalEntry(1, big), &problem)) << problem;
+  faults.Arm({testing::FileOp::kWrite, ".journal", false, 1, 1, ENOSPC, /*torn=*/true});
+  EXPECT_FALSE(journal.Append(EncodeJournalEntry(2, big), &problem));
+  EXPECT_THAT(problem, HasSubstr("No space left on device"));
+  EXPECT_FALSE(journal.broken()) << "the torn entry was cut off";
+  ASSERT_TRUE(journal.Append(EncodeJournalEntry(3, small), &problem)) << problem;
+  ASSERT_TRUE(journal.Sync(&problem)) << problem;
+  uint64_t valid = 0;
+  bool damaged = false;
+  const std::vector<JournalEntry> entries = ReadJournalFile(file, &valid, &damaged);
+  ASSERT_EQ(entries.size(), 2u);
+  EXPECT_EQ(entries[0].task_id, 1u);
+  EXPECT_EQ(entries[1].task_id, 3u);
+  EXPECT_FALSE(damaged);
+  EXPECT_EQ(valid, fs::file_size(file));
+  // If the cut fails too, the journal takes nothing until a reset removes it.
+  faults.Arm({testing::FileOp::kWrite, ".journal", false, 1, 1, EIO, /*torn=*/true});
+  faults.Arm({testing::FileOp::kFtruncate, ".journal", false, 1, 1, EIO});
+  EXPECT_FALSE(journal.Append(EncodeJournalEntry(4, small), &problem));
+  EXPECT_THAT(problem, HasSubstr("cannot be cut off"));
+  EXPECT_TRUE(journal.broken());
+  faults.Disarm();
+  EXPECT_FALSE(journal.Append(EncodeJournalEntry(5, small), &problem)) << "not behind a torn entry";
+  ASSERT_TRUE(journal.Reset(&problem)) << problem;
+  EXPECT_FALSE(fs::exists(file));
+  ASSERT_TRUE(journal.Append(EncodeJournalEntry(6, small), &problem)) << problem;
+  EXPECT_EQ(ReadJournalFile(file, &valid, &damaged).size(), 1u);
 }
 
 TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {

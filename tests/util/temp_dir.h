@@ -20,7 +20,9 @@ namespace pf::test_util {
 class TempDir {
  public:
   // `prefix` names the test binary's area ("pf_mgf_test"); the test's suite and name follow.
-  explicit TempDir(std::string_view prefix) {
+  // `root`: where (default: the system's temporary directory).
+  explicit TempDir(std::string_view prefix,
+                   const std::filesystem::path& root = std::filesystem::temp_directory_path()) {
     static std::atomic<int> counter{0};
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     std::string name = std::string(prefix) + "_" + std::to_string(::getpid()) + "_" +
@@ -28,7 +30,7 @@ class TempDir {
                        std::to_string(counter++);
     // Parameterised tests have '/' in their names.
     std::replace(name.begin(), name.end(), '/', '_');
-    path_ = std::filesystem::temp_directory_path() / name;
+    path_ = root / name;
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }
