@@ -215,6 +215,10 @@ void Coordinator::CheckHttpTransport() const {
                options_.http_listen);
 }
 
+bool Coordinator::http_tls() const {
+  return http_ && http_->tls();
+}
+
 bool IsLoopbackHost(const std::string& host) {
   return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
 }

@@ -119,6 +119,7 @@ class Coordinator {
   DistributedMaps& maps() { return *maps_; }
   int port() const { return port_; }
   int http_port() const { return http_port_; }  // 0 without --http
+  bool http_tls() const;                        // the status page is HTTPS
 
  private:
   void Stop(bool graceful);

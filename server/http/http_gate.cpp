@@ -289,6 +289,10 @@ int GatedHttpServer::Start(const std::string& host, int port) {
   } else if (!bind_to_port(host, port)) {
     return -1;
   }
+  // httplib listens with a backlog of 5 (compiled into Debian's library): a burst of connections
+  // (a page and its previews, or clients that never finish) overflows it and the kernel drops
+  // SYNs, which clients resend only after a second. listen() again just sets a new backlog.
+  ::listen(svr_sock_, SOMAXCONN);
   gate_thread_ = std::thread([this] { GateLoop(); });
   for (size_t i = 0; i < limits_.handler_threads; ++i) handlers_.emplace_back([this] { HandlerLoop(); });
   listen_thread_ = std::thread([this] { listen_after_bind(); });
