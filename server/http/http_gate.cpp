@@ -95,13 +95,14 @@ bool EqualsIgnoringCase(std::string_view a, std::string_view b) {
          });
 }
 
-// Waits until `fd` is ready for `events` or `deadline` passes.
-bool WaitFor(int fd, short events, Clock::time_point deadline) {
+// Waits until `fd` is ready for `events`; false once `deadline` passes or `stopping` is set (it
+// is looked at every 100 ms, so a slow reader delays a shutdown by no more than that).
+bool WaitFor(int fd, short events, Clock::time_point deadline, const std::atomic<bool>& stopping) {
   for (;;) {
     const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now()).count();
-    if (left <= 0) return false;
+    if (left <= 0 || stopping) return false;
     pollfd p{fd, events, 0};
-    const int r = ::poll(&p, 1, int(std::min<int64_t>(left, 1000)));
+    const int r = ::poll(&p, 1, int(std::min<int64_t>(left, 100)));
     if (r > 0) return true;
     if (r < 0 && errno != EINTR) return false;
   }
@@ -203,7 +204,8 @@ namespace {
 // end), writes go to the socket within the write deadline.
 class GatedStream final : public httplib::Stream {
  public:
-  GatedStream(GatedConnection& c, Clock::time_point write_deadline) : c_(c), deadline_(write_deadline) {}
+  GatedStream(GatedConnection& c, Clock::time_point write_deadline, const std::atomic<bool>& stopping)
+      : c_(c), deadline_(write_deadline), stopping_(stopping) {}
 
   bool is_readable() const override { return read_ < c_.head.size(); }
   bool is_writable() const override { return Clock::now() < deadline_; }
@@ -222,7 +224,7 @@ class GatedStream final : public httplib::Stream {
           done += size_t(n);
           break;
         case GatedConnection::Io::kWait:
-          if (!WaitFor(c_.fd, c_.wait_for, deadline_)) return -1;
+          if (!WaitFor(c_.fd, c_.wait_for, deadline_, stopping_)) return -1;
           break;
         case GatedConnection::Io::kFailed:
           return -1;
@@ -237,6 +239,7 @@ class GatedStream final : public httplib::Stream {
  private:
   GatedConnection& c_;
   const Clock::time_point deadline_;
+  const std::atomic<bool>& stopping_;
   size_t read_ = 0;
 };
 
@@ -348,8 +351,10 @@ void GatedHttpServer::GateLoop() {
           timeout_ms < 0 ? std::max<int64_t>(left, 0) : std::min(timeout_ms, std::max<int64_t>(left, 0));
     }
     if (::poll(fds.data(), fds.size(), int(timeout_ms)) < 0 && errno != EINTR) {
-      spdlog::error("http: poll failed ({}); the status page stops", errno);
-      break;
+      // Stopping here would leave accepted sockets piling up in the inbox: go on.
+      spdlog::error("http: poll failed (errno {})", errno);
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      continue;
     }
     if (stopping_) break;
     if (fds[0].revents != 0) {
@@ -490,9 +495,13 @@ void GatedHttpServer::HandlerLoop() {
 }
 
 void GatedHttpServer::Serve(GatedConnection& c) {
-  GatedStream stream(c, Clock::now() + limits_.write_timeout);
+  GatedStream stream(c, Clock::now() + limits_.write_timeout, stopping_);
   bool closed = false;
-  process_request(stream, /*close_connection=*/true, closed, nullptr);
+  try {
+    process_request(stream, /*close_connection=*/true, closed, nullptr);
+  } catch (const std::exception& e) {  // httplib catches the routes' exceptions, not its own
+    spdlog::warn("http: request failed: {}", e.what());
+  }
 }
 
 }  // namespace pf::server

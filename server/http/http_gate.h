@@ -38,7 +38,7 @@ struct HttpLimits {
   size_t max_head_bytes = 16 * 1024;
   // From the accept to the end of the head, TLS handshake included; a browser needs milliseconds.
   std::chrono::milliseconds head_timeout{5000};
-  // For writing a whole response (the largest are preview PNGs).
+  // For writing a whole response (the largest are preview PNGs). Stop() does not wait for it.
   std::chrono::milliseconds write_timeout{30000};
   // Connections whose head has not arrived yet (each holds a socket and ≤ max_head_bytes).
   size_t max_waiting = 128;

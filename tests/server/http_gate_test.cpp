@@ -135,5 +135,25 @@ TEST(HttpGate, MoreCompleteRequestsThanTheQueueHoldsAreAnswered503) {
   EXPECT_EQ(StatusOf(queued.Receive()), "HTTP/1.1 200 OK");
 }
 
+// A client that never reads its (authenticated, large) answer holds a handler for up to the
+// write timeout, but not the coordinator's shutdown.
+TEST(HttpGate, StopDoesNotWaitForAClientThatDoesNotRead) {
+  std::atomic<bool> writing{false};
+  GatedServer s(HttpLimits{}, [&](GatedHttpServer& server) {
+    server.Get("/big", [&](const httplib::Request&, httplib::Response& res) {
+      writing = true;
+      res.set_content(std::string(size_t(64) << 20, 'x'), "text/plain");
+    });
+  });
+  RawConnection reader(s.port());
+  ASSERT_TRUE(reader.Send("GET /big HTTP/1.1\r\nAuthorization: x\r\n\r\n"));
+  for (int i = 0; i < 5000 && !writing; ++i) std::this_thread::sleep_for(1ms);
+  ASSERT_TRUE(writing);
+  std::this_thread::sleep_for(200ms);  // the socket buffers are full: the handler waits to write
+  const auto start = std::chrono::steady_clock::now();
+  s.server().Stop();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 1s);
+}
+
 }  // namespace
 }  // namespace pf::server
