@@ -5,15 +5,12 @@
 #include <thread>
 
 #include "common/core/error.h"
+#include "rpc/tls_diagnosis.h"
 
 namespace pf {
 namespace v1 = photonfarm::v1;
 
 namespace {
-
-void Check(const grpc::Status& s) {
-  if (!s.ok()) throw RpcError(s);
-}
 
 bool IsTransient(const grpc::Status& s) {
   return s.error_code() == grpc::StatusCode::UNAVAILABLE;
@@ -33,7 +30,9 @@ bool IsFinalState(v1::JobState s) {
 }
 
 FarmClient::FarmClient(const std::string& address, std::string token, double timeout_seconds, ClientTls tls)
-    : channel_(MakeCoordinatorChannel(address, ChannelOptions{.token = "", .tls = std::move(tls)})),
+    : address_(address),
+      tls_(std::move(tls)),
+      channel_(MakeCoordinatorChannel(address, ChannelOptions{.token = "", .tls = tls_})),
       stub_(v1::RenderService::NewStub(channel_)),
       token_(std::move(token)),
       timeout_(Seconds(timeout_seconds)) {}
@@ -44,8 +43,13 @@ Response FarmClient::Call(grpc::Status (Stub::*method)(grpc::ClientContext*, con
   grpc::ClientContext ctx;
   PrepareContext(&ctx, token_, timeout_);
   Response resp;
-  Check((stub_.get()->*method)(&ctx, req, &resp));
+  const grpc::Status status = (stub_.get()->*method)(&ctx, req, &resp);
+  if (!status.ok()) Fail(status);
   return resp;
+}
+
+void FarmClient::Fail(const grpc::Status& status) const {
+  throw RpcError(ExplainTlsFailure(status, address_, tls_));
 }
 
 v1::UploadSceneResponse FarmClient::UploadScene(const SceneBundle& bundle) {
@@ -116,7 +120,7 @@ std::string FarmClient::GetImage(const std::string& job_id, uint64_t* samples_me
     bytes += chunk.exr_bytes();
     if (samples_merged) *samples_merged = chunk.samples_merged();
   }
-  Check(reader->Finish());
+  if (const grpc::Status status = reader->Finish(); !status.ok()) Fail(status);
   if (expected == 0 || expected != count)
     throw RpcError(grpc::Status(
         grpc::StatusCode::DATA_LOSS,
@@ -189,6 +193,10 @@ v1::JobStatus FarmClient::Watch(const std::string& job_id, bool include_images, 
       }
     } else if (!IsTransient(status)) {
       throw RpcError(status);
+    } else if (retries == 0 && !any) {
+      // A refused certificate will not be accepted on the next attempt.
+      const grpc::Status explained = ExplainTlsFailure(status, address_, tls_);
+      if (explained.error_message() != status.error_message()) throw RpcError(explained);
     }
     // Transient: the coordinator may be restarting. Re-subscribe with a capped backoff.
     const auto now = std::chrono::steady_clock::now();

@@ -60,6 +60,12 @@ class FarmClient {
   Response Call(grpc::Status (Stub::*method)(grpc::ClientContext*, const Request&, Response*),
                 const Request& req);
 
+  // A failed call's status as an exception; an UNAVAILABLE over TLS explained first
+  // (rpc/tls_diagnosis.h: a refused certificate is not "unreachable").
+  [[noreturn]] void Fail(const grpc::Status& status) const;
+
+  std::string address_;
+  ClientTls tls_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<photonfarm::v1::RenderService::Stub> stub_;
   std::string token_;

@@ -127,6 +127,7 @@ Coordinator::~Coordinator() {
 }
 
 int Coordinator::Start() {
+  CheckHttpTransport();  // before anything listens
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
@@ -150,7 +151,8 @@ int Coordinator::Start() {
   tick_thread_ = std::thread([this] { TickLoop(); });
   if (!options_.http_listen.empty()) {
     http_ = std::make_unique<StatusHttpServer>(*scheduler_,
-                                               RoleTokens{options_.client_token, options_.worker_token});
+                                               RoleTokens{options_.client_token, options_.worker_token},
+                                               options_.tls_cert_pem, options_.tls_key_pem);
     http_port_ = http_->Start(options_.http_listen);
   }
   spdlog::info(
@@ -201,6 +203,33 @@ std::shared_ptr<grpc::ServerCredentials> Coordinator::ServerCredentials() const 
   return credentials;
 }
 
+// The status page follows the gRPC port's rule (ServerCredentials above): with the coordinator's
+// certificate it is HTTPS with that certificate (StatusHttpServer); without one, plaintext only on
+// loopback, elsewhere only with --insecure and never with a client token, which is the page's
+// Basic password (docs/security.md, "The web status page").
+void Coordinator::CheckHttpTransport() const {
+  if (options_.http_listen.empty() || !options_.tls_cert_pem.empty()) return;
+  if (IsLoopbackHost(ParseHttpListen(options_.http_listen).first)) return;
+  if (!options_.insecure)
+    throw InputError("refusing to serve the status page (--http " + options_.http_listen +
+                     ") on a non-loopback address without TLS: pass --tls-cert/--tls-key (the page is then "
+                     "HTTPS with that certificate), or --insecure for a trusted network");
+  if (!options_.client_token.empty())
+    throw InputError("--insecure with --http " + options_.http_listen +
+                     " and a client token: the token (the page's password) would cross the network readable; "
+                     "use TLS");
+  spdlog::warn("serving the status page plaintext without authentication on {} (--insecure)",
+               options_.http_listen);
+}
+
+bool Coordinator::http_tls() const {
+  return http_ && http_->tls();
+}
+
+bool IsLoopbackHost(const std::string& host) {
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
 bool IsLoopbackAddress(const std::string& listen) {
   std::string host = listen;
   if (host.rfind("ipv4:", 0) == 0) host = host.substr(5);
@@ -211,7 +240,7 @@ bool IsLoopbackAddress(const std::string& listen) {
   } else if (const size_t colon = host.rfind(':'); colon != std::string::npos) {
     host = host.substr(0, colon);
   }
-  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+  return IsLoopbackHost(host);
 }
 
 void Coordinator::TickLoop() {

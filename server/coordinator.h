@@ -83,7 +83,9 @@ struct CoordinatorOptions {
   // The system calls of the result journal and checkpoints; null: the real ones (tests inject
   // faults through it: tests/server/storage_faults_test.cpp).
   FileLayer* files = nullptr;
-  std::string http_listen;  // web status page (server/http/); empty: none
+  // Web status page (server/http/); empty: none. HTTPS with tls_cert_pem when set; without it,
+  // a non-loopback address is refused like `listen` (docs/security.md, "The web status page").
+  std::string http_listen;
   // Issue #12: photon maps traced once (server/scheduling/distributed_maps.h).
   int map_build_threads = 1;           // threads of one map's assembly and balance
   uint64_t map_chunk_photons = 65536;  // photons per traced piece
@@ -95,6 +97,8 @@ struct CoordinatorOptions {
 // True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"
 // included, counts as reachable from the network.
 bool IsLoopbackAddress(const std::string& listen);
+// The same for a host without port or brackets ("::1", "127.0.0.1", "localhost").
+bool IsLoopbackHost(const std::string& host);
 
 class Coordinator {
  public:
@@ -123,11 +127,13 @@ class Coordinator {
   DistributedMaps& maps() { return *maps_; }
   int port() const { return port_; }
   int http_port() const { return http_port_; }  // 0 without --http
+  bool http_tls() const;                        // the status page is HTTPS
 
  private:
   void Stop(bool graceful);
   void TickLoop();
   std::shared_ptr<grpc::ServerCredentials> ServerCredentials() const;
+  void CheckHttpTransport() const;
 
   CoordinatorOptions options_;
   std::unique_ptr<Clock> own_clock_;

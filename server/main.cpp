@@ -7,7 +7,8 @@
 //                  [--allow-mixed-versions]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
-// :0; with --http a second line, "http on HOST:PORT", for the web status page) — and logs to stderr, one line
+// :0; with --http a second line, "http on HOST:PORT", for the web status page, with " (https)" when it
+// uses the coordinator's certificate) — and logs to stderr, one line
 // per event with job and task ids (leases and merges too: use --log-level warn for very many tiny tasks).
 // SIGTERM / SIGINT shut down gracefully (exit 0). Exit 2 on a usage error, 1 on a start-up error.
 #include <signal.h>
@@ -87,7 +88,8 @@ int main(int argc, char** argv) {
       "--http", options.http_listen,
       "Serve the web status page (jobs, workers, live previews) on [HOST:]PORT; HOST defaults to "
       "127.0.0.1, port 0 picks a free port; same token as gRPC (Bearer, or Basic with the token as "
-      "password)");
+      "password); HTTPS with --tls-cert/--tls-key, and without them a non-loopback HOST is refused as "
+      "for --listen");
   app.add_option("--map-build-threads", options.map_build_threads,
                  "Threads that assemble and balance one distributed photon map (0 = all cores)")
       ->capture_default_str()
@@ -142,8 +144,8 @@ int main(int argc, char** argv) {
     const int port = coordinator.Start();
     std::printf("listening on %s:%d\n", HostOf(options.listen).c_str(), port);
     if (coordinator.http_port() > 0)
-      std::printf("http on %s:%d\n", pf::server::ParseHttpListen(options.http_listen).first.c_str(),
-                  coordinator.http_port());
+      std::printf("http on %s:%d%s\n", pf::server::ParseHttpListen(options.http_listen).first.c_str(),
+                  coordinator.http_port(), coordinator.http_tls() ? " (https)" : "");
     std::fflush(stdout);
 
     std::thread signal_thread([&] {

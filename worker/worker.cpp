@@ -10,6 +10,7 @@
 #include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "rpc/grpc_channel.h"
+#include "rpc/tls_diagnosis.h"
 
 namespace pf::worker {
 namespace v1 = photonfarm::v1;
@@ -149,8 +150,14 @@ bool Worker::WaitForConnection() {
       if (failures_ > 0) spdlog::info("connected to coordinator {}", options_.coordinator);
       return true;
     }
-    if (failures_ == 0 || failures_ % 20 == 0)
-      spdlog::warn("coordinator {} unreachable; retrying with backoff", options_.coordinator);
+    if (failures_ == 0 || failures_ % 20 == 0) {
+      // Over TLS, "unreachable" may be a refused certificate: say so (rpc/tls_diagnosis.h).
+      const std::string why = DiagnoseTlsHandshake(options_.coordinator, options_.tls);
+      if (!why.empty())
+        spdlog::error("{}; retrying with backoff", why);
+      else
+        spdlog::warn("coordinator {} unreachable; retrying with backoff", options_.coordinator);
+    }
     BackoffSleep();
     SetState(State::kConnecting);
   }

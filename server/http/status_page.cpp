@@ -10,6 +10,7 @@
 #include "common/image/png_io.h"
 #include "proto/convert.h"
 #include "server/errors.h"
+#include "server/http/http_gate.h"
 #include "server/rpc/auth.h"
 #include "server/rpc/job_images.h"
 #include "server/scheduling/scheduler.h"
@@ -18,8 +19,6 @@ namespace pf::server {
 namespace v1 = photonfarm::v1;
 
 namespace {
-
-constexpr int kHttpThreads = 2;  // the page is for people: a few requests a second at most
 
 std::string Escape(const std::string& text) {
   std::string out;
@@ -199,11 +198,12 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
   return html;
 }
 
-StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens)
-    : scheduler_(scheduler), tokens_(std::move(tokens)), server_(std::make_unique<httplib::Server>()) {
+StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, const std::string& tls_cert_pem,
+                                   const std::string& tls_key_pem)
+    : scheduler_(scheduler),
+      tokens_(std::move(tokens)),
+      server_(std::make_unique<GatedHttpServer>(HttpLimits{}, tls_cert_pem, tls_key_pem)) {
   httplib::Server& svr = *server_;
-  // cpp-httplib owns the queue it is given (its API takes a raw pointer).
-  svr.new_task_queue = [] { return new httplib::ThreadPool(kHttpThreads); };
   svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     std::string header;  // "" = none
     if (req.has_header("Authorization")) {
@@ -259,22 +259,21 @@ StatusHttpServer::~StatusHttpServer() {
 
 int StatusHttpServer::Start(const std::string& listen) {
   const auto [host, port] = ParseHttpListen(listen);
-  int bound = port;
-  if (port == 0) {
-    bound = server_->bind_to_any_port(host.c_str());
-    if (bound < 0) throw SystemError("--http " + listen + ": cannot bind");
-  } else if (!server_->bind_to_port(host.c_str(), port)) {
+  const int bound = server_->Start(host, port);
+  if (bound < 0)
     throw SystemError("--http " + listen + ": cannot bind (in use, or not an address of this machine)");
-  }
-  thread_ = std::thread([this] { server_->listen_after_bind(); });
-  spdlog::info("http: status page on http://{}:{}/", host, bound);
+  const bool v6 = host.find(':') != std::string::npos;
+  spdlog::info("http: status page on {}://{}{}{}:{}/", server_->tls() ? "https" : "http", v6 ? "[" : "", host,
+               v6 ? "]" : "", bound);
   return bound;
 }
 
+bool StatusHttpServer::tls() const {
+  return server_->tls();
+}
+
 void StatusHttpServer::Stop() {
-  if (!thread_.joinable()) return;
-  server_->stop();
-  thread_.join();
+  server_->Stop();
 }
 
 }  // namespace pf::server

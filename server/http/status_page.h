@@ -10,23 +10,22 @@
 //
 // Credentials are the gRPC side's (server/rpc/auth.h, one check): with a token configured every
 // request needs `Authorization: Bearer <token>` — or HTTP Basic with the token as the password,
-// which a browser asks for — else 401. The listen address defaults to loopback.
+// which a browser asks for — else 401. The listen address defaults to loopback; the transport
+// follows the gRPC port's rule (Coordinator::Start; docs/security.md, "The web status page"):
+// HTTPS with the coordinator's certificate when it has one. Sizes, deadlines and slow clients are
+// handled before any of this by the gate (server/http/http_gate.h).
 
 #include <memory>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "photonfarm/v1/farm.pb.h"
 #include "server/rpc/auth.h"
 
-namespace httplib {
-class Server;
-}
-
 namespace pf::server {
 
 class Scheduler;
+class GatedHttpServer;
 
 // "PORT" or ":PORT" mean 127.0.0.1:PORT; else HOST:PORT. InputError if malformed.
 std::pair<std::string, int> ParseHttpListen(const std::string& listen);
@@ -37,7 +36,9 @@ std::string RenderStatusPage(const std::vector<photonfarm::v1::JobStatus>& jobs,
 
 class StatusHttpServer {
  public:
-  StatusHttpServer(Scheduler& scheduler, RoleTokens tokens);
+  // With `tls_cert_pem` (and its key): HTTPS with that certificate. InputError if it does not load.
+  StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, const std::string& tls_cert_pem = "",
+                   const std::string& tls_key_pem = "");
   ~StatusHttpServer();  // Stop()
   StatusHttpServer(const StatusHttpServer&) = delete;
   StatusHttpServer& operator=(const StatusHttpServer&) = delete;
@@ -46,12 +47,12 @@ class StatusHttpServer {
   // address cannot be bound.
   int Start(const std::string& listen);
   void Stop();
+  bool tls() const;  // served over HTTPS
 
  private:
   Scheduler& scheduler_;
   const RoleTokens tokens_;
-  std::unique_ptr<httplib::Server> server_;
-  std::thread thread_;
+  std::unique_ptr<GatedHttpServer> server_;
 };
 
 }  // namespace pf::server

@@ -188,6 +188,7 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
       "pf-coordinator", argv, log_dir / ("coordinator-" + n + ".log"), out,
       std::map<std::string, std::string>{{"PF_TOKEN", ""}, {"PF_CLIENT_TOKEN", ""}, {"PF_WORKER_TOKEN", ""}});
   const std::regex listening(R"(listening on ([0-9.]+):([0-9]+))");
+  const std::regex http(R"(http on \S+:([0-9]+))");  // printed with the line above
   const bool ok = WaitUntil(
       [&] {
         std::smatch m;
@@ -195,6 +196,7 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
         if (!std::regex_search(text, m, listening)) return false;
         address_ = m[1].str() + ":" + m[2].str();
         port_ = std::stoi(m[2].str());
+        if (std::regex_search(text, m, http)) http_port_ = std::stoi(m[1].str());
         return true;
       },
       30);

@@ -86,12 +86,14 @@ class CoordinatorProcess {
                      const std::string& token_file = "");
   const std::string& address() const { return address_; }
   int port() const { return port_; }
+  int http_port() const { return http_port_; }  // the status page's ("http on" line); 0 without --http
   Process& process() { return *process_; }
 
  private:
   std::unique_ptr<Process> process_;
   std::string address_;
   int port_ = 0;
+  int http_port_ = 0;
 };
 
 // pf-worker against `address` with 1 thread, its own cache folder and log.

@@ -2,6 +2,7 @@
 // real client library. A bundle may refer only to its own files (scene_reference.h); the answer
 // is INVALID_ARGUMENT naming file:line, echoing nothing of the coordinator's files, with no
 // server path, and the same whether the outside file exists or not.
+#include <httplib.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -125,41 +126,21 @@ std::string OpensslBinary() {
 }
 
 // TLS and mTLS with certificates made here by the openssl CLI: a CA, the coordinator's
-// certificate (SAN 127.0.0.1 and localhost) and a worker's client certificate.
+// certificate (SAN 127.0.0.1 and localhost) and a worker's client certificate. The coordinator
+// also serves its status page on every address (0.0.0.0), which TLS allows.
 class TlsFarm : public ::testing::Test {
  protected:
   void SetUp() override {
-    const fs::path conf = dir_ / "san.cnf";
-    std::ofstream(conf) << "subjectAltName=DNS:localhost,IP:127.0.0.1\n";
-    Openssl({"req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", Path("ca.key"), "-out",
-             Path("ca.pem"), "-days", "2", "-subj", "/CN=photonfarm test CA"});
-    for (const char* who : {"server", "worker"}) {
-      const std::string name(who);
-      Openssl({"req", "-newkey", "rsa:2048", "-nodes", "-keyout", Path(name + ".key"), "-out",
-               Path(name + ".csr"), "-subj", "/CN=" + name});
-      std::vector<std::string> sign = {"x509",
-                                       "-req",
-                                       "-in",
-                                       Path(name + ".csr"),
-                                       "-CA",
-                                       Path("ca.pem"),
-                                       "-CAkey",
-                                       Path("ca.key"),
-                                       "-CAcreateserial",
-                                       "-out",
-                                       Path(name + ".pem"),
-                                       "-days",
-                                       "2"};
-      if (name == "server") sign.insert(sign.end(), {"-extfile", conf.string()});
-      Openssl(sign);
-    }
+    MakeCa("ca", "photonfarm test CA");
+    MakeCertificate("server", "ca", "2", /*server=*/true);
+    MakeCertificate("worker", "ca", "2");
     std::ofstream(dir_ / "client-token") << "tls-client-token\n";
     std::ofstream(dir_ / "worker-token") << "tls-worker-token\n";
     coordinator_ = std::make_unique<CoordinatorProcess>(
         dir_ / "data", dir_.path(),
         std::vector<std::string>{"--tls-cert", Path("server.pem"), "--tls-key", Path("server.key"),
                                  "--tls-client-ca", Path("ca.pem"), "--worker-token-file",
-                                 Path("worker-token")},
+                                 Path("worker-token"), "--http", "0.0.0.0:0"},
         0, Path("client-token"));
   }
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
@@ -167,6 +148,36 @@ class TlsFarm : public ::testing::Test {
     args.insert(args.begin(), OpensslBinary());
     const RunResult r = RunCommand(args, dir_.path(), 60);
     ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  // <name>.pem and <name>.key: a self-signed CA.
+  void MakeCa(const std::string& name, const std::string& common_name) {
+    Openssl({"req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", Path(name + ".key"), "-out",
+             Path(name + ".pem"), "-days", "2", "-subj", "/CN=" + common_name});
+  }
+  // <name>.pem and <name>.key, signed by the CA <ca>, valid from now for `days` days (negative:
+  // expired that many days ago); a server certificate names 127.0.0.1 and localhost.
+  void MakeCertificate(const std::string& name, const std::string& ca, const std::string& days,
+                       bool server = false) {
+    Openssl({"req", "-newkey", "rsa:2048", "-nodes", "-keyout", Path(name + ".key"), "-out",
+             Path(name + ".csr"), "-subj", "/CN=" + name});
+    std::vector<std::string> sign = {"x509",
+                                     "-req",
+                                     "-in",
+                                     Path(name + ".csr"),
+                                     "-CA",
+                                     Path(ca + ".pem"),
+                                     "-CAkey",
+                                     Path(ca + ".key"),
+                                     "-CAcreateserial",
+                                     "-out",
+                                     Path(name + ".pem"),
+                                     "-days",
+                                     days};
+    if (server) {
+      std::ofstream(dir_ / "san.cnf") << "subjectAltName=DNS:localhost,IP:127.0.0.1\n";
+      sign.insert(sign.end(), {"-extfile", Path("san.cnf")});
+    }
+    Openssl(sign);
   }
   ClientTls CaOnly() const { return ResolveClientTls(Path("ca.pem"), "", ""); }
 
@@ -224,6 +235,94 @@ TEST_F(TlsFarm, WorkersNeedAClientCertificate) {
   r = RunCommand(Concat({Binaries::Pf(), "watch", id, "-q", "-o", Path("tls.exr")}, at), dir_.path(), 120);
   EXPECT_EQ(r.exit_code, 0) << r.err << ReadFile(worker->log());
   EXPECT_EQ(ReadImage(dir_ / "tls.exr").width(), job.res);
+}
+
+// A client or worker whose certificate the coordinator refuses is told so, not "unreachable"
+// (rpc/tls_diagnosis.h); the exit code stays 1 (a runtime failure).
+TEST_F(TlsFarm, RefusedCertificatesAreNamedNotUnreachable) {
+  MakeCertificate("expired", "ca", "-1");  // the right CA, but its validity ended a day ago
+  MakeCa("other-ca", "other test CA");
+  MakeCertificate("foreign", "other-ca", "2");
+  const std::string refused = "TLS handshake with " + coordinator_->address() +
+                              " failed: the coordinator refused this client's certificate";
+  for (const auto& [who, why] : std::vector<std::pair<std::string, std::string>>{
+           {"expired", "it expired on "},
+           {"foreign",
+            "it is signed by 'CN=other test CA', another CA than the one the coordinator accepts "
+            "('CN=photonfarm test CA'"}}) {
+    const RunResult r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator_->address(),
+                                    "--tls-ca", Path("ca.pem"), "--tls-cert", Path(who + ".pem"), "--tls-key",
+                                    Path(who + ".key"), "--token-file", Path("client-token")},
+                                   dir_.path(), 30);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find(refused), std::string::npos) << who << ": " << r.err;
+    EXPECT_NE(r.err.find(why), std::string::npos) << who << ": " << r.err;
+  }
+  // This side refusing the coordinator's certificate says that instead.
+  MakeCa("unrelated-ca", "unrelated CA");
+  RunResult r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator_->address(), "--tls-ca",
+                            Path("unrelated-ca.pem"), "--token-file", Path("client-token")},
+                           dir_.path(), 30);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("this client does not trust the coordinator's certificate"), std::string::npos)
+      << r.err;
+  // A worker logs the reason and keeps trying.
+  auto worker = StartWorker(coordinator_->address(), dir_.path(), "w-expired",
+                            {"--tls-ca", Path("ca.pem"), "--tls-cert", Path("expired.pem"), "--tls-key",
+                             Path("expired.key"), "--token-file", Path("worker-token")});
+  EXPECT_TRUE(WaitUntil(
+      [&] { return !Grep(worker->log(), "refused this client's certificate.*expired on").empty(); }, 15))
+      << ReadFile(worker->log());
+  EXPECT_TRUE(worker->Running());
+}
+
+// With the coordinator's certificate the status page is HTTPS (and may then listen on any
+// address); plain HTTP on that port gets no page.
+TEST_F(TlsFarm, TheStatusPageIsHttpsWithTheCoordinatorsCertificate) {
+  const int port = coordinator_->http_port();
+  ASSERT_GT(port, 0);
+  size_t https_lines = 0;
+  for (const auto& entry : fs::directory_iterator(dir_.path()))
+    if (entry.path().extension() == ".out")
+      https_lines +=
+          Grep(entry.path(), "http on 0\\.0\\.0\\.0:" + std::to_string(port) + " \\(https\\)").size();
+  EXPECT_EQ(https_lines, 1u) << "the coordinator's second line says the page is HTTPS";
+  httplib::SSLClient https("127.0.0.1", port);
+  https.set_ca_cert_path(Path("ca.pem"));
+  https.enable_server_certificate_verification(true);
+  auto r = https.Get("/api/status", {{"Authorization", "Bearer tls-client-token"}});
+  ASSERT_TRUE(r) << httplib::to_string(r.error());
+  EXPECT_EQ(r->status, 200);
+  EXPECT_EQ(r->body, R"({"jobs":[],"workers":[]})");
+  r = https.Get("/api/status");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 401);
+  httplib::Client plain("127.0.0.1", port);
+  plain.set_read_timeout(5);
+  r = plain.Get("/api/status", {{"Authorization", "Bearer tls-client-token"}});
+  EXPECT_FALSE(r && r->status == 200) << "plain HTTP was answered";
+}
+
+// The status page follows the gRPC port's rule: plaintext on a network address is refused unless
+// --insecure, and then without a client token (the page's password).
+TEST(ListenPolicy, NonLoopbackStatusPageNeedsTls) {
+  TestDir dir;
+  RunResult r = RunCommand(
+      {Binaries::Coordinator(), "--http", "0.0.0.0:0", "--data-dir", (dir / "d1").string()}, dir.path(), 10);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(
+                "refusing to serve the status page (--http 0.0.0.0:0) on a non-loopback address without TLS"),
+            std::string::npos)
+      << r.err;
+  std::ofstream(dir / "t") << "some-token\n";
+  r = RunCommand({Binaries::Coordinator(), "--http", "0.0.0.0:0", "--data-dir", (dir / "d2").string(),
+                  "--insecure", "--client-token-file", (dir / "t").string()},
+                 dir.path(), 10);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("would cross the network readable"), std::string::npos) << r.err;
+  // Loopback stays plain HTTP.
+  CoordinatorProcess loopback(dir / "d3", dir.path(), {"--http", "127.0.0.1:0"});
+  EXPECT_GT(loopback.http_port(), 0);
 }
 
 // Plaintext on a network address is refused unless --insecure (and then without tokens).

@@ -1,37 +1,23 @@
 // The coordinator's web status page (pf-coordinator --http; issue #16) with real processes: the
-// gRPC side's token guards it (Bearer, or Basic with the token as password), and headless
-// Chromium (Debian's chromium) shows the jobs, the workers and a live preview that appears and
-// changes as the job runs.
+// gRPC side's token guards it (Bearer, or Basic with the token as password), headless Chromium
+// (Debian's chromium) shows the jobs, the workers and a live preview that appears and changes as
+// the job runs, and hostile clients without a token (huge bodies and heads, slow heads) neither
+// grow the coordinator nor keep the page away (docs/security.md, "The web status page").
 #include <httplib.h>
 #include <signal.h>
 
 #include <fstream>
 #include <regex>
+#include <thread>
 
 #include "common/image/png_io.h"
 #include "tests/e2e/harness.h"
+#include "tests/util/raw_connection.h"
 
 namespace pf::e2e {
+using pf::test_util::RawConnection;
 namespace {
 namespace fs = std::filesystem;
-
-// The "http on HOST:PORT" line of a coordinator started with --http.
-int HttpPort(const fs::path& log_dir) {
-  int port = 0;
-  WaitUntil(
-      [&] {
-        for (const auto& entry : fs::directory_iterator(log_dir)) {
-          if (entry.path().extension() != ".out") continue;
-          std::smatch m;
-          const std::string text = ReadFile(entry.path());
-          static const std::regex re(R"(http on 127\.0\.0\.1:([0-9]+))");
-          if (std::regex_search(text, m, re)) port = std::stoi(m[1].str());
-        }
-        return port > 0;
-      },
-      30);
-  return port;
-}
 
 std::string Submit(const TestDir& dir, const std::string& address, const JobArgs& job,
                    const std::map<std::string, std::string>& env = {}) {
@@ -47,7 +33,7 @@ TEST(WebStatus, SameTokenAsGrpc) {
   std::ofstream(dir / "token") << "s3cret-token\n";
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
                                  (dir / "token").string());
-  const int port = HttpPort(dir.path());
+  const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
   const std::string id = Submit(dir, coordinator.address(), JobArgs(), {{"PF_TOKEN", "s3cret-token"}});
   httplib::Client http("127.0.0.1", port);
@@ -120,7 +106,7 @@ TEST(WebStatus, ChromiumShowsJobsWorkersAndALivePreview) {
   ASSERT_TRUE(fs::exists("/usr/bin/chromium")) << "Debian's chromium (tools/install-deps.sh) is needed";
   TestDir dir;
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"});
-  const int port = HttpPort(dir.path());
+  const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
   const std::string url = "http://127.0.0.1:" + std::to_string(port) + "/";
   JobArgs job;
@@ -156,6 +142,106 @@ TEST(WebStatus, ChromiumShowsJobsWorkersAndALivePreview) {
   EXPECT_GT(appeared.diff, 2) << "the preview changed as the job ran";
   // Outside the preview (the page's background to its right) nothing is drawn.
   EXPECT_LT(Compare(early, late, 600, 8, 100).stddev, 1);
+}
+
+// VmRSS and VmHWM (peak) of a process, in KiB.
+struct Memory {
+  long rss_kib = -1, peak_kib = -1;
+};
+Memory MemoryOf(pid_t pid) {
+  Memory m;
+  for (const std::string& line : ReadLines("/proc/" + std::to_string(pid) + "/status")) {
+    if (line.rfind("VmRSS:", 0) == 0) m.rss_kib = std::stol(line.substr(6));
+    if (line.rfind("VmHWM:", 0) == 0) m.peak_kib = std::stol(line.substr(6));
+  }
+  return m;
+}
+
+// Bodies are refused from the head alone, before authentication: nothing of a 400 MiB body is
+// read, so the coordinator's memory does not move (before the gate, two such POSTs took its peak
+// from 25 to 601 MiB: the body after the 401 was read as one next request line).
+TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
+  TestDir dir;
+  std::ofstream(dir / "token") << "s3cret-token\n";
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
+                                 (dir / "token").string());
+  const int port = coordinator.http_port();
+  ASSERT_GT(port, 0);
+  const Memory before = MemoryOf(coordinator.process().pid());
+  ASSERT_GT(before.peak_kib, 0);
+  constexpr size_t k400MiB = size_t(400) << 20, k64MiB = size_t(64) << 20;
+  for (const std::string head : {"POST /api/status HTTP/1.1\r\nHost: x\r\nContent-Length: 419430400\r\n\r\n",
+                                 "POST / HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n",
+                                 "GET / HTTP/1.1\r\nHost: x\r\nContent-Length: 419430400\r\n\r\n"}) {
+    const auto start = std::chrono::steady_clock::now();
+    RawConnection c(port);
+    ASSERT_TRUE(c.connected());
+    ASSERT_TRUE(c.Send(head));
+    const std::string answer = c.Receive();
+    EXPECT_EQ(answer.substr(0, 12), "HTTP/1.1 413") << head << answer;
+    EXPECT_LT(c.SendMany('a', k400MiB), k64MiB) << head << ": the body was read";
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5)) << head;
+  }
+  {  // A head that never ends: 400 MiB without a line end.
+    const auto start = std::chrono::steady_clock::now();
+    RawConnection c(port);
+    ASSERT_TRUE(c.Send("GET /"));
+    EXPECT_LT(c.SendMany('a', k400MiB), k64MiB) << "the head was read on and on";
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  }
+  const Memory after = MemoryOf(coordinator.process().pid());
+  EXPECT_LT(after.peak_kib - before.peak_kib, 8 * 1024)
+      << "peak RSS " << before.peak_kib << " -> " << after.peak_kib << " KiB";
+  EXPECT_LT(after.rss_kib - before.rss_kib, 8 * 1024)
+      << "RSS " << before.rss_kib << " -> " << after.rss_kib << " KiB";
+  // The page still answers.
+  httplib::Client http("127.0.0.1", port);
+  const auto r = http.Get("/api/status", {{"Authorization", "Bearer s3cret-token"}});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200);
+}
+
+// Clients that open a connection and send their head a little at a time (slowloris) hold no
+// thread: with 50 of them, and then 200 (more than the 128 the gate keeps waiting), an
+// authenticated GET is answered at once (before the gate, 3 of them made the page unreachable).
+TEST(WebStatus, SlowHeadsDoNotKeepThePageAway) {
+  TestDir dir;
+  std::ofstream(dir / "token") << "s3cret-token\n";
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
+                                 (dir / "token").string());
+  const int port = coordinator.http_port();
+  ASSERT_GT(port, 0);
+  std::vector<std::unique_ptr<RawConnection>> slow;
+  const auto open_slow = [&](int n) {
+    for (int i = 0; i < n; ++i) {
+      slow.push_back(std::make_unique<RawConnection>(port));
+      ASSERT_TRUE(slow.back()->connected());
+      ASSERT_TRUE(slow.back()->Send("GET / HTTP/1.1\r\nHost: x\r\n"));
+    }
+  };
+  const auto page_answers = [&] {
+    httplib::Client http("127.0.0.1", port);
+    http.set_connection_timeout(2);
+    http.set_read_timeout(2);
+    const auto start = std::chrono::steady_clock::now();
+    const auto r = http.Get("/api/status", {{"Authorization", "Bearer s3cret-token"}});
+    EXPECT_TRUE(r) << "no answer within 2 s with " << slow.size() << " slow clients connected";
+    if (r) {
+      EXPECT_EQ(r->status, 200);
+    }
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2));
+  };
+  open_slow(50);
+  for (int round = 0; round < 3; ++round) {
+    for (auto& c : slow) c->Send("X-Slow: " + std::to_string(round) + "\r\n");  // one more header line
+    page_answers();
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  open_slow(150);
+  page_answers();
+  // The longest waiting made room: the first 50 are closed, the newest still wait.
+  for (size_t i = 0; i < 50; ++i) EXPECT_TRUE(slow[i]->ClosedByPeer(2)) << "slow client " << i;
+  EXPECT_FALSE(slow.back()->ClosedByPeer(0.2));
 }
 
 }  // namespace
