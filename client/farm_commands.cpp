@@ -71,7 +71,9 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"priority", s.spec().priority()},
           {"submitted_unix_ms", s.submitted_unix_ms()},
           {"plan", PlanText(s)},
-          {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()}};
+          {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()},
+          {"storage_error", s.storage_error()},
+          {"paused_for_storage", s.paused_for_storage()}};
 }
 
 std::string Summary(const v1::JobStatus& s) {
@@ -80,6 +82,9 @@ std::string Summary(const v1::JobStatus& s) {
                   s.tasks_done(), s.tasks_total(), s.samples_merged(), FormatDuration(s.elapsed_seconds()));
   if (s.estimated_noise_rms() >= 0) out += fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms());
   if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
+  // The coordinator's disk is full or failing (docs/farm.md "Durability"): it retries.
+  if (!s.storage_error().empty())
+    out += std::string(s.paused_for_storage() ? "; PAUSED, " : "; ") + "storage: " + s.storage_error();
   out += "; plan " + PlanText(s);
   if (s.spec().plan().has_chosen_by_auto())
     out += " (auto: " + s.spec().plan().chosen_by_auto().reason() + ")";

@@ -61,6 +61,16 @@ FarmProgress::FarmProgress(bool enabled) : enabled_(enabled), tty_(isatty(fileno
 
 void FarmProgress::Update(const photonfarm::v1::JobStatus& s) {
   if (!enabled_) return;
+  if (s.storage_error() != last_storage_error_) {
+    // Said once per change, on its own line: the coordinator's disk is full or failing.
+    last_storage_error_ = s.storage_error();
+    if (drawn_) std::fputc('\n', stderr);
+    if (!s.storage_error().empty())
+      std::fprintf(stderr, "coordinator storage%s: %s\n", s.paused_for_storage() ? " (job paused)" : "",
+                   s.storage_error().c_str());
+    else
+      std::fprintf(stderr, "coordinator storage: stored again\n");
+  }
   const double frac = std::clamp(s.progress(), 0.0, 1.0);  // of the work (docs/farm.md, "ETA")
   const std::string noise =
       s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-";

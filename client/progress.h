@@ -43,6 +43,7 @@ class FarmProgress {
   bool drawn_ = false;
   int last_decile_ = -1;
   photonfarm::v1::JobState last_state_ = photonfarm::v1::JOB_STATE_UNSPECIFIED;
+  std::string last_storage_error_;
 };
 
 // "1.2 s", "3 min 4 s", "2 h 5 min".
