@@ -53,7 +53,7 @@ TEST_F(DistributedMapsTest, PiecesOfTheOldestMapFirstAndAReturnedLeaseIsQueuedAg
   EXPECT_FALSE(maps_.RenderTaskReady(*a, a->task(0))) << "the render task waits for its map";
   EXPECT_FALSE(maps_.RenderTaskReady(*b, b->task(0)));
 
-  const std::optional<Lease> first = maps_.LeaseChunk({"w1", {}}, clock_.Now());
+  const std::optional<Lease> first = maps_.LeaseChunk({"w1", {}}, clock_.Now(), nullptr);
   ASSERT_TRUE(first && first->chunk);
   EXPECT_EQ(first->job_id, "job-a");
   EXPECT_EQ(first->chunk->chunk_index, 0u);
@@ -63,12 +63,12 @@ TEST_F(DistributedMapsTest, PiecesOfTheOldestMapFirstAndAReturnedLeaseIsQueuedAg
   // Undelivered (its long poll was cancelled): queued again now, not after the 30 s lease.
   maps_.Return(first->lease_id);
   EXPECT_EQ(maps_.counters().chunks_returned, 1u);
-  EXPECT_FALSE(maps_.Extend(first->lease_id).ok) << "a returned lease is dead";
+  EXPECT_FALSE(maps_.Extend(first->lease_id, "w1").ok) << "a returned lease is dead";
   maps_.Return(first->lease_id);  // twice, or an unknown lease: nothing happens
   maps_.Return("map-999");
   EXPECT_EQ(maps_.counters().chunks_returned, 1u);
 
-  const std::optional<Lease> again = maps_.LeaseChunk({"w2", {}}, clock_.Now());
+  const std::optional<Lease> again = maps_.LeaseChunk({"w2", {}}, clock_.Now(), nullptr);
   ASSERT_TRUE(again && again->chunk);
   EXPECT_EQ(again->job_id, "job-a");
   EXPECT_EQ(again->chunk->chunk_index, 0u) << "the returned piece, at once";
@@ -76,7 +76,7 @@ TEST_F(DistributedMapsTest, PiecesOfTheOldestMapFirstAndAReturnedLeaseIsQueuedAg
 
   // The rest of job-a's map, then job-b's (oldest map first).
   std::vector<std::pair<std::string, uint32_t>> order;
-  while (const std::optional<Lease> l = maps_.LeaseChunk({"w3", {}}, clock_.Now()))
+  while (const std::optional<Lease> l = maps_.LeaseChunk({"w3", {}}, clock_.Now(), nullptr))
     order.emplace_back(l->job_id, l->chunk->chunk_index);
   const std::vector<std::pair<std::string, uint32_t>> expected = {
       {"job-a", 1}, {"job-a", 2}, {"job-b", 0}, {"job-b", 1}, {"job-b", 2}};
@@ -86,7 +86,7 @@ TEST_F(DistributedMapsTest, PiecesOfTheOldestMapFirstAndAReturnedLeaseIsQueuedAg
   clock_.Advance(31);
   maps_.Tick();
   EXPECT_EQ(maps_.counters().chunks_expired, 6u);
-  const std::optional<Lease> retried = maps_.LeaseChunk({"w4", {}}, clock_.Now());
+  const std::optional<Lease> retried = maps_.LeaseChunk({"w4", {}}, clock_.Now(), nullptr);
   ASSERT_TRUE(retried && retried->chunk);
   EXPECT_EQ(retried->job_id, "job-a");
   EXPECT_EQ(retried->chunk->chunk_index, 0u);

@@ -93,9 +93,10 @@ std::optional<v1::Task> Lease(LiveCoordinator& live, double wait = 0, const std:
 }
 
 grpc::Status Complete(LiveCoordinator& live, const v1::Task& task, const std::vector<float>& sums,
-                      bool* merged = nullptr) {
+                      bool* merged = nullptr, const std::string& worker = "w1") {
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
+  req.set_worker_id(worker);
   req.mutable_rgb_sums()->Add(sums.begin(), sums.end());
   v1::CompleteTaskResponse resp;
   const grpc::Status st = live.worker->CompleteTask(Ctx().get(), req, &resp);
@@ -144,7 +145,7 @@ class TestWorker {
           SettingsFromProto(task->settings(), "task.settings"), TaskSpecFromProto(*task), 1, &maps_);
       ++executed_[task->task_id()];
       bool merged = false;
-      EXPECT_TRUE(Complete(*live_, *task, out.rgb_sums, &merged).ok());
+      EXPECT_TRUE(Complete(*live_, *task, out.rgb_sums, &merged, "test-worker").ok());
       merged_count += merged;
     }
     return merged_count;
@@ -277,7 +278,7 @@ TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanFailItsTask) {
   EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << s.failure_reason();
   EXPECT_EQ(s.failure_reason(), "");
   bool merged = false;
-  EXPECT_TRUE(Complete(*live_, *t, SyntheticFor(*t), &merged).ok());
+  EXPECT_TRUE(Complete(*live_, *t, SyntheticFor(*t), &merged, "holder").ok());
   EXPECT_TRUE(merged) << "the holder's lease survived the stranger's FailTask";
   EXPECT_EQ(GetJob(*live_, id).state(), v1::JOB_STATE_SUCCEEDED);
 }
@@ -299,6 +300,10 @@ TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
   EXPECT_EQ(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).error_code(),
             grpc::StatusCode::INVALID_ARGUMENT);
   ext.set_lease_id("job-1.0.1.deadbeef");
+  st = live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message(), "worker_id: required") << "a lease is bound to its worker";
+  ext.set_worker_id("w");
   ASSERT_TRUE(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).ok());
   EXPECT_FALSE(ext_resp.ok()) << "unknown lease: stop";
 }
