@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <charconv>
 #include <chrono>
+#include <cstring>
 #include <fstream>
 
 #include "common/core/atomic_file.h"
@@ -329,8 +330,9 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
                                                        const std::string& bytes) {
   std::string key;
   uint32_t index = 0;
-  uint64_t begin = 0, end = 0;
+  uint64_t begin = 0, end = 0, map_seed = 0;
   bool light_ids = false, origins = false;
+  std::shared_ptr<const JobConfig> config;
   {
     std::lock_guard lock(mu_);
     auto it = leases_.find(lease_id);
@@ -346,6 +348,8 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     const JobRenderSettings& s = m.config->settings;
     light_ids = s.direct && *s.direct == DirectLightMode::kPhotonDirect;
     origins = s.occlusion_test;
+    config = m.config;
+    map_seed = m.map_seed;
   }
   // Parsed and written outside the lock (O(photons) and I/O).
   const PhotonChunk chunk = DeserializePhotonChunk(bytes);
@@ -355,6 +359,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
                      std::to_string(end) + ")");
   if ((light_ids && !chunk.light_ids) || (origins && !chunk.origins))
     throw InputError("the piece lacks the light ids or origins the job's estimators need");
+  CheckFirstPhotons(*config, map_seed, chunk);
   const fs::path file = ChunkFile(key, begin, end);
   fs::create_directories(file.parent_path());
   WriteFileAtomically(file, bytes);
@@ -383,8 +388,72 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   }
   spdlog::info("job {} map {} piece {}: stored ({} bytes, {}/{} pieces in)", job_id, map_index, index,
                bytes.size(), done, total);
-  if (build) builder_.Post([this, key] { Build(key); });
+  if (build) {
+    ReleaseCheckSceneIfUnused();
+    builder_.Post([this, key] { Build(key); });
+  }
   return Accepted::kStored;
+}
+
+void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk) {
+  std::lock_guard check(check_mu_);
+  if (check_scene_hash_ != config.scene_hash || !check_scene_) {
+    check_scene_.reset();
+    check_scene_hash_.clear();
+    try {
+      check_scene_ = std::make_shared<const SceneRuntime>(
+          LoadBundle(scenes_.DirectoryOf(config.scene_hash), config.scene_entry));
+      check_scene_hash_ = config.scene_hash;
+    } catch (const std::exception& e) {
+      // The coordinator's own trouble is not the worker's: the piece is taken unchecked, as before.
+      spdlog::error("maps: scene {} cannot be loaded to check an uploaded piece ({}); piece not checked",
+                    Short(config.scene_hash), e.what());
+      return;
+    }
+  }
+  const SceneRuntime& scene = *check_scene_;
+  // As the worker traces it (worker_maps.cpp), for the first photons of the piece only.
+  PhotonMapsOptions mo = config.settings.Resolved(scene.description).MapsOptions();
+  mo.tracing.map_seed = map_seed;
+  mo.tracing.threads = 1;
+  const uint64_t end = std::min(chunk.end, chunk.begin + kPhotonTracingChunk);
+  const PhotonChunk expected = TracePhotonChunk(scene.accel, scene.lights, mo, chunk.begin, end);
+  const auto refuse = [&](const std::string& what) {
+    throw InputError("photons [" + std::to_string(chunk.begin) + ", " + std::to_string(end) +
+                     ") of the piece are not the coordinator's trace of them: " + what +
+                     "; the piece is refused (docs/farm.md, Photon maps traced once)");
+  };
+  static const char* const kList[] = {"direct", "indirect", "caustic"};
+  if (chunk.rays < expected.rays) refuse(std::to_string(chunk.rays) + " rays, fewer than those photons' " +
+                                         std::to_string(expected.rays));
+  for (int k = 0; k < 3; ++k) {
+    const PhotonChunk::List& got = chunk.lists[k];
+    const PhotonChunk::List& want = expected.lists[k];
+    const size_t n = want.photons.size();
+    if (got.photons.size() < n)
+      refuse(std::string(kList[k]) + " list of " + std::to_string(got.photons.size()) + " photons, " +
+             std::to_string(n) + " traced in its first part alone");
+    if ((expected.light_ids && got.light.size() < n) || (expected.origins && got.origin.size() < n))
+      refuse(std::string(kList[k]) + " photons lack their light ids or origins");
+    const bool same = std::memcmp(got.photons.data(), want.photons.data(), n * sizeof(Photon)) == 0 &&
+                      (!expected.light_ids || std::equal(want.light.begin(), want.light.end(), got.light.begin())) &&
+                      (!expected.origins || std::memcmp(got.origin.data(), want.origin.data(), n * sizeof(Vec3)) == 0);
+    if (!same) refuse(std::string(kList[k]) + " photons differ");
+  }
+}
+
+void DistributedMaps::ReleaseCheckSceneIfUnused() {
+  std::lock_guard check(check_mu_);
+  if (!check_scene_) return;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [seq, key] : tracing_) {
+      const Map& m = maps_.at(key);
+      if (m.config->scene_hash == check_scene_hash_ && m.done < m.chunks.size()) return;
+    }
+  }
+  check_scene_.reset();
+  check_scene_hash_.clear();
 }
 
 void DistributedMaps::Build(const std::string& key) {

@@ -24,6 +24,13 @@
 // was leased to: ExtendLease, the upload and FailTask of another worker change nothing
 // (kNotHolder; docs/security.md, "Leases are bound to their worker").
 //
+// Pieces checked: besides its photon range and attributes, an upload's first kPhotonTracingChunk
+// photons are traced here and must equal the upload's, bit for bit (photon i depends on the map
+// seed and i alone, and a trace of [b, b + 4096) is the first part of each list of a trace of
+// [b, e)): an empty, truncated or foreign piece is refused (InputError), however well-formed. One
+// scene is kept loaded for it while maps of that scene trace. It does not prove the rest of the
+// piece: a worker holding the lease could still upload wrong photons after the first 4096.
+//
 // Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1),
 // and the failure counts against the worker in the map's job (Scheduler::PieceAttemptFailed:
 // blocklist, quarantine; a blocklisted worker is leased no pieces of that job). After failures on
@@ -46,6 +53,8 @@
 #include <unordered_set>
 #include <vector>
 
+#include "common/photon/photon_chunk.h"
+#include "common/plan/scene_runtime.h"
 #include "server/jobs/job.h"
 #include "server/rpc/executor.h"
 #include "server/scheduling/clock.h"
@@ -176,6 +185,12 @@ class DistributedMaps final : public MapTracingHook {
   void Release(const std::vector<std::pair<std::string, uint64_t>>& release);
   void Report(const std::vector<PieceFailure>& failures);
 
+  // Throws InputError if `chunk`'s first photons are not the trace of them (see the header
+  // comment); `config`/`map_seed` of its map. Call without mu_ (it loads scenes and traces).
+  void CheckFirstPhotons(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk);
+  // Drops the scene CheckFirstPhotons keeps once no map of it is tracing.
+  void ReleaseCheckSceneIfUnused();
+
   DistributedMapsOptions options_;
   const Clock& clock_;
   SceneStore& scenes_;
@@ -197,6 +212,10 @@ class DistributedMaps final : public MapTracingHook {
   std::map<std::string, std::set<std::pair<uint64_t, uint64_t>>>
       chunks_on_disk_;  // photon ranges found by Scan
   Counters counters_;
+  // The scene of the last checked upload. Lock order: check_mu_, then mu_.
+  std::mutex check_mu_;
+  std::string check_scene_hash_;
+  std::shared_ptr<const SceneRuntime> check_scene_;
   // Unbounded queue: a refused Post would leave a map "building" with no build pending (its
   // render tasks held forever); a queued build is a key, and maps are bounded by the jobs.
   Executor builder_{1, std::numeric_limits<size_t>::max()};
