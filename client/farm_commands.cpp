@@ -58,8 +58,9 @@ std::string PlanText(const v1::JobStatus& s) {
 nlohmann::json StatusJson(const v1::JobStatus& s) {
   nlohmann::json blocklisted = nlohmann::json::array();
   for (const v1::BlocklistedWorker& b : s.blocklisted_workers())
-    blocklisted.push_back(
-        {{"worker_id", b.worker_id()}, {"failed_attempts", b.failed_attempts()}, {"last_error", b.last_error()}});
+    blocklisted.push_back({{"worker_id", b.worker_id()},
+                           {"failed_attempts", b.failed_attempts()},
+                           {"last_error", b.last_error()}});
   return {{"job_id", s.job_id()},
           {"name", s.spec().name()},
           {"state", JobStateName(s.state())},
@@ -301,8 +302,8 @@ int RunWorkers(const FarmArgs& f, bool json) {
         : w.lost()        ? "lost"
         : w.busy()        ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id())
                           : "idle";
-    std::printf("%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s  %s\n", w.worker_id().c_str(), w.peer().c_str(),
-                w.threads(), current.c_str(), (unsigned long long)w.tasks_done(),
+    std::printf("%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s  %s\n", w.worker_id().c_str(),
+                w.peer().c_str(), w.threads(), current.c_str(), (unsigned long long)w.tasks_done(),
                 (unsigned long long)w.tasks_failed(), w.photons_per_second(),
                 (FormatDuration(w.seconds_since_seen()) + " ago").c_str(), w.version().c_str());
     if (w.quarantined()) std::printf("  quarantined: %s\n", w.quarantine_reason().c_str());

@@ -78,13 +78,15 @@ int main(int argc, char** argv) {
                  "Distinct workers a task may fail on before its job fails (docs/farm.md, Worker health)")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000));
-  app.add_option("--blocklist-after", options.blocklist_failures,
-                 "Failed attempts in one job after which a worker gets no more of that job's work (0 = never)")
+  app.add_option(
+         "--blocklist-after", options.blocklist_failures,
+         "Failed attempts in one job after which a worker gets no more of that job's work (0 = never)")
       ->capture_default_str()
       ->check(CLI::Range(0, 1000));
-  app.add_option("--quarantine-after", options.quarantine_jobs,
-                 "Jobs blocklisting a worker within --quarantine-seconds after which it gets no leases at all "
-                 "for --quarantine-seconds (0 = never)")
+  app.add_option(
+         "--quarantine-after", options.quarantine_jobs,
+         "Jobs blocklisting a worker within --quarantine-seconds after which it gets no leases at all "
+         "for --quarantine-seconds (0 = never)")
       ->capture_default_str()
       ->check(CLI::Range(0, 1000));
   app.add_option("--quarantine-seconds", options.quarantine_seconds,

@@ -40,7 +40,7 @@ struct TaskRuntime {
   // restarted coordinator counts afresh.
   std::vector<std::string> failed_workers;
   uint32_t unattributed_failures = 0;
-  std::string lease_id;   // current lease while kLeased
+  std::string lease_id;  // current lease while kLeased
   std::string worker_id;
   double lease_deadline = 0;  // Clock::Now() seconds
   double progress = 0;        // 0..1 as reported by ExtendLease

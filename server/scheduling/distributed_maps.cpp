@@ -235,7 +235,7 @@ void DistributedMaps::SetStateLocked(Map& m, Map::State state) {
 }
 
 std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, double now,
-                                                const JobFilter& may_lease) {
+                                                 const JobFilter& may_lease) {
   std::lock_guard lock(mu_);
   const Map* best = nullptr;
   uint32_t pick = 0;
@@ -326,7 +326,8 @@ void DistributedMaps::EndUpload(const std::string& lease_id) {
   uploading_.erase(lease_id);
 }
 
-DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_id, const std::string& worker_id,
+DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_id,
+                                                       const std::string& worker_id,
                                                        const std::string& bytes) {
   std::string key;
   uint32_t index = 0;
@@ -359,7 +360,9 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
                      std::to_string(end) + ")");
   if ((light_ids && !chunk.light_ids) || (origins && !chunk.origins))
     throw InputError("the piece lacks the light ids or origins the job's estimators need");
+  const auto t_check = Now();
   CheckFirstPhotons(*config, map_seed, chunk);
+  const double check_seconds = Secs(t_check, Now());
   const fs::path file = ChunkFile(key, begin, end);
   fs::create_directories(file.parent_path());
   WriteFileAtomically(file, bytes);
@@ -386,8 +389,9 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
       build = true;
     }
   }
-  spdlog::info("job {} map {} piece {}: stored ({} bytes, {}/{} pieces in)", job_id, map_index, index,
-               bytes.size(), done, total);
+  spdlog::info(
+      "job {} map {} piece {}: stored ({} bytes, first photons checked in {:.3f} s, {}/{} pieces in)", job_id,
+      map_index, index, bytes.size(), check_seconds, done, total);
   if (build) {
     ReleaseCheckSceneIfUnused();
     builder_.Post([this, key] { Build(key); });
@@ -395,7 +399,8 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   return Accepted::kStored;
 }
 
-void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk) {
+void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_seed,
+                                        const PhotonChunk& chunk) {
   std::lock_guard check(check_mu_);
   if (check_scene_hash_ != config.scene_hash || !check_scene_) {
     check_scene_.reset();
@@ -424,8 +429,8 @@ void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_se
                      "; the piece is refused (docs/farm.md, Photon maps traced once)");
   };
   static const char* const kList[] = {"direct", "indirect", "caustic"};
-  if (chunk.rays < expected.rays) refuse(std::to_string(chunk.rays) + " rays, fewer than those photons' " +
-                                         std::to_string(expected.rays));
+  if (chunk.rays < expected.rays)
+    refuse(std::to_string(chunk.rays) + " rays, fewer than those photons' " + std::to_string(expected.rays));
   for (int k = 0; k < 3; ++k) {
     const PhotonChunk::List& got = chunk.lists[k];
     const PhotonChunk::List& want = expected.lists[k];
@@ -435,9 +440,10 @@ void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_se
              std::to_string(n) + " traced in its first part alone");
     if ((expected.light_ids && got.light.size() < n) || (expected.origins && got.origin.size() < n))
       refuse(std::string(kList[k]) + " photons lack their light ids or origins");
-    const bool same = std::memcmp(got.photons.data(), want.photons.data(), n * sizeof(Photon)) == 0 &&
-                      (!expected.light_ids || std::equal(want.light.begin(), want.light.end(), got.light.begin())) &&
-                      (!expected.origins || std::memcmp(got.origin.data(), want.origin.data(), n * sizeof(Vec3)) == 0);
+    const bool same =
+        std::memcmp(got.photons.data(), want.photons.data(), n * sizeof(Photon)) == 0 &&
+        (!expected.light_ids || std::equal(want.light.begin(), want.light.end(), got.light.begin())) &&
+        (!expected.origins || std::memcmp(got.origin.data(), want.origin.data(), n * sizeof(Vec3)) == 0);
     if (!same) refuse(std::string(kList[k]) + " photons differ");
   }
 }
@@ -661,8 +667,8 @@ void DistributedMaps::Tick() {
       for (uint32_t c = 0; c < m.chunks.size() && m.state == Map::State::kTracing; ++c)
         if (m.chunks[c].state == Chunk::State::kLeased && now >= m.chunks[c].deadline) {
           ++counters_.chunks_expired;
-          RequeueLocked(m, c, "piece-expired", "lease expired (worker " + m.chunks[c].worker_id + ")", &release,
-                        &failures);
+          RequeueLocked(m, c, "piece-expired", "lease expired (worker " + m.chunks[c].worker_id + ")",
+                        &release, &failures);
           requeued = true;
         }
     }

@@ -90,7 +90,8 @@ class DistributedMaps final : public MapTracingHook {
 
   // MapTracingHook (under the scheduler's lock).
   bool RenderTaskReady(const Job& job, const TaskSpec& task) override;
-  std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now, const JobFilter& may_lease) override;
+  std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now,
+                                  const JobFilter& may_lease) override;
 
   // Lease ids of map pieces start with this (ExtendLease / FailTask route by it).
   static bool IsChunkLease(const std::string& lease_id);
@@ -174,7 +175,8 @@ class DistributedMaps final : public MapTracingHook {
   // The piece's attempt failed (`kind`: piece-failed, piece-expired): queued again, the failure
   // noted in `failures` for the scheduler.
   void RequeueLocked(Map& map, uint32_t chunk, const std::string& kind, const std::string& why,
-                     std::vector<std::pair<std::string, uint64_t>>* release, std::vector<PieceFailure>* failures);
+                     std::vector<std::pair<std::string, uint64_t>>* release,
+                     std::vector<PieceFailure>* failures);
   void LeaveToWorkersLocked(Map& map, const std::string& why,
                             std::vector<std::pair<std::string, uint64_t>>* release);
   // A piece's file is named by its photon range, so pieces found on disk are reused only for the

@@ -141,7 +141,7 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
   ++counters_.lease_attempts;
   const std::string& worker = request.worker_id;
   bool passed = false;  // work this worker may not take that another might
-  HeardLocked(worker, now);
+  PolledLocked(worker, now);
   if (health_.Quarantined(worker, now)) {
     if (restricted) *restricted = true;
     return std::nullopt;
@@ -206,7 +206,8 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     ++counters_.leases;
     Touch(job, fx);
     spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick,
-                 limits::Quote(worker, limits::kMaxWorkerIdBytes), rt.attempts, affinity ? ", map cached" : "");
+                 limits::Quote(worker, limits::kMaxWorkerIdBytes), rt.attempts,
+                 affinity ? ", map cached" : "");
     activity_.TaskEvent(job.id(), "leased", pick, rt.attempts, worker, affinity ? "map cached" : "");
     Lease lease;
     lease.lease_id = rt.lease_id;
@@ -543,8 +544,9 @@ void Scheduler::ExpireLease(Job& job, uint64_t task_id, double now, Effects& fx)
   if (health_.LeaseRanOut(worker, rt.lease_deadline - options_.lease_seconds, now)) {
     detail = "no call from the worker since the lease was renewed: marked lost";
     activity_.WorkerLost(worker, true);
-    spdlog::warn("worker {}: lost: its lease of job {} task {} ran out with no call from it since it was renewed",
-                 limits::Quote(worker, limits::kMaxWorkerIdBytes), job.id(), task_id);
+    spdlog::warn(
+        "worker {}: lost: its lease of job {} task {} ran out with no call from it since it was renewed",
+        limits::Quote(worker, limits::kMaxWorkerIdBytes), job.id(), task_id);
   }
   activity_.TaskEvent(job.id(), "expired", task_id, rt.attempts, worker, detail);
   FailAttempt(job, task_id, "lease expired (worker " + worker + ")", true, now, fx);
@@ -860,6 +862,12 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
 // ---------------------------------------------------------------------------------------------
 // Worker health (worker_health.h)
 
+void Scheduler::PolledLocked(const std::string& worker_id, double now) {
+  if (!health_.Polled(worker_id, now)) return;
+  activity_.WorkerLost(worker_id, false);
+  spdlog::info("worker {}: live again (it called)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
+}
+
 void Scheduler::HeardLocked(const std::string& worker_id, double now) {
   if (!health_.Heard(worker_id, now)) return;
   activity_.WorkerLost(worker_id, false);
@@ -872,7 +880,8 @@ bool Scheduler::CountFailure(Job& job, const std::string& worker_id, uint64_t ta
   const std::string who = limits::Quote(worker_id, limits::kMaxWorkerIdBytes);
   if (out.blocklisted) {
     spdlog::warn(
-        "job {}: worker {} blocklisted after {} failed attempts in this job (last: {}): it gets no more of its "
+        "job {}: worker {} blocklisted after {} failed attempts in this job (last: {}): it gets no more of "
+        "its "
         "tasks or map pieces",
         job.id(), who, out.failed_attempts, reason);
     activity_.TaskEvent(job.id(), "blocklisted", task_id, attempt, worker_id,
@@ -884,9 +893,9 @@ bool Scheduler::CountFailure(Job& job, const std::string& worker_id, uint64_t ta
     const double seconds = health_.options().quarantine_seconds;
     spdlog::error("worker {}: quarantined for {:.0f} s, no leases of any job: {}", who, seconds,
                   out.quarantine_reason);
-    activity_.TaskEvent(job.id(), "quarantined", task_id, attempt, worker_id,
-                        "no leases of any job for " + std::to_string(int64_t(seconds)) +
-                            " s: " + out.quarantine_reason);
+    activity_.TaskEvent(
+        job.id(), "quarantined", task_id, attempt, worker_id,
+        "no leases of any job for " + std::to_string(int64_t(seconds)) + " s: " + out.quarantine_reason);
     activity_.WorkerQuarantined(worker_id, now + seconds, out.quarantine_reason);
   }
   return out.blocklisted;
@@ -930,8 +939,8 @@ void Scheduler::PieceAttemptFailed(const std::string& job_id, const std::string&
       activity_.TaskEvent(job_id, kind, piece, attempt, worker_id, reason);
       if (job->active() && CountFailure(*job, worker_id, piece, attempt, reason, now)) {
         if (const std::string none = NoWorkerLeft(*job); !none.empty()) {
-          const std::string why = "map piece " + std::to_string(piece) + " attempt " + std::to_string(attempt) +
-                                  " failed: " + reason + "; gave up: " + none;
+          const std::string why = "map piece " + std::to_string(piece) + " attempt " +
+                                  std::to_string(attempt) + " failed: " + reason + "; gave up: " + none;
           FinishJob(*job, JobState::kFailed, why, now, fx);
           spdlog::error("job {}: failed: {}", job_id, why);
         }
@@ -1004,7 +1013,7 @@ void Scheduler::Tick() {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
     // A long poll still open is a call in progress: a worker waiting for work is not silent.
-    for (const auto& [id, waiter] : waiters_) HeardLocked(waiter.request.worker_id, now);
+    for (const auto& [id, waiter] : waiters_) PolledLocked(waiter.request.worker_id, now);
     for (const std::string& id : leases_.Expired(now)) {
       LeaseTable::Entry* entry = leases_.Find(id);
       if (!entry) continue;  // its job ended meanwhile

@@ -273,7 +273,8 @@ class Scheduler {
   // quarantined, blocklisted for a job, or left a retry to a waiting worker).
   std::optional<Lease> LeaseLocked(const LeaseRequest& request, double now, Effects& fx,
                                    bool* restricted = nullptr);
-  // Worker health (worker_health.h).
+  // Worker health (worker_health.h): a poll (it makes the worker known), any other call.
+  void PolledLocked(const std::string& worker_id, double now);
   void HeardLocked(const std::string& worker_id, double now);
   // A failed attempt of `worker_id` in the job: blocklist and quarantine. True if it just got
   // blocklisted for the job.

@@ -29,9 +29,16 @@ WorkerHealth::Worker& WorkerHealth::WorkerOf(const std::string& worker_id, doubl
   return w;
 }
 
-bool WorkerHealth::Heard(const std::string& worker_id, double now) {
+bool WorkerHealth::Polled(const std::string& worker_id, double now) {
   if (worker_id.empty()) return false;
-  Worker& w = WorkerOf(worker_id, now);
+  WorkerOf(worker_id, now);
+  return Heard(worker_id, now);
+}
+
+bool WorkerHealth::Heard(const std::string& worker_id, double now) {
+  auto it = workers_.find(worker_id);
+  if (it == workers_.end()) return false;
+  Worker& w = it->second;
   w.last_call = std::max(w.last_call, now);
   const bool was_lost = w.lost;
   w.lost = false;
@@ -63,7 +70,8 @@ bool WorkerHealth::Lost(const std::string& worker_id) const {
   return it != workers_.end() && it->second.lost;
 }
 
-WorkerHealth::FailureOutcome WorkerHealth::RecordFailure(const std::string& job_id, const std::string& worker_id,
+WorkerHealth::FailureOutcome WorkerHealth::RecordFailure(const std::string& job_id,
+                                                         const std::string& worker_id,
                                                          const std::string& reason, double now) {
   FailureOutcome out;
   if (worker_id.empty()) return out;
@@ -86,8 +94,8 @@ WorkerHealth::FailureOutcome WorkerHealth::RecordFailure(const std::string& job_
   if (w.blocklistings.size() < options_.quarantine_jobs) return out;
   char window[32];
   std::snprintf(window, sizeof(window), "%.0f", options_.quarantine_seconds);
-  out.quarantine_reason = "blocklisted by " + std::to_string(w.blocklistings.size()) + " jobs within " +
-                          window + " s (";
+  out.quarantine_reason =
+      "blocklisted by " + std::to_string(w.blocklistings.size()) + " jobs within " + window + " s (";
   for (size_t i = 0; i < w.blocklistings.size(); ++i)
     out.quarantine_reason += (i ? ", " : "") + w.blocklistings[i].second;
   out.quarantine_reason += ")";
@@ -108,7 +116,8 @@ bool WorkerHealth::Quarantined(const std::string& worker_id, double now) const {
   return it != workers_.end() && it->second.quarantined_until > now;
 }
 
-const std::map<std::string, WorkerHealth::Blocklisted>& WorkerHealth::BlocklistOf(const std::string& job_id) const {
+const std::map<std::string, WorkerHealth::Blocklisted>& WorkerHealth::BlocklistOf(
+    const std::string& job_id) const {
   static const std::map<std::string, Blocklisted> kNone;
   auto it = jobs_.find(job_id);
   return it == jobs_.end() ? kNone : it->second.blocklisted;

@@ -54,8 +54,12 @@ class WorkerHealth {
   explicit WorkerHealth(WorkerHealthOptions options) : options_(options) {}
   const WorkerHealthOptions& options() const { return options_; }
 
-  // A call from the worker (LeaseTask, a long poll still open, ExtendLease, CompleteTask,
-  // FailTask, an upload). True if it was lost: it is live again.
+  // A LeaseTask (or a long poll still open) from the worker: a worker is known from its first
+  // poll on. True if it was lost: it is live again.
+  bool Polled(const std::string& worker_id, double now);
+  // Another call naming the worker (ExtendLease, CompleteTask, FailTask, an upload): as Polled,
+  // but an id never seen polling stays unknown (a stranger naming itself in a call about someone
+  // else's lease is no worker of the farm).
   bool Heard(const std::string& worker_id, double now);
   // A lease of the worker ran out; it was last renewed (leased or extended) at `renewed`. True if
   // that makes the worker lost (no call from it since).

@@ -126,7 +126,8 @@ TEST_F(DistributedMapsTest, PieceLeasesAreUnguessableBoundToTheirWorkerAndNotReu
   EXPECT_FALSE(stolen.ok);
   EXPECT_TRUE(stolen.not_holder);
   EXPECT_EQ(maps_.BeginUpload(held->lease_id, "thief"), DistributedMaps::UploadAdmission::kNotHolder);
-  EXPECT_EQ(maps_.AcceptChunk(held->lease_id, "thief", "not even a piece"), DistributedMaps::Accepted::kNotHolder);
+  EXPECT_EQ(maps_.AcceptChunk(held->lease_id, "thief", "not even a piece"),
+            DistributedMaps::Accepted::kNotHolder);
   EXPECT_EQ(maps_.Fail(held->lease_id, "thief", "sabotage"), FailOutcome::kNotHolder);
   EXPECT_TRUE(maps_.Extend(held->lease_id, "holder").ok);
   EXPECT_EQ(maps_.BeginUpload(held->lease_id, "holder"), DistributedMaps::UploadAdmission::kAdmitted);
@@ -141,8 +142,8 @@ TEST_F(DistributedMapsTest, PieceLeasesAreUnguessableBoundToTheirWorkerAndNotReu
 
   // A restarted coordinator (same data directory) leases the same pieces under new ids only.
   DistributedMaps restarted(
-      DistributedMapsOptions{.dir = dir_.path() / "maps", .lease_seconds = 30, .chunk_photons = 16384}, clock_,
-      scenes_);
+      DistributedMapsOptions{.dir = dir_.path() / "maps", .lease_seconds = 30, .chunk_photons = 16384},
+      clock_, scenes_);
   const std::unique_ptr<Job> again = MakeJob("job-a", 1, 11);
   EXPECT_FALSE(restarted.RenderTaskReady(*again, again->task(0)));
   std::set<std::string> after;

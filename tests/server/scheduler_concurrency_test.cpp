@@ -146,7 +146,8 @@ TEST_F(SchedulerConcurrencyTest, ConcurrentLeasesAndCompletionsOfTwoJobsEqualThe
     workers.emplace_back([&, t] {
       while (std::optional<Lease> lease = scheduler_.TryLease({WorkerName(size_t(t)), {}})) {
         const std::vector<float> sums = ResultOf(*lease);
-        EXPECT_EQ(scheduler_.Complete(lease->lease_id, lease->worker_id, sums).status, CompleteStatus::kMerged);
+        EXPECT_EQ(scheduler_.Complete(lease->lease_id, lease->worker_id, sums).status,
+                  CompleteStatus::kMerged);
         std::lock_guard lock(leases_mu);
         done.push_back(std::move(*lease));
       }
@@ -176,19 +177,22 @@ TEST_F(SchedulerConcurrencyTest, LeaseExpiringWhileItsResultIsMergedCountsOnce) 
     hooked = true;
     clock_.Advance(31);
     scheduler_.Tick();
-    EXPECT_TRUE(scheduler_.Extend(first.lease_id, first.worker_id, 0.5).ok) << "a pinned lease does not expire";
+    EXPECT_TRUE(scheduler_.Extend(first.lease_id, first.worker_id, 0.5).ok)
+        << "a pinned lease does not expire";
     // The other task is leased, this one must not be leased again.
     const std::optional<Lease> other = scheduler_.TryLease({"w2", {}});
     ASSERT_TRUE(other.has_value());
     EXPECT_NE(other->task_id, first.task_id);
     EXPECT_FALSE(scheduler_.TryLease({"w3", {}}).has_value());
   });
-  EXPECT_EQ(scheduler_.Complete(first.lease_id, first.worker_id, ResultOf(first)).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Complete(first.lease_id, first.worker_id, ResultOf(first)).status,
+            CompleteStatus::kMerged);
   ASSERT_TRUE(hooked);
   EXPECT_EQ(scheduler_.counters().expired, 0u);
   EXPECT_EQ(scheduler_.Status(id).tasks_done(), 1u);
   // The same result again: decided already.
-  EXPECT_EQ(scheduler_.Complete(first.lease_id, first.worker_id, ResultOf(first)).status, CompleteStatus::kIgnored);
+  EXPECT_EQ(scheduler_.Complete(first.lease_id, first.worker_id, ResultOf(first)).status,
+            CompleteStatus::kIgnored);
   EXPECT_EQ(scheduler_.counters().merged, 1u);
   EXPECT_EQ(scheduler_.Status(id).samples_merged(), 64u);
 }
@@ -270,7 +274,8 @@ TEST_F(SchedulerConcurrencyTest, AnExceptionWhileAResultIsCheckedLeavesTheLeaseL
   const std::optional<Lease> again = scheduler_.TryLease({"w2", {}});
   ASSERT_TRUE(again.has_value()) << "the lease expired and the task is leased again";
   EXPECT_EQ(again->task_id, second.task_id);
-  EXPECT_EQ(scheduler_.Complete(again->lease_id, again->worker_id, ResultOf(*again)).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Complete(again->lease_id, again->worker_id, ResultOf(*again)).status,
+            CompleteStatus::kMerged);
   EXPECT_EQ(scheduler_.Status(id2).samples_merged(), 64u);
 }
 
@@ -311,7 +316,8 @@ TEST_F(SchedulerConcurrencyTest, InvalidResultsFromManyThreadsFailTheirAttemptsO
       for (size_t k = size_t(t); k < leases.size(); k += kThreads) {
         std::vector<float> sums = ResultOf(leases[k]);
         sums[1] = -1.0f;  // negative radiance: invalid
-        EXPECT_EQ(scheduler_.Complete(leases[k].lease_id, leases[k].worker_id, sums).status, CompleteStatus::kRejected);
+        EXPECT_EQ(scheduler_.Complete(leases[k].lease_id, leases[k].worker_id, sums).status,
+                  CompleteStatus::kRejected);
       }
     });
   for (std::thread& t : threads) t.join();

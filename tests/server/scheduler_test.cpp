@@ -38,6 +38,10 @@ class SchedulerTest : public ::testing::Test {
     return lease.value_or(Lease{});
   }
   CompleteResult CompleteOk(const Lease& lease) {
+    if (!lease.config) {  // MustLease failed (and said so)
+      ADD_FAILURE() << "no lease to complete";
+      return {};
+    }
     const auto& cam = lease.config->camera;
     const std::vector<float> sums = SyntheticResult(lease.task, cam.width, cam.height);
     return scheduler_.Complete(lease.lease_id, lease.worker_id, sums);
@@ -352,8 +356,9 @@ TEST_F(SchedulerTest, OnlyTheLeaseHolderCanExtendOrCompleteItsTask) {
   EXPECT_EQ(scheduler_.counters().expired, 1u);
   const Lease b = MustLease("holder");
   EXPECT_TRUE(scheduler_.Extend(b.lease_id, "holder", 0.5).ok);
-  EXPECT_EQ(scheduler_.Complete(b.lease_id, "stranger", SyntheticResult(b.task, cam.width, cam.height)).status,
-            CompleteStatus::kNotHolder);
+  EXPECT_EQ(
+      scheduler_.Complete(b.lease_id, "stranger", SyntheticResult(b.task, cam.width, cam.height)).status,
+      CompleteStatus::kNotHolder);
   EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kMerged) << "the holder's lease is intact";
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(scheduler_.counters().merged, 1u);
@@ -370,7 +375,8 @@ TEST_F(SchedulerTest, OneFlakyWorkerIsBlocklistedAndAnotherWorkerFinishesTheJob)
     const Lease l = MustLease("flaky");
     ASSERT_EQ(l.task_id, 1u);
     ASSERT_EQ(l.attempt, attempt);
-    EXPECT_EQ(scheduler_.Fail(l.lease_id, "flaky", "out of memory", /*retryable=*/true), FailOutcome::kFailed);
+    EXPECT_EQ(scheduler_.Fail(l.lease_id, "flaky", "out of memory", /*retryable=*/true),
+              FailOutcome::kFailed);
   }
   v1::JobStatus s = scheduler_.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << s.failure_reason();
@@ -435,7 +441,8 @@ TEST_F(SchedulerTest, SilentWorkerIsLostAndBlocklistedAndTheJobSurvivesWithASeco
 TEST_F(SchedulerTest, WorkerThatStopsPollingIsLostAndLiveAgainWhenItCalls) {
   std::vector<std::optional<Lease>> answers;
   EXPECT_FALSE(scheduler_.TryLease({"gone", {}}).has_value());
-  scheduler_.LeaseOrWait({"waiting", {}}, 200, [&](std::optional<Lease> l) { answers.push_back(std::move(l)); });
+  scheduler_.LeaseOrWait({"waiting", {}}, 200,
+                         [&](std::optional<Lease> l) { answers.push_back(std::move(l)); });
   auto lost = [&](const std::string& worker) {
     for (const v1::WorkerInfo& w : scheduler_.activity().Workers())
       if (w.worker_id() == worker) return w.lost();
@@ -460,11 +467,13 @@ TEST_F(SchedulerTest, OneWorkerFarmFailsABrokenJobAfterThreeAttemptsNamingTheWor
   for (uint32_t attempt = 1; attempt <= 3; ++attempt) {
     const Lease l = MustLease("only");
     ASSERT_EQ(l.task_id, 0u);
-    EXPECT_EQ(scheduler_.Fail(l.lease_id, "only", "the scene crashes the renderer", true), FailOutcome::kFailed);
+    EXPECT_EQ(scheduler_.Fail(l.lease_id, "only", "the scene crashes the renderer", true),
+              FailOutcome::kFailed);
   }
   const v1::JobStatus s = scheduler_.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
-  EXPECT_THAT(s.failure_reason(), HasSubstr("task 0 attempt 3 failed: worker: the scene crashes the renderer"));
+  EXPECT_THAT(s.failure_reason(),
+              HasSubstr("task 0 attempt 3 failed: worker: the scene crashes the renderer"));
   EXPECT_THAT(s.failure_reason(),
               HasSubstr("no worker left to run the job: blocklisted for it: only after 3 failed attempts"));
   EXPECT_FALSE(scheduler_.TryLease({"only", {}}).has_value());
@@ -490,8 +499,9 @@ TEST_F(SchedulerTest, ARetryGoesToAnotherWaitingWorkerFirst) {
   const Lease first = MustLease("w1");
   std::vector<std::pair<std::string, std::optional<Lease>>> answers;
   auto park = [&](const std::string& worker) {
-    scheduler_.LeaseOrWait({worker, {}}, 10,
-                           [&, worker](std::optional<Lease> l) { answers.emplace_back(worker, std::move(l)); });
+    scheduler_.LeaseOrWait({worker, {}}, 10, [&, worker](std::optional<Lease> l) {
+      answers.emplace_back(worker, std::move(l));
+    });
   };
   park("w1");  // the oldest long poll: it would get the retry first
   park("w2");
@@ -721,7 +731,8 @@ TEST_F(SchedulerTest, MergedImageDoesNotDependOnCompletionOrder) {
   }
   for (const Lease& l : leases) ASSERT_EQ(CompleteOk(l).status, CompleteStatus::kMerged);
   for (auto it = other_leases.rbegin(); it != other_leases.rend(); ++it)
-    ASSERT_EQ(other.Complete(it->lease_id, it->worker_id, SyntheticResult(it->task, 9, 7)).status, CompleteStatus::kMerged);
+    ASSERT_EQ(other.Complete(it->lease_id, it->worker_id, SyntheticResult(it->task, 9, 7)).status,
+              CompleteStatus::kMerged);
   const JobSnapshot a = scheduler_.Snapshot(id, true), b = other.Snapshot(other_id, true);
   ASSERT_TRUE(a.image && b.image);
   ASSERT_EQ(a.image->image.size(), b.image->image.size());
@@ -815,8 +826,11 @@ TEST(SchedulerTaskSource, TasksCreatedFromResultsAreQueuedAndTheJobEndsAfterThem
   EXPECT_EQ(scheduler.Status(id).tasks_total(), 4u) << "2×2 tiles of map 0";
   auto complete = [&](const Lease& lease) {
     const auto& cam = lease.config->camera;
-    ASSERT_EQ(scheduler.Complete(lease.lease_id, lease.worker_id, SyntheticResult(lease.task, cam.width, cam.height)).status,
-              CompleteStatus::kMerged);
+    ASSERT_EQ(
+        scheduler
+            .Complete(lease.lease_id, lease.worker_id, SyntheticResult(lease.task, cam.width, cam.height))
+            .status,
+        CompleteStatus::kMerged);
   };
   // All four leased: nothing is queued, so a long poll parks — and is answered by the task that
   // the next merge creates.
@@ -969,8 +983,9 @@ TEST(SchedulerEta, HierarchicalProgressIsMonotoneAndItsEtaWithinTwiceTheTruth) {
   while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
     const uint64_t pixels = PixelsOf(lease->task.pixels, w, h).size();
     clock.Advance(c_map + c_px * double(pixels * (lease->task.sample_end - lease->task.sample_begin)));
-    ASSERT_EQ(scheduler.Complete(lease->lease_id, lease->worker_id, StepImageResult(lease->task, w, h)).status,
-              CompleteStatus::kMerged);
+    ASSERT_EQ(
+        scheduler.Complete(lease->lease_id, lease->worker_id, StepImageResult(lease->task, w, h)).status,
+        CompleteStatus::kMerged);
     const v1::JobStatus s = scheduler.Status(id);
     points.push_back({clock.Now(), s.eta_seconds(), s.progress()});
   }
@@ -1012,8 +1027,9 @@ TEST(SchedulerEta, TailTilesCountTheirPixels) {
     std::optional<Lease> lease = scheduler.TryLease({"w", {}});
     ASSERT_TRUE(lease.has_value());
     ASSERT_EQ(lease->task.task_id, uint64_t(i)) << "tasks are leased in id order: the tail tiles last";
-    ASSERT_EQ(scheduler.Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, w, h)).status,
-              CompleteStatus::kMerged);
+    ASSERT_EQ(
+        scheduler.Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, w, h)).status,
+        CompleteStatus::kMerged);
     if (i == 11) {
       EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75);
     }
@@ -1035,15 +1051,17 @@ TEST(SchedulerTaskSource, AResultOfAnotherRadiancePartIsRejected) {
   std::optional<Lease> lease = scheduler.TryLease({"w", {}});
   ASSERT_TRUE(lease.has_value());
   ASSERT_EQ(lease->task.part, RadiancePart::kUnmapped) << "the per-pixel tasks come first";
-  const CompleteResult old_worker =
-      scheduler.Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, 12, 10), RadiancePart::kAll);
+  const CompleteResult old_worker = scheduler.Complete(
+      lease->lease_id, lease->worker_id, SyntheticResult(lease->task, 12, 10), RadiancePart::kAll);
   EXPECT_EQ(old_worker.status, CompleteStatus::kRejected);
   EXPECT_NE(old_worker.reason.find("part"), std::string::npos) << old_worker.reason;
   EXPECT_EQ(scheduler.Status(id).tasks_done(), 0u);
   std::optional<Lease> again = scheduler.TryLease({"w", {}});
   ASSERT_TRUE(again.has_value());
   ASSERT_EQ(again->task.task_id, lease->task.task_id) << "re-queued";
-  EXPECT_EQ(scheduler.Complete(again->lease_id, again->worker_id, SyntheticResult(again->task, 12, 10), RadiancePart::kUnmapped)
+  EXPECT_EQ(scheduler
+                .Complete(again->lease_id, again->worker_id, SyntheticResult(again->task, 12, 10),
+                          RadiancePart::kUnmapped)
                 .status,
             CompleteStatus::kMerged);
   EXPECT_EQ(scheduler.Status(id).tasks_done(), 1u);
@@ -1069,16 +1087,20 @@ TEST(SchedulerTaskSource, TimeBudgetKeepsTheEmissionAndDirectLightTasks) {
   ASSERT_TRUE(first.has_value());
   ASSERT_EQ(first->task.part, RadiancePart::kUnmapped);
   ASSERT_EQ(
-      scheduler.Complete(first->lease_id, first->worker_id, SyntheticResult(first->task, 12, 10), first->task.part).status,
+      scheduler
+          .Complete(first->lease_id, first->worker_id, SyntheticResult(first->task, 12, 10), first->task.part)
+          .status,
       CompleteStatus::kMerged);
   clock.Advance(6);
   scheduler.Tick();
   uint64_t leased = 1;
   while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
     EXPECT_EQ(lease->task.part, RadiancePart::kUnmapped);
-    ASSERT_EQ(
-        scheduler.Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, 12, 10), lease->task.part).status,
-        CompleteStatus::kMerged);
+    ASSERT_EQ(scheduler
+                  .Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, 12, 10),
+                            lease->task.part)
+                  .status,
+              CompleteStatus::kMerged);
     ++leased;
   }
   EXPECT_EQ(leased, unmapped);

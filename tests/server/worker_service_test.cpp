@@ -331,7 +331,8 @@ grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id, con
                          const std::string& bytes, bool* accepted) {
   v1::UploadPhotonChunkResponse resp;
   auto ctx = Ctx();
-  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(live.worker->UploadPhotonChunk(ctx.get(), &resp));
+  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
+      live.worker->UploadPhotonChunk(ctx.get(), &resp));
   v1::PhotonChunkPart part;
   part.set_lease_id(lease_id);
   part.set_worker_id(worker_id);
@@ -364,10 +365,11 @@ TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesThe
 
   // What the honest worker traces (as worker_maps.cpp does).
   const SceneRuntime scene(LoadBundle(live_->coordinator->scenes().DirectoryOf(hash_), piece->scene_entry()));
-  PhotonMapsOptions mo = SettingsFromProto(piece->settings(), "settings").Resolved(scene.description).MapsOptions();
+  PhotonMapsOptions mo =
+      SettingsFromProto(piece->settings(), "settings").Resolved(scene.description).MapsOptions();
   mo.tracing.map_seed = piece->map_seed();
-  const PhotonChunk traced = TracePhotonChunk(scene.accel, scene.lights, mo, piece->trace_chunk().photon_begin(),
-                                              piece->trace_chunk().photon_end());
+  const PhotonChunk traced = TracePhotonChunk(
+      scene.accel, scene.lights, mo, piece->trace_chunk().photon_begin(), piece->trace_chunk().photon_end());
   PhotonChunk empty = traced;  // the right range and attributes, no photons
   for (PhotonChunk::List& l : empty.lists) l = PhotonChunk::List{};
   empty.stored_power = {0, 0, 0};
