@@ -150,10 +150,9 @@ int Coordinator::Start() {
     http_port_ = http_->Start(options_.http_listen);
   }
   spdlog::info(
-      "serving on {} (port {}), data dir {}, lease {} s, max attempts {} (distinct workers), blocklist after "
-      "{} "
-      "failed attempts in a job, quarantine {} s after {} blocklists, checkpoints {}, {}, client token {}, "
-      "worker token {}",
+      "serving on {} (port {}), data dir {}, lease {} s, max attempts {} (distinct workers), "
+      "blocklist after {} failed attempts in a job, quarantine {} s after {} blocklists, "
+      "checkpoints {}, {}, client token {}, worker token {}",
       options_.listen, port_, options_.data_dir.string(), options_.lease_seconds, options_.max_attempts,
       options_.blocklist_failures, options_.quarantine_seconds, options_.quarantine_jobs,
       options_.checkpoint_interval_seconds > 0

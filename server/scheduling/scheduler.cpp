@@ -146,12 +146,17 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     if (restricted) *restricted = true;
     return std::nullopt;
   }
+  // A worker with no failed attempt in a running job is blocklisted nowhere and avoids nothing:
+  // it skips the checks below (the lease path of a healthy farm).
+  const bool failed_before = health_.FailedInActiveJob(worker);
   if (map_hook_) {
-    const MapTracingHook::JobFilter may_lease = [&](const std::string& job_id) {
-      if (!health_.IsBlocklisted(job_id, worker)) return true;
-      passed = true;
-      return false;
-    };
+    MapTracingHook::JobFilter may_lease;
+    if (failed_before)
+      may_lease = [&](const std::string& job_id) {
+        if (!health_.IsBlocklisted(job_id, worker)) return true;
+        passed = true;
+        return false;
+      };
     if (std::optional<Lease> chunk = map_hook_->LeaseChunk(request, now, may_lease)) {
       chunk->worker_id = worker;
       return chunk;
@@ -161,7 +166,7 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
   while (Job* next = queue_.NextJob(after)) {
     Job& job = *next;
     if (CheckTimeBudget(job, now, fx)) continue;  // its queue is gone, or only the tasks it keeps
-    if (health_.IsBlocklisted(job.id(), worker)) {
+    if (failed_before && health_.IsBlocklisted(job.id(), worker)) {
       passed = true;
       // This worker is live and may not run the job: if no other live worker may, nobody will
       // (the other workers were lost since it was blocklisted).
@@ -176,14 +181,17 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     }
     // A retry goes to another worker first: one that failed the task leaves it while another
     // worker that may take it waits for work (docs/farm.md, "Worker health").
-    const TaskQueue::Avoid avoid = [&](uint64_t task_id) {
-      const TaskRuntime& rt = job.runtime(task_id);
-      if (std::find(rt.failed_workers.begin(), rt.failed_workers.end(), worker) == rt.failed_workers.end() ||
-          !AnotherWaiterCanTake(job, rt, worker, now))
-        return false;
-      passed = true;
-      return true;
-    };
+    TaskQueue::Avoid avoid;
+    if (failed_before)
+      avoid = [&](uint64_t task_id) {
+        const TaskRuntime& rt = job.runtime(task_id);
+        if (std::find(rt.failed_workers.begin(), rt.failed_workers.end(), worker) ==
+                rt.failed_workers.end() ||
+            !AnotherWaiterCanTake(job, rt, worker, now))
+          return false;
+        passed = true;
+        return true;
+      };
     const std::optional<TaskQueue::Pick> chosen = queue_.Choose(job, request.cached_map_seeds, avoid);
     if (!chosen) {
       after = TaskQueue::PositionOf(job);
@@ -880,9 +888,8 @@ bool Scheduler::CountFailure(Job& job, const std::string& worker_id, uint64_t ta
   const std::string who = limits::Quote(worker_id, limits::kMaxWorkerIdBytes);
   if (out.blocklisted) {
     spdlog::warn(
-        "job {}: worker {} blocklisted after {} failed attempts in this job (last: {}): it gets no more of "
-        "its "
-        "tasks or map pieces",
+        "job {}: worker {} blocklisted after {} failed attempts in this job (last: {}): it gets no "
+        "more of its tasks or map pieces",
         job.id(), who, out.failed_attempts, reason);
     activity_.TaskEvent(job.id(), "blocklisted", task_id, attempt, worker_id,
                         "after " + std::to_string(out.failed_attempts) +

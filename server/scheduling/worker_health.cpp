@@ -77,6 +77,7 @@ WorkerHealth::FailureOutcome WorkerHealth::RecordFailure(const std::string& job_
   if (worker_id.empty()) return out;
   JobHealth& job = jobs_[job_id];
   out.failed_attempts = ++job.failures[worker_id];
+  if (out.failed_attempts == 1) ++WorkerOf(worker_id, now).active_jobs_failed;
   if (auto b = job.blocklisted.find(worker_id); b != job.blocklisted.end()) {
     // Leases it held before it was blocklisted may still fail.
     b->second.failed_attempts = out.failed_attempts;
@@ -111,6 +112,11 @@ bool WorkerHealth::IsBlocklisted(const std::string& job_id, const std::string& w
   return it != jobs_.end() && it->second.blocklisted.count(worker_id) > 0;
 }
 
+bool WorkerHealth::FailedInActiveJob(const std::string& worker_id) const {
+  auto it = workers_.find(worker_id);
+  return it != workers_.end() && it->second.active_jobs_failed > 0;
+}
+
 bool WorkerHealth::Quarantined(const std::string& worker_id, double now) const {
   auto it = workers_.find(worker_id);
   return it != workers_.end() && it->second.quarantined_until > now;
@@ -133,6 +139,9 @@ bool WorkerHealth::AnyLiveWorkerMayRun(const std::string& job_id) const {
 void WorkerHealth::JobEnded(const std::string& job_id) {
   auto it = jobs_.find(job_id);
   if (it == jobs_.end()) return;
+  for (const auto& [worker, failures] : it->second.failures)
+    if (auto w = workers_.find(worker); w != workers_.end() && w->second.active_jobs_failed > 0)
+      --w->second.active_jobs_failed;
   if (it->second.blocklisted.empty())
     jobs_.erase(it);
   else

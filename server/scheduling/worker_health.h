@@ -72,6 +72,9 @@ class WorkerHealth {
   FailureOutcome RecordFailure(const std::string& job_id, const std::string& worker_id,
                                const std::string& reason, double now);
   bool IsBlocklisted(const std::string& job_id, const std::string& worker_id) const;
+  // Whether the worker has a failed attempt in a job that has not ended: if not, no job's
+  // blocklist names it and no task avoids it (the scheduler's fast path for healthy workers).
+  bool FailedInActiveJob(const std::string& worker_id) const;
   bool Quarantined(const std::string& worker_id, double now) const;
   // The job's blocklist by worker id (JobStatus.blocklisted_workers), empty if none.
   const std::map<std::string, Blocklisted>& BlocklistOf(const std::string& job_id) const;
@@ -85,6 +88,7 @@ class WorkerHealth {
   struct Worker {
     double last_call = 0;
     bool lost = false;
+    uint32_t active_jobs_failed = 0;  // jobs not ended with a failed attempt of it
     double quarantined_until = -std::numeric_limits<double>::infinity();
     std::deque<std::pair<double, std::string>> blocklistings;  // (when, job) within the window
   };
