@@ -56,6 +56,11 @@ std::string PlanText(const v1::JobStatus& s) {
 }
 
 nlohmann::json StatusJson(const v1::JobStatus& s) {
+  nlohmann::json blocklisted = nlohmann::json::array();
+  for (const v1::BlocklistedWorker& b : s.blocklisted_workers())
+    blocklisted.push_back({{"worker_id", b.worker_id()},
+                           {"failed_attempts", b.failed_attempts()},
+                           {"last_error", b.last_error()}});
   return {{"job_id", s.job_id()},
           {"name", s.spec().name()},
           {"state", JobStateName(s.state())},
@@ -72,6 +77,7 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"submitted_unix_ms", s.submitted_unix_ms()},
           {"plan", PlanText(s)},
           {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()},
+          {"blocklisted_workers", blocklisted},
           {"storage_error", s.storage_error()},
           {"paused_for_storage", s.paused_for_storage()}};
 }
@@ -88,6 +94,12 @@ std::string Summary(const v1::JobStatus& s) {
   out += "; plan " + PlanText(s);
   if (s.spec().plan().has_chosen_by_auto())
     out += " (auto: " + s.spec().plan().chosen_by_auto().reason() + ")";
+  // Workers that get none of this job's work any more (docs/farm.md, "Worker health").
+  for (int i = 0; i < s.blocklisted_workers_size(); ++i) {
+    const v1::BlocklistedWorker& b = s.blocklisted_workers(i);
+    out += fmt::format("{} {} ({} failed attempts)", i == 0 ? "; blocklisted:" : ",", b.worker_id(),
+                       b.failed_attempts());
+  }
   return out;
 }
 
@@ -272,7 +284,12 @@ int RunWorkers(const FarmArgs& f, bool json) {
                      {"photons_per_second", w.photons_per_second()},
                      {"seconds_since_seen", w.seconds_since_seen()},
                      {"version", w.version()},
-                     {"refused", w.refused()}});
+                     {"refused", w.refused()},
+                     {"lost", w.lost()},
+                     {"quarantined", w.quarantined()},
+                     {"quarantine_reason", w.quarantine_reason()},
+                     {"quarantine_seconds_left", w.quarantine_seconds_left()},
+                     {"blocklisted_job_ids", w.blocklisted_job_ids()}});
     std::printf("%s\n", arr.dump(2).c_str());
     return kExitOk;
   }
@@ -282,15 +299,25 @@ int RunWorkers(const FarmArgs& f, bool json) {
   }
   std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s  %s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE",
               "FAILED", "PHOTONS/S", "SEEN", "BUILD");
-  for (const v1::WorkerInfo& w : workers)
+  for (const v1::WorkerInfo& w : workers) {
+    // Worker health (docs/farm.md): quarantined and lost workers say so where the task would be.
+    const std::string current =
+        w.refused()       ? "refused (build)"
+        : w.quarantined() ? "quarantined " + FormatDuration(w.quarantine_seconds_left())
+        : w.lost()        ? "lost"
+        : w.busy()        ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id())
+                          : "idle";
     std::printf("%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s  %s\n", w.worker_id().c_str(),
-                w.peer().c_str(), w.threads(),
-                w.refused() ? "refused (build)"
-                : w.busy()  ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id()).c_str()
-                            : "idle",
-                (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(),
-                w.photons_per_second(), (FormatDuration(w.seconds_since_seen()) + " ago").c_str(),
-                w.version().c_str());
+                w.peer().c_str(), w.threads(), current.c_str(), (unsigned long long)w.tasks_done(),
+                (unsigned long long)w.tasks_failed(), w.photons_per_second(),
+                (FormatDuration(w.seconds_since_seen()) + " ago").c_str(), w.version().c_str());
+    if (w.quarantined()) std::printf("  quarantined: %s\n", w.quarantine_reason().c_str());
+    if (w.blocklisted_job_ids_size() > 0) {
+      std::string jobs;
+      for (const std::string& id : w.blocklisted_job_ids()) jobs += (jobs.empty() ? "" : ", ") + id;
+      std::printf("  blocklisted for: %s\n", jobs.c_str());
+    }
+  }
   return kExitOk;
 }
 

@@ -65,6 +65,9 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   SchedulerOptions so;
   so.lease_seconds = options_.lease_seconds;
   so.max_attempts = options_.max_attempts;
+  so.blocklist_failures = options_.blocklist_failures;
+  so.quarantine_jobs = options_.quarantine_jobs;
+  so.quarantine_seconds = options_.quarantine_seconds;
   so.build = PF_VERSION;
   scheduler_ = std::make_unique<Scheduler>(*clock_, so);
   DistributedMapsOptions mo;
@@ -156,10 +159,11 @@ int Coordinator::Start() {
     http_port_ = http_->Start(options_.http_listen);
   }
   spdlog::info(
-      "serving on {} (port {}), data dir {}, lease {} s, max attempts {}, checkpoints {}, {}, client token "
-      "{}, "
-      "worker token {}",
+      "serving on {} (port {}), data dir {}, lease {} s, max attempts {} (distinct workers), "
+      "blocklist after {} failed attempts in a job, quarantine {} s after {} blocklists, "
+      "checkpoints {}, {}, client token {}, worker token {}",
       options_.listen, port_, options_.data_dir.string(), options_.lease_seconds, options_.max_attempts,
+      options_.blocklist_failures, options_.quarantine_seconds, options_.quarantine_jobs,
       options_.checkpoint_interval_seconds > 0
           ? "every " + std::to_string(int(options_.checkpoint_interval_seconds * 1000)) + " ms"
           : std::string("per merge (durable acks)"),

@@ -75,6 +75,10 @@ struct CoordinatorOptions {
   bool insecure = false;
   double lease_seconds = 30;
   uint32_t max_attempts = 3;
+  // Worker health (server/scheduling/worker_health.h, docs/farm.md "Worker health").
+  uint32_t blocklist_failures = 3;
+  uint32_t quarantine_jobs = 3;
+  double quarantine_seconds = 900;
   double checkpoint_interval_seconds = 0;  // 0: durable acknowledgements (persister.h)
   double tick_seconds = 0.05;              // lease/long-poll/budget/watch timer resolution
   size_t executor_threads = 2;

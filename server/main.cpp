@@ -75,9 +75,25 @@ int main(int argc, char** argv) {
   app.add_option("--lease-seconds", options.lease_seconds, "Lease length; workers extend it by heartbeat")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 86400.0));
-  app.add_option("--max-attempts", options.max_attempts, "Failed attempts of one task before its job fails")
+  app.add_option("--max-attempts", options.max_attempts,
+                 "Distinct workers a task may fail on before its job fails (docs/farm.md, Worker health)")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000));
+  app.add_option(
+         "--blocklist-after", options.blocklist_failures,
+         "Failed attempts in one job after which a worker gets no more of that job's work (0 = never)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
+  app.add_option(
+         "--quarantine-after", options.quarantine_jobs,
+         "Jobs blocklisting a worker within --quarantine-seconds after which it gets no leases at all "
+         "for --quarantine-seconds (0 = never)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
+  app.add_option("--quarantine-seconds", options.quarantine_seconds,
+                 "The window of --quarantine-after, and how long a quarantine lasts")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 30.0 * 86400));
   app.add_option(
          "--checkpoint-ms", checkpoint_ms,
          "0: checkpoint every merge and acknowledge results once durable; N: checkpoint at most every "

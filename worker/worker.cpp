@@ -506,6 +506,7 @@ void Worker::Heartbeat(const v1::Task& task, const std::string& ctx, std::shared
     }
     v1::ExtendLeaseRequest req;
     req.set_lease_id(task.lease_id());
+    req.set_worker_id(options_.worker_id);  // leases are bound to their worker
     req.set_progress(std::min(1.0, double(exec->progress.load()) / double(exec->pixels)));
     v1::ExtendLeaseResponse resp;
     grpc::ClientContext cctx;
@@ -521,7 +522,8 @@ void Worker::Heartbeat(const v1::Task& task, const std::string& ctx, std::shared
       if (resp.lease_seconds() > 0) lease_seconds = resp.lease_seconds();
       spdlog::trace("extended {} progress={:.2f}", ctx, req.progress());
     } else if (status.error_code() == grpc::StatusCode::NOT_FOUND ||
-               status.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
+               status.error_code() == grpc::StatusCode::FAILED_PRECONDITION ||
+               status.error_code() == grpc::StatusCode::PERMISSION_DENIED) {  // not this worker's lease
       std::lock_guard lock(exec->mutex);
       exec->lease_lost = true;
       exec->cv.notify_all();
@@ -536,6 +538,7 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
   SetState(State::kReporting, ctx);
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
+  req.set_worker_id(options_.worker_id);
   req.set_part(task.part());  // what was rendered (TaskSpecFromProto accepted this part)
   req.mutable_rgb_sums()->Assign(output.rgb_sums.begin(), output.rgb_sums.end());
   v1::TaskStats* st = req.mutable_stats();

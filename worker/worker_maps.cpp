@@ -158,6 +158,7 @@ bool Worker::UploadChunk(const v1::Task& task, const std::string& /*ctx*/, const
     v1::PhotonChunkPart part;
     if (first) {
       part.set_lease_id(task.lease_id());
+      part.set_worker_id(options_.worker_id);
       part.set_total_bytes(bytes.size());
       part.set_digest(Sha256Hex(bytes));
     }

@@ -33,8 +33,14 @@ namespace pf::server {
 struct TaskRuntime {
   TaskState state = TaskState::kQueued;
   uint32_t attempts = 0;  // leases handed out (the current/next lease's attempt number)
-  uint32_t failures = 0;  // attempts that ended badly; bounded by max_attempts
-  std::string lease_id;   // current lease while kLeased
+  uint32_t failures = 0;  // attempts that ended badly (all of them; stored)
+  // The distinct workers whose attempts of this task failed, and failed attempts with no worker to
+  // attribute them to: the task fails its job once these reach max_attempts, so one bad worker
+  // cannot use up a task's attempts (server/scheduling/worker_health.h). In memory only: a
+  // restarted coordinator counts afresh.
+  std::vector<std::string> failed_workers;
+  uint32_t unattributed_failures = 0;
+  std::string lease_id;  // current lease while kLeased
   std::string worker_id;
   double lease_deadline = 0;  // Clock::Now() seconds
   double progress = 0;        // 0..1 as reported by ExtendLease

@@ -58,6 +58,17 @@ void RequireLeaseId(const std::string& id) {
   limits::CheckId(id, "lease_id");
 }
 
+// Every call about a lease names its caller: a lease is bound to the worker it was leased to
+// (docs/security.md, "Leases are bound to their worker").
+void RequireWorkerId(const std::string& id) {
+  limits::CheckId(id, "worker_id", limits::kMaxWorkerIdBytes);
+}
+
+grpc::Status NotHolder() {
+  return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                      "lease_id: the lease is held by another worker; nothing was changed");
+}
+
 // One parked long poll. The state shared with the scheduler's callback lives in `State`, so the
 // reactor is only touched until it is finished (it deletes itself in OnDone).
 class LeaseReactor final : public grpc::ServerUnaryReactor {
@@ -171,9 +182,12 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerCon
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("ExtendLease", [&] {
     RequireLeaseId(request->lease_id());
-    const ExtendResult r = DistributedMaps::IsChunkLease(request->lease_id())
-                               ? ctx_.maps.Extend(request->lease_id())
-                               : ctx_.scheduler.Extend(request->lease_id(), request->progress());
+    RequireWorkerId(request->worker_id());
+    const ExtendResult r =
+        DistributedMaps::IsChunkLease(request->lease_id())
+            ? ctx_.maps.Extend(request->lease_id(), request->worker_id())
+            : ctx_.scheduler.Extend(request->lease_id(), request->worker_id(), request->progress());
+    if (r.not_holder) return NotHolder();
     response->set_ok(r.ok);
     response->set_lease_seconds(r.lease_seconds);
     return grpc::Status::OK;
@@ -189,6 +203,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
   CompleteResult result;
   grpc::Status status = Guarded("CompleteTask", [&] {
     RequireLeaseId(request->lease_id());
+    RequireWorkerId(request->worker_id());
     RadiancePart part = RadiancePart::kAll;
     switch (request->part()) {
       case v1::RADIANCE_PART_ALL:
@@ -204,8 +219,9 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
                             "part: unknown value " + std::to_string(int(request->part())));
     }
     const auto& sums = request->rgb_sums();
-    result = ctx_.scheduler.Complete(request->lease_id(),
+    result = ctx_.scheduler.Complete(request->lease_id(), request->worker_id(),
                                      std::span<const float>(sums.data(), size_t(sums.size())), part);
+    if (result.status == CompleteStatus::kNotHolder) return NotHolder();
     if (result.status == CompleteStatus::kRejected)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           "rgb_sums: result rejected, the task is re-queued: " + result.reason);
@@ -253,7 +269,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("FailTask", [&] {
     RequireLeaseId(request->lease_id());
-    limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
+    RequireWorkerId(request->worker_id());
     std::string reason = limits::Printable(request->reason(), limits::kMaxReasonBytes);
     if (reason.empty()) reason = "no reason given";
     const FailOutcome outcome =
@@ -267,8 +283,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
         return grpc::Status(grpc::StatusCode::NOT_FOUND,
                             "lease_id: unknown, expired or finished lease; nothing was changed");
       case FailOutcome::kNotHolder:
-        return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
-                            "lease_id: the lease is held by another worker; nothing was changed");
+        return NotHolder();
     }
     return grpc::Status::OK;
   });
@@ -341,6 +356,7 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
     }
     if (parts_ == 0) {
       lease_id_ = part_.lease_id();
+      worker_id_ = part_.worker_id();
       total_ = part_.total_bytes();
       digest_ = part_.digest();
       if (total_ > kMaxPhotonChunkBytes) {
@@ -353,16 +369,20 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
       // lease answers at once, accepted = false, as a late piece would after its upload).
       const grpc::Status well_formed = Guarded("UploadPhotonChunk", [&] {
         RequireLeaseId(lease_id_);
+        RequireWorkerId(worker_id_);
         return grpc::Status::OK;
       });
       if (!well_formed.ok()) {
         Finish(well_formed);
         return;
       }
-      switch (ctx_.maps.BeginUpload(lease_id_)) {
+      switch (ctx_.maps.BeginUpload(lease_id_, worker_id_)) {
         case DistributedMaps::UploadAdmission::kNotLive:
           response_->set_accepted(false);
           Finish(grpc::Status::OK);
+          return;
+        case DistributedMaps::UploadAdmission::kNotHolder:
+          Finish(NotHolder());
           return;
         case DistributedMaps::UploadAdmission::kBusy:
           Finish(grpc::Status(grpc::StatusCode::ALREADY_EXISTS,
@@ -421,7 +441,8 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
         throw InputError("total_bytes: " + std::to_string(bytes_.size()) + " bytes received of " +
                          std::to_string(total_));
       if (Sha256Hex(bytes_) != digest_) throw InputError("digest: mismatch: the piece is refused");
-      const DistributedMaps::Accepted a = ctx_.maps.AcceptChunk(lease_id_, bytes_);
+      const DistributedMaps::Accepted a = ctx_.maps.AcceptChunk(lease_id_, worker_id_, bytes_);
+      if (a == DistributedMaps::Accepted::kNotHolder) return NotHolder();
       response_->set_accepted(a == DistributedMaps::Accepted::kStored);
       return grpc::Status::OK;
     });
@@ -430,7 +451,7 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
   ServiceContext& ctx_;
   v1::UploadPhotonChunkResponse* response_;
   v1::PhotonChunkPart part_;
-  std::string lease_id_, digest_, bytes_;
+  std::string lease_id_, worker_id_, digest_, bytes_;
   uint64_t total_ = 0;
   size_t parts_ = 0;
   bool admitted_ = false;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <charconv>
 #include <chrono>
+#include <cstring>
 #include <fstream>
 
 #include "common/core/atomic_file.h"
@@ -16,6 +17,7 @@
 #include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "proto/limits.h"
+#include "server/jobs/random_id.h"
 
 namespace pf::server {
 namespace fs = std::filesystem;
@@ -232,12 +234,14 @@ void DistributedMaps::SetStateLocked(Map& m, Map::State state) {
     tracing_.erase(m.seq);
 }
 
-std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, double now) {
+std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, double now,
+                                                 const JobFilter& may_lease) {
   std::lock_guard lock(mu_);
   const Map* best = nullptr;
   uint32_t pick = 0;
   for (const auto& [seq, key] : tracing_) {  // oldest map first
     const Map& m = maps_.at(key);
+    if (may_lease && !may_lease(m.job_id)) continue;  // blocklisted for the map's job
     for (uint32_t c = 0; c < m.chunks.size() && !best; ++c)
       if (m.chunks[c].state == Chunk::State::kQueued) {
         best = &m;
@@ -250,7 +254,7 @@ std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, do
   Chunk& chunk = m.chunks[pick];
   chunk.state = Chunk::State::kLeased;
   ++chunk.attempts;
-  chunk.lease_id = std::string(kLeasePrefix) + std::to_string(next_lease_++);
+  chunk.lease_id = std::string(kLeasePrefix) + RandomHex(16);
   chunk.worker_id = request.worker_id;
   chunk.deadline = now + options_.lease_seconds;
   leases_[chunk.lease_id] = LeaseRef{m.key, pick};
@@ -296,14 +300,25 @@ std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
   return std::nullopt;
 }
 
-DistributedMaps::UploadAdmission DistributedMaps::BeginUpload(const std::string& lease_id) {
-  std::lock_guard lock(mu_);
-  auto it = leases_.find(lease_id);
-  if (it == leases_.end()) return UploadAdmission::kNotLive;
-  const Map& m = maps_.at(it->second.key);
-  if (m.state != Map::State::kTracing || m.chunks[it->second.chunk].state == Chunk::State::kDone)
-    return UploadAdmission::kNotLive;
-  return uploading_.insert(lease_id).second ? UploadAdmission::kAdmitted : UploadAdmission::kBusy;
+DistributedMaps::UploadAdmission DistributedMaps::BeginUpload(const std::string& lease_id,
+                                                              const std::string& worker_id) {
+  {
+    std::lock_guard lock(mu_);
+    auto it = leases_.find(lease_id);
+    if (it == leases_.end()) return UploadAdmission::kNotLive;
+    const Map& m = maps_.at(it->second.key);
+    const Chunk& c = m.chunks[it->second.chunk];
+    if (m.state != Map::State::kTracing || c.state == Chunk::State::kDone) return UploadAdmission::kNotLive;
+    if (c.worker_id != worker_id) {
+      spdlog::warn("job {} map {} piece {}: upload from worker {} refused: the lease is held by {}", m.job_id,
+                   m.map_index, it->second.chunk, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
+                   c.worker_id);
+      return UploadAdmission::kNotHolder;
+    }
+    if (!uploading_.insert(lease_id).second) return UploadAdmission::kBusy;
+  }
+  if (scheduler_) scheduler_->Heard(worker_id);
+  return UploadAdmission::kAdmitted;
 }
 
 void DistributedMaps::EndUpload(const std::string& lease_id) {
@@ -312,11 +327,13 @@ void DistributedMaps::EndUpload(const std::string& lease_id) {
 }
 
 DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_id,
+                                                       const std::string& worker_id,
                                                        const std::string& bytes) {
   std::string key;
   uint32_t index = 0;
-  uint64_t begin = 0, end = 0;
+  uint64_t begin = 0, end = 0, map_seed = 0;
   bool light_ids = false, origins = false;
+  std::shared_ptr<const JobConfig> config;
   {
     std::lock_guard lock(mu_);
     auto it = leases_.find(lease_id);
@@ -326,11 +343,14 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     const Map& m = maps_.at(key);
     if (m.state != Map::State::kTracing || m.chunks[index].state == Chunk::State::kDone)
       return Accepted::kLate;
+    if (m.chunks[index].worker_id != worker_id) return Accepted::kNotHolder;  // the lease names its holder
     begin = uint64_t(index) * m.chunk_photons;
     end = std::min(m.photons, begin + m.chunk_photons);
     const JobRenderSettings& s = m.config->settings;
     light_ids = s.direct && *s.direct == DirectLightMode::kPhotonDirect;
     origins = s.occlusion_test;
+    config = m.config;
+    map_seed = m.map_seed;
   }
   // Parsed and written outside the lock (O(photons) and I/O).
   const PhotonChunk chunk = DeserializePhotonChunk(bytes);
@@ -340,6 +360,9 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
                      std::to_string(end) + ")");
   if ((light_ids && !chunk.light_ids) || (origins && !chunk.origins))
     throw InputError("the piece lacks the light ids or origins the job's estimators need");
+  const auto t_check = Now();
+  CheckFirstPhotons(*config, map_seed, chunk);
+  const double check_seconds = Secs(t_check, Now());
   const fs::path file = ChunkFile(key, begin, end);
   fs::create_directories(file.parent_path());
   WriteFileAtomically(file, bytes);
@@ -366,10 +389,77 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
       build = true;
     }
   }
-  spdlog::info("job {} map {} piece {}: stored ({} bytes, {}/{} pieces in)", job_id, map_index, index,
-               bytes.size(), done, total);
-  if (build) builder_.Post([this, key] { Build(key); });
+  spdlog::info(
+      "job {} map {} piece {}: stored ({} bytes, first photons checked in {:.3f} s, {}/{} pieces in)", job_id,
+      map_index, index, bytes.size(), check_seconds, done, total);
+  if (build) {
+    ReleaseCheckSceneIfUnused();
+    builder_.Post([this, key] { Build(key); });
+  }
   return Accepted::kStored;
+}
+
+void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_seed,
+                                        const PhotonChunk& chunk) {
+  std::lock_guard check(check_mu_);
+  if (check_scene_hash_ != config.scene_hash || !check_scene_) {
+    check_scene_.reset();
+    check_scene_hash_.clear();
+    try {
+      check_scene_ = std::make_shared<const SceneRuntime>(
+          LoadBundle(scenes_.DirectoryOf(config.scene_hash), config.scene_entry));
+      check_scene_hash_ = config.scene_hash;
+    } catch (const std::exception& e) {
+      // The coordinator's own trouble is not the worker's: the piece is taken unchecked, as before.
+      spdlog::error("maps: scene {} cannot be loaded to check an uploaded piece ({}); piece not checked",
+                    Short(config.scene_hash), e.what());
+      return;
+    }
+  }
+  const SceneRuntime& scene = *check_scene_;
+  // As the worker traces it (worker_maps.cpp), for the first photons of the piece only.
+  PhotonMapsOptions mo = config.settings.Resolved(scene.description).MapsOptions();
+  mo.tracing.map_seed = map_seed;
+  mo.tracing.threads = 1;
+  const uint64_t end = std::min(chunk.end, chunk.begin + kPhotonTracingChunk);
+  const PhotonChunk expected = TracePhotonChunk(scene.accel, scene.lights, mo, chunk.begin, end);
+  const auto refuse = [&](const std::string& what) {
+    throw InputError("photons [" + std::to_string(chunk.begin) + ", " + std::to_string(end) +
+                     ") of the piece are not the coordinator's trace of them: " + what +
+                     "; the piece is refused (docs/farm.md, Photon maps traced once)");
+  };
+  static const char* const kList[] = {"direct", "indirect", "caustic"};
+  if (chunk.rays < expected.rays)
+    refuse(std::to_string(chunk.rays) + " rays, fewer than those photons' " + std::to_string(expected.rays));
+  for (int k = 0; k < 3; ++k) {
+    const PhotonChunk::List& got = chunk.lists[k];
+    const PhotonChunk::List& want = expected.lists[k];
+    const size_t n = want.photons.size();
+    if (got.photons.size() < n)
+      refuse(std::string(kList[k]) + " list of " + std::to_string(got.photons.size()) + " photons, " +
+             std::to_string(n) + " traced in its first part alone");
+    if ((expected.light_ids && got.light.size() < n) || (expected.origins && got.origin.size() < n))
+      refuse(std::string(kList[k]) + " photons lack their light ids or origins");
+    const bool same =
+        std::memcmp(got.photons.data(), want.photons.data(), n * sizeof(Photon)) == 0 &&
+        (!expected.light_ids || std::equal(want.light.begin(), want.light.end(), got.light.begin())) &&
+        (!expected.origins || std::memcmp(got.origin.data(), want.origin.data(), n * sizeof(Vec3)) == 0);
+    if (!same) refuse(std::string(kList[k]) + " photons differ");
+  }
+}
+
+void DistributedMaps::ReleaseCheckSceneIfUnused() {
+  std::lock_guard check(check_mu_);
+  if (!check_scene_) return;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [seq, key] : tracing_) {
+      const Map& m = maps_.at(key);
+      if (m.config->scene_hash == check_scene_hash_ && m.done < m.chunks.size()) return;
+    }
+  }
+  check_scene_.reset();
+  check_scene_hash_.clear();
 }
 
 void DistributedMaps::Build(const std::string& key) {
@@ -457,6 +547,12 @@ void DistributedMaps::Build(const std::string& key) {
   Release(release);
 }
 
+void DistributedMaps::Report(const std::vector<PieceFailure>& failures) {
+  if (!scheduler_) return;
+  for (const PieceFailure& f : failures)
+    scheduler_->PieceAttemptFailed(f.job_id, f.worker_id, f.piece, f.attempt, f.kind, f.reason);
+}
+
 void DistributedMaps::Release(const std::vector<std::pair<std::string, uint64_t>>& release) {
   if (!scheduler_) return;
   for (const auto& [job, index] : release) scheduler_->ReleaseMap(job, index);
@@ -473,24 +569,44 @@ void DistributedMaps::LeaveToWorkersLocked(Map& m, const std::string& why,
   ++counters_.maps_left_to_workers;
 }
 
-void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& why,
-                                    std::vector<std::pair<std::string, uint64_t>>* release) {
+void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& kind, const std::string& why,
+                                    std::vector<std::pair<std::string, uint64_t>>* release,
+                                    std::vector<PieceFailure>* failures) {
   Chunk& c = m.chunks[index];
   leases_.erase(c.lease_id);
   spdlog::warn("job {} map {} piece {}: attempt {} ended: {}", m.job_id, m.map_index, index, c.attempts, why);
+  failures->push_back(PieceFailure{m.job_id, c.worker_id, kind, why, index, c.attempts});
+  if (c.worker_id.empty())
+    ++c.unattributed_failures;
+  else if (std::find(c.failed_workers.begin(), c.failed_workers.end(), c.worker_id) == c.failed_workers.end())
+    c.failed_workers.push_back(c.worker_id);
   c.state = Chunk::State::kQueued;
   c.lease_id.clear();
-  if (c.attempts >= options_.max_attempts)
-    LeaveToWorkersLocked(
-        m, "piece " + std::to_string(index) + " failed " + std::to_string(c.attempts) + " times", release);
+  // Failures on max_attempts distinct workers, as for a task (scheduler.h): one bad worker is
+  // blocklisted for the job before it can use the piece up.
+  const uint32_t distinct = uint32_t(c.failed_workers.size()) + c.unattributed_failures;
+  if (distinct >= options_.max_attempts)
+    LeaveToWorkersLocked(m,
+                         "piece " + std::to_string(index) + " failed " + std::to_string(c.attempts) +
+                             " times, on " + std::to_string(distinct) + " workers",
+                         release);
 }
 
-ExtendResult DistributedMaps::Extend(const std::string& lease_id) {
+ExtendResult DistributedMaps::Extend(const std::string& lease_id, const std::string& worker_id) {
+  if (scheduler_) scheduler_->Heard(worker_id);
   std::lock_guard lock(mu_);
   auto it = leases_.find(lease_id);
   if (it == leases_.end()) return {};
+  const Map& m = maps_.at(it->second.key);
   Chunk& c = maps_.at(it->second.key).chunks[it->second.chunk];
   if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return {};
+  if (c.worker_id != worker_id) {
+    // Renewed by another worker, a lease whose holder is gone would never run out.
+    spdlog::warn("job {} map {} piece {}: ExtendLease from worker {} refused: the lease is held by {}",
+                 m.job_id, m.map_index, it->second.chunk, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
+                 c.worker_id);
+    return ExtendResult{.not_holder = true};
+  }
   c.deadline = clock_.Now() + options_.lease_seconds;
   return ExtendResult{true, options_.lease_seconds};
 }
@@ -516,7 +632,9 @@ void DistributedMaps::Return(const std::string& lease_id) {
 
 FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string& worker_id,
                                   const std::string& reason) {
+  if (scheduler_) scheduler_->Heard(worker_id);
   std::vector<std::pair<std::string, uint64_t>> release;
+  std::vector<PieceFailure> failures;
   {
     std::lock_guard lock(mu_);
     auto it = leases_.find(lease_id);
@@ -526,8 +644,9 @@ FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string
     if (m.chunks[index].state != Chunk::State::kLeased || m.chunks[index].lease_id != lease_id)
       return FailOutcome::kUnknownLease;
     if (m.chunks[index].worker_id != worker_id) return FailOutcome::kNotHolder;
-    RequeueLocked(m, index, "failed by " + worker_id + ": " + reason, &release);
+    RequeueLocked(m, index, "piece-failed", "failed by " + worker_id + ": " + reason, &release, &failures);
   }
+  Report(failures);
   Release(release);
   if (scheduler_) scheduler_->NotifyMapPieces();
   return FailOutcome::kFailed;
@@ -535,6 +654,7 @@ FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string
 
 void DistributedMaps::Tick() {
   std::vector<std::pair<std::string, uint64_t>> release;
+  std::vector<PieceFailure> failures;
   bool requeued = false;
   {
     std::lock_guard lock(mu_);
@@ -547,11 +667,13 @@ void DistributedMaps::Tick() {
       for (uint32_t c = 0; c < m.chunks.size() && m.state == Map::State::kTracing; ++c)
         if (m.chunks[c].state == Chunk::State::kLeased && now >= m.chunks[c].deadline) {
           ++counters_.chunks_expired;
-          RequeueLocked(m, c, "lease expired (worker " + m.chunks[c].worker_id + ")", &release);
+          RequeueLocked(m, c, "piece-expired", "lease expired (worker " + m.chunks[c].worker_id + ")",
+                        &release, &failures);
           requeued = true;
         }
     }
   }
+  Report(failures);
   Release(release);
   if (requeued && scheduler_) scheduler_->NotifyMapPieces();
 }

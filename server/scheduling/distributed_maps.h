@@ -18,12 +18,27 @@
 // (proto, map_tracing cleared) and the map seed: the settings with the scene decide every `auto`,
 // so the key names one map; jobs with the same scene, settings and seed share it.
 //
-// Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1);
-// after max_attempts, or if assembling fails, the map is left to the workers (its render tasks
-// are released without a built map and each worker traces it, as with kLocal) — never stuck.
-// Durability: pieces and built maps are files under `dir`; a restarted coordinator finds them
-// (Scan at start-up) and queues only the missing pieces. Leases are not durable (as for render
-// tasks). Nothing here touches samples: render results are merged by the Scheduler alone.
+// Leases: a piece lease id is "map-" and 128 bits from the CSPRNG (server/jobs/random_id.h), so
+// it cannot be guessed and a restarted coordinator never hands out an id again (sequential ids
+// restarted at map-1, and an old worker's lease named a new piece). It is bound to the worker it
+// was leased to: ExtendLease, the upload and FailTask of another worker change nothing
+// (kNotHolder; docs/security.md, "Leases are bound to their worker").
+//
+// Pieces checked: besides its photon range and attributes, an upload's first kPhotonTracingChunk
+// photons are traced here and must equal the upload's, bit for bit (photon i depends on the map
+// seed and i alone, and a trace of [b, b + 4096) is the first part of each list of a trace of
+// [b, e)): an empty, truncated or foreign piece is refused (InputError), however well-formed. One
+// scene is kept loaded for it while maps of that scene trace. It does not prove the rest of the
+// piece: a worker holding the lease could still upload wrong photons after the first 4096.
+//
+// Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1),
+// and the failure counts against the worker in the map's job (Scheduler::PieceAttemptFailed:
+// blocklist, quarantine; a blocklisted worker is leased no pieces of that job). After failures on
+// max_attempts distinct workers, or if assembling fails, the map is left to the workers (its
+// render tasks are released without a built map and each worker traces it, as with kLocal) —
+// never stuck. Durability: pieces and built maps are files under `dir`; a restarted coordinator
+// finds them (Scan at start-up) and queues only the missing pieces. Leases are not durable (as for
+// render tasks). Nothing here touches samples: render results are merged by the Scheduler alone.
 
 #include <cstdint>
 #include <filesystem>
@@ -38,6 +53,8 @@
 #include <unordered_set>
 #include <vector>
 
+#include "common/photon/photon_chunk.h"
+#include "common/plan/scene_runtime.h"
 #include "server/jobs/job.h"
 #include "server/rpc/executor.h"
 #include "server/scheduling/clock.h"
@@ -73,7 +90,8 @@ class DistributedMaps final : public MapTracingHook {
 
   // MapTracingHook (under the scheduler's lock).
   bool RenderTaskReady(const Job& job, const TaskSpec& task) override;
-  std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now) override;
+  std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now,
+                                  const JobFilter& may_lease) override;
 
   // Lease ids of map pieces start with this (ExtendLease / FailTask route by it).
   static bool IsChunkLease(const std::string& lease_id);
@@ -88,16 +106,19 @@ class DistributedMaps final : public MapTracingHook {
   // piece lease may upload, one stream at a time. So the coordinator buffers at most one piece per
   // live piece lease (each ≤ kMaxPhotonChunkBytes), whatever a client declares or how many streams
   // it opens. EndUpload(lease) once an admitted stream is over.
-  enum class UploadAdmission { kAdmitted, kNotLive, kBusy };
-  UploadAdmission BeginUpload(const std::string& lease_id);
+  // kNotHolder: the lease is live but `worker_id` is not the worker it was leased to.
+  enum class UploadAdmission { kAdmitted, kNotLive, kBusy, kNotHolder };
+  UploadAdmission BeginUpload(const std::string& lease_id, const std::string& worker_id);
   void EndUpload(const std::string& lease_id);
 
-  enum class Accepted { kStored, kLate };
-  // A piece's bytes (checksums already verified by the RPC): parsed, checked against its lease's
-  // range, written to disk. InputError for a malformed piece (nothing stored). kLate: the lease is
-  // unknown or the piece is already in. May start the map's assembly.
-  Accepted AcceptChunk(const std::string& lease_id, const std::string& bytes);
-  ExtendResult Extend(const std::string& lease_id);
+  enum class Accepted { kStored, kLate, kNotHolder };
+  // A piece's bytes (checksums already verified by the RPC) from `worker_id`: parsed, checked
+  // against its lease's range, written to disk. InputError for a malformed piece (nothing stored).
+  // kLate: the lease is unknown or the piece is already in; kNotHolder: another worker's lease
+  // (nothing stored). May start the map's assembly.
+  Accepted AcceptChunk(const std::string& lease_id, const std::string& worker_id, const std::string& bytes);
+  // ExtendResult::not_holder: another worker's lease (not renewed).
+  ExtendResult Extend(const std::string& lease_id, const std::string& worker_id);
   // A piece lease that never reached its worker (the long poll was cancelled): queued again at
   // once, its attempt not counted, instead of idling until the lease runs out.
   void Return(const std::string& lease_id);
@@ -120,6 +141,10 @@ class DistributedMaps final : public MapTracingHook {
     std::string lease_id, worker_id;
     double deadline = 0;
     uint32_t attempts = 0;
+    // The distinct workers whose attempts failed (the piece is left to the workers after
+    // max_attempts of them, as a task fails its job: scheduler.h), and failures of no worker.
+    std::vector<std::string> failed_workers;
+    uint32_t unattributed_failures = 0;
   };
   struct Map {
     enum class State { kTracing, kBuilding, kBuilt, kLeftToWorkers } state = State::kTracing;
@@ -138,12 +163,20 @@ class DistributedMaps final : public MapTracingHook {
     std::string key;
     uint32_t chunk = 0;
   };
+  // A failed piece attempt, reported to the scheduler (its worker health) outside mu_.
+  struct PieceFailure {
+    std::string job_id, worker_id, kind, reason;
+    uint32_t piece = 0, attempt = 0;
+  };
 
   // Under mu_.
   const std::string* KeyFor(const Job& job, uint64_t map_index);  // null: not distributed
   Map& MapOf(const Job& job, uint64_t map_index, const std::string& key);
-  void RequeueLocked(Map& map, uint32_t chunk, const std::string& why,
-                     std::vector<std::pair<std::string, uint64_t>>* release);
+  // The piece's attempt failed (`kind`: piece-failed, piece-expired): queued again, the failure
+  // noted in `failures` for the scheduler.
+  void RequeueLocked(Map& map, uint32_t chunk, const std::string& kind, const std::string& why,
+                     std::vector<std::pair<std::string, uint64_t>>* release,
+                     std::vector<PieceFailure>* failures);
   void LeaveToWorkersLocked(Map& map, const std::string& why,
                             std::vector<std::pair<std::string, uint64_t>>* release);
   // A piece's file is named by its photon range, so pieces found on disk are reused only for the
@@ -152,6 +185,13 @@ class DistributedMaps final : public MapTracingHook {
   void Scan();
   void Build(const std::string& key);  // on builder_
   void Release(const std::vector<std::pair<std::string, uint64_t>>& release);
+  void Report(const std::vector<PieceFailure>& failures);
+
+  // Throws InputError if `chunk`'s first photons are not the trace of them (see the header
+  // comment); `config`/`map_seed` of its map. Call without mu_ (it loads scenes and traces).
+  void CheckFirstPhotons(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk);
+  // Drops the scene CheckFirstPhotons keeps once no map of it is tracing.
+  void ReleaseCheckSceneIfUnused();
 
   DistributedMapsOptions options_;
   const Clock& clock_;
@@ -163,7 +203,7 @@ class DistributedMaps final : public MapTracingHook {
   // only, not at every map ever created. Kept in step by SetStateLocked.
   std::map<uint64_t, std::string> tracing_;
   void SetStateLocked(Map& m, Map::State state);
-  uint64_t next_seq_ = 1, next_lease_ = 1;
+  uint64_t next_seq_ = 1;
   std::unordered_map<std::string, LeaseRef> leases_;
   std::unordered_set<std::string> uploading_;  // leases with an admitted upload stream
   // Per job and map index: the key of a distributed map.
@@ -174,6 +214,10 @@ class DistributedMaps final : public MapTracingHook {
   std::map<std::string, std::set<std::pair<uint64_t, uint64_t>>>
       chunks_on_disk_;  // photon ranges found by Scan
   Counters counters_;
+  // The scene of the last checked upload. Lock order: check_mu_, then mu_.
+  std::mutex check_mu_;
+  std::string check_scene_hash_;
+  std::shared_ptr<const SceneRuntime> check_scene_;
   // Unbounded queue: a refused Post would leave a map "building" with no build pending (its
   // render tasks held forever); a queued build is a key, and maps are bounded by the jobs.
   Executor builder_{1, std::numeric_limits<size_t>::max()};

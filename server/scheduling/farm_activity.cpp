@@ -55,6 +55,12 @@ void FarmActivity::TaskEvent(const std::string& job_id, const std::string& kind,
     w.last_seen = clock_.Now();
     return;
   }
+  const bool piece = kind.starts_with("piece-");  // task_id is a map piece's index, not a task's
+  if (piece) {
+    w.info.set_tasks_failed(w.info.tasks_failed() + 1);
+    return;
+  }
+  if (kind == "blocklisted" || kind == "quarantined") return;  // about the worker, not the task
   // Any other event ends the worker's hold on this task (if it still holds it).
   if (w.info.busy() && w.info.current_job_id() == job_id && w.info.current_task_id() == task_id) {
     w.info.set_busy(false);
@@ -79,6 +85,29 @@ void FarmActivity::WorkerStats(const std::string& worker_id, uint64_t photons_em
       w.info.busy_seconds() > 0 ? double(w.info.photons_emitted()) / w.info.busy_seconds() : 0.0);
 }
 
+void FarmActivity::WorkerLost(const std::string& worker_id, bool lost) {
+  if (worker_id.empty()) return;
+  std::lock_guard lock(mu_);
+  WorkerLocked(worker_id).info.set_lost(lost);
+}
+
+void FarmActivity::WorkerBlocklisted(const std::string& worker_id, const std::string& job_id) {
+  if (worker_id.empty()) return;
+  std::lock_guard lock(mu_);
+  Worker& w = WorkerLocked(worker_id);
+  for (const std::string& id : w.info.blocklisted_job_ids())
+    if (id == job_id) return;
+  w.info.add_blocklisted_job_ids(job_id);
+}
+
+void FarmActivity::WorkerQuarantined(const std::string& worker_id, double until, const std::string& reason) {
+  if (worker_id.empty()) return;
+  std::lock_guard lock(mu_);
+  Worker& w = WorkerLocked(worker_id);
+  w.quarantined_until = until;
+  w.info.set_quarantine_reason(reason);
+}
+
 std::vector<v1::WorkerInfo> FarmActivity::Workers() const {
   std::lock_guard lock(mu_);
   const double now = clock_.Now();
@@ -86,7 +115,13 @@ std::vector<v1::WorkerInfo> FarmActivity::Workers() const {
   out.reserve(workers_.size());
   for (const auto& [id, w] : workers_) {
     out.push_back(w.info);
-    out.back().set_seconds_since_seen(std::max(0.0, now - w.last_seen));
+    v1::WorkerInfo& info = out.back();
+    info.set_seconds_since_seen(std::max(0.0, now - w.last_seen));
+    info.set_quarantined(w.quarantined_until > now);
+    if (info.quarantined())
+      info.set_quarantine_seconds_left(w.quarantined_until - now);
+    else
+      info.clear_quarantine_reason();
   }
   return out;
 }

@@ -30,11 +30,18 @@ class FarmActivity {
   void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
                   const std::string& version, bool refused = false);
   // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned,
-  // confirmed (a result above the job's bound reproduced by another worker, then merged).
+  // confirmed (a result above the job's bound reproduced by another worker, then merged); about a
+  // map piece (task_id = the piece's index): piece-failed, piece-expired; about the worker in this
+  // job (task_id, attempt: the failure that caused it): blocklisted, quarantined.
   void TaskEvent(const std::string& job_id, const std::string& kind, uint64_t task_id, uint32_t attempt,
                  const std::string& worker_id, const std::string& detail = "");
   // The merged result's statistics (photons per second of the worker).
   void WorkerStats(const std::string& worker_id, uint64_t photons_emitted, double seconds);
+  // Worker health as the scheduler decided it (worker_health.h): lost or live again, blocklisted
+  // for a job, quarantined until `until` (Clock::Now seconds) for `reason`.
+  void WorkerLost(const std::string& worker_id, bool lost);
+  void WorkerBlocklisted(const std::string& worker_id, const std::string& job_id);
+  void WorkerQuarantined(const std::string& worker_id, double until, const std::string& reason);
 
   std::vector<photonfarm::v1::WorkerInfo> Workers() const;
   // Events of `job_id`, oldest first; `dropped` = older events no longer kept. Empty for a job
@@ -45,6 +52,7 @@ class FarmActivity {
   struct Worker {
     photonfarm::v1::WorkerInfo info;
     double last_seen = 0;
+    double quarantined_until = 0;
   };
   struct JobEvents {
     std::deque<photonfarm::v1::TaskEvent> events;

@@ -1,7 +1,9 @@
 #pragma once
 // The lease table of a Scheduler (server/scheduling/scheduler.h): which lease id stands for which
-// task of which job. A lease id is the worker's only proof that it holds a task, so it carries
-// 128 random bits from the CSPRNG besides the job, task and attempt it names.
+// task of which job. A lease id is the worker's proof that it holds a task, with the worker id it
+// was leased to (the Scheduler checks both: docs/security.md, "Leases are bound to their
+// worker"), so it carries 128 random bits from the CSPRNG besides the job, task and attempt it
+// names.
 //
 // Deadlines and attempts live in the task's TaskRuntime (server/jobs/job.h); this table only maps
 // ids to tasks and finds the ones that ran out. Not thread-safe (the Scheduler's lock guards it).

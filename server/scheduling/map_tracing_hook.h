@@ -5,6 +5,7 @@
 // (distributed_maps.h); a Scheduler without one behaves as before.
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -32,7 +33,10 @@ class MapTracingHook {
   // the scheduler holds it back until Scheduler::ReleaseMap(job, map index).
   virtual bool RenderTaskReady(const Job& job, const TaskSpec& task) = 0;
   // A piece of a map to trace, as a lease with Lease::chunk set; served before render tasks.
-  virtual std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now) = 0;
+  // Only of jobs `may_lease(job_id)` allows (worker health: not blocklisted for the job; null: any).
+  using JobFilter = std::function<bool(const std::string& job_id)>;
+  virtual std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now,
+                                          const JobFilter& may_lease) = 0;
 };
 
 }  // namespace pf::server

@@ -34,9 +34,18 @@ v1::JobState ToProto(JobState s) {
 }  // namespace
 
 Scheduler::Scheduler(const Clock& clock, SchedulerOptions options, TaskSourceFactory task_sources)
-    : clock_(clock), options_(options), task_sources_(std::move(task_sources)), activity_(clock) {
+    : clock_(clock),
+      options_(options),
+      task_sources_(std::move(task_sources)),
+      health_(WorkerHealthOptions{.blocklist_failures = options.blocklist_failures,
+                                  .quarantine_jobs = options.quarantine_jobs,
+                                  .quarantine_seconds = options.quarantine_seconds,
+                                  .lost_seconds = 2 * options.lease_seconds}),
+      activity_(clock) {
   if (!(options_.lease_seconds > 0)) throw std::invalid_argument("Scheduler: lease_seconds must be > 0");
   if (options_.max_attempts < 1) throw std::invalid_argument("Scheduler: max_attempts must be >= 1");
+  if (!(options_.quarantine_seconds >= 0))
+    throw std::invalid_argument("Scheduler: quarantine_seconds must be >= 0");
 }
 
 Scheduler::~Scheduler() = default;
@@ -89,12 +98,17 @@ void Scheduler::Dequeue(Job& job, uint64_t task_id) {
 
 void Scheduler::ServeWaiters(Effects& fx) {
   const double now = clock_.Now();
-  while (!waiters_.empty() && (!queue_.empty() || map_hook_)) {
-    auto it = waiters_.begin();
-    std::optional<Lease> lease = LeaseLocked(it->second.request, now, fx);
-    if (!lease) break;
-    fx.callbacks.emplace_back(std::move(it->second.done), std::move(lease));
-    waiters_.erase(it);
+  for (auto it = waiters_.begin(); it != waiters_.end() && (!queue_.empty() || map_hook_);) {
+    bool restricted = false;
+    std::optional<Lease> lease = LeaseLocked(it->second.request, now, fx, &restricted);
+    if (lease) {
+      fx.callbacks.emplace_back(std::move(it->second.done), std::move(lease));
+      it = waiters_.erase(it);
+    } else if (restricted) {
+      ++it;  // what this worker passed by may be another waiter's
+    } else {
+      break;  // nothing for a worker that passes nothing by: nothing for anyone
+    }
   }
 }
 
@@ -121,23 +135,76 @@ bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
   return true;
 }
 
-std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double now, Effects& fx) {
+std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double now, Effects& fx,
+                                            bool* restricted) {
   if (shutdown_) return std::nullopt;
   ++counters_.lease_attempts;
-  if (map_hook_)
-    if (std::optional<Lease> chunk = map_hook_->LeaseChunk(request, now)) return chunk;
-  while (!queue_.empty()) {
-    Job& job = queue_.FrontJob();
-    if (CheckTimeBudget(job, now, fx)) continue;  // its queue is gone now
-    const TaskQueue::Pick chosen = queue_.Choose(job, request.cached_map_seeds);
-    const uint64_t pick = chosen.task_id;
-    const bool affinity = chosen.map_cached;
+  const std::string& worker = request.worker_id;
+  bool passed = false;  // work this worker may not take that another might
+  PolledLocked(worker, now);
+  if (health_.Quarantined(worker, now)) {
+    if (restricted) *restricted = true;
+    return std::nullopt;
+  }
+  // A worker with no failed attempt in a running job is blocklisted nowhere and avoids nothing:
+  // it skips the checks below (the lease path of a healthy farm).
+  const bool failed_before = health_.FailedInActiveJob(worker);
+  if (map_hook_) {
+    MapTracingHook::JobFilter may_lease;
+    if (failed_before)
+      may_lease = [&](const std::string& job_id) {
+        if (!health_.IsBlocklisted(job_id, worker)) return true;
+        passed = true;
+        return false;
+      };
+    if (std::optional<Lease> chunk = map_hook_->LeaseChunk(request, now, may_lease)) {
+      chunk->worker_id = worker;
+      return chunk;
+    }
+  }
+  std::optional<TaskQueue::Position> after;  // jobs up to here have nothing for this worker
+  while (Job* next = queue_.NextJob(after)) {
+    Job& job = *next;
+    if (CheckTimeBudget(job, now, fx)) continue;  // its queue is gone, or only the tasks it keeps
+    if (failed_before && health_.IsBlocklisted(job.id(), worker)) {
+      passed = true;
+      // This worker is live and may not run the job: if no other live worker may, nobody will
+      // (the other workers were lost since it was blocklisted).
+      if (const std::string none = NoWorkerLeft(job); !none.empty()) {
+        const std::string why = "gave up: " + none;
+        FinishJob(job, JobState::kFailed, why, now, fx);
+        spdlog::error("job {}: failed: {}", job.id(), why);
+        continue;  // its queue is gone
+      }
+      after = TaskQueue::PositionOf(job);
+      continue;
+    }
+    // A retry goes to another worker first: one that failed the task leaves it while another
+    // worker that may take it waits for work (docs/farm.md, "Worker health").
+    TaskQueue::Avoid avoid;
+    if (failed_before)
+      avoid = [&](uint64_t task_id) {
+        const TaskRuntime& rt = job.runtime(task_id);
+        if (std::find(rt.failed_workers.begin(), rt.failed_workers.end(), worker) ==
+                rt.failed_workers.end() ||
+            !AnotherWaiterCanTake(job, rt, worker, now))
+          return false;
+        passed = true;
+        return true;
+      };
+    const std::optional<TaskQueue::Pick> chosen = queue_.Choose(job, request.cached_map_seeds, avoid);
+    if (!chosen) {
+      after = TaskQueue::PositionOf(job);
+      continue;
+    }
+    const uint64_t pick = chosen->task_id;
+    const bool affinity = chosen->map_cached;
     Dequeue(job, pick);
     job.SetTaskState(pick, TaskState::kLeased);
     TaskRuntime& rt = job.runtime(pick);
     ++rt.attempts;
     rt.lease_id = leases_.Issue(job, pick, rt.attempts);
-    rt.worker_id = request.worker_id;
+    rt.worker_id = worker;
     rt.lease_deadline = now + options_.lease_seconds;
     rt.progress = 0;
     if (job.state() == JobState::kQueued) {
@@ -147,12 +214,12 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     ++counters_.leases;
     Touch(job, fx);
     spdlog::info("job {} task {}: leased to {} (attempt {}{})", job.id(), pick,
-                 limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), rt.attempts,
+                 limits::Quote(worker, limits::kMaxWorkerIdBytes), rt.attempts,
                  affinity ? ", map cached" : "");
-    activity_.TaskEvent(job.id(), "leased", pick, rt.attempts, request.worker_id,
-                        affinity ? "map cached" : "");
+    activity_.TaskEvent(job.id(), "leased", pick, rt.attempts, worker, affinity ? "map cached" : "");
     Lease lease;
     lease.lease_id = rt.lease_id;
+    lease.worker_id = worker;
     lease.job_id = job.id();
     lease.task_id = pick;
     lease.attempt = rt.attempts;
@@ -161,6 +228,7 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
     lease.config = job.shared_config();
     return lease;
   }
+  if (restricted) *restricted = passed;
   return std::nullopt;
 }
 
@@ -263,6 +331,12 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
     if (budget > 0 && eta >= 0) eta = std::min(eta, std::max(0.0, budget - elapsed));
   }
   s.set_eta_seconds(eta);
+  for (const auto& [worker, entry] : health_.BlocklistOf(job.id())) {
+    v1::BlocklistedWorker* b = s.add_blocklisted_workers();
+    b->set_worker_id(worker);
+    b->set_failed_attempts(entry.failed_attempts);
+    b->set_last_error(entry.last_error);
+  }
   return s;
 }
 
@@ -391,6 +465,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
   if (state == JobState::kSucceeded && job.state() == JobState::kQueued)
     job.TransitionTo(JobState::kRunning, now);
   job.TransitionTo(state, now, reason);
+  health_.JobEnded(job.id());
   // The final noise estimate is an O(pixels) pass: computed off this lock by the next status,
   // snapshot or persist (RefreshNoise, CollectPersistBatch), whichever comes first.
   Touch(job, fx);
@@ -470,34 +545,56 @@ LeaseTable::Entry* Scheduler::FindLiveLease(const std::string& lease_id, double 
   const uint64_t task_id = entry->task_id;
   // A pinned lease's result arrived in time and is being merged: it decides the attempt.
   if (now >= job.runtime(task_id).lease_deadline && !job.runtime(task_id).merging) {
-    ++counters_.expired;
-    activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
-                        job.runtime(task_id).worker_id);
-    FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now, fx);
+    ExpireLease(job, task_id, now, fx);
     return nullptr;
   }
   return entry;
 }
 
-ExtendResult Scheduler::Extend(const std::string& lease_id, double progress) {
+void Scheduler::ExpireLease(Job& job, uint64_t task_id, double now, Effects& fx) {
+  const TaskRuntime& rt = job.runtime(task_id);
+  const std::string worker = rt.worker_id;
+  ++counters_.expired;
+  std::string detail;
+  if (health_.LeaseRanOut(worker, rt.lease_deadline - options_.lease_seconds, now)) {
+    detail = "no call from the worker since the lease was renewed: marked lost";
+    activity_.WorkerLost(worker, true);
+    spdlog::warn(
+        "worker {}: lost: its lease of job {} task {} ran out with no call from it since it was renewed",
+        limits::Quote(worker, limits::kMaxWorkerIdBytes), job.id(), task_id);
+  }
+  activity_.TaskEvent(job.id(), "expired", task_id, rt.attempts, worker, detail);
+  FailAttempt(job, task_id, "lease expired (worker " + worker + ")", true, now, fx);
+}
+
+ExtendResult Scheduler::Extend(const std::string& lease_id, const std::string& worker_id, double progress) {
   Effects fx;
   ExtendResult result;
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
+    HeardLocked(worker_id, now);
     if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       TaskRuntime& rt = ref->job->runtime(ref->task_id);
-      rt.lease_deadline = now + options_.lease_seconds;
-      rt.progress = std::isfinite(progress) ? std::clamp(progress, 0.0, 1.0) : 0.0;
-      result = {true, options_.lease_seconds};
+      if (rt.worker_id != worker_id) {
+        // A lease id that reached another worker does not keep the task from being re-run.
+        result.not_holder = true;
+        spdlog::warn("job {} task {}: ExtendLease from worker {} refused: the lease is held by {}",
+                     ref->job->id(), ref->task_id, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
+                     rt.worker_id);
+      } else {
+        rt.lease_deadline = now + options_.lease_seconds;
+        rt.progress = std::isfinite(progress) ? std::clamp(progress, 0.0, 1.0) : 0.0;
+        result = {true, options_.lease_seconds};
+      }
     }
   }
   Run(fx);
   return result;
 }
 
-CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const float> rgb_sums,
-                                   RadiancePart part) {
+CompleteResult Scheduler::Complete(const std::string& lease_id, const std::string& worker_id,
+                                   std::span<const float> rgb_sums, RadiancePart part) {
   Effects fx;
   CompleteResult result;
   // 1. Claim (global lock, O(1)): the lease must be live; it is pinned (TaskRuntime::merging) so
@@ -508,8 +605,18 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, std::span<const 
   bool needs_accumulator = false;  // read under the lock: the pointer changes under both locks
   {
     std::lock_guard lock(mu_);
-    LeaseTable::Entry* ref = FindLiveLease(lease_id, clock_.Now(), fx);
-    if (!ref || ref->job->runtime(ref->task_id).merging) {
+    const double now = clock_.Now();
+    HeardLocked(worker_id, now);
+    LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx);
+    if (ref && ref->job->runtime(ref->task_id).worker_id != worker_id) {
+      // Another worker's result for this lease is not the holder's: nothing is merged, and the
+      // holder's lease stays as it is.
+      result.status = CompleteStatus::kNotHolder;
+      result.reason = "the lease is held by another worker";
+      spdlog::warn("job {} task {}: result from worker {} refused: the lease is held by {}", ref->job->id(),
+                   ref->task_id, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
+                   ref->job->runtime(ref->task_id).worker_id);
+    } else if (!ref || ref->job->runtime(ref->task_id).merging) {
       ++counters_.ignored;
       result.reason =
           ref ? "a result for this lease is already being merged" : "unknown, expired or finished lease";
@@ -716,8 +823,14 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
   ++counters_.failed_attempts;
   rt.last_error = reason;
   const uint32_t attempt = rt.attempts;
+  const std::string worker = rt.worker_id;
+  if (worker.empty())
+    ++rt.unattributed_failures;
+  else if (std::find(rt.failed_workers.begin(), rt.failed_workers.end(), worker) == rt.failed_workers.end())
+    rt.failed_workers.push_back(worker);
   Touch(job, fx);
   if (!job.active()) return;
+  const bool blocklisted = CountFailure(job, worker, task_id, attempt, reason, now);
   if (job.stopping && job.task(task_id).part != RadiancePart::kUnmapped) {  // see CheckTimeBudget
     job.SetTaskState(task_id, TaskState::kCancelled);
     spdlog::info("job {} task {}: attempt {} ended ({}); not retried (time budget reached)", job.id(),
@@ -725,11 +838,30 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
     MaybeSucceed(job, now, fx);
     return;
   }
-  if (!retryable || rt.failures >= options_.max_attempts) {
-    const std::string why = "task " + std::to_string(task_id) + " attempt " + std::to_string(attempt) +
-                            " failed: " + reason +
-                            (retryable ? "; gave up after " + std::to_string(rt.failures) + " failed attempts"
-                                       : " (not retryable)");
+  // A task fails its job on failures on max_attempts distinct workers, not on max_attempts
+  // failures: one bad worker must not use up the attempts while good workers are busy. What bounds
+  // the retries of a task every worker fails is the blocklist: each worker fails it at most
+  // blocklist_failures times, then, with no worker left, the job fails.
+  const std::string failed =
+      "task " + std::to_string(task_id) + " attempt " + std::to_string(attempt) + " failed: " + reason;
+  const uint32_t distinct = uint32_t(rt.failed_workers.size()) + rt.unattributed_failures;
+  std::string why;
+  if (!retryable) {
+    why = failed + " (not retryable)";
+  } else if (distinct >= options_.max_attempts) {
+    std::string names;
+    for (const std::string& w : rt.failed_workers) names += (names.empty() ? "" : ", ") + w;
+    why = failed + "; gave up after " + std::to_string(rt.failures) + " failed attempts on " +
+          std::to_string(distinct) + " workers (" + names +
+          (rt.unattributed_failures ? (names.empty() ? "" : "; ") + std::to_string(rt.unattributed_failures) +
+                                          " not attributed to a worker"
+                                    : "") +
+          ")";
+  } else if (blocklisted) {
+    if (const std::string none = NoWorkerLeft(job); !none.empty())
+      why = failed + "; gave up after " + std::to_string(rt.failures) + " failed attempts: " + none;
+  }
+  if (!why.empty()) {
     job.SetTaskState(task_id, TaskState::kCancelled);
     FinishJob(job, JobState::kFailed, why, now, fx);
     spdlog::error("job {}: failed: {}", job.id(), why);
@@ -737,9 +869,99 @@ void Scheduler::FailAttempt(Job& job, uint64_t task_id, const std::string& reaso
   }
   job.SetTaskState(task_id, TaskState::kQueued);
   Enqueue(job, task_id, fx);
-  spdlog::warn("job {} task {}: attempt {} failed ({}); re-queued ({} of {} attempts failed)", job.id(),
-               task_id, attempt, reason, rt.failures, options_.max_attempts);
+  spdlog::warn("job {} task {}: attempt {} failed ({}); re-queued (failed on {} of {} workers)", job.id(),
+               task_id, attempt, reason, distinct, options_.max_attempts);
   ServeWaiters(fx);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Worker health (worker_health.h)
+
+void Scheduler::PolledLocked(const std::string& worker_id, double now) {
+  if (!health_.Polled(worker_id, now)) return;
+  activity_.WorkerLost(worker_id, false);
+  spdlog::info("worker {}: live again (it called)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
+}
+
+void Scheduler::HeardLocked(const std::string& worker_id, double now) {
+  if (!health_.Heard(worker_id, now)) return;
+  activity_.WorkerLost(worker_id, false);
+  spdlog::info("worker {}: live again (it called)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
+}
+
+bool Scheduler::CountFailure(Job& job, const std::string& worker_id, uint64_t task_id, uint32_t attempt,
+                             const std::string& reason, double now) {
+  const WorkerHealth::FailureOutcome out = health_.RecordFailure(job.id(), worker_id, reason, now);
+  const std::string who = limits::Quote(worker_id, limits::kMaxWorkerIdBytes);
+  if (out.blocklisted) {
+    spdlog::warn(
+        "job {}: worker {} blocklisted after {} failed attempts in this job (last: {}): it gets no "
+        "more of its tasks or map pieces",
+        job.id(), who, out.failed_attempts, reason);
+    activity_.TaskEvent(job.id(), "blocklisted", task_id, attempt, worker_id,
+                        "after " + std::to_string(out.failed_attempts) +
+                            " failed attempts in this job: no more of its tasks or map pieces");
+    activity_.WorkerBlocklisted(worker_id, job.id());
+  }
+  if (out.quarantined) {
+    const double seconds = health_.options().quarantine_seconds;
+    spdlog::error("worker {}: quarantined for {:.0f} s, no leases of any job: {}", who, seconds,
+                  out.quarantine_reason);
+    activity_.TaskEvent(
+        job.id(), "quarantined", task_id, attempt, worker_id,
+        "no leases of any job for " + std::to_string(int64_t(seconds)) + " s: " + out.quarantine_reason);
+    activity_.WorkerQuarantined(worker_id, now + seconds, out.quarantine_reason);
+  }
+  return out.blocklisted;
+}
+
+std::string Scheduler::NoWorkerLeft(const Job& job) const {
+  const auto& blocklist = health_.BlocklistOf(job.id());
+  // A job no worker was ever blocklisted for waits for workers, as any job does.
+  if (blocklist.empty() || health_.AnyLiveWorkerMayRun(job.id())) return "";
+  std::string names;
+  for (const auto& [worker, entry] : blocklist)
+    names += (names.empty() ? "" : ", ") + worker + " after " + std::to_string(entry.failed_attempts) +
+             " failed attempts";
+  return "no worker left to run the job: blocklisted for it: " + names + "; no other live worker";
+}
+
+bool Scheduler::AnotherWaiterCanTake(const Job& job, const TaskRuntime& rt, const std::string& worker_id,
+                                     double now) const {
+  for (const auto& [id, waiter] : waiters_) {
+    const std::string& other = waiter.request.worker_id;
+    if (other == worker_id || health_.Quarantined(other, now) || health_.IsBlocklisted(job.id(), other) ||
+        std::find(rt.failed_workers.begin(), rt.failed_workers.end(), other) != rt.failed_workers.end())
+      continue;
+    return true;
+  }
+  return false;
+}
+
+void Scheduler::Heard(const std::string& worker_id) {
+  std::lock_guard lock(mu_);
+  HeardLocked(worker_id, clock_.Now());
+}
+
+void Scheduler::PieceAttemptFailed(const std::string& job_id, const std::string& worker_id, uint32_t piece,
+                                   uint32_t attempt, const std::string& kind, const std::string& reason) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    if (Job* job = jobs_.Find(job_id)) {
+      activity_.TaskEvent(job_id, kind, piece, attempt, worker_id, reason);
+      if (job->active() && CountFailure(*job, worker_id, piece, attempt, reason, now)) {
+        if (const std::string none = NoWorkerLeft(*job); !none.empty()) {
+          const std::string why = "map piece " + std::to_string(piece) + " attempt " +
+                                  std::to_string(attempt) + " failed: " + reason + "; gave up: " + none;
+          FinishJob(*job, JobState::kFailed, why, now, fx);
+          spdlog::error("job {}: failed: {}", job_id, why);
+        }
+      }
+    }
+  }
+  Run(fx);
 }
 
 FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& worker_id,
@@ -749,6 +971,7 @@ FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& work
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
+    HeardLocked(worker_id, now);
     if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       const TaskRuntime& rt = ref->job->runtime(ref->task_id);
       if (rt.merging) {
@@ -803,17 +1026,20 @@ void Scheduler::Tick() {
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
+    // A long poll still open is a call in progress: a worker waiting for work is not silent.
+    for (const auto& [id, waiter] : waiters_) PolledLocked(waiter.request.worker_id, now);
     for (const std::string& id : leases_.Expired(now)) {
       LeaseTable::Entry* entry = leases_.Find(id);
       if (!entry) continue;  // its job ended meanwhile
       Job& job = *entry->job;
       const uint64_t task_id = entry->task_id;
       if (job.runtime(task_id).merging) continue;  // its result arrived in time (Complete)
-      ++counters_.expired;
-      activity_.TaskEvent(job.id(), "expired", task_id, job.runtime(task_id).attempts,
-                          job.runtime(task_id).worker_id);
-      FailAttempt(job, task_id, "lease expired (worker " + job.runtime(task_id).worker_id + ")", true, now,
-                  fx);
+      ExpireLease(job, task_id, now, fx);
+    }
+    for (const auto& [worker, silent] : health_.MarkSilentLost(now)) {
+      activity_.WorkerLost(worker, true);
+      spdlog::warn("worker {}: lost: no call for {:.0f} s", limits::Quote(worker, limits::kMaxWorkerIdBytes),
+                   silent);
     }
     for (Job* job : jobs_.InSubmissionOrder()) {
       if (job->active() && job->config().stop.time_budget_seconds > 0) CheckTimeBudget(*job, now, fx);

@@ -10,15 +10,26 @@
 //   task_queue.h   queued tasks: priority, then submission order, then map affinity
 //   lease_table.h  lease id → task; which leases ran out
 //   stop_rules.h   max rounds, time budget, target noise
+//   worker_health.h  blocklists per job, quarantine, lost workers: who may get which work
 //   farm_activity.h  workers and task events, for people
 //
 // Leases. A lease lasts lease_seconds; ExtendLease (heartbeat) renews it to now + lease_seconds.
-// A lease that runs out (checked on every Tick and whenever the lease is used) ends the attempt:
-// the task goes back to the queue and its next lease is attempt + 1. So does FailTask(retryable)
-// and a rejected result (wrong size, NaN/Inf). After max_attempts failed attempts of one task,
-// or one FailTask(retryable = false), the job FAILS with the reason; its other tasks are
-// cancelled. A lease handed to a long poll whose caller is already gone is returned without
-// counting a failure (ReturnLease).
+// A lease belongs to the worker it was leased to: Extend, Complete and Fail name the caller's
+// worker id, and another worker's call changes nothing (kNotHolder; docs/security.md). A lease
+// that runs out (checked on every Tick and whenever the lease is used) ends the attempt: the task
+// goes back to the queue and its next lease is attempt + 1. So does FailTask(retryable) and a
+// rejected result (wrong size, NaN/Inf).
+//
+// Attempts and worker health (worker_health.h, docs/farm.md "Worker health"). A failed attempt
+// counts against its worker: after blocklist_failures of them in one job the worker gets no more
+// of that job's work (tasks and map pieces), and a worker blocklisted by quarantine_jobs jobs in
+// quarantine_seconds gets nothing for quarantine_seconds. A task fails its job only after failed
+// attempts on max_attempts *distinct* workers, or when no live worker is left that is not
+// blocklisted for the job (so a one-worker farm still fails a broken job after blocklist_failures
+// attempts), or on one FailTask(retryable = false); the job FAILS with the reason and its other
+// tasks are cancelled. A retry goes to another waiting worker before the one that failed it. A
+// lease handed to a long poll whose caller is already gone is returned without counting a
+// failure (ReturnLease).
 //
 // Results. Only the current lease of a task can deliver its result; a task is merged at most
 // once. A result for an unknown, expired, replaced or already-merged lease is answered
@@ -73,6 +84,7 @@
 #include "server/scheduling/map_tracing_hook.h"
 #include "server/scheduling/task_queue.h"
 #include "server/scheduling/task_source.h"
+#include "server/scheduling/worker_health.h"
 #include "server/store/persist_source.h"
 #include "server/store/records.h"
 
@@ -83,7 +95,11 @@ inline constexpr double kElapsedPersistSeconds = 1.0;
 
 struct SchedulerOptions {
   double lease_seconds = 30;
-  uint32_t max_attempts = 3;
+  uint32_t max_attempts = 3;  // distinct workers a task may fail on before its job fails
+  // Worker health (worker_health.h); a worker is lost after 2 × lease_seconds of silence.
+  uint32_t blocklist_failures = 3;  // failed attempts in one job that blocklist a worker for it
+  uint32_t quarantine_jobs = 3;     // blocklisted by this many jobs within quarantine_seconds: quarantined
+  double quarantine_seconds = 900;
   double noise_check_interval = 0.5;  // seconds between noise estimates of one job
   // Stamped into every job's stored spec (JobSpec.plan.build): the coordinator's PF_VERSION.
   std::string build = {};
@@ -96,6 +112,7 @@ struct LeaseRequest {
 
 struct Lease {
   std::string lease_id;
+  std::string worker_id;  // the holder (LeaseRequest.worker_id)
   std::string job_id;
   uint64_t task_id = 0;
   uint32_t attempt = 0;
@@ -110,9 +127,10 @@ enum class FailOutcome { kFailed, kUnknownLease, kNotHolder };
 struct ExtendResult {
   bool ok = false;
   double lease_seconds = 0;
+  bool not_holder = false;  // the lease is live but another worker's: nothing changed
 };
 
-enum class CompleteStatus { kMerged, kIgnored, kRejected };
+enum class CompleteStatus { kMerged, kIgnored, kRejected, kNotHolder };
 struct CompleteResult {
   CompleteStatus status = CompleteStatus::kIgnored;
   std::string reason;  // why ignored / rejected
@@ -177,12 +195,15 @@ class Scheduler final : public PersistSource {
   // returning), or with nullopt when `wait_seconds` pass, on CancelWait or on Shutdown.
   uint64_t LeaseOrWait(const LeaseRequest& request, double wait_seconds, LeaseCallback done);
   void CancelWait(uint64_t waiter_id);
-  ExtendResult Extend(const std::string& lease_id, double progress);
+  // `worker_id` must be the lease's holder (LeaseRequest.worker_id), else not_holder and nothing
+  // changes.
+  ExtendResult Extend(const std::string& lease_id, const std::string& worker_id, double progress);
   // Validates and merges (see the header comment). Never throws for bad results: kRejected.
+  // `worker_id` must be the lease's holder: kNotHolder (nothing merged, the lease untouched).
   // `part`: the part of the radiance the worker says it rendered (CompleteTaskRequest.part); a
   // result for another part than the task's is rejected (an old worker ignores Task.part).
-  CompleteResult Complete(const std::string& lease_id, std::span<const float> rgb_sums,
-                          RadiancePart part = RadiancePart::kAll);
+  CompleteResult Complete(const std::string& lease_id, const std::string& worker_id,
+                          std::span<const float> rgb_sums, RadiancePart part = RadiancePart::kAll);
   // Tests only: runs inside Complete between the check and the commit (no lock held), so a test
   // can expire, cancel or complete other leases while a result is in flight. Set before use.
   void SetBeforeCommitHookForTest(std::function<void(const std::string& lease_id)> hook);
@@ -193,6 +214,12 @@ class Scheduler final : public PersistSource {
                    bool retryable);
   // A lease that never reached its worker: back to the queue, no failure counted.
   void ReturnLease(const std::string& lease_id);
+  // A call from the worker outside this class (map piece RPCs): it is live.
+  void Heard(const std::string& worker_id);
+  // A map piece's attempt failed (DistributedMaps; `kind`: piece-failed, piece-expired): it counts
+  // against the worker in the job like a task's (blocklist, quarantine, no worker left).
+  void PieceAttemptFailed(const std::string& job_id, const std::string& worker_id, uint32_t piece,
+                          uint32_t attempt, const std::string& kind, const std::string& reason);
 
   // --- Time --- expires leases, long polls and time budgets. Call periodically.
   void Tick();
@@ -244,7 +271,26 @@ class Scheduler final : public PersistSource {
   void Enqueue(Job& job, uint64_t task_id, Effects& fx);
   void Dequeue(Job& job, uint64_t task_id);
   void ServeWaiters(Effects& fx);
-  std::optional<Lease> LeaseLocked(const LeaseRequest& request, double now, Effects& fx);
+  // `restricted` (if set) is set when the worker passed work by that another might take (it is
+  // quarantined, blocklisted for a job, or left a retry to a waiting worker).
+  std::optional<Lease> LeaseLocked(const LeaseRequest& request, double now, Effects& fx,
+                                   bool* restricted = nullptr);
+  // Worker health (worker_health.h): a poll (it makes the worker known), any other call.
+  void PolledLocked(const std::string& worker_id, double now);
+  void HeardLocked(const std::string& worker_id, double now);
+  // A failed attempt of `worker_id` in the job: blocklist and quarantine. True if it just got
+  // blocklisted for the job.
+  bool CountFailure(Job& job, const std::string& worker_id, uint64_t task_id, uint32_t attempt,
+                    const std::string& reason, double now);
+  // "" while a live worker not blocklisted for the job is left, else why none is (naming the
+  // blocklisted workers).
+  std::string NoWorkerLeft(const Job& job) const;
+  // Whether a parked long poll of another worker could take this retry (not blocklisted or
+  // quarantined, not one that failed the task already).
+  bool AnotherWaiterCanTake(const Job& job, const TaskRuntime& rt, const std::string& worker_id,
+                            double now) const;
+  // The lease of the task ran out: the attempt fails (and its worker may be lost).
+  void ExpireLease(Job& job, uint64_t task_id, double now, Effects& fx);
   bool CheckTimeBudget(Job& job, double now, Effects& fx);
   // A result above the job's bound: "" if it reproduces, bit for bit, the last such result of the
   // task from another worker (then it is merged), else the reason it is rejected (and records it).
@@ -282,6 +328,7 @@ class Scheduler final : public PersistSource {
   uint64_t next_waiter_ = 1;
   bool shutdown_ = false;
   SchedulerCounters counters_;
+  WorkerHealth health_;
   FarmActivity activity_;
   std::function<void(const std::string&)> change_listener_;
   std::function<void()> persist_listener_;

@@ -4,7 +4,7 @@ namespace pf::server {
 
 void TaskQueue::Push(Job& job, uint64_t task_id) {
   JobQueue& q = queues_[&job];
-  if (q.ids.empty() && !held_.count(&job)) ready_[Key(job)] = &job;
+  if (q.ids.empty() && !held_.count(&job)) ready_[PositionOf(job)] = &job;
   q.ids.insert(task_id);
   q.by_seed[job.task(task_id).map_seed].insert(task_id);
 }
@@ -20,30 +20,50 @@ void TaskQueue::Remove(Job& job, uint64_t task_id) {
     if (sit->second.empty()) q.by_seed.erase(sit);
   }
   if (q.ids.empty()) {
-    ready_.erase(Key(job));
+    ready_.erase(PositionOf(job));
     queues_.erase(qit);
   }
 }
 
 void TaskQueue::Hold(const Job& job) {
   held_.insert(&job);
-  ready_.erase(Key(job));
+  ready_.erase(PositionOf(job));
 }
 
 void TaskQueue::Unhold(Job& job) {
   if (!held_.erase(&job)) return;
-  if (auto it = queues_.find(&job); it != queues_.end() && !it->second.ids.empty()) ready_[Key(job)] = &job;
+  if (auto it = queues_.find(&job); it != queues_.end() && !it->second.ids.empty())
+    ready_[PositionOf(job)] = &job;
 }
 
-TaskQueue::Pick TaskQueue::Choose(const Job& job, std::span<const uint64_t> cached_map_seeds) const {
+TaskQueue::Position TaskQueue::PositionOf(const Job& job) {
+  return {-int64_t(job.config().priority), job.seq()};
+}
+
+Job* TaskQueue::NextJob(const std::optional<Position>& after) const {
+  auto it = after ? ready_.upper_bound(*after) : ready_.begin();
+  return it == ready_.end() ? nullptr : it->second;
+}
+
+std::optional<TaskQueue::Pick> TaskQueue::Choose(const Job& job, std::span<const uint64_t> cached_map_seeds,
+                                                 const Avoid& avoid) const {
   const JobQueue& q = queues_.at(&job);
-  Pick pick{*q.ids.begin(), false};
+  // The lowest id not avoided in `ids` (avoided tasks are few: a worker's own failed tasks).
+  const auto first = [&](const std::set<uint64_t>& ids) -> std::optional<uint64_t> {
+    for (uint64_t id : ids)
+      if (!avoid || !avoid(id)) return id;
+    return std::nullopt;
+  };
+  std::optional<Pick> pick;
+  if (const std::optional<uint64_t> id = first(q.ids)) pick = Pick{*id, false};
+  if (!pick) return std::nullopt;
   for (uint64_t seed : cached_map_seeds) {
     auto it = q.by_seed.find(seed);
     if (it == q.by_seed.end() || it->second.empty()) continue;
-    const uint64_t candidate = *it->second.begin();
-    if (!pick.map_cached || candidate < pick.task_id) pick.task_id = candidate;
-    pick.map_cached = true;
+    const std::optional<uint64_t> candidate = first(it->second);
+    if (!candidate) continue;
+    if (!pick->map_cached || *candidate < pick->task_id) pick->task_id = *candidate;
+    pick->map_cached = true;
   }
   return pick;
 }

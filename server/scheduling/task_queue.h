@@ -7,11 +7,17 @@
 // are adjacent in the plan). Affinity never crosses jobs: a map seed means a map only together
 // with the job's scene and settings.
 //
+// A worker may have to pass some jobs or tasks by (worker health, worker_health.h: blocklisted for
+// the job; a retry left to another worker): the Scheduler walks the jobs in order (NextJob) and
+// passes Choose what to avoid.
+//
 // Only bookkeeping: task and job states are the Scheduler's. Not thread-safe (the Scheduler's
 // lock guards it).
 
 #include <cstdint>
+#include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <span>
 #include <unordered_map>
@@ -26,6 +32,9 @@ class TaskQueue {
     uint64_t task_id = 0;
     bool map_cached = false;  // chosen by map affinity
   };
+  // A job's place in the order: (−priority, submission sequence).
+  using Position = std::pair<int64_t, uint64_t>;
+  using Avoid = std::function<bool(uint64_t task_id)>;
 
   void Push(Job& job, uint64_t task_id);
   // No-op if the task is not queued.
@@ -36,10 +45,14 @@ class TaskQueue {
   void Unhold(Job& job);
 
   bool empty() const { return ready_.empty(); }
-  // The job to serve next (highest priority, then oldest); requires !empty().
-  Job& FrontJob() const { return *ready_.begin()->second; }
-  // The task of `job` a worker with these cached map seeds gets (not removed); requires queued tasks.
-  Pick Choose(const Job& job, std::span<const uint64_t> cached_map_seeds) const;
+  // The first job with queued tasks after `after` in the order (from the first if nullopt);
+  // nullptr if none.
+  Job* NextJob(const std::optional<Position>& after) const;
+  static Position PositionOf(const Job& job);
+  // The task of `job` a worker with these cached map seeds gets (not removed), passing by the
+  // tasks `avoid` names; nullopt if it avoids them all. Requires queued tasks.
+  std::optional<Pick> Choose(const Job& job, std::span<const uint64_t> cached_map_seeds,
+                             const Avoid& avoid = nullptr) const;
 
  private:
   struct JobQueue {
@@ -47,12 +60,8 @@ class TaskQueue {
     std::unordered_map<uint64_t, std::set<uint64_t>> by_seed;
   };
   std::unordered_map<const Job*, JobQueue> queues_;
-  std::map<std::pair<int64_t, uint64_t>, Job*>
-      ready_;  // (−priority, seq) of jobs with queued tasks, not held
+  std::map<Position, Job*> ready_;  // jobs with queued tasks, not held
   std::set<const Job*> held_;
-  static std::pair<int64_t, uint64_t> Key(const Job& job) {
-    return {-int64_t(job.config().priority), job.seq()};
-  }
 };
 
 }  // namespace pf::server

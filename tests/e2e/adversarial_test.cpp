@@ -1,7 +1,8 @@
 // Issue #14: a property test that throws random, well-formed but adversarial requests at a live
 // pf-coordinator process — SubmitJob specs with boundary and absurd values, LeaseTask with odd
 // worker ids and waits, CompleteTask with wrong sizes / NaN / negative / huge sums for real and
-// forged leases, ExtendLease and FailTask with other workers' leases, WatchJob with odd rates,
+// forged leases, ExtendLease, CompleteTask and FailTask with other workers' leases or no worker id,
+// WatchJob with odd rates,
 // GetJob/CancelJob/ListJobs with forged ids and page tokens, and undecodable request bytes.
 //
 // Properties, for a fixed seed (deterministic sequence of requests):
@@ -245,6 +246,7 @@ class Adversary {
     if (!leases_.empty() && Pick(4) != 0) {
       const v1::Task& t = leases_[Pick(leases_.size())];
       req.set_lease_id(t.lease_id());
+      req.set_worker_id(WorkerFor(t.lease_id()));
       try {
         const CameraSpec cam = CameraFromProto(t.camera(), "camera");
         pixels = CountPixels(PixelSubsetFromProto(t.pixels(), "pixels"), cam.width, cam.height);
@@ -252,6 +254,7 @@ class Adversary {
       }
     } else {
       req.set_lease_id(RandomId());
+      req.set_worker_id(RandomId());
     }
     uint64_t n = 3 * pixels;
     if (Pick(3) == 0) n = OneOf<uint64_t>({0, 2, n + 3, n - 3});
@@ -264,9 +267,17 @@ class Adversary {
     Call("CompleteTask", 10, [&](auto ctx) { return worker_->CompleteTask(ctx.get(), req, &resp); });
   }
 
+  // Mostly the lease's holder; else a stranger (PERMISSION_DENIED) or none (INVALID_ARGUMENT).
+  std::string WorkerFor(const std::string& lease_id) {
+    const auto holder = lease_worker_.find(lease_id);
+    if (holder != lease_worker_.end() && Pick(4) != 0) return holder->second;
+    return Coin() ? RandomId() : std::string();
+  }
+
   void ExtendLease() {
     v1::ExtendLeaseRequest req;
-    req.set_lease_id(RandomId());
+    req.set_lease_id(!leases_.empty() && Coin() ? leases_[Pick(leases_.size())].lease_id() : RandomId());
+    req.set_worker_id(WorkerFor(req.lease_id()));
     req.set_progress(RandomSeconds());
     v1::ExtendLeaseResponse resp;
     Call("ExtendLease", 5, [&](auto ctx) { return worker_->ExtendLease(ctx.get(), req, &resp); });

@@ -6,6 +6,8 @@
 //   huge       lease one task, complete it with 1e9 in the first pixel   (e2e: in the accumulator's
 //              range, but above the job's plausibility bound: rejected unless another worker
 //              (--worker-id) sends the same bytes)
+//   flaky      for --seconds, lease tasks and answer each at once with FailTask(retryable) (a
+//              worker whose every task fails in milliseconds); prints leases and failures
 //   instant    lease and complete (zeros of the right size) as fast as possible with
 //              --concurrency threads, each with its own connection, until --tasks results were
 //              merged or --seconds passed; prints completions/s and bytes on the wire per task
@@ -46,10 +48,14 @@ uint64_t PixelsOfTask(const v1::Task& t) {
   return pf::CountPixels(pf::PixelSubsetFromProto(t.pixels(), "task.pixels"), cam.width, cam.height);
 }
 
+std::string WorkerId(const Options& o) {
+  return o.worker_id.empty() ? "fake-" + o.mode : o.worker_id;
+}
+
 bool LeaseOne(v1::WorkerService::Stub& stub, const Options& o, double wait, v1::Task* task,
               grpc::Status* status) {
   v1::LeaseTaskRequest req;
-  req.set_worker_id(o.worker_id.empty() ? "fake-" + o.mode : o.worker_id);
+  req.set_worker_id(WorkerId(o));
   req.set_worker_version(PF_VERSION);
   req.set_threads(1);
   req.set_wait_seconds(wait);
@@ -75,6 +81,7 @@ int BadResult(const Options& o) {
   const uint64_t pixels = PixelsOfTask(task);
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
+  req.set_worker_id(WorkerId(o));
   req.set_part(task.part());  // as a real worker echoes it
   const uint64_t n = o.mode == "bad-size" ? (pixels - 1) * 3 : pixels * 3;
   for (uint64_t i = 0; i < n; ++i) req.add_rgb_sums(0.25f);
@@ -95,6 +102,40 @@ int BadResult(const Options& o) {
                           .dump()
                           .c_str());
   return s.ok() ? 1 : 0;
+}
+
+int Flaky(const Options& o) {
+  auto stub = v1::WorkerService::NewStub(pf::MakeCoordinatorChannel(o.coordinator, {}));
+  uint64_t leases = 0, failures = 0;
+  std::string error;
+  const Clock::time_point until = Clock::now() + pf::Seconds(o.seconds);
+  while (Clock::now() < until) {
+    v1::Task task;
+    grpc::Status st;
+    if (!LeaseOne(*stub, o, 0.5, &task, &st)) {
+      if (!st.ok()) error = pf::StatusToString(st);
+      continue;
+    }
+    ++leases;
+    v1::FailTaskRequest req;
+    req.set_lease_id(task.lease_id());
+    req.set_worker_id(WorkerId(o));
+    req.set_reason("simulated failure (pf_fake_worker --mode flaky)");
+    req.set_retryable(true);
+    grpc::ClientContext ctx;
+    pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));
+    v1::FailTaskResponse resp;
+    const grpc::Status s = stub->FailTask(&ctx, req, &resp);
+    if (s.ok())
+      ++failures;
+    else
+      error = pf::StatusToString(s);
+  }
+  std::printf("%s\n",
+              nlohmann::json{{"mode", "flaky"}, {"leases", leases}, {"failures", failures}, {"error", error}}
+                  .dump()
+                  .c_str());
+  return failures > 0 ? 0 : 1;
 }
 
 int Instant(const Options& o) {
@@ -125,6 +166,7 @@ int Instant(const Options& o) {
         const uint64_t n = PixelsOfTask(task);
         req.Clear();
         req.set_lease_id(task.lease_id());
+        req.set_worker_id(WorkerId(o));
         req.set_part(task.part());
         req.mutable_rgb_sums()->Resize(int(n * 3), 0.0f);
         grpc::ClientContext ctx;
@@ -169,18 +211,20 @@ int main(int argc, char** argv) {
   CLI::App app{"pf_fake_worker: speaks WorkerService without rendering (tests and benchmarks)"};
   app.add_option("--coordinator", o.coordinator, "HOST:PORT")->required();
   app.add_option("--token-file", token_file, "Bearer token file (default $PF_TOKEN)");
-  app.add_option("--mode", o.mode, "bad-size | nan | negative | huge | instant")
-      ->check(CLI::IsMember({"bad-size", "nan", "negative", "huge", "instant"}));
+  app.add_option("--mode", o.mode, "bad-size | nan | negative | huge | flaky | instant")
+      ->check(CLI::IsMember({"bad-size", "nan", "negative", "huge", "flaky", "instant"}));
   app.add_option("--worker-id", o.worker_id, "worker_id in LeaseTask (default fake-MODE)");
   app.add_option("--wait", o.wait, "bad-size/nan/negative/huge: seconds to wait for a task")
       ->capture_default_str();
   app.add_option("--tasks", o.tasks, "instant: stop after this many merged results")->capture_default_str();
-  app.add_option("--seconds", o.seconds, "instant: stop after this long")->capture_default_str();
+  app.add_option("--seconds", o.seconds, "flaky, instant: stop after this long")->capture_default_str();
   app.add_option("--concurrency", o.concurrency, "instant: parallel fake workers")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
     o.token = pf::ResolveToken(token_file);
-    return o.mode == "instant" ? Instant(o) : BadResult(o);
+    if (o.mode == "instant") return Instant(o);
+    if (o.mode == "flaky") return Flaky(o);
+    return BadResult(o);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "pf_fake_worker: %s\n", e.what());
     return 1;

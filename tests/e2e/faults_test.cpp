@@ -3,8 +3,11 @@
 //      open: only lease expiry can reclaim its task): the job completes, the image is
 //      bit-identical to the local render, and every task was merged exactly once;
 //  (c) the coordinator kill -9'd mid-job and restarted on the same data dir (and port): the job
-//      resumes, tasks merged before the crash are not run again, the image is bit-identical.
+//      resumes, tasks merged before the crash are not run again, the image is bit-identical;
+//  (d) a flaky worker that fails every task in milliseconds next to a real one: blocklisted for
+//      the job after 3 failed attempts, the image is the clean run's, bit for bit.
 #include <signal.h>
+#include <nlohmann/json.hpp>
 
 #include <regex>
 #include <set>
@@ -128,6 +131,51 @@ TEST(FarmFaults, KilledAndHungWorkersLoseOnlyTheirLeases) {
   EXPECT_TRUE(BitIdentical(DecodeImage(bytes), reference));
   for (auto& w : workers) w->Signal(SIGTERM);
   for (auto& w : workers) EXPECT_TRUE(w->Wait(20).has_value()) << w->name();
+}
+
+// The hostile farm (docs/farm.md, "Worker health"): a worker answering every task with
+// FailTask(retryable) in milliseconds while a real worker is busy rendering. It used up a task's 3
+// attempts in ~5 ms and the job FAILED; now it is blocklisted for the job after 3 failed attempts
+// (pf status, pf events, pf workers show it), the real worker renders every task, and the image
+// equals the clean local run bit for bit.
+TEST(FarmFaults, AFlakyWorkerIsBlocklistedAndTheImageEqualsACleanRun) {
+  TestDir dir;
+  const JobArgs job = SlowJob();
+  const Image reference = LocalReference(dir, job);
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const std::string job_id = Submit(dir, coordinator.address(), job);
+  ASSERT_FALSE(job_id.empty());
+  // The real worker first: the coordinator must know a live worker besides the flaky one.
+  auto real = StartWorker(coordinator.address(), dir.path(), "real");
+  ASSERT_TRUE(WaitUntil([&] { return MidTask(real->log()); }, 30)) << ReadFile(real->log());
+  Process flaky("flaky",
+                {Binaries::FakeWorker(), "--coordinator", coordinator.address(), "--mode", "flaky",
+                 "--worker-id", "flaky", "--seconds", "3"},
+                dir / "flaky.log", dir / "flaky.json");
+  FarmClient client(coordinator.address(), "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  ASSERT_EQ(flaky.Wait(30).value_or(-1), 0) << ReadFile(dir / "flaky.log");
+  const nlohmann::json out = nlohmann::json::parse(ReadFile(dir / "flaky.json"));
+  EXPECT_EQ(out.at("failures").get<int>(), 3)
+      << out.dump() << ": blocklisted after 3, then nothing of this job";
+  ASSERT_EQ(st.blocklisted_workers_size(), 1);
+  EXPECT_EQ(st.blocklisted_workers(0).worker_id(), "flaky");
+  EXPECT_EQ(st.blocklisted_workers(0).failed_attempts(), 3u);
+  const std::vector<std::string> at = {"--coordinator", coordinator.address()};
+  RunResult r = RunCommand(Concat({Binaries::Pf(), "events", job_id}, at), dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(std::regex_search(r.out, std::regex("blocklisted +[0-9]+ +[0-9]+ +flaky"))) << r.out;
+  r = RunCommand(Concat({Binaries::Pf(), "workers", "--json"}, at), dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  bool listed = false;
+  for (const nlohmann::json& w : nlohmann::json::parse(r.out))
+    if (w.at("worker_id") == "flaky") listed = w.at("blocklisted_job_ids") == nlohmann::json::array({job_id});
+  EXPECT_TRUE(listed) << r.out;
+  EXPECT_EQ(Grep(real->log(), "failed job=").size(), 0u);
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  real->Signal(SIGTERM);
+  EXPECT_EQ(real->Wait(20).value_or(-1), 0);
 }
 
 TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {

@@ -116,7 +116,8 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
       },
       60))
       << paused.ShortDebugString() << ReadFile(coordinator->process().log());
-  EXPECT_NE(paused.storage_error().find("No space left on device"), std::string::npos) << paused.storage_error();
+  EXPECT_NE(paused.storage_error().find("No space left on device"), std::string::npos)
+      << paused.storage_error();
   EXPECT_GE(NotStoredReports(logs), 1u) << "a worker was answered 'not stored'";
   EXPECT_NE(paused.state(), v1::JOB_STATE_SUCCEEDED);
   const size_t merged_when_paused = MergedTaskTotal(logs, job_id);
@@ -135,7 +136,8 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
   const v1::JobStatus done = WaitForJob(client, job_id, 180);
   ASSERT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.ShortDebugString();
   EXPECT_EQ(done.storage_error(), "");
-  EXPECT_TRUE(Grep(coordinator->process().log(), "DATA LOSS").empty()) << ReadFile(coordinator->process().log());
+  EXPECT_TRUE(Grep(coordinator->process().log(), "DATA LOSS").empty())
+      << ReadFile(coordinator->process().log());
 
   std::set<uint64_t> leased_after;
   const std::regex leased("leased job=" + job_id + " task=([0-9]+)");
@@ -150,8 +152,10 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
     EXPECT_FALSE(leased_after.count(task)) << "task " << task << " was acknowledged, then re-run";
   EXPECT_EQ(done.samples_merged(), uint64_t(job.res) * job.res * job.spp * job.rounds);
   EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
-  std::printf("%zu tasks acknowledged before the disk filled; %zu answered 'not stored'; %zu leased after the restart\n",
-              acknowledged.size(), NotStoredReports(logs), leased_after.size());
+  std::printf(
+      "%zu tasks acknowledged before the disk filled; %zu answered 'not stored'; %zu leased after the "
+      "restart\n",
+      acknowledged.size(), NotStoredReports(logs), leased_after.size());
   for (auto& w : workers) w->Signal(SIGTERM);
   for (auto& w : workers) EXPECT_TRUE(w->Wait(20).has_value());
 }
@@ -164,7 +168,8 @@ TEST_F(FullDisk, ASigtermWhoseFinalFlushCannotStoreEverythingExitsOne) {
   const JobArgs job = DiskJob();
   const std::string job_id = Submit(dir, coordinator.address(), job);
   std::vector<fs::path> logs;
-  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(coordinator.address(), dir.path(), &logs);
+  std::vector<std::unique_ptr<Process>> workers =
+      StartTwoPatientWorkers(coordinator.address(), dir.path(), &logs);
   ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 2; }, 120));
   disk.Fill();
   FarmClient client(coordinator.address(), "");

@@ -233,6 +233,7 @@ TEST(MapTracingFarm, UploadsAreAdmittedOnlyForALivePieceLeaseOneAtATime) {
     u->writer = stub->UploadPhotonChunk(&u->ctx, &u->response);
     v1::PhotonChunkPart part;
     part.set_lease_id(lease_id);
+    part.set_worker_id("raw");
     part.set_total_bytes(total);
     part.set_digest(std::string(64, '0'));
     part.set_offset(0);

@@ -242,7 +242,9 @@ FaultySqlite::FaultySqlite(FaultInjector& faults) {
   g_vfs.pNext = nullptr;
   g_vfs.xOpen = Open;
   g_vfs.xDelete = [](sqlite3_vfs*, const char* n, int s) { return g_real->xDelete(g_real, n, s); };
-  g_vfs.xAccess = [](sqlite3_vfs*, const char* n, int fl, int* o) { return g_real->xAccess(g_real, n, fl, o); };
+  g_vfs.xAccess = [](sqlite3_vfs*, const char* n, int fl, int* o) {
+    return g_real->xAccess(g_real, n, fl, o);
+  };
   g_vfs.xFullPathname = [](sqlite3_vfs*, const char* n, int sz, char* o) {
     return g_real->xFullPathname(g_real, n, sz, o);
   };
@@ -250,7 +252,9 @@ FaultySqlite::FaultySqlite(FaultInjector& faults) {
   g_vfs.xSleep = [](sqlite3_vfs*, int us) { return g_real->xSleep(g_real, us); };
   g_vfs.xCurrentTime = [](sqlite3_vfs*, double* t) { return g_real->xCurrentTime(g_real, t); };
   g_vfs.xGetLastError = [](sqlite3_vfs*, int n, char* o) { return g_real->xGetLastError(g_real, n, o); };
-  g_vfs.xCurrentTimeInt64 = [](sqlite3_vfs*, sqlite3_int64* t) { return g_real->xCurrentTimeInt64(g_real, t); };
+  g_vfs.xCurrentTimeInt64 = [](sqlite3_vfs*, sqlite3_int64* t) {
+    return g_real->xCurrentTimeInt64(g_real, t);
+  };
   g_vfs.xDlOpen = nullptr;
   g_vfs.xDlError = nullptr;
   g_vfs.xDlSym = nullptr;
@@ -258,11 +262,27 @@ FaultySqlite::FaultySqlite(FaultInjector& faults) {
   g_vfs.xSetSystemCall = nullptr;
   g_vfs.xGetSystemCall = nullptr;
   g_vfs.xNextSystemCall = nullptr;
-  g_methods = sqlite3_io_methods{3,        Close,    Read,        Write,      Truncate,          Sync,
-                                 FileSize, Lock,     Unlock,      CheckReservedLock, FileControl,
-                                 SectorSize, DeviceCharacteristics, ShmMap, ShmLock, ShmBarrier, ShmUnmap,
-                                 Fetch,    Unfetch};
-  if (sqlite3_vfs_register(&g_vfs, /*makeDflt=*/1) != SQLITE_OK) throw std::runtime_error("sqlite3_vfs_register");
+  g_methods = sqlite3_io_methods{3,
+                                 Close,
+                                 Read,
+                                 Write,
+                                 Truncate,
+                                 Sync,
+                                 FileSize,
+                                 Lock,
+                                 Unlock,
+                                 CheckReservedLock,
+                                 FileControl,
+                                 SectorSize,
+                                 DeviceCharacteristics,
+                                 ShmMap,
+                                 ShmLock,
+                                 ShmBarrier,
+                                 ShmUnmap,
+                                 Fetch,
+                                 Unfetch};
+  if (sqlite3_vfs_register(&g_vfs, /*makeDflt=*/1) != SQLITE_OK)
+    throw std::runtime_error("sqlite3_vfs_register");
 }
 
 FaultySqlite::~FaultySqlite() {

@@ -24,7 +24,18 @@
 
 namespace pf::server::testing {
 
-enum class FileOp { kOpen, kWrite, kFsync, kFdatasync, kFtruncate, kClose, kRename, kUnlink, kSqliteWrite, kSqliteSync };
+enum class FileOp {
+  kOpen,
+  kWrite,
+  kFsync,
+  kFdatasync,
+  kFtruncate,
+  kClose,
+  kRename,
+  kUnlink,
+  kSqliteWrite,
+  kSqliteSync
+};
 
 struct FaultRule {
   FileOp op = FileOp::kWrite;

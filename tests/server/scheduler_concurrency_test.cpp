@@ -100,7 +100,7 @@ TEST_F(SchedulerConcurrencyTest, ConcurrentCompletionsOfOneJobEqualTheSerialMerg
     threads.emplace_back([&] {
       for (size_t i; (i = next.fetch_add(1)) < 2 * leases.size();) {
         const size_t k = (i / 2 * 7919) % leases.size();  // each lease twice, in a scattered order
-        const CompleteResult r = scheduler_.Complete(leases[k].lease_id, results[k]);
+        const CompleteResult r = scheduler_.Complete(leases[k].lease_id, leases[k].worker_id, results[k]);
         (r.status == CompleteStatus::kMerged ? merged : ignored).fetch_add(1);
         EXPECT_NE(r.status, CompleteStatus::kRejected) << r.reason;
       }
@@ -146,7 +146,8 @@ TEST_F(SchedulerConcurrencyTest, ConcurrentLeasesAndCompletionsOfTwoJobsEqualThe
     workers.emplace_back([&, t] {
       while (std::optional<Lease> lease = scheduler_.TryLease({WorkerName(size_t(t)), {}})) {
         const std::vector<float> sums = ResultOf(*lease);
-        EXPECT_EQ(scheduler_.Complete(lease->lease_id, sums).status, CompleteStatus::kMerged);
+        EXPECT_EQ(scheduler_.Complete(lease->lease_id, lease->worker_id, sums).status,
+                  CompleteStatus::kMerged);
         std::lock_guard lock(leases_mu);
         done.push_back(std::move(*lease));
       }
@@ -176,19 +177,22 @@ TEST_F(SchedulerConcurrencyTest, LeaseExpiringWhileItsResultIsMergedCountsOnce) 
     hooked = true;
     clock_.Advance(31);
     scheduler_.Tick();
-    EXPECT_TRUE(scheduler_.Extend(first.lease_id, 0.5).ok) << "a pinned lease does not expire";
+    EXPECT_TRUE(scheduler_.Extend(first.lease_id, first.worker_id, 0.5).ok)
+        << "a pinned lease does not expire";
     // The other task is leased, this one must not be leased again.
     const std::optional<Lease> other = scheduler_.TryLease({"w2", {}});
     ASSERT_TRUE(other.has_value());
     EXPECT_NE(other->task_id, first.task_id);
     EXPECT_FALSE(scheduler_.TryLease({"w3", {}}).has_value());
   });
-  EXPECT_EQ(scheduler_.Complete(first.lease_id, ResultOf(first)).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Complete(first.lease_id, first.worker_id, ResultOf(first)).status,
+            CompleteStatus::kMerged);
   ASSERT_TRUE(hooked);
   EXPECT_EQ(scheduler_.counters().expired, 0u);
   EXPECT_EQ(scheduler_.Status(id).tasks_done(), 1u);
   // The same result again: decided already.
-  EXPECT_EQ(scheduler_.Complete(first.lease_id, ResultOf(first)).status, CompleteStatus::kIgnored);
+  EXPECT_EQ(scheduler_.Complete(first.lease_id, first.worker_id, ResultOf(first)).status,
+            CompleteStatus::kIgnored);
   EXPECT_EQ(scheduler_.counters().merged, 1u);
   EXPECT_EQ(scheduler_.Status(id).samples_merged(), 64u);
 }
@@ -208,7 +212,7 @@ TEST_F(SchedulerConcurrencyTest, ResultOfAReassignedLeaseIsIgnoredOnce) {
   for (int t = 0; t < kThreads; ++t)
     threads.emplace_back([&, t] {
       const Lease& l = t % 2 ? first : second;
-      const CompleteResult r = scheduler_.Complete(l.lease_id, ResultOf(l));
+      const CompleteResult r = scheduler_.Complete(l.lease_id, l.worker_id, ResultOf(l));
       (r.status == CompleteStatus::kMerged ? merged : ignored).fetch_add(1);
       if (r.status == CompleteStatus::kMerged) {
         EXPECT_EQ(r.worker_id, "w2");
@@ -227,7 +231,7 @@ TEST_F(SchedulerConcurrencyTest, ResultOfAJobCancelledWhileItWasCheckedIsDropped
   const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 8, 8));
   const Lease lease = scheduler_.TryLease({"w1", {}}).value();
   scheduler_.SetBeforeCommitHookForTest([&](const std::string&) { scheduler_.Cancel(id); });
-  const CompleteResult r = scheduler_.Complete(lease.lease_id, ResultOf(lease));
+  const CompleteResult r = scheduler_.Complete(lease.lease_id, lease.worker_id, ResultOf(lease));
   EXPECT_EQ(r.status, CompleteStatus::kIgnored);
   EXPECT_EQ(r.reason, "the job ended while the result was checked");
   const JobSnapshot snap = scheduler_.Snapshot(id, true);
@@ -253,10 +257,10 @@ TEST_F(SchedulerConcurrencyTest, AnExceptionWhileAResultIsCheckedLeavesTheLeaseL
     thrown = true;
     throw std::bad_alloc();
   });
-  EXPECT_THROW(scheduler_.Complete(lease.lease_id, sums), std::bad_alloc);
+  EXPECT_THROW(scheduler_.Complete(lease.lease_id, lease.worker_id, sums), std::bad_alloc);
   EXPECT_EQ(scheduler_.counters().merged, 0u);
   EXPECT_EQ(scheduler_.Status(id).tasks_done(), 0u);
-  EXPECT_EQ(scheduler_.Complete(lease.lease_id, sums).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Complete(lease.lease_id, lease.worker_id, sums).status, CompleteStatus::kMerged);
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(scheduler_.Status(id).samples_merged(), 64u);
 
@@ -264,13 +268,14 @@ TEST_F(SchedulerConcurrencyTest, AnExceptionWhileAResultIsCheckedLeavesTheLeaseL
   const std::string id2 = Submit(MakeConfig(MultipleMaps(1, 0), 8, 8));
   const Lease second = scheduler_.TryLease({"w1", {}}).value();
   thrown = false;
-  EXPECT_THROW(scheduler_.Complete(second.lease_id, ResultOf(second)), std::bad_alloc);
+  EXPECT_THROW(scheduler_.Complete(second.lease_id, second.worker_id, ResultOf(second)), std::bad_alloc);
   clock_.Advance(31);
   scheduler_.Tick();
   const std::optional<Lease> again = scheduler_.TryLease({"w2", {}});
   ASSERT_TRUE(again.has_value()) << "the lease expired and the task is leased again";
   EXPECT_EQ(again->task_id, second.task_id);
-  EXPECT_EQ(scheduler_.Complete(again->lease_id, ResultOf(*again)).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Complete(again->lease_id, again->worker_id, ResultOf(*again)).status,
+            CompleteStatus::kMerged);
   EXPECT_EQ(scheduler_.Status(id2).samples_merged(), 64u);
 }
 
@@ -283,14 +288,14 @@ TEST_F(SchedulerConcurrencyTest, SecondCopyAndFailTaskWhileAResultIsCheckedChang
   int depth = 0;
   scheduler_.SetBeforeCommitHookForTest([&](const std::string&) {
     if (depth++ > 0) return;
-    const CompleteResult copy = scheduler_.Complete(lease.lease_id, sums);
+    const CompleteResult copy = scheduler_.Complete(lease.lease_id, lease.worker_id, sums);
     EXPECT_EQ(copy.status, CompleteStatus::kIgnored);
     EXPECT_EQ(copy.reason, "a result for this lease is already being merged");
     EXPECT_EQ(scheduler_.Fail(lease.lease_id, "w1", "oops", /*retryable=*/false), FailOutcome::kUnknownLease);
     scheduler_.ReturnLease(lease.lease_id);
     EXPECT_EQ(scheduler_.Status(id).tasks_running(), 1u);
   });
-  EXPECT_EQ(scheduler_.Complete(lease.lease_id, sums).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Complete(lease.lease_id, lease.worker_id, sums).status, CompleteStatus::kMerged);
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(scheduler_.counters().merged, 1u);
   EXPECT_EQ(scheduler_.counters().failed_attempts, 0u);
@@ -299,7 +304,11 @@ TEST_F(SchedulerConcurrencyTest, SecondCopyAndFailTaskWhileAResultIsCheckedChang
 // A rejected result found off the lock still fails exactly its attempt.
 TEST_F(SchedulerConcurrencyTest, InvalidResultsFromManyThreadsFailTheirAttemptsOnce) {
   const std::string id = Submit(MakeConfig(MultipleMaps(8, 4), 8, 8));
-  const std::vector<Lease> leases = LeaseAll();
+  // One worker per lease: a worker with 3 rejected results would be blocklisted for the job
+  // (worker_health.h), which is not what this test is about.
+  std::vector<Lease> leases;
+  while (std::optional<Lease> l = scheduler_.TryLease({"u" + std::to_string(leases.size()), {}}))
+    leases.push_back(std::move(*l));
   ASSERT_EQ(leases.size(), 8u * 4);
   std::vector<std::thread> threads;
   for (int t = 0; t < kThreads; ++t)
@@ -307,7 +316,8 @@ TEST_F(SchedulerConcurrencyTest, InvalidResultsFromManyThreadsFailTheirAttemptsO
       for (size_t k = size_t(t); k < leases.size(); k += kThreads) {
         std::vector<float> sums = ResultOf(leases[k]);
         sums[1] = -1.0f;  // negative radiance: invalid
-        EXPECT_EQ(scheduler_.Complete(leases[k].lease_id, sums).status, CompleteStatus::kRejected);
+        EXPECT_EQ(scheduler_.Complete(leases[k].lease_id, leases[k].worker_id, sums).status,
+                  CompleteStatus::kRejected);
       }
     });
   for (std::thread& t : threads) t.join();

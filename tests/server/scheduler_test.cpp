@@ -38,9 +38,13 @@ class SchedulerTest : public ::testing::Test {
     return lease.value_or(Lease{});
   }
   CompleteResult CompleteOk(const Lease& lease) {
+    if (!lease.config) {  // MustLease failed (and said so)
+      ADD_FAILURE() << "no lease to complete";
+      return {};
+    }
     const auto& cam = lease.config->camera;
     const std::vector<float> sums = SyntheticResult(lease.task, cam.width, cam.height);
-    return scheduler_.Complete(lease.lease_id, sums);
+    return scheduler_.Complete(lease.lease_id, lease.worker_id, sums);
   }
 
   FakeClock clock_;
@@ -81,7 +85,7 @@ TEST_F(SchedulerTest, ExpiredLeaseIsRequeuedWithTheNextAttempt) {
   EXPECT_NE(second.lease_id, first.lease_id);
   EXPECT_EQ(scheduler_.counters().expired, 1u);
   // The first worker's lease is gone: heartbeat says stop, its result is ignored.
-  EXPECT_FALSE(scheduler_.Extend(first.lease_id, 0.5).ok);
+  EXPECT_FALSE(scheduler_.Extend(first.lease_id, first.worker_id, 0.5).ok);
   const CompleteResult late = CompleteOk(first);
   EXPECT_EQ(late.status, CompleteStatus::kIgnored);
   EXPECT_EQ(CompleteOk(second).status, CompleteStatus::kMerged);
@@ -100,7 +104,7 @@ TEST_F(SchedulerTest, HeartbeatExtendsTheLease) {
   const Lease lease = MustLease();
   for (int i = 0; i < 5; ++i) {
     clock_.Advance(20);
-    const ExtendResult r = scheduler_.Extend(lease.lease_id, 0.1 * i);
+    const ExtendResult r = scheduler_.Extend(lease.lease_id, lease.worker_id, 0.1 * i);
     EXPECT_TRUE(r.ok);
     EXPECT_EQ(r.lease_seconds, 30);
     scheduler_.Tick();
@@ -170,24 +174,27 @@ TEST_F(SchedulerTest, ResultsAboveTheBoundMergeOnlyWhenAnotherWorkerReproducesTh
     return sums;
   };
   const Lease a = MustLease("w1");
-  CompleteResult r = scheduler_.Complete(a.lease_id, huge(a, 1e8f));
+  CompleteResult r = scheduler_.Complete(a.lease_id, a.worker_id, huge(a, 1e8f));
   EXPECT_EQ(r.status, CompleteStatus::kRejected);
   EXPECT_THAT(r.reason, HasSubstr("rgb_sums[5] = 1e+08 exceeds the job's bound 10 (1 samples x 10)"));
   EXPECT_THAT(r.reason, HasSubstr("merged only if another worker reproduces it exactly"));
   const Lease b = MustLease("w1");
-  EXPECT_EQ(scheduler_.Complete(b.lease_id, huge(b, 1e8f)).status, CompleteStatus::kRejected)
+  EXPECT_EQ(scheduler_.Complete(b.lease_id, b.worker_id, huge(b, 1e8f)).status, CompleteStatus::kRejected)
       << "the same worker cannot confirm its own result";
   const Lease c = MustLease("w2");
-  EXPECT_EQ(scheduler_.Complete(c.lease_id, huge(c, 2e8f)).status, CompleteStatus::kRejected)
+  EXPECT_EQ(scheduler_.Complete(c.lease_id, c.worker_id, huge(c, 2e8f)).status, CompleteStatus::kRejected)
       << "different bytes confirm nothing";
-  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_FAILED) << "3 attempts failed";
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING) << "failed on 2 workers only";
+  const Lease c3 = MustLease("w3");
+  EXPECT_EQ(scheduler_.Complete(c3.lease_id, c3.worker_id, huge(c3, 3e8f)).status, CompleteStatus::kRejected);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_FAILED) << "failed on 3 workers";
 
   // Again with max_attempts room: w2's bytes reproduced by w3 are merged.
   const std::string id2 = Submit(config);
   const Lease d = MustLease("w2");
-  EXPECT_EQ(scheduler_.Complete(d.lease_id, huge(d, 2e8f)).status, CompleteStatus::kRejected);
+  EXPECT_EQ(scheduler_.Complete(d.lease_id, d.worker_id, huge(d, 2e8f)).status, CompleteStatus::kRejected);
   const Lease e = MustLease("w3");
-  r = scheduler_.Complete(e.lease_id, huge(e, 2e8f));
+  r = scheduler_.Complete(e.lease_id, e.worker_id, huge(e, 2e8f));
   EXPECT_EQ(r.status, CompleteStatus::kMerged) << r.reason;
   EXPECT_EQ(scheduler_.Status(id2).state(), v1::JOB_STATE_SUCCEEDED);
   bool confirmed = false;
@@ -227,7 +234,7 @@ TEST_F(SchedulerTest, RejectedResultsRequeueTheTaskWithTheNextAttempt) {
   const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
   const Lease a = MustLease();
   const std::vector<float> short_result(5, 1.0f);
-  CompleteResult r = scheduler_.Complete(a.lease_id, short_result);
+  CompleteResult r = scheduler_.Complete(a.lease_id, a.worker_id, short_result);
   EXPECT_EQ(r.status, CompleteStatus::kRejected);
   EXPECT_THAT(r.reason, HasSubstr("rgb_sums has 5 values, expected 48"));
   const Lease b = MustLease();
@@ -235,7 +242,7 @@ TEST_F(SchedulerTest, RejectedResultsRequeueTheTaskWithTheNextAttempt) {
   EXPECT_EQ(b.attempt, 2u);
   std::vector<float> nan_result = SyntheticResult(b.task, 4, 4);
   nan_result[7] = std::nanf("");
-  r = scheduler_.Complete(b.lease_id, nan_result);
+  r = scheduler_.Complete(b.lease_id, b.worker_id, nan_result);
   EXPECT_EQ(r.status, CompleteStatus::kRejected);
   EXPECT_THAT(r.reason, HasSubstr("rgb_sums[7] is not finite"));
   const Lease c = MustLease();
@@ -328,6 +335,228 @@ TEST_F(SchedulerTest, ReturnedLeaseDoesNotCountAsAFailure) {
   EXPECT_EQ(scheduler_.counters().failed_attempts, 0u);
 }
 
+// Leases are bound to their worker (docs/security.md): another worker's heartbeat or result for
+// a lease it does not hold changes nothing — the task is not kept alive for it, nothing is merged
+// — and the holder's lease is intact.
+TEST_F(SchedulerTest, OnlyTheLeaseHolderCanExtendOrCompleteItsTask) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease a = MustLease("holder");
+  EXPECT_EQ(a.worker_id, "holder");
+  clock_.Advance(20);
+  const ExtendResult stranger = scheduler_.Extend(a.lease_id, "stranger", 0.5);
+  EXPECT_FALSE(stranger.ok);
+  EXPECT_TRUE(stranger.not_holder);
+  const auto& cam = a.config->camera;
+  const CompleteResult forged =
+      scheduler_.Complete(a.lease_id, "stranger", SyntheticResult(a.task, cam.width, cam.height));
+  EXPECT_EQ(forged.status, CompleteStatus::kNotHolder);
+  EXPECT_EQ(scheduler_.Status(id).tasks_done(), 0u);
+  clock_.Advance(11);  // 31 s after the lease: the stranger's heartbeat did not renew it
+  scheduler_.Tick();
+  EXPECT_EQ(scheduler_.counters().expired, 1u);
+  const Lease b = MustLease("holder");
+  EXPECT_TRUE(scheduler_.Extend(b.lease_id, "holder", 0.5).ok);
+  EXPECT_EQ(
+      scheduler_.Complete(b.lease_id, "stranger", SyntheticResult(b.task, cam.width, cam.height)).status,
+      CompleteStatus::kNotHolder);
+  EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kMerged) << "the holder's lease is intact";
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(scheduler_.counters().merged, 1u);
+}
+
+// The hostile farm (docs/farm.md, "Worker health"): a worker answering FailTask(retryable) in
+// milliseconds took every retry of a task while the healthy worker was busy and failed the job.
+// Now its failures count per worker: it is blocklisted for the job after 3, the task has failed on
+// one worker only, and the healthy worker completes it.
+TEST_F(SchedulerTest, OneFlakyWorkerIsBlocklistedAndAnotherWorkerFinishesTheJob) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
+  const Lease healthy = MustLease("healthy");  // busy with task 0 (heartbeats, does not poll)
+  for (uint32_t attempt = 1; attempt <= 3; ++attempt) {
+    const Lease l = MustLease("flaky");
+    ASSERT_EQ(l.task_id, 1u);
+    ASSERT_EQ(l.attempt, attempt);
+    EXPECT_EQ(scheduler_.Fail(l.lease_id, "flaky", "out of memory", /*retryable=*/true),
+              FailOutcome::kFailed);
+  }
+  v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << s.failure_reason();
+  ASSERT_EQ(s.blocklisted_workers_size(), 1);
+  EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "flaky");
+  EXPECT_EQ(s.blocklisted_workers(0).failed_attempts(), 3u);
+  EXPECT_THAT(s.blocklisted_workers(0).last_error(), HasSubstr("out of memory"));
+  EXPECT_FALSE(scheduler_.TryLease({"flaky", {}}).has_value()) << "no more of this job for it";
+  bool event = false;
+  for (const v1::TaskEvent& e : scheduler_.activity().Events(id))
+    event |= e.kind() == "blocklisted" && e.worker_id() == "flaky";
+  EXPECT_TRUE(event) << "pf events shows it";
+  for (const v1::WorkerInfo& w : scheduler_.activity().Workers())
+    if (w.worker_id() == "flaky") {
+      EXPECT_THAT(w.blocklisted_job_ids(), ::testing::ElementsAre(id));
+    }
+
+  EXPECT_EQ(CompleteOk(healthy).status, CompleteStatus::kMerged);
+  const Lease retry = MustLease("healthy");
+  EXPECT_EQ(retry.task_id, 1u);
+  EXPECT_EQ(retry.attempt, 4u);
+  EXPECT_EQ(CompleteOk(retry).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// A worker that leases and goes silent: each lease runs out with no call from it (lost), and
+// after 3 it is blocklisted; the job survives with the second worker, which heartbeats.
+TEST_F(SchedulerTest, SilentWorkerIsLostAndBlocklistedAndTheJobSurvivesWithASecondWorker) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
+  const Lease healthy = MustLease("healthy");
+  auto lost = [&](const std::string& worker) {
+    for (const v1::WorkerInfo& w : scheduler_.activity().Workers())
+      if (w.worker_id() == worker) return w.lost();
+    ADD_FAILURE() << worker << " not listed";
+    return false;
+  };
+  for (uint32_t attempt = 1; attempt <= 3; ++attempt) {
+    const Lease l = MustLease("silent");
+    ASSERT_EQ(l.task_id, 1u);
+    EXPECT_FALSE(lost("silent")) << "it called: live";
+    for (int beat = 0; beat < 3; ++beat) {  // the healthy worker heartbeats every lease/3
+      clock_.Advance(10.5);
+      EXPECT_TRUE(scheduler_.Extend(healthy.lease_id, "healthy", 0.5).ok);
+      scheduler_.Tick();
+    }
+    EXPECT_TRUE(lost("silent")) << "its lease ran out with no call from it";
+    EXPECT_FALSE(lost("healthy"));
+  }
+  EXPECT_EQ(scheduler_.counters().expired, 3u);
+  v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << s.failure_reason();
+  ASSERT_EQ(s.blocklisted_workers_size(), 1);
+  EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "silent");
+  EXPECT_FALSE(scheduler_.TryLease({"silent", {}}).has_value());
+  EXPECT_FALSE(lost("silent")) << "live again when it calls";
+  EXPECT_EQ(CompleteOk(healthy).status, CompleteStatus::kMerged);
+  EXPECT_EQ(CompleteOk(MustLease("healthy")).status, CompleteStatus::kMerged);
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// A worker that stops polling for 2 lease periods is lost; one whose long poll is open is not.
+TEST_F(SchedulerTest, WorkerThatStopsPollingIsLostAndLiveAgainWhenItCalls) {
+  std::vector<std::optional<Lease>> answers;
+  EXPECT_FALSE(scheduler_.TryLease({"gone", {}}).has_value());
+  scheduler_.LeaseOrWait({"waiting", {}}, 200,
+                         [&](std::optional<Lease> l) { answers.push_back(std::move(l)); });
+  auto lost = [&](const std::string& worker) {
+    for (const v1::WorkerInfo& w : scheduler_.activity().Workers())
+      if (w.worker_id() == worker) return w.lost();
+    return false;
+  };
+  clock_.Advance(59);
+  scheduler_.Tick();
+  EXPECT_FALSE(lost("gone"));
+  clock_.Advance(2);
+  scheduler_.Tick();
+  EXPECT_TRUE(lost("gone")) << "61 s without a call";
+  EXPECT_FALSE(lost("waiting")) << "its long poll is open";
+  EXPECT_FALSE(scheduler_.TryLease({"gone", {}}).has_value());
+  EXPECT_FALSE(lost("gone"));
+  EXPECT_TRUE(answers.empty());
+}
+
+// A farm of one worker still fails a broken job after its attempts (no worker is left that may
+// run it), with a reason naming the worker — it does not hang waiting for another worker.
+TEST_F(SchedulerTest, OneWorkerFarmFailsABrokenJobAfterThreeAttemptsNamingTheWorker) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
+  for (uint32_t attempt = 1; attempt <= 3; ++attempt) {
+    const Lease l = MustLease("only");
+    ASSERT_EQ(l.task_id, 0u);
+    EXPECT_EQ(scheduler_.Fail(l.lease_id, "only", "the scene crashes the renderer", true),
+              FailOutcome::kFailed);
+  }
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
+  EXPECT_THAT(s.failure_reason(),
+              HasSubstr("task 0 attempt 3 failed: worker: the scene crashes the renderer"));
+  EXPECT_THAT(s.failure_reason(),
+              HasSubstr("no worker left to run the job: blocklisted for it: only after 3 failed attempts"));
+  EXPECT_FALSE(scheduler_.TryLease({"only", {}}).has_value());
+}
+
+// A task fails its job after failures on max_attempts distinct workers.
+TEST_F(SchedulerTest, ATaskFailsItsJobAfterFailuresOnThreeDistinctWorkers) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  for (const char* worker : {"w1", "w2", "w3"}) {
+    const Lease l = MustLease(worker);
+    EXPECT_EQ(scheduler_.Fail(l.lease_id, worker, "bad task", true), FailOutcome::kFailed);
+  }
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
+  EXPECT_THAT(s.failure_reason(), HasSubstr("gave up after 3 failed attempts on 3 workers (w1, w2, w3)"));
+  EXPECT_EQ(s.blocklisted_workers_size(), 0) << "one failure each";
+}
+
+// A retry goes first to another waiting worker, not back to the worker that failed it (which
+// polls again at once); with nobody else waiting, it gets the retry itself.
+TEST_F(SchedulerTest, ARetryGoesToAnotherWaitingWorkerFirst) {
+  Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
+  const Lease first = MustLease("w1");
+  std::vector<std::pair<std::string, std::optional<Lease>>> answers;
+  auto park = [&](const std::string& worker) {
+    scheduler_.LeaseOrWait({worker, {}}, 10, [&, worker](std::optional<Lease> l) {
+      answers.emplace_back(worker, std::move(l));
+    });
+  };
+  park("w1");  // the oldest long poll: it would get the retry first
+  park("w2");
+  EXPECT_EQ(scheduler_.Fail(first.lease_id, "w1", "transient", true), FailOutcome::kFailed);
+  ASSERT_EQ(answers.size(), 1u);
+  EXPECT_EQ(answers[0].first, "w2");
+  ASSERT_TRUE(answers[0].second.has_value());
+  EXPECT_EQ(answers[0].second->attempt, 2u);
+  // Alone, the worker that failed it gets it back.
+  EXPECT_EQ(scheduler_.Fail(answers[0].second->lease_id, "w2", "transient", true), FailOutcome::kFailed);
+  ASSERT_EQ(answers.size(), 2u);
+  EXPECT_EQ(answers[1].first, "w1");
+  ASSERT_TRUE(answers[1].second.has_value());
+  EXPECT_EQ(answers[1].second->attempt, 3u);
+}
+
+// Blocklisted by 3 jobs within the window: no leases of any job for quarantine_seconds, shown in
+// pf workers with the reason; then leases again.
+TEST_F(SchedulerTest, AWorkerBlocklistedByThreeJobsIsQuarantined) {
+  const std::string busy = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4, /*priority=*/9));
+  const Lease healthy = MustLease("healthy");
+  ASSERT_EQ(healthy.job_id, busy);
+  std::vector<std::string> jobs;
+  for (int j = 0; j < 3; ++j) jobs.push_back(Submit(MakeConfig(MultipleMaps(1, 0), 4, 4)));
+  for (const std::string& job : jobs)
+    for (int i = 0; i < 3; ++i) {
+      const Lease l = MustLease("broken");
+      ASSERT_EQ(l.job_id, job);
+      EXPECT_EQ(scheduler_.Fail(l.lease_id, "broken", "GPU driver missing", true), FailOutcome::kFailed);
+    }
+  for (const std::string& job : jobs) EXPECT_EQ(scheduler_.Status(job).state(), v1::JOB_STATE_RUNNING);
+  const std::string fresh = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4, /*priority=*/5));
+  EXPECT_FALSE(scheduler_.TryLease({"broken", {}}).has_value()) << "quarantined: not even a fresh job";
+  bool shown = false;
+  for (const v1::WorkerInfo& w : scheduler_.activity().Workers())
+    if (w.worker_id() == "broken") {
+      shown = w.quarantined();
+      EXPECT_THAT(w.quarantine_reason(), HasSubstr("blocklisted by 3 jobs within 900 s (" + jobs[0]));
+      EXPECT_NEAR(w.quarantine_seconds_left(), 900, 1e-6);
+      EXPECT_EQ(w.blocklisted_job_ids_size(), 3);
+    }
+  EXPECT_TRUE(shown);
+  bool event = false;
+  for (const v1::TaskEvent& e : scheduler_.activity().Events(jobs[2])) event |= e.kind() == "quarantined";
+  EXPECT_TRUE(event);
+  clock_.Advance(901);
+  const std::optional<Lease> after = scheduler_.TryLease({"broken", {}});
+  ASSERT_TRUE(after.has_value()) << "the quarantine is over";
+  EXPECT_EQ(after->job_id, fresh);
+  for (const v1::WorkerInfo& w : scheduler_.activity().Workers())
+    if (w.worker_id() == "broken") {
+      EXPECT_FALSE(w.quarantined());
+    }
+}
+
 TEST_F(SchedulerTest, MaxRoundsSchedulesOnlyTheFirstRounds) {
   const std::string id = Submit(MakeConfig(Skipping(2, 5), 8, 8, 0, StopRule{.max_rounds = 2}));
   EXPECT_EQ(scheduler_.Status(id).tasks_total(), 8u);
@@ -348,12 +577,12 @@ TEST_F(SchedulerTest, TimeBudgetStopsSchedulingAndSucceedsWithWhatWasMerged) {
   EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
   const Lease b = MustLease();
   clock_.Advance(25);
-  EXPECT_TRUE(scheduler_.Extend(b.lease_id, 0.5).ok);
+  EXPECT_TRUE(scheduler_.Extend(b.lease_id, b.worker_id, 0.5).ok);
   clock_.Advance(25);
   scheduler_.Tick();
   EXPECT_FALSE(scheduler_.TryLease({"w2", {}}).has_value()) << "nothing new after the budget";
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING) << "the leased task may finish";
-  EXPECT_TRUE(scheduler_.Extend(b.lease_id, 0.9).ok);
+  EXPECT_TRUE(scheduler_.Extend(b.lease_id, b.worker_id, 0.9).ok);
   EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kMerged);
   const v1::JobStatus s = scheduler_.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
@@ -402,7 +631,7 @@ TEST_F(SchedulerTest, CancelStopsEverythingAndIsIdempotent) {
   EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged);
   const Lease b = MustLease();
   EXPECT_EQ(scheduler_.Cancel(id).state(), v1::JOB_STATE_CANCELLED);
-  EXPECT_FALSE(scheduler_.Extend(b.lease_id, 0).ok);
+  EXPECT_FALSE(scheduler_.Extend(b.lease_id, b.worker_id, 0).ok);
   EXPECT_EQ(CompleteOk(b).status, CompleteStatus::kIgnored);
   EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value());
   EXPECT_EQ(scheduler_.Cancel(id).state(), v1::JOB_STATE_CANCELLED);
@@ -426,7 +655,7 @@ TEST_F(SchedulerTest, EtaBeforeARateIsKnown) {
   // 1 of 2 tasks in 10 s, the other running: 10 s to go.
   EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 10.0, 1e-9);
   EXPECT_NEAR(scheduler_.Status(id).elapsed_seconds(), 10.0, 1e-9);
-  EXPECT_TRUE(scheduler_.Extend(b.lease_id, 0.5).ok);
+  EXPECT_TRUE(scheduler_.Extend(b.lease_id, b.worker_id, 0.5).ok);
   EXPECT_NEAR(scheduler_.Status(id).eta_seconds(), 10.0 * 0.5 / 1.5, 1e-9);
 
   // Four tasks on one worker: after the first, the rate would include the worker's start-up
@@ -502,7 +731,8 @@ TEST_F(SchedulerTest, MergedImageDoesNotDependOnCompletionOrder) {
   }
   for (const Lease& l : leases) ASSERT_EQ(CompleteOk(l).status, CompleteStatus::kMerged);
   for (auto it = other_leases.rbegin(); it != other_leases.rend(); ++it)
-    ASSERT_EQ(other.Complete(it->lease_id, SyntheticResult(it->task, 9, 7)).status, CompleteStatus::kMerged);
+    ASSERT_EQ(other.Complete(it->lease_id, it->worker_id, SyntheticResult(it->task, 9, 7)).status,
+              CompleteStatus::kMerged);
   const JobSnapshot a = scheduler_.Snapshot(id, true), b = other.Snapshot(other_id, true);
   ASSERT_TRUE(a.image && b.image);
   ASSERT_EQ(a.image->image.size(), b.image->image.size());
@@ -640,8 +870,11 @@ TEST(SchedulerTaskSource, TasksCreatedFromResultsAreQueuedAndTheJobEndsAfterThem
   EXPECT_EQ(scheduler.Status(id).tasks_total(), 4u) << "2×2 tiles of map 0";
   auto complete = [&](const Lease& lease) {
     const auto& cam = lease.config->camera;
-    ASSERT_EQ(scheduler.Complete(lease.lease_id, SyntheticResult(lease.task, cam.width, cam.height)).status,
-              CompleteStatus::kMerged);
+    ASSERT_EQ(
+        scheduler
+            .Complete(lease.lease_id, lease.worker_id, SyntheticResult(lease.task, cam.width, cam.height))
+            .status,
+        CompleteStatus::kMerged);
   };
   // All four leased: nothing is queued, so a long poll parks — and is answered by the task that
   // the next merge creates.
@@ -683,7 +916,7 @@ TEST(SchedulerTaskSource, NoTasksAreCreatedAfterTheTimeBudget) {
   ASSERT_TRUE(lease.has_value());
   clock.Advance(6);
   scheduler.Tick();
-  ASSERT_EQ(scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, 4, 4)).status,
+  ASSERT_EQ(scheduler.Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, 4, 4)).status,
             CompleteStatus::kMerged);
   EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(scheduler.Status(id).tasks_done(), 1u);
@@ -729,7 +962,7 @@ TEST(SchedulerTaskSource, HierarchicalJobCreatesLocalizationTasksFromItsResults)
   while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
     const std::vector<float> sums = SyntheticResult(lease->task, 12, 10);
     expected.Add(lease->task, PixelsOf(lease->task.pixels, 12, 10), sums, 1);
-    ASSERT_EQ(scheduler.Complete(lease->lease_id, sums).status, CompleteStatus::kMerged);
+    ASSERT_EQ(scheduler.Complete(lease->lease_id, lease->worker_id, sums).status, CompleteStatus::kMerged);
   }
   const v1::JobStatus s = scheduler.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
@@ -794,8 +1027,9 @@ TEST(SchedulerEta, HierarchicalProgressIsMonotoneAndItsEtaWithinTwiceTheTruth) {
   while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
     const uint64_t pixels = PixelsOf(lease->task.pixels, w, h).size();
     clock.Advance(c_map + c_px * double(pixels * (lease->task.sample_end - lease->task.sample_begin)));
-    ASSERT_EQ(scheduler.Complete(lease->lease_id, StepImageResult(lease->task, w, h)).status,
-              CompleteStatus::kMerged);
+    ASSERT_EQ(
+        scheduler.Complete(lease->lease_id, lease->worker_id, StepImageResult(lease->task, w, h)).status,
+        CompleteStatus::kMerged);
     const v1::JobStatus s = scheduler.Status(id);
     points.push_back({clock.Now(), s.eta_seconds(), s.progress()});
   }
@@ -837,8 +1071,9 @@ TEST(SchedulerEta, TailTilesCountTheirPixels) {
     std::optional<Lease> lease = scheduler.TryLease({"w", {}});
     ASSERT_TRUE(lease.has_value());
     ASSERT_EQ(lease->task.task_id, uint64_t(i)) << "tasks are leased in id order: the tail tiles last";
-    ASSERT_EQ(scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, w, h)).status,
-              CompleteStatus::kMerged);
+    ASSERT_EQ(
+        scheduler.Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, w, h)).status,
+        CompleteStatus::kMerged);
     if (i == 11) {
       EXPECT_DOUBLE_EQ(scheduler.Status(id).progress(), 0.75);
     }
@@ -860,15 +1095,17 @@ TEST(SchedulerTaskSource, AResultOfAnotherRadiancePartIsRejected) {
   std::optional<Lease> lease = scheduler.TryLease({"w", {}});
   ASSERT_TRUE(lease.has_value());
   ASSERT_EQ(lease->task.part, RadiancePart::kUnmapped) << "the per-pixel tasks come first";
-  const CompleteResult old_worker =
-      scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, 12, 10), RadiancePart::kAll);
+  const CompleteResult old_worker = scheduler.Complete(
+      lease->lease_id, lease->worker_id, SyntheticResult(lease->task, 12, 10), RadiancePart::kAll);
   EXPECT_EQ(old_worker.status, CompleteStatus::kRejected);
   EXPECT_NE(old_worker.reason.find("part"), std::string::npos) << old_worker.reason;
   EXPECT_EQ(scheduler.Status(id).tasks_done(), 0u);
   std::optional<Lease> again = scheduler.TryLease({"w", {}});
   ASSERT_TRUE(again.has_value());
   ASSERT_EQ(again->task.task_id, lease->task.task_id) << "re-queued";
-  EXPECT_EQ(scheduler.Complete(again->lease_id, SyntheticResult(again->task, 12, 10), RadiancePart::kUnmapped)
+  EXPECT_EQ(scheduler
+                .Complete(again->lease_id, again->worker_id, SyntheticResult(again->task, 12, 10),
+                          RadiancePart::kUnmapped)
                 .status,
             CompleteStatus::kMerged);
   EXPECT_EQ(scheduler.Status(id).tasks_done(), 1u);
@@ -894,16 +1131,20 @@ TEST(SchedulerTaskSource, TimeBudgetKeepsTheEmissionAndDirectLightTasks) {
   ASSERT_TRUE(first.has_value());
   ASSERT_EQ(first->task.part, RadiancePart::kUnmapped);
   ASSERT_EQ(
-      scheduler.Complete(first->lease_id, SyntheticResult(first->task, 12, 10), first->task.part).status,
+      scheduler
+          .Complete(first->lease_id, first->worker_id, SyntheticResult(first->task, 12, 10), first->task.part)
+          .status,
       CompleteStatus::kMerged);
   clock.Advance(6);
   scheduler.Tick();
   uint64_t leased = 1;
   while (std::optional<Lease> lease = scheduler.TryLease({"w", {}})) {
     EXPECT_EQ(lease->task.part, RadiancePart::kUnmapped);
-    ASSERT_EQ(
-        scheduler.Complete(lease->lease_id, SyntheticResult(lease->task, 12, 10), lease->task.part).status,
-        CompleteStatus::kMerged);
+    ASSERT_EQ(scheduler
+                  .Complete(lease->lease_id, lease->worker_id, SyntheticResult(lease->task, 12, 10),
+                            lease->task.part)
+                  .status,
+              CompleteStatus::kMerged);
     ++leased;
   }
   EXPECT_EQ(leased, unmapped);
@@ -926,7 +1167,7 @@ TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) 
   clock.Advance(6);
   scheduler.Tick();
   for (const Lease& l : leases)
-    ASSERT_EQ(scheduler.Complete(l.lease_id, SyntheticResult(l.task, 12, 10)).status,
+    ASSERT_EQ(scheduler.Complete(l.lease_id, l.worker_id, SyntheticResult(l.task, 12, 10)).status,
               CompleteStatus::kMerged);
   const v1::JobStatus s = scheduler.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
@@ -948,7 +1189,8 @@ class FakeMapHook final : public MapTracingHook {
   bool RenderTaskReady(const Job& /*job*/, const TaskSpec& task) override {
     return ready.count(task.map_index) > 0;
   }
-  std::optional<Lease> LeaseChunk(const LeaseRequest& /*request*/, double /*now*/) override {
+  std::optional<Lease> LeaseChunk(const LeaseRequest& /*request*/, double /*now*/,
+                                  const JobFilter& /*may_lease*/) override {
     if (pieces == 0) return std::nullopt;
     --pieces;
     Lease l;

@@ -27,13 +27,13 @@
 
 namespace pf::server {
 namespace {
-using ::testing::HasSubstr;
 using testing::FakeCatalog;
 using testing::FaultInjector;
 using testing::FaultRule;
 using testing::FaultyFiles;
 using testing::FaultySqlite;
 using testing::FileOp;
+using ::testing::HasSubstr;
 using testing::SkippingSpec;
 using testing::SyntheticResult;
 namespace fs = std::filesystem;
@@ -57,7 +57,8 @@ ResolvedImage ReferenceImage(const JobConfig& config, const Clock& clock) {
   const std::string id = job->id();
   scheduler.AddJob(std::move(job));
   while (std::optional<Lease> l = scheduler.TryLease({"w", {}}))
-    EXPECT_EQ(scheduler.Complete(l->lease_id, SyntheticResult(l->task, 12, 10)).status, CompleteStatus::kMerged);
+    EXPECT_EQ(scheduler.Complete(l->lease_id, l->worker_id, SyntheticResult(l->task, 12, 10)).status,
+              CompleteStatus::kMerged);
   return *scheduler.Snapshot(id, true).image;
 }
 
@@ -92,10 +93,16 @@ class StorageCase {
   }
   std::string Submit(Run& run) {
     std::unique_ptr<Job> job = run.scheduler->PrepareJob(CaseJob(catalog_));
-    JobRow row{job->id(), job->seq(), job->config().spec.SerializeAsString(), JobState::kQueued, "",
-               job->submitted_unix_ms(), 0};
+    JobRow row{job->id(),
+               job->seq(),
+               job->config().spec.SerializeAsString(),
+               JobState::kQueued,
+               "",
+               job->submitted_unix_ms(),
+               0};
     std::vector<TaskRow> tasks(job->num_tasks());
-    for (uint64_t i = 0; i < tasks.size(); ++i) tasks[i] = TaskRow{job->id(), i, TaskState::kQueued, 0, 0, ""};
+    for (uint64_t i = 0; i < tasks.size(); ++i)
+      tasks[i] = TaskRow{job->id(), i, TaskState::kQueued, 0, 0, ""};
     run.db->InsertJob(row, tasks);
     const std::string id = job->id();
     run.scheduler->AddJob(std::move(job));
@@ -106,7 +113,8 @@ class StorageCase {
     const std::optional<Lease> lease = run.scheduler->TryLease({"w", {}});
     if (!lease) return false;
     const std::vector<float> sums = SyntheticResult(lease->task, 12, 10);
-    EXPECT_EQ(run.scheduler->Complete(lease->lease_id, sums).status, CompleteStatus::kMerged);
+    EXPECT_EQ(run.scheduler->Complete(lease->lease_id, lease->worker_id, sums).status,
+              CompleteStatus::kMerged);
     rendered_.push_back(lease->task_id);
     run.persister->JournalThenAck(lease->job_id, lease->task_id, sums,
                                   [this, task = lease->task_id](const std::string& not_stored) {
@@ -417,7 +425,8 @@ TEST(StorageDefects, AnOlderCheckpointOfAFinishedJobIsNeverServedAsItsImage) {
     fs::copy_file(Persister::CheckpointFile(storage.cp_dir(), id), old_copy);
     while (storage.RenderOne(run)) run.persister->FlushNow(false);
     EXPECT_TRUE(run.persister->Stop());
-    fs::copy_file(old_copy, Persister::CheckpointFile(storage.cp_dir(), id), fs::copy_options::overwrite_existing);
+    fs::copy_file(old_copy, Persister::CheckpointFile(storage.cp_dir(), id),
+                  fs::copy_options::overwrite_existing);
     const grpc::Status served = StatusFromException(
         [&] {
           try {

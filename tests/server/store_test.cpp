@@ -67,7 +67,8 @@ std::string SubmitStored(Scheduler& scheduler, SqliteStore& db, JobConfig config
 
 void Complete(Scheduler& scheduler, const Lease& lease) {
   const CompleteResult r = scheduler.Complete(
-      lease.lease_id, SyntheticResult(lease.task, lease.config->camera.width, lease.config->camera.height));
+      lease.lease_id, lease.worker_id,
+      SyntheticResult(lease.task, lease.config->camera.width, lease.config->camera.height));
   ASSERT_EQ(r.status, CompleteStatus::kMerged);
 }
 
@@ -285,7 +286,7 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   const std::string id = SubmitStored(scheduler, db, ValidateJobSpec(SkippingSpec(2, 1), catalog));
   const Lease lease = *scheduler.TryLease({"w", {}});
   const std::vector<float> sums = SyntheticResult(lease.task, 12, 10);
-  ASSERT_EQ(scheduler.Complete(lease.lease_id, sums).status, CompleteStatus::kMerged);
+  ASSERT_EQ(scheduler.Complete(lease.lease_id, lease.worker_id, sums).status, CompleteStatus::kMerged);
   bool acked = false;
   persister.JournalThenAck(id, lease.task_id, sums,
                            [&](const std::string& not_stored) { acked = not_stored.empty(); });
@@ -350,7 +351,8 @@ TEST_F(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
     // Acknowledged after the checkpoint: survives through the journal.
     const Lease journaled = *scheduler->TryLease({"w1", {}});
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
-    ASSERT_EQ(scheduler->Complete(journaled.lease_id, sums).status, CompleteStatus::kMerged);
+    ASSERT_EQ(scheduler->Complete(journaled.lease_id, journaled.worker_id, sums).status,
+              CompleteStatus::kMerged);
     persister->JournalThenAck(id, journaled.task_id, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     checkpointed.push_back(journaled.task_id);
@@ -576,7 +578,8 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
     const Lease journaled = *scheduler->TryLease({"w1", {}});
     ASSERT_GE(journaled.task_id, static_tasks);
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
-    ASSERT_EQ(scheduler->Complete(journaled.lease_id, sums).status, CompleteStatus::kMerged);
+    ASSERT_EQ(scheduler->Complete(journaled.lease_id, journaled.worker_id, sums).status,
+              CompleteStatus::kMerged);
     persister->JournalThenAck(id, journaled.task_id, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     merged_before_crash = static_tasks + 2;

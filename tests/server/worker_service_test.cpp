@@ -12,10 +12,15 @@
 #include <optional>
 #include <thread>
 
+#include "common/core/sha256.h"
 #include "common/image/exr_io.h"
+#include "common/photon/photon_chunk.h"
+#include "common/photon/photon_maps_bytes.h"
+#include "common/plan/scene_runtime.h"
 #include "common/plan/task_executor.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm_version.h"
+#include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/persister.h"
 #include "tests/server/server_test_util.h"
@@ -93,9 +98,10 @@ std::optional<v1::Task> Lease(LiveCoordinator& live, double wait = 0, const std:
 }
 
 grpc::Status Complete(LiveCoordinator& live, const v1::Task& task, const std::vector<float>& sums,
-                      bool* merged = nullptr) {
+                      bool* merged = nullptr, const std::string& worker = "w1") {
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
+  req.set_worker_id(worker);
   req.mutable_rgb_sums()->Add(sums.begin(), sums.end());
   v1::CompleteTaskResponse resp;
   const grpc::Status st = live.worker->CompleteTask(Ctx().get(), req, &resp);
@@ -144,7 +150,7 @@ class TestWorker {
           SettingsFromProto(task->settings(), "task.settings"), TaskSpecFromProto(*task), 1, &maps_);
       ++executed_[task->task_id()];
       bool merged = false;
-      EXPECT_TRUE(Complete(*live_, *task, out.rgb_sums, &merged).ok());
+      EXPECT_TRUE(Complete(*live_, *task, out.rgb_sums, &merged, "test-worker").ok());
       merged_count += merged;
     }
     return merged_count;
@@ -277,8 +283,145 @@ TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanFailItsTask) {
   EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << s.failure_reason();
   EXPECT_EQ(s.failure_reason(), "");
   bool merged = false;
-  EXPECT_TRUE(Complete(*live_, *t, SyntheticFor(*t), &merged).ok());
+  EXPECT_TRUE(Complete(*live_, *t, SyntheticFor(*t), &merged, "holder").ok());
   EXPECT_TRUE(merged) << "the holder's lease survived the stranger's FailTask";
+  EXPECT_EQ(GetJob(*live_, id).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// Leases are bound to their worker (docs/security.md): ExtendLease and CompleteTask name the
+// caller (worker_id, required: INVALID_ARGUMENT naming it); another worker's heartbeat or result is
+// PERMISSION_DENIED and changes nothing, and the holder's result still merges.
+TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanExtendOrCompleteItsTask) {
+  const std::string id = SubmitOk(*live_, SmallSpec(hash_, OneMapPlan()));
+  std::optional<v1::Task> t = Lease(*live_, 0, "holder");
+  ASSERT_TRUE(t.has_value());
+  auto extend = [&](const std::string& worker_id) {
+    v1::ExtendLeaseRequest req;
+    req.set_lease_id(t->lease_id());
+    req.set_worker_id(worker_id);
+    req.set_progress(0.5);
+    v1::ExtendLeaseResponse resp;
+    const grpc::Status st = live_->worker->ExtendLease(Ctx().get(), req, &resp);
+    return std::make_pair(st, resp.ok());
+  };
+  auto [st, ok] = extend("stranger");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("held by another worker; nothing was changed"));
+  std::tie(st, ok) = extend("");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message(), "worker_id: required");
+  std::tie(st, ok) = extend("holder");
+  EXPECT_TRUE(st.ok() && ok) << st.error_message();
+
+  bool merged = true;
+  st = Complete(*live_, *t, SyntheticFor(*t), &merged, "stranger");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+  EXPECT_FALSE(merged);
+  st = Complete(*live_, *t, SyntheticFor(*t), &merged, "");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message(), "worker_id: required");
+  EXPECT_EQ(GetJob(*live_, id).tasks_done(), 0u);
+  EXPECT_TRUE(Complete(*live_, *t, SyntheticFor(*t), &merged, "holder").ok());
+  EXPECT_TRUE(merged) << "the holder's lease survived the stranger's calls";
+  EXPECT_EQ(GetJob(*live_, id).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// One UploadPhotonChunk stream of `bytes` (one part) for `lease_id` from `worker_id`.
+grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id, const std::string& worker_id,
+                         const std::string& bytes, bool* accepted) {
+  v1::UploadPhotonChunkResponse resp;
+  auto ctx = Ctx();
+  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
+      live.worker->UploadPhotonChunk(ctx.get(), &resp));
+  v1::PhotonChunkPart part;
+  part.set_lease_id(lease_id);
+  part.set_worker_id(worker_id);
+  part.set_total_bytes(bytes.size());
+  part.set_digest(Sha256Hex(bytes));
+  part.set_offset(0);
+  part.set_data(bytes);
+  part.set_sha256(Sha256Hex(bytes));
+  writer->Write(part);
+  writer->WritesDone();
+  const grpc::Status st = writer->Finish();
+  *accepted = resp.accepted();
+  return st;
+}
+
+// The hostile farm: a second worker renewed another's piece lease, uploaded an empty piece (it was
+// taken), the honest upload was refused, and the job SUCCEEDED with a third of its photons. Now
+// the lease is bound to its holder: the stranger's heartbeat, upload and FailTask are refused and
+// change nothing; the holder's own empty piece is refused too (its first photons are not the
+// trace of them); the honest piece is taken and the map built from it is complete.
+TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesTheMap) {
+  v1::JobSpec spec = SmallSpec(hash_, OneMapPlan());
+  spec.mutable_settings()->mutable_photon_map()->set_photons(8192);
+  spec.mutable_settings()->mutable_photon_map()->set_map_tracing(v1::MAP_TRACING_DISTRIBUTED);
+  const std::string id = SubmitOk(*live_, spec);
+  const std::optional<v1::Task> piece = Lease(*live_, 5, "honest");
+  ASSERT_TRUE(piece.has_value() && piece->has_trace_chunk()) << "pieces are leased first";
+  EXPECT_THAT(piece->lease_id(), ::testing::MatchesRegex("map-[0-9a-f]{32}")) << "from the CSPRNG";
+  const std::string lease = piece->lease_id();
+
+  // What the honest worker traces (as worker_maps.cpp does).
+  const SceneRuntime scene(LoadBundle(live_->coordinator->scenes().DirectoryOf(hash_), piece->scene_entry()));
+  PhotonMapsOptions mo =
+      SettingsFromProto(piece->settings(), "settings").Resolved(scene.description).MapsOptions();
+  mo.tracing.map_seed = piece->map_seed();
+  const PhotonChunk traced = TracePhotonChunk(
+      scene.accel, scene.lights, mo, piece->trace_chunk().photon_begin(), piece->trace_chunk().photon_end());
+  PhotonChunk empty = traced;  // the right range and attributes, no photons
+  for (PhotonChunk::List& l : empty.lists) l = PhotonChunk::List{};
+  empty.stored_power = {0, 0, 0};
+
+  // The stranger.
+  v1::ExtendLeaseRequest ext;
+  ext.set_lease_id(lease);
+  ext.set_worker_id("thief");
+  v1::ExtendLeaseResponse ext_resp;
+  grpc::Status st = live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+  bool accepted = true;
+  st = UploadPiece(*live_, lease, "thief", SerializePhotonChunk(empty), &accepted);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+  EXPECT_FALSE(accepted);
+  st = UploadPiece(*live_, lease, "", SerializePhotonChunk(empty), &accepted);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_EQ(st.error_message(), "worker_id: required");
+  v1::FailTaskRequest fail;
+  fail.set_lease_id(lease);
+  fail.set_worker_id("thief");
+  fail.set_reason("sabotage");
+  v1::FailTaskResponse fail_resp;
+  st = live_->worker->FailTask(Ctx().get(), fail, &fail_resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+  EXPECT_EQ(live_->coordinator->maps().counters().chunks_stored, 0u);
+
+  // The holder's empty piece is no piece either.
+  st = UploadPiece(*live_, lease, "honest", SerializePhotonChunk(empty), &accepted);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_THAT(st.error_message(), HasSubstr("not the coordinator's trace of them"));
+  EXPECT_EQ(live_->coordinator->maps().counters().chunks_stored, 0u);
+
+  // The honest piece: taken, and the map is built from all of its photons.
+  st = UploadPiece(*live_, lease, "honest", SerializePhotonChunk(traced), &accepted);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_TRUE(accepted);
+  const std::optional<v1::Task> render = Lease(*live_, 20, "honest");
+  ASSERT_TRUE(render.has_value() && render->has_map()) << "the map is built and its render task released";
+  const std::optional<fs::path> file = live_->coordinator->maps().MapFile(render->map().map_key());
+  ASSERT_TRUE(file.has_value());
+  std::ifstream in(*file, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const PhotonMaps built = DeserializePhotonMaps(bytes);
+  const PhotonMaps whole = AssemblePhotonMaps(std::vector<PhotonChunk>{traced}, mo);
+  EXPECT_EQ(built.global->size(), whole.global->size());
+  EXPECT_GT(built.global->size(), 0u);
+  EXPECT_EQ(built.caustic ? built.caustic->size() : 0, whole.caustic ? whole.caustic->size() : 0);
+  EXPECT_EQ(built.direct ? built.direct->size() : 0, whole.direct ? whole.direct->size() : 0);
+  bool merged = false;
+  EXPECT_TRUE(Complete(*live_, *render, SyntheticFor(*render), &merged, "honest").ok());
+  EXPECT_TRUE(merged);
   EXPECT_EQ(GetJob(*live_, id).state(), v1::JOB_STATE_SUCCEEDED);
 }
 
@@ -299,6 +442,10 @@ TEST_F(WorkerServiceTest, LeaseRequestsAreValidated) {
   EXPECT_EQ(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).error_code(),
             grpc::StatusCode::INVALID_ARGUMENT);
   ext.set_lease_id("job-1.0.1.deadbeef");
+  st = live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message(), "worker_id: required") << "a lease is bound to its worker";
+  ext.set_worker_id("w");
   ASSERT_TRUE(live_->worker->ExtendLease(Ctx().get(), ext, &ext_resp).ok());
   EXPECT_FALSE(ext_resp.ok()) << "unknown lease: stop";
 }

@@ -78,6 +78,7 @@ class FakeCoordinator final : public v1::WorkerService::Service {
     std::lock_guard lock(mu_);
     extends_.push_back(Since(leased_at_));
     progress_.push_back(req->progress());
+    extend_workers_.push_back(req->worker_id());
     resp->set_ok(extend_ok_);
     resp->set_lease_seconds(lease_seconds_);
     return grpc::Status::OK;
@@ -116,6 +117,10 @@ class FakeCoordinator final : public v1::WorkerService::Service {
     std::lock_guard lock(mu_);
     return progress_;
   }
+  std::vector<std::string> extend_workers() const {
+    std::lock_guard lock(mu_);
+    return extend_workers_;
+  }
   std::vector<v1::CompleteTaskRequest> completes() const {
     std::lock_guard lock(mu_);
     return completes_;
@@ -140,6 +145,7 @@ class FakeCoordinator final : public v1::WorkerService::Service {
   std::atomic<bool> extend_ok_{true};
   std::string refusal_;
   std::vector<double> extends_, progress_;
+  std::vector<std::string> extend_workers_;
   std::vector<v1::CompleteTaskRequest> completes_;
   std::vector<v1::FailTaskRequest> fails_;
   std::vector<v1::LeaseTaskRequest> lease_requests_;
@@ -256,6 +262,8 @@ TEST_F(WorkerTest, HeartbeatsAtAThirdOfTheLeaseAndReportsOnlyTheSubset) {
   ASSERT_EQ(fake_->completes().size(), 1u);
   const v1::CompleteTaskRequest c = fake_->completes()[0];
   EXPECT_EQ(c.lease_id(), "lease-3");
+  EXPECT_EQ(c.worker_id(), "test") << "a result names its worker (leases are bound to it)";
+  for (const std::string& w : fake_->extend_workers()) EXPECT_EQ(w, "test") << "so does every heartbeat";
   EXPECT_EQ(uint64_t(c.rgb_sums_size()), 3 * PixelsOf(task));  // the subset, not 16x16
   EXPECT_LT(uint64_t(c.rgb_sums_size()), 3u * 16 * 16);
   for (float v : c.rgb_sums()) EXPECT_TRUE(std::isfinite(v));
