@@ -69,6 +69,40 @@ void Job::AppendTasks(const std::vector<TaskSpec>& tasks) {
   AddWork(tasks);
 }
 
+void Job::Restart(std::vector<TaskSpec> tasks) {
+  tasks_ = std::move(tasks);
+  runtime_.assign(tasks_.size(), TaskRuntime{});
+  for (uint64_t& c : counts_) c = 0;
+  counts_[size_t(TaskState::kQueued)] = tasks_.size();
+  for (uint64_t& w : work_) w = 0;
+  task_work_.clear();
+  AddWork(tasks_);
+  group_remaining_.clear();
+  group_total_.clear();
+  full_coverage_ = 0;
+  for (const TaskSpec& t : tasks_) CountIntoGroup(t);
+  // An empty accumulator, not none: the persister checkpoints loaded accumulators only, and the
+  // checkpoint of nothing is what replaces the old image on disk.
+  accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height);
+  ++merge_seq_;
+  ++epoch_;
+  samples_merged = 0;
+  work_to_create = 0;
+  progress_shown = 0;
+  eta = EtaEstimator{};
+  stopping = false;
+  noise_cache = -1;
+  noise_checked_seq = ~uint64_t(0);
+  noise_checked_at = -1e300;
+  noise_target_checked_at = -1e300;
+  noise_checked_coverage = 0;
+  dirty_tasks.clear();
+  for (uint64_t id = 0; id < tasks_.size(); ++id) dirty_tasks.insert(id);
+  row_dirty = true;
+  checkpoint_retry = true;
+  restart_checkpoint_seq = merge_seq_;
+}
+
 Accumulator& Job::accumulator() {
   if (!accumulator_)
     accumulator_ =

@@ -80,6 +80,14 @@ class Job {
   // Tasks a dynamic plan created from merged results (server/scheduling/task_source.h), QUEUED;
   // their ids must continue the numbering (task_id = num_tasks(), +1, …): std::logic_error if not.
   void AppendTasks(const std::vector<TaskSpec>& tasks);
+  // Starts the job's work again from nothing (results of a convicted worker are in its image:
+  // docs/farm.md "Result verification"): `tasks` (the plan's static tasks) all QUEUED with fresh
+  // attempts, an empty accumulator, coverage and ETA reset. merge_seq goes *up* by one, so the
+  // next checkpoint (of nothing) supersedes every earlier one, and `epoch` counts the restarts:
+  // a result merged before a restart is never stored after it (the persister asks). The state
+  // (RUNNING) and the elapsed time stay. Call with image_mu and the Scheduler's lock held.
+  void Restart(std::vector<TaskSpec> tasks);
+  uint32_t epoch() const { return epoch_; }
 
   JobState state() const { return state_; }
   const std::string& failure_reason() const { return failure_reason_; }
@@ -166,6 +174,9 @@ class Job {
   bool paused_for_storage = false;
   // The last checkpoint failed: try again at every flush instead of waiting until one is due.
   bool checkpoint_retry = false;
+  // Restarted (Restart) and held back from leasing until a checkpoint of merge_seq ≥ this is
+  // stored: until then a crash would bring back what the restart threw away. 0: not held.
+  uint64_t restart_checkpoint_seq = 0;
   uint64_t stored_samples_merged = 0;  // their figures as last stored
   double stored_noise_rms = -1;
   // The accumulator's samples_merged as of its last merge, readable under the Scheduler's lock
@@ -188,6 +199,7 @@ class Job {
   uint64_t work_[5] = {0, 0, 0, 0, 0};
   void AddWork(const std::vector<TaskSpec>& tasks);
   uint64_t merge_seq_ = 0;
+  uint32_t epoch_ = 0;
   // Coverage: per group (round for skipping, map index otherwise) tasks still unmerged.
   std::vector<uint64_t> group_remaining_;
   std::vector<uint64_t> group_total_;

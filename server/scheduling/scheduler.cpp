@@ -741,6 +741,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
         job->eta.RecordCompletion(now, double(job->task_work(task_id)));
         result.status = CompleteStatus::kMerged;
         result.merge_seq = job->merge_seq();
+        result.epoch = job->epoch();
         result.worker_id = rt.worker_id;
         activity_.TaskEvent(job->id(), "merged", task_id, rt.attempts, result.worker_id);
         spdlog::info("job {} task {}: merged (attempt {}, worker {}; {}/{} done)", job->id(), task_id,
@@ -890,8 +891,8 @@ void Scheduler::HeardLocked(const std::string& worker_id, double now) {
 }
 
 bool Scheduler::CountFailure(Job& job, const std::string& worker_id, uint64_t task_id, uint32_t attempt,
-                             const std::string& reason, double now) {
-  const WorkerHealth::FailureOutcome out = health_.RecordFailure(job.id(), worker_id, reason, now);
+                             const std::string& reason, double now, bool convicted) {
+  const WorkerHealth::FailureOutcome out = health_.RecordFailure(job.id(), worker_id, reason, now, convicted);
   const std::string who = limits::Quote(worker_id, limits::kMaxWorkerIdBytes);
   if (out.blocklisted) {
     spdlog::warn(
@@ -1018,6 +1019,62 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
   Run(fx);
 }
 
+bool Scheduler::ConvictWorker(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
+                              const std::string& evidence) {
+  Job* job = nullptr;
+  {
+    std::lock_guard lock(mu_);
+    job = jobs_.Find(job_id);
+  }
+  if (!job) return false;
+  Effects fx;
+  bool restarted = false;
+  {
+    std::lock_guard image(job->image_mu);  // the restart replaces the accumulator
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    const std::string who = limits::Quote(worker_id, limits::kMaxWorkerIdBytes);
+    CountFailure(*job, worker_id, task_id, 0, "convicted: " + evidence, now, /*convicted=*/true);
+    activity_.TaskEvent(job->id(), "convicted", task_id, 0, worker_id, evidence);
+    Touch(*job, fx);
+    if (!job->active()) {
+      spdlog::error("job {}: worker {} convicted ({}) after the job ended: left as it is", job->id(), who,
+                    evidence);
+    } else {
+      restarted = true;
+      // Its leases and queued tasks go; the plan's tasks come back, all queued, held until the
+      // empty image is stored.
+      for (uint64_t id = 0; id < job->num_tasks(); ++id) {
+        const TaskRuntime& rt = job->runtime(id);
+        if (rt.state == TaskState::kLeased) leases_.Erase(rt.lease_id);
+        if (rt.state == TaskState::kQueued) Dequeue(*job, id);
+      }
+      for (auto it = held_.begin(); it != held_.end();)
+        it = it->first.first == job->id() ? held_.erase(it) : std::next(it);
+      const uint64_t merged_before = job->count(TaskState::kDone);
+      job->Restart(ScheduledTasks(job->config()));
+      sources_[job] = task_sources_(job->config());
+      queue_.Hold(*job);
+      for (uint64_t id = 0; id < job->num_tasks(); ++id) Enqueue(*job, id, fx);
+      spdlog::error(
+          "job {}: worker {} convicted of a wrong result ({}): blocklisted for the job; the job starts again "
+          "from nothing without it ({} merged tasks dropped)",
+          job->id(), who, evidence, merged_before);
+      activity_.TaskEvent(job->id(), "restarted", task_id, 0, worker_id,
+                          "its image held results of a convicted worker: " + std::to_string(merged_before) +
+                              " merged tasks dropped, every task queued again");
+    }
+  }
+  Run(fx);
+  return restarted;
+}
+
+uint32_t Scheduler::JobEpoch(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  const Job* job = jobs_.Find(job_id);
+  return job ? job->epoch() : 0;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Time
 
@@ -1135,10 +1192,13 @@ void Scheduler::CheckpointStored(const Checkpoint& cp, const CheckpointSeal& sea
     job->results_storage_error.clear();
     if (job->paused_for_storage) {
       job->paused_for_storage = false;
-      queue_.Unhold(*job);
       spdlog::info("job {}: its results are stored again: resumed", job->id());
-      ServeWaiters(fx);
     }
+    if (job->restart_checkpoint_seq != 0 && cp.merge_seq >= job->restart_checkpoint_seq) {
+      job->restart_checkpoint_seq = 0;
+      spdlog::info("job {}: its restart is stored: leasing again", job->id());
+    }
+    if (!job->paused_for_storage && job->restart_checkpoint_seq == 0 && queue_.Unhold(*job)) ServeWaiters(fx);
     job->ReleaseAccumulator(path);  // a finished job's image now lives on disk only
   }
   Run(fx);

@@ -137,6 +137,7 @@ struct CompleteResult {
   std::string job_id;
   uint64_t task_id = 0;
   uint64_t merge_seq = 0;  // kMerged: the job's merge count including this one
+  uint32_t epoch = 0;      // kMerged: the job's restart count when it was merged (Job::epoch)
   std::string worker_id;   // kMerged: the worker that delivered it
 };
 
@@ -214,6 +215,17 @@ class Scheduler final : public PersistSource {
                    bool retryable);
   // A lease that never reached its worker: back to the queue, no failure counted.
   void ReturnLease(const std::string& lease_id);
+
+  // A worker sent a result of the job (a render task or a map piece) that another render proved
+  // wrong (docs/farm.md, "Result verification"). The worker is blocklisted for the job (and counts
+  // towards its quarantine), an event says why, and — since its results are in the job's image
+  // and, through its pieces, in its maps — the job starts again from nothing without it
+  // (Job::Restart): all of its tasks are queued again and its leases dropped; the job leases
+  // nothing until the checkpoint of the empty image is stored. A finished job is left as it is
+  // (false). `task_id` names the task or piece the evidence is about, for the event.
+  bool ConvictWorker(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
+                     const std::string& evidence);
+  uint32_t JobEpoch(const std::string& job_id) override;
   // A call from the worker outside this class (map piece RPCs): it is live.
   void Heard(const std::string& worker_id);
   // A map piece's attempt failed (DistributedMaps; `kind`: piece-failed, piece-expired): it counts
@@ -281,7 +293,7 @@ class Scheduler final : public PersistSource {
   // A failed attempt of `worker_id` in the job: blocklist and quarantine. True if it just got
   // blocklisted for the job.
   bool CountFailure(Job& job, const std::string& worker_id, uint64_t task_id, uint32_t attempt,
-                    const std::string& reason, double now);
+                    const std::string& reason, double now, bool convicted = false);
   // "" while a live worker not blocklisted for the job is left, else why none is (naming the
   // blocklisted workers).
   std::string NoWorkerLeft(const Job& job) const;

@@ -30,10 +30,11 @@ void TaskQueue::Hold(const Job& job) {
   ready_.erase(PositionOf(job));
 }
 
-void TaskQueue::Unhold(Job& job) {
-  if (!held_.erase(&job)) return;
+bool TaskQueue::Unhold(Job& job) {
+  if (!held_.erase(&job)) return false;
   if (auto it = queues_.find(&job); it != queues_.end() && !it->second.ids.empty())
     ready_[PositionOf(job)] = &job;
+  return true;
 }
 
 TaskQueue::Position TaskQueue::PositionOf(const Job& job) {

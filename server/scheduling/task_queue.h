@@ -40,9 +40,10 @@ class TaskQueue {
   // No-op if the task is not queued.
   void Remove(Job& job, uint64_t task_id);
   // A held job keeps its queued tasks but is never served (a job whose results cannot be stored,
-  // docs/farm.md "Durability"), until Unhold. Both idempotent.
+  // docs/farm.md "Durability"; one restarted from nothing, until its restart is stored), until
+  // Unhold. Both idempotent.
   void Hold(const Job& job);
-  void Unhold(Job& job);
+  bool Unhold(Job& job);  // true if it was held
 
   bool empty() const { return ready_.empty(); }
   // The first job with queued tasks after `after` in the order (from the first if nullopt);

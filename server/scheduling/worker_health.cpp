@@ -72,7 +72,8 @@ bool WorkerHealth::Lost(const std::string& worker_id) const {
 
 WorkerHealth::FailureOutcome WorkerHealth::RecordFailure(const std::string& job_id,
                                                          const std::string& worker_id,
-                                                         const std::string& reason, double now) {
+                                                         const std::string& reason, double now,
+                                                         bool convicted) {
   FailureOutcome out;
   if (worker_id.empty()) return out;
   JobHealth& job = jobs_[job_id];
@@ -84,7 +85,8 @@ WorkerHealth::FailureOutcome WorkerHealth::RecordFailure(const std::string& job_
     b->second.last_error = reason;
     return out;
   }
-  if (options_.blocklist_failures == 0 || out.failed_attempts < options_.blocklist_failures) return out;
+  if (!convicted && (options_.blocklist_failures == 0 || out.failed_attempts < options_.blocklist_failures))
+    return out;
   job.blocklisted[worker_id] = Blocklisted{out.failed_attempts, reason};
   out.blocklisted = true;
   if (options_.quarantine_jobs == 0) return out;

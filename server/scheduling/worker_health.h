@@ -69,8 +69,10 @@ class WorkerHealth {
   bool Lost(const std::string& worker_id) const;
 
   // A failed attempt attributed to the worker in the job (`reason` for the blocklist entry).
+  // `convicted`: it sent a result that another render proved wrong (docs/farm.md, "Result
+  // verification"): blocklisted at once, whatever its count.
   FailureOutcome RecordFailure(const std::string& job_id, const std::string& worker_id,
-                               const std::string& reason, double now);
+                               const std::string& reason, double now, bool convicted = false);
   bool IsBlocklisted(const std::string& job_id, const std::string& worker_id) const;
   // Whether the worker has a failed attempt in a job that has not ended: if not, no job's
   // blocklist names it and no task avoids it (the scheduler's fast path for healthy workers).

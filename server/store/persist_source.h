@@ -33,6 +33,9 @@ class PersistSource {
   virtual void CheckpointNotStored(const std::string& job_id, uint64_t merge_seq,
                                    const std::string& reason) = 0;
 
+  // How often the job started again from nothing (Job::Restart): a result merged under an
+  // earlier count is dropped, never stored. 0 for an unknown job.
+  virtual uint32_t JobEpoch(const std::string& job_id) = 0;
   // These merged results are in the job's journal, synced.
   virtual void ResultsJournaled(const std::string& job_id, std::span<const uint64_t> task_ids) = 0;
   // A result of the job could be stored nowhere: its job gets no new leases until a checkpoint of

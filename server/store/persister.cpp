@@ -94,13 +94,13 @@ void Persister::Wake() {
   cv_.notify_all();
 }
 
-void Persister::JournalThenAck(const std::string& job_id, uint64_t task_id, std::span<const float> rgb_sums,
-                               Ack ack) {
+void Persister::JournalThenAck(const std::string& job_id, uint64_t task_id, uint32_t epoch,
+                               std::span<const float> rgb_sums, Ack ack) {
   {
     std::lock_guard lock(mu_);
     if (!stop_) {
       pending_.push_back(
-          {job_id, task_id, std::vector<float>(rgb_sums.begin(), rgb_sums.end()), std::move(ack)});
+          {job_id, task_id, epoch, std::vector<float>(rgb_sums.begin(), rgb_sums.end()), std::move(ack)});
       woken_ = true;
       cv_.notify_all();
       return;
@@ -156,8 +156,16 @@ bool Persister::WriteJournal(std::vector<Pending>& pending, std::vector<Ack>* st
   // for all of this flush's results (the appended ones may be lost with the failed sync).
   std::map<std::string, std::string> failed;
   std::map<std::string, std::vector<size_t>> appended;
+  std::vector<Ack> dropped;
   for (size_t i = 0; i < pending.size(); ++i) {
     Pending& p = pending[i];
+    if (p.epoch != source_.JobEpoch(p.job_id)) {
+      // Merged before the job started again from nothing (a convicted worker): its result is
+      // not in the image any more and must never come back from the journal.
+      dropped.push_back(std::move(p.ack));
+      p.ack = nullptr;
+      continue;
+    }
     if (failed.count(p.job_id)) continue;
     JournalWriter& journal = Journal(p.job_id);
     std::string problem;
@@ -184,8 +192,10 @@ bool Persister::WriteJournal(std::vector<Pending>& pending, std::vector<Ack>* st
     source_.ForceCheckpoint(job);
   }
   for (Pending& p : pending)
-    if (auto f = failed.find(p.job_id); f != failed.end())
+    if (auto f = failed.find(p.job_id); f != failed.end() && p.ack)
       waiting->push_back({p.job_id, f->second, std::move(p.ack)});
+  for (Ack& ack : dropped)
+    ack("the job started again from nothing after a wrong result; this one is not in it");
   std::lock_guard lock(mu_);
   journal_entries_written_ += stored->size();
   return failed.empty();

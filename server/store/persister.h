@@ -91,7 +91,10 @@ class Persister {
   // Durable mode: appends a merged result to its job's journal and calls `ack` once it is stored,
   // or with the reason it could not be (at once, "not stored", after Stop/Abandon). Copies the
   // floats.
-  void JournalThenAck(const std::string& job_id, uint64_t task_id, std::span<const float> rgb_sums, Ack ack);
+  // `epoch`: the job's restart count when it was merged (CompleteResult.epoch); a result of an
+  // earlier epoch than the job's is answered "not stored" and never written.
+  void JournalThenAck(const std::string& job_id, uint64_t task_id, uint32_t epoch,
+                      std::span<const float> rgb_sums, Ack ack);
 
   // One synchronous flush on the calling thread (checkpoints_due forces checkpoints). True if
   // everything it tried to write was written.
@@ -104,6 +107,7 @@ class Persister {
   struct Pending {
     std::string job_id;
     uint64_t task_id;
+    uint32_t epoch;
     std::vector<float> rgb_sums;
     Ack ack;
   };

@@ -1239,3 +1239,56 @@ TEST_F(SchedulerTest, RenderTasksWaitForTheirMapAndPiecesComeFirst) {
 
 }  // namespace
 }  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+// A convicted worker's results are in the job's image: the job starts again from nothing without
+// it, leases nothing until the empty image is stored, and ends in the image of an honest run.
+TEST_F(SchedulerTest, AConvictedWorkersJobStartsAgainWithoutItAndEndsInTheHonestImage) {
+  const JobConfig config = MakeConfig(MultipleMaps(6, 0), 8, 4);
+  const std::string reference = Submit(config);
+  while (std::optional<Lease> l = scheduler_.TryLease({"honest", {}})) CompleteOk(*l);
+  const std::string id = Submit(config);
+  const Lease liar = MustLease("liar");
+  const auto& cam = liar.config->camera;
+  std::vector<float> wrong = SyntheticResult(liar.task, cam.width, cam.height);
+  for (float& v : wrong) v *= 1.5f;
+  ASSERT_EQ(scheduler_.Complete(liar.lease_id, liar.worker_id, wrong).status, CompleteStatus::kMerged);
+  EXPECT_EQ(CompleteOk(MustLease("honest")).status, CompleteStatus::kMerged);
+  const Lease in_flight = MustLease("honest");
+  uint64_t old_seq = 0;
+  for (const Checkpoint& cp : scheduler_.CollectCheckpoints(true))
+    if (cp.job_id == id) old_seq = cp.merge_seq;
+  ASSERT_EQ(old_seq, 2u);
+  ASSERT_EQ(scheduler_.JobEpoch(id), 0u);
+
+  ASSERT_TRUE(scheduler_.ConvictWorker(id, "liar", liar.task_id, "result differs from another render"));
+  v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.tasks_done(), 0u);
+  EXPECT_EQ(s.tasks_queued(), 6u);
+  EXPECT_EQ(s.samples_merged(), 0u);
+  EXPECT_EQ(scheduler_.JobEpoch(id), 1u);
+  ASSERT_EQ(s.blocklisted_workers_size(), 1);
+  EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "liar");
+  EXPECT_EQ(CompleteOk(in_flight).status, CompleteStatus::kIgnored) << "its lease went with the restart";
+  EXPECT_FALSE(scheduler_.TryLease({"honest", {}}).has_value()) << "held until the restart is stored";
+  const std::vector<Checkpoint> cps = scheduler_.CollectCheckpoints(/*due=*/false);
+  ASSERT_EQ(cps.size(), 1u) << "the empty image is checkpointed at once";
+  EXPECT_GT(cps[0].merge_seq, old_seq) << "it supersedes the old checkpoint";
+  EXPECT_TRUE(cps[0].merged_task_ids.empty());
+  scheduler_.CheckpointStored(cps[0], CheckpointSeal{0, 1}, "/r.acc");
+  EXPECT_FALSE(scheduler_.TryLease({"liar", {}}).has_value()) << "blocklisted for the job";
+  while (std::optional<Lease> l = scheduler_.TryLease({"honest", {}})) CompleteOk(*l);
+  s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_SUCCEEDED);
+  const JobSnapshot a = scheduler_.Snapshot(id, true), b = scheduler_.Snapshot(reference, true);
+  ASSERT_TRUE(a.image && b.image);
+  EXPECT_EQ(a.image->samples_merged, b.image->samples_merged);
+  for (size_t p = 0; p < b.image->image.size(); ++p)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(a.image->image[p][c], b.image->image[p][c]) << p;
+  EXPECT_FALSE(scheduler_.ConvictWorker(id, "honest", 0, "late")) << "a finished job is left as it is";
+}
+
+}  // namespace
+}  // namespace pf::server

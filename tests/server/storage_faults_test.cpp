@@ -113,10 +113,10 @@ class StorageCase {
     const std::optional<Lease> lease = run.scheduler->TryLease({"w", {}});
     if (!lease) return false;
     const std::vector<float> sums = SyntheticResult(lease->task, 12, 10);
-    EXPECT_EQ(run.scheduler->Complete(lease->lease_id, lease->worker_id, sums).status,
-              CompleteStatus::kMerged);
+    const CompleteResult result = run.scheduler->Complete(lease->lease_id, lease->worker_id, sums);
+    EXPECT_EQ(result.status, CompleteStatus::kMerged);
     rendered_.push_back(lease->task_id);
-    run.persister->JournalThenAck(lease->job_id, lease->task_id, sums,
+    run.persister->JournalThenAck(lease->job_id, lease->task_id, result.epoch, sums,
                                   [this, task = lease->task_id](const std::string& not_stored) {
                                     if (not_stored.empty())
                                       acknowledged_.insert(task);

@@ -288,7 +288,7 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   const std::vector<float> sums = SyntheticResult(lease.task, 12, 10);
   ASSERT_EQ(scheduler.Complete(lease.lease_id, lease.worker_id, sums).status, CompleteStatus::kMerged);
   bool acked = false;
-  persister.JournalThenAck(id, lease.task_id, sums,
+  persister.JournalThenAck(id, lease.task_id, 0, sums,
                            [&](const std::string& not_stored) { acked = not_stored.empty(); });
   EXPECT_FALSE(acked) << "nothing on disk yet";
   persister.FlushNow(/*checkpoints_due=*/false);
@@ -305,9 +305,16 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   ASSERT_TRUE(cp.has_value());
   EXPECT_EQ(cp->merged_task_ids, std::vector<uint64_t>{lease.task_id});
   EXPECT_TRUE(ReadJournalFile(Persister::JournalFile(dir.path() / "checkpoints", id), &valid).empty());
+  // A result merged before its job started again from nothing is never stored.
+  std::string stale;
+  persister.JournalThenAck(id, lease.task_id, /*epoch=*/7, sums,
+                           [&](const std::string& not_stored) { stale = not_stored; });
+  persister.FlushNow(false);
+  EXPECT_THAT(stale, HasSubstr("started again"));
+  EXPECT_TRUE(ReadJournalFile(Persister::JournalFile(dir.path() / "checkpoints", id), &valid).empty());
   persister.Abandon();
   std::string late = "not called";
-  persister.JournalThenAck(id, 1, sums, [&](const std::string& not_stored) { late = not_stored; });
+  persister.JournalThenAck(id, 1, 0, sums, [&](const std::string& not_stored) { late = not_stored; });
   EXPECT_THAT(late, HasSubstr("stopping")) << "after a stop: answered at once, as not stored";
 }
 
@@ -353,7 +360,7 @@ TEST_F(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
     ASSERT_EQ(scheduler->Complete(journaled.lease_id, journaled.worker_id, sums).status,
               CompleteStatus::kMerged);
-    persister->JournalThenAck(id, journaled.task_id, sums, [](const std::string&) {});
+    persister->JournalThenAck(id, journaled.task_id, 0, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     checkpointed.push_back(journaled.task_id);
     // Merged in memory but never journaled (so never acknowledged): lost by the crash, must be
@@ -580,7 +587,7 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
     ASSERT_EQ(scheduler->Complete(journaled.lease_id, journaled.worker_id, sums).status,
               CompleteStatus::kMerged);
-    persister->JournalThenAck(id, journaled.task_id, sums, [](const std::string&) {});
+    persister->JournalThenAck(id, journaled.task_id, 0, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     merged_before_crash = static_tasks + 2;
     persister->Abandon();
