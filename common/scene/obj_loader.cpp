@@ -247,7 +247,7 @@ class VertexTable {
  public:
   static constexpr uint32_t kNone = 0xffffffffu;
   explicit VertexTable(size_t positions) : first_(positions, kNone), first_normal_(positions, 0) {}
-  // The vertex of (position, normal + 1), or kNone; `make` creates it if absent.
+  // The vertex of (position, normal + 1); `make` creates it (and returns its number) if absent.
   template <typename Make>
   uint32_t Find(uint32_t position, uint32_t normal_plus_one, Make make) {
     if (first_[position] == kNone) {
@@ -456,6 +456,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
 
   // The scene's frame (scene_frame.h) from the double-precision bounds of the vertices the faces
   // use (tinyobjloader parses in double here: TINYOBJLOADER_USE_DOUBLE), before any is rounded.
+  uint64_t triangles = 0;  // n − 2 per face: what the loop below emits at most
   uint64_t corners = 0;
   WorldBounds bounds;
   auto world_position = [&](size_t v) {
@@ -468,20 +469,26 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
         const int v = shape.mesh.indices[offset + k].vertex_index;
         if (v >= 0 && v < num_v) bounds.Extend(world_position(size_t(v)));
       }
+      triangles += n >= 3 ? n - 2 : 0;
       corners += n >= 3 ? n : 0;
       offset += n;
     }
   }
   scene.origin = SceneFrameOrigin(bounds);
-  if (corners >= 3) {
-    scene.triangles.reserve(size_t(std::min<uint64_t>(corners - 2, budget.max_triangles)));
-    scene.triangle_material.reserve(scene.triangles.capacity());
-    scene.triangle_light.reserve(scene.triangles.capacity());
-  }
+  // Sized once, so that the vectors do not grow by doubling next to tinyobjloader's arrays: the
+  // triangles exactly (less the degenerate ones), the vertices for one normal per position (the
+  // usual case; more pairs grow the vector).
+  scene.triangles.reserve(size_t(std::min<uint64_t>(triangles, budget.max_triangles)));
+  scene.triangle_material.reserve(scene.triangles.capacity());
+  scene.triangle_light.reserve(scene.triangles.capacity());
+  const size_t expected_vertices =
+      size_t(std::min<uint64_t>({uint64_t(num_v), corners, budget.max_vertices}));
+  scene.positions.reserve(expected_vertices);
 
   // Vertices shared per (position, normal) pair.
   VertexTable vertex_of{size_t(num_v)};
   std::vector<Vec3> normals;
+  if (num_vn > 0) normals.reserve(expected_vertices);
   bool any_normal = false;
   auto vertex = [&](const tinyobj::index_t& idx) -> uint32_t {
     if (idx.vertex_index < 0 || idx.vertex_index >= num_v || idx.normal_index < -1 ||

@@ -29,7 +29,7 @@ struct SceneExpansion {
   }
   static uint64_t Multiply(uint64_t a, uint64_t b) {
     return b != 0 && a > std::numeric_limits<uint64_t>::max() / b ? std::numeric_limits<uint64_t>::max()
-                                                                   : a * b;
+                                                                  : a * b;
   }
   // This plus `times` executions of `other`.
   void AddTimes(const SceneExpansion& other, uint64_t times) {
@@ -54,13 +54,15 @@ struct SceneBudget {
   std::string Exceeded(const SceneExpansion& e) const {
     auto over = [](uint64_t count, uint64_t budget, const char* what, const char* field, bool bound) {
       return "expands to " + std::string(bound ? "up to " : "") +
-             (count == std::numeric_limits<uint64_t>::max() ? "more than 2^64" : std::to_string(count)) + " " +
-             what + ", more than the budget of " + std::to_string(budget) + " (SceneBudget::" + field +
+             (count == std::numeric_limits<uint64_t>::max() ? "more than 2^64" : std::to_string(count)) +
+             " " + what + ", more than the budget of " + std::to_string(budget) + " (SceneBudget::" + field +
              ", docs/security.md)";
     };
-    if (e.instances > max_instances) return over(e.instances, max_instances, "array instances", "max_instances", false);
+    if (e.instances > max_instances)
+      return over(e.instances, max_instances, "array instances", "max_instances", false);
     if (e.entities > max_entities) return over(e.entities, max_entities, "entities", "max_entities", false);
-    if (e.triangles > max_triangles) return over(e.triangles, max_triangles, "triangles", "max_triangles", true);
+    if (e.triangles > max_triangles)
+      return over(e.triangles, max_triangles, "triangles", "max_triangles", true);
     if (e.vertices > max_vertices) return over(e.vertices, max_vertices, "vertices", "max_vertices", true);
     return "";
   }

@@ -39,7 +39,9 @@ struct WorldBounds {
 Vec3d SceneFrameOrigin(const WorldBounds& bounds);
 
 // A world point in the frame of `origin`, rounded once to float.
-inline Vec3 InSceneFrame(const Vec3d& world, const Vec3d& origin) { return Vec3(world - origin); }
+inline Vec3 InSceneFrame(const Vec3d& world, const Vec3d& origin) {
+  return Vec3(world - origin);
+}
 
 // Chooses the frame of the world points `world` (SceneFrameOrigin of their bounds), sets
 // scene->origin and replaces scene->positions by the points in that frame.

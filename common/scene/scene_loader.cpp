@@ -1,6 +1,10 @@
 // Scene loading entry point: extension dispatch, manifest application, default camera.
 #include "common/scene/scene_loader.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -163,8 +167,10 @@ void ApplyScale(double scale, const SourceLocation& where, const std::string& fi
   for (Vec3& p : scene->positions) p = Vec3(Vec3d(p) * scale);
 }
 
-SceneDescription LoadScene(const std::filesystem::path& path, double scale_override,
-                           const std::filesystem::path& root_or_empty) {
+namespace {
+
+SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_override,
+                                const std::filesystem::path& root_or_empty) {
   if (!std::isfinite(scale_override) || scale_override < 0.0)
     throw InputError("scale override must be a finite number > 0 (or 0 for none), got " +
                      std::to_string(scale_override));
@@ -210,6 +216,25 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
     ApplyScale(manifest.scale, SourceLocation{manifest_file, manifest.scale_line}, "key 'scale'", &scene);
   scene.warnings.insert(scene.warnings.begin(), manifest.warnings.begin(), manifest.warnings.end());
   scene.source = manifest_file;
+  return scene;
+}
+
+// A load frees most of what it allocated (tinyobjloader's per-face lists, the MGF loader's double
+// positions), but glibc keeps freed small blocks in the process: 110 MB after a 5M-face OBJ
+// (docs/security.md, "Scene budgets"). The coordinator loads every uploaded scene and a worker
+// every scene it renders, so they are given back.
+void ReturnFreedMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
+}  // namespace
+
+SceneDescription LoadScene(const std::filesystem::path& path, double scale_override,
+                           const std::filesystem::path& root) {
+  SceneDescription scene = LoadSceneFiles(path, scale_override, root);
+  ReturnFreedMemory();
   return scene;
 }
 

@@ -303,11 +303,12 @@ TEST(HardCasesTranslated, OnlyFarScenesGetAFrame) {
 // vertices and the manifest's camera written as unrounded decimals (x + 1e6 = "1000000.99", not
 // on the 6.25 cm float lattice there), loaded by LoadScene like any scene. The loaders keep the
 // coordinates in double until the scene's frame is chosen (scene_frame.h), so the stored floats
-// are the box's shape to float precision at its size, and the image is the untranslated one's
-// (same seeds) with either integrator, to 1 %. Before (loaders rounding world coordinates to
-// float, then SceneRuntime's local frame): at 1e6 the light (y = 1.98) and the ceiling (1.99)
-// rounded onto one plane; path 0.0886 and photon map 0.0873 for 0.1190 / 0.1200 (−26 % / −27 %),
-// and at 1e5 −1.2 % / −0.6 % (docs/results/hard_cases.md).
+// are the box's shape to float precision at its size (1e-7 m), and with the same seeds the image
+// mean is the untranslated one's, with either integrator: measured equal to 6 digits; the bound
+// is 0.1 % (the issue asks 1 %), so that the 1e5 case fails without the fix too. Before (loaders
+// rounding world coordinates to float, then SceneRuntime's local frame): at 1e6 the light
+// (y = 1.98) and the ceiling (1.99) rounded onto one plane, path 0.0887 and photon map 0.0873 for
+// 0.1190 / 0.1200 (−25 % / −27 %), and at 1e5 −1.2 % / −0.6 % (docs/results/hard_cases.md).
 std::string Decimal(double v) {
   char text[64];
   std::snprintf(text, sizeof text, "%.6f", v);  // the inputs have <= 6 decimals: exact
@@ -333,7 +334,9 @@ SceneDescription LoadTranslatedCornellBox(const std::filesystem::path& dir, doub
   const SceneDescription shipped_scene = LoadScene(shipped / "cornell-box.json");
   const CameraSpec& cam = shipped_scene.cameras.front();
   auto point = [&](const Vec3d& p) {
-    return "[" + Decimal(p.x + t) + ", " + Decimal(p.y + t) + ", " + Decimal(p.z + t) + "]";
+    std::ostringstream text;
+    text << "[" << Decimal(p.x + t) << ", " << Decimal(p.y + t) << ", " << Decimal(p.z + t) << "]";
+    return text.str();
   };
   std::ofstream manifest(dir / "cornell-box.json");
   manifest << "{\"version\": 1, \"geometry\": \"CornellBox-Original.obj\", \"cameras\": [{\"eye\": "
@@ -359,7 +362,7 @@ TEST_P(HardCasesTranslated, ShippedCornellBoxTranslatedInItsFilesRendersLikeTheO
                 kind == IntegratorKind::kPath ? "path" : "photon map", b.mean, a.mean);
     ASSERT_TRUE(b.finite);
     EXPECT_GT(a.mean, 0.05);
-    EXPECT_NEAR(b.mean, a.mean, 0.01 * a.mean)
+    EXPECT_NEAR(b.mean, a.mean, 1e-3 * a.mean)
         << "integrator " << int(kind) << ", translated by " << GetParam();
   }
 }
