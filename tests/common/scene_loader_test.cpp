@@ -562,7 +562,7 @@ TEST_F(LoadSceneTest, ManifestAttachesCamerasAndScales) {
 // A manifest "scale" (or a scale override) that would make world coordinates overflow a float,
 // collapse the scene, or make a camera degenerate is an InputError naming the manifest (and the
 // key's line) and the field, never a scene with Inf/NaN vertices or cameras. Before, "scale": 1e39
-// loaded: every vertex became ±Inf or NaN (0 × Inf).
+// loaded: vertices ±Inf or NaN (0 × Inf), the camera's eye (-nan, inf, inf) (`pf info`).
 TEST_F(LoadSceneTest, ScalesThatBreakCoordinatesAreErrorsNamingTheField) {
   const std::string obj = CopyCornellBoxHere();
   auto manifest = [&](const std::string& name, const std::string& scale, const std::string& eye) {
