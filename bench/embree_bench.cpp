@@ -58,7 +58,7 @@ SceneResult BenchScene(const std::string& name, const std::string& path, int res
   r.triangles = scene.NumTriangles();
   CameraSpec spec = scene.cameras.empty() ? DefaultCamera(scene) : scene.cameras.front();
   spec.width = spec.height = res;
-  const Camera camera(spec);
+  const Camera camera(spec, scene.origin);
   std::vector<double> build;
   for (int i = 0; i < repeats; ++i) build.push_back(TimeIt([&] { EmbreeScene s(scene); }));
   r.build_seconds = Median(build);
@@ -111,7 +111,8 @@ SceneResult BenchScene(const std::string& name, const std::string& path, int res
   std::vector<double> ps, pr;
   for (int i = 0; i < repeats; ++i) {
     RenderStats st;
-    RenderImage(tracer, Camera(small), RenderOptions{.spp = 4, .seed = uint64_t(i + 1), .threads = 1}, &st);
+    RenderImage(tracer, Camera(small, scene.origin),
+                RenderOptions{.spp = 4, .seed = uint64_t(i + 1), .threads = 1}, &st);
     ps.push_back(st.samples / st.seconds);
     pr.push_back((st.counters.rays + st.counters.shadow_rays) / st.seconds);
   }

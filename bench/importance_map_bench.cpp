@@ -60,10 +60,7 @@ int Run(int argc, char** argv) {
   }
   spdlog::set_level(spdlog::level::warn);
   const SceneRuntime scene(LoadScene(scene_path));
-  CameraSpec spec = scene.description.cameras.front();
-  spec.eye -= scene.origin;
-  spec.look_at -= scene.origin;
-  const Camera camera(spec);
+  const Camera camera(scene.description.cameras.front(), scene.description.origin);
   const std::vector<double> box = Numbers(box_text);
   std::printf("%-10s %-10s %12s %12s %12s %10s %9s\n", "importance", "photons", "stored", "in box",
               "fraction", "rejected", "trace s");
@@ -84,7 +81,7 @@ int Run(int argc, char** argv) {
       for (const PhotonMap* map : {maps.global.get(), maps.direct.get(), maps.caustic.get()}) {
         if (!map) continue;
         for (const Photon& p : map->photons()) {
-          const Vec3 x = p.Position() + scene.origin;
+          const Vec3d x = Vec3d(p.Position()) + scene.description.origin;  // world (scene_frame.h)
           ++stored;
           inside += x.x >= box[0] && x.x <= box[1] && x.z >= box[2] && x.z <= box[3];
         }

@@ -110,8 +110,9 @@ int main(int argc, char** argv) {
     pf::Rng raw_rng(42, 2);  // embree_bench's secondary rays
     // (Not even made under --no-raw: a profile of the trace alone need not count them.)
     const std::vector<pf::Ray> raw_rays =
-        kRawPasses == 0 ? std::vector<pf::Ray>()
-                        : pf::bench::IncoherentSecondaryRays(accel, pf::Camera(spec), kRawRes, raw_rng);
+        kRawPasses == 0
+            ? std::vector<pf::Ray>()
+            : pf::bench::IncoherentSecondaryRays(accel, pf::Camera(spec, scene.origin), kRawRes, raw_rng);
     volatile size_t sink = 0;
     const auto raw_rate = [&] {
       if (kRawPasses == 0) return 0.0;

@@ -280,7 +280,7 @@ class SceneWorkload final : public Workload {
     spec.height = std::max(1, int(std::lround(spec.height * scale)));
     width_ = spec.width;
     height_ = spec.height;
-    const Camera camera(spec);
+    const Camera camera(spec, scene_.origin);
     for (int y = 0; y < spec.height; ++y) {
       for (int x = 0; x < spec.width; ++x) {
         Rng rng = Rng::ForKey(HashKey(2024, uint64_t(y), uint64_t(x)));

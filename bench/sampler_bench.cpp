@@ -84,10 +84,8 @@ int Run(int repeats, int res, uint32_t spp, const std::string& only, const std::
 
   const SceneRuntime scene(LoadScene(std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json"));
   CameraSpec spec = scene.description.cameras.front();
-  spec.eye -= scene.origin;  // into the scene's local frame (scene_runtime.h; 0 for the Cornell box)
-  spec.look_at -= scene.origin;
   spec.width = spec.height = res;
-  const Camera camera(spec);
+  const Camera camera(spec, scene.description.origin);  // into the scene's frame (scene_frame.h)
   std::vector<uint32_t> pixels(size_t(res) * res);
   std::iota(pixels.begin(), pixels.end(), 0u);
   const PathTracer path(scene.accel, scene.lights);

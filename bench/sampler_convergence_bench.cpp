@@ -71,17 +71,13 @@ SamplerKind Kind(const std::string& name) {
 int Run(const Args& a) {
   const Image reference = ReadExr(a.reference);
   const SceneRuntime scene(LoadScene(a.scene));
-  // Traces scene.accel itself: a manifest camera moves into the scene's local frame (scene_runtime.h;
-  // DefaultCamera of the moved description is in it already).
+  // Traces scene.accel itself: the camera (world coordinates) moves into the scene's frame
+  // (scene_frame.h).
   CameraSpec spec = scene.description.cameras.empty() ? DefaultCamera(scene.description)
                                                       : scene.description.cameras.front();
-  if (!scene.description.cameras.empty()) {
-    spec.eye -= scene.origin;
-    spec.look_at -= scene.origin;
-  }
   spec.width = reference.width();
   spec.height = reference.height();
-  const Camera camera(spec);
+  const Camera camera(spec, scene.description.origin);
   const std::vector<float> coverage = EmitterCoverage(scene.accel, camera);
   std::vector<uint8_t> edge(coverage.size());
   for (size_t i = 0; i < coverage.size(); ++i) edge[i] = coverage[i] > 0.0f && coverage[i] < 1.0f;

@@ -204,7 +204,8 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
     spec.width = ref.width();
     spec.height = ref.height();
     const EmbreeScene accel(scene);
-    excluded = EmitterExclusionMask(EmitterCoverage(accel, Camera(spec)), spec.width, spec.height);
+    excluded =
+        EmitterExclusionMask(EmitterCoverage(accel, Camera(spec, scene.origin)), spec.width, spec.height);
   }
   if (!region.empty()) {
     // A part of the image, e.g. a caustic (issue #15): every metric over its pixels only; the
@@ -353,11 +354,20 @@ int RunInfo(const std::string& path) {
     return kExitOk;
   }
   const SceneDescription scene = LoadScene(path);
-  const Bounds3 b = scene.ComputeBounds();
+  const Bounds3 frame_bounds = scene.ComputeBounds();  // world bounds: + origin (scene_frame.h)
+  const Vec3d lo = frame_bounds.Empty() ? Vec3d(frame_bounds.lo) : Vec3d(frame_bounds.lo) + scene.origin;
+  const Vec3d hi = frame_bounds.Empty() ? Vec3d(frame_bounds.hi) : Vec3d(frame_bounds.hi) + scene.origin;
   std::printf("scene       %s\ntriangles   %zu\nemitting    %zu triangles in %u lights\nmaterials   %zu\n",
               path.c_str(), scene.NumTriangles(), scene.NumEmissiveTriangles(), scene.num_lights,
               scene.materials.size());
-  std::printf("bounds      (%g, %g, %g) .. (%g, %g, %g)\n", b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z);
+  if (scene.origin == Vec3d()) {
+    std::printf("bounds      (%g, %g, %g) .. (%g, %g, %g)\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  } else {
+    std::printf("bounds      (%.10g, %.10g, %.10g) .. (%.10g, %.10g, %.10g)\n", lo.x, lo.y, lo.z, hi.x, hi.y,
+                hi.z);
+    std::printf("frame       positions stored relative to (%.17g, %.17g, %.17g) (far from the origin)\n",
+                scene.origin.x, scene.origin.y, scene.origin.z);
+  }
   for (const CameraSpec& c : scene.cameras)
     std::printf("camera      %s: eye %s look-at %s up %s fov %g res %dx%d\n", c.name.c_str(),
                 FormatVec(c.eye).c_str(), FormatVec(c.look_at).c_str(), FormatVec(c.up).c_str(),

@@ -21,6 +21,17 @@ namespace v1 = photonfarm::v1;
 
 namespace {
 
+// X,Y,Z in double (a camera point is a world point, common/scene/scene_frame.h); finite as a
+// float too, as every world coordinate.
+Vec3d ParsePoint(const std::string& text, const char* option) {
+  Vec3d v;
+  char c1 = 0, c2 = 0;
+  std::istringstream in(text);
+  if (!(in >> v.x >> c1 >> v.y >> c2 >> v.z) || c1 != ',' || c2 != ',' || !IsFinite(Vec3(v)) || !in.eof())
+    throw InputError(std::string(option) + ": expected X,Y,Z (three finite numbers), got '" + text + "'");
+  return v;
+}
+
 Vec3 ParseVec3(const std::string& text, const char* option) {
   Vec3 v;
   char c1 = 0, c2 = 0;
@@ -57,6 +68,13 @@ uint32_t TailTileFor(const RenderArgs& a) {
 }  // namespace
 
 std::string FormatVec(const Vec3& v) {
+  return fmt::format("{},{},{}", v.x, v.y, v.z);
+}
+
+std::string FormatVec(const Vec3d& v) {
+  // A point that is a float (every camera of a scene around the origin) prints as before, as
+  // the shortest text of that float; others as the shortest text of the double.
+  if (Vec3d(Vec3(v)) == v) return FormatVec(Vec3(v));
   return fmt::format("{},{},{}", v.x, v.y, v.z);
 }
 
@@ -388,8 +406,8 @@ CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a) {
   } else {
     cam = DefaultCamera(scene);
   }
-  if (!a.eye.empty()) cam.eye = ParseVec3(a.eye, "--eye");
-  if (!a.look_at.empty()) cam.look_at = ParseVec3(a.look_at, "--look-at");
+  if (!a.eye.empty()) cam.eye = ParsePoint(a.eye, "--eye");
+  if (!a.look_at.empty()) cam.look_at = ParsePoint(a.look_at, "--look-at");
   if (!a.up.empty()) cam.up = ParseVec3(a.up, "--up");
   if (a.fov != 0.0f) cam.vfov_degrees = a.fov;
   if (!a.res.empty()) ParseResolution(a.res, cam.width, cam.height);

@@ -130,5 +130,6 @@ void RenderSettingsFromArgs(const RenderArgs& a, photonfarm::v1::RenderSettings*
 JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDescription& scene);
 
 std::string FormatVec(const Vec3& v);
+std::string FormatVec(const Vec3d& v);
 
 }  // namespace pf

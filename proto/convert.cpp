@@ -16,7 +16,14 @@ Vec3 VecFromProto(const v1::Vec3& v, const std::string& field) {
   if (!IsFinite(out)) throw InputError(field + ": must be three finite numbers");
   return out;
 }
-void VecToProto(const Vec3& v, v1::Vec3* out) {
+// A camera point: world coordinates, kept in double (the wire's type; common/scene/scene_frame.h),
+// checked as the worker will use it: finite as a float.
+Vec3d PointFromProto(const v1::Vec3& v, const std::string& field) {
+  const Vec3d out(v.x(), v.y(), v.z());
+  if (!IsFinite(Vec3(out))) throw InputError(field + ": must be three finite numbers");
+  return out;
+}
+void VecToProto(const Vec3d& v, v1::Vec3* out) {
   out->set_x(v.x);
   out->set_y(v.y);
   out->set_z(v.z);
@@ -47,8 +54,8 @@ const char* JobStateName(v1::JobState s) {
 
 CameraSpec CameraFromProto(const v1::Camera& c, const std::string& field) {
   CameraSpec cam;
-  cam.eye = VecFromProto(c.eye(), field + ".eye");
-  cam.look_at = VecFromProto(c.look_at(), field + ".look_at");
+  cam.eye = PointFromProto(c.eye(), field + ".eye");
+  cam.look_at = PointFromProto(c.look_at(), field + ".look_at");
   cam.up = VecFromProto(c.up(), field + ".up");
   // Checked as the worker will use it: as a float (1e-300 becomes 0, 179.9999999 becomes 180).
   cam.vfov_degrees = float(c.vfov_degrees());
@@ -63,9 +70,9 @@ CameraSpec CameraFromProto(const v1::Camera& c, const std::string& field) {
                      " per side, " + std::to_string(kMaxImagePixels) + " pixels)");
   cam.width = int(c.width());
   cam.height = int(c.height());
-  if (!(LengthSquared(cam.look_at - cam.eye) > 0.0f))
-    throw InputError(field + ".look_at: must differ from eye");
-  if (!(LengthSquared(Cross(cam.look_at - cam.eye, cam.up)) > 0.0f))
+  const Vec3 forward(cam.look_at - cam.eye);
+  if (!(LengthSquared(forward) > 0.0f)) throw InputError(field + ".look_at: must differ from eye");
+  if (!(LengthSquared(Cross(forward, cam.up)) > 0.0f))
     throw InputError(field + ".up: must not be parallel to the view direction");
   return cam;
 }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <type_traits>
 
 namespace pf {
 
@@ -26,8 +27,12 @@ struct Vec3T {
   constexpr Vec3T() = default;
   constexpr Vec3T(T x_, T y_, T z_) : x(x_), y(y_), z(z_) {}
   constexpr explicit Vec3T(T v) : x(v), y(v), z(v) {}
+  // Widening float -> double is exact, so it is implicit (a float point is a world point, e.g. a
+  // camera's eye, CameraSpec); every other conversion, narrowing double -> float above all, is
+  // explicit.
   template <typename U>
-  constexpr explicit Vec3T(const Vec3T<U>& o) : x(T(o.x)), y(T(o.y)), z(T(o.z)) {}
+  constexpr explicit(!(std::is_same_v<T, double> && std::is_same_v<U, float>)) Vec3T(const Vec3T<U>& o)
+      : x(T(o.x)), y(T(o.y)), z(T(o.z)) {}
 
   constexpr T operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
   constexpr T& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }

@@ -6,7 +6,6 @@
 
 #include <bit>
 #include <chrono>
-#include <cstring>
 #include <stdexcept>
 
 #include "common/plan/accumulator.h"
@@ -135,34 +134,20 @@ PhotonMapsOptions JobRenderSettings::MapsOptions() const {
 
 namespace {
 
-// The camera as text for a map cache key (exact float bits).
+// The camera as text for a map cache key (exact bits: world points in double, the rest in float).
 std::string CameraKey(const CameraSpec& c) {
   std::string s;
-  for (float v : {c.eye.x, c.eye.y, c.eye.z, c.look_at.x, c.look_at.y, c.look_at.z, c.up.x, c.up.y, c.up.z,
-                  c.vfov_degrees}) {
-    uint32_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    s += std::to_string(bits) + ",";
-  }
+  for (double v : {c.eye.x, c.eye.y, c.eye.z, c.look_at.x, c.look_at.y, c.look_at.z})
+    s += std::to_string(std::bit_cast<uint64_t>(v)) + ",";
+  for (float v : {c.up.x, c.up.y, c.up.z, c.vfov_degrees})
+    s += std::to_string(std::bit_cast<uint32_t>(v)) + ",";
   return s;
-}
-
-// The local frame's origin for a scene (see scene_runtime.h): its bounds' centre if that is
-// farther from the world origin than the scene is large, else 0. Moves the positions.
-Vec3 MoveToLocalFrame(SceneDescription& d) {
-  const Bounds3 b = d.ComputeBounds();
-  if (b.Empty()) return Vec3(0.0f);
-  const Vec3 centre = b.Center();
-  const Vec3 far(std::fabs(centre.x), std::fabs(centre.y), std::fabs(centre.z));
-  if (!(MaxComponent(far) > MaxComponent(b.Diagonal()))) return Vec3(0.0f);
-  for (Vec3& p : d.positions) p -= centre;
-  return centre;
 }
 
 }  // namespace
 
 SceneRuntime::SceneRuntime(SceneDescription d)
-    : origin(MoveToLocalFrame(d)), description(std::move(d)), accel(description), lights(accel) {}
+    : description(std::move(d)), accel(description), lights(accel) {}
 
 std::shared_ptr<const PhotonMaps> PhotonMapCache::Find(const std::string& key) {
   std::lock_guard lock(mutex_);
@@ -203,10 +188,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                        PhotonMapCache* cache, std::atomic<uint64_t>* progress,
                        const std::atomic<bool>* cancel) {
   TaskOutput out;
-  CameraSpec local_camera = camera_spec;  // into the scene's local frame (scene_runtime.h)
-  local_camera.eye -= scene.origin;
-  local_camera.look_at -= scene.origin;
-  const Camera camera(local_camera);
+  const Camera camera(camera_spec, scene.description.origin);  // into the scene's frame (scene_frame.h)
   std::vector<uint32_t> pixels = PixelsOf(task.pixels, camera.width(), camera.height());
   std::vector<Rgb> sums(pixels.size());
   // A hierarchical detail task renders level-l points and their parents with one map: common
@@ -237,7 +219,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     // always traced where they are used (never distributed: MapTracingMode, job_settings.h).
     if (settings.importance != ImportanceMode::kOff)
       key += "|camera=" + std::to_string(camera.width()) + "x" + std::to_string(camera.height()) + "," +
-             CameraKey(local_camera);
+             CameraKey(camera_spec);
     // Emission + direct light alone (radiance_part.h) reads no map, except PhotonDirect's light
     // choice (§4.2.3), which reads the direct photons.
     const bool needs_map =

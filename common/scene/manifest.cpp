@@ -62,16 +62,20 @@ class Parser {
     return d;
   }
 
-  Vec3 Point(const Json& v, const std::string& key) const {
+  // A world point: kept in double (scene_frame.h); it must still be finite as a float, like
+  // every world coordinate (docs/security.md, "Limits").
+  Vec3d Point(const Json& v, const std::string& key) const {
     if (!v.is_array() || v.size() != 3) Fail(key, "expected 3 numbers");
-    Vec3 p;
+    Vec3d p;
     for (int i = 0; i < 3; ++i) {
       if (!v[i].is_number()) Fail(key, "expected 3 numbers");
-      p[i] = v[i].get<float>();
-      if (!std::isfinite(p[i])) Fail(key, "expected 3 finite numbers");
+      p[i] = v[i].get<double>();
+      if (!std::isfinite(float(p[i]))) Fail(key, "expected 3 finite numbers");
     }
     return p;
   }
+
+  Vec3 Direction(const Json& v, const std::string& key) const { return Vec3(Point(v, key)); }
 
   // A colour: 3 non-negative numbers, or one number for grey.
   Rgb Colour(const Json& v, const std::string& key) const {
@@ -104,7 +108,7 @@ class Parser {
     if (!v.contains("look_at")) Fail(key + ".look_at", "missing (expected 3 numbers)");
     cam.eye = Point(v["eye"], key + ".eye");
     cam.look_at = Point(v["look_at"], key + ".look_at");
-    if (v.contains("up")) cam.up = Point(v["up"], key + ".up");
+    if (v.contains("up")) cam.up = Direction(v["up"], key + ".up");
     if (v.contains("fov")) {
       const double fov = Number(v["fov"], key + ".fov");
       if (!(fov > 0.0 && fov < 180.0)) Fail(key + ".fov", "expected degrees in (0, 180)");
@@ -123,7 +127,7 @@ class Parser {
       cam.width = int(w);
       cam.height = int(h);
     }
-    const Vec3 forward = cam.look_at - cam.eye;
+    const Vec3 forward(cam.look_at - cam.eye);
     if (!(LengthSquared(forward) > 0.0f)) Fail(key + ".look_at", "must differ from eye");
     if (!(LengthSquared(Cross(Normalize(forward), cam.up)) > 1e-12f))
       Fail(key + ".up", "must not be zero or parallel to the view direction");
@@ -235,7 +239,11 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
   if (g.is_relative()) g = file.parent_path() / g;
   m.geometry = g.lexically_normal();
 
-  if (root.contains("scale")) m.scale = p.PositiveNumber(root["scale"], "scale");
+  if (root.contains("scale")) {
+    m.scale = p.PositiveNumber(root["scale"], "scale");
+    if (const size_t at = text.find("\"scale\""); at != std::string::npos)
+      m.scale_line = LineOfByte(text, at);
+  }
 
   if (root.contains("cameras")) {
     const Json& cams = root["cameras"];

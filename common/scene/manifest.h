@@ -42,6 +42,7 @@ struct SceneManifest {
   std::string geometry_reference;   // "geometry" as written (LoadScene confines it to the root)
   int geometry_line = 0;            // line of the "geometry" key (0 if not found)
   double scale = 1.0;               // "scale": multiplies positions and camera points
+  int scale_line = 0;               // line of the "scale" key (0 if absent or not found)
   std::vector<CameraSpec> cameras;  // "cameras", in file order
   std::map<std::string, SettingValue> settings;
   std::map<std::string, MaterialOverride> materials;

@@ -37,6 +37,7 @@
 #include "common/scene/mgf_tokenizer.h"
 #include "common/scene/mgf_transform.h"
 #include "common/scene/polygon_triangulation.h"
+#include "common/scene/scene_frame.h"
 #include "common/scene/scene_reference.h"
 
 namespace pf {
@@ -201,9 +202,18 @@ class MgfReader final : private geometry::MeshSink {
     const MgfFile& file = *top;
     include_stack_.push_back(file.canonical);
     files_.emplace(file.canonical, std::move(top));
+    // The budgets are checked on the whole expansion before anything is executed.
+    const SceneExpansion expected = ExpansionOf(file);
+    if (options_.counts) options_.counts->expected = expected;
     Execute(file);
     include_stack_.pop_back();
     Finish();
+  }
+
+  void ReportCounts() const {
+    if (!options_.counts) return;
+    options_.counts->executed_entities = executed_;
+    options_.counts->emitted_triangles = scene_.triangles.size();
   }
 
  private:
@@ -450,6 +460,122 @@ class MgfReader final : private geometry::MeshSink {
     return ref;
   }
 
+  // ---- expansion (scene_budget.h) --------------------------------------------------------------
+  // Triangles and vertices one geometric entity emits at most (the tessellation rule of
+  // mgf_loader.h; curved_primitives.h gives the exact counts, polygons are bounded by their
+  // vertex lists: `fh` bridges each hole with two extra vertices).
+  SceneExpansion PrimitiveExpansion(Kind kind, const Args& a) const {
+    const uint64_t n = static_cast<uint64_t>(options_.curve_segments);
+    const uint64_t words = a.size();
+    SceneExpansion e;
+    switch (kind) {
+      case Kind::kFace:  // n = words − 1 vertices, n − 2 triangles
+        e.triangles = words > 3 ? words - 3 : 0;
+        e.vertices = words - 1;
+        break;
+      case Kind::kFaceHoles:
+        e.triangles = 3 * words;
+        e.vertices = 3 * words;
+        break;
+      case Kind::kSphere: {
+        const uint64_t bands = static_cast<uint64_t>(geometry::SphereBands(options_.curve_segments));
+        e.triangles = 2 * n * bands;
+        e.vertices = (bands + 1) * n;
+        break;
+      }
+      case Kind::kCylinder:
+      case Kind::kCone:
+      case Kind::kRing:
+        e.triangles = 2 * n;
+        e.vertices = 2 * n + 1;
+        break;
+      case Kind::kTorus:
+        e.triangles = 2 * n * n;
+        e.vertices = n * n;
+        break;
+      case Kind::kPrism:
+        e.triangles = 4 * words;
+        e.vertices = 6 * words;
+        break;
+      default:
+        break;
+    }
+    return e;
+  }
+
+  // What executing `file` once expands to, computed from its entities and the nesting
+  // multipliers of its arrays and includes without executing anything, and checked against the
+  // budgets as it accumulates: the error names the line where the file's expansion crosses a
+  // budget (an array's `xf` or `i` line, where its block is multiplied). A file expands the same
+  // wherever it is included, so the result is kept per file. Errors that only execution can
+  // find (unbalanced `xf`, undefined names) are left to it.
+  SceneExpansion ExpansionOf(const MgfFile& file) {
+    if (const auto it = expansion_of_.find(file.canonical); it != expansion_of_.end()) return it->second;
+    FileState st{&file, xf_stack_.size(), object_depth_};
+    FileState* const saved_state = state_;
+    const int saved_line = line_;
+    state_ = &st;
+    struct Block {
+      SceneExpansion body;  // one execution of the block, its closing `xf` included
+      uint64_t instances = 1;
+      bool array = false;
+      int line = 0;
+    };
+    std::vector<Block> open;  // `xf` blocks begun and not yet ended
+    SceneExpansion top;
+    auto current = [&]() -> SceneExpansion& { return open.empty() ? top : open.back().body; };
+    auto check = [&](const SceneExpansion& e, int line) {
+      if (const std::string over = options_.budget.Exceeded(e); !over.empty()) {
+        line_ = line;
+        Fail(over);
+      }
+    };
+    // `times` executions of `body` (plus `array_instances` new instances) into the current count.
+    auto add = [&](const SceneExpansion& body, uint64_t times, uint64_t array_instances, int line) {
+      SceneExpansion& c = current();
+      c.AddTimes(body, times);
+      c.instances = SceneExpansion::Add(c.instances, array_instances);
+      check(c, line);
+    };
+    for (const Entity& e : file.entities) {
+      line_ = e.line;
+      const Args a(&file.words[e.first], e.count);
+      current().entities = SceneExpansion::Add(current().entities, 1);
+      const Kind kind = KindOf(a.keyword());
+      if (kind == Kind::kXf && a.size() > 1) {
+        const XformSpec spec = ParseXform(a, 1);
+        open.push_back(Block{{}, spec.instances, spec.NumArrays() > 0, e.line});
+      } else if (kind == Kind::kXf) {
+        if (open.empty()) continue;  // an end without a begin: execution reports it
+        const Block block = std::move(open.back());
+        open.pop_back();
+        add(block.body, block.instances, block.array ? block.instances : 0, block.line);
+      } else if (kind == Kind::kInclude) {
+        if (a.size() < 2) Fail("i: expected a file name");
+        const MgfFile& included = Include(a[1]);
+        const XformSpec spec = a.size() > 2 ? ParseXform(a, 2) : XformSpec{};
+        include_stack_.push_back(included.canonical);
+        SceneExpansion one = ExpansionOf(included);
+        include_stack_.pop_back();
+        line_ = e.line;
+        one.entities = SceneExpansion::Add(one.entities, 1);  // ExecuteIncluded counts the include itself
+        add(one, spec.instances, spec.NumArrays() > 0 ? spec.instances : 0, e.line);
+      } else {
+        add(PrimitiveExpansion(kind, a), 1, 0, e.line);
+      }
+    }
+    // A block left open at the end of the file runs once, up to the end (execution then fails).
+    while (!open.empty()) {
+      const Block block = std::move(open.back());
+      open.pop_back();
+      add(block.body, block.instances, block.array ? block.instances : 0, block.line);
+    }
+    state_ = saved_state;
+    line_ = saved_line;
+    expansion_of_.emplace(file.canonical, top);
+    return top;
+  }
+
   void ExecuteIncluded(const MgfFile& file) {
     CountEntity();  // an include of an empty file, arrayed, must still count as work
     include_stack_.push_back(file.canonical);
@@ -457,10 +583,12 @@ class MgfReader final : private geometry::MeshSink {
     include_stack_.pop_back();
   }
 
+  // Cannot fire after ExpansionOf accepted the file (it counts the same way); kept so that the
+  // budget holds even if the two ever disagree.
   void CountEntity() {
-    if (++executed_ > options_.max_entities) {
-      Fail("more than " + std::to_string(options_.max_entities) +
-           " entities executed (array repeats and includes included): scene too large");
+    if (++executed_ > options_.budget.max_entities) {
+      Fail("more than " + std::to_string(options_.budget.max_entities) +
+           " entities executed (array repeats and includes included; SceneBudget::max_entities)");
     }
   }
 
@@ -779,8 +907,9 @@ class MgfReader final : private geometry::MeshSink {
 
   // Starts a source primitive: its material, and a light id assigned at its first triangle.
   void BeginPrimitive(size_t expected_triangles) {
-    if (scene_.triangles.size() + expected_triangles > options_.max_triangles) {
-      Fail("more than " + std::to_string(options_.max_triangles) + " triangles (MgfOptions::max_triangles)");
+    if (scene_.triangles.size() + expected_triangles > options_.budget.max_triangles) {
+      Fail("more than " + std::to_string(options_.budget.max_triangles) +
+           " triangles (SceneBudget::max_triangles)");
     }
     prim_material_ = MaterialIndex();
     prim_emissive_ = scene_.materials[prim_material_].IsEmissive();
@@ -793,16 +922,20 @@ class MgfReader final : private geometry::MeshSink {
         Fail("coordinates out of range after transformation (|x| > 1e18)");
       }
     }
-    if (scene_.positions.size() >= 0xfffffff0u) Fail("too many vertices");
-    scene_.positions.push_back(Vec3(p));
+    if (world_positions_.size() >= std::min<uint64_t>(options_.budget.max_vertices, 0xfffffff0u)) {
+      Fail("more than " + std::to_string(options_.budget.max_vertices) +
+           " vertices (SceneBudget::max_vertices)");
+    }
+    world_positions_.push_back(p);  // in double until the scene's frame is known (Finish)
     scene_.normals.push_back(Vec3(n));
     any_normal_ = any_normal_ || !(n == Vec3d{});
-    return static_cast<uint32_t>(scene_.positions.size() - 1);
+    return static_cast<uint32_t>(world_positions_.size() - 1);
   }
 
   void AddTriangle(uint32_t a, uint32_t b, uint32_t c) override {
-    if (scene_.triangles.size() >= options_.max_triangles) {
-      Fail("more than " + std::to_string(options_.max_triangles) + " triangles (MgfOptions::max_triangles)");
+    if (scene_.triangles.size() >= options_.budget.max_triangles) {
+      Fail("more than " + std::to_string(options_.budget.max_triangles) +
+           " triangles (SceneBudget::max_triangles)");
     }
     if (prim_emissive_ && prim_light_ == kNoLight) prim_light_ = scene_.num_lights++;
     scene_.triangles.push_back({a, b, c});
@@ -1049,7 +1182,9 @@ class MgfReader final : private geometry::MeshSink {
   }
 
   void Finish() {
-    if (!any_normal_) scene_.normals.clear();
+    StoreInSceneFrame(world_positions_, &scene_);
+    std::vector<Vec3d>().swap(world_positions_);
+    if (!any_normal_) std::vector<Vec3>().swap(scene_.normals);
     if (suppressed_warnings_ > 0) {
       scene_.warnings.push_back(scene_.source + ": " + std::to_string(suppressed_warnings_) +
                                 " more warnings not shown");
@@ -1066,6 +1201,8 @@ class MgfReader final : private geometry::MeshSink {
   FileState* state_ = nullptr;
   int line_ = 0;
   uint64_t executed_ = 0;
+  std::unordered_map<std::string, SceneExpansion> expansion_of_;  // by canonical path
+  std::vector<Vec3d> world_positions_;  // world coordinates, stored in the scene's frame by Finish
 
   ContextTable<VertexCtx> vertices_;
   ContextTable<Chroma> colors_;
@@ -1104,7 +1241,13 @@ SceneDescription Load(std::unique_ptr<MgfFile> file, const MgfOptions& options) 
   SceneDescription scene;
   scene.source = file->name;
   MgfReader reader(options, &scene);
-  reader.Run(std::move(file));
+  try {
+    reader.Run(std::move(file));
+  } catch (...) {
+    reader.ReportCounts();
+    throw;
+  }
+  reader.ReportCounts();
   return scene;
 }
 

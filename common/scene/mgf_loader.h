@@ -50,10 +50,20 @@
 // Lights: every emitting source primitive (one `f`, `sph`, `cyl`, ... and one array instance of
 // it) is one light; its triangles share an id in triangle_light (0..num_lights-1).
 //
+// Positions are world coordinates in double until the whole file has been read; then the scene's
+// frame is chosen from their bounds and they are stored as floats in it (scene_frame.h), so a
+// model far from the origin keeps its shape.
+//
+// Budgets (scene_budget.h): before the first entity is executed, the loader computes what the
+// file expands to — entities, array instances, triangles and vertices, from the entities of the
+// file and of every file it includes and the nesting multipliers of their arrays — and refuses a
+// file beyond MgfOptions::budget with an InputError at the line where the expansion crossed it
+// (an `xf` or `i` with arrays, usually).
+//
 // Errors: malformed input throws InputError("file:line: reason"): bad numbers (including nan,
 // inf, overflow), wrong argument counts, undefined names, unbalanced `xf` (per file) or `o` end
 // without begin, include cycles, missing includes, nesting deeper than max_depth, illegal radii,
-// resource limits. Warnings go to SceneDescription::warnings ("file:line: ...") and spdlog; after
+// budgets. Warnings go to SceneDescription::warnings ("file:line: ...") and spdlog; after
 // 500 of them the rest are only counted, in one final summary warning.
 
 #include <cstddef>
@@ -62,22 +72,31 @@
 #include <string_view>
 
 #include "common/scene/scene.h"
+#include "common/scene/scene_budget.h"
 
 namespace pf {
+
+// What a load expanded to: the expansion computed before execution and what was executed (also
+// when the load fails; for tests and tools).
+struct MgfLoadCounts {
+  SceneExpansion expected;         // computed before the first entity is executed
+  uint64_t executed_entities = 0;  // entities the interpreter executed
+  uint64_t emitted_triangles = 0;
+};
 
 struct MgfOptions {
   // Segments per full circle of sph/cyl/cone/ring/torus (see the tessellation rule above).
   // Must be in [3, 1024]; anything else is rejected as an absurd tessellation request.
   int curve_segments = 24;
-  // Resource limits, so that a small malicious file (nested `-a` arrays, huge tessellations)
-  // fails with an InputError instead of exhausting memory or time.
-  size_t max_triangles = 20'000'000;
-  size_t max_entities = 200'000'000;  // entities executed, counting array repeats and includes
-  int max_depth = 64;                 // include nesting and xf nesting, each
+  // Budgets, so that a small malicious file (nested `-a` arrays, huge tessellations) fails with
+  // an InputError before the work instead of exhausting memory or time.
+  SceneBudget budget;
+  int max_depth = 64;  // include nesting and xf nesting, each
   // If non-empty, every included file must resolve (after symlinks) inside this directory
   // (scene_reference.h). LoadScene sets it to the scene's root folder (the bundle directory on
   // the farm, the entry file's folder for local files); empty = no confinement.
   std::filesystem::path include_root;
+  MgfLoadCounts* counts = nullptr;  // if set, receives the counts of the load
 };
 
 // Loads an MGF file and everything it includes. Throws InputError on malformed input.

@@ -16,6 +16,7 @@
 #include <unordered_map>
 
 #include "common/core/error.h"
+#include "common/scene/scene_frame.h"
 #include "common/scene/scene_reference.h"
 
 namespace pf {
@@ -167,29 +168,106 @@ class ConfinedMtlReader : public tinyobj::MaterialReader {
   std::vector<std::string> missing_;
 };
 
-// tinyobjloader reads "nan", "inf" or "1e999" in a `v`/`vn` line as some number without a
-// word; a scene with such a vertex must not load (it would poison the kd-tree and every
-// estimator). Checks the first three fields of every `v` and `vn` line.
-void CheckCoordinates(const std::string& text, const std::string& file) {
-  std::istringstream lines(text);
-  std::string line;
-  for (int number = 1; std::getline(lines, line); ++number) {
-    std::istringstream tokens(line);
-    std::string keyword;
-    if (!(tokens >> keyword) || (keyword != "v" && keyword != "vn")) continue;
-    for (int i = 0; i < 3; ++i) {
-      std::string field;
-      if (!(tokens >> field)) break;  // too few fields: tinyobjloader's own error
-      double value = 0;
-      const char* begin = field.data() + (field.size() > 1 && field[0] == '+' ? 1 : 0);
-      const auto [ptr, ec] = std::from_chars(begin, field.data() + field.size(), value);
-      if (ec != std::errc() || ptr != field.data() + field.size() || !std::isfinite(value) ||
-          !std::isfinite(float(value)))
-        throw InputError(SourceLocation{file, number},
-                         keyword + " coordinate " + QuoteReference(field) + " is not a finite number");
+// The next line of `in` into `line`, ended as tinyobjloader ends lines (its safeGetline): by
+// "\n", "\r\n" or a lone "\r", so that statements are counted as it will parse them (a file with
+// "\r" line ends must not look like one long line). False at the end of the stream.
+bool NextLine(std::istream& in, std::string& line) {
+  line.clear();
+  std::streambuf* buffer = in.rdbuf();
+  for (;;) {
+    const int c = buffer->sbumpc();
+    if (c == std::char_traits<char>::eof()) return !line.empty();
+    if (c == '\n') return true;
+    if (c == '\r') {
+      if (buffer->sgetc() == '\n') buffer->sbumpc();
+      return true;
     }
+    line.push_back(char(c));
   }
 }
+
+// The statements of an OBJ file, counted before tinyobjloader stores them (scene_budget.h), and
+// its coordinates checked: tinyobjloader reads "nan", "inf" or "1e999" in a `v`/`vn` line as some
+// number without a word; a scene with such a vertex must not load (it would poison the kd-tree
+// and every estimator). Checks the first three fields of every `v` and `vn` line. Throws at the
+// line where a count crosses its budget.
+SceneExpansion ScanStatements(std::istream& in, const std::string& file, const SceneBudget& budget) {
+  SceneExpansion counts;
+  constexpr std::string_view kSpace = " \t\r";
+  auto next_field = [&](std::string_view& rest) {
+    const size_t start = rest.find_first_not_of(kSpace);
+    if (start == std::string_view::npos) {
+      rest = {};
+      return std::string_view();
+    }
+    const size_t end = std::min(rest.find_first_of(kSpace, start), rest.size());
+    const std::string_view field = rest.substr(start, end - start);
+    rest.remove_prefix(end);
+    return field;
+  };
+  int number = 0;
+  std::string line;
+  while (NextLine(in, line)) {
+    std::string_view rest = line;
+    ++number;
+    const std::string_view keyword = next_field(rest);
+    if (keyword.empty() || keyword[0] == '#') continue;
+    counts.entities = SceneExpansion::Add(counts.entities, 1);
+    if (keyword == "f") {
+      uint64_t corners = 0;
+      while (!next_field(rest).empty()) ++corners;
+      if (corners >= 3) counts.triangles = SceneExpansion::Add(counts.triangles, corners - 2);
+    } else if (keyword == "v" || keyword == "vn" || keyword == "vt") {
+      counts.vertices = SceneExpansion::Add(counts.vertices, 1);
+      for (int i = 0; i < 3 && keyword != "vt"; ++i) {
+        const std::string_view field = next_field(rest);
+        if (field.empty()) break;  // too few fields: tinyobjloader's own error
+        double value = 0;
+        const char* first = field.data() + (field.size() > 1 && field[0] == '+' ? 1 : 0);
+        const auto [ptr, ec] = std::from_chars(first, field.data() + field.size(), value);
+        if (ec != std::errc() || ptr != field.data() + field.size() || !std::isfinite(value) ||
+            !std::isfinite(float(value)))
+          throw InputError(SourceLocation{file, number}, std::string(keyword) + " coordinate " +
+                                                             QuoteReference(std::string(field)) +
+                                                             " is not a finite number");
+      }
+    } else {
+      continue;
+    }
+    if (const std::string over = budget.Exceeded(counts); !over.empty())
+      throw InputError(SourceLocation{file, number}, over);
+  }
+  return counts;
+}
+
+// Output vertices, one per (position, normal) pair, numbered in first-use order. Almost every OBJ
+// gives a position one normal or none, so the first pair of each position is kept in flat
+// tables (8 bytes per position) and only further normals of a position go to a hash map.
+class VertexTable {
+ public:
+  static constexpr uint32_t kNone = 0xffffffffu;
+  explicit VertexTable(size_t positions) : first_(positions, kNone), first_normal_(positions, 0) {}
+  // The vertex of (position, normal + 1); `make` creates it (and returns its number) if absent.
+  template <typename Make>
+  uint32_t Find(uint32_t position, uint32_t normal_plus_one, Make make) {
+    if (first_[position] == kNone) {
+      first_[position] = make();
+      first_normal_[position] = normal_plus_one;
+      return first_[position];
+    }
+    if (first_normal_[position] == normal_plus_one) return first_[position];
+    const uint64_t key = (uint64_t(position) << 32) | normal_plus_one;
+    const auto it = others_.find(key);
+    if (it != others_.end()) return it->second;
+    const uint32_t v = make();
+    others_.emplace(key, v);
+    return v;
+  }
+
+ private:
+  std::vector<uint32_t> first_, first_normal_;
+  std::unordered_map<uint64_t, uint32_t> others_;
+};
 
 // The line of the first `mtllib` statement that names `reference` (0 if none is found).
 int MtllibLine(const std::filesystem::path& path, const std::string& reference) {
@@ -288,20 +366,21 @@ Material MaterialFromMtl(const MtlParameters& mtl, std::vector<std::string>* war
   return m;
 }
 
-SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root) {
+SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root,
+                         const SceneBudget& budget, SceneExpansion* counts) {
   const std::string file = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw InputError(SourceLocation{file, 0}, "no such file");
-  std::string text;
-  {
-    std::ifstream file_in(path, std::ios::binary);
-    if (!file_in) throw InputError(SourceLocation{file, 0}, "cannot open file for reading");
-    std::ostringstream ss;
-    ss << file_in.rdbuf();
-    text = std::move(ss).str();
-  }
-  CheckCoordinates(text, file);
-  std::istringstream in(text);
+  // Counted and checked before tinyobjloader stores anything (its arrays are the peak of a load).
+  // The file is read twice, as a stream, rather than held in memory (a copy of it was 1/6 of the
+  // peak of a 5M-face OBJ: docs/security.md "Scene budgets").
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(SourceLocation{file, 0}, "cannot open file for reading");
+  const SceneExpansion statements = ScanStatements(in, file, budget);
+  if (counts) *counts = statements;
+  in.clear();
+  in.seekg(0);
+  if (!in) throw InputError(SourceLocation{file, 0}, "cannot read the file a second time");
 
   const std::filesystem::path base_dir = path.has_parent_path() ? path.parent_path() : ".";
   ConfinedMtlReader mtl_reader(root.empty() ? base_dir : root, base_dir);
@@ -312,6 +391,9 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
   const bool ok = tinyobj::LoadObj(&attrib, &shapes, &materials, &tiny_warning, &tiny_error, &in, &mtl_reader,
                                    /*triangulate=*/true,
                                    /*default_vcols_fallback=*/false);
+  // Not needed: released before the scene is built next to tinyobjloader's arrays.
+  std::vector<tinyobj::real_t>().swap(attrib.texcoords);
+  std::vector<tinyobj::real_t>().swap(attrib.colors);
   if (!mtl_reader.refused_reference().empty()) {
     const std::string& ref = mtl_reader.refused_reference();
     throw InputError(SourceLocation{file, MtllibLine(path, ref)},
@@ -372,36 +454,68 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
     return default_material;
   };
 
+  // The scene's frame (scene_frame.h) from the double-precision bounds of the vertices the faces
+  // use (tinyobjloader parses in double here: TINYOBJLOADER_USE_DOUBLE), before any is rounded.
+  uint64_t triangles = 0;  // n − 2 per face: what the loop below emits at most
+  uint64_t corners = 0;
+  WorldBounds bounds;
+  auto world_position = [&](size_t v) {
+    return Vec3d(attrib.vertices[3 * v], attrib.vertices[3 * v + 1], attrib.vertices[3 * v + 2]);
+  };
+  for (const tinyobj::shape_t& shape : shapes) {
+    size_t offset = 0;
+    for (const unsigned int n : shape.mesh.num_face_vertices) {
+      for (size_t k = 0; n >= 3 && k < n && offset + k < shape.mesh.indices.size(); ++k) {
+        const int v = shape.mesh.indices[offset + k].vertex_index;
+        if (v >= 0 && v < num_v) bounds.Extend(world_position(size_t(v)));
+      }
+      triangles += n >= 3 ? n - 2 : 0;
+      corners += n >= 3 ? n : 0;
+      offset += n;
+    }
+  }
+  scene.origin = SceneFrameOrigin(bounds);
+  // Sized once, so that the vectors do not grow by doubling next to tinyobjloader's arrays: the
+  // triangles exactly (less the degenerate ones), the vertices for one normal per position (the
+  // usual case; more pairs grow the vector).
+  scene.triangles.reserve(size_t(std::min<uint64_t>(triangles, budget.max_triangles)));
+  scene.triangle_material.reserve(scene.triangles.capacity());
+  scene.triangle_light.reserve(scene.triangles.capacity());
+  const size_t expected_vertices =
+      size_t(std::min<uint64_t>({uint64_t(num_v), corners, budget.max_vertices}));
+  scene.positions.reserve(expected_vertices);
+
   // Vertices shared per (position, normal) pair.
-  std::unordered_map<uint64_t, uint32_t> vertex_of;
+  VertexTable vertex_of{size_t(num_v)};
   std::vector<Vec3> normals;
+  if (num_vn > 0) normals.reserve(expected_vertices);
   bool any_normal = false;
   auto vertex = [&](const tinyobj::index_t& idx) -> uint32_t {
     if (idx.vertex_index < 0 || idx.vertex_index >= num_v || idx.normal_index < -1 ||
         idx.normal_index >= num_vn)
       bad_faces("face references a vertex or normal that does not exist");
-    const uint64_t key =
-        (uint64_t(uint32_t(idx.vertex_index)) << 32) | uint64_t(uint32_t(idx.normal_index + 1));
-    auto [it, inserted] = vertex_of.try_emplace(key, uint32_t(scene.positions.size()));
-    if (!inserted) return it->second;
-    const size_t v = size_t(idx.vertex_index) * 3;
-    const Vec3 p(float(attrib.vertices[v]), float(attrib.vertices[v + 1]), float(attrib.vertices[v + 2]));
-    if (!IsFinite(p))
-      throw InputError(SourceLocation{file, 0},
-                       "vertex " + std::to_string(idx.vertex_index + 1) + " is not finite");
-    scene.positions.push_back(p);
-    Vec3 n(0.0f);
-    if (idx.normal_index >= 0) {
-      const size_t k = size_t(idx.normal_index) * 3;
-      const Vec3 raw(float(attrib.normals[k]), float(attrib.normals[k + 1]), float(attrib.normals[k + 2]));
-      const float len2 = LengthSquared(raw);
-      if (std::isfinite(len2) && len2 > 0.0f) {
-        n = raw / std::sqrt(len2);
-        any_normal = true;
+    return vertex_of.Find(uint32_t(idx.vertex_index), uint32_t(idx.normal_index + 1), [&] {
+      const Vec3 p = InSceneFrame(world_position(size_t(idx.vertex_index)), scene.origin);
+      if (!IsFinite(p))
+        throw InputError(SourceLocation{file, 0},
+                         "vertex " + std::to_string(idx.vertex_index + 1) + " is not finite");
+      if (scene.positions.size() >= std::min<uint64_t>(budget.max_vertices, 0xfffffff0u))
+        throw InputError(SourceLocation{file, 0}, "more than " + std::to_string(budget.max_vertices) +
+                                                      " vertices (SceneBudget::max_vertices)");
+      scene.positions.push_back(p);
+      Vec3 n(0.0f);
+      if (idx.normal_index >= 0) {
+        const size_t k = size_t(idx.normal_index) * 3;
+        const Vec3 raw(float(attrib.normals[k]), float(attrib.normals[k + 1]), float(attrib.normals[k + 2]));
+        const float len2 = LengthSquared(raw);
+        if (std::isfinite(len2) && len2 > 0.0f) {
+          n = raw / std::sqrt(len2);
+          any_normal = true;
+        }
       }
-    }
-    normals.push_back(n);
-    return it->second;
+      normals.push_back(n);
+      return uint32_t(scene.positions.size() - 1);
+    });
   };
 
   size_t degenerate = 0;
@@ -426,6 +540,9 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
           continue;
         }
         if (emissive && light == kNoLight) light = scene.num_lights++;
+        if (scene.triangles.size() >= budget.max_triangles)
+          throw InputError(SourceLocation{file, 0}, "more than " + std::to_string(budget.max_triangles) +
+                                                        " triangles (SceneBudget::max_triangles)");
         scene.triangles.push_back(tri);
         scene.triangle_material.push_back(mat);
         scene.triangle_light.push_back(emissive ? light : kNoLight);

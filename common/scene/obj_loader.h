@@ -48,13 +48,19 @@
 
 #include "common/core/math.h"
 #include "common/scene/scene.h"
+#include "common/scene/scene_budget.h"
 
 namespace pf {
 
 // `mtllib` files resolve only inside `root` (scene_reference.h; empty = the OBJ's own folder):
 // a reference outside it is an InputError naming the file and line; a missing file inside it
 // is a warning (its faces get the default material).
-SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root = {});
+// Before tinyobjloader stores anything, the statements are counted (`f` corners − 2 triangles,
+// `v`/`vn`/`vt` vertices) and checked against `budget`: an InputError at the line where a count
+// crosses one (scene_budget.h). `counts`, if set, receives them.
+// Positions are read in double and stored in the scene's frame (scene_frame.h).
+SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root = {},
+                         const SceneBudget& budget = {}, SceneExpansion* counts = nullptr);
 
 // Phong exponents at or above this are treated as a perfect mirror.
 inline constexpr float kMirrorPhongExponent = 1000.0f;

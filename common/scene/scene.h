@@ -37,11 +37,13 @@ struct Material {
 
 inline constexpr uint32_t kNoLight = 0xffffffffu;
 
-// A camera: pinhole, vertical field of view, image right = forward × up.
+// A camera: pinhole, vertical field of view, image right = forward × up. Its points are world
+// coordinates in double (a camera 4 m from a model at 1e6 m is not on the float lattice there);
+// Camera (render/camera.h) moves them into the scene's frame (scene_frame.h) and rounds them.
 struct CameraSpec {
   std::string name = "default";
-  Vec3 eye{0, 0, 0};
-  Vec3 look_at{0, 0, -1};
+  Vec3d eye{0, 0, 0};
+  Vec3d look_at{0, 0, -1};
   Vec3 up{0, 1, 0};
   float vfov_degrees = 45.0f;
   int width = 512;
@@ -49,7 +51,10 @@ struct CameraSpec {
 };
 
 struct SceneDescription {
-  // Triangle soup with shared vertices.
+  // Triangle soup with shared vertices, in the scene's frame (scene_frame.h): positions[i] is
+  // the world point origin + positions[i]. origin is 0 unless the scene is far from the world
+  // origin; the loaders choose it in double before they round any coordinate to float.
+  Vec3d origin;
   std::vector<Vec3> positions;
   // Per-vertex shading normals; empty, or one per position. A zero vector means "none":
   // triangles touching such a vertex use their geometric normal.
@@ -67,6 +72,7 @@ struct SceneDescription {
   std::string source;                 // the file it was loaded from
 
   size_t NumTriangles() const { return triangles.size(); }
+  // In the scene's frame (add origin for world coordinates).
   Bounds3 ComputeBounds() const {
     Bounds3 b;
     for (const Vec3& p : positions) b.Extend(p);

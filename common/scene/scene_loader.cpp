@@ -1,9 +1,16 @@
 // Scene loading entry point: extension dispatch, manifest application, default camera.
 #include "common/scene/scene_loader.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <limits>
+#include <utility>
 
 #include "common/core/error.h"
 #include "common/scene/mgf_loader.h"
@@ -14,6 +21,16 @@ namespace pf {
 namespace {
 
 constexpr const char* kSupported = "supported: .json (scene manifest), .mgf, .obj";
+
+std::string FormatNumber(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", v);
+  return text;
+}
+
+Vec3d Abs(const Vec3d& v) {
+  return {std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)};
+}
 
 std::string LowerExtension(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
@@ -115,18 +132,45 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
   }
 }
 
-void ApplyScale(double scale, SceneDescription* scene) {
+void ApplyScale(double scale, const SourceLocation& where, const std::string& field,
+                SceneDescription* scene) {
   if (scale == 1.0) return;
-  const float s = float(scale);
-  for (Vec3& p : scene->positions) p *= s;
-  for (CameraSpec& c : scene->cameras) {
-    c.eye *= s;
-    c.look_at *= s;
+  auto fail = [&](const std::string& reason) {
+    throw InputError(where, field + ": " + FormatNumber(scale) + " " + reason);
+  };
+  // World coordinates must stay finite floats (what Embree traces, docs/security.md "Limits"),
+  // and a scale whose float is 0 or subnormal would collapse the scene.
+  if (!(scale > 0.0) || !std::isfinite(scale)) fail("is not a finite number > 0");
+  if (!(scale >= double(std::numeric_limits<float>::min()))) fail("is below the smallest normal float");
+  const Bounds3 b = scene->ComputeBounds();
+  if (!b.Empty()) {
+    const Vec3d lo = Vec3d(b.lo) + scene->origin, hi = Vec3d(b.hi) + scene->origin;
+    // Bounds the stored positions too: a far scene's are within half its extent of the origin.
+    const double largest = MaxComponent(Max(Abs(lo), Abs(hi)));
+    if (!(largest * scale <= double(std::numeric_limits<float>::max())))
+      fail("makes vertex coordinates overflow a 32-bit float (largest |coordinate| " + FormatNumber(largest) +
+           " x scale = " + FormatNumber(largest * scale) + ")");
   }
+  for (size_t i = 0; i < scene->cameras.size(); ++i) {
+    CameraSpec& c = scene->cameras[i];
+    const std::string key = "cameras[" + std::to_string(i) + "]";
+    for (const auto& [point, name] : {std::pair{&c.eye, ".eye"}, std::pair{&c.look_at, ".look_at"}}) {
+      *point *= scale;
+      if (!IsFinite(Vec3(*point)))
+        fail("makes " + key + name + " overflow a 32-bit float (" + FormatNumber(MaxComponent(Abs(*point))) +
+             ")");
+    }
+    if (!(LengthSquared(Vec3(c.look_at - c.eye)) > 0.0f))
+      fail("makes " + key + ".look_at coincide with its eye");
+  }
+  scene->origin *= scale;
+  for (Vec3& p : scene->positions) p = Vec3(Vec3d(p) * scale);
 }
 
-SceneDescription LoadScene(const std::filesystem::path& path, double scale_override,
-                           const std::filesystem::path& root_or_empty) {
+namespace {
+
+SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_override,
+                                const std::filesystem::path& root_or_empty) {
   if (!std::isfinite(scale_override) || scale_override < 0.0)
     throw InputError("scale override must be a finite number > 0 (or 0 for none), got " +
                      std::to_string(scale_override));
@@ -136,7 +180,8 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
   const std::string ext = LowerExtension(path);
   if (ext == ".mgf" || ext == ".obj") {
     SceneDescription scene = LoadGeometry(path, root);
-    if (scale_override > 0.0) ApplyScale(scale_override, &scene);
+    if (scale_override > 0.0)
+      ApplyScale(scale_override, SourceLocation{path.string(), 0}, "scale override", &scene);
     return scene;
   }
   if (ext != ".json")
@@ -165,9 +210,31 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
   SceneDescription scene = LoadGeometry(manifest.geometry, root);
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
   scene.cameras = manifest.cameras;
-  ApplyScale(scale_override > 0.0 ? scale_override : manifest.scale, &scene);
+  if (scale_override > 0.0)
+    ApplyScale(scale_override, SourceLocation{manifest_file, 0}, "scale override", &scene);
+  else
+    ApplyScale(manifest.scale, SourceLocation{manifest_file, manifest.scale_line}, "key 'scale'", &scene);
   scene.warnings.insert(scene.warnings.begin(), manifest.warnings.begin(), manifest.warnings.end());
   scene.source = manifest_file;
+  return scene;
+}
+
+// A load frees most of what it allocated (tinyobjloader's per-face lists, the MGF loader's double
+// positions), but glibc keeps freed small blocks in the process: 110 MB after a 5M-face OBJ
+// (docs/security.md, "Scene budgets"). The coordinator loads every uploaded scene and a worker
+// every scene it renders, so they are given back.
+void ReturnFreedMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
+}  // namespace
+
+SceneDescription LoadScene(const std::filesystem::path& path, double scale_override,
+                           const std::filesystem::path& root) {
+  SceneDescription scene = LoadSceneFiles(path, scale_override, root);
+  ReturnFreedMemory();
   return scene;
 }
 
@@ -182,8 +249,9 @@ CameraSpec DefaultCamera(const SceneDescription& scene) {
   // Distance from the +z face at which its x-y extent fits the frame, with a 5 % margin.
   float d = 1.05f * std::max(half.y / tan_half, half.x / (tan_half * aspect));
   if (!(d > 0.0f)) d = std::max(1.0f, half.z);  // a flat or point-like scene
-  cam.eye = Vec3(c.x, c.y, b.hi.z + d);
-  cam.look_at = c;
+  // Computed in the scene's frame (in float, as always), then put into world coordinates.
+  cam.eye = Vec3d(Vec3(c.x, c.y, b.hi.z + d)) + scene.origin;
+  cam.look_at = Vec3d(c) + scene.origin;
   cam.up = Vec3(0, 1, 0);
   return cam;
 }

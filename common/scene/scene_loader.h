@@ -13,6 +13,7 @@
 #include <map>
 #include <string>
 
+#include "common/core/error.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene.h"
 
@@ -33,9 +34,13 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
 void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overrides,
                             const std::string& manifest_file, SceneDescription* scene);
 
-// Multiplies positions and camera eye/look-at points by `scale` (> 0). Normals, radiance and
+// Multiplies world positions (the frame's origin in double, the stored positions in double,
+// rounded once) and camera eye/look-at points by `scale` (> 0). Normals, radiance and
 // reflectances are unchanged (a light's power grows with its area, i.e. with scale²).
-void ApplyScale(double scale, SceneDescription* scene);
+// A scale whose float is 0 or subnormal, or that makes a vertex or camera coordinate overflow a
+// float, or a camera's eye and look-at coincide, is an InputError at `where` naming `field`
+// ("key 'scale'", "scale override") — never a scene with Inf or NaN coordinates.
+void ApplyScale(double scale, const SourceLocation& where, const std::string& field, SceneDescription* scene);
 
 // A camera for scenes without one. Convention: y is up (true of every scene in scenes/: OBJ's
 // usual convention, and of the MGF rooms we ship). The camera looks along −z at the centre of

@@ -6,9 +6,13 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "common/accel/embree_scene.h"
@@ -24,8 +28,10 @@
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
+#include "common/scene/scene_frame.h"
 #include "common/scene/scene_loader.h"
 #include "tests/common/test_scenes.h"
+#include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
@@ -53,9 +59,12 @@ RenderResult Summarise(const Image& img, const RenderStats& stats) {
 
 // Renders as `pf render --local-only` does (SceneRuntime, RenderPlanLocally, the product's
 // default settings resolved for the scene): one map of `photons` photons and k nearest for the
-// photon map, `spp` samples per pixel.
+// photon map, `spp` samples per pixel. A description built here in world coordinates is placed
+// in its frame first, as a loader places what it reads (scene_frame.h; a no-op for scenes around
+// the origin and for loaded ones).
 RenderResult RenderMean(SceneDescription scene, const CameraSpec& camera, IntegratorKind kind, uint32_t spp,
                         uint64_t photons = 50000, int k = 50, uint64_t seed = 1) {
+  if (scene.origin == Vec3d()) PlaceInSceneFrame(&scene);
   const SceneRuntime runtime(std::move(scene));
   JobRenderSettings settings;
   settings.integrator = kind;
@@ -104,8 +113,8 @@ RoomSetup SnappedRoom() {
   AddQuad(s, {x1, 0, z0}, {x0, 0, z0}, {x0, y1, z0}, {x1, y1, z0}, white);    // -z
   AddQuad(s, {x1, 0, z1}, {x1, 0, z0}, {x1, y1, z0}, {x1, y1, z1}, white);    // +x
   AddQuad(s, {x0, 0, z0}, {x0, 0, z1}, {x0, y1, z1}, {x0, y1, z0}, white);    // -x
-  r.camera.eye = Vec3(0.0f, 1.0f, 0.875f);
-  r.camera.look_at = Vec3(0.0f, 0.75f, -1.0f);
+  r.camera.eye = Vec3d(0.0, 1.0, 0.875);
+  r.camera.look_at = Vec3d(0.0, 0.75, -1.0);
   r.camera.vfov_degrees = 75.0f;
   r.camera.width = r.camera.height = 24;
   return r;
@@ -113,8 +122,8 @@ RoomSetup SnappedRoom() {
 
 void Translate(RoomSetup& r, const Vec3& offset) {
   for (Vec3& p : r.scene.positions) p += offset;
-  r.camera.eye += offset;
-  r.camera.look_at += offset;
+  r.camera.eye += Vec3d(offset);
+  r.camera.look_at += Vec3d(offset);
 }
 
 // Path tracer and photon map traced in world coordinates (EmbreeScene built from the translated
@@ -245,13 +254,13 @@ TEST_P(HardCasesTranslatedWorld, RayOffsetsHoldFarFromTheOrigin) {
 
 INSTANTIATE_TEST_SUITE_P(Offsets, HardCasesTranslatedWorld, ::testing::Values(1e5f, 1e6f));
 
-// The product's path (SceneRuntime's local frame, RenderPlanLocally): the room translated by 1e5
-// or 1e6 renders the original image to 1e-4 (same seeds; the original room, around the origin,
-// is traced unmoved and the far one centred, so they differ only in rounding), with either
-// integrator. Before issue #15
-// (no local frame, 256-ulp offsets): path 0.0342 / 0.0553 and photon map 0.0341 / 0.0554 for
-// 0.1629 / 0.1637; with the new offsets but without the local frame the photon map at 1e6 gave
-// 0.0793 for 0.1614 (200k photons, k = 20: photons piled on the 6.25 cm float lattice).
+// The product's path (the scene's frame, RenderPlanLocally): the room translated by 1e5 or 1e6
+// renders the original image to 1e-4 (same seeds; the original room, around the origin, is
+// traced unmoved and the far one centred, so they differ only in rounding), with either
+// integrator. Before issue #15 (no local frame, 256-ulp offsets): path 0.0342 / 0.0553 and photon
+// map 0.0341 / 0.0554 for 0.1629 / 0.1637; with the new offsets but without the local frame the
+// photon map at 1e6 gave 0.0793 for 0.1614 (200k photons, k = 20: photons piled on the 6.25 cm
+// float lattice).
 class HardCasesTranslated : public ::testing::TestWithParam<float> {};
 
 TEST_P(HardCasesTranslated, RendersLikeTheOriginal) {
@@ -272,48 +281,88 @@ TEST_P(HardCasesTranslated, RendersLikeTheOriginal) {
 INSTANTIATE_TEST_SUITE_P(Offsets, HardCasesTranslated, ::testing::Values(1e5f, 1e6f));
 
 // Only scenes far from the origin move: a scene around the origin keeps its coordinates (and
-// its images, bit for bit); the moved one is centred, and its camera follows in ExecuteTask.
-TEST(HardCasesTranslated, OnlyFarScenesGetALocalFrame) {
+// its images, bit for bit); the far one is centred (exactly, here), and Camera moves the world
+// camera by the same origin.
+TEST(HardCasesTranslated, OnlyFarScenesGetAFrame) {
   const RoomSetup room = SnappedRoom();
-  const SceneRuntime near(room.scene);
-  EXPECT_EQ(near.origin, Vec3(0.0f));
-  EXPECT_EQ(near.description.positions, room.scene.positions);
+  SceneDescription near = room.scene;
+  PlaceInSceneFrame(&near);
+  EXPECT_EQ(near.origin, Vec3d());
+  EXPECT_EQ(near.positions, room.scene.positions);
   RoomSetup moved = SnappedRoom();
   Translate(moved, Vec3(1e6f, 0.0f, 0.0f));
-  const SceneRuntime far(moved.scene);
-  EXPECT_EQ(far.origin, Vec3(1e6f, 1.0f, 0.0f));
+  SceneDescription far = moved.scene;
+  PlaceInSceneFrame(&far);
+  EXPECT_EQ(far.origin, Vec3d(1e6, 1.0, 0.0));
   for (size_t i = 0; i < room.scene.positions.size(); ++i)
-    ASSERT_EQ(far.description.positions[i], room.scene.positions[i] - Vec3(0.0f, 1.0f, 0.0f)) << i;
+    ASSERT_EQ(far.positions[i], room.scene.positions[i] - Vec3(0.0f, 1.0f, 0.0f)) << i;
+  EXPECT_EQ(Camera(moved.camera, far.origin).eye(), Vec3(room.camera.eye) - Vec3(0.0f, 1.0f, 0.0f));
 }
 
-// The shipped Cornell box (coordinates not on a binary lattice), translated by 1e5 and 1e6 in
-// every axis: the translation itself rounds its vertices to the float lattice there (0.78 cm,
-// 6.25 cm), so the reference is that rounded box moved back to the origin (exactly: p − t is
-// exact in float for p near t), rendered untranslated. Both integrators to 1e-4. (Against the
-// unrounded original the 1e6 box differs by what the rounding did to it: docs/results/hard_cases.md.)
-TEST_P(HardCasesTranslated, ShippedCornellBoxRendersLikeItsRoundedSelf) {
+// The shipped Cornell box translated by 1e5 and 1e6 in x, y and z *in its files*: the OBJ's
+// vertices and the manifest's camera written as unrounded decimals (x + 1e6 = "1000000.99", not
+// on the 6.25 cm float lattice there), loaded by LoadScene like any scene. The loaders keep the
+// coordinates in double until the scene's frame is chosen (scene_frame.h), so the stored floats
+// are the box's shape to float precision at its size (1e-7 m), and with the same seeds the image
+// mean is the untranslated one's, with either integrator: measured equal to 6 digits; the bound
+// is 0.1 % (the issue asks 1 %), so that the 1e5 case fails without the fix too. Before (loaders
+// rounding world coordinates to float, then SceneRuntime's local frame): at 1e6 the light
+// (y = 1.98) and the ceiling (1.99) rounded onto one plane, path 0.0887 and photon map 0.0873 for
+// 0.1190 / 0.1200 (−25 % / −27 %), and at 1e5 −1.2 % / −0.6 % (docs/results/hard_cases.md).
+std::string Decimal(double v) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.6f", v);  // the inputs have <= 6 decimals: exact
+  return text;
+}
+
+SceneDescription LoadTranslatedCornellBox(const std::filesystem::path& dir, double t) {
+  const std::filesystem::path shipped = std::filesystem::path(PF_SOURCE_DIR) / "scenes" / "cornell-box";
+  std::filesystem::copy_file(shipped / "CornellBox-Original.mtl", dir / "CornellBox-Original.mtl");
+  std::ifstream in(shipped / "CornellBox-Original.obj");
+  std::ofstream obj(dir / "CornellBox-Original.obj");
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream words(line);
+    std::string keyword;
+    double x, y, z;
+    if (words >> keyword && keyword == "v" && words >> x >> y >> z)
+      obj << "v " << Decimal(x + t) << " " << Decimal(y + t) << " " << Decimal(z + t) << "\n";
+    else
+      obj << line << "\n";
+  }
+  obj.close();
+  const SceneDescription shipped_scene = LoadScene(shipped / "cornell-box.json");
+  const CameraSpec& cam = shipped_scene.cameras.front();
+  auto point = [&](const Vec3d& p) {
+    std::ostringstream text;
+    text << "[" << Decimal(p.x + t) << ", " << Decimal(p.y + t) << ", " << Decimal(p.z + t) << "]";
+    return text.str();
+  };
+  std::ofstream manifest(dir / "cornell-box.json");
+  manifest << "{\"version\": 1, \"geometry\": \"CornellBox-Original.obj\", \"cameras\": [{\"eye\": "
+           << point(cam.eye) << ", \"look_at\": " << point(cam.look_at) << ", \"fov\": " << cam.vfov_degrees
+           << "}]}\n";
+  manifest.close();
+  return LoadScene(dir / "cornell-box.json");
+}
+
+TEST_P(HardCasesTranslated, ShippedCornellBoxTranslatedInItsFilesRendersLikeTheOriginal) {
   const SceneDescription original =
       LoadScene(std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json");
-  CameraSpec cam = original.cameras.front();
-  cam.width = cam.height = 24;
-  const Vec3 t(GetParam());
-  SceneDescription moved = original, back = original;
-  for (size_t i = 0; i < original.positions.size(); ++i) {
-    moved.positions[i] = original.positions[i] + t;
-    back.positions[i] = moved.positions[i] - t;
-  }
-  CameraSpec moved_cam = cam, back_cam = cam;  // the camera's points round too
-  moved_cam.eye += t;
-  moved_cam.look_at += t;
-  back_cam.eye = moved_cam.eye - t;
-  back_cam.look_at = moved_cam.look_at - t;
+  test_util::TempDir dir("pf_hard_cases");
+  const SceneDescription moved = LoadTranslatedCornellBox(dir.path(), double(GetParam()));
+  EXPECT_NE(moved.origin, Vec3d());  // far: stored in its own frame
+  CameraSpec cam = original.cameras.front(), moved_cam = moved.cameras.front();
+  cam.width = cam.height = moved_cam.width = moved_cam.height = 24;
   for (IntegratorKind kind : {IntegratorKind::kPath, IntegratorKind::kPhotonMap}) {
     const uint32_t spp = kind == IntegratorKind::kPath ? 32 : 8;
-    const RenderResult a = RenderMean(back, back_cam, kind, spp, 50000, 50);
+    const RenderResult a = RenderMean(original, cam, kind, spp, 50000, 50);
     const RenderResult b = RenderMean(moved, moved_cam, kind, spp, 50000, 50);
+    std::printf("[ means    ] translated by %g, %s: %.6f for %.6f\n", double(GetParam()),
+                kind == IntegratorKind::kPath ? "path" : "photon map", b.mean, a.mean);
     ASSERT_TRUE(b.finite);
     EXPECT_GT(a.mean, 0.05);
-    EXPECT_NEAR(b.mean, a.mean, 1e-4 * a.mean)
+    EXPECT_NEAR(b.mean, a.mean, 1e-3 * a.mean)
         << "integrator " << int(kind) << ", translated by " << GetParam();
   }
 }

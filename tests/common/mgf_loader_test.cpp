@@ -38,8 +38,16 @@ SceneDescription Load(const std::string& text, const MgfOptions& options = {}) {
   return LoadMgfFromString(text, "test.mgf", options);
 }
 
+// Vertex i in world coordinates (a scene far from the origin is stored relative to s.origin,
+// scene_frame.h).
 Vec3d P(const SceneDescription& s, uint32_t i) {
-  return Vec3d(s.positions[i]);
+  return Vec3d(s.positions[i]) + s.origin;
+}
+
+// The bounds in world coordinates.
+std::pair<Vec3d, Vec3d> WorldBoundsOf(const SceneDescription& s) {
+  const Bounds3 b = s.ComputeBounds();
+  return {Vec3d(b.lo) + s.origin, Vec3d(b.hi) + s.origin};
 }
 
 // Twice-area vector (right-hand rule) of triangle t.
@@ -81,7 +89,7 @@ Vec3d AreaVectorSum(const SceneDescription& s) {
 Vec3d Centroid(const SceneDescription& s) {
   Vec3d c;
   for (const Vec3& p : s.positions) c += Vec3d(p);
-  return c / static_cast<double>(s.positions.size());
+  return c / static_cast<double>(s.positions.size()) + s.origin;
 }
 
 void ExpectNear(const Vec3d& a, const Vec3d& b, double tol) {
@@ -353,27 +361,33 @@ TEST(MgfErrors, BadOptionsAreRejected) {
   }
 }
 
+// The budgets (scene_budget.h) are checked on the expansion computed before execution, so the
+// error names the array whose block multiplies past the budget.
 TEST(MgfErrors, ResourceLimitsStopBlowUps) {
   const std::string sphere = "v c =\n p 0 0 0\n";
   {
     MgfOptions o;
-    o.max_triangles = 10'000;
+    o.budget.max_triangles = 10'000;
     try {
       Load(sphere + "xf -a 1000 -t 1 0 0 -a 1000 -t 0 1 0\nsph c .1\nxf\n", o);
       ADD_FAILURE();
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("test.mgf:4: more than 10000 triangles"), std::string::npos)
-          << e.what();
+      // 10^6 spheres of 2·24·12 triangles.
+      EXPECT_THAT(e.what(),
+                  testing::HasSubstr("test.mgf:3: expands to up to 576000000 triangles, more than the "
+                                     "budget of 10000 (SceneBudget::max_triangles"));
     }
   }
   {
     MgfOptions o;
-    o.max_entities = 1000;
+    o.budget.max_entities = 1000;
     try {
       Load("xf -a 100000 -t 1 0 0\nv x =\n p 0 0 0\nxf\n", o);
       ADD_FAILURE();
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("entities executed"), std::string::npos) << e.what();
+      // The xf, then 10^5 times its three entities (the closing xf among them).
+      EXPECT_THAT(e.what(), testing::HasSubstr("test.mgf:1: expands to 300001 entities, more than the budget "
+                                               "of 1000 (SceneBudget::max_entities"));
     }
   }
   {
@@ -381,14 +395,15 @@ TEST(MgfErrors, ResourceLimitsStopBlowUps) {
     TempDir dir;
     dir.Write("empty.mgf", "");
     MgfOptions o;
-    o.max_entities = 10'000;
+    o.budget.max_entities = 10'000;
     try {
       LoadMgfFromString("xf -a 100000 -t 1 0 0\ni empty.mgf -a 100000 -t 0 1 0\nxf\n",
                         (dir.path() / "arr.mgf").string(), o);
       ADD_FAILURE();
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("arr.mgf:2: more than 10000 entities"), std::string::npos)
-          << e.what();
+      EXPECT_THAT(e.what(),
+                  testing::HasSubstr("arr.mgf:2: expands to 100001 entities, more than the budget of "
+                                     "10000"));
     }
   }
   {
@@ -415,6 +430,137 @@ TEST(MgfErrors, ResourceLimitsStopBlowUps) {
           << e.what();
     }
   }
+}
+
+// The array bomb of the hardening issue: 145 bytes in four files, `i -a 1000` three levels deep
+// over a quad: 10^9 quads. Before, the interpreter ran until the triangle limit stopped it (16 s
+// and 1.5 GB per load, docs/security.md); now the expansion is computed before anything is
+// executed and the instance budget refuses it at the include whose array crosses it: no entity
+// executed, no triangle emitted.
+TEST(MgfBudgets, ArrayBombIsRefusedBeforeAnyWork) {
+  TempDir dir;
+  dir.Write("x.mgf", "v a =\n p 0 0 0\nv b =\n p 1 0 0\nv c =\n p 1 1 0\nv d =\n p 0 1 0\nf a b c d\n");
+  dir.Write("y.mgf", "i x.mgf -a 1000 -t 0 0 1\n");
+  dir.Write("z.mgf", "i y.mgf -a 1000 -t 0 1 0\n");
+  const fs::path bomb = dir.Write("bomb.mgf", "i z.mgf -a 1000 -t 1 0 0\n");
+  MgfLoadCounts counts;
+  MgfOptions o;
+  o.counts = &counts;
+  try {
+    LoadMgf(bomb, o);
+    ADD_FAILURE() << "loaded";
+  } catch (const InputError& e) {
+    // z.mgf alone: 1000 instances of y.mgf, each with 1000 of its own.
+    EXPECT_THAT(e.what(),
+                testing::HasSubstr("z.mgf:1: expands to 1001000 array instances, more than the budget "
+                                   "of 1000000 (SceneBudget::max_instances"));
+  }
+  EXPECT_EQ(counts.executed_entities, 0u);
+  EXPECT_EQ(counts.emitted_triangles, 0u);
+  // Without the instance budget the entity budget refuses it, at the top: 1 + 1000 × (1 + z.mgf's
+  // 1 + 1000 × (1 + y.mgf's 1 + 1000 × (1 + 9))).
+  o.budget.max_instances = uint64_t(1) << 40;
+  try {
+    LoadMgf(bomb, o);
+    ADD_FAILURE() << "loaded";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(),
+                testing::HasSubstr("bomb.mgf:1: expands to 10002002001 entities, more than the budget "
+                                   "of 50000000 (SceneBudget::max_entities"));
+  }
+  EXPECT_EQ(counts.executed_entities, 0u);
+}
+
+// The expansion computed before execution counts entities exactly as the interpreter executes
+// them, and bounds the triangles and vertices it emits: nested arrays over an include, and every
+// shipped MGF scene (their counts are the docs/security.md table).
+TEST(MgfBudgets, ExpansionCountsWhatExecutionDoes) {
+  TempDir dir;
+  dir.Write("c.mgf", "v c =\n p 0 0 0\nsph c .1\n");
+  const std::string top =
+      "v a =\n p 0 0 0\nv b =\n p 1 0 0\nv d =\n p 0 1 0\n"  // 6 entities
+      "xf -a 3 -t 2 0 0\n"                                   // 1
+      "i c.mgf -a 2 -t 0 2 0\n"                              // 3 × (1 + 2 × (1 + 3))
+      "f a b d\n"                                            // 3 × 1
+      "xf\n";                                                // 3 × 1
+  MgfLoadCounts counts;
+  MgfOptions o;
+  o.counts = &counts;
+  const SceneDescription s = LoadMgfFromString(top, (dir.path() / "top.mgf").string(), o);
+  EXPECT_EQ(counts.expected.entities, 40u);
+  EXPECT_EQ(counts.executed_entities, 40u);
+  EXPECT_EQ(counts.expected.instances, 9u);  // 3 + 3 × 2
+  // Bounds: a sphere 2·24·12 triangles and 13·24 vertices, the face 1 and 3; emitted: spheres of
+  // 2·24·12 − 2·24 triangles (curved_primitives.h).
+  EXPECT_EQ(counts.expected.triangles, 3u * (2 * 576 + 1));
+  EXPECT_EQ(counts.expected.vertices, 3u * (2 * 312 + 3));
+  EXPECT_EQ(counts.emitted_triangles, 3u * (2 * 528 + 1));
+  EXPECT_EQ(s.NumTriangles(), counts.emitted_triangles);
+
+  std::printf("%-28s %10s %10s %10s %10s\n", "scene", "entities", "instances", "triangles<=", "vertices<=");
+  for (const auto& e : fs::directory_iterator(fs::path(PF_SOURCE_DIR) / "scenes")) {
+    if (!e.is_directory()) continue;
+    for (const auto& f : fs::directory_iterator(e.path())) {
+      if (f.path().extension() != ".mgf") continue;
+      const SceneDescription scene = LoadMgf(f.path(), o);
+      EXPECT_EQ(counts.executed_entities, counts.expected.entities) << f.path();
+      EXPECT_LE(counts.emitted_triangles, counts.expected.triangles) << f.path();
+      EXPECT_LE(scene.positions.size(), counts.expected.vertices) << f.path();
+      EXPECT_TRUE(SceneBudget{}.Exceeded(counts.expected).empty()) << f.path();
+      std::printf("%-28s %10llu %10llu %10llu %10llu\n", f.path().filename().string().c_str(),
+                  (unsigned long long)counts.expected.entities, (unsigned long long)counts.expected.instances,
+                  (unsigned long long)counts.expected.triangles,
+                  (unsigned long long)counts.expected.vertices);
+    }
+  }
+}
+
+// Coordinates far from the origin stay in double until the scene's frame is chosen
+// (scene_frame.h): a quad written at 1e6 + decimals, directly and through `xf -t`, is stored
+// relative to the centre of its double-precision bounds, each position the exact point minus that
+// origin rounded once (world floats there are 6.25 cm apart); the same quad at the origin is
+// stored in world floats, as before.
+TEST(MgfFrame, FarCoordinatesAreStoredRelativeToTheirCentre) {
+  const double x[] = {1000000.13, 1000001.87, 1000001.87, 1000000.13};
+  const double y[] = {-2000000.27, -2000000.27, -1999999.61, -1999999.61};
+  const double z = 3000000.39;
+  std::string direct;
+  for (int i = 0; i < 4; ++i) {
+    char line[128];
+    std::snprintf(line, sizeof line, "v v%d =\n p %.2f %.2f %.2f\n", i, x[i], y[i], z);
+    direct += line;
+  }
+  direct += "f v0 v1 v2 v3\n";
+  const std::string moved =
+      "v v0 =\n p .13 -.27 .39\nv v1 =\n p 1.87 -.27 .39\nv v2 =\n p 1.87 .39 .39\nv v3 =\n p .13 .39 .39\n"
+      "xf -t 1000000 -2000000 3000000\nf v0 v1 v2 v3\nxf\n";
+  const Vec3d centre((x[0] + x[1]) / 2, (y[0] + y[2]) / 2, z);
+  for (const std::string& text : {direct, moved}) {
+    const SceneDescription s = Load(text);
+    EXPECT_NEAR(s.origin.x, centre.x, 1e-9);
+    EXPECT_NEAR(s.origin.y, centre.y, 1e-9);
+    EXPECT_NEAR(s.origin.z, centre.z, 1e-9);
+    ASSERT_EQ(s.positions.size(), 4u);
+    std::set<std::pair<float, float>> corners;
+    for (const Vec3& p : s.positions) {
+      corners.insert({p.x, p.y});
+      EXPECT_NEAR(p.z, 0.0f, 1e-6f);
+    }
+    // The quad's shape, 1.74 × 0.66 m, to float precision at its size.
+    const std::set<std::pair<float, float>> expected = {
+        {-0.87f, -0.33f}, {0.87f, -0.33f}, {0.87f, 0.33f}, {-0.87f, 0.33f}};
+    for (const auto& [ex, ey] : expected) {
+      bool found = false;
+      for (const auto& [cx, cy] : corners)
+        found = found || (std::fabs(cx - ex) < 1e-6f && std::fabs(cy - ey) < 1e-6f);
+      EXPECT_TRUE(found) << ex << "," << ey;
+    }
+  }
+  // Around the origin nothing moves: the floats are the world coordinates.
+  const SceneDescription near =
+      Load("v a =\n p .13 -.27 .39\nv b =\n p 1.87 -.27 .39\nv c =\n p 1.87 .39 .39\nf a b c\n");
+  EXPECT_EQ(near.origin, Vec3d());
+  EXPECT_EQ(near.positions[0], Vec3(0.13f, -0.27f, 0.39f));
 }
 
 TEST(MgfErrors, IncludeCyclesDepthMissingAndRoot) {
@@ -782,9 +928,9 @@ TEST(MgfTransforms, ArraysRepeatTheBlock) {
   EXPECT_EQ(s.num_lights, 60u);  // every instance is its own light
   const size_t per_sphere = s.NumTriangles() / 60;
   EXPECT_EQ(s.NumTriangles(), per_sphere * 60);
-  const Bounds3 b = s.ComputeBounds();
-  ExpectNear(Vec3d(b.lo), {14.9, 29.9, 44.9}, 1e-4);
-  ExpectNear(Vec3d(b.hi), {17.1, 33.1, 49.1}, 1e-4);
+  const auto [lo, hi] = WorldBoundsOf(s);
+  ExpectNear(lo, {14.9, 29.9, 44.9}, 1e-4);
+  ExpectNear(hi, {17.1, 33.1, 49.1}, 1e-4);
   // A block with redefinitions inside is re-executed: the vertex moves each time.
   const SceneDescription moving =
       Load("v p =\n p 0 0 0\nxf -a 3 -t 10 0 0\nsph p .1\nv p\n p 0 1 0\nxf\n", o);

@@ -11,6 +11,7 @@
 #include <set>
 
 #include "common/core/error.h"
+#include "common/render/camera.h"
 #include "common/scene/manifest.h"
 #include "common/scene/obj_loader.h"
 #include "tests/util/temp_dir.h"
@@ -297,6 +298,30 @@ TEST_F(ObjErrorTest, ZeroIndexIsATinyObjParseError) {
   EXPECT_THAT(msg, HasSubstr("zero.obj:4:"));
 }
 
+// The statements are counted before tinyobjloader stores them (scene_budget.h): a file beyond a
+// budget is refused at the line where the count crosses it; within the budgets the counts bound
+// what is loaded.
+TEST_F(ObjErrorTest, StatementsBeyondABudgetAreRefusedAtTheirLine) {
+  const fs::path p = Write("budget.obj",
+                           "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\n"
+                           "f 1 2 3 4\n"    // 2 triangles
+                           "f 1 2 3 4\n");  // 4
+  SceneBudget budget;
+  budget.max_triangles = 3;
+  EXPECT_THAT(ErrorOf([&] { LoadObj(p, {}, budget); }),
+              HasSubstr("budget.obj:7: expands to up to 4 triangles, more than the budget of 3 "
+                        "(SceneBudget::max_triangles"));
+  budget = SceneBudget{};
+  budget.max_vertices = 4;  // v and vn count: tinyobjloader stores both
+  EXPECT_THAT(ErrorOf([&] { LoadObj(p, {}, budget); }),
+              HasSubstr("budget.obj:5: expands to up to 5 vertices, more than the budget of 4"));
+  SceneExpansion counts;
+  const SceneDescription s =
+      LoadObj(kScenes / "cornell-box" / "CornellBox-Original.obj", {}, SceneBudget{}, &counts);
+  EXPECT_EQ(counts.triangles, s.NumTriangles());  // quads and triangles, none degenerate
+  EXPECT_GE(counts.vertices, s.positions.size());
+}
+
 TEST_F(ObjErrorTest, MissingMtlIsAWarningAndFacesGetTheDefault) {
   const fs::path p = Write("nomtl.obj",
                            "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
@@ -368,7 +393,7 @@ TEST_F(ManifestTest, ParsesEveryKey) {
   EXPECT_DOUBLE_EQ(m.scale, 0.01);
   ASSERT_EQ(m.cameras.size(), 2u);
   EXPECT_EQ(m.cameras[0].name, "main");
-  EXPECT_EQ(m.cameras[0].eye, Vec3(0, 1, 3.4f));
+  EXPECT_EQ(m.cameras[0].eye, Vec3d(0, 1, 3.4));  // world points stay in double (scene_frame.h)
   EXPECT_FLOAT_EQ(m.cameras[0].vfov_degrees, 39.3f);
   EXPECT_EQ(m.cameras[0].width, 640);
   EXPECT_EQ(m.cameras[0].height, 480);
@@ -534,6 +559,82 @@ TEST_F(LoadSceneTest, ManifestAttachesCamerasAndScales) {
   EXPECT_FLOAT_EQ(bare.ComputeBounds().hi.y, 19.9f);
 }
 
+// A manifest "scale" (or a scale override) that would make world coordinates overflow a float,
+// collapse the scene, or make a camera degenerate is an InputError naming the manifest (and the
+// key's line) and the field, never a scene with Inf/NaN vertices or cameras. Before, "scale": 1e39
+// loaded: vertices ±Inf or NaN (0 × Inf), the camera's eye (-nan, inf, inf) (`pf info`).
+TEST_F(LoadSceneTest, ScalesThatBreakCoordinatesAreErrorsNamingTheField) {
+  const std::string obj = CopyCornellBoxHere();
+  auto manifest = [&](const std::string& name, const std::string& scale, const std::string& eye) {
+    return Write(name, "{\n  \"geometry\": \"" + obj + "\",\n  \"scale\": " + scale +
+                           ",\n  \"cameras\": [{\"eye\": " + eye + ", \"look_at\": [0, 1, 0]}]\n}\n");
+  };
+  EXPECT_THAT(ErrorOf([&] { LoadScene(manifest("big.json", "1e39", "[0, 1, 4]")); }),
+              HasSubstr("big.json:3: key 'scale': 1e+39 makes vertex coordinates overflow a 32-bit float "
+                        "(largest |coordinate| 1.99 x scale = 1.99e+39)"));
+  // The vertices fit (1.99e36), the camera 1000 m away does not.
+  EXPECT_THAT(ErrorOf([&] { LoadScene(manifest("far.json", "1e36", "[0, 1, 1000]")); }),
+              HasSubstr("far.json:3: key 'scale': 1e+36 makes cameras[0].eye overflow a 32-bit float"));
+  EXPECT_THAT(ErrorOf([&] { LoadScene(manifest("tiny.json", "1e-300", "[0, 1, 4]")); }),
+              HasSubstr("tiny.json:3: key 'scale': 1e-300 is below the smallest normal float"));
+  // Eye and look-at 1e-7 apart, scaled by 1e-30: their difference squared underflows.
+  EXPECT_THAT(ErrorOf([&] { LoadScene(manifest("close.json", "1e-30", "[0, 1, 1e-7]")); }),
+              HasSubstr("close.json:3: key 'scale': 1e-30 makes cameras[0].look_at coincide with its eye"));
+  EXPECT_THAT(ErrorOf([&] { LoadScene(manifest("ok.json", "1e-30", "[0, 1, 1e-7]"), 1e39); }),
+              HasSubstr("ok.json: scale override: 1e+39 makes vertex coordinates overflow"));
+  EXPECT_THAT(ErrorOf([&] { LoadScene(dir_ / obj, 1e39); }),
+              HasSubstr("CornellBox-Original.obj: scale override: 1e+39 makes vertex coordinates overflow"));
+  // JSON has no NaN: a NaN camera is a syntax error with its line; 1e39 is not a finite float.
+  EXPECT_THAT(ErrorOf([&] { LoadScene(manifest("nan.json", "1", "[NaN, 1, 4]")); }),
+              HasSubstr("nan.json:4:"));
+  EXPECT_THAT(ErrorOf([&] { LoadScene(manifest("inf.json", "1", "[1e39, 1, 4]")); }),
+              HasSubstr("key 'cameras[0].eye': expected 3 finite numbers"));
+  // The largest scale that fits still loads, every coordinate finite.
+  const SceneDescription s = LoadScene(manifest("fits.json", "1e38", "[0, 1, 1]"));
+  for (const Vec3& p : s.positions) ASSERT_TRUE(IsFinite(p));
+}
+
+// Coordinates far from the origin stay in double until the scene's frame is chosen
+// (scene_frame.h): the OBJ's vertices at 1e6 + decimals are stored relative to the centre of their
+// bounds, each the exact point minus that origin, rounded once; the manifest's camera stays in
+// world coordinates (double) and the default camera is the untranslated one's, moved.
+TEST_F(LoadSceneTest, FarObjCoordinatesAreStoredInTheScenesFrame) {
+  const std::string text =
+      "v 1000000.13 -2000000.27 3000000.39\nv 1000001.87 -2000000.27 3000000.39\n"
+      "v 1000001.87 -1999999.61 3000000.39\nv 1000000.13 -1999999.61 3000000.39\nf 1 2 3 4\n";
+  Write("far.obj", text);
+  const fs::path p =
+      Write("far.json", R"({"geometry": "far.obj", "cameras": [{"eye": [1000001, -2000000, 3000003.9],
+      "look_at": [1000001, -2000000, 3000000.39]}]})");
+  const SceneDescription s = LoadScene(p);
+  const Vec3d centre(1000001.0, -1999999.94, 3000000.39);
+  EXPECT_NEAR(s.origin.x, centre.x, 1e-9);
+  EXPECT_NEAR(s.origin.y, centre.y, 1e-9);
+  EXPECT_NEAR(s.origin.z, centre.z, 1e-9);
+  const Vec3 expected[] = {{-0.87f, -0.33f, 0}, {0.87f, -0.33f, 0}, {0.87f, 0.33f, 0}, {-0.87f, 0.33f, 0}};
+  ASSERT_EQ(s.positions.size(), 4u);
+  for (const Vec3& corner : expected) {  // in the order the triangles first use them
+    bool found = false;
+    for (const Vec3& p : s.positions) found = found || LengthSquared(p - corner) < 1e-12f;
+    EXPECT_TRUE(found) << corner.x << " " << corner.y;
+  }
+  EXPECT_EQ(s.cameras[0].eye, Vec3d(1000001, -2000000, 3000003.9));
+  const Vec3 eye = Camera(s.cameras[0], s.origin).eye();
+  EXPECT_NEAR(eye.y, -0.06f, 1e-6f);
+  EXPECT_NEAR(eye.z, 3.51f, 1e-6f);
+  // The same quad around the origin: origin 0, world floats.
+  Write("near.obj", "v -.87 -.33 0\nv .87 -.33 0\nv .87 .33 0\nv -.87 .33 0\nf 1 2 3 4\n");
+  const SceneDescription near = LoadScene(dir_ / "near.obj");
+  EXPECT_EQ(near.origin, Vec3d());
+  EXPECT_EQ(near.positions[0], Vec3(-0.87f, -0.33f, 0.0f));
+  const CameraSpec far_default = DefaultCamera(LoadScene(dir_ / "far.obj")),
+                   near_default = DefaultCamera(near);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(far_default.eye[k] - centre[k], near_default.eye[k], 1e-6);
+    EXPECT_NEAR(far_default.look_at[k] - centre[k], near_default.look_at[k], 1e-6);
+  }
+}
+
 TEST_F(LoadSceneTest, MaterialOverrides) {
   const std::string obj = CopyCornellBoxHere();
   const fs::path p = Write("o.json", R"({"geometry": ")" + obj + R"(", "materials": {
@@ -582,13 +683,13 @@ TEST(DefaultCameraTest, FramesTheCornellBoxFromTheOpenSide) {
   EXPECT_EQ(cam.look_at, b.Center());
   EXPECT_EQ(cam.up, Vec3(0, 1, 0));
   // Every corner of the bounding box is inside the field of view.
-  const Vec3 f = Normalize(cam.look_at - cam.eye);
+  const Vec3 f = Normalize(Vec3(cam.look_at - cam.eye));
   const Vec3 r = Normalize(Cross(f, cam.up));
   const Vec3 u = Cross(r, f);
   const float tan_half = std::tan(0.5f * cam.vfov_degrees * kPi / 180.0f);
   for (int i = 0; i < 8; ++i) {
     const Vec3 corner((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
-    const Vec3 d = corner - cam.eye;
+    const Vec3 d = corner - Vec3(cam.eye);
     const float depth = Dot(d, f);
     ASSERT_GT(depth, 0.0f);
     EXPECT_LE(std::abs(Dot(d, r)) / depth, tan_half);

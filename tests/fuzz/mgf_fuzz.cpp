@@ -22,8 +22,9 @@ namespace {
 pf::MgfOptions FuzzOptions() {
   pf::MgfOptions o;
   o.curve_segments = 8;
-  o.max_triangles = 50'000;
-  o.max_entities = 50'000;
+  o.budget.max_triangles = 50'000;
+  o.budget.max_vertices = 150'000;
+  o.budget.max_entities = 50'000;
   o.max_depth = 16;
   std::error_code ec;
   o.include_root = std::filesystem::current_path(ec);
