@@ -129,6 +129,7 @@ class Coordinator {
   Persister& persister() { return *persister_; }
   SceneStore& scenes() { return *scenes_; }
   DistributedMaps& maps() { return *maps_; }
+  WatchHub& watches() { return *watches_; }
   int port() const { return port_; }
   int http_port() const { return http_port_; }  // 0 without --http
   bool http_tls() const;                        // the status page is HTTPS

@@ -67,19 +67,23 @@ class WatchSession : public std::enable_shared_from_this<WatchSession> {
   // A write outstanding for `unread_seconds`: the client does not read (docs/security.md
   // "Budgets"). The call is cancelled — gRPC then fails the write and the stream finishes — so
   // the session lets go of its snapshot and its place in the watcher budget. True if it did so.
+  // Shutdown calls it with 0 and no `client`: a client that does not read does not hold up the
+  // coordinator's stop for its grace period.
   bool EndIfUnread(double unread_seconds, const std::string& client) {
     double waited = 0;
     {
       std::lock_guard lock(mu_);
-      if (finished_ || !write_in_flight_ || cancelling_) return false;
+      if (finished_ || !write_in_flight_ || cancelling_ || ended_unread_) return false;
       waited = clock_.Now() - write_started_;
       if (waited < unread_seconds) return false;
       cancelling_ = true;  // no Finish (and so no OnDone, which frees the context) until TryCancel returned
+      ended_unread_ = true;
       if (!close_status_)
         close_status_ = grpc::Status(grpc::StatusCode::CANCELLED, "watch ended: the client did not read");
     }
-    spdlog::warn("WatchJob of job {} by {}: an update unread for {:.1f} s; the stream is ended", job_id_,
-                 limits::Quote(client, 200), waited);
+    if (!client.empty())
+      spdlog::warn("WatchJob of job {} by {}: an update unread for {:.1f} s; the stream is ended", job_id_,
+                   limits::Quote(client, 200), waited);
     context_->TryCancel();
     {
       std::lock_guard lock(mu_);
@@ -184,8 +188,9 @@ class WatchSession : public std::enable_shared_from_this<WatchSession> {
   std::mutex mu_;
   bool dirty_ = true;  // the first update goes out at once
   bool write_in_flight_ = false;
-  double write_started_ = 0;  // Clock::Now() of the outstanding write's StartWrite
-  bool cancelling_ = false;   // EndIfUnread is cancelling the call
+  double write_started_ = 0;   // Clock::Now() of the outstanding write's StartWrite
+  bool cancelling_ = false;    // EndIfUnread is cancelling the call
+  bool ended_unread_ = false;  // … or has done so
   bool building_ = false;
   bool final_queued_ = false;
   bool finished_ = false;
@@ -335,7 +340,10 @@ void WatchHub::Shutdown() {
       if (auto s = entry.session.lock()) live.push_back(std::move(s));
     sessions_.clear();
   }
-  for (auto& s : live) s->Close(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator shutting down"));
+  for (auto& s : live) {
+    s->Close(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator shutting down"));
+    s->EndIfUnread(0, "");
+  }
 }
 
 size_t WatchHub::sessions() {

@@ -1154,6 +1154,7 @@ SchedulerCounters Scheduler::counters() const {
   std::lock_guard lock(mu_);
   SchedulerCounters c = counters_;
   c.parked_polls = waiters_.size();
+  for (const Job* job : jobs_.InSubmissionOrder()) c.tasks_in_memory += job->tasks().size();
   return c;
 }
 

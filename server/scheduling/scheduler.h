@@ -142,6 +142,9 @@ struct SchedulerCounters {
   uint64_t leases = 0, merged = 0, ignored = 0, rejected = 0, expired = 0, failed_attempts = 0, returned = 0;
   uint64_t lease_attempts = 0;  // searches of the queue for a task (a spinning poll would inflate it)
   uint64_t parked_polls = 0;    // long polls waiting right now
+  // Tasks whose spec and runtime are in memory: those of active jobs and of finished jobs not
+  // yet released (Job::ReleaseTasks; docs/farm.md "Coordinator memory").
+  uint64_t tasks_in_memory = 0;
 };
 
 class Scheduler final : public PersistSource {
