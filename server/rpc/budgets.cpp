@@ -162,11 +162,11 @@ Reservation Admission::AdmitJob(const std::string& client, uint64_t tasks, uint6
                      Named("jobs_total", b.jobs_total) + "; retry later");
   if (load.tasks + pending_tasks_ + tasks > b.tasks_total)
     throw LimitError("spec.plan: " + std::to_string(tasks) + " tasks more than the " +
-                     std::to_string(load.tasks + pending_tasks_) + " of queued and running jobs exceed " +
+                     std::to_string(load.tasks + pending_tasks_) + " held for other jobs exceed " +
                      Named("tasks_total", b.tasks_total) + "; retry later");
   if (load.pixels + pending_pixels_ + pixels > b.pixels_total)
     throw LimitError("spec.camera.width/height: " + std::to_string(pixels) + " pixels more than the " +
-                     std::to_string(load.pixels + pending_pixels_) + " of queued and running jobs exceed " +
+                     std::to_string(load.pixels + pending_pixels_) + " held for other jobs exceed " +
                      Named("pixels_total", b.pixels_total) + "; retry later");
   ++pending_jobs_;
   pending_tasks_ += tasks;

@@ -31,12 +31,13 @@ struct Budgets {
   // Jobs (SubmitJob): queued + running, per client and in all.
   uint64_t jobs_per_client = 1000;
   uint64_t jobs_total = 4000;
-  // Tasks: of one job (at most limits::kMaxTasksPerJob), and of all queued + running jobs. A
-  // queued task costs the coordinator ~400 bytes (docs/farm.md "Coordinator memory").
+  // Tasks: of one job (at most limits::kMaxTasksPerJob), and in memory: of the queued and running
+  // jobs, and of ended ones until their task lists are released (Scheduler::Load). A task costs
+  // the coordinator ~440 bytes (docs/farm.md "Coordinator memory").
   uint64_t tasks_per_job = uint64_t(1) << 20;
-  uint64_t tasks_total = uint64_t(4) << 20;
-  // Pixels (width × height): of one job (at most kMaxImagePixels), and of all queued + running
-  // jobs (a running job's accumulator is 47 bytes per pixel).
+  uint64_t tasks_total = uint64_t(2) << 20;
+  // Pixels (width × height): of one job (at most kMaxImagePixels), and of all jobs counted as for
+  // tasks_total (a job's accumulator is 47 bytes per pixel once its first result is merged).
   uint64_t pixels_per_job = uint64_t(4096) * 4096;
   uint64_t pixels_total = uint64_t(1) << 28;
   // WatchJob streams open, per client and in all; a stream whose client has not taken an

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include "common/core/error.h"
 #include "proto/limits.h"
@@ -421,9 +422,8 @@ void Scheduler::Charge(Job& job, int sign) {
     if (!job.client.empty()) ++client_jobs_[job.client];
     return;
   }
+  // The job ends; its tasks and pixels count until they are released (ReleaseFinishedTasks).
   --load_.jobs;
-  load_.tasks -= job.charged_tasks;
-  load_.pixels -= job.charged_pixels;
   if (auto it = client_jobs_.find(job.client); it != client_jobs_.end() && --it->second == 0)
     client_jobs_.erase(it);
 }
@@ -1063,6 +1063,8 @@ uint64_t Scheduler::ReleaseFinishedTasks(Job& job) {
   for (uint64_t id = 0; id < job.num_tasks(); ++id)
     if (job.runtime(id).merging) return 0;  // a result being checked reads its task (Complete); next flush
   job.ReleaseTasks();
+  load_.tasks -= std::exchange(job.charged_tasks, 0);
+  load_.pixels -= std::exchange(job.charged_pixels, 0);
   sources_.erase(&job);
   for (auto it = held_.lower_bound({job.id(), 0}); it != held_.end() && it->first.first == job.id();)
     it = held_.erase(it);

@@ -131,11 +131,13 @@ struct JobSnapshot {
 };
 
 // What the queued and running jobs hold, for the coordinator's budgets (server/rpc/budgets.h).
+// A job's tasks and pixels count until its task list is released, i.e. while they are in memory
+// (docs/farm.md "Coordinator memory": the persister's next flush after the job ended).
 struct ActiveLoad {
   uint64_t jobs = 0;         // queued + running
   uint64_t tasks = 0;        // their tasks, as counted when they were added
   uint64_t pixels = 0;       // their images' pixels (width × height)
-  uint64_t client_jobs = 0;  // of those jobs, the ones the client asked about submitted
+  uint64_t client_jobs = 0;  // of the queued and running jobs, the ones the client asked about submitted
 };
 
 struct SchedulerCounters {
@@ -281,7 +283,8 @@ class Scheduler final : public PersistSource {
   // Appends and queues the tasks the job's source creates from its merged results.
   void AddTasksFromSource(Job& job, Effects& fx);
   photonfarm::v1::JobStatus BuildStatus(Job& job, double now);
-  // Counts an active job into load_ (AddJob) or out of it (FinishJob: +1 / −1).
+  // Counts an active job into load_ (AddJob: +1) or its end (FinishJob: −1; its tasks and pixels
+  // leave load_ with ReleaseFinishedTasks).
   void Charge(Job& job, int sign);
   // A finished job whose rows and final checkpoint are stored and that no lease pins: drops its
   // task list (Job::ReleaseTasks) and what the scheduler kept per task of it; how many tasks.

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <string>
 
+#include "tests/util/raw_connection.h"
+
 namespace pf::test_util {
 
 // One HTTP/2 frame: 24-bit length, type, flags, 31-bit stream id, payload.
@@ -61,6 +63,21 @@ inline std::string GrpcCallBytes(const std::string& authority, const std::string
   for (int shift = 24; shift >= 0; shift -= 8) data += char((n >> shift) & 0xff);
   out += Http2Frame(0x0, 0x1, 1, data + message);  // END_STREAM
   return out;
+}
+
+// Reads the server's frames (SETTINGS, PING, WINDOW_UPDATE, …: never a message, the window being
+// 0) until the HEADERS of stream 1 and returns their flags — END_STREAM (0x1) set: a trailers-only
+// answer, the call was refused — or -1 if none arrived within `seconds` per frame.
+inline int ResponseHeadersFlags(RawConnection& connection, double seconds = 5) {
+  for (;;) {
+    const std::string head = connection.ReceiveExactly(9, seconds);
+    if (head.size() < 9) return -1;
+    const auto byte = [&](size_t i) { return uint32_t(static_cast<unsigned char>(head[i])); };
+    const uint32_t length = byte(0) << 16 | byte(1) << 8 | byte(2);
+    const uint32_t stream = (byte(5) & 0x7f) << 24 | byte(6) << 16 | byte(7) << 8 | byte(8);
+    if (connection.ReceiveExactly(length, seconds).size() < length) return -1;
+    if (byte(3) == 0x1 && stream == 1) return int(byte(4));
+  }
 }
 
 }  // namespace pf::test_util
