@@ -229,8 +229,8 @@ TEST_F(BudgetTest, SubmitJobWritesTheJobRowAndNoTaskRows) {
   EXPECT_EQ(db.LoadTasks(id).size(), 0u);
 }
 
-// Queued and running jobs count; finished ones do not (their tasks and pixels once released). One client here (every call comes from
-// 127.0.0.1), so the per-client and the global budget are shown by two coordinators.
+// Queued and running jobs count; finished ones do not (their tasks and pixels once released). One client here
+// (every call comes from 127.0.0.1), so the per-client and the global budget are shown by two coordinators.
 TEST_F(BudgetTest, QueuedAndRunningJobsCountAgainstTheirBudgetsUntilTheyEnd) {
   for (const char* budget : {"jobs_per_client", "jobs_total", "tasks_total", "pixels_total"}) {
     SCOPED_TRACE(budget);
