@@ -78,7 +78,7 @@ class Job {
   const TaskRuntime& runtime(uint64_t id) const { return runtime_.at(id); }
   size_t num_tasks() const { return num_tasks_; }
   // A finished job keeps what its status needs (counts, work, coverage), not its task list
-  // (docs/farm.md "Coordinator memory": ~400 bytes per task, 2^20 tasks per job). Call once no
+  // (docs/farm.md "Coordinator memory": ~440 bytes per task, 2^20 tasks per job). Call once no
   // lease, row or checkpoint needs a task any more (Scheduler::CollectRows); afterwards tasks()
   // is empty and task(id)/runtime(id) throw std::out_of_range.
   void ReleaseTasks();
@@ -157,7 +157,7 @@ class Job {
 
   // Budgets (server/rpc/budgets.h): the client that submitted the job ("" for a job recovered after
   // a restart: the client is not stored, such jobs count against the global budgets only), and
-  // what the scheduler counts for it while it is queued or running (Scheduler::Load).
+  // the tasks and pixels the scheduler counts for it until its tasks are released (Scheduler::Load).
   std::string client;
   uint64_t charged_tasks = 0;
   uint64_t charged_pixels = 0;

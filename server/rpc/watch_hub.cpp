@@ -287,6 +287,7 @@ grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(grpc::CallbackServerCont
   }
   if (!over_budget.ok()) {
     // The session never started: it finishes its reactor at once, before any snapshot.
+    spdlog::info("WatchJob: {}", over_budget.error_message());
     session->Close(over_budget);
     return reactor;
   }
