@@ -83,7 +83,8 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
                                            options_.checkpoint_interval_seconds,
                                            options_.files ? *options_.files : SystemFiles());
   executor_ = std::make_unique<Executor>(options_.executor_threads);
-  watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_);
+  watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_, options_.budgets);
+  admission_ = std::make_unique<Admission>(options_.budgets, *scheduler_, *scenes_);
   auth_ = std::make_shared<RoleAuthProcessor>(RoleTokens{options_.client_token, options_.worker_token},
                                               !options_.tls_client_ca_pem.empty());
   scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
@@ -112,6 +113,7 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
                      .persister = *persister_,
                      .executor = *executor_,
                      .watches = *watches_,
+                     .admission = *admission_,
                      .clock = *clock_,
                      .maps = *maps_,
                      .build_version = PF_VERSION,
@@ -171,6 +173,7 @@ int Coordinator::Start() {
       : options_.tls_client_ca_pem.empty() ? "TLS"
                                            : "TLS + client certificates for workers",
       options_.client_token.empty() ? "off" : "required", options_.worker_token.empty() ? "off" : "required");
+  spdlog::info("budgets: {}", DescribeBudgets(options_.budgets));
   return port_;
 }
 

@@ -36,6 +36,7 @@
 
 #include "common/core/file_layer.h"
 #include "proto/limits.h"
+#include "server/rpc/budgets.h"
 #include "server/scheduling/clock.h"
 #include "server/store/recovery.h"
 
@@ -51,6 +52,7 @@ class Scheduler;
 class Persister;
 class Executor;
 class WatchHub;
+class Admission;
 class RoleAuthProcessor;
 class RenderServiceImpl;
 class WorkerServiceImpl;
@@ -96,6 +98,8 @@ struct CoordinatorOptions {
   // Lease to workers of another build too (LeaseTaskRequest.worker_version; docs/farm.md
   // "Upgrades"). Off: such a worker's LeaseTask is FAILED_PRECONDITION.
   bool allow_mixed_versions = false;
+  // Per-client and global budgets (server/rpc/budgets.h; pf-coordinator --limit NAME=VALUE).
+  Budgets budgets;
 };
 
 // True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"
@@ -129,6 +133,7 @@ class Coordinator {
   Persister& persister() { return *persister_; }
   SceneStore& scenes() { return *scenes_; }
   DistributedMaps& maps() { return *maps_; }
+  WatchHub& watches() { return *watches_; }
   int port() const { return port_; }
   int http_port() const { return http_port_; }  // 0 without --http
   bool http_tls() const;                        // the status page is HTTPS
@@ -150,6 +155,7 @@ class Coordinator {
   std::unique_ptr<Persister> persister_;
   std::unique_ptr<Executor> executor_;
   std::unique_ptr<WatchHub> watches_;
+  std::unique_ptr<Admission> admission_;
   std::shared_ptr<RoleAuthProcessor> auth_;
   std::unique_ptr<RenderServiceImpl> render_service_;
   std::unique_ptr<WorkerServiceImpl> worker_service_;

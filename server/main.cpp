@@ -4,7 +4,7 @@
 //                  [--client-token-file FILE] [--worker-token-file FILE]
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]] [--insecure]
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
-//                  [--allow-mixed-versions]
+//                  [--allow-mixed-versions] [--limit NAME=VALUE ...]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
 // :0; with --http a second line, "http on HOST:PORT", for the web status page, with " (https)" when it
@@ -54,6 +54,7 @@ int main(int argc, char** argv) {
   pf::server::CoordinatorOptions options;
   std::string client_token_file, worker_token_file, tls_cert, tls_key, tls_client_ca, log_level = "info";
   int checkpoint_ms = 0;
+  std::vector<std::string> limits;
   CLI::App app{"pf-coordinator: the photonfarm coordinator (jobs, scheduling, merging, persistence)"};
   app.add_option("--listen", options.listen, "Address to serve on; port 0 picks a free port")
       ->capture_default_str();
@@ -120,6 +121,12 @@ int main(int argc, char** argv) {
                ") is refused and exits with code 4: two builds may trace other photons or estimate "
                "differently, and one job's image would mix them. Also resumes, at start-up, jobs submitted "
                "under another build instead of re-running them");
+  app.add_option(
+      "--limit", limits,
+      "A per-client or global budget, NAME=VALUE, repeatable (docs/security.md \"Budgets\"): "
+      "jobs_per_client, jobs_total, tasks_per_job, tasks_total, pixels_per_job, pixels_total, "
+      "watchers_per_client, watchers_total, watch_unread_seconds, upload_bytes, uploads_per_client, "
+      "uploads_total, scene_bytes_total; over one, a request is refused RESOURCE_EXHAUSTED");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
@@ -156,6 +163,7 @@ int main(int argc, char** argv) {
     options.tls_cert_pem = ReadPem(tls_cert, "--tls-cert");
     options.tls_key_pem = ReadPem(tls_key, "--tls-key");
     options.tls_client_ca_pem = ReadPem(tls_client_ca, "--tls-client-ca");
+    for (const std::string& limit : limits) pf::server::SetBudget(&options.budgets, limit);
     pf::server::Coordinator coordinator(options);
     const int port = coordinator.Start();
     std::printf("listening on %s:%d\n", HostOf(options.listen).c_str(), port);

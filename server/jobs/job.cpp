@@ -1,5 +1,6 @@
 #include "server/jobs/job.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "common/plan/hierarchical.h"
@@ -13,6 +14,7 @@ Job::Job(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config, 
       config_(std::move(config)),
       tasks_(std::move(tasks)),
       runtime_(tasks_.size()),
+      num_tasks_(tasks_.size()),
       submitted_unix_ms_(submitted_unix_ms) {
   counts_[size_t(TaskState::kQueued)] = tasks_.size();
   for (const TaskSpec& t : tasks_) CountIntoGroup(t);
@@ -62,6 +64,7 @@ void Job::AppendTasks(const std::vector<TaskSpec>& tasks) {
                              ", expected " + std::to_string(tasks_.size()));
     tasks_.push_back(t);
     runtime_.emplace_back();
+    ++num_tasks_;
     ++counts_[size_t(TaskState::kQueued)];
     dirty_tasks.insert(t.task_id);
     CountIntoGroup(t);
@@ -175,6 +178,36 @@ void Job::SetTaskState(uint64_t id, TaskState next) {
   dirty_tasks.insert(id);
 }
 
+void Job::CancelAsJobEnds(uint64_t id) {
+  SetTaskState(id, TaskState::kCancelled);
+  dirty_tasks.erase(id);
+}
+
+void Job::ReleaseTasks() {
+  if (active() || tasks_released_) return;
+  // swap, not clear(): clear keeps the capacity.
+  std::vector<TaskSpec>().swap(tasks_);
+  std::vector<TaskRuntime>().swap(runtime_);
+  std::vector<uint64_t>().swap(task_work_);
+  std::vector<uint64_t>().swap(group_remaining_);
+  std::vector<uint64_t>().swap(group_total_);
+  dirty_tasks.clear();
+  tasks_released_ = true;
+}
+
+std::unique_ptr<Job> Job::Finished(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config,
+                                   uint64_t tasks, uint64_t done, int64_t submitted_unix_ms) {
+  auto job = std::make_unique<Job>(std::move(id), seq, std::move(config), std::vector<TaskSpec>{},
+                                   submitted_unix_ms);
+  done = std::min(done, tasks);
+  job->num_tasks_ = tasks;
+  job->counts_[size_t(TaskState::kDone)] = job->work_[size_t(TaskState::kDone)] = done;
+  job->counts_[size_t(TaskState::kCancelled)] = job->work_[size_t(TaskState::kCancelled)] = tasks - done;
+  job->counts_[size_t(TaskState::kQueued)] = job->work_[size_t(TaskState::kQueued)] = 0;
+  job->tasks_released_ = true;
+  return job;
+}
+
 void Job::RecordMerge(uint64_t task_id) {
   SetTaskState(task_id, TaskState::kDone);
   ++merge_seq_;
@@ -183,6 +216,7 @@ void Job::RecordMerge(uint64_t task_id) {
 }
 
 void Job::MarkStored(uint64_t task_id) {
+  if (task_id >= runtime_.size()) return;  // released: its checkpoint stored every result
   TaskRuntime& rt = runtime_.at(task_id);
   if (rt.state != TaskState::kDone || rt.stored) return;
   rt.stored = true;
@@ -199,7 +233,7 @@ std::vector<uint64_t> Job::MergedTaskIds() const {
 
 uint32_t Job::rounds_done() const {
   if (config_->plan.kind == PlanKind::kSkipping) return full_coverage_;
-  return count(TaskState::kDone) == tasks_.size() && !tasks_.empty() ? 1 : 0;
+  return count(TaskState::kDone) == num_tasks_ && num_tasks_ > 0 ? 1 : 0;
 }
 
 double Job::ElapsedSeconds(double now) const {

@@ -72,11 +72,23 @@ class Job {
   uint64_t seq() const { return seq_; }
   const JobConfig& config() const { return *config_; }
   std::shared_ptr<const JobConfig> shared_config() const { return config_; }
+  // A finished job as recovery restores it: its counts, not its tasks — `done` of `tasks` DONE,
+  // the others CANCELLED (a finished job has nothing queued or leased) — as after ReleaseTasks.
+  // Progress counts 1 per task (task_work needs the task list).
+  static std::unique_ptr<Job> Finished(std::string id, uint64_t seq, std::shared_ptr<const JobConfig> config,
+                                       uint64_t tasks, uint64_t done, int64_t submitted_unix_ms);
+
   const std::vector<TaskSpec>& tasks() const { return tasks_; }
   const TaskSpec& task(uint64_t id) const { return tasks_.at(id); }
   TaskRuntime& runtime(uint64_t id) { return runtime_.at(id); }
   const TaskRuntime& runtime(uint64_t id) const { return runtime_.at(id); }
-  size_t num_tasks() const { return tasks_.size(); }
+  size_t num_tasks() const { return num_tasks_; }
+  // A finished job keeps what its status needs (counts, work, coverage), not its task list
+  // (docs/farm.md "Coordinator memory": ~440 bytes per task, 2^20 tasks per job). Call once no
+  // lease, row or checkpoint needs a task any more (Scheduler::CollectRows); afterwards tasks()
+  // is empty and task(id)/runtime(id) throw std::out_of_range.
+  void ReleaseTasks();
+  bool tasks_released() const { return tasks_released_; }
   // Tasks a dynamic plan created from merged results (server/scheduling/task_source.h), QUEUED;
   // their ids must continue the numbering (task_id = num_tasks(), +1, …): std::logic_error if not.
   void AppendTasks(const std::vector<TaskSpec>& tasks);
@@ -100,6 +112,10 @@ class Job {
 
   // Task state changes keep the counters right; every call marks the task dirty (persist).
   void SetTaskState(uint64_t id, TaskState next);
+  // A queued or leased task cancelled because its job ends: like SetTaskState, but its row is
+  // not written — the job's terminal row says it (recovery counts a finished job's tasks that are
+  // not DONE as CANCELLED), so cancelling a 2^20-task job writes one row, not 2^20.
+  void CancelAsJobEnds(uint64_t id);
   uint64_t count(TaskState s) const { return counts_[size_t(s)]; }
   // Work, for progress and the ETA: 1 per task, except for the hierarchical plan, whose tasks
   // differ in cost by orders of magnitude: pixel samples plus its map (HierarchicalTaskWork).
@@ -153,6 +169,13 @@ class Job {
     noise_checked_coverage = full_coverage_;
   }
 
+  // Budgets (server/rpc/budgets.h): the client that submitted the job ("" for a job recovered after
+  // a restart: the client is not stored, such jobs count against the global budgets only), and
+  // the tasks and pixels the scheduler counts for it until its tasks are released (Scheduler::Load).
+  std::string client;
+  uint64_t charged_tasks = 0;
+  uint64_t charged_pixels = 0;
+
   // Persistence bookkeeping (owned by the scheduler).
   bool row_dirty = false;
   // When the elapsed running time was last marked for persisting (Scheduler::Tick), so that a
@@ -191,6 +214,8 @@ class Job {
   std::shared_ptr<const JobConfig> config_;
   std::vector<TaskSpec> tasks_;
   std::vector<TaskRuntime> runtime_;
+  uint64_t num_tasks_ = 0;  // tasks_.size() until ReleaseTasks
+  bool tasks_released_ = false;
   std::unique_ptr<Accumulator> accumulator_;
   JobState state_ = JobState::kQueued;
   std::string failure_reason_;

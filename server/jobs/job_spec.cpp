@@ -188,4 +188,12 @@ std::vector<TaskSpec> ScheduledTasks(const JobConfig& config) {
   return tasks;
 }
 
+uint64_t ScheduledTaskCount(const JobConfig& config) {
+  const PlanSpec& plan = config.plan;
+  // Skipping expands round by round, stride² tasks each (task_plan.h); ScheduledTasks keeps the
+  // rounds below ScheduledRounds. Every other plan schedules all of its static tasks.
+  if (plan.kind == PlanKind::kSkipping) return uint64_t(config.ScheduledRounds()) * plan.stride * plan.stride;
+  return CountTasks(plan, config.camera.width, config.camera.height);
+}
+
 }  // namespace pf::server

@@ -97,5 +97,8 @@ JobConfig ValidateJobSpec(const photonfarm::v1::JobSpec& spec, const SceneCatalo
 // The tasks a job schedules: ExpandPlan restricted to rounds < ScheduledRounds(). Task ids are
 // the expansion's, so they are equal to the index in the result.
 std::vector<TaskSpec> ScheduledTasks(const JobConfig& config);
+// ScheduledTasks(config).size() without expanding the plan: what the budgets (server/rpc/budgets.h)
+// and the recovery of a finished job count.
+uint64_t ScheduledTaskCount(const JobConfig& config);
 
 }  // namespace pf::server

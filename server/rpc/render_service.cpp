@@ -13,6 +13,7 @@
 #include "common/scene/scene_bundle.h"
 #include "server/assembly/image_snapshot.h"
 #include "server/errors.h"
+#include "server/rpc/budgets.h"
 #include "server/rpc/buffered_stream.h"
 #include "server/rpc/job_images.h"
 #include "server/rpc/status_mapping.h"
@@ -61,7 +62,20 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
                                                          const v1::UploadSceneRequest* request,
                                                          v1::UploadSceneResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const bool posted = ctx_.executor.Post([this, reactor, request, response] {
+  // The budgets before the request waits for a thread (docs/security.md "Budgets"): a queued
+  // upload holds its whole message.
+  auto upload = std::make_shared<Reservation>();
+  const grpc::Status admitted = Guarded("UploadScene", [&] {
+    uint64_t bytes = 0;
+    for (const v1::SceneFile& f : request->bundle().files()) bytes += f.content().size();
+    *upload = ctx_.admission.AdmitUpload(ClientOf(*context), bytes);
+    return grpc::Status::OK;
+  });
+  if (!admitted.ok()) {
+    reactor->Finish(admitted);
+    return reactor;
+  }
+  const bool posted = ctx_.executor.Post([this, reactor, request, response, upload] {
     reactor->Finish(Guarded("UploadScene", [&] {
       if (request->bundle().files_size() == 0)
         throw InputError("bundle.files: at least one file is required");
@@ -70,6 +84,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
       bundle.files.reserve(size_t(request->bundle().files_size()));
       for (const v1::SceneFile& f : request->bundle().files())
         bundle.files.emplace_back(f.path(), f.content());
+      ctx_.admission.CheckSceneBytes(*upload,
+                                     [&] { return ctx_.scenes.FindScene(BundleHash(bundle)).has_value(); });
       const UploadResult result = ctx_.scenes.Upload(bundle);
       response->set_scene_hash(result.info.hash);
       response->set_triangles(result.info.triangles);
@@ -86,35 +102,38 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
                                                        const v1::SubmitJobRequest* request,
                                                        v1::SubmitJobResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  // Validation is cheap (memory only) and happens here, before anything is stored.
+  // Validation and the budgets are cheap (memory only) and happen here, before anything is
+  // expanded or stored (docs/security.md "Budgets").
   auto config = std::make_shared<JobConfig>();
+  const std::string client = ClientOf(*context);
+  auto admitted = std::make_shared<Reservation>();
   const grpc::Status valid = Guarded("SubmitJob", [&] {
     // --plan auto without a worker count plans for the workers seen in the last minute.
     uint32_t live = 0;
     for (const v1::WorkerInfo& w : ctx_.scheduler.activity().Workers())
       if (w.seconds_since_seen() <= 60 && !w.refused()) ++live;
     *config = ValidateJobSpec(request->spec(), ctx_.scenes, std::max(1u, live));
+    *admitted = ctx_.admission.AdmitJob(client, ScheduledTaskCount(*config),
+                                        uint64_t(config->camera.width) * uint64_t(config->camera.height));
     return grpc::Status::OK;
   });
   if (!valid.ok()) {
     reactor->Finish(valid);
     return reactor;
   }
-  const bool posted = ctx_.executor.Post([this, reactor, response, config] {
+  const bool posted = ctx_.executor.Post([this, reactor, response, config, client, admitted] {
     reactor->Finish(Guarded("SubmitJob", [&] {
       std::unique_ptr<Job> job = ctx_.scheduler.PrepareJob(std::move(*config));
+      job->client = client;
       JobRow row;
       row.job_id = job->id();
       row.seq = job->seq();
       row.spec = job->config().spec.SerializeAsString();
       row.state = JobState::kQueued;
       row.submitted_unix_ms = job->submitted_unix_ms();
-      std::vector<TaskRow> tasks(job->num_tasks());
-      for (uint64_t i = 0; i < tasks.size(); ++i) {
-        tasks[i].job_id = job->id();
-        tasks[i].task_id = i;
-      }
-      ctx_.db.InsertJob(row, tasks);  // durable before the client hears the id
+      // No task rows: a task without a row is QUEUED with no attempts, which recovery assumes
+      // (docs/farm.md "SQLite schema"); each row is written when its task first changes.
+      ctx_.db.InsertJob(row, {});  // durable before the client hears the id
       const JobConfig& c = job->config();
       spdlog::info("job {}: submitted{}: scene {}, {}x{}, {}, {} tasks, seed {}, priority {}", job->id(),
                    c.name.empty() ? "" : " '" + c.name + "'", c.scene_hash.substr(0, 12), c.camera.width,
@@ -123,6 +142,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
         spdlog::info("job {}: plan auto: {}", job->id(), c.spec.plan().chosen_by_auto().reason());
       response->set_job_id(job->id());
       ctx_.scheduler.AddJob(std::move(job));
+      admitted->Release();  // the scheduler counts the job now
       return grpc::Status::OK;
     }));
   });
@@ -199,9 +219,9 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobEvents(grpc::CallbackServerC
   return reactor;
 }
 
-grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::CallbackServerContext* /*context*/,
+grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::CallbackServerContext* context,
                                                                      const v1::WatchJobRequest* request) {
-  return ctx_.watches.Open(*request, grpc::Status::OK);
+  return ctx_.watches.Open(context, ClientOf(*context), *request, grpc::Status::OK);
 }
 
 grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(

@@ -15,6 +15,7 @@
 namespace pf::server {
 
 class WatchHub;
+class Admission;
 
 struct ServiceContext {
   Scheduler& scheduler;
@@ -23,6 +24,7 @@ struct ServiceContext {
   Persister& persister;
   Executor& executor;
   WatchHub& watches;
+  Admission& admission;  // per-client and global budgets (server/rpc/budgets.h)
   const Clock& clock;
   DistributedMaps& maps;  // issue #12: photon maps traced once
   // Which workers get leases: only those of `build_version` (the coordinator's PF_VERSION)

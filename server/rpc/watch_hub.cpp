@@ -1,5 +1,8 @@
 #include "server/rpc/watch_hub.h"
 
+#include <grpcpp/server_context.h>
+#include <spdlog/spdlog.h>
+
 #include <cmath>
 #include <deque>
 #include <optional>
@@ -25,9 +28,11 @@ bool IsFinal(v1::JobState s) {
 
 class WatchSession : public std::enable_shared_from_this<WatchSession> {
  public:
-  WatchSession(grpc::ServerWriteReactor<v1::JobUpdate>* reactor, Scheduler& scheduler, Executor& executor,
-               const Clock& clock, std::string job_id, bool images, double interval)
+  WatchSession(grpc::ServerWriteReactor<v1::JobUpdate>* reactor, grpc::CallbackServerContext* context,
+               Scheduler& scheduler, Executor& executor, const Clock& clock, std::string job_id, bool images,
+               double interval)
       : reactor_(reactor),
+        context_(context),
         scheduler_(scheduler),
         executor_(executor),
         clock_(clock),
@@ -59,13 +64,42 @@ class WatchSession : public std::enable_shared_from_this<WatchSession> {
     Pump();
   }
 
+  // A write outstanding for `unread_seconds`: the client does not read (docs/security.md
+  // "Budgets"). The call is cancelled — gRPC then fails the write and the stream finishes — so
+  // the session lets go of its snapshot and its place in the watcher budget. True if it did so.
+  // Shutdown calls it with 0 and no `client`: a client that does not read does not hold up the
+  // coordinator's stop for its grace period.
+  bool EndIfUnread(double unread_seconds, const std::string& client) {
+    double waited = 0;
+    {
+      std::lock_guard lock(mu_);
+      if (finished_ || !write_in_flight_ || cancelling_ || ended_unread_) return false;
+      waited = clock_.Now() - write_started_;
+      if (waited < unread_seconds) return false;
+      cancelling_ = true;  // no Finish (and so no OnDone, which frees the context) until TryCancel returned
+      ended_unread_ = true;
+      if (!close_status_)
+        close_status_ = grpc::Status(grpc::StatusCode::CANCELLED, "watch ended: the client did not read");
+    }
+    if (!client.empty())
+      spdlog::warn("WatchJob of job {} by {}: an update unread for {:.1f} s; the stream is ended", job_id_,
+                   limits::Quote(client, 200), waited);
+    context_->TryCancel();
+    {
+      std::lock_guard lock(mu_);
+      cancelling_ = false;
+    }
+    Pump();
+    return true;
+  }
+
   // Decides the next step under the lock and performs it outside.
   void Pump() {
     enum class Action { kNone, kWrite, kFinish, kBuild } action = Action::kNone;
     grpc::Status finish_status;
     {
       std::lock_guard lock(mu_);
-      if (finished_ || write_in_flight_ || building_) return;
+      if (finished_ || write_in_flight_ || building_ || cancelling_) return;
       if (close_status_) {
         finished_ = true;
         finish_status = *close_status_;
@@ -74,6 +108,7 @@ class WatchSession : public std::enable_shared_from_this<WatchSession> {
         current_ = std::move(queue_.front());
         queue_.pop_front();
         write_in_flight_ = true;
+        write_started_ = clock_.Now();
         action = Action::kWrite;
       } else if (final_queued_) {
         finished_ = true;
@@ -142,6 +177,7 @@ class WatchSession : public std::enable_shared_from_this<WatchSession> {
   }
 
   grpc::ServerWriteReactor<v1::JobUpdate>* const reactor_;
+  grpc::CallbackServerContext* const context_;  // valid until OnDone, i.e. while !finished_
   Scheduler& scheduler_;
   Executor& executor_;
   const Clock& clock_;
@@ -152,6 +188,9 @@ class WatchSession : public std::enable_shared_from_this<WatchSession> {
   std::mutex mu_;
   bool dirty_ = true;  // the first update goes out at once
   bool write_in_flight_ = false;
+  double write_started_ = 0;   // Clock::Now() of the outstanding write's StartWrite
+  bool cancelling_ = false;    // EndIfUnread is cancelling the call
+  bool ended_unread_ = false;  // … or has done so
   bool building_ = false;
   bool final_queued_ = false;
   bool finished_ = false;
@@ -179,10 +218,17 @@ class FinishedReactor final : public grpc::ServerWriteReactor<v1::JobUpdate> {
 
 }  // namespace
 
-WatchHub::WatchHub(Scheduler& scheduler, Executor& executor, const Clock& clock)
-    : scheduler_(scheduler), executor_(executor), clock_(clock) {}
+WatchHub::WatchHub(Scheduler& scheduler, Executor& executor, const Clock& clock, const Budgets& budgets)
+    : scheduler_(scheduler),
+      executor_(executor),
+      clock_(clock),
+      per_client_(budgets.watchers_per_client),
+      total_(budgets.watchers_total),
+      unread_seconds_(budgets.watch_unread_seconds) {}
 
-grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(const v1::WatchJobRequest& request,
+grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(grpc::CallbackServerContext* context,
+                                                        const std::string& client,
+                                                        const v1::WatchJobRequest& request,
                                                         const grpc::Status& precheck) {
   if (!precheck.ok()) return new FinishedReactor(precheck);
   double interval = request.min_interval_seconds();
@@ -203,19 +249,47 @@ grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(const v1::WatchJobReques
   if (interval == 0) interval = kDefaultInterval;
 
   auto* reactor = new WatchReactor();
-  reactor->session = std::make_shared<WatchSession>(reactor, scheduler_, executor_, clock_, request.job_id(),
-                                                    request.include_images(), interval);
+  reactor->session = std::make_shared<WatchSession>(reactor, context, scheduler_, executor_, clock_,
+                                                    request.job_id(), request.include_images(), interval);
   std::shared_ptr<WatchSession> session = reactor->session;
   bool closed;
+  grpc::Status over_budget;
   {
     std::lock_guard lock(mu_);
     closed = shutdown_;
     if (!closed) {
-      // Forget sessions that ended, so the map does not grow with every watcher ever seen.
-      for (auto it = sessions_.begin(); it != sessions_.end();)
-        it = it->second.expired() ? sessions_.erase(it) : std::next(it);
-      sessions_.emplace(request.job_id(), session);
+      // Forget sessions that ended, so the map does not grow with every watcher ever seen; count
+      // the others (at most watchers_total).
+      uint64_t mine = 0;
+      for (auto it = sessions_.begin(); it != sessions_.end();) {
+        if (it->second.session.expired()) {
+          it = sessions_.erase(it);
+        } else {
+          mine += it->second.client == client;
+          ++it;
+        }
+      }
+      if (mine >= per_client_)
+        over_budget = grpc::Status(
+            grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "WatchJob: client " + limits::Quote(client, 200) + " has " + std::to_string(mine) +
+                " open watches, the budget watchers_per_client = " + std::to_string(per_client_) +
+                " (pf-coordinator --limit watchers_per_client=N); end one first");
+      else if (sessions_.size() >= total_)
+        over_budget =
+            grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                         "WatchJob: " + std::to_string(sessions_.size()) +
+                             " watches are open, the budget watchers_total = " + std::to_string(total_) +
+                             " (pf-coordinator --limit watchers_total=N); retry later");
+      else
+        sessions_.emplace(request.job_id(), Entry{client, session});
     }
+  }
+  if (!over_budget.ok()) {
+    // The session never started: it finishes its reactor at once, before any snapshot.
+    spdlog::info("WatchJob: {}", over_budget.error_message());
+    session->Close(over_budget);
+    return reactor;
   }
   if (closed)
     session->Close(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator shutting down"));
@@ -230,7 +304,7 @@ void WatchHub::Notify(const std::string& job_id) {
     std::lock_guard lock(mu_);
     auto [begin, end] = sessions_.equal_range(job_id);
     for (auto it = begin; it != end;) {
-      if (auto s = it->second.lock()) {
+      if (auto s = it->second.session.lock()) {
         live.push_back(std::move(s));
         ++it;
       } else {
@@ -242,19 +316,20 @@ void WatchHub::Notify(const std::string& job_id) {
 }
 
 void WatchHub::Tick() {
-  std::vector<std::shared_ptr<WatchSession>> live;
+  std::vector<std::pair<std::shared_ptr<WatchSession>, std::string>> live;
   {
     std::lock_guard lock(mu_);
     for (auto it = sessions_.begin(); it != sessions_.end();) {
-      if (auto s = it->second.lock()) {
-        live.push_back(std::move(s));
+      if (auto s = it->second.session.lock()) {
+        live.emplace_back(std::move(s), it->second.client);
         ++it;
       } else {
         it = sessions_.erase(it);
       }
     }
   }
-  for (auto& s : live) s->Pump();
+  for (auto& [s, client] : live)
+    if (!s->EndIfUnread(unread_seconds_, client)) s->Pump();
 }
 
 void WatchHub::Shutdown() {
@@ -262,17 +337,20 @@ void WatchHub::Shutdown() {
   {
     std::lock_guard lock(mu_);
     shutdown_ = true;
-    for (auto& [id, weak] : sessions_)
-      if (auto s = weak.lock()) live.push_back(std::move(s));
+    for (auto& [id, entry] : sessions_)
+      if (auto s = entry.session.lock()) live.push_back(std::move(s));
     sessions_.clear();
   }
-  for (auto& s : live) s->Close(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator shutting down"));
+  for (auto& s : live) {
+    s->Close(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator shutting down"));
+    s->EndIfUnread(0, "");
+  }
 }
 
 size_t WatchHub::sessions() {
   std::lock_guard lock(mu_);
   size_t n = 0;
-  for (auto& [id, weak] : sessions_) n += !weak.expired();
+  for (auto& [id, entry] : sessions_) n += !entry.session.expired();
   return n;
 }
 

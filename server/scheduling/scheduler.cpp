@@ -2,9 +2,14 @@
 
 #include <spdlog/spdlog.h>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include "common/core/error.h"
 #include "proto/limits.h"
@@ -14,6 +19,15 @@ namespace pf::server {
 namespace v1 = photonfarm::v1;
 
 namespace {
+
+// Released task lists at least this long are worth a malloc_trim (it walks the whole heap).
+constexpr uint64_t kReturnMemoryAfterTasks = 1 << 16;
+
+void ReturnFreedMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
 
 v1::JobState ToProto(JobState s) {
   switch (s) {
@@ -264,6 +278,7 @@ void Scheduler::AddJob(std::unique_ptr<Job> job) {
     const Accumulator* acc = j.accumulator_if_loaded();
     j.samples_merged = acc ? acc->samples_merged() : j.stored_samples_merged;
     if (j.active()) {
+      Charge(j, +1);
       for (uint64_t id = 0; id < j.num_tasks(); ++id)
         if (j.runtime(id).state == TaskState::kQueued) Enqueue(j, id, fx);
       AddTasksFromSource(j, fx);  // recovery: the tasks the merged results had created
@@ -451,14 +466,15 @@ JobSnapshot Scheduler::Snapshot(const std::string& job_id, bool with_image) {
 }
 
 void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, double now, Effects& fx) {
+  if (job.active()) Charge(job, -1);
   for (uint64_t id = 0; id < job.num_tasks(); ++id) {
     TaskRuntime& rt = job.runtime(id);
     if (rt.state == TaskState::kQueued) {
       Dequeue(job, id);
-      job.SetTaskState(id, TaskState::kCancelled);
+      job.CancelAsJobEnds(id);
     } else if (rt.state == TaskState::kLeased) {
       leases_.Erase(rt.lease_id);
-      job.SetTaskState(id, TaskState::kCancelled);
+      job.CancelAsJobEnds(id);
       activity_.TaskEvent(job.id(), "cancelled", id, rt.attempts, rt.worker_id, "the job ended while leased");
     }
   }
@@ -469,6 +485,30 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
   // The final noise estimate is an O(pixels) pass: computed off this lock by the next status,
   // snapshot or persist (RefreshNoise, CollectPersistBatch), whichever comes first.
   Touch(job, fx);
+}
+
+void Scheduler::Charge(Job& job, int sign) {
+  if (sign > 0) {
+    job.charged_tasks = job.num_tasks();
+    job.charged_pixels = uint64_t(job.config().camera.width) * uint64_t(job.config().camera.height);
+    ++load_.jobs;
+    load_.tasks += job.charged_tasks;
+    load_.pixels += job.charged_pixels;
+    if (!job.client.empty()) ++client_jobs_[job.client];
+    return;
+  }
+  // The job ends; its tasks and pixels count until they are released (ReleaseFinishedTasks).
+  --load_.jobs;
+  if (auto it = client_jobs_.find(job.client); it != client_jobs_.end() && --it->second == 0)
+    client_jobs_.erase(it);
+}
+
+ActiveLoad Scheduler::Load(const std::string& client) const {
+  std::lock_guard lock(mu_);
+  ActiveLoad load = load_;
+  auto it = client_jobs_.find(client);
+  load.client_jobs = it == client_jobs_.end() ? 0 : it->second;
+  return load;
 }
 
 void Scheduler::MaybeSucceed(Job& job, double now, Effects& fx) {
@@ -1253,6 +1293,16 @@ void Scheduler::ForceCheckpoint(const std::string& job_id) {
 }
 
 RowBatch Scheduler::CollectRows() {
+  uint64_t released = 0;
+  RowBatch batch = CollectRowsLocked(&released);
+  // A released task list is mostly small blocks (the queue's tree nodes, its strings), which
+  // malloc keeps for reuse: a cancelled 2^20-task job left ~100 MiB resident. Given back to the
+  // system off the lock.
+  if (released >= kReturnMemoryAfterTasks) ReturnFreedMemory();
+  return batch;
+}
+
+RowBatch Scheduler::CollectRowsLocked(uint64_t* released) {
   RowBatch batch;
   std::lock_guard lock(mu_);
   for (Job* job : jobs_.InSubmissionOrder()) {
@@ -1276,6 +1326,11 @@ RowBatch Scheduler::CollectRows() {
       batch.jobs.push_back(std::move(row));
       job->row_dirty = false;
     }
+    // A finished job whose task rows (from earlier flushes, one flush at a time) and final
+    // checkpoint are stored needs its tasks no more (docs/farm.md "Coordinator memory").
+    if (!job->active() && !job->tasks_released() && job->dirty_tasks.empty() &&
+        job->merge_seq() == job->checkpoint_written_seq)
+      *released += ReleaseFinishedTasks(*job);
     // A DONE row names a stored result (D2): a merged task whose result is not on disk yet waits.
     for (auto it = job->dirty_tasks.begin(); it != job->dirty_tasks.end();) {
       const TaskRuntime& rt = job->runtime(*it);
@@ -1290,6 +1345,18 @@ RowBatch Scheduler::CollectRows() {
   return batch;
 }
 
+uint64_t Scheduler::ReleaseFinishedTasks(Job& job) {
+  for (uint64_t id = 0; id < job.num_tasks(); ++id)
+    if (job.runtime(id).merging) return 0;  // a result being checked reads its task (Complete); next flush
+  job.ReleaseTasks();
+  load_.tasks -= std::exchange(job.charged_tasks, 0);
+  load_.pixels -= std::exchange(job.charged_pixels, 0);
+  sources_.erase(&job);
+  for (auto it = held_.lower_bound({job.id(), 0}); it != held_.end() && it->first.first == job.id();)
+    it = held_.erase(it);
+  return job.num_tasks();
+}
+
 void Scheduler::RowsNotStored(const RowBatch& rows, const std::string& reason) {
   std::lock_guard lock(mu_);
   const std::string why = "rows not stored: " + reason;
@@ -1300,7 +1367,7 @@ void Scheduler::RowsNotStored(const RowBatch& rows, const std::string& reason) {
     }
   for (const TaskRow& row : rows.tasks)
     if (Job* job = jobs_.Find(row.job_id)) {
-      job->dirty_tasks.insert(row.task_id);
+      if (!job->tasks_released()) job->dirty_tasks.insert(row.task_id);
       job->rows_storage_error = why;
     }
 }
@@ -1375,6 +1442,7 @@ SchedulerCounters Scheduler::counters() const {
   std::lock_guard lock(mu_);
   SchedulerCounters c = counters_;
   c.parked_polls = waiters_.size();
+  for (const Job* job : jobs_.InSubmissionOrder()) c.tasks_in_memory += job->tasks().size();
   return c;
 }
 

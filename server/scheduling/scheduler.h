@@ -149,10 +149,23 @@ struct JobSnapshot {
   CheckpointSeal checkpoint_seal;      // … and only if the file carries this seal
 };
 
+// What the queued and running jobs hold, for the coordinator's budgets (server/rpc/budgets.h).
+// A job's tasks and pixels count until its task list is released, i.e. while they are in memory
+// (docs/farm.md "Coordinator memory": the persister's next flush after the job ended).
+struct ActiveLoad {
+  uint64_t jobs = 0;         // queued + running
+  uint64_t tasks = 0;        // their tasks, as counted when they were added
+  uint64_t pixels = 0;       // their images' pixels (width × height)
+  uint64_t client_jobs = 0;  // of the queued and running jobs, the ones the client asked about submitted
+};
+
 struct SchedulerCounters {
   uint64_t leases = 0, merged = 0, ignored = 0, rejected = 0, expired = 0, failed_attempts = 0, returned = 0;
   uint64_t lease_attempts = 0;  // searches of the queue for a task (a spinning poll would inflate it)
   uint64_t parked_polls = 0;    // long polls waiting right now
+  // Tasks whose spec and runtime are in memory: those of active jobs and of finished jobs not
+  // yet released (Job::ReleaseTasks; docs/farm.md "Coordinator memory").
+  uint64_t tasks_in_memory = 0;
 };
 
 class Scheduler final : public PersistSource {
@@ -189,6 +202,9 @@ class Scheduler final : public PersistSource {
   // Cancels queued and leased tasks; idempotent for finished jobs (returns their status).
   photonfarm::v1::JobStatus Cancel(const std::string& job_id);
   JobSnapshot Snapshot(const std::string& job_id, bool with_image);
+  // Queued and running jobs, their tasks and pixels, and how many of them `client` submitted
+  // (Job::client). O(1).
+  ActiveLoad Load(const std::string& client) const;
 
   // --- Workers ---
   std::optional<Lease> TryLease(const LeaseRequest& request);
@@ -325,6 +341,13 @@ class Scheduler final : public PersistSource {
   // Appends and queues the tasks the job's source creates from its merged results.
   void AddTasksFromSource(Job& job, Effects& fx);
   photonfarm::v1::JobStatus BuildStatus(Job& job, double now);
+  // Counts an active job into load_ (AddJob: +1) or its end (FinishJob: −1; its tasks and pixels
+  // leave load_ with ReleaseFinishedTasks).
+  void Charge(Job& job, int sign);
+  // A finished job whose rows and final checkpoint are stored and that no lease pins: drops its
+  // task list (Job::ReleaseTasks) and what the scheduler kept per task of it; how many tasks.
+  uint64_t ReleaseFinishedTasks(Job& job);
+  RowBatch CollectRowsLocked(uint64_t* released_tasks);
 
   const Clock& clock_;
   const SchedulerOptions options_;
@@ -341,6 +364,8 @@ class Scheduler final : public PersistSource {
   bool shutdown_ = false;
   SchedulerCounters counters_;
   WorkerHealth health_;
+  ActiveLoad load_;  // client_jobs unused: per client in client_jobs_
+  std::unordered_map<std::string, uint64_t> client_jobs_;
   FarmActivity activity_;
   std::function<void(const std::string&)> change_listener_;
   std::function<void()> persist_listener_;

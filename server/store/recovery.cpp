@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <set>
 
 #include "common/core/error.h"
@@ -185,11 +186,9 @@ static void SetAsideOrphans(const fs::path& checkpoint_dir, const std::vector<Jo
 
 // The seal a finished job's checkpoint must have: the row's, or — for a row stored before seals —
 // as many tasks as its task rows call done (rows are written DONE only for stored results).
-CheckpointSeal ExpectedSeal(const JobRow& row, const std::vector<TaskRow>& tasks) {
+CheckpointSeal ExpectedSeal(const JobRow& row, uint64_t done_rows) {
   if (row.checkpoint.digest != 0) return row.checkpoint;
-  CheckpointSeal seal;
-  for (const TaskRow& t : tasks) seal.tasks += t.state == TaskState::kDone;
-  return seal;
+  return CheckpointSeal{done_rows, 0};
 }
 
 RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
@@ -220,12 +219,12 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     }
     const fs::path cp_file = Persister::CheckpointFile(checkpoint_dir, row.job_id);
     const fs::path journal_file = Persister::JournalFile(checkpoint_dir, row.job_id);
-    const std::vector<TaskRow> task_rows = db.LoadTasks(row.job_id);
     // A finished job is served from its checkpoint only if the file is the one its row was sealed
     // with (docs/farm.md "Durability"). If not (damaged, missing, an older file put back), the
     // results are lost: a SUCCEEDED job is rendered again from zero — its spec and seed give the
     // same image — and a failed or cancelled one keeps its state and answers DATA_LOSS.
-    const CheckpointSeal expected_seal = ExpectedSeal(row, task_rows);
+    const uint64_t done_rows = db.CountTasks(row.job_id, TaskState::kDone);
+    const CheckpointSeal expected_seal = ExpectedSeal(row, done_rows);
     bool rerender = false, image_ok = false;
     if (finished) {
       const std::string problem = VerifyCheckpointFile(cp_file, expected_seal);
@@ -308,17 +307,14 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       row.spec = config.spec.SerializeAsString();
       db.UpdateJobSpec(row.job_id, row.spec);
     }
-    std::vector<TaskSpec> tasks = ScheduledTasks(config);
-    auto job =
-        std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
-                              std::move(tasks), row.submitted_unix_ms);
-    job->checkpoint_path = cp_file.string();
-
     if (finished) {
-      for (const TaskRow& t : task_rows)
-        if (t.task_id < job->num_tasks() && t.state != TaskState::kQueued)
-          job->SetTaskState(t.task_id, t.state);
-      job->dirty_tasks.clear();
+      // Its counts, not its task list or task rows (docs/farm.md "Coordinator memory"): DONE rows
+      // are done, every other task was cancelled when the job ended (Job::CancelAsJobEnds writes
+      // no row for them). Tasks a dynamic plan created count when done.
+      const uint64_t total = std::max(ScheduledTaskCount(config), done_rows);
+      auto job = Job::Finished(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
+                               total, done_rows, row.submitted_unix_ms);
+      job->checkpoint_path = cp_file.string();
       job->RestoreState(row.state, row.failure_reason, now);
       job->RestoreElapsed(row.elapsed_seconds);
       job->stored_samples_merged = row.samples_merged;
@@ -331,6 +327,13 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       scheduler.AddJob(std::move(job));
       continue;
     }
+
+    const std::vector<TaskRow> task_rows = db.LoadTasks(row.job_id);
+    std::vector<TaskSpec> tasks = ScheduledTasks(config);
+    auto job =
+        std::make_unique<Job>(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
+                              std::move(tasks), row.submitted_unix_ms);
+    job->checkpoint_path = cp_file.string();
 
     // A job rendered again from zero reads nothing of its lost image, even if it could not be set aside.
     try {

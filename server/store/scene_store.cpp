@@ -157,6 +157,13 @@ std::optional<SceneInfo> SceneStore::FindScene(const std::string& hash) const {
   return it->second;
 }
 
+uint64_t SceneStore::StoredBytes() const {
+  std::lock_guard lock(mu_);
+  uint64_t bytes = 0;
+  for (const auto& [hash, info] : index_) bytes += info.bytes;
+  return bytes;
+}
+
 std::vector<std::pair<std::string, fs::path>> SceneStore::ListFiles(const std::string& hash) const {
   if (!FindScene(hash)) throw NotFoundError("scene_hash: unknown scene " + limits::Quote(hash));
   const fs::path root = dir_ / hash;

@@ -42,6 +42,8 @@ class SceneStore final : public SceneCatalog {
   // The stored files of a scene, read into memory. NotFoundError naming scene_hash if unknown.
   SceneBundle ReadBundle(const std::string& hash) const;
   std::filesystem::path DirectoryOf(const std::string& hash) const { return dir_ / hash; }
+  // The file content bytes of every stored bundle (the budget scene_bytes_total, server/rpc/budgets.h).
+  uint64_t StoredBytes() const;
 
  private:
   std::filesystem::path dir_;

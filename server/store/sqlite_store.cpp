@@ -349,4 +349,11 @@ std::vector<TaskRow> SqliteStore::LoadTasks(const std::string& job_id) {
   return out;
 }
 
+uint64_t SqliteStore::CountTasks(const std::string& job_id, TaskState state) {
+  std::lock_guard lock(mu_);
+  Statement st(db_, "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND state = ?2");
+  st.Text(1, job_id).Int(2, int(state));
+  return st.Step() ? uint64_t(st.ColInt(0)) : 0;
+}
+
 }  // namespace pf::server

@@ -51,6 +51,9 @@ class SqliteStore {
   void UpdateJobSpec(const std::string& job_id, const std::string& spec);
   std::vector<JobRow> LoadJobs();                             // in submission order
   std::vector<TaskRow> LoadTasks(const std::string& job_id);  // by task id
+  // How many of the job's task rows are in `state` (recovery of a finished job: its rows are not
+  // loaded, docs/farm.md "Coordinator memory").
+  uint64_t CountTasks(const std::string& job_id, TaskState state);
 
  private:
   void Exec(const char* sql);

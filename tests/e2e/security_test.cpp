@@ -11,6 +11,7 @@
 #include "client/farm_client.h"
 #include "common/scene/scene_bundle.h"
 #include "tests/e2e/harness.h"
+#include "tests/util/job_specs.h"
 
 namespace pf::e2e {
 namespace {
@@ -278,6 +279,44 @@ TEST_F(TlsFarm, RefusedCertificatesAreNamedNotUnreachable) {
 
 // With the coordinator's certificate the status page is HTTPS (and may then listen on any
 // address); plain HTTP on that port gets no page.
+// Who a client is for the budgets (docs/security.md "Budgets"): the subject of a verified client
+// certificate, else the peer's address. With one job per client, two clients with certificates of
+// their own and one without (127.0.0.1) each get their job; a second one of the same client is
+// refused, naming it.
+TEST_F(TlsFarm, AClientCertificateIsTheClientOfTheBudgets) {
+  MakeCertificate("alice", "ca", "2");
+  MakeCertificate("bob", "ca", "2");
+  CoordinatorProcess limited(dir_ / "limited", dir_.path(),
+                             {"--tls-cert", Path("server.pem"), "--tls-key", Path("server.key"),
+                              "--tls-client-ca", Path("ca.pem"), "--limit", "jobs_per_client=1"},
+                             0, Path("client-token"));
+  const auto client = [&](const std::string& name) {
+    return std::make_unique<FarmClient>(
+        limited.address(), "tls-client-token", 10,
+        name.empty() ? CaOnly() : ResolveClientTls(Path("ca.pem"), Path(name + ".pem"), Path(name + ".key")));
+  };
+  auto alice = client("alice"), bob = client("bob"), anonymous = client("");
+  const std::string hash = alice->UploadScene(CollectBundle(Binaries::Scene())).scene_hash();
+  const photonfarm::v1::JobSpec spec = test_util::CornellPhotonMapSpec(hash, 16, 16, 1, 1);
+  EXPECT_FALSE(alice->SubmitJob(spec).empty());
+  try {
+    alice->SubmitJob(spec);
+    ADD_FAILURE() << "a second job of the same certificate was accepted";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << e.what();
+    EXPECT_NE(std::string(e.what()).find("client 'cert:"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("CN=alice"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(bob->SubmitJob(spec).empty()) << "another certificate is another client";
+  EXPECT_FALSE(anonymous->SubmitJob(spec).empty()) << "no certificate: the address is the client";
+  try {
+    anonymous->SubmitJob(spec);
+    ADD_FAILURE() << "a second job of 127.0.0.1 was accepted";
+  } catch (const RpcError& e) {
+    EXPECT_NE(std::string(e.what()).find("client 'ipv4:127.0.0.1'"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(TlsFarm, TheStatusPageIsHttpsWithTheCoordinatorsCertificate) {
   const int port = coordinator_->http_port();
   ASSERT_GT(port, 0);

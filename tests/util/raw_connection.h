@@ -58,6 +58,20 @@ class RawConnection {
     }
     return out;
   }
+  // Exactly `n` bytes, or fewer if the peer closes or `seconds` pass first.
+  std::string ReceiveExactly(size_t n, double seconds = 5) {
+    const timeval t{time_t(seconds), suseconds_t((seconds - time_t(seconds)) * 1e6)};
+    ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &t, sizeof(t));
+    std::string out(n, '\0');
+    size_t got = 0;
+    while (got < n) {
+      const ssize_t r = ::recv(fd_, out.data() + got, n - got, 0);
+      if (r <= 0) break;
+      got += size_t(r);
+    }
+    out.resize(got);
+    return out;
+  }
   // True if the peer has closed the connection (a read returns end of file or a reset).
   bool ClosedByPeer(double seconds) {
     const timeval t{time_t(seconds), suseconds_t((seconds - time_t(seconds)) * 1e6)};

@@ -1,0 +1,244 @@
+// coordinator_memory_bench: what one job of the largest allowed size (2^20 tasks,
+// limits::kMaxTasksPerJob) costs the REAL coordinator (a pf-coordinator process on 127.0.0.1:0)
+// in memory and on disk, through its life (docs/farm.md "Coordinator memory"):
+//
+//   started      the coordinator with the Cornell box uploaded
+//   submitted    the job accepted (SubmitJob answered; its rows are durable)
+//   cancelled    CancelJob answered and the persister's flush done (the database stops growing)
+//   restarted    a new coordinator process on the same data folder, after ListJobs
+//
+// For each: VmRSS and VmHWM of the coordinator (/proc/PID/status) and the size of the database
+// (coordinator.db plus its -wal file), and the time SubmitJob took. The job is 65536 maps of
+// 16 one-pixel tiles (16×1 image, 1 spp, path tracer): its task list is everything it costs.
+// --coordinator runs another build (e.g. one from before a change) for a before/after table.
+//
+//   build/bench/coordinator_memory_bench [--coordinator PATH] [--json-out FILE]
+
+#include <fcntl.h>
+#include <grpcpp/grpcpp.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench/bench_stats.h"
+#include "common/scene/scene_bundle.h"
+#include "photonfarm/v1/farm.grpc.pb.h"
+
+extern char** environ;
+
+namespace pf::bench {
+namespace {
+namespace fs = std::filesystem;
+namespace v1 = photonfarm::v1;
+
+struct Options {
+  std::string coordinator = std::string(PF_BUILD_DIR) + "/server/pf-coordinator";
+  std::string scene = std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json";
+  std::string json_out;
+};
+
+std::string ReadAll(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A pf-coordinator process on `data`; SIGTERM and reaped on destruction (a graceful stop).
+class CoordinatorProcess {
+ public:
+  CoordinatorProcess(const std::string& bin, const fs::path& dir, const fs::path& data, int run) {
+    const fs::path out = dir / ("coordinator" + std::to_string(run) + ".out");
+    const fs::path log = dir / ("coordinator" + std::to_string(run) + ".log");
+    std::vector<std::string> args = {bin,           "--listen",    "127.0.0.1:0", "--data-dir",
+                                     data.string(), "--log-level", "warn"};
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&fa, 2, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int rc = posix_spawn(&pid_, bin.c_str(), &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (rc != 0) throw std::runtime_error("cannot start " + bin);
+    const std::regex listening(R"(listening on ([0-9.]+:[0-9]+))");
+    for (int i = 0; i < 1200; ++i) {
+      std::smatch m;
+      const std::string text = ReadAll(out);
+      if (std::regex_search(text, m, listening)) {
+        address_ = m[1];
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    throw std::runtime_error("pf-coordinator did not start: " + ReadAll(log));
+  }
+  ~CoordinatorProcess() {
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+  }
+  CoordinatorProcess(const CoordinatorProcess&) = delete;
+  CoordinatorProcess& operator=(const CoordinatorProcess&) = delete;
+  const std::string& address() const { return address_; }
+  // A field of /proc/PID/status in MiB ("VmRSS", "VmHWM").
+  double MiB(const std::string& field) const {
+    std::istringstream in(ReadAll("/proc/" + std::to_string(pid_) + "/status"));
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind(field + ":", 0) == 0) return std::stod(line.substr(field.size() + 1)) / 1024;
+    return -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  std::string address_;
+};
+
+std::unique_ptr<grpc::ClientContext> Ctx(double seconds = 600) {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(int64_t(seconds * 1000)));
+  return ctx;
+}
+
+void Check(const grpc::Status& st, const char* what) {
+  if (!st.ok()) throw std::runtime_error(std::string(what) + ": " + st.error_message());
+}
+
+double DatabaseMiB(const fs::path& data) {
+  double bytes = 0;
+  for (const char* name : {"coordinator.db", "coordinator.db-wal"}) {
+    std::error_code ec;
+    const auto size = fs::file_size(data / name, ec);
+    if (!ec) bytes += double(size);
+  }
+  return bytes / (1 << 20);
+}
+
+struct Stage {
+  std::string name;
+  double rss = 0, hwm = 0, db = 0;
+};
+
+int Run(const Options& o) {
+  const fs::path dir = fs::temp_directory_path() / ("pf-memory-bench-" + std::to_string(getpid()));
+  const fs::path data = dir / "data";
+  fs::create_directories(dir);
+  std::vector<Stage> stages;
+  double submit_seconds = 0;
+  std::string job_id;
+  {
+    CoordinatorProcess coordinator(o.coordinator, dir, data, 1);
+    auto render = v1::RenderService::NewStub(
+        grpc::CreateChannel(coordinator.address(), grpc::InsecureChannelCredentials()));
+    v1::UploadSceneRequest up;
+    const SceneBundle bundle = CollectBundle(o.scene);
+    up.mutable_bundle()->set_entry(bundle.entry);
+    for (const auto& [path, content] : bundle.files) {
+      v1::SceneFile* f = up.mutable_bundle()->add_files();
+      f->set_path(path);
+      f->set_content(content);
+    }
+    v1::UploadSceneResponse up_resp;
+    Check(render->UploadScene(Ctx().get(), up, &up_resp), "UploadScene");
+    auto stage = [&](const std::string& name) {
+      stages.push_back({name, coordinator.MiB("VmRSS"), coordinator.MiB("VmHWM"), DatabaseMiB(data)});
+    };
+    stage("started");
+
+    v1::SubmitJobRequest sub;
+    v1::JobSpec& spec = *sub.mutable_spec();
+    spec.set_scene_hash(up_resp.scene_hash());
+    spec.mutable_camera()->set_width(16);
+    spec.mutable_camera()->set_height(1);
+    spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PATH);
+    spec.mutable_plan()->mutable_multiple_maps()->set_maps(65536);
+    spec.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
+    spec.mutable_plan()->mutable_multiple_maps()->set_tile_size(1);
+    spec.set_seed(1);
+    v1::SubmitJobResponse sub_resp;
+    submit_seconds = TimeIt([&] { Check(render->SubmitJob(Ctx().get(), sub, &sub_resp), "SubmitJob"); });
+    job_id = sub_resp.job_id();
+    stage("submitted");
+
+    v1::CancelJobRequest cancel;
+    cancel.set_job_id(job_id);
+    v1::CancelJobResponse cancel_resp;
+    Check(render->CancelJob(Ctx().get(), cancel, &cancel_resp), "CancelJob");
+    // The flush of the cancellation: until the database has stopped growing for 2 s (at most 120 s).
+    double last = -1;
+    for (int stable = 0, i = 0; stable < 20 && i < 1200; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      const double now = DatabaseMiB(data);
+      stable = now == last ? stable + 1 : 0;
+      last = now;
+    }
+    stage("cancelled");
+  }
+  {
+    CoordinatorProcess coordinator(o.coordinator, dir, data, 2);
+    auto render = v1::RenderService::NewStub(
+        grpc::CreateChannel(coordinator.address(), grpc::InsecureChannelCredentials()));
+    v1::ListJobsRequest list;
+    list.set_include_finished(true);
+    v1::ListJobsResponse list_resp;
+    Check(render->ListJobs(Ctx().get(), list, &list_resp), "ListJobs");
+    if (list_resp.jobs_size() != 1 || list_resp.jobs(0).job_id() != job_id ||
+        list_resp.jobs(0).state() != v1::JOB_STATE_CANCELLED)
+      throw std::runtime_error("after the restart the cancelled job is not listed as cancelled");
+    stages.push_back({"restarted", coordinator.MiB("VmRSS"), coordinator.MiB("VmHWM"), DatabaseMiB(data)});
+  }
+
+  nlohmann::json out;
+  out["coordinator"] = o.coordinator;
+  out["tasks"] = 1 << 20;
+  out["submit_seconds"] = submit_seconds;
+  for (const Stage& s : stages)
+    out["stages"].push_back(
+        {{"stage", s.name}, {"vm_rss_mib", s.rss}, {"vm_hwm_mib", s.hwm}, {"db_mib", s.db}});
+  std::printf("%s\n\n", out.dump(2).c_str());
+  std::printf("one job of 2^20 tasks; SubmitJob took %.2f s\n", submit_seconds);
+  std::printf("%-10s %10s %10s %10s\n", "stage", "VmRSS MiB", "VmHWM MiB", "db MiB");
+  for (const Stage& s : stages)
+    std::printf("%-10s %10.1f %10.1f %10.1f\n", s.name.c_str(), s.rss, s.hwm, s.db);
+  if (!o.json_out.empty()) std::ofstream(o.json_out) << out.dump(2) << "\n";
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+  return 0;
+}
+
+}  // namespace
+}  // namespace pf::bench
+
+int main(int argc, char** argv) {
+  pf::bench::Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--coordinator" && i + 1 < argc) {
+      o.coordinator = argv[++i];
+    } else if (a == "--json-out" && i + 1 < argc) {
+      o.json_out = argv[++i];
+    } else {
+      std::fprintf(stderr, "usage: coordinator_memory_bench [--coordinator PATH] [--json-out FILE]\n");
+      return 2;
+    }
+  }
+  try {
+    return pf::bench::Run(o);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "coordinator_memory_bench: %s\n", e.what());
+    return 1;
+  }
+}
