@@ -231,9 +231,8 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       image_ok = problem.empty();
       if (!problem.empty() && row.state == JobState::kSucceeded) {
         spdlog::error(
-            "job {}: DATA LOSS: its final image {}; rendering it again from zero (the same spec and seed "
-            "give "
-            "the same image); the file is kept with the suffix .damaged",
+            "job {}: DATA LOSS: its final image {}; rendering it again from zero (same spec and seed: "
+            "same image); the file is kept with the suffix .damaged",
             row.job_id, problem);
         for (const fs::path& f : {cp_file, journal_file}) SetAside(f, ".damaged");
         rerender = true;
