@@ -3,8 +3,9 @@
 // WITH the token uploads scene bombs, submits and cancels jobs of 2^20 tasks one after another
 // (and a second one while the first is held), and opens watches it never reads. The
 // coordinator's peak RSS (VmHWM) stays under the documented bound, its memory comes back once
-// the jobs have ended, every refusal is RESOURCE_EXHAUSTED naming its budget, and it still
-// answers an authenticated status call at once.
+// the jobs have ended, every refusal names its budget (RESOURCE_EXHAUSTED; for a small MGF bomb
+// the loader's expansion budget, INVALID_ARGUMENT), and it still answers an authenticated status
+// call at once.
 //
 // Before the budgets, the second 2^20-task job was accepted next to the first (~450 MiB each),
 // a cancelled job kept its task list (VmRSS stayed at ~600 MiB), and unread watches stayed open.
@@ -70,6 +71,25 @@ v1::UploadSceneRequest MgfBomb(size_t bytes) {
   v1::SceneFile* f = req.mutable_bundle()->add_files();
   f->set_path("bomb.mgf");
   f->set_content(mgf);
+  return req;
+}
+
+// The small bomb of the hostile test: 4 files, ~200 bytes, `i` arrays three levels deep over one
+// quad (10^9 quads). Small enough for every upload budget: the loader's expansion budget
+// (docs/security.md, "Scene budgets") must refuse it before any work.
+v1::UploadSceneRequest TinyMgfBomb() {
+  const std::pair<const char*, const char*> files[] = {
+      {"x.mgf", "v a =\n p 0 0 0\nv b =\n p 1 0 0\nv c =\n p 1 1 0\nv d =\n p 0 1 0\nf a b c d\n"},
+      {"y.mgf", "i x.mgf -a 1000 -t 0 0 1\n"},
+      {"z.mgf", "i y.mgf -a 1000 -t 0 1 0\n"},
+      {"bomb.mgf", "i z.mgf -a 1000 -t 1 0 0\n"}};
+  v1::UploadSceneRequest req;
+  req.mutable_bundle()->set_entry("bomb.mgf");
+  for (const auto& [path, content] : files) {
+    v1::SceneFile* f = req.mutable_bundle()->add_files();
+    f->set_path(path);
+    f->set_content(content);
+  }
   return req;
 }
 
@@ -170,6 +190,24 @@ TEST(HostileSoak, TheCoordinatorStaysUnderItsBoundRefusesByBudgetAndAnswers) {
         return render->UploadScene(Ctx().get(), MgfBomb(size_t(3) << 19), &resp);
       }));
     for (auto& b : bombs) EXPECT_TRUE(Refused(b.get(), "upload_bytes"));
+    // … and small ones, four at once: refused by the loader's expansion budget, before any work.
+    bombs.clear();
+    for (int i = 0; i < 4; ++i)
+      bombs.push_back(std::async(std::launch::async, [&render] {
+        v1::UploadSceneResponse resp;
+        return render->UploadScene(Ctx().get(), TinyMgfBomb(), &resp);
+      }));
+    // (Beyond two at once, uploads_per_client refuses them before they are read.)
+    int by_expansion = 0;
+    for (auto& b : bombs) {
+      const grpc::Status st = b.get();
+      if (st.error_code() == grpc::StatusCode::INVALID_ARGUMENT &&
+          st.error_message().find("more than the budget") != std::string::npos)
+        ++by_expansion;
+      else
+        EXPECT_TRUE(Refused(st, "uploads_per_client"));
+    }
+    EXPECT_GE(by_expansion, 1) << "no small bomb reached the loader's expansion budget";
 
     // Two jobs of 2^20 tasks one after the other; another one while one is held is refused.
     std::vector<std::unique_ptr<RawConnection>> unread;
