@@ -307,12 +307,14 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       db.UpdateJobSpec(row.job_id, row.spec);
     }
     if (finished) {
-      // Its counts, not its task list or task rows (docs/farm.md "Coordinator memory"): DONE rows
-      // are done, every other task was cancelled when the job ended (Job::CancelAsJobEnds writes
-      // no row for them). Tasks a dynamic plan created count when done.
-      const uint64_t total = std::max(ScheduledTaskCount(config), done_rows);
+      // Its counts, not its task list or task rows (docs/farm.md "Coordinator memory"): its final
+      // checkpoint's seal says how many tasks were merged (the DONE rows, for a row from before
+      // seals), every other task was cancelled when the job ended (Job::CancelAsJobEnds writes no
+      // row for them). Tasks a dynamic plan created count when done.
+      const uint64_t done = expected_seal.tasks;
+      const uint64_t total = std::max(ScheduledTaskCount(config), done);
       auto job = Job::Finished(row.job_id, row.seq, std::make_shared<const JobConfig>(std::move(config)),
-                               total, done_rows, row.submitted_unix_ms);
+                               total, done, row.submitted_unix_ms);
       job->checkpoint_path = cp_file.string();
       job->RestoreState(row.state, row.failure_reason, now);
       job->RestoreElapsed(row.elapsed_seconds);
@@ -353,8 +355,11 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     if (journaled > 0) job->checkpoint_retry = true;
     job->dirty_tasks.clear();
     uint64_t acknowledged_lost = 0;
+    // A task without a row is QUEUED (rows are written when a task first changes).
+    std::vector<TaskState> row_state(job->num_tasks(), TaskState::kQueued);
     for (const TaskRow& t : task_rows) {
       if (t.task_id >= job->num_tasks()) continue;
+      row_state[t.task_id] = t.state;
       TaskRuntime& rt = job->runtime(t.task_id);
       if (!from_zero) {  // a job re-run from zero starts its attempts afresh too
         rt.attempts = t.attempts;
@@ -364,13 +369,15 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
         // checkpoint nor the journal holds was acknowledged and is lost.
         if (t.state == TaskState::kDone && rt.state != TaskState::kDone) ++acknowledged_lost;
       }
-      if (rt.state != t.state) job->dirty_tasks.insert(t.task_id);  // e.g. leased before the crash
     }
+    // Rows that differ from the recovered state are written again: a task leased before the
+    // crash, and a task merged from the files whose DONE row had not been written (or had none).
+    for (uint64_t id = 0; id < job->num_tasks(); ++id)
+      if (job->runtime(id).state != row_state[id]) job->dirty_tasks.insert(id);
     if (acknowledged_lost > 0) {
       spdlog::error(
           "job {}: DATA LOSS: {} results acknowledged as stored are in neither the checkpoint nor the "
-          "journal "
-          "(files damaged, truncated or replaced?); those tasks are re-run, the image stays right",
+          "journal (files damaged, truncated or replaced?); those tasks are re-run, the image stays right",
           row.job_id, acknowledged_lost);
       report.acknowledged_lost += acknowledged_lost;
     }

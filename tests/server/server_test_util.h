@@ -22,6 +22,8 @@
 #include "proto/convert.h"
 #include "server/coordinator.h"
 #include "server/jobs/job_spec.h"
+#include "server/scheduling/scheduler.h"
+#include "server/store/sqlite_store.h"
 #include "tests/util/temp_dir.h"
 
 namespace pf::server::testing {
@@ -102,6 +104,23 @@ inline v1::JobSpec SkippingSpec(uint32_t stride, uint32_t rounds) {
   spec.mutable_plan()->mutable_skipping()->set_samples_per_pixel(2);
   spec.set_seed(11);
   return spec;
+}
+
+// Stores a new job the way SubmitJob does (its row first: tasks have no row until they change),
+// then makes it visible to the scheduler; returns its id.
+inline std::string SubmitStored(Scheduler& scheduler, SqliteStore& db, JobConfig config) {
+  std::unique_ptr<Job> job = scheduler.PrepareJob(std::move(config));
+  JobRow row{job->id(),
+             job->seq(),
+             job->config().spec.SerializeAsString(),
+             JobState::kQueued,
+             "",
+             job->submitted_unix_ms(),
+             0};
+  db.InsertJob(row, {});
+  const std::string id = job->id();
+  scheduler.AddJob(std::move(job));
+  return id;
 }
 
 // The Cornell box shipped in scenes/ (small, with a manifest camera).

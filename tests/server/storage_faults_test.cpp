@@ -91,23 +91,8 @@ class StorageCase {
                                                 files ? *files : SystemFiles());
     return run;
   }
-  std::string Submit(Run& run) {
-    std::unique_ptr<Job> job = run.scheduler->PrepareJob(CaseJob(catalog_));
-    JobRow row{job->id(),
-               job->seq(),
-               job->config().spec.SerializeAsString(),
-               JobState::kQueued,
-               "",
-               job->submitted_unix_ms(),
-               0};
-    std::vector<TaskRow> tasks(job->num_tasks());
-    for (uint64_t i = 0; i < tasks.size(); ++i)
-      tasks[i] = TaskRow{job->id(), i, TaskState::kQueued, 0, 0, ""};
-    run.db->InsertJob(row, tasks);
-    const std::string id = job->id();
-    run.scheduler->AddJob(std::move(job));
-    return id;
-  }
+  std::string Submit(Run& run) { return testing::SubmitStored(*run.scheduler, *run.db, CaseJob(catalog_)); }
+
   // One worker's turn: lease, merge, journal; the ack's answer is recorded. False if no task.
   bool RenderOne(Run& run) {
     const std::optional<Lease> lease = run.scheduler->TryLease({"w", {}});

@@ -34,6 +34,7 @@ namespace v1 = photonfarm::v1;
 using testing::FakeCatalog;
 using testing::kHash;
 using testing::SkippingSpec;
+using testing::SubmitStored;
 
 TaskRow Row(const std::string& job, uint64_t task, TaskState state = TaskState::kQueued,
             uint32_t attempts = 0, uint32_t failures = 0, const std::string& error = "") {
@@ -45,24 +46,6 @@ TaskRow Row(const std::string& job, uint64_t task, TaskState state = TaskState::
   r.failures = failures;
   r.last_error = error;
   return r;
-}
-
-// Stores a new job the way SubmitJob does: rows first, then visible to the scheduler.
-std::string SubmitStored(Scheduler& scheduler, SqliteStore& db, JobConfig config) {
-  std::unique_ptr<Job> job = scheduler.PrepareJob(std::move(config));
-  JobRow row{job->id(),
-             job->seq(),
-             job->config().spec.SerializeAsString(),
-             JobState::kQueued,
-             "",
-             job->submitted_unix_ms(),
-             0};
-  std::vector<TaskRow> tasks(job->num_tasks());
-  for (uint64_t i = 0; i < tasks.size(); ++i) tasks[i] = Row(job->id(), i);
-  db.InsertJob(row, tasks);
-  const std::string id = job->id();
-  scheduler.AddJob(std::move(job));
-  return id;
 }
 
 void Complete(Scheduler& scheduler, const Lease& lease) {
