@@ -95,10 +95,10 @@ int main(int argc, char** argv) {
                  "The window of --quarantine-after, and how long a quarantine lasts")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 30.0 * 86400));
-  app.add_option(
-         "--checkpoint-ms", checkpoint_ms,
-         "0: checkpoint every merge and acknowledge results once durable; N: checkpoint at most every "
-         "N ms (a crash re-runs up to N ms of work)")
+  app.add_option("--checkpoint-ms", checkpoint_ms,
+                 "0: journal every result and acknowledge it only once stored (docs/farm.md, Durability); N: "
+                 "no journal, acknowledge at once, checkpoint at most every N ms (a crash re-runs up to N ms "
+                 "of work)")
       ->capture_default_str()
       ->check(CLI::Range(0, 3600000));
   app.add_option(
