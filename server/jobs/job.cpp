@@ -72,8 +72,9 @@ void Job::AppendTasks(const std::vector<TaskSpec>& tasks) {
   AddWork(tasks);
 }
 
-void Job::Restart(std::vector<TaskSpec> tasks) {
+void Job::Restart(std::vector<TaskSpec> tasks, double now) {
   tasks_ = std::move(tasks);
+  num_tasks_ = tasks_.size();
   runtime_.assign(tasks_.size(), TaskRuntime{});
   for (uint64_t& c : counts_) c = 0;
   counts_[size_t(TaskState::kQueued)] = tasks_.size();
@@ -93,7 +94,11 @@ void Job::Restart(std::vector<TaskSpec> tasks) {
   work_to_create = 0;
   progress_shown = 0;
   eta = EtaEstimator{};
+  // The discarded work does not count against a time budget: the job's clock starts again (a
+  // budget already spent would end the restarted job at once, with an empty image).
   stopping = false;
+  elapsed_before_ = 0;
+  if (running_since_) running_since_ = now;
   noise_cache = -1;
   noise_checked_seq = ~uint64_t(0);
   noise_checked_at = -1e300;
@@ -104,6 +109,7 @@ void Job::Restart(std::vector<TaskSpec> tasks) {
   row_dirty = true;
   checkpoint_retry = true;
   restart_checkpoint_seq = merge_seq_;
+  restart_row_pending = true;
 }
 
 Accumulator& Job::accumulator() {

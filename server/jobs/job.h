@@ -96,10 +96,19 @@ class Job {
   // docs/farm.md "Result verification"): `tasks` (the plan's static tasks) all QUEUED with fresh
   // attempts, an empty accumulator, coverage and ETA reset. merge_seq goes *up* by one, so the
   // next checkpoint (of nothing) supersedes every earlier one, and `epoch` counts the restarts:
-  // a result merged before a restart is never stored after it (the persister asks). The state
-  // (RUNNING) and the elapsed time stay. Call with image_mu and the Scheduler's lock held.
-  void Restart(std::vector<TaskSpec> tasks);
+  // a result merged before a restart is not journaled after it (the persister asks) and not
+  // replayed from the journal (entries carry their epoch). The state
+  // (RUNNING) stays; the elapsed time starts again at `now` (a time budget is the new run's).
+  // Call with image_mu and the Scheduler's lock held.
+  void Restart(std::vector<TaskSpec> tasks, double now);
   uint32_t epoch() const { return epoch_; }
+  void RestoreEpoch(uint32_t epoch) { epoch_ = epoch; }  // recovery (JobRow.epoch)
+  // Workers convicted of a wrong result of this job, in conviction order (stored in its row, so
+  // that a restarted coordinator keeps them off the job).
+  std::vector<std::string> convicted_workers;
+  // When recovery blocklisted them again (Scheduler::RestoreConvictions): for two lease periods
+  // after it the job does not fail for "no worker left" while workers reconnect.
+  double convictions_restored_at = -1e300;
 
   JobState state() const { return state_; }
   const std::string& failure_reason() const { return failure_reason_; }
@@ -198,8 +207,10 @@ class Job {
   // The last checkpoint failed: try again at every flush instead of waiting until one is due.
   bool checkpoint_retry = false;
   // Restarted (Restart) and held back from leasing until a checkpoint of merge_seq ≥ this is
-  // stored: until then a crash would bring back what the restart threw away. 0: not held.
+  // stored and a row with its epoch: until then a crash would bring back what the restart threw
+  // away (or forget who was convicted). 0 / false: not held for it.
   uint64_t restart_checkpoint_seq = 0;
+  bool restart_row_pending = false;
   uint64_t stored_samples_merged = 0;  // their figures as last stored
   double stored_noise_rms = -1;
   // The accumulator's samples_merged as of its last merge, readable under the Scheduler's lock

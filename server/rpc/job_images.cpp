@@ -62,7 +62,12 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id,
     // file means acknowledged results are lost (DATA_LOSS, no server path in the message).
     std::optional<Checkpoint> cp;
     std::optional<Accumulator> stored;
-    const std::string problem = VerifyCheckpointFile(snap.checkpoint_path, snap.checkpoint_seal, &cp);
+    bool unreadable = false;
+    const std::string problem =
+        VerifyCheckpointFile(snap.checkpoint_path, snap.checkpoint_seal, &cp, &unreadable);
+    if (unreadable)
+      throw UnavailableError("job " + job_id +
+                             ": its stored image cannot be read now (a file system error); retry");
     const bool succeeded = snap.status.state() == photonfarm::v1::JOB_STATE_SUCCEEDED;
     const auto lost = [&](const std::string& what) {
       return DataLossError(

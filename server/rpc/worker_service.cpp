@@ -245,7 +245,8 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
     // and stored when the disk allows, or re-run after a restart (never counted twice).
     const auto& sums = request->rgb_sums();
     ctx_.persister.JournalThenAck(
-        result.job_id, result.task_id, result.epoch, std::span<const float>(sums.data(), size_t(sums.size())),
+        result.job_id, result.task_id, result.epoch, result.merge_seq,
+        std::span<const float>(sums.data(), size_t(sums.size())),
         [reactor, job = result.job_id, task = result.task_id](const std::string& not_stored) {
           if (not_stored.empty()) {
             reactor->Finish(grpc::Status::OK);

@@ -478,6 +478,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
       activity_.TaskEvent(job.id(), "cancelled", id, rt.attempts, rt.worker_id, "the job ended while leased");
     }
   }
+  queue_.Unhold(job);  // nothing of it is queued any more: forget that it was held
   if (state == JobState::kSucceeded && job.state() == JobState::kQueued)
     job.TransitionTo(JobState::kRunning, now);
   job.TransitionTo(state, now, reason);
@@ -757,7 +758,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
     TaskRuntime& rt = job->runtime(task_id);
     rt.merging = false;
     if (rt.state != TaskState::kLeased || rt.lease_id != lease_id) {
-      // Only a job's end (cancel, failure, stop rule) takes a pinned lease away.
+      // Only a job's end (cancel, failure, stop rule) or its restart (ConvictWorker) takes a
+      // pinned lease away.
       ++counters_.ignored;
       result.reason = "the job ended while the result was checked";
       spdlog::info("job {} task {}: result ignored: {}", job->id(), task_id, result.reason);
@@ -958,8 +960,12 @@ bool Scheduler::CountFailure(Job& job, const std::string& worker_id, uint64_t ta
 
 std::string Scheduler::NoWorkerLeft(const Job& job) const {
   const auto& blocklist = health_.BlocklistOf(job.id());
-  // A job no worker was ever blocklisted for waits for workers, as any job does.
-  if (blocklist.empty() || health_.AnyLiveWorkerMayRun(job.id())) return "";
+  // A job no worker was ever blocklisted for waits for workers, as any job does. So does a job
+  // whose convictions were restored at start-up, for a while: the workers reconnect one by one,
+  // and the first to call may be the convicted one.
+  if (blocklist.empty() || health_.AnyLiveWorkerMayRun(job.id()) ||
+      clock_.Now() - job.convictions_restored_at < health_.options().lost_seconds)
+    return "";
   std::string names;
   for (const auto& [worker, entry] : blocklist)
     names += (names.empty() ? "" : ", ") + worker + " after " + std::to_string(entry.failed_attempts) +
@@ -1076,6 +1082,11 @@ bool Scheduler::ConvictWorker(const std::string& job_id, const std::string& work
     const std::string who = limits::Quote(worker_id, limits::kMaxWorkerIdBytes);
     CountFailure(*job, worker_id, task_id, 0, "convicted: " + evidence, now, /*convicted=*/true);
     activity_.TaskEvent(job->id(), "convicted", task_id, 0, worker_id, evidence);
+    if (std::find(job->convicted_workers.begin(), job->convicted_workers.end(), worker_id) ==
+        job->convicted_workers.end()) {
+      job->convicted_workers.push_back(worker_id);
+      job->row_dirty = true;
+    }
     Touch(*job, fx);
     if (!job->active()) {
       spdlog::error("job {}: worker {} convicted ({}) after the job ended: left as it is", job->id(), who,
@@ -1092,7 +1103,7 @@ bool Scheduler::ConvictWorker(const std::string& job_id, const std::string& work
       for (auto it = held_.begin(); it != held_.end();)
         it = it->first.first == job->id() ? held_.erase(it) : std::next(it);
       const uint64_t merged_before = job->count(TaskState::kDone);
-      job->Restart(ScheduledTasks(job->config()));
+      job->Restart(ScheduledTasks(job->config()), now);
       sources_[job] = task_sources_(job->config());
       queue_.Hold(*job);
       for (uint64_t id = 0; id < job->num_tasks(); ++id) Enqueue(*job, id, fx);
@@ -1113,6 +1124,25 @@ uint32_t Scheduler::JobEpoch(const std::string& job_id) {
   std::lock_guard lock(mu_);
   const Job* job = jobs_.Find(job_id);
   return job ? job->epoch() : 0;
+}
+
+uint64_t Scheduler::StoredMergeSeq(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  const Job* job = jobs_.Find(job_id);
+  return job ? job->checkpoint_written_seq : 0;
+}
+
+void Scheduler::RestoreConvictions(const std::string& job_id, const std::vector<std::string>& workers) {
+  std::lock_guard lock(mu_);
+  Job* job = jobs_.Find(job_id);
+  if (!job) return;
+  const double now = clock_.Now();
+  for (const std::string& w : workers) {
+    health_.RecordFailure(job->id(), w, "convicted of a wrong result before the coordinator restarted", now,
+                          /*convicted=*/true);
+    job->convicted_workers.push_back(w);
+  }
+  if (!workers.empty()) job->convictions_restored_at = now;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1187,6 +1217,7 @@ std::vector<Checkpoint> Scheduler::CollectCheckpoints(bool due) {
       if (checkpoint) {
         cp.job_id = job->id();
         cp.merge_seq = job->merge_seq();
+        cp.epoch = job->epoch();
         cp.merged_task_ids = job->MergedTaskIds();
         job->checkpoint_collected_seq = job->merge_seq();
         job->checkpoint_retry = false;
@@ -1232,13 +1263,16 @@ void Scheduler::CheckpointStored(const Checkpoint& cp, const CheckpointSeal& sea
     job->results_storage_error.clear();
     if (job->paused_for_storage) {
       job->paused_for_storage = false;
-      spdlog::info("job {}: its results are stored again: resumed", job->id());
+      spdlog::info("job {}: its results are stored again", job->id());
     }
-    if (job->restart_checkpoint_seq != 0 && cp.merge_seq >= job->restart_checkpoint_seq) {
+    if (job->restart_checkpoint_seq != 0 && cp.merge_seq >= job->restart_checkpoint_seq)
       job->restart_checkpoint_seq = 0;
-      spdlog::info("job {}: its restart is stored: leasing again", job->id());
+    if (!job->paused_for_storage && job->restart_checkpoint_seq == 0 && !job->restart_row_pending &&
+        queue_.Unhold(*job)) {
+      spdlog::info("job {}: resumed: its results can be stored{}", job->id(),
+                   job->epoch() > 0 ? " and its restart is stored" : "");
+      ServeWaiters(fx);
     }
-    if (!job->paused_for_storage && job->restart_checkpoint_seq == 0 && queue_.Unhold(*job)) ServeWaiters(fx);
     job->ReleaseAccumulator(path);  // a finished job's image now lives on disk only
   }
   Run(fx);
@@ -1323,6 +1357,9 @@ RowBatch Scheduler::CollectRowsLocked(uint64_t* released) {
       row.samples_merged = job->samples_merged;
       row.noise_rms = job->accumulator_if_loaded() ? job->noise_cache : job->stored_noise_rms;
       row.checkpoint = job->checkpoint_seal;
+      row.epoch = job->epoch();
+      for (const std::string& w : job->convicted_workers)
+        row.convicted += (row.convicted.empty() ? "" : "\n") + w;
       batch.jobs.push_back(std::move(row));
       job->row_dirty = false;
     }
@@ -1373,11 +1410,26 @@ void Scheduler::RowsNotStored(const RowBatch& rows, const std::string& reason) {
 }
 
 void Scheduler::RowsStored(const RowBatch& rows) {
-  std::lock_guard lock(mu_);
-  for (const JobRow& row : rows.jobs)
-    if (Job* job = jobs_.Find(row.job_id)) job->rows_storage_error.clear();
-  for (const TaskRow& row : rows.tasks)
-    if (Job* job = jobs_.Find(row.job_id)) job->rows_storage_error.clear();
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    for (const JobRow& row : rows.jobs) {
+      Job* job = jobs_.Find(row.job_id);
+      if (!job) continue;
+      job->rows_storage_error.clear();
+      // A restart is stored once its row (epoch, convicted workers) is, and its empty checkpoint.
+      if (job->restart_row_pending && row.epoch == job->epoch()) {
+        job->restart_row_pending = false;
+        if (!job->paused_for_storage && job->restart_checkpoint_seq == 0 && queue_.Unhold(*job)) {
+          spdlog::info("job {}: its restart is stored: leasing again", job->id());
+          ServeWaiters(fx);
+        }
+      }
+    }
+    for (const TaskRow& row : rows.tasks)
+      if (Job* job = jobs_.Find(row.job_id)) job->rows_storage_error.clear();
+  }
+  Run(fx);
 }
 
 bool Scheduler::HasUncheckpointedMerges() {

@@ -237,11 +237,15 @@ class Scheduler final : public PersistSource {
   // towards its quarantine), an event says why, and — since its results are in the job's image
   // and, through its pieces, in its maps — the job starts again from nothing without it
   // (Job::Restart): all of its tasks are queued again and its leases dropped; the job leases
-  // nothing until the checkpoint of the empty image is stored. A finished job is left as it is
-  // (false). `task_id` names the task or piece the evidence is about, for the event.
+  // nothing until the checkpoint of the empty image and its row (epoch, convicted workers) are
+  // stored (a stop rule may still end it meanwhile). A finished job is left as it is (false). `task_id` names
+  // the task or piece the evidence is about, for the event.
   bool ConvictWorker(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
                      const std::string& evidence);
   uint32_t JobEpoch(const std::string& job_id) override;
+  uint64_t StoredMergeSeq(const std::string& job_id) override;
+  // Recovery: the job's convicted workers (JobRow.convicted) are blocklisted for it again.
+  void RestoreConvictions(const std::string& job_id, const std::vector<std::string>& workers);
   // A call from the worker outside this class (map piece RPCs): it is live.
   void Heard(const std::string& worker_id);
   // A map piece's attempt failed (DistributedMaps; `kind`: piece-failed, piece-expired): it counts

@@ -16,7 +16,7 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr char kMagic[8] = {'P', 'F', 'C', 'K', 'P', 'T', '0', '1'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;  // 2: with the job's epoch; 1 (before epochs) reads as epoch 0
 
 }  // namespace
 
@@ -29,6 +29,7 @@ std::string EncodeCheckpoint(const Checkpoint& cp) {
   w.Put<uint32_t>(uint32_t(cp.job_id.size()));
   w.PutBytes(cp.job_id);
   w.Put<uint64_t>(cp.merge_seq);
+  w.Put<uint32_t>(cp.epoch);
   w.Put<uint64_t>(cp.merged_task_ids.size());
   w.PutArray<uint64_t>(cp.merged_task_ids);
   w.Put<uint64_t>(cp.accumulator.size());
@@ -46,11 +47,13 @@ Checkpoint DecodeCheckpoint(std::string_view bytes, CheckpointSeal* seal) {
   if (seal) seal->digest = stored;
   ByteReader in(bytes.substr(sizeof(kMagic), bytes.size() - sizeof(kMagic) - 8), "checkpoint");
   const uint32_t version = in.Get<uint32_t>();
-  if (version != kVersion) throw InputError("checkpoint: unsupported version " + std::to_string(version));
+  if (version != kVersion && version != 1)
+    throw InputError("checkpoint: unsupported version " + std::to_string(version));
   Checkpoint cp;
   const uint32_t id_len = in.Get<uint32_t>();
   cp.job_id = std::string(in.GetBytes(id_len));
   cp.merge_seq = in.Get<uint64_t>();
+  cp.epoch = version >= 2 ? in.Get<uint32_t>() : 0;
   const uint64_t n = in.Get<uint64_t>();
   if (n > in.remaining() / 8) throw InputError("checkpoint: truncated");
   cp.merged_task_ids.reserve(size_t(n));
@@ -70,7 +73,9 @@ namespace {
 
 std::optional<std::string> ReadBytes(const fs::path& file) {
   std::error_code ec;
-  if (!fs::exists(file, ec)) return std::nullopt;
+  const fs::file_status status = fs::status(file, ec);
+  if (status.type() == fs::file_type::not_found) return std::nullopt;
+  if (ec) throw SystemError(file.string() + ": cannot look at the checkpoint: " + ec.message());
   std::ifstream in(file, std::ios::binary);
   if (!in) throw SystemError(file.string() + ": cannot open checkpoint");
   std::ostringstream ss;
@@ -109,12 +114,17 @@ std::optional<Checkpoint> ReadCheckpointFile(const fs::path& file, CheckpointSea
 }
 
 std::string VerifyCheckpointFile(const fs::path& file, const CheckpointSeal& expected,
-                                 std::optional<Checkpoint>* checkpoint) {
+                                 std::optional<Checkpoint>* checkpoint, bool* unreadable) {
   std::optional<Checkpoint> cp;
   CheckpointSeal seal;
+  if (unreadable) *unreadable = false;
   try {
     std::optional<std::string> bytes = ReadBytes(file);
     if (bytes) cp = DecodeCheckpoint(*bytes, &seal);
+  } catch (const SystemError& e) {
+    // The file system failed (EIO, EACCES, EMFILE…): the file may be fine. Not a lost image.
+    if (unreadable) *unreadable = true;
+    return std::string("cannot be read (") + e.what() + ")";
   } catch (const std::exception& e) {
     std::string reason = e.what();
     if (const size_t at = reason.rfind("checkpoint:"); at != std::string::npos) reason = reason.substr(at);

@@ -6,9 +6,10 @@
 //
 // Format (little-endian):
 //   "PFCKPT01"                          8-byte magic
-//   u32 version = 1
+//   u32 version = 2                     (1: no epoch field, read as epoch 0)
 //   u32 len, job id bytes
 //   u64 merge_seq                       merges contained (monotonic per job)
+//   u32 epoch                           the job's restart count (Job::epoch)
 //   u64 n, u64 × n merged task ids      ascending
 //   u64 len, accumulator bytes          Accumulator::Serialize()
 //   u64 Checksum64 (server/store/checksum.h) of all preceding bytes
@@ -43,8 +44,10 @@ std::optional<Checkpoint> ReadCheckpointFile(const std::filesystem::path& file,
 // The file at `file` is the checkpoint `expected` names (same task count and digest), else
 // DataLossError-worthy text: "" if it is, else why not ("missing", "damaged (…)", "holds 7 tasks,
 // 96 expected", "is another checkpoint (digest …)"). A seal of 0 tasks expects no file or an
-// empty one. On success `checkpoint` (optional) receives the decoded file.
+// empty one. On success `checkpoint` (optional) receives the decoded file. `unreadable`
+// (optional) tells a file system that failed to read it (the file may be fine: retry later) from
+// a file that is not the sealed one.
 std::string VerifyCheckpointFile(const std::filesystem::path& file, const CheckpointSeal& expected,
-                                 std::optional<Checkpoint>* checkpoint = nullptr);
+                                 std::optional<Checkpoint>* checkpoint = nullptr, bool* unreadable = nullptr);
 
 }  // namespace pf::server

@@ -15,17 +15,20 @@
 namespace pf::server {
 namespace {
 
-constexpr char kMagic[4] = {'P', 'F', 'J', '1'};
-constexpr size_t kHeader = 4 + 8 + 4;
+constexpr char kMagic[4] = {'P', 'F', 'J', '2'};
+constexpr char kMagicV1[4] = {'P', 'F', 'J', '1'};  // before epochs: no epoch field
+constexpr size_t kHeader = 4 + 8 + 4 + 4;
+constexpr size_t kHeaderV1 = 4 + 8 + 4;
 
 }  // namespace
 
-std::string EncodeJournalEntry(uint64_t task_id, std::span<const float> rgb_sums) {
+std::string EncodeJournalEntry(uint64_t task_id, uint32_t epoch, std::span<const float> rgb_sums) {
   std::string out;
   out.reserve(kHeader + 4 * rgb_sums.size() + 8);
   ByteWriter w(out);
   w.PutBytes(std::string_view(kMagic, 4));
   w.Put<uint64_t>(task_id);
+  w.Put<uint32_t>(epoch);
   w.Put<uint32_t>(uint32_t(rgb_sums.size()));
   w.PutArray<float>(rgb_sums);
   w.Put<uint64_t>(Checksum64(out));
@@ -45,17 +48,25 @@ std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uin
   ss << in.rdbuf();
   const std::string bytes = std::move(ss).str();
   size_t pos = 0;
-  while (bytes.size() - pos >= kHeader + 8) {
+  while (bytes.size() - pos >= kHeaderV1 + 8) {
     const char* p = bytes.data() + pos;
     const auto another_entry_follows = [&] {
-      return std::string_view(bytes).find(std::string_view(kMagic, 4), pos + 1) != std::string_view::npos;
+      const std::string_view rest = std::string_view(bytes).substr(pos + 1);
+      return rest.find(std::string_view(kMagic, 4)) != std::string_view::npos ||
+             rest.find(std::string_view(kMagicV1, 4)) != std::string_view::npos;
     };
-    if (std::memcmp(p, kMagic, 4) != 0) {
+    const bool v1 = std::memcmp(p, kMagicV1, 4) == 0;
+    if (!v1 && std::memcmp(p, kMagic, 4) != 0) {
       if (damaged) *damaged = another_entry_follows();
       break;
     }
-    const uint64_t n = LoadLittleEndian<uint32_t>(p + 12);
-    const size_t size = kHeader + 4 * n + 8;
+    const size_t header = v1 ? kHeaderV1 : kHeader;
+    if (bytes.size() - pos < header + 8) {
+      if (damaged) *damaged = another_entry_follows();
+      break;
+    }
+    const uint64_t n = LoadLittleEndian<uint32_t>(p + header - 4);
+    const size_t size = header + 4 * n + 8;
     if (bytes.size() - pos < size) {
       if (damaged) *damaged = another_entry_follows();
       break;
@@ -66,8 +77,9 @@ std::vector<JournalEntry> ReadJournalFile(const std::filesystem::path& file, uin
     }
     JournalEntry e;
     e.task_id = LoadLittleEndian<uint64_t>(p + 4);
+    e.epoch = v1 ? 0 : LoadLittleEndian<uint32_t>(p + 12);
     e.rgb_sums.resize(n);
-    ByteReader(std::string_view(p + kHeader, 4 * n), "journal entry").GetArray<float>(e.rgb_sums);
+    ByteReader(std::string_view(p + header, 4 * n), "journal entry").GetArray<float>(e.rgb_sums);
     entries.push_back(std::move(e));
     pos += size;
   }
@@ -90,14 +102,17 @@ void JournalWriter::Break() {
 
 bool JournalWriter::Open(std::string* problem) {
   // A journal left by an earlier run was cut back to its last good entry by recovery; if that
-  // cut failed, it is done here, before anything is appended behind a torn entry.
-  uint64_t valid = 0;
-  try {
-    ReadJournalFile(file_, &valid);
-  } catch (const std::exception& e) {
-    *problem = std::string("cannot read the journal: ") + e.what();
-    Break();
-    return false;
+  // cut failed, it is done here, before anything is appended behind a torn entry. A journal this
+  // writer had open before ends where the writer says.
+  uint64_t valid = end_;
+  if (!end_known_) {
+    try {
+      ReadJournalFile(file_, &valid);
+    } catch (const std::exception& e) {
+      *problem = std::string("cannot read the journal: ") + e.what();
+      Break();
+      return false;
+    }
   }
   fd_ = files_.Open(file_.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
   if (fd_ < 0) {
@@ -113,7 +128,13 @@ bool JournalWriter::Open(std::string* problem) {
     return false;
   }
   end_ = valid;
+  end_known_ = true;
   return true;
+}
+
+void JournalWriter::CloseFile() {
+  if (fd_ >= 0) files_.Close(fd_);
+  fd_ = -1;
 }
 
 bool JournalWriter::Append(std::string_view entry, std::string* problem) {
@@ -164,6 +185,7 @@ bool JournalWriter::Reset(std::string* problem) {
   }
   broken_ = false;
   end_ = 0;
+  end_known_ = true;  // no file: the next Append creates it
   appended_ = 0;
   return true;
 }

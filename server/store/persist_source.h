@@ -36,6 +36,9 @@ class PersistSource {
   // How often the job started again from nothing (Job::Restart): a result merged under an
   // earlier count is dropped, never stored. 0 for an unknown job.
   virtual uint32_t JobEpoch(const std::string& job_id) = 0;
+  // The merge_seq of the job's last stored checkpoint: a result whose merge came at or before it
+  // is stored already (a checkpoint of merge_seq S holds the job's first S merges of its epoch).
+  virtual uint64_t StoredMergeSeq(const std::string& job_id) = 0;
   // These merged results are in the job's journal, synced.
   virtual void ResultsJournaled(const std::string& job_id, std::span<const uint64_t> task_ids) = 0;
   // A result of the job could be stored nowhere: its job gets no new leases until a checkpoint of

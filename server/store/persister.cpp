@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <chrono>
 #include <set>
+#include <tuple>
 
 #include "common/core/error.h"
 #include "server/store/checkpoint.h"
@@ -70,6 +71,7 @@ void Persister::Abandon() {
   {
     std::lock_guard lock(mu_);
     stop_ = true;
+    stopped_ok_ = false;  // nothing was flushed: a later Stop() must not say everything was stored
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
@@ -95,12 +97,12 @@ void Persister::Wake() {
 }
 
 void Persister::JournalThenAck(const std::string& job_id, uint64_t task_id, uint32_t epoch,
-                               std::span<const float> rgb_sums, Ack ack) {
+                               uint64_t merge_seq, std::span<const float> rgb_sums, Ack ack) {
   {
     std::lock_guard lock(mu_);
     if (!stop_) {
-      pending_.push_back(
-          {job_id, task_id, epoch, std::vector<float>(rgb_sums.begin(), rgb_sums.end()), std::move(ack)});
+      pending_.push_back({job_id, task_id, epoch, merge_seq,
+                          std::vector<float>(rgb_sums.begin(), rgb_sums.end()), std::move(ack)});
       woken_ = true;
       cv_.notify_all();
       return;
@@ -150,26 +152,72 @@ JournalWriter& Persister::Journal(const std::string& job_id) {
   return *j;
 }
 
+namespace {
+
+constexpr const char* kDropped =
+    "the job started again from nothing after a wrong result; this one is not in it";
+
+// Answers every acknowledgement still unanswered when a flush ends by an exception (an
+// allocation failing while a checkpoint is serialised, say): their CompleteTask calls must finish,
+// as "not stored", or the RPCs would hang and a graceful stop with them.
+template <typename... Lists>
+struct AnswerLeftovers {
+  std::tuple<Lists*...> lists;
+  ~AnswerLeftovers() {
+    const auto answer = [](auto* list) {
+      for (auto& item : *list) {
+        auto& ack = AckOf(item);
+        if (!ack) continue;
+        try {
+          ack("not stored: the coordinator's flush failed");
+        } catch (...) {
+        }
+        ack = nullptr;
+      }
+    };
+    std::apply([&](auto*... l) { (answer(l), ...); }, lists);
+  }
+  static Persister::Ack& AckOf(Persister::Ack& ack) { return ack; }
+  template <typename T>
+  static Persister::Ack& AckOf(T& item) {
+    return item.ack;
+  }
+};
+
+void Answer(Persister::Ack& ack, const std::string& not_stored) {
+  if (!ack) return;
+  Persister::Ack a = std::move(ack);
+  ack = nullptr;
+  a(not_stored);
+}
+
+}  // namespace
+
 bool Persister::WriteJournal(std::vector<Pending>& pending, std::vector<Ack>* stored,
                              std::vector<Waiting>* waiting) {
   // Appends per job, then one sync per job; a job whose journal fails falls back to a checkpoint
   // for all of this flush's results (the appended ones may be lost with the failed sync).
   std::map<std::string, std::string> failed;
   std::map<std::string, std::vector<size_t>> appended;
-  std::vector<Ack> dropped;
   for (size_t i = 0; i < pending.size(); ++i) {
     Pending& p = pending[i];
     if (p.epoch != source_.JobEpoch(p.job_id)) {
       // Merged before the job started again from nothing (a convicted worker): its result is
       // not in the image any more and must never come back from the journal.
-      dropped.push_back(std::move(p.ack));
+      Answer(p.ack, kDropped);
+      continue;
+    }
+    if (p.merge_seq <= source_.StoredMergeSeq(p.job_id)) {
+      // A checkpoint stored since the merge holds it (the persister may flush between a merge
+      // and its JournalThenAck): stored, and nothing to append (a finished job has no journal).
+      stored->push_back(std::move(p.ack));
       p.ack = nullptr;
       continue;
     }
     if (failed.count(p.job_id)) continue;
     JournalWriter& journal = Journal(p.job_id);
     std::string problem;
-    if (journal.Append(EncodeJournalEntry(p.task_id, p.rgb_sums), &problem))
+    if (journal.Append(EncodeJournalEntry(p.task_id, p.epoch, p.rgb_sums), &problem))
       appended[p.job_id].push_back(i);
     else
       failed[p.job_id] = problem;
@@ -184,7 +232,10 @@ bool Persister::WriteJournal(std::vector<Pending>& pending, std::vector<Ack>* st
     ids.clear();
     for (size_t i : indices) ids.push_back(pending[i].task_id);
     source_.ResultsJournaled(job, ids);
-    for (size_t i : indices) stored->push_back(std::move(pending[i].ack));
+    for (size_t i : indices) {
+      stored->push_back(std::move(pending[i].ack));
+      pending[i].ack = nullptr;
+    }
     if (Journal(job).bytes_since_reset() >= kJournalSnapshotBytes) source_.ForceCheckpoint(job);
   }
   for (const auto& [job, problem] : failed) {
@@ -192,10 +243,10 @@ bool Persister::WriteJournal(std::vector<Pending>& pending, std::vector<Ack>* st
     source_.ForceCheckpoint(job);
   }
   for (Pending& p : pending)
-    if (auto f = failed.find(p.job_id); f != failed.end() && p.ack)
-      waiting->push_back({p.job_id, f->second, std::move(p.ack)});
-  for (Ack& ack : dropped)
-    ack("the job started again from nothing after a wrong result; this one is not in it");
+    if (auto f = failed.find(p.job_id); f != failed.end() && p.ack) {
+      waiting->push_back({p.job_id, p.epoch, p.merge_seq, f->second, std::move(p.ack)});
+      p.ack = nullptr;
+    }
   std::lock_guard lock(mu_);
   journal_entries_written_ += stored->size();
   return failed.empty();
@@ -212,8 +263,10 @@ bool Persister::Flush(bool force_checkpoints) {
   // 1. Journal.
   std::vector<Ack> stored;
   std::vector<Waiting> waiting;
+  const AnswerLeftovers<std::vector<Pending>, std::vector<Ack>, std::vector<Waiting>> leftovers{
+      {&pending, &stored, &waiting}};
   if (!pending.empty()) ok = WriteJournal(pending, &stored, &waiting) && ok;
-  for (Ack& ack : stored) ack("");
+  for (Ack& ack : stored) Answer(ack, "");
 
   // 2. Checkpoints.
   const double now = clock_.Now();
@@ -255,20 +308,25 @@ bool Persister::Flush(bool force_checkpoints) {
     checkpoints_written_ += written;
   }
   for (Waiting& w : waiting) {
-    if (checkpointed.count(w.job_id)) {
-      w.ack("");
-      continue;
+    if (w.epoch != source_.JobEpoch(w.job_id)) {
+      Answer(w.ack, kDropped);
+    } else if (w.merge_seq <= source_.StoredMergeSeq(w.job_id)) {
+      Answer(w.ack, "");  // a stored checkpoint holds it (this flush's, or an earlier one)
+    } else {
+      auto f = not_checkpointed.find(w.job_id);
+      const std::string why = w.journal_problem + "; checkpoint: " +
+                              (f != not_checkpointed.end() ? f->second : std::string("not written"));
+      source_.ResultsNotStored(w.job_id, why);
+      Answer(w.ack, why);
     }
-    auto f = not_checkpointed.find(w.job_id);
-    const std::string why = w.journal_problem + "; checkpoint: " +
-                            (f != not_checkpointed.end() ? f->second : std::string("not written"));
-    source_.ResultsNotStored(w.job_id, why);
-    w.ack(why);
   }
 
   // 3. Rows.
   const RowBatch rows = source_.CollectRows();
-  if (rows.empty()) return ok;
+  if (rows.empty()) {
+    CloseJournalsBeyondTheCap();
+    return ok;
+  }
   try {
     db_.Apply(rows.jobs, rows.tasks);
   } catch (const std::exception& e) {
@@ -288,7 +346,15 @@ bool Persister::Flush(bool force_checkpoints) {
       files_.Unlink(JournalFile(checkpoint_dir_, row.job_id).c_str());
     }
   }
+  CloseJournalsBeyondTheCap();
   return ok;
+}
+
+void Persister::CloseJournalsBeyondTheCap() {
+  size_t open = 0;
+  for (const auto& [job, journal] : journals_) open += journal->open();
+  if (open <= kMaxOpenJournals) return;
+  for (auto& [job, journal] : journals_) journal->CloseFile();
 }
 
 }  // namespace pf::server

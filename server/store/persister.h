@@ -58,6 +58,9 @@ namespace pf::server {
 
 inline constexpr double kSnapshotSeconds = 30;
 inline constexpr uint64_t kJournalSnapshotBytes = uint64_t(64) << 20;
+// Journals kept open between flushes; beyond it every journal's descriptor is closed after the
+// flush (a reopen costs an open(2), not a read: JournalWriter::CloseFile).
+inline constexpr size_t kMaxOpenJournals = 64;
 
 class Persister {
  public:
@@ -91,9 +94,10 @@ class Persister {
   // Durable mode: appends a merged result to its job's journal and calls `ack` once it is stored,
   // or with the reason it could not be (at once, "not stored", after Stop/Abandon). Copies the
   // floats.
-  // `epoch`: the job's restart count when it was merged (CompleteResult.epoch); a result of an
-  // earlier epoch than the job's is answered "not stored" and never written.
-  void JournalThenAck(const std::string& job_id, uint64_t task_id, uint32_t epoch,
+  // `epoch`, `merge_seq`: the job's restart count and merge count when it was merged
+  // (CompleteResult); a result of an earlier epoch than the job's is answered "not stored" and
+  // never written; one that a stored checkpoint holds already is answered at once.
+  void JournalThenAck(const std::string& job_id, uint64_t task_id, uint32_t epoch, uint64_t merge_seq,
                       std::span<const float> rgb_sums, Ack ack);
 
   // One synchronous flush on the calling thread (checkpoints_due forces checkpoints). True if
@@ -108,11 +112,14 @@ class Persister {
     std::string job_id;
     uint64_t task_id;
     uint32_t epoch;
+    uint64_t merge_seq;
     std::vector<float> rgb_sums;
     Ack ack;
   };
   struct Waiting {  // an acknowledgement that waits for its job's checkpoint (step 2)
     std::string job_id;
+    uint32_t epoch;
+    uint64_t merge_seq;
     std::string journal_problem;
     Ack ack;
   };
@@ -122,6 +129,7 @@ class Persister {
   // job's journal failed) in *waiting.
   bool WriteJournal(std::vector<Pending>& pending, std::vector<Ack>* stored, std::vector<Waiting>* waiting);
   JournalWriter& Journal(const std::string& job_id);
+  void CloseJournalsBeyondTheCap();
   void ReleasePending(const std::string& why);
 
   PersistSource& source_;

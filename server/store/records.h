@@ -42,6 +42,10 @@ struct JobRow {
   uint64_t samples_merged = 0;  // for the status of finished jobs (their accumulator stays on disk)
   double noise_rms = -1;
   CheckpointSeal checkpoint = {};  // of the job's last verified checkpoint
+  // Restarts from nothing (Job::epoch) and the workers convicted of wrong results, '\n'-separated
+  // (docs/farm.md, "Result verification"): recovery keeps both.
+  uint32_t epoch = 0;
+  std::string convicted = {};
 };
 
 struct TaskRow {
@@ -73,6 +77,7 @@ struct Checkpoint {
   uint64_t merge_seq = 0;                 // number of merges it contains (monotonic per job)
   std::vector<uint64_t> merged_task_ids;  // ascending
   std::string accumulator;                // Accumulator::Serialize()
+  uint32_t epoch = 0;                     // the job's restart count (Job::epoch) when it was taken
 };
 
 // The rows that changed since the last flush.

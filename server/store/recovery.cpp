@@ -116,6 +116,7 @@ uint64_t ReplayJournal(const fs::path& file, Job& job, RecoveryReport& report) {
 uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, ResultMerger& merger) {
   uint64_t merged = 0;
   for (const JournalEntry& e : entries) {
+    if (e.epoch != job.epoch()) continue;  // merged before the job started again from nothing
     if (e.task_id >= job.num_tasks() || job.runtime(e.task_id).state == TaskState::kDone) continue;
     const TaskSpec& task = job.task(e.task_id);
     // No plausibility bound: a journaled result was accepted (possibly confirmed) before the crash.
@@ -132,6 +133,17 @@ uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, Resul
     ++merged;
   }
   return merged;
+}
+
+std::vector<std::string> SplitLines(const std::string& text) {
+  std::vector<std::string> out;
+  size_t begin = 0;
+  while (begin < text.size()) {
+    const size_t end = std::min(text.find('\n', begin), text.size());
+    if (end > begin) out.push_back(text.substr(begin, end - begin));
+    begin = end + 1;
+  }
+  return out;
 }
 
 enum class SetAsideResult { kAbsent, kMoved, kStuck };
@@ -227,9 +239,14 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     const CheckpointSeal expected_seal = ExpectedSeal(row, done_rows);
     bool rerender = false, image_ok = false;
     if (finished) {
-      const std::string problem = VerifyCheckpointFile(cp_file, expected_seal);
+      bool unreadable = false;
+      const std::string problem = VerifyCheckpointFile(cp_file, expected_seal, nullptr, &unreadable);
       image_ok = problem.empty();
-      if (!problem.empty() && row.state == JobState::kSucceeded) {
+      if (unreadable) {
+        // A file system error, not a lost image: served (or refused) when asked for, as it reads then.
+        spdlog::error("job {}: its final image {}; the job stays {}", row.job_id, problem,
+                      JobStateName(row.state));
+      } else if (!problem.empty() && row.state == JobState::kSucceeded) {
         spdlog::error(
             "job {}: DATA LOSS: its final image {}; rendering it again from zero (same spec and seed: "
             "same image); the file is kept with the suffix .damaged",
@@ -337,13 +354,23 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     job->checkpoint_path = cp_file.string();
 
     // A job rendered again from zero reads nothing of its lost image, even if it could not be set aside.
+    // The job's epoch (restarts from nothing after a convicted worker, docs/farm.md "Result
+    // verification") is the larger of its row's and its checkpoint's: the row may not have been
+    // written after the restart's empty checkpoint, and a checkpoint older than the row's epoch
+    // holds results the restart threw away. Journal entries of other epochs are not replayed.
+    job->RestoreEpoch(from_zero ? 0 : row.epoch);
     try {
       CheckpointSeal seal;
       if (std::optional<Checkpoint> cp = rerender ? std::nullopt : ReadCheckpointFile(cp_file, &seal)) {
         std::string problem;
-        if (!ApplyCheckpoint(*cp, seal, *job, &problem))
+        if (!from_zero && cp->epoch < row.epoch)
+          spdlog::warn("job {}: checkpoint of epoch {} is older than the job's restart (epoch {}): not used",
+                       row.job_id, cp->epoch, row.epoch);
+        else if (!ApplyCheckpoint(*cp, seal, *job, &problem))
           spdlog::error("job {}: checkpoint {} {}; restarting the job from zero merges", row.job_id,
                         cp_file.string(), problem);
+        else
+          job->RestoreEpoch(cp->epoch);
       }
     } catch (const std::exception& e) {
       spdlog::error("job {}: checkpoint unreadable ({}); restarting the job from zero merges", row.job_id,
@@ -394,6 +421,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
         "job {}: resumed ({}): {} tasks merged ({} from the checkpoint, {} from the journal), {} queued",
         row.job_id, JobStateName(row.state), merged, from_checkpoint, journaled, requeued);
     scheduler.AddJob(std::move(job));
+    scheduler.RestoreConvictions(row.job_id, SplitLines(row.convicted));
   }
   return report;
 }

@@ -48,7 +48,9 @@ CREATE TABLE IF NOT EXISTS jobs(
   samples_merged INTEGER NOT NULL DEFAULT 0,
   noise_rms REAL NOT NULL DEFAULT -1,
   checkpoint_tasks INTEGER NOT NULL DEFAULT 0,
-  checkpoint_digest TEXT NOT NULL DEFAULT '');
+  checkpoint_digest TEXT NOT NULL DEFAULT '',
+  epoch INTEGER NOT NULL DEFAULT 0,
+  convicted TEXT NOT NULL DEFAULT '');
 CREATE TABLE IF NOT EXISTS tasks(
   job_id TEXT NOT NULL,
   task_id INTEGER NOT NULL,
@@ -172,36 +174,32 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
   Exec("PRAGMA synchronous = FULL");
   Exec("PRAGMA foreign_keys = ON");
   Exec(kSchema);
-  // Databases from before the result bound (issue #14) lack scenes.max_emission: -1 = unknown
-  // (no upper bound for jobs of those scenes; a new upload of the bundle does not change that).
-  bool has_max_emission = false;
-  {
-    Statement st(db_, "SELECT name FROM pragma_table_info('scenes')");
-    while (st.Step()) has_max_emission |= st.ColText(0) == "max_emission";
-  }
-  if (!has_max_emission) Exec("ALTER TABLE scenes ADD COLUMN max_emission REAL NOT NULL DEFAULT -1");
-  // … and before --plan auto (issue #12) scenes.caustic_paths: -1 = unknown (auto assumes a caustic map).
-  bool has_caustic_paths = false;
-  {
-    Statement st(db_, "SELECT name FROM pragma_table_info('scenes')");
-    while (st.Step()) has_caustic_paths |= st.ColText(0) == "caustic_paths";
-  }
-  if (!has_caustic_paths) Exec("ALTER TABLE scenes ADD COLUMN caustic_paths INTEGER NOT NULL DEFAULT -1");
+  // Databases from before the result bound lack scenes.max_emission: -1 = unknown (no upper
+  // bound for jobs of those scenes; a new upload of the bundle does not change that) …
+  AddColumnIfMissing("scenes", "max_emission", "REAL NOT NULL DEFAULT -1");
+  // … and before --plan auto scenes.caustic_paths: -1 = unknown (auto assumes a caustic map) …
+  AddColumnIfMissing("scenes", "caustic_paths", "INTEGER NOT NULL DEFAULT -1");
   // … and before checkpoint seals (docs/farm.md "Durability") jobs.checkpoint_tasks and
-  // jobs.checkpoint_digest: '' = no seal recorded (recovery then checks the task rows instead).
-  bool has_seal = false;
-  {
-    Statement st(db_, "SELECT name FROM pragma_table_info('jobs')");
-    while (st.Step()) has_seal |= st.ColText(0) == "checkpoint_digest";
-  }
-  if (!has_seal) {
-    Exec("ALTER TABLE jobs ADD COLUMN checkpoint_tasks INTEGER NOT NULL DEFAULT 0");
-    Exec("ALTER TABLE jobs ADD COLUMN checkpoint_digest TEXT NOT NULL DEFAULT ''");
-  }
+  // jobs.checkpoint_digest ('' = no seal recorded: recovery then checks the task rows instead),
+  // and before result verification jobs.epoch and jobs.convicted (no restart, nobody convicted).
+  AddColumnIfMissing("jobs", "checkpoint_tasks", "INTEGER NOT NULL DEFAULT 0");
+  AddColumnIfMissing("jobs", "checkpoint_digest", "TEXT NOT NULL DEFAULT ''");
+  AddColumnIfMissing("jobs", "epoch", "INTEGER NOT NULL DEFAULT 0");
+  AddColumnIfMissing("jobs", "convicted", "TEXT NOT NULL DEFAULT ''");
 }
 
 SqliteStore::~SqliteStore() {
   sqlite3_close(db_);
+}
+
+void SqliteStore::AddColumnIfMissing(const std::string& table, const std::string& column,
+                                     const std::string& declaration) {
+  bool present = false;
+  {
+    Statement st(db_, ("SELECT name FROM pragma_table_info('" + table + "')").c_str());
+    while (st.Step()) present |= st.ColText(0) == column;
+  }
+  if (!present) Exec(("ALTER TABLE " + table + " ADD COLUMN " + column + " " + declaration).c_str());
 }
 
 void SqliteStore::Exec(const char* sql) {
@@ -283,7 +281,8 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
   Transaction tx(db_);
   Statement job(db_,
                 "UPDATE jobs SET state = ?2, failure_reason = ?3, elapsed_seconds = ?4, samples_merged = ?5, "
-                "noise_rms = ?6, checkpoint_tasks = ?7, checkpoint_digest = ?8 WHERE id = ?1");
+                "noise_rms = ?6, checkpoint_tasks = ?7, checkpoint_digest = ?8, epoch = ?9, convicted = ?10 "
+                "WHERE id = ?1");
   for (const JobRow& j : jobs)
     job.Text(1, j.job_id)
         .Int(2, int(j.state))
@@ -293,6 +292,8 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
         .Real(6, j.noise_rms)
         .Int(7, int64_t(j.checkpoint.tasks))
         .Text(8, DigestText(j.checkpoint.digest))
+        .Int(9, j.epoch)
+        .Text(10, j.convicted)
         .Run();
   Statement task(db_, kUpsertTask);
   for (const TaskRow& t : tasks) UpsertTask(task, t);
@@ -310,7 +311,7 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
   Statement st(
       db_,
       "SELECT id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds, samples_merged, "
-      "noise_rms, checkpoint_tasks, checkpoint_digest FROM jobs ORDER BY seq");
+      "noise_rms, checkpoint_tasks, checkpoint_digest, epoch, convicted FROM jobs ORDER BY seq");
   while (st.Step()) {
     JobRow j;
     j.job_id = st.ColText(0);
@@ -324,6 +325,8 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
     j.noise_rms = st.ColReal(8);
     j.checkpoint.tasks = uint64_t(st.ColInt(9));
     j.checkpoint.digest = DigestFromText(st.ColText(10));
+    j.epoch = uint32_t(st.ColInt(11));
+    j.convicted = st.ColText(12);
     out.push_back(std::move(j));
   }
   return out;

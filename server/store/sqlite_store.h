@@ -8,7 +8,8 @@
 //          default_camera BLOB, warnings TEXT, created_unix_ms)
 //   jobs(id TEXT PRIMARY KEY, seq INTEGER UNIQUE, spec BLOB, state INTEGER, failure_reason,
 //        submitted_unix_ms, elapsed_seconds, samples_merged, noise_rms,
-//        checkpoint_tasks, checkpoint_digest)    the seal of the job's last stored checkpoint
+//        checkpoint_tasks, checkpoint_digest,    the seal of the job's last stored checkpoint
+//        epoch, convicted)                       restarts from nothing, convicted workers
 //   tasks(job_id, task_id, state INTEGER, attempts, failures, last_error,
 //         PRIMARY KEY (job_id, task_id)) WITHOUT ROWID
 //
@@ -57,6 +58,8 @@ class SqliteStore {
 
  private:
   void Exec(const char* sql);
+  void AddColumnIfMissing(const std::string& table, const std::string& column,
+                          const std::string& declaration);
   std::mutex mu_;
   sqlite3* db_ = nullptr;
   std::string path_;

@@ -1277,7 +1277,20 @@ TEST_F(SchedulerTest, AConvictedWorkersJobStartsAgainWithoutItAndEndsInTheHonest
   ASSERT_EQ(cps.size(), 1u) << "the empty image is checkpointed at once";
   EXPECT_GT(cps[0].merge_seq, old_seq) << "it supersedes the old checkpoint";
   EXPECT_TRUE(cps[0].merged_task_ids.empty());
+  EXPECT_EQ(cps[0].epoch, 1u);
   scheduler_.CheckpointStored(cps[0], CheckpointSeal{0, 1}, "/r.acc");
+  EXPECT_FALSE(scheduler_.TryLease({"honest", {}}).has_value())
+      << "held until its row (epoch, convicted) is stored too";
+  const RowBatch rows = scheduler_.CollectRows();
+  bool row_found = false;
+  for (const JobRow& row : rows.jobs)
+    if (row.job_id == id) {
+      row_found = true;
+      EXPECT_EQ(row.epoch, 1u);
+      EXPECT_EQ(row.convicted, "liar");
+    }
+  EXPECT_TRUE(row_found);
+  scheduler_.RowsStored(rows);
   EXPECT_FALSE(scheduler_.TryLease({"liar", {}}).has_value()) << "blocklisted for the job";
   while (std::optional<Lease> l = scheduler_.TryLease({"honest", {}})) CompleteOk(*l);
   s = scheduler_.Status(id);
@@ -1288,6 +1301,53 @@ TEST_F(SchedulerTest, AConvictedWorkersJobStartsAgainWithoutItAndEndsInTheHonest
   for (size_t p = 0; p < b.image->image.size(); ++p)
     for (int c = 0; c < 3; ++c) ASSERT_EQ(a.image->image[p][c], b.image->image[p][c]) << p;
   EXPECT_FALSE(scheduler_.ConvictWorker(id, "honest", 0, "late")) << "a finished job is left as it is";
+}
+
+}  // namespace
+}  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+// The restarted job's task list is the plan's static tasks again: a hierarchical job whose task
+// source had added localization tasks restarts without throwing, and ends.
+TEST(SchedulerConviction, AHierarchicalJobRestartsFromItsStaticTasks) {
+  FakeClock clock;
+  Scheduler scheduler(clock, {});
+  std::unique_ptr<Job> job = scheduler.PrepareJob(testing::MakeConfig(SmallHierarchy(), 12, 10));
+  const std::string id = job->id();
+  const size_t static_tasks = job->num_tasks();
+  scheduler.AddJob(std::move(job));
+  while (scheduler.Status(id).tasks_total() == static_tasks) {
+    const std::optional<Lease> l = scheduler.TryLease({"w", {}});
+    ASSERT_TRUE(l.has_value()) << "the source never added tasks";
+    scheduler.Complete(l->lease_id, l->worker_id, SyntheticResult(l->task, 12, 10));
+  }
+  ASSERT_TRUE(scheduler.ConvictWorker(id, "w", 0, "wrong result"));
+  EXPECT_EQ(scheduler.Status(id).tasks_total(), static_tasks);
+  for (const Checkpoint& cp : scheduler.CollectCheckpoints(true))
+    scheduler.CheckpointStored(cp, {}, "/h.acc");
+  scheduler.RowsStored(scheduler.CollectRows());
+  while (std::optional<Lease> l = scheduler.TryLease({"honest", {}}))
+    scheduler.Complete(l->lease_id, l->worker_id, SyntheticResult(l->task, 12, 10));
+  EXPECT_EQ(scheduler.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// A restart is a new run: a time budget spent by the discarded work does not end the restarted job
+// at once with an empty image.
+TEST_F(SchedulerTest, ARestartedJobGetsItsTimeBudgetAgain) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4, 0, StopRule{.time_budget_seconds = 10}));
+  EXPECT_EQ(CompleteOk(MustLease("liar")).status, CompleteStatus::kMerged);
+  clock_.Advance(9);
+  ASSERT_TRUE(scheduler_.ConvictWorker(id, "liar", 0, "wrong result"));
+  for (const Checkpoint& cp : scheduler_.CollectCheckpoints(true))
+    scheduler_.CheckpointStored(cp, {}, "/t.acc");
+  scheduler_.RowsStored(scheduler_.CollectRows());
+  clock_.Advance(2);
+  scheduler_.Tick();
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << "11 s since submission, 2 s since the restart";
+  EXPECT_EQ(CompleteOk(MustLease("honest")).status, CompleteStatus::kMerged);
 }
 
 }  // namespace

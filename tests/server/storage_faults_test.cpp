@@ -101,7 +101,7 @@ class StorageCase {
     const CompleteResult result = run.scheduler->Complete(lease->lease_id, lease->worker_id, sums);
     EXPECT_EQ(result.status, CompleteStatus::kMerged);
     rendered_.push_back(lease->task_id);
-    run.persister->JournalThenAck(lease->job_id, lease->task_id, result.epoch, sums,
+    run.persister->JournalThenAck(lease->job_id, lease->task_id, result.epoch, result.merge_seq, sums,
                                   [this, task = lease->task_id](const std::string& not_stored) {
                                     if (not_stored.empty())
                                       acknowledged_.insert(task);
@@ -458,6 +458,97 @@ TEST(StorageDefects, AcknowledgedResultsLostFromTheJournalAreReportedAsDataLoss)
   while (storage.RenderOne(run)) run.persister->FlushNow(false);
   run.persister->FlushNow(true);
   ExpectSameImage(ResolveJobImage(*run.scheduler, id, nullptr), reference);
+}
+
+// --- Convictions across crashes (docs/farm.md, "Result verification") ---
+
+// Results of a convicted worker never come back from the files: once the restart's empty
+// checkpoint (epoch 1) and the job's row are stored, a crash and a restart keep the job at epoch 1,
+// replay none of the epoch-0 journal entries and keep the convicted worker off the job.
+TEST(StorageConvictions, AStoredRestartSurvivesACrashWithoutItsConvictedResults) {
+  StorageCase storage;
+  const ResolvedImage reference = ReferenceImage(storage.config(), storage.clock());
+  FaultInjector faults;
+  FaultyFiles files(faults);
+  std::string id;
+  {
+    StorageCase::Run run = storage.Start(&files);
+    id = storage.Submit(run);
+    for (int i = 0; i < 4; ++i) storage.RenderOne(run);
+    run.persister->FlushNow(false);  // journaled, epoch 0
+    ASSERT_TRUE(run.scheduler->ConvictWorker(id, "w", 0, "wrong result"));
+    // The journal cannot be emptied after the restart's checkpoint: its epoch-0 entries stay.
+    faults.Arm({FileOp::kFtruncate, ".journal", false, 1, FaultRule::kUntilDisarmed, EIO});
+    faults.Arm({FileOp::kUnlink, ".journal", false, 1, FaultRule::kUntilDisarmed, EIO});
+    run.persister->FlushNow(false);
+    run.persister->Abandon();
+  }
+  uint64_t valid = 0;
+  EXPECT_EQ(ReadJournalFile(Persister::JournalFile(storage.cp_dir(), id), &valid).size(), 4u)
+      << "the old entries are still there";
+  faults.Disarm();
+  StorageCase::Run run = storage.Start(nullptr);
+  EXPECT_EQ(run.report.tasks_merged, 0u) << "no epoch-0 result comes back";
+  EXPECT_EQ(run.report.acknowledged_lost, 0u);
+  EXPECT_EQ(run.scheduler->JobEpoch(id), 1u);
+  EXPECT_FALSE(storage.RenderOne(run)) << "the convicted worker 'w' stays off the job";
+  while (std::optional<Lease> l = run.scheduler->TryLease({"honest", {}})) {
+    const std::vector<float> sums = SyntheticResult(l->task, 12, 10);
+    const CompleteResult r = run.scheduler->Complete(l->lease_id, l->worker_id, sums);
+    run.persister->JournalThenAck(id, l->task_id, r.epoch, r.merge_seq, sums, [](const std::string&) {});
+    run.persister->FlushNow(false);
+  }
+  EXPECT_TRUE(run.persister->Stop());
+  ExpectSameImage(ResolveJobImage(*run.scheduler, id, nullptr), reference);
+}
+
+// Only the restart's empty checkpoint reached the disk (its row could not be written) when the
+// coordinator died: the checkpoint's epoch wins over the row's, so the old results stay out.
+TEST(StorageConvictions, ARestartWhoseRowWasNotStoredKeepsItsEpochFromTheCheckpoint) {
+  StorageCase storage;
+  FaultInjector faults;
+  FaultyFiles files(faults);
+  FaultySqlite sqlite(faults);
+  std::string id;
+  {
+    StorageCase::Run run = storage.Start(&files);
+    id = storage.Submit(run);
+    for (int i = 0; i < 3; ++i) storage.RenderOne(run);
+    run.persister->FlushNow(false);
+    ASSERT_TRUE(run.scheduler->ConvictWorker(id, "w", 0, "wrong result"));
+    faults.Arm({FileOp::kSqliteWrite, "coordinator.db", false, 1, FaultRule::kUntilDisarmed, ENOSPC});
+    EXPECT_FALSE(run.persister->FlushNow(false)) << "the rows are not stored";
+    EXPECT_FALSE(run.scheduler->TryLease({"honest", {}}).has_value()) << "held until its row is stored";
+    run.persister->Abandon();
+  }
+  faults.Disarm();
+  StorageCase::Run run = storage.Start(nullptr);
+  EXPECT_EQ(run.scheduler->JobEpoch(id), 1u);
+  EXPECT_EQ(run.report.tasks_merged, 0u);
+}
+
+// The persister flushed between a merge and its JournalThenAck, and that flush's checkpoint holds
+// the result; then its journal append fails. It is stored (answered so), and the job is not
+// paused — before, it waited for a checkpoint that nothing would write and stayed paused.
+TEST(StorageConvictions, AResultACheckpointHoldsAlreadyIsAcknowledgedWhenItsAppendFails) {
+  StorageCase storage;
+  FaultInjector faults;
+  FaultyFiles files(faults);
+  StorageCase::Run run = storage.Start(&files);
+  const std::string id = storage.Submit(run);
+  const std::optional<Lease> l = run.scheduler->TryLease({"w", {}});
+  ASSERT_TRUE(l.has_value());
+  const std::vector<float> sums = SyntheticResult(l->task, 12, 10);
+  const CompleteResult r = run.scheduler->Complete(l->lease_id, l->worker_id, sums);
+  run.persister->FlushNow(/*checkpoints_due=*/true);  // holds the result already
+  faults.Arm({FileOp::kWrite, "checkpoints/", false, 1, FaultRule::kUntilDisarmed, ENOSPC});
+  std::string answer = "not answered";
+  run.persister->JournalThenAck(id, l->task_id, r.epoch, r.merge_seq, sums,
+                                [&](const std::string& not_stored) { answer = not_stored; });
+  run.persister->FlushNow(false);
+  EXPECT_EQ(answer, "") << "stored by the earlier checkpoint";
+  EXPECT_FALSE(run.scheduler->Status(id).paused_for_storage());
+  EXPECT_TRUE(run.scheduler->TryLease({"w", {}}).has_value());
 }
 
 }  // namespace

@@ -10,12 +10,14 @@
 #include <optional>
 
 #include "common/core/atomic_file.h"
+#include "common/core/byte_codec.h"
 #include "common/core/error.h"
 #include "server/rpc/job_images.h"
 #include "server/rpc/status_mapping.h"
 #include "server/scheduling/clock.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/checkpoint.h"
+#include "server/store/checksum.h"
 #include "server/store/journal.h"
 #include "server/store/persister.h"
 #include "server/store/recovery.h"
@@ -133,10 +135,11 @@ TEST(Checkpoint, RoundTripAndCorruptionIsDetected) {
   const std::vector<uint32_t> px = {0, 4};
   const std::vector<float> sums = {1, 2, 3, 4, 5, 6};
   acc.Add(px, sums, 2);
-  Checkpoint cp{"job-9", 1, {5}, acc.Serialize()};
+  Checkpoint cp{"job-9", 1, {5}, acc.Serialize(), 4};
   const std::string bytes = EncodeCheckpoint(cp);
   const Checkpoint back = DecodeCheckpoint(bytes);
   EXPECT_EQ(back.job_id, "job-9");
+  EXPECT_EQ(back.epoch, 4u);
   EXPECT_EQ(back.merge_seq, 1u);
   EXPECT_EQ(back.merged_task_ids, std::vector<uint64_t>{5});
   EXPECT_EQ(Accumulator::Deserialize(back.accumulator), acc);
@@ -155,8 +158,8 @@ TEST(Checkpoint, FilesAreWrittenAtomically) {
   const fs::path file = dir.path() / "job-1.acc";
   EXPECT_FALSE(ReadCheckpointFile(file).has_value());
   Accumulator acc(2, 2);
-  WriteCheckpointFile(file, {"job-1", 0, {}, acc.Serialize()});
-  WriteCheckpointFile(file, {"job-1", 3, {0, 1, 7}, acc.Serialize()});
+  WriteCheckpointFile(file, {"job-1", 0, {}, acc.Serialize(), 0});
+  WriteCheckpointFile(file, {"job-1", 3, {0, 1, 7}, acc.Serialize(), 0});
   const std::optional<Checkpoint> cp = ReadCheckpointFile(file);
   ASSERT_TRUE(cp.has_value());
   EXPECT_EQ(cp->merge_seq, 3u);
@@ -175,16 +178,28 @@ TEST(Journal, EntriesRoundTripAndATornTailIsCut) {
   uint64_t valid = 1;
   EXPECT_TRUE(ReadJournalFile(file, &valid).empty());
   EXPECT_EQ(valid, 0u);
-  const std::string a = EncodeJournalEntry(3, std::vector<float>{1.5f, -2, 3});
-  const std::string b = EncodeJournalEntry(9, std::vector<float>{});
-  const std::string c = EncodeJournalEntry(4, std::vector<float>{7, 8, 9, 10, 11, 12});
-  std::ofstream(file, std::ios::binary) << a << b << c.substr(0, c.size() - 3);  // torn append
+  const std::string a = EncodeJournalEntry(3, 5, std::vector<float>{1.5f, -2, 3});
+  const std::string b = EncodeJournalEntry(9, 0, std::vector<float>{});
+  const std::string c = EncodeJournalEntry(4, 0, std::vector<float>{7, 8, 9, 10, 11, 12});
+  // An entry written before epochs ("PFJ1", no epoch field) reads as epoch 0.
+  std::string v1;
+  ByteWriter w(v1);
+  w.PutBytes("PFJ1");
+  w.Put<uint64_t>(8);
+  w.Put<uint32_t>(1);
+  w.Put<float>(2.5f);
+  w.Put<uint64_t>(Checksum64(v1));
+  std::ofstream(file, std::ios::binary) << a << b << v1 << c.substr(0, c.size() - 3);  // torn append
   const std::vector<JournalEntry> entries = ReadJournalFile(file, &valid);
-  ASSERT_EQ(entries.size(), 2u);
+  ASSERT_EQ(entries.size(), 3u);
   EXPECT_EQ(entries[0].task_id, 3u);
+  EXPECT_EQ(entries[0].epoch, 5u);
   EXPECT_EQ(entries[0].rgb_sums, (std::vector<float>{1.5f, -2, 3}));
   EXPECT_EQ(entries[1].task_id, 9u);
-  EXPECT_EQ(valid, a.size() + b.size());
+  EXPECT_EQ(entries[2].task_id, 8u);
+  EXPECT_EQ(entries[2].epoch, 0u);
+  EXPECT_EQ(entries[2].rgb_sums, std::vector<float>{2.5f});
+  EXPECT_EQ(valid, a.size() + b.size() + v1.size());
   std::string flipped = a;
   flipped[14] ^= 1;
   std::ofstream(file, std::ios::binary | std::ios::trunc) << flipped << b;
@@ -196,9 +211,9 @@ TEST(Journal, EntriesRoundTripAndATornTailIsCut) {
 TEST(Journal, DamageBeforeTheEndIsNotATornTail) {
   TempDir dir;
   const fs::path file = dir.path() / "j.journal";
-  const std::string a = EncodeJournalEntry(3, std::vector<float>{1, 2, 3});
-  const std::string b = EncodeJournalEntry(4, std::vector<float>{4, 5, 6});
-  const std::string c = EncodeJournalEntry(5, std::vector<float>{7, 8, 9});
+  const std::string a = EncodeJournalEntry(3, 0, std::vector<float>{1, 2, 3});
+  const std::string b = EncodeJournalEntry(4, 0, std::vector<float>{4, 5, 6});
+  const std::string c = EncodeJournalEntry(5, 0, std::vector<float>{7, 8, 9});
   uint64_t valid = 0;
   bool damaged = true;
   std::ofstream(file, std::ios::binary | std::ios::trunc) << a << b << c.substr(0, c.size() - 1);
@@ -230,12 +245,12 @@ TEST(JournalWriter, ATornAppendLeavesNothingBehindAShorterEntry) {
   JournalWriter journal(file, files);
   const std::vector<float> big(300, 1.5f), small(3, 2.5f);
   std::string problem;
-  ASSERT_TRUE(journal.Append(EncodeJournalEntry(1, big), &problem)) << problem;
+  ASSERT_TRUE(journal.Append(EncodeJournalEntry(1, 0, big), &problem)) << problem;
   faults.Arm({testing::FileOp::kWrite, ".journal", false, 1, 1, ENOSPC, /*torn=*/true});
-  EXPECT_FALSE(journal.Append(EncodeJournalEntry(2, big), &problem));
+  EXPECT_FALSE(journal.Append(EncodeJournalEntry(2, 0, big), &problem));
   EXPECT_THAT(problem, HasSubstr("No space left on device"));
   EXPECT_FALSE(journal.broken()) << "the torn entry was cut off";
-  ASSERT_TRUE(journal.Append(EncodeJournalEntry(3, small), &problem)) << problem;
+  ASSERT_TRUE(journal.Append(EncodeJournalEntry(3, 0, small), &problem)) << problem;
   ASSERT_TRUE(journal.Sync(&problem)) << problem;
   uint64_t valid = 0;
   bool damaged = false;
@@ -248,14 +263,14 @@ TEST(JournalWriter, ATornAppendLeavesNothingBehindAShorterEntry) {
   // If the cut fails too, the journal takes nothing until a reset removes it.
   faults.Arm({testing::FileOp::kWrite, ".journal", false, 1, 1, EIO, /*torn=*/true});
   faults.Arm({testing::FileOp::kFtruncate, ".journal", false, 1, 1, EIO});
-  EXPECT_FALSE(journal.Append(EncodeJournalEntry(4, small), &problem));
+  EXPECT_FALSE(journal.Append(EncodeJournalEntry(4, 0, small), &problem));
   EXPECT_THAT(problem, HasSubstr("cannot be cut off"));
   EXPECT_TRUE(journal.broken());
   faults.Disarm();
-  EXPECT_FALSE(journal.Append(EncodeJournalEntry(5, small), &problem)) << "not behind a torn entry";
+  EXPECT_FALSE(journal.Append(EncodeJournalEntry(5, 0, small), &problem)) << "not behind a torn entry";
   ASSERT_TRUE(journal.Reset(&problem)) << problem;
   EXPECT_FALSE(fs::exists(file));
-  ASSERT_TRUE(journal.Append(EncodeJournalEntry(6, small), &problem)) << problem;
+  ASSERT_TRUE(journal.Append(EncodeJournalEntry(6, 0, small), &problem)) << problem;
   EXPECT_EQ(ReadJournalFile(file, &valid, &damaged).size(), 1u);
 }
 
@@ -271,7 +286,7 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   const std::vector<float> sums = SyntheticResult(lease.task, 12, 10);
   ASSERT_EQ(scheduler.Complete(lease.lease_id, lease.worker_id, sums).status, CompleteStatus::kMerged);
   bool acked = false;
-  persister.JournalThenAck(id, lease.task_id, 0, sums,
+  persister.JournalThenAck(id, lease.task_id, 0, 1, sums,
                            [&](const std::string& not_stored) { acked = not_stored.empty(); });
   EXPECT_FALSE(acked) << "nothing on disk yet";
   persister.FlushNow(/*checkpoints_due=*/false);
@@ -290,14 +305,14 @@ TEST(Persister, DurableAcknowledgementsWaitForTheJournal) {
   EXPECT_TRUE(ReadJournalFile(Persister::JournalFile(dir.path() / "checkpoints", id), &valid).empty());
   // A result merged before its job started again from nothing is never stored.
   std::string stale;
-  persister.JournalThenAck(id, lease.task_id, /*epoch=*/7, sums,
+  persister.JournalThenAck(id, lease.task_id, /*epoch=*/7, 1, sums,
                            [&](const std::string& not_stored) { stale = not_stored; });
   persister.FlushNow(false);
   EXPECT_THAT(stale, HasSubstr("started again"));
   EXPECT_TRUE(ReadJournalFile(Persister::JournalFile(dir.path() / "checkpoints", id), &valid).empty());
   persister.Abandon();
   std::string late = "not called";
-  persister.JournalThenAck(id, 1, 0, sums, [&](const std::string& not_stored) { late = not_stored; });
+  persister.JournalThenAck(id, 1, 0, 1, sums, [&](const std::string& not_stored) { late = not_stored; });
   EXPECT_THAT(late, HasSubstr("stopping")) << "after a stop: answered at once, as not stored";
 }
 
@@ -341,9 +356,9 @@ TEST_F(Recovery, CrashThenRestartResumesTheCheckpointedSetAndEndsBitIdentical) {
     // Acknowledged after the checkpoint: survives through the journal.
     const Lease journaled = *scheduler->TryLease({"w1", {}});
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
-    ASSERT_EQ(scheduler->Complete(journaled.lease_id, journaled.worker_id, sums).status,
-              CompleteStatus::kMerged);
-    persister->JournalThenAck(id, journaled.task_id, 0, sums, [](const std::string&) {});
+    const CompleteResult merged = scheduler->Complete(journaled.lease_id, journaled.worker_id, sums);
+    ASSERT_EQ(merged.status, CompleteStatus::kMerged);
+    persister->JournalThenAck(id, journaled.task_id, 0, merged.merge_seq, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     checkpointed.push_back(journaled.task_id);
     // Merged in memory but never journaled (so never acknowledged): lost by the crash, must be
@@ -568,9 +583,9 @@ TEST_F(Recovery, HierarchicalJobRederivesItsLocalizationTasks) {
     const Lease journaled = *scheduler->TryLease({"w1", {}});
     ASSERT_GE(journaled.task_id, static_tasks);
     const std::vector<float> sums = SyntheticResult(journaled.task, 12, 10);
-    ASSERT_EQ(scheduler->Complete(journaled.lease_id, journaled.worker_id, sums).status,
-              CompleteStatus::kMerged);
-    persister->JournalThenAck(id, journaled.task_id, 0, sums, [](const std::string&) {});
+    const CompleteResult merged = scheduler->Complete(journaled.lease_id, journaled.worker_id, sums);
+    ASSERT_EQ(merged.status, CompleteStatus::kMerged);
+    persister->JournalThenAck(id, journaled.task_id, 0, merged.merge_seq, sums, [](const std::string&) {});
     persister->FlushNow(/*checkpoints_due=*/false);
     merged_before_crash = static_tasks + 2;
     persister->Abandon();
