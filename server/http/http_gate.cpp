@@ -8,6 +8,7 @@
 #include <openssl/pem.h>
 #include <openssl/ssl.h>
 #include <poll.h>
+#include <signal.h>
 #include <spdlog/spdlog.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
@@ -296,9 +297,19 @@ int GatedHttpServer::Start(const std::string& host, int port) {
   // (a page and its previews, or clients that never finish) overflows it and the kernel drops
   // SYNs, which clients resend only after a second. listen() again just sets a new backlog.
   ::listen(svr_sock_, SOMAXCONN);
+  // OpenSSL's socket BIOs write without MSG_NOSIGNAL: a write to a peer that has reset raises
+  // SIGPIPE, whose default action ends the process before any authentication. The threads that
+  // write are created with SIGPIPE blocked (they inherit this thread's mask), so such a write only
+  // fails with EPIPE, whatever the program's disposition of SIGPIPE (httplib::Server's constructor
+  // happens to ignore it, pf-coordinator's main does too; docs/security.md "The web status page").
+  sigset_t pipe, previous;
+  sigemptyset(&pipe);
+  sigaddset(&pipe, SIGPIPE);
+  pthread_sigmask(SIG_BLOCK, &pipe, &previous);
   gate_thread_ = std::thread([this] { GateLoop(); });
   for (size_t i = 0; i < limits_.handler_threads; ++i) handlers_.emplace_back([this] { HandlerLoop(); });
   listen_thread_ = std::thread([this] { listen_after_bind(); });
+  pthread_sigmask(SIG_SETMASK, &previous, nullptr);
   // httplib's stop() does nothing before its loop runs: wait for it, so that Stop() always ends it.
   const auto give_up = Clock::now() + std::chrono::seconds(5);
   while (!is_running() && Clock::now() < give_up) std::this_thread::sleep_for(std::chrono::milliseconds(1));
