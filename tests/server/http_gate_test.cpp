@@ -312,5 +312,31 @@ TEST(HttpGate, OverTlsAPeerThatResetsDoesNotKillTheProcess) {
   std::signal(SIGPIPE, previous);
 }
 
+// One gate thread does the TLS of every connection, and OpenSSL's error queue is per thread:
+// what one connection's failure leaves there must not turn another's "wait for more input" into a
+// failure (SSL_get_error looks at the queue first). A client that handshakes and closes without
+// close_notify leaves such errors behind; a client whose head is still arriving must be served.
+TEST(HttpGate, OverTlsOneConnectionsErrorsDoNotFailAnother) {
+  const SelfSigned cert = MakeSelfSigned();
+  GatedServer s(HttpLimits{}, {}, cert.cert_pem, cert.key_pem);
+  ASSERT_GT(s.port(), 0);
+  int served = 0;
+  for (int i = 0; i < 10; ++i) {
+    TlsClient waiting(s.port());
+    ASSERT_TRUE(waiting.connected());
+    ASSERT_TRUE(waiting.Send("GET / HTTP/1.1\r\n"));
+    {
+      TlsClient gone(s.port());
+      ASSERT_TRUE(gone.connected());
+    }  // closed: the gate reads an unexpected end of file, then closes the session
+    std::this_thread::sleep_for(20ms);  // for the gate to get there first
+    if (waiting.Send("Authorization: x\r\n") && waiting.Send("\r\n") &&
+        StatusOf(waiting.Receive()) == "HTTP/1.1 200 OK")
+      ++served;
+  }
+  EXPECT_EQ(served, 10);
+  EXPECT_EQ(s.routed(), 10);
+}
+
 }  // namespace
 }  // namespace pf::server
