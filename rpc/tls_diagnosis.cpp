@@ -7,6 +7,7 @@
 #include <openssl/ssl.h>
 #include <openssl/x509v3.h>
 #include <poll.h>
+#include <signal.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -55,6 +56,38 @@ class Socket {
 
  private:
   int fd_;
+};
+
+// OpenSSL's socket BIOs write without MSG_NOSIGNAL: a write to a coordinator that has reset
+// raises SIGPIPE, whose default action ends pf with 141 instead of an error. pf keeps that default
+// (so that `pf watch --json | head -1` ends), so SIGPIPE is blocked on this thread while the
+// diagnosis runs, and one it raised is taken back before the mask is restored.
+class SigpipeBlocked {
+ public:
+  SigpipeBlocked() {
+    sigemptyset(&pipe_);
+    sigaddset(&pipe_, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe_, &previous_);
+    sigset_t pending;
+    sigpending(&pending);
+    was_pending_ = sigismember(&pending, SIGPIPE) == 1;
+  }
+  ~SigpipeBlocked() {
+    sigset_t pending;
+    sigpending(&pending);
+    if (!was_pending_ && sigismember(&pending, SIGPIPE) == 1) {
+      const timespec now{0, 0};
+      while (sigtimedwait(&pipe_, nullptr, &now) < 0 && errno == EINTR) {
+      }
+    }
+    pthread_sigmask(SIG_SETMASK, &previous_, nullptr);
+  }
+  SigpipeBlocked(const SigpipeBlocked&) = delete;
+  SigpipeBlocked& operator=(const SigpipeBlocked&) = delete;
+
+ private:
+  sigset_t pipe_, previous_;
+  bool was_pending_ = false;
 };
 
 BioPtr MemoryBio(const std::string& pem) {
@@ -306,6 +339,7 @@ std::string DiagnoseTlsHandshake(const std::string& address, const ClientTls& tl
   std::string host, port;
   if (tls.ca_pem.empty() || !SplitAddress(address, &host, &port)) return "";
   const Clock::time_point deadline = Clock::now() + timeout;
+  const SigpipeBlocked no_sigpipe;  // before the socket: it is closed while SIGPIPE is blocked
   const Socket socket(Connect(host, port, deadline));
   if (socket.fd() < 0) return "";
   const auto ctx = ClientContext(tls);

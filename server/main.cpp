@@ -154,6 +154,10 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  // A write to a peer that has reset (OpenSSL's socket BIOs of the status page send without
+  // MSG_NOSIGNAL; a closed stderr pipe) must fail with EPIPE, not end the coordinator: its default
+  // action would kill it before any authentication (docs/security.md "The web status page").
+  std::signal(SIGPIPE, SIG_IGN);
 
   try {
     options.client_token = pf::ResolveToken(client_token_file, "PF_CLIENT_TOKEN");

@@ -8,6 +8,7 @@
 #include <openssl/pem.h>
 #include <openssl/ssl.h>
 #include <poll.h>
+#include <signal.h>
 #include <spdlog/spdlog.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
@@ -139,6 +140,7 @@ struct GatedConnection {
   int fd = -1;
   std::unique_ptr<SSL, SslFree> ssl;  // null for plain HTTP
   bool handshaken = false;            // TLS handshake done (always true for plain HTTP)
+  bool failed = false;                // a read or write failed: no close_notify
   Clock::time_point accepted;
   std::string head;  // the request line and headers, up to the blank line that ends them
   short wait_for = POLLIN;
@@ -148,7 +150,13 @@ struct GatedConnection {
   GatedConnection& operator=(const GatedConnection&) = delete;
   ~GatedConnection() {
     // close_notify for a session that was established (best effort, non-blocking).
-    if (ssl && handshaken) SSL_shutdown(ssl.get());
+    // Not after a fatal error (SSL_ERROR_SYSCALL or _SSL): OpenSSL forbids it, and it would only
+    // leave errors behind.
+    if (ssl && handshaken && !failed) {
+      ERR_clear_error();
+      SSL_shutdown(ssl.get());
+      ERR_clear_error();
+    }
     ssl.reset();
     if (fd >= 0) ::close(fd);
   }
@@ -168,6 +176,7 @@ struct GatedConnection {
           return Io::kWait;
         default:
           ERR_clear_error();
+          failed = true;
           return Io::kFailed;
       }
     }
@@ -175,15 +184,27 @@ struct GatedConnection {
       wait_for = write_event;
       return Io::kWait;
     }
+    failed = true;
     return Io::kFailed;
   }
+  // SSL_get_error reads this thread's OpenSSL error queue before the call's own result, and one
+  // gate thread does the TLS of every connection: an error another connection left there would
+  // turn this one's "want read" into a failure and drop a legitimate client. So the queue is
+  // cleared before every TLS call (SSL_get_error(3), "the current thread's error queue must be
+  // empty before the TLS/SSL I/O operation is attempted").
+  int Handshake() {
+    ERR_clear_error();
+    return SSL_do_handshake(ssl.get());
+  }
   ssize_t Read(char* buf, size_t size) {
-    if (ssl) return SSL_read(ssl.get(), buf, int(std::min<size_t>(size, 1 << 30)));
-    return ::recv(fd, buf, size, 0);
+    if (!ssl) return ::recv(fd, buf, size, 0);
+    ERR_clear_error();
+    return SSL_read(ssl.get(), buf, int(std::min<size_t>(size, 1 << 30)));
   }
   ssize_t Write(const char* buf, size_t size) {
-    if (ssl) return SSL_write(ssl.get(), buf, int(std::min<size_t>(size, 1 << 30)));
-    return ::send(fd, buf, size, MSG_NOSIGNAL);
+    if (!ssl) return ::send(fd, buf, size, MSG_NOSIGNAL);
+    ERR_clear_error();
+    return SSL_write(ssl.get(), buf, int(std::min<size_t>(size, 1 << 30)));
   }
 
   // The gate's own answer: one attempt to write it without blocking, then the connection is
@@ -296,9 +317,19 @@ int GatedHttpServer::Start(const std::string& host, int port) {
   // (a page and its previews, or clients that never finish) overflows it and the kernel drops
   // SYNs, which clients resend only after a second. listen() again just sets a new backlog.
   ::listen(svr_sock_, SOMAXCONN);
+  // OpenSSL's socket BIOs write without MSG_NOSIGNAL: a write to a peer that has reset raises
+  // SIGPIPE, whose default action ends the process before any authentication. The threads that
+  // write are created with SIGPIPE blocked (they inherit this thread's mask), so such a write only
+  // fails with EPIPE, whatever the program's disposition of SIGPIPE (httplib::Server's constructor
+  // happens to ignore it, pf-coordinator's main does too; docs/security.md "The web status page").
+  sigset_t pipe, previous;
+  sigemptyset(&pipe);
+  sigaddset(&pipe, SIGPIPE);
+  pthread_sigmask(SIG_BLOCK, &pipe, &previous);
   gate_thread_ = std::thread([this] { GateLoop(); });
   for (size_t i = 0; i < limits_.handler_threads; ++i) handlers_.emplace_back([this] { HandlerLoop(); });
   listen_thread_ = std::thread([this] { listen_after_bind(); });
+  pthread_sigmask(SIG_SETMASK, &previous, nullptr);
   // httplib's stop() does nothing before its loop runs: wait for it, so that Stop() always ends it.
   const auto give_up = Clock::now() + std::chrono::seconds(5);
   while (!is_running() && Clock::now() < give_up) std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -417,7 +448,7 @@ void GatedHttpServer::GateLoop() {
 
 GatedHttpServer::Step GatedHttpServer::Advance(GatedConnection& c) {
   if (!c.handshaken) {
-    const int r = SSL_do_handshake(c.ssl.get());
+    const int r = c.Handshake();
     if (r != 1) {
       // Not TLS, or a client that does not trust the certificate: nothing to answer.
       return c.Classify(r, POLLOUT) == GatedConnection::Io::kWait ? Step::kWait : Step::kClose;
