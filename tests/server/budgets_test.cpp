@@ -79,8 +79,10 @@ TEST(FinishedJobs, ACancelledJobKeepsCountsNotTasksAndWritesNoRowPerTask) {
     Persister persister(scheduler, db, cp_dir, clock, /*interval=*/0);
     id = SubmitAsTheServiceDoes(scheduler, db, ManyTasks(catalog));
     const Lease merged = *scheduler.TryLease({"w", {}});
-    ASSERT_EQ(scheduler.Complete(merged.lease_id, testing::SyntheticResult(merged.task, 12, 10)).status,
-              CompleteStatus::kMerged);
+    ASSERT_EQ(
+        scheduler.Complete(merged.lease_id, merged.worker_id, testing::SyntheticResult(merged.task, 12, 10))
+            .status,
+        CompleteStatus::kMerged);
     ASSERT_TRUE(scheduler.TryLease({"w", {}}).has_value());  // leased when the job is cancelled
     persister.FlushNow(true);
     EXPECT_EQ(scheduler.counters().tasks_in_memory, 3840u);
@@ -172,6 +174,7 @@ class BudgetTest : public ::testing::Test {
   void Start(const Budgets& budgets) {
     live_.reset();
     CoordinatorOptions o;
+    o.verify_fraction = 0;  // no verification leases at random: these tests count leases
     o.data_dir = dir_.path() / ("data" + std::to_string(starts_++));
     o.budgets = budgets;
     live_ = std::make_unique<LiveCoordinator>(o);
