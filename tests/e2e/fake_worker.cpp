@@ -19,6 +19,8 @@
 //              each photon list (past the first 4096 photons the coordinator always checks) by a
 //              millimetre, re-serialized with fresh checksums; render tasks are honest
 // Prints one JSON object on stdout. Exit 0 if the mode did what it was asked, 1 otherwise.
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
 #include <atomic>
@@ -223,6 +225,8 @@ void ShiftPhotons(std::string& bytes) {
 
 // pf-worker's loop with a tampering hook: honest renders and traces, dishonest results.
 int Malicious(const Options& o) {
+  spdlog::set_default_logger(spdlog::stderr_color_mt("pf_fake_worker"));  // stdout is the JSON
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ [pf_fake_worker] %v");
   pf::worker::WorkerOptions w;
   w.coordinator = o.coordinator;
   w.token = o.token;

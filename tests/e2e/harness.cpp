@@ -47,9 +47,9 @@ std::string Binaries::Scene() {
 TestDir::TestDir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   const char* tmp = std::getenv("TMPDIR");
-  std::string templ = (fs::path(tmp && *tmp ? tmp : "/tmp") /
-                       (std::string("pf-e2e-") + (info ? info->name() : "test") + "-XXXXXX"))
-                          .string();
+  std::string name = info ? info->name() : "test";
+  std::replace(name.begin(), name.end(), '/', '_');  // a parameterized test's name: "Test/param"
+  std::string templ = (fs::path(tmp && *tmp ? tmp : "/tmp") / ("pf-e2e-" + name + "-XXXXXX")).string();
   if (!mkdtemp(templ.data())) throw std::runtime_error("mkdtemp failed");
   path_ = templ;
 }
