@@ -52,6 +52,11 @@ Attack ShiftedPhotons() {
           "leased-piece job="};
 }
 
+// Its name, not its bytes, in test listings (ctest reads them).
+void PrintTo(const Attack& attack, std::ostream* os) {
+  *os << attack.name;
+}
+
 class MaliciousWorker : public ::testing::TestWithParam<Attack> {};
 
 TEST_P(MaliciousWorker, IsConvictedAndTheJobEndsInTheHonestImage) {
