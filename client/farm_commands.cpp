@@ -79,7 +79,9 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()},
           {"blocklisted_workers", blocklisted},
           {"storage_error", s.storage_error()},
-          {"paused_for_storage", s.paused_for_storage()}};
+          {"paused_for_storage", s.paused_for_storage()},
+          {"verifications_pending", s.verifications_pending()},
+          {"results_verified", s.results_verified()}};
 }
 
 std::string Summary(const v1::JobStatus& s) {
@@ -88,6 +90,10 @@ std::string Summary(const v1::JobStatus& s) {
                   s.tasks_done(), s.tasks_total(), s.samples_merged(), FormatDuration(s.elapsed_seconds()));
   if (s.estimated_noise_rms() >= 0) out += fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms());
   if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
+  // Result verification (docs/farm.md): the job succeeds once its pending verifications are done.
+  if (s.results_verified() > 0 || s.verifications_pending() > 0)
+    out += fmt::format(", {} results verified", s.results_verified()) +
+           (s.verifications_pending() > 0 ? fmt::format(" ({} pending)", s.verifications_pending()) : "");
   // The coordinator's disk is full or failing (docs/farm.md "Durability"): it retries.
   if (!s.storage_error().empty())
     out += std::string(s.paused_for_storage() ? "; PAUSED, " : "; ") + "storage: " + s.storage_error();

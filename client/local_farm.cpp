@@ -104,7 +104,10 @@ LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
         options_.log_level,
         // Issue #12: the workers wait for a distributed map while the
         // coordinator balances it, so on one machine it may use their cores.
-        "--map-build-threads", std::to_string(std::max(1, options_.workers * options_.threads_per_worker))};
+        "--map-build-threads", std::to_string(std::max(1, options_.workers * options_.threads_per_worker)),
+        // Its workers are this machine's processes of this build: nothing to verify (docs/farm.md,
+        // "Result verification").
+        "--verify-fraction", "0", "--no-verify-outliers", "--verify-piece-fraction", "0"};
     cargs.insert(cargs.end(), options_.coordinator_args.begin(), options_.coordinator_args.end());
     const fs::path out = dir_ / "coordinator.out";
     Spawn("pf-coordinator", options_.coordinator_bin, cargs, out, dir_ / "coordinator.log");

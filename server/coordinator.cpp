@@ -2,6 +2,7 @@
 
 #include "server/http/status_page.h"
 #include "server/scheduling/distributed_maps.h"
+#include "server/scheduling/referee.h"
 
 #include <fcntl.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
@@ -69,6 +70,14 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   so.quarantine_jobs = options_.quarantine_jobs;
   so.quarantine_seconds = options_.quarantine_seconds;
   so.build = PF_VERSION;
+  const bool verify = !options_.allow_mixed_versions;  // bit-for-bit comparison needs one build
+  if (!verify &&
+      (options_.verify_fraction > 0 || options_.verify_piece_fraction > 0 || options_.verify_outliers))
+    spdlog::warn(
+        "--allow-mixed-versions: result verification is off (two builds may render a task differently, "
+        "and an honest worker would be convicted; docs/farm.md, Result verification)");
+  so.verification.fraction = verify ? options_.verify_fraction : 0;
+  so.verification.outliers = verify && options_.verify_outliers;
   scheduler_ = std::make_unique<Scheduler>(*clock_, so);
   DistributedMapsOptions mo;
   mo.dir = options_.data_dir / "maps";
@@ -76,9 +85,14 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   mo.max_attempts = options_.max_attempts;
   mo.build_threads = options_.map_build_threads;
   mo.chunk_photons = options_.map_chunk_photons;
+  mo.verify_fraction = verify ? options_.verify_piece_fraction : 0;
+  mo.convict = verify;
   maps_ = std::make_unique<DistributedMaps>(mo, *clock_, *scenes_);
   maps_->SetScheduler(scheduler_.get());
   scheduler_->SetMapTracingHook(maps_.get());
+  referee_ = std::make_unique<Referee>(*scenes_, options_.referee_threads);
+  referee_->SetScheduler(scheduler_.get());
+  scheduler_->SetReferee(referee_.get());
   persister_ = std::make_unique<Persister>(*scheduler_, *db_, options_.data_dir / "checkpoints", *clock_,
                                            options_.checkpoint_interval_seconds,
                                            options_.files ? *options_.files : SystemFiles());
@@ -174,6 +188,12 @@ int Coordinator::Start() {
                                            : "TLS + client certificates for workers",
       options_.client_token.empty() ? "off" : "required", options_.worker_token.empty() ? "off" : "required");
   spdlog::info("budgets: {}", DescribeBudgets(options_.budgets));
+  if (!options_.allow_mixed_versions)
+    spdlog::info(
+        "result verification: {:.3g} of merged results re-rendered by another worker{}, {:.3g} of map pieces "
+        "traced again in full; referee renders on {} thread(s)",
+        options_.verify_fraction, options_.verify_outliers ? " (and every outlier)" : "",
+        options_.verify_piece_fraction, options_.referee_threads);
   return port_;
 }
 
@@ -294,6 +314,7 @@ void Coordinator::Stop(bool graceful) {
                           std::chrono::duration<double>(grace)));
   }
   if (tick_thread_.joinable()) tick_thread_.join();
+  referee_->Stop();
   maps_->Stop();
   executor_->Stop();
   const bool flushed = graceful && persister_->Stop();

@@ -58,6 +58,12 @@ class RenderServiceImpl;
 class WorkerServiceImpl;
 class StatusHttpServer;
 class DistributedMaps;
+class Referee;
+
+// Defaults of --verify-fraction and --verify-piece-fraction (docs/farm.md "Result verification":
+// their cost is measured there).
+inline constexpr double kDefaultVerifyFraction = 0.03;
+inline constexpr double kDefaultVerifyPieceFraction = 0.1;
 
 // The message sizes are in proto/limits.h with every other limit.
 using limits::kMaxReceiveMessageBytes;
@@ -100,6 +106,15 @@ struct CoordinatorOptions {
   bool allow_mixed_versions = false;
   // Per-client and global budgets (server/rpc/budgets.h; pf-coordinator --limit NAME=VALUE).
   Budgets budgets;
+  // Result verification (docs/farm.md "Result verification"): the fraction of merged results
+  // another worker renders again (chosen by the CSPRNG), whether results the outlier test flags
+  // are verified too, the fraction of uploaded map pieces the coordinator traces again in full,
+  // and the threads of the coordinator's own renders (the referee). With allow_mixed_versions all
+  // of it is off: two builds may render differently, and an honest worker would be convicted.
+  double verify_fraction = kDefaultVerifyFraction;
+  bool verify_outliers = true;
+  double verify_piece_fraction = kDefaultVerifyPieceFraction;
+  int referee_threads = 1;
 };
 
 // True for 127.x.y.z, ::1 and localhost (with a port, "[::1]:50051"). Anything else, "0.0.0.0"
@@ -152,6 +167,7 @@ class Coordinator {
   std::unique_ptr<SceneStore> scenes_;
   std::unique_ptr<Scheduler> scheduler_;
   std::unique_ptr<DistributedMaps> maps_;
+  std::unique_ptr<Referee> referee_;
   std::unique_ptr<Persister> persister_;
   std::unique_ptr<Executor> executor_;
   std::unique_ptr<WatchHub> watches_;

@@ -5,6 +5,8 @@
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]] [--insecure]
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
 //                  [--allow-mixed-versions] [--limit NAME=VALUE ...]
+//                  [--verify-fraction 0.03] [--no-verify-outliers] [--verify-piece-fraction 0.1]
+//                  [--referee-threads 1]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
 // :0; with --http a second line, "http on HOST:PORT", for the web status page, with " (https)" when it
@@ -121,6 +123,26 @@ int main(int argc, char** argv) {
                ") is refused and exits with code 4: two builds may trace other photons or estimate "
                "differently, and one job's image would mix them. Also resumes, at start-up, jobs submitted "
                "under another build instead of re-running them");
+  app.add_option("--verify-fraction", options.verify_fraction,
+                 "Fraction of merged results another worker renders again, compared bit for bit; on a "
+                 "mismatch the coordinator renders the task and convicts the worker that differs "
+                 "(docs/farm.md, Result verification). 0 = none at random")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_flag(
+      "!--no-verify-outliers", options.verify_outliers,
+      "Do not verify the results whose mean is an outlier among the job's results of the same pixels");
+  app.add_option("--verify-piece-fraction", options.verify_piece_fraction,
+                 "Fraction of uploaded photon-map pieces the coordinator traces again in full (the first "
+                 "4096 photons of every piece always are); a piece that differs convicts its uploader")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option(
+         "--referee-threads", options.referee_threads,
+         "Threads of the coordinator's own renders of a task (a mismatch, or a verification no worker "
+         "may do)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
   app.add_option(
       "--limit", limits,
       "A per-client or global budget, NAME=VALUE, repeatable (docs/security.md \"Budgets\"): "

@@ -292,8 +292,14 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   std::shared_ptr<const SceneRuntime> scene;
   if (const std::optional<Outcome> ended = GetScene(task, ctx, &scene)) return *ended;
   LogAutoSettings(task, ctx, parsed->settings, *scene);
-  if (task.has_map() && parsed->settings.integrator == IntegratorKind::kPhotonMap)
+  if (task.has_map() && parsed->settings.integrator == IntegratorKind::kPhotonMap) {
     if (const std::optional<Outcome> ended = ObtainMap(task, ctx, *parsed, *scene)) return *ended;
+  } else if (parsed->settings.integrator == IntegratorKind::kPhotonMap) {
+    // No map named: a map fetched for another task under this cache key is not vouched for here.
+    ForgetFetchedMap(
+        MapCacheKey(task.scene_hash(), parsed->settings.Resolved(scene->description), parsed->spec.map_seed),
+        "");
+  }
   if (keeper.lost()) {  // e.g. the fetches outlasted a lease the coordinator could not extend
     spdlog::warn("abandoned {}: the lease is gone before the render started", ctx);
     std::lock_guard slock(mutex_);
@@ -539,8 +545,14 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
   req.set_worker_id(options_.worker_id);
-  req.set_part(task.part());  // what was rendered (TaskSpecFromProto accepted this part)
-  req.mutable_rgb_sums()->Assign(output.rgb_sums.begin(), output.rgb_sums.end());
+  req.set_part(task.part());     // what was rendered (TaskSpecFromProto accepted this part)
+  if (options_.tamper_result) {  // tests only: a malicious worker
+    std::vector<float> sums = output.rgb_sums;
+    options_.tamper_result(sums);
+    req.mutable_rgb_sums()->Assign(sums.begin(), sums.end());
+  } else {
+    req.mutable_rgb_sums()->Assign(output.rgb_sums.begin(), output.rgb_sums.end());
+  }
   v1::TaskStats* st = req.mutable_stats();
   st->set_photons_emitted(output.photons_emitted);
   st->set_photons_stored(output.photons_stored);

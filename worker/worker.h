@@ -28,6 +28,8 @@
 #include <condition_variable>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -75,6 +77,10 @@ struct WorkerOptions {
   // Issue #12: built maps fetched from the coordinator, on disk by content address (LRU).
   std::filesystem::path map_cache_dir;           // "" = <cache_dir>/maps
   uint64_t map_cache_bytes = uint64_t(4) << 30;  // 0 = keep none on disk
+  // Tests only: a malicious worker (tests/e2e/fake_worker.cpp, docs/farm.md "Result verification")
+  // renders or traces honestly, then changes what it sends. pf-worker never sets them.
+  std::function<void(std::vector<float>& rgb_sums)> tamper_result;
+  std::function<void(std::string& piece_bytes)> tamper_piece;
 };
 
 struct WorkerCounters {
@@ -183,6 +189,14 @@ class Worker {
   std::string FetchMapBytes(const photonfarm::v1::MapRef& ref, const std::string& ctx);
   bool UploadChunk(const photonfarm::v1::Task& task, const std::string& ctx, const std::string& bytes,
                    grpc::Status* status);
+  // Maps in maps_ that came from the coordinator (fetched or from the disk cache), by cache key,
+  // with the digest (MapRef.digest) they were fetched under: such a map is used only for a task
+  // whose Task.map names that digest — a map the coordinator traced again after a conviction has
+  // another (docs/farm.md "Result verification"), and a task without Task.map traces its own.
+  void NoteFetchedMap(const std::string& cache_key, const std::string& digest);
+  // Drops the map of `cache_key` from maps_ if it was fetched under another digest than `digest`
+  // ("" : any fetched map). True if dropped.
+  bool ForgetFetchedMap(const std::string& cache_key, const std::string& digest);
   void ObserveTracing(uint64_t photons, double seconds);
   // Test hook (docs/farm.md): PF_TEST_PAUSE_AT=trace|upload|fetch sleeps there (for SIGKILL tests),
   // PF_TEST_PAUSE_SECONDS long (default 120).
@@ -200,7 +214,8 @@ class Worker {
   // Cost model of trace-or-fetch (issue #12), measured here: seconds per photon of tracing and
   // building a map with options_.threads, and bytes per second of fetches. 0 = not measured yet.
   double seconds_per_photon_ = 0, bytes_per_second_ = 0;
-  bool corrupt_next_part_ = false;        // PF_TEST_CORRUPT_MAP_PART (test hook, once per process)
+  bool corrupt_next_part_ = false;                   // PF_TEST_CORRUPT_MAP_PART (test hook, once per process)
+  std::map<std::string, std::string> fetched_maps_;  // NoteFetchedMap; guarded by mutex_
   std::shared_ptr<PhotonMapCache> maps_;  // shared with a render thread that may outlive a hand-back
 
   std::atomic<State> state_{State::kConnecting};

@@ -111,6 +111,7 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
     // the cost model's rate includes when it is measured from whole maps.
     ObserveTracing(piece.photon_end() - piece.photon_begin(), 2.0 * SecondsSince(t0));
     bytes = SerializePhotonChunk(chunk);
+    if (options_.tamper_piece) options_.tamper_piece(bytes);  // tests only: a malicious worker
   } catch (const InputError& e) {
     Fail(task, ctx, e.what(), false);
     return Outcome::kDone;
@@ -227,6 +228,9 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
   const v1::MapRef& ref = task.map();
   const JobRenderSettings resolved = parsed.settings.Resolved(scene.description);
   const std::string cache_key = MapCacheKey(task.scene_hash(), resolved, parsed.spec.map_seed);
+  if (ForgetFetchedMap(cache_key, ref.digest()))
+    spdlog::warn("map {} for {}: the one in memory was fetched under another digest: obtained again",
+                 Short(ref.map_key()), ctx);
   if (maps_->Find(cache_key)) return std::nullopt;
   // The bytes must be the map the coordinator named, and the map that of this task's seed.
   auto usable = [&](const std::string& bytes) -> std::shared_ptr<const PhotonMaps> {
@@ -253,6 +257,7 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
       }
       if (maps) {
         maps_->Insert(cache_key, std::move(maps));
+        NoteFetchedMap(cache_key, ref.digest());
         spdlog::info("map {} for {} from disk cache ({} bytes)", Short(ref.map_key()), ctx, bytes->size());
         std::lock_guard lock(mutex_);
         ++counters_.maps_from_disk;
@@ -288,6 +293,7 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
       std::shared_ptr<const PhotonMaps> maps = usable(bytes);
       if (!maps) throw TransferError("map " + Short(ref.map_key()) + ": digest or seed mismatch: refused");
       maps_->Insert(cache_key, std::move(maps));
+      NoteFetchedMap(cache_key, ref.digest());
       if (seconds > 0) {
         const double measured = double(bytes.size()) / seconds;
         bytes_per_second_ = bytes_per_second_ > 0 ? 0.5 * (bytes_per_second_ + measured) : measured;
@@ -319,6 +325,24 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
   }
   spdlog::warn("map {} for {}: not fetched: traced here instead", Short(ref.map_key()), ctx);
   return std::nullopt;
+}
+
+void Worker::NoteFetchedMap(const std::string& cache_key, const std::string& digest) {
+  std::lock_guard lock(mutex_);
+  fetched_maps_[cache_key] = digest;
+}
+
+bool Worker::ForgetFetchedMap(const std::string& cache_key, const std::string& digest) {
+  {
+    std::lock_guard lock(mutex_);
+    auto it = fetched_maps_.find(cache_key);
+    if (it == fetched_maps_.end()) return false;
+    if (!digest.empty() && it->second == digest) return false;  // the map the task names
+    fetched_maps_.erase(it);
+  }
+  // A map traced here since is dropped too: it costs a trace, never a wrong image.
+  maps_->Erase(cache_key);
+  return true;
 }
 
 }  // namespace pf::worker

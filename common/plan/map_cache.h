@@ -19,6 +19,9 @@ class PhotonMapCache {
   explicit PhotonMapCache(size_t capacity = 4) : capacity_(capacity) {}
   std::shared_ptr<const PhotonMaps> Find(const std::string& key);
   void Insert(const std::string& key, std::shared_ptr<const PhotonMaps> maps);
+  // Drops the maps of `key` (a map fetched under a digest the coordinator no longer names:
+  // worker/worker_maps.cpp).
+  void Erase(const std::string& key);
   std::vector<uint64_t> CachedSeeds() const;
   size_t size() const;
 

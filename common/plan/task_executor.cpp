@@ -167,6 +167,11 @@ void PhotonMapCache::Insert(const std::string& key, std::shared_ptr<const Photon
   while (entries_.size() > capacity_) entries_.pop_back();
 }
 
+void PhotonMapCache::Erase(const std::string& key) {
+  std::lock_guard lock(mutex_);
+  entries_.remove_if([&](const Entry& e) { return e.key == key; });
+}
+
 std::vector<uint64_t> PhotonMapCache::CachedSeeds() const {
   std::lock_guard lock(mutex_);
   std::vector<uint64_t> seeds;

@@ -2,6 +2,7 @@
 
 #include <openssl/rand.h>
 
+#include <cstdint>
 #include <vector>
 
 #include "common/core/error.h"
@@ -19,6 +20,14 @@ std::string RandomHex(size_t bytes) {
     hex.push_back(kHex[b & 15]);
   }
   return hex;
+}
+
+double RandomUnit() {
+  unsigned char raw[8];
+  if (RAND_bytes(raw, int(sizeof(raw))) != 1) throw SystemError("RAND_bytes failed");
+  uint64_t bits = 0;
+  for (const unsigned char b : raw) bits = (bits << 8) | b;
+  return double(bits >> 11) * 0x1.0p-53;
 }
 
 }  // namespace pf::server

@@ -13,5 +13,8 @@ namespace pf::server {
 // 2 × `bytes` lowercase hex characters of cryptographic randomness. SystemError if the CSPRNG
 // fails.
 std::string RandomHex(size_t bytes);
+// A uniform double in [0, 1) with 53 bits from the CSPRNG (the choice of results to verify,
+// docs/farm.md "Result verification": a worker cannot predict it). SystemError if it fails.
+double RandomUnit();
 
 }  // namespace pf::server

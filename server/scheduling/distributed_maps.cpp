@@ -67,6 +67,17 @@ std::string Short(const std::string& key) {
   return key.substr(0, 12);
 }
 
+// The record of who traced a piece or the pieces of a built map (see the header comment).
+fs::path TracersFile(const fs::path& file) {
+  return fs::path(file.string() + ".by");
+}
+
+void RemoveWithTracers(const fs::path& file) {
+  std::error_code ec;
+  fs::remove(file, ec);
+  fs::remove(TracersFile(file), ec);
+}
+
 }  // namespace
 
 std::string DistributedMapKey(const JobConfig& config, uint64_t map_seed) {
@@ -109,7 +120,7 @@ void DistributedMaps::Scan() {
       const std::string key = name.substr(0, 64);
       try {
         const uint64_t size = e.file_size();
-        on_disk_[key] = BuiltMap{key, size, TrailerDigest(e.path(), size)};
+        on_disk_[key] = OnDisk{BuiltMap{key, size, TrailerDigest(e.path(), size)}, ReadTracers(e.path())};
       } catch (const std::exception& ex) {
         spdlog::warn("maps: ignoring {}: {}", e.path().string(), ex.what());
       }
@@ -130,8 +141,10 @@ void DistributedMaps::Scan() {
         };
         uint64_t begin = 0, end = 0;
         if (dash != std::string::npos && number(std::string_view(cname).substr(0, dash), &begin) &&
-            number(std::string_view(cname).substr(dash + 1), &end) && end > begin)
-          chunks_on_disk_[key].insert({begin, end});
+            number(std::string_view(cname).substr(dash + 1), &end) && end > begin) {
+          const std::set<std::string> tracers = ReadTracers(c.path());
+          chunks_on_disk_[key][{begin, end}] = tracers.empty() ? "" : *tracers.begin();
+        }
       }
     }
   }
@@ -192,18 +205,21 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
   m.chunk_photons = options_.chunk_photons;
   if (auto built = on_disk_.find(key); built != on_disk_.end()) {
     SetStateLocked(m, Map::State::kBuilt);
-    m.built = built->second;
+    m.built = built->second.built;
+    m.contributors = built->second.contributors;
     spdlog::info("job {} map {}: built map {} found on disk ({} bytes)", job.id(), map_index, Short(key),
                  m.built.bytes);
     return m;
   }
   m.chunks.resize((m.photons + m.chunk_photons - 1) / m.chunk_photons);
   if (auto found = chunks_on_disk_.find(key); found != chunks_on_disk_.end())
-    for (const auto& [begin, end] : found->second) {
+    for (const auto& [range, uploader] : found->second) {
+      const auto [begin, end] = range;
       const uint64_t c = begin / m.chunk_photons;
       if (begin % m.chunk_photons == 0 && c < m.chunks.size() &&
           end == std::min(m.photons, begin + m.chunk_photons) && m.chunks[c].state != Chunk::State::kDone) {
         m.chunks[c].state = Chunk::State::kDone;
+        m.chunks[c].uploader = uploader;
         ++m.done;
       }
     }
@@ -361,10 +377,18 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   if ((light_ids && !chunk.light_ids) || (origins && !chunk.origins))
     throw InputError("the piece lacks the light ids or origins the job's estimators need");
   const auto t_check = Now();
-  CheckFirstPhotons(*config, map_seed, chunk);
+  // Chosen when the piece arrives, by the CSPRNG: the uploader cannot know which pieces are traced
+  // again in full.
+  const bool in_full = options_.verify_fraction >= 1 ||
+                       (options_.verify_fraction > 0 && RandomUnit() < options_.verify_fraction);
+  if (const std::string wrong = MismatchOf(*config, map_seed, chunk, bytes, in_full); !wrong.empty()) {
+    RefuseAndConvict(lease_id, worker_id, wrong);
+    throw InputError(wrong);
+  }
   const double check_seconds = Secs(t_check, Now());
   const fs::path file = ChunkFile(key, begin, end);
   fs::create_directories(file.parent_path());
+  WriteTracers(file, {worker_id});  // before the piece: a stored piece always says who traced it
   WriteFileAtomically(file, bytes);
   bool build = false;
   std::string job_id;
@@ -378,8 +402,10 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     if (c.state == Chunk::State::kLeased) leases_.erase(c.lease_id);
     leases_.erase(lease_id);
     c.state = Chunk::State::kDone;
+    c.uploader = worker_id;
     ++m.done;
     ++counters_.chunks_stored;
+    counters_.chunks_verified_in_full += in_full;
     done = m.done;
     total = m.chunks.size();
     job_id = m.job_id;
@@ -389,9 +415,9 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
       build = true;
     }
   }
-  spdlog::info(
-      "job {} map {} piece {}: stored ({} bytes, first photons checked in {:.3f} s, {}/{} pieces in)", job_id,
-      map_index, index, bytes.size(), check_seconds, done, total);
+  spdlog::info("job {} map {} piece {}: stored ({} bytes, {} checked in {:.3f} s, {}/{} pieces in)", job_id,
+               map_index, index, bytes.size(), in_full ? "every photon" : "first photons", check_seconds,
+               done, total);
   if (build) {
     ReleaseCheckSceneIfUnused();
     builder_.Post([this, key] { Build(key); });
@@ -399,8 +425,8 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   return Accepted::kStored;
 }
 
-void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_seed,
-                                        const PhotonChunk& chunk) {
+std::string DistributedMaps::MismatchOf(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk,
+                                        const std::string& bytes, bool in_full) {
   std::lock_guard check(check_mu_);
   if (check_scene_hash_ != config.scene_hash || !check_scene_) {
     check_scene_.reset();
@@ -413,39 +439,169 @@ void DistributedMaps::CheckFirstPhotons(const JobConfig& config, uint64_t map_se
       // The coordinator's own trouble is not the worker's: the piece is taken unchecked, as before.
       spdlog::error("maps: scene {} cannot be loaded to check an uploaded piece ({}); piece not checked",
                     Short(config.scene_hash), e.what());
-      return;
+      return "";
     }
   }
   const SceneRuntime& scene = *check_scene_;
-  // As the worker traces it (worker_maps.cpp), for the first photons of the piece only.
+  // As the worker traces it (worker_maps.cpp): the first photons of the piece, or all of them.
   PhotonMapsOptions mo = config.settings.Resolved(scene.description).MapsOptions();
   mo.tracing.map_seed = map_seed;
   mo.tracing.threads = 1;
-  const uint64_t end = std::min(chunk.end, chunk.begin + kPhotonTracingChunk);
+  const uint64_t end = in_full ? chunk.end : std::min(chunk.end, chunk.begin + kPhotonTracingChunk);
   const PhotonChunk expected = TracePhotonChunk(scene.accel, scene.lights, mo, chunk.begin, end);
-  const auto refuse = [&](const std::string& what) {
-    throw InputError("photons [" + std::to_string(chunk.begin) + ", " + std::to_string(end) +
-                     ") of the piece are not the coordinator's trace of them: " + what +
-                     "; the piece is refused (docs/farm.md, Photon maps traced once)");
+  const auto refused = [&](const std::string& what) {
+    return "photons [" + std::to_string(chunk.begin) + ", " + std::to_string(end) +
+           ") of the piece are not the coordinator's trace of them: " + what +
+           "; the piece is refused (docs/farm.md, Photon maps traced once)";
   };
+  if (in_full) {
+    // Byte for byte: the photons, their order, light ids, origins, powers and ray count.
+    if (SerializePhotonChunk(expected) != bytes)
+      return refused("the piece differs from the trace of all of them");
+    return "";
+  }
   static const char* const kList[] = {"direct", "indirect", "caustic"};
   if (chunk.rays < expected.rays)
-    refuse(std::to_string(chunk.rays) + " rays, fewer than those photons' " + std::to_string(expected.rays));
+    return refused(std::to_string(chunk.rays) + " rays, fewer than those photons' " +
+                   std::to_string(expected.rays));
   for (int k = 0; k < 3; ++k) {
     const PhotonChunk::List& got = chunk.lists[k];
     const PhotonChunk::List& want = expected.lists[k];
     const size_t n = want.photons.size();
     if (got.photons.size() < n)
-      refuse(std::string(kList[k]) + " list of " + std::to_string(got.photons.size()) + " photons, " +
-             std::to_string(n) + " traced in its first part alone");
+      return refused(std::string(kList[k]) + " list of " + std::to_string(got.photons.size()) + " photons, " +
+                     std::to_string(n) + " traced in its first part alone");
     if ((expected.light_ids && got.light.size() < n) || (expected.origins && got.origin.size() < n))
-      refuse(std::string(kList[k]) + " photons lack their light ids or origins");
+      return refused(std::string(kList[k]) + " photons lack their light ids or origins");
     const bool same =
         std::memcmp(got.photons.data(), want.photons.data(), n * sizeof(Photon)) == 0 &&
         (!expected.light_ids || std::equal(want.light.begin(), want.light.end(), got.light.begin())) &&
         (!expected.origins || std::memcmp(got.origin.data(), want.origin.data(), n * sizeof(Vec3)) == 0);
-    if (!same) refuse(std::string(kList[k]) + " photons differ");
+    if (!same) return refused(std::string(kList[k]) + " photons differ");
   }
+  return "";
+}
+
+void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::string& worker_id,
+                                       const std::string& why) {
+  std::string job_id;
+  uint32_t index = 0;
+  {
+    std::lock_guard lock(mu_);
+    ++counters_.chunks_refused;
+    if (!options_.convict) return;  // refused only: the worker's FailTask or the lease's expiry counts
+    auto it = leases_.find(lease_id);
+    if (it == leases_.end()) return;
+    Map& m = maps_.at(it->second.key);
+    index = it->second.chunk;
+    Chunk& c = m.chunks[index];
+    if (c.state == Chunk::State::kLeased && c.lease_id == lease_id) {
+      // Queued again at once for another worker; the conviction is what counts against this one.
+      c.state = Chunk::State::kQueued;
+      c.lease_id.clear();
+    }
+    leases_.erase(it);
+    job_id = m.job_id;
+  }
+  spdlog::error("job {} piece {}: worker {} uploaded a piece that is not the coordinator's trace: convicted",
+                job_id, index, limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
+  if (scheduler_) {
+    scheduler_->ConvictWorker(job_id, worker_id, index, "map piece " + std::to_string(index) + ": " + why);
+    scheduler_->NotifyMapPieces();
+  }
+}
+
+std::set<std::string> DistributedMaps::ReadTracers(const fs::path& file) {
+  std::set<std::string> workers;
+  std::ifstream in(TracersFile(file));
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty()) workers.insert(line);
+  return workers;
+}
+
+void DistributedMaps::WriteTracers(const fs::path& file, const std::set<std::string>& workers) {
+  std::string text;
+  for (const std::string& w : workers) text += w + "\n";
+  WriteFileAtomically(TracersFile(file), text);
+}
+
+std::vector<std::string> DistributedMaps::WorkerConvicted(const std::string& worker_id) {
+  std::set<std::string> purged;  // keys of built maps deleted: the jobs that used them restart
+  size_t pieces = 0;
+  {
+    std::lock_guard lock(mu_);
+    for (auto& [key, m] : maps_) {
+      if ((m.state == Map::State::kBuilt || m.state == Map::State::kBuilding) &&
+          m.contributors.count(worker_id)) {
+        // Built (or being assembled) from its pieces: deleted, and traced again from nothing
+        // (the pieces of a built map are gone; an assembly under way is dropped: generation).
+        RemoveWithTracers(options_.dir / (key + std::string(kMapSuffix)));
+        std::error_code ec;
+        fs::remove_all(options_.dir / (key + ".chunks"), ec);
+        ++m.generation;
+        // (A map found built on disk never had its pieces counted.)
+        m.chunks.assign((m.photons + m.chunk_photons - 1) / m.chunk_photons, Chunk{});
+        m.done = 0;
+        m.contributors.clear();
+        m.built = BuiltMap{};
+        SetStateLocked(m, Map::State::kTracing);
+        purged.insert(key);
+        continue;
+      }
+      if (m.state != Map::State::kTracing) continue;
+      for (uint32_t i = 0; i < m.chunks.size(); ++i) {
+        Chunk& c = m.chunks[i];
+        if (c.state == Chunk::State::kDone && c.uploader == worker_id) {
+          const uint64_t begin = uint64_t(i) * m.chunk_photons;
+          RemoveWithTracers(ChunkFile(key, begin, std::min(m.photons, begin + m.chunk_photons)));
+          c = Chunk{};
+          --m.done;
+          ++pieces;
+        } else if (c.state == Chunk::State::kLeased && c.worker_id == worker_id) {
+          leases_.erase(c.lease_id);  // its upload would be refused anyway (blocklisted)
+          c.state = Chunk::State::kQueued;
+          c.lease_id.clear();
+        }
+      }
+    }
+    for (auto it = on_disk_.begin(); it != on_disk_.end();) {
+      if (!maps_.count(it->first) && it->second.contributors.count(worker_id)) {
+        RemoveWithTracers(options_.dir / (it->first + std::string(kMapSuffix)));
+        purged.insert(it->first);
+        it = on_disk_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    for (auto& [key, ranges] : chunks_on_disk_)
+      for (auto it = ranges.begin(); it != ranges.end();) {
+        if (it->second == worker_id && !maps_.count(key)) {
+          RemoveWithTracers(ChunkFile(key, it->first.first, it->first.second));
+          it = ranges.erase(it);
+          ++pieces;
+        } else {
+          ++it;
+        }
+      }
+    for (const std::string& key : purged) {
+      on_disk_.erase(key);
+      ++counters_.maps_purged;
+    }
+  }
+  std::vector<std::string> jobs;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, key] : keys_)
+      if (purged.count(key) && std::find(jobs.begin(), jobs.end(), id.first) == jobs.end())
+        jobs.push_back(id.first);
+  }
+  if (!purged.empty() || pieces > 0)
+    spdlog::warn(
+        "maps: worker {} convicted: {} stored maps and {} pieces it traced deleted, traced again without it; "
+        "{} jobs used those maps",
+        limits::Quote(worker_id, limits::kMaxWorkerIdBytes), purged.size(), pieces, jobs.size());
+  if (scheduler_ && (!purged.empty() || pieces > 0)) scheduler_->NotifyMapPieces();
+  return jobs;
 }
 
 void DistributedMaps::ReleaseCheckSceneIfUnused() {
@@ -467,9 +623,14 @@ void DistributedMaps::Build(const std::string& key) {
   uint64_t map_seed = 0, map_index = 0, photons = 0, chunk_photons = 1;
   size_t count = 0;
   std::string job_id;
+  uint64_t generation = 0;
+  std::set<std::string> tracers;
   {
     std::lock_guard lock(mu_);
     const Map& m = maps_.at(key);
+    generation = m.generation;
+    for (const Chunk& c : m.chunks)
+      if (!c.uploader.empty()) tracers.insert(c.uploader);
     config = m.config;
     map_seed = m.map_seed;
     map_index = m.map_index;
@@ -492,10 +653,10 @@ void DistributedMaps::Build(const std::string& key) {
         pieces.push_back(DeserializePhotonChunk(ReadFile(file_of(c))));
       } catch (const std::exception& e) {
         // A piece damaged or gone on disk (InputError, SystemError): trace it again.
-        std::error_code ec;
-        fs::remove(file_of(c), ec);
         std::lock_guard lock(mu_);
         Map& m = maps_.at(key);
+        if (m.generation != generation) return;  // purged meanwhile (WorkerConvicted): traced again
+        RemoveWithTracers(file_of(c));
         SetStateLocked(m, Map::State::kTracing);
         m.chunks[c] = Chunk{};
         --m.done;
@@ -518,6 +679,7 @@ void DistributedMaps::Build(const std::string& key) {
     const std::string bytes = SerializePhotonMaps(maps);
     const auto t_serialized = std::chrono::steady_clock::now();
     const fs::path file = options_.dir / (key + std::string(kMapSuffix));
+    WriteTracers(file, tracers);  // before the map: a stored map always says who traced its pieces
     WriteFileAtomically(file, bytes);
     const BuiltMap built{key, bytes.size(), Hex(std::string_view(bytes).substr(bytes.size() - 32))};
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -532,17 +694,27 @@ void DistributedMaps::Build(const std::string& key) {
     {
       std::lock_guard lock(mu_);
       Map& m = maps_.at(key);
+      if (m.generation != generation) {
+        // A conviction purged it while it was assembled: it holds pieces of the convicted worker.
+        RemoveWithTracers(file);
+        spdlog::warn("job {} map {}: assembled from pieces of a convicted worker: dropped", job_id,
+                     map_index);
+        return;
+      }
       SetStateLocked(m, Map::State::kBuilt);
       m.built = built;
+      m.contributors = tracers;
       release.assign(m.waiting.begin(), m.waiting.end());
       m.waiting.clear();
       ++counters_.maps_built;
+      // Under the lock: a conviction may trace the map again right after, into the same folder.
+      std::error_code ec;
+      fs::remove_all(options_.dir / (key + ".chunks"), ec);
     }
-    std::error_code ec;
-    fs::remove_all(options_.dir / (key + ".chunks"), ec);
   } catch (const std::exception& e) {
     std::lock_guard lock(mu_);
-    LeaveToWorkersLocked(maps_.at(key), std::string("assembly failed: ") + e.what(), &release);
+    if (maps_.at(key).generation == generation)
+      LeaveToWorkersLocked(maps_.at(key), std::string("assembly failed: ") + e.what(), &release);
   }
   Release(release);
 }

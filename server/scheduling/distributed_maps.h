@@ -29,7 +29,18 @@
 // seed and i alone, and a trace of [b, b + 4096) is the first part of each list of a trace of
 // [b, e)): an empty, truncated or foreign piece is refused (InputError), however well-formed. One
 // scene is kept loaded for it while maps of that scene trace. It does not prove the rest of the
-// piece: a worker holding the lease could still upload wrong photons after the first 4096.
+// piece: a worker holding the lease could still upload wrong photons after the first 4096 — so a
+// fraction of the pieces (`verify_fraction`, chosen by the CSPRNG when the piece arrives) is traced
+// here in full and must equal the upload byte for byte.
+//
+// Verification (docs/farm.md "Result verification"): a piece that is not the coordinator's trace
+// is refused, and with `convict` its uploader is convicted (Scheduler::ConvictWorker for the map's
+// job). Every piece and built map records who traced it (a file beside it, `.by`: one worker id a
+// line), so that a conviction deletes every stored map holding a piece of the convicted worker —
+// built or still tracing, in memory or found on disk — and traces it again without it
+// (WorkerConvicted); the jobs whose render tasks used such a built map are restarted by the
+// scheduler. A map traced again has another digest than the poisoned one (MapRef.digest), so no
+// worker's cache serves the old one (worker/worker_maps.cpp checks it).
 //
 // Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1),
 // and the failure counts against the worker in the map's job (Scheduler::PieceAttemptFailed:
@@ -70,6 +81,11 @@ struct DistributedMapsOptions {
   uint32_t max_attempts = 3;
   int build_threads = 1;           // threads of one assembly (the kd-tree balance), 0 = all cores
   uint64_t chunk_photons = 65536;  // photons per piece, rounded up to a multiple of 4096
+  // Result verification (see the header comment): the fraction of uploaded pieces traced again in
+  // full, and whether a piece proven wrong convicts its uploader (off when builds are mixed: two
+  // builds may trace other photons).
+  double verify_fraction = 0;
+  bool convict = false;
 };
 
 struct BuiltMap {
@@ -117,6 +133,9 @@ class DistributedMaps final : public MapTracingHook {
   // kLate: the lease is unknown or the piece is already in; kNotHolder: another worker's lease
   // (nothing stored). May start the map's assembly.
   Accepted AcceptChunk(const std::string& lease_id, const std::string& worker_id, const std::string& bytes);
+  // A convicted worker (MapTracingHook, outside the scheduler's locks): see the header comment.
+  std::vector<std::string> WorkerConvicted(const std::string& worker_id) override;
+
   // ExtendResult::not_holder: another worker's lease (not renewed).
   ExtendResult Extend(const std::string& lease_id, const std::string& worker_id);
   // A piece lease that never reached its worker (the long poll was cancelled): queued again at
@@ -132,6 +151,9 @@ class DistributedMaps final : public MapTracingHook {
   struct Counters {
     uint64_t chunks_leased = 0, chunks_stored = 0, chunks_expired = 0, chunks_returned = 0, maps_built = 0,
              maps_left_to_workers = 0;
+    // Verification: pieces traced again in full, pieces refused as not the coordinator's trace,
+    // stored maps deleted because a convicted worker traced pieces of them.
+    uint64_t chunks_verified_in_full = 0, chunks_refused = 0, maps_purged = 0;
   };
   Counters counters() const;
 
@@ -145,6 +167,7 @@ class DistributedMaps final : public MapTracingHook {
     // max_attempts of them, as a task fails its job: scheduler.h), and failures of no worker.
     std::vector<std::string> failed_workers;
     uint32_t unattributed_failures = 0;
+    std::string uploader;  // kDone: who traced it ("" if unknown: found on disk without a record)
   };
   struct Map {
     enum class State { kTracing, kBuilding, kBuilt, kLeftToWorkers } state = State::kTracing;
@@ -158,6 +181,12 @@ class DistributedMaps final : public MapTracingHook {
     size_t done = 0;
     BuiltMap built;
     std::set<std::pair<std::string, uint64_t>> waiting;  // (job, map index) to release once built
+    std::set<std::string> contributors;                  // who traced its pieces (kBuilding, kBuilt)
+    uint64_t generation = 0;  // bumped when a conviction purges it: an assembly under way is dropped
+  };
+  struct OnDisk {
+    BuiltMap built;
+    std::set<std::string> contributors;
   };
   struct LeaseRef {
     std::string key;
@@ -187,9 +216,18 @@ class DistributedMaps final : public MapTracingHook {
   void Release(const std::vector<std::pair<std::string, uint64_t>>& release);
   void Report(const std::vector<PieceFailure>& failures);
 
-  // Throws InputError if `chunk`'s first photons are not the trace of them (see the header
+  // Why `chunk` (uploaded as `bytes`) is not the coordinator's trace of it, "" if it is (or the
+  // scene cannot be loaded here): its first photons, or with `in_full` all of it (see the header
   // comment); `config`/`map_seed` of its map. Call without mu_ (it loads scenes and traces).
-  void CheckFirstPhotons(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk);
+  std::string MismatchOf(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk,
+                         const std::string& bytes, bool in_full);
+  // Who traced what (the `.by` files): read (empty if there is none), written before the file it
+  // describes.
+  static std::set<std::string> ReadTracers(const std::filesystem::path& file);
+  static void WriteTracers(const std::filesystem::path& file, const std::set<std::string>& workers);
+  // A piece that is not the coordinator's trace: counted, and with `convict` its lease dropped (the
+  // piece queued again) and its uploader convicted. Call without mu_ and check_mu_.
+  void RefuseAndConvict(const std::string& lease_id, const std::string& worker_id, const std::string& why);
   // Drops the scene CheckFirstPhotons keeps once no map of it is tracing.
   void ReleaseCheckSceneIfUnused();
 
@@ -210,9 +248,9 @@ class DistributedMaps final : public MapTracingHook {
   std::map<std::pair<std::string, uint64_t>, std::string> keys_;
   // kAuto jobs: the map indices more than one task uses.
   std::unordered_map<std::string, std::unordered_set<uint64_t>> shared_maps_;
-  std::map<std::string, BuiltMap> on_disk_;  // built maps found by Scan
-  std::map<std::string, std::set<std::pair<uint64_t, uint64_t>>>
-      chunks_on_disk_;  // photon ranges found by Scan
+  std::map<std::string, OnDisk> on_disk_;  // built maps found by Scan
+  // Photon ranges found by Scan, with who traced them.
+  std::map<std::string, std::map<std::pair<uint64_t, uint64_t>, std::string>> chunks_on_disk_;
   Counters counters_;
   // The scene of the last checked upload. Lock order: check_mu_, then mu_.
   std::mutex check_mu_;

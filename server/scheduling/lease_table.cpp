@@ -6,9 +6,12 @@
 
 namespace pf::server {
 
+std::string LeaseTable::MakeId(const Job& job, uint64_t task_id, uint32_t attempt) {
+  return job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + RandomHex(16);
+}
+
 std::string LeaseTable::Issue(Job& job, uint64_t task_id, uint32_t attempt) {
-  std::string id =
-      job.id() + "." + std::to_string(task_id) + "." + std::to_string(attempt) + "." + RandomHex(16);
+  std::string id = MakeId(job, task_id, attempt);
   leases_[id] = {&job, task_id};
   return id;
 }

@@ -26,6 +26,9 @@ class LeaseTable {
 
   // A fresh lease id for the task's current attempt, registered in the table.
   std::string Issue(Job& job, uint64_t task_id, uint32_t attempt);
+  // A fresh id of the same form, not registered (a verification's lease: result_verification.h —
+  // the worker cannot tell it from a task's).
+  static std::string MakeId(const Job& job, uint64_t task_id, uint32_t attempt);
   // nullptr if unknown (never issued, or already erased).
   Entry* Find(const std::string& lease_id);
   void Erase(const std::string& lease_id) { leases_.erase(lease_id); }

@@ -8,6 +8,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "common/plan/task_plan.h"
 
@@ -37,6 +38,11 @@ class MapTracingHook {
   using JobFilter = std::function<bool(const std::string& job_id)>;
   virtual std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now,
                                           const JobFilter& may_lease) = 0;
+  // Unlike the two above, called *outside* the scheduler's locks (it may delete files): a worker was
+  // convicted (docs/farm.md "Result verification"): every stored map holding pieces it traced is
+  // deleted and traced again, without its pieces. Returns the ids of the jobs whose render tasks
+  // used such a built map (the scheduler restarts the active ones).
+  virtual std::vector<std::string> WorkerConvicted(const std::string& /*worker_id*/) { return {}; }
 };
 
 }  // namespace pf::server

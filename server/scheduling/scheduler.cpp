@@ -55,7 +55,8 @@ Scheduler::Scheduler(const Clock& clock, SchedulerOptions options, TaskSourceFac
                                   .quarantine_jobs = options.quarantine_jobs,
                                   .quarantine_seconds = options.quarantine_seconds,
                                   .lost_seconds = 2 * options.lease_seconds}),
-      activity_(clock) {
+      activity_(clock),
+      verification_(options.verification) {
   if (!(options_.lease_seconds > 0)) throw std::invalid_argument("Scheduler: lease_seconds must be > 0");
   if (options_.max_attempts < 1) throw std::invalid_argument("Scheduler: max_attempts must be >= 1");
   if (!(options_.quarantine_seconds >= 0))
@@ -77,12 +78,20 @@ void Scheduler::SetPersistListener(std::function<void()> listener) {
 void Scheduler::Run(Effects& fx) {
   std::function<void(const std::string&)> change;
   std::function<void()> persist;
+  RefereeHook* referee = nullptr;
   {
     std::lock_guard lock(mu_);
     change = change_listener_;
     persist = persist_listener_;
+    referee = referee_;
   }
   for (auto& [done, lease] : fx.callbacks) done(std::move(lease));
+  for (RefereeCase& c : fx.referee) {
+    if (referee)
+      referee->Judge(std::move(c));
+    else
+      RefereeVerdict(c.verification_id, "", "no referee");
+  }
   if (fx.persist && persist) persist();
   if (change)
     for (const std::string& id : fx.changed) change(id);
@@ -112,7 +121,8 @@ void Scheduler::Dequeue(Job& job, uint64_t task_id) {
 
 void Scheduler::ServeWaiters(Effects& fx) {
   const double now = clock_.Now();
-  for (auto it = waiters_.begin(); it != waiters_.end() && (!queue_.empty() || map_hook_);) {
+  for (auto it = waiters_.begin();
+       it != waiters_.end() && (!queue_.empty() || map_hook_ || verification_.HasQueued());) {
     bool restricted = false;
     std::optional<Lease> lease = LeaseLocked(it->second.request, now, fx, &restricted);
     if (lease) {
@@ -176,6 +186,8 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
       return chunk;
     }
   }
+  if (verification_.HasQueued())
+    if (std::optional<Lease> check = LeaseVerificationLocked(request, now, fx, &passed)) return check;
   std::optional<TaskQueue::Position> after;  // jobs up to here have nothing for this worker
   while (Job* next = queue_.NextJob(after)) {
     Job& job = *next;
@@ -346,6 +358,8 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
     if (budget > 0 && eta >= 0) eta = std::min(eta, std::max(0.0, budget - elapsed));
   }
   s.set_eta_seconds(eta);
+  s.set_verifications_pending(verification_.Pending(job));
+  s.set_results_verified(verification_.Verified(job));
   for (const auto& [worker, entry] : health_.BlocklistOf(job.id())) {
     v1::BlocklistedWorker* b = s.add_blocklisted_workers();
     b->set_worker_id(worker);
@@ -483,6 +497,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
     job.TransitionTo(JobState::kRunning, now);
   job.TransitionTo(state, now, reason);
   health_.JobEnded(job.id());
+  verification_.DropJob(job, /*ended=*/true);
   // The final noise estimate is an O(pixels) pass: computed off this lock by the next status,
   // snapshot or persist (RefreshNoise, CollectPersistBatch), whichever comes first.
   Touch(job, fx);
@@ -514,6 +529,10 @@ ActiveLoad Scheduler::Load(const std::string& client) const {
 
 void Scheduler::MaybeSucceed(Job& job, double now, Effects& fx) {
   if (!job.active() || job.count(TaskState::kQueued) > 0 || job.count(TaskState::kLeased) > 0) return;
+  if (verification_.Pending(job) > 0) {  // not before its results are verified
+    RefereeIfNoVerifierLocked(job, now, fx);
+    return;
+  }
   FinishJob(job, JobState::kSucceeded, "", now, fx);
   spdlog::info("job {}: succeeded: {} of {} tasks merged in {:.3f} s{}", job.id(),
                job.count(TaskState::kDone), job.num_tasks(), job.ElapsedSeconds(now),
@@ -615,7 +634,9 @@ ExtendResult Scheduler::Extend(const std::string& lease_id, const std::string& w
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
     HeardLocked(worker_id, now);
-    if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
+    if (std::optional<ExtendResult> check = ExtendVerificationLocked(lease_id, worker_id, now, fx)) {
+      result = *check;
+    } else if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       TaskRuntime& rt = ref->job->runtime(ref->task_id);
       if (rt.worker_id != worker_id) {
         // A lease id that reached another worker does not keep the task from being re-run.
@@ -636,6 +657,9 @@ ExtendResult Scheduler::Extend(const std::string& lease_id, const std::string& w
 
 CompleteResult Scheduler::Complete(const std::string& lease_id, const std::string& worker_id,
                                    std::span<const float> rgb_sums, RadiancePart part) {
+  const bool verify = verification_.enabled();
+  if (verify && IsVerificationLease(lease_id))
+    return CompleteVerification(lease_id, worker_id, rgb_sums, part);
   Effects fx;
   CompleteResult result;
   // 1. Claim (global lock, O(1)): the lease must be live; it is pinned (TaskRuntime::merging) so
@@ -644,6 +668,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
   uint64_t task_id = 0;
   TaskSpec task;                   // a copy: the job's task vector may grow (AppendTasks) meanwhile
   bool needs_accumulator = false;  // read under the lock: the pointer changes under both locks
+  std::vector<double> references;  // verification: the outlier test's (result_verification.h)
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
@@ -669,6 +694,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       task = job->task(task_id);
       job->runtime(task_id).merging = true;
       needs_accumulator = !job->accumulator_if_loaded();
+      if (verify && verification_.options().outliers)
+        references = verification_.References(*job, ResultGroup(task));
     }
   }
   if (!job) {
@@ -740,6 +767,19 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       checked = CheckedResult{std::nullopt, problem, ResultCheck::Verdict::kInvalid};
     }
   }
+  // Verification: chosen now, when the result arrives (the CSPRNG, or the outlier test); only a
+  // chosen result's digest is computed.
+  ResultSummary summary;
+  std::string verify_reason;
+  if (verify && checked.valid) {
+    summary = SummarizeResult(task, rgb_sums);
+    const OutlierScore score = ScoreAgainst(summary.midmean, references);
+    if (verification_.options().outliers && score.outlier)
+      verify_reason = "outlier: z = " + std::to_string(score.z);
+    else if (verification_.ChooseAtRandom())
+      verify_reason = "sampled";
+    if (!verify_reason.empty() && digest.empty()) digest = ResultMerger::Digest(rgb_sums);
+  }
   // The job's first merge allocates its accumulator (O(pixels)) here, before the commit: once a
   // task is recorded as merged nothing may fail, or its samples would be lost.
   std::unique_ptr<Accumulator> fresh;
@@ -790,6 +830,11 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
                      rt.attempts, rt.worker_id, job->count(TaskState::kDone), job->num_tasks());
         Touch(*job, fx);
         merged = true;
+        if (verify) {
+          verification_.RecordMean(*job, summary.group, summary.midmean);
+          if (!verify_reason.empty())
+            AddVerificationLocked(*job, task_id, result.worker_id, digest, verify_reason, fx);
+        }
       }
     }
   }
@@ -820,7 +865,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       if (NoiseTargetMet(*job)) {
         spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job->id(),
                      job->noise_cache, config.stop.target_noise_rms, job->count(TaskState::kDone));
-        FinishJob(*job, JobState::kSucceeded, "", now, fx);
+        SucceedOnTarget(*job, now, fx);
       }
     }
     AddTasksFromSource(*job, fx);
@@ -1019,7 +1064,9 @@ FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& work
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
     HeardLocked(worker_id, now);
-    if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
+    if (std::optional<FailOutcome> check = FailVerificationLocked(lease_id, worker_id, reason, now, fx)) {
+      outcome = *check;
+    } else if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       const TaskRuntime& rt = ref->job->runtime(ref->task_id);
       if (rt.merging) {
         // The result it sent is being merged; that decides the attempt (kUnknownLease: the lease
@@ -1049,75 +1096,29 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
   Effects fx;
   {
     std::lock_guard lock(mu_);
-    LeaseTable::Entry* entry = leases_.Find(lease_id);
-    if (!entry || entry->job->runtime(entry->task_id).merging) return;
-    Job& job = *entry->job;
-    const uint64_t task_id = entry->task_id;
-    leases_.Erase(lease_id);
-    ++counters_.returned;
-    activity_.TaskEvent(job.id(), "returned", task_id, job.runtime(task_id).attempts,
-                        job.runtime(task_id).worker_id, "the lease never reached the worker");
-    job.SetTaskState(task_id, TaskState::kQueued);
-    Enqueue(job, task_id, fx);
-    spdlog::debug("job {} task {}: undelivered lease returned", job.id(), task_id);
-    ServeWaiters(fx);
+    if (ReturnVerificationLocked(lease_id, fx)) {
+      ServeWaiters(fx);
+    } else {
+      LeaseTable::Entry* entry = leases_.Find(lease_id);
+      if (!entry || entry->job->runtime(entry->task_id).merging) return;
+      Job& job = *entry->job;
+      const uint64_t task_id = entry->task_id;
+      leases_.Erase(lease_id);
+      ++counters_.returned;
+      activity_.TaskEvent(job.id(), "returned", task_id, job.runtime(task_id).attempts,
+                          job.runtime(task_id).worker_id, "the lease never reached the worker");
+      job.SetTaskState(task_id, TaskState::kQueued);
+      Enqueue(job, task_id, fx);
+      spdlog::debug("job {} task {}: undelivered lease returned", job.id(), task_id);
+      ServeWaiters(fx);
+    }
   }
   Run(fx);
 }
 
 bool Scheduler::ConvictWorker(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
                               const std::string& evidence) {
-  Job* job = nullptr;
-  {
-    std::lock_guard lock(mu_);
-    job = jobs_.Find(job_id);
-  }
-  if (!job) return false;
-  Effects fx;
-  bool restarted = false;
-  {
-    std::lock_guard image(job->image_mu);  // the restart replaces the accumulator
-    std::lock_guard lock(mu_);
-    const double now = clock_.Now();
-    const std::string who = limits::Quote(worker_id, limits::kMaxWorkerIdBytes);
-    CountFailure(*job, worker_id, task_id, 0, "convicted: " + evidence, now, /*convicted=*/true);
-    activity_.TaskEvent(job->id(), "convicted", task_id, 0, worker_id, evidence);
-    if (std::find(job->convicted_workers.begin(), job->convicted_workers.end(), worker_id) ==
-        job->convicted_workers.end()) {
-      job->convicted_workers.push_back(worker_id);
-      job->row_dirty = true;
-    }
-    Touch(*job, fx);
-    if (!job->active()) {
-      spdlog::error("job {}: worker {} convicted ({}) after the job ended: left as it is", job->id(), who,
-                    evidence);
-    } else {
-      restarted = true;
-      // Its leases and queued tasks go; the plan's tasks come back, all queued, held until the
-      // empty image is stored.
-      for (uint64_t id = 0; id < job->num_tasks(); ++id) {
-        const TaskRuntime& rt = job->runtime(id);
-        if (rt.state == TaskState::kLeased) leases_.Erase(rt.lease_id);
-        if (rt.state == TaskState::kQueued) Dequeue(*job, id);
-      }
-      for (auto it = held_.begin(); it != held_.end();)
-        it = it->first.first == job->id() ? held_.erase(it) : std::next(it);
-      const uint64_t merged_before = job->count(TaskState::kDone);
-      job->Restart(ScheduledTasks(job->config()), now);
-      sources_[job] = task_sources_(job->config());
-      queue_.Hold(*job);
-      for (uint64_t id = 0; id < job->num_tasks(); ++id) Enqueue(*job, id, fx);
-      spdlog::error(
-          "job {}: worker {} convicted of a wrong result ({}): blocklisted for the job; the job starts again "
-          "from nothing without it ({} merged tasks dropped)",
-          job->id(), who, evidence, merged_before);
-      activity_.TaskEvent(job->id(), "restarted", task_id, 0, worker_id,
-                          "its image held results of a convicted worker: " + std::to_string(merged_before) +
-                              " merged tasks dropped, every task queued again");
-    }
-  }
-  Run(fx);
-  return restarted;
+  return Convict(job_id, {worker_id}, task_id, evidence, std::nullopt, 0);  // scheduler_verification.cpp
 }
 
 uint32_t Scheduler::JobEpoch(const std::string& job_id) {
@@ -1168,6 +1169,7 @@ void Scheduler::Tick() {
       spdlog::warn("worker {}: lost: no call for {:.0f} s", limits::Quote(worker, limits::kMaxWorkerIdBytes),
                    silent);
     }
+    TickVerificationLocked(now, fx);
     for (Job* job : jobs_.InSubmissionOrder()) {
       if (job->active() && job->config().stop.time_budget_seconds > 0) CheckTimeBudget(*job, now, fx);
       // Elapsed time was saved only on state changes, so a restart reset a running job's clock

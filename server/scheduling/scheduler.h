@@ -57,6 +57,14 @@
 // task is queued (submit, re-queue, a task source adding tasks) or its wait expires (Tick) — no
 // busy waiting; callbacks always run outside the lock, exactly once per waiter.
 //
+// Verification (result_verification.h; docs/farm.md "Result verification"): a fraction of merged
+// results, chosen by the CSPRNG when they arrive, and every result the outlier test flags, are
+// rendered again by another worker under an ordinary task lease and compared bit for bit; a
+// mismatch goes to the referee (referee_hook.h: the coordinator renders the task), and every
+// worker whose digest differs from the referee's is convicted (ConvictWorker). A job does not
+// succeed while a verification of it is pending. The lease, result and referee steps live in
+// scheduler_verification.cpp; the hooks here are one call each.
+//
 // Hooks: the change listener hears the id of every job that changed (WatchJob), the persist
 // listener that there is something to write (server/store/persister.h).
 
@@ -82,6 +90,8 @@
 #include "server/scheduling/farm_activity.h"
 #include "server/scheduling/lease_table.h"
 #include "server/scheduling/map_tracing_hook.h"
+#include "server/scheduling/referee_hook.h"
+#include "server/scheduling/result_verification.h"
 #include "server/scheduling/task_queue.h"
 #include "server/scheduling/task_source.h"
 #include "server/scheduling/worker_health.h"
@@ -101,6 +111,8 @@ struct SchedulerOptions {
   uint32_t quarantine_jobs = 3;     // blocklisted by this many jobs within quarantine_seconds: quarantined
   double quarantine_seconds = 900;
   double noise_check_interval = 0.5;  // seconds between noise estimates of one job
+  // Result verification (result_verification.h): off unless set (pf-coordinator sets its flags).
+  VerificationOptions verification = {};
   // Stamped into every job's stored spec (JobSpec.plan.build): the coordinator's PF_VERSION.
   std::string build = {};
 };
@@ -130,7 +142,9 @@ struct ExtendResult {
   bool not_holder = false;  // the lease is live but another worker's: nothing changed
 };
 
-enum class CompleteStatus { kMerged, kIgnored, kRejected, kNotHolder };
+// kVerification: the result of a verification lease, compared and never merged (the worker is
+// answered merged = false, as for an ignored result).
+enum class CompleteStatus { kMerged, kIgnored, kRejected, kNotHolder, kVerification };
 struct CompleteResult {
   CompleteStatus status = CompleteStatus::kIgnored;
   std::string reason;  // why ignored / rejected
@@ -161,6 +175,9 @@ struct ActiveLoad {
 
 struct SchedulerCounters {
   uint64_t leases = 0, merged = 0, ignored = 0, rejected = 0, expired = 0, failed_attempts = 0, returned = 0;
+  // Result verification: leases of verifications, results verified (a second render or the
+  // referee agreed), mismatches (sent to the referee), renders by the referee.
+  uint64_t verification_leases = 0, verified = 0, mismatches = 0, refereed = 0;
   uint64_t lease_attempts = 0;  // searches of the queue for a task (a spinning poll would inflate it)
   uint64_t parked_polls = 0;    // long polls waiting right now
   // Tasks whose spec and runtime are in memory: those of active jobs and of finished jobs not
@@ -238,10 +255,21 @@ class Scheduler final : public PersistSource {
   // and, through its pieces, in its maps — the job starts again from nothing without it
   // (Job::Restart): all of its tasks are queued again and its leases dropped; the job leases
   // nothing until the checkpoint of the empty image and its row (epoch, convicted workers) are
-  // stored (a stop rule may still end it meanwhile). A finished job is left as it is (false). `task_id` names
-  // the task or piece the evidence is about, for the event.
+  // stored (a stop rule may still end it meanwhile). A finished job is left as it is (false).
+  // `task_id` names the task or piece the evidence is about, for the event.
+  // Its pieces leave every stored map first (MapTracingHook::WorkerConvicted), and every other
+  // active job that used such a map starts again as well.
   bool ConvictWorker(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
                      const std::string& evidence);
+
+  // --- Result verification (result_verification.h; docs/farm.md "Result verification") ---
+  // Set before use; `referee` outlives the scheduler's use of it.
+  void SetReferee(RefereeHook* referee);
+  // The referee's render of a verification's task (RefereeCase): the digest of its result
+  // (ResultMerger::Digest), or `error` if it could not render it.
+  void RefereeVerdict(uint64_t verification_id, const std::string& digest, const std::string& error = "");
+  // Tests only: the source of the random choice (uniform in [0, 1)). Set before use.
+  void SetVerificationRandomForTest(std::function<double()> uniform);
   uint32_t JobEpoch(const std::string& job_id) override;
   uint64_t StoredMergeSeq(const std::string& job_id) override;
   // Recovery: the job's convicted workers (JobRow.convicted) are blocklisted for it again.
@@ -291,6 +319,7 @@ class Scheduler final : public PersistSource {
     std::vector<std::pair<LeaseCallback, std::optional<Lease>>> callbacks;
     std::set<std::string> changed;
     bool persist = false;
+    std::vector<RefereeCase> referee;  // verifications for the referee (Run hands them over)
   };
   struct Waiter {
     LeaseRequest request;
@@ -353,6 +382,45 @@ class Scheduler final : public PersistSource {
   uint64_t ReleaseFinishedTasks(Job& job);
   RowBatch CollectRowsLocked(uint64_t* released_tasks);
 
+  // Result verification (scheduler_verification.cpp).
+  bool IsVerificationLease(const std::string& lease_id);
+  // A queued verification this worker may take, as a lease (before render tasks); sets *passed if
+  // one was queued that it may not take.
+  std::optional<Lease> LeaseVerificationLocked(const LeaseRequest& request, double now, Effects& fx,
+                                               bool* passed);
+  CompleteResult CompleteVerification(const std::string& lease_id, const std::string& worker_id,
+                                      std::span<const float> rgb_sums, RadiancePart part);
+  // Extend / Fail / ReturnLease of a verification lease (nullopt: not one).
+  std::optional<ExtendResult> ExtendVerificationLocked(const std::string& lease_id,
+                                                       const std::string& worker_id, double now, Effects& fx);
+  std::optional<FailOutcome> FailVerificationLocked(const std::string& lease_id, const std::string& worker_id,
+                                                    const std::string& reason, double now, Effects& fx);
+  bool ReturnVerificationLocked(const std::string& lease_id, Effects& fx);
+  // Queues a verification of a merged result.
+  void AddVerificationLocked(Job& job, uint64_t task_id, const std::string& worker, const std::string& digest,
+                             const std::string& reason, Effects& fx);
+  void VerificationAttemptFailedLocked(ResultVerification::Verification& v, const std::string& reason,
+                                       double now, Effects& fx);
+  void ExpireVerificationLocked(ResultVerification::Verification& v, double now, Effects& fx);
+  void ToRefereeLocked(ResultVerification::Verification& v, Effects& fx);
+  // Tick: expired verification leases; jobs waiting only for verifications no worker may do.
+  void TickVerificationLocked(double now, Effects& fx);
+  // The job has nothing but verifications left: those no live worker may take go to the referee.
+  void RefereeIfNoVerifierLocked(Job& job, double now, Effects& fx);
+  // The noise target is met: the job succeeds now, or (verifications pending) once they are done,
+  // its other tasks cancelled.
+  void SucceedOnTarget(Job& job, double now, Effects& fx);
+  // Convicts `workers` of the job (ConvictWorker's rule): blocklisted, the job restarted — unless
+  // the evidence is a result of an epoch before every one of them was convicted in this job already
+  // (`result_epoch`). `verification_id` (if not 0) is removed in the same hold of the locks.
+  bool ConvictInJob(Job& job, const std::vector<std::string>& workers, uint64_t task_id,
+                    const std::string& evidence, std::optional<uint32_t> result_epoch,
+                    uint64_t verification_id);
+  // ConvictWorker for several workers of one verdict: stored maps purged, then the job and the
+  // other jobs that used their maps.
+  bool Convict(const std::string& job_id, const std::vector<std::string>& workers, uint64_t task_id,
+               const std::string& evidence, std::optional<uint32_t> result_epoch, uint64_t verification_id);
+
   const Clock& clock_;
   const SchedulerOptions options_;
   mutable std::mutex mu_;
@@ -374,6 +442,8 @@ class Scheduler final : public PersistSource {
   std::function<void(const std::string&)> change_listener_;
   std::function<void()> persist_listener_;
   MapTracingHook* map_hook_ = nullptr;
+  ResultVerification verification_;
+  RefereeHook* referee_ = nullptr;
   // Render tasks waiting for their map (MapTracingHook::RenderTaskReady), by job and map index.
   std::map<std::pair<std::string, uint64_t>, std::vector<uint64_t>> held_;
 };

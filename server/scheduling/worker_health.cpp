@@ -138,6 +138,12 @@ bool WorkerHealth::AnyLiveWorkerMayRun(const std::string& job_id) const {
   return false;
 }
 
+bool WorkerHealth::AnyLiveWorker(const std::function<bool(const std::string&)>& eligible, double now) const {
+  for (const auto& [id, w] : workers_)
+    if (!w.lost && w.quarantined_until <= now && eligible(id)) return true;
+  return false;
+}
+
 void WorkerHealth::JobEnded(const std::string& job_id) {
   auto it = jobs_.find(job_id);
   if (it == jobs_.end()) return;

@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <limits>
 #include <map>
 #include <set>
@@ -83,6 +84,9 @@ class WorkerHealth {
   // Whether a worker that is heard from and not lost is left that is not blocklisted for the job
   // (quarantined ones count: their quarantine ends).
   bool AnyLiveWorkerMayRun(const std::string& job_id) const;
+  // Whether a live (heard from, not lost), not quarantined worker is left that `eligible` accepts
+  // (who may verify a result: docs/farm.md "Result verification").
+  bool AnyLiveWorker(const std::function<bool(const std::string& worker_id)>& eligible, double now) const;
   // The job ended: its failure counts are dropped (its blocklist stays, for its status).
   void JobEnded(const std::string& job_id);
 

@@ -1,4 +1,4 @@
-// pf_fake_worker — a test and benchmark client that speaks WorkerService directly, without
+// pf_fake_worker — a test and benchmark client that speaks WorkerService directly, mostly without
 // rendering. Modes:
 //   bad-size   lease one task, complete it with one pixel too few        (e2e: must be rejected)
 //   nan        lease one task, complete it with a NaN in the first pixel (e2e: must be rejected)
@@ -12,7 +12,15 @@
 //              --concurrency threads, each with its own connection, until --tasks results were
 //              merged or --seconds passed; prints completions/s and bytes on the wire per task
 //              (bench/farm_bench.sh: the coordinator alone, "instant workers")
+//   scale      a malicious worker (docs/farm.md "Result verification"): pf-worker's own loop
+//              (worker/worker.h) renders every task honestly, then multiplies every value of the
+//              result by --factor (1.5, 1000, 0) before sending it, for --seconds
+//   shift-photons  the same for map pieces: traces a piece honestly, then moves the last quarter of
+//              each photon list (past the first 4096 photons the coordinator always checks) by a
+//              millimetre, re-serialized with fresh checksums; render tasks are honest
 // Prints one JSON object on stdout. Exit 0 if the mode did what it was asked, 1 otherwise.
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
 #include <atomic>
@@ -25,11 +33,13 @@
 #include <thread>
 #include <vector>
 
+#include "common/photon/photon_chunk.h"
 #include "common/plan/task_plan.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "rpc/grpc_channel.h"
+#include "worker/worker.h"
 
 namespace v1 = photonfarm::v1;
 using Clock = std::chrono::steady_clock;
@@ -37,8 +47,8 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 struct Options {
-  std::string coordinator, token, mode = "instant", worker_id;
-  double wait = 5, seconds = 10;
+  std::string coordinator, token, mode = "instant", worker_id, cache_dir = "fake-worker-cache";
+  double wait = 5, seconds = 10, factor = 1.5;
   uint64_t tasks = 1000;
   int concurrency = 4;
 };
@@ -203,6 +213,62 @@ int Instant(const Options& o) {
   return merged.load() > 0 ? 0 : 1;
 }
 
+// Moves the photons of the last quarter of every list: beyond the prefix the coordinator traces for
+// every piece, in a piece of more than 4096 photons.
+void ShiftPhotons(std::string& bytes) {
+  pf::PhotonChunk chunk = pf::DeserializePhotonChunk(bytes);
+  for (pf::PhotonChunk::List& list : chunk.lists)
+    for (size_t i = list.photons.size() - list.photons.size() / 4; i < list.photons.size(); ++i)
+      list.photons[i].position[0] += 1e-3f;
+  bytes = pf::SerializePhotonChunk(chunk);
+}
+
+// pf-worker's loop with a tampering hook: honest renders and traces, dishonest results.
+int Malicious(const Options& o) {
+  spdlog::set_default_logger(spdlog::stderr_color_mt("pf_fake_worker"));  // stdout is the JSON
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ [pf_fake_worker] %v");
+  pf::worker::WorkerOptions w;
+  w.coordinator = o.coordinator;
+  w.token = o.token;
+  w.worker_id = WorkerId(o);
+  w.threads = 1;
+  w.cache_dir = o.cache_dir;
+  w.poll_seconds = 1;
+  std::atomic<uint64_t> tampered{0};
+  if (o.mode == "scale") {
+    w.tamper_result = [&, factor = float(o.factor)](std::vector<float>& sums) {
+      for (float& v : sums) v *= factor;
+      ++tampered;
+    };
+  } else {
+    w.tamper_piece = [&](std::string& bytes) {
+      ShiftPhotons(bytes);
+      ++tampered;
+    };
+  }
+  pf::worker::Worker worker(w);
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(pf::Seconds(o.seconds));
+    worker.RequestAbort();
+  });
+  const int code = worker.Run();
+  stopper.join();
+  const pf::worker::WorkerCounters c = worker.counters();
+  std::printf("%s\n", nlohmann::json{{"mode", o.mode},
+                                     {"factor", o.factor},
+                                     {"leased", c.leased},
+                                     {"completed", c.completed},
+                                     {"merged", c.merged},
+                                     {"chunks_traced", c.chunks_traced},
+                                     {"tampered", tampered.load()},
+                                     {"exit", code}}
+                          .dump()
+                          .c_str());
+  std::fflush(stdout);
+  // A render may still run on its thread (render_in_flight): end without waiting for it.
+  std::_Exit(tampered > 0 ? 0 : 1);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -211,19 +277,27 @@ int main(int argc, char** argv) {
   CLI::App app{"pf_fake_worker: speaks WorkerService without rendering (tests and benchmarks)"};
   app.add_option("--coordinator", o.coordinator, "HOST:PORT")->required();
   app.add_option("--token-file", token_file, "Bearer token file (default $PF_TOKEN)");
-  app.add_option("--mode", o.mode, "bad-size | nan | negative | huge | flaky | instant")
-      ->check(CLI::IsMember({"bad-size", "nan", "negative", "huge", "flaky", "instant"}));
+  app.add_option("--mode", o.mode,
+                 "bad-size | nan | negative | huge | flaky | instant | scale | shift-photons")
+      ->check(CLI::IsMember(
+          {"bad-size", "nan", "negative", "huge", "flaky", "instant", "scale", "shift-photons"}));
+  app.add_option("--factor", o.factor, "scale: every value of a result is multiplied by this")
+      ->capture_default_str();
+  app.add_option("--cache-dir", o.cache_dir, "scale, shift-photons: the worker's scene cache")
+      ->capture_default_str();
   app.add_option("--worker-id", o.worker_id, "worker_id in LeaseTask (default fake-MODE)");
   app.add_option("--wait", o.wait, "bad-size/nan/negative/huge: seconds to wait for a task")
       ->capture_default_str();
   app.add_option("--tasks", o.tasks, "instant: stop after this many merged results")->capture_default_str();
-  app.add_option("--seconds", o.seconds, "flaky, instant: stop after this long")->capture_default_str();
+  app.add_option("--seconds", o.seconds, "flaky, instant, scale, shift-photons: stop after this long")
+      ->capture_default_str();
   app.add_option("--concurrency", o.concurrency, "instant: parallel fake workers")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
     o.token = pf::ResolveToken(token_file);
     if (o.mode == "instant") return Instant(o);
     if (o.mode == "flaky") return Flaky(o);
+    if (o.mode == "scale" || o.mode == "shift-photons") return Malicious(o);
     return BadResult(o);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "pf_fake_worker: %s\n", e.what());

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -46,9 +47,9 @@ std::string Binaries::Scene() {
 TestDir::TestDir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   const char* tmp = std::getenv("TMPDIR");
-  std::string templ = (fs::path(tmp && *tmp ? tmp : "/tmp") /
-                       (std::string("pf-e2e-") + (info ? info->name() : "test") + "-XXXXXX"))
-                          .string();
+  std::string name = info ? info->name() : "test";
+  std::replace(name.begin(), name.end(), '/', '_');  // a parameterized test's name: "Test/param"
+  std::string templ = (fs::path(tmp && *tmp ? tmp : "/tmp") / ("pf-e2e-" + name + "-XXXXXX")).string();
   if (!mkdtemp(templ.data())) throw std::runtime_error("mkdtemp failed");
   path_ = templ;
 }
@@ -183,6 +184,10 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
   std::vector<std::string> argv = {Binaries::Coordinator(), "--listen", "127.0.0.1:" + std::to_string(port),
                                    "--data-dir", data_dir.string()};
   if (!token_file.empty()) argv.insert(argv.end(), {"--client-token-file", token_file});
+  // No verification leases at random unless the test asks for them (docs/farm.md "Result
+  // verification"): several tests count leases and merges exactly.
+  if (std::find(extra_args.begin(), extra_args.end(), "--verify-fraction") == extra_args.end())
+    argv.insert(argv.end(), {"--verify-fraction", "0"});
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
   process_ = std::make_unique<Process>(
       "pf-coordinator", argv, log_dir / ("coordinator-" + n + ".log"), out,

@@ -174,6 +174,7 @@ class BudgetTest : public ::testing::Test {
   void Start(const Budgets& budgets) {
     live_.reset();
     CoordinatorOptions o;
+    o.verify_fraction = 0;  // no verification leases at random: these tests count leases
     o.data_dir = dir_.path() / ("data" + std::to_string(starts_++));
     o.budgets = budgets;
     live_ = std::make_unique<LiveCoordinator>(o);

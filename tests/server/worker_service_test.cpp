@@ -352,13 +352,15 @@ grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id, con
 // taken), the honest upload was refused, and the job SUCCEEDED with a third of its photons. Now
 // the lease is bound to its holder: the stranger's heartbeat, upload and FailTask are refused and
 // change nothing; the holder's own empty piece is refused too (its first photons are not the
-// trace of them); the honest piece is taken and the map built from it is complete.
+// trace of them), and convicts it (docs/farm.md "Result verification": blocklisted for the job,
+// the piece queued again); the honest piece, from another worker, is taken and the map built from
+// it is complete.
 TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesTheMap) {
   v1::JobSpec spec = SmallSpec(hash_, OneMapPlan());
   spec.mutable_settings()->mutable_photon_map()->set_photons(8192);
   spec.mutable_settings()->mutable_photon_map()->set_map_tracing(v1::MAP_TRACING_DISTRIBUTED);
   const std::string id = SubmitOk(*live_, spec);
-  const std::optional<v1::Task> piece = Lease(*live_, 5, "honest");
+  const std::optional<v1::Task> piece = Lease(*live_, 5, "holder");
   ASSERT_TRUE(piece.has_value() && piece->has_trace_chunk()) << "pieces are leased first";
   EXPECT_THAT(piece->lease_id(), ::testing::MatchesRegex("map-[0-9a-f]{32}")) << "from the CSPRNG";
   const std::string lease = piece->lease_id();
@@ -397,14 +399,21 @@ TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesThe
   EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
   EXPECT_EQ(live_->coordinator->maps().counters().chunks_stored, 0u);
 
-  // The holder's empty piece is no piece either.
-  st = UploadPiece(*live_, lease, "honest", SerializePhotonChunk(empty), &accepted);
+  // The holder's empty piece is no piece either: refused, and the holder convicted.
+  st = UploadPiece(*live_, lease, "holder", SerializePhotonChunk(empty), &accepted);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
   EXPECT_THAT(st.error_message(), HasSubstr("not the coordinator's trace of them"));
   EXPECT_EQ(live_->coordinator->maps().counters().chunks_stored, 0u);
+  const v1::JobStatus convicted = GetJob(*live_, id);
+  ASSERT_EQ(convicted.blocklisted_workers_size(), 1);
+  EXPECT_EQ(convicted.blocklisted_workers(0).worker_id(), "holder");
+  EXPECT_FALSE(Lease(*live_, 0, "holder").has_value()) << "blocklisted for the job";
 
-  // The honest piece: taken, and the map is built from all of its photons.
-  st = UploadPiece(*live_, lease, "honest", SerializePhotonChunk(traced), &accepted);
+  // The honest piece, from another worker: taken, and the map is built from all of its photons.
+  const std::optional<v1::Task> again = Lease(*live_, 5, "honest");
+  ASSERT_TRUE(again.has_value() && again->has_trace_chunk());
+  EXPECT_EQ(again->trace_chunk().chunk_index(), piece->trace_chunk().chunk_index());
+  st = UploadPiece(*live_, again->lease_id(), "honest", SerializePhotonChunk(traced), &accepted);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(accepted);
   const std::optional<v1::Task> render = Lease(*live_, 20, "honest");
@@ -503,6 +512,7 @@ TEST_F(WorkerServiceTest, LeasesGoOnlyToWorkersOfTheCoordinatorsBuild) {
 TEST(WorkerServiceMixedVersions, AllowMixedVersionsLeasesToOtherBuilds) {
   TempDir dir;
   CoordinatorOptions o;
+  o.verify_fraction = 0;  // no verification leases at random: these tests count leases
   o.data_dir = dir.path() / "data";
   o.allow_mixed_versions = true;
   LiveCoordinator live(o);
@@ -744,6 +754,7 @@ TEST_F(WorkerServiceTest, WatchWithoutImagesEndsAfterCancel) {
 TEST(FarmEndToEnd, CrashAndRestartGiveTheSingleProcessImage) {
   TempDir dir;
   CoordinatorOptions o;
+  o.verify_fraction = 0;  // no verification leases at random: these tests count leases
   o.data_dir = dir.path() / "data";
   auto live = std::make_unique<LiveCoordinator>(o);
   const std::string hash = Upload(*live);
