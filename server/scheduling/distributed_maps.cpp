@@ -318,6 +318,7 @@ std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
 
 DistributedMaps::UploadAdmission DistributedMaps::BeginUpload(const std::string& lease_id,
                                                               const std::string& worker_id) {
+  std::optional<Hijack> hijack;
   {
     std::lock_guard lock(mu_);
     auto it = leases_.find(lease_id);
@@ -325,13 +326,14 @@ DistributedMaps::UploadAdmission DistributedMaps::BeginUpload(const std::string&
     const Map& m = maps_.at(it->second.key);
     const Chunk& c = m.chunks[it->second.chunk];
     if (m.state != Map::State::kTracing || c.state == Chunk::State::kDone) return UploadAdmission::kNotLive;
-    if (c.worker_id != worker_id) {
-      spdlog::warn("job {} map {} piece {}: upload from worker {} refused: the lease is held by {}", m.job_id,
-                   m.map_index, it->second.chunk, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
-                   c.worker_id);
-      return UploadAdmission::kNotHolder;
-    }
-    if (!uploading_.insert(lease_id).second) return UploadAdmission::kBusy;
+    if (c.worker_id != worker_id)
+      hijack = Hijack{m.job_id, it->second.chunk, c.worker_id};
+    else if (!uploading_.insert(lease_id).second)
+      return UploadAdmission::kBusy;
+  }
+  if (hijack) {
+    ConvictHijacker(*hijack, worker_id, "UploadMapPiece");
+    return UploadAdmission::kNotHolder;
   }
   if (scheduler_) scheduler_->Heard(worker_id);
   return UploadAdmission::kAdmitted;
@@ -350,6 +352,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   uint64_t begin = 0, end = 0, map_seed = 0;
   bool light_ids = false, origins = false;
   std::shared_ptr<const JobConfig> config;
+  std::optional<Hijack> hijack;
   {
     std::lock_guard lock(mu_);
     auto it = leases_.find(lease_id);
@@ -359,7 +362,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     const Map& m = maps_.at(key);
     if (m.state != Map::State::kTracing || m.chunks[index].state == Chunk::State::kDone)
       return Accepted::kLate;
-    if (m.chunks[index].worker_id != worker_id) return Accepted::kNotHolder;  // the lease names its holder
+    if (m.chunks[index].worker_id != worker_id) hijack = Hijack{m.job_id, index, m.chunks[index].worker_id};
     begin = uint64_t(index) * m.chunk_photons;
     end = std::min(m.photons, begin + m.chunk_photons);
     const JobRenderSettings& s = m.config->settings;
@@ -367,6 +370,10 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     origins = s.occlusion_test;
     config = m.config;
     map_seed = m.map_seed;
+  }
+  if (hijack) {  // the lease names its holder
+    ConvictHijacker(*hijack, worker_id, "UploadMapPiece");
+    return Accepted::kNotHolder;
   }
   // Parsed and written outside the lock (O(photons) and I/O).
   const PhotonChunk chunk = DeserializePhotonChunk(bytes);
@@ -509,6 +516,16 @@ void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::s
     scheduler_->ConvictWorker(job_id, worker_id, index, "map piece " + std::to_string(index) + ": " + why);
     scheduler_->NotifyMapPieces();
   }
+}
+
+void DistributedMaps::ConvictHijacker(const Hijack& hijack, const std::string& worker_id,
+                                      const std::string& call) {
+  spdlog::warn("job {} piece {}: {} from worker {} refused: the lease is held by {}", hijack.job_id,
+               hijack.piece, call, limits::Quote(worker_id, limits::kMaxWorkerIdBytes), hijack.holder);
+  if (scheduler_)
+    scheduler_->ConvictWorker(
+        hijack.job_id, worker_id, hijack.piece,
+        call + " with the lease of map piece " + std::to_string(hijack.piece) + ", held by another worker");
 }
 
 std::set<std::string> DistributedMaps::ReadTracers(const fs::path& file) {
@@ -766,21 +783,22 @@ void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& k
 
 ExtendResult DistributedMaps::Extend(const std::string& lease_id, const std::string& worker_id) {
   if (scheduler_) scheduler_->Heard(worker_id);
-  std::lock_guard lock(mu_);
-  auto it = leases_.find(lease_id);
-  if (it == leases_.end()) return {};
-  const Map& m = maps_.at(it->second.key);
-  Chunk& c = maps_.at(it->second.key).chunks[it->second.chunk];
-  if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return {};
-  if (c.worker_id != worker_id) {
+  std::optional<Hijack> hijack;
+  {
+    std::lock_guard lock(mu_);
+    auto it = leases_.find(lease_id);
+    if (it == leases_.end()) return {};
+    Chunk& c = maps_.at(it->second.key).chunks[it->second.chunk];
+    if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return {};
+    if (c.worker_id == worker_id) {
+      c.deadline = clock_.Now() + options_.lease_seconds;
+      return ExtendResult{true, options_.lease_seconds};
+    }
     // Renewed by another worker, a lease whose holder is gone would never run out.
-    spdlog::warn("job {} map {} piece {}: ExtendLease from worker {} refused: the lease is held by {}",
-                 m.job_id, m.map_index, it->second.chunk, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
-                 c.worker_id);
-    return ExtendResult{.not_holder = true};
+    hijack = Hijack{maps_.at(it->second.key).job_id, it->second.chunk, c.worker_id};
   }
-  c.deadline = clock_.Now() + options_.lease_seconds;
-  return ExtendResult{true, options_.lease_seconds};
+  ConvictHijacker(*hijack, worker_id, "ExtendLease");
+  return ExtendResult{.not_holder = true};
 }
 
 void DistributedMaps::Return(const std::string& lease_id) {
@@ -807,6 +825,7 @@ FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string
   if (scheduler_) scheduler_->Heard(worker_id);
   std::vector<std::pair<std::string, uint64_t>> release;
   std::vector<PieceFailure> failures;
+  std::optional<Hijack> hijack;
   {
     std::lock_guard lock(mu_);
     auto it = leases_.find(lease_id);
@@ -815,8 +834,14 @@ FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string
     const uint32_t index = it->second.chunk;
     if (m.chunks[index].state != Chunk::State::kLeased || m.chunks[index].lease_id != lease_id)
       return FailOutcome::kUnknownLease;
-    if (m.chunks[index].worker_id != worker_id) return FailOutcome::kNotHolder;
-    RequeueLocked(m, index, "piece-failed", "failed by " + worker_id + ": " + reason, &release, &failures);
+    if (m.chunks[index].worker_id != worker_id)
+      hijack = Hijack{m.job_id, index, m.chunks[index].worker_id};
+    else
+      RequeueLocked(m, index, "piece-failed", "failed by " + worker_id + ": " + reason, &release, &failures);
+  }
+  if (hijack) {
+    ConvictHijacker(*hijack, worker_id, "FailTask");
+    return FailOutcome::kNotHolder;
   }
   Report(failures);
   Release(release);

@@ -225,6 +225,15 @@ class DistributedMaps final : public MapTracingHook {
   // describes.
   static std::set<std::string> ReadTracers(const std::filesystem::path& file);
   static void WriteTracers(const std::filesystem::path& file, const std::set<std::string>& workers);
+  // A call with a piece lease held by another worker: the piece's job and the holder.
+  struct Hijack {
+    std::string job_id;
+    uint32_t piece = 0;
+    std::string holder;
+  };
+  // Refused, and its caller convicted in the piece's job whatever `convict` says (builds do not
+  // differ in whose lease is whose): Scheduler::NotTheHolderLocked says why. Call without mu_.
+  void ConvictHijacker(const Hijack& hijack, const std::string& worker_id, const std::string& call);
   // A piece that is not the coordinator's trace: counted, and with `convict` its lease dropped (the
   // piece queued again) and its uploader convicted. Call without mu_ and check_mu_.
   void RefuseAndConvict(const std::string& lease_id, const std::string& worker_id, const std::string& why);

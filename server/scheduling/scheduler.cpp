@@ -95,6 +95,17 @@ void Scheduler::Run(Effects& fx) {
   if (fx.persist && persist) persist();
   if (change)
     for (const std::string& id : fx.changed) change(id);
+  for (const Effects::Conviction& c : fx.convictions)
+    ConvictWorker(c.job_id, c.worker_id, c.task_id, c.evidence);
+}
+
+void Scheduler::NotTheHolderLocked(const std::string& job_id, uint64_t task_id, const std::string& worker_id,
+                                   const std::string& holder, const std::string& call, Effects& fx) {
+  spdlog::warn("job {} task {}: {} from worker {} refused: the lease is held by {}", job_id, task_id, call,
+               limits::Quote(worker_id, limits::kMaxWorkerIdBytes), holder);
+  fx.convictions.push_back(
+      {job_id, worker_id, task_id,
+       call + " with the lease of task " + std::to_string(task_id) + ", held by another worker"});
 }
 
 void Scheduler::Touch(Job& job, Effects& fx) {
@@ -641,9 +652,7 @@ ExtendResult Scheduler::Extend(const std::string& lease_id, const std::string& w
       if (rt.worker_id != worker_id) {
         // A lease id that reached another worker does not keep the task from being re-run.
         result.not_holder = true;
-        spdlog::warn("job {} task {}: ExtendLease from worker {} refused: the lease is held by {}",
-                     ref->job->id(), ref->task_id, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
-                     rt.worker_id);
+        NotTheHolderLocked(ref->job->id(), ref->task_id, worker_id, rt.worker_id, "ExtendLease", fx);
       } else {
         rt.lease_deadline = now + options_.lease_seconds;
         rt.progress = std::isfinite(progress) ? std::clamp(progress, 0.0, 1.0) : 0.0;
@@ -679,9 +688,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       // holder's lease stays as it is.
       result.status = CompleteStatus::kNotHolder;
       result.reason = "the lease is held by another worker";
-      spdlog::warn("job {} task {}: result from worker {} refused: the lease is held by {}", ref->job->id(),
-                   ref->task_id, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
-                   ref->job->runtime(ref->task_id).worker_id);
+      NotTheHolderLocked(ref->job->id(), ref->task_id, worker_id, ref->job->runtime(ref->task_id).worker_id,
+                         "CompleteTask", fx);
     } else if (!ref || ref->job->runtime(ref->task_id).merging) {
       ++counters_.ignored;
       result.reason =
@@ -1077,9 +1085,7 @@ FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& work
         // A lease id that reached another worker (a log, a copied command line) does not let it
         // end the task — with retryable = false, the whole job.
         outcome = FailOutcome::kNotHolder;
-        spdlog::warn("job {} task {}: FailTask from worker {} refused: the lease is held by {}",
-                     ref->job->id(), ref->task_id, limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
-                     rt.worker_id);
+        NotTheHolderLocked(ref->job->id(), ref->task_id, worker_id, rt.worker_id, "FailTask", fx);
       } else {
         outcome = FailOutcome::kFailed;
         activity_.TaskEvent(ref->job->id(), "failed", ref->task_id, rt.attempts, rt.worker_id,

@@ -250,15 +250,15 @@ class Scheduler final : public PersistSource {
   void ReturnLease(const std::string& lease_id);
 
   // A worker sent a result of the job (a render task or a map piece) that another render proved
-  // wrong (docs/farm.md, "Result verification"). The worker is blocklisted for the job (and counts
-  // towards its quarantine), an event says why, and — since its results are in the job's image
-  // and, through its pieces, in its maps — the job starts again from nothing without it
-  // (Job::Restart): all of its tasks are queued again and its leases dropped; the job leases
-  // nothing until the checkpoint of the empty image and its row (epoch, convicted workers) are
-  // stored (a stop rule may still end it meanwhile). A finished job is left as it is (false).
-  // `task_id` names the task or piece the evidence is about, for the event.
-  // Its pieces leave every stored map first (MapTracingHook::WorkerConvicted), and every other
-  // active job that used such a map starts again as well.
+  // wrong (docs/farm.md, "Result verification"), or presented another worker's lease. The worker
+  // is blocklisted for the job (and counts towards its quarantine), an event says why, and — if
+  // its results may be in the job's image or, through its pieces, in its maps (ConvictInJob; a
+  // hijack before any of its results merged ends only its leases) — the job starts again from nothing without
+  // it (Job::Restart): all of its tasks are queued again and its leases dropped; the job leases nothing until
+  // the checkpoint of the empty image and its row (epoch, convicted workers) are stored (a stop rule may
+  // still end it meanwhile). A finished job is left as it is (false). `task_id` names the task or piece the
+  // evidence is about, for the event. Its pieces leave every stored map first
+  // (MapTracingHook::WorkerConvicted), and every other active job that used such a map starts again as well.
   bool ConvictWorker(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
                      const std::string& evidence);
 
@@ -320,6 +320,14 @@ class Scheduler final : public PersistSource {
     std::set<std::string> changed;
     bool persist = false;
     std::vector<RefereeCase> referee;  // verifications for the referee (Run hands them over)
+    // Workers that presented a lease held by another worker (NotTheHolderLocked): Run convicts
+    // them (ConvictWorker takes the locks itself).
+    struct Conviction {
+      std::string job_id, worker_id;
+      uint64_t task_id = 0;
+      std::string evidence;
+    };
+    std::vector<Conviction> convictions;
   };
   struct Waiter {
     LeaseRequest request;
@@ -328,6 +336,12 @@ class Scheduler final : public PersistSource {
   };
 
   void Run(Effects& effects);  // outside the lock
+  // `worker_id` presented the lease of `job_id`'s task `task_id` (`call`: the RPC) while another
+  // worker holds it. Lease ids are 128 CSPRNG bits and never logged, and an honest worker keeps
+  // its id for the lifetime of its process, so this is a leaked id put to use: the presenter is
+  // convicted (docs/security.md, "Leases are bound to their worker"). Logs the refusal.
+  void NotTheHolderLocked(const std::string& job_id, uint64_t task_id, const std::string& worker_id,
+                          const std::string& holder, const std::string& call, Effects& fx);
   void Touch(Job& job, Effects& fx);
   void Enqueue(Job& job, uint64_t task_id, Effects& fx);
   void Dequeue(Job& job, uint64_t task_id);
@@ -412,10 +426,13 @@ class Scheduler final : public PersistSource {
   void SucceedOnTarget(Job& job, double now, Effects& fx);
   // Convicts `workers` of the job (ConvictWorker's rule): blocklisted, the job restarted — unless
   // the evidence is a result of an epoch before every one of them was convicted in this job already
-  // (`result_epoch`). `verification_id` (if not 0) is removed in the same hold of the locks.
+  // (`result_epoch`), or the image holds nothing of theirs (no evidence about a merged result, no
+  // map with their pieces (`used_their_maps`), no merged task of theirs or of an unknown worker):
+  // then only their leases of the job end. `verification_id` (if not 0) is removed in the same
+  // hold of the locks.
   bool ConvictInJob(Job& job, const std::vector<std::string>& workers, uint64_t task_id,
                     const std::string& evidence, std::optional<uint32_t> result_epoch,
-                    uint64_t verification_id);
+                    uint64_t verification_id, bool used_their_maps);
   // ConvictWorker for several workers of one verdict: stored maps purged, then the job and the
   // other jobs that used their maps.
   bool Convict(const std::string& job_id, const std::vector<std::string>& workers, uint64_t task_id,

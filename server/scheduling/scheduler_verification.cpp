@@ -110,8 +110,7 @@ CompleteResult Scheduler::CompleteVerification(const std::string& lease_id, cons
     if (v && v->verifier != worker_id) {
       result.status = CompleteStatus::kNotHolder;
       result.reason = "the lease is held by another worker";
-      spdlog::warn("job {} task {}: result from worker {} refused: the lease is held by {}", v->job->id(),
-                   v->task_id, Who(worker_id), v->verifier);
+      NotTheHolderLocked(v->job->id(), v->task_id, worker_id, v->verifier, "CompleteTask", fx);
     } else if (!v || v->checking) {
       ++counters_.ignored;
       result.reason =
@@ -201,7 +200,10 @@ std::optional<ExtendResult> Scheduler::ExtendVerificationLocked(const std::strin
     ExpireVerificationLocked(*v, now, fx);
     return ExtendResult{};
   }
-  if (v->verifier != worker_id) return ExtendResult{.not_holder = true};
+  if (v->verifier != worker_id) {
+    NotTheHolderLocked(v->job->id(), v->task_id, worker_id, v->verifier, "ExtendLease", fx);
+    return ExtendResult{.not_holder = true};
+  }
   v->deadline = now + options_.lease_seconds;
   return ExtendResult{true, options_.lease_seconds};
 }
@@ -217,7 +219,10 @@ std::optional<FailOutcome> Scheduler::FailVerificationLocked(const std::string& 
     return FailOutcome::kUnknownLease;
   }
   if (v->checking) return FailOutcome::kUnknownLease;  // its result decides
-  if (v->verifier != worker_id) return FailOutcome::kNotHolder;
+  if (v->verifier != worker_id) {
+    NotTheHolderLocked(v->job->id(), v->task_id, worker_id, v->verifier, "FailTask", fx);
+    return FailOutcome::kNotHolder;
+  }
   // As a task's, with one difference: "not retryable" does not fail the job — another worker
   // already rendered this task, so it counts as a failed attempt of this worker only.
   activity_.TaskEvent(v->job->id(), "failed", v->task_id, v->job->runtime(v->task_id).attempts + v->leases,
@@ -420,11 +425,18 @@ bool Scheduler::Convict(const std::string& job_id, const std::vector<std::string
   // Their pieces leave every stored map first, so that the restarted jobs wait for maps traced
   // again without them (map_tracing_hook.h).
   std::map<std::string, std::vector<std::string>> used_their_maps;  // job id → its convicted workers
+  bool used_here = false;  // the job itself used a map with their pieces
   if (hook)
-    for (const std::string& w : workers)
-      for (const std::string& id : hook->WorkerConvicted(w))
-        if (id != job_id) used_their_maps[id].push_back(w);
-  const bool restarted = ConvictInJob(*job, workers, task_id, evidence, result_epoch, verification_id);
+    for (const std::string& w : workers) {
+      for (const std::string& id : hook->WorkerConvicted(w)) {
+        if (id != job_id)
+          used_their_maps[id].push_back(w);
+        else
+          used_here = true;
+      }
+    }
+  const bool restarted =
+      ConvictInJob(*job, workers, task_id, evidence, result_epoch, verification_id, used_here);
   for (const auto& [id, convicted] : used_their_maps) {
     Job* other = nullptr;
     {
@@ -435,14 +447,14 @@ bool Scheduler::Convict(const std::string& job_id, const std::vector<std::string
       ConvictInJob(*other, convicted, 0,
                    "its image used a photon map with pieces traced by a worker convicted in job " + job_id +
                        " (" + evidence + ")",
-                   std::nullopt, 0);
+                   std::nullopt, 0, /*used_their_maps=*/true);
   }
   return restarted;
 }
 
 bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, uint64_t task_id,
                              const std::string& evidence, std::optional<uint32_t> result_epoch,
-                             uint64_t verification_id) {
+                             uint64_t verification_id, bool used_their_maps) {
   Effects fx;
   bool restarted = false;
   {
@@ -469,6 +481,15 @@ bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, 
         job.row_dirty = true;
       }
     }
+    // Whether the job's image may hold their work: evidence about a merged result, a map with
+    // their pieces, a merged task of theirs — or of a worker no longer known (recovered tasks).
+    bool holds_their_work = result_epoch.has_value() || used_their_maps;
+    for (uint64_t id = 0; id < job.num_tasks() && !holds_their_work; ++id) {
+      const TaskRuntime& rt = job.runtime(id);
+      holds_their_work =
+          rt.state == TaskState::kDone &&
+          (rt.worker_id.empty() || std::find(workers.begin(), workers.end(), rt.worker_id) != workers.end());
+    }
     Touch(job, fx);
     if (!job.active()) {
       health_.JobEnded(job.id());  // the job's failure counts went with its end; so does this one's
@@ -478,6 +499,22 @@ bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, 
       spdlog::warn("job {}: worker {} convicted again ({}); its results went with an earlier restart",
                    job.id(), names, evidence);
       MaybeSucceed(job, now, fx);
+    } else if (!holds_their_work) {
+      // Nothing of theirs is in the image (a lease hijack before any result of theirs merged):
+      // blocklisted, their leases end, the job goes on.
+      for (uint64_t id = 0; id < job.num_tasks(); ++id) {
+        const TaskRuntime& rt = job.runtime(id);
+        if (rt.state == TaskState::kLeased &&
+            std::find(workers.begin(), workers.end(), rt.worker_id) != workers.end()) {
+          activity_.TaskEvent(job.id(), "failed", id, rt.attempts, rt.worker_id, "its worker was convicted");
+          FailAttempt(job, id, "worker convicted: " + evidence, true, now, fx);
+        }
+      }
+      for (const std::string& w : workers) verification_.RecordConviction(job, w, job.epoch());
+      spdlog::error(
+          "job {}: worker {} convicted ({}): blocklisted for the job; none of its results is in the "
+          "image, the job goes on",
+          job.id(), names, evidence);
     } else {
       restarted = true;
       // Its leases, queued tasks and verifications go; the plan's tasks come back, all queued,

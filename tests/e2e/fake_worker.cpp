@@ -18,6 +18,12 @@
 //   shift-photons  the same for map pieces: traces a piece honestly, then moves the last quarter of
 //              each photon list (past the first 4096 photons the coordinator always checks) by a
 //              millimetre, re-serialized with fresh checksums; render tasks are honest
+//   hijack     a lease hijack (docs/security.md, "Leases are bound to their worker"): leases a task
+//              or map piece as an accomplice (--worker-id + "-accomplice", the holder whose lease id
+//              leaked), then presents that lease as --worker-id: ExtendLease, CompleteTask (zeros)
+//              or UploadPhotonChunk (an empty piece), FailTask(retryable = false); then the
+//              accomplice hands the lease back (FailTask, retryable) and the attacker asks for work
+//              again. Exit 0 if every call of the attacker was refused with PERMISSION_DENIED
 // Prints one JSON object on stdout. Exit 0 if the mode did what it was asked, 1 otherwise.
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -33,6 +39,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/core/sha256.h"
 #include "common/photon/photon_chunk.h"
 #include "common/plan/task_plan.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
@@ -269,6 +276,94 @@ int Malicious(const Options& o) {
   std::_Exit(tampered > 0 ? 0 : 1);
 }
 
+// A leaked lease put to use by another worker: every call must be refused, and nothing of the
+// attacker's may be taken.
+int Hijack(const Options& o) {
+  auto stub = v1::WorkerService::NewStub(pf::MakeCoordinatorChannel(o.coordinator, {}));
+  Options accomplice = o;
+  accomplice.worker_id = WorkerId(o) + "-accomplice";
+  v1::Task task;
+  grpc::Status st;
+  const Clock::time_point until = Clock::now() + pf::Seconds(o.seconds);
+  while (!LeaseOne(*stub, accomplice, 1, &task, &st))
+    if (Clock::now() > until) {
+      std::printf(
+          "%s\n",
+          nlohmann::json{{"error", "no task leased"}, {"status", pf::StatusToString(st)}}.dump().c_str());
+      return 1;
+    }
+  const bool piece = task.has_trace_chunk();
+  std::fprintf(stderr, "leased-%s job=%s\n", piece ? "piece" : "task", task.job_id().c_str());
+  auto ctx = [&] {
+    auto c = std::make_unique<grpc::ClientContext>();
+    pf::PrepareContext(c.get(), o.token, std::chrono::seconds(10));
+    return c;
+  };
+  nlohmann::json calls;
+  {
+    v1::ExtendLeaseRequest req;
+    req.set_lease_id(task.lease_id());
+    req.set_worker_id(WorkerId(o));
+    req.set_progress(0.5);
+    v1::ExtendLeaseResponse resp;
+    calls["ExtendLease"] = pf::StatusToString(stub->ExtendLease(ctx().get(), req, &resp));
+  }
+  if (piece) {
+    pf::PhotonChunk empty;
+    empty.begin = task.trace_chunk().photon_begin();
+    empty.end = task.trace_chunk().photon_end();
+    const std::string bytes = pf::SerializePhotonChunk(empty);
+    v1::UploadPhotonChunkResponse resp;
+    auto c = ctx();
+    std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(stub->UploadPhotonChunk(c.get(), &resp));
+    v1::PhotonChunkPart part;
+    part.set_lease_id(task.lease_id());
+    part.set_worker_id(WorkerId(o));
+    part.set_total_bytes(bytes.size());
+    part.set_digest(pf::Sha256Hex(bytes));
+    part.set_offset(0);
+    part.set_data(bytes);
+    part.set_sha256(pf::Sha256Hex(bytes));
+    writer->Write(part);
+    writer->WritesDone();
+    calls["UploadPhotonChunk"] = pf::StatusToString(writer->Finish());
+  } else {
+    v1::CompleteTaskRequest req;
+    req.set_lease_id(task.lease_id());
+    req.set_worker_id(WorkerId(o));
+    for (uint64_t i = 0, n = PixelsOfTask(task) * 3; i < n; ++i) req.add_rgb_sums(0);
+    v1::CompleteTaskResponse resp;
+    calls["CompleteTask"] = pf::StatusToString(stub->CompleteTask(ctx().get(), req, &resp));
+  }
+  {
+    v1::FailTaskRequest req;
+    req.set_lease_id(task.lease_id());
+    req.set_worker_id(WorkerId(o));
+    req.set_reason("hijack: end the job");
+    req.set_retryable(false);
+    v1::FailTaskResponse resp;
+    calls["FailTask"] = pf::StatusToString(stub->FailTask(ctx().get(), req, &resp));
+  }
+  {  // the accomplice hands the lease back, so that an honest worker takes it without waiting
+    v1::FailTaskRequest req;
+    req.set_lease_id(task.lease_id());
+    req.set_worker_id(accomplice.worker_id);
+    req.set_reason("handed back (pf_fake_worker --mode hijack)");
+    req.set_retryable(true);
+    v1::FailTaskResponse resp;
+    calls["accomplice FailTask"] = pf::StatusToString(stub->FailTask(ctx().get(), req, &resp));
+  }
+  bool refused = true;
+  for (const auto& [call, status] : calls.items())
+    if (call.rfind("accomplice", 0) != 0)
+      refused = refused && status.get<std::string>().rfind("PERMISSION_DENIED", 0) == 0;
+  std::printf("%s\n",
+              nlohmann::json{{"mode", "hijack"}, {"piece", piece}, {"calls", calls}, {"refused", refused}}
+                  .dump()
+                  .c_str());
+  return refused ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -278,9 +373,9 @@ int main(int argc, char** argv) {
   app.add_option("--coordinator", o.coordinator, "HOST:PORT")->required();
   app.add_option("--token-file", token_file, "Bearer token file (default $PF_TOKEN)");
   app.add_option("--mode", o.mode,
-                 "bad-size | nan | negative | huge | flaky | instant | scale | shift-photons")
+                 "bad-size | nan | negative | huge | flaky | instant | scale | shift-photons | hijack")
       ->check(CLI::IsMember(
-          {"bad-size", "nan", "negative", "huge", "flaky", "instant", "scale", "shift-photons"}));
+          {"bad-size", "nan", "negative", "huge", "flaky", "instant", "scale", "shift-photons", "hijack"}));
   app.add_option("--factor", o.factor, "scale: every value of a result is multiplied by this")
       ->capture_default_str();
   app.add_option("--cache-dir", o.cache_dir, "scale, shift-photons: the worker's scene cache")
@@ -289,7 +384,7 @@ int main(int argc, char** argv) {
   app.add_option("--wait", o.wait, "bad-size/nan/negative/huge: seconds to wait for a task")
       ->capture_default_str();
   app.add_option("--tasks", o.tasks, "instant: stop after this many merged results")->capture_default_str();
-  app.add_option("--seconds", o.seconds, "flaky, instant, scale, shift-photons: stop after this long")
+  app.add_option("--seconds", o.seconds, "flaky, instant, scale, shift-photons, hijack: stop after this long")
       ->capture_default_str();
   app.add_option("--concurrency", o.concurrency, "instant: parallel fake workers")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -298,6 +393,7 @@ int main(int argc, char** argv) {
     if (o.mode == "instant") return Instant(o);
     if (o.mode == "flaky") return Flaky(o);
     if (o.mode == "scale" || o.mode == "shift-photons") return Malicious(o);
+    if (o.mode == "hijack") return Hijack(o);
     return BadResult(o);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "pf_fake_worker: %s\n", e.what());

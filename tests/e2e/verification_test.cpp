@@ -6,7 +6,8 @@
 // poisoned map was stored and reused. Now, with verification on (every result, or every piece, so
 // that the outcome is certain), the malicious worker is convicted ("convicted" event, blocklisted
 // for the job), the job starts again without it and SUCCEEDS with an image bit-identical to the
-// local render.
+// local render. A lease hijack (a leaked lease id presented by another worker) is refused and
+// convicts the presenter the same way.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -28,6 +29,7 @@ struct Attack {
   std::vector<std::string> job;          // pf render / submit flags
   std::vector<std::string> farm_only;    // pf submit only
   std::string leased;                    // the malicious worker's log line once it has work
+  bool restarts = true;                  // its conviction restarts the job (its work was merged)
 };
 
 // The skipping job the e2e tests share (8 tasks); every merged result verified by another worker.
@@ -49,7 +51,27 @@ Attack ShiftedPhotons() {
           {"--integrator", "photonmap", "--photons", "20000", "--k", "20", "--plan", "multiple-maps",
            "--maps", "2", "--tile", "16", "--res", "32x32", "--spp", "1", "--seed", "9"},
           {"--map-tracing", "distributed"},
-          "leased-piece job="};
+          "leased-piece job=",
+          // Its first piece is refused and convicts it before it has anything else: no map or
+          // image holds its work.
+          false};
+}
+
+// A lease hijack: the malicious worker presents a lease held by another worker (its accomplice:
+// the id leaked) — heartbeat, result or piece upload, FailTask(retryable = false). Every call is
+// refused and convicts it; none of its work is in the image, so the job goes on without a restart.
+Attack LeaseHijack() {
+  return {"hijack-task", {"--mode", "hijack"}, {}, JobArgs{}.ToFlags(), {}, "leased-task job=", false};
+}
+Attack PieceLeaseHijack() {
+  return {"hijack-piece",
+          {"--mode", "hijack"},
+          {"--map-chunk-photons", "8192"},
+          {"--integrator", "photonmap", "--photons", "20000", "--k", "20", "--plan", "multiple-maps",
+           "--maps", "2", "--tile", "16", "--res", "32x32", "--spp", "1", "--seed", "9"},
+          {"--map-tracing", "distributed"},
+          "leased-piece job=",
+          false};
 }
 
 // Its name, not its bytes, in test listings (ctest reads them).
@@ -97,13 +119,18 @@ TEST_P(MaliciousWorker, IsConvictedAndTheJobEndsInTheHonestImage) {
       RunCommand({Binaries::Pf(), "events", job_id, "--coordinator", coordinator.address()}, dir.path());
   ASSERT_EQ(events.exit_code, 0) << events.err;
   EXPECT_TRUE(std::regex_search(events.out, std::regex("convicted +[0-9]+ +[0-9]+ +mallory"))) << events.out;
-  EXPECT_TRUE(std::regex_search(events.out, std::regex("restarted .*mallory"))) << events.out;
+  EXPECT_EQ(std::regex_search(events.out, std::regex("restarted .*mallory")), attack.restarts) << events.out;
   EXPECT_FALSE(std::regex_search(events.out, std::regex("convicted +[0-9]+ +[0-9]+ +w[12]"))) << events.out;
   if (attack.fake_worker[1] == "scale") {
     // Its lie was seen by a verification: a mismatch (it verified, or was verified by, an honest
     // worker) or the coordinator's own render; the honest results were verified.
     EXPECT_TRUE(std::regex_search(events.out, std::regex("(mismatch|refereed) ")));
     EXPECT_GT(st.results_verified(), 0u);
+  }
+  if (attack.fake_worker[1] == "hijack") {
+    // Every call it made with the other worker's lease was refused.
+    const std::optional<int> code = mallory.Wait(20);
+    EXPECT_EQ(code, 0) << ReadFile(dir / "mallory.json");
   }
   for (auto* w : {w1.get(), w2.get()}) w->Signal(SIGTERM);
   for (auto* w : {w1.get(), w2.get()}) EXPECT_TRUE(w->Wait(20).has_value());
@@ -113,7 +140,7 @@ TEST_P(MaliciousWorker, IsConvictedAndTheJobEndsInTheHonestImage) {
 
 INSTANTIATE_TEST_SUITE_P(Attacks, MaliciousWorker,
                          ::testing::Values(ScaledResults("1.5"), ScaledResults("1000"), ScaledResults("0"),
-                                           ShiftedPhotons()),
+                                           ShiftedPhotons(), LeaseHijack(), PieceLeaseHijack()),
                          [](const ::testing::TestParamInfo<Attack>& info) {
                            std::string name = info.param.name;
                            for (char& c : name)

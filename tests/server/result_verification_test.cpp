@@ -95,10 +95,12 @@ class VerificationTest : public ::testing::Test {
         c.verification_id,
         ResultMerger::Digest(SyntheticResult(c.task, c.config->camera.width, c.config->camera.height)));
   }
-  // The empty checkpoint of a restarted job is stored: it leases again.
+  // The empty checkpoint of a restarted job and its row (epoch, convicted workers) are stored: it
+  // leases again.
   void StoreRestart() {
     for (const Checkpoint& cp : scheduler_.CollectCheckpoints(false))
       scheduler_.CheckpointStored(cp, CheckpointSeal{0, 1}, "/restart.acc");
+    scheduler_.RowsStored(scheduler_.CollectRows());
   }
 
   FakeClock clock_;
@@ -200,9 +202,16 @@ TEST_F(VerificationTest, VerificationLeasesAreBoundExpireFailAndReturnLikeTaskLe
   const Lease first = MustLease("w1");
   ASSERT_EQ(Send(first, Honest(first)), CompleteStatus::kMerged);
   Lease check = MustLease("w2");
-  EXPECT_EQ(scheduler_.Complete(check.lease_id, "w3", Honest(check)).status, CompleteStatus::kNotHolder);
-  EXPECT_TRUE(scheduler_.Extend(check.lease_id, "w3", 0.5).not_holder);
-  EXPECT_EQ(scheduler_.Fail(check.lease_id, "w3", "sabotage", false), FailOutcome::kNotHolder);
+  // A stranger presenting the lease is refused and convicted (blocklisted for the job); nothing of
+  // its is in the image, so the job goes on.
+  EXPECT_EQ(scheduler_.Complete(check.lease_id, "thief", Honest(check)).status, CompleteStatus::kNotHolder);
+  EXPECT_TRUE(scheduler_.Extend(check.lease_id, "thief", 0.5).not_holder);
+  EXPECT_EQ(scheduler_.Fail(check.lease_id, "thief", "sabotage", false), FailOutcome::kNotHolder);
+  EXPECT_EQ(Events(id, "convicted", "thief"), 3);
+  EXPECT_EQ(scheduler_.JobEpoch(id), 0u) << "not restarted";
+  ASSERT_EQ(scheduler_.Status(id).blocklisted_workers_size(), 1);
+  EXPECT_EQ(scheduler_.Status(id).blocklisted_workers(0).worker_id(), "thief");
+  EXPECT_EQ(scheduler_.Status(id).tasks_done(), 1u);
   EXPECT_TRUE(scheduler_.Extend(check.lease_id, "w2", 0.5).ok);
   scheduler_.ReturnLease(check.lease_id);
   EXPECT_EQ(Events(id, "returned", "w2"), 1);
@@ -224,7 +233,7 @@ TEST_F(VerificationTest, VerificationLeasesAreBoundExpireFailAndReturnLikeTaskLe
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING);
   AnswerHonestly();
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
-  EXPECT_EQ(scheduler_.Status(id).blocklisted_workers_size(), 0) << "one failure each";
+  EXPECT_EQ(scheduler_.Status(id).blocklisted_workers_size(), 1) << "the thief only: one failure each";
 }
 
 // A one-worker farm: nobody else may verify, so the job, once its tasks are merged, hands its

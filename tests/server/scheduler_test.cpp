@@ -157,6 +157,12 @@ TEST_F(SchedulerTest, OnlyTheLeaseHolderCanFailItsTask) {
   v1::JobStatus s = scheduler_.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING);
   EXPECT_EQ(scheduler_.counters().failed_attempts, 0u);
+  // Presenting another worker's lease convicts (docs/security.md): blocklisted for the job, which
+  // holds nothing of the stranger's and goes on.
+  ASSERT_EQ(s.blocklisted_workers_size(), 1);
+  EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "stranger");
+  EXPECT_EQ(scheduler_.JobEpoch(id), 0u);
+  EXPECT_FALSE(scheduler_.TryLease({"stranger", {}}).has_value());
   EXPECT_EQ(CompleteOk(a).status, CompleteStatus::kMerged) << "the holder's lease is intact";
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
 }
@@ -829,9 +835,6 @@ TEST(JobStateMachine, OnlyForwardTransitions) {
   EXPECT_FALSE(Job::CanTransition(JobState::kFailed, JobState::kFailed));
 }
 
-}  // namespace
-}  // namespace pf::server
-
 namespace pf::server {
 namespace {
 
@@ -1348,6 +1351,25 @@ TEST_F(SchedulerTest, ARestartedJobGetsItsTimeBudgetAgain) {
   const v1::JobStatus s = scheduler_.Status(id);
   EXPECT_EQ(s.state(), v1::JOB_STATE_RUNNING) << "11 s since submission, 2 s since the restart";
   EXPECT_EQ(CompleteOk(MustLease("honest")).status, CompleteStatus::kMerged);
+}
+
+}  // namespace
+}  // namespace pf::server
+
+// A worker that presents another worker's lease after one of its own results merged is convicted
+// and, since its result is in the image, the job restarts without it; the holder's lease goes with
+// the restart.
+TEST_F(SchedulerTest, AHijackerWhoseResultIsInTheImageRestartsTheJob) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4));
+  EXPECT_EQ(CompleteOk(MustLease("mallory")).status, CompleteStatus::kMerged);
+  const Lease held = MustLease("holder");
+  EXPECT_TRUE(scheduler_.Extend(held.lease_id, "mallory", 0.5).not_holder);
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(scheduler_.JobEpoch(id), 1u);
+  EXPECT_EQ(s.tasks_done(), 0u);
+  ASSERT_EQ(s.blocklisted_workers_size(), 1);
+  EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "mallory");
+  EXPECT_EQ(CompleteOk(held).status, CompleteStatus::kIgnored) << "its lease went with the restart";
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <future>
 #include <map>
 #include <optional>
+#include <set>
 #include <thread>
 
 #include "common/core/sha256.h"
@@ -350,11 +351,11 @@ grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id, con
 
 // The hostile farm: a second worker renewed another's piece lease, uploaded an empty piece (it was
 // taken), the honest upload was refused, and the job SUCCEEDED with a third of its photons. Now
-// the lease is bound to its holder: the stranger's heartbeat, upload and FailTask are refused and
-// change nothing; the holder's own empty piece is refused too (its first photons are not the
-// trace of them), and convicts it (docs/farm.md "Result verification": blocklisted for the job,
-// the piece queued again); the honest piece, from another worker, is taken and the map built from
-// it is complete.
+// the lease is bound to its holder: the stranger's heartbeat, upload and FailTask are refused,
+// change nothing and convict the stranger (blocklisted for the job); the holder's own empty piece is refused
+// too (its first photons are not the trace of them), and convicts it (docs/farm.md "Result verification":
+// blocklisted for the job, the piece queued again); the honest piece, from another worker, is taken and the
+// map built from it is complete.
 TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesTheMap) {
   v1::JobSpec spec = SmallSpec(hash_, OneMapPlan());
   spec.mutable_settings()->mutable_photon_map()->set_photons(8192);
@@ -405,8 +406,10 @@ TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesThe
   EXPECT_THAT(st.error_message(), HasSubstr("not the coordinator's trace of them"));
   EXPECT_EQ(live_->coordinator->maps().counters().chunks_stored, 0u);
   const v1::JobStatus convicted = GetJob(*live_, id);
-  ASSERT_EQ(convicted.blocklisted_workers_size(), 1);
-  EXPECT_EQ(convicted.blocklisted_workers(0).worker_id(), "holder");
+  ASSERT_EQ(convicted.blocklisted_workers_size(), 2) << "the thief, for presenting another's lease";
+  std::set<std::string> blocklisted;
+  for (const auto& b : convicted.blocklisted_workers()) blocklisted.insert(b.worker_id());
+  EXPECT_EQ(blocklisted, (std::set<std::string>{"holder", "thief"}));
   EXPECT_FALSE(Lease(*live_, 0, "holder").has_value()) << "blocklisted for the job";
 
   // The honest piece, from another worker: taken, and the map is built from all of its photons.
