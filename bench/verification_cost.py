@@ -15,11 +15,10 @@ system) of the two workers and of the coordinator; the job's wall time (submit t
 from the coordinator's log, the verification leases handed out and the tasks the coordinator
 rendered itself (the referee). Extra work = median worker + coordinator CPU of a variant over
 the baseline's, minus 1. The images of all runs must be identical (verification never changes
-the image; checked, exit 1 otherwise).
+the image; checked pixel for pixel with `pf diff`, exit 1 otherwise).
 Prints a table and the JSON; --json-out also writes the JSON to a file.
 """
 import argparse
-import hashlib
 import json
 import os
 import re
@@ -53,7 +52,7 @@ def stop(p):
         p.wait()
 
 
-def one_run(build, fraction, work):
+def one_run(build, fraction, work, reference):
     pf = os.path.join(build, "client", "pf")
     coord_args = ["--verify-fraction", str(fraction)] + (["--no-verify-outliers"] if fraction == 0 else [])
     out = open(os.path.join(work, "coordinator.out"), "w+")
@@ -82,22 +81,29 @@ def one_run(build, fraction, work):
         if r.returncode != 0:
             sys.exit("pf submit failed: " + r.stderr)
         job = r.stdout.strip()
+        deadline = time.monotonic() + 600
         while True:
+            if time.monotonic() > deadline:
+                sys.exit("the job did not end within 600 s")
             s = subprocess.run([pf, "list", "--all", "--json", "--coordinator", address], capture_output=True,
                                text=True)
             listed = json.loads(s.stdout)
             listed = listed.get("jobs", listed) if isinstance(listed, dict) else listed
             st = next(j for j in listed if j["job_id"] == job)
-            if st["state"] in ("SUCCEEDED", "FAILED", "CANCELLED"):
+            if st["state"].upper() in ("SUCCEEDED", "FAILED", "CANCELLED"):
                 break
             time.sleep(0.1)
         wall = time.monotonic() - t0
-        if st["state"] != "SUCCEEDED":
+        if st["state"].upper() != "SUCCEEDED":
             sys.exit(f"job {st['state']}: {st['failure_reason']}")
         image = os.path.join(work, "out.exr")
-        subprocess.run([pf, "get", job, "-o", image, "--no-png", "--coordinator", address], check=True,
+        subprocess.run([pf, "get", job, "-o", image, "--coordinator", address], check=True,
                        capture_output=True)
-        digest = hashlib.sha256(open(image, "rb").read()).hexdigest()
+        # The pixels, not the file: the EXR's header names the job.
+        if not os.path.exists(reference):
+            shutil.copy(image, reference)
+        d = subprocess.run([pf, "diff", image, reference, "--json"], capture_output=True, text=True, check=True)
+        identical = json.loads(d.stdout)["max_abs_error"] == 0
         worker_cpu = sum(cpu_seconds(w.pid) for w in workers)
         coord_cpu = cpu_seconds(coord.pid)
     finally:
@@ -108,7 +114,7 @@ def one_run(build, fraction, work):
     return {"wall_seconds": round(wall, 3), "worker_cpu": round(worker_cpu, 3), "coordinator_cpu": round(coord_cpu, 3),
             "tasks": st["tasks_total"], "verification_leases": len(re.findall(r"verification leased to", text)),
             "referee_renders": len(re.findall(r"referee: job \S+ task \d+ rendered", text)),
-            "results_verified": st.get("results_verified", 0), "image_sha256": digest}
+            "results_verified": st.get("results_verified", 0), "image_identical": identical}
 
 
 def main():
@@ -120,18 +126,20 @@ def main():
     a = ap.parse_args()
     fractions = [float(f) for f in a.fractions.split(",")]
     results = {"machine": {"cores": os.cpu_count(), "load_before": os.getloadavg()}, "job": JOB, "runs": {}}
+    keep = tempfile.mkdtemp(prefix="pf-verify-cost-ref-")
+    reference = os.path.join(keep, "first.exr")  # the first run's image: every run's must equal it
     for rep in range(a.repeat):
         for f in fractions:
             work = tempfile.mkdtemp(prefix="pf-verify-cost-")
             try:
-                run = one_run(a.build, f, work)
+                run = one_run(a.build, f, work, reference)
             finally:
                 shutil.rmtree(work, ignore_errors=True)
             results["runs"].setdefault(str(f), []).append(run)
             print(f"run {rep + 1} fraction {f}: {run}", file=sys.stderr)
     results["machine"]["load_after"] = os.getloadavg()
-    images = {r["image_sha256"] for runs in results["runs"].values() for r in runs}
-    results["images_identical"] = len(images) == 1
+    shutil.rmtree(keep, ignore_errors=True)
+    results["images_identical"] = all(r["image_identical"] for runs in results["runs"].values() for r in runs)
     base = None
     print(f"{'fraction':>9} {'tasks':>6} {'verif. leases':>14} {'referee':>8} {'worker CPU s':>13} "
           f"{'coord. CPU s':>13} {'extra work':>11} {'wall s':>8}")
