@@ -81,6 +81,9 @@ class Job {
   const std::vector<TaskSpec>& tasks() const { return tasks_; }
   const TaskSpec& task(uint64_t id) const { return tasks_.at(id); }
   TaskRuntime& runtime(uint64_t id) { return runtime_.at(id); }
+  // Whether task `id` has a runtime: not after its tasks were released, nor an appended task after
+  // a restart went back to the plan's scheduled tasks.
+  bool has_runtime(uint64_t id) const { return id < runtime_.size(); }
   const TaskRuntime& runtime(uint64_t id) const { return runtime_.at(id); }
   size_t num_tasks() const { return num_tasks_; }
   // A finished job keeps what its status needs (counts, work, coverage), not its task list
@@ -106,9 +109,6 @@ class Job {
   // Workers convicted of a wrong result of this job, in conviction order (stored in its row, so
   // that a restarted coordinator keeps them off the job).
   std::vector<std::string> convicted_workers;
-  // When recovery blocklisted them again (Scheduler::RestoreConvictions): for two lease periods
-  // after it the job does not fail for "no worker left" while workers reconnect.
-  double convictions_restored_at = -1e300;
 
   JobState state() const { return state_; }
   const std::string& failure_reason() const { return failure_reason_; }
@@ -155,6 +155,14 @@ class Job {
   // Timing: elapsed counts while RUNNING, across coordinator restarts.
   double ElapsedSeconds(double now) const;
   void RestoreElapsed(double seconds) { elapsed_before_ = seconds; }
+  // The restart is stored and the job leases again: its time budget counts from now (the hold
+  // was no rendering time).
+  void RestartClock(double now) {
+    elapsed_before_ = 0;
+    if (running_since_) running_since_ = now;
+  }
+  // Restarted and not yet stored (restart_checkpoint_seq, restart_row_pending).
+  bool restart_pending() const { return restart_checkpoint_seq != 0 || restart_row_pending; }
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
 
   // ETA from recent throughput (Scheduler: RecordCompletion on every merge of a live result).

@@ -377,7 +377,17 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
         Finish(well_formed);
         return;
       }
-      switch (ctx_.maps.BeginUpload(lease_id_, worker_id_)) {
+      // Guarded: this runs in a reactor callback, where an exception would end the process.
+      DistributedMaps::UploadAdmission admission = DistributedMaps::UploadAdmission::kNotLive;
+      const grpc::Status begun = Guarded("UploadPhotonChunk", [&] {
+        admission = ctx_.maps.BeginUpload(lease_id_, worker_id_);
+        return grpc::Status::OK;
+      });
+      if (!begun.ok()) {
+        Finish(begun);
+        return;
+      }
+      switch (admission) {
         case DistributedMaps::UploadAdmission::kNotLive:
           response_->set_accepted(false);
           Finish(grpc::Status::OK);

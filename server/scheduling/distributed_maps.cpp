@@ -257,7 +257,10 @@ std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, do
   uint32_t pick = 0;
   for (const auto& [seq, key] : tracing_) {  // oldest map first
     const Map& m = maps_.at(key);
-    if (may_lease && !may_lease(m.job_id)) continue;  // blocklisted for the map's job
+    if (may_lease) {  // not for a worker blocklisted for a job of the map
+      const std::vector<std::string> jobs = JobsOfLocked(m);
+      if (!std::all_of(jobs.begin(), jobs.end(), may_lease)) continue;
+    }
     for (uint32_t c = 0; c < m.chunks.size() && !best; ++c)
       if (m.chunks[c].state == Chunk::State::kQueued) {
         best = &m;
@@ -327,7 +330,7 @@ DistributedMaps::UploadAdmission DistributedMaps::BeginUpload(const std::string&
     const Chunk& c = m.chunks[it->second.chunk];
     if (m.state != Map::State::kTracing || c.state == Chunk::State::kDone) return UploadAdmission::kNotLive;
     if (c.worker_id != worker_id)
-      hijack = Hijack{m.job_id, it->second.chunk, c.worker_id};
+      hijack = Hijack{JobsOfLocked(m), it->second.chunk, c.worker_id};
     else if (!uploading_.insert(lease_id).second)
       return UploadAdmission::kBusy;
   }
@@ -362,7 +365,8 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     const Map& m = maps_.at(key);
     if (m.state != Map::State::kTracing || m.chunks[index].state == Chunk::State::kDone)
       return Accepted::kLate;
-    if (m.chunks[index].worker_id != worker_id) hijack = Hijack{m.job_id, index, m.chunks[index].worker_id};
+    if (m.chunks[index].worker_id != worker_id)
+      hijack = Hijack{JobsOfLocked(m), index, m.chunks[index].worker_id};
     begin = uint64_t(index) * m.chunk_photons;
     end = std::min(m.photons, begin + m.chunk_photons);
     const JobRenderSettings& s = m.config->settings;
@@ -491,8 +495,10 @@ std::string DistributedMaps::MismatchOf(const JobConfig& config, uint64_t map_se
 
 void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::string& worker_id,
                                        const std::string& why) {
-  std::string job_id;
+  std::vector<std::string> job_ids;
   uint32_t index = 0;
+  std::vector<std::pair<std::string, uint64_t>> release;
+  std::vector<PieceFailure> failures;
   {
     std::lock_guard lock(mu_);
     ++counters_.chunks_refused;
@@ -501,31 +507,43 @@ void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::s
     if (it == leases_.end()) return;
     Map& m = maps_.at(it->second.key);
     index = it->second.chunk;
-    Chunk& c = m.chunks[index];
-    if (c.state == Chunk::State::kLeased && c.lease_id == lease_id) {
-      // Queued again at once for another worker; the conviction is what counts against this one.
-      c.state = Chunk::State::kQueued;
-      c.lease_id.clear();
-    }
-    leases_.erase(it);
-    job_id = m.job_id;
+    job_ids = JobsOfLocked(m);
+    const Chunk& c = m.chunks[index];
+    // Queued again for another worker, as a failed attempt: a piece that keeps being refused is
+    // left to the workers like one that keeps failing.
+    if (c.state == Chunk::State::kLeased && c.lease_id == lease_id)
+      RequeueLocked(m, index, "piece-refused", "refused: " + why, &release, &failures);
+    else
+      leases_.erase(it);
   }
   spdlog::error("job {} piece {}: worker {} uploaded a piece that is not the coordinator's trace: convicted",
-                job_id, index, limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
+                job_ids.front(), index, limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
+  Report(failures);
+  Release(release);
   if (scheduler_) {
-    scheduler_->ConvictWorker(job_id, worker_id, index, "map piece " + std::to_string(index) + ": " + why);
+    // In every job waiting for the map: the first one may have ended.
+    for (const std::string& job_id : job_ids)
+      scheduler_->ConvictWorker(job_id, worker_id, index, "map piece " + std::to_string(index) + ": " + why);
     scheduler_->NotifyMapPieces();
   }
 }
 
 void DistributedMaps::ConvictHijacker(const Hijack& hijack, const std::string& worker_id,
                                       const std::string& call) {
-  spdlog::warn("job {} piece {}: {} from worker {} refused: the lease is held by {}", hijack.job_id,
+  spdlog::warn("job {} piece {}: {} from worker {} refused: the lease is held by {}", hijack.job_ids.front(),
                hijack.piece, call, limits::Quote(worker_id, limits::kMaxWorkerIdBytes), hijack.holder);
-  if (scheduler_)
-    scheduler_->ConvictWorker(
-        hijack.job_id, worker_id, hijack.piece,
+  if (!scheduler_) return;
+  for (const std::string& job_id : hijack.job_ids)
+    scheduler_->BlocklistForHijack(
+        job_id, worker_id, hijack.piece,
         call + " with the lease of map piece " + std::to_string(hijack.piece) + ", held by another worker");
+}
+
+std::vector<std::string> DistributedMaps::JobsOfLocked(const Map& m) const {
+  std::vector<std::string> jobs{m.job_id};
+  for (const auto& [job_id, map_index] : m.waiting)
+    if (std::find(jobs.begin(), jobs.end(), job_id) == jobs.end()) jobs.push_back(job_id);
+  return jobs;
 }
 
 std::set<std::string> DistributedMaps::ReadTracers(const fs::path& file) {
@@ -795,7 +813,7 @@ ExtendResult DistributedMaps::Extend(const std::string& lease_id, const std::str
       return ExtendResult{true, options_.lease_seconds};
     }
     // Renewed by another worker, a lease whose holder is gone would never run out.
-    hijack = Hijack{maps_.at(it->second.key).job_id, it->second.chunk, c.worker_id};
+    hijack = Hijack{JobsOfLocked(maps_.at(it->second.key)), it->second.chunk, c.worker_id};
   }
   ConvictHijacker(*hijack, worker_id, "ExtendLease");
   return ExtendResult{.not_holder = true};
@@ -835,7 +853,7 @@ FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string
     if (m.chunks[index].state != Chunk::State::kLeased || m.chunks[index].lease_id != lease_id)
       return FailOutcome::kUnknownLease;
     if (m.chunks[index].worker_id != worker_id)
-      hijack = Hijack{m.job_id, index, m.chunks[index].worker_id};
+      hijack = Hijack{JobsOfLocked(m), index, m.chunks[index].worker_id};
     else
       RequeueLocked(m, index, "piece-failed", "failed by " + worker_id + ": " + reason, &release, &failures);
   }

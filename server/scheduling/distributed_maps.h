@@ -201,8 +201,8 @@ class DistributedMaps final : public MapTracingHook {
   // Under mu_.
   const std::string* KeyFor(const Job& job, uint64_t map_index);  // null: not distributed
   Map& MapOf(const Job& job, uint64_t map_index, const std::string& key);
-  // The piece's attempt failed (`kind`: piece-failed, piece-expired): queued again, the failure
-  // noted in `failures` for the scheduler.
+  // The piece's attempt failed (`kind`: piece-failed, piece-expired, piece-refused): queued again, the
+  // failure noted in `failures` for the scheduler.
   void RequeueLocked(Map& map, uint32_t chunk, const std::string& kind, const std::string& why,
                      std::vector<std::pair<std::string, uint64_t>>* release,
                      std::vector<PieceFailure>* failures);
@@ -225,17 +225,21 @@ class DistributedMaps final : public MapTracingHook {
   // describes.
   static std::set<std::string> ReadTracers(const std::filesystem::path& file);
   static void WriteTracers(const std::filesystem::path& file, const std::set<std::string>& workers);
-  // A call with a piece lease held by another worker: the piece's job and the holder.
+  // A call with a piece lease held by another worker: the map's jobs and the holder.
   struct Hijack {
-    std::string job_id;
+    std::vector<std::string> job_ids;
     uint32_t piece = 0;
     std::string holder;
   };
-  // Refused, and its caller convicted in the piece's job whatever `convict` says (builds do not
-  // differ in whose lease is whose): Scheduler::NotTheHolderLocked says why. Call without mu_.
+  // Refused, and its caller blocklisted in the map's jobs whatever `convict` says (builds do not
+  // differ in whose lease is whose): Scheduler::BlocklistForHijack. Call without mu_.
   void ConvictHijacker(const Hijack& hijack, const std::string& worker_id, const std::string& call);
-  // A piece that is not the coordinator's trace: counted, and with `convict` its lease dropped (the
-  // piece queued again) and its uploader convicted. Call without mu_ and check_mu_.
+  // The job that created the map and every job waiting for it (health and convictions count in
+  // each: the first may have ended).
+  std::vector<std::string> JobsOfLocked(const Map& map) const;
+  // A piece that is not the coordinator's trace: counted, and with `convict` its attempt failed (the
+  // piece queued again) and its uploader convicted in every job of the map. Call without mu_ and
+  // check_mu_.
   void RefuseAndConvict(const std::string& lease_id, const std::string& worker_id, const std::string& why);
   // Drops the scene CheckFirstPhotons keeps once no map of it is tracing.
   void ReleaseCheckSceneIfUnused();

@@ -31,8 +31,8 @@ class FarmActivity {
                   const std::string& version, bool refused = false);
   // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned,
   // confirmed (a result above the job's bound reproduced by another worker, then merged); about a
-  // map piece (task_id = the piece's index): piece-failed, piece-expired; about the worker in this
-  // job (task_id, attempt: the failure that caused it): blocklisted, quarantined.
+  // map piece (task_id = the piece's index): piece-failed, piece-expired, piece-refused; about the worker in
+  // this job (task_id, attempt: the failure that caused it): blocklisted, quarantined.
   void TaskEvent(const std::string& job_id, const std::string& kind, uint64_t task_id, uint32_t attempt,
                  const std::string& worker_id, const std::string& detail = "");
   // The merged result's statistics (photons per second of the worker).

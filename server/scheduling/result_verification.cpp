@@ -194,6 +194,16 @@ std::vector<ResultVerification::Verification*> ResultVerification::QueuedOf(cons
   return out;
 }
 
+std::vector<ResultVerification::Verification*> ResultVerification::LeasedTo(const Job& job,
+                                                                            const std::string& worker) {
+  std::vector<Verification*> out;
+  if (Pending(job) == 0) return out;
+  for (auto& [id, v] : all_)
+    if (v->job == &job && v->state == Verification::State::kLeased && v->verifier == worker && !v->checking)
+      out.push_back(v.get());
+  return out;
+}
+
 uint64_t ResultVerification::Pending(const Job& job) const {
   auto it = jobs_.find(&job);
   return it == jobs_.end() ? 0 : it->second.pending;

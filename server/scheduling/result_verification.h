@@ -135,6 +135,8 @@ class ResultVerification {
   std::vector<uint64_t> Expired(double now) const;
   // Queued verifications of the job, oldest first.
   std::vector<Verification*> QueuedOf(const Job& job);
+  // The job's verifications leased to `worker` whose result is not being compared.
+  std::vector<Verification*> LeasedTo(const Job& job, const std::string& worker);
 
   // Pending (queued, leased or with the referee) verifications of the job, not detached.
   uint64_t Pending(const Job& job) const;

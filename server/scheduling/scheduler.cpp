@@ -95,15 +95,15 @@ void Scheduler::Run(Effects& fx) {
   if (fx.persist && persist) persist();
   if (change)
     for (const std::string& id : fx.changed) change(id);
-  for (const Effects::Conviction& c : fx.convictions)
-    ConvictWorker(c.job_id, c.worker_id, c.task_id, c.evidence);
+  for (const Effects::Hijack& h : fx.hijacks)
+    BlocklistForHijack(h.job_id, h.worker_id, h.task_id, h.evidence);
 }
 
 void Scheduler::NotTheHolderLocked(const std::string& job_id, uint64_t task_id, const std::string& worker_id,
                                    const std::string& holder, const std::string& call, Effects& fx) {
   spdlog::warn("job {} task {}: {} from worker {} refused: the lease is held by {}", job_id, task_id, call,
                limits::Quote(worker_id, limits::kMaxWorkerIdBytes), holder);
-  fx.convictions.push_back(
+  fx.hijacks.push_back(
       {job_id, worker_id, task_id,
        call + " with the lease of task " + std::to_string(task_id) + ", held by another worker"});
 }
@@ -148,7 +148,9 @@ void Scheduler::ServeWaiters(Effects& fx) {
 }
 
 bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
-  if (!TimeBudgetReached(job, now)) return false;
+  // A restarted job's image is empty until its restart is stored: a budget ending it then would
+  // call an empty image a success. Its clock starts again when it leases again (RestartClock).
+  if (job.restart_pending() || !TimeBudgetReached(job, now)) return false;
   const double budget = job.config().stop.time_budget_seconds;
   job.stopping = true;
   uint64_t cancelled = 0;
@@ -724,7 +726,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       if (!armed) return;
       {
         std::lock_guard lock(self->mu_);
-        job->runtime(task_id).merging = false;  // as the commit does
+        if (job->has_runtime(task_id)) job->runtime(task_id).merging = false;  // as the commit does
       }
       try {  // a destructor must not throw, even if logging cannot allocate
         spdlog::error(
@@ -803,7 +805,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
-    TaskRuntime& rt = job->runtime(task_id);
+    TaskRuntime gone;  // a restart took the task away (an appended task of a dynamic plan)
+    TaskRuntime& rt = job->has_runtime(task_id) ? job->runtime(task_id) : gone;
     rt.merging = false;
     if (rt.state != TaskState::kLeased || rt.lease_id != lease_id) {
       // Only a job's end (cancel, failure, stop rule) or its restart (ConvictWorker) takes a
@@ -1014,11 +1017,13 @@ bool Scheduler::CountFailure(Job& job, const std::string& worker_id, uint64_t ta
 std::string Scheduler::NoWorkerLeft(const Job& job) const {
   const auto& blocklist = health_.BlocklistOf(job.id());
   // A job no worker was ever blocklisted for waits for workers, as any job does. So does a job
-  // whose convictions were restored at start-up, for a while: the workers reconnect one by one,
-  // and the first to call may be the convicted one.
-  if (blocklist.empty() || health_.AnyLiveWorkerMayRun(job.id()) ||
-      clock_.Now() - job.convictions_restored_at < health_.options().lost_seconds)
-    return "";
+  // whose blocklisted workers were all convicted (or presented another's lease): the job is not
+  // broken, those workers are, and the honest workers of the farm may not have called yet.
+  const bool only_convicted = std::all_of(blocklist.begin(), blocklist.end(), [&](const auto& entry) {
+    return std::find(job.convicted_workers.begin(), job.convicted_workers.end(), entry.first) !=
+           job.convicted_workers.end();
+  });
+  if (only_convicted || health_.AnyLiveWorkerMayRun(job.id())) return "";
   std::string names;
   for (const auto& [worker, entry] : blocklist)
     names += (names.empty() ? "" : ", ") + worker + " after " + std::to_string(entry.failed_attempts) +
@@ -1145,11 +1150,11 @@ void Scheduler::RestoreConvictions(const std::string& job_id, const std::vector<
   if (!job) return;
   const double now = clock_.Now();
   for (const std::string& w : workers) {
-    health_.RecordFailure(job->id(), w, "convicted of a wrong result before the coordinator restarted", now,
-                          /*convicted=*/true);
+    // Blocklisted again; its quarantine count was taken when it was convicted.
+    health_.Blocklist(job->id(), w, "convicted before the coordinator restarted", now);
     job->convicted_workers.push_back(w);
   }
-  if (!workers.empty()) job->convictions_restored_at = now;
+  if (!workers.empty()) job->row_dirty = true;  // the row may lack them (a checkpoint stored without its row)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1226,6 +1231,9 @@ std::vector<Checkpoint> Scheduler::CollectCheckpoints(bool due) {
         cp.job_id = job->id();
         cp.merge_seq = job->merge_seq();
         cp.epoch = job->epoch();
+        // With the epoch, so that a restart's checkpoint stored without its row brings back who
+        // was convicted as well (recovery.cpp).
+        cp.convicted = job->convicted_workers;
         cp.merged_task_ids = job->MergedTaskIds();
         job->checkpoint_collected_seq = job->merge_seq();
         job->checkpoint_retry = false;
@@ -1275,8 +1283,7 @@ void Scheduler::CheckpointStored(const Checkpoint& cp, const CheckpointSeal& sea
     }
     if (job->restart_checkpoint_seq != 0 && cp.merge_seq >= job->restart_checkpoint_seq)
       job->restart_checkpoint_seq = 0;
-    if (!job->paused_for_storage && job->restart_checkpoint_seq == 0 && !job->restart_row_pending &&
-        queue_.Unhold(*job)) {
+    if (!job->paused_for_storage && !job->restart_pending() && queue_.Unhold(*job)) {
       spdlog::info("job {}: resumed: its results can be stored{}", job->id(),
                    job->epoch() > 0 ? " and its restart is stored" : "");
       ServeWaiters(fx);
@@ -1428,7 +1435,8 @@ void Scheduler::RowsStored(const RowBatch& rows) {
       // A restart is stored once its row (epoch, convicted workers) is, and its empty checkpoint.
       if (job->restart_row_pending && row.epoch == job->epoch()) {
         job->restart_row_pending = false;
-        if (!job->paused_for_storage && job->restart_checkpoint_seq == 0 && queue_.Unhold(*job)) {
+        job->RestartClock(clock_.Now());
+        if (!job->paused_for_storage && !job->restart_pending() && queue_.Unhold(*job)) {
           spdlog::info("job {}: its restart is stored: leasing again", job->id());
           ServeWaiters(fx);
         }

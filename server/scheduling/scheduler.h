@@ -261,6 +261,13 @@ class Scheduler final : public PersistSource {
   // (MapTracingHook::WorkerConvicted), and every other active job that used such a map starts again as well.
   bool ConvictWorker(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
                      const std::string& evidence);
+  // A worker presented a lease of the job held by another worker. Worker ids are self-declared, so
+  // the presenter may be anyone's name and nothing about a result is proven: the id is blocklisted
+  // for this job only (`convicted` event; stored with the job's convictions) and its leases of the
+  // job are returned without counting a failure — no quarantine count, no map purged, no restart.
+  // An ended job is left as it is.
+  void BlocklistForHijack(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
+                          const std::string& evidence);
 
   // --- Result verification (result_verification.h; docs/farm.md "Result verification") ---
   // Set before use; `referee` outlives the scheduler's use of it.
@@ -276,8 +283,8 @@ class Scheduler final : public PersistSource {
   void RestoreConvictions(const std::string& job_id, const std::vector<std::string>& workers);
   // A call from the worker outside this class (map piece RPCs): it is live.
   void Heard(const std::string& worker_id);
-  // A map piece's attempt failed (DistributedMaps; `kind`: piece-failed, piece-expired): it counts
-  // against the worker in the job like a task's (blocklist, quarantine, no worker left).
+  // A map piece's attempt failed (DistributedMaps; `kind`: piece-failed, piece-expired, piece-refused): it
+  // counts against the worker in the job like a task's (blocklist, quarantine, no worker left).
   void PieceAttemptFailed(const std::string& job_id, const std::string& worker_id, uint32_t piece,
                           uint32_t attempt, const std::string& kind, const std::string& reason);
 
@@ -320,14 +327,14 @@ class Scheduler final : public PersistSource {
     std::set<std::string> changed;
     bool persist = false;
     std::vector<RefereeCase> referee;  // verifications for the referee (Run hands them over)
-    // Workers that presented a lease held by another worker (NotTheHolderLocked): Run convicts
-    // them (ConvictWorker takes the locks itself).
-    struct Conviction {
+    // Workers that presented a lease held by another worker (NotTheHolderLocked): Run blocklists
+    // them (BlocklistForHijack takes the lock itself).
+    struct Hijack {
       std::string job_id, worker_id;
       uint64_t task_id = 0;
       std::string evidence;
     };
-    std::vector<Conviction> convictions;
+    std::vector<Hijack> hijacks;
   };
   struct Waiter {
     LeaseRequest request;
@@ -339,7 +346,8 @@ class Scheduler final : public PersistSource {
   // `worker_id` presented the lease of `job_id`'s task `task_id` (`call`: the RPC) while another
   // worker holds it. Lease ids are 128 CSPRNG bits and never logged, and an honest worker keeps
   // its id for the lifetime of its process, so this is a leaked id put to use: the presenter is
-  // convicted (docs/security.md, "Leases are bound to their worker"). Logs the refusal.
+  // blocklisted for the job (BlocklistForHijack; docs/security.md, "Leases are bound to their
+  // worker"). Logs the refusal.
   void NotTheHolderLocked(const std::string& job_id, uint64_t task_id, const std::string& worker_id,
                           const std::string& holder, const std::string& call, Effects& fx);
   void Touch(Job& job, Effects& fx);
@@ -357,8 +365,9 @@ class Scheduler final : public PersistSource {
   // blocklisted for the job.
   bool CountFailure(Job& job, const std::string& worker_id, uint64_t task_id, uint32_t attempt,
                     const std::string& reason, double now, bool convicted = false);
-  // "" while a live worker not blocklisted for the job is left, else why none is (naming the
-  // blocklisted workers).
+  // "" while a live worker not blocklisted for the job is left, or while every blocklisted worker
+  // was convicted (the job waits for an honest one), else why none is (naming the blocklisted
+  // workers).
   std::string NoWorkerLeft(const Job& job) const;
   // Whether a parked long poll of another worker could take this retry (not blocklisted or
   // quarantined, not one that failed the task already).
@@ -424,15 +433,19 @@ class Scheduler final : public PersistSource {
   // The noise target is met: the job succeeds now, or (verifications pending) once they are done,
   // its other tasks cancelled.
   void SucceedOnTarget(Job& job, double now, Effects& fx);
-  // Convicts `workers` of the job (ConvictWorker's rule): blocklisted, the job restarted — unless
-  // the evidence is a result of an epoch before every one of them was convicted in this job already
-  // (`result_epoch`), or the image holds nothing of theirs (no evidence about a merged result, no
-  // map with their pieces (`used_their_maps`), no merged task of theirs or of an unknown worker):
-  // then only their leases of the job end. `verification_id` (if not 0) is removed in the same
-  // hold of the locks.
+  // Convicts `workers` of the job (ConvictWorker's rule): blocklisted, and the job restarted if its
+  // image may hold their work — the evidence is their result merged in the job's current epoch
+  // (`result_epoch`: the epoch of the result, given only when its author is among `workers`), a
+  // map it used holds their pieces (`used_their_maps`), or a merged task is theirs or of a worker
+  // no longer known (recovered tasks). Otherwise their leases of the job are revoked and the job
+  // goes on. `verification_id` (if not 0) is removed in the same hold of the locks.
   bool ConvictInJob(Job& job, const std::vector<std::string>& workers, uint64_t task_id,
                     const std::string& evidence, std::optional<uint32_t> result_epoch,
                     uint64_t verification_id, bool used_their_maps);
+  // Returns the job's leases (tasks and verifications) held by `workers` to the queue: no failure
+  // counted, a `revoked` event saying `why`.
+  void RevokeLeasesLocked(Job& job, const std::vector<std::string>& workers, const std::string& why,
+                          Effects& fx);
   // ConvictWorker for several workers of one verdict: stored maps purged, then the job and the
   // other jobs that used their maps.
   bool Convict(const std::string& job_id, const std::vector<std::string>& workers, uint64_t task_id,

@@ -342,7 +342,7 @@ void Scheduler::RefereeVerdict(uint64_t verification_id, const std::string& dige
   std::vector<std::string> convict;
   std::string job_id, evidence;
   uint64_t task_id = 0;
-  uint32_t epoch = 0;
+  std::optional<uint32_t> epoch;  // of the checked result, if its author is convicted
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
@@ -395,7 +395,8 @@ void Scheduler::RefereeVerdict(uint64_t verification_id, const std::string& dige
         // Pending until the conviction removes it: the job must not succeed in between.
         job_id = job.id();
         task_id = v->task_id;
-        epoch = v->epoch;
+        // Only the author's result was merged: a lying verifier's never was (ConvictInJob).
+        if (std::find(convict.begin(), convict.end(), original) != convict.end()) epoch = v->epoch;
         evidence = what + ": its result differs from the coordinator's render of it" +
                    (agrees.empty() ? "" : ", which " + agrees + "'s result reproduces");
         std::string names;
@@ -462,13 +463,6 @@ bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, 
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
     if (verification_id != 0) verification_.Remove(verification_id);
-    // Every one of them convicted here before, at a restart that came after the result this
-    // evidence is about: that restart dropped the result, and they took nothing of the job since.
-    bool dropped_already = result_epoch.has_value();
-    for (const std::string& w : workers) {
-      const std::optional<uint32_t> at = verification_.ConvictedAt(job, w);
-      if (!at || !result_epoch || *result_epoch >= *at) dropped_already = false;
-    }
     std::string names;
     for (const std::string& w : workers) {
       names += (names.empty() ? "" : ", ") + Who(w);
@@ -481,40 +475,32 @@ bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, 
         job.row_dirty = true;
       }
     }
-    // Whether the job's image may hold their work: evidence about a merged result, a map with
-    // their pieces, a merged task of theirs — or of a worker no longer known (recovered tasks).
-    bool holds_their_work = result_epoch.has_value() || used_their_maps;
-    for (uint64_t id = 0; id < job.num_tasks() && !holds_their_work; ++id) {
+    Touch(job, fx);
+    // Whether the job's image may hold their work: their result merged in this epoch (an earlier
+    // epoch's left with its restart), a map with their pieces, a merged task of theirs — or of a
+    // worker no longer known (recovered tasks). An ended job (its tasks may be released) is left.
+    bool holds_their_work =
+        job.active() && ((result_epoch && *result_epoch == job.epoch()) || used_their_maps);
+    for (uint64_t id = 0; job.active() && id < job.num_tasks() && !holds_their_work; ++id) {
       const TaskRuntime& rt = job.runtime(id);
       holds_their_work =
           rt.state == TaskState::kDone &&
           (rt.worker_id.empty() || std::find(workers.begin(), workers.end(), rt.worker_id) != workers.end());
     }
-    Touch(job, fx);
     if (!job.active()) {
       health_.JobEnded(job.id());  // the job's failure counts went with its end; so does this one's
       spdlog::error("job {}: worker {} convicted ({}) after the job ended: left as it is", job.id(), names,
                     evidence);
-    } else if (dropped_already) {
-      spdlog::warn("job {}: worker {} convicted again ({}); its results went with an earlier restart",
-                   job.id(), names, evidence);
-      MaybeSucceed(job, now, fx);
     } else if (!holds_their_work) {
-      // Nothing of theirs is in the image (a lease hijack before any result of theirs merged):
-      // blocklisted, their leases end, the job goes on.
-      for (uint64_t id = 0; id < job.num_tasks(); ++id) {
-        const TaskRuntime& rt = job.runtime(id);
-        if (rt.state == TaskState::kLeased &&
-            std::find(workers.begin(), workers.end(), rt.worker_id) != workers.end()) {
-          activity_.TaskEvent(job.id(), "failed", id, rt.attempts, rt.worker_id, "its worker was convicted");
-          FailAttempt(job, id, "worker convicted: " + evidence, true, now, fx);
-        }
-      }
+      // Nothing of theirs is in the image (their results went with an earlier restart, or never
+      // merged): blocklisted, their leases revoked, the job goes on.
+      RevokeLeasesLocked(job, workers, "its worker was convicted", fx);
       for (const std::string& w : workers) verification_.RecordConviction(job, w, job.epoch());
       spdlog::error(
           "job {}: worker {} convicted ({}): blocklisted for the job; none of its results is in the "
           "image, the job goes on",
           job.id(), names, evidence);
+      MaybeSucceed(job, now, fx);
     } else {
       restarted = true;
       // Its leases, queued tasks and verifications go; the plan's tasks come back, all queued,
@@ -544,6 +530,55 @@ bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, 
   }
   Run(fx);
   return restarted;
+}
+
+void Scheduler::RevokeLeasesLocked(Job& job, const std::vector<std::string>& workers, const std::string& why,
+                                   Effects& fx) {
+  auto named = [&](const std::string& w) {
+    return std::find(workers.begin(), workers.end(), w) != workers.end();
+  };
+  for (uint64_t id = 0; id < job.num_tasks(); ++id) {
+    const TaskRuntime& rt = job.runtime(id);
+    // A result being merged decides its attempt (TaskRuntime::merging).
+    if (rt.state != TaskState::kLeased || rt.merging || !named(rt.worker_id)) continue;
+    activity_.TaskEvent(job.id(), "revoked", id, rt.attempts, rt.worker_id, why);
+    leases_.Erase(rt.lease_id);
+    job.SetTaskState(id, TaskState::kQueued);
+    Enqueue(job, id, fx);
+  }
+  for (const std::string& w : workers)
+    for (Verification* v : verification_.LeasedTo(job, w)) {
+      activity_.TaskEvent(job.id(), "revoked", v->task_id, job.runtime(v->task_id).attempts + v->leases, w,
+                          why);
+      v->failed_verifiers.push_back(w);  // never leased to it again
+      verification_.Requeue(*v);
+    }
+  Touch(job, fx);
+  ServeWaiters(fx);
+}
+
+void Scheduler::BlocklistForHijack(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
+                                   const std::string& evidence) {
+  Effects fx;
+  {
+    std::lock_guard lock(mu_);
+    Job* job = jobs_.Find(job_id);
+    if (!job || !job->active()) return;
+    if (!health_.Blocklist(job_id, worker_id, "presented another worker's lease: " + evidence, clock_.Now()))
+      return;
+    activity_.TaskEvent(job_id, "convicted", task_id, 0, worker_id, evidence);
+    activity_.WorkerBlocklisted(worker_id, job_id);
+    spdlog::error(
+        "job {}: worker {} blocklisted for the job: {} (no restart: nothing about a result is proven)",
+        job_id, Who(worker_id), evidence);
+    if (std::find(job->convicted_workers.begin(), job->convicted_workers.end(), worker_id) ==
+        job->convicted_workers.end()) {
+      job->convicted_workers.push_back(worker_id);
+      job->row_dirty = true;
+    }
+    RevokeLeasesLocked(*job, {worker_id}, "its worker presented another worker's lease", fx);
+  }
+  Run(fx);
 }
 
 }  // namespace pf::server

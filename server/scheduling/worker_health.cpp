@@ -109,6 +109,19 @@ WorkerHealth::FailureOutcome WorkerHealth::RecordFailure(const std::string& job_
   return out;
 }
 
+bool WorkerHealth::Blocklist(const std::string& job_id, const std::string& worker_id,
+                             const std::string& reason, double now) {
+  if (worker_id.empty()) return false;
+  JobHealth& job = jobs_[job_id];
+  if (job.blocklisted.count(worker_id)) return false;
+  // Counted as a failure in the job, so that the healthy-worker fast path (FailedInActiveJob)
+  // does not skip its blocklist.
+  const uint32_t failures = ++job.failures[worker_id];
+  if (failures == 1) ++WorkerOf(worker_id, now).active_jobs_failed;
+  job.blocklisted[worker_id] = Blocklisted{failures, reason};
+  return true;
+}
+
 bool WorkerHealth::IsBlocklisted(const std::string& job_id, const std::string& worker_id) const {
   auto it = jobs_.find(job_id);
   return it != jobs_.end() && it->second.blocklisted.count(worker_id) > 0;

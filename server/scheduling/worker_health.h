@@ -74,6 +74,10 @@ class WorkerHealth {
   // verification"): blocklisted at once, whatever its count.
   FailureOutcome RecordFailure(const std::string& job_id, const std::string& worker_id,
                                const std::string& reason, double now, bool convicted = false);
+  // Blocklisted for the job at once, without counting towards a quarantine (a lease hijack: the
+  // id may be anyone's, docs/security.md). False if it already was.
+  bool Blocklist(const std::string& job_id, const std::string& worker_id, const std::string& reason,
+                 double now);
   bool IsBlocklisted(const std::string& job_id, const std::string& worker_id) const;
   // Whether the worker has a failed attempt in a job that has not ended: if not, no job's
   // blocklist names it and no task avoids it (the scheduler's fast path for healthy workers).

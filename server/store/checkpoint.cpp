@@ -16,7 +16,8 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr char kMagic[8] = {'P', 'F', 'C', 'K', 'P', 'T', '0', '1'};
-constexpr uint32_t kVersion = 2;  // 2: with the job's epoch; 1 (before epochs) reads as epoch 0
+// 3: with the convicted workers; 2: with the job's epoch; 1 (before epochs) reads as epoch 0.
+constexpr uint32_t kVersion = 3;
 
 }  // namespace
 
@@ -30,6 +31,10 @@ std::string EncodeCheckpoint(const Checkpoint& cp) {
   w.PutBytes(cp.job_id);
   w.Put<uint64_t>(cp.merge_seq);
   w.Put<uint32_t>(cp.epoch);
+  std::string convicted;
+  for (const std::string& worker : cp.convicted) convicted += worker + "\n";
+  w.Put<uint32_t>(uint32_t(convicted.size()));
+  w.PutBytes(convicted);
   w.Put<uint64_t>(cp.merged_task_ids.size());
   w.PutArray<uint64_t>(cp.merged_task_ids);
   w.Put<uint64_t>(cp.accumulator.size());
@@ -47,13 +52,22 @@ Checkpoint DecodeCheckpoint(std::string_view bytes, CheckpointSeal* seal) {
   if (seal) seal->digest = stored;
   ByteReader in(bytes.substr(sizeof(kMagic), bytes.size() - sizeof(kMagic) - 8), "checkpoint");
   const uint32_t version = in.Get<uint32_t>();
-  if (version != kVersion && version != 1)
+  if (version < 1 || version > kVersion)
     throw InputError("checkpoint: unsupported version " + std::to_string(version));
   Checkpoint cp;
   const uint32_t id_len = in.Get<uint32_t>();
   cp.job_id = std::string(in.GetBytes(id_len));
   cp.merge_seq = in.Get<uint64_t>();
   cp.epoch = version >= 2 ? in.Get<uint32_t>() : 0;
+  if (version >= 3) {
+    const std::string_view convicted = in.GetBytes(in.Get<uint32_t>());
+    for (size_t at = 0; at < convicted.size();) {
+      const size_t end = convicted.find('\n', at);
+      if (end == std::string_view::npos) throw InputError("checkpoint: convicted workers not terminated");
+      cp.convicted.emplace_back(convicted.substr(at, end - at));
+      at = end + 1;
+    }
+  }
   const uint64_t n = in.Get<uint64_t>();
   if (n > in.remaining() / 8) throw InputError("checkpoint: truncated");
   cp.merged_task_ids.reserve(size_t(n));

@@ -6,10 +6,11 @@
 //
 // Format (little-endian):
 //   "PFCKPT01"                          8-byte magic
-//   u32 version = 2                     (1: no epoch field, read as epoch 0)
+//   u32 version = 3                     (1: no epoch, read as 0; 2: no convicted workers)
 //   u32 len, job id bytes
 //   u64 merge_seq                       merges contained (monotonic per job)
 //   u32 epoch                           the job's restart count (Job::epoch)
+//   u32 len, bytes                      the job's convicted workers, one per line
 //   u64 n, u64 × n merged task ids      ascending
 //   u64 len, accumulator bytes          Accumulator::Serialize()
 //   u64 Checksum64 (server/store/checksum.h) of all preceding bytes

@@ -78,6 +78,7 @@ struct Checkpoint {
   std::vector<uint64_t> merged_task_ids;  // ascending
   std::string accumulator;                // Accumulator::Serialize()
   uint32_t epoch = 0;                     // the job's restart count (Job::epoch) when it was taken
+  std::vector<std::string> convicted;     // the job's convicted workers then (Job::convicted_workers)
 };
 
 // The rows that changed since the last flush.

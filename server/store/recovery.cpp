@@ -359,6 +359,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     // written after the restart's empty checkpoint, and a checkpoint older than the row's epoch
     // holds results the restart threw away. Journal entries of other epochs are not replayed.
     job->RestoreEpoch(from_zero ? 0 : row.epoch);
+    std::vector<std::string> convicted = SplitLines(row.convicted);
     try {
       CheckpointSeal seal;
       if (std::optional<Checkpoint> cp = rerender ? std::nullopt : ReadCheckpointFile(cp_file, &seal)) {
@@ -369,8 +370,12 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
         else if (!ApplyCheckpoint(*cp, seal, *job, &problem))
           spdlog::error("job {}: checkpoint {} {}; restarting the job from zero merges", row.job_id,
                         cp_file.string(), problem);
-        else
+        else {
           job->RestoreEpoch(cp->epoch);
+          // A restart's checkpoint may be stored without its row: it names who was convicted too.
+          for (const std::string& w : cp->convicted)
+            if (std::find(convicted.begin(), convicted.end(), w) == convicted.end()) convicted.push_back(w);
+        }
       }
     } catch (const std::exception& e) {
       spdlog::error("job {}: checkpoint unreadable ({}); restarting the job from zero merges", row.job_id,
@@ -421,7 +426,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
         "job {}: resumed ({}): {} tasks merged ({} from the checkpoint, {} from the journal), {} queued",
         row.job_id, JobStateName(row.state), merged, from_checkpoint, journaled, requeued);
     scheduler.AddJob(std::move(job));
-    scheduler.RestoreConvictions(row.job_id, SplitLines(row.convicted));
+    scheduler.RestoreConvictions(row.job_id, convicted);
   }
   return report;
 }

@@ -7,7 +7,7 @@
 // that the outcome is certain), the malicious worker is convicted ("convicted" event, blocklisted
 // for the job), the job starts again without it and SUCCEEDS with an image bit-identical to the
 // local render. A lease hijack (a leaked lease id presented by another worker) is refused and
-// convicts the presenter the same way.
+// blocklists the presenter for the job, without a restart.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -59,7 +59,7 @@ Attack ShiftedPhotons() {
 
 // A lease hijack: the malicious worker presents a lease held by another worker (its accomplice:
 // the id leaked) — heartbeat, result or piece upload, FailTask(retryable = false). Every call is
-// refused and convicts it; none of its work is in the image, so the job goes on without a restart.
+// refused and blocklists it for the job, which goes on without a restart.
 Attack LeaseHijack() {
   return {"hijack-task", {"--mode", "hijack"}, {}, JobArgs{}.ToFlags(), {}, "leased-task job=", false};
 }

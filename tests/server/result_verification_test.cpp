@@ -95,12 +95,12 @@ class VerificationTest : public ::testing::Test {
         c.verification_id,
         ResultMerger::Digest(SyntheticResult(c.task, c.config->camera.width, c.config->camera.height)));
   }
-  // The empty checkpoint of a restarted job and its row (epoch, convicted workers) are stored: it
-  // leases again.
+  // The row of a restarted job (epoch, convicted workers), then its empty checkpoint, are stored:
+  // it leases again.
   void StoreRestart() {
+    scheduler_.RowsStored(scheduler_.CollectRows());
     for (const Checkpoint& cp : scheduler_.CollectCheckpoints(false))
       scheduler_.CheckpointStored(cp, CheckpointSeal{0, 1}, "/restart.acc");
-    scheduler_.RowsStored(scheduler_.CollectRows());
   }
 
   FakeClock clock_;
@@ -191,6 +191,9 @@ TEST_F(VerificationTest, ALyingVerifierIsConvictedAndTheOriginalResultStands) {
   ASSERT_EQ(s.blocklisted_workers_size(), 1);
   EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "liar");
   EXPECT_EQ(Events(id, "convicted", "honest"), 0);
+  // The liar's result was never merged: the image holds nothing of it, and the honest work stays.
+  EXPECT_EQ(scheduler_.JobEpoch(id), 0u) << "not restarted";
+  EXPECT_EQ(s.tasks_done(), 1u);
 }
 
 // A verification's lease is bound to its worker; a returned one is queued again without a failure;
@@ -207,7 +210,7 @@ TEST_F(VerificationTest, VerificationLeasesAreBoundExpireFailAndReturnLikeTaskLe
   EXPECT_EQ(scheduler_.Complete(check.lease_id, "thief", Honest(check)).status, CompleteStatus::kNotHolder);
   EXPECT_TRUE(scheduler_.Extend(check.lease_id, "thief", 0.5).not_holder);
   EXPECT_EQ(scheduler_.Fail(check.lease_id, "thief", "sabotage", false), FailOutcome::kNotHolder);
-  EXPECT_EQ(Events(id, "convicted", "thief"), 3);
+  EXPECT_EQ(Events(id, "convicted", "thief"), 1) << "blocklisted at the first";
   EXPECT_EQ(scheduler_.JobEpoch(id), 0u) << "not restarted";
   ASSERT_EQ(scheduler_.Status(id).blocklisted_workers_size(), 1);
   EXPECT_EQ(scheduler_.Status(id).blocklisted_workers(0).worker_id(), "thief");

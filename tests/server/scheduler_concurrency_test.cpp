@@ -307,8 +307,8 @@ TEST_F(SchedulerConcurrencyTest, InvalidResultsFromManyThreadsFailTheirAttemptsO
   // One worker per lease: a worker with 3 rejected results would be blocklisted for the job
   // (worker_health.h), which is not what this test is about.
   std::vector<Lease> leases;
-  while (std::optional<Lease> l = scheduler_.TryLease({"u" + std::to_string(leases.size()), {}}))
-    leases.push_back(std::move(*l));
+  auto worker = [&] { return std::string("u").append(std::to_string(leases.size())); };
+  while (std::optional<Lease> l = scheduler_.TryLease({worker(), {}})) leases.push_back(std::move(*l));
   ASSERT_EQ(leases.size(), 8u * 4);
   std::vector<std::thread> threads;
   for (int t = 0; t < kThreads; ++t)

@@ -503,8 +503,9 @@ TEST(StorageConvictions, AStoredRestartSurvivesACrashWithoutItsConvictedResults)
 }
 
 // Only the restart's empty checkpoint reached the disk (its row could not be written) when the
-// coordinator died: the checkpoint's epoch wins over the row's, so the old results stay out.
-TEST(StorageConvictions, ARestartWhoseRowWasNotStoredKeepsItsEpochFromTheCheckpoint) {
+// coordinator died: the checkpoint's epoch wins over the row's, so the old results stay out, and
+// the checkpoint names the convicted worker, which stays off the job.
+TEST(StorageConvictions, ARestartWhoseRowWasNotStoredKeepsItsEpochAndConvictionsFromTheCheckpoint) {
   StorageCase storage;
   FaultInjector faults;
   FaultyFiles files(faults);
@@ -525,6 +526,34 @@ TEST(StorageConvictions, ARestartWhoseRowWasNotStoredKeepsItsEpochFromTheCheckpo
   StorageCase::Run run = storage.Start(nullptr);
   EXPECT_EQ(run.scheduler->JobEpoch(id), 1u);
   EXPECT_EQ(run.report.tasks_merged, 0u);
+  EXPECT_FALSE(storage.RenderOne(run)) << "the convicted worker 'w' stays off the job";
+}
+
+// The restart's row reached the disk, its checkpoint did not (full) when the coordinator died: the
+// row's epoch sets the older checkpoint aside, and the row names the convicted worker.
+TEST(StorageConvictions, ARestartWhoseCheckpointWasNotStoredKeepsItsEpochAndConvictionsFromTheRow) {
+  StorageCase storage;
+  FaultInjector faults;
+  FaultyFiles files(faults);
+  FaultySqlite sqlite(faults);
+  std::string id;
+  {
+    StorageCase::Run run = storage.Start(&files);
+    id = storage.Submit(run);
+    for (int i = 0; i < 3; ++i) storage.RenderOne(run);
+    run.persister->FlushNow(false);
+    ASSERT_TRUE(run.scheduler->ConvictWorker(id, "w", 0, "wrong result"));
+    faults.Arm({FileOp::kOpen, ".acc.tmp-", false, 1, FaultRule::kUntilDisarmed, ENOSPC});
+    run.persister->FlushNow(false);  // the checkpoint fails, the row is stored
+    EXPECT_FALSE(run.scheduler->TryLease({"honest", {}}).has_value())
+        << "held until its checkpoint is stored";
+    run.persister->Abandon();
+  }
+  faults.Disarm();
+  StorageCase::Run run = storage.Start(nullptr);
+  EXPECT_EQ(run.scheduler->JobEpoch(id), 1u);
+  EXPECT_EQ(run.report.tasks_merged, 0u) << "no epoch-0 result comes back";
+  EXPECT_FALSE(storage.RenderOne(run)) << "the convicted worker 'w' stays off the job";
 }
 
 // The persister flushed between a merge and its JournalThenAck, and that flush's checkpoint holds

@@ -135,11 +135,12 @@ TEST(Checkpoint, RoundTripAndCorruptionIsDetected) {
   const std::vector<uint32_t> px = {0, 4};
   const std::vector<float> sums = {1, 2, 3, 4, 5, 6};
   acc.Add(px, sums, 2);
-  Checkpoint cp{"job-9", 1, {5}, acc.Serialize(), 4};
+  Checkpoint cp{"job-9", 1, {5}, acc.Serialize(), 4, {"w1", "w2"}};
   const std::string bytes = EncodeCheckpoint(cp);
   const Checkpoint back = DecodeCheckpoint(bytes);
   EXPECT_EQ(back.job_id, "job-9");
   EXPECT_EQ(back.epoch, 4u);
+  EXPECT_EQ(back.convicted, (std::vector<std::string>{"w1", "w2"}));
   EXPECT_EQ(back.merge_seq, 1u);
   EXPECT_EQ(back.merged_task_ids, std::vector<uint64_t>{5});
   EXPECT_EQ(Accumulator::Deserialize(back.accumulator), acc);
@@ -158,8 +159,8 @@ TEST(Checkpoint, FilesAreWrittenAtomically) {
   const fs::path file = dir.path() / "job-1.acc";
   EXPECT_FALSE(ReadCheckpointFile(file).has_value());
   Accumulator acc(2, 2);
-  WriteCheckpointFile(file, {"job-1", 0, {}, acc.Serialize(), 0});
-  WriteCheckpointFile(file, {"job-1", 3, {0, 1, 7}, acc.Serialize(), 0});
+  WriteCheckpointFile(file, {"job-1", 0, {}, acc.Serialize(), 0, {}});
+  WriteCheckpointFile(file, {"job-1", 3, {0, 1, 7}, acc.Serialize(), 0, {}});
   const std::optional<Checkpoint> cp = ReadCheckpointFile(file);
   ASSERT_TRUE(cp.has_value());
   EXPECT_EQ(cp->merge_seq, 3u);
