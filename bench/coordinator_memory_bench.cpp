@@ -35,6 +35,7 @@
 #include "bench/bench_stats.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "proto/convert.h"
 
 extern char** environ;
 
@@ -145,12 +146,7 @@ int Run(const Options& o) {
         grpc::CreateChannel(coordinator.address(), grpc::InsecureChannelCredentials()));
     v1::UploadSceneRequest up;
     const SceneBundle bundle = CollectBundle(o.scene);
-    up.mutable_bundle()->set_entry(bundle.entry);
-    for (const auto& [path, content] : bundle.files) {
-      v1::SceneFile* f = up.mutable_bundle()->add_files();
-      f->set_path(path);
-      f->set_content(content);
-    }
+    BundleToProto(bundle, up.mutable_bundle());
     v1::UploadSceneResponse up_resp;
     Check(render->UploadScene(Ctx().get(), up, &up_resp), "UploadScene");
     auto stage = [&](const std::string& name) {

@@ -46,6 +46,7 @@
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "photonfarm_version.h"
+#include "proto/convert.h"
 
 extern char** environ;
 
@@ -191,12 +192,7 @@ RunResult RunOnce(const Options& o, int n, uint64_t tasks_wanted, const std::vec
 
   v1::UploadSceneRequest up;
   const SceneBundle bundle = CollectBundle(o.scene);
-  up.mutable_bundle()->set_entry(bundle.entry);
-  for (const auto& [path, content] : bundle.files) {
-    v1::SceneFile* f = up.mutable_bundle()->add_files();
-    f->set_path(path);
-    f->set_content(content);
-  }
+  BundleToProto(bundle, up.mutable_bundle());
   v1::UploadSceneResponse up_resp;
   if (grpc::Status st = render->UploadScene(Ctx().get(), up, &up_resp); !st.ok())
     throw std::runtime_error("UploadScene: " + st.error_message());
