@@ -29,7 +29,9 @@ using X509Ptr = std::unique_ptr<X509, OpenSslFree<X509_free>>;
 using PkeyPtr = std::unique_ptr<EVP_PKEY, OpenSslFree<EVP_PKEY_free>>;
 
 // A read-only memory BIO over `pem` (which must outlive it); null if out of memory.
-inline BioPtr MemoryBio(std::string_view pem) { return BioPtr(BIO_new_mem_buf(pem.data(), int(pem.size()))); }
+inline BioPtr MemoryBio(std::string_view pem) {
+  return BioPtr(BIO_new_mem_buf(pem.data(), int(pem.size())));
+}
 
 // The next certificate in `bio`; null at the end (OpenSSL then queues "no start line": the caller
 // clears it) or on an error.

@@ -144,19 +144,6 @@ TEST(WebStatus, ChromiumShowsJobsWorkersAndALivePreview) {
   EXPECT_LT(Compare(early, late, 600, 8, 100).stddev, 1);
 }
 
-// VmRSS and VmHWM (peak) of a process, in KiB.
-struct Memory {
-  long rss_kib = -1, peak_kib = -1;
-};
-Memory MemoryOf(pid_t pid) {
-  Memory m;
-  for (const std::string& line : ReadLines("/proc/" + std::to_string(pid) + "/status")) {
-    if (line.rfind("VmRSS:", 0) == 0) m.rss_kib = std::stol(line.substr(6));
-    if (line.rfind("VmHWM:", 0) == 0) m.peak_kib = std::stol(line.substr(6));
-  }
-  return m;
-}
-
 // Bodies are refused from the head alone, before authentication: nothing of a 400 MiB body is
 // read, so the coordinator's memory does not move (before the gate, two such POSTs took its peak
 // from 25 to 601 MiB: the body after the 401 was read as one next request line).
@@ -167,7 +154,7 @@ TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
                                  (dir / "token").string());
   const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
-  const Memory before = MemoryOf(coordinator.process().pid());
+  const ProcessMemory before = MemoryOf(coordinator.process().pid());
   ASSERT_GT(before.peak_kib, 0);
   constexpr size_t k400MiB = size_t(400) << 20, k64MiB = size_t(64) << 20;
   for (const std::string head : {"POST /api/status HTTP/1.1\r\nHost: x\r\nContent-Length: 419430400\r\n\r\n",
@@ -189,7 +176,7 @@ TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
     EXPECT_LT(c.SendMany('a', k400MiB), k64MiB) << "the head was read on and on";
     EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
   }
-  const Memory after = MemoryOf(coordinator.process().pid());
+  const ProcessMemory after = MemoryOf(coordinator.process().pid());
   EXPECT_LT(after.peak_kib - before.peak_kib, 8 * 1024)
       << "peak RSS " << before.peak_kib << " -> " << after.peak_kib << " KiB";
   EXPECT_LT(after.rss_kib - before.rss_kib, 8 * 1024)
