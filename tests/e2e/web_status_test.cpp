@@ -28,11 +28,15 @@ std::string Submit(const TestDir& dir, const std::string& address, const JobArgs
   return r.out.substr(0, r.out.find('\n'));
 }
 
+// A coordinator whose token is "s3cret-token", with its status page on 127.0.0.1 (any port).
+CoordinatorProcess WithTokenAndStatusPage(const TestDir& dir) {
+  std::ofstream(dir / "token") << "s3cret-token\n";
+  return CoordinatorProcess(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0, (dir / "token").string());
+}
+
 TEST(WebStatus, SameTokenAsGrpc) {
   TestDir dir;
-  std::ofstream(dir / "token") << "s3cret-token\n";
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
-                                 (dir / "token").string());
+  CoordinatorProcess coordinator = WithTokenAndStatusPage(dir);
   const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
   const std::string id = Submit(dir, coordinator.address(), JobArgs(), {{"PF_TOKEN", "s3cret-token"}});
@@ -149,9 +153,7 @@ TEST(WebStatus, ChromiumShowsJobsWorkersAndALivePreview) {
 // from 25 to 601 MiB: the body after the 401 was read as one next request line).
 TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
   TestDir dir;
-  std::ofstream(dir / "token") << "s3cret-token\n";
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
-                                 (dir / "token").string());
+  CoordinatorProcess coordinator = WithTokenAndStatusPage(dir);
   const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
   const ProcessMemory before = MemoryOf(coordinator.process().pid());
@@ -193,9 +195,7 @@ TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
 // authenticated GET is answered at once (before the gate, 3 of them made the page unreachable).
 TEST(WebStatus, SlowHeadsDoNotKeepThePageAway) {
   TestDir dir;
-  std::ofstream(dir / "token") << "s3cret-token\n";
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
-                                 (dir / "token").string());
+  CoordinatorProcess coordinator = WithTokenAndStatusPage(dir);
   const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
   std::vector<std::unique_ptr<RawConnection>> slow;
