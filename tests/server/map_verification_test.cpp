@@ -29,24 +29,13 @@ using testing::TempDir;
 namespace v1 = photonfarm::v1;
 namespace fs = std::filesystem;
 
+// The piece's upload; the checksums are the forger's own: they match its bytes. ABORTED if the
+// coordinator did not accept it.
 grpc::Status UploadPiece(LiveCoordinator& live, const v1::Task& piece, const std::string& worker,
                          const std::string& bytes) {
-  v1::UploadPhotonChunkResponse resp;
-  auto ctx = Ctx();
-  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
-      live.worker->UploadPhotonChunk(ctx.get(), &resp));
-  v1::PhotonChunkPart part;
-  part.set_lease_id(piece.lease_id());
-  part.set_worker_id(worker);
-  part.set_total_bytes(bytes.size());
-  part.set_digest(Sha256Hex(bytes));  // the checksums are the forger's own: they match its bytes
-  part.set_offset(0);
-  part.set_data(bytes);
-  part.set_sha256(Sha256Hex(bytes));
-  writer->Write(part);
-  writer->WritesDone();
-  const grpc::Status st = writer->Finish();
-  if (st.ok() && !resp.accepted()) return grpc::Status(grpc::StatusCode::ABORTED, "not accepted");
+  bool accepted = false;
+  const grpc::Status st = testing::UploadPiece(live, piece.lease_id(), worker, bytes, &accepted);
+  if (st.ok() && !accepted) return grpc::Status(grpc::StatusCode::ABORTED, "not accepted");
   return st;
 }
 

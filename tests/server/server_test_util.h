@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "common/core/rng.h"
+#include "common/core/sha256.h"
 #include "common/plan/task_plan.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
@@ -182,6 +183,29 @@ inline std::optional<v1::Task> TakeLease(LiveCoordinator& live, const std::strin
   EXPECT_TRUE(st.ok()) << st.error_message();
   if (!resp.has_task()) return std::nullopt;
   return resp.task();
+}
+
+// One UploadPhotonChunk stream of `bytes` (one part, its checksums those of `bytes`) for `lease_id`
+// from `worker_id`.
+inline grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id,
+                                const std::string& worker_id, const std::string& bytes, bool* accepted) {
+  v1::UploadPhotonChunkResponse resp;
+  auto ctx = Ctx();
+  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
+      live.worker->UploadPhotonChunk(ctx.get(), &resp));
+  v1::PhotonChunkPart part;
+  part.set_lease_id(lease_id);
+  part.set_worker_id(worker_id);
+  part.set_total_bytes(bytes.size());
+  part.set_digest(Sha256Hex(bytes));
+  part.set_offset(0);
+  part.set_data(bytes);
+  part.set_sha256(Sha256Hex(bytes));
+  writer->Write(part);
+  writer->WritesDone();
+  const grpc::Status st = writer->Finish();
+  *accepted = resp.accepted();
+  return st;
 }
 
 // A fixture: an in-process coordinator in a fresh data folder with the Cornell box uploaded.

@@ -33,6 +33,7 @@ using ::testing::HasSubstr;
 using testing::LiveCoordinator;
 using testing::TakeLease;
 using testing::TempDir;
+using testing::UploadPiece;
 namespace v1 = photonfarm::v1;
 namespace fs = std::filesystem;
 
@@ -314,28 +315,6 @@ TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanExtendOrCompleteItsTask) {
   EXPECT_TRUE(Complete(*live_, *t, SyntheticFor(*t), &merged, "holder").ok());
   EXPECT_TRUE(merged) << "the holder's lease survived the stranger's calls";
   EXPECT_EQ(GetJob(*live_, id).state(), v1::JOB_STATE_SUCCEEDED);
-}
-
-// One UploadPhotonChunk stream of `bytes` (one part) for `lease_id` from `worker_id`.
-grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id, const std::string& worker_id,
-                         const std::string& bytes, bool* accepted) {
-  v1::UploadPhotonChunkResponse resp;
-  auto ctx = Ctx();
-  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
-      live.worker->UploadPhotonChunk(ctx.get(), &resp));
-  v1::PhotonChunkPart part;
-  part.set_lease_id(lease_id);
-  part.set_worker_id(worker_id);
-  part.set_total_bytes(bytes.size());
-  part.set_digest(Sha256Hex(bytes));
-  part.set_offset(0);
-  part.set_data(bytes);
-  part.set_sha256(Sha256Hex(bytes));
-  writer->Write(part);
-  writer->WritesDone();
-  const grpc::Status st = writer->Finish();
-  *accepted = resp.accepted();
-  return st;
 }
 
 // The hostile farm: a second worker renewed another's piece lease, uploaded an empty piece (it was
