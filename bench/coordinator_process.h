@@ -34,8 +34,9 @@ class CoordinatorProcess {
  public:
   // `bin` with --data-dir `data` and --log-level warn; stdout to `out`, stderr to `log`. Throws if
   // it cannot be started or has not said where it listens after `start_seconds`.
-  CoordinatorProcess(const std::string& bin, const std::filesystem::path& data, const std::filesystem::path& out,
-                     const std::filesystem::path& log, double start_seconds) {
+  CoordinatorProcess(const std::string& bin, const std::filesystem::path& data,
+                     const std::filesystem::path& out, const std::filesystem::path& log,
+                     double start_seconds) {
     std::vector<std::string> args = {bin,           "--listen",    "127.0.0.1:0", "--data-dir",
                                      data.string(), "--log-level", "warn"};
     std::vector<char*> argv;
