@@ -14,11 +14,7 @@
 //
 //   build/bench/coordinator_memory_bench [--coordinator PATH] [--json-out FILE]
 
-#include <fcntl.h>
 #include <grpcpp/grpcpp.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -26,17 +22,15 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <regex>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "bench/bench_stats.h"
+#include "bench/coordinator_process.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
-
-extern char** environ;
+#include "proto/convert.h"
 
 namespace pf::bench {
 namespace {
@@ -49,63 +43,12 @@ struct Options {
   std::string json_out;
 };
 
-std::string ReadAll(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+// Run `run` of the coordinator on `data`: its output in DIR/coordinator<run>.out and .log.
+CoordinatorProcess StartCoordinator(const std::string& bin, const fs::path& dir, const fs::path& data,
+                                    int run) {
+  return CoordinatorProcess(bin, data, dir / ("coordinator" + std::to_string(run) + ".out"),
+                            dir / ("coordinator" + std::to_string(run) + ".log"), 60);
 }
-
-// A pf-coordinator process on `data`; SIGTERM and reaped on destruction (a graceful stop).
-class CoordinatorProcess {
- public:
-  CoordinatorProcess(const std::string& bin, const fs::path& dir, const fs::path& data, int run) {
-    const fs::path out = dir / ("coordinator" + std::to_string(run) + ".out");
-    const fs::path log = dir / ("coordinator" + std::to_string(run) + ".log");
-    std::vector<std::string> args = {bin,           "--listen",    "127.0.0.1:0", "--data-dir",
-                                     data.string(), "--log-level", "warn"};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 2, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int rc = posix_spawn(&pid_, bin.c_str(), &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0) throw std::runtime_error("cannot start " + bin);
-    const std::regex listening(R"(listening on ([0-9.]+:[0-9]+))");
-    for (int i = 0; i < 1200; ++i) {
-      std::smatch m;
-      const std::string text = ReadAll(out);
-      if (std::regex_search(text, m, listening)) {
-        address_ = m[1];
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    throw std::runtime_error("pf-coordinator did not start: " + ReadAll(log));
-  }
-  ~CoordinatorProcess() {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-  }
-  CoordinatorProcess(const CoordinatorProcess&) = delete;
-  CoordinatorProcess& operator=(const CoordinatorProcess&) = delete;
-  const std::string& address() const { return address_; }
-  // A field of /proc/PID/status in MiB ("VmRSS", "VmHWM").
-  double MiB(const std::string& field) const {
-    std::istringstream in(ReadAll("/proc/" + std::to_string(pid_) + "/status"));
-    for (std::string line; std::getline(in, line);)
-      if (line.rfind(field + ":", 0) == 0) return std::stod(line.substr(field.size() + 1)) / 1024;
-    return -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-  std::string address_;
-};
 
 std::unique_ptr<grpc::ClientContext> Ctx(double seconds = 600) {
   auto ctx = std::make_unique<grpc::ClientContext>();
@@ -140,17 +83,12 @@ int Run(const Options& o) {
   double submit_seconds = 0;
   std::string job_id;
   {
-    CoordinatorProcess coordinator(o.coordinator, dir, data, 1);
+    CoordinatorProcess coordinator = StartCoordinator(o.coordinator, dir, data, 1);
     auto render = v1::RenderService::NewStub(
         grpc::CreateChannel(coordinator.address(), grpc::InsecureChannelCredentials()));
     v1::UploadSceneRequest up;
     const SceneBundle bundle = CollectBundle(o.scene);
-    up.mutable_bundle()->set_entry(bundle.entry);
-    for (const auto& [path, content] : bundle.files) {
-      v1::SceneFile* f = up.mutable_bundle()->add_files();
-      f->set_path(path);
-      f->set_content(content);
-    }
+    BundleToProto(bundle, up.mutable_bundle());
     v1::UploadSceneResponse up_resp;
     Check(render->UploadScene(Ctx().get(), up, &up_resp), "UploadScene");
     auto stage = [&](const std::string& name) {
@@ -188,7 +126,7 @@ int Run(const Options& o) {
     stage("cancelled");
   }
   {
-    CoordinatorProcess coordinator(o.coordinator, dir, data, 2);
+    CoordinatorProcess coordinator = StartCoordinator(o.coordinator, dir, data, 2);
     auto render = v1::RenderService::NewStub(
         grpc::CreateChannel(coordinator.address(), grpc::InsecureChannelCredentials()));
     v1::ListJobsRequest list;

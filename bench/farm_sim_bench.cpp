@@ -19,11 +19,7 @@
 //   build/bench/farm_sim_bench --task-log coordinator.log --json-out docs/results/farm-sim.json
 // (docs/results/farm-sim.md has the command that made the task log.)
 
-#include <fcntl.h>
 #include <grpcpp/grpcpp.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -43,11 +39,11 @@
 #include <vector>
 
 #include "bench/bench_stats.h"
+#include "bench/coordinator_process.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "photonfarm_version.h"
-
-extern char** environ;
+#include "proto/convert.h"
 
 namespace pf::bench {
 namespace {
@@ -69,13 +65,6 @@ struct Options {
   int saturation_workers = 32;
   int saturation_tasks = 2048;
 };
-
-std::string ReadAll(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // The leased → merged interval of every task of a real coordinator's log (spdlog lines
 // "[date time.ms] [info] job J task T: leased to W" and "job J task T: merged").
@@ -102,60 +91,6 @@ std::vector<double> TaskTimesFromLog(const std::string& path) {
   if (out.empty()) throw std::runtime_error("--task-log: no leased/merged task pairs in " + path);
   return out;
 }
-
-// A pf-coordinator process in a fresh data folder; SIGTERM and reaped on destruction.
-class CoordinatorProcess {
- public:
-  CoordinatorProcess(const std::string& bin, const fs::path& dir) {
-    fs::create_directories(dir);
-    const fs::path out = dir / "coordinator.out", log = dir / "coordinator.log";
-    std::vector<std::string> args = {
-        bin, "--listen", "127.0.0.1:0", "--data-dir", (dir / "data").string(), "--log-level", "warn"};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 2, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (posix_spawn(&pid_, bin.c_str(), &fa, nullptr, argv.data(), environ) != 0)
-      throw std::runtime_error("cannot start " + bin);
-    posix_spawn_file_actions_destroy(&fa);
-    const std::regex listening(R"(listening on ([0-9.]+:[0-9]+))");
-    for (int i = 0; i < 600; ++i) {
-      std::smatch m;
-      const std::string text = ReadAll(out);
-      if (std::regex_search(text, m, listening)) {
-        address_ = m[1];
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    throw std::runtime_error("pf-coordinator did not start: " + ReadAll(log));
-  }
-  ~CoordinatorProcess() {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-  }
-  const std::string& address() const { return address_; }
-  // utime + stime of the process so far (/proc/<pid>/stat fields 14 and 15).
-  double CpuSeconds() const {
-    const std::string stat = ReadAll("/proc/" + std::to_string(pid_) + "/stat");
-    std::istringstream in(stat.substr(stat.rfind(')') + 2));
-    std::string field;
-    unsigned long long utime = 0, stime = 0;
-    for (int i = 3; i <= 15 && in >> field; ++i) {
-      if (i == 14) utime = std::stoull(field);
-      if (i == 15) stime = std::stoull(field);
-    }
-    return double(utime + stime) / double(sysconf(_SC_CLK_TCK));
-  }
-
- private:
-  pid_t pid_ = -1;
-  std::string address_;
-};
 
 std::shared_ptr<grpc::Channel> Connect(const std::string& address, int id) {
   grpc::ChannelArguments args;
@@ -185,18 +120,15 @@ struct RunResult {
 // workers whose task times are drawn from `times` × scale.
 RunResult RunOnce(const Options& o, int n, uint64_t tasks_wanted, const std::vector<double>& times,
                   double scale, const fs::path& dir, uint64_t seed) {
-  CoordinatorProcess coordinator(o.coordinator, dir);
+  fs::create_directories(dir);
+  CoordinatorProcess coordinator(o.coordinator, dir / "data", dir / "coordinator.out",
+                                 dir / "coordinator.log", 30);
   auto channel = Connect(coordinator.address(), -1);
   auto render = v1::RenderService::NewStub(channel);
 
   v1::UploadSceneRequest up;
   const SceneBundle bundle = CollectBundle(o.scene);
-  up.mutable_bundle()->set_entry(bundle.entry);
-  for (const auto& [path, content] : bundle.files) {
-    v1::SceneFile* f = up.mutable_bundle()->add_files();
-    f->set_path(path);
-    f->set_content(content);
-  }
+  BundleToProto(bundle, up.mutable_bundle());
   v1::UploadSceneResponse up_resp;
   if (grpc::Status st = render->UploadScene(Ctx().get(), up, &up_resp); !st.ok())
     throw std::runtime_error("UploadScene: " + st.error_message());

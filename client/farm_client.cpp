@@ -54,12 +54,7 @@ void FarmClient::Fail(const grpc::Status& status) const {
 
 v1::UploadSceneResponse FarmClient::UploadScene(const SceneBundle& bundle) {
   v1::UploadSceneRequest req;
-  req.mutable_bundle()->set_entry(bundle.entry);
-  for (const auto& [path, content] : bundle.files) {
-    v1::SceneFile* f = req.mutable_bundle()->add_files();
-    f->set_path(path);
-    f->set_content(content);
-  }
+  BundleToProto(bundle, req.mutable_bundle());
   return Call(&Stub::UploadScene, req);
 }
 

@@ -659,4 +659,13 @@ bool ResolveAutoPlan(v1::JobSpec* spec, int width, int height, int caustic_paths
   return true;
 }
 
+void BundleToProto(const SceneBundle& bundle, v1::SceneBundle* out) {
+  out->set_entry(bundle.entry);
+  for (const auto& [path, content] : bundle.files) {
+    v1::SceneFile* f = out->add_files();
+    f->set_path(path);
+    f->set_content(content);
+  }
+}
+
 }  // namespace pf

@@ -10,6 +10,7 @@
 #include "common/plan/task_executor.h"
 #include "common/plan/task_plan.h"
 #include "common/scene/scene.h"
+#include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.pb.h"
 #include "proto/limits.h"
 
@@ -49,5 +50,8 @@ void PixelSubsetToProto(const PixelSubset& p, photonfarm::v1::PixelSubset* out);
 // Task ↔ core: the task's core TaskSpec (the camera and settings travel alongside).
 TaskSpec TaskSpecFromProto(const photonfarm::v1::Task& t);
 void TaskSpecToProto(const TaskSpec& spec, photonfarm::v1::Task* out);
+
+// The bundle as UploadScene sends it (the coordinator checks it).
+void BundleToProto(const SceneBundle& bundle, photonfarm::v1::SceneBundle* out);
 
 }  // namespace pf

@@ -18,31 +18,16 @@
 #include <memory>
 #include <vector>
 
+#include "rpc/openssl_ptr.h"
+
 namespace pf {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-struct SslCtxFree {
-  void operator()(SSL_CTX* p) const { SSL_CTX_free(p); }
-};
-struct SslFree {
-  void operator()(SSL* p) const { SSL_free(p); }
-};
-struct BioFree {
-  void operator()(BIO* p) const { BIO_free(p); }
-};
-struct X509Free {
-  void operator()(X509* p) const { X509_free(p); }
-};
-struct PkeyFree {
-  void operator()(EVP_PKEY* p) const { EVP_PKEY_free(p); }
-};
 struct AddrinfoFree {
   void operator()(addrinfo* p) const { freeaddrinfo(p); }
 };
-using BioPtr = std::unique_ptr<BIO, BioFree>;
-using X509Ptr = std::unique_ptr<X509, X509Free>;
 
 class Socket {
  public:
@@ -89,10 +74,6 @@ class SigpipeBlocked {
   sigset_t pipe_, previous_;
   bool was_pending_ = false;
 };
-
-BioPtr MemoryBio(const std::string& pem) {
-  return BioPtr(BIO_new_mem_buf(pem.data(), int(pem.size())));
-}
 
 // HOST and PORT of "HOST:PORT", "[V6]:PORT", "dns:///HOST:PORT", "ipv4:..."; false for unix: targets.
 bool SplitAddress(std::string a, std::string* host, std::string* port) {
@@ -164,8 +145,7 @@ std::vector<X509Ptr> ReadCertificates(const std::string& pem) {
   std::vector<X509Ptr> certs;
   const BioPtr bio = MemoryBio(pem);
   if (!bio) return certs;
-  for (X509Ptr c(PEM_read_bio_X509(bio.get(), nullptr, nullptr, nullptr)); c;
-       c.reset(PEM_read_bio_X509(bio.get(), nullptr, nullptr, nullptr)))
+  for (X509Ptr c = ReadPemCertificate(bio.get()); c; c = ReadPemCertificate(bio.get()))
     certs.push_back(std::move(c));
   ERR_clear_error();  // the loop ends on "no start line"
   return certs;
@@ -307,25 +287,22 @@ std::string Explain(const Outcome& out, const ClientTls& tls, const std::string&
   return "";
 }
 
-std::unique_ptr<SSL_CTX, SslCtxFree> ClientContext(const ClientTls& tls) {
-  std::unique_ptr<SSL_CTX, SslCtxFree> ctx(SSL_CTX_new(TLS_client_method()));
+SslCtxPtr ClientContext(const ClientTls& tls) {
+  SslCtxPtr ctx(SSL_CTX_new(TLS_client_method()));
   if (!ctx) return nullptr;
   SSL_CTX_set_verify(ctx.get(), SSL_VERIFY_PEER, nullptr);
   const BioPtr roots = MemoryBio(tls.ca_pem);
   X509_STORE* store = SSL_CTX_get_cert_store(ctx.get());
-  for (X509Ptr ca(PEM_read_bio_X509(roots.get(), nullptr, nullptr, nullptr)); ca;
-       ca.reset(PEM_read_bio_X509(roots.get(), nullptr, nullptr, nullptr)))
+  for (X509Ptr ca = ReadPemCertificate(roots.get()); ca; ca = ReadPemCertificate(roots.get()))
     X509_STORE_add_cert(store, ca.get());
   if (!tls.cert_pem.empty()) {
     const BioPtr certs = MemoryBio(tls.cert_pem);
-    const X509Ptr leaf(PEM_read_bio_X509(certs.get(), nullptr, nullptr, nullptr));
+    const X509Ptr leaf = ReadPemCertificate(certs.get());
     if (!leaf || SSL_CTX_use_certificate(ctx.get(), leaf.get()) != 1) return nullptr;
-    for (X509Ptr extra(PEM_read_bio_X509(certs.get(), nullptr, nullptr, nullptr)); extra;
-         extra.reset(PEM_read_bio_X509(certs.get(), nullptr, nullptr, nullptr)))
+    for (X509Ptr extra = ReadPemCertificate(certs.get()); extra; extra = ReadPemCertificate(certs.get()))
       if (SSL_CTX_add0_chain_cert(ctx.get(), extra.get()) == 1) static_cast<void>(extra.release());
     const BioPtr key_bio = MemoryBio(tls.key_pem);
-    const std::unique_ptr<EVP_PKEY, PkeyFree> key(
-        PEM_read_bio_PrivateKey(key_bio.get(), nullptr, nullptr, nullptr));
+    const PkeyPtr key = ReadPemPrivateKey(key_bio.get());
     if (!key || SSL_CTX_use_PrivateKey(ctx.get(), key.get()) != 1) return nullptr;
   }
   ERR_clear_error();
@@ -344,7 +321,7 @@ std::string DiagnoseTlsHandshake(const std::string& address, const ClientTls& tl
   if (socket.fd() < 0) return "";
   const auto ctx = ClientContext(tls);
   if (!ctx) return "";
-  const std::unique_ptr<SSL, SslFree> ssl(SSL_new(ctx.get()));
+  const SslPtr ssl(SSL_new(ctx.get()));
   if (!ssl || SSL_set_fd(ssl.get(), socket.fd()) != 1) return "";
   SSL_set_connect_state(ssl.get());
   // What gRPC checks: the server name (or the override) against the certificate, ALPN h2.

@@ -20,30 +20,13 @@
 #include <string_view>
 
 #include "common/core/error.h"
+#include "rpc/openssl_ptr.h"
 
 namespace pf::server {
 
 using Clock = std::chrono::steady_clock;
 
 namespace {
-
-struct SslCtxFree {
-  void operator()(SSL_CTX* p) const { SSL_CTX_free(p); }
-};
-struct SslFree {
-  void operator()(SSL* p) const { SSL_free(p); }
-};
-struct BioFree {
-  void operator()(BIO* p) const { BIO_free(p); }
-};
-struct X509Free {
-  void operator()(X509* p) const { X509_free(p); }
-};
-struct PkeyFree {
-  void operator()(EVP_PKEY* p) const { EVP_PKEY_free(p); }
-};
-using BioPtr = std::unique_ptr<BIO, BioFree>;
-using X509Ptr = std::unique_ptr<X509, X509Free>;
 
 std::string OpenSslErrors() {
   std::string out;
@@ -56,8 +39,8 @@ std::string OpenSslErrors() {
   return out.empty() ? "unknown error" : out;
 }
 
-BioPtr MemoryBio(const std::string& pem) {
-  BioPtr bio(BIO_new_mem_buf(pem.data(), int(pem.size())));
+BioPtr PemBio(const std::string& pem) {
+  BioPtr bio = MemoryBio(pem);
   if (!bio) throw SystemError("TLS: out of memory");
   return bio;
 }
@@ -131,16 +114,16 @@ void PeerName(int fd, bool remote, std::string& ip, int& port) {
 }  // namespace
 
 struct GatedHttpServer::TlsContext {
-  std::unique_ptr<SSL_CTX, SslCtxFree> ctx;
+  SslCtxPtr ctx;
 };
 
 // One accepted connection: its socket (non-blocking), its TLS session, what has arrived of its
 // request. Closing it closes the socket.
 struct GatedConnection {
   int fd = -1;
-  std::unique_ptr<SSL, SslFree> ssl;  // null for plain HTTP
-  bool handshaken = false;            // TLS handshake done (always true for plain HTTP)
-  bool failed = false;                // a read or write failed: no close_notify
+  SslPtr ssl;               // null for plain HTTP
+  bool handshaken = false;  // TLS handshake done (always true for plain HTTP)
+  bool failed = false;      // a read or write failed: no close_notify
   Clock::time_point accepted;
   std::string head;  // the request line and headers, up to the blank line that ends them
   short wait_for = POLLIN;
@@ -279,20 +262,18 @@ GatedHttpServer::GatedHttpServer(HttpLimits limits, const std::string& tls_cert_
     if (!ctx) throw SystemError("status page TLS: " + OpenSslErrors());
     SSL_CTX_set_min_proto_version(ctx, TLS1_2_VERSION);
     SSL_CTX_set_mode(ctx, SSL_MODE_RELEASE_BUFFERS);  // idle waiting connections hold no buffers
-    BioPtr certs = MemoryBio(tls_cert_pem);
-    X509Ptr leaf(PEM_read_bio_X509(certs.get(), nullptr, nullptr, nullptr));
+    const BioPtr certs = PemBio(tls_cert_pem);
+    const X509Ptr leaf = ReadPemCertificate(certs.get());
     if (!leaf || SSL_CTX_use_certificate(ctx, leaf.get()) != 1)
       throw InputError("--tls-cert: the status page cannot use the certificate: " + OpenSslErrors());
-    for (X509Ptr extra(PEM_read_bio_X509(certs.get(), nullptr, nullptr, nullptr)); extra;
-         extra.reset(PEM_read_bio_X509(certs.get(), nullptr, nullptr, nullptr))) {
+    for (X509Ptr extra = ReadPemCertificate(certs.get()); extra; extra = ReadPemCertificate(certs.get())) {
       if (SSL_CTX_add0_chain_cert(ctx, extra.get()) != 1)
         throw InputError("--tls-cert: the status page cannot use the chain: " + OpenSslErrors());
       static_cast<void>(extra.release());  // the context owns it now
     }
     ERR_clear_error();  // the loop above ends on "no start line"
-    BioPtr key_bio = MemoryBio(tls_key_pem);
-    std::unique_ptr<EVP_PKEY, PkeyFree> key(
-        PEM_read_bio_PrivateKey(key_bio.get(), nullptr, nullptr, nullptr));
+    const BioPtr key_bio = PemBio(tls_key_pem);
+    const PkeyPtr key = ReadPemPrivateKey(key_bio.get());
     if (!key || SSL_CTX_use_PrivateKey(ctx, key.get()) != 1 || SSL_CTX_check_private_key(ctx) != 1)
       throw InputError("--tls-key: the status page cannot use the key: " + OpenSslErrors());
   }

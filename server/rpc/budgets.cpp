@@ -172,13 +172,7 @@ Reservation Admission::AdmitJob(const std::string& client, uint64_t tasks, uint6
   pending_tasks_ += tasks;
   pending_pixels_ += pixels;
   ++pending_client_jobs_[client];
-  Reservation r;
-  r.admission_ = this;
-  r.upload_ = false;
-  r.client_ = client;
-  r.amount_a_ = tasks;
-  r.amount_b_ = pixels;
-  return r;
+  return Reservation(this, /*upload=*/false, client, tasks, pixels);
 }
 
 Reservation Admission::AdmitUpload(const std::string& client, uint64_t bytes) {
@@ -198,12 +192,7 @@ Reservation Admission::AdmitUpload(const std::string& client, uint64_t bytes) {
   ++uploads_;
   upload_bytes_ += bytes;
   ++client_uploads_[client];
-  Reservation r;
-  r.admission_ = this;
-  r.upload_ = true;
-  r.client_ = client;
-  r.amount_a_ = bytes;
-  return r;
+  return Reservation(this, /*upload=*/true, client, bytes, 0);
 }
 
 void Admission::CheckSceneBytes(const Reservation& upload, const std::function<bool()>& already_stored) {

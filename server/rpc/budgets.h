@@ -19,6 +19,7 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include <grpcpp/support/server_callback.h>
 
@@ -80,6 +81,12 @@ class Reservation {
 
  private:
   friend class Admission;
+  Reservation(Admission* admission, bool upload, std::string client, uint64_t amount_a, uint64_t amount_b)
+      : admission_(admission),
+        upload_(upload),
+        client_(std::move(client)),
+        amount_a_(amount_a),
+        amount_b_(amount_b) {}
   Admission* admission_ = nullptr;
   bool upload_ = false;  // else a job
   std::string client_;

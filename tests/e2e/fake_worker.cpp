@@ -34,6 +34,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -67,6 +68,25 @@ uint64_t PixelsOfTask(const v1::Task& t) {
 
 std::string WorkerId(const Options& o) {
   return o.worker_id.empty() ? "fake-" + o.mode : o.worker_id;
+}
+
+// A context for one call: the token and a deadline of 10 s.
+std::unique_ptr<grpc::ClientContext> CallContext(const Options& o) {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  pf::PrepareContext(ctx.get(), o.token, std::chrono::seconds(10));
+  return ctx;
+}
+
+// FailTask of `task`'s lease in the name of `worker_id`.
+grpc::Status FailLease(v1::WorkerService::Stub& stub, const Options& o, const v1::Task& task,
+                       const std::string& worker_id, const std::string& reason, bool retryable) {
+  v1::FailTaskRequest req;
+  req.set_lease_id(task.lease_id());
+  req.set_worker_id(worker_id);
+  req.set_reason(reason);
+  req.set_retryable(retryable);
+  v1::FailTaskResponse resp;
+  return stub.FailTask(CallContext(o).get(), req, &resp);
 }
 
 bool LeaseOne(v1::WorkerService::Stub& stub, const Options& o, double wait, v1::Task* task,
@@ -105,10 +125,8 @@ int BadResult(const Options& o) {
   if (o.mode == "nan") req.set_rgb_sums(0, std::numeric_limits<float>::quiet_NaN());
   if (o.mode == "negative") req.set_rgb_sums(0, -1e9f);
   if (o.mode == "huge") req.set_rgb_sums(0, 1e9f);
-  grpc::ClientContext ctx;
-  pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));
   v1::CompleteTaskResponse resp;
-  const grpc::Status s = stub->CompleteTask(&ctx, req, &resp);
+  const grpc::Status s = stub->CompleteTask(CallContext(o).get(), req, &resp);
   std::printf("%s\n", nlohmann::json{{"job_id", task.job_id()},
                                      {"task_id", task.task_id()},
                                      {"attempt", task.attempt()},
@@ -134,15 +152,8 @@ int Flaky(const Options& o) {
       continue;
     }
     ++leases;
-    v1::FailTaskRequest req;
-    req.set_lease_id(task.lease_id());
-    req.set_worker_id(WorkerId(o));
-    req.set_reason("simulated failure (pf_fake_worker --mode flaky)");
-    req.set_retryable(true);
-    grpc::ClientContext ctx;
-    pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));
-    v1::FailTaskResponse resp;
-    const grpc::Status s = stub->FailTask(&ctx, req, &resp);
+    const grpc::Status s =
+        FailLease(*stub, o, task, WorkerId(o), "simulated failure (pf_fake_worker --mode flaky)", true);
     if (s.ok())
       ++failures;
     else
@@ -186,10 +197,8 @@ int Instant(const Options& o) {
         req.set_worker_id(WorkerId(o));
         req.set_part(task.part());
         req.mutable_rgb_sums()->Resize(int(n * 3), 0.0f);
-        grpc::ClientContext ctx;
-        pf::PrepareContext(&ctx, o.token, std::chrono::seconds(10));
         v1::CompleteTaskResponse resp;
-        const grpc::Status s = stub->CompleteTask(&ctx, req, &resp);
+        const grpc::Status s = stub->CompleteTask(CallContext(o).get(), req, &resp);
         if (!s.ok()) {
           std::lock_guard lock(error_mutex);
           error = pf::StatusToString(s);
@@ -294,11 +303,6 @@ int Hijack(const Options& o) {
     }
   const bool piece = task.has_trace_chunk();
   std::fprintf(stderr, "leased-%s job=%s\n", piece ? "piece" : "task", task.job_id().c_str());
-  auto ctx = [&] {
-    auto c = std::make_unique<grpc::ClientContext>();
-    pf::PrepareContext(c.get(), o.token, std::chrono::seconds(10));
-    return c;
-  };
   nlohmann::json calls;
   {
     v1::ExtendLeaseRequest req;
@@ -306,7 +310,7 @@ int Hijack(const Options& o) {
     req.set_worker_id(WorkerId(o));
     req.set_progress(0.5);
     v1::ExtendLeaseResponse resp;
-    calls["ExtendLease"] = pf::StatusToString(stub->ExtendLease(ctx().get(), req, &resp));
+    calls["ExtendLease"] = pf::StatusToString(stub->ExtendLease(CallContext(o).get(), req, &resp));
   }
   if (piece) {
     pf::PhotonChunk empty;
@@ -314,7 +318,7 @@ int Hijack(const Options& o) {
     empty.end = task.trace_chunk().photon_end();
     const std::string bytes = pf::SerializePhotonChunk(empty);
     v1::UploadPhotonChunkResponse resp;
-    auto c = ctx();
+    auto c = CallContext(o);
     std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(stub->UploadPhotonChunk(c.get(), &resp));
     v1::PhotonChunkPart part;
     part.set_lease_id(task.lease_id());
@@ -333,26 +337,13 @@ int Hijack(const Options& o) {
     req.set_worker_id(WorkerId(o));
     for (uint64_t i = 0, n = PixelsOfTask(task) * 3; i < n; ++i) req.add_rgb_sums(0);
     v1::CompleteTaskResponse resp;
-    calls["CompleteTask"] = pf::StatusToString(stub->CompleteTask(ctx().get(), req, &resp));
+    calls["CompleteTask"] = pf::StatusToString(stub->CompleteTask(CallContext(o).get(), req, &resp));
   }
-  {
-    v1::FailTaskRequest req;
-    req.set_lease_id(task.lease_id());
-    req.set_worker_id(WorkerId(o));
-    req.set_reason("hijack: end the job");
-    req.set_retryable(false);
-    v1::FailTaskResponse resp;
-    calls["FailTask"] = pf::StatusToString(stub->FailTask(ctx().get(), req, &resp));
-  }
-  {  // the accomplice hands the lease back, so that an honest worker takes it without waiting
-    v1::FailTaskRequest req;
-    req.set_lease_id(task.lease_id());
-    req.set_worker_id(accomplice.worker_id);
-    req.set_reason("handed back (pf_fake_worker --mode hijack)");
-    req.set_retryable(true);
-    v1::FailTaskResponse resp;
-    calls["accomplice FailTask"] = pf::StatusToString(stub->FailTask(ctx().get(), req, &resp));
-  }
+  calls["FailTask"] =
+      pf::StatusToString(FailLease(*stub, o, task, WorkerId(o), "hijack: end the job", false));
+  // The accomplice hands the lease back, so that an honest worker takes it without waiting.
+  calls["accomplice FailTask"] = pf::StatusToString(
+      FailLease(*stub, o, task, accomplice.worker_id, "handed back (pf_fake_worker --mode hijack)", true));
   bool refused = true;
   for (const auto& [call, status] : calls.items())
     if (call.rfind("accomplice", 0) != 0)

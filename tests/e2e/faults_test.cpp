@@ -39,23 +39,13 @@ Image LocalReference(const TestDir& dir, const JobArgs& job) {
   return ReadImage(dir / "local.exr");
 }
 
-std::string Submit(const TestDir& dir, const std::string& address, const JobArgs& job) {
-  const RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
-                                        {"--coordinator", address}),
-                                 dir.path());
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  std::string id = r.out;
-  while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
-  return id;
-}
-
 TEST(FarmFaults, KilledAndHungWorkersLoseOnlyTheirLeases) {
   TestDir dir;
   const JobArgs job = SlowJob();
   const Image reference = LocalReference(dir, job);
   CoordinatorProcess coordinator(dir / "data", dir.path(),
                                  {"--lease-seconds", "1.5", "--max-attempts", "10"});
-  const std::string job_id = Submit(dir, coordinator.address(), job);
+  const std::string job_id = SubmitJob(dir, coordinator.address(), job.ToFlags());
   ASSERT_FALSE(job_id.empty());
 
   std::vector<fs::path> logs;
@@ -143,7 +133,7 @@ TEST(FarmFaults, AFlakyWorkerIsBlocklistedAndTheImageEqualsACleanRun) {
   const JobArgs job = SlowJob();
   const Image reference = LocalReference(dir, job);
   CoordinatorProcess coordinator(dir / "data", dir.path());
-  const std::string job_id = Submit(dir, coordinator.address(), job);
+  const std::string job_id = SubmitJob(dir, coordinator.address(), job.ToFlags());
   ASSERT_FALSE(job_id.empty());
   // The real worker first: the coordinator must know a live worker besides the flaky one.
   auto real = StartWorker(coordinator.address(), dir.path(), "real");
@@ -187,7 +177,7 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
                                                           std::vector<std::string>{"--lease-seconds", "3"});
   const int port = coordinator->port();
   const std::string address = coordinator->address();
-  const std::string job_id = Submit(dir, address, job);
+  const std::string job_id = SubmitJob(dir, address, job.ToFlags());
   ASSERT_FALSE(job_id.empty());
   std::vector<fs::path> logs;
   std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);
@@ -198,8 +188,7 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
   coordinator->process().Wait(5);
   // What was acknowledged before the crash, and where each log stands.
   const std::map<uint64_t, int> before = MergedTaskCounts(logs, job_id);
-  std::vector<size_t> offsets;
-  for (const fs::path& log : logs) offsets.push_back(ReadLines(log).size());
+  const std::vector<size_t> offsets = LineCounts(logs);
   EXPECT_LT(before.size(), size_t(job.rounds * job.stride * job.stride))
       << "the job finished before the crash";
 
@@ -213,15 +202,7 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
   ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
 
   // No task acknowledged before the crash was leased again after it.
-  std::set<uint64_t> leased_after;
-  const std::regex leased("leased job=" + job_id + " task=([0-9]+)");
-  for (size_t i = 0; i < logs.size(); ++i) {
-    const std::vector<std::string> lines = ReadLines(logs[i]);
-    for (size_t l = offsets[i]; l < lines.size(); ++l) {
-      std::smatch m;
-      if (std::regex_search(lines[l], m, leased)) leased_after.insert(std::stoull(m[1].str()));
-    }
-  }
+  const std::set<uint64_t> leased_after = LeasedTasksSince(logs, offsets, job_id);
   for (const auto& [task, count] : before)
     EXPECT_FALSE(leased_after.count(task)) << "task " << task << " re-run";
   // No task acknowledged twice over both coordinator lives. (A result made durable just before
@@ -246,7 +227,7 @@ TEST(FarmFaults, WorkerSigtermHandsBackOrFinishesItsTask) {
   job.stride = 1;
   job.rounds = 3;  // 3 whole-image tasks
   CoordinatorProcess coordinator(dir / "data", dir.path());
-  const std::string job_id = Submit(dir, coordinator.address(), job);
+  const std::string job_id = SubmitJob(dir, coordinator.address(), job.ToFlags());
 
   // --grace 0: SIGTERM mid-task hands the lease back at once (FailTask, retryable) and exits 0.
   auto quick = StartWorker(coordinator.address(), dir.path(), "quick", {"--grace", "0"});

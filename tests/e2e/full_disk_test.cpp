@@ -63,16 +63,6 @@ JobArgs DiskJob() {
   return job;
 }
 
-std::string Submit(const TestDir& dir, const std::string& address, const JobArgs& job) {
-  const RunResult r = RunCommand(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, job.ToFlags()),
-                                        {"--coordinator", address}),
-                                 dir.path());
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  std::string id = r.out;
-  while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
-  return id;
-}
-
 // Tasks whose completion a worker logged with merged=false after a failed (UNAVAILABLE) report.
 size_t NotStoredReports(const std::vector<fs::path>& logs) {
   size_t n = 0;
@@ -99,7 +89,7 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
   auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args);
   const int port = coordinator->port();
   const std::string address = coordinator->address();
-  const std::string job_id = Submit(dir, address, job);
+  const std::string job_id = SubmitJob(dir, address, job.ToFlags());
   ASSERT_FALSE(job_id.empty());
   std::vector<fs::path> logs;
   std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);
@@ -128,8 +118,7 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
   coordinator->process().Signal(SIGKILL);
   coordinator->process().Wait(5);
   const std::map<uint64_t, int> acknowledged = MergedTaskCounts(logs, job_id);
-  std::vector<size_t> offsets;
-  for (const fs::path& log : logs) offsets.push_back(ReadLines(log).size());
+  const std::vector<size_t> offsets = LineCounts(logs);
 
   disk.Free();
   coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args, port);
@@ -139,15 +128,7 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
   EXPECT_TRUE(Grep(coordinator->process().log(), "DATA LOSS").empty())
       << ReadFile(coordinator->process().log());
 
-  std::set<uint64_t> leased_after;
-  const std::regex leased("leased job=" + job_id + " task=([0-9]+)");
-  for (size_t i = 0; i < logs.size(); ++i) {
-    const std::vector<std::string> lines = ReadLines(logs[i]);
-    for (size_t l = offsets[i]; l < lines.size(); ++l) {
-      std::smatch m;
-      if (std::regex_search(lines[l], m, leased)) leased_after.insert(std::stoull(m[1].str()));
-    }
-  }
+  const std::set<uint64_t> leased_after = LeasedTasksSince(logs, offsets, job_id);
   for (const auto& [task, count] : acknowledged)
     EXPECT_FALSE(leased_after.count(task)) << "task " << task << " was acknowledged, then re-run";
   EXPECT_EQ(done.samples_merged(), uint64_t(job.res) * job.res * job.spp * job.rounds);
@@ -166,7 +147,7 @@ TEST_F(FullDisk, ASigtermWhoseFinalFlushCannotStoreEverythingExitsOne) {
   ASSERT_EQ(disk.error(), "");
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--lease-seconds", "3"});
   const JobArgs job = DiskJob();
-  const std::string job_id = Submit(dir, coordinator.address(), job);
+  const std::string job_id = SubmitJob(dir, coordinator.address(), job.ToFlags());
   std::vector<fs::path> logs;
   std::vector<std::unique_ptr<Process>> workers =
       StartTwoPatientWorkers(coordinator.address(), dir.path(), &logs);

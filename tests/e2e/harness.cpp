@@ -288,9 +288,49 @@ std::map<uint64_t, int> MergedTaskCounts(const std::vector<fs::path>& worker_log
   return counts;
 }
 
+ProcessMemory MemoryOf(pid_t pid) {
+  ProcessMemory m;
+  for (const std::string& line : ReadLines("/proc/" + std::to_string(pid) + "/status")) {
+    if (line.rfind("VmRSS:", 0) == 0) m.rss_kib = std::stol(line.substr(6));
+    if (line.rfind("VmHWM:", 0) == 0) m.peak_kib = std::stol(line.substr(6));
+  }
+  return m;
+}
+
+std::vector<size_t> LineCounts(const std::vector<fs::path>& logs) {
+  std::vector<size_t> counts;
+  for (const fs::path& log : logs) counts.push_back(ReadLines(log).size());
+  return counts;
+}
+
+std::set<uint64_t> LeasedTasksSince(const std::vector<fs::path>& worker_logs,
+                                    const std::vector<size_t>& offsets, const std::string& job_id) {
+  std::set<uint64_t> leased;
+  const std::regex re("leased job=" + job_id + " task=([0-9]+)");
+  for (size_t i = 0; i < worker_logs.size(); ++i) {
+    const std::vector<std::string> lines = ReadLines(worker_logs[i]);
+    for (size_t l = offsets[i]; l < lines.size(); ++l) {
+      std::smatch m;
+      if (std::regex_search(lines[l], m, re)) leased.insert(std::stoull(m[1].str()));
+    }
+  }
+  return leased;
+}
+
 }  // namespace pf::e2e
 
 namespace pf::e2e {
+
+std::string SubmitJob(const TestDir& dir, const std::string& address, const std::vector<std::string>& flags) {
+  const RunResult r = RunCommand(
+      Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, flags), {"--coordinator", address}),
+      dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  if (r.exit_code != 0) return "";
+  std::string id = r.out;
+  while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
+  return id;
+}
 
 void BecomeSubreaper() {
   prctl(PR_SET_CHILD_SUBREAPER, 1);

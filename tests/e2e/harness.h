@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <regex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -76,6 +77,12 @@ std::vector<std::string> ReadLines(const std::filesystem::path& path);
 std::vector<std::string> Grep(const std::filesystem::path& path, const std::string& re);
 // Polls `predicate` every 20 ms until it holds or `seconds` pass.
 bool WaitUntil(const std::function<bool()>& predicate, double seconds);
+
+// VmRSS and VmHWM (peak) of a process, in KiB (/proc/PID/status); -1 where a line is missing.
+struct ProcessMemory {
+  long rss_kib = -1, peak_kib = -1;
+};
+ProcessMemory MemoryOf(pid_t pid);
 
 // A coordinator in `data_dir`; port 0 = ephemeral. Waits for its "listening on" line.
 // `token_file`: the client (RenderService) token; worker tokens go in `extra_args`.
@@ -150,6 +157,14 @@ inline size_t MergedTaskTotal(const std::vector<std::filesystem::path>& worker_l
   return n;
 }
 
+// How many lines each log holds now: where LeasedTasksSince starts reading them.
+std::vector<size_t> LineCounts(const std::vector<std::filesystem::path>& logs);
+
+// Tasks of `job_id` that the worker logs show leased ("leased job=J task=T") after their first
+// `offsets` lines (LineCounts taken before, e.g., a coordinator restart).
+std::set<uint64_t> LeasedTasksSince(const std::vector<std::filesystem::path>& worker_logs,
+                                    const std::vector<size_t>& offsets, const std::string& job_id);
+
 // Workers w1 and w2 (StartWorker) that retry their reports for 30 s, so that a result outlives
 // a coordinator restart; `logs` receives their log files.
 inline std::vector<std::unique_ptr<Process>> StartTwoPatientWorkers(
@@ -179,6 +194,10 @@ inline RunResult RenderLocally(const TestDir& dir, const std::vector<std::string
                            {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
                     dir.path());
 }
+
+// `pf submit` of the shipped scene with `flags` to `address`: the job id, or "" (with a failure)
+// if it failed.
+std::string SubmitJob(const TestDir& dir, const std::string& address, const std::vector<std::string>& flags);
 
 // Whether the worker log shows a task leased and not yet completed, failed or abandoned.
 inline bool MidTask(const std::filesystem::path& worker_log) {

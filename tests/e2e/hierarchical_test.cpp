@@ -55,18 +55,6 @@ Image LocalReference(const TestDir& dir, const std::vector<std::string>& flags) 
   return ReadImage(dir / "local.exr");
 }
 
-// `pf submit` of the test scene with `flags`; the job id, or "" (with a failure) if it failed.
-std::string Submit(const TestDir& dir, const std::vector<std::string>& flags, const std::string& address) {
-  const RunResult sub = RunCommand(
-      Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, flags), {"--coordinator", address}),
-      dir.path());
-  EXPECT_EQ(sub.exit_code, 0) << sub.err;
-  if (sub.exit_code != 0) return "";
-  std::string job_id = sub.out;
-  while (!job_id.empty() && (job_id.back() == '\n' || job_id.back() == ' ')) job_id.pop_back();
-  return job_id;
-}
-
 TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
   TestDir dir;
   const std::vector<std::string> flags = HierarchicalFlags(2000);
@@ -128,7 +116,7 @@ void KilledWorkerAndCoordinatorRestart(const std::vector<std::string>& flags, ui
   auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args);
   const int port = coordinator->port();
   const std::string address = coordinator->address();
-  const std::string job_id = Submit(dir, flags, address);
+  const std::string job_id = SubmitJob(dir, address, flags);
   ASSERT_FALSE(job_id.empty());
   {
     FarmClient client(address, "");
@@ -232,7 +220,7 @@ TEST(HierarchicalFarm, ThreeWorkersKilledWorkerAndRestartMidLevelGiveTheLocalIma
   auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args);
   const int port = coordinator->port();
   const std::string address = coordinator->address();
-  const std::string job_id = Submit(dir, flags, address);
+  const std::string job_id = SubmitJob(dir, address, flags);
   ASSERT_FALSE(job_id.empty());
 
   std::vector<fs::path> logs;

@@ -39,14 +39,7 @@ Image LocalReference(const TestDir& dir) {
 
 std::string Submit(const TestDir& dir, const std::string& address,
                    const std::vector<std::string>& more = {}) {
-  const RunResult r =
-      RunCommand(Concat(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, TiledJobFlags()), more),
-                        {"--coordinator", address}),
-                 dir.path());
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  std::string id = r.out;
-  while (!id.empty() && (id.back() == '\n' || id.back() == ' ')) id.pop_back();
-  return id;
+  return SubmitJob(dir, address, Concat(TiledJobFlags(), more));
 }
 
 // StartWorker's command line, with environment variables (the test hooks).

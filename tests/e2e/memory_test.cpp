@@ -4,9 +4,6 @@
 // O(tasks), not O(pixels). Measured on the real coordinator process (VmRSS).
 #include <signal.h>
 
-#include <fstream>
-#include <sstream>
-
 #include "tests/e2e/harness.h"
 
 namespace pf::e2e {
@@ -17,15 +14,8 @@ namespace {
 constexpr long kCoordinatorRssBoundMiB = 160;
 
 long RssMiB(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("VmRSS:", 0) == 0) {
-      std::istringstream fields(line.substr(6));
-      long kib = 0;
-      fields >> kib;
-      return kib / 1024;
-    }
-  return -1;
+  const long kib = MemoryOf(pid).rss_kib;
+  return kib < 0 ? -1 : kib / 1024;
 }
 
 // A coordinator of its own per test, and path-traced jobs submitted to it with `pf submit`.

@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "proto/convert.h"
 #include "rpc/grpc_channel.h"
 #include "tests/e2e/harness.h"
 #include "tests/util/raw_connection.h"
@@ -36,15 +37,15 @@ constexpr int kRounds = 3;
 
 const std::string kToken = "soak-token";
 
+// MemoryOf in MiB.
 struct Memory {
   long rss_mib = -1, peak_mib = -1;
 };
-Memory MemoryOf(pid_t pid) {
+Memory MiBOf(pid_t pid) {
+  const ProcessMemory kib = MemoryOf(pid);
   Memory m;
-  for (const std::string& line : ReadLines("/proc/" + std::to_string(pid) + "/status")) {
-    if (line.rfind("VmRSS:", 0) == 0) m.rss_mib = std::stol(line.substr(6)) / 1024;
-    if (line.rfind("VmHWM:", 0) == 0) m.peak_mib = std::stol(line.substr(6)) / 1024;
-  }
+  if (kib.rss_kib >= 0) m.rss_mib = kib.rss_kib / 1024;
+  if (kib.peak_kib >= 0) m.peak_mib = kib.peak_kib / 1024;
   return m;
 }
 
@@ -146,7 +147,7 @@ TEST(HostileSoak, TheCoordinatorStaysUnderItsBoundRefusesByBudgetAndAnswers) {
        "upload_bytes=1048576", "--limit", "watchers_per_client=8", "--limit", "watch_unread_seconds=2"},
       0, (dir / "token").string());
   const pid_t pid = coordinator.process().pid();
-  const Memory before = MemoryOf(pid);
+  const Memory before = MiBOf(pid);
   ASSERT_GT(before.peak_mib, 0);
   auto channel = MakeCoordinatorChannel(coordinator.address(), {});
   auto render = v1::RenderService::NewStub(channel);
@@ -155,12 +156,7 @@ TEST(HostileSoak, TheCoordinatorStaysUnderItsBoundRefusesByBudgetAndAnswers) {
   ASSERT_GT(http_port, 0);
   v1::UploadSceneRequest cornell;
   const SceneBundle bundle = CollectBundle(Binaries::Scene());
-  cornell.mutable_bundle()->set_entry(bundle.entry);
-  for (const auto& [path, content] : bundle.files) {
-    v1::SceneFile* f = cornell.mutable_bundle()->add_files();
-    f->set_path(path);
-    f->set_content(content);
-  }
+  BundleToProto(bundle, cornell.mutable_bundle());
   v1::UploadSceneResponse scene;
   ASSERT_TRUE(render->UploadScene(Ctx().get(), cornell, &scene).ok());
 
@@ -245,13 +241,13 @@ TEST(HostileSoak, TheCoordinatorStaysUnderItsBoundRefusesByBudgetAndAnswers) {
     EXPECT_TRUE(WaitUntil([&] { return WatchOnce(*render, watched).ok(); }, 10))
         << "the unread watches stayed";
     Memory after;
-    EXPECT_TRUE(WaitUntil([&] { return (after = MemoryOf(pid)).rss_mib < kAfterBoundMiB; }, 5))
+    EXPECT_TRUE(WaitUntil([&] { return (after = MiBOf(pid)).rss_mib < kAfterBoundMiB; }, 5))
         << "VmRSS after every job ended: " << after.rss_mib << " MiB";
     rss_after_round.push_back(after.rss_mib);
   }
 
   // Bounded, no growth from round to round, answering.
-  const Memory peak = MemoryOf(pid);
+  const Memory peak = MiBOf(pid);
   EXPECT_LT(peak.peak_mib, kPeakBoundMiB) << "VmHWM " << before.peak_mib << " -> " << peak.peak_mib << " MiB";
   EXPECT_LE(rss_after_round.back(), rss_after_round.front() + 8) << "VmRSS grew from round to round";
   const auto asked = SteadyClock::now();

@@ -88,13 +88,8 @@ TEST_P(MaliciousWorker, IsConvictedAndTheJobEndsInTheHonestImage) {
   ASSERT_EQ(local.exit_code, 0) << local.err;
   const Image reference = ReadImage(dir / "local.exr");
   CoordinatorProcess coordinator(dir / "data", dir.path(), attack.coordinator);
-  const RunResult submitted = RunCommand(
-      Concat(Concat(Concat({Binaries::Pf(), "submit", Binaries::Scene()}, attack.job), attack.farm_only),
-             {"--coordinator", coordinator.address()}),
-      dir.path());
-  ASSERT_EQ(submitted.exit_code, 0) << submitted.err;
-  std::string job_id = submitted.out;
-  while (!job_id.empty() && (job_id.back() == '\n' || job_id.back() == ' ')) job_id.pop_back();
+  const std::string job_id = SubmitJob(dir, coordinator.address(), Concat(attack.job, attack.farm_only));
+  ASSERT_FALSE(job_id.empty());
 
   // The malicious worker first, so that it has work before the honest ones take it all.
   Process mallory("mallory",

@@ -28,11 +28,15 @@ std::string Submit(const TestDir& dir, const std::string& address, const JobArgs
   return r.out.substr(0, r.out.find('\n'));
 }
 
+// A coordinator whose token is "s3cret-token", with its status page on 127.0.0.1 (any port).
+CoordinatorProcess WithTokenAndStatusPage(const TestDir& dir) {
+  std::ofstream(dir / "token") << "s3cret-token\n";
+  return CoordinatorProcess(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0, (dir / "token").string());
+}
+
 TEST(WebStatus, SameTokenAsGrpc) {
   TestDir dir;
-  std::ofstream(dir / "token") << "s3cret-token\n";
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
-                                 (dir / "token").string());
+  CoordinatorProcess coordinator = WithTokenAndStatusPage(dir);
   const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
   const std::string id = Submit(dir, coordinator.address(), JobArgs(), {{"PF_TOKEN", "s3cret-token"}});
@@ -144,30 +148,15 @@ TEST(WebStatus, ChromiumShowsJobsWorkersAndALivePreview) {
   EXPECT_LT(Compare(early, late, 600, 8, 100).stddev, 1);
 }
 
-// VmRSS and VmHWM (peak) of a process, in KiB.
-struct Memory {
-  long rss_kib = -1, peak_kib = -1;
-};
-Memory MemoryOf(pid_t pid) {
-  Memory m;
-  for (const std::string& line : ReadLines("/proc/" + std::to_string(pid) + "/status")) {
-    if (line.rfind("VmRSS:", 0) == 0) m.rss_kib = std::stol(line.substr(6));
-    if (line.rfind("VmHWM:", 0) == 0) m.peak_kib = std::stol(line.substr(6));
-  }
-  return m;
-}
-
 // Bodies are refused from the head alone, before authentication: nothing of a 400 MiB body is
 // read, so the coordinator's memory does not move (before the gate, two such POSTs took its peak
 // from 25 to 601 MiB: the body after the 401 was read as one next request line).
 TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
   TestDir dir;
-  std::ofstream(dir / "token") << "s3cret-token\n";
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
-                                 (dir / "token").string());
+  CoordinatorProcess coordinator = WithTokenAndStatusPage(dir);
   const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
-  const Memory before = MemoryOf(coordinator.process().pid());
+  const ProcessMemory before = MemoryOf(coordinator.process().pid());
   ASSERT_GT(before.peak_kib, 0);
   constexpr size_t k400MiB = size_t(400) << 20, k64MiB = size_t(64) << 20;
   for (const std::string head : {"POST /api/status HTTP/1.1\r\nHost: x\r\nContent-Length: 419430400\r\n\r\n",
@@ -189,7 +178,7 @@ TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
     EXPECT_LT(c.SendMany('a', k400MiB), k64MiB) << "the head was read on and on";
     EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
   }
-  const Memory after = MemoryOf(coordinator.process().pid());
+  const ProcessMemory after = MemoryOf(coordinator.process().pid());
   EXPECT_LT(after.peak_kib - before.peak_kib, 8 * 1024)
       << "peak RSS " << before.peak_kib << " -> " << after.peak_kib << " KiB";
   EXPECT_LT(after.rss_kib - before.rss_kib, 8 * 1024)
@@ -206,9 +195,7 @@ TEST(WebStatus, HugeBodiesAndHeadsWithoutATokenAreRefusedUnread) {
 // authenticated GET is answered at once (before the gate, 3 of them made the page unreachable).
 TEST(WebStatus, SlowHeadsDoNotKeepThePageAway) {
   TestDir dir;
-  std::ofstream(dir / "token") << "s3cret-token\n";
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"}, 0,
-                                 (dir / "token").string());
+  CoordinatorProcess coordinator = WithTokenAndStatusPage(dir);
   const int port = coordinator.http_port();
   ASSERT_GT(port, 0);
   std::vector<std::unique_ptr<RawConnection>> slow;

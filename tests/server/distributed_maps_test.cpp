@@ -33,11 +33,7 @@ class DistributedMapsTest : public ::testing::Test {
 
   // A job with one distributed map of `photons` (3 pieces of 16384 for 40000) over one tile.
   std::unique_ptr<Job> MakeJob(const std::string& id, uint64_t seq, uint64_t seed) {
-    JobConfig config = MakeConfig(MultipleMaps(1, 0), 16, 16);
-    config.seed = seed;
-    config.settings.integrator = IntegratorKind::kPhotonMap;
-    config.settings.photons = 40000;
-    config.settings.map_tracing = MapTracingMode::kDistributed;
+    const JobConfig config = DistributedConfig(seed);
     TaskSpec task;
     task.map_index = 0;
     task.map_seed = MapSeed(seed, 0);

@@ -208,13 +208,7 @@ class TlsClient {
  public:
   explicit TlsClient(int port)
       : ctx_(SSL_CTX_new(TLS_client_method())), fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(uint16_t(port));
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    const timeval five{5, 0};
-    ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &five, sizeof(five));
-    if (::connect(fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) return;
+    if (!test_util::ConnectToLoopback(fd_, port)) return;
     ssl_ = SSL_new(ctx_);
     SSL_set_fd(ssl_, fd_);
     connected_ = SSL_connect(ssl_) == 1;

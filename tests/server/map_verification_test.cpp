@@ -15,7 +15,6 @@
 #include "common/photon/photon_maps_bytes.h"
 #include "common/plan/scene_runtime.h"
 #include "common/scene/scene_bundle.h"
-#include "photonfarm_version.h"
 #include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"
 #include "tests/server/server_test_util.h"
@@ -25,39 +24,18 @@ namespace {
 using testing::Ctx;
 using ::testing::HasSubstr;
 using testing::LiveCoordinator;
+using testing::TakeLease;
 using testing::TempDir;
 namespace v1 = photonfarm::v1;
 namespace fs = std::filesystem;
 
-std::optional<v1::Task> Lease(LiveCoordinator& live, const std::string& worker, double wait = 0) {
-  v1::LeaseTaskRequest req;
-  req.set_worker_id(worker);
-  req.set_worker_version(PF_VERSION);
-  req.set_wait_seconds(wait);
-  v1::LeaseTaskResponse resp;
-  EXPECT_TRUE(live.worker->LeaseTask(Ctx("", wait + 10).get(), req, &resp).ok());
-  if (!resp.has_task()) return std::nullopt;
-  return resp.task();
-}
-
+// The piece's upload; the checksums are the forger's own: they match its bytes. ABORTED if the
+// coordinator did not accept it.
 grpc::Status UploadPiece(LiveCoordinator& live, const v1::Task& piece, const std::string& worker,
                          const std::string& bytes) {
-  v1::UploadPhotonChunkResponse resp;
-  auto ctx = Ctx();
-  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
-      live.worker->UploadPhotonChunk(ctx.get(), &resp));
-  v1::PhotonChunkPart part;
-  part.set_lease_id(piece.lease_id());
-  part.set_worker_id(worker);
-  part.set_total_bytes(bytes.size());
-  part.set_digest(Sha256Hex(bytes));  // the checksums are the forger's own: they match its bytes
-  part.set_offset(0);
-  part.set_data(bytes);
-  part.set_sha256(Sha256Hex(bytes));
-  writer->Write(part);
-  writer->WritesDone();
-  const grpc::Status st = writer->Finish();
-  if (st.ok() && !resp.accepted()) return grpc::Status(grpc::StatusCode::ABORTED, "not accepted");
+  bool accepted = false;
+  const grpc::Status st = testing::UploadPiece(live, piece.lease_id(), worker, bytes, &accepted);
+  if (st.ok() && !accepted) return grpc::Status(grpc::StatusCode::ABORTED, "not accepted");
   return st;
 }
 
@@ -127,7 +105,7 @@ class MapVerificationTest : public ::testing::Test {
   // The render task of `job` (waits for its map to be built and its restart, if any, to be stored).
   v1::Task RenderTask(const std::string& worker) {
     for (int i = 0; i < 100; ++i) {
-      std::optional<v1::Task> t = Lease(*live_, worker, 0.2);
+      std::optional<v1::Task> t = TakeLease(*live_, worker, 0.2);
       if (t && !t->has_trace_chunk()) return *t;
       EXPECT_FALSE(t.has_value()) << "a piece was left: " << t->trace_chunk().chunk_index();
     }
@@ -153,7 +131,7 @@ TEST_F(MapVerificationTest,
        APieceForgedPastItsCheckedPrefixIsRefusedWhenTracedInFullAndItsUploaderConvicted) {
   Start(1.0);
   const std::string id = Submit();
-  const std::optional<v1::Task> piece = Lease(*live_, "forger", 5);
+  const std::optional<v1::Task> piece = TakeLease(*live_, "forger", 5);
   ASSERT_TRUE(piece && piece->has_trace_chunk());
   const grpc::Status st = UploadPiece(*live_, *piece, "forger", Shifted(Trace(*piece)));
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
@@ -162,9 +140,9 @@ TEST_F(MapVerificationTest,
   ASSERT_EQ(s.blocklisted_workers_size(), 1);
   EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "forger");
   EXPECT_EQ(Events(id, "convicted", "forger"), 1);
-  EXPECT_FALSE(Lease(*live_, "forger").has_value()) << "no more pieces of this job";
+  EXPECT_FALSE(TakeLease(*live_, "forger").has_value()) << "no more pieces of this job";
   for (int i = 0; i < 2; ++i) {
-    const std::optional<v1::Task> p = Lease(*live_, "honest", 5);
+    const std::optional<v1::Task> p = TakeLease(*live_, "honest", 5);
     ASSERT_TRUE(p && p->has_trace_chunk());
     ASSERT_TRUE(UploadPiece(*live_, *p, "honest", SerializePhotonChunk(Trace(*p))).ok());
   }
@@ -189,11 +167,11 @@ TEST_F(MapVerificationTest,
 TEST_F(MapVerificationTest, AConvictedWorkersPiecesLeaveEveryStoredMapAndItsJobsRestart) {
   Start(0.0);
   const std::string a = Submit();
-  const std::optional<v1::Task> p0 = Lease(*live_, "forger", 5);
+  const std::optional<v1::Task> p0 = TakeLease(*live_, "forger", 5);
   ASSERT_TRUE(p0 && p0->has_trace_chunk());
   ASSERT_TRUE(UploadPiece(*live_, *p0, "forger", Shifted(Trace(*p0))).ok())
       << "its first 4096 photons are right";
-  const std::optional<v1::Task> p1 = Lease(*live_, "honest", 5);
+  const std::optional<v1::Task> p1 = TakeLease(*live_, "honest", 5);
   ASSERT_TRUE(p1 && p1->has_trace_chunk());
   ASSERT_TRUE(UploadPiece(*live_, *p1, "honest", SerializePhotonChunk(Trace(*p1))).ok());
   const v1::Task render_a = RenderTask("honest");
@@ -214,10 +192,10 @@ TEST_F(MapVerificationTest, AConvictedWorkersPiecesLeaveEveryStoredMapAndItsJobs
     EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "forger");
   }
   // Traced again from nothing, without the forger.
-  EXPECT_FALSE(Lease(*live_, "forger").has_value());
+  EXPECT_FALSE(TakeLease(*live_, "forger").has_value());
   std::vector<PhotonChunk> honest;
   for (int i = 0; i < 2; ++i) {
-    const std::optional<v1::Task> p = Lease(*live_, "honest", 5);
+    const std::optional<v1::Task> p = TakeLease(*live_, "honest", 5);
     ASSERT_TRUE(p && p->has_trace_chunk());
     honest.push_back(Trace(*p));
     ASSERT_TRUE(UploadPiece(*live_, *p, "honest", SerializePhotonChunk(honest.back())).ok());
@@ -244,10 +222,10 @@ TEST_F(MapVerificationTest, AConvictedWorkersPiecesLeaveEveryStoredMapAndItsJobs
 TEST_F(MapVerificationTest, AStoredMapFoundAfterARestartIsDeletedWhenItsTracerIsConvicted) {
   Start(0.0);
   Submit();
-  const std::optional<v1::Task> p0 = Lease(*live_, "forger", 5);
+  const std::optional<v1::Task> p0 = TakeLease(*live_, "forger", 5);
   ASSERT_TRUE(p0 && p0->has_trace_chunk());
   ASSERT_TRUE(UploadPiece(*live_, *p0, "forger", Shifted(Trace(*p0))).ok());
-  const std::optional<v1::Task> p1 = Lease(*live_, "honest", 5);
+  const std::optional<v1::Task> p1 = TakeLease(*live_, "honest", 5);
   ASSERT_TRUE(p1 && p1->has_trace_chunk());
   ASSERT_TRUE(UploadPiece(*live_, *p1, "honest", SerializePhotonChunk(Trace(*p1))).ok());
   const std::string key = RenderTask("honest").map().map_key();
@@ -261,7 +239,7 @@ TEST_F(MapVerificationTest, AStoredMapFoundAfterARestartIsDeletedWhenItsTracerIs
   ASSERT_TRUE(live_->coordinator->scheduler().ConvictWorker(c, "forger", 0, "a render differed"));
   EXPECT_EQ(MapBytes(key), "");
   EXPECT_FALSE(fs::exists(dir_.path() / "data" / "maps" / (key + ".pfmaps")));
-  const std::optional<v1::Task> p = Lease(*live_, "honest", 5);
+  const std::optional<v1::Task> p = TakeLease(*live_, "honest", 5);
   EXPECT_TRUE(p && p->has_trace_chunk()) << "traced again";
 }
 

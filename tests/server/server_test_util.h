@@ -16,9 +16,11 @@
 #include <vector>
 
 #include "common/core/rng.h"
+#include "common/core/sha256.h"
 #include "common/plan/task_plan.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "server/coordinator.h"
 #include "server/jobs/job_spec.h"
@@ -130,12 +132,7 @@ inline fs::path CornellManifest() {
 
 inline v1::SceneBundle ToProto(const SceneBundle& b) {
   v1::SceneBundle out;
-  out.set_entry(b.entry);
-  for (const auto& [path, content] : b.files) {
-    v1::SceneFile* f = out.add_files();
-    f->set_path(path);
-    f->set_content(content);
-  }
+  BundleToProto(b, &out);
   return out;
 }
 
@@ -172,6 +169,43 @@ inline std::string UploadCornell(LiveCoordinator& live) {
   const grpc::Status st = live.render->UploadScene(Ctx().get(), req, &resp);
   EXPECT_TRUE(st.ok()) << st.error_message();
   return resp.scene_hash();
+}
+
+// LeaseTask as `worker` (waiting up to `wait` seconds for work): the task, or nullopt if none.
+inline std::optional<v1::Task> TakeLease(LiveCoordinator& live, const std::string& worker = "w1",
+                                         double wait = 0) {
+  v1::LeaseTaskRequest req;
+  req.set_worker_id(worker);
+  req.set_worker_version(PF_VERSION);
+  req.set_wait_seconds(wait);
+  v1::LeaseTaskResponse resp;
+  const grpc::Status st = live.worker->LeaseTask(Ctx("", wait + 10).get(), req, &resp);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  if (!resp.has_task()) return std::nullopt;
+  return resp.task();
+}
+
+// One UploadPhotonChunk stream of `bytes` (one part, its checksums those of `bytes`) for `lease_id`
+// from `worker_id`.
+inline grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id,
+                                const std::string& worker_id, const std::string& bytes, bool* accepted) {
+  v1::UploadPhotonChunkResponse resp;
+  auto ctx = Ctx();
+  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
+      live.worker->UploadPhotonChunk(ctx.get(), &resp));
+  v1::PhotonChunkPart part;
+  part.set_lease_id(lease_id);
+  part.set_worker_id(worker_id);
+  part.set_total_bytes(bytes.size());
+  part.set_digest(Sha256Hex(bytes));
+  part.set_offset(0);
+  part.set_data(bytes);
+  part.set_sha256(Sha256Hex(bytes));
+  writer->Write(part);
+  writer->WritesDone();
+  const grpc::Status st = writer->Finish();
+  *accepted = resp.accepted();
+  return st;
 }
 
 // A fixture: an in-process coordinator in a fresh data folder with the Cornell box uploaded.

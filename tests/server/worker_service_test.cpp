@@ -31,7 +31,9 @@ namespace {
 using testing::Ctx;
 using ::testing::HasSubstr;
 using testing::LiveCoordinator;
+using testing::TakeLease;
 using testing::TempDir;
+using testing::UploadPiece;
 namespace v1 = photonfarm::v1;
 namespace fs = std::filesystem;
 
@@ -86,18 +88,6 @@ v1::JobStatus GetJob(LiveCoordinator& live, const std::string& id) {
   return s;
 }
 
-std::optional<v1::Task> Lease(LiveCoordinator& live, double wait = 0, const std::string& worker = "w1") {
-  v1::LeaseTaskRequest req;
-  req.set_worker_id(worker);
-  req.set_worker_version(PF_VERSION);
-  req.set_wait_seconds(wait);
-  v1::LeaseTaskResponse resp;
-  const grpc::Status st = live.worker->LeaseTask(Ctx("", wait + 10).get(), req, &resp);
-  EXPECT_TRUE(st.ok()) << st.error_message();
-  if (!resp.has_task()) return std::nullopt;
-  return resp.task();
-}
-
 grpc::Status Complete(LiveCoordinator& live, const v1::Task& task, const std::vector<float>& sums,
                       bool* merged = nullptr, const std::string& worker = "w1") {
   v1::CompleteTaskRequest req;
@@ -143,7 +133,7 @@ class TestWorker {
   int Run(int max_tasks) {
     int merged_count = 0;
     for (int i = 0; i < max_tasks; ++i) {
-      std::optional<v1::Task> task = Lease(*live_, 0.2, "test-worker");
+      std::optional<v1::Task> task = TakeLease(*live_, "test-worker", 0.2);
       if (!task) break;
       const SceneRuntime& scene = Scene(task->scene_hash(), task->scene_entry());
       const TaskOutput out = ExecuteTask(
@@ -195,7 +185,7 @@ using WorkerServiceTest = testing::LiveCoordinatorTest;
 TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
   v1::Plan plan = OneMapPlan();
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
-  std::optional<v1::Task> t1 = Lease(*live_);
+  std::optional<v1::Task> t1 = TakeLease(*live_);
   ASSERT_TRUE(t1.has_value());
   EXPECT_EQ(t1->attempt(), 1u);
   EXPECT_EQ(t1->scene_entry(), "cornell-box.json");
@@ -208,7 +198,7 @@ TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
       "pixel of the subset)");
   EXPECT_FALSE(merged);
 
-  std::optional<v1::Task> t2 = Lease(*live_);
+  std::optional<v1::Task> t2 = TakeLease(*live_);
   ASSERT_TRUE(t2.has_value());
   EXPECT_EQ(t2->task_id(), t1->task_id());
   EXPECT_EQ(t2->attempt(), 2u);
@@ -218,7 +208,7 @@ TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(st.error_message(), HasSubstr("rgb_sums[100] is not finite"));
 
-  std::optional<v1::Task> t3 = Lease(*live_);
+  std::optional<v1::Task> t3 = TakeLease(*live_);
   ASSERT_TRUE(t3.has_value());
   EXPECT_EQ(t3->attempt(), 3u);
   EXPECT_TRUE(Complete(*live_, *t3, SyntheticFor(*t3), &merged).ok());
@@ -238,7 +228,7 @@ TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
 TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
   v1::Plan plan = OneMapPlan();
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
-  std::optional<v1::Task> t = Lease(*live_);
+  std::optional<v1::Task> t = TakeLease(*live_);
   ASSERT_TRUE(t.has_value());
   v1::FailTaskRequest fail;
   fail.set_lease_id(t->lease_id());
@@ -260,7 +250,7 @@ TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
 TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanFailItsTask) {
   v1::Plan plan = OneMapPlan();
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, plan));
-  std::optional<v1::Task> t = Lease(*live_, 0, "holder");
+  std::optional<v1::Task> t = TakeLease(*live_, "holder", 0);
   ASSERT_TRUE(t.has_value());
   auto fail = [&](const std::string& lease_id, const std::string& worker_id) {
     v1::FailTaskRequest req;
@@ -294,7 +284,7 @@ TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanFailItsTask) {
 // PERMISSION_DENIED and changes nothing, and the holder's result still merges.
 TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanExtendOrCompleteItsTask) {
   const std::string id = SubmitOk(*live_, SmallSpec(hash_, OneMapPlan()));
-  std::optional<v1::Task> t = Lease(*live_, 0, "holder");
+  std::optional<v1::Task> t = TakeLease(*live_, "holder", 0);
   ASSERT_TRUE(t.has_value());
   auto extend = [&](const std::string& worker_id) {
     v1::ExtendLeaseRequest req;
@@ -327,28 +317,6 @@ TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanExtendOrCompleteItsTask) {
   EXPECT_EQ(GetJob(*live_, id).state(), v1::JOB_STATE_SUCCEEDED);
 }
 
-// One UploadPhotonChunk stream of `bytes` (one part) for `lease_id` from `worker_id`.
-grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_id, const std::string& worker_id,
-                         const std::string& bytes, bool* accepted) {
-  v1::UploadPhotonChunkResponse resp;
-  auto ctx = Ctx();
-  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
-      live.worker->UploadPhotonChunk(ctx.get(), &resp));
-  v1::PhotonChunkPart part;
-  part.set_lease_id(lease_id);
-  part.set_worker_id(worker_id);
-  part.set_total_bytes(bytes.size());
-  part.set_digest(Sha256Hex(bytes));
-  part.set_offset(0);
-  part.set_data(bytes);
-  part.set_sha256(Sha256Hex(bytes));
-  writer->Write(part);
-  writer->WritesDone();
-  const grpc::Status st = writer->Finish();
-  *accepted = resp.accepted();
-  return st;
-}
-
 // The hostile farm: a second worker renewed another's piece lease, uploaded an empty piece (it was
 // taken), the honest upload was refused, and the job SUCCEEDED with a third of its photons. Now
 // the lease is bound to its holder: the stranger's heartbeat, upload and FailTask are refused,
@@ -361,7 +329,7 @@ TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesThe
   spec.mutable_settings()->mutable_photon_map()->set_photons(8192);
   spec.mutable_settings()->mutable_photon_map()->set_map_tracing(v1::MAP_TRACING_DISTRIBUTED);
   const std::string id = SubmitOk(*live_, spec);
-  const std::optional<v1::Task> piece = Lease(*live_, 5, "holder");
+  const std::optional<v1::Task> piece = TakeLease(*live_, "holder", 5);
   ASSERT_TRUE(piece.has_value() && piece->has_trace_chunk()) << "pieces are leased first";
   EXPECT_THAT(piece->lease_id(), ::testing::MatchesRegex("map-[0-9a-f]{32}")) << "from the CSPRNG";
   const std::string lease = piece->lease_id();
@@ -410,16 +378,16 @@ TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesThe
   std::set<std::string> blocklisted;
   for (const auto& b : convicted.blocklisted_workers()) blocklisted.insert(b.worker_id());
   EXPECT_EQ(blocklisted, (std::set<std::string>{"holder", "thief"}));
-  EXPECT_FALSE(Lease(*live_, 0, "holder").has_value()) << "blocklisted for the job";
+  EXPECT_FALSE(TakeLease(*live_, "holder", 0).has_value()) << "blocklisted for the job";
 
   // The honest piece, from another worker: taken, and the map is built from all of its photons.
-  const std::optional<v1::Task> again = Lease(*live_, 5, "honest");
+  const std::optional<v1::Task> again = TakeLease(*live_, "honest", 5);
   ASSERT_TRUE(again.has_value() && again->has_trace_chunk());
   EXPECT_EQ(again->trace_chunk().chunk_index(), piece->trace_chunk().chunk_index());
   st = UploadPiece(*live_, again->lease_id(), "honest", SerializePhotonChunk(traced), &accepted);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(accepted);
-  const std::optional<v1::Task> render = Lease(*live_, 20, "honest");
+  const std::optional<v1::Task> render = TakeLease(*live_, "honest", 20);
   ASSERT_TRUE(render.has_value() && render->has_map()) << "the map is built and its render task released";
   const std::optional<fs::path> file = live_->coordinator->maps().MapFile(render->map().map_key());
   ASSERT_TRUE(file.has_value());
@@ -535,7 +503,7 @@ TEST(WorkerServiceMixedVersions, AllowMixedVersionsLeasesToOtherBuilds) {
 TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
   // Nothing queued: an empty answer after the wait.
   auto start = std::chrono::steady_clock::now();
-  EXPECT_FALSE(Lease(*live_, 0.3).has_value());
+  EXPECT_FALSE(TakeLease(*live_, "w1", 0.3).has_value());
   double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_GE(waited, 0.25);
   EXPECT_LT(waited, 3.0);
@@ -543,7 +511,7 @@ TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
   // The poll is parked: it waits as a waiter of the scheduler, and nothing searches the queue on
   // its behalf while it waits (a poll that retried in a loop would pass the timing checks alone).
   start = std::chrono::steady_clock::now();
-  auto poll = std::async(std::launch::async, [&] { return Lease(*live_, 20, "parked"); });
+  auto poll = std::async(std::launch::async, [&] { return TakeLease(*live_, "parked", 20); });
   Scheduler& scheduler = live_->coordinator->scheduler();
   for (int i = 0; i < 500 && scheduler.counters().parked_polls == 0; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -578,7 +546,7 @@ TEST_F(WorkerServiceTest, LongPollWaitsWithoutSpinningAndWakesOnNewWork) {
 TEST_F(WorkerServiceTest, FetchSceneStreamsTheBundleOfTheTask) {
   v1::Plan plan = OneMapPlan();
   SubmitOk(*live_, SmallSpec(hash_, plan));
-  std::optional<v1::Task> task = Lease(*live_);
+  std::optional<v1::Task> task = TakeLease(*live_);
   ASSERT_TRUE(task.has_value());
   EXPECT_EQ(task->scene_hash(), hash_);
   TestWorker worker(live_.get(), dir_.path() / "worker-cache");
@@ -700,7 +668,7 @@ TEST_F(WorkerServiceTest, WatchJobDeliversSnapshotsWithFallingNoiseAndEndsWithTh
   });
   // A slow synthetic worker, so that the watcher sees the job progress.
   for (;;) {
-    std::optional<v1::Task> task = Lease(*live_, 0);
+    std::optional<v1::Task> task = TakeLease(*live_);
     if (!task) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(40));
     bool merged = false;

@@ -13,17 +13,22 @@
 
 namespace pf::test_util {
 
+// Connects the TCP socket `fd` to 127.0.0.1:PORT, its sends and receives giving up after 5 s.
+inline bool ConnectToLoopback(int fd, int port) {
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(uint16_t(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  const timeval five{5, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &five, sizeof(five));
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &five, sizeof(five));
+  return ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) == 0;
+}
+
 class RawConnection {
  public:
   explicit RawConnection(int port) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(uint16_t(port));
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    const timeval five{5, 0};
-    ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &five, sizeof(five));
-    ::setsockopt(fd_, SOL_SOCKET, SO_SNDTIMEO, &five, sizeof(five));
-    connected_ = ::connect(fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) == 0;
+    connected_ = ConnectToLoopback(fd_, port);
   }
   ~RawConnection() { ::close(fd_); }
   RawConnection(const RawConnection&) = delete;
