@@ -518,14 +518,15 @@ void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::s
   }
   spdlog::error("job {} piece {}: worker {} uploaded a piece that is not the coordinator's trace: convicted",
                 job_ids.front(), index, limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
-  Report(failures);
-  Release(release);
   if (scheduler_) {
-    // In every job waiting for the map: the first one may have ended.
+    // In every job waiting for the map (the first one may have ended), before the failed attempt
+    // is reported: a convicted worker's blocklisting never makes a job fail for "no worker left".
     for (const std::string& job_id : job_ids)
       scheduler_->ConvictWorker(job_id, worker_id, index, "map piece " + std::to_string(index) + ": " + why);
-    scheduler_->NotifyMapPieces();
   }
+  Report(failures);
+  Release(release);
+  if (scheduler_) scheduler_->NotifyMapPieces();
 }
 
 void DistributedMaps::ConvictHijacker(const Hijack& hijack, const std::string& worker_id,

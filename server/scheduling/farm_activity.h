@@ -29,7 +29,7 @@ class FarmActivity {
   // its version, so `pf workers` and the web page say why it gets no work (docs/farm.md, Upgrades).
   void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
                   const std::string& version, bool refused = false);
-  // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned,
+  // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned, revoked,
   // confirmed (a result above the job's bound reproduced by another worker, then merged); about a
   // map piece (task_id = the piece's index): piece-failed, piece-expired, piece-refused; about the worker in
   // this job (task_id, attempt: the failure that caused it): blocklisted, quarantined.

@@ -149,8 +149,18 @@ void Scheduler::ServeWaiters(Effects& fx) {
 
 bool Scheduler::CheckTimeBudget(Job& job, double now, Effects& fx) {
   // A restarted job's image is empty until its restart is stored: a budget ending it then would
-  // call an empty image a success. Its clock starts again when it leases again (RestartClock).
+  // call an empty image a success. Its clock starts again once the restart's checkpoint and row are
+  // both stored (RestartClock).
   if (job.restart_pending() || !TimeBudgetReached(job, now)) return false;
+  if (job.epoch() > 0 && job.count(TaskState::kDone) == 0 && job.count(TaskState::kLeased) == 0) {
+    // Restarted after a conviction and nothing merged since: its workers were all convicted or
+    // none came. An empty image is no result.
+    const std::string why =
+        "time budget reached with nothing merged since the job restarted after a conviction";
+    FinishJob(job, JobState::kFailed, why, now, fx);
+    spdlog::error("job {}: failed: {}", job.id(), why);
+    return true;
+  }
   const double budget = job.config().stop.time_budget_seconds;
   job.stopping = true;
   uint64_t cancelled = 0;
@@ -726,7 +736,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       if (!armed) return;
       {
         std::lock_guard lock(self->mu_);
-        if (job->has_runtime(task_id)) job->runtime(task_id).merging = false;  // as the commit does
+        if (job->has_runtime(task_id) && job->runtime(task_id).lease_id == lease_id)
+          job->runtime(task_id).merging = false;  // as the commit does
       }
       try {  // a destructor must not throw, even if logging cannot allocate
         spdlog::error(
@@ -807,8 +818,19 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
     const double now = clock_.Now();
     TaskRuntime gone;  // a restart took the task away (an appended task of a dynamic plan)
     TaskRuntime& rt = job->has_runtime(task_id) ? job->runtime(task_id) : gone;
-    rt.merging = false;
-    if (rt.state != TaskState::kLeased || rt.lease_id != lease_id) {
+    if (rt.lease_id == lease_id) rt.merging = false;  // not a new lease of a task a restart re-created
+    const bool convicted = std::find(job->convicted_workers.begin(), job->convicted_workers.end(),
+                                     worker_id) != job->convicted_workers.end();
+    if (convicted && rt.state == TaskState::kLeased && rt.lease_id == lease_id) {
+      // Convicted while this result was checked (its lease was pinned, so not revoked): never
+      // merged; the task goes back to the queue.
+      ++counters_.ignored;
+      result.reason = "its worker was convicted while the result was checked";
+      spdlog::info("job {} task {}: result ignored: {}", job->id(), task_id, result.reason);
+      leases_.Erase(lease_id);
+      job->SetTaskState(task_id, TaskState::kQueued);
+      Enqueue(*job, task_id, fx);
+    } else if (rt.state != TaskState::kLeased || rt.lease_id != lease_id) {
       // Only a job's end (cancel, failure, stop rule) or its restart (ConvictWorker) takes a
       // pinned lease away.
       ++counters_.ignored;
@@ -1281,8 +1303,10 @@ void Scheduler::CheckpointStored(const Checkpoint& cp, const CheckpointSeal& sea
       job->paused_for_storage = false;
       spdlog::info("job {}: its results are stored again", job->id());
     }
-    if (job->restart_checkpoint_seq != 0 && cp.merge_seq >= job->restart_checkpoint_seq)
+    if (job->restart_checkpoint_seq != 0 && cp.merge_seq >= job->restart_checkpoint_seq) {
       job->restart_checkpoint_seq = 0;
+      if (!job->restart_pending() && job->active()) job->RestartClock(clock_.Now());
+    }
     if (!job->paused_for_storage && !job->restart_pending() && queue_.Unhold(*job)) {
       spdlog::info("job {}: resumed: its results can be stored{}", job->id(),
                    job->epoch() > 0 ? " and its restart is stored" : "");
@@ -1435,7 +1459,7 @@ void Scheduler::RowsStored(const RowBatch& rows) {
       // A restart is stored once its row (epoch, convicted workers) is, and its empty checkpoint.
       if (job->restart_row_pending && row.epoch == job->epoch()) {
         job->restart_row_pending = false;
-        job->RestartClock(clock_.Now());
+        if (!job->restart_pending() && job->active()) job->RestartClock(clock_.Now());
         if (!job->paused_for_storage && !job->restart_pending() && queue_.Unhold(*job)) {
           spdlog::info("job {}: its restart is stored: leasing again", job->id());
           ServeWaiters(fx);

@@ -268,6 +268,8 @@ class Scheduler final : public PersistSource {
   // An ended job is left as it is.
   void BlocklistForHijack(const std::string& job_id, const std::string& worker_id, uint64_t task_id,
                           const std::string& evidence);
+  // Hijackers recorded in a job's stored convictions at most (more are blocklisted in memory only).
+  static constexpr size_t kMaxConvictedWorkersPerJob = 256;
 
   // --- Result verification (result_verification.h; docs/farm.md "Result verification") ---
   // Set before use; `referee` outlives the scheduler's use of it.

@@ -543,6 +543,11 @@ void Scheduler::RevokeLeasesLocked(Job& job, const std::vector<std::string>& wor
     if (rt.state != TaskState::kLeased || rt.merging || !named(rt.worker_id)) continue;
     activity_.TaskEvent(job.id(), "revoked", id, rt.attempts, rt.worker_id, why);
     leases_.Erase(rt.lease_id);
+    if (job.stopping && job.task(id).part != RadiancePart::kUnmapped) {
+      job.SetTaskState(id, TaskState::kCancelled);  // past its time budget: not run again (CheckTimeBudget)
+      MaybeSucceed(job, clock_.Now(), fx);
+      continue;
+    }
     job.SetTaskState(id, TaskState::kQueued);
     Enqueue(job, id, fx);
   }
@@ -564,15 +569,18 @@ void Scheduler::BlocklistForHijack(const std::string& job_id, const std::string&
     std::lock_guard lock(mu_);
     Job* job = jobs_.Find(job_id);
     if (!job || !job->active()) return;
-    if (!health_.Blocklist(job_id, worker_id, "presented another worker's lease: " + evidence, clock_.Now()))
-      return;
-    activity_.TaskEvent(job_id, "convicted", task_id, 0, worker_id, evidence);
-    activity_.WorkerBlocklisted(worker_id, job_id);
-    spdlog::error(
-        "job {}: worker {} blocklisted for the job: {} (no restart: nothing about a result is proven)",
-        job_id, Who(worker_id), evidence);
+    if (health_.Blocklist(job_id, worker_id, "presented another worker's lease: " + evidence, clock_.Now())) {
+      activity_.TaskEvent(job_id, "convicted", task_id, 0, worker_id, evidence);
+      activity_.WorkerBlocklisted(worker_id, job_id);
+      spdlog::error(
+          "job {}: worker {} blocklisted for the job: {} (no restart: nothing about a result is proven)",
+          job_id, Who(worker_id), evidence);
+    }
+    // Stored with the job, boundedly: each name costs the caller one call with a lease of its own,
+    // and the row and checkpoint carry the list.
     if (std::find(job->convicted_workers.begin(), job->convicted_workers.end(), worker_id) ==
-        job->convicted_workers.end()) {
+            job->convicted_workers.end() &&
+        job->convicted_workers.size() < kMaxConvictedWorkersPerJob) {
       job->convicted_workers.push_back(worker_id);
       job->row_dirty = true;
     }

@@ -64,6 +64,7 @@ Checkpoint DecodeCheckpoint(std::string_view bytes, CheckpointSeal* seal) {
     for (size_t at = 0; at < convicted.size();) {
       const size_t end = convicted.find('\n', at);
       if (end == std::string_view::npos) throw InputError("checkpoint: convicted workers not terminated");
+      if (end == at) throw InputError("checkpoint: an empty convicted worker id");
       cp.convicted.emplace_back(convicted.substr(at, end - at));
       at = end + 1;
     }

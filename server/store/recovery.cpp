@@ -360,6 +360,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
     // holds results the restart threw away. Journal entries of other epochs are not replayed.
     job->RestoreEpoch(from_zero ? 0 : row.epoch);
     std::vector<std::string> convicted = SplitLines(row.convicted);
+    bool restart_from_checkpoint = false;  // the checkpoint is of a restart the row does not know
     try {
       CheckpointSeal seal;
       if (std::optional<Checkpoint> cp = rerender ? std::nullopt : ReadCheckpointFile(cp_file, &seal)) {
@@ -371,6 +372,7 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
           spdlog::error("job {}: checkpoint {} {}; restarting the job from zero merges", row.job_id,
                         cp_file.string(), problem);
         else {
+          restart_from_checkpoint = !from_zero && cp->epoch > row.epoch;
           job->RestoreEpoch(cp->epoch);
           // A restart's checkpoint may be stored without its row: it names who was convicted too.
           for (const std::string& w : cp->convicted)
@@ -414,7 +416,8 @@ RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs
       report.acknowledged_lost += acknowledged_lost;
     }
     job->RestoreState(row.state, row.failure_reason, now);
-    job->RestoreElapsed(rerender ? 0.0 : row.elapsed_seconds);
+    // A restart's time budget starts anew (Job::Restart): the row's time is the dropped epoch's.
+    job->RestoreElapsed(rerender || restart_from_checkpoint ? 0.0 : row.elapsed_seconds);
     if (rerender) job->row_dirty = true;  // stored as QUEUED again
     const uint64_t merged = job->count(TaskState::kDone);
     const uint64_t requeued = job->count(TaskState::kQueued);

@@ -1385,5 +1385,64 @@ TEST_F(SchedulerTest, AHijackerIsBlocklistedForTheJobWithoutARestart) {
   }
 }
 
+// The restart's row reached the disk before its checkpoint (the checkpoint failed, full disk):
+// the job's clock starts once both are stored, not at the row — else the hold would spend the
+// budget and the job would end at once with an empty image.
+TEST_F(SchedulerTest, ARestartsClockStartsWhenBothItsRowAndCheckpointAreStored) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4, 0, StopRule{.time_budget_seconds = 10}));
+  EXPECT_EQ(CompleteOk(MustLease("liar")).status, CompleteStatus::kMerged);
+  ASSERT_TRUE(scheduler_.ConvictWorker(id, "liar", 0, "wrong result"));
+  const std::vector<Checkpoint> cps = scheduler_.CollectCheckpoints(true);
+  scheduler_.CheckpointNotStored(id, cps.at(0).merge_seq, "No space left on device");
+  scheduler_.RowsStored(scheduler_.CollectRows());
+  clock_.Advance(30);  // the disk stays full for a while
+  scheduler_.Tick();
+  for (const Checkpoint& cp : scheduler_.CollectCheckpoints(true))
+    scheduler_.CheckpointStored(cp, {}, "/c.acc");
+  clock_.Advance(1);
+  scheduler_.Tick();
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING) << "1 s since the restart was stored";
+  EXPECT_EQ(CompleteOk(MustLease("honest")).status, CompleteStatus::kMerged);
+}
+
+// Restarted after a conviction, nothing merged since, and the time budget runs out (its workers
+// were all convicted, or none came): the job fails — an empty image is no result.
+TEST_F(SchedulerTest, ARestartedJobWithNothingMergedFailsWhenItsBudgetRunsOut) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4, 0, StopRule{.time_budget_seconds = 10}));
+  EXPECT_EQ(CompleteOk(MustLease("liar")).status, CompleteStatus::kMerged);
+  ASSERT_TRUE(scheduler_.ConvictWorker(id, "liar", 0, "wrong result"));
+  for (const Checkpoint& cp : scheduler_.CollectCheckpoints(true))
+    scheduler_.CheckpointStored(cp, {}, "/c.acc");
+  scheduler_.RowsStored(scheduler_.CollectRows());
+  EXPECT_FALSE(scheduler_.TryLease({"liar", {}}).has_value());
+  EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_RUNNING)
+      << "only a convicted worker is blocklisted: the job waits for an honest one";
+  clock_.Advance(11);
+  scheduler_.Tick();
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
+  EXPECT_THAT(s.failure_reason(), HasSubstr("nothing merged since the job restarted"));
+}
+
+// A worker convicted while a result of its own is being checked (its lease pinned, so not
+// revoked): that result is not merged, and the task is queued again.
+TEST_F(SchedulerTest, AResultInFlightWhenItsWorkerIsConvictedIsNotMerged) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4));
+  const Lease verifier_lease = MustLease("v");
+  scheduler_.SetBeforeCommitHookForTest([&](const std::string&) {
+    // Its image holds nothing of v's: no restart, only a blocklisting.
+    EXPECT_FALSE(scheduler_.ConvictWorker(id, "v", verifier_lease.task_id, "a wrong verification"));
+  });
+  EXPECT_EQ(CompleteOk(verifier_lease).status, CompleteStatus::kIgnored);
+  scheduler_.SetBeforeCommitHookForTest(nullptr);
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.tasks_done(), 0u);
+  EXPECT_EQ(s.samples_merged(), 0u);
+  EXPECT_EQ(scheduler_.JobEpoch(id), 0u);
+  const Lease again = MustLease("honest");
+  EXPECT_EQ(again.task_id, verifier_lease.task_id) << "queued again";
+  EXPECT_EQ(CompleteOk(again).status, CompleteStatus::kMerged);
+}
+
 }  // namespace
 }  // namespace pf::server

@@ -152,6 +152,13 @@ TEST(Checkpoint, RoundTripAndCorruptionIsDetected) {
   }
   EXPECT_THROW(DecodeCheckpoint(bytes.substr(0, bytes.size() - 9)), InputError);
   EXPECT_THROW(DecodeCheckpoint(""), InputError);
+  // Convicted worker lists that are not a list of non-empty lines (with a valid checksum).
+  for (const std::vector<std::string>& bad :
+       {std::vector<std::string>{""}, std::vector<std::string>{"a\nb", ""}}) {
+    Checkpoint odd = cp;
+    odd.convicted = bad;
+    EXPECT_THROW(DecodeCheckpoint(EncodeCheckpoint(odd)), InputError);
+  }
 }
 
 TEST(Checkpoint, FilesAreWrittenAtomically) {
