@@ -502,36 +502,13 @@ TEST(StorageConvictions, AStoredRestartSurvivesACrashWithoutItsConvictedResults)
   ExpectSameImage(ResolveJobImage(*run.scheduler, id, nullptr), reference);
 }
 
-// Only the restart's empty checkpoint reached the disk (its row could not be written) when the
-// coordinator died: the checkpoint's epoch wins over the row's, so the old results stay out, and
-// the checkpoint names the convicted worker, which stays off the job.
-TEST(StorageConvictions, ARestartWhoseRowWasNotStoredKeepsItsEpochAndConvictionsFromTheCheckpoint) {
-  StorageCase storage;
-  FaultInjector faults;
-  FaultyFiles files(faults);
-  FaultySqlite sqlite(faults);
-  std::string id;
-  {
-    StorageCase::Run run = storage.Start(&files);
-    id = storage.Submit(run);
-    for (int i = 0; i < 3; ++i) storage.RenderOne(run);
-    run.persister->FlushNow(false);
-    ASSERT_TRUE(run.scheduler->ConvictWorker(id, "w", 0, "wrong result"));
-    faults.Arm({FileOp::kSqliteWrite, "coordinator.db", false, 1, FaultRule::kUntilDisarmed, ENOSPC});
-    EXPECT_FALSE(run.persister->FlushNow(false)) << "the rows are not stored";
-    EXPECT_FALSE(run.scheduler->TryLease({"honest", {}}).has_value()) << "held until its row is stored";
-    run.persister->Abandon();
-  }
-  faults.Disarm();
-  StorageCase::Run run = storage.Start(nullptr);
-  EXPECT_EQ(run.scheduler->JobEpoch(id), 1u);
-  EXPECT_EQ(run.report.tasks_merged, 0u);
-  EXPECT_FALSE(storage.RenderOne(run)) << "the convicted worker 'w' stays off the job";
-}
+// A conviction's restart is stored as a checkpoint (the empty image) and a row; the coordinator
+// died when only one of them had reached the disk (the other's write failed: full). Either carries
+// the epoch and the convicted workers: the old results stay out and the convicted worker stays off
+// the job.
+class RestartHalfStored : public ::testing::TestWithParam<FaultRule> {};
 
-// The restart's row reached the disk, its checkpoint did not (full) when the coordinator died: the
-// row's epoch sets the older checkpoint aside, and the row names the convicted worker.
-TEST(StorageConvictions, ARestartWhoseCheckpointWasNotStoredKeepsItsEpochAndConvictionsFromTheRow) {
+TEST_P(RestartHalfStored, KeepsItsEpochAndConvictions) {
   StorageCase storage;
   FaultInjector faults;
   FaultyFiles files(faults);
@@ -543,10 +520,9 @@ TEST(StorageConvictions, ARestartWhoseCheckpointWasNotStoredKeepsItsEpochAndConv
     for (int i = 0; i < 3; ++i) storage.RenderOne(run);
     run.persister->FlushNow(false);
     ASSERT_TRUE(run.scheduler->ConvictWorker(id, "w", 0, "wrong result"));
-    faults.Arm({FileOp::kOpen, ".acc.tmp-", false, 1, FaultRule::kUntilDisarmed, ENOSPC});
-    run.persister->FlushNow(false);  // the checkpoint fails, the row is stored
-    EXPECT_FALSE(run.scheduler->TryLease({"honest", {}}).has_value())
-        << "held until its checkpoint is stored";
+    faults.Arm(GetParam());
+    EXPECT_FALSE(run.persister->FlushNow(false)) << "one of the two is not stored";
+    EXPECT_FALSE(run.scheduler->TryLease({"honest", {}}).has_value()) << "held until both are stored";
     run.persister->Abandon();
   }
   faults.Disarm();
@@ -555,6 +531,18 @@ TEST(StorageConvictions, ARestartWhoseCheckpointWasNotStoredKeepsItsEpochAndConv
   EXPECT_EQ(run.report.tasks_merged, 0u) << "no epoch-0 result comes back";
   EXPECT_FALSE(storage.RenderOne(run)) << "the convicted worker 'w' stays off the job";
 }
+
+INSTANTIATE_TEST_SUITE_P(
+    StorageConvictions, RestartHalfStored,
+    ::testing::Values(
+        // Only the checkpoint reached the disk.
+        FaultRule{FileOp::kSqliteWrite, "coordinator.db", false, 1, FaultRule::kUntilDisarmed, ENOSPC},
+        // Only the row reached the disk.
+        FaultRule{FileOp::kOpen, ".acc.tmp-", false, 1, FaultRule::kUntilDisarmed, ENOSPC}),
+    [](const ::testing::TestParamInfo<FaultRule>& info) {
+      return info.param.op == FileOp::kSqliteWrite ? std::string("OnlyTheCheckpoint")
+                                                   : std::string("OnlyTheRow");
+    });
 
 // The persister flushed between a merge and its JournalThenAck, and that flush's checkpoint holds
 // the result; then its journal append fails. It is stored (answered so), and the job is not
