@@ -241,16 +241,4 @@ void ResultVerification::DropJob(const Job& job, bool ended) {
   if (!ended) j->second.verified = 0;
 }
 
-void ResultVerification::RecordConviction(const Job& job, const std::string& worker, uint32_t epoch) {
-  jobs_[&job].convicted[worker] = epoch;
-}
-
-std::optional<uint32_t> ResultVerification::ConvictedAt(const Job& job, const std::string& worker) const {
-  auto j = jobs_.find(&job);
-  if (j == jobs_.end()) return std::nullopt;
-  auto c = j->second.convicted.find(worker);
-  if (c == j->second.convicted.end()) return std::nullopt;
-  return c->second;
-}
-
 }  // namespace pf::server

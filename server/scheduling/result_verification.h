@@ -146,16 +146,10 @@ class ResultVerification {
   // and leased verifications are dropped, those with the referee detached.
   void DropJob(const Job& job, bool ended);
 
-  // Convictions in a job: the epoch its conviction restarted the job to. A worker blocklisted at a
-  // restart took nothing of the job since, so evidence from an earlier epoch needs no new restart.
-  void RecordConviction(const Job& job, const std::string& worker, uint32_t epoch);
-  std::optional<uint32_t> ConvictedAt(const Job& job, const std::string& worker) const;
-
  private:
   struct JobState {
     std::unordered_map<uint64_t, std::vector<double>> references;  // by group, ≤ kOutlierReferences
     uint64_t pending = 0, verified = 0;
-    std::unordered_map<std::string, uint32_t> convicted;  // kept across restarts
   };
   void Unindex(Verification& v);
 

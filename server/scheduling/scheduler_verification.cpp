@@ -495,7 +495,6 @@ bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, 
       // Nothing of theirs is in the image (their results went with an earlier restart, or never
       // merged): blocklisted, their leases revoked, the job goes on.
       RevokeLeasesLocked(job, workers, "its worker was convicted", fx);
-      for (const std::string& w : workers) verification_.RecordConviction(job, w, job.epoch());
       spdlog::error(
           "job {}: worker {} convicted ({}): blocklisted for the job; none of its results is in the "
           "image, the job goes on",
@@ -518,7 +517,6 @@ bool Scheduler::ConvictInJob(Job& job, const std::vector<std::string>& workers, 
       sources_[&job] = task_sources_(job.config());
       queue_.Hold(job);
       for (uint64_t id = 0; id < job.num_tasks(); ++id) Enqueue(job, id, fx);
-      for (const std::string& w : workers) verification_.RecordConviction(job, w, job.epoch());
       spdlog::error(
           "job {}: worker {} convicted of a wrong result ({}): blocklisted for the job; the job starts again "
           "from nothing without it ({} merged tasks dropped)",
