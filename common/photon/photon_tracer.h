@@ -55,8 +55,8 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/importance_map.h"
-#include "common/render/light_sampler.h"
 #include "common/sampling/sampler.h"
 
 namespace pf {

@@ -11,8 +11,8 @@
 #include <filesystem>
 #include <vector>
 
+#include "common/camera/camera.h"
 #include "common/core/rng.h"
-#include "common/render/camera.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"

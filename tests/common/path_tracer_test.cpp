@@ -7,7 +7,7 @@
 #include <numeric>
 
 #include "common/accel/embree_scene.h"
-#include "common/render/camera.h"
+#include "common/camera/camera.h"
 #include "common/render/renderer.h"
 #include "tests/common/test_scenes.h"
 

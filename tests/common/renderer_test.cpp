@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
-#include "common/render/camera.h"
+#include "common/camera/camera.h"
 #include "common/render/path_tracer.h"
 #include "common/sampling/sample_layout.h"
 #include "tests/common/test_scenes.h"
