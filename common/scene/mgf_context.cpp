@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <iterator>
 #include <numbers>
 #include <string>
 #include <utility>
@@ -133,31 +134,11 @@ void MgfReader::ContextEntity(Kind kind, const Args& a) {
       return;
     }
     case Kind::kRd:
-      ExpectCount(a, 1, 1, "1 argument (rho_d)");
-      Mat().rd = Fraction(a, 1, "reflectance");
-      Mat().rd_c = CurrentColor();
-      return;
     case Kind::kTd:
-      ExpectCount(a, 1, 1, "1 argument (tau_d)");
-      Mat().td = Fraction(a, 1, "transmittance");
-      Mat().td_c = CurrentColor();
-      return;
     case Kind::kEd:
-      ExpectCount(a, 1, 1, "1 argument (epsilon_d in lm/m^2)");
-      Mat().ed = NonNegative(a, 1, "emittance");
-      Mat().ed_c = CurrentColor();
-      return;
     case Kind::kRs:
-      ExpectCount(a, 2, 2, "2 arguments (rho_s alpha_r)");
-      Mat().rs = Fraction(a, 1, "reflectance");
-      Mat().rs_alpha = NonNegative(a, 2, "roughness");
-      Mat().rs_c = CurrentColor();
-      return;
     case Kind::kTs:
-      ExpectCount(a, 2, 2, "2 arguments (tau_s alpha_t)");
-      Mat().ts = Fraction(a, 1, "transmittance");
-      Mat().ts_alpha = NonNegative(a, 2, "roughness");
-      Mat().ts_c = CurrentColor();
+      MaterialComponent(kind, a);
       return;
     case Kind::kIr: {
       ExpectCount(a, 2, 2, "2 arguments (n_real n_imag)");
@@ -188,6 +169,37 @@ void MgfReader::ContextEntity(Kind kind, const Args& a) {
     default:  // not a context entity (Dispatch routes only c, cxy, ..., v, p, n here)
       return;
   }
+}
+
+// rd td ed rs ts (§3): a value (rs and ts also a roughness) and the colour in effect now, which
+// the value keeps (§2.1).
+void MgfReader::MaterialComponent(Kind kind, const Args& a) {
+  struct Component {
+    Kind kind;
+    const char* usage;
+    const char* what;
+    double MaterialCtx::*value;
+    double MaterialCtx::*alpha;  // the roughness, or null
+    Chroma MaterialCtx::*color;
+  };
+  static constexpr Component kComponents[] = {
+      {Kind::kRd, "1 argument (rho_d)", "reflectance", &MaterialCtx::rd, nullptr, &MaterialCtx::rd_c},
+      {Kind::kTd, "1 argument (tau_d)", "transmittance", &MaterialCtx::td, nullptr, &MaterialCtx::td_c},
+      {Kind::kEd, "1 argument (epsilon_d in lm/m^2)", "emittance", &MaterialCtx::ed, nullptr,
+       &MaterialCtx::ed_c},
+      {Kind::kRs, "2 arguments (rho_s alpha_r)", "reflectance", &MaterialCtx::rs, &MaterialCtx::rs_alpha,
+       &MaterialCtx::rs_c},
+      {Kind::kTs, "2 arguments (tau_s alpha_t)", "transmittance", &MaterialCtx::ts, &MaterialCtx::ts_alpha,
+       &MaterialCtx::ts_c},
+  };
+  const Component& c = *std::find_if(std::begin(kComponents), std::end(kComponents),
+                                     [kind](const Component& x) { return x.kind == kind; });
+  const size_t count = c.alpha ? 2 : 1;
+  ExpectCount(a, count, count, c.usage);
+  // An emittance is unbounded (lm/m²); reflectances and transmittances are fractions.
+  Mat().*c.value = kind == Kind::kEd ? NonNegative(a, 1, c.what) : Fraction(a, 1, c.what);
+  if (c.alpha) Mat().*c.alpha = NonNegative(a, 2, "roughness");
+  Mat().*c.color = CurrentColor();
 }
 
 const VertexCtx& MgfReader::NamedVertex(std::string_view name) const {

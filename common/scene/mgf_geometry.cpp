@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/scene/curved_primitives.h"
@@ -32,47 +33,16 @@ constexpr size_t kMaxPolygonVertices = 16384;
 
 }  // namespace
 
-void MgfReader::GeometryEntity(Kind kind, const Args& a) {
-  switch (kind) {
-    case Kind::kFace:
-      Face(a);
-      return;
-    case Kind::kFaceHoles:
-      FaceWithHoles(a);
-      return;
-    case Kind::kSphere:
-      Sphere(a);
-      return;
-    case Kind::kCylinder:
-      ExpectCount(a, 3, 3, "3 arguments (v1 radius v2)");
-      {
-        const double r = Number(a, 2);
-        if (r == 0.0) Fail("cyl: radius must not be zero");
-        Cone(a, a[1], r, a[3], r);
-      }
-      return;
-    case Kind::kCone: {
-      ExpectCount(a, 4, 4, "4 arguments (v1 rad1 v2 rad2)");
-      const double r1 = Number(a, 2), r2 = Number(a, 4);
-      if (r1 == 0.0 && r2 == 0.0) Fail("cone: both radii are zero");
-      if ((r1 > 0.0 && r2 < 0.0) || (r1 < 0.0 && r2 > 0.0)) {
-        Fail("cone: the radii must not have opposite signs");
-      }
-      Cone(a, a[1], r1, a[3], r2);
-      return;
-    }
-    case Kind::kPrism:
-      Prism(a);
-      return;
-    case Kind::kRing:
-      Ring(a);
-      return;
-    case Kind::kTorus:
-      Torus(a);
-      return;
-    default:  // not a geometric entity (Dispatch routes only f, fh, sph, ... here)
-      return;
-  }
+void MgfReader::EmitGeometry(Kind kind, const Args& a) {
+  using Emitter = void (MgfReader::*)(const Args&);
+  static constexpr std::pair<Kind, Emitter> kEmitters[] = {
+      {Kind::kFace, &MgfReader::Face},     {Kind::kFaceHoles, &MgfReader::FaceWithHoles},
+      {Kind::kSphere, &MgfReader::Sphere}, {Kind::kCylinder, &MgfReader::Cylinder},
+      {Kind::kCone, &MgfReader::Cone},     {Kind::kPrism, &MgfReader::Prism},
+      {Kind::kRing, &MgfReader::Ring},     {Kind::kTorus, &MgfReader::Torus},
+  };
+  for (const auto& [k, emit] : kEmitters)
+    if (k == kind) return (this->*emit)(a);
 }
 
 void MgfReader::BeginPrimitive(size_t expected_triangles) {
@@ -229,7 +199,24 @@ void MgfReader::Sphere(const Args& a) {
   geometry::TessellateSphere(c, rw, sign, circle_, *this);
 }
 
-void MgfReader::Cone(const Args& a, std::string_view n1, double r1, std::string_view n2, double r2) {
+void MgfReader::Cylinder(const Args& a) {
+  ExpectCount(a, 3, 3, "3 arguments (v1 radius v2)");
+  const double r = Number(a, 2);
+  if (r == 0.0) Fail("cyl: radius must not be zero");
+  TruncatedCone(a, a[1], r, a[3], r);
+}
+
+void MgfReader::Cone(const Args& a) {
+  ExpectCount(a, 4, 4, "4 arguments (v1 rad1 v2 rad2)");
+  const double r1 = Number(a, 2), r2 = Number(a, 4);
+  if (r1 == 0.0 && r2 == 0.0) Fail("cone: both radii are zero");
+  if ((r1 > 0.0 && r2 < 0.0) || (r1 < 0.0 && r2 > 0.0)) {
+    Fail("cone: the radii must not have opposite signs");
+  }
+  TruncatedCone(a, a[1], r1, a[3], r2);
+}
+
+void MgfReader::TruncatedCone(const Args& a, std::string_view n1, double r1, std::string_view n2, double r2) {
   const VertexCtx& v1 = NamedVertex(n1);
   const VertexCtx& v2 = NamedVertex(n2);
   if (v1.p == v2.p) {

@@ -493,7 +493,7 @@ void MgfReader::Dispatch(const Args& a, size_t* pc) {
     case Kind::kPrism:
     case Kind::kRing:
     case Kind::kTorus:
-      GeometryEntity(kind, a);
+      EmitGeometry(kind, a);
       return;
     case Kind::kUnknown:
       WarnOnce(a.keyword(), "unknown entity " + Quote(a.keyword()) + " ignored");

@@ -161,6 +161,7 @@ class MgfReader final : private geometry::MeshSink {
 
   const VertexCtx& NamedVertex(std::string_view name) const;
   MaterialCtx& Mat();
+  void MaterialComponent(Kind kind, const Args& a);
   const Chroma& CurrentColor() const { return *colors_.current; }
   // The current material as a SceneDescription material, converted once per change (mgf_loader.h:
   // colour and material rules).
@@ -197,17 +198,18 @@ class MgfReader final : private geometry::MeshSink {
 
   void Execute(const MgfFile& file);
 
-  // Executes one entity: structure (o, xf, i, ies) here, the rest through ContextEntity
-  // (mgf_context.cpp) and GeometryEntity (mgf_geometry.cpp).
+  // Executes one entity: structure (o, xf, i, ies) here, contexts through ContextEntity
+  // (mgf_context.cpp), geometry through EmitGeometry (mgf_geometry.cpp).
   void Dispatch(const Args& a, size_t* pc);
   // c cxy cspec cct cmix m sides rd td ed rs ts ir v p n: the context entities (§2.1, §3).
   void ContextEntity(Kind kind, const Args& a);
-  // f fh sph cyl cone prism ring torus: the entities that emit triangles (§3).
-  void GeometryEntity(Kind kind, const Args& a);
 
   void WarnOnce(std::string_view kind, const std::string& message);
 
   // ---- emission (mgf_geometry.cpp) --------------------------------------------------------------
+  // f fh sph cyl cone prism ring torus: the entities that emit triangles (§3), one member each.
+  void EmitGeometry(Kind kind, const Args& a);
+
   // Starts a source primitive: its material, and a light id assigned at its first triangle.
   void BeginPrimitive(size_t expected_triangles);
 
@@ -236,8 +238,10 @@ class MgfReader final : private geometry::MeshSink {
 
   void Sphere(const Args& a);
 
+  void Cylinder(const Args& a);
+  void Cone(const Args& a);
   // cyl and cone (§3 cyl, cone): open-ended truncated cone from v1 (radius r1) to v2 (r2).
-  void Cone(const Args& a, std::string_view n1, double r1, std::string_view n2, double r2);
+  void TruncatedCone(const Args& a, std::string_view n1, double r1, std::string_view n2, double r2);
 
   // The centre vertex of ring and torus must have a normal (§3 ring, torus).
   const VertexCtx& OrientedCentre(const Args& a) const;
