@@ -17,6 +17,7 @@ namespace {
 using testing::AddMaterial;
 using testing::AddQuad;
 using testing::AddSphere;
+using testing::FloorCamera;
 
 constexpr float kFurnaceAlbedo = 0.8f;
 constexpr float kFurnaceLe = 1.0f;
@@ -144,13 +145,7 @@ TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
   AddQuad(scene, light_polygon[0], light_polygon[1], light_polygon[2], light_polygon[3], light_id, 0);
   scene.num_lights = 1;
 
-  CameraSpec spec;
-  spec.eye = Vec3(2.5f, 0.0f, 1.5f);
-  spec.look_at = Vec3(0.5f, 0.0f, 0.0f);
-  spec.up = Vec3(0, 0, 1);
-  spec.vfov_degrees = 50.0f;
-  spec.width = 32;
-  spec.height = 32;
+  const CameraSpec spec = FloorCamera();
   const Camera camera(spec);
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);

@@ -19,6 +19,7 @@ namespace {
 
 using testing::AddMaterial;
 using testing::AddQuad;
+using testing::FloorCamera;
 
 // Returns the sampler's numbers as the colour: the sub-pixel offset and a light-sample slot.
 class SamplerEcho final : public Integrator {
@@ -79,13 +80,7 @@ TEST(RenderPixelsStreams, SharedStreamsMakeADetailOfASmoothImageCancel) {
   AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
   AddQuad(scene, {-0.3f, -0.3f, 1}, {-0.3f, 0.3f, 1}, {0.3f, 0.3f, 1}, {0.3f, -0.3f, 1}, light_id, 0);
   scene.num_lights = 1;
-  CameraSpec spec;
-  spec.eye = Vec3(2.5f, 0.0f, 1.5f);
-  spec.look_at = Vec3(0.5f, 0.0f, 0.0f);
-  spec.up = Vec3(0, 0, 1);
-  spec.vfov_degrees = 50.0f;
-  spec.width = 32;
-  spec.height = 32;
+  const CameraSpec spec = FloorCamera();
   const Camera camera(spec);
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);

@@ -104,6 +104,19 @@ inline CameraSpec FurnaceCamera() {
   return cam;
 }
 
+// A 32x32 camera 1.5 above a floor in the plane z = 0, looking down at it past the origin (the
+// floor-under-a-small-light scenes of the path tracer and renderer tests).
+inline CameraSpec FloorCamera() {
+  CameraSpec spec;
+  spec.eye = Vec3(2.5f, 0.0f, 1.5f);
+  spec.look_at = Vec3(0.5f, 0.0f, 0.0f);
+  spec.up = Vec3(0, 0, 1);
+  spec.vfov_degrees = 50.0f;
+  spec.width = 32;
+  spec.height = 32;
+  return spec;
+}
+
 inline void ScaleScene(SceneDescription& s, CameraSpec& camera, float scale) {
   for (Vec3& p : s.positions) p *= scale;
   camera.eye *= scale;
