@@ -17,8 +17,6 @@
 namespace pf::mgf {
 namespace {
 
-using geometry::SafeNormalize;
-
 constexpr double kPiD = std::numbers::pi;
 
 }  // namespace
@@ -164,7 +162,7 @@ void MgfReader::ContextEntity(Kind kind, const Args& a) {
     case Kind::kNormal:
       ExpectCount(a, 3, 3, "3 arguments (dx dy dz)");
       // §3 n: normalised; a zero vector means "no normal".
-      vertices_.current->n = SafeNormalize({Number(a, 1), Number(a, 2), Number(a, 3)});
+      vertices_.current->n = geometry::SafeNormalize({Number(a, 1), Number(a, 2), Number(a, 3)});
       return;
     default:  // not a context entity (Dispatch routes only c, cxy, ..., v, p, n here)
       return;

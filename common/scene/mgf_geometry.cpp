@@ -19,11 +19,6 @@
 namespace pf::mgf {
 namespace {
 
-using geometry::BridgeHoles;
-using geometry::ContourVertex;
-using geometry::SafeNormalize;
-using geometry::TriangulatePolygon;
-
 // Beyond this magnitude (after transformation) coordinates are rejected: products of two such
 // numbers stay far from overflow in double, and the value still fits a float.
 constexpr double kMaxCoordinate = 1e18;
@@ -86,7 +81,7 @@ bool MgfReader::EmitPolygon(std::span<const PolyVertex> poly, bool use_normals, 
   poly_points_.resize(poly.size());
   for (size_t i = 0; i < poly.size(); ++i) poly_points_[i] = poly[i].p;
   bool approximate = false;
-  if (!TriangulatePolygon(poly_points_, &poly_tris_, &approximate)) return false;
+  if (!geometry::TriangulatePolygon(poly_points_, &poly_tris_, &approximate)) return false;
   if (approximate) {
     Warn(std::string(what) + ": self-intersecting polygon, triangulated approximately");
   }
@@ -115,7 +110,7 @@ void MgfReader::WorldPolygon(const Args& a, size_t first, size_t end, std::vecto
     const VertexCtx& v = NamedVertex(a[i]);
     const bool has_n = !(v.n == Vec3d{});
     *all_normals = *all_normals && has_n;
-    out->push_back({xf.Point(v.p), has_n ? SafeNormalize(xf.Vector(v.n)) : Vec3d{}});
+    out->push_back({xf.Point(v.p), has_n ? geometry::SafeNormalize(xf.Vector(v.n)) : Vec3d{}});
   }
   if (xf.Mirrors()) std::reverse(out->begin(), out->end());
 }
@@ -150,9 +145,9 @@ void MgfReader::FaceWithHoles(const Args& a) {
   for (size_t k = 0; k < rings.size(); ++k) {
     for (const PolyVertex& v : rings[k]) contour_points[k].push_back(v.p);
   }
-  std::vector<ContourVertex> bridged;
+  std::vector<geometry::ContourVertex> bridged;
   size_t ignored_holes = 0;
-  if (!BridgeHoles(contour_points, &bridged, &ignored_holes)) {
+  if (!geometry::BridgeHoles(contour_points, &bridged, &ignored_holes)) {
     Warn("fh: degenerate outer contour (no area) skipped");
     return;
   }
@@ -161,7 +156,7 @@ void MgfReader::FaceWithHoles(const Args& a) {
   }
   std::vector<PolyVertex> merged;
   merged.reserve(bridged.size());
-  for (const ContourVertex& v : bridged) merged.push_back(rings[v.contour][v.index]);
+  for (const geometry::ContourVertex& v : bridged) merged.push_back(rings[v.contour][v.index]);
   if (!EmitPolygon(merged, all_normals, "fh")) Warn("fh: degenerate face (no area) skipped");
 }
 
@@ -255,7 +250,7 @@ void MgfReader::Ring(const Args& a) {
   if (!(rmax > rmin)) Fail("ring: outer radius must be greater than the inner radius");
   const Affine& xf = World();
   const Vec3d c = CheckedPoint(xf.Point(vc.p));
-  const Vec3d nz = SafeNormalize(xf.Vector(vc.n));
+  const Vec3d nz = geometry::SafeNormalize(xf.Vector(vc.n));
   const double scale = xf.Scale();
   const double ri = rmin * scale, ro = rmax * scale;
   const int n = options_.curve_segments;
@@ -280,7 +275,7 @@ void MgfReader::Torus(const Args& a) {
   const double sign = rmax > 0.0 ? 1.0 : -1.0;
   const Affine& xf = World();
   const Vec3d c = CheckedPoint(xf.Point(vc.p));
-  const Vec3d nz = SafeNormalize(xf.Vector(vc.n));
+  const Vec3d nz = geometry::SafeNormalize(xf.Vector(vc.n));
   const double scale = xf.Scale();
   const double tube = (std::abs(rmax) - std::abs(rmin)) * 0.5 * scale;
   const double sweep = (std::abs(rmax) + std::abs(rmin)) * 0.5 * scale;
@@ -303,7 +298,7 @@ void MgfReader::Prism(const Args& a) {
   BeginPrimitive(4 * n);
   Vec3d area2;
   for (size_t i = 0; i < n; ++i) area2 += Cross(poly_[i].p - poly_[0].p, poly_[(i + 1) % n].p - poly_[0].p);
-  const Vec3d nz = SafeNormalize(area2);
+  const Vec3d nz = geometry::SafeNormalize(area2);
   const double scale = World().Scale();
   if (nz == Vec3d{}) {
     Warn("prism: degenerate end face (no area) skipped");

@@ -82,10 +82,7 @@ RenderResult RenderMean(SceneDescription scene, const CameraSpec& camera, Integr
 // light 1/8 m below the ceiling and a white block on the floor; the camera stands inside by the
 // front wall. Every coordinate is a multiple of 1/8, so translating the room by up to 2^20 in
 // each axis is exact in float: a translated render sees the very same geometry.
-struct RoomSetup {
-  SceneDescription scene;
-  CameraSpec camera;
-};
+using RoomSetup = testing::SceneWithCamera;
 
 RoomSetup SnappedRoom() {
   RoomSetup r;

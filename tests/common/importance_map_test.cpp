@@ -28,10 +28,7 @@ using testing::AddQuad;
 // 0.1 m thick wall between them (x in [-0.05, 0.05]). The camera stands in B by its far wall and
 // looks back at the door wall: B's walls, the door's reveal and a strip of A behind the door are
 // visible; most of A is not.
-struct TwoRooms {
-  SceneDescription scene;
-  CameraSpec camera;
-};
+using TwoRooms = testing::SceneWithCamera;
 
 TwoRooms MakeTwoRooms() {
   TwoRooms r;

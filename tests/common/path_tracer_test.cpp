@@ -17,16 +17,13 @@ namespace {
 using testing::AddMaterial;
 using testing::AddQuad;
 using testing::AddSphere;
-using testing::FloorCamera;
+using testing::LookAtCamera;
 
 constexpr float kFurnaceAlbedo = 0.8f;
 constexpr float kFurnaceLe = 1.0f;
 constexpr float kFurnaceExpected = kFurnaceLe / (1.0f - kFurnaceAlbedo);  // = 5
 
-struct FurnaceSetup {
-  SceneDescription scene;
-  CameraSpec camera;
-};
+using FurnaceSetup = testing::SceneWithCamera;
 
 // Camera at the centre of a closed sphere (albedo 0.8, uniform emission inward). Optionally a
 // perfect mirror sphere and a lossless glass sphere inside, in view of the camera.
@@ -145,8 +142,8 @@ TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
   AddQuad(scene, light_polygon[0], light_polygon[1], light_polygon[2], light_polygon[3], light_id, 0);
   scene.num_lights = 1;
 
-  const CameraSpec spec = FloorCamera();
-  const Camera camera(spec);
+  const Camera camera(
+      LookAtCamera(Vec3(2.5f, 0.0f, 1.5f), Vec3(0.5f, 0.0f, 0.0f), Vec3(0, 0, 1), 50.0f, 32, 32));
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   const PathTracer tracer(accel, lights);

@@ -19,7 +19,7 @@ namespace {
 
 using testing::AddMaterial;
 using testing::AddQuad;
-using testing::FloorCamera;
+using testing::LookAtCamera;
 
 // Returns the sampler's numbers as the colour: the sub-pixel offset and a light-sample slot.
 class SamplerEcho final : public Integrator {
@@ -80,8 +80,8 @@ TEST(RenderPixelsStreams, SharedStreamsMakeADetailOfASmoothImageCancel) {
   AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
   AddQuad(scene, {-0.3f, -0.3f, 1}, {-0.3f, 0.3f, 1}, {0.3f, 0.3f, 1}, {0.3f, -0.3f, 1}, light_id, 0);
   scene.num_lights = 1;
-  const CameraSpec spec = FloorCamera();
-  const Camera camera(spec);
+  const Camera camera(
+      LookAtCamera(Vec3(2.5f, 0.0f, 1.5f), Vec3(0.5f, 0.0f, 0.0f), Vec3(0, 0, 1), 50.0f, 32, 32));
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   const PathTracer tracer(accel, lights);

@@ -11,6 +11,12 @@
 
 namespace pf::testing {
 
+// A programmatic scene with the camera its test renders it with.
+struct SceneWithCamera {
+  SceneDescription scene;
+  CameraSpec camera;
+};
+
 inline uint32_t AddMaterial(SceneDescription& s, Material m) {
   s.materials.push_back(std::move(m));
   return uint32_t(s.materials.size() - 1);
@@ -104,17 +110,16 @@ inline CameraSpec FurnaceCamera() {
   return cam;
 }
 
-// A 32x32 camera 1.5 above a floor in the plane z = 0, looking down at it past the origin (the
-// floor-under-a-small-light scenes of the path tracer and renderer tests).
-inline CameraSpec FloorCamera() {
-  CameraSpec spec;
-  spec.eye = Vec3(2.5f, 0.0f, 1.5f);
-  spec.look_at = Vec3(0.5f, 0.0f, 0.0f);
-  spec.up = Vec3(0, 0, 1);
-  spec.vfov_degrees = 50.0f;
-  spec.width = 32;
-  spec.height = 32;
-  return spec;
+// A camera at `eye` looking at `look_at` with `up` upwards, its vertical field of view and size.
+inline CameraSpec LookAtCamera(Vec3 eye, Vec3 look_at, Vec3 up, float vfov_degrees, int width, int height) {
+  CameraSpec c;
+  c.eye = eye;
+  c.look_at = look_at;
+  c.up = up;
+  c.vfov_degrees = vfov_degrees;
+  c.width = width;
+  c.height = height;
+  return c;
 }
 
 inline void ScaleScene(SceneDescription& s, CameraSpec& camera, float scale) {
