@@ -112,14 +112,12 @@ inline CameraSpec FurnaceCamera() {
 
 // A camera at `eye` looking at `look_at` with `up` upwards, its vertical field of view and size.
 inline CameraSpec LookAtCamera(Vec3 eye, Vec3 look_at, Vec3 up, float vfov_degrees, int width, int height) {
-  CameraSpec c;
-  c.eye = eye;
-  c.look_at = look_at;
-  c.up = up;
-  c.vfov_degrees = vfov_degrees;
-  c.width = width;
-  c.height = height;
-  return c;
+  return CameraSpec{.eye = eye,
+                    .look_at = look_at,
+                    .up = up,
+                    .vfov_degrees = vfov_degrees,
+                    .width = width,
+                    .height = height};
 }
 
 inline void ScaleScene(SceneDescription& s, CameraSpec& camera, float scale) {
