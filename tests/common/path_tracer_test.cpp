@@ -15,9 +15,7 @@ namespace pf {
 namespace {
 
 using testing::AddMaterial;
-using testing::AddQuad;
 using testing::AddSphere;
-using testing::LookAtCamera;
 
 constexpr float kFurnaceAlbedo = 0.8f;
 constexpr float kFurnaceLe = 1.0f;
@@ -130,20 +128,12 @@ double PolygonIrradiance(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
 }
 
 TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
-  SceneDescription scene;
-  const Material floor{.name = "floor", .diffuse_reflectance = Rgb(0.5f)};
-  const Material light{.name = "light", .emission = Rgb(20.0f)};
-  const uint32_t floor_id = AddMaterial(scene, floor);
-  const uint32_t light_id = AddMaterial(scene, light);
-  AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
-  // 0.2 m square light 1 m above the floor, facing down (-z): vertices clockwise seen from above.
+  const SceneDescription scene = testing::FloorUnderSquareLight(0.1f);
+  const uint32_t floor_id = 0;  // FloorUnderSquareLight: the floor is material 0
+  // The 0.2 m square light, as the scene has it.
   const std::vector<Vec3> light_polygon = {
       {-0.1f, -0.1f, 1}, {-0.1f, 0.1f, 1}, {0.1f, 0.1f, 1}, {0.1f, -0.1f, 1}};
-  AddQuad(scene, light_polygon[0], light_polygon[1], light_polygon[2], light_polygon[3], light_id, 0);
-  scene.num_lights = 1;
-
-  const Camera camera(
-      LookAtCamera(Vec3(2.5f, 0.0f, 1.5f), Vec3(0.5f, 0.0f, 0.0f), Vec3(0, 0, 1), 50.0f, 32, 32));
+  const Camera camera(testing::FloorCamera());
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   const PathTracer tracer(accel, lights);

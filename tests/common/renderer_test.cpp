@@ -17,10 +17,6 @@
 namespace pf {
 namespace {
 
-using testing::AddMaterial;
-using testing::AddQuad;
-using testing::LookAtCamera;
-
 // Returns the sampler's numbers as the colour: the sub-pixel offset and a light-sample slot.
 class SamplerEcho final : public Integrator {
  public:
@@ -74,14 +70,8 @@ TEST(RenderPixelsStreams, SharedStreamsGiveEveryPixelTheSameNumbersPerPixelStrea
 // against the measured ratio (5e-4: detail variance 8e-6 against 0.016) and could not pass with
 // independent streams (≈ 1).
 TEST(RenderPixelsStreams, SharedStreamsMakeADetailOfASmoothImageCancel) {
-  SceneDescription scene;
-  const uint32_t floor_id = AddMaterial(scene, Material{.name = "floor", .diffuse_reflectance = Rgb(0.5f)});
-  const uint32_t light_id = AddMaterial(scene, Material{.name = "light", .emission = Rgb(20.0f)});
-  AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
-  AddQuad(scene, {-0.3f, -0.3f, 1}, {-0.3f, 0.3f, 1}, {0.3f, 0.3f, 1}, {0.3f, -0.3f, 1}, light_id, 0);
-  scene.num_lights = 1;
-  const Camera camera(
-      LookAtCamera(Vec3(2.5f, 0.0f, 1.5f), Vec3(0.5f, 0.0f, 0.0f), Vec3(0, 0, 1), 50.0f, 32, 32));
+  const SceneDescription scene = testing::FloorUnderSquareLight(0.3f);
+  const Camera camera(testing::FloorCamera());
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   const PathTracer tracer(accel, lights);
