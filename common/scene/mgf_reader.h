@@ -21,7 +21,7 @@
 #include "common/core/math.h"
 #include "common/scene/curved_primitives.h"
 #include "common/scene/mgf_color.h"
-#include "common/scene/mgf_loader.h"
+#include "common/scene/mgf_options.h"
 #include "common/scene/mgf_tokenizer.h"
 #include "common/scene/mgf_transform.h"
 #include "common/scene/scene.h"
