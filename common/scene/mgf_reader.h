@@ -205,6 +205,8 @@ class MgfReader final : private geometry::MeshSink {
   void ContextEntity(Kind kind, const Args& a);
 
   void WarnOnce(std::string_view kind, const std::string& message);
+  // After the last entity: positions into the scene's frame (scene_frame.h), the warning summary.
+  void Finish();
 
   // ---- emission (mgf_geometry.cpp) --------------------------------------------------------------
   // f fh sph cyl cone prism ring torus: the entities that emit triangles (§3), one member each.
@@ -256,9 +258,6 @@ class MgfReader final : private geometry::MeshSink {
   // its mirror image at distance `length` opposite to the face normal; N side quads join them.
   // A negative length extrudes along the normal and leaves every normal pointing inwards.
   void Prism(const Args& a);
-
-  // After the last entity: positions into the scene's frame (scene_frame.h), the warning summary.
-  void Finish();
 
   const MgfOptions& options_;
   SceneDescription& scene_;
