@@ -22,9 +22,9 @@
 #include "common/accel/ray.h"
 #include "common/core/math.h"
 #include "common/core/rng.h"
+#include "common/lights/light_sampler.h"
 #include "common/materials/bsdf.h"
 #include "common/photon/photon_tracer.h"
-#include "common/render/light_sampler.h"
 
 namespace pf::bench {
 

@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "common/camera/camera.h"
 #include "common/photon/photon_maps.h"
 #include "common/plan/task_executor.h"
-#include "common/render/camera.h"
 #include "common/scene/scene_loader.h"
 
 namespace pf {

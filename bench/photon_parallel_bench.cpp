@@ -36,9 +36,9 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/kdtree.h"
 #include "common/photon/photon_tracer.h"
-#include "common/render/light_sampler.h"
 #include "common/scene/scene_loader.h"
 
 namespace {

@@ -37,9 +37,9 @@
 #include "bench/floor_walk.h"
 #include "bench/raw_rays.h"
 #include "common/accel/embree_scene.h"
+#include "common/camera/camera.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/photon_tracer.h"
-#include "common/render/camera.h"
-#include "common/render/light_sampler.h"
 #include "common/scene/scene_loader.h"
 
 namespace {

@@ -16,13 +16,13 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/camera/camera.h"
 #include "common/core/math.h"
 #include "common/core/rng.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/photon.h"
 #include "common/photon/photon_map.h"
 #include "common/photon/photon_tracer.h"
-#include "common/render/camera.h"
-#include "common/render/light_sampler.h"
 #include "common/scene/scene_loader.h"
 
 namespace pf::bench {

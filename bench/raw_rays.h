@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/camera/camera.h"
 #include "common/core/rng.h"
-#include "common/render/camera.h"
 
 namespace pf::bench {
 

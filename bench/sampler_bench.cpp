@@ -25,8 +25,8 @@
 #include <vector>
 
 #include "bench/bench_stats.h"
+#include "common/camera/camera.h"
 #include "common/plan/task_executor.h"
-#include "common/render/camera.h"
 #include "common/render/path_tracer.h"
 #include "common/render/renderer.h"
 #include "common/sampling/sample_layout.h"

@@ -24,11 +24,11 @@
 #include <string>
 #include <vector>
 
+#include "common/camera/camera.h"
 #include "common/image/exr_io.h"
 #include "common/image/image_diff.h"
 #include "common/plan/task_executor.h"
 #include "common/plan/task_plan.h"
-#include "common/render/camera.h"
 #include "common/render/emitter_coverage.h"
 #include "common/render/path_tracer.h"
 #include "common/render/renderer.h"

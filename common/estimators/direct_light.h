@@ -27,10 +27,10 @@
 
 #include "common/accel/embree_scene.h"
 #include "common/core/rng.h"
+#include "common/estimators/trace_counters.h"
+#include "common/lights/light_sampler.h"
 #include "common/materials/bsdf.h"
 #include "common/photon/photon_map.h"
-#include "common/render/integrator.h"
-#include "common/render/light_sampler.h"
 #include "common/sampling/sample_layout.h"
 
 namespace pf {

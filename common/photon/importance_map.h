@@ -46,8 +46,8 @@
 #include <memory>
 #include <string>
 
+#include "common/camera/camera.h"
 #include "common/photon/photon_map.h"
-#include "common/render/camera.h"
 #include "common/sampling/sampler.h"
 
 namespace pf {

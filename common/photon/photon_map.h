@@ -3,12 +3,13 @@
 // random walk, the acceleration structure is built once by PrepareForQuery, and Query finds
 // the k nearest photons around a point into a max-heap (the thesis's "PhotonList").
 //
-// Two implementations: the left-balanced kd-tree of §2.3 (kdtree.h) and the regular grid of
-// §2.4 (grid.h). Both keep the photons in one dynamic array and reorder it in place; after
+// Three implementations (PhotonMapKind): the left-balanced kd-tree of §2.3 (kdtree.h), the
+// regular grid of §2.4 (grid.h) and a bucketed, unbalanced kd-tree (bucket_kdtree.h, after Wald
+// et al. 2004). Each keeps the photons in one dynamic array and reorders it in place; after
 // PrepareForQuery, `photon(i)` is the i-th photon in that post-build order and the indices
 // returned by Query refer to it.
 //
-// Query semantics (both implementations, and brute_force.h, agree on them exactly):
+// Query semantics (all three implementations, and brute_force.h, agree on them exactly):
 // * the search region is the *open* ball: a photon is a candidate iff its squared distance
 //   (DistanceSquared in photon.h) is < max_radius²; max_radius = +inf means unbounded, and
 //   max_radius ≤ 0 or NaN finds nothing;

@@ -7,10 +7,10 @@
 #include <mutex>
 #include <string>
 
+#include "common/camera/camera.h"
 #include "common/photon/importance_map.h"
 #include "common/photon/photon_map.h"
 #include "common/photon/photon_tracer.h"
-#include "common/render/camera.h"
 
 namespace pf {
 

@@ -15,6 +15,7 @@
 
 #include "common/core/error.h"
 #include "common/materials/bsdf.h"
+#include "common/photon/metropolis_chain.h"
 #include "common/sampling/sample_layout.h"
 
 namespace pf {
@@ -67,10 +68,6 @@ namespace {
 constexpr uint64_t kChunk = kPhotonTracingChunk;
 constexpr uint64_t kSplitTag = 0x73706c6974ull;     // "split": brute force's choice j*
 constexpr uint64_t kMetropolisTag = 0x6d636d63ull;  // "mcmc": Metropolis mutations
-constexpr uint32_t kSingularLobes =
-    kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
-
-struct MetropolisWalk;  // below, with the chains it walks
 
 struct ChunkOutput {
   TracedPhotons direct, indirect, caustic;
@@ -78,7 +75,7 @@ struct ChunkOutput {
   // photon and reset for each one after it: no allocation per photon.
   std::unique_ptr<MetropolisWalk> metropolis_walk;
   uint64_t rays = 0, rejected = 0;
-  uint64_t chains = 0, mutations = 0, accepted = 0;
+  MetropolisCounts metropolis;
   ImportanceScratch importance_scratch;  // the chunk's importance queries (one thread at a time)
 };
 
@@ -106,144 +103,6 @@ struct TraceShared {
   std::vector<BsdfLobes> lobes;         // by material index
   std::vector<WalkRoulette> walk;       // by material index
 };
-
-// Where a singular chain starts (Wald 1999, §4.6.2): the light, or a Lambertian diffuse bounce.
-// Its direction ω was drawn with a density ∝ max(0, ω·axis) on the side `side` (emission: the
-// light's normal; a bounce: the Bsdf's lobe axis, sidedness against the geometric normal).
-struct ChainStart {
-  Vec3 position, ray_origin_light;  // the vertex; the light's offset origin (emission only)
-  std::optional<SurfaceHit> hit;    // the bounce's hit (nullopt: emission)
-  std::optional<Bsdf> bsdf;         // the bounce's Bsdf, for the diffuse weight at a new ω
-  Vec3 wo, axis, side;
-  Rgb power;             // emission: Φ leaving the light; bounce: Φ arriving (before the diffuse weight)
-  Rgb diffuse_roulette;  // bounce: 1/P(diffuse lobe) (the RR selection, constant in ω)
-  Vec3 direction;        // ω of the original walk
-};
-
-// What a chain did after its start: the characteristic (singular lobes at h1..h_{n-1}), how it
-// ended (escaped after the last singular lobe, or a non-singular choice at h_n), its probability
-// factor Q = Π P(lobe k) · P(end), and its caustic stores (at h2..hn).
-struct ChainState {
-  std::vector<uint32_t> lobes;
-  bool escaped = false;
-  bool splittable = true;  // no glossy lobe (not a function of ω alone) and no cap reached
-  double q = 1.0;
-  Vec3 direction;
-  std::vector<TracedPhoton> stores;
-};
-
-// The start's density (up to its constant) for direction w: 0 where the walk could not go.
-// The chain a Metropolis photon walk is in, if any (§4.6.2; ChunkOutput::metropolis_walk).
-struct MetropolisWalk {
-  std::optional<ChainStart> chain;
-  ChainState state;
-  std::optional<Rng> mutations;
-};
-
-double StartDensity(const ChainStart& c, const Vec3& w) {
-  if (!(Dot(w, c.side) > 0.0f)) return 0.0;
-  return std::max(0.0, double(Dot(w, c.axis)));
-}
-
-// Φ leaving the start in direction w (the diffuse bounce's RR weight depends on w only when the
-// lobe axis is not the shading normal).
-Rgb StartPower(const ChainStart& c, const Vec3& w) {
-  if (!c.bsdf) return c.power;
-  const float cos_axis = Dot(w, c.axis);
-  if (!(cos_axis > 0.0f)) return Rgb(0.0f);
-  const Rgb f = c.bsdf->EvalLobes(c.wo, w, kLobeDiffuseReflection);
-  return c.power * f * (c.bsdf->AbsCosTheta(w) * kPi / cos_axis) * c.diffuse_roulette;
-}
-
-// Traces the chain of `like`'s characteristic from the start in direction w; false when the
-// geometry does not give that characteristic (Q = 0).
-bool TraceChain(const EmbreeScene& scene, const ChainStart& c, const ChainState& like, const Vec3& w,
-                uint32_t light, ChunkOutput& out, ChainState* result) {
-  const SceneDescription& desc = scene.description();
-  result->lobes = like.lobes;
-  result->escaped = like.escaped;
-  result->direction = w;
-  result->stores.clear();
-  result->q = 1.0;
-  Rgb power = StartPower(c, w);
-  if (power.IsBlack()) return false;
-  Vec3 previous = c.position;
-  Ray ray{c.hit ? scene.SpawnOrigin(*c.hit, w) : c.ray_origin_light, w};
-  const size_t n = like.lobes.size();
-  for (size_t i = 0; i <= n; ++i) {
-    ++out.rays;
-    const std::optional<SurfaceHit> hit = scene.Intersect(ray);
-    if (!hit) return i == n && like.escaped;
-    if (i == n && like.escaped) return false;
-    const Material& m = desc.materials[hit->material];
-    const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
-    const Vec3 wo = -ray.direction;
-    if (i >= 1 && bsdf.HasDiffuse())
-      result->stores.push_back({hit->position, wo, power, previous, light, PhotonKind::kCaustic});
-    if (i == n) {
-      result->q *= 1.0 - double(bsdf.RouletteProbability(wo, kSingularLobes));
-      return result->q > 0.0;
-    }
-    const std::optional<BsdfSample> s =
-        bsdf.Sample(wo, 0.0f, 0.5f, 0.5f, Bsdf::Mode::kRussianRoulette, like.lobes[i]);
-    if (!s || s->lobe != like.lobes[i] || !(s->pdf > 0.0f)) return false;
-    result->q *= double(s->pdf);
-    power *= s->weight;
-    if (power.IsBlack() || !power.IsFinite()) return false;
-    previous = hit->position;
-    ray = Ray{scene.SpawnOrigin(*hit, s->wi), s->wi};
-  }
-  return false;
-}
-
-// A direction at angle θ (exponentially distributed between the jitter bounds) from w.
-Vec3 JitterDirection(const Vec3& w, Rng& rng) {
-  const float u1 = rng.Uniform(), u2 = rng.Uniform();
-  const float theta =
-      kMetropolisJitterMax * std::exp(std::log(kMetropolisJitterMin / kMetropolisJitterMax) * u1);
-  const float phi = kTwoPi * u2;
-  const float st = std::sin(theta);
-  return Normalize(Frame(w).ToWorld(Vec3(st * std::cos(phi), st * std::sin(phi), std::cos(theta))));
-}
-
-void StoreWeighted(const std::vector<TracedPhoton>& stores, float scale, ChunkOutput& out) {
-  for (TracedPhoton p : stores) {
-    p.power *= scale;
-    out.caustic.push_back(p);
-  }
-}
-
-// Wald 1999, §4.6.2: S states of a Markov chain over the start direction whose stationary
-// density is pdf(ω)·Q(ω) restricted to the characteristic — the density the original chain was
-// drawn from, given its characteristic — so each state is distributed as the original and the
-// weighted mean of their stores has the original's expectation (docs/renderer.md).
-void SplitChain(const EmbreeScene& scene, const ChainStart& c, ChainState& original, uint32_t split,
-                uint32_t light, Rng& rng, ChunkOutput& out) {
-  ++out.chains;
-  ChainState current = std::move(original), proposal;
-  double current_density = StartDensity(c, current.direction) * current.q;
-  uint32_t weight = 1;
-  const float scale = 1.0f / float(split);
-  for (uint32_t t = 1; t < split; ++t) {
-    ++out.mutations;
-    const Vec3 w = JitterDirection(current.direction, rng);
-    const float u = rng.Uniform();
-    const double start_density = StartDensity(c, w);
-    if (start_density > 0.0 && TraceChain(scene, c, current, w, light, out, &proposal)) {
-      const double density = start_density * proposal.q;
-      if (double(u) * current_density < density) {
-        ++out.accepted;
-        StoreWeighted(current.stores, float(weight) * scale, out);
-        std::swap(current, proposal);
-        current_density = density;
-        weight = 1;
-        continue;
-      }
-    }
-    ++weight;
-  }
-  StoreWeighted(current.stores, float(weight) * scale, out);
-}
 
 // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
 // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
@@ -428,9 +287,10 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
       if (state.splittable && state.q > 0.0) {
         if (!mw->mutations)
           mw->mutations = Rng::ForKey(HashKey(o.map_seed, map_photon, kMetropolisTag, index));
-        SplitChain(scene, *mw->chain, state, o.caustic_split, em.light, *mw->mutations, out);
+        SplitChain(scene, *mw->chain, state, o.caustic_split, em.light, *mw->mutations, out.caustic,
+                   out.metropolis);
       } else {
-        StoreWeighted(state.stores, 1.0f, out);
+        StoreWeighted(state.stores, 1.0f, out.caustic);
       }
     }
     mw->chain.reset();
@@ -586,11 +446,11 @@ PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& l
   const TraceShared shared(scene.description(), lights, options);
   // The counts and totals, the same for both paths below (one thread, or chunks concatenated).
   const auto add_counts = [](const ChunkOutput& out, PhotonTracingResult* r) {
-    r->rays += out.rays;
+    r->rays += out.rays + out.metropolis.rays;
     r->rejected += out.rejected;
-    r->chains += out.chains;
-    r->mutations += out.mutations;
-    r->accepted += out.accepted;
+    r->chains += out.metropolis.chains;
+    r->mutations += out.metropolis.mutations;
+    r->accepted += out.metropolis.accepted;
   };
   const auto finish = [&](PhotonTracingResult* r) {
     r->emitted = range_end - options.photon_begin;

@@ -45,81 +45,16 @@
 // for any thread count.
 
 #include <atomic>
-#include <bit>
-#include <cstddef>
 #include <cstdint>
-#include <cstring>
-#include <memory>
-#include <type_traits>
-#include <utility>
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/importance_map.h"
-#include "common/render/light_sampler.h"
+#include "common/photon/traced_photon.h"
 #include "common/sampling/sampler.h"
 
 namespace pf {
-
-enum class PhotonKind : uint8_t { kDirect = 0, kIndirect = 1, kCaustic = 2 };
-
-// Full-precision photon as traced; compressed to the 18-byte Photon when put in a map.
-struct TracedPhoton {
-  Vec3 position;
-  Vec3 direction;      // unit, pointing back towards where the photon came from (ω in §2.2)
-  Rgb power;           // Φ, W
-  Vec3 origin;         // previous vertex of the path (occlusion testing, §4.1.1)
-  uint32_t light = 0;  // emitting light id (PhotonDirect, §4.2.3)
-  PhotonKind kind = PhotonKind::kIndirect;
-  // Explicit, zero-initialised padding: arrays of equal photons are equal byte for byte however
-  // each photon was made (aggregate, copy or AppendPhoton), so tests can compare them with memcmp.
-  uint8_t pad[3] = {};
-};
-
-// An allocator whose value-initialising construct() does nothing, for arrays that are sized
-// first and then filled in parallel: std::vector::resize would otherwise zero them in one serial
-// pass (~35 ms for the 1.5M photons of the default map, 7 % of its 1-thread tracing time, which
-// alone would cap two threads at 1.87x). Only for implicit-lifetime, trivially copyable types,
-// whose objects the copy that fills the memory creates.
-template <typename T>
-struct UninitializedAllocator : std::allocator<T> {
-  static_assert(std::is_trivially_copyable_v<T> && std::is_trivially_destructible_v<T>);
-  template <typename U>
-  struct rebind {
-    using other = UninitializedAllocator<U>;
-  };
-  UninitializedAllocator() = default;
-  template <typename U>
-  UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
-  template <typename U>
-  void construct(U*) noexcept {}
-  template <typename U, typename... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-
-using TracedPhotons = std::vector<TracedPhoton, UninitializedAllocator<TracedPhoton>>;
-
-// Appends a traced photon (§2.2) by writing its fields straight into the array's memory
-// (UninitializedAllocator: emplace_back() leaves it unwritten) instead of copying a temporary
-// built on the stack: the copy's 16-byte loads of the temporary's 12- and 4-byte stores stalled
-// on store forwarding at every stored photon (docs/results/kernel.md §4). The light id, the kind
-// and the 3 bytes of TracedPhoton::pad are one 8-byte store, the pad zero as in every other
-// TracedPhoton, so that equal arrays are equal byte for byte (the tracer's memcmp test).
-static_assert(offsetof(TracedPhoton, kind) == offsetof(TracedPhoton, light) + 4 &&
-              sizeof(TracedPhoton) == offsetof(TracedPhoton, light) + 8 &&
-              std::endian::native == std::endian::little);
-inline void AppendPhoton(TracedPhotons& list, const Vec3& position, const Vec3& direction, const Rgb& power,
-                         const Vec3& origin, uint32_t light, PhotonKind kind) {
-  TracedPhoton& p = list.emplace_back();
-  p.position = position;
-  p.direction = direction;
-  p.power = power;
-  p.origin = origin;
-  const uint64_t tail = uint64_t(light) | uint64_t(kind) << 32;
-  std::memcpy(reinterpret_cast<unsigned char*>(&p) + offsetof(TracedPhoton, light), &tail, sizeof tail);
-}
 
 // Photons per work item of TracePhotons: fixed, so that the output order is fixed. A map traced
 // in pieces (distributed tracing, photon_chunk.h) is cut at multiples of it.
@@ -127,13 +62,6 @@ inline constexpr uint64_t kPhotonTracingChunk = 4096;
 
 enum class CausticSplitMethod : uint8_t { kBrute = 0, kMetropolis = 1 };
 const char* CausticSplitMethodName(CausticSplitMethod m);
-
-// Metropolis splitting's jitter of the start direction (§4.6.2, "an exponential distribution"):
-// the angle between the old and the new direction is θ_max·(θ_min/θ_max)^u, u uniform, about a
-// uniform azimuth — a symmetric proposal (its density depends only on the angle). Wide enough that
-// a chain's states spread beyond one estimate's k-nearest disk (with 0.001-0.1 rad they piled up:
-// k photons then hold only ~k/S independent chains; docs/results/caustic_splitting.md).
-inline constexpr float kMetropolisJitterMin = 0.01f, kMetropolisJitterMax = 0.5f;  // radians
 
 struct PhotonTracerOptions {
   uint64_t photons = 100000;  // emitted photons (not stored ones)

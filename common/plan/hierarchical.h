@@ -69,59 +69,10 @@
 
 #include "common/core/byte_codec.h"
 #include "common/image/image.h"
+#include "common/plan/hierarchy.h"
 #include "common/plan/task_plan.h"
 
 namespace pf {
-
-struct HierarchySchedule {
-  std::vector<uint32_t> samples;     // n_l, l = 0..L
-  std::vector<uint64_t> map_offset;  // M_l: first map of level l
-  uint32_t nmax = 0;                 // Σ n_l
-};
-HierarchySchedule MakeHierarchySchedule(const PlanSpec& plan);
-
-class Hierarchy {
- public:
-  Hierarchy(int width, int height, uint32_t levels, uint32_t dims);
-
-  struct Parents {
-    uint32_t count = 0;
-    std::array<uint32_t, 4> pixel{};
-    std::array<double, 4> weight{};
-  };
-  uint32_t LevelOf(uint32_t pixel) const;
-  Parents ParentsOf(uint32_t pixel) const;
-  // The level-l points with row in [y0, y1), ascending.
-  std::vector<uint32_t> PointsOf(uint32_t level, uint32_t y0, uint32_t y1) const;
-  // Those points and their parents, ascending and unique: a detail task's pixel set.
-  std::vector<uint32_t> TaskPixels(uint32_t level, uint32_t y0, uint32_t y1) const;
-  // Whether any row of [y0, y1) has a level-l point.
-  bool HasPoints(uint32_t level, uint32_t y0, uint32_t y1) const;
-
-  uint32_t levels() const { return levels_; }
-  uint32_t dims() const { return dims_; }
-  int width() const { return width_; }
-  int height() const { return height_; }
-
- private:
-  struct Axis {
-    std::vector<uint8_t> level;
-    std::vector<uint32_t> a, b;  // parents along the axis (level > 0)
-    std::vector<bool> has_level;
-  };
-  static Axis MakeAxis(uint32_t n, uint32_t levels);
-  int width_, height_;
-  uint32_t levels_, dims_;
-  Axis x_, y_;
-};
-
-struct HierarchyStats {
-  uint32_t nmax = 0;
-  double navg = 0;                   // samples per pixel (its own samples; localization excluded)
-  double evaluations_per_pixel = 0;  // rendered pixel samples per pixel, parents included
-  std::vector<uint64_t> points;      // per level
-};
-HierarchyStats ComputeHierarchyStats(const PlanSpec& plan, int width, int height);
 
 class HierarchicalAssembly {
  public:
@@ -210,6 +161,5 @@ uint64_t ExpectedLocalizationWork(const PlanSpec& plan, int width, int height, u
 // The static tasks (part of ExpandPlan).
 std::vector<TaskSpec> HierarchicalStaticTasks(const PlanSpec& plan, int width, int height, uint64_t job_seed);
 uint64_t CountHierarchicalStaticTasks(const PlanSpec& plan, int width, int height);
-void ValidateHierarchicalPlan(const PlanSpec& plan, int width, int height);
 
 }  // namespace pf

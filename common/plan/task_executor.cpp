@@ -8,8 +8,8 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "common/camera/camera.h"
 #include "common/plan/accumulator.h"
-#include "common/render/camera.h"
 #include "common/render/path_tracer.h"
 #include "common/render/renderer.h"
 
@@ -145,44 +145,6 @@ std::string CameraKey(const CameraSpec& c) {
 }
 
 }  // namespace
-
-SceneRuntime::SceneRuntime(SceneDescription d)
-    : description(std::move(d)), accel(description), lights(accel) {}
-
-std::shared_ptr<const PhotonMaps> PhotonMapCache::Find(const std::string& key) {
-  std::lock_guard lock(mutex_);
-  for (auto it = entries_.begin(); it != entries_.end(); ++it)
-    if (it->key == key) {
-      entries_.splice(entries_.begin(), entries_, it);
-      return entries_.front().maps;
-    }
-  return nullptr;
-}
-
-void PhotonMapCache::Insert(const std::string& key, std::shared_ptr<const PhotonMaps> maps) {
-  if (capacity_ == 0) return;
-  std::lock_guard lock(mutex_);
-  const uint64_t seed = maps ? maps->seed : 0;
-  entries_.push_front(Entry{key, seed, std::move(maps)});
-  while (entries_.size() > capacity_) entries_.pop_back();
-}
-
-void PhotonMapCache::Erase(const std::string& key) {
-  std::lock_guard lock(mutex_);
-  entries_.remove_if([&](const Entry& e) { return e.key == key; });
-}
-
-std::vector<uint64_t> PhotonMapCache::CachedSeeds() const {
-  std::lock_guard lock(mutex_);
-  std::vector<uint64_t> seeds;
-  for (const Entry& e : entries_) seeds.push_back(e.seed);
-  return seeds;
-}
-
-size_t PhotonMapCache::size() const {
-  std::lock_guard lock(mutex_);
-  return entries_.size();
-}
 
 std::string MapCacheKey(const std::string& scene_key, const JobRenderSettings& resolved, uint64_t map_seed) {
   return scene_key + "|" + resolved.MapFingerprint() + "|" + std::to_string(map_seed);

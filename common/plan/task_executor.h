@@ -13,10 +13,10 @@
 #include <vector>
 
 #include "common/image/image.h"
+#include "common/photon/map_cache.h"
 #include "common/plan/job_settings.h"
-#include "common/plan/map_cache.h"
-#include "common/plan/scene_runtime.h"
 #include "common/plan/task_plan.h"
+#include "common/render/scene_runtime.h"
 
 namespace pf {
 

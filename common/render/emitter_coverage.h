@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
-#include "common/render/camera.h"
+#include "common/camera/camera.h"
 
 namespace pf {
 

@@ -4,8 +4,8 @@
 // exactly. Every photon-map image is measured against it.
 
 #include "common/accel/embree_scene.h"
+#include "common/lights/light_sampler.h"
 #include "common/render/integrator.h"
-#include "common/render/light_sampler.h"
 
 namespace pf {
 

@@ -24,10 +24,10 @@
 #include "common/estimators/direct_light.h"
 #include "common/estimators/precomputed_irradiance.h"
 #include "common/estimators/radiance_estimate.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/photon_maps.h"
 #include "common/render/integrator.h"
 #include "common/render/irradiance_cache.h"
-#include "common/render/light_sampler.h"
 #include "common/render/radiance_part.h"
 #include "common/sampling/sample_layout.h"
 

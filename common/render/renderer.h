@@ -12,8 +12,8 @@
 #include <span>
 #include <vector>
 
+#include "common/camera/camera.h"
 #include "common/image/image.h"
-#include "common/render/camera.h"
 #include "common/render/integrator.h"
 #include "common/sampling/sampler.h"
 

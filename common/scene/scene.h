@@ -39,7 +39,7 @@ inline constexpr uint32_t kNoLight = 0xffffffffu;
 
 // A camera: pinhole, vertical field of view, image right = forward × up. Its points are world
 // coordinates in double (a camera 4 m from a model at 1e6 m is not on the float lattice there);
-// Camera (render/camera.h) moves them into the scene's frame (scene_frame.h) and rounds them.
+// Camera (camera/camera.h) moves them into the scene's frame (scene_frame.h) and rounds them.
 struct CameraSpec {
   std::string name = "default";
   Vec3d eye{0, 0, 0};

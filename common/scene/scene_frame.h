@@ -13,7 +13,7 @@
 // One rule, applied once, where a description is made: the loaders (MGF, OBJ) apply it to their
 // double-precision world points before storing floats; descriptions built in code go through
 // PlaceInSceneFrame. Cameras stay in world coordinates (CameraSpec, double); Camera
-// (render/camera.h) moves them into the frame with the scene's origin.
+// (camera/camera.h) moves them into the frame with the scene's origin.
 
 #include <limits>
 #include <vector>

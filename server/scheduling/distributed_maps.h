@@ -65,7 +65,7 @@
 #include <vector>
 
 #include "common/photon/photon_chunk.h"
-#include "common/plan/scene_runtime.h"
+#include "common/render/scene_runtime.h"
 #include "server/jobs/job.h"
 #include "server/rpc/executor.h"
 #include "server/scheduling/clock.h"

@@ -13,8 +13,8 @@
 #include <mutex>
 #include <string>
 
-#include "common/plan/map_cache.h"
-#include "common/plan/scene_runtime.h"
+#include "common/photon/map_cache.h"
+#include "common/render/scene_runtime.h"
 #include "server/rpc/executor.h"
 #include "server/scheduling/referee_hook.h"
 

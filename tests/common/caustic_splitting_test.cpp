@@ -12,12 +12,12 @@
 #include <filesystem>
 #include <vector>
 
+#include "common/camera/camera.h"
 #include "common/photon/photon_chunk.h"
 #include "common/photon/photon_maps_bytes.h"
 #include "common/photon/photon_tracer.h"
-#include "common/plan/scene_runtime.h"
 #include "common/plan/task_executor.h"
-#include "common/render/camera.h"
+#include "common/render/scene_runtime.h"
 #include "common/scene/scene_loader.h"
 #include "tests/common/test_scenes.h"
 

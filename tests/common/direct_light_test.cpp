@@ -53,14 +53,7 @@ SceneDescription TwoLightScene() {
 }
 
 CameraSpec FloorCamera() {
-  CameraSpec c;
-  c.eye = Vec3(0, -0.5f, 4.0f);
-  c.look_at = Vec3(0, 0, 0);
-  c.up = Vec3(0, 1, 0);
-  c.vfov_degrees = 50;
-  c.width = 24;
-  c.height = 16;
-  return c;
+  return testing::LookAtCamera(Vec3(0, -0.5f, 4.0f), Vec3(0, 0, 0), Vec3(0, 1, 0), 50, 24, 16);
 }
 
 constexpr int kRuns = 8;       // independent seeds per estimate of a mean

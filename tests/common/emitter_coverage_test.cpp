@@ -33,14 +33,7 @@ SceneDescription HalfEmitterScene(bool emitter_faces_camera) {
 }
 
 Camera HeadOnCamera(int width, int height) {
-  CameraSpec c;
-  c.eye = Vec3(0, 0, 5);
-  c.look_at = Vec3(0, 0, 0);
-  c.up = Vec3(0, 1, 0);
-  c.vfov_degrees = 90.0f;
-  c.width = width;
-  c.height = height;
-  return Camera(c);
+  return Camera(testing::LookAtCamera(Vec3(0, 0, 5), Vec3(0, 0, 0), Vec3(0, 1, 0), 90.0f, width, height));
 }
 
 TEST(EmitterCoverage, IsOneWhereTheCameraSeesTheFrontOfAnEmitterAndZeroElsewhere) {

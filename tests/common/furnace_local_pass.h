@@ -1,6 +1,7 @@
 #pragma once
-// Shared by the local-pass tests (direct_light_test, precomputed_irradiance_test): photon maps
-// built for an integrator's options, and the furnace check of the local pass (Wald 1999, §4.3).
+// Shared by the local-pass tests (direct_light_test, precomputed_irradiance_test,
+// irradiance_cache_test, photon_map_integrator_test): photon maps built for an integrator's
+// options, and the furnace check of the local pass (Wald 1999, §4.3).
 
 #include <gtest/gtest.h>
 
@@ -24,6 +25,17 @@ inline PhotonMaps MapsFor(const EmbreeScene& accel, const LightSampler& lights,
   return PhotonMaps::Build(accel, lights, mo);
 }
 
+// The local pass of the furnace checks: final gathering with 16 rays from the k = 50 photon-map
+// estimate, direct light by `mode` (direct photons estimated as the global ones).
+inline PhotonMapIntegratorOptions FurnaceLocalPassOptions(DirectLightMode mode) {
+  PhotonMapIntegratorOptions io;
+  io.global.k = 50;
+  io.local_pass_rays = 16;
+  io.direct = mode;
+  io.direct_photons = io.global;
+  return io;
+}
+
 // Final gathering (16 rays, k = 50) from the photon-map estimate in the furnace of albedo 0.8
 // must give Le / (1 - a) = 5 within 1 %, with and without Monte Carlo direct light, for the
 // local pass's `lookup`.
@@ -32,12 +44,8 @@ inline void ExpectFurnaceLocalPassWithinOnePercent(LocalPassLookup lookup, int t
   const EmbreeScene accel(s);
   const LightSampler lights(accel);
   for (DirectLightMode mode : {DirectLightMode::kNone, DirectLightMode::kMonteCarlo}) {
-    PhotonMapIntegratorOptions io;
-    io.global.k = 50;
-    io.local_pass_rays = 16;
+    PhotonMapIntegratorOptions io = FurnaceLocalPassOptions(mode);
     io.local_pass_lookup = lookup;
-    io.direct = mode;
-    io.direct_photons = io.global;
     const PhotonMaps maps = MapsFor(accel, lights, io, 200000, 4, threads);
     const PhotonMapIntegrator integrator(accel, &lights, maps, io);
     const Image img = RenderImage(integrator, Camera(FurnaceCamera()), RenderOptions{.spp = 64, .seed = 2});

@@ -16,18 +16,18 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/camera/camera.h"
 #include "common/core/error.h"
 #include "common/core/rng.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/brute_force.h"
 #include "common/photon/photon_maps.h"
 #include "common/plan/job_settings.h"
-#include "common/plan/scene_runtime.h"
 #include "common/plan/task_executor.h"
-#include "common/render/camera.h"
-#include "common/render/light_sampler.h"
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
+#include "common/render/scene_runtime.h"
 #include "common/scene/scene_frame.h"
 #include "common/scene/scene_loader.h"
 #include "tests/common/test_scenes.h"
@@ -82,10 +82,7 @@ RenderResult RenderMean(SceneDescription scene, const CameraSpec& camera, Integr
 // light 1/8 m below the ceiling and a white block on the floor; the camera stands inside by the
 // front wall. Every coordinate is a multiple of 1/8, so translating the room by up to 2^20 in
 // each axis is exact in float: a translated render sees the very same geometry.
-struct RoomSetup {
-  SceneDescription scene;
-  CameraSpec camera;
-};
+using RoomSetup = testing::SceneWithCamera;
 
 RoomSetup SnappedRoom() {
   RoomSetup r;

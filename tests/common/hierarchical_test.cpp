@@ -338,6 +338,18 @@ TEST(Hierarchical, IndirectPartHierarchyOfTheMapPartPlusThePerPixelPart) {
     return (x > 20 ? 0.9 : 0.1) + 0.05 * Gaussian(HashKey(map, y, x)) + 0.01 * y;
   };
   auto checker = [](uint32_t x, uint32_t y) { return ((x + y) % 2) ? 0.7 : 0.05; };
+  // A task's sums: the checkerboard for the per-pixel part, the map part rendered otherwise.
+  auto sums_of = [&](const TaskSpec& t, const std::vector<uint32_t>& px) {
+    const uint32_t n = t.sample_end - t.sample_begin;
+    std::vector<float> sums;
+    if (t.part == RadiancePart::kUnmapped) {
+      for (uint32_t p : px)
+        for (int c = 0; c < 3; ++c) sums.push_back(float(checker(p % w, p / w) * n));
+    } else {
+      sums = RenderTask(t, px, w, mapped, 0);
+    }
+    return sums;
+  };
   auto run = [&](bool reverse, std::vector<TaskSpec>* all_tasks) {
     HierarchicalAssembly acc(split, w, h);
     size_t done = 0;
@@ -351,15 +363,7 @@ TEST(Hierarchical, IndirectPartHierarchyOfTheMapPartPlusThePerPixelPart) {
       if (reverse) std::reverse(batch.begin(), batch.end());
       for (const TaskSpec& t : batch) {
         const std::vector<uint32_t> px = PixelsOf(t.pixels, w, h);
-        const uint32_t n = t.sample_end - t.sample_begin;
-        std::vector<float> sums;
-        if (t.part == RadiancePart::kUnmapped) {
-          for (uint32_t p : px)
-            for (int c = 0; c < 3; ++c) sums.push_back(float(checker(p % w, p / w) * n));
-        } else {
-          sums = RenderTask(t, px, w, mapped, 0);
-        }
-        acc.Add(t, px, sums, n);
+        acc.Add(t, px, sums_of(t, px), t.sample_end - t.sample_begin);
       }
       done = tasks.size();
     }
@@ -400,15 +404,7 @@ TEST(Hierarchical, IndirectPartHierarchyOfTheMapPartPlusThePerPixelPart) {
   Accumulator acc(split, w, h);
   for (const TaskSpec& t : tasks) {
     const std::vector<uint32_t> px = PixelsOf(t.pixels, w, h);
-    const uint32_t n = t.sample_end - t.sample_begin;
-    std::vector<float> sums;
-    if (t.part == RadiancePart::kUnmapped) {
-      for (uint32_t p : px)
-        for (int c = 0; c < 3; ++c) sums.push_back(float(checker(p % w, p / w) * n));
-    } else {
-      sums = RenderTask(t, px, w, mapped, 0);
-    }
-    acc.AddValidated(t, px, sums, n);
+    acc.AddValidated(t, px, sums_of(t, px), t.sample_end - t.sample_begin);
   }
   EXPECT_TRUE(*acc.hierarchy() == a);
   const std::string bytes = acc.Serialize();

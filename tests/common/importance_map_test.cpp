@@ -8,13 +8,13 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
+#include "common/camera/camera.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/importance_map.h"
 #include "common/photon/photon_maps.h"
 #include "common/plan/job_settings.h"
-#include "common/plan/scene_runtime.h"
 #include "common/plan/task_executor.h"
-#include "common/render/camera.h"
-#include "common/render/light_sampler.h"
+#include "common/render/scene_runtime.h"
 #include "tests/common/test_scenes.h"
 
 namespace pf {
@@ -28,10 +28,7 @@ using testing::AddQuad;
 // 0.1 m thick wall between them (x in [-0.05, 0.05]). The camera stands in B by its far wall and
 // looks back at the door wall: B's walls, the door's reveal and a strip of A behind the door are
 // visible; most of A is not.
-struct TwoRooms {
-  SceneDescription scene;
-  CameraSpec camera;
-};
+using TwoRooms = testing::SceneWithCamera;
 
 TwoRooms MakeTwoRooms() {
   TwoRooms r;

@@ -11,8 +11,8 @@
 #include <filesystem>
 #include <vector>
 
+#include "common/camera/camera.h"
 #include "common/core/rng.h"
-#include "common/render/camera.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
@@ -165,11 +165,7 @@ TEST(IrradianceCacheRender, FurnaceAnalyticValue) {
   const EmbreeScene accel(s);
   const LightSampler lights(accel);
   for (DirectLightMode mode : {DirectLightMode::kNone, DirectLightMode::kMonteCarlo}) {
-    PhotonMapIntegratorOptions io;
-    io.global.k = 50;
-    io.local_pass_rays = 16;
-    io.direct = mode;
-    io.direct_photons = io.global;
+    PhotonMapIntegratorOptions io = testing::FurnaceLocalPassOptions(mode);
     io.irradiance_cache.error = 0.3f;
     const PhotonMaps maps = MapsFor(accel, lights, io, 200000, 4, 2);
     const PhotonMapIntegrator integrator(accel, &lights, maps, io);

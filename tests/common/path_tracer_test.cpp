@@ -7,7 +7,7 @@
 #include <numeric>
 
 #include "common/accel/embree_scene.h"
-#include "common/render/camera.h"
+#include "common/camera/camera.h"
 #include "common/render/renderer.h"
 #include "tests/common/test_scenes.h"
 
@@ -15,17 +15,13 @@ namespace pf {
 namespace {
 
 using testing::AddMaterial;
-using testing::AddQuad;
 using testing::AddSphere;
 
 constexpr float kFurnaceAlbedo = 0.8f;
 constexpr float kFurnaceLe = 1.0f;
 constexpr float kFurnaceExpected = kFurnaceLe / (1.0f - kFurnaceAlbedo);  // = 5
 
-struct FurnaceSetup {
-  SceneDescription scene;
-  CameraSpec camera;
-};
+using FurnaceSetup = testing::SceneWithCamera;
 
 // Camera at the centre of a closed sphere (albedo 0.8, uniform emission inward). Optionally a
 // perfect mirror sphere and a lossless glass sphere inside, in view of the camera.
@@ -132,26 +128,12 @@ double PolygonIrradiance(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
 }
 
 TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
-  SceneDescription scene;
-  const Material floor{.name = "floor", .diffuse_reflectance = Rgb(0.5f)};
-  const Material light{.name = "light", .emission = Rgb(20.0f)};
-  const uint32_t floor_id = AddMaterial(scene, floor);
-  const uint32_t light_id = AddMaterial(scene, light);
-  AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
-  // 0.2 m square light 1 m above the floor, facing down (-z): vertices clockwise seen from above.
+  const SceneDescription scene = testing::FloorUnderSquareLight(0.1f);
+  const uint32_t floor_id = 0;  // FloorUnderSquareLight: the floor is material 0
+  // The 0.2 m square light, as the scene has it.
   const std::vector<Vec3> light_polygon = {
       {-0.1f, -0.1f, 1}, {-0.1f, 0.1f, 1}, {0.1f, 0.1f, 1}, {0.1f, -0.1f, 1}};
-  AddQuad(scene, light_polygon[0], light_polygon[1], light_polygon[2], light_polygon[3], light_id, 0);
-  scene.num_lights = 1;
-
-  CameraSpec spec;
-  spec.eye = Vec3(2.5f, 0.0f, 1.5f);
-  spec.look_at = Vec3(0.5f, 0.0f, 0.0f);
-  spec.up = Vec3(0, 0, 1);
-  spec.vfov_degrees = 50.0f;
-  spec.width = 32;
-  spec.height = 32;
-  const Camera camera(spec);
+  const Camera camera(testing::FloorCamera());
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   const PathTracer tracer(accel, lights);

@@ -10,8 +10,8 @@
 #include <filesystem>
 #include <string>
 
+#include "common/camera/camera.h"
 #include "common/core/error.h"
-#include "common/render/camera.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
 #include "tests/common/furnace_local_pass.h"

@@ -8,8 +8,8 @@
 #include <cstring>
 #include <vector>
 
+#include "common/lights/light_sampler.h"
 #include "common/photon/photon_maps.h"
-#include "common/render/light_sampler.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
 #include "common/sampling/sample_layout.h"

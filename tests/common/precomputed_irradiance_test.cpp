@@ -8,11 +8,11 @@
 #include <cstring>
 #include <filesystem>
 
+#include "common/camera/camera.h"
 #include "common/core/rng.h"
 #include "common/estimators/radiance_estimate.h"
 #include "common/photon/bucket_kdtree.h"
 #include "common/photon/photon_maps.h"
-#include "common/render/camera.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"

@@ -9,16 +9,13 @@
 #include <vector>
 
 #include "common/accel/embree_scene.h"
-#include "common/render/camera.h"
+#include "common/camera/camera.h"
 #include "common/render/path_tracer.h"
 #include "common/sampling/sample_layout.h"
 #include "tests/common/test_scenes.h"
 
 namespace pf {
 namespace {
-
-using testing::AddMaterial;
-using testing::AddQuad;
 
 // Returns the sampler's numbers as the colour: the sub-pixel offset and a light-sample slot.
 class SamplerEcho final : public Integrator {
@@ -73,20 +70,8 @@ TEST(RenderPixelsStreams, SharedStreamsGiveEveryPixelTheSameNumbersPerPixelStrea
 // against the measured ratio (5e-4: detail variance 8e-6 against 0.016) and could not pass with
 // independent streams (≈ 1).
 TEST(RenderPixelsStreams, SharedStreamsMakeADetailOfASmoothImageCancel) {
-  SceneDescription scene;
-  const uint32_t floor_id = AddMaterial(scene, Material{.name = "floor", .diffuse_reflectance = Rgb(0.5f)});
-  const uint32_t light_id = AddMaterial(scene, Material{.name = "light", .emission = Rgb(20.0f)});
-  AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
-  AddQuad(scene, {-0.3f, -0.3f, 1}, {-0.3f, 0.3f, 1}, {0.3f, 0.3f, 1}, {0.3f, -0.3f, 1}, light_id, 0);
-  scene.num_lights = 1;
-  CameraSpec spec;
-  spec.eye = Vec3(2.5f, 0.0f, 1.5f);
-  spec.look_at = Vec3(0.5f, 0.0f, 0.0f);
-  spec.up = Vec3(0, 0, 1);
-  spec.vfov_degrees = 50.0f;
-  spec.width = 32;
-  spec.height = 32;
-  const Camera camera(spec);
+  const SceneDescription scene = testing::FloorUnderSquareLight(0.3f);
+  const Camera camera(testing::FloorCamera());
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   const PathTracer tracer(accel, lights);

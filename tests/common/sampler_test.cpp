@@ -315,6 +315,21 @@ TEST(SobolSampler, IntegratesASmoothFunctionFarBetterThanIndependentNumbers) {
   EXPECT_LT(sobol * 10, independent) << sobol << " vs " << independent;
 }
 
+// Two samplers give the same value at every slot inside and beyond the precomputed ones, at a
+// sub-index and at the independent fallback slot.
+void ExpectSameValues(Sampler& a, Sampler& b) {
+  for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots + 5; ++slot) {
+    EXPECT_EQ(a.Get1D(slot), b.Get1D(slot)) << slot;
+    const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
+    EXPECT_EQ(qa.u, qb.u) << slot;
+    EXPECT_EQ(qa.v, qb.v) << slot;
+    const Sample2 pa = a.Get2D(slot, 3, 8), pb = b.Get2D(slot, 3, 8);
+    EXPECT_EQ(pa.u, pb.u) << slot;
+    EXPECT_EQ(pa.v, pb.v) << slot;
+  }
+  EXPECT_EQ(a.Get1D(kIndependentSlot), b.Get1D(kIndependentSlot));
+}
+
 TEST(SobolSampler, PrecomputedPixelStreamGivesExactlyTheSameValues) {
   // The renderer's per-pixel PixelStream (seeds of the budget's slots computed once, every such
   // slot's point computed in one pass per sample) must not change a single value: every slot inside and
@@ -325,16 +340,7 @@ TEST(SobolSampler, PrecomputedPixelStreamGivesExactlyTheSameValues) {
       for (uint32_t sample : {0u, 1u, 5u, 1000u}) {
         Sampler a = Sampler::ForPixelSample(kind, 42, pixel, sample);
         Sampler b = Sampler::ForPixelSample(stream, sample);
-        for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots + 5; ++slot) {
-          EXPECT_EQ(a.Get1D(slot), b.Get1D(slot)) << slot;
-          const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
-          EXPECT_EQ(qa.u, qb.u) << slot;
-          EXPECT_EQ(qa.v, qb.v) << slot;
-          const Sample2 pa = a.Get2D(slot, 3, 8), pb = b.Get2D(slot, 3, 8);
-          EXPECT_EQ(pa.u, pb.u) << slot;
-          EXPECT_EQ(pa.v, pb.v) << slot;
-        }
-        EXPECT_EQ(a.Get1D(kIndependentSlot), b.Get1D(kIndependentSlot));
+        ExpectSameValues(a, b);
       }
     }
 }
@@ -349,16 +355,7 @@ TEST(SobolSampler, PrecomputedPhotonStreamGivesExactlyTheSameValues) {
       for (uint64_t photon : {0ull, 1ull, 4095ull, 123457ull, 0xffffffffull, (1ull << 32) + 5}) {
         Sampler a = Sampler::ForPhoton(kind, map_seed, photon);
         Sampler b = Sampler::ForPhoton(stream, photon);
-        for (uint32_t slot = 0; slot < sobol::kPixelSeedSlots + 5; ++slot) {
-          EXPECT_EQ(a.Get1D(slot), b.Get1D(slot)) << slot;
-          const Sample2 qa = a.Get2D(slot), qb = b.Get2D(slot);
-          EXPECT_EQ(qa.u, qb.u) << slot;
-          EXPECT_EQ(qa.v, qb.v) << slot;
-          const Sample2 pa = a.Get2D(slot, 3, 8), pb = b.Get2D(slot, 3, 8);
-          EXPECT_EQ(pa.u, pb.u) << slot;
-          EXPECT_EQ(pa.v, pb.v) << slot;
-        }
-        EXPECT_EQ(a.Get1D(kIndependentSlot), b.Get1D(kIndependentSlot));
+        ExpectSameValues(a, b);
       }
     }
 }

@@ -10,8 +10,8 @@
 #include <iostream>
 #include <set>
 
+#include "common/camera/camera.h"
 #include "common/core/error.h"
-#include "common/render/camera.h"
 #include "common/scene/manifest.h"
 #include "common/scene/obj_loader.h"
 #include "tests/util/temp_dir.h"

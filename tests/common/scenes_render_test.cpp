@@ -8,10 +8,10 @@
 #include <numbers>
 
 #include "common/accel/embree_scene.h"
+#include "common/camera/camera.h"
+#include "common/lights/light_sampler.h"
 #include "common/photon/photon_maps.h"
 #include "common/plan/job_settings.h"
-#include "common/render/camera.h"
-#include "common/render/light_sampler.h"
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"

@@ -11,6 +11,12 @@
 
 namespace pf::testing {
 
+// A programmatic scene with the camera its test renders it with.
+struct SceneWithCamera {
+  SceneDescription scene;
+  CameraSpec camera;
+};
+
 inline uint32_t AddMaterial(SceneDescription& s, Material m) {
   s.materials.push_back(std::move(m));
   return uint32_t(s.materials.size() - 1);
@@ -33,6 +39,20 @@ inline void AddQuad(SceneDescription& s, Vec3 p0, Vec3 p1, Vec3 p2, Vec3 p3, uin
   }
   AddTriangle(s, base, base + 1, base + 2, material, light);
   AddTriangle(s, base, base + 2, base + 3, material, light);
+}
+
+// A 10 m grey floor (ρ = 0.5, material 0) in the plane z = 0 under a square light of radiance 20
+// (material 1, light 0) with corners (±half, ±half) 1 m above it, facing down: the analytic
+// floor-under-a-small-light scene of the path tracer and renderer tests, seen by FloorCamera.
+inline SceneDescription FloorUnderSquareLight(float half) {
+  SceneDescription scene;
+  const uint32_t floor_id = AddMaterial(scene, Material{.name = "floor", .diffuse_reflectance = Rgb(0.5f)});
+  const uint32_t light_id = AddMaterial(scene, Material{.name = "light", .emission = Rgb(20.0f)});
+  AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, floor_id);
+  // Vertices clockwise seen from above: the front faces down (-z).
+  AddQuad(scene, {-half, -half, 1}, {-half, half, 1}, {half, half, 1}, {half, -half, 1}, light_id, 0);
+  scene.num_lights = 1;
+  return scene;
 }
 
 // Geodesic sphere from a subdivided octahedron. `inward` flips the winding so that the front
@@ -102,6 +122,21 @@ inline CameraSpec FurnaceCamera() {
   cam.width = cam.height = 4;
   cam.vfov_degrees = 90;
   return cam;
+}
+
+// A camera at `eye` looking at `look_at` with `up` upwards, its vertical field of view and size.
+inline CameraSpec LookAtCamera(Vec3 eye, Vec3 look_at, Vec3 up, float vfov_degrees, int width, int height) {
+  return CameraSpec{.eye = eye,
+                    .look_at = look_at,
+                    .up = up,
+                    .vfov_degrees = vfov_degrees,
+                    .width = width,
+                    .height = height};
+}
+
+// The camera the FloorUnderSquareLight tests render with: 32x32, 1.5 m up, looking down the floor.
+inline CameraSpec FloorCamera() {
+  return LookAtCamera(Vec3(2.5f, 0.0f, 1.5f), Vec3(0.5f, 0.0f, 0.0f), Vec3(0, 0, 1), 50.0f, 32, 32);
 }
 
 inline void ScaleScene(SceneDescription& s, CameraSpec& camera, float scale) {

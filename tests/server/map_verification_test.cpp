@@ -13,7 +13,7 @@
 #include "common/core/sha256.h"
 #include "common/photon/photon_chunk.h"
 #include "common/photon/photon_maps_bytes.h"
-#include "common/plan/scene_runtime.h"
+#include "common/render/scene_runtime.h"
 #include "common/scene/scene_bundle.h"
 #include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"

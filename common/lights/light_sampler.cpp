@@ -1,4 +1,4 @@
-#include "common/render/light_sampler.h"
+#include "common/lights/light_sampler.h"
 
 #include <algorithm>
 

@@ -1,8 +1,8 @@
 #pragma once
-// A scene ready to trace (implemented in task_executor.cpp).
+// A scene ready to trace, built once per scene per process (ExecuteTask: pf-worker, `pf render`).
 
 #include "common/accel/embree_scene.h"
-#include "common/render/light_sampler.h"
+#include "common/lights/light_sampler.h"
 #include "common/scene/scene.h"
 
 namespace pf {

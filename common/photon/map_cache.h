@@ -1,6 +1,5 @@
 #pragma once
-// Photon maps kept between tasks of a process (pf-worker, a local plan render); implemented in
-// task_executor.cpp.
+// Photon maps kept between tasks of a process (pf-worker, a local plan render).
 
 #include <cstdint>
 #include <list>
