@@ -8,6 +8,7 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "common/photon/map_key.h"
 #include "common/plan/accumulator.h"
 #include "common/render/camera.h"
 #include "common/render/path_tracer.h"
@@ -185,7 +186,7 @@ size_t PhotonMapCache::size() const {
 }
 
 std::string MapCacheKey(const std::string& scene_key, const JobRenderSettings& resolved, uint64_t map_seed) {
-  return scene_key + "|" + resolved.MapFingerprint() + "|" + std::to_string(map_seed);
+  return MapKey{scene_key, resolved.MapFingerprint(), map_seed}.Text();
 }
 
 TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera_spec,
