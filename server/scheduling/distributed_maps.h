@@ -16,7 +16,8 @@
 // Key: hex SHA-256 of "photonfarm-map-v1", the coordinator's build (PF_VERSION: a map traced by
 // another build before an upgrade is never reused), the scene hash, the job's render settings
 // (proto, map_tracing cleared) and the map seed: the settings with the scene decide every `auto`,
-// so the key names one map; jobs with the same scene, settings and seed share it.
+// so the key names one map; jobs with the same scene, settings and seed share it. It is the
+// Address of the map's MapKey (common/photon/map_key.h), the key type of every map cache.
 //
 // Leases: a piece lease id is "map-" and 128 bits from the CSPRNG (server/jobs/random_id.h), so
 // it cannot be guessed and a restarted coordinator never hands out an id again (sequential ids
