@@ -87,7 +87,8 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   mo.chunk_photons = options_.map_chunk_photons;
   mo.verify_fraction = verify ? options_.verify_piece_fraction : 0;
   mo.convict = verify;
-  maps_ = std::make_unique<DistributedMaps>(mo, *clock_, *scenes_);
+  maps_ = std::make_unique<DistributedMaps>(
+      mo, *clock_, [s = scenes_.get()](const std::string& hash) { return s->DirectoryOf(hash); });
   maps_->SetScheduler(scheduler_.get());
   scheduler_->SetMapTracingHook(maps_.get());
   referee_ = std::make_unique<Referee>(*scenes_, options_.referee_threads);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/core/atomic_file.h"
+#include "common/photon/map_key.h"
 
 namespace pf::worker {
 namespace fs = std::filesystem;
@@ -15,12 +16,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr std::string_view kSuffix = ".pfmaps";
-
-bool ValidKey(const std::string& key) {
-  return key.size() == 64 && std::all_of(key.begin(), key.end(), [](char c) {
-           return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
-         });
-}
 
 }  // namespace
 
@@ -32,7 +27,7 @@ MapDiskCache::MapDiskCache(fs::path dir, uint64_t max_bytes) : dir_(std::move(di
 }
 
 fs::path MapDiskCache::PathOf(const std::string& key) const {
-  if (!ValidKey(key)) throw std::invalid_argument("map cache: malformed key '" + key + "'");
+  if (!MapKey::IsAddress(key)) throw std::invalid_argument("map cache: malformed key '" + key + "'");
   return dir_ / (key + std::string(kSuffix));
 }
 

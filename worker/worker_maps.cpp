@@ -234,17 +234,8 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
   if (maps_->Find(cache_key)) return std::nullopt;
   // The bytes must be the map the coordinator named, and the map that of this task's seed.
   auto usable = [&](const std::string& bytes) -> std::shared_ptr<const PhotonMaps> {
-    if (bytes.size() < 32 || ref.digest().size() != 64) return nullptr;
-    static constexpr char kHex[] = "0123456789abcdef";
-    std::string trailer;
-    for (unsigned char c : std::string_view(bytes).substr(bytes.size() - 32)) {
-      trailer.push_back(kHex[c >> 4]);
-      trailer.push_back(kHex[c & 15]);
-    }
-    if (trailer != ref.digest()) return nullptr;
-    auto maps = std::make_shared<const PhotonMaps>(DeserializePhotonMaps(bytes));  // verifies the digest
-    if (maps->seed != parsed.spec.map_seed) return nullptr;
-    return maps;
+    std::optional<PhotonMaps> maps = ReadNamedPhotonMaps(bytes, ref.digest(), parsed.spec.map_seed);
+    return maps ? std::make_shared<const PhotonMaps>(std::move(*maps)) : nullptr;
   };
   SetState(State::kBuildingMap, ctx);
   try {

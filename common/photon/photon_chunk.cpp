@@ -1,15 +1,10 @@
 #include "common/photon/photon_chunk.h"
 
-#include <spdlog/spdlog.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
-#include <tbb/task_arena.h>
-
-#include <chrono>
 #include <cstring>
 #include <stdexcept>
 
 #include "common/core/byte_codec.h"
+#include "common/photon/photon_maps_fill.h"
 
 namespace pf {
 namespace {
@@ -17,42 +12,30 @@ namespace {
 constexpr std::string_view kMagic = "PFCHNK\r\n";
 constexpr uint32_t kVersion = 1;
 
-// The lists of `lists` (kinds) of all chunks concatenated in order: what PhotonMaps::Build's
+// The lists of `kinds` of all chunks concatenated in order: what PhotonMaps::Build's
 // MakeFilled adds to one map, already compressed; then built as it builds.
 std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<const PhotonChunk> chunks,
-                                          std::initializer_list<int> lists, PhotonAttributes* attributes) {
-  auto map = MakePhotonMap(o.kind, o.structure);
-  map->set_build_threads(o.tracing.threads);
+                                          std::initializer_list<PhotonKind> kinds,
+                                          PhotonAttributes* attributes) {
   size_t n = 0;
-  for (int k : lists)
-    for (const PhotonChunk& c : chunks) n += c.lists[k].photons.size();
+  for (PhotonKind k : kinds)
+    for (const PhotonChunk& c : chunks) n += c.lists[size_t(k)].photons.size();
   std::vector<Photon> compact;
   compact.reserve(n);
-  for (int k : lists)
+  for (PhotonKind k : kinds)
     for (const PhotonChunk& c : chunks)
-      compact.insert(compact.end(), c.lists[k].photons.begin(), c.lists[k].photons.end());
-  map->AddPhotons(compact);
-  std::vector<Photon>().swap(compact);
-  if (!o.keep_light_ids && !o.keep_origins) {
-    map->PrepareForQuery();
-    return map;
-  }
-  std::vector<uint32_t> original;
-  map->PrepareForQuery(&original);
-  std::vector<uint32_t> light;
-  std::vector<Vec3> origin;
-  for (int k : lists)
-    for (const PhotonChunk& c : chunks) {
-      if (o.keep_light_ids) light.insert(light.end(), c.lists[k].light.begin(), c.lists[k].light.end());
-      if (o.keep_origins) origin.insert(origin.end(), c.lists[k].origin.begin(), c.lists[k].origin.end());
-    }
-  if (o.keep_light_ids) attributes->light.resize(n);
-  if (o.keep_origins) attributes->origin.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    if (o.keep_light_ids) attributes->light[i] = light[original[i]];
-    if (o.keep_origins) attributes->origin[i] = origin[original[i]];
-  }
-  return map;
+      compact.insert(compact.end(), c.lists[size_t(k)].photons.begin(), c.lists[size_t(k)].photons.end());
+  const auto in_order = [&] {
+    PhotonAttributes a;
+    for (PhotonKind k : kinds)
+      for (const PhotonChunk& c : chunks) {
+        const PhotonChunk::List& l = c.lists[size_t(k)];
+        if (o.keep_light_ids) a.light.insert(a.light.end(), l.light.begin(), l.light.end());
+        if (o.keep_origins) a.origin.insert(a.origin.end(), l.origin.begin(), l.origin.end());
+      }
+    return a;
+  };
+  return BuildPhotonMap(o, std::move(compact), in_order, attributes);
 }
 
 }  // namespace
@@ -201,36 +184,15 @@ PhotonMaps AssemblePhotonMaps(std::span<const PhotonChunk> chunks, const PhotonM
   }
   maps.stats.stored_power = Rgb(float(power[0]), float(power[1]), float(power[2]));
   if (!chunks.empty()) maps.stats.emitted_power = chunks.front().emitted_power;
-  const auto t0 = std::chrono::steady_clock::now();
-  constexpr int kDirect = int(PhotonKind::kDirect), kIndirect = int(PhotonKind::kIndirect),
-                kCaustic = int(PhotonKind::kCaustic);
-  if (options.separate_direct) {
-    tbb::task_arena arena(options.tracing.threads > 0 ? options.tracing.threads : tbb::task_arena::automatic);
-    arena.execute([&] {
-      tbb::parallel_invoke(
-          [&] { maps.global = FillFromChunks(options, chunks, {kIndirect}, &maps.global_attributes); },
-          [&] {
-            if (options.direct_map)
-              maps.direct = FillFromChunks(options, chunks, {kDirect}, &maps.direct_attributes);
-          });
-    });
-  } else {
-    maps.global = FillFromChunks(options, chunks, {kDirect, kIndirect}, &maps.global_attributes);
-  }
-  uint64_t caustic = 0, direct = 0;
-  for (const PhotonChunk& c : chunks) {
-    caustic += c.lists[kCaustic].photons.size();
-    direct += c.lists[kDirect].photons.size();
-  }
-  if (options.caustic == CausticMapMode::kOn) {
-    maps.caustic = FillFromChunks(options, chunks, {kCaustic}, &maps.caustic_attributes);
-  } else if (caustic > 0) {
-    spdlog::warn("photon maps: caustic map disabled: {} caustic photons dropped", caustic);
-  }
-  maps.stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  maps.stats.stored_global = maps.global->size();
-  maps.stats.stored_caustic = maps.caustic ? maps.caustic->size() : 0;
-  maps.stats.stored_direct = maps.direct ? direct : 0;
+  std::array<uint64_t, 3> counts{};
+  for (const PhotonChunk& c : chunks)
+    for (size_t k = 0; k < 3; ++k) counts[k] += c.lists[k].photons.size();
+  FillPhotonMaps(
+      options, options.caustic == CausticMapMode::kOn, counts,
+      [&](std::initializer_list<PhotonKind> kinds, PhotonAttributes* attributes) {
+        return FillFromChunks(options, chunks, kinds, attributes);
+      },
+      &maps);
   return maps;
 }
 

@@ -8,7 +8,8 @@
 // streams (photon_tracer.h), pieces start at multiples of kPhotonTracingChunk, so each of the
 // direct / indirect / caustic lists of the pieces concatenated in order is the list a whole trace
 // gives; the 18-byte compression is per photon; the maps are then filled and built exactly as
-// Build fills them (tests/common/photon_chunk_test.cpp checks the bytes of both).
+// Build fills them, by the same code (photon_maps_fill.h; tests/common/photon_chunk_test.cpp checks
+// the bytes of both).
 //
 // Byte form of a piece (little endian), version 1:
 //   "PFCHNK\r\n" u32 version  u64 begin, end, rays  f64 stored power r, g, b  f32 emitted power r, g, b

@@ -1,6 +1,7 @@
 #include "common/photon/photon_maps_bytes.h"
 
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
 
 #include "common/core/byte_codec.h"
@@ -12,6 +13,16 @@ namespace {
 
 constexpr std::string_view kMagic = "PFMAPS\r\n";
 constexpr size_t kDigestBytes = 32;
+constexpr char kHexDigits[] = "0123456789abcdef";
+
+std::string HexOf(std::string_view raw) {
+  std::string hex;
+  for (unsigned char c : raw) {
+    hex.push_back(kHexDigits[c >> 4]);
+    hex.push_back(kHexDigits[c & 15]);
+  }
+  return hex;
+}
 
 void PutMap(ByteWriter& w, const PhotonMap& map, const PhotonAttributes& attributes) {
   const auto* tree = dynamic_cast<const KdTree*>(&map);
@@ -118,9 +129,7 @@ std::string SerializePhotonMaps(const PhotonMaps& maps) {
   if (maps.global) PutMap(w, *maps.global, maps.global_attributes);
   if (maps.caustic) PutMap(w, *maps.caustic, maps.caustic_attributes);
   if (maps.direct) PutMap(w, *maps.direct, maps.direct_attributes);
-  Sha256Hasher h;
-  h.Update(out);
-  const std::string hex = h.HexDigest();
+  const std::string hex = Sha256Hex(out);
   for (size_t i = 0; i < kDigestBytes; ++i) out.push_back(char(std::stoi(hex.substr(2 * i, 2), nullptr, 16)));
   return out;
 }
@@ -137,13 +146,7 @@ PhotonMaps DeserializePhotonMaps(std::string_view bytes) {
       throw InputError("photon maps: format version " + std::to_string(version) + " (this build reads " +
                        std::to_string(kPhotonMapsBytesVersion) + ")");
   }
-  std::string digest;
-  {
-    const std::string hex = Sha256Hex(body);
-    for (size_t i = 0; i < kDigestBytes; ++i)
-      digest.push_back(char(std::stoi(hex.substr(2 * i, 2), nullptr, 16)));
-  }
-  if (digest != bytes.substr(body.size()))
+  if (Sha256Hex(body) != PhotonMapsDigest(bytes))
     throw InputError("photon maps: digest mismatch (corrupt or truncated)");
   ByteReader r(body.substr(kMagic.size() + 4), "photon maps");
   PhotonMaps maps;
@@ -164,6 +167,33 @@ PhotonMaps DeserializePhotonMaps(std::string_view bytes) {
   if (present & 2u) maps.caustic = GetMap(r, &maps.caustic_attributes);
   if (present & 4u) maps.direct = GetMap(r, &maps.direct_attributes);
   if (!r.empty()) r.Fail(std::to_string(r.remaining()) + " bytes after the last map");
+  return maps;
+}
+
+std::string PhotonMapsDigest(std::string_view bytes) {
+  if (bytes.size() < kDigestBytes) throw InputError("photon maps: truncated (no digest)");
+  return HexOf(bytes.substr(bytes.size() - kDigestBytes));
+}
+
+std::string PhotonMapsFileDigest(const std::filesystem::path& file) {
+  std::error_code ec;
+  const uint64_t size = std::filesystem::file_size(file, ec);
+  if (ec) throw SystemError(file.string() + ": cannot read");
+  if (size < kDigestBytes) throw InputError(file.string() + ": too short for a photon map");
+  std::ifstream in(file, std::ios::binary);
+  in.seekg(std::streamoff(size - kDigestBytes));
+  std::string raw(kDigestBytes, '\0');
+  in.read(raw.data(), std::streamsize(kDigestBytes));
+  if (!in) throw SystemError(file.string() + ": cannot read");
+  return HexOf(raw);
+}
+
+std::optional<PhotonMaps> ReadNamedPhotonMaps(std::string_view bytes, std::string_view digest,
+                                              uint64_t seed) {
+  if (bytes.size() < kDigestBytes || digest.size() != 2 * kDigestBytes || PhotonMapsDigest(bytes) != digest)
+    return std::nullopt;
+  PhotonMaps maps = DeserializePhotonMaps(bytes);  // verifies the digest against the content
+  if (maps.seed != seed) return std::nullopt;
   return maps;
 }
 

@@ -25,6 +25,8 @@
 // of PhotonMap, the digest against the content; truncated or corrupt input throws InputError
 // ("photon maps: truncated", "photon maps: digest mismatch", ...), never reads out of bounds.
 
+#include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -42,5 +44,17 @@ bool CanSerialize(PhotonMapKind kind);
 std::string SerializePhotonMaps(const PhotonMaps& maps);
 // Throws InputError for anything but the exact bytes SerializePhotonMaps wrote.
 PhotonMaps DeserializePhotonMaps(std::string_view bytes);
+
+// The one reader of the trailer: the digest the bytes record (lowercase hex SHA-256 of the
+// content, the MapRef.digest that names a map), read, not verified (DeserializePhotonMaps verifies
+// it). InputError if the bytes are too short to have one.
+std::string PhotonMapsDigest(std::string_view bytes);
+// The same from a file, reading only its trailer (InputError if too short, SystemError if
+// unreadable).
+std::string PhotonMapsFileDigest(const std::filesystem::path& file);
+// The maps the coordinator named by `digest` for `seed`: nullopt if the bytes' trailer is another
+// digest (checked before anything is parsed) or the maps are of another seed; InputError if the
+// bytes are corrupt.
+std::optional<PhotonMaps> ReadNamedPhotonMaps(std::string_view bytes, std::string_view digest, uint64_t seed);
 
 }  // namespace pf

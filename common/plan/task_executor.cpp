@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "common/camera/camera.h"
+#include "common/photon/map_key.h"
 #include "common/plan/accumulator.h"
 #include "common/render/path_tracer.h"
 #include "common/render/renderer.h"
@@ -147,7 +148,7 @@ std::string CameraKey(const CameraSpec& c) {
 }  // namespace
 
 std::string MapCacheKey(const std::string& scene_key, const JobRenderSettings& resolved, uint64_t map_seed) {
-  return scene_key + "|" + resolved.MapFingerprint() + "|" + std::to_string(map_seed);
+  return MapKey{scene_key, resolved.MapFingerprint(), map_seed}.Text();
 }
 
 TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, const CameraSpec& camera_spec,

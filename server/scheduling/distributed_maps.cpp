@@ -10,7 +10,7 @@
 
 #include "common/core/atomic_file.h"
 #include "common/core/error.h"
-#include "common/core/sha256.h"
+#include "common/photon/map_key.h"
 #include "common/photon/photon_chunk.h"
 #include "common/photon/photon_maps_bytes.h"
 #include "common/scene/scene_bundle.h"
@@ -18,6 +18,7 @@
 #include "proto/convert.h"
 #include "proto/limits.h"
 #include "server/jobs/random_id.h"
+#include "server/scheduling/map_store_files.h"
 
 namespace pf::server {
 namespace fs = std::filesystem;
@@ -25,7 +26,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr std::string_view kLeasePrefix = "map-";
-constexpr std::string_view kMapSuffix = ".pfmaps";
 
 std::chrono::steady_clock::time_point Now() {
   return std::chrono::steady_clock::now();
@@ -42,42 +42,6 @@ std::string ReadFile(const fs::path& path) {
   return bytes;
 }
 
-std::string Hex(std::string_view raw) {
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string hex;
-  for (unsigned char c : raw) {
-    hex.push_back(kHex[c >> 4]);
-    hex.push_back(kHex[c & 15]);
-  }
-  return hex;
-}
-
-// The digest of a map file: its trailer (SHA-256 of the content, photon_maps_bytes.h).
-std::string TrailerDigest(const fs::path& path, uint64_t size) {
-  if (size < 32) throw InputError(path.string() + ": too short for a photon map");
-  std::ifstream in(path, std::ios::binary);
-  in.seekg(std::streamoff(size - 32));
-  std::string raw(32, '\0');
-  in.read(raw.data(), 32);
-  if (!in) throw SystemError(path.string() + ": cannot read");
-  return Hex(raw);
-}
-
-std::string Short(const std::string& key) {
-  return key.substr(0, 12);
-}
-
-// The record of who traced a piece or the pieces of a built map (see the header comment).
-fs::path TracersFile(const fs::path& file) {
-  return fs::path(file.string() + ".by");
-}
-
-void RemoveWithTracers(const fs::path& file) {
-  std::error_code ec;
-  fs::remove(file, ec);
-  fs::remove(TracersFile(file), ec);
-}
-
 }  // namespace
 
 std::string DistributedMapKey(const JobConfig& config, uint64_t map_seed) {
@@ -86,19 +50,17 @@ std::string DistributedMapKey(const JobConfig& config, uint64_t map_seed) {
   settings.mutable_photon_map()->clear_map_tracing();  // who traces it does not change the map
   // The build too: a map on disk traced by another build (before an upgrade) may hold other
   // photons, and is never reused by this one (docs/farm.md, Upgrades).
-  std::string text = "photonfarm-map-v1\n" + std::string(PF_VERSION) + "\n" + config.scene_hash + "\n";
-  text += settings.SerializeAsString();
-  text += '\n';
-  text += std::to_string(map_seed);
-  return Sha256Hex(text);
+  return MapKey{config.scene_hash, settings.SerializeAsString(), map_seed}.Address(PF_VERSION);
 }
 
-DistributedMaps::DistributedMaps(DistributedMapsOptions options, const Clock& clock, SceneStore& scenes)
-    : options_(std::move(options)), clock_(clock), scenes_(scenes) {
+DistributedMaps::DistributedMaps(DistributedMapsOptions options, const Clock& clock,
+                                 SceneDirectoryOf scene_directory)
+    : options_(std::move(options)), clock_(clock), scene_directory_(std::move(scene_directory)) {
   const uint64_t unit = kPhotonTracingChunk;
   options_.chunk_photons = std::max<uint64_t>(unit, (options_.chunk_photons + unit - 1) / unit * unit);
   fs::create_directories(options_.dir);
   Scan();
+  builder_ = std::thread([this] { BuildLoop(); });
 }
 
 DistributedMaps::~DistributedMaps() {
@@ -106,7 +68,38 @@ DistributedMaps::~DistributedMaps() {
 }
 
 void DistributedMaps::Stop() {
-  builder_.Stop();
+  {
+    std::lock_guard lock(build_mu_);
+    build_stop_ = true;
+  }
+  build_cv_.notify_all();
+  if (builder_.joinable()) builder_.join();
+}
+
+void DistributedMaps::QueueBuild(const std::string& key) {
+  {
+    std::lock_guard lock(build_mu_);
+    build_queue_.push_back(key);
+  }
+  build_cv_.notify_one();
+}
+
+void DistributedMaps::BuildLoop() {
+  for (;;) {
+    std::string key;
+    {
+      std::unique_lock lock(build_mu_);
+      build_cv_.wait(lock, [&] { return build_stop_ || !build_queue_.empty(); });
+      if (build_queue_.empty()) return;  // stopped, and every queued build done
+      key = std::move(build_queue_.front());
+      build_queue_.pop_front();
+    }
+    try {
+      Build(key);  // handles its own failures (the map is left to the workers)
+    } catch (const std::exception& e) {
+      spdlog::error("maps: assembly of {} failed: {}", ShortKey(key), e.what());
+    }
+  }
 }
 
 void DistributedMaps::Scan() {
@@ -116,11 +109,11 @@ void DistributedMaps::Scan() {
       fs::remove_all(e.path());
       continue;
     }
-    if (e.is_regular_file() && name.size() == 64 + kMapSuffix.size() && name.ends_with(kMapSuffix)) {
+    if (e.is_regular_file() && name.size() == 64 + kMapFileSuffix.size() && name.ends_with(kMapFileSuffix)) {
       const std::string key = name.substr(0, 64);
       try {
         const uint64_t size = e.file_size();
-        on_disk_[key] = OnDisk{BuiltMap{key, size, TrailerDigest(e.path(), size)}, ReadTracers(e.path())};
+        on_disk_[key] = OnDisk{BuiltMap{key, size, PhotonMapsFileDigest(e.path())}, ReadTracers(e.path())};
       } catch (const std::exception& ex) {
         spdlog::warn("maps: ignoring {}: {}", e.path().string(), ex.what());
       }
@@ -186,7 +179,7 @@ const std::string* DistributedMaps::KeyFor(const Job& job, uint64_t map_index) {
   auto [it, inserted] = keys_.emplace(id, DistributedMapKey(config, MapSeed(config.seed, map_index)));
   spdlog::info("job {} map {}: traced once, distributed ({}): key {}", job.id(), map_index,
                s.map_tracing == MapTracingMode::kAuto ? "auto: several render tasks use it" : "job setting",
-               Short(it->second));
+               ShortKey(it->second));
   return &it->second;
 }
 
@@ -207,7 +200,7 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
     SetStateLocked(m, Map::State::kBuilt);
     m.built = built->second.built;
     m.contributors = built->second.contributors;
-    spdlog::info("job {} map {}: built map {} found on disk ({} bytes)", job.id(), map_index, Short(key),
+    spdlog::info("job {} map {}: built map {} found on disk ({} bytes)", job.id(), map_index, ShortKey(key),
                  m.built.bytes);
     return m;
   }
@@ -218,7 +211,7 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
       const uint64_t c = begin / m.chunk_photons;
       if (begin % m.chunk_photons == 0 && c < m.chunks.size() &&
           end == std::min(m.photons, begin + m.chunk_photons) && m.chunks[c].state != Chunk::State::kDone) {
-        m.chunks[c].state = Chunk::State::kDone;
+        PieceTransitions().Move(m.chunks[c].state, Chunk::State::kDone);
         m.chunks[c].uploader = uploader;
         ++m.done;
       }
@@ -227,7 +220,7 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
                map_index, m.photons, m.chunks.size(), m.chunk_photons, m.done);
   if (m.done == m.chunks.size()) {
     SetStateLocked(m, Map::State::kBuilding);
-    builder_.Post([this, key] { Build(key); });
+    QueueBuild(key);
   }
   return m;
 }
@@ -243,7 +236,7 @@ bool DistributedMaps::RenderTaskReady(const Job& job, const TaskSpec& task) {
 }
 
 void DistributedMaps::SetStateLocked(Map& m, Map::State state) {
-  m.state = state;
+  MapTransitions().Move(m.state, state);
   if (state == Map::State::kTracing)
     tracing_[m.seq] = m.key;
   else
@@ -271,7 +264,7 @@ std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, do
   if (!best) return std::nullopt;
   Map& m = maps_.at(best->key);
   Chunk& chunk = m.chunks[pick];
-  chunk.state = Chunk::State::kLeased;
+  PieceTransitions().Move(chunk.state, Chunk::State::kLeased);
   ++chunk.attempts;
   chunk.lease_id = std::string(kLeasePrefix) + RandomHex(16);
   chunk.worker_id = request.worker_id;
@@ -297,7 +290,7 @@ std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, do
   spdlog::info("job {} map {} piece {}/{}: leased to {} (photons [{}, {}), attempt {}, map {})", m.job_id,
                m.map_index, pick, m.chunks.size(),
                limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), c.photon_begin, c.photon_end,
-               chunk.attempts, Short(m.key));
+               chunk.attempts, ShortKey(m.key));
   return lease;
 }
 
@@ -313,9 +306,8 @@ std::optional<BuiltMap> DistributedMaps::MapFor(const std::string& job_id, uint6
 std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
   std::lock_guard lock(mu_);
   auto it = maps_.find(key);
-  if (it != maps_.end() && it->second.state == Map::State::kBuilt)
-    return options_.dir / (key + std::string(kMapSuffix));
-  if (on_disk_.count(key)) return options_.dir / (key + std::string(kMapSuffix));
+  if (it != maps_.end() && it->second.state == Map::State::kBuilt) return MapFileOf(options_.dir, key);
+  if (on_disk_.count(key)) return MapFileOf(options_.dir, key);
   return std::nullopt;
 }
 
@@ -412,7 +404,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     if (m.state != Map::State::kTracing || c.state == Chunk::State::kDone) return Accepted::kLate;
     if (c.state == Chunk::State::kLeased) leases_.erase(c.lease_id);
     leases_.erase(lease_id);
-    c.state = Chunk::State::kDone;
+    PieceTransitions().Move(c.state, Chunk::State::kDone);
     c.uploader = worker_id;
     ++m.done;
     ++counters_.chunks_stored;
@@ -431,120 +423,9 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
                done, total);
   if (build) {
     ReleaseCheckSceneIfUnused();
-    builder_.Post([this, key] { Build(key); });
+    QueueBuild(key);
   }
   return Accepted::kStored;
-}
-
-std::string DistributedMaps::MismatchOf(const JobConfig& config, uint64_t map_seed, const PhotonChunk& chunk,
-                                        const std::string& bytes, bool in_full) {
-  std::lock_guard check(check_mu_);
-  if (check_scene_hash_ != config.scene_hash || !check_scene_) {
-    check_scene_.reset();
-    check_scene_hash_.clear();
-    try {
-      check_scene_ = std::make_shared<const SceneRuntime>(
-          LoadBundle(scenes_.DirectoryOf(config.scene_hash), config.scene_entry));
-      check_scene_hash_ = config.scene_hash;
-    } catch (const std::exception& e) {
-      // The coordinator's own trouble is not the worker's: the piece is taken unchecked, as before.
-      spdlog::error("maps: scene {} cannot be loaded to check an uploaded piece ({}); piece not checked",
-                    Short(config.scene_hash), e.what());
-      return "";
-    }
-  }
-  const SceneRuntime& scene = *check_scene_;
-  // As the worker traces it (worker_maps.cpp): the first photons of the piece, or all of them.
-  PhotonMapsOptions mo = config.settings.Resolved(scene.description).MapsOptions();
-  mo.tracing.map_seed = map_seed;
-  mo.tracing.threads = 1;
-  const uint64_t end = in_full ? chunk.end : std::min(chunk.end, chunk.begin + kPhotonTracingChunk);
-  const PhotonChunk expected = TracePhotonChunk(scene.accel, scene.lights, mo, chunk.begin, end);
-  const auto refused = [&](const std::string& what) {
-    return "photons [" + std::to_string(chunk.begin) + ", " + std::to_string(end) +
-           ") of the piece are not the coordinator's trace of them: " + what +
-           "; the piece is refused (docs/farm.md, Photon maps traced once)";
-  };
-  if (in_full) {
-    // Byte for byte: the photons, their order, light ids, origins, powers and ray count.
-    if (SerializePhotonChunk(expected) != bytes)
-      return refused("the piece differs from the trace of all of them");
-    return "";
-  }
-  static const char* const kList[] = {"direct", "indirect", "caustic"};
-  if (chunk.rays < expected.rays)
-    return refused(std::to_string(chunk.rays) + " rays, fewer than those photons' " +
-                   std::to_string(expected.rays));
-  for (int k = 0; k < 3; ++k) {
-    const PhotonChunk::List& got = chunk.lists[k];
-    const PhotonChunk::List& want = expected.lists[k];
-    const size_t n = want.photons.size();
-    if (got.photons.size() < n)
-      return refused(std::string(kList[k]) + " list of " + std::to_string(got.photons.size()) + " photons, " +
-                     std::to_string(n) + " traced in its first part alone");
-    if ((expected.light_ids && got.light.size() < n) || (expected.origins && got.origin.size() < n))
-      return refused(std::string(kList[k]) + " photons lack their light ids or origins");
-    const bool same =
-        std::memcmp(got.photons.data(), want.photons.data(), n * sizeof(Photon)) == 0 &&
-        (!expected.light_ids || std::equal(want.light.begin(), want.light.end(), got.light.begin())) &&
-        (!expected.origins || std::memcmp(got.origin.data(), want.origin.data(), n * sizeof(Vec3)) == 0);
-    if (!same) return refused(std::string(kList[k]) + " photons differ");
-  }
-  return "";
-}
-
-void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::string& worker_id,
-                                       const std::string& why) {
-  std::vector<std::string> job_ids;
-  uint32_t index = 0;
-  std::vector<std::pair<std::string, uint64_t>> release;
-  std::vector<PieceFailure> failures;
-  {
-    std::lock_guard lock(mu_);
-    ++counters_.chunks_refused;
-    if (!options_.convict) return;  // refused only: the worker's FailTask or the lease's expiry counts
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return;
-    Map& m = maps_.at(it->second.key);
-    index = it->second.chunk;
-    job_ids = JobsOfLocked(m);
-    const Chunk& c = m.chunks[index];
-    // Queued again for another worker, as a failed attempt: a piece that keeps being refused is
-    // left to the workers like one that keeps failing.
-    if (c.state == Chunk::State::kLeased && c.lease_id == lease_id)
-      RequeueLocked(m, index, "piece-refused", "refused: " + why, &release, &failures);
-    else
-      leases_.erase(it);
-  }
-  spdlog::error("job {} piece {}: worker {} uploaded a piece that is not the coordinator's trace: convicted",
-                job_ids.front(), index, limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
-  if (scheduler_) {
-    // In every job waiting for the map (the first one may have ended), before the failed attempt
-    // is reported: a convicted worker's blocklisting never makes a job fail for "no worker left".
-    for (const std::string& job_id : job_ids)
-      scheduler_->ConvictWorker(job_id, worker_id, index, "map piece " + std::to_string(index) + ": " + why);
-  }
-  Report(failures);
-  Release(release);
-  if (scheduler_) scheduler_->NotifyMapPieces();
-}
-
-void DistributedMaps::ConvictHijacker(const Hijack& hijack, const std::string& worker_id,
-                                      const std::string& call) {
-  spdlog::warn("job {} piece {}: {} from worker {} refused: the lease is held by {}", hijack.job_ids.front(),
-               hijack.piece, call, limits::Quote(worker_id, limits::kMaxWorkerIdBytes), hijack.holder);
-  if (!scheduler_) return;
-  for (const std::string& job_id : hijack.job_ids)
-    scheduler_->BlocklistForHijack(
-        job_id, worker_id, hijack.piece,
-        call + " with the lease of map piece " + std::to_string(hijack.piece) + ", held by another worker");
-}
-
-std::vector<std::string> DistributedMaps::JobsOfLocked(const Map& m) const {
-  std::vector<std::string> jobs{m.job_id};
-  for (const auto& [job_id, map_index] : m.waiting)
-    if (std::find(jobs.begin(), jobs.end(), job_id) == jobs.end()) jobs.push_back(job_id);
-  return jobs;
 }
 
 std::set<std::string> DistributedMaps::ReadTracers(const fs::path& file) {
@@ -559,99 +440,6 @@ void DistributedMaps::WriteTracers(const fs::path& file, const std::set<std::str
   std::string text;
   for (const std::string& w : workers) text += w + "\n";
   WriteFileAtomically(TracersFile(file), text);
-}
-
-std::vector<std::string> DistributedMaps::WorkerConvicted(const std::string& worker_id) {
-  std::set<std::string> purged;  // keys of built maps deleted: the jobs that used them restart
-  size_t pieces = 0;
-  {
-    std::lock_guard lock(mu_);
-    for (auto& [key, m] : maps_) {
-      if ((m.state == Map::State::kBuilt || m.state == Map::State::kBuilding) &&
-          m.contributors.count(worker_id)) {
-        // Built (or being assembled) from its pieces: deleted, and traced again from nothing
-        // (the pieces of a built map are gone; an assembly under way is dropped: generation).
-        RemoveWithTracers(options_.dir / (key + std::string(kMapSuffix)));
-        std::error_code ec;
-        fs::remove_all(options_.dir / (key + ".chunks"), ec);
-        ++m.generation;
-        // (A map found built on disk never had its pieces counted.)
-        m.chunks.assign((m.photons + m.chunk_photons - 1) / m.chunk_photons, Chunk{});
-        m.done = 0;
-        m.contributors.clear();
-        m.built = BuiltMap{};
-        SetStateLocked(m, Map::State::kTracing);
-        purged.insert(key);
-        continue;
-      }
-      if (m.state != Map::State::kTracing) continue;
-      for (uint32_t i = 0; i < m.chunks.size(); ++i) {
-        Chunk& c = m.chunks[i];
-        if (c.state == Chunk::State::kDone && c.uploader == worker_id) {
-          const uint64_t begin = uint64_t(i) * m.chunk_photons;
-          RemoveWithTracers(ChunkFile(key, begin, std::min(m.photons, begin + m.chunk_photons)));
-          c = Chunk{};
-          --m.done;
-          ++pieces;
-        } else if (c.state == Chunk::State::kLeased && c.worker_id == worker_id) {
-          leases_.erase(c.lease_id);  // its upload would be refused anyway (blocklisted)
-          c.state = Chunk::State::kQueued;
-          c.lease_id.clear();
-        }
-      }
-    }
-    for (auto it = on_disk_.begin(); it != on_disk_.end();) {
-      if (!maps_.count(it->first) && it->second.contributors.count(worker_id)) {
-        RemoveWithTracers(options_.dir / (it->first + std::string(kMapSuffix)));
-        purged.insert(it->first);
-        it = on_disk_.erase(it);
-      } else {
-        ++it;
-      }
-    }
-    for (auto& [key, ranges] : chunks_on_disk_)
-      for (auto it = ranges.begin(); it != ranges.end();) {
-        if (it->second == worker_id && !maps_.count(key)) {
-          RemoveWithTracers(ChunkFile(key, it->first.first, it->first.second));
-          it = ranges.erase(it);
-          ++pieces;
-        } else {
-          ++it;
-        }
-      }
-    for (const std::string& key : purged) {
-      on_disk_.erase(key);
-      ++counters_.maps_purged;
-    }
-  }
-  std::vector<std::string> jobs;
-  {
-    std::lock_guard lock(mu_);
-    for (const auto& [id, key] : keys_)
-      if (purged.count(key) && std::find(jobs.begin(), jobs.end(), id.first) == jobs.end())
-        jobs.push_back(id.first);
-  }
-  if (!purged.empty() || pieces > 0)
-    spdlog::warn(
-        "maps: worker {} convicted: {} stored maps and {} pieces it traced deleted, traced again without it; "
-        "{} jobs used those maps",
-        limits::Quote(worker_id, limits::kMaxWorkerIdBytes), purged.size(), pieces, jobs.size());
-  if (scheduler_ && (!purged.empty() || pieces > 0)) scheduler_->NotifyMapPieces();
-  return jobs;
-}
-
-void DistributedMaps::ReleaseCheckSceneIfUnused() {
-  std::lock_guard check(check_mu_);
-  if (!check_scene_) return;
-  {
-    std::lock_guard lock(mu_);
-    for (const auto& [seq, key] : tracing_) {
-      const Map& m = maps_.at(key);
-      if (m.config->scene_hash == check_scene_hash_ && m.done < m.chunks.size()) return;
-    }
-  }
-  check_scene_.reset();
-  check_scene_hash_.clear();
 }
 
 void DistributedMaps::Build(const std::string& key) {
@@ -693,7 +481,9 @@ void DistributedMaps::Build(const std::string& key) {
         Map& m = maps_.at(key);
         if (m.generation != generation) return;  // purged meanwhile (WorkerConvicted): traced again
         RemoveWithTracers(file_of(c));
-        SetStateLocked(m, Map::State::kTracing);
+        // Building → tracing once (further unreadable pieces find it tracing).
+        if (m.state != Map::State::kTracing) SetStateLocked(m, Map::State::kTracing);
+        PieceTransitions().Check(m.chunks[c].state, Chunk::State::kQueued);
         m.chunks[c] = Chunk{};
         --m.done;
         spdlog::warn("job {} map {} piece {}: stored piece unreadable ({}): traced again", job_id, map_index,
@@ -705,7 +495,7 @@ void DistributedMaps::Build(const std::string& key) {
       return;
     }
     const auto t_read = std::chrono::steady_clock::now();
-    const SceneDescription scene = LoadBundle(scenes_.DirectoryOf(config->scene_hash), config->scene_entry);
+    const SceneDescription scene = LoadBundle(scene_directory_(config->scene_hash), config->scene_entry);
     PhotonMapsOptions mo = config->settings.Resolved(scene).MapsOptions();
     mo.tracing.map_seed = map_seed;
     mo.tracing.threads = options_.build_threads;
@@ -714,10 +504,10 @@ void DistributedMaps::Build(const std::string& key) {
     const auto t_assembled = std::chrono::steady_clock::now();
     const std::string bytes = SerializePhotonMaps(maps);
     const auto t_serialized = std::chrono::steady_clock::now();
-    const fs::path file = options_.dir / (key + std::string(kMapSuffix));
+    const fs::path file = MapFileOf(options_.dir, key);
     WriteTracers(file, tracers);  // before the map: a stored map always says who traced its pieces
     WriteFileAtomically(file, bytes);
-    const BuiltMap built{key, bytes.size(), Hex(std::string_view(bytes).substr(bytes.size() - 32))};
+    const BuiltMap built{key, bytes.size(), PhotonMapsDigest(bytes)};
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     spdlog::info(
         "job {} map {}: built once from {} pieces: {} global + {} caustic + {} direct photons, {} bytes, "
@@ -726,7 +516,7 @@ void DistributedMaps::Build(const std::string& key) {
         job_id, map_index, count, maps.global->size(), maps.caustic ? maps.caustic->size() : 0,
         maps.direct ? maps.direct->size() : 0, bytes.size(), Secs(t0, t_read), Secs(t_read, t_assembled),
         maps.stats.build_seconds, Secs(t_assembled, t_serialized), Secs(t_serialized, Now()), seconds,
-        Short(key));
+        ShortKey(key));
     {
       std::lock_guard lock(mu_);
       Map& m = maps_.at(key);
@@ -788,7 +578,7 @@ void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& k
     ++c.unattributed_failures;
   else if (std::find(c.failed_workers.begin(), c.failed_workers.end(), c.worker_id) == c.failed_workers.end())
     c.failed_workers.push_back(c.worker_id);
-  c.state = Chunk::State::kQueued;
+  PieceTransitions().Move(c.state, Chunk::State::kQueued);
   c.lease_id.clear();
   // Failures on max_attempts distinct workers, as for a task (scheduler.h): one bad worker is
   // blocklisted for the job before it can use the piece up.
@@ -829,7 +619,7 @@ void DistributedMaps::Return(const std::string& lease_id) {
     Chunk& c = m.chunks[it->second.chunk];
     if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return;
     leases_.erase(it);
-    c.state = Chunk::State::kQueued;
+    PieceTransitions().Move(c.state, Chunk::State::kQueued);
     c.lease_id.clear();
     --c.attempts;
     ++counters_.chunks_returned;

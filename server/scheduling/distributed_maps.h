@@ -16,7 +16,8 @@
 // Key: hex SHA-256 of "photonfarm-map-v1", the coordinator's build (PF_VERSION: a map traced by
 // another build before an upgrade is never reused), the scene hash, the job's render settings
 // (proto, map_tracing cleared) and the map seed: the settings with the scene decide every `auto`,
-// so the key names one map; jobs with the same scene, settings and seed share it.
+// so the key names one map; jobs with the same scene, settings and seed share it. It is the
+// Address of the map's MapKey (common/photon/map_key.h), the key type of every map cache.
 //
 // Leases: a piece lease id is "map-" and 128 bits from the CSPRNG (server/jobs/random_id.h), so
 // it cannot be guessed and a restarted coordinator never hands out an id again (sequential ids
@@ -51,15 +52,18 @@
 // finds them (Scan at start-up) and queues only the missing pieces. Leases are not durable (as for
 // render tasks). Nothing here touches samples: render results are merged by the Scheduler alone.
 
+#include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <filesystem>
-#include <limits>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <set>
 #include <string>
+#include <thread>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
@@ -67,11 +71,10 @@
 #include "common/photon/photon_chunk.h"
 #include "common/render/scene_runtime.h"
 #include "server/jobs/job.h"
-#include "server/rpc/executor.h"
 #include "server/scheduling/clock.h"
+#include "server/scheduling/map_states.h"
 #include "server/scheduling/map_tracing_hook.h"
 #include "server/scheduling/scheduler.h"
-#include "server/store/scene_store.h"
 
 namespace pf::server {
 
@@ -94,9 +97,13 @@ struct BuiltMap {
   std::string digest;  // hex SHA-256 of the byte form's content (its trailer)
 };
 
+// The directory of a stored scene bundle by its hash (SceneStore::DirectoryOf): passed in, so that
+// scheduling does not depend on the store (docs/design.md, layers).
+using SceneDirectoryOf = std::function<std::filesystem::path(const std::string& scene_hash)>;
+
 class DistributedMaps final : public MapTracingHook {
  public:
-  DistributedMaps(DistributedMapsOptions options, const Clock& clock, SceneStore& scenes);
+  DistributedMaps(DistributedMapsOptions options, const Clock& clock, SceneDirectoryOf scene_directory);
   ~DistributedMaps() override;
   DistributedMaps(const DistributedMaps&) = delete;
   DistributedMaps& operator=(const DistributedMaps&) = delete;
@@ -159,7 +166,8 @@ class DistributedMaps final : public MapTracingHook {
 
  private:
   struct Chunk {
-    enum class State { kQueued, kLeased, kDone } state = State::kQueued;
+    using State = PieceState;  // moved only as PieceTransitions allows (map_states.h)
+    State state = State::kQueued;
     std::string lease_id, worker_id;
     double deadline = 0;
     uint32_t attempts = 0;
@@ -170,7 +178,8 @@ class DistributedMaps final : public MapTracingHook {
     std::string uploader;  // kDone: who traced it ("" if unknown: found on disk without a record)
   };
   struct Map {
-    enum class State { kTracing, kBuilding, kBuilt, kLeftToWorkers } state = State::kTracing;
+    using State = MapState;  // moved only by SetStateLocked, as MapTransitions allows
+    State state = State::kTracing;
     std::string key;
     uint64_t seq = 0;  // creation order: pieces are served oldest map first
     std::string job_id;
@@ -246,7 +255,7 @@ class DistributedMaps final : public MapTracingHook {
 
   DistributedMapsOptions options_;
   const Clock& clock_;
-  SceneStore& scenes_;
+  SceneDirectoryOf scene_directory_;
   Scheduler* scheduler_ = nullptr;
   mutable std::mutex mu_;
   std::map<std::string, Map> maps_;
@@ -269,9 +278,17 @@ class DistributedMaps final : public MapTracingHook {
   std::mutex check_mu_;
   std::string check_scene_hash_;
   std::shared_ptr<const SceneRuntime> check_scene_;
-  // Unbounded queue: a refused Post would leave a map "building" with no build pending (its
-  // render tasks held forever); a queued build is a key, and maps are bounded by the jobs.
-  Executor builder_{1, std::numeric_limits<size_t>::max()};
+  // The assemblies, one at a time on a thread of their own (never under the scheduler's lock), in
+  // the order their last pieces arrived. Unbounded: a refused build would leave a map "building"
+  // with no build pending (its render tasks held forever); a queued build is a key, and maps are
+  // bounded by the jobs. Stop builds what is queued, then joins.
+  void QueueBuild(const std::string& key);
+  void BuildLoop();
+  std::mutex build_mu_;
+  std::condition_variable build_cv_;
+  std::deque<std::string> build_queue_;
+  bool build_stop_ = false;
+  std::thread builder_;  // started by the constructor once the store is scanned, joined by Stop
 };
 
 // The content address of map `map_seed` of a job (see the header comment).

@@ -5,8 +5,10 @@
 
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #include "common/core/error.h"
+#include "common/core/sha256.h"
 #include "common/photon/kdtree.h"
 #include "common/photon/photon_maps_bytes.h"
 #include "common/plan/task_executor.h"
@@ -143,6 +145,42 @@ TEST(PhotonMapsBytes, TruncatedOrCorruptBytesAreInputErrors) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("photon maps:"), std::string::npos) << e.what();
   }
+}
+
+// The one reader of the trailer: the digest a file records is the SHA-256 of its content, read from
+// bytes or from the file's end alike; ReadNamedPhotonMaps takes only the maps of the named digest
+// and seed.
+TEST(PhotonMapsBytes, TheTrailerNamesTheMaps) {
+  const SceneRuntime scene(Shipped("cornell-box/cornell-box.json"));
+  JobRenderSettings s;
+  s.photons = 3000;
+  PhotonMapsOptions mo = s.Resolved(scene.description).MapsOptions();
+  mo.tracing.map_seed = 7;
+  const std::string bytes = SerializePhotonMaps(PhotonMaps::Build(scene.accel, scene.lights, mo));
+  const std::string digest = PhotonMapsDigest(bytes);
+  EXPECT_EQ(digest, Sha256Hex(std::string_view(bytes).substr(0, bytes.size() - 32)));
+  const std::filesystem::path file = std::filesystem::path(testing::TempDir()) / "trailer.pfmaps";
+  {
+    std::ofstream out(file, std::ios::binary);
+    out << bytes;
+  }
+  EXPECT_EQ(PhotonMapsFileDigest(file), digest);
+  std::filesystem::resize_file(file, 31);
+  EXPECT_THROW(PhotonMapsFileDigest(file), InputError);
+  std::filesystem::remove(file);
+  EXPECT_THROW(PhotonMapsDigest("short"), InputError);
+
+  const std::optional<PhotonMaps> read = ReadNamedPhotonMaps(bytes, digest, 7);
+  ASSERT_TRUE(read);
+  EXPECT_EQ(SerializePhotonMaps(*read), bytes);
+  EXPECT_FALSE(ReadNamedPhotonMaps(bytes, digest, 8)) << "another seed";
+  std::string other = digest;
+  other[0] = other[0] == '0' ? '1' : '0';
+  EXPECT_FALSE(ReadNamedPhotonMaps(bytes, other, 7)) << "another digest";
+  EXPECT_FALSE(ReadNamedPhotonMaps(bytes, "", 7));
+  std::string corrupt = bytes;
+  corrupt[100] = char(corrupt[100] ^ 1);  // the trailer still names the digest: the content does not
+  EXPECT_THROW(ReadNamedPhotonMaps(corrupt, digest, 7), InputError);
 }
 
 TEST(PhotonMapsBytes, OnlyKdTreesHaveAByteForm) {

@@ -29,7 +29,7 @@ class DistributedMapsTest : public ::testing::Test {
         scenes_(dir_.path() / "scenes", db_, clock_),
         maps_(
             DistributedMapsOptions{.dir = dir_.path() / "maps", .lease_seconds = 30, .chunk_photons = 16384},
-            clock_, scenes_) {}
+            clock_, [this](const std::string& h) { return scenes_.DirectoryOf(h); }) {}
 
   // A job with one distributed map of `photons` (3 pieces of 16384 for 40000) over one tile.
   std::unique_ptr<Job> MakeJob(const std::string& id, uint64_t seq, uint64_t seed) {
@@ -139,7 +139,7 @@ TEST_F(DistributedMapsTest, PieceLeasesAreUnguessableBoundToTheirWorkerAndNotReu
   // A restarted coordinator (same data directory) leases the same pieces under new ids only.
   DistributedMaps restarted(
       DistributedMapsOptions{.dir = dir_.path() / "maps", .lease_seconds = 30, .chunk_photons = 16384},
-      clock_, scenes_);
+      clock_, [this](const std::string& h) { return scenes_.DirectoryOf(h); });
   const std::unique_ptr<Job> again = MakeJob("job-a", 1, 11);
   EXPECT_FALSE(restarted.RenderTaskReady(*again, again->task(0)));
   std::set<std::string> after;

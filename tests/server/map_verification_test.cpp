@@ -17,6 +17,7 @@
 #include "common/scene/scene_bundle.h"
 #include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"
+#include "server/store/scene_store.h"
 #include "tests/server/server_test_util.h"
 
 namespace pf::server {

@@ -24,6 +24,7 @@
 #include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/persister.h"
+#include "server/store/scene_store.h"
 #include "tests/server/server_test_util.h"
 
 namespace pf::server {
