@@ -85,8 +85,6 @@ Worker::Worker(WorkerOptions options)
   channel_ = MakeCoordinatorChannel(options_.coordinator,
                                     ChannelOptions{.token = options_.token, .tls = options_.tls});
   stub_ = v1::WorkerService::NewStub(channel_);
-  // Test hook (docs/farm.md): corrupt one part of the first map fetched, to show it refused.
-  corrupt_next_part_ = std::getenv("PF_TEST_CORRUPT_MAP_PART") != nullptr;
 }
 
 Worker::~Worker() = default;
@@ -545,10 +543,10 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
   v1::CompleteTaskRequest req;
   req.set_lease_id(task.lease_id());
   req.set_worker_id(options_.worker_id);
-  req.set_part(task.part());     // what was rendered (TaskSpecFromProto accepted this part)
-  if (options_.tamper_result) {  // tests only: a malicious worker
+  req.set_part(task.part());  // what was rendered (TaskSpecFromProto accepted this part)
+  if (options_.faults) {      // tests only: a malicious worker
     std::vector<float> sums = output.rgb_sums;
-    options_.tamper_result(sums);
+    options_.faults->OnResult(sums);
     req.mutable_rgb_sums()->Assign(sums.begin(), sums.end());
   } else {
     req.mutable_rgb_sums()->Assign(output.rgb_sums.begin(), output.rgb_sums.end());

@@ -43,6 +43,7 @@
 #include "rpc/grpc_channel.h"
 #include "worker/map_disk_cache.h"
 #include "worker/scene_cache.h"
+#include "worker/worker_faults.h"
 
 namespace pf::worker {
 
@@ -77,10 +78,9 @@ struct WorkerOptions {
   // Issue #12: built maps fetched from the coordinator, on disk by content address (LRU).
   std::filesystem::path map_cache_dir;           // "" = <cache_dir>/maps
   uint64_t map_cache_bytes = uint64_t(4) << 30;  // 0 = keep none on disk
-  // Tests only: a malicious worker (tests/e2e/fake_worker.cpp, docs/farm.md "Result verification")
-  // renders or traces honestly, then changes what it sends. pf-worker never sets them.
-  std::function<void(std::vector<float>& rgb_sums)> tamper_result;
-  std::function<void(std::string& piece_bytes)> tamper_piece;
+  // Tests only (worker_faults.h): kill points, corrupted arrivals, tampered results. Null in
+  // pf-worker.
+  std::shared_ptr<WorkerFaults> faults;
 };
 
 struct WorkerCounters {
@@ -198,9 +198,10 @@ class Worker {
   // ("" : any fetched map). True if dropped.
   bool ForgetFetchedMap(const std::string& cache_key, const std::string& digest);
   void ObserveTracing(uint64_t photons, double seconds);
-  // Test hook (docs/farm.md): PF_TEST_PAUSE_AT=trace|upload|fetch sleeps there (for SIGKILL tests),
-  // PF_TEST_PAUSE_SECONDS long (default 120).
-  void TestPause(const char* where, const std::string& ctx);
+  // The injected faults' kill point (WorkerFaults::At); nothing without faults.
+  void FaultPoint(const char* where, const std::string& ctx) {
+    if (options_.faults) options_.faults->At(where, ctx);
+  }
 
   bool stop_requested() const { return stop_.load(); }
   // Sleeps up to `d`, returning early (true) when stop/abort is requested.
@@ -214,7 +215,6 @@ class Worker {
   // Cost model of trace-or-fetch (issue #12), measured here: seconds per photon of tracing and
   // building a map with options_.threads, and bytes per second of fetches. 0 = not measured yet.
   double seconds_per_photon_ = 0, bytes_per_second_ = 0;
-  bool corrupt_next_part_ = false;                   // PF_TEST_CORRUPT_MAP_PART (test hook, once per process)
   std::map<std::string, std::string> fetched_maps_;  // NoteFetchedMap; guarded by mutex_
   std::shared_ptr<PhotonMapCache> maps_;  // shared with a render thread that may outlive a hand-back
 

@@ -48,23 +48,6 @@ class TransferError : public std::runtime_error {
 
 }  // namespace
 
-void Worker::TestPause(const char* where, const std::string& ctx) {
-  // "WHERE" pauses every time, "WHERE:TEXT" only where the task's context contains TEXT
-  // (e.g. "upload:piece=2/").
-  const char* at = std::getenv("PF_TEST_PAUSE_AT");
-  if (!at) return;
-  const std::string spec = at;
-  const size_t colon = spec.find(':');
-  if (spec.substr(0, colon) != where) return;
-  if (colon != std::string::npos && ctx.find(spec.substr(colon + 1)) == std::string::npos) return;
-  // PF_TEST_PAUSE_SECONDS (default 120): a pause that ends, to stand for a slow step.
-  const char* seconds = std::getenv("PF_TEST_PAUSE_SECONDS");
-  const double pause = seconds ? std::clamp(std::atof(seconds), 0.0, 120.0) : 120.0;
-  spdlog::warn("test-pause at {} {} for {:.1f} s (PF_TEST_PAUSE_AT; test hook)", where, ctx, pause);
-  std::this_thread::sleep_for(std::chrono::duration<double>(pause));
-  spdlog::warn("test-pause over at {} {}", where, ctx);
-}
-
 void Worker::ObserveTracing(uint64_t photons, double seconds) {
   if (photons == 0 || !(seconds > 0)) return;
   const double measured = seconds / double(photons);
@@ -104,14 +87,14 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
     PhotonMapsOptions mo = settings.Resolved(scene->description).MapsOptions();
     mo.tracing.map_seed = task.map_seed();
     mo.tracing.threads = options_.threads;
-    TestPause("trace", ctx);
+    FaultPoint("trace", ctx);
     const PhotonChunk chunk =
         TracePhotonChunk(scene->accel, scene->lights, mo, piece.photon_begin(), piece.photon_end());
     // Tracing only; a piece is not balanced here. Building costs about as much again (§2.3), which
     // the cost model's rate includes when it is measured from whole maps.
     ObserveTracing(piece.photon_end() - piece.photon_begin(), 2.0 * SecondsSince(t0));
     bytes = SerializePhotonChunk(chunk);
-    if (options_.tamper_piece) options_.tamper_piece(bytes);  // tests only: a malicious worker
+    if (options_.faults) options_.faults->OnPiece(bytes);  // tests only: a malicious worker
   } catch (const InputError& e) {
     Fail(task, ctx, e.what(), false);
     return Outcome::kDone;
@@ -126,7 +109,7 @@ Worker::Outcome Worker::RunTraceChunk(const v1::Task& task) {
     ++counters_.abandoned;
     return Outcome::kDone;
   }
-  TestPause("upload", ctx);
+  FaultPoint("upload", ctx);
   SetState(State::kReporting, ctx);
   grpc::Status status;
   const Clock::time_point t1 = Clock::now();
@@ -189,12 +172,7 @@ std::string Worker::FetchMapBytes(const v1::MapRef& ref, const std::string& ctx)
   std::string refused;
   while (reader->Read(&part)) {
     std::string data = part.data();
-    if (corrupt_next_part_ && !data.empty()) {
-      corrupt_next_part_ = false;
-      data[data.size() / 2] = char(data[data.size() / 2] ^ 0x5a);
-      spdlog::warn("test hook PF_TEST_CORRUPT_MAP_PART: part {} of map {} corrupted on arrival", index,
-                   Short(ref.map_key()));
-    }
+    if (options_.faults) options_.faults->OnMapPart(data, index, ref.map_key());  // tests only
     if (refused.empty()) {
       if (part.offset() != bytes.size())
         refused = "part " + std::to_string(index) + " at offset " + std::to_string(part.offset()) +
@@ -275,7 +253,7 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
       seconds_per_photon_ > 0 ? " (measured)" : " (default)", trace_s);
   if (!fetch) return std::nullopt;
 
-  TestPause("fetch", ctx);
+  FaultPoint("fetch", ctx);
   for (int attempt = 1; attempt <= kFetchAttempts; ++attempt) {
     const Clock::time_point t0 = Clock::now();
     try {

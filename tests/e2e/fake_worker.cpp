@@ -239,7 +239,29 @@ void ShiftPhotons(std::string& bytes) {
   bytes = pf::SerializePhotonChunk(chunk);
 }
 
-// pf-worker's loop with a tampering hook: honest renders and traces, dishonest results.
+// Honest renders and traces, dishonest results: scales every result's sums (`scale`) or shifts
+// photons of every traced piece (`shift-photons`).
+class Tampering : public pf::worker::WorkerFaults {
+ public:
+  Tampering(bool scale, float factor) : scale_(scale), factor_(factor) {}
+  void OnResult(std::vector<float>& sums) override {
+    if (!scale_) return;
+    for (float& v : sums) v *= factor_;
+    ++tampered;
+  }
+  void OnPiece(std::string& bytes) override {
+    if (scale_) return;
+    ShiftPhotons(bytes);
+    ++tampered;
+  }
+  std::atomic<uint64_t> tampered{0};
+
+ private:
+  bool scale_;
+  float factor_;
+};
+
+// pf-worker's loop with injected tampering: honest renders and traces, dishonest results.
 int Malicious(const Options& o) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("pf_fake_worker"));  // stdout is the JSON
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ [pf_fake_worker] %v");
@@ -250,18 +272,8 @@ int Malicious(const Options& o) {
   w.threads = 1;
   w.cache_dir = o.cache_dir;
   w.poll_seconds = 1;
-  std::atomic<uint64_t> tampered{0};
-  if (o.mode == "scale") {
-    w.tamper_result = [&, factor = float(o.factor)](std::vector<float>& sums) {
-      for (float& v : sums) v *= factor;
-      ++tampered;
-    };
-  } else {
-    w.tamper_piece = [&](std::string& bytes) {
-      ShiftPhotons(bytes);
-      ++tampered;
-    };
-  }
+  auto faults = std::make_shared<Tampering>(o.mode == "scale", float(o.factor));
+  w.faults = faults;
   pf::worker::Worker worker(w);
   std::thread stopper([&] {
     std::this_thread::sleep_for(pf::Seconds(o.seconds));
@@ -276,13 +288,13 @@ int Malicious(const Options& o) {
                                      {"completed", c.completed},
                                      {"merged", c.merged},
                                      {"chunks_traced", c.chunks_traced},
-                                     {"tampered", tampered.load()},
+                                     {"tampered", faults->tampered.load()},
                                      {"exit", code}}
                           .dump()
                           .c_str());
   std::fflush(stdout);
   // A render may still run on its thread (render_in_flight): end without waiting for it.
-  std::_Exit(tampered > 0 ? 0 : 1);
+  std::_Exit(faults->tampered > 0 ? 0 : 1);
 }
 
 // A leaked lease put to use by another worker: every call must be refused, and nothing of the

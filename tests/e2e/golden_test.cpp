@@ -44,42 +44,38 @@ std::vector<GoldenJob> Jobs() {
       {"path_single", box, {"--integrator", "path", "--spp", "4", "--seed", "11"}},
       {"photonmap_single", sphere, with(PhotonMapFlags("4000"), {"--spp", "2", "--seed", "12"})},
       // Every plan in process (--local-only), through the same JobSpec as the farm.
-      {"multiple_maps_local",
-       box,
-       with(PhotonMapFlags("3000"),
-            {"--plan", "multiple-maps", "--maps", "2", "--tile", "16", "--spp", "1", "--seed", "13", "--local-only"})},
-      {"maps_in_turn_local",
-       sphere,
+      {"multiple_maps_local", box,
+       with(PhotonMapFlags("3000"), {"--plan", "multiple-maps", "--maps", "2", "--tile", "16", "--spp", "1",
+                                     "--seed", "13", "--local-only"})},
+      {"maps_in_turn_local", sphere,
        with(PhotonMapFlags("2000"), {"--plan", "maps-in-turn", "--spp", "2", "--tile", "16", "--seed", "14",
                                      "--direct", "photon-direct", "--local-only"})},
-      {"skipping_local",
-       box,
-       with(PhotonMapFlags("2000"),
-            {"--plan", "skipping", "--stride", "2", "--rounds", "2", "--spp", "1", "--seed", "15", "--local-only"})},
-      {"hierarchical_local",
-       box,
-       with(PhotonMapFlags("1500"), {"--plan", "hierarchical", "--levels", "2", "--base-samples", "4", "--seed",
-                                     "16", "--local-only"})},
+      {"skipping_local", box,
+       with(PhotonMapFlags("2000"), {"--plan", "skipping", "--stride", "2", "--rounds", "2", "--spp", "1",
+                                     "--seed", "15", "--local-only"})},
+      {"hierarchical_local", box,
+       with(PhotonMapFlags("1500"), {"--plan", "hierarchical", "--levels", "2", "--base-samples", "4",
+                                     "--seed", "16", "--local-only"})},
       // A farm: coordinator + two pf-worker processes.
-      {"path_multiple_maps_farm",
-       box,
-       with(farm, {"--integrator", "path", "--plan", "multiple-maps", "--spp", "2", "--tile", "16", "--seed", "17"})},
-      {"skipping_distributed_maps_farm",
-       sphere,
-       with(with(PhotonMapFlags("3000"), farm), {"--plan", "skipping", "--stride", "2", "--rounds", "1", "--spp",
-                                                 "1", "--seed", "18", "--map-tracing", "distributed"})},
-      {"hierarchical_farm",
-       sphere,
+      {"path_multiple_maps_farm", box,
+       with(farm, {"--integrator", "path", "--plan", "multiple-maps", "--spp", "2", "--tile", "16", "--seed",
+                   "17"})},
+      {"skipping_distributed_maps_farm", sphere,
+       with(with(PhotonMapFlags("3000"), farm),
+            {"--plan", "skipping", "--stride", "2", "--rounds", "1", "--spp", "1", "--seed", "18",
+             "--map-tracing", "distributed"})},
+      {"hierarchical_farm", sphere,
        with(with(PhotonMapFlags("1500"), farm),
             {"--plan", "hierarchical", "--levels", "2", "--base-samples", "4", "--seed", "19"})},
-      {"auto_plan_farm",
-       box,
-       with(with(PhotonMapFlags("6000"), farm), {"--plan", "auto", "--spp", "2", "--seed", "20", "--direct", "mc",
-                                                 "--local-pass", "2"})},
+      {"auto_plan_farm", box,
+       with(with(PhotonMapFlags("6000"), farm),
+            {"--plan", "auto", "--spp", "2", "--seed", "20", "--direct", "mc", "--local-pass", "2"})},
   };
 }
 
-fs::path GoldenDir() { return fs::path(PF_SOURCE_DIR) / "tests" / "data" / "golden"; }
+fs::path GoldenDir() {
+  return fs::path(PF_SOURCE_DIR) / "tests" / "data" / "golden";
+}
 
 class GoldenImage : public ::testing::TestWithParam<GoldenJob> {};
 
@@ -88,8 +84,8 @@ TEST_P(GoldenImage, IsBitIdenticalToTheRecordedImage) {
   TestDir dir;
   const fs::path out = dir / (job.name + ".exr");
   const std::vector<std::string> argv =
-      Concat({Binaries::Pf(), "render", (fs::path(PF_SOURCE_DIR) / "scenes" / job.scene).string(), "--res", "24x16",
-              "--no-png", "-q", "-o", out.string()},
+      Concat({Binaries::Pf(), "render", (fs::path(PF_SOURCE_DIR) / "scenes" / job.scene).string(), "--res",
+              "24x16", "--no-png", "-q", "-o", out.string()},
              job.flags);
   const RunResult r = RunCommand(argv, dir.path(), 240);
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;

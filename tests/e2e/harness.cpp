@@ -40,6 +40,9 @@ std::string Binaries::Coordinator() {
 std::string Binaries::FakeWorker() {
   return PF_E2E_FAKE_WORKER;
 }
+std::string Binaries::FaultyWorker() {
+  return PF_E2E_FAULTY_WORKER;
+}
 std::string Binaries::Scene() {
   return std::string(PF_SOURCE_DIR) + "/scenes/cornell-box/cornell-box.json";
 }

@@ -30,7 +30,8 @@ struct Binaries {
   static std::string Worker();
   static std::string Coordinator();
   static std::string FakeWorker();
-  static std::string Scene();  // scenes/cornell-box/cornell-box.json
+  static std::string FaultyWorker();  // pf-worker with PF_TEST_* faults (faulty_worker.cpp)
+  static std::string Scene();         // scenes/cornell-box/cornell-box.json
 };
 
 // A folder per test under $TMPDIR, removed at the end unless the test failed or PF_E2E_KEEP=1.

@@ -6,8 +6,9 @@
 //  - a map part whose checksum fails is refused and the map fetched again;
 //  - a coordinator SIGKILLed with some pieces stored resumes with only the missing ones traced,
 //    and one SIGKILLed after the map was built serves it from disk without tracing anything.
-// The kill points are made deterministic by the worker's test hook PF_TEST_PAUSE_AT (it sleeps
-// there, logging "test-pause at ..."); PF_TEST_CORRUPT_MAP_PART corrupts one received part.
+// The kill points are made deterministic by the faulty worker's PF_TEST_PAUSE_AT (it sleeps
+// there, logging "test-pause at ..."; tests/e2e/faulty_worker.cpp); PF_TEST_CORRUPT_MAP_PART
+// corrupts one received part.
 #include <signal.h>
 
 #include <algorithm>
@@ -42,14 +43,15 @@ std::string Submit(const TestDir& dir, const std::string& address,
   return SubmitJob(dir, address, Concat(TiledJobFlags(), more));
 }
 
-// StartWorker's command line, with environment variables (the test hooks).
+// StartWorker's command line for the faulty worker (pf-worker with injected faults), with the
+// environment variables that choose them.
 std::unique_ptr<Process> StartWorkerWithEnv(const std::string& address, const fs::path& dir,
                                             const std::string& id, std::map<std::string, std::string> env) {
   return std::make_unique<Process>(
       id,
-      std::vector<std::string>{Binaries::Worker(), "--coordinator", address, "--threads", "1", "--worker-id",
-                               id, "--cache-dir", (dir / ("cache-" + id)).string(), "--poll-seconds", "1",
-                               "--max-backoff", "0.5"},
+      std::vector<std::string>{Binaries::FaultyWorker(), "--coordinator", address, "--threads", "1",
+                               "--worker-id", id, "--cache-dir", (dir / ("cache-" + id)).string(),
+                               "--poll-seconds", "1", "--max-backoff", "0.5"},
       dir / (id + ".log"), fs::path{}, std::move(env));
 }
 
