@@ -7,6 +7,7 @@
 // Recording is deliberate: PF_GOLDEN_RECORD=1 rewrites the files from this build, for a change
 // that is meant to change images (say why in its commit).
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -108,9 +109,7 @@ TEST_P(GoldenImage, IsBitIdenticalToTheRecordedImage) {
       const Rgb a = got.at(x, y), b = want.at(x, y);
       if (std::memcmp(&a, &b, sizeof(Rgb)) != 0) {
         if (differing++ == 0)
-          first = "(" + std::to_string(x) + ", " + std::to_string(y) + "): got " + std::to_string(a.r) + " " +
-                  std::to_string(a.g) + " " + std::to_string(a.b) + ", golden " + std::to_string(b.r) + " " +
-                  std::to_string(b.g) + " " + std::to_string(b.b);
+          first = fmt::format("({}, {}): got {} {} {}, golden {} {} {}", x, y, a.r, a.g, a.b, b.r, b.g, b.b);
       }
     }
   EXPECT_EQ(differing, 0u) << differing << " pixels differ; first at " << first << "\n" << r.err;
