@@ -8,7 +8,7 @@ namespace {
 TEST(EditDistance, CountsInsertionsDeletionsAndSubstitutions) {
   EXPECT_EQ(EditDistance("", ""), 0);
   EXPECT_EQ(EditDistance("render", "render"), 0);
-  EXPECT_EQ(EditDistance("rendr", "render"), 1);       // insertion
+  EXPECT_EQ(EditDistance("rendr", "render"), 1);          // insertion
   EXPECT_EQ(EditDistance("--photonss", "--photons"), 1);  // deletion
   EXPECT_EQ(EditDistance("kitten", "sitting"), 3);
   EXPECT_EQ(EditDistance("", "abc"), 3);
