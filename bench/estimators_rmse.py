@@ -193,8 +193,10 @@ class Measurer:
         exr = self.work / f"{scene}-{budget}-{len(self.done)}.exr"
         photons, render_flags = override(flags, "--photons", photons)
         spp, render_flags = override(render_flags, "--spp", spp)
-        cmd = [self.args.pf, "render", manifest, "--photons", str(photons), "--k", str(k), "--spp", str(spp),
+        cmd = [self.args.pf, "render", manifest, "--spp", str(spp),
                "--res", res, "--seed", "1", "--threads", str(self.args.threads), "-q", "--no-png", "-o", str(exr)]
+        if "path" not in flags:  # pf refuses photon-map options for the path tracer
+            cmd += ["--photons", str(photons), "--k", str(k)]
         cpus, walls = [], []
         for _ in range(self.args.repeat):
             cpu, wall = timed(cmd + render_flags)

@@ -20,6 +20,7 @@
 #include <filesystem>
 
 #include "client/commands.h"
+#include "client/did_you_mean.h"
 #include "client/interrupt.h"
 #include "common/core/error.h"
 #include "photonfarm_version.h"
@@ -297,12 +298,14 @@ int main(int argc, char** argv) {
                                  "applies to farm renders only (--workers N); in one process the maps are "
                                  "traced by this process");
     for (auto [cmd, args] : {std::pair{render, &ra}, std::pair{submit, &sa}}) {
+      if (*cmd) RejectPhotonMapOptionsForPath(*cmd, *args);
       args->spp_given = cmd->count("--spp") > 0;
       args->photons_given = cmd->count("--photons") > 0;
       args->k_given = cmd->count("--k") > 0;
     }
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
+    for (const std::string& hint : pf::DidYouMean(app)) std::fprintf(stderr, "%s\n", hint.c_str());
     return code == 0 ? kExitOk : kExitUsage;
   }
   // Logs go to stderr: stdout carries results (`pf submit` prints only the job id).

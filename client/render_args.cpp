@@ -134,6 +134,9 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--up", a.up, "Up vector X,Y,Z (image right = forward x up)");
   app->add_option("--fov", a.fov, "Vertical field of view in degrees")->check(CLI::Range(0.01f, 179.9f));
   app->add_option("--res", a.res, "Resolution WxH, e.g. 640x480");
+  // Everything from here on configures the photon-map integrator only: one help section, and
+  // RejectPhotonMapOptionsForPath finds them by it.
+  const size_t first_photon_map_option = app->get_options().size();
   app->add_option("--photons", a.photons, "photonmap: photons emitted per map")
       ->capture_default_str()
       ->check(CLI::Range(uint64_t(1), kMaxPhotonsPerMap));
@@ -262,6 +265,17 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a) {
                   "start points can act as secondary lights)")
       ->capture_default_str()
       ->check(CLI::IsMember({"brute", "metropolis"}));
+  const std::vector<CLI::Option*> options = app->get_options();
+  for (size_t i = first_photon_map_option; i < options.size(); ++i) options[i]->group(kPhotonMapOptionGroup);
+}
+
+void RejectPhotonMapOptionsForPath(const CLI::App& cmd, const RenderArgs& a) {
+  if (a.integrator != "path") return;
+  for (const CLI::Option* opt : cmd.get_options())
+    if (opt->get_group() == kPhotonMapOptionGroup && opt->count() > 0)
+      throw CLI::ValidationError(opt->get_name(),
+                                 "applies to the photon-map integrator only (add --integrator photonmap); "
+                                 "the path tracer would ignore it");
 }
 
 void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {

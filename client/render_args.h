@@ -108,6 +108,15 @@ void ApplyManifestSettings(RenderArgs& a);
 
 // Scene, camera, integrator and photon-map options (render and submit).
 void AddSceneOptions(CLI::App* app, RenderArgs& a);
+
+// The help section of the options that configure the photon-map integrator only.
+inline constexpr const char* kPhotonMapOptionGroup = "Photon-map integrator (--integrator photonmap)";
+// A photon-map option given on the command line of a path-traced render: a usage error
+// (CLI::ValidationError naming the option), not a setting silently ignored. An error rather than
+// a warning because the image would not show what was asked for; manifest `settings` stay
+// allowed, since they describe the scene for either integrator.
+void RejectPhotonMapOptionsForPath(const CLI::App& cmd, const RenderArgs& a);
+
 // --plan, --maps, --stride, --rounds, --tile, stop rule, --priority, --name.
 void AddPlanOptions(CLI::App* app, RenderArgs& a);
 

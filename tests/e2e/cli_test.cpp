@@ -163,10 +163,10 @@ TEST(Cli, FlagLimitsAreTheFarmsLimits) {
 // allowed 2^24, the coordinator 2^20).
 TEST(Cli, LocalPlanTaskCapIsTheFarms) {
   TestDir dir;
-  const RunResult r = RunCommand({Binaries::Pf(), "render", Binaries::Scene(), "--plan", "multiple-maps",
-                                  "--maps", "61681", "--tile", "1", "--res", "17x1", "--photons", "100",
-                                  "--local-only", "-o", (dir / "cap.exr").string(), "--no-png", "-q"},
-                                 dir.path(), 30);
+  const RunResult r = RunCommand(
+      {Binaries::Pf(), "render", Binaries::Scene(), "--plan", "multiple-maps", "--maps", "61681", "--tile",
+       "1", "--res", "17x1", "--local-only", "-o", (dir / "cap.exr").string(), "--no-png", "-q"},
+      dir.path(), 30);
   EXPECT_EQ(r.exit_code, 3) << r.err;
   EXPECT_NE(r.err.find("spec.plan: 1048577 tasks exceed the limit of 1048576 per job"), std::string::npos)
       << r.err;
@@ -182,6 +182,39 @@ TEST(Cli, PlainRenderRefusesPlanOptions) {
     EXPECT_EQ(r.exit_code, 2) << extra[0] << ": " << r.err;
     EXPECT_NE(r.err.find("plan renders only"), std::string::npos) << r.err;
   }
+}
+
+// A photon-map option with the path tracer was silently ignored; now it is a usage error that
+// names the option (render and submit alike).
+TEST(Cli, PathTracerRefusesPhotonMapOptions) {
+  TestDir dir;
+  for (const std::vector<std::string>& extra :
+       {std::vector<std::string>{"--photons", "1000"}, {"--caustic-split", "4"}, {"--occlusion-test"}}) {
+    const RunResult r =
+        RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), extra), dir.path(), 60);
+    EXPECT_EQ(r.exit_code, 2) << extra[0] << ": " << r.err;
+    EXPECT_NE(r.err.find(extra[0]), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("photon-map integrator only"), std::string::npos) << r.err;
+  }
+  const RunResult ok = RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "b.exr"),
+                                         {"--integrator", "photonmap", "--photons", "1000"}),
+                                  dir.path(), 120);
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+}
+
+// A mistyped subcommand or option names the closest known one (edit distance).
+TEST(Cli, DidYouMeanForUnknownSubcommandsAndOptions) {
+  TestDir dir;
+  RunResult r = RunCommand({Binaries::Pf(), "rendr", Binaries::Scene()}, dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("did you mean 'render'?"), std::string::npos) << r.err;
+  r = RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), {"--photon", "10"}), dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("'--photon': did you mean '--photons'?"), std::string::npos) << r.err;
+  // Nothing close: no guess.
+  r = RunCommand({Binaries::Pf(), "xyzzy-frobnicate"}, dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(r.err.find("did you mean"), std::string::npos) << r.err;
 }
 
 TEST(Cli, MergeWeighsBySppAndWarns) {

@@ -268,15 +268,17 @@ Image DecodeImage(const std::string& bytes) {
 }
 
 std::vector<std::string> JobArgs::ToFlags() const {
-  return {"--integrator", integrator,
-          "--photons",    std::to_string(photons),
-          "--k",          std::to_string(k),
-          "--plan",       "skipping",
-          "--stride",     std::to_string(stride),
-          "--rounds",     std::to_string(rounds),
-          "--spp",        std::to_string(spp),
-          "--res",        std::to_string(res) + "x" + std::to_string(res),
-          "--seed",       std::to_string(seed)};
+  std::vector<std::string> flags = {"--integrator", integrator,
+                                    "--plan",       "skipping",
+                                    "--stride",     std::to_string(stride),
+                                    "--rounds",     std::to_string(rounds),
+                                    "--spp",        std::to_string(spp),
+                                    "--res",        std::to_string(res) + "x" + std::to_string(res),
+                                    "--seed",       std::to_string(seed)};
+  // pf refuses photon-map options for the path tracer (RejectPhotonMapOptionsForPath).
+  if (integrator == "photonmap")
+    flags.insert(flags.end(), {"--photons", std::to_string(photons), "--k", std::to_string(k)});
+  return flags;
 }
 
 std::map<uint64_t, int> MergedTaskCounts(const std::vector<fs::path>& worker_logs,

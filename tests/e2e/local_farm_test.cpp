@@ -52,23 +52,12 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
 TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
   TestDir dir;
   for (const std::string integrator : {"photonmap", "path"}) {
-    const std::vector<std::string> base = {Binaries::Pf(),
-                                           "render",
-                                           Binaries::Scene(),
-                                           "--integrator",
-                                           integrator,
-                                           "--photons",
-                                           "3000",
-                                           "--k",
-                                           "20",
-                                           "--res",
-                                           "80x48",
-                                           "--spp",
-                                           "2",
-                                           "--seed",
-                                           "11",
-                                           "--no-png",
-                                           "-q"};  // 80x48: partial tiles
+    // Photon-map options only with the photon map: pf refuses them for the path tracer.
+    const std::vector<std::string> photon_map = {"--photons", "3000", "--k", "20"};
+    const std::vector<std::string> base =
+        Concat({Binaries::Pf(), "render", Binaries::Scene(), "--integrator", integrator, "--res", "80x48",
+                "--spp", "2", "--seed", "11", "--no-png", "-q"},  // 80x48: partial tiles
+               integrator == "photonmap" ? photon_map : std::vector<std::string>{});
     const std::string plain = (dir / (integrator + "-plain.exr")).string();
     const RunResult r = RunCommand(Concat(base, {"-o", plain}), dir.path());
     ASSERT_EQ(r.exit_code, 0) << r.err;
