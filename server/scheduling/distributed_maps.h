@@ -66,9 +66,9 @@
 
 #include "common/photon/photon_chunk.h"
 #include "common/render/scene_runtime.h"
+#include "server/clock.h"
+#include "server/executor.h"
 #include "server/jobs/job.h"
-#include "server/rpc/executor.h"
-#include "server/scheduling/clock.h"
 #include "server/scheduling/map_tracing_hook.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/scene_store.h"
