@@ -182,7 +182,6 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
   return std::nullopt;
 }
 
-
 // ---------------------------------------------------------------------------------------------
 // Workers
 
