@@ -9,7 +9,8 @@
 
 namespace pf::server {
 
-std::string SubmitValidatedJob(Scheduler& scheduler, SqliteStore& db, JobConfig config, const std::string& client) {
+std::string SubmitValidatedJob(Scheduler& scheduler, SqliteStore& db, JobConfig config,
+                               const std::string& client) {
   std::unique_ptr<Job> job = scheduler.PrepareJob(std::move(config));
   job->client = client;
   JobRow row;

@@ -16,6 +16,7 @@
 namespace pf::server {
 
 // Returns the new job's id. Throws what the store throws (the job is then not scheduled).
-std::string SubmitValidatedJob(Scheduler& scheduler, SqliteStore& db, JobConfig config, const std::string& client);
+std::string SubmitValidatedJob(Scheduler& scheduler, SqliteStore& db, JobConfig config,
+                               const std::string& client);
 
 }  // namespace pf::server
