@@ -18,8 +18,8 @@
 
 #include "common/core/error.h"
 #include "photonfarm_version.h"
+#include "server/executor.h"
 #include "server/rpc/auth.h"
-#include "server/rpc/executor.h"
 #include "server/rpc/render_service.h"
 #include "server/rpc/watch_hub.h"
 #include "server/rpc/worker_service.h"

@@ -36,9 +36,9 @@
 
 #include "common/core/file_layer.h"
 #include "proto/limits.h"
+#include "server/clock.h"
 #include "server/rpc/budgets.h"
-#include "server/scheduling/clock.h"
-#include "server/store/recovery.h"
+#include "server/scheduling/recovery.h"
 
 namespace grpc {
 class Server;

@@ -34,31 +34,12 @@
 #include "common/scene/scene.h"
 #include "photonfarm/v1/farm.pb.h"
 #include "proto/limits.h"
+#include "server/store/scene_catalog.h"
 
 namespace pf::server {
 
 inline constexpr uint64_t kMaxPixelsPerTask = uint64_t(4) << 20;
 inline constexpr size_t kMaxJobNameBytes = limits::kMaxJobNameBytes;
-
-// What the coordinator knows about a stored scene.
-struct SceneInfo {
-  std::string hash;
-  std::string entry;
-  uint64_t triangles = 0;
-  uint32_t lights = 0;
-  double max_emission = -1;  // the brightest emitter's largest channel (Le); -1 = unknown (old database)
-  int caustic_paths = -1;    // 1: specular or glossy surfaces (a caustic map is built); -1 = unknown
-  uint64_t bytes = 0;
-  uint64_t files = 0;
-  CameraSpec camera;  // the manifest's first camera, else DefaultCamera(scene)
-  std::vector<std::string> warnings;
-};
-
-class SceneCatalog {
- public:
-  virtual ~SceneCatalog() = default;
-  virtual std::optional<SceneInfo> FindScene(const std::string& hash) const = 0;
-};
 
 struct StopRule {
   uint32_t max_rounds = 0;         // 0 = all planned rounds

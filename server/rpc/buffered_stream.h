@@ -13,7 +13,7 @@
 
 #include <grpcpp/support/server_callback.h>
 
-#include "server/rpc/executor.h"
+#include "server/executor.h"
 #include "server/rpc/status_mapping.h"
 
 namespace pf::server {

@@ -2,8 +2,6 @@
 
 #include "proto/limits.h"
 
-#include <spdlog/spdlog.h>
-
 #include <algorithm>
 #include <cstdio>
 #include <memory>
@@ -18,6 +16,7 @@
 #include "server/rpc/job_images.h"
 #include "server/rpc/status_mapping.h"
 #include "server/rpc/watch_hub.h"
+#include "server/scheduling/job_submission.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
@@ -123,25 +122,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
   }
   const bool posted = ctx_.executor.Post([this, reactor, response, config, client, admitted] {
     reactor->Finish(Guarded("SubmitJob", [&] {
-      std::unique_ptr<Job> job = ctx_.scheduler.PrepareJob(std::move(*config));
-      job->client = client;
-      JobRow row;
-      row.job_id = job->id();
-      row.seq = job->seq();
-      row.spec = job->config().spec.SerializeAsString();
-      row.state = JobState::kQueued;
-      row.submitted_unix_ms = job->submitted_unix_ms();
-      // No task rows: a task without a row is QUEUED with no attempts, which recovery assumes
-      // (docs/farm.md "SQLite schema"); each row is written when its task first changes.
-      ctx_.db.InsertJob(row, {});  // durable before the client hears the id
-      const JobConfig& c = job->config();
-      spdlog::info("job {}: submitted{}: scene {}, {}x{}, {}, {} tasks, seed {}, priority {}", job->id(),
-                   c.name.empty() ? "" : " '" + c.name + "'", c.scene_hash.substr(0, 12), c.camera.width,
-                   c.camera.height, DescribePlan(c.plan), job->num_tasks(), c.seed, c.priority);
-      if (c.spec.plan().has_chosen_by_auto())
-        spdlog::info("job {}: plan auto: {}", job->id(), c.spec.plan().chosen_by_auto().reason());
-      response->set_job_id(job->id());
-      ctx_.scheduler.AddJob(std::move(job));
+      response->set_job_id(SubmitValidatedJob(ctx_.scheduler, ctx_.db, std::move(*config), client));
       admitted->Release();  // the scheduler counts the job now
       return grpc::Status::OK;
     }));

@@ -4,8 +4,8 @@
 
 #include <string>
 
-#include "server/rpc/executor.h"
-#include "server/scheduling/clock.h"
+#include "server/clock.h"
+#include "server/executor.h"
 #include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/persister.h"

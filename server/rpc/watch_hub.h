@@ -28,9 +28,9 @@
 #include <grpcpp/support/server_callback.h>
 
 #include "photonfarm/v1/farm.pb.h"
+#include "server/clock.h"
+#include "server/executor.h"
 #include "server/rpc/budgets.h"
-#include "server/rpc/executor.h"
-#include "server/scheduling/clock.h"
 #include "server/scheduling/scheduler.h"
 
 namespace pf::server {

@@ -70,8 +70,8 @@
 
 #include "common/photon/photon_chunk.h"
 #include "common/render/scene_runtime.h"
+#include "server/clock.h"
 #include "server/jobs/job.h"
-#include "server/scheduling/clock.h"
 #include "server/scheduling/map_states.h"
 #include "server/scheduling/map_tracing_hook.h"
 #include "server/scheduling/scheduler.h"

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "photonfarm/v1/farm.pb.h"
-#include "server/scheduling/clock.h"
+#include "server/clock.h"
 
 namespace pf::server {
 

@@ -15,7 +15,7 @@
 
 #include "common/photon/map_cache.h"
 #include "common/render/scene_runtime.h"
-#include "server/rpc/executor.h"
+#include "server/executor.h"
 #include "server/scheduling/referee_hook.h"
 
 namespace pf::server {

@@ -84,9 +84,10 @@
 #include "photonfarm/v1/farm.pb.h"
 #include "server/assembly/image_snapshot.h"
 #include "server/assembly/result_merger.h"
+#include "server/clock.h"
 #include "server/jobs/job.h"
 #include "server/jobs/job_registry.h"
-#include "server/scheduling/clock.h"
+#include "server/scheduling/completion_probe.h"
 #include "server/scheduling/farm_activity.h"
 #include "server/scheduling/lease_table.h"
 #include "server/scheduling/map_tracing_hook.h"
@@ -115,6 +116,8 @@ struct SchedulerOptions {
   VerificationOptions verification = {};
   // Stamped into every job's stored spec (JobSpec.plan.build): the coordinator's PF_VERSION.
   std::string build = {};
+  // Tests only (completion_probe.h); must outlive the scheduler. None in production.
+  CompletionProbe* probe = nullptr;
 };
 
 struct LeaseRequest {
@@ -238,9 +241,6 @@ class Scheduler final : public PersistSource {
   // result for another part than the task's is rejected (an old worker ignores Task.part).
   CompleteResult Complete(const std::string& lease_id, const std::string& worker_id,
                           std::span<const float> rgb_sums, RadiancePart part = RadiancePart::kAll);
-  // Tests only: runs inside Complete between the check and the commit (no lock held), so a test
-  // can expire, cancel or complete other leases while a result is in flight. Set before use.
-  void SetBeforeCommitHookForTest(std::function<void(const std::string& lease_id)> hook);
   // Only the holder of a live lease may fail its task: `worker_id` must be the worker it was
   // leased to (LeaseRequest.worker_id). kUnknownLease (expired, replaced, finished or never
   // issued) and kNotHolder change nothing.
@@ -458,7 +458,6 @@ class Scheduler final : public PersistSource {
   mutable std::mutex mu_;
   JobRegistry jobs_;
   ResultMerger merger_;  // thread-safe (its permutation cache has its own lock)
-  std::function<void(const std::string&)> before_commit_for_test_;
   TaskSourceFactory task_sources_;
   std::unordered_map<const Job*, std::unique_ptr<TaskSource>> sources_;
   TaskQueue queue_;

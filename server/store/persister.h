@@ -49,7 +49,7 @@
 #include <vector>
 
 #include "common/core/file_layer.h"
-#include "server/scheduling/clock.h"
+#include "server/clock.h"
 #include "server/store/journal.h"
 #include "server/store/persist_source.h"
 #include "server/store/sqlite_store.h"

@@ -16,8 +16,8 @@
 #include <unordered_map>
 
 #include "common/scene/scene_bundle.h"
-#include "server/jobs/job_spec.h"
-#include "server/scheduling/clock.h"
+#include "server/clock.h"
+#include "server/store/scene_catalog.h"
 #include "server/store/sqlite_store.h"
 
 namespace pf::server {

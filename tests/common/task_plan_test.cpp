@@ -182,7 +182,7 @@ TEST(TaskPlan, InvalidPlansNameTheField) {
 
 // A job stored with tail tiles has expansion version 1, one without keeps 0: a coordinator that
 // predates tail tiles (it would expand whole tiles under the tail tiles' ids) sets its checkpoint
-// aside rather than resume it (server/store/recovery.cpp).
+// aside rather than resume it (server/scheduling/recovery.cpp).
 TEST(TaskPlan, TailTilesHaveTheirOwnExpansionVersion) {
   const PlanSpec plain{.kind = PlanKind::kMultipleMaps, .tile_size = 64};
   PlanSpec tail = plain;

@@ -11,7 +11,7 @@
 #include <deque>
 
 #include "server/assembly/result_merger.h"
-#include "server/scheduling/clock.h"
+#include "server/clock.h"
 #include "server/scheduling/result_verification.h"
 #include "server/scheduling/scheduler.h"
 #include "tests/server/server_test_util.h"

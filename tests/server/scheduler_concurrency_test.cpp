@@ -10,7 +10,7 @@
 #include <map>
 #include <thread>
 
-#include "server/scheduling/clock.h"
+#include "server/clock.h"
 #include "server/scheduling/scheduler.h"
 #include "tests/server/server_test_util.h"
 
@@ -31,7 +31,8 @@ std::string WorkerName(size_t i) {
 
 class SchedulerConcurrencyTest : public ::testing::Test {
  protected:
-  SchedulerConcurrencyTest() : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3}) {}
+  SchedulerConcurrencyTest()
+      : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3, .probe = &probe_}) {}
 
   std::string Submit(const JobConfig& config) {
     std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
@@ -50,6 +51,7 @@ class SchedulerConcurrencyTest : public ::testing::Test {
   }
 
   FakeClock clock_;
+  testing::HookProbe probe_;  // before scheduler_, which holds it
   Scheduler scheduler_;
 };
 
@@ -172,7 +174,7 @@ TEST_F(SchedulerConcurrencyTest, LeaseExpiringWhileItsResultIsMergedCountsOnce) 
   const std::string id = Submit(config);
   const Lease first = scheduler_.TryLease({"w1", {}}).value();
   bool hooked = false;
-  scheduler_.SetBeforeCommitHookForTest([&](const std::string& lease_id) {
+  probe_.Set([&](const std::string& lease_id) {
     if (lease_id != first.lease_id || hooked) return;
     hooked = true;
     clock_.Advance(31);
@@ -230,7 +232,7 @@ TEST_F(SchedulerConcurrencyTest, ResultOfAReassignedLeaseIsIgnoredOnce) {
 TEST_F(SchedulerConcurrencyTest, ResultOfAJobCancelledWhileItWasCheckedIsDropped) {
   const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 8, 8));
   const Lease lease = scheduler_.TryLease({"w1", {}}).value();
-  scheduler_.SetBeforeCommitHookForTest([&](const std::string&) { scheduler_.Cancel(id); });
+  probe_.Set([&](const std::string&) { scheduler_.Cancel(id); });
   const CompleteResult r = scheduler_.Complete(lease.lease_id, lease.worker_id, ResultOf(lease));
   EXPECT_EQ(r.status, CompleteStatus::kIgnored);
   EXPECT_EQ(r.reason, "the job ended while the result was checked");
@@ -252,7 +254,7 @@ TEST_F(SchedulerConcurrencyTest, AnExceptionWhileAResultIsCheckedLeavesTheLeaseL
   const Lease lease = scheduler_.TryLease({"w1", {}}).value();
   const std::vector<float> sums = ResultOf(lease);
   bool thrown = false;
-  scheduler_.SetBeforeCommitHookForTest([&](const std::string&) {
+  probe_.Set([&](const std::string&) {
     if (thrown) return;
     thrown = true;
     throw std::bad_alloc();
@@ -286,7 +288,7 @@ TEST_F(SchedulerConcurrencyTest, SecondCopyAndFailTaskWhileAResultIsCheckedChang
   const Lease lease = scheduler_.TryLease({"w1", {}}).value();
   const std::vector<float> sums = ResultOf(lease);
   int depth = 0;
-  scheduler_.SetBeforeCommitHookForTest([&](const std::string&) {
+  probe_.Set([&](const std::string&) {
     if (depth++ > 0) return;
     const CompleteResult copy = scheduler_.Complete(lease.lease_id, lease.worker_id, sums);
     EXPECT_EQ(copy.status, CompleteStatus::kIgnored);

@@ -9,8 +9,8 @@
 
 #include "common/core/rng.h"
 #include "common/plan/hierarchical.h"
+#include "server/clock.h"
 #include "server/errors.h"
-#include "server/scheduling/clock.h"
 #include "tests/server/server_test_util.h"
 
 namespace pf::server {
@@ -24,7 +24,8 @@ namespace v1 = photonfarm::v1;
 
 class SchedulerTest : public ::testing::Test {
  protected:
-  SchedulerTest() : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3}) {}
+  SchedulerTest()
+      : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3, .probe = &probe_}) {}
 
   std::string Submit(const JobConfig& config) {
     std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
@@ -48,6 +49,7 @@ class SchedulerTest : public ::testing::Test {
   }
 
   FakeClock clock_;
+  testing::HookProbe probe_;  // before scheduler_, which holds it
   Scheduler scheduler_;
 };
 
@@ -1429,12 +1431,12 @@ TEST_F(SchedulerTest, ARestartedJobWithNothingMergedFailsWhenItsBudgetRunsOut) {
 TEST_F(SchedulerTest, AResultInFlightWhenItsWorkerIsConvictedIsNotMerged) {
   const std::string id = Submit(MakeConfig(MultipleMaps(4, 0), 4, 4));
   const Lease verifier_lease = MustLease("v");
-  scheduler_.SetBeforeCommitHookForTest([&](const std::string&) {
+  probe_.Set([&](const std::string&) {
     // Its image holds nothing of v's: no restart, only a blocklisting.
     EXPECT_FALSE(scheduler_.ConvictWorker(id, "v", verifier_lease.task_id, "a wrong verification"));
   });
   EXPECT_EQ(CompleteOk(verifier_lease).status, CompleteStatus::kIgnored);
-  scheduler_.SetBeforeCommitHookForTest(nullptr);
+  probe_.Set(nullptr);
   const v1::JobStatus s = scheduler_.Status(id);
   EXPECT_EQ(s.tasks_done(), 0u);
   EXPECT_EQ(s.samples_merged(), 0u);

@@ -225,4 +225,17 @@ class LiveCoordinatorTest : public ::testing::Test {
   std::string hash_;
 };
 
+// The scheduler's CompletionProbe (server/scheduling/completion_probe.h) as a settable function:
+// runs `hook` between a result's check and its commit. Set before the Complete it is meant for.
+class HookProbe final : public CompletionProbe {
+ public:
+  void Set(std::function<void(const std::string& lease_id)> hook) { hook_ = std::move(hook); }
+  void BeforeCommit(const std::string& lease_id) override {
+    if (hook_) hook_(lease_id);
+  }
+
+ private:
+  std::function<void(const std::string&)> hook_;
+};
+
 }  // namespace pf::server::testing

@@ -22,8 +22,8 @@
 #include <cstdint>
 #include <filesystem>
 
+#include "server/clock.h"
 #include "server/jobs/job_spec.h"
-#include "server/scheduling/clock.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/sqlite_store.h"
 

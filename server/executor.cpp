@@ -1,4 +1,4 @@
-#include "server/rpc/executor.h"
+#include "server/executor.h"
 
 #include <spdlog/spdlog.h>
 

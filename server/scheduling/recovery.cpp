@@ -1,4 +1,4 @@
-#include "server/store/recovery.h"
+#include "server/scheduling/recovery.h"
 
 #include <spdlog/spdlog.h>
 
