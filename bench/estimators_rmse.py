@@ -28,7 +28,7 @@ PhotonDirect without its neighbour-set cache on scene10; and on scene10 (both bu
 (the first budget) a shadow-ray sweep, Monte Carlo at 16/64/256 rays against PhotonDirect at
 4/16/64 (the claim of 4.2.3: PhotonDirect reaches Monte Carlo's error in less time).
 
-Issue #15's methods, on the scenes they are for:
+The methods of Wald 1999, §4.6-4.7 (importance, caustic splitting), on the scenes they are for:
     importance-driven maps (4.7), INVISIBLEDATE-like: mc+occl+importance (the budget's photons) and
         mc+occl+importance x20 (20x the photons, p_min 0.01: docs/results/importance.md's best row);
         scene10: photon-direct+importance and photon-direct+importance x5

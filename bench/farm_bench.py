@@ -4,7 +4,7 @@
     bench/farm_bench.py [--build build] [--job default|skipping] [--repeat 3] [--render-only]
                         [--quick] [--json-out results.json]
 
-1. Scaling and overhead on one machine (issue #12's "Must show"), one render job throughout:
+1. Scaling and overhead on one machine (docs/farm.md, "Measured"), one render job throughout:
      --job default (the default): the issue's default farm job — cornell-box 256x256, one photon map
        of 1M photons, k 100, 16 spp, the default plan;
      --job skipping: cornell-box 128x128, photon-map skipping S=4 x 8 rounds = 128 tasks, 100k
@@ -15,7 +15,7 @@
      farm-1     pf render --workers 1 --threads 1     (coordinator + 1 worker of 1 thread)
      farm-2     pf render --workers 2 --threads 1     (coordinator + 2 workers of 1 thread)
      farm-2-local  the same with --map-tracing local  (each worker traces and balances the map, as
-                before issue #12's distributed tracing; for the side-by-side ratio)
+                before maps were traced once (docs/farm.md, "Photon maps traced once"); for the side-by-side ratio)
    --repeat interleaved runs of each (so that load changes hit every variant alike); the MEDIAN
    counts, the fastest is reported too. Also the CPU time (user + system) of all processes of a
    run. Ratios: process-1/process-2 (target >= 1.85), farm-1/farm-2 (target >= 1.8), farm-2 vs
@@ -85,7 +85,7 @@ def span_of(perf_data, by_process):
             coordinator_pids.add(ids[0])
         key = ids[0] if by_process else ids[1]
         counts[key] = counts.get(key, 0) + 1
-    # Issue #12: the coordinator now balances distributed maps, on the critical path while the
+    # The coordinator now balances distributed maps, on the critical path while the
     # workers wait; it is reported apart and not counted as a worker.
     coordinator = sum(counts.get(pid, 0) for pid in coordinator_pids) if by_process else 0
     workers = [n for key, n in counts.items() if key not in coordinator_pids] if by_process else list(counts.values())
@@ -157,7 +157,7 @@ def main():
             job += ["--plan", "multiple-maps"]
         runs = [("process-1", local + ["--threads", "1"]), ("process-2", local + ["--threads", "2"]),
                 ("farm-1", ["--workers", "1", "--threads", "1"]), ("farm-2", ["--workers", "2", "--threads", "1"]),
-                # Issue #12: every worker traces and balances the map itself (as before distributed tracing).
+                # Every worker traces and balances the map itself (as before distributed tracing).
                 ("farm-2-local", ["--workers", "2", "--threads", "1", "--map-tracing", "local"])]
         use_span = not a.no_span and shutil.which("perf") is not None
         times = {name: [] for name, _ in runs}

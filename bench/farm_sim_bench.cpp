@@ -14,7 +14,7 @@
 //   speed-up                   Σ simulated task times / wall (the ideal is N)
 // Then a saturation run (task time 0, --saturation-workers) for the tasks/s the coordinator
 // sustains, and the projected speed-up vs N: min(N, mean task time / CPU per task), the
-// coordinator's lock being serial (its O(pixels) merge runs beside it, issue #12).
+// coordinator's lock being serial (its O(pixels) merge runs beside it).
 //
 //   build/bench/farm_sim_bench --task-log coordinator.log --json-out docs/results/farm-sim.json
 // (docs/results/farm-sim.md has the command that made the task log.)

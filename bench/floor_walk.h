@@ -1,5 +1,5 @@
 #pragma once
-// The floor of a photon walk's own cost (issue #18: "photon tracing at >= 60 % of the raw
+// The floor of a photon walk's own cost (docs/results/kernel.md: "photon tracing at >= 60 % of the raw
 // incoherent Embree ray rate"): about the least a photon random walk (Wald 1999, §2.2) can do per
 // ray and still be one — a point on an emitter and a cosine-distributed first direction (the
 // tracer's PhotonEmitters table), then at every hit EmbreeScene::IntersectWalk (position, normal,

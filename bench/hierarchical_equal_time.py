@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Hierarchical photon map vs skipping vs multiple maps at equal time (issue #13; Wald 1999, 4.4-4.5).
+"""Hierarchical photon map vs skipping vs multiple maps at equal time (Wald 1999, 4.4-4.5; docs/results/hierarchical-equal-time.md).
 
 For each scene (Cornell box, CornellBox-Sphere, scene8) every plan is rendered at several budgets
 with `pf render --plan P --local-only --threads 1`, with the same photons per map and the same k
@@ -200,7 +200,7 @@ def write_reports(result, out):
     default_families = ["multiple-maps", "skipping"] + list(SCHEDULES)
     families = [f for f in default_families if any(r["family"] == f for r in rows)]
     lines = [
-        "# Hierarchical vs skipping vs multiple maps at equal time (issue #13)",
+        "# Hierarchical vs skipping vs multiple maps at equal time (docs/renderer.md, 'Hierarchical plan')",
         "",
         f"{a['photons']} photons per map and k = {a['k']} for every plan; seed(s) {a['seeds']}; `pf render "
         "--local-only --threads 1`; time = CPU seconds (user + system) of the whole process, map building "
@@ -221,7 +221,7 @@ def write_reports(result, out):
         "## Equal time: error ratio to multiple maps",
         "",
         "Median over the multiple-maps budgets inside the other plan's time range of error_plan(t) / "
-        "error_mm(t), log-log interpolated: the ratio of error × time at equal time. Target (issue #13): "
+        "error_mm(t), log-log interpolated: the ratio of error × time at equal time. Target (docs/renderer.md, 'Hierarchical plan'): "
         "hierarchical `rmse_lowfreq` ≤ 0.8.",
         "",
         "| scene | plan | reference | rmse | rmse_masked | rmse_lowfreq | MM points compared |",

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """RMSE of the standalone photon-map image against the converged path-traced reference.
 
-Issue #3: N in {100k, 1M} x k in {50, 200} on the Cornell box and CornellBox-Sphere, with
+N in {100k, 1M} x k in {50, 200} on the Cornell box and CornellBox-Sphere, with
 times. Renders with `pf render --integrator photonmap`, compares with `pf diff --json`, and
 writes a Markdown table and JSON (docs/results/photon_map_rmse.{md,json}) plus PNG previews
 of every image so the artifacts of Wald 1999 §3.3 can be looked at.

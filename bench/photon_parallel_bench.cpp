@@ -1,5 +1,6 @@
 // Photon tracing and the left-balanced kd-tree build on 1 thread against N threads, side by
-// side in one run (issue #12: "photon tracing and balancing scale with threads").
+// side in one run (docs/farm.md, "Photon maps traced once": "photon tracing and balancing scale with
+// threads").
 //
 // Default: the default farm job's map — scenes/cornell-box, 1M emitted photons, map seed 1 —
 // traced with TracePhotons (common/photon/photon_tracer.h), then its direct + indirect photons

@@ -10,7 +10,7 @@
 // runs on one thread, so on a shared, loaded machine this leaves out the time spent waiting for
 // a core.
 //
-// Ratio to the raw Embree ray rate (issue #18: photon tracing at >= 60 % of it): around every
+// Ratio to the raw Embree ray rate (docs/results/kernel.md: photon tracing at >= 60 % of it): around every
 // trace the same process times embree_bench's incoherent secondary rays of the scene
 // (bench/raw_rays.h, 5 passes over a 256² image's rays, on the same clock), once before and once
 // after; each repeat's ratio is its photon rays/s over the mean of those two raw rates, and the

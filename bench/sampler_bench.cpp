@@ -1,7 +1,7 @@
-// The samplers' cost (issue #11): nanoseconds per 1-D and 2-D number for the independent and the
-// Sobol sampler, and the renderer's time per sample with each (path tracer and photon-map
-// integrator on the Cornell box), measured side by side in one run: the variants alternate
-// within every repeat, and the medians and their ratio are printed as a table and JSON.
+// The samplers' cost (docs/renderer.md, "Sampling and determinism"): nanoseconds per 1-D and 2-D number for
+// the independent and the Sobol sampler, and the renderer's time per sample with each (path tracer and
+// photon-map integrator on the Cornell box), measured side by side in one run: the variants alternate within
+// every repeat, and the medians and their ratio are printed as a table and JSON.
 //
 //   build/bench/sampler_bench [--repeats 7] [--res 128] [--spp 8] [--integrator path|photonmap]
 //                             [--json out.json]     (--integrator: time only that one)

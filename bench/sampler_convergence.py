@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Convergence of the independent and the Sobol sampler (issue #11).
+"""Convergence of the independent and the Sobol sampler (docs/renderer.md, 'Sampling and determinism').
 
 Runs build/bench/sampler_convergence_bench (one progressive path-traced render per scene and
 sampler, 1 ... --max-spp samples per pixel, plus the photon-map emission experiment), keeps every

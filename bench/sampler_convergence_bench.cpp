@@ -1,5 +1,5 @@
-// Convergence of the samplers against a converged reference (issue #11), driven by
-// bench/sampler_convergence.py. Two modes, each printing one JSON object per line:
+// Convergence of the samplers against a converged reference (docs/renderer.md, "Sampling and determinism"),
+// driven by bench/sampler_convergence.py. Two modes, each printing one JSON object per line:
 //
 //  progressive (default): renders 1, 2, 4, ... --max-spp samples per pixel in ONE progressive
 //    render (samples [2^k, 2^(k+1)) are added to the sums of the first 2^k: for the Sobol sampler

@@ -208,7 +208,7 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
         EmitterExclusionMask(EmitterCoverage(accel, Camera(spec, scene.origin)), spec.width, spec.height);
   }
   if (!region.empty()) {
-    // A part of the image, e.g. a caustic (issue #15): every metric over its pixels only; the
+    // A part of the image, e.g. a caustic (docs/renderer.md): every metric over its pixels only; the
     // emitter mask is traced at the full resolution first, so its band is where it was.
     const std::array<int, 4> r = {region[0], region[1], region[2], region[3]};
     if (a.width() != ref.width() || a.height() != ref.height())

@@ -102,7 +102,7 @@ LocalFarm::LocalFarm(LocalFarmOptions options) : options_(std::move(options)) {
         "--listen", "127.0.0.1:0", "--data-dir", (dir_ / "data").string(), "--client-token-file",
         token_file.string(), "--worker-token-file", worker_token_file.string(), "--log-level",
         options_.log_level,
-        // Issue #12: the workers wait for a distributed map while the
+        // The workers wait for a distributed map while the
         // coordinator balances it, so on one machine it may use their cores.
         "--map-build-threads", std::to_string(std::max(1, options_.workers * options_.threads_per_worker)),
         // Its workers are this machine's processes of this build: nothing to verify (docs/farm.md,

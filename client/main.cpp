@@ -292,7 +292,7 @@ int main(int argc, char** argv) {
               opt, std::string(
                        "applies to plan renders only (add --plan P, --local-only or "
                        "--workers N); a plain render runs the default plan (one map, 64-pixel tiles) here"));
-    // Issue #12: who traces the maps is a farm setting; in one process they are traced here.
+    // Who traces the maps is a farm setting; in one process they are traced here.
     if (*render && ra.workers == 0 && render->count("--map-tracing") > 0)
       throw CLI::ValidationError("--map-tracing",
                                  "applies to farm renders only (--workers N); in one process the maps are "

@@ -395,7 +395,7 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
   app->add_option("--target-noise", a.target_noise, "Stop rule: estimated noise RMS to reach (0 = none)");
   app->add_option("--priority", a.priority, "Job priority (higher first)");
   app->add_option("--name", a.name, "Job name (default: the scene's file name)");
-  // Issue #12 (mapship).
+  // Who traces the maps (docs/farm.md, "Photon maps traced once").
   app->add_option("--map-tracing", a.map_tracing,
                   "farm, photonmap: who traces the photon maps: auto (traced once in pieces by the workers "
                   "and built once by the coordinator when several tasks use a kd-tree map), local (each "
@@ -442,8 +442,8 @@ PreparedJob PrepareJob(const RenderArgs& a) {
   // the workers decide alike from the same scene.
   ResolveAndLog(SettingsFromProto(s.settings(), "settings"), p.scene);
 
-  // --plan auto is the farm's default (issue #12: --workers, submit); --local-only and a plain
-  // render keep multiple maps unless asked.
+  // --plan auto is the farm's default (docs/farm.md, "Choosing the plan": --workers, submit); --local-only
+  // and a plain render keep multiple maps unless asked.
   const std::string plan = !a.plan.empty()                                ? a.plan
                            : (a.workers > 0 && !a.local_only) || a.submit ? "auto"
                                                                           : "multiple-maps";

@@ -93,11 +93,11 @@ struct RenderArgs {
   std::string coordinator_bin, worker_bin;
   std::vector<std::string> coordinator_args, worker_args;
   bool keep_farm_dir = false;
-  // --plan auto (issue #12): the plan-shape flags given on the command line (--maps, --stride, …),
-  // which auto would ignore: an error with it.
+  // --plan auto (docs/farm.md, "Choosing the plan"): the plan-shape flags given on the command line (--maps,
+  // --stride, …), which auto would ignore: an error with it.
   std::vector<std::string> plan_flags_given;
   bool submit = false;  // `pf submit`: --plan defaults to auto, as with --workers
-  // Issue #12 (mapship): --map-tracing auto|local|distributed.
+  // --map-tracing auto|local|distributed.
   std::string map_tracing = "auto";
 };
 

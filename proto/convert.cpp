@@ -383,7 +383,8 @@ void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {
   pm->set_occlusion_test(s.occlusion_test);
   pm->set_adaptive_k_min(uint32_t(s.adaptive_k_min));
   pm->set_kd_split(s.kd_split == KdSplitRule::kLevelCycle ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
-  if (s.map_tracing != MapTracingMode::kAuto)  // auto stays unset: specs stored before issue #12 read alike
+  if (s.map_tracing !=
+      MapTracingMode::kAuto)  // auto stays unset: specs stored before the setting existed read alike
     pm->set_map_tracing(s.map_tracing == MapTracingMode::kLocal ? v1::MAP_TRACING_LOCAL
                                                                 : v1::MAP_TRACING_DISTRIBUTED);
   pm->set_importance(s.importance == ImportanceMode::kOn     ? v1::IMPORTANCE_MODE_ON

@@ -98,7 +98,7 @@ struct CoordinatorOptions {
   // Web status page (server/http/); empty: none. HTTPS with tls_cert_pem when set; without it,
   // a non-loopback address is refused like `listen` (docs/security.md, "The web status page").
   std::string http_listen;
-  // Issue #12: photon maps traced once (server/scheduling/distributed_maps.h).
+  // Photon maps traced once (server/scheduling/distributed_maps.h).
   int map_build_threads = 1;           // threads of one map's assembly and balance
   uint64_t map_chunk_photons = 65536;  // photons per traced piece
   // Lease to workers of another build too (LeaseTaskRequest.worker_version; docs/farm.md

@@ -3,4 +3,6 @@
 // exit codes; worker.h: the state machine).
 #include "worker/worker_main.h"
 
-int main(int argc, char** argv) { return pf::worker::RunWorkerProcess(argc, argv, nullptr); }
+int main(int argc, char** argv) {
+  return pf::worker::RunWorkerProcess(argc, argv, nullptr);
+}

@@ -1,5 +1,5 @@
 #pragma once
-// The worker's photon maps on disk (issue #12): the byte form of built maps
+// The worker's photon maps on disk (docs/farm.md, "Photon maps traced once"): the byte form of built maps
 // (common/photon/photon_maps_bytes.h) by content address (MapRef.map_key), so that a restarted
 // worker, or a later job with the same scene, settings and seed, fetches nothing.
 //

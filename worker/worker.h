@@ -75,7 +75,7 @@ struct WorkerOptions {
   size_t map_cache_capacity = 4;       // photon maps kept (LRU)
   size_t scene_cache_capacity = 2;     // SceneRuntimes kept in memory (LRU)
   uint64_t max_tasks = 0;  // exit 0 after this many reported tasks (0 = never); for batch schedulers
-  // Issue #12: built maps fetched from the coordinator, on disk by content address (LRU).
+  // Built maps fetched from the coordinator, on disk by content address (LRU).
   std::filesystem::path map_cache_dir;           // "" = <cache_dir>/maps
   uint64_t map_cache_bytes = uint64_t(4) << 30;  // 0 = keep none on disk
   // Tests only (worker_faults.h): kill points, corrupted arrivals, tampered results. Null in
@@ -180,7 +180,7 @@ class Worker {
                 bool retryable);
   void Heartbeat(const photonfarm::v1::Task& task, const std::string& ctx, std::shared_ptr<Execution> exec);
   SceneBundle FetchBundle(const std::string& hash, const std::string& entry);
-  // Issue #12 (worker_maps.cpp): a piece of a map to trace and upload; a built map to fetch.
+  // A piece of a map to trace and upload; a built map to fetch.
   Outcome RunTraceChunk(const photonfarm::v1::Task& task);
   // Puts the task's map (Task.map) into maps_ from disk or by FetchMap, unless tracing it here is
   // faster (cost model, logged); returns nullopt to go on rendering.
@@ -212,8 +212,9 @@ class Worker {
   std::unique_ptr<photonfarm::v1::WorkerService::Stub> stub_;
   SceneCache scenes_;
   MapDiskCache map_disk_;
-  // Cost model of trace-or-fetch (issue #12), measured here: seconds per photon of tracing and
-  // building a map with options_.threads, and bytes per second of fetches. 0 = not measured yet.
+  // Cost model of trace-or-fetch (docs/farm.md, "Photon maps traced once"), measured here: seconds per photon
+  // of tracing and building a map with options_.threads, and bytes per second of fetches. 0 = not measured
+  // yet.
   double seconds_per_photon_ = 0, bytes_per_second_ = 0;
   std::map<std::string, std::string> fetched_maps_;  // NoteFetchedMap; guarded by mutex_
   std::shared_ptr<PhotonMapCache> maps_;  // shared with a render thread that may outlive a hand-back

@@ -1,4 +1,4 @@
-// pf-worker's part in photon maps traced once (issue #12; docs/farm.md "Photon maps traced once"):
+// pf-worker's part in photon maps traced once (docs/farm.md "Photon maps traced once"):
 // tracing a piece of a map and uploading it, and getting a built map — from memory, from the disk
 // cache, by FetchMap, or by tracing it here when the cost model says that is faster.
 #include <spdlog/spdlog.h>
@@ -238,8 +238,8 @@ std::optional<Worker::Outcome> Worker::ObtainMap(const v1::Task& task, const std
     spdlog::warn("map disk cache {}: {}", map_disk_.dir().string(), e.what());
   }
 
-  // Trace or fetch (issue #12): photons × measured seconds per photon against bytes ÷ measured
-  // bandwidth. The same map either way (docs/design.md, G1), so only time is at stake.
+  // Trace or fetch (docs/farm.md, "Photon maps traced once"): photons × measured seconds per photon against
+  // bytes ÷ measured bandwidth. The same map either way (docs/design.md, G1), so only time is at stake.
   const double spp = seconds_per_photon_ > 0 ? seconds_per_photon_ : kDefaultSecondsPerPhoton;
   const double bps = bytes_per_second_ > 0 ? bytes_per_second_ : kDefaultBytesPerSecond;
   const double trace_s = double(parsed.settings.photons) * spp;

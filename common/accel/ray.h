@@ -83,7 +83,7 @@ inline float Ulp(float v) {
 // scales with the triangle, not with the coordinates: the scene floor `scene_epsilon` (a
 // millionth of the scene's diagonal) covers it, and points near the origin of a large scene.
 //
-// Before (issue #15): a fixed 2^-15 of the largest coordinate, 256 ulps: 3 m at 1e5, 30 m at
+// Before (docs/renderer.md): a fixed 2^-15 of the largest coordinate, 256 ulps: 3 m at 1e5, 30 m at
 // 1e6, which threw rays out of a translated room (docs/results/hard_cases.md).
 inline constexpr float kRayOffsetUlps = 2.0f;
 

@@ -39,7 +39,7 @@ struct ImageDiffStats {
   size_t pixels = 0;  // pixels compared (finite in both images)
   size_t nonfinite_a = 0, nonfinite_b = 0;
 
-  // With an exclusion mask only (see EmitterExclusionMask; issue #11):
+  // With an exclusion mask only (see EmitterExclusionMask):
   //   rmse_masked  = RMSE over the compared pixels outside the mask: the noise where the eye
   //                  looks, without the emitters seen directly and the band around them, whose
   //                  partly covered pixels (radiance 17 next to 0.5) dominate the raw RMSE.

@@ -1,8 +1,8 @@
 #pragma once
-// A map traced in pieces (issue #12, distributed photon tracing): photons [begin, end) of one
-// map, traced by any worker, travel to the coordinator in the compact 18-byte form (Wald 1999,
-// §2.2) with only the per-photon attributes the estimators need; the coordinator concatenates
-// the pieces in photon order and builds the maps once.
+// A map traced in pieces (docs/farm.md, "Photon maps traced once"; distributed photon tracing): photons
+// [begin, end) of one map, traced by any worker, travel to the coordinator in the compact 18-byte form (Wald
+// 1999, §2.2) with only the per-photon attributes the estimators need; the coordinator concatenates the
+// pieces in photon order and builds the maps once.
 //
 // Why the result equals a one-process PhotonMaps::Build: photon i draws from its own sample
 // streams (photon_tracer.h), pieces start at multiples of kPhotonTracingChunk, so each of the

@@ -1,6 +1,6 @@
 #pragma once
 // PhotonMaps as bytes: the versioned form in which a map built once travels to the workers and
-// sits in their disk caches (issue #12; docs/farm.md "Photon maps on the wire").
+// sits in their disk caches (docs/farm.md "Photon maps on the wire").
 //
 // A left-balanced kd-tree *is* its photon array in heap order (Wald 1999, §2.3), so what is
 // written is each built map's 18-byte photon array as it is after the build, plus the 2-bit

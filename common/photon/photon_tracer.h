@@ -74,7 +74,7 @@ struct PhotonTracerOptions {
   // Trace only the photons [photon_begin, photon_end) of the map's `photons` (photon_end 0 = all):
   // a piece of the map, the same photons as in a whole trace. photon_begin must be a multiple of
   // kPhotonTracingChunk (std::invalid_argument otherwise), so that the pieces concatenated in
-  // order are the whole trace's arrays (issue #12, distributed tracing).
+  // order are the whole trace's arrays (docs/farm.md, "Photon maps traced once"; distributed tracing).
   uint64_t photon_begin = 0, photon_end = 0;
   // Importance-driven storing (§4.7); null = store every diffuse hit. Must outlive the call.
   const ImportanceMap* importance = nullptr;

@@ -16,7 +16,7 @@ namespace pf {
 
 enum class IntegratorKind { kPath, kPhotonMap };
 
-// Who traces a farm job's photon maps (issue #12; docs/farm.md "Photon maps traced once"). Never
+// Who traces a farm job's photon maps (docs/farm.md "Photon maps traced once"). Never
 // changes the image: a map traced in pieces and built once is the map a worker builds alone.
 enum class MapTracingMode {
   kAuto,         // distributed for kd-tree maps that more than one render task uses, else local
@@ -36,7 +36,8 @@ inline constexpr int kPhotonDirectMinLights = 8;
 // Everything about *how* to render that is the same for all tasks of a job.
 struct JobRenderSettings {
   IntegratorKind integrator = IntegratorKind::kPhotonMap;
-  // Pixel samples and photons (issue #11): Owen-scrambled Sobol by default.
+  // Pixel samples and photons (docs/renderer.md, "Sampling and determinism"): Owen-scrambled Sobol by
+  // default.
   SamplerKind sampler = SamplerKind::kSobol;
   uint64_t photons = 200000;
   PhotonMapKind structure = PhotonMapKind::kKdTree;
@@ -62,7 +63,7 @@ struct JobRenderSettings {
       0.0f;                     // local pass: irradiance caching, Ward's a (irradiance_cache.h); 0 = off
   bool occlusion_test = false;  // §4.1.1
   int adaptive_k_min = 0;       // §4.8; 0 = off
-  // Issue #12 (farm only; pf render --local-only traces in-process).
+  // Farm only (docs/farm.md, "Photon maps traced once"); pf render --local-only traces in-process.
   MapTracingMode map_tracing = MapTracingMode::kAuto;
   // Importance-driven photon maps (§4.7; common/photon/importance_map.h). `auto` is decided per
   // map by a pilot with fixed seeds (the same for every map of a job) and logged.

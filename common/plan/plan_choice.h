@@ -33,10 +33,10 @@ inline constexpr uint64_t kAutoTasksPerWorker = 4;
 inline constexpr uint64_t kAutoMaxPixelsPerTask = uint64_t(4) << 20;
 
 // Whether auto should plan for one large shared map, traced once and fetched by the workers
-// (issue #12, map shipping, which exists: server/scheduling/distributed_maps.h). Off: per-task
-// maps use the same photon budget with no transfer and no coordinator balance on the critical
-// path (docs/farm.md, "Choosing the plan", says why and what switching it on changes). The
-// coordinator and `pf render --local-only --plan auto` pass it to ChoosePlan.
+// (docs/farm.md, "Photon maps traced once"; map shipping, which exists:
+// server/scheduling/distributed_maps.h). Off: per-task maps use the same photon budget with no transfer and
+// no coordinator balance on the critical path (docs/farm.md, "Choosing the plan", says why and what switching
+// it on changes). The coordinator and `pf render --local-only --plan auto` pass it to ChoosePlan.
 inline constexpr bool kMapsCanBeShipped = false;
 
 struct PlanChoiceInput {
@@ -48,7 +48,8 @@ struct PlanChoiceInput {
   bool caustic_map = false;        // the job builds a caustic map (the scene has caustic paths)
   double time_budget_seconds = 0;  // the stop rule: 0 = none
   double target_noise_rms = 0;     // 0 = none
-  // One map traced once and fetched by every worker (issue #12, map shipping). False today.
+  // One map traced once and fetched by every worker (docs/farm.md, "Photon maps traced once"; map shipping).
+  // False today.
   bool maps_can_be_shipped = false;
 };
 

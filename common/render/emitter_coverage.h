@@ -1,9 +1,9 @@
 #pragma once
-// Where a camera sees emitters directly (issue #11: the masked error metrics of `pf diff` and the
-// convergence study). Geometric, from the scene itself rather than from an image's brightness: a
-// luminance threshold would take a brightly lit wall for a light and miss a dim light (the
-// CornellBox-Sphere light has radiance 1, less than some lit surfaces elsewhere), while the scene
-// knows exactly which surfaces emit.
+// Where a camera sees emitters directly (docs/renderer.md, "Sampling and determinism": the masked error
+// metrics of `pf diff` and the convergence study). Geometric, from the scene itself rather than from an
+// image's brightness: a luminance threshold would take a brightly lit wall for a light and miss a dim light
+// (the CornellBox-Sphere light has radiance 1, less than some lit surfaces elsewhere), while the scene knows
+// exactly which surfaces emit.
 
 #include <vector>
 

@@ -1,8 +1,8 @@
 #pragma once
-// The dimension layout (issue #11): which sampler slot (common/sampling/sampler.h) feeds which
-// decision. Every decision has its own slot, so bounces, light samples and Russian roulette never
-// share (and so never correlate through) one low-discrepancy sequence; a slot asked for several
-// numbers per sample (shadow rays, gather rays) takes them at sub-indices j < N.
+// The dimension layout (docs/renderer.md, "Sampling and determinism"): which sampler slot
+// (common/sampling/sampler.h) feeds which decision. Every decision has its own slot, so bounces, light
+// samples and Russian roulette never share (and so never correlate through) one low-discrepancy sequence; a
+// slot asked for several numbers per sample (shadow rays, gather rays) takes them at sub-indices j < N.
 //
 // Camera paths (path tracer and photon-map integrator):
 //   slot 0                       pixel position (2-D)

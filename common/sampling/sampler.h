@@ -1,8 +1,9 @@
 #pragma once
-// Where the random numbers of one estimate come from (issue #11): one `Sampler` per pixel sample
-// or per photon, asked for numbers by *dimension slot* (common/sampling/sample_layout.h), never
-// by call order, so that the same slot means the same decision (bounce 2's BSDF direction, the
-// RR test at vertex 1, ...) in every sample of a pixel and every photon of a map.
+// Where the random numbers of one estimate come from (docs/renderer.md, "Sampling and determinism"): one
+// `Sampler` per pixel sample or per photon, asked for numbers by *dimension slot*
+// (common/sampling/sample_layout.h), never by call order, so that the same slot means the same decision
+// (bounce 2's BSDF direction, the RR test at vertex 1, ...) in every sample of a pixel and every photon of a
+// map.
 //
 //  * kIndependent: every number from the sample's own PCG stream, Rng::ForKey(HashKey(seed,
 //    pixel, sample)) (photons: HashKey(map seed, index, "photon")), drawn in call order — the

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Self-contained test of deploy/slurm/pf-worker.sbatch on this machine (issue #16). As root it
+# Self-contained test of deploy/slurm/pf-worker.sbatch on this machine (deploy/README.md). As root it
 # brings up munge, slurmctld and slurmd (one node: this host and its CPUs, Slurm state in a
 # temporary folder), starts a pf-coordinator on loopback, submits a render job, runs the
 # workers as a Slurm job array, cancels one array element mid-job (scancel JOB_INDEX), and checks

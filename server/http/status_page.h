@@ -1,5 +1,5 @@
 #pragma once
-// The coordinator's web status page (pf-coordinator --http ADDR; issue #16), served with Debian's
+// The coordinator's web status page (pf-coordinator --http ADDR), served with Debian's
 // cpp-httplib next to the gRPC port:
 //
 //   GET /                      HTML: jobs (progress, noise, ETA, tasks per state), workers (id,

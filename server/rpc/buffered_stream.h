@@ -5,7 +5,7 @@
 // Executor once the previous one has been written, and the call finishes OK at the source's end
 // — or with an error mapped by StatusFromException. A stream thus holds one message (≤ 1 MiB)
 // whatever the size of the answer: twenty unread streams of a 60 MiB scene used to hold 1.35 GB
-// (issue #12); now they hold twenty chunks, and the files stay on disk.
+// (docs/farm.md, "Photon maps traced once"); now they hold twenty chunks, and the files stay on disk.
 
 #include <functional>
 #include <string>

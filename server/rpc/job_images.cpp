@@ -18,8 +18,9 @@ std::string Vec(const photonfarm::v1::Vec3& v) {
   return fmt::format("{},{},{}", v.x(), v.y(), v.z());
 }
 
-// What the image is of, so that `pf info x.exr` and `pf merge` can tell (issue #16): the job's
-// scene, camera, integrator, photon-map settings, plan and seed, the build and the date.
+// What the image is of, so that `pf info x.exr` and `pf merge` can tell (docs/farm.md, "Command-line
+// contract"): the job's scene, camera, integrator, photon-map settings, plan and seed, the build and the
+// date.
 void AddJobMetadata(const photonfarm::v1::JobStatus& status, ImageMetadata& meta) {
   namespace v1 = photonfarm::v1;
   const v1::JobSpec& spec = status.spec();

@@ -26,7 +26,7 @@ struct ServiceContext {
   WatchHub& watches;
   Admission& admission;  // per-client and global budgets (server/rpc/budgets.h)
   const Clock& clock;
-  DistributedMaps& maps;  // issue #12: photon maps traced once
+  DistributedMaps& maps;  // Photon maps traced once
   // Which workers get leases: only those of `build_version` (the coordinator's PF_VERSION)
   // unless `allow_mixed_versions` (LeaseTaskRequest.worker_version, docs/farm.md "Upgrades").
   std::string build_version;

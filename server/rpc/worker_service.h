@@ -24,7 +24,7 @@ namespace pf::server {
 
 inline constexpr double kMaxLeaseWaitSeconds = 30;
 inline constexpr size_t kSceneChunkBytes = size_t(1) << 20;
-// Map pieces and maps travel in parts of at most this much data (issue #12).
+// Map pieces and maps travel in parts of at most this much data (docs/farm.md, "Photon maps traced once").
 inline constexpr size_t kMapPartBytes = size_t(1) << 20;
 // A traced piece larger than this is refused (RESOURCE_EXHAUSTED): 65536 photons are ~1.2 MB with
 // every attribute (34 bytes per photon); this allows pieces of millions.
@@ -39,7 +39,7 @@ class WorkerServiceImpl final : public photonfarm::v1::WorkerService::CallbackSe
   PF_UNARY_HANDLER(CompleteTask, CompleteTaskRequest, CompleteTaskResponse);
   PF_UNARY_HANDLER(FailTask, FailTaskRequest, FailTaskResponse);
   PF_STREAM_HANDLER(FetchScene, FetchSceneRequest, SceneFile);
-  // Issue #12: photons traced once (server/scheduling/distributed_maps.h).
+  // Photons traced once (server/scheduling/distributed_maps.h).
   grpc::ServerReadReactor<photonfarm::v1::PhotonChunkPart>* UploadPhotonChunk(
       grpc::CallbackServerContext* context, photonfarm::v1::UploadPhotonChunkResponse* response) override;
   PF_STREAM_HANDLER(FetchMap, FetchMapRequest, MapBytes);

@@ -1,5 +1,5 @@
 #pragma once
-// Photon maps traced once (issue #12; docs/farm.md "Photon maps traced once"): the coordinator's
+// Photon maps traced once (docs/farm.md "Photon maps traced once"): the coordinator's
 // side of distributed photon tracing.
 //
 //   job submitted ──▶ map pieces queued (TraceChunk tasks, served before render tasks)

@@ -1,5 +1,5 @@
 #pragma once
-// The scheduler's hook for photon maps traced once (issue #12; docs/farm.md "Photon maps traced
+// The scheduler's hook for photon maps traced once (docs/farm.md "Photon maps traced
 // once"): work that comes before render tasks (pieces of maps to trace) and a gate that keeps a
 // render task out of the queue until its map is built. Implemented by DistributedMaps
 // (distributed_maps.h); a Scheduler without one behaves as before.

@@ -309,7 +309,7 @@ class Scheduler final : public PersistSource {
   // No more leases; parked long polls are answered "no task".
   void Shutdown();
 
-  // --- Photon maps traced once (issue #12, map_tracing_hook.h) ---
+  // --- Photon maps traced once (docs/farm.md, "Photon maps traced once"; map_tracing_hook.h) ---
   // Set before jobs are added; `work` outlives the scheduler's use of it.
   void SetMapTracingHook(MapTracingHook* work);
   // The map `map_index` of the job is built (or left to its workers): its held render tasks join

@@ -247,8 +247,8 @@ std::string Comparable(PhotonMaps maps) {
   return SerializePhotonMaps(maps);
 }
 
-// Issue #12's distributed tracing with splitting: pieces (cut at multiples of the tracer's chunk,
-// through their byte form) assemble to the map one process builds.
+// Distributed tracing (docs/farm.md, "Photon maps traced once") with splitting: pieces (cut at multiples of
+// the tracer's chunk, through their byte form) assemble to the map one process builds.
 TEST(CausticSplitting, PiecesAssembleToTheOneProcessMap) {
   const SceneRuntime scene(LoadScene(
       (std::filesystem::path(PF_SOURCE_DIR) / "scenes" / "cornell-sphere/cornell-sphere.json").string()));

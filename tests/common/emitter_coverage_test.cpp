@@ -1,6 +1,6 @@
-// The masked metrics of pf diff (issue #11): where emitters are seen directly
-// (common/render/emitter_coverage.h), the exclusion band around them, rmse_masked and
-// rmse_lowfreq (common/image/image_diff.h), checked against hand-computed values.
+// The masked metrics of pf diff (docs/renderer.md, "Sampling and determinism"): where emitters are seen
+// directly (common/render/emitter_coverage.h), the exclusion band around them, rmse_masked and rmse_lowfreq
+// (common/image/image_diff.h), checked against hand-computed values.
 #include "common/render/emitter_coverage.h"
 
 #include <gtest/gtest.h>

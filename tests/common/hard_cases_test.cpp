@@ -1,4 +1,4 @@
-// Numerically hard scenes (issue #15, "Hard cases"; results in docs/results/hard_cases.md): each
+// Numerically hard scenes (docs/renderer.md; "Hard cases"; results in docs/results/hard_cases.md): each
 // renders a finite image with the analytic mean where one exists, or fails with a clear error —
 // never NaN, a hang or a crash.
 #include <gtest/gtest.h>
@@ -125,7 +125,7 @@ void Translate(RoomSetup& r, const Vec3& offset) {
 
 // Path tracer and photon map traced in world coordinates (EmbreeScene built from the translated
 // description directly, no local frame): only the ray offsets stand between the renderer and
-// self-intersection. Before issue #15 the offset was 2^-15 of the largest coordinate (3 m at
+// self-intersection. Before the local frame the offset was 2^-15 of the largest coordinate (3 m at
 // 1e5, 30 m at 1e6: rays left the 2 m room): the path tracer gave 0.0342 and 0.0553 here instead
 // of 0.1629. The untranslated room's seeds differ by < 0.1 % (path, Sobol) and ~1 % (photon map,
 // 50k photons), so 1 % and 3 % are > 3σ bounds.
@@ -254,7 +254,7 @@ INSTANTIATE_TEST_SUITE_P(Offsets, HardCasesTranslatedWorld, ::testing::Values(1e
 // The product's path (the scene's frame, RenderPlanLocally): the room translated by 1e5 or 1e6
 // renders the original image to 1e-4 (same seeds; the original room, around the origin, is
 // traced unmoved and the far one centred, so they differ only in rounding), with either
-// integrator. Before issue #15 (no local frame, 256-ulp offsets): path 0.0342 / 0.0553 and photon
+// integrator. Before the local frame (256-ulp offsets): path 0.0342 / 0.0553 and photon
 // map 0.0341 / 0.0554 for 0.1629 / 0.1637; with the new offsets but without the local frame the
 // photon map at 1e6 gave 0.0793 for 0.1614 (200k photons, k = 20: photons piled on the 6.25 cm
 // float lattice).

@@ -224,14 +224,14 @@ double MaskedMean(const Image& img, const std::vector<bool>& mask) {
   return n ? sum / double(n) : 0.0;
 }
 
-// Unbiased in the image where the importance is low (issue #15's must-show): with strength 1
-// the map thins every hit whose importance is below the mean, and the pixels whose visible
-// point has p <= 0.5 (the far walls seen at grazing angles, the strip of room A through the
-// door) are the low-importance region. Its mean and the whole image's mean with importance on,
-// over 8 maps, agree with the path tracer's (8 runs of 256 spp) within 4 standard errors of the
-// difference plus 2 % for the photon map's own kernel bias (which importance off must meet too;
-// measured: off 0.4 %, on 0.9 % — the thinned map's larger disks blur more). Without the Φ/p
-// weighting the low-importance mean falls to 0.47 of the path tracer's and this test fails.
+// Unbiased in the image where the importance is low (docs/renderer.md, "Importance-driven photon maps"): with
+// strength 1 the map thins every hit whose importance is below the mean, and the pixels whose visible point
+// has p <= 0.5 (the far walls seen at grazing angles, the strip of room A through the door) are the
+// low-importance region. Its mean and the whole image's mean with importance on, over 8 maps, agree with the
+// path tracer's (8 runs of 256 spp) within 4 standard errors of the difference plus 2 % for the photon map's
+// own kernel bias (which importance off must meet too; measured: off 0.4 %, on 0.9 % — the thinned map's
+// larger disks blur more). Without the Φ/p weighting the low-importance mean falls to 0.47 of the path
+// tracer's and this test fails.
 TEST(ImportanceMapTest, ImageMeanMatchesThePathTracerWhereTheImportanceIsLow) {
   const TwoRooms r = MakeTwoRooms();
   const SceneRuntime runtime(r.scene);

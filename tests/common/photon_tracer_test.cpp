@@ -227,7 +227,7 @@ TEST(PhotonTracer, CausticClassificationFollowsTheThesisDefinition) {
   EXPECT_FALSE(SceneNeedsCausticMap(diffuse_only));
 }
 
-// Issue #3: in the furnace the direct visualisation of the estimate equals Le/(1−a) within 2 %
+// In the furnace the direct visualisation of the estimate equals Le/(1−a) within 2 %
 // (N = 1M photons, k = 100). One estimate from k photons has a relative std of ~1/√k = 10 %
 // and neighbouring estimates share photons (the low-frequency noise of §3.3). A pixel of this
 // 4×4, 90° camera covers ~0.5 m of wall, ~700 disjoint search disks of r ≈ 9 mm, so its

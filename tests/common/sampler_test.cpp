@@ -1,6 +1,6 @@
-// The samplers of common/sampling (issue #11): stratification of the Sobol points (and its
-// absence for the independent sampler), uniformity, independence of streams with different keys
-// (photon maps, pixels), the scramble's quality, and order-independence.
+// The samplers of common/sampling (docs/renderer.md, "Sampling and determinism"): stratification of the Sobol
+// points (and its absence for the independent sampler), uniformity, independence of streams with different
+// keys (photon maps, pixels), the scramble's quality, and order-independence.
 #include "common/sampling/sampler.h"
 
 #include <gtest/gtest.h>

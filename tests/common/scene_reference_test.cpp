@@ -179,7 +179,7 @@ TEST(BundlePaths, AFileCannotAlsoBeAFolder) {
   }
 }
 
-// Issue #14: an OBJ with a NaN vertex was accepted (tinyobjloader reads "nan" as a number).
+// An OBJ with a NaN vertex was accepted (tinyobjloader reads "nan" as a number).
 TEST_F(SceneReferenceTest, ObjVerticesMustBeFiniteNumbers) {
   for (const char* bad : {"nan", "inf", "-inf", "1e999", "1e39", "0x1p3", "abc"}) {
     const fs::path p = Write("scene/bad.obj", std::string("v 0 0 0\nv 1 0 ") + bad + "\nv 0 1 0\nf 1 2 3\n");

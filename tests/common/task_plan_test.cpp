@@ -243,7 +243,7 @@ TEST(Accumulator, RejectsBadResults) {
   EXPECT_THAT(check({1, 2, 3e9f}, 1, 1).reason, ::testing::HasSubstr("range"));
   EXPECT_TRUE(check({1, 2, 3}, 1, 1).ok());
   EXPECT_EQ(check({1, 2, 3}, 1, 1).reason, "");
-  // Issue #14: radiance is never negative; -0.0 is zero.
+  // Radiance is never negative; -0.0 is zero.
   const ResultCheck negative = check({1, -1e-6f, 3}, 1, 1);
   EXPECT_EQ(negative.verdict, V::kInvalid);
   EXPECT_THAT(negative.reason, ::testing::HasSubstr("rgb_sums[1] = -0.000001 is negative"));

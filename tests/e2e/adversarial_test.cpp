@@ -1,4 +1,4 @@
-// Issue #14: a property test that throws random, well-formed but adversarial requests at a live
+// A property test that throws random, well-formed but adversarial requests at a live
 // pf-coordinator process — SubmitJob specs with boundary and absurd values, LeaseTask with odd
 // worker ids and waits, CompleteTask with wrong sizes / NaN / negative / huge sums for real and
 // forged leases, ExtendLease, CompleteTask and FailTask with other workers' leases or no worker id,

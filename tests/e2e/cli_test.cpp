@@ -1,6 +1,6 @@
-// The command-line contract of pf, pf-worker and pf-coordinator as a new user meets it (issue #16,
-// "rough edges"): usage errors exit 2 in all three, --version, names that say what is written,
-// outputs checked before the work, the farm's limits, manifest settings and warnings, pf merge's
+// The command-line contract of pf, pf-worker and pf-coordinator as a new user meets it (docs/farm.md,
+// "Command-line contract"; "rough edges"): usage errors exit 2 in all three, --version, names that say what
+// is written, outputs checked before the work, the farm's limits, manifest settings and warnings, pf merge's
 // weights, pf info on an EXR. Every test runs the real binaries.
 #include <gtest/gtest.h>
 
@@ -158,7 +158,7 @@ TEST(Cli, FlagLimitsAreTheFarmsLimits) {
   EXPECT_NE(r.out.find("--k <= 10000"), std::string::npos) << r.out;
 }
 
-// Issue #14: one task cap (proto/limits.h, 2^20). A local plan of 2^20 + 1 = 17 x 61681 tasks is
+// One task cap (proto/limits.h, 2^20). A local plan of 2^20 + 1 = 17 x 61681 tasks is
 // refused at once (exit 3) with the farm's message; it used to start rendering (the plan code
 // allowed 2^24, the coordinator 2^20).
 TEST(Cli, LocalPlanTaskCapIsTheFarms) {

@@ -24,7 +24,8 @@ class EnvironmentFaults : public pf::worker::WorkerFaults {
  public:
   EnvironmentFaults() {
     if (const char* at = std::getenv("PF_TEST_PAUSE_AT")) pause_at_ = at;
-    if (const char* s = std::getenv("PF_TEST_PAUSE_SECONDS")) pause_seconds_ = std::clamp(std::atof(s), 0.0, 120.0);
+    if (const char* s = std::getenv("PF_TEST_PAUSE_SECONDS"))
+      pause_seconds_ = std::clamp(std::atof(s), 0.0, 120.0);
     corrupt_next_part_ = std::getenv("PF_TEST_CORRUPT_MAP_PART") != nullptr;
   }
 
@@ -42,7 +43,8 @@ class EnvironmentFaults : public pf::worker::WorkerFaults {
     if (!corrupt_next_part_ || data.empty()) return;
     corrupt_next_part_ = false;  // once per process
     data[data.size() / 2] = char(data[data.size() / 2] ^ 0x5a);
-    spdlog::warn("PF_TEST_CORRUPT_MAP_PART: part {} of map {} corrupted on arrival", index, map_key.substr(0, 12));
+    spdlog::warn("PF_TEST_CORRUPT_MAP_PART: part {} of map {} corrupted on arrival", index,
+                 map_key.substr(0, 12));
   }
 
  private:

@@ -1,4 +1,4 @@
-// The hierarchical plan (Wald 1999, §4.5; issue #13) on a real farm: the coordinator creates the
+// The hierarchical plan (Wald 1999, §4.5) on a real farm: the coordinator creates the
 // localization tasks from merged results, and the image is bit-identical to the single-process
 // render of the same plan and seed (`pf render --local-only`)
 //  (a) for 1, 2 and 3 workers started by `pf render --workers N`;
@@ -204,7 +204,7 @@ int LevelInProgress(const std::vector<std::pair<size_t, size_t>>& levels, size_t
   return -1;
 }
 
-// Issue #13's farm check in one run: three workers, one SIGKILLed mid-task, then the coordinator
+// The hierarchical plan's farm check in one run: three workers, one SIGKILLed mid-task, then the coordinator
 // SIGKILLed while a level ≥ 1 is partly merged and restarted on the same port and data; a
 // replacement worker joins. The killed worker's task is re-run (after its lease expired, or after
 // the restart), the restarted coordinator re-derives the level's state from its checkpoint and

@@ -47,8 +47,8 @@ TEST_F(LocalFarmTest, SkippingIsBitIdenticalForOneTwoThreeWorkersAndLocal) {
 // One render path: a plain `pf render` (no --plan, --local-only or --workers) is the farm's
 // multiple-maps plan with its defaults (1 map, 64-pixel tiles) run in this process, so it equals
 // that farm job bit for bit — for the photon map (one map, the same map seed) and for the path
-// tracer (the same pixel seeds). (The farm's own default is --plan auto since issue #12.) Before, the plain
-// render had its own loop and map seed and matched neither.
+// tracer (the same pixel seeds). (The farm's own default is --plan auto, docs/farm.md "Choosing the plan".)
+// Before, the plain render had its own loop and map seed and matched neither.
 TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
   TestDir dir;
   for (const std::string integrator : {"photonmap", "path"}) {

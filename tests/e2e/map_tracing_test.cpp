@@ -1,4 +1,4 @@
-// Photon maps traced once (issue #12, docs/farm.md "Photon maps traced once"), real processes:
+// Photon maps traced once (docs/farm.md "Photon maps traced once"), real processes:
 //  - images bit-identical for 1, 2, 3 workers and `pf render --local-only`, with the maps traced in
 //    pieces and fetched (the default for a tiled map) and with every worker tracing its own;
 //  - a worker SIGKILLed while tracing a piece, while uploading it and while fetching the built

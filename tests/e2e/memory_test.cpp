@@ -1,4 +1,4 @@
-// Coordinator memory (issue #12, docs/farm.md "Coordinator memory"): a job's accumulator —
+// Coordinator memory (docs/farm.md "Coordinator memory"): a job's accumulator —
 // 47 bytes per pixel, ~787 MB for 4096² — is allocated when its first result arrives and freed
 // once the finished job's image is in its checkpoint file, so queued and finished jobs cost
 // O(tasks), not O(pixels). Measured on the real coordinator process (VmRSS).

@@ -1,4 +1,4 @@
-// Hardening (issue #14) against a real coordinator: hostile scene bundles uploaded through the
+// Hardening (docs/security.md) against a real coordinator: hostile scene bundles uploaded through the
 // real client library. A bundle may refer only to its own files (scene_reference.h); the answer
 // is INVALID_ARGUMENT naming file:line, echoing nothing of the coordinator's files, with no
 // server path, and the same whether the outside file exists or not.

@@ -178,7 +178,7 @@ TEST(FarmValidation, WrongSizeAndNanResultsAreRejectedAndRerun) {
   const std::string job_id = r.out.substr(0, r.out.find('\n'));
 
   std::vector<uint64_t> rejected_tasks;
-  // Issue #14: -1e9 and 1e9 are finite and within the accumulator's range, so they used to be
+  // -1e9 and 1e9 are finite and within the accumulator's range, so they used to be
   // merged (the job succeeded with a mean of -125); now negative values are invalid and 1e9 is
   // above the job's bound (1024 x the brightest emitter per sample).
   for (const char* mode : {"bad-size", "nan", "negative", "huge"}) {

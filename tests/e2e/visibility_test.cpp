@@ -1,6 +1,6 @@
-// Farm visibility with real processes (issue #16): `pf workers`, `pf events JOB` (which worker ran
-// which task, retries, failures), the hint of `pf watch` when no worker is there, the farm EXR's
-// header read back by `pf info`, and a clean coordinator restart that workers take calmly.
+// Farm visibility with real processes (docs/farm.md, "Command-line contract"): `pf workers`, `pf events JOB`
+// (which worker ran which task, retries, failures), the hint of `pf watch` when no worker is there, the farm
+// EXR's header read back by `pf info`, and a clean coordinator restart that workers take calmly.
 #include <signal.h>
 
 #include <nlohmann/json.hpp>

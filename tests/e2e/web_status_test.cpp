@@ -1,4 +1,4 @@
-// The coordinator's web status page (pf-coordinator --http; issue #16) with real processes: the
+// The coordinator's web status page (pf-coordinator --http) with real processes: the
 // gRPC side's token guards it (Bearer, or Basic with the token as password), headless Chromium
 // (Debian's chromium) shows the jobs, the workers and a live preview that appears and changes as
 // the job runs, and hostile clients without a token (huge bodies and heads, slow heads) neither

@@ -365,7 +365,7 @@ TEST(Convert, HierarchyPartAndTaskPartRoundTrip) {
 namespace pf {
 namespace {
 
-// Caustic splitting (Wald 1999, §4.6; issue #15): both methods round-trip, S = 1 (or unset) is
+// Caustic splitting (Wald 1999, §4.6): both methods round-trip, S = 1 (or unset) is
 // off and serialises as before the setting existed, bad values name their field.
 TEST(Convert, CausticSplitRoundTripsAndIsValidated) {
   for (v1::CausticSplitMethod method :

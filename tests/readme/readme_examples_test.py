@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Runs every command of the README's "Using `pf`" block, in order, as written (issue #16).
+"""Runs every command of the README's "Using `pf`" block, in order, as written (docs/farm.md, 'Command-line contract').
 
 Only what a reader would fill in is substituted: `build/` becomes the build tree, `scenes/` the
 source tree's scenes, ADDR a pf-coordinator started here on loopback with two pf-workers (as the

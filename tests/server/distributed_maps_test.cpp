@@ -1,5 +1,5 @@
-// DistributedMaps (issue #12) alone, with a fake clock: the piece queue that TraceChunk leases
-// come from — oldest map first, a returned (undelivered) lease queued again at once without
+// DistributedMaps (docs/farm.md, "Photon maps traced once") alone, with a fake clock: the piece queue that
+// TraceChunk leases come from — oldest map first, a returned (undelivered) lease queued again at once without
 // counting an attempt, expiry — without a scheduler, a gRPC server or a worker.
 #include "server/scheduling/distributed_maps.h"
 

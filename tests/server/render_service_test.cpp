@@ -107,12 +107,12 @@ TEST_F(RenderServiceTest, EveryBadJobGetsTheRightCodeAndNamesTheField) {
        C::INVALID_ARGUMENT, "spec.camera.look_at: must differ from eye"},
       {"fov 180", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(180); }, C::INVALID_ARGUMENT,
        "spec.camera.vfov_degrees"},
-      // Issue #14: valid as doubles, 0 and 180 as the worker's floats.
+      // Valid as doubles, 0 and 180 as the worker's floats.
       {"fov 1e-300", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(1e-300); },
        C::INVALID_ARGUMENT, "spec.camera.vfov_degrees"},
       {"fov 179.9999999", [](v1::JobSpec& s) { s.mutable_camera()->set_vfov_degrees(179.9999999); },
        C::INVALID_ARGUMENT, "spec.camera.vfov_degrees"},
-      // Issue #14: names are logged; control characters would forge log lines or drive terminals.
+      // Names are logged; control characters would forge log lines or drive terminals.
       {"name with a newline", [](v1::JobSpec& s) { s.set_name("a\n[error] forged"); }, C::INVALID_ARGUMENT,
        "spec.name 'a\\x0a[error] forged': contains a control character"},
       {"name with ANSI", [](v1::JobSpec& s) { s.set_name("\x1b[2Jx"); }, C::INVALID_ARGUMENT,
@@ -248,7 +248,7 @@ TEST_F(RenderServiceTest, TaskCapIsOneLimitExactlyAtTwoToTheTwenty) {
   EXPECT_NE(limits::TaskCountProblem(limits::kMaxTasksPerJob + 1), "");
 }
 
-// Issue #14: the per-job result bound is 1024 x the scene's brightest emitter (the Cornell box:
+// The per-job result bound is 1024 x the scene's brightest emitter (the Cornell box:
 // Le = (17, 12, 4)), measured when the scene is uploaded; unknown (-1, an old database) = none.
 TEST_F(RenderServiceTest, TheResultBoundComesFromTheScenesBrightestEmitter) {
   struct OneScene : SceneCatalog {
@@ -265,7 +265,7 @@ TEST_F(RenderServiceTest, TheResultBoundComesFromTheScenesBrightestEmitter) {
   EXPECT_EQ(config.max_sample_radiance, 1024.0 * 17.0);
 }
 
-// Issue #14: ListJobs pages (a full listing of 10k jobs was 4.4 MB, over gRPC's default 4 MiB).
+// ListJobs pages (a full listing of 10k jobs was 4.4 MB, over gRPC's default 4 MiB).
 TEST_F(RenderServiceTest, ListJobsPagesInSubmissionOrderAndRefusesForeignTokens) {
   std::vector<std::string> submitted;
   for (int i = 0; i < 7; ++i) {
@@ -478,7 +478,7 @@ TEST_F(RenderServiceTest, UnknownJobsAreNotFound) {
   EXPECT_EQ(wreader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
 }
 
-// Issue #14: an 8000-byte job id was echoed into the error (the client saw RESOURCE_EXHAUSTED
+// An 8000-byte job id was echoed into the error (the client saw RESOURCE_EXHAUSTED
 // for the oversized status); a 1 MiB lease id wrote a 1 MiB log line per call. Ids are checked
 // at the edge: bounded, printable, and never echoed in full.
 TEST_F(RenderServiceTest, OverlongOrBinaryIdsAreRejectedWithoutEchoingThem) {

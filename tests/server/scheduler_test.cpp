@@ -169,7 +169,7 @@ TEST_F(SchedulerTest, OnlyTheLeaseHolderCanFailItsTask) {
   EXPECT_EQ(scheduler_.Status(id).state(), v1::JOB_STATE_SUCCEEDED);
 }
 
-// Issue #14: a result above the job's bound (samples × max_sample_radiance) is not merged and
+// A result above the job's bound (samples × max_sample_radiance) is not merged and
 // the task is re-run; it is merged when a *different* worker delivers the same bytes (rendering is
 // deterministic, so an honest result above the bound reproduces), never on different bytes.
 TEST_F(SchedulerTest, ResultsAboveTheBoundMergeOnlyWhenAnotherWorkerReproducesThem) {
@@ -1001,7 +1001,7 @@ std::vector<float> StepImageResult(const TaskSpec& task, int width, int height) 
   return sums;
 }
 
-// Issue #13: progress and ETA of a hierarchical job, whose tasks differ in cost (a level-0 task
+// Progress and ETA of a hierarchical job, whose tasks differ in cost (a level-0 task
 // renders a few points, a last-level task a quarter of the image) and whose localization tasks
 // appear only when every level is complete. One simulated worker runs the tasks in queue order; a
 // task takes c_px × its pixel samples + c_map, with c_map 2.5× what the coordinator assumes
@@ -1061,7 +1061,7 @@ TEST(SchedulerEta, HierarchicalProgressIsMonotoneAndItsEtaWithinTwiceTheTruth) {
   EXPECT_GT(checked, 100u);
 }
 
-// Issue #12, tail tiles: the default farm job's 12 tiles of 64² and 16 tail tiles of 32². Its
+// Tail tiles: the default farm job's 12 tiles of 64² and 16 tail tiles of 32². Its
 // progress counts pixel samples, not tasks: with the 12 whole tiles merged, 3/4 of the pixels are
 // done (counting tasks it read 12/28 = 43 %), and each tail tile adds 1/64.
 TEST(SchedulerEta, TailTilesCountTheirPixels) {
@@ -1189,7 +1189,7 @@ TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) 
 namespace pf::server {
 namespace {
 
-// Issue #12 (map_tracing_hook.h): render tasks whose map is not ready are held out of the queue
+// Render tasks whose map is not ready are held out of the queue
 // (the hook's pieces are leased first, parked long polls get them), and ReleaseMap queues them;
 // a hook that says "ready" changes nothing.
 class FakeMapHook final : public MapTracingHook {

@@ -97,7 +97,7 @@ TEST(SqliteStore, RowsSurviveReopening) {
   EXPECT_EQ(tasks[2].state, TaskState::kDone);
 }
 
-// Issue #14: scenes.max_emission (the result bound's scale) is added to databases made before it
+// Scenes.max_emission (the result bound's scale) is added to databases made before it
 // existed; their scenes read back as -1 (unknown: jobs of them get no upper bound), new ones
 // keep their value.
 TEST(SqliteStore, DatabasesWithoutMaxEmissionAreMigrated) {
@@ -214,7 +214,7 @@ TEST(Journal, EntriesRoundTripAndATornTailIsCut) {
   EXPECT_TRUE(ReadJournalFile(file, &valid).empty()) << "a corrupt entry ends the journal";
 }
 
-// Issue #14: a byte flipped mid-journal lost acknowledged results and was logged only as a "torn
+// A byte flipped mid-journal lost acknowledged results and was logged only as a "torn
 // entry" warning. Damage before the end is now told apart from a torn tail.
 TEST(Journal, DamageBeforeTheEndIsNotATornTail) {
   TempDir dir;
@@ -449,7 +449,7 @@ TEST_F(Recovery, FinishedJobsAreListedAndCorruptCheckpointsRestartTheJob) {
   EXPECT_EQ(scheduler.List(false).size(), 1u);
   EXPECT_EQ(scheduler.List(true).size(), 2u);
 
-  // Issue #14: the finished job's image lives only in its checkpoint. Damaged, it was
+  // The finished job's image lives only in its checkpoint. Damaged, it was
   // INVALID_ARGUMENT with a server path (and `pf get` said "invalid input"); now DATA_LOSS
   // naming the job only. Missing, it was a black image; now DATA_LOSS too.
   EXPECT_EQ(EncodeJobImage(scheduler, done_id).chunks.size(), 1u);
@@ -479,7 +479,7 @@ TEST_F(Recovery, FinishedJobsAreListedAndCorruptCheckpointsRestartTheJob) {
   }
 }
 
-// Issue #14: the job table is lost (SQLite file deleted with its WAL) while a job's journal and
+// The job table is lost (SQLite file deleted with its WAL) while a job's journal and
 // checkpoint survive. Before, the id counter restarted, the next job got the old id and the old
 // journal was replayed into it (a wrong image that SUCCEEDED). Ids are random now: the new job
 // gets another id, starts from zero merges, and the old files are set aside and reported.
@@ -511,7 +511,7 @@ TEST_F(Recovery, ALostJobTableNeverReusesAnIdAndOldFilesAreSetAside) {
   persister.Stop();
 }
 
-// Issue #14: elapsed time was saved only on state changes, so a time budget restarted with the
+// Elapsed time was saved only on state changes, so a time budget restarted with the
 // coordinator. Now a running job's elapsed time is persisted every kElapsedPersistSeconds and
 // the budget counts across a restart (the downtime does not).
 TEST_F(Recovery, ElapsedTimeAndItsBudgetSurviveARestart) {

@@ -224,7 +224,7 @@ TEST_F(WorkerServiceTest, BadResultsAreRejectedAndTheTaskIsRerun) {
   EXPECT_EQ(s.samples_merged(), 24u * 18u);
 }
 
-// Issue #14: a worker's failure reason is logged and shown by `pf`; control characters in it
+// A worker's failure reason is logged and shown by `pf`; control characters in it
 // would forge log lines or drive the user's terminal.
 TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
   v1::Plan plan = OneMapPlan();
@@ -245,7 +245,7 @@ TEST_F(WorkerServiceTest, FailureReasonsAreSanitized) {
   EXPECT_EQ(s.failure_reason().find('\x1b'), std::string::npos);
 }
 
-// Issue #14: FailTask(retryable = false) ends the whole job, so only the worker holding the lease
+// FailTask(retryable = false) ends the whole job, so only the worker holding the lease
 // may send it. A stranger with the lease id is PERMISSION_DENIED, an unknown lease NOT_FOUND, a
 // missing worker_id INVALID_ARGUMENT; none of them changes the job, and the holder still merges.
 TEST_F(WorkerServiceTest, OnlyTheLeaseHolderCanFailItsTask) {
@@ -609,7 +609,7 @@ long OwnRssMiB() {
 // FetchScene streams from the stored files one chunk at a time (server/rpc/buffered_stream.h):
 // twenty streams of a 32 MiB bundle that nobody reads hold a few chunks each (server message,
 // serialisation, client receive window: ~115 MiB measured for both ends, this process being the
-// client too), not a copy of the bundle each (+691 MiB before, issue #12). Every stream then
+// client too), not a copy of the bundle each (+691 MiB before). Every stream then
 // still delivers the whole bundle.
 TEST_F(WorkerServiceTest, UnreadFetchSceneStreamsHoldChunksNotBundles) {
   SceneBundle big = CollectBundle(testing::CornellManifest());
