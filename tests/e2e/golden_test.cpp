@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -72,6 +73,11 @@ std::vector<GoldenJob> Jobs() {
        with(with(PhotonMapFlags("6000"), farm),
             {"--plan", "auto", "--spp", "2", "--seed", "20", "--direct", "mc", "--local-pass", "2"})},
   };
+}
+
+// gtest prints a parameter by its name, not its bytes.
+void PrintTo(const GoldenJob& job, std::ostream* os) {
+  *os << job.name;
 }
 
 fs::path GoldenDir() {
