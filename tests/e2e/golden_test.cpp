@@ -4,8 +4,9 @@
 // settings table, the scheduler's layering and the one task queue; pixels only, the header may
 // gain fields). A refactor that changes one bit of one pixel fails here.
 //
-// Recording is deliberate: PF_GOLDEN_RECORD=1 rewrites the files from this build, for a change
-// that is meant to change images (say why in its commit).
+// Recording is deliberate: PF_GOLDEN_RECORD=1 rewrites the files from this build (and fails the
+// test, so that such a run is never mistaken for a check), for a change that is meant to change
+// images (say why in its commit).
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -100,7 +101,9 @@ TEST_P(GoldenImage, IsBitIdenticalToTheRecordedImage) {
   if (const char* record = std::getenv("PF_GOLDEN_RECORD"); record && std::strcmp(record, "1") == 0) {
     fs::create_directories(GoldenDir());
     fs::copy_file(out, golden, fs::copy_options::overwrite_existing);
-    GTEST_SKIP() << "recorded " << golden;
+    // Recording never passes: a run with PF_GOLDEN_RECORD set checks nothing, so it must not
+    // look like a check (CI never sets it).
+    FAIL() << "recorded " << golden << "; run again without PF_GOLDEN_RECORD to compare";
   }
   ASSERT_TRUE(fs::exists(golden)) << golden << " missing: record it with PF_GOLDEN_RECORD=1";
   const Image want = ReadImage(golden);
