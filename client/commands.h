@@ -43,6 +43,8 @@ int RunPreview(const std::string& image, const std::string& output, const std::s
                double stops);
 int RunInfo(const std::string& path);                     // a scene, or an EXR's size and header
 int RunSettings(const std::string& name, bool markdown);  // the settings table (settings_command.cpp)
+// docs/settings.md: the reference page of every render setting (pf settings --markdown).
+std::string SettingsReferencePage();
 
 // Farm (client/farm_commands.cpp).
 int RunFarmRender(const RenderArgs& a);  // --workers N: a local coordinator + N workers

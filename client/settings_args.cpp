@@ -72,8 +72,9 @@ void AddSettingOptions(CLI::App* app, SettingArgs& a) {
     if (row.type == SettingType::kBool) {
       opt = app->add_flag_callback(flag, [&a, name, flag] { a.long_flags.push_back({name, "true", flag}); });
     } else {
-      opt = app->add_option_function<std::string>(
-          flag, [&a, name, flag](const std::string& v) { a.long_flags.push_back({name, v, flag}); });
+      opt = app->add_option_function<std::string>(flag, [&a, name, flag](const std::string& v) {
+        a.long_flags.push_back({name, v, flag});
+      });
     }
     opt->group("");
   }

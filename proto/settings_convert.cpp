@@ -23,9 +23,9 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <optional>
-#include <limits>
 #include <stdexcept>
 
 #include "common/core/error.h"
@@ -99,8 +99,9 @@ std::string PathOf(const std::string& field, const WireField& w) {
 }
 
 // The field's value, or nullopt when it reads as the default.
-std::optional<RenderSettingValue> ReadField(const RenderSetting& row, const WireField& w, const gp::Message& m,
-                                            IntegratorKind integrator, const std::string& path) {
+std::optional<RenderSettingValue> ReadField(const RenderSetting& row, const WireField& w,
+                                            const gp::Message& m, IntegratorKind integrator,
+                                            const std::string& path) {
   const gp::Reflection* r = m.GetReflection();
   const gp::FieldDescriptor* f = w.field;
   if (f->has_presence() && !r->HasField(m, f)) return std::nullopt;
@@ -125,7 +126,7 @@ std::optional<RenderSettingValue> ReadField(const RenderSetting& row, const Wire
     case gp::FieldDescriptor::CPPTYPE_DOUBLE:
     case gp::FieldDescriptor::CPPTYPE_FLOAT: {
       const double d = f->cpp_type() == gp::FieldDescriptor::CPPTYPE_DOUBLE ? r->GetDouble(m, f)
-                                                                             : double(r->GetFloat(m, f));
+                                                                            : double(r->GetFloat(m, f));
       if (d == 0.0 && !f->has_presence() && ZeroReadsAsDefault(row, integrator)) return std::nullopt;
       return RenderSettingValue(d);
     }
@@ -138,7 +139,8 @@ std::optional<RenderSettingValue> ReadField(const RenderSetting& row, const Wire
         u = uint64_t(std::max<int64_t>(0, r->GetInt64(m, f)));
       if (u == 0 && !f->has_presence() && ZeroReadsAsDefault(row, integrator)) return std::nullopt;
       // Above int64: over every limit, and refused as such by the range check.
-      return RenderSettingValue(int64_t(std::min<uint64_t>(u, uint64_t(std::numeric_limits<int64_t>::max()))));
+      return RenderSettingValue(
+          int64_t(std::min<uint64_t>(u, uint64_t(std::numeric_limits<int64_t>::max()))));
     }
   }
 }

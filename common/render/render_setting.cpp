@@ -62,7 +62,8 @@ std::string DescribeRenderSettingRange(const RenderSetting& row) {
   return "";
 }
 
-void CheckRenderSettingValue(const RenderSetting& row, const RenderSettingValue& v, const std::string& label) {
+void CheckRenderSettingValue(const RenderSetting& row, const RenderSettingValue& v,
+                             const std::string& label) {
   switch (row.type) {
     case SettingType::kBool:
       if (!std::holds_alternative<bool>(v)) throw InputError(label + ": must be true or false");

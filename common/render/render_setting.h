@@ -44,7 +44,8 @@ struct SettingChoice {
 };
 
 struct RenderSetting {
-  std::string_view name = {};  // kebab-case; the proto field is its snake_case (caustic-radius ↔ caustic_radius)
+  std::string_view name =
+      {};  // kebab-case; the proto field is its snake_case (caustic-radius ↔ caustic_radius)
   SettingType type = SettingType::kInt;
   SettingGroup group = SettingGroup::kPhotonMap;
   std::string_view help = {};

@@ -14,8 +14,9 @@ void CheckRenderSettingRules(const JobRenderSettings& s, const SettingNamer& nam
       throw InputError(name("site-occlusion-test") + ": OFF applies to the precomputed sites only; set " +
                        name("local-pass-lookup") + " = precomputed");
     if (s.local_pass_rays == 0)
-      throw InputError(name("site-occlusion-test") + ": OFF applies to the local pass's precomputed sites; set " +
-                       name("local-pass-rays") + " > 0");
+      throw InputError(name("site-occlusion-test") +
+                       ": OFF applies to the local pass's precomputed sites; set " + name("local-pass-rays") +
+                       " > 0");
     // The camera path's test is applied to the sites' estimates too (they are the same
     // estimates, precomputed), so OFF would be silently ignored.
     if (s.occlusion_test)
@@ -34,9 +35,9 @@ void CheckRenderSettingRules(const JobRenderSettings& s, const SettingNamer& nam
   // Wald 1999, §4.6: brute-force splitting emits S times the photons.
   if (s.caustic_split > 1 && s.caustic_split_method == CausticSplitMethod::kBrute &&
       s.photons * s.caustic_split > kMaxPhotonsPerMap)
-    throw LimitError(name("caustic-split") + ": photons × caustic_split = " +
-                     std::to_string(s.photons * s.caustic_split) + " photons emitted exceeds the limit " +
-                     std::to_string(kMaxPhotonsPerMap));
+    throw LimitError(name("caustic-split") +
+                     ": photons × caustic_split = " + std::to_string(s.photons * s.caustic_split) +
+                     " photons emitted exceeds the limit " + std::to_string(kMaxPhotonsPerMap));
   if (s.caustic_split > 1 && s.caustic_split_method == CausticSplitMethod::kMetropolis &&
       s.importance != ImportanceMode::kOff)
     throw InputError(name("caustic-split-method") +
@@ -53,9 +54,10 @@ void CheckRadiancePartsApart(const JobRenderSettings& s, const std::string& part
     throw InputError(part_field +
                      ": indirect needs the photonmap integrator (the path tracer has no photon-map part)");
   if (s.local_pass_rays > 0)
-    throw InputError(part_field +
-                     ": indirect is not available with the local pass (local-pass-rays > 0): its parts do not "
-                     "add up to the whole radiance yet (docs/renderer.md)");
+    throw InputError(
+        part_field +
+        ": indirect is not available with the local pass (local-pass-rays > 0): its parts do not "
+        "add up to the whole radiance yet (docs/renderer.md)");
 }
 
 std::vector<UnusedSetting> UnusedSettings(const JobRenderSettings& s, const std::vector<std::string>& given) {
@@ -64,8 +66,9 @@ std::vector<UnusedSetting> UnusedSettings(const JobRenderSettings& s, const std:
     const RenderSetting* row = FindRenderSetting(name);
     if (!row) continue;
     if (row->PhotonMapOnly() && s.integrator != IntegratorKind::kPhotonMap)
-      out.push_back({name, "applies to the photon-map integrator only (integrator = photonmap); the path "
-                           "tracer would ignore it"});
+      out.push_back({name,
+                     "applies to the photon-map integrator only (integrator = photonmap); the path "
+                     "tracer would ignore it"});
     else if (row->applies && !row->applies(s))
       out.push_back({name, "applies only when " + std::string(row->applies_when)});
   }

@@ -139,20 +139,21 @@ std::vector<RenderSetting> MakeTable() {
                           .max = double(kMaxK),
                           .max_is_limit = true,
                           .changes_map = true}));
-  t.push_back(Real<&S::caustic_radius>({.name = "caustic-radius",
-                                        .group = G::kEstimate,
-                                        .help = "Largest caustic search radius (0 = 1% of the scene diagonal)",
-                                        .unit = "scene units",
-                                        .min = 0,
-                                        .max = kInf,
-                                        .applies = [](const S& s) { return s.caustic != CausticMapMode::kOff; },
-                                        .applies_when = "caustic != off"}));
-  t.push_back(Int<&S::glossy_depth>(
-      {.name = "glossy-depth",
-       .group = G::kEstimate,
-       .help = "Glossy bounces followed before the map estimates the glossy lobe",
-       .min = 0,
-       .max = 64}));
+  t.push_back(
+      Real<&S::caustic_radius>({.name = "caustic-radius",
+                                .group = G::kEstimate,
+                                .help = "Largest caustic search radius (0 = 1% of the scene diagonal)",
+                                .unit = "scene units",
+                                .min = 0,
+                                .max = kInf,
+                                .applies = [](const S& s) { return s.caustic != CausticMapMode::kOff; },
+                                .applies_when = "caustic != off"}));
+  t.push_back(
+      Int<&S::glossy_depth>({.name = "glossy-depth",
+                             .group = G::kEstimate,
+                             .help = "Glossy bounces followed before the map estimates the glossy lobe",
+                             .min = 0,
+                             .max = 64}));
   t.push_back(Choice<&S::direction_test>(
       {.name = "direction-test",
        .group = G::kEstimate,
@@ -167,13 +168,13 @@ std::vector<RenderSetting> MakeTable() {
        .help = "Drop found photons whose origin the point cannot see (4.1.1): no light bleeding through "
                "walls, one shadow ray per photon",
        .changes_map = true}));
-  t.push_back(
-      Int<&S::adaptive_k_min>({.name = "adaptive-k-min",
-                               .group = G::kEstimate,
-                               .help = "Shrink k down to this at borders and corners by the centre-of-gravity "
-                                       "test (4.8; 0 = off; <= k)",
-                               .min = 0,
-                               .max = double(kMaxK)}));
+  t.push_back(Int<&S::adaptive_k_min>(
+      {.name = "adaptive-k-min",
+       .group = G::kEstimate,
+       .help = "Shrink k down to this at borders and corners by the centre-of-gravity "
+               "test (4.8; 0 = off; <= k)",
+       .min = 0,
+       .max = double(kMaxK)}));
   // Direct light.
   RenderSetting direct{
       .name = "direct",
@@ -243,15 +244,15 @@ std::vector<RenderSetting> MakeTable() {
        .applies = photon_direct,
        .applies_when = "direct = photon-direct or auto"}));
   // Local pass.
-  t.push_back(
-      Int<&S::local_pass_rays>({.name = "local-pass-rays",
-                                .group = G::kLocalPass,
-                                .help = "Final gathering rays per shading point, photon map at their hits (4.3; "
-                                        "0 = off)",
-                                .min = 0,
-                                .max = double(kMaxShadowRays),
-                                .changes_map = true,
-                                .legacy_flag = "local-pass"}));
+  t.push_back(Int<&S::local_pass_rays>(
+      {.name = "local-pass-rays",
+       .group = G::kLocalPass,
+       .help = "Final gathering rays per shading point, photon map at their hits (4.3; "
+               "0 = off)",
+       .min = 0,
+       .max = double(kMaxShadowRays),
+       .changes_map = true,
+       .legacy_flag = "local-pass"}));
   t.push_back(Choice<&S::local_pass_lookup>(
       {.name = "local-pass-lookup",
        .group = G::kLocalPass,
@@ -271,7 +272,8 @@ std::vector<RenderSetting> MakeTable() {
        .choices = {{"on", "no light bleeding through walls into the sites (rooms side by side)"},
                    {"off", "faster, and no darkened corners where nothing bleeds"}},
        .changes_map = true,
-       .applies = [](const S& s) { return LocalPass(s) && s.local_pass_lookup == LocalPassLookup::kPrecomputed; },
+       .applies =
+           [](const S& s) { return LocalPass(s) && s.local_pass_lookup == LocalPassLookup::kPrecomputed; },
        .applies_when = "local-pass-rays > 0 and local-pass-lookup = precomputed"},
       std::vector{true, false});
   t.push_back(std::move(site));
@@ -339,7 +341,8 @@ std::vector<RenderSetting> MakeTable() {
       {.name = "caustic-split-method",
        .group = G::kCausticSplit,
        .help = "How the caustic photons are multiplied",
-       .choices = {{"brute", "emit S*photons, keep non-caustic photons with 1/S at S times the power (4.6.1)"},
+       .choices = {{"brute",
+                    "emit S*photons, keep non-caustic photons with 1/S at S times the power (4.6.1)"},
                    {"metropolis",
                     "S-1 jittered copies of every singular chain: fewer rays, start points can act as "
                     "secondary lights (4.6.2)"}},
@@ -383,7 +386,8 @@ RenderSettingValue DefaultRenderSettingValue(const RenderSetting& row) {
   return row.get(JobRenderSettings{});
 }
 
-void SetRenderSetting(JobRenderSettings& s, std::string_view name, std::string_view text, const std::string& label) {
+void SetRenderSetting(JobRenderSettings& s, std::string_view name, std::string_view text,
+                      const std::string& label) {
   const RenderSetting* row = FindRenderSetting(name);
   if (!row)
     throw InputError(label + ": no setting is called '" + std::string(name) + "' (pf settings lists them)");

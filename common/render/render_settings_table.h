@@ -32,6 +32,7 @@ RenderSettingValue DefaultRenderSettingValue(const RenderSetting& row);
 
 // Parses `text` for the row called `name` and stores it in `s`. InputError naming `label` when
 // the name is unknown or the value malformed or out of range (LimitError above a resource limit).
-void SetRenderSetting(JobRenderSettings& s, std::string_view name, std::string_view text, const std::string& label);
+void SetRenderSetting(JobRenderSettings& s, std::string_view name, std::string_view text,
+                      const std::string& label);
 
 }  // namespace pf
