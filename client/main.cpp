@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
       "  pf render scenes/cornell-box/cornell-box.json --workers 2 -o cornell.exr\n"
       "  pf render scenes/cornell-box/cornell-box.json --spp 256 -o cornell.exr\n"
       "  pf render scenes/cornell-box/cornell-box.json --integrator photonmap --plan skipping --stride 2 \\\n"
-      "      --rounds 4 --photons 20000 --spp 1 --local-only -o local.exr\n"
+      "      --rounds 4 --set photons=20000 --spp 1 --local-only -o local.exr\n"
       "  pf submit scenes/office3/office.mgf --integrator photonmap --plan skipping --coordinator HOST:PORT\n"
       "  pf watch job-1 -o office.exr;  pf get job-1 -o office.exr;  pf list --all;  pf cancel job-1\n"
       "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --error-image err.png\n"

@@ -22,17 +22,8 @@ constexpr SettingGroup kGroups[] = {SettingGroup::kRenderer,     SettingGroup::k
                                     SettingGroup::kCausticSplit, SettingGroup::kFarm};
 
 const char* TypeName(SettingType t) {
-  switch (t) {
-    case SettingType::kBool:
-      return "bool";
-    case SettingType::kInt:
-      return "int";
-    case SettingType::kReal:
-      return "real";
-    case SettingType::kChoice:
-      return "choice";
-  }
-  return "?";
+  static constexpr const char* kNames[] = {"bool", "int", "real", "choice"};  // SettingType's order
+  return kNames[int(t)];
 }
 
 std::string Default(const RenderSetting& row) {

@@ -13,8 +13,9 @@
 //
 // Proto3 cannot tell an unset number from 0. A field reads as the setting's default when it is
 // unset — explicit presence (`optional`), an enum's UNSPECIFIED, or a 0 that the row's range
-// excludes (caustic_split 0 = off) — except for the settings a job must state (the integrator,
-// and photons and k of a photon-map job), for which 0 is refused. SettingsToProto leaves a default
+// excludes (caustic_split 0 = off), or any photon-map field of a path job — except for the
+// settings a job must state (the integrator, and photons and k of a photon-map job), for which 0
+// is refused. SettingsToProto leaves a default
 // unset where it reads back as the default, so that a spec holds what its sender chose.
 
 #include <google/protobuf/descriptor.h>
@@ -81,6 +82,8 @@ bool Required(const RenderSetting& row, IntegratorKind integrator) {
 // Whether 0 (or false) in a field without presence reads as the row's default.
 bool ZeroReadsAsDefault(const RenderSetting& row, IntegratorKind integrator) {
   if (Required(row, integrator)) return false;
+  // A path job carries only the photon-map settings someone changed (SettingsToProto).
+  if (row.PhotonMapOnly() && integrator != IntegratorKind::kPhotonMap) return true;
   const RenderSettingValue d = DefaultRenderSettingValue(row);
   if (d == RenderSettingValue(false) || d == RenderSettingValue(int64_t(0)) || d == RenderSettingValue(0.0))
     return true;

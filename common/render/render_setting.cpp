@@ -10,25 +10,16 @@
 namespace pf {
 
 const char* SettingGroupTitle(SettingGroup g) {
-  switch (g) {
-    case SettingGroup::kRenderer:
-      return "Both integrators";
-    case SettingGroup::kPhotonMap:
-      return "Photon maps";
-    case SettingGroup::kEstimate:
-      return "Radiance estimate";
-    case SettingGroup::kDirectLight:
-      return "Direct light";
-    case SettingGroup::kLocalPass:
-      return "Local pass (final gathering)";
-    case SettingGroup::kImportance:
-      return "Importance-driven maps";
-    case SettingGroup::kCausticSplit:
-      return "Caustic splitting";
-    case SettingGroup::kFarm:
-      return "Farm";
-  }
-  return "?";
+  static constexpr const char* kTitles[] = {// SettingGroup's order
+                                            "Both integrators",
+                                            "Photon maps",
+                                            "Radiance estimate",
+                                            "Direct light",
+                                            "Local pass (final gathering)",
+                                            "Importance-driven maps",
+                                            "Caustic splitting",
+                                            "Farm"};
+  return kTitles[int(g)];
 }
 
 std::string FormatRenderSettingValue(const RenderSettingValue& v) {
@@ -98,6 +89,19 @@ void CheckRenderSettingValue(const RenderSetting& row, const RenderSettingValue&
   }
 }
 
+namespace {
+
+template <typename T>
+T ParseNumber(std::string_view text, const std::string& label, const char* what) {
+  T value{};
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || text.empty())
+    throw InputError(label + ": expected " + what + ", got '" + std::string(text) + "'");
+  return value;
+}
+
+}  // namespace
+
 RenderSettingValue ParseRenderSettingValue(const RenderSetting& row, std::string_view text,
                                            const std::string& label) {
   RenderSettingValue v;
@@ -110,22 +114,12 @@ RenderSettingValue ParseRenderSettingValue(const RenderSetting& row, std::string
       else
         throw InputError(label + ": expected true or false (on/off, 1/0), got '" + std::string(text) + "'");
       break;
-    case SettingType::kInt: {
-      int64_t i = 0;
-      const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), i);
-      if (ec != std::errc() || end != text.data() + text.size() || text.empty())
-        throw InputError(label + ": expected a whole number, got '" + std::string(text) + "'");
-      v = i;
+    case SettingType::kInt:
+      v = ParseNumber<int64_t>(text, label, "a whole number");
       break;
-    }
-    case SettingType::kReal: {
-      double d = 0;
-      const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), d);
-      if (ec != std::errc() || end != text.data() + text.size() || text.empty())
-        throw InputError(label + ": expected a number, got '" + std::string(text) + "'");
-      v = d;
+    case SettingType::kReal:
+      v = ParseNumber<double>(text, label, "a number");
       break;
-    }
     case SettingType::kChoice:
       v = std::string(text);
       break;

@@ -15,33 +15,27 @@ using S = JobRenderSettings;
 using G = SettingGroup;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Typed access to a member of JobRenderSettings, by its type.
+// Typed access to a member of JobRenderSettings: its value as a V (int64_t, double or bool).
+template <auto M, typename V>
+RenderSetting Typed(RenderSetting r, SettingType type) {
+  r.type = type;
+  r.get = [](const S& s) { return RenderSettingValue(V(s.*M)); };
+  r.set = [](S& s, const RenderSettingValue& v) {
+    s.*M = static_cast<std::remove_reference_t<decltype(s.*M)>>(std::get<V>(v));
+  };
+  return r;
+}
 template <auto M>
 RenderSetting Int(RenderSetting r) {
-  r.type = SettingType::kInt;
-  r.get = [](const S& s) { return RenderSettingValue(int64_t(s.*M)); };
-  r.set = [](S& s, const RenderSettingValue& v) {
-    s.*M = static_cast<std::remove_reference_t<decltype(s.*M)>>(std::get<int64_t>(v));
-  };
-  return r;
+  return Typed<M, int64_t>(std::move(r), SettingType::kInt);
 }
-
 template <auto M>
 RenderSetting Real(RenderSetting r) {
-  r.type = SettingType::kReal;
-  r.get = [](const S& s) { return RenderSettingValue(double(s.*M)); };
-  r.set = [](S& s, const RenderSettingValue& v) {
-    s.*M = static_cast<std::remove_reference_t<decltype(s.*M)>>(std::get<double>(v));
-  };
-  return r;
+  return Typed<M, double>(std::move(r), SettingType::kReal);
 }
-
 template <auto M>
 RenderSetting Bool(RenderSetting r) {
-  r.type = SettingType::kBool;
-  r.get = [](const S& s) { return RenderSettingValue(bool(s.*M)); };
-  r.set = [](S& s, const RenderSettingValue& v) { s.*M = std::get<bool>(v); };
-  return r;
+  return Typed<M, bool>(std::move(r), SettingType::kBool);
 }
 
 // A choice stored as an enum: `values[i]` is the enum value of r.choices[i].

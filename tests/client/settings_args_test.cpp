@@ -37,9 +37,11 @@ TEST(SettingArgs, EveryRowCanBeSetWithSet) {
       text = row.type == SettingType::kInt ? "1" : "0.5";
     a.set = {std::string(row.name) + "=" + text};
     if (row.name == "caustic-split-method") a.set.insert(a.set.begin(), "caustic-split=4");
-    if (row.name == "site-occlusion-test" || row.name == "local-pass-lookup" || row.name == "irradiance-cache-error")
+    if (row.name == "site-occlusion-test" || row.name == "local-pass-lookup" ||
+        row.name == "irradiance-cache-error")
       a.set.insert(a.set.begin(), {"local-pass-rays=4", "local-pass-lookup=precomputed"});
-    if (row.name.rfind("importance-", 0) == 0 || row.name == "importons") a.set.insert(a.set.begin(), "importance=on");
+    if (row.name.rfind("importance-", 0) == 0 || row.name == "importons")
+      a.set.insert(a.set.begin(), "importance=on");
     JobRenderSettings s;
     ASSERT_NO_THROW(s = SettingsFromArgs(a, "photonmap")) << row.name << ": " << ErrorOf(a);
     EXPECT_EQ(FormatRenderSettingValue(row.get(s)), text) << row.name;

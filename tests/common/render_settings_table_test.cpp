@@ -104,7 +104,8 @@ TEST(RenderSettingsTable, ValuesAreCheckedAndErrorsNameTheSetting) {
   EXPECT_THROW(ParseRenderSettingValue(*FindRenderSetting("importance-min-probability"), "0", "x"),
                InputError);
   EXPECT_THROW(ParseRenderSettingValue(*FindRenderSetting("direct"), "sometimes", "x"), InputError);
-  EXPECT_EQ(ParseRenderSettingValue(*FindRenderSetting("occlusion-test"), "on", "x"), RenderSettingValue(true));
+  EXPECT_EQ(ParseRenderSettingValue(*FindRenderSetting("occlusion-test"), "on", "x"),
+            RenderSettingValue(true));
   JobRenderSettings s;
   SetRenderSetting(s, "structure", "grid", "--set structure");
   EXPECT_EQ(s.structure, PhotonMapKind::kGrid);

@@ -41,11 +41,10 @@ TEST(SettingsConvert, WireFieldsAreExactlyTheTable) {
   EXPECT_EQ(fields, rows);
 }
 
+// A photon-map job at the defaults (photons and k stated, as a job must).
 v1::RenderSettings PhotonMapJob() {
   v1::RenderSettings s;
-  s.set_integrator(v1::INTEGRATOR_PHOTONMAP);
-  s.mutable_photon_map()->set_photons(1000);
-  s.mutable_photon_map()->set_k(50);
+  SettingsToProto(JobRenderSettings{}, &s);
   return s;
 }
 
@@ -71,7 +70,8 @@ TEST(SettingsConvert, EveryRowRoundTrips) {
       JobRenderSettings s = base;
       row.set(s, v);
       if (row.name == "site-occlusion-test") s.occlusion_test = false;
-      if (row.name == "map-tracing" || row.name == "caustic-split-method") s.importance = ImportanceMode::kOff;
+      if (row.name == "map-tracing" || row.name == "caustic-split-method")
+        s.importance = ImportanceMode::kOff;
       v1::RenderSettings wire;
       SettingsToProto(s, &wire);
       const JobRenderSettings back = SettingsFromProto(wire, "s");
@@ -85,6 +85,8 @@ TEST(SettingsConvert, EveryRowRoundTrips) {
 // must state.
 TEST(SettingsConvert, UnsetFieldsAreTheDefaults) {
   v1::RenderSettings s = PhotonMapJob();
+  s.mutable_photon_map()->clear_glossy_depth();
+  s.mutable_photon_map()->clear_caustic_split();
   const JobRenderSettings core = SettingsFromProto(s, "s");
   EXPECT_EQ(core.caustic_split, 1u);  // 0 = off
   EXPECT_EQ(core.glossy_depth, 0);    // 0 is a value here (as before the table)
