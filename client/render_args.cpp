@@ -134,11 +134,12 @@ void CheckSettingArgs(const RenderArgs& a) {
     throw CLI::ValidationError(e.what());
   }
   // Who traces the maps is a farm setting; in one process they are traced here.
-  const std::vector<std::string> given = SettingsGiven(a.settings);
-  if (!a.submit && a.workers == 0 && std::count(given.begin(), given.end(), "map-tracing") > 0)
-    throw CLI::ValidationError("map-tracing",
-                               "applies to farm renders only (--workers N); in one process the maps are "
-                               "traced by this process");
+  if (!a.submit && a.workers == 0)
+    for (const GivenSetting& g : SettingsGiven(a.settings))
+      if (g.name == "map-tracing")
+        throw CLI::ValidationError(g.source,
+                                   "applies to farm renders only (--workers N); in one process the maps are "
+                                   "traced by this process");
 }
 
 void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {

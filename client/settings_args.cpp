@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -81,41 +82,36 @@ void AddSettingOptions(CLI::App* app, SettingArgs& a) {
   app->add_flag("--irradiance-cache", a.irradiance_cache_flag)->group("");
 }
 
-std::vector<std::string> SettingsGiven(const SettingArgs& a) {
-  std::vector<std::string> names;
-  for (const GivenSetting& g : a.long_flags) names.push_back(g.name);
-  for (const std::string& s : a.set) names.push_back(SplitAssignment(s).name);
-  if (!a.file.empty())
-    for (const GivenSetting& g : ReadSettingsFile(a.file)) names.push_back(g.name);
-  if (a.irradiance_cache_flag) names.push_back("irradiance-cache-error");
-  return names;
+std::vector<GivenSetting> SettingsGiven(const SettingArgs& a) {
+  std::vector<GivenSetting> given;  // in the order they apply
+  if (!a.file.empty()) given = ReadSettingsFile(a.file);
+  given.insert(given.end(), a.long_flags.begin(), a.long_flags.end());
+  for (const std::string& text : a.set) given.push_back(SplitAssignment(text));
+  const bool error_given = std::any_of(
+      given.begin(), given.end(), [](const GivenSetting& g) { return g.name == "irradiance-cache-error"; });
+  if (a.irradiance_cache_flag && !error_given)
+    given.insert(given.begin(), {"irradiance-cache-error", "0.2", "--irradiance-cache"});
+  return given;
 }
 
 JobRenderSettings SettingsFromArgs(const SettingArgs& a, const std::string& integrator) {
   JobRenderSettings s;
   SetRenderSetting(s, "integrator", integrator, "--integrator");
-  std::vector<GivenSetting> given;  // in the order they apply
-  if (!a.file.empty()) given = ReadSettingsFile(a.file);
-  given.insert(given.end(), a.long_flags.begin(), a.long_flags.end());
-  for (const std::string& text : a.set) given.push_back(SplitAssignment(text));
-  bool error_given = false;
-  for (const GivenSetting& g : given) {
-    CheckName(g);
-    error_given = error_given || g.name == "irradiance-cache-error";
-  }
-  if (a.irradiance_cache_flag && !error_given)
-    given.insert(given.begin(), {"irradiance-cache-error", "0.2", "--irradiance-cache"});
+  const std::vector<GivenSetting> given = SettingsGiven(a);
+  for (const GivenSetting& g : given) CheckName(g);
 
   // The manifest suggests: what does not apply to this render is skipped, and said.
   std::vector<std::string> skipped;
   for (const GivenSetting& g : a.manifest) {
     const RenderSetting* row = FindRenderSetting(g.name);
+    if (std::any_of(given.begin(), given.end(), [&](const GivenSetting& c) { return c.name == g.name; }))
+      continue;  // the command line's wins
     if (row->PhotonMapOnly() && s.integrator != IntegratorKind::kPhotonMap) {
       skipped.push_back(g.name);
       continue;
     }
     row->set(s, ParseRenderSettingValue(*row, g.text, g.source));
-    spdlog::info("{} = {} from the manifest's settings", g.name, g.text);
+    spdlog::info("{} = {} from the manifest's settings (--set {}=... overrides)", g.name, g.text, g.name);
   }
   if (!skipped.empty())
     spdlog::info("the manifest's settings {} are for the photon-map integrator (not used by the path tracer)",
@@ -133,7 +129,6 @@ JobRenderSettings SettingsFromArgs(const SettingArgs& a, const std::string& inte
       if (g.name == u.name) source = g.source;
     throw InputError(source + ": " + u.reason);
   }
-  CheckRenderSettingRules(s, [](std::string_view name) { return "setting " + std::string(name); });
   return s;
 }
 

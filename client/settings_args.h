@@ -34,13 +34,16 @@ void AddSettingOptions(CLI::App* app, SettingArgs& a);
 
 // The settings: `integrator` (pf's --integrator), then the manifest's, the file's, the long
 // options' and --set's. InputError naming the source and the setting for an unknown name (with
-// "did you mean"), a malformed value or a broken rule. A setting given on the command line or in
+// "did you mean") or a malformed value. The rules between settings are checked where the job is
+// converted, as on the coordinator (PrepareJob → SettingsFromProto: an invalid job, naming its
+// field, exit 3). A setting given on the command line or in
 // a settings file that does not apply (e.g. photons with the path tracer) is an error: the image
 // would not show what was asked for. A manifest's setting that does not apply is only logged,
 // since a manifest suggests settings for either integrator.
 JobRenderSettings SettingsFromArgs(const SettingArgs& a, const std::string& integrator);
 
-// The names of the settings given on the command line or in a settings file (not the manifest).
-std::vector<std::string> SettingsGiven(const SettingArgs& a);
+// The settings given in a settings file and on the command line (not the manifest's), in the
+// order they apply.
+std::vector<GivenSetting> SettingsGiven(const SettingArgs& a);
 
 }  // namespace pf
