@@ -20,9 +20,9 @@
 #include <vector>
 
 #include "bench/bench_stats.h"
-#include "common/plan/job_settings.h"
 #include "common/plan/task_executor.h"
 #include "common/plan/task_plan.h"
+#include "common/render/job_render_settings.h"
 #include "common/render/scene_runtime.h"
 #include "common/scene/scene_loader.h"
 #include "server/scheduling/result_verification.h"

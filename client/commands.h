@@ -41,7 +41,10 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output, 
 // one exposure and compare by eye), plus `stops`.
 int RunPreview(const std::string& image, const std::string& output, const std::string& exposure_of,
                double stops);
-int RunInfo(const std::string& path);  // a scene, or an EXR's size and header
+int RunInfo(const std::string& path);                     // a scene, or an EXR's size and header
+int RunSettings(const std::string& name, bool markdown);  // the settings table (settings_command.cpp)
+// docs/settings.md: the reference page of every render setting (pf settings --markdown).
+std::string SettingsReferencePage();
 
 // Farm (client/farm_commands.cpp).
 int RunFarmRender(const RenderArgs& a);  // --workers N: a local coordinator + N workers

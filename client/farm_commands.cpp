@@ -22,6 +22,7 @@
 #include "common/core/atomic_file.h"
 #include "common/core/error.h"
 #include "common/image/exr_io.h"
+#include "common/render/render_settings_text.h"
 #include "proto/convert.h"
 #include "rpc/address.h"
 
@@ -458,7 +459,8 @@ int RunFarmRender(const RenderArgs& a) {
   ImageMetadata meta;
   Image image = DecodeExrFromMemory(bytes, &meta);
   meta["scene"] = a.scene;
-  meta["integrator"] = a.integrator;
+  // Every setting as the workers resolved it for this scene (the coordinator's header leaves `auto`).
+  RecordRenderSettings(SettingsFromProto(st.spec().settings(), "spec.settings").Resolved(job.scene), meta);
   meta["plan"] = DescribePlan(PlanFromProto(st.spec().plan(), "spec.plan"));  // as the coordinator chose it
   meta["seed"] = std::to_string(a.seed);
   meta["farm.workers"] = std::to_string(a.workers);

@@ -29,6 +29,7 @@
 #include "common/render/emitter_coverage.h"
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
+#include "common/render/render_settings_text.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_loader.h"
 #include "photonfarm_version.h"
@@ -127,8 +128,6 @@ int RunLocalPlan(const RenderArgs& a) {
       a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
   ImageMetadata meta = {
       {"scene", a.scene},
-      {"integrator", a.integrator},
-      {"sampler", a.sampler},
       {"spp", fmt::format("{}", double(total_samples) / (double(camera.width) * camera.height))},
       {"plan", DescribePlan(plan)},
       {"seed", std::to_string(a.seed)},
@@ -140,30 +139,15 @@ int RunLocalPlan(const RenderArgs& a) {
       {"camera.look_at", FormatVec(camera.look_at)},
       {"camera.up", FormatVec(camera.up)},
       {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
-  if (a.integrator == "photonmap") {
-    const JobRenderSettings resolved = settings.Resolved(runtime.description);
-    meta["photons.per_map"] = std::to_string(a.photons);
-    meta["photons.k"] = std::to_string(a.k);
-    meta["photons.map"] = a.map;
+  // Every setting, with each `auto` as this scene resolved it (docs/settings.md, "In the EXR header").
+  RecordRenderSettings(settings.Resolved(runtime.description), meta);
+  if (settings.integrator == IntegratorKind::kPhotonMap) {
     meta["photons.maps_built"] = std::to_string(totals.maps_built);
     meta["photons.emitted"] = std::to_string(totals.photons_emitted);
     meta["photons.stored"] = std::to_string(totals.photons_stored);
-    static constexpr const char* kDirectNames[] = {"photon-map", "mc", "photon-direct"};
-    if (resolved.direct) meta["photons.direct"] = kDirectNames[int(*resolved.direct)];
-    meta["photons.local_pass_rays"] = std::to_string(resolved.local_pass_rays);
-    meta["photons.local_pass_lookup"] =
-        resolved.local_pass_lookup == LocalPassLookup::kPrecomputed ? "precomputed" : "full";
-    if (resolved.local_pass_lookup == LocalPassLookup::kPrecomputed)
-      meta["photons.site_occlusion_test"] = resolved.site_occlusion_test ? "1" : "0";
-    meta["photons.irradiance_cache_error"] = fmt::format("{}", resolved.irradiance_cache_error);
     meta["photons.local_pass_gathers"] = std::to_string(totals.gathers);
     meta["photons.cache_interpolations"] = std::to_string(totals.cache_interpolations);
-    meta["photons.occlusion_test"] = resolved.occlusion_test ? "1" : "0";
-    meta["photons.adaptive_k_min"] = std::to_string(resolved.adaptive_k_min);
     meta["photons.map_seconds"] = fmt::format("{:.3f}", totals.map_seconds);
-    meta["photons.caustic_split"] = std::to_string(resolved.caustic_split);
-    if (resolved.caustic_split > 1)
-      meta["photons.caustic_split_method"] = CausticSplitMethodName(resolved.caustic_split_method);
   }
   AddProvenance(meta);
   WriteExr(output, image, meta);
@@ -302,7 +286,8 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output, 
             "{} and {} were both rendered with seed {}: the same noise twice, the average is no better",
             it->second, path, meta["seed"]);
     }
-    for (const char* key : {"integrator", "scene", "camera.eye", "camera.look_at"}) {
+    for (const std::string& key : {SettingHeaderKey("integrator"), std::string("scene"),
+                                   std::string("camera.eye"), std::string("camera.look_at")}) {
       if (!meta.count(key)) continue;
       auto [it, fresh] = first_value.emplace(key, meta[key]);
       if (!fresh && it->second != meta[key])

@@ -72,13 +72,25 @@ void AddFarmOptions(CLI::App* app, pf::FarmArgs& f) {
       ->check(CLI::Range(0.1, 86400.0));
 }
 
-void AddOutputOptions(CLI::App* app, pf::RenderArgs& a) {
-  app->add_option("-o,--output", a.output, "Output EXR (float32 RGB; default: <scene>.exr)")
+void AddOutputOptions(CLI::App* app, pf::RenderArgs& a, bool all) {
+  auto more = [all](CLI::Option* o) { return all ? o : o->group(""); };
+  app->add_option("-o,--output", a.output, "Output EXR (default: <scene>.exr; a PNG preview beside it)")
       ->check(Extension({".exr"}, "the output is an OpenEXR file (the PNG preview goes to --png)"));
-  app->add_option("--png", a.png, "PNG preview path (default: output with .png)")
-      ->check(Extension({".png"}, "the preview is a PNG file"));
-  app->add_flag("--no-png", a.no_png, "Do not write a PNG preview");
+  more(app->add_option("--png", a.png, "PNG preview path (default: output with .png)")
+           ->check(Extension({".png"}, "the preview is a PNG file")));
+  more(app->add_flag("--no-png", a.no_png, "Do not write a PNG preview"));
   app->add_flag("-q,--quiet", a.quiet, "No progress bar");
+}
+
+// `pf render --help-all`: --help with every option (--help shows the common ones).
+bool TakeHelpAll(int argc, char** argv) {
+  bool found = false;
+  for (int i = 1; i < argc; ++i)
+    if (std::string_view(argv[i]) == "--help-all") {
+      argv[i] = const_cast<char*>("--help");
+      found = true;
+    }
+  return found;
 }
 
 }  // namespace
@@ -86,13 +98,14 @@ void AddOutputOptions(CLI::App* app, pf::RenderArgs& a) {
 int main(int argc, char** argv) {
   using namespace pf;
   InstallInterruptHandling();
+  const bool all = TakeHelpAll(argc, argv);
   CLI::App app{fmt::format(
       "pf — photonfarm, photorealistic rendering with the photon map (Wald 1999).\n\n"
       "Examples:\n"
       "  pf render scenes/cornell-box/cornell-box.json --workers 2 -o cornell.exr\n"
       "  pf render scenes/cornell-box/cornell-box.json --spp 256 -o cornell.exr\n"
       "  pf render scenes/cornell-box/cornell-box.json --integrator photonmap --plan skipping --stride 2 \\\n"
-      "      --rounds 4 --photons 20000 --spp 1 --local-only -o local.exr\n"
+      "      --rounds 4 --set photons=20000 --spp 1 --local-only -o local.exr\n"
       "  pf submit scenes/office3/office.mgf --integrator photonmap --plan skipping --coordinator HOST:PORT\n"
       "  pf watch job-1 -o office.exr;  pf get job-1 -o office.exr;  pf list --all;  pf cancel job-1\n"
       "  pf diff cornell.exr scenes/cornell-box/reference-256.exr --error-image err.png\n"
@@ -102,8 +115,9 @@ int main(int argc, char** argv) {
       "  pf info scenes/scene8/scene8.json;  pf info cornell.exr\n"
       "  pf workers --coordinator HOST:PORT;  pf events job-1 --coordinator HOST:PORT\n\n"
       "{}"
-      "A scene manifest's \"settings\" (spp of a plain render, photons, k) are defaults that flags "
-      "override.\n\n"
+      "Render settings: --set NAME=VALUE, --settings FILE or a scene manifest's \"settings\" (which the\n"
+      "command line overrides); pf settings lists them, docs/settings.md explains them.\n"
+      "pf render --help shows the common options, pf render --help-all all of them.\n\n"
       "Exit codes: 0 ok, 1 runtime failure (I/O, Embree, RPC; the job failed or was cancelled),\n"
       "2 usage error, 3 invalid input (scene/manifest errors as file:line: reason; requests the\n"
       "coordinator rejects as INVALID_ARGUMENT, NOT_FOUND or RESOURCE_EXHAUSTED), 130 interrupted.",
@@ -122,41 +136,43 @@ int main(int argc, char** argv) {
       "Render a scene (.json manifest, .mgf or .obj) to EXR + PNG: in this process, or with --workers N on "
       "a\n"
       "coordinator and N worker processes that pf starts on loopback and stops afterwards");
-  AddSceneOptions(render, ra);
-  AddPlanOptions(render, ra);
-  AddOutputOptions(render, ra);
-  render
-      ->add_option("--threads", ra.threads,
-                   "Threads (0 = all cores; with --workers: per worker, default cores/N)")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 1024));
+  render->footer("Every render setting: --set NAME=VALUE (pf settings lists them); every option: --help-all");
+  auto more = [all](CLI::Option* o) { return all ? o : o->group(""); };
+  AddSceneOptions(render, ra, all);
+  AddPlanOptions(render, ra, all);
+  AddOutputOptions(render, ra, all);
+  more(render
+           ->add_option("--threads", ra.threads,
+                        "Threads (0 = all cores; with --workers: per worker, default cores/N)")
+           ->capture_default_str()
+           ->check(CLI::Range(0, 1024)));
   render
       ->add_option("--workers", ra.workers,
                    "Render on a local farm of N pf-worker processes (default plan: multiple-maps, 1 map, "
                    "64-pixel tiles)")
       ->check(CLI::Range(0, 256));
-  render->add_flag(
+  more(render->add_flag(
       "--local-only", ra.local_only,
-      "Run the plan in this process (same tasks, seeds and merge as the farm: bit-identical image)");
-  render->add_option("--coordinator-bin", ra.coordinator_bin,
-                     "pf-coordinator executable (default: next to pf)");
-  render->add_option("--worker-bin", ra.worker_bin, "pf-worker executable (default: next to pf)");
-  render
-      ->add_option("--coordinator-arg", ra.coordinator_args,
-                   "Extra flag for the local coordinator (repeatable)")
-      ->allow_extra_args(false);
-  render->add_option("--worker-arg", ra.worker_args, "Extra flag for each local worker (repeatable)")
-      ->allow_extra_args(false);
-  render->add_flag("--keep-farm-dir", ra.keep_farm_dir,
-                   "Keep the local farm's folder (logs, SQLite) afterwards");
+      "Run the plan in this process (same tasks, seeds and merge as the farm: bit-identical image)"));
+  more(render->add_option("--coordinator-bin", ra.coordinator_bin,
+                          "pf-coordinator executable (default: next to pf)"));
+  more(render->add_option("--worker-bin", ra.worker_bin, "pf-worker executable (default: next to pf)"));
+  more(render
+           ->add_option("--coordinator-arg", ra.coordinator_args,
+                        "Extra flag for the local coordinator (repeatable)")
+           ->allow_extra_args(false));
+  more(render->add_option("--worker-arg", ra.worker_args, "Extra flag for each local worker (repeatable)")
+           ->allow_extra_args(false));
+  more(render->add_flag("--keep-farm-dir", ra.keep_farm_dir,
+                        "Keep the local farm's folder (logs, SQLite) afterwards"));
 
   RenderArgs sa;
   sa.submit = true;
   FarmArgs sf;
   CLI::App* submit =
       app.add_subcommand("submit", "Upload a scene and submit a render job; prints the job id");
-  AddSceneOptions(submit, sa);
-  AddPlanOptions(submit, sa);
+  AddSceneOptions(submit, sa, true);
+  AddPlanOptions(submit, sa, true);
   AddFarmOptions(submit, sf);
 
   FarmArgs wf;
@@ -273,6 +289,14 @@ int main(int argc, char** argv) {
   preview->add_option("--exposure", preview_stops, "Stops added on top (+1 = twice as bright)")
       ->capture_default_str();
 
+  std::string settings_name;
+  bool settings_markdown = false;
+  CLI::App* settings = app.add_subcommand(
+      "settings",
+      "List the render settings (--set NAME=VALUE), or explain one: range, default, what it needs");
+  settings->add_option("name", settings_name, "A setting's name");
+  settings->add_flag("--markdown", settings_markdown, "The reference page docs/settings.md");
+
   std::string info_scene;
   CLI::App* info = app.add_subcommand(
       "info", "Print what a scene contains (counts, bounds, cameras, warnings), or an EXR's size and header");
@@ -292,16 +316,9 @@ int main(int argc, char** argv) {
               opt, std::string(
                        "applies to plan renders only (add --plan P, --local-only or "
                        "--workers N); a plain render runs the default plan (one map, 64-pixel tiles) here"));
-    // Who traces the maps is a farm setting; in one process they are traced here.
-    if (*render && ra.workers == 0 && render->count("--map-tracing") > 0)
-      throw CLI::ValidationError("--map-tracing",
-                                 "applies to farm renders only (--workers N); in one process the maps are "
-                                 "traced by this process");
     for (auto [cmd, args] : {std::pair{render, &ra}, std::pair{submit, &sa}}) {
-      if (*cmd) RejectPhotonMapOptionsForPath(*cmd, *args);
+      if (*cmd) CheckSettingArgs(*args);
       args->spp_given = cmd->count("--spp") > 0;
-      args->photons_given = cmd->count("--photons") > 0;
-      args->k_given = cmd->count("--k") > 0;
     }
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
@@ -333,6 +350,7 @@ int main(int argc, char** argv) {
     if (*diff)
       return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera, diff_region);
     if (*info) return RunInfo(info_scene);
+    if (*settings) return RunSettings(settings_name, settings_markdown);
     if (*merge) return RunMerge(merge_inputs, merge_output, merge_assume_spp);
     if (*preview) return RunPreview(preview_in, preview_out, preview_ref, preview_stops);
   } catch (const std::exception& e) {

@@ -12,6 +12,7 @@
 #include "common/core/error.h"
 #include "common/photon/photon_tracer.h"
 #include "common/plan/plan_choice.h"
+#include "common/render/render_settings_table.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
@@ -81,255 +82,68 @@ std::string FormatVec(const Vec3d& v) {
 void ApplyManifestSettings(RenderArgs& a) {
   if (std::filesystem::path(a.scene).extension() != ".json") return;
   const SceneManifest manifest = LoadManifest(a.scene);
-  auto number = [&](const char* key, double lo, double hi) -> std::optional<double> {
-    auto it = manifest.settings.find(key);
-    if (it == manifest.settings.end() || !std::holds_alternative<double>(it->second)) return std::nullopt;
-    const double v = std::get<double>(it->second);
-    if (!(v >= lo && v <= hi) || v != std::floor(v))
-      throw InputError(a.scene + ": settings." + key + ": expected a whole number in " +
-                       fmt::format("{}..{}", lo, hi) + ", got " + fmt::format("{}", v));
-    return v;
-  };
-  // A plan's --spp means samples per map or per task (see --spp): only a plain render takes the
-  // manifest's, which is a per-pixel count.
-  const bool plain = a.plan.empty() && !a.local_only && a.workers == 0;
-  if (auto v = number("spp", 1, kMaxSamplesPerPixel); v && !a.spp_given && plain) {
-    a.spp = uint32_t(*v);
-    spdlog::info("spp = {} from the manifest's settings (--spp overrides)", a.spp);
-  }
-  if (a.integrator != "photonmap") return;
-  if (auto v = number("photons", 1, double(kMaxPhotonsPerMap)); v && !a.photons_given) {
-    a.photons = uint64_t(*v);
-    spdlog::info("photons = {} from the manifest's settings (--photons overrides)", a.photons);
-  }
-  if (auto v = number("k", 1, kMaxK); v && !a.k_given) {
-    a.k = int(*v);
-    spdlog::info("k = {} from the manifest's settings (--k overrides)", a.k);
+  for (const auto& [key, value] : manifest.settings) {
+    const std::string text = std::holds_alternative<double>(value)
+                                 ? fmt::format("{}", std::get<double>(value))
+                                 : std::get<std::string>(value);
+    const std::string source = a.scene + ": settings." + key;
+    if (key == "spp") {
+      // A plan's --spp means samples per map or per task (see --spp): only a plain render takes
+      // the manifest's, which is a per-pixel count.
+      const double v = std::holds_alternative<double>(value) ? std::get<double>(value) : -1;
+      if (!(v >= 1 && v <= kMaxSamplesPerPixel) || v != std::floor(v))
+        throw InputError(source + ": expected a whole number in 1.." + std::to_string(kMaxSamplesPerPixel) +
+                         ", got " + text);
+      const bool plain = a.plan.empty() && !a.local_only && a.workers == 0;
+      if (!a.spp_given && plain) {
+        a.spp = uint32_t(v);
+        spdlog::info("spp = {} from the manifest's settings (--spp overrides)", a.spp);
+      }
+    } else if (FindRenderSetting(key)) {
+      a.settings.manifest.push_back({key, text, source});
+    }  // other keys are the scene's notes (e.g. expected_pixel_value)
   }
 }
 
-void AddSceneOptions(CLI::App* app, RenderArgs& a) {
+void AddSceneOptions(CLI::App* app, RenderArgs& a, bool all) {
+  auto more = [all](CLI::Option* o) { return all ? o : o->group(""); };
   app->add_option("scene", a.scene, "Scene manifest (.json) or geometry file (.mgf, .obj)")->required();
-  app->add_option("--integrator", a.integrator,
-                  "path = reference path tracer (NEE + MIS + RR); photonmap = standalone photon-map "
-                  "estimate in a distribution ray tracer (Wald 1999, 2.5)")
+  app->add_option("--integrator", a.integrator, "path (reference path tracer) or photonmap (Wald 1999)")
       ->capture_default_str()
       ->check(CLI::IsMember({"path", "photonmap"}));
-  app->add_option("--sampler", a.sampler,
-                  "sobol = padded Owen-scrambled Sobol points (randomised quasi-Monte Carlo: pixel position, "
-                  "lights, BSDFs, roulette, gather rays, photon emission and scattering); independent = "
-                  "independent uniform numbers, to compare (docs/renderer.md, 'Sampling')")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"sobol", "independent"}));
-  app->add_option("--spp", a.spp,
-                  "Samples per pixel (with --plan: per map for multiple-maps, = number of maps for "
-                  "maps-in-turn, per task and pixel for skipping)")
+  app->add_option("--spp", a.spp, "Samples per pixel (with --plan: per map or per task; see --help-all)")
       ->capture_default_str()
       ->check(CLI::Range(1u, kMaxSamplesPerPixel));
-  app->add_option("--seed", a.seed, "Seed: the same seed gives the same image on any thread or worker count")
-      ->capture_default_str();
+  more(app->add_option("--seed", a.seed,
+                       "Seed: the same seed gives the same image on any thread or worker count")
+           ->capture_default_str());
   app->add_option("--camera", a.camera_name, "Named camera of the manifest (default: its first)");
-  app->add_option("--eye", a.eye, "Camera position X,Y,Z (overrides the manifest)");
-  app->add_option("--look-at", a.look_at, "Point the camera looks at X,Y,Z");
-  app->add_option("--up", a.up, "Up vector X,Y,Z (image right = forward x up)");
-  app->add_option("--fov", a.fov, "Vertical field of view in degrees")->check(CLI::Range(0.01f, 179.9f));
+  more(app->add_option("--eye", a.eye, "Camera position X,Y,Z (overrides the manifest)"));
+  more(app->add_option("--look-at", a.look_at, "Point the camera looks at X,Y,Z"));
+  more(app->add_option("--up", a.up, "Up vector X,Y,Z (image right = forward x up)"));
+  more(
+      app->add_option("--fov", a.fov, "Vertical field of view in degrees")->check(CLI::Range(0.01f, 179.9f)));
   app->add_option("--res", a.res, "Resolution WxH, e.g. 640x480");
-  // Everything from here on configures the photon-map integrator only: one help section, and
-  // RejectPhotonMapOptionsForPath finds them by it.
-  const size_t first_photon_map_option = app->get_options().size();
-  app->add_option("--photons", a.photons, "photonmap: photons emitted per map")
-      ->capture_default_str()
-      ->check(CLI::Range(uint64_t(1), kMaxPhotonsPerMap));
-  app->add_option("--k", a.k, "photonmap: nearest photons per radiance estimate")
-      ->capture_default_str()
-      ->check(CLI::Range(1, int(kMaxK)));
-  app->add_option(
-         "--map", a.map,
-         "photonmap: kdtree (left-balanced, 2.3), grid (2.4) or bucket (unbalanced kd-tree with SIMD "
-         "buckets, the fastest queries)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"kdtree", "grid", "bucket"}));
-  app->add_option("--kd-split", a.kd_split,
-                  "kdtree split axis: widest (extent; faster in rooms, 2.3 footnote) or cycle (level % 3)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"cycle", "widest"}));
-  app->add_option("--caustic-map", a.caustic,
-                  "auto = only when the scene has specular/glossy surfaces; on; off")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"auto", "on", "off"}));
-  app->add_option("--caustic-radius", a.caustic_radius,
-                  "photonmap: max caustic search radius (default 1% of the scene diagonal)");
-  app->add_option("--glossy-depth", a.glossy_depth,
-                  "photonmap: glossy bounces followed before the map estimates the glossy lobe")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 64));
-  app->add_option("--direction-test", a.direction_test,
-                  "photonmap: photon direction vs normal test (4.1): in-query, after, none")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"in-query", "after", "none"}));
-  app->add_option(
-         "--direct", a.direct,
-         "photonmap: direct light (4.2). photon-map = from the map (standalone, 2.5); mc = Monte Carlo "
-         "shadow rays, per light in proportion to power (4.2.1); photon-direct = shadow rays split by "
-         "the lights of the nearest direct photons (4.2.3); auto = photon-direct with " +
-             std::to_string(kPhotonDirectMinLights) + "+ lights, else mc (logged)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"auto", "photon-map", "mc", "photon-direct"}));
-  app->add_option("--shadow-rays", a.shadow_rays,
-                  "mc: shadow rays per shading point; photon-direct: N_total for the contributing lights")
-      ->capture_default_str()
-      ->check(CLI::Range(1, int(kMaxShadowRays)));
-  app->add_option("--light-uniform", a.light_uniform,
-                  "mc: fraction of shadow rays drawn uniformly over lights rather than by power (defensive "
-                  "sampling: bounds the weight of dim lights)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0f, 1.0f));
-  app->add_option("--photon-direct-k", a.photon_direct_k, "photon-direct: direct photons looked up per point")
-      ->capture_default_str()
-      ->check(CLI::Range(1, int(kMaxK)));
-  app->add_option(
-         "--non-contributing", a.non_contributing,
-         "photon-direct: lights without photons nearby get one sample in total, to one of them chosen "
-         "by their photon count (one-random), or one each (each); both unbiased")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"one-random", "each"}));
-  app->add_option("--photon-direct-cache", a.photon_direct_cache,
-                  "photon-direct: reuse the last neighbour set within this fraction of its radius (0 = off)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0f, 1.0f));
-  app->add_option(
-         "--local-pass", a.local_pass,
-         "photonmap: final gathering rays per shading point, photon map at their hits (4.3; 0 = off)")
-      ->capture_default_str()
-      ->check(CLI::Range(0, int(kMaxShadowRays)));
-  app->add_option(
-         "--local-pass-lookup", a.local_pass_lookup,
-         "local pass: what a gather ray reads at its hit: full (the photon-map estimate) or precomputed "
-         "(irradiance at every 4th photon, estimated once per map; one 4-nearest-site lookup, the mean of "
-         "the sites visible from the hit, Christensen 1999)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"full", "precomputed"}));
-  app->add_option("--site-occlusion-test", a.site_occlusion_test,
-                  "local pass, precomputed lookup: each site's estimate drops photons whose origin the site "
-                  "cannot see (4.1.1). on: no light bleeding through walls into the sites (rooms side by "
-                  "side); off: faster, and no darkened corners where nothing bleeds")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
-  app->add_flag("--irradiance-cache", a.irradiance_cache,
-                "local pass: irradiance caching (Ward 1988): a shading point interpolates the gathers of "
-                "nearby points of its 16x16-pixel block instead of gathering, where they are close enough "
-                "(--irradiance-cache-error)");
-  app->add_option("--irradiance-cache-error", a.irradiance_cache_error,
-                  "irradiance cache: Ward's a, the largest distance/R + normal deviation a cached gather "
-                  "is reused at (smaller = more gathers, less error)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.001f, 1.0f));
-  app->add_flag("--occlusion-test", a.occlusion_test,
-                "photonmap: drop found photons whose origin is not visible from the point (4.1.1; "
-                "removes light bleeding through walls, one shadow ray per photon)");
-  app->add_option(
-         "--adaptive-k-min", a.adaptive_k_min,
-         "photonmap: shrink k down to this at borders and corners by the centre-of-gravity test (4.8; "
-         "0 = off)")
-      ->capture_default_str()
-      ->check(CLI::Range(0, int(kMaxK)));
-  app->add_option(
-         "--importance", a.importance,
-         "photonmap: importance-driven maps (4.7): importons from the camera make an importance map; a "
-         "diffuse photon hit is stored with probability p = clamp(s * importance/mean, p_min, 1) and "
-         "power phi/p (unbiased; the walk goes on either way). Raise --photons with it: the map keeps "
-         "fewer photons where the camera does not look. auto = on when a short pilot would drop more "
-         "than 80% of the hits (logged)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"off", "on", "auto"}));
-  app->add_option("--importance-min-probability", a.importance_min_probability,
-                  "importance: p_min, the acceptance probability where nothing is seen (bounds the power "
-                  "of the photons there to phi/p_min)")
-      ->capture_default_str()
-      ->check(CLI::Range(1e-6, 1.0));
-  app->add_option("--importance-strength", a.importance_strength,
-                  "importance: s, every hit whose importance is at least 1/s of the mean is stored")
-      ->capture_default_str()
-      ->check(CLI::Range(1e-6, 1e6));
-  app->add_option("--importons", a.importons, "importance: importons per map (0 = one per pixel)")
-      ->capture_default_str()
-      ->check(CLI::Range(uint64_t(0), kMaxImportons));
-  app->add_option("--caustic-split", a.caustic_split,
-                  "photonmap: caustic splitting (4.6): S times the caustic photons, the global map unchanged "
-                  "(1 = off; the thesis found 4-20 sufficient)")
-      ->capture_default_str()
-      ->check(CLI::Range(uint32_t(1), kMaxCausticSplit));
-  app->add_option("--caustic-split-method", a.caustic_split_method,
-                  "caustic splitting: brute (emit S*photons, keep non-caustic photons with 1/S at S times "
-                  "the power) or metropolis (S-1 jittered copies of every singular chain; fewer rays, "
-                  "start points can act as secondary lights)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"brute", "metropolis"}));
-  const std::vector<CLI::Option*> options = app->get_options();
-  for (size_t i = first_photon_map_option; i < options.size(); ++i) options[i]->group(kPhotonMapOptionGroup);
+  AddSettingOptions(app, a.settings);
 }
 
-void RejectPhotonMapOptionsForPath(const CLI::App& cmd, const RenderArgs& a) {
-  if (a.integrator != "path") return;
-  for (const CLI::Option* opt : cmd.get_options())
-    if (opt->get_group() == kPhotonMapOptionGroup && opt->count() > 0)
-      throw CLI::ValidationError(opt->get_name(),
-                                 "applies to the photon-map integrator only (add --integrator photonmap); "
-                                 "the path tracer would ignore it");
+void CheckSettingArgs(const RenderArgs& a) {
+  try {
+    SettingsFromArgs(a.settings, a.integrator);
+  } catch (const InputError& e) {
+    throw CLI::ValidationError(e.what());
+  }
+  // Who traces the maps is a farm setting; in one process they are traced here.
+  if (!a.submit && a.workers == 0)
+    for (const GivenSetting& g : SettingsGiven(a.settings))
+      if (g.name == "map-tracing")
+        throw CLI::ValidationError(g.source,
+                                   "applies to farm renders only (--workers N); in one process the maps are "
+                                   "traced by this process");
 }
 
 void RenderSettingsFromArgs(const RenderArgs& a, v1::RenderSettings* rs) {
-  rs->set_sampler(a.sampler == "independent" ? v1::SAMPLER_INDEPENDENT : v1::SAMPLER_SOBOL);
-  if (a.integrator == "path") {
-    rs->set_integrator(v1::INTEGRATOR_PATH);
-    return;
-  }
-  rs->set_integrator(v1::INTEGRATOR_PHOTONMAP);
-  v1::PhotonMapSettings* pm = rs->mutable_photon_map();
-  pm->set_photons(a.photons);
-  pm->set_k(uint32_t(a.k));
-  pm->set_structure(a.map == "grid"     ? v1::MAP_STRUCTURE_GRID
-                    : a.map == "bucket" ? v1::MAP_STRUCTURE_BUCKET_KDTREE
-                                        : v1::MAP_STRUCTURE_KDTREE);
-  pm->set_kd_split(a.kd_split == "cycle" ? v1::KD_SPLIT_CYCLE : v1::KD_SPLIT_WIDEST);
-  pm->set_caustic(a.caustic == "on"    ? v1::CAUSTIC_MODE_ON
-                  : a.caustic == "off" ? v1::CAUSTIC_MODE_OFF
-                                       : v1::CAUSTIC_MODE_AUTO);
-  pm->set_caustic_radius(a.caustic_radius);
-  pm->set_glossy_depth(uint32_t(a.glossy_depth));
-  pm->set_direction_test(a.direction_test == "none"    ? v1::DIRECTION_TEST_NONE
-                         : a.direction_test == "after" ? v1::DIRECTION_TEST_AFTER_QUERY
-                                                       : v1::DIRECTION_TEST_IN_QUERY);
-  pm->set_direct(a.direct == "photon-map"      ? v1::DIRECT_LIGHT_PHOTON_MAP
-                 : a.direct == "mc"            ? v1::DIRECT_LIGHT_MONTE_CARLO
-                 : a.direct == "photon-direct" ? v1::DIRECT_LIGHT_PHOTON_DIRECT
-                                               : v1::DIRECT_LIGHT_AUTO);
-  pm->set_shadow_rays(uint32_t(a.shadow_rays));
-  pm->set_light_uniform_fraction(a.light_uniform);
-  pm->set_photon_direct_k(uint32_t(a.photon_direct_k));
-  pm->set_non_contributing(a.non_contributing == "each" ? v1::NON_CONTRIBUTING_EACH
-                                                        : v1::NON_CONTRIBUTING_ONE_RANDOM);
-  pm->set_photon_direct_cache(a.photon_direct_cache);
-  pm->set_local_pass_rays(uint32_t(a.local_pass));
-  pm->set_local_pass_lookup(a.local_pass_lookup == "precomputed" ? v1::LOCAL_PASS_LOOKUP_PRECOMPUTED
-                                                                 : v1::LOCAL_PASS_LOOKUP_FULL);
-  if (a.site_occlusion_test == "off") pm->set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
-  if (a.irradiance_cache) pm->set_irradiance_cache_error(a.irradiance_cache_error);
-  pm->set_occlusion_test(a.occlusion_test);
-  pm->set_adaptive_k_min(uint32_t(a.adaptive_k_min));
-  if (a.map_tracing != "auto")
-    pm->set_map_tracing(a.map_tracing == "local" ? v1::MAP_TRACING_LOCAL : v1::MAP_TRACING_DISTRIBUTED);
-  pm->set_importance(a.importance == "on"     ? v1::IMPORTANCE_MODE_ON
-                     : a.importance == "auto" ? v1::IMPORTANCE_MODE_AUTO
-                                              : v1::IMPORTANCE_MODE_OFF);
-  pm->set_importance_min_probability(a.importance_min_probability);
-  pm->set_importance_strength(a.importance_strength);
-  pm->set_importons(a.importons);
-  if (a.caustic_split > 1) {
-    pm->set_caustic_split(a.caustic_split);
-    pm->set_caustic_split_method(a.caustic_split_method == "metropolis" ? v1::CAUSTIC_SPLIT_METHOD_METROPOLIS
-                                                                        : v1::CAUSTIC_SPLIT_METHOD_BRUTE);
-  }
+  SettingsToProto(SettingsFromArgs(a.settings, a.integrator), rs);
 }
 
 JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDescription& scene) {
@@ -339,23 +153,27 @@ JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDe
   return resolved;
 }
 
-void AddPlanOptions(CLI::App* app, RenderArgs& a) {
-  app->add_option(
-         "--plan", a.plan,
-         "How the image is split into tasks (Wald 1999, 4.4): multiple-maps (--maps independent maps "
-         "over --tile tiles, averaged), maps-in-turn (sample i from map i), skipping (per round a "
-         "seeded pixel permutation, stride^2 tasks each with its own map), hierarchical (4.5: "
-         "multilevel sampling, every sample of a pixel from its own map, --levels/--dims/--base-samples/"
-         "--min-samples/--decay/--localize-*; --tile = rows per task), or auto (the default of --workers and "
-         "`pf submit`; --local-only defaults to multiple-maps): the coordinator picks the plan, the number "
-         "of "
-         "maps and photons per map from the scene, the workers and the stop rule, with --photons the budget "
-         "over all maps and --spp the samples per pixel over all maps (docs/farm.md, \"Choosing the plan\")")
+void AddPlanOptions(CLI::App* app, RenderArgs& a, bool all) {
+  auto more = [all](CLI::Option* o) { return all ? o : o->group(""); };
+  const char* plan_help =
+      "How the image is split into tasks (Wald 1999, 4.4): multiple-maps (--maps independent maps "
+      "over --tile tiles, averaged), maps-in-turn (sample i from map i), skipping (per round a "
+      "seeded pixel permutation, stride^2 tasks each with its own map), hierarchical (4.5: "
+      "multilevel sampling, every sample of a pixel from its own map, --levels/--dims/--base-samples/"
+      "--min-samples/--decay/--localize-*; --tile = rows per task), or auto (the default of --workers and "
+      "`pf submit`; --local-only defaults to multiple-maps): the coordinator picks the plan, the number "
+      "of "
+      "maps and photons per map from the scene, the workers and the stop rule, with --photons the budget "
+      "over all maps and --spp the samples per pixel over all maps (docs/farm.md, \"Choosing the plan\")";
+  app->add_option("--plan", a.plan,
+                  all ? plan_help
+                      : "auto, multiple-maps, maps-in-turn, skipping or hierarchical (Wald 1999, 4.4; "
+                        "--help-all tells more)")
       ->check(CLI::IsMember({"auto", "multiple-maps", "maps-in-turn", "skipping", "hierarchical"}));
   // Which plan-shape flags were given: --plan auto chooses them itself.
-  auto shape = [&a](CLI::Option* o) {
+  auto shape = [&a, more](CLI::Option* o) {
     o->each([&a, name = o->get_name()](const std::string&) { a.plan_flags_given.push_back(name); });
-    return o->capture_default_str();
+    return more(o->capture_default_str());
   };
   shape(app->add_option("--maps", a.maps, "multiple-maps: number of independent maps"));
   shape(app->add_option("--stride", a.stride, "skipping: S (S^2 tasks per round)"));
@@ -389,20 +207,13 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a) {
   shape(app->add_option("--hier-direct-samples", a.hier_direct_samples,
                         "hierarchical, --hier-part indirect: emission + direct light samples per pixel")
             ->check(CLI::Range(1u, kMaxSamplesPerPixel)));
-  app->add_option("--max-rounds", a.max_rounds, "Stop rule: stop after this many rounds (0 = all)");
+  more(app->add_option("--max-rounds", a.max_rounds, "Stop rule: stop after this many rounds (0 = all)"));
   app->add_option("--time-budget", a.time_budget,
                   "Stop rule: seconds (0 = none; the image then depends on timing)");
-  app->add_option("--target-noise", a.target_noise, "Stop rule: estimated noise RMS to reach (0 = none)");
-  app->add_option("--priority", a.priority, "Job priority (higher first)");
-  app->add_option("--name", a.name, "Job name (default: the scene's file name)");
-  // Who traces the maps (docs/farm.md, "Photon maps traced once").
-  app->add_option("--map-tracing", a.map_tracing,
-                  "farm, photonmap: who traces the photon maps: auto (traced once in pieces by the workers "
-                  "and built once by the coordinator when several tasks use a kd-tree map), local (each "
-                  "worker traces the maps of its tasks), distributed (always traced once; kdtree only). "
-                  "The image is the same")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"auto", "local", "distributed"}));
+  more(app->add_option("--target-noise", a.target_noise,
+                       "Stop rule: estimated noise RMS to reach (0 = none)"));
+  more(app->add_option("--priority", a.priority, "Job priority (higher first)"));
+  more(app->add_option("--name", a.name, "Job name (default: the scene's file name)"));
 }
 
 CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a) {

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "client/settings_args.h"
 #include "common/plan/task_executor.h"
 #include "common/scene/scene.h"
 #include "common/scene/scene_bundle.h"
@@ -21,9 +22,8 @@ namespace pf {
 struct RenderArgs {
   std::string scene;
   std::string integrator = "path";
-  std::string sampler = "sobol";
   uint32_t spp = 16;
-  bool spp_given = false, photons_given = false, k_given = false;  // on the command line
+  bool spp_given = false;  // on the command line
   std::string output;
   std::string png;
   bool no_png = false;
@@ -33,37 +33,8 @@ struct RenderArgs {
   std::string eye, look_at, up, res;
   float fov = 0.0f;
   bool quiet = false;
-  // Photon map (--integrator photonmap).
-  uint64_t photons = 200000;
-  int k = 100;
-  std::string map = "kdtree";
-  std::string kd_split = "widest";
-  std::string caustic = "auto";
-  float caustic_radius = 0.0f;
-  int glossy_depth = 1;
-  std::string direction_test = "in-query";
-  // Chapter 4 estimators (Wald 1999, §4.1–4.3, §4.8).
-  std::string direct = "auto";
-  int shadow_rays = 16;
-  float light_uniform = 0.0f;
-  int photon_direct_k = 50;
-  std::string non_contributing = "one-random";
-  float photon_direct_cache = 0.25f;
-  int local_pass = 0;
-  std::string local_pass_lookup = "full";
-  std::string site_occlusion_test = "on";
-  bool irradiance_cache = false;
-  float irradiance_cache_error = 0.2f;
-  bool occlusion_test = false;
-  int adaptive_k_min = 0;
-  // Importance-driven photon maps (Wald 1999, §4.7).
-  std::string importance = "off";
-  double importance_min_probability = 0.05;
-  double importance_strength = 4.0;
-  uint64_t importons = 0;
-  // Caustic splitting (Wald 1999, §4.6).
-  uint32_t caustic_split = 1;
-  std::string caustic_split_method = "brute";
+  // Every other render setting (--set, --settings, the manifest's "settings"; settings_args.h).
+  SettingArgs settings;
   // Plan (farm and --local-only); plan.empty() = the classic single-process render.
   std::string plan;
   uint32_t maps = 1;
@@ -97,28 +68,24 @@ struct RenderArgs {
   // --stride, …), which auto would ignore: an error with it.
   std::vector<std::string> plan_flags_given;
   bool submit = false;  // `pf submit`: --plan defaults to auto, as with --workers
-  // --map-tracing auto|local|distributed.
-  std::string map_tracing = "auto";
 };
 
-// A scene manifest's "settings" (spp for a plain render, photons, k) become the defaults of the
-// flags not given;
-// logged. No-op for a geometry file. InputError if a value is out of the flags' range.
+// A scene manifest's "settings": spp (of a plain render, unless --spp) and the render settings
+// (a.settings.manifest, applied under the command line's; settings_args.h). No-op for a geometry
+// file. InputError if a value is malformed.
 void ApplyManifestSettings(RenderArgs& a);
 
-// Scene, camera, integrator and photon-map options (render and submit).
-void AddSceneOptions(CLI::App* app, RenderArgs& a);
+// Scene, camera, integrator, spp and the render settings (render and submit). With `all` false
+// the options a person rarely needs are hidden from --help (`pf render --help-all` shows them).
+void AddSceneOptions(CLI::App* app, RenderArgs& a, bool all);
 
-// The help section of the options that configure the photon-map integrator only.
-inline constexpr const char* kPhotonMapOptionGroup = "Photon-map integrator (--integrator photonmap)";
-// A photon-map option given on the command line of a path-traced render: a usage error
-// (CLI::ValidationError naming the option), not a setting silently ignored. An error rather than
-// a warning because the image would not show what was asked for; manifest `settings` stay
-// allowed, since they describe the scene for either integrator.
-void RejectPhotonMapOptionsForPath(const CLI::App& cmd, const RenderArgs& a);
+// The settings given on the command line, checked before anything runs: CLI::ValidationError
+// (exit 2) for an unknown or malformed setting, a broken rule or a setting the chosen integrator
+// would ignore (an error rather than a warning: the image would not show what was asked for).
+void CheckSettingArgs(const RenderArgs& a);
 
 // --plan, --maps, --stride, --rounds, --tile, stop rule, --priority, --name.
-void AddPlanOptions(CLI::App* app, RenderArgs& a);
+void AddPlanOptions(CLI::App* app, RenderArgs& a, bool all);
 
 // The scene's camera after --camera/--eye/--look-at/--up/--fov/--res.
 CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a);
@@ -132,7 +99,7 @@ struct PreparedJob {
 };
 PreparedJob PrepareJob(const RenderArgs& a);
 
-// The integrator and photon-map options as the job's RenderSettings (auto values left auto).
+// The render settings as the job's RenderSettings (auto values left auto).
 void RenderSettingsFromArgs(const RenderArgs& a, photonfarm::v1::RenderSettings* out);
 
 // Logs what each `auto` setting becomes for this scene, and why; returns the resolved settings.

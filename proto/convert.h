@@ -18,11 +18,7 @@ namespace pf {
 
 // The limits of a job's values live with every other limit in proto/limits.h.
 
-// Thrown (instead of InputError) when a value is well-formed but over a limit.
-class LimitError : public InputError {
- public:
-  using InputError::InputError;
-};
+// Over a limit: LimitError (common/core/error.h) instead of InputError.
 
 // The lower-case name of a job state ("queued", "running", ...), as pf and the web page show it.
 const char* JobStateName(photonfarm::v1::JobState s);

@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "common/core/error.h"
+#include "common/render/setting_limits.h"
 #include "common/scene/scene_bundle.h"
 
 namespace pf::limits {
@@ -59,12 +60,8 @@ namespace pf {
 // A job's values (docs/farm.md; over them: RESOURCE_EXHAUSTED, LimitError in proto/convert.h).
 inline constexpr uint32_t kMaxImageSide = 8192;
 inline constexpr uint64_t kMaxImagePixels = uint64_t(4096) * 4096;
-inline constexpr uint64_t kMaxPhotonsPerMap = uint64_t(1) << 28;
-// Caustic splitting (§4.6): the thesis found 4-20 sufficient; brute force emits S·photons, which
-// must stay within kMaxPhotonsPerMap as well.
-inline constexpr uint32_t kMaxCausticSplit = 256;
-inline constexpr uint32_t kMaxK = 10000;
-inline constexpr uint32_t kMaxShadowRays = 4096;  // also the local pass's rays
+// kMaxPhotonsPerMap, kMaxCausticSplit, kMaxK, kMaxShadowRays: common/render/setting_limits.h
+// (the settings table's ranges).
 inline constexpr uint32_t kMaxSamplesPerPixel = 1u << 16;
 // Camera.vfov_degrees, checked after conversion to float (the worker's type).
 inline constexpr float kMinVfovDegrees = 0.001f;

@@ -29,6 +29,13 @@ class InputError : public std::runtime_error {
   std::string reason_;
 };
 
+// Input that is well-formed but over a resource limit (docs/security.md, "Limits"): the RPC
+// layers answer RESOURCE_EXHAUSTED for it rather than INVALID_ARGUMENT.
+class LimitError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 // Work given up on request (a cancel flag was set): e.g. a worker whose lease is gone stops
 // rendering a task whose result would be dropped anyway. Not an error of the input or the machine.
 class Cancelled : public std::runtime_error {

@@ -12,126 +12,10 @@
 #include "common/photon/map_key.h"
 #include "common/plan/accumulator.h"
 #include "common/render/path_tracer.h"
+#include "common/render/render_settings_rules.h"
 #include "common/render/renderer.h"
 
 namespace pf {
-
-std::string JobRenderSettings::MapFingerprint() const {
-  const PhotonMapsOptions o = MapsOptions();
-  return "photons=" + std::to_string(photons) + ";structure=" + std::to_string(int(structure)) +
-         ";kd=" + std::to_string(int(kd_split)) + ";caustic=" + std::to_string(int(caustic)) +
-         ";k=" + std::to_string(k) + ";separate_direct=" + std::to_string(o.separate_direct) +
-         ";light_ids=" + std::to_string(o.keep_light_ids) + ";origins=" + std::to_string(o.keep_origins) +
-         ";sampler=" + SamplerName(sampler) + (o.separate_direct && !o.direct_map ? ";direct_map=0" : "") +
-         ImportanceFingerprint() + CausticSplitFingerprint();
-}
-
-std::string JobRenderSettings::CausticSplitFingerprint() const {
-  // S = 1 builds the maps of no splitting bit for bit: the same key as before the setting existed.
-  if (caustic_split <= 1) return "";
-  return ";caustic_split=" + std::to_string(caustic_split) +
-         ";split_method=" + CausticSplitMethodName(caustic_split_method);
-}
-
-std::string JobRenderSettings::ImportanceFingerprint() const {
-  if (importance == ImportanceMode::kOff) return "";
-  const PhotonMapsOptions o = MapsOptions();
-  return std::string(";importance=") + ImportanceModeName(importance) +
-         // Float bits, not std::to_string's 6 decimals: values closer than 1e-6 build other maps.
-         ";p_min=" + std::to_string(std::bit_cast<uint32_t>(importance_min_probability)) +
-         ";strength=" + std::to_string(std::bit_cast<uint32_t>(importance_strength)) +
-         ";importons=" + std::to_string(importons) +
-         ";importon_bounces=" + std::to_string(o.importance.diffuse_bounces);
-}
-
-JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene,
-                                              std::vector<AutoChoice>* choices) const {
-  JobRenderSettings r = *this;
-  auto choose = [&](const char* setting, const char* value, std::string reason) {
-    if (choices) choices->push_back({setting, value, std::move(reason)});
-  };
-  if (r.integrator != IntegratorKind::kPhotonMap) return r;
-  if (r.caustic == CausticMapMode::kAuto) {
-    const bool need = SceneNeedsCausticMap(scene);
-    r.caustic = need ? CausticMapMode::kOn : CausticMapMode::kOff;
-    choose("caustic-map", need ? "on" : "off",
-           need
-               ? "the scene has specular or glossy surfaces (caustic paths L S+ D exist)"
-               : "no specular or glossy surface: no caustic path can exist (a caustic map would stay empty)");
-  }
-  if (!r.direct) {
-    // Wald 1999, §4.2.3: with many lights, Monte Carlo spends most shadow rays on lights that
-    // do not reach the point; the direct photons tell which lights matter (PhotonDirect).
-    // With few lights, stratified MC shadow rays are cheaper and have no photon-map bias.
-    const int lights = scene.num_lights;
-    if (lights >= kPhotonDirectMinLights) {
-      r.direct = DirectLightMode::kPhotonDirect;
-      choose("direct", "photon-direct",
-             std::to_string(lights) + " lights (>= " + std::to_string(kPhotonDirectMinLights) +
-                 "): shadow rays go to the lights whose direct photons reach the point (4.2.3)");
-    } else {
-      r.direct = DirectLightMode::kMonteCarlo;
-      choose("direct", "monte-carlo",
-             std::to_string(lights) + (lights == 1 ? " light" : " lights") + " (< " +
-                 std::to_string(kPhotonDirectMinLights) +
-                 "): stratified shadow rays per light, sharp shadows, no direct photons in the estimate "
-                 "(4.2.1)");
-    }
-  }
-  return r;
-}
-
-PhotonMapIntegratorOptions JobRenderSettings::IntegratorOptions(const Bounds3& bounds) const {
-  if (!direct)
-    throw std::logic_error(
-        "JobRenderSettings::IntegratorOptions: direct light is still 'auto' (call Resolved)");
-  PhotonMapIntegratorOptions io;
-  io.global.k = k;
-  io.global.direction_test = direction_test;
-  io.global.occlusion_test = occlusion_test;
-  io.global.adaptive_k_min = adaptive_k_min;
-  io.direct_photons = DefaultDirectPhotonOptions(io.global, bounds);
-  io.caustic = DefaultCausticOptions(k, bounds);
-  if (caustic_radius > 0.0f) io.caustic.max_radius = caustic_radius;
-  io.caustic.direction_test = direction_test;
-  io.caustic.occlusion_test = occlusion_test;
-  io.caustic.adaptive_k_min = adaptive_k_min;
-  io.glossy_depth = glossy_depth;
-  io.direct = *direct;
-  io.monte_carlo.shadow_rays = shadow_rays;
-  io.monte_carlo.uniform_fraction = light_uniform_fraction;
-  io.photon_direct.k = photon_direct_k;
-  io.photon_direct.samples = shadow_rays;
-  io.photon_direct.non_contributing = non_contributing;
-  io.photon_direct.cache_radius_fraction = photon_direct_cache;
-  io.photon_direct.max_radius = io.direct_photons.max_radius;  // same bound, same reason (direct_light.h)
-  io.local_pass_rays = local_pass_rays;
-  io.local_pass_lookup = local_pass_lookup;
-  io.precomputed.occlusion_test = site_occlusion_test;
-  io.irradiance_cache.error = irradiance_cache_error;
-  return io;
-}
-
-PhotonMapsOptions JobRenderSettings::MapsOptions() const {
-  PhotonMapsOptions mo;
-  mo.tracing.photons = photons;
-  mo.tracing.sampler = sampler;
-  mo.tracing.caustic_split = caustic_split;
-  mo.tracing.caustic_split_method = caustic_split_method;
-  mo.kind = structure;
-  mo.structure.kd_split_rule = kd_split;
-  mo.structure.grid.expected_k = k;
-  mo.caustic = caustic;
-  ConfigureMapsFor(IntegratorOptions(Bounds3()), &mo);
-  mo.importance.mode = importance;
-  mo.importance.min_probability = importance_min_probability;
-  mo.importance.strength = importance_strength;
-  mo.importance.importons = importons;
-  // The local pass reads the map at its gather rays' hits, one diffuse bounce from the visible
-  // points: the importons go one bounce further so that those hits count as important (§4.3).
-  mo.importance.diffuse_bounces = local_pass_rays > 0 ? 1 : 0;
-  return mo;
-}
 
 namespace {
 
@@ -167,15 +51,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                                    ? PixelStreams::kShared
                                    : PixelStreams::kPerPixel;
   RenderStats stats;
-  if (settings_as_given.integrator == IntegratorKind::kPath && task.part != RadiancePart::kAll)
-    throw InputError(
-        "plan.hierarchical.part: indirect splits the photon-map shader's radiance; the path integrator has "
-        "no "
-        "photon map (use part all)");
-  if (task.part != RadiancePart::kAll && settings_as_given.local_pass_rays > 0)
-    throw InputError(
-        "plan.hierarchical.part: indirect is not available with the local pass: its parts do not add up "
-        "to the whole radiance yet (docs/renderer.md)");
+  if (task.part != RadiancePart::kAll) CheckRadiancePartsApart(settings_as_given, "plan.hierarchical.part");
   if (settings_as_given.integrator == IntegratorKind::kPath) {
     const PathTracer tracer(scene.accel, scene.lights);
     stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
@@ -184,7 +60,7 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
     const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
     std::string key = MapCacheKey(scene_key, settings, task.map_seed);
     // An importance-driven map depends on the camera too (its importons, §4.7); such maps are
-    // always traced where they are used (never distributed: MapTracingMode, job_settings.h).
+    // always traced where they are used (never distributed: MapTracingMode, job_render_settings.h).
     if (settings.importance != ImportanceMode::kOff)
       key += "|camera=" + std::to_string(camera.width()) + "x" + std::to_string(camera.height()) + "," +
              CameraKey(camera_spec);

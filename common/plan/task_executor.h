@@ -2,7 +2,7 @@
 // Executes one task — build (or reuse) the task's photon map, render its pixel subset — and the
 // single-process execution of a whole plan. Shared by pf-worker and `pf render`, so that a farm
 // render and a local render of the same plan and seed are bit-identical (docs/design.md, G1).
-// Its inputs each have a header of their own: job_settings.h (how to render), scene_runtime.h
+// Its inputs each have a header of their own: render/job_render_settings.h (how to render), scene_runtime.h
 // (the scene ready to trace) and map_cache.h (photon maps kept between tasks).
 
 #include <atomic>
@@ -14,8 +14,8 @@
 
 #include "common/image/image.h"
 #include "common/photon/map_cache.h"
-#include "common/plan/job_settings.h"
 #include "common/plan/task_plan.h"
+#include "common/render/job_render_settings.h"
 #include "common/render/scene_runtime.h"
 
 namespace pf {

@@ -2,12 +2,15 @@
 
 #include "proto/limits.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 
 #include "common/core/error.h"
 #include "common/plan/plan_choice.h"
+#include "common/render/render_settings_rules.h"
 #include "proto/convert.h"
 #include "server/errors.h"
 
@@ -119,6 +122,10 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
     return ValidateJobSpec(resolved, scenes, live_workers);
   }
   job.settings = SettingsFromProto(spec.settings(), "spec.settings");
+  // A setting without effect is logged, not refused: a stored or scripted job keeps working
+  // (docs/settings.md, "Settings that do not apply"; pf refuses them on its command line).
+  for (const UnusedSetting& u : UnusedSettings(job.settings, NonDefaultSettings(job.settings)))
+    spdlog::warn("job {}: setting {} {}", limits::Quote(spec.name()), u.name, u.reason);
   job.plan = PlanFromProto(spec.plan(), "spec.plan");
   try {
     ValidatePlan(job.plan, job.camera.width, job.camera.height);
@@ -128,19 +135,8 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
     RethrowUnderSpec(e);
   }
   // The split hierarchy renders the photon-map shader's two parts apart (radiance_part.h).
-  if (job.plan.kind == PlanKind::kHierarchical && job.plan.hierarchy_part == HierarchyPart::kIndirect &&
-      job.settings.integrator != IntegratorKind::kPhotonMap)
-    throw InputError(
-        "spec.plan.hierarchical.part: indirect needs the photonmap integrator (the path tracer has no "
-        "photon-map part)");
-  // With the local pass (§4.3) the two parts were measured not to add up to the whole radiance
-  // (up to 7 % apart at some pixels of CornellBox-Sphere; RadianceParts tests): refused until
-  // that is understood.
-  if (job.plan.kind == PlanKind::kHierarchical && job.plan.hierarchy_part == HierarchyPart::kIndirect &&
-      job.settings.local_pass_rays > 0)
-    throw InputError(
-        "spec.plan.hierarchical.part: indirect is not available with the local pass "
-        "(settings.photon_map.local_pass_rays > 0): its parts do not add up to the whole radiance yet");
+  if (job.plan.kind == PlanKind::kHierarchical && job.plan.hierarchy_part == HierarchyPart::kIndirect)
+    CheckRadiancePartsApart(job.settings, "spec.plan.hierarchical.part");
   const uint64_t tasks = CountTasks(job.plan, job.camera.width, job.camera.height);
   if (const std::string problem = limits::TaskCountProblem(tasks); !problem.empty())
     throw LimitError(problem);

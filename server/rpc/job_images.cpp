@@ -5,6 +5,7 @@
 #include <ctime>
 
 #include "common/core/error.h"
+#include "common/render/render_settings_text.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "server/assembly/image_snapshot.h"
@@ -31,12 +32,8 @@ void AddJobMetadata(const photonfarm::v1::JobStatus& status, ImageMetadata& meta
   meta["camera.look_at"] = Vec(spec.camera().look_at());
   meta["camera.up"] = Vec(spec.camera().up());
   meta["camera.vfov_degrees"] = fmt::format("{}", spec.camera().vfov_degrees());
-  const bool photonmap = spec.settings().integrator() == v1::INTEGRATOR_PHOTONMAP;
-  meta["integrator"] = photonmap ? "photonmap" : "path";
-  if (photonmap) {
-    meta["photons.per_map"] = std::to_string(spec.settings().photon_map().photons());
-    meta["photons.k"] = std::to_string(spec.settings().photon_map().k());
-  }
+  // Every setting as submitted (an `auto` stays auto here: the scene decides it on the workers).
+  RecordRenderSettings(SettingsFromProto(spec.settings(), "spec.settings"), meta);
   meta["plan"] = spec.plan().ShortDebugString();
   meta["job_state"] = v1::JobState_Name(status.state());
   meta["version"] = PF_VERSION;

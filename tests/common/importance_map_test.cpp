@@ -12,8 +12,8 @@
 #include "common/lights/light_sampler.h"
 #include "common/photon/importance_map.h"
 #include "common/photon/photon_maps.h"
-#include "common/plan/job_settings.h"
 #include "common/plan/task_executor.h"
+#include "common/render/job_render_settings.h"
 #include "common/render/scene_runtime.h"
 #include "tests/common/test_scenes.h"
 

@@ -11,7 +11,7 @@
 #include "common/camera/camera.h"
 #include "common/lights/light_sampler.h"
 #include "common/photon/photon_maps.h"
-#include "common/plan/job_settings.h"
+#include "common/render/job_render_settings.h"
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/renderer.h"

@@ -114,8 +114,8 @@ TEST(Visibility, FarmImageHeaderDescribesTheJob) {
   EXPECT_NE(r.out.find("\033[K"), std::string::npos) << r.out;
   r = RunCommand({Binaries::Pf(), "info", (dir / "farm.exr").string()}, dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const char* line : {"seed        11", "integrator  photonmap", "photons.per_map 2000",
-                           "photons.k   20", "camera.eye", "scene", "version", "date", "size        32x32"})
+  for (const char* line : {"seed        11", "settings.integrator photonmap", "settings.photons 2000",
+                           "settings.k  20", "camera.eye", "scene", "version", "date", "size        32x32"})
     EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
 }
 

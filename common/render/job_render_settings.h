@@ -1,6 +1,9 @@
 #pragma once
 // Everything about *how* a job renders that is the same for all its tasks, and how its `auto`
-// settings become concrete for a scene (implemented in task_executor.cpp, which uses them).
+// settings become concrete for a scene. Every field is a row of the settings table
+// (render_settings_table.h: name, type, default, range, help, whether it changes a photon map);
+// adding a setting = a field here + a row there + a field of farm.proto's PhotonMapSettings or
+// RenderSettings (docs/settings.md).
 
 #include <cstdint>
 #include <optional>
@@ -85,12 +88,10 @@ struct JobRenderSettings {
   // The photon-map options (everything but the seed and threads).
   PhotonMapsOptions MapsOptions() const;
 
-  // Stable text form of the settings that change a photon map (cache key).
+  // Stable text form of the settings that change a photon map (cache key): the table's
+  // changes-map rows that apply (render_settings_table.h, MapFingerprintOf). Requires resolved
+  // settings.
   std::string MapFingerprint() const;
-  // Its importance part ("" when off).
-  std::string ImportanceFingerprint() const;
-  // Its caustic-splitting part ("" when S = 1).
-  std::string CausticSplitFingerprint() const;
 };
 
 }  // namespace pf
