@@ -113,20 +113,21 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   if (scene->max_emission >= 0) job.max_sample_radiance = limits::kResultRadianceFactor * scene->max_emission;
 
   job.camera = ResolveCamera(spec, *scene);
-  if (spec.plan().has_auto_plan()) {
-    // The chosen plan is what the job stores and echoes: a resumed job keeps it, the image does
-    // not depend on the farm at the time of the restart.
-    v1::JobSpec resolved = spec;
-    ResolveAutoPlan(&resolved, job.camera.width, job.camera.height, scene->caustic_paths,
+  // From here on the spec as the job stores and echoes it: an `auto_plan` is replaced by the
+  // chosen plan, so a resumed job keeps it and the image does not depend on the farm at the time
+  // of a restart. Every rule below reads this spec once.
+  job.spec = spec;
+  CameraToProto(job.camera, job.spec.mutable_camera());
+  if (job.spec.plan().has_auto_plan())
+    ResolveAutoPlan(&job.spec, job.camera.width, job.camera.height, scene->caustic_paths,
                     std::max(1u, live_workers), kMapsCanBeShipped, "spec");
-    return ValidateJobSpec(resolved, scenes, live_workers);
-  }
-  job.settings = SettingsFromProto(spec.settings(), "spec.settings");
+  const v1::JobSpec& accepted = job.spec;
+  job.settings = SettingsFromProto(accepted.settings(), "spec.settings");
   // A setting without effect is logged, not refused: a stored or scripted job keeps working
   // (docs/settings.md, "Settings that do not apply"; pf refuses them on its command line).
   for (const UnusedSetting& u : UnusedSettings(job.settings, NonDefaultSettings(job.settings)))
-    spdlog::warn("job {}: setting {} {}", limits::Quote(spec.name()), u.name, u.reason);
-  job.plan = PlanFromProto(spec.plan(), "spec.plan");
+    spdlog::warn("job {}: setting {} {}", limits::Quote(accepted.name()), u.name, u.reason);
+  job.plan = PlanFromProto(accepted.plan(), "spec.plan");
   try {
     ValidatePlan(job.plan, job.camera.width, job.camera.height);
   } catch (const LimitError&) {
@@ -147,11 +148,11 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
                      " pixels per task (a result must fit one 64 MiB message); " +
                      (job.plan.kind == PlanKind::kSkipping ? "use a larger stride" : "use tiles"));
 
-  RequireFiniteNonNegative(spec.stop().time_budget_seconds(), "spec.stop.time_budget_seconds");
-  RequireFiniteNonNegative(spec.stop().target_noise_rms(), "spec.stop.target_noise_rms");
-  job.stop.max_rounds = spec.stop().max_rounds();
-  job.stop.time_budget_seconds = spec.stop().time_budget_seconds();
-  job.stop.target_noise_rms = spec.stop().target_noise_rms();
+  RequireFiniteNonNegative(accepted.stop().time_budget_seconds(), "spec.stop.time_budget_seconds");
+  RequireFiniteNonNegative(accepted.stop().target_noise_rms(), "spec.stop.target_noise_rms");
+  job.stop.max_rounds = accepted.stop().max_rounds();
+  job.stop.time_budget_seconds = accepted.stop().time_budget_seconds();
+  job.stop.target_noise_rms = accepted.stop().target_noise_rms();
   // The noise estimate compares independent maps per pixel; a hierarchical pixel's value mixes
   // its parents' maps with its own details, which that estimate does not model.
   if (job.plan.kind == PlanKind::kHierarchical && job.stop.max_rounds > 0)
@@ -163,10 +164,8 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
         "spec.stop.target_noise_rms: not available for the hierarchical plan (no noise estimate); use "
         "time_budget_seconds");
 
-  job.seed = spec.seed();
-  job.priority = spec.priority();
-  job.spec = spec;
-  CameraToProto(job.camera, job.spec.mutable_camera());
+  job.seed = accepted.seed();
+  job.priority = accepted.priority();
   return job;
 }
 

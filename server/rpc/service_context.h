@@ -8,9 +8,9 @@
 #include "server/executor.h"
 #include "server/scheduling/distributed_maps.h"
 #include "server/scheduling/scheduler.h"
+#include "server/store/job_store.h"
 #include "server/store/persister.h"
 #include "server/store/scene_store.h"
-#include "server/store/sqlite_store.h"
 
 namespace pf::server {
 
@@ -20,7 +20,7 @@ class Admission;
 struct ServiceContext {
   Scheduler& scheduler;
   SceneStore& scenes;
-  SqliteStore& db;
+  JobStore& db;  // jobs and tasks (SqliteStore)
   Persister& persister;
   Executor& executor;
   WatchHub& watches;

@@ -9,7 +9,7 @@
 
 namespace pf::server {
 
-std::string SubmitValidatedJob(Scheduler& scheduler, SqliteStore& db, JobConfig config,
+std::string SubmitValidatedJob(Scheduler& scheduler, JobStore& db, JobConfig config,
                                const std::string& client) {
   std::unique_ptr<Job> job = scheduler.PrepareJob(std::move(config));
   job->client = client;

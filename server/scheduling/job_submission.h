@@ -11,12 +11,12 @@
 
 #include "server/jobs/job_spec.h"
 #include "server/scheduling/scheduler.h"
-#include "server/store/sqlite_store.h"
+#include "server/store/job_store.h"
 
 namespace pf::server {
 
 // Returns the new job's id. Throws what the store throws (the job is then not scheduled).
-std::string SubmitValidatedJob(Scheduler& scheduler, SqliteStore& db, JobConfig config,
+std::string SubmitValidatedJob(Scheduler& scheduler, JobStore& db, JobConfig config,
                                const std::string& client);
 
 }  // namespace pf::server

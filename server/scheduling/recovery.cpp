@@ -203,7 +203,7 @@ CheckpointSeal ExpectedSeal(const JobRow& row, uint64_t done_rows) {
   return CheckpointSeal{done_rows, 0};
 }
 
-RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
+RecoveryReport RecoverJobs(JobStore& db, const SceneCatalog& scenes, const fs::path& checkpoint_dir,
                            Scheduler& scheduler, const Clock& clock, bool keep_other_builds) {
   RecoveryReport report;
   const double now = clock.Now();

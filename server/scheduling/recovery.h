@@ -25,7 +25,7 @@
 #include "server/clock.h"
 #include "server/jobs/job_spec.h"
 #include "server/scheduling/scheduler.h"
-#include "server/store/sqlite_store.h"
+#include "server/store/job_store.h"
 
 namespace pf::server {
 
@@ -49,7 +49,7 @@ struct RecoveryReport {
 // its merged results set aside and its tasks re-run — unless `keep_other_builds`
 // (--allow-mixed-versions), which resumes it, its image then mixing the builds. Either way it is
 // stamped with this build from then on (docs/farm.md, Upgrades).
-RecoveryReport RecoverJobs(SqliteStore& db, const SceneCatalog& scenes,
+RecoveryReport RecoverJobs(JobStore& db, const SceneCatalog& scenes,
                            const std::filesystem::path& checkpoint_dir, Scheduler& scheduler,
                            const Clock& clock, bool keep_other_builds = false);
 

@@ -13,7 +13,7 @@
 namespace pf::server {
 namespace fs = std::filesystem;
 
-Persister::Persister(PersistSource& source, SqliteStore& db, fs::path checkpoint_dir, const Clock& clock,
+Persister::Persister(PersistSource& source, JobStore& db, fs::path checkpoint_dir, const Clock& clock,
                      double checkpoint_interval_seconds, FileLayer& files)
     : source_(source),
       db_(db),

@@ -50,9 +50,9 @@
 
 #include "common/core/file_layer.h"
 #include "server/clock.h"
+#include "server/store/job_store.h"
 #include "server/store/journal.h"
 #include "server/store/persist_source.h"
-#include "server/store/sqlite_store.h"
 
 namespace pf::server {
 
@@ -68,7 +68,7 @@ class Persister {
   using Ack = std::function<void(const std::string& not_stored)>;
 
   // `files`: the system calls of the journal and checkpoint writes (tests inject faults there).
-  Persister(PersistSource& source, SqliteStore& db, std::filesystem::path checkpoint_dir, const Clock& clock,
+  Persister(PersistSource& source, JobStore& db, std::filesystem::path checkpoint_dir, const Clock& clock,
             double checkpoint_interval_seconds, FileLayer& files = SystemFiles());
   ~Persister();  // Stop()
 
@@ -133,7 +133,7 @@ class Persister {
   void ReleasePending(const std::string& why);
 
   PersistSource& source_;
-  SqliteStore& db_;
+  JobStore& db_;
   std::filesystem::path checkpoint_dir_;
   const Clock& clock_;
   const double interval_;

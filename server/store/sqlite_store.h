@@ -25,36 +25,31 @@
 #include <string>
 #include <vector>
 
+#include "server/store/job_store.h"
 #include "server/store/records.h"
 
 struct sqlite3;
 
 namespace pf::server {
 
-class SqliteStore {
+class SqliteStore final : public JobStore {
  public:
   // Opens (creating if needed) the database file and its schema.
   explicit SqliteStore(const std::filesystem::path& db_file);
-  ~SqliteStore();
+  ~SqliteStore() override;
   SqliteStore(const SqliteStore&) = delete;
   SqliteStore& operator=(const SqliteStore&) = delete;
 
   void PutScene(const SceneRow& scene);  // insert or ignore (content-addressed)
   std::vector<SceneRow> LoadScenes();
 
-  // The job row and all its task rows, in one transaction.
-  void InsertJob(const JobRow& job, const std::vector<TaskRow>& tasks);
-  // Updates of existing rows, in one transaction (jobs: state, failure reason, elapsed time,
-  // samples merged, noise; tasks: upserted).
-  void Apply(const std::vector<JobRow>& jobs, const std::vector<TaskRow>& tasks);
-  // Replaces a job's stored spec (recovery: a job re-expanded under this coordinator's plan
-  // expansion version, recovery.cpp).
-  void UpdateJobSpec(const std::string& job_id, const std::string& spec);
-  std::vector<JobRow> LoadJobs();                             // in submission order
-  std::vector<TaskRow> LoadTasks(const std::string& job_id);  // by task id
-  // How many of the job's task rows are in `state` (recovery of a finished job: its rows are not
-  // loaded, docs/farm.md "Coordinator memory").
-  uint64_t CountTasks(const std::string& job_id, TaskState state);
+  // JobStore (server/store/job_store.h).
+  void InsertJob(const JobRow& job, const std::vector<TaskRow>& tasks) override;
+  void Apply(const std::vector<JobRow>& jobs, const std::vector<TaskRow>& tasks) override;
+  void UpdateJobSpec(const std::string& job_id, const std::string& spec) override;
+  std::vector<JobRow> LoadJobs() override;
+  std::vector<TaskRow> LoadTasks(const std::string& job_id) override;
+  uint64_t CountTasks(const std::string& job_id, TaskState state) override;
 
  private:
   void Exec(const char* sql);
