@@ -357,6 +357,14 @@ int RunInfo(const std::string& path) {
     std::printf("camera      %s: eye %s look-at %s up %s fov %g res %dx%d\n", c.name.c_str(),
                 FormatVec(c.eye).c_str(), FormatVec(c.look_at).c_str(), FormatVec(c.up).c_str(),
                 c.vfov_degrees, c.width, c.height);
+  // What the photon-map renderer would choose for this scene where a setting is left `auto`
+  // (JobRenderSettings::Resolved; the same choice pf render and the coordinator log).
+  JobRenderSettings photon_map;
+  photon_map.integrator = IntegratorKind::kPhotonMap;
+  std::vector<AutoChoice> choices;
+  photon_map.Resolved(scene, &choices);
+  for (const AutoChoice& c : choices)
+    std::printf("auto        %s = %s: %s\n", c.setting.c_str(), c.value.c_str(), c.reason.c_str());
   std::printf("warnings    %zu\n", scene.warnings.size());
   for (const std::string& w : scene.warnings) std::printf("  %s\n", w.c_str());
   return kExitOk;

@@ -6,7 +6,16 @@
 
 namespace pf {
 
+SceneTraits TraitsOf(const SceneDescription& scene) {
+  return SceneTraits{.caustic_paths = SceneNeedsCausticMap(scene), .lights = int(scene.num_lights)};
+}
+
 JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene,
+                                              std::vector<AutoChoice>* choices) const {
+  return Resolved(TraitsOf(scene), choices);
+}
+
+JobRenderSettings JobRenderSettings::Resolved(const SceneTraits& scene,
                                               std::vector<AutoChoice>* choices) const {
   JobRenderSettings r = *this;
   auto choose = [&](const char* setting, const char* value, std::string reason) {
@@ -14,7 +23,7 @@ JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene,
   };
   if (r.integrator != IntegratorKind::kPhotonMap) return r;
   if (r.caustic == CausticMapMode::kAuto) {
-    const bool need = SceneNeedsCausticMap(scene);
+    const bool need = scene.caustic_paths;
     r.caustic = need ? CausticMapMode::kOn : CausticMapMode::kOff;
     choose("caustic-map", need ? "on" : "off",
            need
@@ -25,7 +34,7 @@ JobRenderSettings JobRenderSettings::Resolved(const SceneDescription& scene,
     // Wald 1999, §4.2.3: with many lights, Monte Carlo spends most shadow rays on lights that
     // do not reach the point; the direct photons tell which lights matter (PhotonDirect).
     // With few lights, stratified MC shadow rays are cheaper and have no photon-map bias.
-    const int lights = scene.num_lights;
+    const int lights = scene.lights;
     if (lights >= kPhotonDirectMinLights) {
       r.direct = DirectLightMode::kPhotonDirect;
       choose("direct", "photon-direct",

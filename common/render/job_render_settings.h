@@ -36,6 +36,15 @@ struct AutoChoice {
 // "auto settings"; measured in docs/results/estimators.md).
 inline constexpr int kPhotonDirectMinLights = 8;
 
+// What the `auto` settings depend on in a scene (JobRenderSettings::Resolved), and nothing
+// else: known from the scene itself, or from what the coordinator recorded of it at upload, so
+// the coordinator resolves a job once, at submission, without loading the scene.
+struct SceneTraits {
+  bool caustic_paths = false;  // specular or glossy surfaces (SceneNeedsCausticMap)
+  int lights = 0;
+};
+SceneTraits TraitsOf(const SceneDescription& scene);
+
 // Everything about *how* to render that is the same for all tasks of a job.
 struct JobRenderSettings {
   IntegratorKind integrator = IntegratorKind::kPhotonMap;
@@ -80,7 +89,9 @@ struct JobRenderSettings {
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
   // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.
+  // Idempotent: resolved settings resolve to themselves.
   JobRenderSettings Resolved(const SceneDescription& scene, std::vector<AutoChoice>* choices = nullptr) const;
+  JobRenderSettings Resolved(const SceneTraits& scene, std::vector<AutoChoice>* choices = nullptr) const;
 
   // The integrator options these settings describe, for a scene with these bounds. Requires
   // resolved settings (std::logic_error otherwise).

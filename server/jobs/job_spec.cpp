@@ -127,6 +127,16 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   // (docs/settings.md, "Settings that do not apply"; pf refuses them on its command line).
   for (const UnusedSetting& u : UnusedSettings(job.settings, NonDefaultSettings(job.settings)))
     spdlog::warn("job {}: setting {} {}", limits::Quote(accepted.name()), u.name, u.reason);
+  // Stored resolved: the `auto`s the scene decides are made concrete here, once, from what the
+  // upload recorded of the scene (docs/farm.md, "Validation of a job"), so the stored and echoed
+  // spec, the map key and every worker hold the same concrete settings. A scene recorded before
+  // caustic_paths was (-1) keeps its `auto`s: each worker resolves them alike.
+  if (scene->caustic_paths >= 0) {
+    job.settings = job.settings.Resolved(
+        SceneTraits{.caustic_paths = scene->caustic_paths == 1, .lights = int(scene->lights)},
+        &job.auto_choices);
+    if (!job.auto_choices.empty()) SettingsToProto(job.settings, job.spec.mutable_settings());
+  }
   job.plan = PlanFromProto(accepted.plan(), "spec.plan");
   try {
     ValidatePlan(job.plan, job.camera.width, job.camera.height);

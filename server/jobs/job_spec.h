@@ -12,7 +12,8 @@
 //                        otherwise a full camera (eye ≠ look_at, up not parallel, vfov in
 //                        (0, 180), width and height > 0)                    INVALID_ARGUMENT
 //                        over kMaxImageSide / kMaxImagePixels (proto/convert.h)  RESOURCE_EXHAUSTED
-//   spec.settings        proto/convert.h SettingsFromProto (photons, k ≥ 1 and their limits)
+//   spec.settings        proto/convert.h SettingsFromProto (photons, k ≥ 1 and their limits);
+//                        then the `auto`s the scene decides are resolved (JobRenderSettings::Resolved)
 //   spec.plan            auto_plan: replaced by the chosen plan (ResolveAutoPlan), then as that;
 //                        proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
 //                        more than limits::kMaxTasksPerJob tasks, or a task of more than
@@ -58,8 +59,12 @@ struct JobConfig {
   uint64_t seed = 0;
   StopRule stop;
   int32_t priority = 0;
-  // The spec as accepted, with the camera resolved: echoed in JobStatus.spec and stored.
+  // The spec as accepted, with the camera, an auto plan and the scene's `auto` settings resolved:
+  // echoed in JobStatus.spec and stored.
   photonfarm::v1::JobSpec spec;
+  // The `auto` settings resolved at this validation, with their reasons (logged at submission;
+  // empty when the spec was resolved already, as a recovered job's is).
+  std::vector<AutoChoice> auto_choices;
   // The result bound (docs/security.md, "Results"): a task's per-pixel channel sum above
   // samples × this is implausible. limits::kResultRadianceFactor × the scene's brightest
   // emitter; infinite when the scene's emission is unknown (a database from before the bound).

@@ -24,6 +24,8 @@ std::string SubmitValidatedJob(Scheduler& scheduler, JobStore& db, JobConfig con
   spdlog::info("job {}: submitted{}: scene {}, {}x{}, {}, {} tasks, seed {}, priority {}", job->id(),
                c.name.empty() ? "" : " '" + c.name + "'", c.scene_hash.substr(0, 12), c.camera.width,
                c.camera.height, DescribePlan(c.plan), job->num_tasks(), c.seed, c.priority);
+  for (const AutoChoice& a : c.auto_choices)
+    spdlog::info("job {}: auto {} = {}: {}", job->id(), a.setting, a.value, a.reason);
   if (c.spec.plan().has_chosen_by_auto())
     spdlog::info("job {}: plan auto: {}", job->id(), c.spec.plan().chosen_by_auto().reason());
   std::string id = job->id();

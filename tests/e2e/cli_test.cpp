@@ -265,5 +265,14 @@ TEST(Cli, InfoPrintsAnExrHeader) {
     EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
 }
 
+// The choices an `auto` setting makes for a scene, as pf render and the coordinator log them.
+TEST(Cli, InfoOfASceneSaysWhatAutoWouldChoose) {
+  TestDir dir;
+  const RunResult r = RunCommand({Binaries::Pf(), "info", Binaries::Scene()}, dir.path(), 30);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("auto        caustic-map = "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("auto        direct = monte-carlo: 1 light (< 8)"), std::string::npos) << r.out;
+}
+
 }  // namespace
 }  // namespace pf::e2e

@@ -34,8 +34,7 @@ class MemoryJobStore final : public JobStore {
   size_t scheduled_at_insert = ~size_t(0);
 
   void InsertJob(const JobRow& job, const std::vector<TaskRow>&) override {
-    if (scheduler)
-      scheduled_at_insert = scheduler->List(/*include_finished=*/true).size();
+    if (scheduler) scheduled_at_insert = scheduler->List(/*include_finished=*/true).size();
     if (full) throw StorageError("INSERT INTO jobs: database or disk is full", ENOSPC);
     jobs.push_back(job);
   }

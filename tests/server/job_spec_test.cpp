@@ -1,0 +1,105 @@
+// The one validation of a job stores it resolved (server/jobs/job_spec.h; docs/farm.md,
+// "Validation of a job"): the `auto` settings the scene decides are concrete in the stored spec,
+// each choice is reported once, and validating the stored spec again (recovery) changes nothing.
+
+#include "server/jobs/job_spec.h"
+
+#include <gtest/gtest.h>
+
+#include <optional>
+#include <string>
+
+#include "proto/convert.h"
+#include "tests/server/server_test_util.h"
+
+namespace pf::server {
+namespace {
+namespace v1 = photonfarm::v1;
+using testing::kHash;
+
+// One scene, kHash, with the traits an upload records (scene_store.cpp).
+class TraitsCatalog final : public SceneCatalog {
+ public:
+  TraitsCatalog(int caustic_paths, uint32_t lights) : caustic_paths_(caustic_paths), lights_(lights) {}
+  std::optional<SceneInfo> FindScene(const std::string& hash) const override {
+    if (hash != kHash) return std::nullopt;
+    SceneInfo info;
+    info.hash = kHash;
+    info.entry = "scene.mgf";
+    info.caustic_paths = caustic_paths_;
+    info.lights = lights_;
+    return info;
+  }
+
+ private:
+  int caustic_paths_;
+  uint32_t lights_;
+};
+
+v1::JobSpec PhotonMapSpec() {
+  v1::JobSpec spec = testing::SkippingSpec(2, 1);
+  JobRenderSettings settings;  // every `auto` as a user leaves it
+  settings.integrator = IntegratorKind::kPhotonMap;
+  settings.photons = 1000;
+  SettingsToProto(settings, spec.mutable_settings());
+  return spec;
+}
+
+TEST(JobSpecResolution, TheScenesAutoSettingsAreStoredConcrete) {
+  const TraitsCatalog glass_one_light(/*caustic_paths=*/1, /*lights=*/1);
+  const JobConfig config = ValidateJobSpec(PhotonMapSpec(), glass_one_light);
+
+  EXPECT_EQ(config.settings.caustic, CausticMapMode::kOn);
+  ASSERT_TRUE(config.settings.direct.has_value());
+  EXPECT_EQ(*config.settings.direct, DirectLightMode::kMonteCarlo);
+  ASSERT_EQ(config.auto_choices.size(), 2u);
+  EXPECT_EQ(config.auto_choices[0].setting, std::string("caustic-map"));
+  EXPECT_EQ(config.auto_choices[1].setting, std::string("direct"));
+
+  // What is stored and echoed holds the concrete values, not `auto`.
+  const JobRenderSettings stored = SettingsFromProto(config.spec.settings(), "spec.settings");
+  EXPECT_EQ(stored.caustic, CausticMapMode::kOn);
+  ASSERT_TRUE(stored.direct.has_value());
+  EXPECT_EQ(*stored.direct, DirectLightMode::kMonteCarlo);
+
+  // Recovery validates the stored spec again: same spec, nothing left to choose.
+  const JobConfig again = ValidateJobSpec(config.spec, glass_one_light);
+  EXPECT_TRUE(again.auto_choices.empty());
+  EXPECT_EQ(again.spec.SerializeAsString(), config.spec.SerializeAsString());
+}
+
+TEST(JobSpecResolution, ManyLightsAndNoSpecularSurfaceChooseOtherwise) {
+  const TraitsCatalog diffuse_many_lights(/*caustic_paths=*/0, /*lights=*/kPhotonDirectMinLights);
+  const JobConfig config = ValidateJobSpec(PhotonMapSpec(), diffuse_many_lights);
+  EXPECT_EQ(config.settings.caustic, CausticMapMode::kOff);
+  ASSERT_TRUE(config.settings.direct.has_value());
+  EXPECT_EQ(*config.settings.direct, DirectLightMode::kPhotonDirect);
+}
+
+TEST(JobSpecResolution, ASettingTheUserChoseIsKept) {
+  v1::JobSpec spec = PhotonMapSpec();
+  JobRenderSettings chosen = SettingsFromProto(spec.settings(), "spec.settings");
+  chosen.direct = DirectLightMode::kNone;
+  SettingsToProto(chosen, spec.mutable_settings());
+  const JobConfig config = ValidateJobSpec(spec, TraitsCatalog(1, 1));
+  ASSERT_TRUE(config.settings.direct.has_value());
+  EXPECT_EQ(*config.settings.direct, DirectLightMode::kNone);
+  ASSERT_EQ(config.auto_choices.size(), 1u);  // the caustic map only
+  EXPECT_EQ(config.auto_choices[0].setting, std::string("caustic-map"));
+}
+
+TEST(JobSpecResolution, UnknownTraitsAndThePathTracerLeaveTheSpecAsSent) {
+  // A scene recorded before its traits were (caustic_paths -1): each worker resolves alike.
+  const JobConfig old_scene = ValidateJobSpec(PhotonMapSpec(), TraitsCatalog(-1, 1));
+  EXPECT_EQ(old_scene.settings.caustic, CausticMapMode::kAuto);
+  EXPECT_FALSE(old_scene.settings.direct.has_value());
+  EXPECT_TRUE(old_scene.auto_choices.empty());
+
+  const v1::JobSpec path = testing::SkippingSpec(2, 1);
+  const JobConfig path_job = ValidateJobSpec(path, TraitsCatalog(1, 1));
+  EXPECT_TRUE(path_job.auto_choices.empty());
+  EXPECT_EQ(path_job.spec.settings().SerializeAsString(), path.settings().SerializeAsString());
+}
+
+}  // namespace
+}  // namespace pf::server
