@@ -1,7 +1,9 @@
-// worker/worker.h against a scripted, in-process WorkerService (real gRPC on loopback): the
-// heartbeat cadence, abandoning a result whose lease is gone, the SIGTERM grace period (finish
-// or hand back), cancelling an idle long poll, reconnecting when the coordinator appears, and
-// the affinity hints in LeaseTaskRequest.
+// worker/worker.h (the pull loop, with its coordinator client, obtainers and lease keeper) against
+// a scripted, in-process WorkerService (real gRPC on loopback): the heartbeat cadence, abandoning a
+// result whose lease is gone, the SIGTERM grace period (finish or hand back), cancelling an idle
+// long poll, reconnecting when the coordinator appears, and the affinity hints in
+// LeaseTaskRequest. Every run also walks the checked state table (worker_state.h): a move it does
+// not hold would end Run() with std::logic_error.
 #include "worker/worker.h"
 
 #include <grpcpp/grpcpp.h>
