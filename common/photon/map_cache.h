@@ -19,7 +19,7 @@ class PhotonMapCache {
   std::shared_ptr<const PhotonMaps> Find(const std::string& key);
   void Insert(const std::string& key, std::shared_ptr<const PhotonMaps> maps);
   // Drops the maps of `key` (a map fetched under a digest the coordinator no longer names:
-  // worker/worker_maps.cpp).
+  // worker/map_obtainer.cpp).
   void Erase(const std::string& key);
   std::vector<uint64_t> CachedSeeds() const;
   size_t size() const;

@@ -335,7 +335,7 @@ TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesThe
   EXPECT_THAT(piece->lease_id(), ::testing::MatchesRegex("map-[0-9a-f]{32}")) << "from the CSPRNG";
   const std::string lease = piece->lease_id();
 
-  // What the honest worker traces (as worker_maps.cpp does).
+  // What the honest worker traces (as Worker::RunMapPiece, worker/worker.cpp, does).
   const SceneRuntime scene(LoadBundle(live_->coordinator->scenes().DirectoryOf(hash_), piece->scene_entry()));
   PhotonMapsOptions mo =
       SettingsFromProto(piece->settings(), "settings").Resolved(scene.description).MapsOptions();
