@@ -96,6 +96,8 @@ TEST(IntegratorFactory, EachBuilderRefusesASettingItReadsNamingIt) {
   EXPECT_THAT(photon_map_error([](JobRenderSettings& s) { s.k = 0; }), HasSubstr("k: must be"));
   EXPECT_THAT(photon_map_error([](JobRenderSettings& s) { s.shadow_rays = 0; }),
               HasSubstr("shadow-rays: must be"));
+  // A resource limit is the job's (checked where it enters), not the integrator's: it renders beyond.
+  EXPECT_EQ(photon_map_error([](JobRenderSettings& s) { s.k = 100000; }), "(no error)");
   EXPECT_THAT(photon_map_error([](JobRenderSettings& s) { s.adaptive_k_min = s.k + 1; }),
               HasSubstr("adaptive-k-min: must be <= k"));
 }
