@@ -27,6 +27,7 @@
 #include "common/plan/hierarchical.h"
 #include "common/plan/task_executor.h"
 #include "common/render/emitter_coverage.h"
+#include "common/render/integrator_factory.h"
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
 #include "common/render/render_settings_text.h"
@@ -141,7 +142,7 @@ int RunLocalPlan(const RenderArgs& a) {
       {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
   // Every setting, with each `auto` as this scene resolved it (docs/settings.md, "In the EXR header").
   RecordRenderSettings(settings.Resolved(runtime.description), meta);
-  if (settings.integrator == IntegratorKind::kPhotonMap) {
+  if (Integrators().FindKind(settings.integrator).UsesPhotonMaps()) {
     meta["photons.maps_built"] = std::to_string(totals.maps_built);
     meta["photons.emitted"] = std::to_string(totals.photons_emitted);
     meta["photons.stored"] = std::to_string(totals.photons_stored);

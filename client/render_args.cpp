@@ -12,6 +12,7 @@
 #include "common/core/error.h"
 #include "common/photon/photon_tracer.h"
 #include "common/plan/plan_choice.h"
+#include "common/plan/plan_factory.h"
 #include "common/render/render_settings_table.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
@@ -153,6 +154,17 @@ JobRenderSettings ResolveAndLog(const JobRenderSettings& settings, const SceneDe
   return resolved;
 }
 
+namespace {
+
+// --plan's values: auto (plan_choice.h) and every plan of the registry (plan_factory.h).
+std::vector<std::string> PlanNamesWithAuto() {
+  std::vector<std::string> names = Plans().Names();
+  names.insert(names.begin(), "auto");
+  return names;
+}
+
+}  // namespace
+
 void AddPlanOptions(CLI::App* app, RenderArgs& a, bool all) {
   auto more = [all](CLI::Option* o) { return all ? o : o->group(""); };
   const char* plan_help =
@@ -169,7 +181,7 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a, bool all) {
                   all ? plan_help
                       : "auto, multiple-maps, maps-in-turn, skipping or hierarchical (Wald 1999, 4.4; "
                         "--help-all tells more)")
-      ->check(CLI::IsMember({"auto", "multiple-maps", "maps-in-turn", "skipping", "hierarchical"}));
+      ->check(CLI::IsMember(PlanNamesWithAuto()));
   // Which plan-shape flags were given: --plan auto chooses them itself.
   auto shape = [&a, more](CLI::Option* o) {
     o->each([&a, name = o->get_name()](const std::string&) { a.plan_flags_given.push_back(name); });

@@ -10,6 +10,7 @@
 
 #include "client/did_you_mean.h"
 #include "common/core/error.h"
+#include "common/render/integrator_factory.h"
 #include "common/render/render_settings_rules.h"
 #include "common/render/render_settings_table.h"
 
@@ -106,7 +107,7 @@ JobRenderSettings SettingsFromArgs(const SettingArgs& a, const std::string& inte
     const RenderSetting* row = FindRenderSetting(g.name);
     if (std::any_of(given.begin(), given.end(), [&](const GivenSetting& c) { return c.name == g.name; }))
       continue;  // the command line's wins
-    if (row->PhotonMapOnly() && s.integrator != IntegratorKind::kPhotonMap) {
+    if (!IntegratorReads(s, *row)) {
       skipped.push_back(g.name);
       continue;
     }

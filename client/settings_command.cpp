@@ -10,6 +10,7 @@
 #include "client/commands.h"
 #include "client/did_you_mean.h"
 #include "common/core/error.h"
+#include "common/render/integrator_factory.h"
 #include "common/render/render_settings_table.h"
 #include "common/render/render_settings_text.h"
 
@@ -32,7 +33,12 @@ std::string Default(const RenderSetting& row) {
 
 // "For": the integrator and the condition under which the setting has an effect.
 std::string AppliesTo(const RenderSetting& row) {
-  std::string out = row.PhotonMapOnly() ? "photonmap" : "both";
+  // The integrators that read it (their registry entries, integrator_factory.h).
+  std::string out;
+  size_t readers = 0;
+  for (const IntegratorEntry& e : Integrators().entries())
+    if (e.Reads(row)) out += (readers++ ? ", " : "") + std::string(e.name);
+  if (readers == Integrators().entries().size()) out = "both";
   if (!row.applies_when.empty()) out += ", when " + std::string(row.applies_when);
   return out;
 }

@@ -11,6 +11,7 @@
 #include "common/accel/embree_scene.h"
 #include "common/core/rng.h"
 #include "common/materials/bsdf.h"
+#include "common/photon/photon_map_factory.h"
 #include "common/sampling/sample_layout.h"
 
 namespace pf {

@@ -5,9 +5,9 @@
 //
 // Three implementations (PhotonMapKind): the left-balanced kd-tree of §2.3 (kdtree.h), the
 // regular grid of §2.4 (grid.h) and a bucketed, unbalanced kd-tree (bucket_kdtree.h, after Wald
-// et al. 2004). Each keeps the photons in one dynamic array and reorders it in place; after
-// PrepareForQuery, `photon(i)` is the i-th photon in that post-build order and the indices
-// returned by Query refer to it.
+// et al. 2004), built by name through photon_map_factory.h. Each keeps the photons in one
+// dynamic array and reorders it in place; after PrepareForQuery, `photon(i)` is the i-th photon
+// in that post-build order and the indices returned by Query refer to it.
 //
 // Query semantics (all three implementations, and brute_force.h, agree on them exactly):
 // * the search region is the *open* ball: a photon is a candidate iff its squared distance
@@ -496,7 +496,5 @@ class PhotonMap {
     if (!IsFinite(p.Position())) throw std::invalid_argument("PhotonMap: non-finite photon position");
   }
 };
-
-std::unique_ptr<PhotonMap> MakePhotonMap(PhotonMapKind kind, const PhotonMapOptions& options = {});
 
 }  // namespace pf

@@ -7,6 +7,7 @@
 #include "common/core/byte_codec.h"
 #include "common/core/sha256.h"
 #include "common/photon/kdtree.h"
+#include "common/photon/photon_map_factory.h"
 
 namespace pf {
 namespace {
@@ -94,7 +95,7 @@ std::unique_ptr<PhotonMap> GetMap(ByteReader& r, PhotonAttributes* attributes) {
 }  // namespace
 
 bool CanSerialize(PhotonMapKind kind) {
-  return kind == PhotonMapKind::kKdTree;
+  return PhotonMapStructures().FindKind(kind).serializable;
 }
 
 bool CanSerialize(const PhotonMaps& maps) {

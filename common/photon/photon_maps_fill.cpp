@@ -6,6 +6,8 @@
 
 #include <chrono>
 
+#include "common/photon/photon_map_factory.h"
+
 namespace pf {
 
 std::unique_ptr<PhotonMap> BuildPhotonMap(const PhotonMapsOptions& o, std::vector<Photon> photons,

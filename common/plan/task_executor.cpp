@@ -11,7 +11,7 @@
 #include "common/camera/camera.h"
 #include "common/photon/map_key.h"
 #include "common/plan/accumulator.h"
-#include "common/render/path_tracer.h"
+#include "common/render/integrator_factory.h"
 #include "common/render/render_settings_rules.h"
 #include "common/render/renderer.h"
 
@@ -27,6 +27,41 @@ std::string CameraKey(const CameraSpec& c) {
   for (float v : {c.up.x, c.up.y, c.up.z, c.vfov_degrees})
     s += std::to_string(std::bit_cast<uint32_t>(v)) + ",";
   return s;
+}
+
+// The photon maps of `task`: from `cache` (may be null) or built, and then cached; `out` gets
+// the photon counts and the time they took.
+std::shared_ptr<const PhotonMaps> TaskMaps(const SceneRuntime& scene, const std::string& scene_key,
+                                           const Camera& camera, const CameraSpec& camera_spec,
+                                           const JobRenderSettings& settings, const TaskSpec& task,
+                                           int threads, PhotonMapCache* cache,
+                                           const std::atomic<bool>* cancel, TaskOutput& out) {
+  std::string key = MapCacheKey(scene_key, settings, task.map_seed);
+  // An importance-driven map depends on the camera too (its importons, §4.7); such maps are
+  // always traced where they are used (never distributed: MapTracingMode, job_render_settings.h).
+  if (settings.importance != ImportanceMode::kOff)
+    key += "|camera=" + std::to_string(camera.width()) + "x" + std::to_string(camera.height()) + "," +
+           CameraKey(camera_spec);
+  // Emission + direct light alone (radiance_part.h) reads no map, except PhotonDirect's light
+  // choice (§4.2.3), which reads the direct photons.
+  const bool needs_map =
+      task.part != RadiancePart::kUnmapped || settings.direct == DirectLightMode::kPhotonDirect;
+  std::shared_ptr<const PhotonMaps> maps = !needs_map ? std::make_shared<const PhotonMaps>()
+                                           : cache    ? cache->Find(key)
+                                                      : nullptr;
+  out.map_cache_hit = needs_map && maps != nullptr;
+  if (!maps) {
+    PhotonMapsOptions mo = settings.MapsOptions();
+    mo.tracing.map_seed = task.map_seed;
+    mo.tracing.threads = threads;
+    mo.tracing.cancel = cancel;
+    maps = std::make_shared<const PhotonMaps>(PhotonMaps::Build(scene.accel, scene.lights, mo, &camera));
+    if (cache) cache->Insert(key, maps);
+  }
+  out.photons_emitted = maps->stats.emitted;
+  out.photons_stored = maps->stats.stored_global + maps->stats.stored_caustic;
+  out.map_seconds = out.map_cache_hit ? 0.0 : maps->stats.trace_seconds + maps->stats.build_seconds;
+  return maps;
 }
 
 }  // namespace
@@ -50,46 +85,22 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   const PixelStreams streams = task.pixels.kind == PixelSubset::Kind::kHierarchyLevel && task.pixels.level > 0
                                    ? PixelStreams::kShared
                                    : PixelStreams::kPerPixel;
-  RenderStats stats;
   if (task.part != RadiancePart::kAll) CheckRadiancePartsApart(settings_as_given, "plan.hierarchical.part");
-  if (settings_as_given.integrator == IntegratorKind::kPath) {
-    const PathTracer tracer(scene.accel, scene.lights);
-    stats = RenderPixels(tracer, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
-                         sums, progress, cancel, settings_as_given.sampler, streams);
-  } else {
-    const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
-    std::string key = MapCacheKey(scene_key, settings, task.map_seed);
-    // An importance-driven map depends on the camera too (its importons, §4.7); such maps are
-    // always traced where they are used (never distributed: MapTracingMode, job_render_settings.h).
-    if (settings.importance != ImportanceMode::kOff)
-      key += "|camera=" + std::to_string(camera.width()) + "x" + std::to_string(camera.height()) + "," +
-             CameraKey(camera_spec);
-    // Emission + direct light alone (radiance_part.h) reads no map, except PhotonDirect's light
-    // choice (§4.2.3), which reads the direct photons.
-    const bool needs_map =
-        task.part != RadiancePart::kUnmapped || settings.direct == DirectLightMode::kPhotonDirect;
-    std::shared_ptr<const PhotonMaps> maps = !needs_map ? std::make_shared<const PhotonMaps>()
-                                             : cache    ? cache->Find(key)
-                                                        : nullptr;
-    out.map_cache_hit = needs_map && maps != nullptr;
-    if (!maps) {
-      PhotonMapsOptions mo = settings.MapsOptions();
-      mo.tracing.map_seed = task.map_seed;
-      mo.tracing.threads = threads;
-      mo.tracing.cancel = cancel;
-      maps = std::make_shared<const PhotonMaps>(PhotonMaps::Build(scene.accel, scene.lights, mo, &camera));
-      if (cache) cache->Insert(key, maps);
-    }
-    out.photons_emitted = maps->stats.emitted;
-    out.photons_stored = maps->stats.stored_global + maps->stats.stored_caustic;
-    out.map_seconds = out.map_cache_hit ? 0.0 : maps->stats.trace_seconds + maps->stats.build_seconds;
-    PhotonMapIntegratorOptions integrator_options = settings.IntegratorOptions(scene.accel.bounds());
-    integrator_options.precomputed.threads = threads;
-    integrator_options.part = task.part;
-    const PhotonMapIntegrator integrator(scene.accel, &scene.lights, *maps, integrator_options);
-    stats = RenderPixels(integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed,
-                         threads, sums, progress, cancel, settings.sampler, streams);
-  }
+  const IntegratorEntry& integrator_entry = Integrators().FindKind(settings_as_given.integrator);
+  // Resolved makes the photon-map settings' `auto` concrete; it leaves the path tracer's as given.
+  const JobRenderSettings settings = settings_as_given.Resolved(scene.description);
+  std::shared_ptr<const PhotonMaps> maps;
+  if (integrator_entry.UsesPhotonMaps())
+    maps = TaskMaps(scene, scene_key, camera, camera_spec, settings, task, threads, cache, cancel, out);
+  const std::unique_ptr<const Integrator> integrator =
+      integrator_entry.build(settings, {.scene = &scene.accel,
+                                        .lights = &scene.lights,
+                                        .maps = maps.get(),
+                                        .threads = threads,
+                                        .part = task.part});
+  const RenderStats stats =
+      RenderPixels(*integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
+                   sums, progress, cancel, settings.sampler, streams);
   out.pixels = pixels.size();
   out.samples = task.sample_end - task.sample_begin;
   out.rgb_sums.resize(pixels.size() * 3);

@@ -5,6 +5,7 @@
 #include "common/core/error.h"
 #include "common/core/rng.h"
 #include "common/plan/hierarchical.h"
+#include "common/plan/plan_factory.h"
 #include "common/render/renderer.h"
 
 namespace pf {
@@ -90,32 +91,7 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
   if (width <= 0 || height <= 0) throw InputError("camera: width and height must be positive");
   if (plan.tail_tile_size != 0 && plan.kind != PlanKind::kMultipleMaps)
     throw InputError("plan: tail tiles (tail_tile_size) are a multiple-maps option");
-  switch (plan.kind) {
-    case PlanKind::kMultipleMaps:
-      if (plan.maps < 1) throw InputError("plan.multiple_maps.maps: must be >= 1");
-      if (plan.samples_per_pixel < 1) throw InputError("plan.multiple_maps.samples_per_pixel: must be >= 1");
-      if (plan.tail_tile_size != 0 &&
-          (plan.tile_size == 0 || plan.tail_tile_size >= plan.tile_size ||
-           plan.tile_size % plan.tail_tile_size != 0 || plan.tail_tile_size % kPixelBlockSide != 0))
-        throw InputError("plan.multiple_maps.tail_tile_size: " + std::to_string(plan.tail_tile_size) +
-                         " must be 0 or a multiple of " + std::to_string(kPixelBlockSide) +
-                         " smaller than tile_size (" + std::to_string(plan.tile_size) + ") that divides it");
-      break;
-    case PlanKind::kMapsInTurn:
-      if (plan.samples_per_pixel < 1) throw InputError("plan.maps_in_turn.samples_per_pixel: must be >= 1");
-      break;
-    case PlanKind::kSkipping:
-      if (plan.stride < 1) throw InputError("plan.skipping.stride: must be >= 1");
-      if (uint64_t(plan.stride) * plan.stride > uint64_t(width) * uint64_t(height))
-        throw InputError("plan.skipping.stride: S² = " + std::to_string(uint64_t(plan.stride) * plan.stride) +
-                         " exceeds the number of pixels");
-      if (plan.rounds < 1) throw InputError("plan.skipping.rounds: must be >= 1");
-      if (plan.samples_per_pixel < 1) throw InputError("plan.skipping.samples_per_pixel: must be >= 1");
-      break;
-    case PlanKind::kHierarchical:
-      ValidateHierarchicalPlan(plan, width, height);
-      break;
-  }
+  Plans().FindKind(plan.kind).validate(plan, width, height);
 }
 
 uint64_t CountTasks(const PlanSpec& plan, int width, int height) {
@@ -248,35 +224,7 @@ std::vector<uint32_t> PixelsOf(const PixelSubset& s, int width, int height) {
 }
 
 std::string DescribePlan(const PlanSpec& p) {
-  switch (p.kind) {
-    case PlanKind::kMultipleMaps:
-      return "multiple maps: " + std::to_string(p.maps) + " maps x " + std::to_string(p.samples_per_pixel) +
-             " spp, tile " + std::to_string(p.tile_size) +
-             (p.tail_tile_size ? " (last row " + std::to_string(p.tail_tile_size) + ")" : "");
-    case PlanKind::kMapsInTurn:
-      return "maps in turn: " + std::to_string(p.samples_per_pixel) + " maps/spp, tile " +
-             std::to_string(p.tile_size);
-    case PlanKind::kSkipping:
-      return "skipping: S=" + std::to_string(p.stride) + ", " + std::to_string(p.rounds) + " rounds, " +
-             std::to_string(p.samples_per_pixel) + " spp per round";
-    case PlanKind::kHierarchical: {
-      const HierarchySchedule s = MakeHierarchySchedule(p);
-      std::string n;
-      for (uint32_t v : s.samples) {
-        if (!n.empty()) n += ',';
-        n += std::to_string(v);
-      }
-      return "hierarchical " + std::to_string(p.dims) + "-D: L=" + std::to_string(p.levels) + ", n_l=" + n +
-             " (Nmax " + std::to_string(s.nmax) + "), localize tau=" + std::to_string(p.localize_threshold) +
-             " kappa=" + std::to_string(p.localize_contrast) + ", rows per task " +
-             std::to_string(p.tile_size) +
-             (p.hierarchy_part == HierarchyPart::kIndirect
-                  ? ", photon-map part only (emission + direct light per pixel, " +
-                        std::to_string(p.direct_samples) + " spp)"
-                  : "");
-    }
-  }
-  return "?";
+  return Plans().FindKind(p.kind).describe(p);
 }
 
 }  // namespace pf

@@ -18,8 +18,9 @@ struct JobRenderSettings;
 
 enum class SettingType { kBool, kInt, kReal, kChoice };
 
-// What a setting belongs to: a section of docs/settings.md and, for all but kRenderer, the
-// photon-map integrator (the path tracer reads only the kRenderer rows).
+// What a setting belongs to: a section of docs/settings.md and what reads it. Which integrator
+// reads which groups is its registry entry's (integrator_factory.h: the path tracer reads only
+// the kRenderer rows, the photon-map integrator all).
 enum class SettingGroup {
   kRenderer,      // both integrators
   kPhotonMap,     // the maps: photons, structure, caustic map (Wald 1999, §2.2-2.4)
@@ -68,6 +69,8 @@ struct RenderSetting {
   std::function<RenderSettingValue(const JobRenderSettings&)> get = nullptr;
   std::function<void(JobRenderSettings&, const RenderSettingValue&)> set = nullptr;
 
+  // Whether it is a field of the wire's photon-map settings (farm.proto PhotonMapSettings) rather
+  // than of RenderSettings; a test checks that these are the rows the path tracer does not read.
   bool PhotonMapOnly() const { return group != SettingGroup::kRenderer; }
 };
 

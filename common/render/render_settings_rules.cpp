@@ -1,10 +1,26 @@
 #include "common/render/render_settings_rules.h"
 
 #include "common/core/error.h"
+#include "common/photon/photon_map_factory.h"
+#include "common/render/integrator_factory.h"
 #include "common/render/render_settings_table.h"
 #include "common/render/setting_limits.h"
 
 namespace pf {
+namespace {
+
+// "the photon-map integrator only (integrator = photonmap)": the integrators that read `row`.
+std::string ReadersOf(const RenderSetting& row) {
+  std::string titles, names;
+  for (const IntegratorEntry& e : Integrators().entries()) {
+    if (!e.Reads(row)) continue;
+    titles += (titles.empty() ? "" : " or ") + std::string(e.title);
+    names += (names.empty() ? "" : "|") + std::string(e.name);
+  }
+  return titles + " only (integrator = " + names + ")";
+}
+
+}  // namespace
 
 void CheckRenderSettingRules(const JobRenderSettings& s, const SettingNamer& name) {
   if (s.integrator != IntegratorKind::kPhotonMap) return;
@@ -29,7 +45,8 @@ void CheckRenderSettingRules(const JobRenderSettings& s, const SettingNamer& nam
                      name("local-pass-rays") + " > 0");
   if (s.adaptive_k_min > s.k)
     throw InputError(name("adaptive-k-min") + ": must be <= k (" + std::to_string(s.k) + ")");
-  if (s.map_tracing == MapTracingMode::kDistributed && s.structure != PhotonMapKind::kKdTree)
+  if (s.map_tracing == MapTracingMode::kDistributed &&
+      !PhotonMapStructures().FindKind(s.structure).serializable)
     throw InputError(name("map-tracing") +
                      ": distributed tracing needs the kd-tree structure (only its maps travel)");
   // Wald 1999, §4.6: brute-force splitting emits S times the photons.
@@ -65,10 +82,10 @@ std::vector<UnusedSetting> UnusedSettings(const JobRenderSettings& s, const std:
   for (const std::string& name : given) {
     const RenderSetting* row = FindRenderSetting(name);
     if (!row) continue;
-    if (row->PhotonMapOnly() && s.integrator != IntegratorKind::kPhotonMap)
-      out.push_back({name,
-                     "applies to the photon-map integrator only (integrator = photonmap); the path "
-                     "tracer would ignore it"});
+    const IntegratorEntry& integrator = Integrators().FindKind(s.integrator);
+    if (!integrator.Reads(*row))
+      out.push_back({name, "applies to " + ReadersOf(*row) + "; " + std::string(integrator.title) +
+                               " would ignore it"});
     else if (row->applies && !row->applies(s))
       out.push_back({name, "applies only when " + std::string(row->applies_when)});
   }

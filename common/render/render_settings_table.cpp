@@ -6,6 +6,7 @@
 
 #include "common/core/error.h"
 #include "common/photon/importance_map.h"
+#include "common/photon/photon_map_factory.h"
 #include "common/render/setting_limits.h"
 
 namespace pf {
@@ -112,7 +113,7 @@ std::vector<RenderSetting> MakeTable() {
        .choices = {{"widest", "the widest extent: 2-4x faster queries in rooms (2.3, footnote 2)"},
                    {"cycle", "level % 3, the thesis's rule"}},
        .changes_map = true,
-       .applies = [](const S& s) { return s.structure == PhotonMapKind::kKdTree; },
+       .applies = [](const S& s) { return PhotonMapStructures().FindKind(s.structure).Reads("kd-split"); },
        .applies_when = "structure = kdtree"},
       std::vector{KdSplitRule::kWidestExtent, KdSplitRule::kLevelCycle}));
   t.push_back(Choice<&S::caustic>(

@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "common/render/integrator_factory.h"
 #include "common/render/render_settings_table.h"
 
 namespace pf {
@@ -26,8 +27,7 @@ std::string SettingHeaderKey(std::string_view name) {
 
 void RecordRenderSettings(const JobRenderSettings& s, ImageMetadata& meta) {
   for (const RenderSetting& row : RenderSettingsTable())
-    if (!row.PhotonMapOnly() || s.integrator == IntegratorKind::kPhotonMap)
-      meta[SettingHeaderKey(row.name)] = FormatRenderSettingValue(row.get(s));
+    if (IntegratorReads(s, row)) meta[SettingHeaderKey(row.name)] = FormatRenderSettingValue(row.get(s));
 }
 
 }  // namespace pf

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "common/core/error.h"
+#include "common/scene/material_kinds.h"
 
 namespace pf {
 namespace {
@@ -139,17 +140,9 @@ class Parser {
     CheckKeys(v, key, {"kind", "diffuse", "specular", "roughness", "transmission", "ior", "emission"});
     MaterialOverride o;
     if (v.contains("kind")) {
-      const std::string kind = String(v["kind"], key + ".kind");
-      if (kind == "diffuse")
-        o.kind = MaterialOverride::Kind::kDiffuse;
-      else if (kind == "glossy")
-        o.kind = MaterialOverride::Kind::kGlossy;
-      else if (kind == "mirror")
-        o.kind = MaterialOverride::Kind::kMirror;
-      else if (kind == "glass")
-        o.kind = MaterialOverride::Kind::kGlass;
-      else
-        Fail(key + ".kind", "expected one of \"diffuse\", \"glossy\", \"mirror\", \"glass\"");
+      const MaterialKind* kind = MaterialKinds().Get(String(v["kind"], key + ".kind"));
+      if (!kind) Fail(key + ".kind", "expected one of " + QuotedMaterialKindNames());
+      o.kind = kind->kind;
     }
     if (v.contains("diffuse")) o.diffuse = Colour(v["diffuse"], key + ".diffuse");
     if (v.contains("specular")) o.specular = Colour(v["specular"], key + ".specular");
@@ -161,10 +154,11 @@ class Parser {
       o.roughness = float(a);
     }
     if (v.contains("ior")) o.ior = float(PositiveNumber(v["ior"], key + ".ior"));
-    if (o.kind == MaterialOverride::Kind::kGlossy && !o.roughness)
-      Fail(key + ".roughness", "missing (kind \"glossy\" needs a Ward roughness > 0)");
-    if (o.kind == MaterialOverride::Kind::kGlossy && !(*o.roughness > 0.0f))
-      Fail(key + ".roughness", "kind \"glossy\" needs a Ward roughness > 0");
+    // Each kind checks the parameters it needs (material_kinds.h).
+    if (const MaterialKind* kind = MaterialKinds().GetKind(o.kind))
+      kind->check(o, [&](const std::string& parameter, const std::string& reason) {
+        Fail(key + "." + parameter, reason);
+      });
     return o;
   }
 

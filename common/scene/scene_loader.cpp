@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "common/core/error.h"
+#include "common/scene/material_kinds.h"
 #include "common/scene/mgf_loader.h"
 #include "common/scene/obj_loader.h"
 #include "common/scene/scene_reference.h"
@@ -50,46 +51,6 @@ SceneDescription LoadGeometry(const std::filesystem::path& path, const std::file
                    "unsupported scene file extension '" + ext + "' (" + kSupported + ")");
 }
 
-void ApplyKind(MaterialOverride::Kind kind, Material* m) {
-  using Kind = MaterialOverride::Kind;
-  switch (kind) {
-    case Kind::kUnchanged:
-      return;
-    case Kind::kDiffuse:
-      m->specular_reflectance = Rgb();
-      m->specular_roughness = 0.0f;
-      m->diffuse_transmittance = Rgb();
-      m->specular_transmittance = Rgb();
-      m->transmission_roughness = 0.0f;
-      m->ior = 1.0f;
-      return;
-    case Kind::kGlossy:
-      m->diffuse_transmittance = Rgb();
-      m->specular_transmittance = Rgb();
-      m->transmission_roughness = 0.0f;
-      m->ior = 1.0f;
-      return;
-    case Kind::kMirror:
-      if (m->specular_reflectance.IsBlack()) m->specular_reflectance = Rgb(1.0f);
-      m->specular_roughness = 0.0f;
-      m->diffuse_reflectance = Rgb();
-      m->diffuse_transmittance = Rgb();
-      m->specular_transmittance = Rgb();
-      m->transmission_roughness = 0.0f;
-      m->ior = 1.0f;
-      return;
-    case Kind::kGlass:
-      if (m->specular_transmittance.IsBlack()) m->specular_transmittance = Rgb(1.0f);
-      if (!(m->ior > 1.0f)) m->ior = 1.5f;
-      m->diffuse_reflectance = Rgb();
-      m->specular_reflectance = Rgb();
-      m->specular_roughness = 0.0f;
-      m->diffuse_transmittance = Rgb();
-      m->transmission_roughness = 0.0f;
-      return;
-  }
-}
-
 }  // namespace
 
 void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overrides,
@@ -100,7 +61,7 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
     for (Material& m : scene->materials) {
       if (m.name != name) continue;
       found = true;
-      ApplyKind(o.kind, &m);
+      if (const MaterialKind* kind = MaterialKinds().GetKind(o.kind)) kind->apply(&m);
       if (o.diffuse) m.diffuse_reflectance = *o.diffuse;
       if (o.specular) m.specular_reflectance = *o.specular;
       if (o.roughness) m.specular_roughness = *o.roughness;

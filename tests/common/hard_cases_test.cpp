@@ -21,6 +21,7 @@
 #include "common/core/rng.h"
 #include "common/lights/light_sampler.h"
 #include "common/photon/brute_force.h"
+#include "common/photon/photon_map_factory.h"
 #include "common/photon/photon_maps.h"
 #include "common/plan/task_executor.h"
 #include "common/render/job_render_settings.h"

@@ -21,6 +21,7 @@
 #include "common/photon/kdtree.h"
 #include "common/photon/photon.h"
 #include "common/photon/photon_map.h"
+#include "common/photon/photon_map_factory.h"
 
 namespace pf {
 namespace {

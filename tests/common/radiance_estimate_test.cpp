@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "common/core/rng.h"
+#include "common/photon/photon_map_factory.h"
 
 namespace pf {
 namespace {
