@@ -125,7 +125,9 @@ TEST(IntegratorFactory, SettingsReadAgreeWithTheWireAndUnusedSettings) {
       if (u.reason.find("ignore") != std::string::npos) unused.insert(u.name);
     for (const RenderSetting& row : RenderSettingsTable()) {
       EXPECT_EQ(e.Reads(row), !unused.count(std::string(row.name))) << e.name << " " << row.name;
-      if (e.kind == IntegratorKind::kPath) EXPECT_EQ(e.Reads(row), !row.PhotonMapOnly()) << row.name;
+      if (e.kind == IntegratorKind::kPath) {
+        EXPECT_EQ(e.Reads(row), !row.PhotonMapOnly()) << row.name;
+      }
     }
   }
   JobRenderSettings path;
