@@ -166,6 +166,32 @@ TEST_F(DistributedMapsTest, PieceLeasesAreUnguessableBoundToTheirWorkerAndNotReu
   restarted.SetScheduler(nullptr);
 }
 
+// The one lease table dispatches by an entry's kind, not by the id's form: a piece's lease delivers no render
+// result (CompleteTask ignores it and the piece stays leased), and a render task's lease uploads no piece.
+TEST_F(DistributedMapsTest, TheLeaseTableDispatchesByKind) {
+  JobConfig config = DistributedConfig(11);
+  config.settings.map_tracing =
+      MapTracingMode::kLocal;  // a job of render tasks only, leased after the pieces
+  const std::string map_job = AddJob(scheduler_, 12);
+  std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
+  scheduler_.AddJob(std::move(job));
+  const std::optional<Lease> piece = scheduler_.TryLease({"w1", {}});
+  ASSERT_TRUE(piece && piece->chunk);
+  EXPECT_EQ(piece->job_id, map_job);
+  const std::vector<float> pixels(16 * 16 * 3, 0.5f);
+  EXPECT_EQ(scheduler_.Complete(piece->lease_id, "w1", pixels).status, CompleteStatus::kIgnored);
+  EXPECT_TRUE(scheduler_.Extend(piece->lease_id, "w1", 0).ok) << "still the piece's live lease";
+  bool rendered = false;
+  while (const std::optional<Lease> l = scheduler_.TryLease({"w1", {}})) {
+    if (l->chunk) continue;
+    EXPECT_EQ(maps_.BeginUpload(l->lease_id, "w1"), DistributedMaps::UploadAdmission::kNotLive);
+    EXPECT_TRUE(scheduler_.Extend(l->lease_id, "w1", 0).ok) << "the render task's lease is unchanged";
+    rendered = true;
+    break;
+  }
+  EXPECT_TRUE(rendered);
+}
+
 // Piece failures count against their worker in the map's job (worker_health.h): a worker that
 // fails pieces 3 times is blocklisted — it is leased no more of the job's pieces — and the piece,
 // failed on one worker only, is not given up: another worker traces it.
