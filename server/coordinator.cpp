@@ -81,7 +81,6 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   scheduler_ = std::make_unique<Scheduler>(*clock_, so);
   DistributedMapsOptions mo;
   mo.dir = options_.data_dir / "maps";
-  mo.lease_seconds = options_.lease_seconds;
   mo.max_attempts = options_.max_attempts;
   mo.build_threads = options_.map_build_threads;
   mo.chunk_photons = options_.map_chunk_photons;
@@ -277,7 +276,6 @@ void Coordinator::TickLoop() {
     lock.unlock();
     try {
       scheduler_->Tick();
-      maps_->Tick();
       watches_->Tick();
     } catch (const std::exception& e) {
       spdlog::error("tick: {}", e.what());

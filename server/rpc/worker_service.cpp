@@ -124,11 +124,8 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
     DistributedMaps* maps = &ctx.maps;
     auto deliver = [this, context, response, scheduler, maps](std::optional<Lease> lease) {
       if (lease && context->IsCancelled()) {
-        // Undelivered: queued again at once (a piece too), not left to run out.
-        if (lease->chunk)
-          maps->Return(lease->lease_id);
-        else
-          scheduler->ReturnLease(lease->lease_id);
+        // Undelivered: queued again at once (a piece too: the lease's kind decides), not left to run out.
+        scheduler->ReturnLease(lease->lease_id);
         lease.reset();
       }
       if (lease) {
@@ -183,10 +180,9 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerCon
   grpc::Status status = Guarded("ExtendLease", [&] {
     RequireLeaseId(request->lease_id());
     RequireWorkerId(request->worker_id());
+    // Render tasks and map pieces alike: the scheduler's lease table knows the lease's kind.
     const ExtendResult r =
-        DistributedMaps::IsChunkLease(request->lease_id())
-            ? ctx_.maps.Extend(request->lease_id(), request->worker_id())
-            : ctx_.scheduler.Extend(request->lease_id(), request->worker_id(), request->progress());
+        ctx_.scheduler.Extend(request->lease_id(), request->worker_id(), request->progress());
     if (r.not_holder) return NotHolder();
     response->set_ok(r.ok);
     response->set_lease_seconds(r.lease_seconds);
@@ -274,9 +270,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
     std::string reason = limits::Printable(request->reason(), limits::kMaxReasonBytes);
     if (reason.empty()) reason = "no reason given";
     const FailOutcome outcome =
-        DistributedMaps::IsChunkLease(request->lease_id())
-            ? ctx_.maps.Fail(request->lease_id(), request->worker_id(), reason)
-            : ctx_.scheduler.Fail(request->lease_id(), request->worker_id(), reason, request->retryable());
+        ctx_.scheduler.Fail(request->lease_id(), request->worker_id(), reason, request->retryable());
     switch (outcome) {
       case FailOutcome::kFailed:
         return grpc::Status::OK;

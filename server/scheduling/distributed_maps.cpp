@@ -25,8 +25,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr std::string_view kLeasePrefix = "map-";
-
 std::chrono::steady_clock::time_point Now() {
   return std::chrono::steady_clock::now();
 }
@@ -146,10 +144,6 @@ void DistributedMaps::Scan() {
                  chunks_on_disk_.size(), options_.dir.string());
 }
 
-bool DistributedMaps::IsChunkLease(const std::string& lease_id) {
-  return lease_id.starts_with(kLeasePrefix);
-}
-
 fs::path DistributedMaps::ChunkFile(const std::string& key, uint64_t begin, uint64_t end) const {
   return options_.dir / (key + ".chunks") / (std::to_string(begin) + "-" + std::to_string(end));
 }
@@ -243,8 +237,8 @@ void DistributedMaps::SetStateLocked(Map& m, Map::State state) {
     tracing_.erase(m.seq);
 }
 
-std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, double now,
-                                                 const JobFilter& may_lease) {
+std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, const JobFilter& may_lease,
+                                                 const IssuePieceLease& issue) {
   std::lock_guard lock(mu_);
   const Map* best = nullptr;
   uint32_t pick = 0;
@@ -266,17 +260,14 @@ std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, do
   Chunk& chunk = m.chunks[pick];
   PieceTransitions().Move(chunk.state, Chunk::State::kLeased);
   ++chunk.attempts;
-  chunk.lease_id = std::string(kLeasePrefix) + RandomHex(16);
+  chunk.lease_id = issue(m.job_id, m.key, pick, chunk.attempts);
   chunk.worker_id = request.worker_id;
-  chunk.deadline = now + options_.lease_seconds;
-  leases_[chunk.lease_id] = LeaseRef{m.key, pick};
   ++counters_.chunks_leased;
   Lease lease;
   lease.lease_id = chunk.lease_id;
   lease.job_id = m.job_id;
   lease.task_id = pick;
   lease.attempt = chunk.attempts;
-  lease.lease_seconds = options_.lease_seconds;
   lease.task.map_index = m.map_index;
   lease.task.map_seed = m.map_seed;
   lease.config = m.config;
@@ -313,24 +304,17 @@ std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
 
 DistributedMaps::UploadAdmission DistributedMaps::BeginUpload(const std::string& lease_id,
                                                               const std::string& worker_id) {
-  std::optional<Hijack> hijack;
-  {
-    std::lock_guard lock(mu_);
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return UploadAdmission::kNotLive;
-    const Map& m = maps_.at(it->second.key);
-    const Chunk& c = m.chunks[it->second.chunk];
-    if (m.state != Map::State::kTracing || c.state == Chunk::State::kDone) return UploadAdmission::kNotLive;
-    if (c.worker_id != worker_id)
-      hijack = Hijack{JobsOfLocked(m), it->second.chunk, c.worker_id};
-    else if (!uploading_.insert(lease_id).second)
-      return UploadAdmission::kBusy;
-  }
-  if (hijack) {
-    ConvictHijacker(*hijack, worker_id, "UploadMapPiece");
-    return UploadAdmission::kNotHolder;
-  }
-  if (scheduler_) scheduler_->Heard(worker_id);
+  if (!scheduler_) return UploadAdmission::kNotLive;
+  // The lease through the Scheduler's one lease path: live, and this worker's (else refused there).
+  const Scheduler::PieceLeaseRef ref = scheduler_->PieceLeaseOf(lease_id, worker_id, "UploadMapPiece");
+  if (ref.status == Scheduler::PieceLeaseRef::Status::kNotHolder) return UploadAdmission::kNotHolder;
+  if (ref.status != Scheduler::PieceLeaseRef::Status::kLive) return UploadAdmission::kNotLive;
+  std::lock_guard lock(mu_);
+  auto it = maps_.find(ref.map_key);
+  if (it == maps_.end() || it->second.state != Map::State::kTracing ||
+      it->second.chunks[ref.piece].state == Chunk::State::kDone)
+    return UploadAdmission::kNotLive;
+  if (!uploading_.insert(lease_id).second) return UploadAdmission::kBusy;
   return UploadAdmission::kAdmitted;
 }
 
@@ -347,18 +331,18 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   uint64_t begin = 0, end = 0, map_seed = 0;
   bool light_ids = false, origins = false;
   std::shared_ptr<const JobConfig> config;
-  std::optional<Hijack> hijack;
+  if (!scheduler_) return Accepted::kLate;
+  // The lease through the Scheduler's one lease path: live, and this worker's (else refused there).
+  const Scheduler::PieceLeaseRef ref = scheduler_->PieceLeaseOf(lease_id, worker_id, "UploadMapPiece");
+  if (ref.status == Scheduler::PieceLeaseRef::Status::kNotHolder) return Accepted::kNotHolder;
+  if (ref.status != Scheduler::PieceLeaseRef::Status::kLive) return Accepted::kLate;
   {
     std::lock_guard lock(mu_);
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return Accepted::kLate;
-    key = it->second.key;
-    index = it->second.chunk;
+    key = ref.map_key;
+    index = ref.piece;
     const Map& m = maps_.at(key);
     if (m.state != Map::State::kTracing || m.chunks[index].state == Chunk::State::kDone)
       return Accepted::kLate;
-    if (m.chunks[index].worker_id != worker_id)
-      hijack = Hijack{JobsOfLocked(m), index, m.chunks[index].worker_id};
     begin = uint64_t(index) * m.chunk_photons;
     end = std::min(m.photons, begin + m.chunk_photons);
     const JobRenderSettings& s = m.config->settings;
@@ -366,10 +350,6 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     origins = s.occlusion_test;
     config = m.config;
     map_seed = m.map_seed;
-  }
-  if (hijack) {  // the lease names its holder
-    ConvictHijacker(*hijack, worker_id, "UploadMapPiece");
-    return Accepted::kNotHolder;
   }
   // Parsed and written outside the lock (O(photons) and I/O).
   const PhotonChunk chunk = DeserializePhotonChunk(bytes);
@@ -385,7 +365,7 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
   const bool in_full = options_.verify_fraction >= 1 ||
                        (options_.verify_fraction > 0 && RandomUnit() < options_.verify_fraction);
   if (const std::string wrong = MismatchOf(*config, map_seed, chunk, bytes, in_full); !wrong.empty()) {
-    RefuseAndConvict(lease_id, worker_id, wrong);
+    RefuseAndConvict(key, index, lease_id, worker_id, wrong);
     throw InputError(wrong);
   }
   const double check_seconds = Secs(t_check, Now());
@@ -402,8 +382,9 @@ DistributedMaps::Accepted DistributedMaps::AcceptChunk(const std::string& lease_
     Map& m = maps_.at(key);
     Chunk& c = m.chunks[index];
     if (m.state != Map::State::kTracing || c.state == Chunk::State::kDone) return Accepted::kLate;
-    if (c.state == Chunk::State::kLeased) leases_.erase(c.lease_id);
-    leases_.erase(lease_id);
+    // Its lease (or, re-leased meanwhile, another worker's) ends here: the Scheduler's entry is
+    // found no longer current on its next use (PieceLeaseCurrent).
+    c.lease_id.clear();
     PieceTransitions().Move(c.state, Chunk::State::kDone);
     c.uploader = worker_id;
     ++m.done;
@@ -559,9 +540,7 @@ void DistributedMaps::Release(const std::vector<std::pair<std::string, uint64_t>
 void DistributedMaps::LeaveToWorkersLocked(Map& m, const std::string& why,
                                            std::vector<std::pair<std::string, uint64_t>>* release) {
   spdlog::warn("job {} map {}: left to the workers (each traces it): {}", m.job_id, m.map_index, why);
-  SetStateLocked(m, Map::State::kLeftToWorkers);
-  for (Chunk& c : m.chunks)
-    if (c.state == Chunk::State::kLeased) leases_.erase(c.lease_id);
+  SetStateLocked(m, Map::State::kLeftToWorkers);  // its piece leases are no longer current
   release->insert(release->end(), m.waiting.begin(), m.waiting.end());
   m.waiting.clear();
   ++counters_.maps_left_to_workers;
@@ -571,7 +550,6 @@ void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& k
                                     std::vector<std::pair<std::string, uint64_t>>* release,
                                     std::vector<PieceFailure>* failures) {
   Chunk& c = m.chunks[index];
-  leases_.erase(c.lease_id);
   spdlog::warn("job {} map {} piece {}: attempt {} ended: {}", m.job_id, m.map_index, index, c.attempts, why);
   failures->push_back(PieceFailure{m.job_id, c.worker_id, kind, why, index, c.attempts});
   if (c.worker_id.empty())
@@ -590,98 +568,59 @@ void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& k
                          release);
 }
 
-ExtendResult DistributedMaps::Extend(const std::string& lease_id, const std::string& worker_id) {
-  if (scheduler_) scheduler_->Heard(worker_id);
-  std::optional<Hijack> hijack;
-  {
-    std::lock_guard lock(mu_);
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return {};
-    Chunk& c = maps_.at(it->second.key).chunks[it->second.chunk];
-    if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return {};
-    if (c.worker_id == worker_id) {
-      c.deadline = clock_.Now() + options_.lease_seconds;
-      return ExtendResult{true, options_.lease_seconds};
-    }
-    // Renewed by another worker, a lease whose holder is gone would never run out.
-    hijack = Hijack{JobsOfLocked(maps_.at(it->second.key)), it->second.chunk, c.worker_id};
-  }
-  ConvictHijacker(*hijack, worker_id, "ExtendLease");
-  return ExtendResult{.not_holder = true};
+bool DistributedMaps::PieceLeaseCurrent(const std::string& map_key, uint32_t piece,
+                                        const std::string& lease_id) {
+  std::lock_guard lock(mu_);
+  auto it = maps_.find(map_key);
+  if (it == maps_.end() || it->second.state != Map::State::kTracing || piece >= it->second.chunks.size())
+    return false;
+  const Chunk& c = it->second.chunks[piece];
+  return c.state == Chunk::State::kLeased && c.lease_id == lease_id;
 }
 
-void DistributedMaps::Return(const std::string& lease_id) {
-  {
-    std::lock_guard lock(mu_);
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return;
-    Map& m = maps_.at(it->second.key);
-    Chunk& c = m.chunks[it->second.chunk];
-    if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return;
-    leases_.erase(it);
-    PieceTransitions().Move(c.state, Chunk::State::kQueued);
-    c.lease_id.clear();
-    --c.attempts;
-    ++counters_.chunks_returned;
-    spdlog::info("job {} map {} piece {}: lease {} never reached the worker: queued again", m.job_id,
-                 m.map_index, &c - m.chunks.data(), lease_id);
-  }
-  if (scheduler_) scheduler_->NotifyMapPieces();
+std::vector<std::string> DistributedMaps::JobsOfMap(const std::string& map_key) {
+  std::lock_guard lock(mu_);
+  auto it = maps_.find(map_key);
+  return it == maps_.end() ? std::vector<std::string>{} : JobsOfLocked(it->second);
 }
 
-FailOutcome DistributedMaps::Fail(const std::string& lease_id, const std::string& worker_id,
-                                  const std::string& reason) {
-  if (scheduler_) scheduler_->Heard(worker_id);
+void DistributedMaps::PieceReturned(const std::string& map_key, uint32_t piece, const std::string& lease_id) {
+  std::lock_guard lock(mu_);
+  auto it = maps_.find(map_key);
+  if (it == maps_.end() || it->second.state != Map::State::kTracing) return;
+  Map& m = it->second;
+  Chunk& c = m.chunks[piece];
+  if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return;
+  PieceTransitions().Move(c.state, Chunk::State::kQueued);
+  c.lease_id.clear();
+  --c.attempts;
+  ++counters_.chunks_returned;
+  spdlog::info("job {} map {} piece {}: lease {} never reached the worker: queued again", m.job_id,
+               m.map_index, piece, lease_id);
+}
+
+void DistributedMaps::PieceLeaseEnded(const PieceLeaseEnd& end) {
   std::vector<std::pair<std::string, uint64_t>> release;
   std::vector<PieceFailure> failures;
-  std::optional<Hijack> hijack;
   {
     std::lock_guard lock(mu_);
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return FailOutcome::kUnknownLease;
-    Map& m = maps_.at(it->second.key);
-    const uint32_t index = it->second.chunk;
-    if (m.chunks[index].state != Chunk::State::kLeased || m.chunks[index].lease_id != lease_id)
-      return FailOutcome::kUnknownLease;
-    if (m.chunks[index].worker_id != worker_id)
-      hijack = Hijack{JobsOfLocked(m), index, m.chunks[index].worker_id};
-    else
-      RequeueLocked(m, index, "piece-failed", "failed by " + worker_id + ": " + reason, &release, &failures);
-  }
-  if (hijack) {
-    ConvictHijacker(*hijack, worker_id, "FailTask");
-    return FailOutcome::kNotHolder;
-  }
-  Report(failures);
-  Release(release);
-  if (scheduler_) scheduler_->NotifyMapPieces();
-  return FailOutcome::kFailed;
-}
-
-void DistributedMaps::Tick() {
-  std::vector<std::pair<std::string, uint64_t>> release;
-  std::vector<PieceFailure> failures;
-  bool requeued = false;
-  {
-    std::lock_guard lock(mu_);
-    const double now = clock_.Now();
-    std::vector<std::string> tracing;  // RequeueLocked may change a map's state (and tracing_)
-    tracing.reserve(tracing_.size());
-    for (const auto& [seq, key] : tracing_) tracing.push_back(key);
-    for (const std::string& key : tracing) {
-      Map& m = maps_.at(key);
-      for (uint32_t c = 0; c < m.chunks.size() && m.state == Map::State::kTracing; ++c)
-        if (m.chunks[c].state == Chunk::State::kLeased && now >= m.chunks[c].deadline) {
-          ++counters_.chunks_expired;
-          RequeueLocked(m, c, "piece-expired", "lease expired (worker " + m.chunks[c].worker_id + ")",
-                        &release, &failures);
-          requeued = true;
-        }
+    auto it = maps_.find(end.map_key);
+    if (it == maps_.end() || it->second.state != Map::State::kTracing) return;
+    Map& m = it->second;
+    const Chunk& c = m.chunks[end.piece];
+    if (c.state != Chunk::State::kLeased || c.lease_id != end.lease_id) return;
+    if (end.why == PieceLeaseEnd::Why::kExpired) {
+      ++counters_.chunks_expired;
+      RequeueLocked(m, end.piece, "piece-expired", "lease expired (worker " + end.worker_id + ")", &release,
+                    &failures);
+    } else {
+      RequeueLocked(m, end.piece, "piece-failed", "failed by " + end.worker_id + ": " + end.reason, &release,
+                    &failures);
     }
   }
   Report(failures);
   Release(release);
-  if (requeued && scheduler_) scheduler_->NotifyMapPieces();
+  if (scheduler_) scheduler_->NotifyMapPieces();
 }
 
 DistributedMaps::Counters DistributedMaps::counters() const {

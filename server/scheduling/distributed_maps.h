@@ -19,11 +19,27 @@
 // so the key names one map; jobs with the same scene, settings and seed share it. It is the
 // Address of the map's MapKey (common/photon/map_key.h), the key type of every map cache.
 //
-// Leases: a piece lease id is "map-" and 128 bits from the CSPRNG (server/jobs/random_id.h), so
-// it cannot be guessed and a restarted coordinator never hands out an id again (sequential ids
-// restarted at map-1, and an old worker's lease named a new piece). It is bound to the worker it
-// was leased to: ExtendLease, the upload and FailTask of another worker change nothing
-// (kNotHolder; docs/security.md, "Leases are bound to their worker").
+// Not a scheduler of its own: the component the Scheduler calls for what is map-specific. The
+// Scheduler owns the leases of pieces as of render tasks — one LeaseTable (lease_table.h) whose
+// entries say their kind (render task | map piece) and what they name, one issuer and one form of
+// id (the job, the piece, the attempt and 128 bits from the CSPRNG: it cannot be guessed, and a
+// restarted coordinator never hands out an id again), one path for ExtendLease, FailTask,
+// ReturnLease and the upload (Scheduler::FindLiveLease, dispatching by the entry's kind, never by
+// the id's form) and one expiry tick (Scheduler::Tick). A lease is bound to the worker it was
+// leased to: ExtendLease, the upload and FailTask of another worker change nothing (kNotHolder;
+// docs/security.md, "Leases are bound to their worker"); the presenter is blocklisted in every job
+// of the map. Here: which piece is next (LeaseChunk, under the Scheduler's lock, oldest map first;
+// pieces are served before render tasks), each piece's state — moved only as PieceTransitions
+// allows (map_states.h) — attempts and failed workers, the piece and map files, the checks and
+// the assembly. The Scheduler tells it what became of a lease: PieceReturned (under its lock),
+// PieceLeaseEnded (failed or expired; outside its lock). A piece that moves on without the
+// Scheduler (stored, its map left to the workers or purged) leaves an entry that is no longer
+// current (PieceLeaseCurrent): the Scheduler drops it on its next use or at its deadline.
+//
+// Locks: the Scheduler's lock, then mu_ (LeaseChunk, PieceLeaseCurrent, JobsOfMap, PieceReturned,
+// RenderTaskReady are called under the Scheduler's lock and take mu_ briefly); this class calls
+// the Scheduler (PieceLeaseOf, ReleaseMap, PieceAttemptFailed, ConvictWorker, NotifyMapPieces) only
+// without mu_. Checking a piece and assembling a map hold neither lock.
 //
 // Pieces checked: besides its photon range and attributes, an upload's first kPhotonTracingChunk
 // photons are traced here and must equal the upload's, bit for bit (photon i depends on the map
@@ -79,9 +95,8 @@
 namespace pf::server {
 
 struct DistributedMapsOptions {
-  std::filesystem::path dir;  // <data-dir>/maps
-  double lease_seconds = 30;
-  uint32_t max_attempts = 3;
+  std::filesystem::path dir;       // <data-dir>/maps
+  uint32_t max_attempts = 3;       // (a piece's lease lasts the Scheduler's lease_seconds)
   int build_threads = 1;           // threads of one assembly (the kd-tree balance), 0 = all cores
   uint64_t chunk_photons = 65536;  // photons per piece, rounded up to a multiple of 4096
   // Result verification (see the header comment): the fraction of uploaded pieces traced again in
@@ -111,13 +126,18 @@ class DistributedMaps final : public MapTracingHook {
   // Set once, before jobs are added.
   void SetScheduler(Scheduler* scheduler) { scheduler_ = scheduler; }
 
-  // MapTracingHook (under the scheduler's lock).
+  // MapTracingHook, under the scheduler's lock (map_tracing_hook.h).
   bool RenderTaskReady(const Job& job, const TaskSpec& task) override;
-  std::optional<Lease> LeaseChunk(const LeaseRequest& request, double now,
-                                  const JobFilter& may_lease) override;
-
-  // Lease ids of map pieces start with this (ExtendLease / FailTask route by it).
-  static bool IsChunkLease(const std::string& lease_id);
+  std::optional<Lease> LeaseChunk(const LeaseRequest& request, const JobFilter& may_lease,
+                                  const IssuePieceLease& issue) override;
+  bool PieceLeaseCurrent(const std::string& map_key, uint32_t piece, const std::string& lease_id) override;
+  std::vector<std::string> JobsOfMap(const std::string& map_key) override;
+  // A piece lease that never reached its worker (the long poll was cancelled): queued again at
+  // once, its attempt not counted, instead of idling until the lease runs out.
+  void PieceReturned(const std::string& map_key, uint32_t piece, const std::string& lease_id) override;
+  // MapTracingHook, outside the scheduler's lock: a piece's lease failed or ran out (see the header
+  // comment, "Failures").
+  void PieceLeaseEnded(const PieceLeaseEnd& end) override;
 
   // The built map a render task of `job_id` with this map index should fetch; nullopt if its
   // workers trace it (not distributed, or left to them).
@@ -126,10 +146,10 @@ class DistributedMaps final : public MapTracingHook {
   std::optional<std::filesystem::path> MapFile(const std::string& key);
 
   // An upload's admission, checked on its first part before anything is buffered: only a live
-  // piece lease may upload, one stream at a time. So the coordinator buffers at most one piece per
-  // live piece lease (each ≤ kMaxPhotonChunkBytes), whatever a client declares or how many streams
-  // it opens. EndUpload(lease) once an admitted stream is over.
-  // kNotHolder: the lease is live but `worker_id` is not the worker it was leased to.
+  // piece lease (Scheduler::PieceLeaseOf) may upload, one stream at a time. So the coordinator buffers at
+  // most one piece per live piece lease (each ≤ kMaxPhotonChunkBytes), whatever a client declares or how many
+  // streams it opens. EndUpload(lease) once an admitted stream is over. kNotHolder: the lease is live but
+  // `worker_id` is not the worker it was leased to.
   enum class UploadAdmission { kAdmitted, kNotLive, kBusy, kNotHolder };
   UploadAdmission BeginUpload(const std::string& lease_id, const std::string& worker_id);
   void EndUpload(const std::string& lease_id);
@@ -143,15 +163,6 @@ class DistributedMaps final : public MapTracingHook {
   // A convicted worker (MapTracingHook, outside the scheduler's locks): see the header comment.
   std::vector<std::string> WorkerConvicted(const std::string& worker_id) override;
 
-  // ExtendResult::not_holder: another worker's lease (not renewed).
-  ExtendResult Extend(const std::string& lease_id, const std::string& worker_id);
-  // A piece lease that never reached its worker (the long poll was cancelled): queued again at
-  // once, its attempt not counted, instead of idling until the lease runs out.
-  void Return(const std::string& lease_id);
-  FailOutcome Fail(const std::string& lease_id, const std::string& worker_id, const std::string& reason);
-
-  // Expires leases. Call periodically, outside the scheduler's lock.
-  void Tick();
   // Waits for a running assembly; no new ones.
   void Stop();
 
@@ -168,8 +179,7 @@ class DistributedMaps final : public MapTracingHook {
   struct Chunk {
     using State = PieceState;  // moved only as PieceTransitions allows (map_states.h)
     State state = State::kQueued;
-    std::string lease_id, worker_id;
-    double deadline = 0;
+    std::string lease_id, worker_id;  // kLeased: its current lease (the Scheduler's LeaseTable) and holder
     uint32_t attempts = 0;
     // The distinct workers whose attempts failed (the piece is left to the workers after
     // max_attempts of them, as a task fails its job: scheduler.h), and failures of no worker.
@@ -196,10 +206,6 @@ class DistributedMaps final : public MapTracingHook {
   struct OnDisk {
     BuiltMap built;
     std::set<std::string> contributors;
-  };
-  struct LeaseRef {
-    std::string key;
-    uint32_t chunk = 0;
   };
   // A failed piece attempt, reported to the scheduler (its worker health) outside mu_.
   struct PieceFailure {
@@ -234,22 +240,14 @@ class DistributedMaps final : public MapTracingHook {
   // describes.
   static std::set<std::string> ReadTracers(const std::filesystem::path& file);
   static void WriteTracers(const std::filesystem::path& file, const std::set<std::string>& workers);
-  // A call with a piece lease held by another worker: the map's jobs and the holder.
-  struct Hijack {
-    std::vector<std::string> job_ids;
-    uint32_t piece = 0;
-    std::string holder;
-  };
-  // Refused, and its caller blocklisted in the map's jobs whatever `convict` says (builds do not
-  // differ in whose lease is whose): Scheduler::BlocklistForHijack. Call without mu_.
-  void ConvictHijacker(const Hijack& hijack, const std::string& worker_id, const std::string& call);
   // The job that created the map and every job waiting for it (health and convictions count in
   // each: the first may have ended).
   std::vector<std::string> JobsOfLocked(const Map& map) const;
   // A piece that is not the coordinator's trace: counted, and with `convict` its attempt failed (the
   // piece queued again) and its uploader convicted in every job of the map. Call without mu_ and
   // check_mu_.
-  void RefuseAndConvict(const std::string& lease_id, const std::string& worker_id, const std::string& why);
+  void RefuseAndConvict(const std::string& key, uint32_t index, const std::string& lease_id,
+                        const std::string& worker_id, const std::string& why);
   // Drops the scene CheckFirstPhotons keeps once no map of it is tracing.
   void ReleaseCheckSceneIfUnused();
 
@@ -264,7 +262,6 @@ class DistributedMaps final : public MapTracingHook {
   std::map<uint64_t, std::string> tracing_;
   void SetStateLocked(Map& m, Map::State state);
   uint64_t next_seq_ = 1;
-  std::unordered_map<std::string, LeaseRef> leases_;
   std::unordered_set<std::string> uploading_;  // leases with an admitted upload stream
   // Per job and map index: the key of a distributed map.
   std::map<std::pair<std::string, uint64_t>, std::string> keys_;

@@ -73,28 +73,23 @@ std::string DistributedMaps::MismatchOf(const JobConfig& config, uint64_t map_se
   return "";
 }
 
-void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::string& worker_id,
-                                       const std::string& why) {
+void DistributedMaps::RefuseAndConvict(const std::string& key, uint32_t index, const std::string& lease_id,
+                                       const std::string& worker_id, const std::string& why) {
   std::vector<std::string> job_ids;
-  uint32_t index = 0;
   std::vector<std::pair<std::string, uint64_t>> release;
   std::vector<PieceFailure> failures;
   {
     std::lock_guard lock(mu_);
     ++counters_.chunks_refused;
     if (!options_.convict) return;  // refused only: the worker's FailTask or the lease's expiry counts
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) return;
-    Map& m = maps_.at(it->second.key);
-    index = it->second.chunk;
+    Map& m = maps_.at(key);
     job_ids = JobsOfLocked(m);
     const Chunk& c = m.chunks[index];
     // Queued again for another worker, as a failed attempt: a piece that keeps being refused is
-    // left to the workers like one that keeps failing.
-    if (c.state == Chunk::State::kLeased && c.lease_id == lease_id)
+    // left to the workers like one that keeps failing. (Its lease in the Scheduler's table is then
+    // no longer current: PieceLeaseCurrent.)
+    if (m.state == Map::State::kTracing && c.state == Chunk::State::kLeased && c.lease_id == lease_id)
       RequeueLocked(m, index, "piece-refused", "refused: " + why, &release, &failures);
-    else
-      leases_.erase(it);
   }
   spdlog::error("job {} piece {}: worker {} uploaded a piece that is not the coordinator's trace: convicted",
                 job_ids.front(), index, limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
@@ -107,17 +102,6 @@ void DistributedMaps::RefuseAndConvict(const std::string& lease_id, const std::s
   Report(failures);
   Release(release);
   if (scheduler_) scheduler_->NotifyMapPieces();
-}
-
-void DistributedMaps::ConvictHijacker(const Hijack& hijack, const std::string& worker_id,
-                                      const std::string& call) {
-  spdlog::warn("job {} piece {}: {} from worker {} refused: the lease is held by {}", hijack.job_ids.front(),
-               hijack.piece, call, limits::Quote(worker_id, limits::kMaxWorkerIdBytes), hijack.holder);
-  if (!scheduler_) return;
-  for (const std::string& job_id : hijack.job_ids)
-    scheduler_->BlocklistForHijack(
-        job_id, worker_id, hijack.piece,
-        call + " with the lease of map piece " + std::to_string(hijack.piece) + ", held by another worker");
 }
 
 std::vector<std::string> DistributedMaps::JobsOfLocked(const Map& m) const {
@@ -161,7 +145,7 @@ std::vector<std::string> DistributedMaps::WorkerConvicted(const std::string& wor
           --m.done;
           ++pieces;
         } else if (c.state == Chunk::State::kLeased && c.worker_id == worker_id) {
-          leases_.erase(c.lease_id);  // its upload would be refused anyway (blocklisted)
+          // Its lease is no longer current (PieceLeaseCurrent); its upload would be refused anyway.
           PieceTransitions().Move(c.state, Chunk::State::kQueued);
           c.lease_id.clear();
         }

@@ -50,12 +50,16 @@ void Scheduler::Run(Effects& fx) {
   std::function<void(const std::string&)> change;
   std::function<void()> persist;
   RefereeHook* referee = nullptr;
+  MapTracingHook* maps = nullptr;
   {
     std::lock_guard lock(mu_);
     change = change_listener_;
     persist = persist_listener_;
     referee = referee_;
+    maps = map_hook_;
   }
+  if (maps)
+    for (const PieceLeaseEnd& end : fx.piece_ends) maps->PieceLeaseEnded(end);
   for (auto& [done, lease] : fx.callbacks) done(std::move(lease));
   for (RefereeCase& c : fx.referee) {
     if (referee)
@@ -71,12 +75,14 @@ void Scheduler::Run(Effects& fx) {
 }
 
 void Scheduler::NotTheHolderLocked(const std::string& job_id, uint64_t task_id, const std::string& worker_id,
-                                   const std::string& holder, const std::string& call, Effects& fx) {
-  spdlog::warn("job {} task {}: {} from worker {} refused: the lease is held by {}", job_id, task_id, call,
-               limits::Quote(worker_id, limits::kMaxWorkerIdBytes), holder);
+                                   const std::string& holder, const std::string& call, Effects& fx,
+                                   LeaseKind kind) {
+  const char* what = kind == LeaseKind::kMapPiece ? "map piece" : "task";
+  spdlog::warn("job {} {} {}: {} from worker {} refused: the lease is held by {}", job_id, what, task_id,
+               call, limits::Quote(worker_id, limits::kMaxWorkerIdBytes), holder);
   fx.hijacks.push_back(
       {job_id, worker_id, task_id,
-       call + " with the lease of task " + std::to_string(task_id) + ", held by another worker"});
+       call + " with the lease of " + what + " " + std::to_string(task_id) + ", held by another worker"});
 }
 
 void Scheduler::Touch(Job& job, Effects& fx) {
@@ -94,14 +100,9 @@ void Scheduler::Tick() {
     const double now = clock_.Now();
     // A long poll still open is a call in progress: a worker waiting for work is not silent.
     for (const auto& [id, waiter] : waiters_) PolledLocked(waiter.request.worker_id, now);
-    for (const std::string& id : leases_.Expired(now)) {
-      LeaseTable::Entry* entry = leases_.Find(id);
-      if (!entry) continue;  // its job ended meanwhile
-      Job& job = *entry->job;
-      const uint64_t task_id = entry->task_id;
-      if (job.runtime(task_id).merging) continue;  // its result arrived in time (Complete)
-      ExpireLease(job, task_id, now, fx);
-    }
+    // Leases of both kinds, through the one path: it expires what ran out (a task whose result
+    // arrived in time is pinned: Complete decides it).
+    for (const std::string& id : leases_.Expired(now)) FindLiveLease(id, now, fx);
     for (const auto& [worker, silent] : health_.MarkSilentLost(now)) {
       activity_.WorkerLost(worker, true);
       spdlog::warn("worker {}: lost: no call for {:.0f} s", limits::Quote(worker, limits::kMaxWorkerIdBytes),

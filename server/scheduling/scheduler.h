@@ -8,7 +8,9 @@
 //   task_source.h  where a job's tasks come from: all at submission (static plans), or created
 //                  from the merged results (dynamic plans), asked after every merge
 //   task_queue.h   queued tasks: priority, then submission order, then map affinity
-//   lease_table.h  lease id → task; which leases ran out
+//   lease_table.h  lease id → what it names (a render task, or a map piece: its kind); which ran
+//                  out. One path (FindLiveLease) for Extend, Fail, ReturnLease, Complete, piece
+//                  uploads and expiry, dispatching by the entry's kind
 //   stop_rules.h   max rounds, time budget, target noise
 //   worker_health.h  blocklists per job, quarantine, lost workers: who may get which work
 //   farm_activity.h  workers and task events, for people
@@ -283,8 +285,18 @@ class Scheduler final : public PersistSource {
   uint64_t StoredMergeSeq(const std::string& job_id) override;
   // Recovery: the job's convicted workers (JobRow.convicted) are blocklisted for it again.
   void RestoreConvictions(const std::string& job_id, const std::vector<std::string>& workers);
-  // A call from the worker outside this class (map piece RPCs): it is live.
-  void Heard(const std::string& worker_id);
+  // The piece a map piece lease names, for its upload (UploadPhotonChunk; `call` names the RPC in
+  // logs): the one lease path (FindLiveLease) — an unknown, expired, finished or render-task lease
+  // is kNotLive, another worker's is kNotHolder (its presenter blocklisted, as for a task). The
+  // caller is heard from (it is live).
+  struct PieceLeaseRef {
+    enum class Status { kLive, kNotLive, kNotHolder };
+    Status status = Status::kNotLive;
+    std::string map_key;
+    uint32_t piece = 0;
+  };
+  PieceLeaseRef PieceLeaseOf(const std::string& lease_id, const std::string& worker_id,
+                             const std::string& call);
   // A map piece's attempt failed (DistributedMaps; `kind`: piece-failed, piece-expired, piece-refused): it
   // counts against the worker in the job like a task's (blocklist, quarantine, no worker left).
   void PieceAttemptFailed(const std::string& job_id, const std::string& worker_id, uint32_t piece,
@@ -337,6 +349,8 @@ class Scheduler final : public PersistSource {
       std::string evidence;
     };
     std::vector<Hijack> hijacks;
+    // Piece leases that failed or ran out: Run tells the map hook (PieceLeaseEnded).
+    std::vector<PieceLeaseEnd> piece_ends;
   };
   struct Waiter {
     LeaseRequest request;
@@ -350,8 +364,10 @@ class Scheduler final : public PersistSource {
   // its id for the lifetime of its process, so this is a leaked id put to use: the presenter is
   // blocklisted for the job (BlocklistForHijack; docs/security.md, "Leases are bound to their
   // worker"). Logs the refusal.
+  // A map piece's lease (`kind`) is refused so in every job of its map.
   void NotTheHolderLocked(const std::string& job_id, uint64_t task_id, const std::string& worker_id,
-                          const std::string& holder, const std::string& call, Effects& fx);
+                          const std::string& holder, const std::string& call, Effects& fx,
+                          LeaseKind kind = LeaseKind::kRenderTask);
   void Touch(Job& job, Effects& fx);
   void Enqueue(Job& job, uint64_t task_id, Effects& fx);
   void Dequeue(Job& job, uint64_t task_id);
@@ -394,8 +410,16 @@ class Scheduler final : public PersistSource {
   // without mu_).
   void RefreshNoise(Job& job);
   void RefreshNoiseOfAll(bool include_finished);
-  // The lease if it is current; expires it (and returns null) if it ran out.
+  // The one lease path, for both kinds (lease_table.h): the lease if it is current; expires it (and
+  // returns null) if it ran out; drops a piece's entry the map hook no longer knows as current.
   LeaseTable::Entry* FindLiveLease(const std::string& lease_id, double now, Effects& fx);
+  // A map piece's lease ran out or was failed by its holder: erased; the hook hears of it in Run.
+  void EndPieceLeaseLocked(const std::string& lease_id, PieceLeaseEnd::Why why, const std::string& reason,
+                           Effects& fx);
+  // A call (`call`) with a live lease `entry` of either kind from `worker_id`: false (and the
+  // caller refused: NotTheHolderLocked) unless the worker holds it.
+  bool HolderLocked(const LeaseTable::Entry& entry, const std::string& worker_id, const std::string& call,
+                    Effects& fx);
   // Appends and queues the tasks the job's source creates from its merged results.
   void AddTasksFromSource(Job& job, Effects& fx);
   photonfarm::v1::JobStatus BuildStatus(Job& job, double now);

@@ -33,6 +33,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
     const double now = clock_.Now();
     HeardLocked(worker_id, now);
     LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx);
+    if (ref && ref->kind != LeaseKind::kRenderTask) ref = nullptr;  // a piece delivers an upload, not this
     if (ref && ref->job->runtime(ref->task_id).worker_id != worker_id) {
       // Another worker's result for this lease is not the holder's: nothing is merged, and the
       // holder's lease stays as it is.

@@ -105,8 +105,14 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
         passed = true;
         return false;
       };
-    if (std::optional<Lease> chunk = map_hook_->LeaseChunk(request, now, may_lease)) {
+    // Its id comes from the one lease table, which keeps the holder and the deadline.
+    const MapTracingHook::IssuePieceLease issue = [&](const std::string& job_id, const std::string& map_key,
+                                                      uint32_t piece, uint32_t attempt) {
+      return leases_.IssuePiece(job_id, map_key, piece, attempt, worker, now + options_.lease_seconds);
+    };
+    if (std::optional<Lease> chunk = map_hook_->LeaseChunk(request, may_lease, issue)) {
       chunk->worker_id = worker;
+      chunk->lease_seconds = options_.lease_seconds;
       return chunk;
     }
   }
@@ -229,6 +235,18 @@ void Scheduler::CancelWait(uint64_t waiter_id) {
 LeaseTable::Entry* Scheduler::FindLiveLease(const std::string& lease_id, double now, Effects& fx) {
   LeaseTable::Entry* entry = leases_.Find(lease_id);
   if (!entry) return nullptr;
+  if (entry->kind == LeaseKind::kMapPiece) {
+    // Stored, or its map left to the workers or purged, since: the entry outlived its piece's lease.
+    if (!map_hook_ || !map_hook_->PieceLeaseCurrent(entry->map_key, uint32_t(entry->task_id), lease_id)) {
+      leases_.Erase(lease_id);
+      return nullptr;
+    }
+    if (now >= entry->deadline) {
+      EndPieceLeaseLocked(lease_id, PieceLeaseEnd::Why::kExpired, "", fx);
+      return nullptr;
+    }
+    return entry;
+  }
   Job& job = *entry->job;
   const uint64_t task_id = entry->task_id;
   // A pinned lease's result arrived in time and is being merged: it decides the attempt.
@@ -237,6 +255,48 @@ LeaseTable::Entry* Scheduler::FindLiveLease(const std::string& lease_id, double 
     return nullptr;
   }
   return entry;
+}
+
+void Scheduler::EndPieceLeaseLocked(const std::string& lease_id, PieceLeaseEnd::Why why,
+                                    const std::string& reason, Effects& fx) {
+  const LeaseTable::Entry& e = *leases_.Find(lease_id);
+  fx.piece_ends.push_back(PieceLeaseEnd{why, e.map_key, uint32_t(e.task_id), lease_id, e.worker_id, reason});
+  leases_.Erase(lease_id);
+}
+
+bool Scheduler::HolderLocked(const LeaseTable::Entry& entry, const std::string& worker_id,
+                             const std::string& call, Effects& fx) {
+  if (entry.kind == LeaseKind::kMapPiece) {
+    if (entry.worker_id == worker_id) return true;
+    // Refused in every job of the map (health and convictions count in each: the first may have ended).
+    for (const std::string& job_id : map_hook_->JobsOfMap(entry.map_key))
+      NotTheHolderLocked(job_id, entry.task_id, worker_id, entry.worker_id, call, fx, LeaseKind::kMapPiece);
+    return false;
+  }
+  const TaskRuntime& rt = entry.job->runtime(entry.task_id);
+  if (rt.worker_id == worker_id) return true;
+  NotTheHolderLocked(entry.job->id(), entry.task_id, worker_id, rt.worker_id, call, fx);
+  return false;
+}
+
+Scheduler::PieceLeaseRef Scheduler::PieceLeaseOf(const std::string& lease_id, const std::string& worker_id,
+                                                 const std::string& call) {
+  Effects fx;
+  PieceLeaseRef ref;
+  {
+    std::lock_guard lock(mu_);
+    const double now = clock_.Now();
+    HeardLocked(worker_id, now);
+    LeaseTable::Entry* entry = FindLiveLease(lease_id, now, fx);
+    if (entry && entry->kind == LeaseKind::kMapPiece) {
+      if (HolderLocked(*entry, worker_id, call, fx))
+        ref = PieceLeaseRef{PieceLeaseRef::Status::kLive, entry->map_key, uint32_t(entry->task_id)};
+      else
+        ref.status = PieceLeaseRef::Status::kNotHolder;
+    }
+  }
+  Run(fx);
+  return ref;
 }
 
 void Scheduler::ExpireLease(Job& job, uint64_t task_id, double now, Effects& fx) {
@@ -265,12 +325,14 @@ ExtendResult Scheduler::Extend(const std::string& lease_id, const std::string& w
     if (std::optional<ExtendResult> check = ExtendVerificationLocked(lease_id, worker_id, now, fx)) {
       result = *check;
     } else if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
-      TaskRuntime& rt = ref->job->runtime(ref->task_id);
-      if (rt.worker_id != worker_id) {
-        // A lease id that reached another worker does not keep the task from being re-run.
+      if (!HolderLocked(*ref, worker_id, "ExtendLease", fx)) {
+        // A lease id that reached another worker does not keep the work from being re-run.
         result.not_holder = true;
-        NotTheHolderLocked(ref->job->id(), ref->task_id, worker_id, rt.worker_id, "ExtendLease", fx);
+      } else if (ref->kind == LeaseKind::kMapPiece) {
+        ref->deadline = now + options_.lease_seconds;
+        result = {true, options_.lease_seconds};
       } else {
+        TaskRuntime& rt = ref->job->runtime(ref->task_id);
         rt.lease_deadline = now + options_.lease_seconds;
         rt.progress = std::isfinite(progress) ? std::clamp(progress, 0.0, 1.0) : 0.0;
         result = {true, options_.lease_seconds};

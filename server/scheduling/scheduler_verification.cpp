@@ -69,7 +69,7 @@ std::optional<Lease> Scheduler::LeaseVerificationLocked(const LeaseRequest& requ
   Job& job = *v->job;
   // An ordinary task lease to the worker: the attempt continues the task's numbering, as a retry's.
   const uint32_t attempt = job.runtime(v->task_id).attempts + v->leases + 1;
-  verification_.Leased(*v, LeaseTable::MakeId(job, v->task_id, attempt), worker,
+  verification_.Leased(*v, LeaseTable::MakeId(job.id(), v->task_id, attempt), worker,
                        now + options_.lease_seconds);
   ++counters_.verification_leases;
   Touch(job, fx);

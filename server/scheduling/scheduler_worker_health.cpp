@@ -84,11 +84,6 @@ bool Scheduler::AnotherWaiterCanTake(const Job& job, const TaskRuntime& rt, cons
   return false;
 }
 
-void Scheduler::Heard(const std::string& worker_id) {
-  std::lock_guard lock(mu_);
-  HeardLocked(worker_id, clock_.Now());
-}
-
 void Scheduler::PieceAttemptFailed(const std::string& job_id, const std::string& worker_id, uint32_t piece,
                                    uint32_t attempt, const std::string& kind, const std::string& reason) {
   Effects fx;
@@ -121,17 +116,24 @@ FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& work
     if (std::optional<FailOutcome> check = FailVerificationLocked(lease_id, worker_id, reason, now, fx)) {
       outcome = *check;
     } else if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
-      const TaskRuntime& rt = ref->job->runtime(ref->task_id);
-      if (rt.merging) {
+      if (ref->kind == LeaseKind::kMapPiece) {
+        // A piece: queued again by the map hook (Run), the failure counted against its worker
+        // (PieceAttemptFailed); `retryable` does not apply (a piece is left to the workers instead).
+        if (HolderLocked(*ref, worker_id, "FailTask", fx)) {
+          outcome = FailOutcome::kFailed;
+          EndPieceLeaseLocked(lease_id, PieceLeaseEnd::Why::kFailed, reason, fx);
+        } else {
+          outcome = FailOutcome::kNotHolder;
+        }
+      } else if (const TaskRuntime& rt = ref->job->runtime(ref->task_id); rt.merging) {
         // The result it sent is being merged; that decides the attempt (kUnknownLease: the lease
         // is as good as finished).
         spdlog::info("job {} task {}: FailTask ignored: its result is being merged", ref->job->id(),
                      ref->task_id);
-      } else if (rt.worker_id != worker_id) {
+      } else if (!HolderLocked(*ref, worker_id, "FailTask", fx)) {
         // A lease id that reached another worker (a log, a copied command line) does not let it
         // end the task — with retryable = false, the whole job.
         outcome = FailOutcome::kNotHolder;
-        NotTheHolderLocked(ref->job->id(), ref->task_id, worker_id, rt.worker_id, "FailTask", fx);
       } else {
         outcome = FailOutcome::kFailed;
         activity_.TaskEvent(ref->job->id(), "failed", ref->task_id, rt.attempts, rt.worker_id,
@@ -148,10 +150,17 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
   Effects fx;
   {
     std::lock_guard lock(mu_);
+    LeaseTable::Entry* entry = nullptr;
     if (ReturnVerificationLocked(lease_id, fx)) {
       ServeWaiters(fx);
+    } else if (entry = leases_.Find(lease_id); entry && entry->kind == LeaseKind::kMapPiece) {
+      // A piece: queued again at once by the map hook, its attempt not counted.
+      const std::string map_key = entry->map_key;
+      const uint32_t piece = uint32_t(entry->task_id);
+      leases_.Erase(lease_id);
+      if (map_hook_) map_hook_->PieceReturned(map_key, piece, lease_id);
+      ServeWaiters(fx);
     } else {
-      LeaseTable::Entry* entry = leases_.Find(lease_id);
       if (!entry || entry->job->runtime(entry->task_id).merging) return;
       Job& job = *entry->job;
       const uint64_t task_id = entry->task_id;

@@ -1197,15 +1197,19 @@ class FakeMapHook final : public MapTracingHook {
   bool RenderTaskReady(const Job& /*job*/, const TaskSpec& task) override {
     return ready.count(task.map_index) > 0;
   }
-  std::optional<Lease> LeaseChunk(const LeaseRequest& /*request*/, double /*now*/,
-                                  const JobFilter& /*may_lease*/) override {
+  std::optional<Lease> LeaseChunk(const LeaseRequest& /*request*/, const JobFilter& /*may_lease*/,
+                                  const IssuePieceLease& issue) override {
     if (pieces == 0) return std::nullopt;
     --pieces;
     Lease l;
-    l.lease_id = "map-" + std::to_string(pieces);
+    l.lease_id = issue("job", "key", 0, 1);
     l.chunk = TraceChunkLease{"key", 0, 4096, 0, 1};
     return l;
   }
+  bool PieceLeaseCurrent(const std::string&, uint32_t, const std::string&) override { return true; }
+  std::vector<std::string> JobsOfMap(const std::string&) override { return {}; }
+  void PieceReturned(const std::string&, uint32_t, const std::string&) override {}
+  void PieceLeaseEnded(const PieceLeaseEnd&) override {}
   std::set<uint64_t> ready;
   int pieces = 0;
 };

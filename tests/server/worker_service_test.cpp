@@ -332,7 +332,9 @@ TEST_F(WorkerServiceTest, PieceLeaseHijackIsRefusedAndTheHonestPieceCompletesThe
   const std::string id = SubmitOk(*live_, spec);
   const std::optional<v1::Task> piece = TakeLease(*live_, "holder", 5);
   ASSERT_TRUE(piece.has_value() && piece->has_trace_chunk()) << "pieces are leased first";
-  EXPECT_THAT(piece->lease_id(), ::testing::MatchesRegex("map-[0-9a-f]{32}")) << "from the CSPRNG";
+  // One form for every lease (lease_table.h): job, piece, attempt, 128 bits from the CSPRNG.
+  EXPECT_THAT(piece->lease_id(), ::testing::MatchesRegex(id + "\\.0\\.1\\.[0-9a-f]{32}"))
+      << "from the CSPRNG";
   const std::string lease = piece->lease_id();
 
   // What the honest worker traces (as Worker::RunMapPiece, worker/worker.cpp, does).
