@@ -22,6 +22,7 @@
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
+#include "server/clock.h"
 #include "server/coordinator.h"
 #include "server/jobs/job_spec.h"
 #include "server/scheduling/scheduler.h"
@@ -236,6 +237,25 @@ class HookProbe final : public CompletionProbe {
 
  private:
   std::function<void(const std::string&)> hook_;
+};
+
+// A scheduler on a FakeClock (30 s leases, 3 attempts) with a HookProbe, and Submit: the fixture of
+// the scheduler's rule and concurrency tests.
+class SchedulerFixture : public ::testing::Test {
+ protected:
+  SchedulerFixture()
+      : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3, .probe = &probe_}) {}
+
+  std::string Submit(const JobConfig& config) {
+    std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
+    const std::string id = job->id();
+    scheduler_.AddJob(std::move(job));
+    return id;
+  }
+
+  FakeClock clock_;
+  HookProbe probe_;  // before scheduler_, which holds it
+  Scheduler scheduler_;
 };
 
 }  // namespace pf::server::testing
