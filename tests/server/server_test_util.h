@@ -209,14 +209,19 @@ inline grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_
   return st;
 }
 
+// Options of a coordinator in `data_dir` for tests that count leases: no verification leases at random.
+inline CoordinatorOptions CountingOptions(const fs::path& data_dir) {
+  CoordinatorOptions o;
+  o.verify_fraction = 0;
+  o.data_dir = data_dir;
+  return o;
+}
+
 // A fixture: an in-process coordinator in a fresh data folder with the Cornell box uploaded.
 class LiveCoordinatorTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    CoordinatorOptions o;
-    o.verify_fraction = 0;  // no verification leases at random: these tests count leases
-    o.data_dir = dir_.path() / "data";
-    live_ = std::make_unique<LiveCoordinator>(o);
+    live_ = std::make_unique<LiveCoordinator>(CountingOptions(dir_.path() / "data"));
     hash_ = UploadCornell(*live_);
     ASSERT_FALSE(HasFailure()) << "the scene upload failed";
   }
