@@ -329,6 +329,15 @@ TEST(MapTracingFarm, MapTracingFlagIsCheckedWhereItMeansSomething) {
   EXPECT_TRUE(worker->Wait(20).has_value());
 }
 
+// A crash of a coordinator's life and its worker: both SIGKILLed (the coordinator first) and reaped.
+void KillCoordinatorAndWorker(std::unique_ptr<CoordinatorProcess>& life, std::unique_ptr<Process>& worker) {
+  life->process().Signal(SIGKILL);
+  life->process().Wait(5);
+  life.reset();
+  worker->Signal(SIGKILL);
+  worker->Wait(5);
+}
+
 TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   TestDir dir;
   const Image reference = LocalReference(dir);
@@ -340,11 +349,7 @@ TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
       << ReadFile(w1->log());
   const fs::path log1 = life1->process().log();
   ASSERT_EQ(Count(log1, "piece [0-9]+: stored \\("), 2u) << ReadFile(log1);
-  life1->process().Signal(SIGKILL);
-  life1->process().Wait(5);
-  life1.reset();
-  w1->Signal(SIGKILL);
-  w1->Wait(5);
+  KillCoordinatorAndWorker(life1, w1);
 
   // Life 2: finds the two pieces, queues only piece 2; the map is built; its worker dies fetching.
   auto life2 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args, port);
@@ -356,11 +361,7 @@ TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   EXPECT_EQ(Count(w2->log(), "uploaded-piece .*piece=2/3 .*accepted=true"), 1u) << ReadFile(w2->log());
   EXPECT_EQ(Count(w2->log(), "uploaded-piece"), 1u);
   EXPECT_EQ(Count(log2, "built once from 3 pieces"), 1u) << ReadFile(log2);
-  life2->process().Signal(SIGKILL);
-  life2->process().Wait(5);
-  life2.reset();
-  w2->Signal(SIGKILL);
-  w2->Wait(5);
+  KillCoordinatorAndWorker(life2, w2);
 
   // Life 3: serves the built map from disk; nothing is traced again.
   CoordinatorProcess life3(dir / "data", dir.path(), args, port);
@@ -391,11 +392,7 @@ TEST(MapTracingFarm, RestartWithAnotherPieceSizeTracesThePiecesAnew) {
       << ReadFile(w1->log());
   ASSERT_EQ(Count(life1->process().log(), "piece [0-9]+: stored \\("), 2u)
       << ReadFile(life1->process().log());
-  life1->process().Signal(SIGKILL);
-  life1->process().Wait(5);
-  life1.reset();
-  w1->Signal(SIGKILL);
-  w1->Wait(5);
+  KillCoordinatorAndWorker(life1, w1);
 
   CoordinatorProcess life2(dir / "data", dir.path(),
                            {"--lease-seconds", "1.5", "--map-chunk-photons", "8192"}, port);
