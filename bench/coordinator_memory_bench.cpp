@@ -31,6 +31,7 @@
 #include "common/scene/scene_bundle.h"
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "proto/convert.h"
+#include "tests/util/job_specs.h"
 
 namespace pf::bench {
 namespace {
@@ -97,15 +98,7 @@ int Run(const Options& o) {
     stage("started");
 
     v1::SubmitJobRequest sub;
-    v1::JobSpec& spec = *sub.mutable_spec();
-    spec.set_scene_hash(up_resp.scene_hash());
-    spec.mutable_camera()->set_width(16);
-    spec.mutable_camera()->set_height(1);
-    spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PATH);
-    spec.mutable_plan()->mutable_multiple_maps()->set_maps(65536);
-    spec.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
-    spec.mutable_plan()->mutable_multiple_maps()->set_tile_size(1);
-    spec.set_seed(1);
+    *sub.mutable_spec() = test_util::LargestJobSpec(up_resp.scene_hash(), 1);
     v1::SubmitJobResponse sub_resp;
     submit_seconds = TimeIt([&] { Check(render->SubmitJob(Ctx().get(), sub, &sub_resp), "SubmitJob"); });
     job_id = sub_resp.job_id();

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_scenes.h"
 #include "bench/bench_stats.h"
 #include "bench/raw_rays.h"
 #include "common/accel/embree_scene.h"
@@ -145,10 +146,7 @@ int main(int argc, char** argv) {
     }
   }
   spdlog::set_level(spdlog::level::warn);
-  const std::string root = PF_SOURCE_DIR;
-  const std::vector<std::pair<std::string, std::string>> scenes = {
-      {"cornell-box", root + "/scenes/cornell-box/cornell-box.json"},
-      {"office3", root + "/scenes/office3/office3.json"}};
+  const auto scenes = pf::bench::SceneManifests({"cornell-box", "office3"});
   nlohmann::json out = nlohmann::json::array();
   std::printf("Embree 3, one thread, median of %d runs, %dx%d camera rays, ray loops on the %s clock\n",
               repeats, res, res, pf::g_cpu_clock ? "cpu" : "wall");

@@ -41,7 +41,6 @@ Prints a table and the JSON; --json-out also writes the JSON to a file.
 import argparse
 import json
 import os
-import re
 import resource
 import shutil
 import signal
@@ -50,6 +49,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from bench_common import start_coordinator, stop
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(REPO, "scenes", "cornell-box", "cornell-box.json")
@@ -90,30 +91,6 @@ def span_of(perf_data, by_process):
     coordinator = sum(counts.get(pid, 0) for pid in coordinator_pids) if by_process else 0
     workers = [n for key, n in counts.items() if key not in coordinator_pids] if by_process else list(counts.values())
     return (max(workers) / 499.0 if workers else 0.0), coordinator / 499.0
-
-
-def start_coordinator(coord, data_dir, extra):
-    out = open(os.path.join(data_dir, "coordinator.out"), "w+")
-    p = subprocess.Popen([coord, "--listen", "127.0.0.1:0", "--data-dir", os.path.join(data_dir, "data"),
-                          "--log-level", "warn"] + extra,
-                         stdout=out, stderr=open(os.path.join(data_dir, "coordinator.log"), "w"))
-    for _ in range(1000):
-        out.seek(0)
-        m = re.search(r"listening on (\S+)", out.read())
-        if m:
-            return p, m.group(1)
-        time.sleep(0.01)
-    p.kill()
-    sys.exit("coordinator did not start")
-
-
-def stop(p):
-    p.terminate()
-    try:
-        p.wait(timeout=20)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        p.wait()
 
 
 def main():
@@ -232,7 +209,7 @@ def main():
         for ckpt in () if a.render_only else ("0", "100"):
             for stride, res in ((8, 64), (2, 64)):
                 d = tempfile.mkdtemp(dir=tmp)
-                p, addr = start_coordinator(coord, d, ["--checkpoint-ms", ckpt])
+                p, addr = start_coordinator(coord, d, ["--log-level", "warn", "--checkpoint-ms", ckpt])
                 try:
                     rounds = 2000 // (stride * stride) + 1
                     _, s = run([pf, "submit", SCENE, "--coordinator", addr, "--integrator", "photonmap",

@@ -33,6 +33,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_scenes.h"
 #include "bench/bench_stats.h"
 #include "bench/floor_walk.h"
 #include "bench/raw_rays.h"
@@ -88,11 +89,7 @@ int main(int argc, char** argv) {
     }
   }
   spdlog::set_level(spdlog::level::warn);
-  const std::string root = PF_SOURCE_DIR;
-  const std::vector<std::pair<std::string, std::string>> scenes = {
-      {"cornell-box", root + "/scenes/cornell-box/cornell-box.json"},
-      {"cornell-sphere", root + "/scenes/cornell-sphere/cornell-sphere.json"},
-      {"office3", root + "/scenes/office3/office3.json"}};
+  const auto scenes = pf::bench::SceneManifests({"cornell-box", "cornell-sphere", "office3"});
   nlohmann::json out = nlohmann::json::array();
   std::printf("photon tracing, 1 thread, %llu photons, median of %d runs, %s clock\n",
               (unsigned long long)photons, repeats, cpu_clock ? "cpu" : "wall");

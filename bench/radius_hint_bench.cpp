@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_scenes.h"
 #include "bench/bench_stats.h"
 #include "common/photon/photon_maps.h"
 #include "common/render/photon_map_integrator.h"
@@ -57,10 +58,7 @@ int main(int argc, char** argv) {
     }
   }
   spdlog::set_level(spdlog::level::warn);
-  const std::string root = PF_SOURCE_DIR;
-  const std::vector<std::pair<std::string, std::string>> scenes = {
-      {"cornell-box", root + "/scenes/cornell-box/cornell-box.json"},
-      {"office3", root + "/scenes/office3/office3.json"}};
+  const auto scenes = pf::bench::SceneManifests({"cornell-box", "office3"});
   const std::vector<std::pair<std::string, PhotonMapKind>> structures = {
       {"kdtree", PhotonMapKind::kKdTree}, {"bucket", PhotonMapKind::kBucketKdTree}};
   double load[3] = {0, 0, 0};

@@ -29,6 +29,8 @@ import sys
 import tempfile
 import time
 
+from bench_common import start_coordinator, stop
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(REPO, "scenes", "cornell-box", "cornell-box.json")
 JOB = ["--integrator", "photonmap", "--photons", "100000", "--k", "50", "--plan", "skipping", "--stride", "4",
@@ -43,34 +45,11 @@ def cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / TICKS
 
 
-def stop(p):
-    p.terminate()
-    try:
-        p.wait(timeout=20)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        p.wait()
-
-
 def one_run(build, fraction, work, reference):
     pf = os.path.join(build, "client", "pf")
     coord_args = ["--verify-fraction", str(fraction)] + (["--no-verify-outliers"] if fraction == 0 else [])
-    out = open(os.path.join(work, "coordinator.out"), "w+")
     log = os.path.join(work, "coordinator.log")
-    coord = subprocess.Popen([os.path.join(build, "server", "pf-coordinator"), "--listen", "127.0.0.1:0",
-                              "--data-dir", os.path.join(work, "data")] + coord_args,
-                             stdout=out, stderr=open(log, "w"))
-    address = None
-    for _ in range(1000):
-        out.seek(0)
-        m = re.search(r"listening on (\S+)", out.read())
-        if m:
-            address = m.group(1)
-            break
-        time.sleep(0.01)
-    if not address:
-        coord.kill()
-        sys.exit("coordinator did not start")
+    coord, address = start_coordinator(os.path.join(build, "server", "pf-coordinator"), work, coord_args)
     workers = [subprocess.Popen([os.path.join(build, "worker", "pf-worker"), "--coordinator", address, "--threads",
                                  "1", "--worker-id", f"w{i}", "--cache-dir", os.path.join(work, f"cache{i}")],
                                 stdout=subprocess.DEVNULL, stderr=open(os.path.join(work, f"w{i}.log"), "w"))

@@ -97,6 +97,19 @@ class Mgf:
         self.wall_z(z, gap_x1, x1, 0, height)
         self.wall_z(z, gap_x0, gap_x1, gap_top, height)
 
+    def room(self, w, d, height, floor="floor"):
+        """A closed w x height x d room from the origin: floor (material `floor`), "ceiling" and
+        four "wall"s, each facing in."""
+        self.use(floor)
+        self.quad_y(0, w, 0, d, 0.0, down=False)
+        self.use("ceiling")
+        self.quad_y(0, w, 0, d, height, down=True)
+        self.use("wall")
+        self.wall_x(0, 0, d, 0, height)
+        self.wall_x(w, 0, d, 0, height)
+        self.wall_z(0, 0, w, 0, height)
+        self.wall_z(d, 0, w, 0, height)
+
     def write(self, path, header):
         path.write_text("".join(f"# {h}\n" for h in header) + "\n".join(self.lines) + "\n")
 
@@ -141,15 +154,7 @@ def invisible_date(size=4.0, height=2.5, gap=0.05, door_top=2.0):
     m.material("wall", rd=0.7)
     m.material("ceiling", rd=0.8)
     m.material("lamp", ed=20000)
-    m.use("floor")
-    m.quad_y(0, 2 * size, 0, size, 0.0, down=False)
-    m.use("ceiling")
-    m.quad_y(0, 2 * size, 0, size, height, down=True)
-    m.use("wall")
-    m.wall_x(0, 0, size, 0, height)
-    m.wall_x(2 * size, 0, size, 0, height)
-    m.wall_z(0, 0, 2 * size, 0, height)
-    m.wall_z(size, 0, 2 * size, 0, height)
+    m.room(2 * size, size, height)
     mid = size / 2
     m.wall_x_with_gap(size, 0, size, height, mid - gap / 2, mid + gap / 2, door_top)
     m.use("lamp")
@@ -172,15 +177,7 @@ def bathroom(w=3.0, d=3.0, height=2.5, bulb=0.2, glass=0.015, lamp=0.12):
     m.material("bulb_glass", ts=1, ir=1.5)
     # ed in lm/m²: Le = ed/(π·179) ≈ 40 W/(m²·sr).
     m.material("lamp", ed=22500)
-    m.use("tiles")
-    m.quad_y(0, w, 0, d, 0.0, down=False)
-    m.use("ceiling")
-    m.quad_y(0, w, 0, d, height, down=True)
-    m.use("wall")
-    m.wall_x(0, 0, d, 0, height)
-    m.wall_x(w, 0, d, 0, height)
-    m.wall_z(0, 0, w, 0, height)
-    m.wall_z(d, 0, w, 0, height)
+    m.room(w, d, height, floor="tiles")
     m.use("tub")
     m.box(0.0, 0.75, 0.0, 0.55, 0.6, 2.4)
     m.use("vanity")
@@ -208,15 +205,7 @@ def scene5(size=3.0, height=2.5, radius=0.3, light=0.3, pedestal=0.3):
     m.material("glass", ts=0.96, ir=1.5)
     m.material("pedestal", rd=0.5)
     m.material("lamp", ed=40000)
-    m.use("floor")
-    m.quad_y(0, size, 0, size, 0.0, down=False)
-    m.use("ceiling")
-    m.quad_y(0, size, 0, size, height, down=True)
-    m.use("wall")
-    m.wall_x(0, 0, size, 0, height)
-    m.wall_x(size, 0, size, 0, height)
-    m.wall_z(0, 0, size, 0, height)
-    m.wall_z(size, 0, size, 0, height)
+    m.room(size, size, height)
     m.use("pedestal")
     m.box(size / 2 - 0.08, size / 2 + 0.08, 0.0, pedestal, size / 2 - 0.08, size / 2 + 0.08)
     m.use("glass")
@@ -249,15 +238,7 @@ def conference(w=8.0, d=6.0, height=3.0, panel=0.6, sign_w=0.28, sign_h=0.08, si
     # Exit signs: luminance Le = 56235/(π·179) = 100 W/(m²·sr), green (CIE x 0.3, y 0.5: inside the
     # sRGB gamut, so the RGB emission keeps that luminance).
     m.material("exit_sign", ed=56235, cxy=(0.3, 0.5))
-    m.use("carpet")
-    m.quad_y(0, w, 0, d, 0.0, down=False)
-    m.use("ceiling")
-    m.quad_y(0, w, 0, d, height, down=True)
-    m.use("wall")
-    m.wall_x(0, 0, d, 0, height)
-    m.wall_x(w, 0, d, 0, height)
-    m.wall_z(0, 0, w, 0, height)
-    m.wall_z(d, 0, w, 0, height)
+    m.room(w, d, height, floor="carpet")
     # The table: top and four legs.
     m.use("wood")
     tx0, tx1, tz0, tz1 = 2.0, 6.0, 2.4, 3.6

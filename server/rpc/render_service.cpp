@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <memory>
 #include <string_view>
+#include <utility>
 
 #include "common/core/error.h"
 #include "common/scene/scene_bundle.h"
@@ -25,6 +26,15 @@ namespace {
 
 grpc::Status Busy() {
   return {grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down; retry"};
+}
+
+// A call answered at once, on the RPC thread (the cheap reads): `body` through Guarded.
+template <typename F>
+grpc::ServerUnaryReactor* FinishGuarded(grpc::CallbackServerContext* context, std::string_view rpc,
+                                        F&& body) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  reactor->Finish(Guarded(rpc, std::forward<F>(body)));
+  return reactor;
 }
 
 void RequireJobId(const std::string& id) {
@@ -134,21 +144,17 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* RenderServiceImpl::GetJob(grpc::CallbackServerContext* context,
                                                     const v1::GetJobRequest* request,
                                                     v1::JobStatus* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const grpc::Status status = Guarded("GetJob", [&] {
+  return FinishGuarded(context, "GetJob", [&] {
     RequireJobId(request->job_id());
     *response = ctx_.scheduler.Status(request->job_id());
     return grpc::Status::OK;
   });
-  reactor->Finish(status);
-  return reactor;
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::ListJobs(grpc::CallbackServerContext* context,
                                                       const v1::ListJobsRequest* request,
                                                       v1::ListJobsResponse* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const grpc::Status status = Guarded("ListJobs", [&] {
+  return FinishGuarded(context, "ListJobs", [&] {
     const uint64_t after = ParsePageToken(request->page_token());
     uint32_t size = request->page_size() == 0 ? limits::kDefaultListJobsPageSize : request->page_size();
     size = std::min(size, limits::kMaxListJobsPageSize);
@@ -157,21 +163,16 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobs(grpc::CallbackServerContex
     if (page.more) response->set_next_page_token(PageToken(page.last_seq));
     return grpc::Status::OK;
   });
-  reactor->Finish(status);
-  return reactor;
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::CancelJob(grpc::CallbackServerContext* context,
                                                        const v1::CancelJobRequest* request,
                                                        v1::CancelJobResponse* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const grpc::Status status = Guarded("CancelJob", [&] {
+  return FinishGuarded(context, "CancelJob", [&] {
     RequireJobId(request->job_id());
     *response->mutable_status() = ctx_.scheduler.Cancel(request->job_id());
     return grpc::Status::OK;
   });
-  reactor->Finish(status);
-  return reactor;
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerContext* context,
@@ -186,8 +187,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* RenderServiceImpl::ListJobEvents(grpc::CallbackServerContext* context,
                                                            const v1::ListJobEventsRequest* request,
                                                            v1::ListJobEventsResponse* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const grpc::Status status = Guarded("ListJobEvents", [&] {
+  return FinishGuarded(context, "ListJobEvents", [&] {
     RequireJobId(request->job_id());
     ctx_.scheduler.Status(request->job_id());  // NOT_FOUND for an unknown job
     uint64_t dropped = 0;
@@ -196,8 +196,6 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobEvents(grpc::CallbackServerC
     response->set_dropped(dropped);
     return grpc::Status::OK;
   });
-  reactor->Finish(status);
-  return reactor;
 }
 
 grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::CallbackServerContext* context,

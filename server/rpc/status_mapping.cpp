@@ -9,22 +9,28 @@
 #include "server/errors.h"
 
 namespace pf::server {
+namespace {
+
+// The error's own message as the status, logged at `level` as "rpc: CODE: message".
+grpc::Status Logged(spdlog::level::level_enum level, std::string_view rpc, grpc::StatusCode code,
+                    std::string_view code_name, const std::exception& e) {
+  spdlog::log(level, "{}: {}: {}", rpc, code_name, e.what());
+  return {code, e.what()};
+}
+
+}  // namespace
 
 grpc::Status StatusFromException(std::exception_ptr error, std::string_view rpc) {
   try {
     std::rethrow_exception(error);
   } catch (const LimitError& e) {
-    spdlog::info("{}: RESOURCE_EXHAUSTED: {}", rpc, e.what());
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED, e.what()};
+    return Logged(spdlog::level::info, rpc, grpc::StatusCode::RESOURCE_EXHAUSTED, "RESOURCE_EXHAUSTED", e);
   } catch (const InputError& e) {
-    spdlog::info("{}: INVALID_ARGUMENT: {}", rpc, e.what());
-    return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
+    return Logged(spdlog::level::info, rpc, grpc::StatusCode::INVALID_ARGUMENT, "INVALID_ARGUMENT", e);
   } catch (const NotFoundError& e) {
-    spdlog::info("{}: NOT_FOUND: {}", rpc, e.what());
-    return {grpc::StatusCode::NOT_FOUND, e.what()};
+    return Logged(spdlog::level::info, rpc, grpc::StatusCode::NOT_FOUND, "NOT_FOUND", e);
   } catch (const DataLossError& e) {
-    spdlog::error("{}: DATA_LOSS: {}", rpc, e.what());
-    return {grpc::StatusCode::DATA_LOSS, e.what()};
+    return Logged(spdlog::level::err, rpc, grpc::StatusCode::DATA_LOSS, "DATA_LOSS", e);
   } catch (const UnavailableError& e) {
     return {grpc::StatusCode::UNAVAILABLE, e.what()};
   } catch (const StorageError& e) {

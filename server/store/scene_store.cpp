@@ -45,16 +45,23 @@ double MaxEmission(const SceneDescription& scene) {
   return m;
 }
 
+// The columns of a scenes row that hold a SceneInfo's field as it is (the camera and the warnings
+// are encoded), both ways.
+template <typename From, typename To>
+void CopyPlainColumns(const From& from, To& to) {
+  to.hash = from.hash;
+  to.entry = from.entry;
+  to.triangles = from.triangles;
+  to.lights = from.lights;
+  to.max_emission = from.max_emission;
+  to.caustic_paths = from.caustic_paths;
+  to.bytes = from.bytes;
+  to.files = from.files;
+}
+
 SceneInfo InfoFromRow(const SceneRow& row) {
   SceneInfo info;
-  info.hash = row.hash;
-  info.entry = row.entry;
-  info.triangles = row.triangles;
-  info.lights = row.lights;
-  info.max_emission = row.max_emission;
-  info.caustic_paths = row.caustic_paths;
-  info.bytes = row.bytes;
-  info.files = row.files;
+  CopyPlainColumns(row, info);
   info.warnings = Split(row.warnings);
   photonfarm::v1::Camera cam;
   if (!cam.ParseFromString(row.default_camera)) throw SystemError("scenes table: bad camera of " + row.hash);
@@ -126,14 +133,7 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   // false: a concurrent upload of the same bundle won the race, or the folder survived a crash.
   PublishDirectory(tmp, dir_ / hash);
   SceneRow row;
-  row.hash = hash;
-  row.entry = info.entry;
-  row.bytes = info.bytes;
-  row.files = info.files;
-  row.triangles = info.triangles;
-  row.lights = info.lights;
-  row.max_emission = info.max_emission;
-  row.caustic_paths = info.caustic_paths;
+  CopyPlainColumns(info, row);
   photonfarm::v1::Camera cam;
   CameraToProto(info.camera, &cam);
   row.default_camera = cam.SerializeAsString();

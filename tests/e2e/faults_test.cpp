@@ -173,11 +173,8 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
   JobArgs job = SlowJob();
   job.rounds = 5;  // 20 tasks
   const Image reference = LocalReference(dir, job);
-  auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(),
-                                                          std::vector<std::string>{"--lease-seconds", "3"});
-  const int port = coordinator->port();
-  const std::string address = coordinator->address();
-  const std::string job_id = SubmitJob(dir, address, job.ToFlags());
+  auto [coordinator, port, address, job_id] =
+      StartCoordinatorWithJob(dir, {"--lease-seconds", "3"}, job.ToFlags());
   ASSERT_FALSE(job_id.empty());
   std::vector<fs::path> logs;
   std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);

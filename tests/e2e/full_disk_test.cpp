@@ -86,10 +86,7 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
   ASSERT_EQ(disk.error(), "");
 
   const std::vector<std::string> args = {"--lease-seconds", "3"};
-  auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args);
-  const int port = coordinator->port();
-  const std::string address = coordinator->address();
-  const std::string job_id = SubmitJob(dir, address, job.ToFlags());
+  auto [coordinator, port, address, job_id] = StartCoordinatorWithJob(dir, args, job.ToFlags());
   ASSERT_FALSE(job_id.empty());
   std::vector<fs::path> logs;
   std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);

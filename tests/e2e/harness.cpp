@@ -337,6 +337,17 @@ std::string SubmitJob(const TestDir& dir, const std::string& address, const std:
   return id;
 }
 
+CoordinatorWithJob StartCoordinatorWithJob(const TestDir& dir, std::vector<std::string> coordinator_args,
+                                           const std::vector<std::string>& flags) {
+  CoordinatorWithJob out;
+  out.coordinator =
+      std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), std::move(coordinator_args));
+  out.port = out.coordinator->port();
+  out.address = out.coordinator->address();
+  out.job_id = SubmitJob(dir, out.address, flags);
+  return out;
+}
+
 void BecomeSubreaper() {
   prctl(PR_SET_CHILD_SUBREAPER, 1);
 }

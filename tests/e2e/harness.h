@@ -200,6 +200,18 @@ inline RunResult RenderLocally(const TestDir& dir, const std::vector<std::string
 // if it failed.
 std::string SubmitJob(const TestDir& dir, const std::string& address, const std::vector<std::string>& flags);
 
+// A coordinator on dir/data that a test will kill and restart on the same port, with the job `flags`
+// submitted to it (job_id "" and a failure if the submission failed). Bound by a test as
+// `auto [coordinator, port, address, job_id] = StartCoordinatorWithJob(...)`.
+struct CoordinatorWithJob {
+  std::unique_ptr<CoordinatorProcess> coordinator;
+  int port = 0;
+  std::string address;
+  std::string job_id;
+};
+CoordinatorWithJob StartCoordinatorWithJob(const TestDir& dir, std::vector<std::string> coordinator_args,
+                                           const std::vector<std::string>& flags);
+
 // Whether the worker log shows a task leased and not yet completed, failed or abandoned.
 inline bool MidTask(const std::filesystem::path& worker_log) {
   const auto leased = Grep(worker_log, "leased job=").size();

@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <initializer_list>
 #include <regex>
 #include <set>
 #include <thread>
@@ -55,13 +56,13 @@ Image LocalReference(const TestDir& dir, const std::vector<std::string>& flags) 
   return ReadImage(dir / "local.exr");
 }
 
-TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
-  TestDir dir;
-  const std::vector<std::string> flags = HierarchicalFlags(2000);
-  const Image reference = LocalReference(dir, flags);
-  ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
-  for (int workers : {1, 2, 3}) {
-    const std::string out = (dir / ("farm-" + std::to_string(workers) + ".exr")).string();
+// `pf render --workers N` (a local farm) for each N renders `reference` bit for bit; the images are
+// written to dir/<stem>N.exr.
+void ExpectLocalFarmsBitIdentical(const TestDir& dir, const std::vector<std::string>& flags,
+                                  const Image& reference, std::initializer_list<int> worker_counts,
+                                  const std::string& stem) {
+  for (int workers : worker_counts) {
+    const std::string out = (dir / (stem + std::to_string(workers) + ".exr")).string();
     const RunResult r = RunCommand(
         Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, flags),
                {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "--no-png", "-q"}),
@@ -69,6 +70,14 @@ TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
     ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
     EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
   }
+}
+
+TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
+  TestDir dir;
+  const std::vector<std::string> flags = HierarchicalFlags(2000);
+  const Image reference = LocalReference(dir, flags);
+  ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
+  ExpectLocalFarmsBitIdentical(dir, flags, reference, {1, 2, 3}, "farm-");
 }
 
 // --hier-part indirect (common/plan/hierarchical.h, "Parts"): the emission + direct light tasks
@@ -95,15 +104,7 @@ TEST(HierarchicalFarm, IndirectPartBitIdenticalForOneAndThreeWorkersAndLocal) {
     return sum;
   };
   EXPECT_NEAR(unlit_sum(reference, whole) / unlit_sum(whole, reference), 1.0, 0.1);
-  for (int workers : {1, 3}) {
-    const std::string out = (dir / ("farm-indirect-" + std::to_string(workers) + ".exr")).string();
-    const RunResult r = RunCommand(
-        Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, flags),
-               {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "--no-png", "-q"}),
-        dir.path());
-    ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
-    EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
-  }
+  ExpectLocalFarmsBitIdentical(dir, flags, reference, {1, 3}, "farm-indirect-");
 }
 
 // A worker SIGKILLed mid-task, then the coordinator SIGKILLed after 12 merges and
@@ -113,10 +114,7 @@ void KilledWorkerAndCoordinatorRestart(const std::vector<std::string>& flags, ui
   TestDir dir;
   const Image reference = LocalReference(dir, flags);
   const std::vector<std::string> coordinator_args = {"--lease-seconds", "2", "--max-attempts", "10"};
-  auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args);
-  const int port = coordinator->port();
-  const std::string address = coordinator->address();
-  const std::string job_id = SubmitJob(dir, address, flags);
+  auto [coordinator, port, address, job_id] = StartCoordinatorWithJob(dir, coordinator_args, flags);
   ASSERT_FALSE(job_id.empty());
   {
     FarmClient client(address, "");
@@ -217,10 +215,7 @@ TEST(HierarchicalFarm, ThreeWorkersKilledWorkerAndRestartMidLevelGiveTheLocalIma
   const std::vector<TaskSpec> tasks = StaticTasksOfLongerLevels();
   ASSERT_EQ(tasks.size(), 75u);
   const std::vector<std::string> coordinator_args = {"--lease-seconds", "2", "--max-attempts", "10"};
-  auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), coordinator_args);
-  const int port = coordinator->port();
-  const std::string address = coordinator->address();
-  const std::string job_id = SubmitJob(dir, address, flags);
+  auto [coordinator, port, address, job_id] = StartCoordinatorWithJob(dir, coordinator_args, flags);
   ASSERT_FALSE(job_id.empty());
 
   std::vector<fs::path> logs;

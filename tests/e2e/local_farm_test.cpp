@@ -90,6 +90,15 @@ void ExpectFarmMatchesLocal(const std::vector<std::string>& args, const TestDir&
   EXPECT_TRUE(BitIdentical(ReadImage(dir / "farm.exr"), ReadImage(dir / "local.exr")));
 }
 
+// The local render of `args` (to dir/`name`) differs from the last ExpectFarmMatchesLocal's image:
+// the setting that `args` leaves out really changes the image, so the farm's match shows that it
+// reached the workers.
+void ExpectLocalDiffers(const std::vector<std::string>& args, const TestDir& dir, const std::string& name) {
+  const RunResult r = RunCommand(Concat(args, {"--local-only", "-o", (dir / name).string()}), dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(BitIdentical(ReadImage(dir / name), ReadImage(dir / "local.exr")));
+}
+
 TEST_F(LocalFarmTest, MultipleMapsTilesMatchLocal) {
   TestDir dir;
   const std::vector<std::string> base = PhotonMapRender24x16(
@@ -110,10 +119,7 @@ TEST_F(LocalFarmTest, ChapterFourEstimatorsMatchLocal) {
                     "--local-pass", "3"});
   ExpectFarmMatchesLocal(chapter4, dir);
   // A different estimator is a different image (the options really reached the workers).
-  const RunResult standalone = RunCommand(
-      Concat(base, {"--direct", "photon-map", "--local-only", "-o", (dir / "pm.exr").string()}), dir.path());
-  ASSERT_EQ(standalone.exit_code, 0) << standalone.err;
-  EXPECT_FALSE(BitIdentical(ReadImage(dir / "pm.exr"), ReadImage(dir / "local.exr")));
+  ExpectLocalDiffers(Concat(base, {"--direct", "photon-map"}), dir, "pm.exr");
   ExpectNoProcessLeft();
 }
 
@@ -128,10 +134,7 @@ TEST_F(LocalFarmTest, ImportanceMatchesLocal) {
   const std::vector<std::string> on =
       Concat(base, {"--importance", "on", "--importance-strength", "0.5", "--importons", "300"});
   ExpectFarmMatchesLocal(on, dir);
-  const RunResult off =
-      RunCommand(Concat(base, {"--local-only", "-o", (dir / "off.exr").string()}), dir.path());
-  ASSERT_EQ(off.exit_code, 0) << off.err;
-  EXPECT_FALSE(BitIdentical(ReadImage(dir / "off.exr"), ReadImage(dir / "local.exr")));
+  ExpectLocalDiffers(base, dir, "off.exr");
   ExpectNoProcessLeft();
 }
 
@@ -144,10 +147,7 @@ TEST_F(LocalFarmTest, IrradianceCacheMatchesLocal) {
       PhotonMapRender24x16("3000", {"--plan", "multiple-maps", "--maps", "2", "--tile", "12", "--spp", "2",
                                     "--seed", "7", "--direct", "mc", "--local-pass", "4"});
   ExpectFarmMatchesLocal(Concat(base, {"--irradiance-cache", "--irradiance-cache-error", "0.3"}), dir);
-  const RunResult uncached =
-      RunCommand(Concat(base, {"--local-only", "-o", (dir / "uncached.exr").string()}), dir.path());
-  ASSERT_EQ(uncached.exit_code, 0) << uncached.err;
-  EXPECT_FALSE(BitIdentical(ReadImage(dir / "uncached.exr"), ReadImage(dir / "local.exr")));
+  ExpectLocalDiffers(base, dir, "uncached.exr");
   ExpectNoProcessLeft();
 }
 

@@ -43,6 +43,15 @@ std::string Submit(const TestDir& dir, const std::string& address,
   return SubmitJob(dir, address, Concat(TiledJobFlags(), more));
 }
 
+// Waits for the job to succeed (its status in *st) and checks its image against the local render.
+void ExpectSucceedsBitIdentical(const std::string& address, const std::string& job_id, const Image& reference,
+                                v1::JobStatus* st) {
+  FarmClient client(address, "");
+  *st = WaitForJob(client, job_id, 120);
+  ASSERT_EQ(st->state(), v1::JOB_STATE_SUCCEEDED) << st->failure_reason();
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+}
+
 // StartWorker's command line for the faulty worker (pf-worker with injected faults), with the
 // environment variables that choose them.
 std::unique_ptr<Process> StartWorkerWithEnv(const std::string& address, const fs::path& dir,
@@ -80,10 +89,8 @@ TEST(MapTracingFarm, BitIdenticalForOneTwoThreeWorkersLocalTracedOnceOrByEachWor
       workers.push_back(StartWorker(coordinator.address(), dir.path(), id));
       logs.push_back(dir / (id + ".log"));
     }
-    FarmClient client(coordinator.address(), "");
-    const v1::JobStatus st = WaitForJob(client, job_id, 120);
-    ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
-    EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+    v1::JobStatus st;
+    ASSERT_NO_FATAL_FAILURE(ExpectSucceedsBitIdentical(coordinator.address(), job_id, reference, &st));
     size_t pieces = 0, fetched = 0, decisions = 0;
     for (const fs::path& log : logs) {
       pieces += Count(log, "uploaded-piece .* accepted=true");
@@ -114,28 +121,34 @@ TEST(MapTracingFarm, BitIdenticalForOneTwoThreeWorkersLocalTracedOnceOrByEachWor
   }
 }
 
+// The tiled job submitted to a coordinator with 1.5 s leases and five attempts, its map traced in
+// pieces of 16384 photons, beside the job's local render: the farm of the kill and pause tests.
+struct ShortLeaseFarm {
+  TestDir dir;
+  Image reference = LocalReference(dir);
+  CoordinatorProcess coordinator{
+      dir / "data",
+      dir.path(),
+      {"--lease-seconds", "1.5", "--max-attempts", "5", "--map-chunk-photons", "16384"}};
+  std::string job_id = Submit(dir, coordinator.address());
+};
+
 // A worker paused at `where` (PF_TEST_PAUSE_AT) is SIGKILLed there; a second worker finishes.
 void KillWhile(const std::string& where) {
-  TestDir dir;
-  const Image reference = LocalReference(dir);
-  CoordinatorProcess coordinator(
-      dir / "data", dir.path(),
-      {"--lease-seconds", "1.5", "--max-attempts", "5", "--map-chunk-photons", "16384"});
-  const std::string job_id = Submit(dir, coordinator.address());
-  auto victim =
-      StartWorkerWithEnv(coordinator.address(), dir.path(), "victim", {{"PF_TEST_PAUSE_AT", where}});
+  ShortLeaseFarm farm;
+  auto victim = StartWorkerWithEnv(farm.coordinator.address(), farm.dir.path(), "victim",
+                                   {{"PF_TEST_PAUSE_AT", where}});
   ASSERT_TRUE(WaitUntil([&] { return Count(victim->log(), "test-pause at " + where) > 0; }, 60))
       << ReadFile(victim->log());
   victim->Signal(SIGKILL);
   victim->Wait(5);
-  auto survivor = StartWorker(coordinator.address(), dir.path(), "survivor");
-  FarmClient client(coordinator.address(), "");
-  const v1::JobStatus st = WaitForJob(client, job_id, 120);
-  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
-  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  auto survivor = StartWorker(farm.coordinator.address(), farm.dir.path(), "survivor");
+  v1::JobStatus st;
+  ASSERT_NO_FATAL_FAILURE(
+      ExpectSucceedsBitIdentical(farm.coordinator.address(), farm.job_id, farm.reference, &st));
   EXPECT_EQ(st.tasks_done(), st.tasks_total());
   EXPECT_EQ(st.samples_merged(), uint64_t(48 * 32));
-  const fs::path clog = coordinator.process().log();
+  const fs::path clog = farm.coordinator.process().log();
   EXPECT_EQ(Count(clog, "built once from 3 pieces"), 1u) << ReadFile(clog);
   if (where == "fetch") {
     // The victim held a render lease: it ran out and the task ran again, merged once.
@@ -149,7 +162,8 @@ void KillWhile(const std::string& where) {
     EXPECT_EQ(Count(survivor->log(), "uploaded-piece .* accepted=true"), 3u);
   }
   for (uint64_t t = 0; t < st.tasks_total(); ++t)
-    EXPECT_EQ(Count(clog, "job " + job_id + " task " + std::to_string(t) + ": merged "), 1u) << "task " << t;
+    EXPECT_EQ(Count(clog, "job " + farm.job_id + " task " + std::to_string(t) + ": merged "), 1u)
+        << "task " << t;
   survivor->Signal(SIGTERM);
   EXPECT_TRUE(survivor->Wait(20).has_value());
 }
@@ -169,19 +183,13 @@ TEST(MapTracingFarm, WorkerKilledWhileFetchingTheMapIsRedone) {
 // nothing expires, nothing runs twice, and the one worker finishes the job at attempt 1 (before,
 // only the render was covered and these leases ran out mid-fetch).
 void SlowStepKeepsItsLease(const std::string& where) {
-  TestDir dir;
-  const Image reference = LocalReference(dir);
-  CoordinatorProcess coordinator(
-      dir / "data", dir.path(),
-      {"--lease-seconds", "1.5", "--max-attempts", "5", "--map-chunk-photons", "16384"});
-  const std::string job_id = Submit(dir, coordinator.address());
-  auto worker = StartWorkerWithEnv(coordinator.address(), dir.path(), "slow",
+  ShortLeaseFarm farm;
+  auto worker = StartWorkerWithEnv(farm.coordinator.address(), farm.dir.path(), "slow",
                                    {{"PF_TEST_PAUSE_AT", where}, {"PF_TEST_PAUSE_SECONDS", "4"}});
-  FarmClient client(coordinator.address(), "");
-  const v1::JobStatus st = WaitForJob(client, job_id, 120);
-  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
-  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
-  const fs::path clog = coordinator.process().log();
+  v1::JobStatus st;
+  ASSERT_NO_FATAL_FAILURE(
+      ExpectSucceedsBitIdentical(farm.coordinator.address(), farm.job_id, farm.reference, &st));
+  const fs::path clog = farm.coordinator.process().log();
   ASSERT_GE(Count(worker->log(), "test-pause over at " + where), 1u) << ReadFile(worker->log());
   EXPECT_EQ(Count(clog, "expired"), 0u) << ReadFile(clog);
   EXPECT_EQ(Count(clog, "attempt 2"), 0u) << ReadFile(clog);
@@ -279,10 +287,8 @@ TEST(MapTracingFarm, CorruptMapPartIsRefusedAndFetchedAgain) {
   const std::string job_id = Submit(dir, coordinator.address());
   auto worker =
       StartWorkerWithEnv(coordinator.address(), dir.path(), "w", {{"PF_TEST_CORRUPT_MAP_PART", "1"}});
-  FarmClient client(coordinator.address(), "");
-  const v1::JobStatus st = WaitForJob(client, job_id, 120);
-  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
-  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  v1::JobStatus st;
+  ASSERT_NO_FATAL_FAILURE(ExpectSucceedsBitIdentical(coordinator.address(), job_id, reference, &st));
   const fs::path log = worker->log();
   EXPECT_EQ(Count(log, "corrupted on arrival"), 1u) << ReadFile(log);
   EXPECT_EQ(Count(log, "part 0: checksum mismatch: refused \\(attempt 1 of 3\\): fetching again"), 1u)
@@ -323,25 +329,27 @@ TEST(MapTracingFarm, MapTracingFlagIsCheckedWhereItMeansSomething) {
   EXPECT_TRUE(worker->Wait(20).has_value());
 }
 
+// A crash of a coordinator's life and its worker: both SIGKILLed (the coordinator first) and reaped.
+void KillCoordinatorAndWorker(std::unique_ptr<CoordinatorProcess>& life, std::unique_ptr<Process>& worker) {
+  life->process().Signal(SIGKILL);
+  life->process().Wait(5);
+  life.reset();
+  worker->Signal(SIGKILL);
+  worker->Wait(5);
+}
+
 TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   TestDir dir;
   const Image reference = LocalReference(dir);
   const std::vector<std::string> args = {"--lease-seconds", "1.5", "--map-chunk-photons", "16384"};
-  auto life1 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args);
-  const int port = life1->port();
-  const std::string address = life1->address();
-  const std::string job_id = Submit(dir, address);
+  auto [life1, port, address, job_id] = StartCoordinatorWithJob(dir, args, TiledJobFlags());
   // Life 1: pieces 0 and 1 stored, then the coordinator dies (its worker too, paused before piece 2).
   auto w1 = StartWorkerWithEnv(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
   ASSERT_TRUE(WaitUntil([&] { return Count(w1->log(), "test-pause at upload") > 0; }, 60))
       << ReadFile(w1->log());
   const fs::path log1 = life1->process().log();
   ASSERT_EQ(Count(log1, "piece [0-9]+: stored \\("), 2u) << ReadFile(log1);
-  life1->process().Signal(SIGKILL);
-  life1->process().Wait(5);
-  life1.reset();
-  w1->Signal(SIGKILL);
-  w1->Wait(5);
+  KillCoordinatorAndWorker(life1, w1);
 
   // Life 2: finds the two pieces, queues only piece 2; the map is built; its worker dies fetching.
   auto life2 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args, port);
@@ -353,21 +361,15 @@ TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   EXPECT_EQ(Count(w2->log(), "uploaded-piece .*piece=2/3 .*accepted=true"), 1u) << ReadFile(w2->log());
   EXPECT_EQ(Count(w2->log(), "uploaded-piece"), 1u);
   EXPECT_EQ(Count(log2, "built once from 3 pieces"), 1u) << ReadFile(log2);
-  life2->process().Signal(SIGKILL);
-  life2->process().Wait(5);
-  life2.reset();
-  w2->Signal(SIGKILL);
-  w2->Wait(5);
+  KillCoordinatorAndWorker(life2, w2);
 
   // Life 3: serves the built map from disk; nothing is traced again.
   CoordinatorProcess life3(dir / "data", dir.path(), args, port);
   const fs::path log3 = life3.process().log();
   EXPECT_EQ(Count(log3, "built map [0-9a-f]+ found on disk"), 1u) << ReadFile(log3);
   auto w3 = StartWorker(address, dir.path(), "w3");
-  FarmClient client(address, "");
-  const v1::JobStatus st = WaitForJob(client, job_id, 120);
-  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
-  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  v1::JobStatus st;
+  ASSERT_NO_FATAL_FAILURE(ExpectSucceedsBitIdentical(address, job_id, reference, &st));
   EXPECT_EQ(st.samples_merged(), uint64_t(48 * 32));
   EXPECT_EQ(Count(w3->log(), "uploaded-piece"), 0u);
   EXPECT_EQ(Count(w3->log(), "fetched: "), 1u);
@@ -383,32 +385,22 @@ TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
 TEST(MapTracingFarm, RestartWithAnotherPieceSizeTracesThePiecesAnew) {
   TestDir dir;
   const Image reference = LocalReference(dir);
-  auto life1 = std::make_unique<CoordinatorProcess>(
-      dir / "data", dir.path(),
-      std::vector<std::string>{"--lease-seconds", "1.5", "--map-chunk-photons", "16384"});
-  const int port = life1->port();
-  const std::string address = life1->address();
-  const std::string job_id = Submit(dir, address);
+  auto [life1, port, address, job_id] = StartCoordinatorWithJob(
+      dir, {"--lease-seconds", "1.5", "--map-chunk-photons", "16384"}, TiledJobFlags());
   auto w1 = StartWorkerWithEnv(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
   ASSERT_TRUE(WaitUntil([&] { return Count(w1->log(), "test-pause at upload") > 0; }, 60))
       << ReadFile(w1->log());
   ASSERT_EQ(Count(life1->process().log(), "piece [0-9]+: stored \\("), 2u)
       << ReadFile(life1->process().log());
-  life1->process().Signal(SIGKILL);
-  life1->process().Wait(5);
-  life1.reset();
-  w1->Signal(SIGKILL);
-  w1->Wait(5);
+  KillCoordinatorAndWorker(life1, w1);
 
   CoordinatorProcess life2(dir / "data", dir.path(),
                            {"--lease-seconds", "1.5", "--map-chunk-photons", "8192"}, port);
   const fs::path log2 = life2.process().log();
   EXPECT_EQ(Count(log2, "in 5 pieces of 8192 \\(0 already traced on disk\\)"), 1u) << ReadFile(log2);
   auto w2 = StartWorker(address, dir.path(), "w2");
-  FarmClient client(address, "");
-  const v1::JobStatus st = WaitForJob(client, job_id, 120);
-  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
-  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  v1::JobStatus st;
+  ASSERT_NO_FATAL_FAILURE(ExpectSucceedsBitIdentical(address, job_id, reference, &st));
   EXPECT_EQ(Count(w2->log(), "uploaded-piece .* accepted=true"), 5u) << ReadFile(w2->log());
   w2->Signal(SIGTERM);
   EXPECT_TRUE(w2->Wait(20).has_value());

@@ -19,6 +19,7 @@
 #include "proto/convert.h"
 #include "rpc/grpc_channel.h"
 #include "tests/e2e/harness.h"
+#include "tests/util/job_specs.h"
 #include "tests/util/raw_connection.h"
 #include "tests/util/raw_http2.h"
 
@@ -94,18 +95,10 @@ v1::UploadSceneRequest TinyMgfBomb() {
   return req;
 }
 
-// 65536 maps of 16 one-pixel tiles: 2^20 tasks (limits::kMaxTasksPerJob).
+// The largest job a coordinator admits (2^20 tasks) as a request.
 v1::SubmitJobRequest LargestJob(const std::string& scene_hash, uint64_t seed) {
   v1::SubmitJobRequest req;
-  v1::JobSpec& spec = *req.mutable_spec();
-  spec.set_scene_hash(scene_hash);
-  spec.mutable_camera()->set_width(16);
-  spec.mutable_camera()->set_height(1);
-  spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PATH);
-  spec.mutable_plan()->mutable_multiple_maps()->set_maps(65536);
-  spec.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
-  spec.mutable_plan()->mutable_multiple_maps()->set_tile_size(1);
-  spec.set_seed(seed);
+  *req.mutable_spec() = test_util::LargestJobSpec(scene_hash, seed);
   return req;
 }
 

@@ -517,9 +517,7 @@ TEST_F(RenderServiceTest, OverlongOrBinaryIdsAreRejectedWithoutEchoingThem) {
 class TokenTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    CoordinatorOptions o;
-    o.verify_fraction = 0;  // no verification leases at random: these tests count leases
-    o.data_dir = dir_.path() / "data";
+    CoordinatorOptions o = testing::CountingOptions(dir_.path() / "data");
     o.client_token = "client-token";
     o.worker_token = "worker-token";
     live_ = std::make_unique<LiveCoordinator>(o);

@@ -29,17 +29,8 @@ std::string WorkerName(size_t i) {
   return kNames[i % 8];
 }
 
-class SchedulerConcurrencyTest : public ::testing::Test {
+class SchedulerConcurrencyTest : public testing::SchedulerFixture {
  protected:
-  SchedulerConcurrencyTest()
-      : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3, .probe = &probe_}) {}
-
-  std::string Submit(const JobConfig& config) {
-    std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
-    const std::string id = job->id();
-    scheduler_.AddJob(std::move(job));
-    return id;
-  }
   std::vector<Lease> LeaseAll() {
     std::vector<Lease> leases;
     while (std::optional<Lease> l = scheduler_.TryLease({WorkerName(leases.size() % 5), {}}))
@@ -49,10 +40,6 @@ class SchedulerConcurrencyTest : public ::testing::Test {
   static std::vector<float> ResultOf(const Lease& lease) {
     return SyntheticResult(lease.task, lease.config->camera.width, lease.config->camera.height);
   }
-
-  FakeClock clock_;
-  testing::HookProbe probe_;  // before scheduler_, which holds it
-  Scheduler scheduler_;
 };
 
 // The job's tasks merged one after another into a fresh accumulator: the reference.

@@ -22,17 +22,8 @@ using testing::Skipping;
 using testing::SyntheticResult;
 namespace v1 = photonfarm::v1;
 
-class SchedulerTest : public ::testing::Test {
+class SchedulerTest : public testing::SchedulerFixture {
  protected:
-  SchedulerTest()
-      : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3, .probe = &probe_}) {}
-
-  std::string Submit(const JobConfig& config) {
-    std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
-    const std::string id = job->id();
-    scheduler_.AddJob(std::move(job));
-    return id;
-  }
   Lease MustLease(const std::string& worker = "w1", std::vector<uint64_t> seeds = {}) {
     std::optional<Lease> lease = scheduler_.TryLease({worker, std::move(seeds)});
     EXPECT_TRUE(lease.has_value());
@@ -47,10 +38,6 @@ class SchedulerTest : public ::testing::Test {
     const std::vector<float> sums = SyntheticResult(lease.task, cam.width, cam.height);
     return scheduler_.Complete(lease.lease_id, lease.worker_id, sums);
   }
-
-  FakeClock clock_;
-  testing::HookProbe probe_;  // before scheduler_, which holds it
-  Scheduler scheduler_;
 };
 
 TEST_F(SchedulerTest, JobRunsFromQueuedToSucceeded) {

@@ -22,6 +22,7 @@
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
+#include "server/clock.h"
 #include "server/coordinator.h"
 #include "server/jobs/job_spec.h"
 #include "server/scheduling/scheduler.h"
@@ -208,14 +209,19 @@ inline grpc::Status UploadPiece(LiveCoordinator& live, const std::string& lease_
   return st;
 }
 
+// Options of a coordinator in `data_dir` for tests that count leases: no verification leases at random.
+inline CoordinatorOptions CountingOptions(const fs::path& data_dir) {
+  CoordinatorOptions o;
+  o.verify_fraction = 0;
+  o.data_dir = data_dir;
+  return o;
+}
+
 // A fixture: an in-process coordinator in a fresh data folder with the Cornell box uploaded.
 class LiveCoordinatorTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    CoordinatorOptions o;
-    o.verify_fraction = 0;  // no verification leases at random: these tests count leases
-    o.data_dir = dir_.path() / "data";
-    live_ = std::make_unique<LiveCoordinator>(o);
+    live_ = std::make_unique<LiveCoordinator>(CountingOptions(dir_.path() / "data"));
     hash_ = UploadCornell(*live_);
     ASSERT_FALSE(HasFailure()) << "the scene upload failed";
   }
@@ -236,6 +242,25 @@ class HookProbe final : public CompletionProbe {
 
  private:
   std::function<void(const std::string&)> hook_;
+};
+
+// A scheduler on a FakeClock (30 s leases, 3 attempts) with a HookProbe, and Submit: the fixture of
+// the scheduler's rule and concurrency tests.
+class SchedulerFixture : public ::testing::Test {
+ protected:
+  SchedulerFixture()
+      : scheduler_(clock_, SchedulerOptions{.lease_seconds = 30, .max_attempts = 3, .probe = &probe_}) {}
+
+  std::string Submit(const JobConfig& config) {
+    std::unique_ptr<Job> job = scheduler_.PrepareJob(config);
+    const std::string id = job->id();
+    scheduler_.AddJob(std::move(job));
+    return id;
+  }
+
+  FakeClock clock_;
+  HookProbe probe_;  // before scheduler_, which holds it
+  Scheduler scheduler_;
 };
 
 }  // namespace pf::server::testing

@@ -1,5 +1,6 @@
 #pragma once
-// Job specs shared by the coordinator and end-to-end tests, built the way a client sends them.
+// Job specs shared by the coordinator and end-to-end tests and the coordinator benchmarks, built the
+// way a client sends them.
 
 #include <cstdint>
 #include <string>
@@ -30,6 +31,21 @@ inline photonfarm::v1::JobSpec CornellPhotonMapSpec(const std::string& scene_has
   skipping.set_stride(2);
   skipping.set_rounds(rounds);
   skipping.set_samples_per_pixel(1);
+  spec.set_seed(seed);
+  return spec;
+}
+
+// The largest job a coordinator admits: 65536 maps of 16 one-pixel tiles, 2^20 tasks
+// (limits::kMaxTasksPerJob), path traced at 16 x 1.
+inline photonfarm::v1::JobSpec LargestJobSpec(const std::string& scene_hash, uint64_t seed) {
+  photonfarm::v1::JobSpec spec;
+  spec.set_scene_hash(scene_hash);
+  spec.mutable_camera()->set_width(16);
+  spec.mutable_camera()->set_height(1);
+  spec.mutable_settings()->set_integrator(photonfarm::v1::INTEGRATOR_PATH);
+  spec.mutable_plan()->mutable_multiple_maps()->set_maps(65536);
+  spec.mutable_plan()->mutable_multiple_maps()->set_samples_per_pixel(1);
+  spec.mutable_plan()->mutable_multiple_maps()->set_tile_size(1);
   spec.set_seed(seed);
   return spec;
 }
