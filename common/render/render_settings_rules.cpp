@@ -14,8 +14,12 @@ std::string ReadersOf(const RenderSetting& row) {
   std::string titles, names;
   for (const IntegratorEntry& e : Integrators().entries()) {
     if (!e.Reads(row)) continue;
-    titles += (titles.empty() ? "" : " or ") + std::string(e.title);
-    names += (names.empty() ? "" : "|") + std::string(e.name);
+    if (!titles.empty()) {
+      titles += " or ";
+      names += "|";
+    }
+    titles += e.title;
+    names += e.name;
   }
   return titles + " only (integrator = " + names + ")";
 }

@@ -57,7 +57,7 @@
 // built or still tracing, in memory or found on disk — and traces it again without it
 // (WorkerConvicted); the jobs whose render tasks used such a built map are restarted by the
 // scheduler. A map traced again has another digest than the poisoned one (MapRef.digest), so no
-// worker's cache serves the old one (worker/worker_maps.cpp checks it).
+// worker's cache serves the old one (worker/map_obtainer.cpp checks it).
 //
 // Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1),
 // and the failure counts against the worker in the map's job (Scheduler::PieceAttemptFailed:

@@ -34,7 +34,8 @@ std::string DistributedMaps::MismatchOf(const JobConfig& config, uint64_t map_se
     }
   }
   const SceneRuntime& scene = *check_scene_;
-  // As the worker traces it (worker_maps.cpp): the first photons of the piece, or all of them.
+  // As the worker traces it (Worker::RunMapPiece, worker/worker.cpp): the first photons of the piece, or all
+  // of them.
   PhotonMapsOptions mo = config.settings.Resolved(scene.description).MapsOptions();
   mo.tracing.map_seed = map_seed;
   mo.tracing.threads = 1;

@@ -1,6 +1,6 @@
 #pragma once
 // The states of the coordinator's photon-map work (distributed_maps.h) and their legal
-// transitions (state_transitions.h).
+// transitions (common/core/state_transitions.h).
 //
 //   map:    tracing ──all pieces in──▶ building ──assembled──▶ built
 //              │  ▲                       │  ▲ (a stored piece unreadable, or a conviction purges it)
@@ -14,7 +14,7 @@
 //              ▲─────────────────────────────────────┘ (its file unreadable, or its uploader convicted)
 //           queued ──found on disk──▶ done
 
-#include "server/scheduling/state_transitions.h"
+#include "common/core/state_transitions.h"
 
 namespace pf::server {
 

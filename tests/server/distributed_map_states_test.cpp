@@ -1,4 +1,4 @@
-// server/scheduling/map_states.h and state_transitions.h: the states of map pieces and maps move
+// server/scheduling/map_states.h and common/core/state_transitions.h: the states of map pieces and maps move
 // only along their tables; any other move is a logic error, and the state is left as it was.
 #include <gtest/gtest.h>
 
