@@ -355,11 +355,7 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
 Worker::Outcome Worker::RunMapPiece(const v1::Task& task) {
   const v1::TraceChunk& piece = task.trace_chunk();
   const std::string ctx = PieceContext(task);
-  {
-    std::lock_guard lock(mutex_);
-    ++counters_.leased;
-  }
-  JobRenderSettings settings;
+  JobRenderSettings settings;  // the piece was counted as leased by Run, as every task is
   try {
     settings = SettingsFromProto(task.settings(), "task.settings");
     if (piece.photon_end() <= piece.photon_begin() || piece.photon_end() > settings.photons ||

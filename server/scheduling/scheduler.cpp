@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <utility>
 
 #include "common/core/error.h"
@@ -58,8 +59,17 @@ void Scheduler::Run(Effects& fx) {
     referee = referee_;
     maps = map_hook_;
   }
+  // Every ended piece goes back to its map even if the bookkeeping of another throws: a piece whose
+  // end is not delivered stays leased in its map with no lease behind it, and no tick finds it.
   if (maps)
-    for (const PieceLeaseEnd& end : fx.piece_ends) maps->PieceLeaseEnded(end);
+    for (const PieceLeaseEnd& end : fx.piece_ends) {
+      try {
+        maps->PieceLeaseEnded(end);
+      } catch (const std::exception& e) {
+        spdlog::error("map {} piece {}: the end of lease {} was not recorded: {}", end.map_key.substr(0, 12),
+                      end.piece, end.lease_id, e.what());
+      }
+    }
   for (auto& [done, lease] : fx.callbacks) done(std::move(lease));
   for (RefereeCase& c : fx.referee) {
     if (referee)

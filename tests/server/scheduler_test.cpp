@@ -1196,10 +1196,35 @@ class FakeMapHook final : public MapTracingHook {
   bool PieceLeaseCurrent(const std::string&, uint32_t, const std::string&) override { return true; }
   std::vector<std::string> JobsOfMap(const std::string&) override { return {}; }
   void PieceReturned(const std::string&, uint32_t, const std::string&) override {}
-  void PieceLeaseEnded(const PieceLeaseEnd&) override {}
+  void PieceLeaseEnded(const PieceLeaseEnd& end) override {
+    ended.push_back(end.lease_id);
+    if (throw_on_end) throw std::runtime_error("bookkeeping failed");
+  }
   std::set<uint64_t> ready;
   int pieces = 0;
+  bool throw_on_end = false;
+  std::vector<std::string> ended;
 };
+
+// A piece's lease ends in the scheduler's table and reaches its map afterwards: one end whose
+// bookkeeping throws must not keep the others from their maps (they would stay leased for ever).
+TEST_F(SchedulerTest, EveryExpiredPieceReachesItsMapEvenIfOneThrows) {
+  FakeMapHook hook;
+  hook.pieces = 2;
+  hook.throw_on_end = true;
+  scheduler_.SetMapTracingHook(&hook);
+  Submit(MakeConfig(MultipleMaps(1, 2), 4, 4));
+  const Lease a = MustLease("w1");
+  const Lease b = MustLease("w2");
+  ASSERT_TRUE(a.chunk.has_value() && b.chunk.has_value());
+  clock_.Advance(31);
+  EXPECT_NO_THROW(scheduler_.Tick());
+  std::sort(hook.ended.begin(), hook.ended.end());
+  std::vector<std::string> leased{a.lease_id, b.lease_id};
+  std::sort(leased.begin(), leased.end());
+  EXPECT_EQ(hook.ended, leased);
+  scheduler_.SetMapTracingHook(nullptr);
+}
 
 TEST_F(SchedulerTest, RenderTasksWaitForTheirMapAndPiecesComeFirst) {
   FakeMapHook hook;
