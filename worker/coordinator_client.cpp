@@ -32,7 +32,7 @@ CoordinatorClient::CoordinatorClient(WorkerOptions options)
     : options_(std::move(options)),
       channel_(MakeCoordinatorChannel(options_.coordinator,
                                       ChannelOptions{.token = options_.token, .tls = options_.tls})),
-      stub_(v1::WorkerService::NewStub(channel_)) {}
+      worker_service_(v1::WorkerService::NewStub(channel_)) {}
 
 bool CoordinatorClient::WaitForConnected(std::chrono::milliseconds wait) {
   return channel_->WaitForConnected(std::chrono::system_clock::now() + wait);
@@ -54,7 +54,7 @@ grpc::Status CoordinatorClient::LeaseTask(const std::vector<uint64_t>& cached_ma
     poll_context_ = &ctx;
   }
   v1::LeaseTaskResponse resp;
-  const grpc::Status status = stub_->LeaseTask(&ctx, req, &resp);
+  const grpc::Status status = worker_service_->LeaseTask(&ctx, req, &resp);
   {
     std::lock_guard lock(poll_mutex_);
     poll_context_ = nullptr;
@@ -79,7 +79,7 @@ CoordinatorClient::Extension CoordinatorClient::ExtendLease(const std::string& l
   grpc::ClientContext cctx;
   PrepareContext(&cctx, options_.token, std::min(interval, Seconds(options_.rpc_timeout_seconds)));
   Extension e;
-  e.status = stub_->ExtendLease(&cctx, req, &resp);
+  e.status = worker_service_->ExtendLease(&cctx, req, &resp);
   if (e.status.ok()) {
     e.answer = resp.ok() ? Extension::Answer::kExtended : Extension::Answer::kGone;
     e.lease_seconds = resp.lease_seconds();
@@ -118,7 +118,7 @@ CoordinatorClient::Completion CoordinatorClient::CompleteTask(const v1::Task& ta
     grpc::ClientContext cctx;
     PrepareContext(&cctx, options_.token, Seconds(options_.rpc_timeout_seconds));
     v1::CompleteTaskResponse resp;
-    c.status = stub_->CompleteTask(&cctx, req, &resp);
+    c.status = worker_service_->CompleteTask(&cctx, req, &resp);
     c.merged = c.status.ok() && resp.merged();
     if (!IsConnectionError(c.status)) return c;  // done, or refused: retrying would not change it
     ++c.attempts;
@@ -140,7 +140,7 @@ void CoordinatorClient::FailTask(const std::string& lease_id, const std::string&
     grpc::ClientContext cctx;
     PrepareContext(&cctx, options_.token, Seconds(std::min(options_.rpc_timeout_seconds, 5.0)));
     v1::FailTaskResponse resp;
-    const grpc::Status status = stub_->FailTask(&cctx, req, &resp);
+    const grpc::Status status = worker_service_->FailTask(&cctx, req, &resp);
     if (status.ok() || !IsConnectionError(status)) {
       if (!status.ok()) spdlog::warn("FailTask {}: {}", ctx, StatusToString(status));
       return;
@@ -155,7 +155,7 @@ SceneBundle CoordinatorClient::FetchScene(const std::string& hash, const std::st
   PrepareContext(&ctx, options_.token, Seconds(options_.fetch_timeout_seconds));
   v1::FetchSceneRequest req;
   req.set_scene_hash(hash);
-  std::unique_ptr<grpc::ClientReader<v1::SceneFile>> reader = stub_->FetchScene(&ctx, req);
+  std::unique_ptr<grpc::ClientReader<v1::SceneFile>> reader = worker_service_->FetchScene(&ctx, req);
   SceneBundle bundle;
   v1::SceneFile chunk;
   while (reader->Read(&chunk)) {
@@ -180,7 +180,7 @@ std::string CoordinatorClient::FetchMap(const v1::MapRef& ref, const std::string
   PrepareContext(&cctx, options_.token, Seconds(options_.fetch_timeout_seconds));
   v1::FetchMapRequest req;
   req.set_map_key(ref.map_key());
-  std::unique_ptr<grpc::ClientReader<v1::MapBytes>> reader(stub_->FetchMap(&cctx, req));
+  std::unique_ptr<grpc::ClientReader<v1::MapBytes>> reader(worker_service_->FetchMap(&cctx, req));
   std::string bytes;
   bytes.reserve(size_t(std::min<uint64_t>(ref.bytes(), uint64_t(1) << 34)));
   v1::MapBytes part;
@@ -220,7 +220,8 @@ CoordinatorClient::Upload CoordinatorClient::UploadPhotonChunk(const std::string
   grpc::ClientContext cctx;
   PrepareContext(&cctx, options_.token, Seconds(options_.fetch_timeout_seconds));
   v1::UploadPhotonChunkResponse response;
-  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(stub_->UploadPhotonChunk(&cctx, &response));
+  std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
+      worker_service_->UploadPhotonChunk(&cctx, &response));
   size_t offset = 0;
   bool first = true;
   while (first || offset < bytes.size()) {

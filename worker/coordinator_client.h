@@ -109,7 +109,7 @@ class CoordinatorClient {
  private:
   WorkerOptions options_;
   std::shared_ptr<grpc::Channel> channel_;
-  std::unique_ptr<photonfarm::v1::WorkerService::Stub> stub_;
+  std::unique_ptr<photonfarm::v1::WorkerService::Stub> worker_service_;
   std::atomic<uint64_t> map_parts_refused_{0};
 
   std::mutex poll_mutex_;                        // guards the two below
