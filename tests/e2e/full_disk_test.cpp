@@ -105,7 +105,9 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
       << paused.ShortDebugString() << ReadFile(coordinator->process().log());
   EXPECT_NE(paused.storage_error().find("No space left on device"), std::string::npos)
       << paused.storage_error();
-  EXPECT_GE(NotStoredReports(logs), 1u) << "a worker was answered 'not stored'";
+  // The pause is visible before the worker whose report was refused has logged the answer.
+  EXPECT_TRUE(WaitUntil([&] { return NotStoredReports(logs) >= 1; }, 30))
+      << "a worker was answered 'not stored'";
   EXPECT_NE(paused.state(), v1::JOB_STATE_SUCCEEDED);
   const size_t merged_when_paused = MergedTaskTotal(logs, job_id);
   std::this_thread::sleep_for(std::chrono::seconds(1));
