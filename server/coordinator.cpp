@@ -20,6 +20,7 @@
 #include "photonfarm_version.h"
 #include "server/executor.h"
 #include "server/rpc/auth.h"
+#include "server/rpc/coordinator_operations.h"
 #include "server/rpc/render_service.h"
 #include "server/rpc/watch_hub.h"
 #include "server/rpc/worker_service.h"
@@ -121,19 +122,19 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
         recovery_.acknowledged_lost, recovery_.jobs_rerendered, recovery_.images_lost);
   persister_->Start();
 
-  ServiceContext ctx{.scheduler = *scheduler_,
-                     .scenes = *scenes_,
-                     .db = *db_,
-                     .persister = *persister_,
-                     .executor = *executor_,
-                     .watches = *watches_,
-                     .admission = *admission_,
-                     .clock = *clock_,
-                     .maps = *maps_,
-                     .build_version = PF_VERSION,
-                     .allow_mixed_versions = options_.allow_mixed_versions};
-  render_service_ = std::make_unique<RenderServiceImpl>(ctx);
-  worker_service_ = std::make_unique<WorkerServiceImpl>(ctx);
+  operations_ = std::make_unique<CoordinatorOperations>(
+      CoordinatorParts{.scheduler = *scheduler_,
+                       .scenes = *scenes_,
+                       .db = *db_,
+                       .persister = *persister_,
+                       .executor = *executor_,
+                       .admission = *admission_,
+                       .clock = *clock_,
+                       .maps = *maps_,
+                       .build_version = PF_VERSION,
+                       .allow_mixed_versions = options_.allow_mixed_versions});
+  render_service_ = std::make_unique<RenderServiceImpl>(*operations_, *watches_);
+  worker_service_ = std::make_unique<WorkerServiceImpl>(*operations_);
 }
 
 Coordinator::~Coordinator() {

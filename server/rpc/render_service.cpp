@@ -12,12 +12,9 @@
 #include "common/scene/scene_bundle.h"
 #include "server/assembly/image_snapshot.h"
 #include "server/errors.h"
-#include "server/rpc/budgets.h"
 #include "server/rpc/buffered_stream.h"
-#include "server/rpc/job_images.h"
 #include "server/rpc/status_mapping.h"
 #include "server/rpc/watch_hub.h"
-#include "server/scheduling/job_submission.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
@@ -77,14 +74,14 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
   const grpc::Status admitted = Guarded("UploadScene", [&] {
     uint64_t bytes = 0;
     for (const v1::SceneFile& f : request->bundle().files()) bytes += f.content().size();
-    *upload = ctx_.admission.AdmitUpload(ClientOf(*context), bytes);
+    *upload = api_.AdmitSceneUpload(ClientOf(*context), bytes);
     return grpc::Status::OK;
   });
   if (!admitted.ok()) {
     reactor->Finish(admitted);
     return reactor;
   }
-  const bool posted = ctx_.executor.Post([this, reactor, request, response, upload] {
+  const bool posted = api_.executor().Post([this, reactor, request, response, upload] {
     reactor->Finish(Guarded("UploadScene", [&] {
       if (request->bundle().files_size() == 0)
         throw InputError("bundle.files: at least one file is required");
@@ -93,9 +90,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
       bundle.files.reserve(size_t(request->bundle().files_size()));
       for (const v1::SceneFile& f : request->bundle().files())
         bundle.files.emplace_back(f.path(), f.content());
-      ctx_.admission.CheckSceneBytes(*upload,
-                                     [&] { return ctx_.scenes.FindScene(BundleHash(bundle)).has_value(); });
-      const UploadResult result = ctx_.scenes.Upload(bundle);
+      const UploadResult result = api_.StoreScene(bundle, *upload);
       response->set_scene_hash(result.info.hash);
       response->set_triangles(result.info.triangles);
       response->set_lights(result.info.lights);
@@ -113,27 +108,18 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   // Validation and the budgets are cheap (memory only) and happen here, before anything is
   // expanded or stored (docs/security.md "Budgets").
-  auto config = std::make_shared<JobConfig>();
-  const std::string client = ClientOf(*context);
-  auto admitted = std::make_shared<Reservation>();
+  auto admitted = std::make_shared<AdmittedJob>();
   const grpc::Status valid = Guarded("SubmitJob", [&] {
-    // --plan auto without a worker count plans for the workers seen in the last minute.
-    uint32_t live = 0;
-    for (const v1::WorkerInfo& w : ctx_.scheduler.activity().Workers())
-      if (w.seconds_since_seen() <= 60 && !w.refused()) ++live;
-    *config = ValidateJobSpec(request->spec(), ctx_.scenes, std::max(1u, live));
-    *admitted = ctx_.admission.AdmitJob(client, ScheduledTaskCount(*config),
-                                        uint64_t(config->camera.width) * uint64_t(config->camera.height));
+    *admitted = api_.AdmitJob(request->spec(), ClientOf(*context));
     return grpc::Status::OK;
   });
   if (!valid.ok()) {
     reactor->Finish(valid);
     return reactor;
   }
-  const bool posted = ctx_.executor.Post([this, reactor, response, config, client, admitted] {
+  const bool posted = api_.executor().Post([this, reactor, response, admitted] {
     reactor->Finish(Guarded("SubmitJob", [&] {
-      response->set_job_id(SubmitValidatedJob(ctx_.scheduler, ctx_.db, std::move(*config), client));
-      admitted->Release();  // the scheduler counts the job now
+      response->set_job_id(api_.SubmitJob(std::move(*admitted)));
       return grpc::Status::OK;
     }));
   });
@@ -146,7 +132,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetJob(grpc::CallbackServerContext*
                                                     v1::JobStatus* response) {
   return FinishGuarded(context, "GetJob", [&] {
     RequireJobId(request->job_id());
-    *response = ctx_.scheduler.Status(request->job_id());
+    *response = api_.JobStatus(request->job_id());
     return grpc::Status::OK;
   });
 }
@@ -158,7 +144,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobs(grpc::CallbackServerContex
     const uint64_t after = ParsePageToken(request->page_token());
     uint32_t size = request->page_size() == 0 ? limits::kDefaultListJobsPageSize : request->page_size();
     size = std::min(size, limits::kMaxListJobsPageSize);
-    Scheduler::JobPage page = ctx_.scheduler.ListPage(request->include_finished(), after, size);
+    Scheduler::JobPage page = api_.ListJobs(request->include_finished(), after, size);
     for (v1::JobStatus& s : page.jobs) *response->add_jobs() = std::move(s);
     if (page.more) response->set_next_page_token(PageToken(page.last_seq));
     return grpc::Status::OK;
@@ -170,7 +156,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::CancelJob(grpc::CallbackServerConte
                                                        v1::CancelJobResponse* response) {
   return FinishGuarded(context, "CancelJob", [&] {
     RequireJobId(request->job_id());
-    *response->mutable_status() = ctx_.scheduler.Cancel(request->job_id());
+    *response->mutable_status() = api_.CancelJob(request->job_id());
     return grpc::Status::OK;
   });
 }
@@ -179,7 +165,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerCon
                                                          const v1::ListWorkersRequest* /*request*/,
                                                          v1::ListWorkersResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  for (v1::WorkerInfo& w : ctx_.scheduler.activity().Workers()) *response->add_workers() = std::move(w);
+  for (v1::WorkerInfo& w : api_.Workers()) *response->add_workers() = std::move(w);
   reactor->Finish(grpc::Status::OK);
   return reactor;
 }
@@ -189,9 +175,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobEvents(grpc::CallbackServerC
                                                            v1::ListJobEventsResponse* response) {
   return FinishGuarded(context, "ListJobEvents", [&] {
     RequireJobId(request->job_id());
-    ctx_.scheduler.Status(request->job_id());  // NOT_FOUND for an unknown job
     uint64_t dropped = 0;
-    for (v1::TaskEvent& e : ctx_.scheduler.activity().Events(request->job_id(), &dropped))
+    for (v1::TaskEvent& e : api_.JobEvents(request->job_id(), &dropped))
       *response->add_events() = std::move(e);
     response->set_dropped(dropped);
     return grpc::Status::OK;
@@ -200,7 +185,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListJobEvents(grpc::CallbackServerC
 
 grpc::ServerWriteReactor<v1::JobUpdate>* RenderServiceImpl::WatchJob(grpc::CallbackServerContext* context,
                                                                      const v1::WatchJobRequest* request) {
-  return ctx_.watches.Open(context, ClientOf(*context), *request, grpc::Status::OK);
+  return watches_.Open(context, ClientOf(*context), *request, grpc::Status::OK);
 }
 
 grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(
@@ -213,9 +198,9 @@ grpc::ServerWriteReactor<v1::ImageChunk>* RenderServiceImpl::GetImage(
   // The EXR is encoded once into an anonymous temporary file (tmpfile: gone when closed, even if
   // the coordinator dies) and streamed from there one chunk at a time, so an unread stream holds
   // one chunk, not the whole image (buffered_stream.h).
-  return ChunkedStreamReactor<v1::ImageChunk>::Start(ctx_.executor, "GetImage", precheck, [this, job_id] {
+  return ChunkedStreamReactor<v1::ImageChunk>::Start(api_.executor(), "GetImage", precheck, [this, job_id] {
     v1::JobStatus status;
-    const ResolvedImage image = ResolveJobImage(ctx_.scheduler, job_id, &status);
+    const ResolvedImage image = api_.JobImage(job_id, &status);
     struct State {
       std::unique_ptr<std::FILE, int (*)(std::FILE*)> file{std::tmpfile(), &std::fclose};
       uint64_t size = 0;

@@ -6,14 +6,16 @@
 // and finishes the reactor from there. Errors are mapped by status_mapping.h.
 
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "server/rpc/coordinator_api.h"
 #include "server/rpc/handler_macros.h"
-#include "server/rpc/service_context.h"
 
 namespace pf::server {
 
+class WatchHub;
+
 class RenderServiceImpl final : public photonfarm::v1::RenderService::CallbackService {
  public:
-  explicit RenderServiceImpl(ServiceContext context) : ctx_(context) {}
+  RenderServiceImpl(CoordinatorApi& api, WatchHub& watches) : api_(api), watches_(watches) {}
 
   PF_UNARY_HANDLER(UploadScene, UploadSceneRequest, UploadSceneResponse);
   PF_UNARY_HANDLER(SubmitJob, SubmitJobRequest, SubmitJobResponse);
@@ -26,7 +28,8 @@ class RenderServiceImpl final : public photonfarm::v1::RenderService::CallbackSe
   PF_STREAM_HANDLER(GetImage, GetImageRequest, ImageChunk);
 
  private:
-  ServiceContext ctx_;
+  CoordinatorApi& api_;
+  WatchHub& watches_;  // WatchJob streams, fed by the scheduler (watch_hub.h)
 };
 
 }  // namespace pf::server

@@ -22,7 +22,7 @@ namespace v1 = photonfarm::v1;
 
 namespace {
 
-void FillTask(const Lease& lease, v1::Task* task, DistributedMaps& maps) {
+void FillTask(const Lease& lease, v1::Task* task, CoordinatorApi& api) {
   // What every task carries: its lease, its scene and the job's settings.
   task->set_job_id(lease.job_id);
   task->set_attempt(lease.attempt);
@@ -44,7 +44,7 @@ void FillTask(const Lease& lease, v1::Task* task, DistributedMaps& maps) {
     c->set_chunk_count(lease.chunk->chunk_count);
     return;
   }
-  if (const std::optional<BuiltMap> map = maps.MapFor(lease.job_id, lease.task.map_index)) {
+  if (const std::optional<BuiltMap> map = api.MapFor(lease.job_id, lease.task.map_index)) {
     v1::MapRef* ref = task->mutable_map();
     ref->set_map_key(map->key);
     ref->set_bytes(map->bytes);
@@ -73,43 +73,22 @@ grpc::Status NotHolder() {
 // reactor is only touched until it is finished (it deletes itself in OnDone).
 class LeaseReactor final : public grpc::ServerUnaryReactor {
  public:
-  LeaseReactor(ServiceContext& ctx, grpc::CallbackServerContext* context, const v1::LeaseTaskRequest* request,
+  LeaseReactor(CoordinatorApi& api, grpc::CallbackServerContext* context, const v1::LeaseTaskRequest* request,
                v1::LeaseTaskResponse* response)
-      : ctx_(ctx), state_(std::make_shared<State>()) {
+      : api_(api), state_(std::make_shared<State>()) {
     LeaseRequest lr;
     double wait = 0;
     const grpc::Status status = Guarded("LeaseTask", [&] {
       limits::CheckId(request->worker_id(), "worker_id", limits::kMaxWorkerIdBytes);
-      // The coordinator's own version string is taken as it is; any other must be printable ASCII
-      // without spaces, as an id: it is logged and listed (pf workers, the web page).
-      const std::string& version = request->worker_version();
-      if (version != ctx.build_version) {
-        if (!version.empty()) limits::CheckId(version, "worker_version", limits::kMaxIdBytes);
-        if (!ctx.allow_mixed_versions) {
-          // Farms run one build (docs/farm.md, "Upgrades"): another build may trace other photons
-          // or estimate differently, and a job's image would mix the two. Listed as refused (never
-          // as an idle worker of the farm) so that pf workers and the web page say why.
-          const std::string worker_build =
-              version.empty() ? "none (older than the check)" : limits::Quote(version);
-          ctx.scheduler.activity().WorkerSeen(request->worker_id(), context->peer(), request->threads(),
-                                              version,
-                                              /*refused=*/true);
-          spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'",
-                       limits::Quote(request->worker_id()), worker_build, ctx.build_version);
-          return grpc::Status(
-              grpc::StatusCode::FAILED_PRECONDITION,
-              "worker_version: this worker's build is " + worker_build + ", the coordinator's '" +
-                  ctx.build_version +
-                  "'; farms run one build (docs/farm.md, Upgrades): run workers of the "
-                  "coordinator's build, or start the coordinator with --allow-mixed-versions");
-        }
-      }
       wait = request->wait_seconds();
       if (!std::isfinite(wait) || wait < 0) throw InputError("wait_seconds: must be a finite number >= 0");
       wait = std::min(wait, kMaxLeaseWaitSeconds);
+      const std::optional<std::string> refused = api.WorkerSeen({.worker_id = request->worker_id(),
+                                                                 .peer = context->peer(),
+                                                                 .version = request->worker_version(),
+                                                                 .threads = request->threads()});
+      if (refused) return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION, *refused);
       lr.worker_id = request->worker_id();
-      ctx.scheduler.activity().WorkerSeen(lr.worker_id, context->peer(), request->threads(),
-                                          request->worker_version());
       lr.cached_map_seeds.assign(request->cached_map_seeds().begin(), request->cached_map_seeds().end());
       return grpc::Status::OK;
     });
@@ -118,30 +97,29 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
       return;
     }
     std::shared_ptr<State> state = state_;
-    Scheduler* scheduler = &ctx.scheduler;
     // May run before LeaseOrWait returns; after Finish `this` may be gone, so only `state` and
     // locals are used below.
-    DistributedMaps* maps = &ctx.maps;
-    auto deliver = [this, context, response, scheduler, maps](std::optional<Lease> lease) {
+    CoordinatorApi* coordinator = &api;
+    auto deliver = [this, context, response, coordinator](std::optional<Lease> lease) {
       if (lease && context->IsCancelled()) {
         // Undelivered: queued again at once (a piece too: the lease's kind decides), not left to run out.
-        scheduler->ReturnLease(lease->lease_id);
+        coordinator->ReturnLease(lease->lease_id);
         lease.reset();
       }
       if (lease) {
-        FillTask(*lease, response->mutable_task(), *maps);
+        FillTask(*lease, response->mutable_task(), *coordinator);
         spdlog::debug("job {} task {}: lease {} sent", lease->job_id, lease->task_id, lease->lease_id);
       }
       Finish(grpc::Status::OK);
     };
-    const uint64_t waiter = scheduler->LeaseOrWait(lr, wait, std::move(deliver));
+    const uint64_t waiter = coordinator->LeaseOrWait(lr, wait, std::move(deliver));
     bool cancel_now = false;
     {
       std::lock_guard lock(state->mu);
       state->waiter = waiter;
       cancel_now = state->cancelled && waiter != 0;
     }
-    if (cancel_now) scheduler->CancelWait(waiter);
+    if (cancel_now) coordinator->CancelWait(waiter);
   }
 
   void OnCancel() override {
@@ -151,7 +129,7 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
       state_->cancelled = true;
       waiter = state_->waiter;
     }
-    if (waiter != 0) ctx_.scheduler.CancelWait(waiter);  // answers "no task" if still parked
+    if (waiter != 0) api_.CancelWait(waiter);  // answers "no task" if still parked
   }
   void OnDone() override { delete this; }
 
@@ -161,7 +139,7 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
     uint64_t waiter = 0;
     bool cancelled = false;
   };
-  ServiceContext& ctx_;
+  CoordinatorApi& api_;
   std::shared_ptr<State> state_;
 };
 
@@ -170,7 +148,7 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
 grpc::ServerUnaryReactor* WorkerServiceImpl::LeaseTask(grpc::CallbackServerContext* context,
                                                        const v1::LeaseTaskRequest* request,
                                                        v1::LeaseTaskResponse* response) {
-  return new LeaseReactor(ctx_, context, request, response);
+  return new LeaseReactor(api_, context, request, response);
 }
 
 grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerContext* context,
@@ -180,9 +158,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerCon
   grpc::Status status = Guarded("ExtendLease", [&] {
     RequireLeaseId(request->lease_id());
     RequireWorkerId(request->worker_id());
-    // Render tasks and map pieces alike: the scheduler's lease table knows the lease's kind.
-    const ExtendResult r =
-        ctx_.scheduler.Extend(request->lease_id(), request->worker_id(), request->progress());
+    const ExtendResult r = api_.ExtendLease(request->lease_id(), request->worker_id(), request->progress());
     if (r.not_holder) return NotHolder();
     response->set_ok(r.ok);
     response->set_lease_seconds(r.lease_seconds);
@@ -215,8 +191,10 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
                             "part: unknown value " + std::to_string(int(request->part())));
     }
     const auto& sums = request->rgb_sums();
-    result = ctx_.scheduler.Complete(request->lease_id(), request->worker_id(),
-                                     std::span<const float>(sums.data(), size_t(sums.size())), part);
+    const v1::TaskStats& st = request->stats();
+    result = api_.CompleteTask(
+        request->lease_id(), request->worker_id(), std::span<const float>(sums.data(), size_t(sums.size())),
+        part, {.photons_emitted = st.photons_emitted(), .seconds = st.map_seconds() + st.render_seconds()});
     if (result.status == CompleteStatus::kNotHolder) return NotHolder();
     if (result.status == CompleteStatus::kRejected)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
@@ -232,31 +210,21 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
   spdlog::debug("job {} task {}: result merged (map {:.3f} s{}, render {:.3f} s, {} photons stored)",
                 result.job_id, result.task_id, st.map_seconds(), st.map_cache_hit() ? " cached" : "",
                 st.render_seconds(), st.photons_stored());
-  ctx_.scheduler.activity().WorkerStats(result.worker_id, st.photons_emitted(),
-                                        st.map_seconds() + st.render_seconds());
   response->set_merged(true);
-  if (ctx_.persister.durable_acks()) {
-    // merged = true only once the result is stored (docs/farm.md "Durability", D1). Not stored:
-    // UNAVAILABLE, so the worker never counts it as merged; it is in this coordinator's memory
-    // and stored when the disk allows, or re-run after a restart (never counted twice).
-    const auto& sums = request->rgb_sums();
-    ctx_.persister.JournalThenAck(
-        result.job_id, result.task_id, result.epoch, result.merge_seq,
-        std::span<const float>(sums.data(), size_t(sums.size())),
-        [reactor, job = result.job_id, task = result.task_id](const std::string& not_stored) {
-          if (not_stored.empty()) {
-            reactor->Finish(grpc::Status::OK);
-            return;
-          }
-          spdlog::warn("job {} task {}: result merged but not stored ({}): answered UNAVAILABLE", job, task,
-                       not_stored);
-          reactor->Finish(grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                                       "the coordinator merged the result but could not store it (" +
-                                           not_stored + "); it is not acknowledged"));
-        });
-  } else {
-    reactor->Finish(grpc::Status::OK);
-  }
+  // merged = true only once the result is stored (docs/farm.md "Durability", D1); not stored:
+  // UNAVAILABLE, so the worker never counts it as merged.
+  const auto& sums = request->rgb_sums();
+  api_.AcknowledgeWhenStored(
+      result, std::span<const float>(sums.data(), size_t(sums.size())),
+      [reactor](const std::string& not_stored) {
+        if (not_stored.empty()) {
+          reactor->Finish(grpc::Status::OK);
+          return;
+        }
+        reactor->Finish(grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                                     "the coordinator merged the result but could not store it (" +
+                                         not_stored + "); it is not acknowledged"));
+      });
   return reactor;
 }
 
@@ -270,7 +238,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
     std::string reason = limits::Printable(request->reason(), limits::kMaxReasonBytes);
     if (reason.empty()) reason = "no reason given";
     const FailOutcome outcome =
-        ctx_.scheduler.Fail(request->lease_id(), request->worker_id(), reason, request->retryable());
+        api_.FailTask(request->lease_id(), request->worker_id(), reason, request->retryable());
     switch (outcome) {
       case FailOutcome::kFailed:
         return grpc::Status::OK;
@@ -296,7 +264,7 @@ grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(
   // Streamed from the stored files, one chunk of ≤ kSceneChunkBytes at a time (buffered_stream.h);
   // a file larger than a chunk continues in the next message with the same path, an empty file
   // is one empty message.
-  return ChunkedStreamReactor<v1::SceneFile>::Start(ctx_.executor, "FetchScene", precheck, [this, hash] {
+  return ChunkedStreamReactor<v1::SceneFile>::Start(api_.executor(), "FetchScene", precheck, [this, hash] {
     struct State {
       std::vector<std::pair<std::string, std::filesystem::path>> files;
       size_t next = 0;  // index of the file being read
@@ -304,7 +272,7 @@ grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(
       bool sent = false;  // a message of files[next] was sent
     };
     auto state = std::make_shared<State>();
-    state->files = ctx_.scenes.ListFiles(hash);
+    state->files = api_.SceneFiles(hash);
     return ChunkedStreamReactor<v1::SceneFile>::Source([state](v1::SceneFile* message) {
       State& s = *state;
       while (s.next < s.files.size()) {
@@ -339,13 +307,13 @@ namespace {
 // checksum, the whole digest and the piece itself on an executor thread (S4: callbacks do not block).
 class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkPart> {
  public:
-  ChunkUploadReactor(ServiceContext& ctx, v1::UploadPhotonChunkResponse* response)
-      : ctx_(ctx), response_(response) {
+  ChunkUploadReactor(CoordinatorApi& api, v1::UploadPhotonChunkResponse* response)
+      : api_(api), response_(response) {
     StartRead(&part_);
   }
   void OnReadDone(bool ok) override {
     if (!ok) {
-      if (!ctx_.executor.Post([this] { End(Verify()); }))
+      if (!api_.executor().Post([this] { End(Verify()); }))
         End(grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator busy or shutting down"));
       return;
     }
@@ -374,7 +342,7 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
       // Guarded: this runs in a reactor callback, where an exception would end the process.
       DistributedMaps::UploadAdmission admission = DistributedMaps::UploadAdmission::kNotLive;
       const grpc::Status begun = Guarded("UploadPhotonChunk", [&] {
-        admission = ctx_.maps.BeginUpload(lease_id_, worker_id_);
+        admission = api_.BeginPieceUpload(lease_id_, worker_id_);
         return grpc::Status::OK;
       });
       if (!begun.ok()) {
@@ -417,7 +385,7 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
     StartRead(&part_);
   }
   void OnDone() override {
-    if (admitted_) ctx_.maps.EndUpload(lease_id_);  // not reached when End ran (admitted_ is false then)
+    if (admitted_) api_.EndPieceUpload(lease_id_);  // not reached when End ran (admitted_ is false then)
     delete this;
   }
 
@@ -426,7 +394,7 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
   // stream as soon as it has this status is admitted.
   void End(const grpc::Status& status) {
     if (admitted_) {
-      ctx_.maps.EndUpload(lease_id_);
+      api_.EndPieceUpload(lease_id_);
       admitted_ = false;
     }
     Finish(status);
@@ -446,14 +414,14 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
         throw InputError("total_bytes: " + std::to_string(bytes_.size()) + " bytes received of " +
                          std::to_string(total_));
       if (Sha256Hex(bytes_) != digest_) throw InputError("digest: mismatch: the piece is refused");
-      const DistributedMaps::Accepted a = ctx_.maps.AcceptChunk(lease_id_, worker_id_, bytes_);
+      const DistributedMaps::Accepted a = api_.AcceptPiece(lease_id_, worker_id_, bytes_);
       if (a == DistributedMaps::Accepted::kNotHolder) return NotHolder();
       response_->set_accepted(a == DistributedMaps::Accepted::kStored);
       return grpc::Status::OK;
     });
   }
 
-  ServiceContext& ctx_;
+  CoordinatorApi& api_;
   v1::UploadPhotonChunkResponse* response_;
   v1::PhotonChunkPart part_;
   std::string lease_id_, worker_id_, digest_, bytes_;
@@ -468,7 +436,7 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
 
 grpc::ServerReadReactor<v1::PhotonChunkPart>* WorkerServiceImpl::UploadPhotonChunk(
     grpc::CallbackServerContext* /*context*/, v1::UploadPhotonChunkResponse* response) {
-  return new ChunkUploadReactor(ctx_, response);
+  return new ChunkUploadReactor(api_, response);
 }
 
 grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::CallbackServerContext* /*context*/,
@@ -479,9 +447,8 @@ grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::Callba
   });
   const std::string key = request->map_key();
   // Streamed from the file one part at a time (like FetchScene), each part with its checksum.
-  return ChunkedStreamReactor<v1::MapBytes>::Start(ctx_.executor, "FetchMap", precheck, [this, key] {
-    const std::optional<std::filesystem::path> file = ctx_.maps.MapFile(key);
-    if (!file) throw NotFoundError("map_key: no built map " + key);
+  return ChunkedStreamReactor<v1::MapBytes>::Start(api_.executor(), "FetchMap", precheck, [this, key] {
+    const BuiltMapFile map = api_.MapFile(key);
     struct State {
       std::ifstream in;
       uint64_t offset = 0, total = 0;
@@ -489,20 +456,10 @@ grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::Callba
       bool sent = false;
     };
     auto state = std::make_shared<State>();
-    state->in.open(*file, std::ios::binary);
-    if (!state->in) throw SystemError(file->string() + ": cannot read the built map");
-    state->total = std::filesystem::file_size(*file);
-    {
-      std::ifstream tail(*file, std::ios::binary);
-      tail.seekg(std::streamoff(state->total - std::min<uint64_t>(state->total, 32)));
-      std::string raw(32, '\0');
-      tail.read(raw.data(), 32);
-      static constexpr char kHex[] = "0123456789abcdef";
-      for (unsigned char c : raw) {
-        state->digest.push_back(kHex[c >> 4]);
-        state->digest.push_back(kHex[c & 15]);
-      }
-    }
+    state->in.open(map.file, std::ios::binary);
+    if (!state->in) throw SystemError(map.file.string() + ": cannot read the built map");
+    state->total = std::filesystem::file_size(map.file);
+    state->digest = map.digest;
     return ChunkedStreamReactor<v1::MapBytes>::Source([state](v1::MapBytes* message) {
       State& s = *state;
       if (s.offset >= s.total && s.sent) return false;

@@ -17,8 +17,8 @@
 //                The entry file's path is Task.scene_entry.
 
 #include "photonfarm/v1/farm.grpc.pb.h"
+#include "server/rpc/coordinator_api.h"
 #include "server/rpc/handler_macros.h"
-#include "server/rpc/service_context.h"
 
 namespace pf::server {
 
@@ -32,7 +32,7 @@ inline constexpr uint64_t kMaxPhotonChunkBytes = uint64_t(512) << 20;
 
 class WorkerServiceImpl final : public photonfarm::v1::WorkerService::CallbackService {
  public:
-  explicit WorkerServiceImpl(ServiceContext context) : ctx_(context) {}
+  explicit WorkerServiceImpl(CoordinatorApi& api) : api_(api) {}
 
   PF_UNARY_HANDLER(LeaseTask, LeaseTaskRequest, LeaseTaskResponse);
   PF_UNARY_HANDLER(ExtendLease, ExtendLeaseRequest, ExtendLeaseResponse);
@@ -45,7 +45,7 @@ class WorkerServiceImpl final : public photonfarm::v1::WorkerService::CallbackSe
   PF_STREAM_HANDLER(FetchMap, FetchMapRequest, MapBytes);
 
  private:
-  ServiceContext ctx_;
+  CoordinatorApi& api_;
 };
 
 }  // namespace pf::server

@@ -1,0 +1,180 @@
+#include "server/rpc/coordinator_operations.h"
+
+#include "proto/limits.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+#include "common/core/error.h"
+#include "common/photon/photon_maps_bytes.h"
+#include "server/errors.h"
+#include "server/rpc/job_images.h"
+#include "server/scheduling/job_submission.h"
+
+namespace pf::server {
+namespace v1 = photonfarm::v1;
+
+Reservation CoordinatorOperations::AdmitSceneUpload(const std::string& client, uint64_t bytes) {
+  return p_.admission.AdmitUpload(client, bytes);
+}
+
+UploadResult CoordinatorOperations::StoreScene(const SceneBundle& bundle, const Reservation& upload) {
+  p_.admission.CheckSceneBytes(upload, [&] { return p_.scenes.FindScene(BundleHash(bundle)).has_value(); });
+  return p_.scenes.Upload(bundle);
+}
+
+AdmittedJob CoordinatorOperations::AdmitJob(const v1::JobSpec& spec, const std::string& client) {
+  // --plan auto without a worker count plans for the workers seen in the last minute.
+  uint32_t live = 0;
+  for (const v1::WorkerInfo& w : p_.scheduler.activity().Workers())
+    if (w.seconds_since_seen() <= 60 && !w.refused()) ++live;
+  AdmittedJob job;
+  job.config = ValidateJobSpec(spec, p_.scenes, std::max(1u, live));
+  job.client = client;
+  job.reservation = p_.admission.AdmitJob(client, ScheduledTaskCount(job.config),
+                                          uint64_t(job.config.camera.width) * uint64_t(job.config.camera.height));
+  return job;
+}
+
+std::string CoordinatorOperations::SubmitJob(AdmittedJob job) {
+  std::string id = SubmitValidatedJob(p_.scheduler, p_.db, std::move(job.config), job.client);
+  job.reservation.Release();  // the scheduler counts the job now
+  return id;
+}
+
+v1::JobStatus CoordinatorOperations::JobStatus(const std::string& job_id) {
+  return p_.scheduler.Status(job_id);
+}
+
+Scheduler::JobPage CoordinatorOperations::ListJobs(bool include_finished, uint64_t after_seq, size_t limit) {
+  return p_.scheduler.ListPage(include_finished, after_seq, limit);
+}
+
+v1::JobStatus CoordinatorOperations::CancelJob(const std::string& job_id) {
+  return p_.scheduler.Cancel(job_id);
+}
+
+std::vector<v1::WorkerInfo> CoordinatorOperations::Workers() {
+  return p_.scheduler.activity().Workers();
+}
+
+std::vector<v1::TaskEvent> CoordinatorOperations::JobEvents(const std::string& job_id, uint64_t* dropped) {
+  p_.scheduler.Status(job_id);  // NotFoundError for an unknown job
+  return p_.scheduler.activity().Events(job_id, dropped);
+}
+
+ResolvedImage CoordinatorOperations::JobImage(const std::string& job_id, v1::JobStatus* status) {
+  return ResolveJobImage(p_.scheduler, job_id, status);
+}
+
+std::optional<std::string> CoordinatorOperations::WorkerSeen(const WorkerHello& hello) {
+  // The coordinator's own version string is taken as it is; any other must be printable ASCII
+  // without spaces, as an id: it is logged and listed (pf workers, the web page).
+  if (hello.version != p_.build_version) {
+    if (!hello.version.empty()) limits::CheckId(hello.version, "worker_version", limits::kMaxIdBytes);
+    if (!p_.allow_mixed_versions) {
+      // Farms run one build (docs/farm.md, "Upgrades"): another build may trace other photons or
+      // estimate differently, and a job's image would mix the two. Listed as refused (never as an
+      // idle worker of the farm) so that pf workers and the web page say why.
+      const std::string worker_build =
+          hello.version.empty() ? "none (older than the check)" : limits::Quote(hello.version);
+      p_.scheduler.activity().WorkerSeen(hello.worker_id, hello.peer, hello.threads, hello.version,
+                                         /*refused=*/true);
+      spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'", limits::Quote(hello.worker_id),
+                   worker_build, p_.build_version);
+      return "worker_version: this worker's build is " + worker_build + ", the coordinator's '" + p_.build_version +
+             "'; farms run one build (docs/farm.md, Upgrades): run workers of the coordinator's build, or start "
+             "the coordinator with --allow-mixed-versions";
+    }
+  }
+  p_.scheduler.activity().WorkerSeen(hello.worker_id, hello.peer, hello.threads, hello.version);
+  return std::nullopt;
+}
+
+uint64_t CoordinatorOperations::LeaseOrWait(const LeaseRequest& request, double wait_seconds,
+                                            std::function<void(std::optional<Lease>)> done) {
+  return p_.scheduler.LeaseOrWait(request, wait_seconds, std::move(done));
+}
+
+void CoordinatorOperations::CancelWait(uint64_t waiter) {
+  p_.scheduler.CancelWait(waiter);
+}
+
+void CoordinatorOperations::ReturnLease(const std::string& lease_id) {
+  p_.scheduler.ReturnLease(lease_id);
+}
+
+std::optional<BuiltMap> CoordinatorOperations::MapFor(const std::string& job_id, uint64_t map_index) {
+  return p_.maps.MapFor(job_id, map_index);
+}
+
+ExtendResult CoordinatorOperations::ExtendLease(const std::string& lease_id, const std::string& worker_id,
+                                                double progress) {
+  // Render tasks and map pieces alike: the scheduler's lease table knows the lease's kind.
+  return p_.scheduler.Extend(lease_id, worker_id, progress);
+}
+
+CompleteResult CoordinatorOperations::CompleteTask(const std::string& lease_id, const std::string& worker_id,
+                                                   std::span<const float> rgb_sums, RadiancePart part,
+                                                   const TaskStats& stats) {
+  CompleteResult result = p_.scheduler.Complete(lease_id, worker_id, rgb_sums, part);
+  if (result.status == CompleteStatus::kMerged)
+    p_.scheduler.activity().WorkerStats(result.worker_id, stats.photons_emitted, stats.seconds);
+  return result;
+}
+
+void CoordinatorOperations::AcknowledgeWhenStored(const CompleteResult& merged, std::span<const float> rgb_sums,
+                                                  std::function<void(const std::string& not_stored)> answer) {
+  if (!p_.persister.durable_acks()) {
+    answer("");
+    return;
+  }
+  // Not stored: the result is in this coordinator's memory and stored when the disk allows, or
+  // re-run after a restart (never counted twice); the worker must not count it as merged.
+  p_.persister.JournalThenAck(
+      merged.job_id, merged.task_id, merged.epoch, merged.merge_seq, rgb_sums,
+      [answer = std::move(answer), job = merged.job_id, task = merged.task_id](const std::string& not_stored) {
+        if (!not_stored.empty())
+          spdlog::warn("job {} task {}: result merged but not stored ({}): not acknowledged", job, task,
+                       not_stored);
+        answer(not_stored);
+      });
+}
+
+FailOutcome CoordinatorOperations::FailTask(const std::string& lease_id, const std::string& worker_id,
+                                            const std::string& reason, bool retryable) {
+  return p_.scheduler.Fail(lease_id, worker_id, reason, retryable);
+}
+
+std::vector<std::pair<std::string, std::filesystem::path>> CoordinatorOperations::SceneFiles(
+    const std::string& scene_hash) {
+  return p_.scenes.ListFiles(scene_hash);
+}
+
+DistributedMaps::UploadAdmission CoordinatorOperations::BeginPieceUpload(const std::string& lease_id,
+                                                                         const std::string& worker_id) {
+  return p_.maps.BeginUpload(lease_id, worker_id);
+}
+
+void CoordinatorOperations::EndPieceUpload(const std::string& lease_id) {
+  p_.maps.EndUpload(lease_id);
+}
+
+DistributedMaps::Accepted CoordinatorOperations::AcceptPiece(const std::string& lease_id,
+                                                             const std::string& worker_id, const std::string& bytes) {
+  return p_.maps.AcceptChunk(lease_id, worker_id, bytes);
+}
+
+BuiltMapFile CoordinatorOperations::MapFile(const std::string& map_key) {
+  const std::optional<std::filesystem::path> file = p_.maps.MapFile(map_key);
+  if (!file) throw NotFoundError("map_key: no built map " + map_key);
+  try {
+    return {*file, PhotonMapsFileDigest(*file)};
+  } catch (const InputError& e) {
+    // The coordinator's own file, not the worker's input.
+    throw DataLossError("map_key: the built map " + map_key + " is damaged: " + e.what());
+  }
+}
+
+}  // namespace pf::server
