@@ -273,6 +273,11 @@ TEST(CausticSplitting, PiecesAssembleToTheOneProcessMap) {
     EXPECT_EQ(Comparable(DeserializePhotonMaps(SerializePhotonMaps(assembled))),
               Comparable(DeserializePhotonMaps(SerializePhotonMaps(whole))));
     EXPECT_EQ(assembled.stats.emitted, whole.stats.emitted);
+    // The chains travel with the pieces: the farm's maps count what a local build counts.
+    EXPECT_EQ(assembled.stats.chains, whole.stats.chains);
+    EXPECT_EQ(assembled.stats.mutations, whole.stats.mutations);
+    EXPECT_EQ(assembled.stats.accepted, whole.stats.accepted);
+    if (method == CausticSplitMethod::kMetropolis) EXPECT_GT(whole.stats.mutations, 0u);
   }
 }
 

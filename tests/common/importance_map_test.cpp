@@ -11,6 +11,7 @@
 #include "common/camera/camera.h"
 #include "common/lights/light_sampler.h"
 #include "common/photon/importance_map.h"
+#include "common/photon/photon_chunk.h"
 #include "common/photon/photon_maps.h"
 #include "common/plan/task_executor.h"
 #include "common/render/job_render_settings.h"
@@ -117,6 +118,32 @@ MeanAndError Summarise(const std::vector<double>& v) {
   for (double x : v) ss += (x - m.mean) * (x - m.mean);
   m.standard_error = std::sqrt(ss / double(v.size() - 1) / double(v.size()));
   return m;
+}
+
+// Importance-driven storing pieces like the rest (photon_chunk.h): photons traced in pieces
+// against the map's importance map assemble to PhotonMaps::Build's maps, rejections included.
+TEST(ImportanceMapTest, PiecesAssembleToTheBuiltMap) {
+  const TwoRooms r = MakeTwoRooms();
+  const EmbreeScene accel(r.scene);
+  const LightSampler lights(accel);
+  const Camera camera(r.camera);
+  PhotonMapsOptions o = MapsOptionsOf(ImportanceMode::kOn, 20001, 5, 2);
+  const PhotonMaps whole = PhotonMaps::Build(accel, lights, o, &camera);
+  ASSERT_TRUE(whole.stats.importance);
+  ASSERT_GT(whole.stats.rejected, 0u);
+  const ImportanceMap importance = ImportanceMap::Build(accel, camera, o.importance, o.tracing.map_seed,
+                                                        o.tracing.sampler, o.tracing.threads);
+  o.tracing.importance = &importance;
+  const std::vector<uint64_t> cuts = {0, 8192, 12288, 20001};
+  std::vector<PhotonChunk> pieces;
+  for (size_t i = 0; i + 1 < cuts.size(); ++i)
+    pieces.push_back(TracePhotonChunk(accel, lights, o, cuts[i], cuts[i + 1]));
+  const PhotonMaps assembled = AssemblePhotonMaps(pieces, o);
+  EXPECT_EQ(assembled.stats.rejected, whole.stats.rejected);
+  ASSERT_EQ(assembled.global->size(), whole.global->size());
+  EXPECT_EQ(std::memcmp(assembled.global->photons().data(), whole.global->photons().data(),
+                        whole.global->size() * sizeof(Photon)),
+            0);
 }
 
 // The same photons for any thread count (chunks in order; the acceptance table filled by
