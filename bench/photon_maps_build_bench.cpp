@@ -67,7 +67,8 @@ int Run(uint64_t photons, int threads, int repeats, const std::string& json_path
   out["repeats"] = repeats;
   std::printf("PhotonMaps::Build, %llu photons, %d threads, median of %d\n", (unsigned long long)photons,
               threads, repeats);
-  std::printf("%-28s %9s %9s %10s %10s  %s\n", "case", "wall s", "cpu s", "peak+ MB", "stored", "maps sha256");
+  std::printf("%-28s %9s %9s %10s %10s  %s\n", "case", "wall s", "cpu s", "peak+ MB", "stored",
+              "maps sha256");
   for (const Case& c : cases) {
     const SceneRuntime scene(LoadScene(bench::SceneManifest(c.scene)));
     JobRenderSettings s;
@@ -84,9 +85,9 @@ int Run(uint64_t photons, int threads, int repeats, const std::string& json_path
       const bool reset = ResetPeak();
       const double before = StatusMb("VmRSS");
       PhotonMaps maps;
-      const double w = bench::TimeIt([&] { cpu.push_back(bench::CpuTimeIt([&] {
-                                       maps = PhotonMaps::Build(scene.accel, scene.lights, mo);
-                                     })); });
+      const double w = bench::TimeIt([&] {
+        cpu.push_back(bench::CpuTimeIt([&] { maps = PhotonMaps::Build(scene.accel, scene.lights, mo); }));
+      });
       wall.push_back(w);
       peak.push_back(reset ? StatusMb("VmHWM") - before : 0.0);
       maps.stats.trace_seconds = maps.stats.build_seconds = 0;
@@ -100,10 +101,14 @@ int Run(uint64_t photons, int threads, int repeats, const std::string& json_path
     }
     std::printf("%-28s %9.3f %9.3f %10.1f %10llu  %s\n", c.name, bench::Median(wall), bench::Median(cpu),
                 bench::Median(peak), (unsigned long long)stored, digest.substr(0, 16).c_str());
-    out["cases"][c.name] = {{"wall_seconds", bench::Median(wall)}, {"cpu_seconds", bench::Median(cpu)},
-                            {"peak_added_mb", bench::Median(peak)}, {"stored", stored},
-                            {"maps_sha256", digest},           {"wall_all", wall},
-                            {"cpu_all", cpu},                  {"peak_all", peak}};
+    out["cases"][c.name] = {{"wall_seconds", bench::Median(wall)},
+                            {"cpu_seconds", bench::Median(cpu)},
+                            {"peak_added_mb", bench::Median(peak)},
+                            {"stored", stored},
+                            {"maps_sha256", digest},
+                            {"wall_all", wall},
+                            {"cpu_all", cpu},
+                            {"peak_all", peak}};
   }
   if (!json_path.empty()) std::ofstream(json_path) << out.dump(2) << "\n";
   return 0;
@@ -127,8 +132,8 @@ int main(int argc, char** argv) {
     } else if (a == "--json" && has_value) {
       json = argv[++i];
     } else {
-      std::fprintf(stderr,
-                   "usage: %s [--photons 1000000] [--threads 2] [--repeats 5] [--json out.json]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--photons 1000000] [--threads 2] [--repeats 5] [--json out.json]\n",
+                   argv[0]);
       return 2;
     }
   }

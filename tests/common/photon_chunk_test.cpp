@@ -29,6 +29,20 @@ std::string Comparable(PhotonMaps maps) {
   return SerializePhotonMaps(maps);
 }
 
+// The Cornell box's map of 10000 photons, to trace pieces of.
+struct CornellMap {
+  CornellMap() {
+    JobRenderSettings s;
+    s.photons = 10000;
+    options = s.Resolved(scene.description).MapsOptions();
+  }
+  PhotonChunk Trace(uint64_t begin, uint64_t end) const {
+    return TracePhotonChunk(scene.accel, scene.lights, options, begin, end);
+  }
+  SceneRuntime scene{Shipped("cornell-box/cornell-box.json")};
+  PhotonMapsOptions options;
+};
+
 TEST(PhotonChunk, PiecesAssembleToTheOneProcessMap) {
   struct Case {
     const char* scene;
@@ -108,12 +122,10 @@ TEST(PhotonChunk, MoreStoredThanEmittedGoesThroughTheByteForm) {
 // build reports): the counts through the byte form, summed by AssemblePhotonMaps; a piece that
 // claims another number of emitted photons than its range is refused.
 TEST(PhotonChunk, CountsTravelAndAreChecked) {
-  const SceneRuntime scene(Shipped("cornell-box/cornell-box.json"));
-  JobRenderSettings s;
-  s.photons = 10000;
-  PhotonMapsOptions mo = s.Resolved(scene.description).MapsOptions();
-  const PhotonChunk a = TracePhotonChunk(scene.accel, scene.lights, mo, 0, 8192);
-  const PhotonChunk b = TracePhotonChunk(scene.accel, scene.lights, mo, 8192, 10000);
+  const CornellMap map;
+  const PhotonMapsOptions& mo = map.options;
+  const PhotonChunk a = map.Trace(0, 8192);
+  const PhotonChunk b = map.Trace(8192, 10000);
   EXPECT_EQ(a.counts.emitted, 8192u);
   EXPECT_EQ(b.counts.emitted, 10000u - 8192u);
   EXPECT_GT(a.counts.stored, 0u);
@@ -131,15 +143,13 @@ TEST(PhotonChunk, CountsTravelAndAreChecked) {
 }
 
 TEST(PhotonChunk, GapsMisalignedCutsAndBadBytesAreErrors) {
-  const SceneRuntime scene(Shipped("cornell-box/cornell-box.json"));
-  JobRenderSettings s;
-  s.photons = 10000;
-  PhotonMapsOptions mo = s.Resolved(scene.description).MapsOptions();
-  const PhotonChunk a = TracePhotonChunk(scene.accel, scene.lights, mo, 0, 4096);
-  const PhotonChunk c = TracePhotonChunk(scene.accel, scene.lights, mo, 8192, 10000);
+  const CornellMap map;
+  const PhotonMapsOptions& mo = map.options;
+  const PhotonChunk a = map.Trace(0, 4096);
+  const PhotonChunk c = map.Trace(8192, 10000);
   EXPECT_THROW(AssemblePhotonMaps(std::vector<PhotonChunk>{a, c}, mo), InputError);
   EXPECT_THROW(AssemblePhotonMaps(std::vector<PhotonChunk>{a}, mo), InputError);
-  EXPECT_THROW(TracePhotonChunk(scene.accel, scene.lights, mo, 100, 4096), std::invalid_argument);
+  EXPECT_THROW(map.Trace(100, 4096), std::invalid_argument);
   const std::string bytes = SerializePhotonChunk(a);
   for (size_t n : {size_t(0), size_t(10), size_t(60), bytes.size() / 2, bytes.size() - 1}) {
     SCOPED_TRACE(n);
