@@ -8,7 +8,6 @@
 
 #include <chrono>
 #include <cstring>
-#include <functional>
 #include <stdexcept>
 
 #include "common/core/byte_codec.h"
@@ -20,25 +19,36 @@ namespace {
 constexpr std::string_view kMagic = "PFCHNK\r\n";
 constexpr uint32_t kVersion = 2;
 
-// One map of `o` holding `photons` in their order (the order decides the balanced tree), built.
-// With keep_light_ids / keep_origins, `attributes_in_order` gives the attributes of `photons` in
-// the same order (called once the photons are freed, so both never peak together); they are
-// stored in the map's post-build order in `attributes`.
-std::unique_ptr<PhotonMap> BuildPhotonMap(const PhotonMapsOptions& o, std::vector<Photon> photons,
-                                          const std::function<PhotonAttributes()>& attributes_in_order,
+// One map of `o` from the lists of `kinds` of all chunks, concatenated in that order (kind by
+// kind, each in photon order: the lists a whole trace gives; the order decides the balanced
+// tree), built. The photons go from the chunks straight into the map. With keep_light_ids /
+// keep_origins, their attributes are gathered in the same order once the map is built (so the
+// concatenated copy and the build's memory never peak together) and stored in the map's
+// post-build order in `attributes`.
+std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<const PhotonChunk> chunks,
+                                          std::initializer_list<PhotonKind> kinds,
                                           PhotonAttributes* attributes) {
   auto map = MakePhotonMap(o.kind, o.structure);
   map->set_build_threads(o.tracing.threads);
-  const size_t n = photons.size();
-  map->AddPhotons(photons);
-  std::vector<Photon>().swap(photons);
+  size_t n = 0;
+  for (PhotonKind k : kinds)
+    for (const PhotonChunk& c : chunks) n += c.lists[size_t(k)].photons.size();
+  map->Reserve(n);
+  for (PhotonKind k : kinds)
+    for (const PhotonChunk& c : chunks) map->AddPhotons(c.lists[size_t(k)].photons);
   if (!o.keep_light_ids && !o.keep_origins) {
     map->PrepareForQuery();
     return map;
   }
   std::vector<uint32_t> original;
   map->PrepareForQuery(&original);
-  const PhotonAttributes in_order = attributes_in_order();
+  PhotonAttributes in_order;
+  for (PhotonKind k : kinds)
+    for (const PhotonChunk& c : chunks) {
+      const PhotonChunk::List& l = c.lists[size_t(k)];
+      if (o.keep_light_ids) in_order.light.insert(in_order.light.end(), l.light.begin(), l.light.end());
+      if (o.keep_origins) in_order.origin.insert(in_order.origin.end(), l.origin.begin(), l.origin.end());
+    }
   if (o.keep_light_ids) attributes->light.resize(n);
   if (o.keep_origins) attributes->origin.resize(n);
   for (size_t i = 0; i < n; ++i) {
@@ -46,32 +56,6 @@ std::unique_ptr<PhotonMap> BuildPhotonMap(const PhotonMapsOptions& o, std::vecto
     if (o.keep_origins) attributes->origin[i] = in_order.origin[original[i]];
   }
   return map;
-}
-
-// One map from the lists of `kinds` of all chunks, concatenated in that order (kind by kind,
-// each in photon order): the lists a whole trace gives.
-std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<const PhotonChunk> chunks,
-                                          std::initializer_list<PhotonKind> kinds,
-                                          PhotonAttributes* attributes) {
-  size_t n = 0;
-  for (PhotonKind k : kinds)
-    for (const PhotonChunk& c : chunks) n += c.lists[size_t(k)].photons.size();
-  std::vector<Photon> compact;
-  compact.reserve(n);
-  for (PhotonKind k : kinds)
-    for (const PhotonChunk& c : chunks)
-      compact.insert(compact.end(), c.lists[size_t(k)].photons.begin(), c.lists[size_t(k)].photons.end());
-  const auto in_order = [&] {
-    PhotonAttributes a;
-    for (PhotonKind k : kinds)
-      for (const PhotonChunk& c : chunks) {
-        const PhotonChunk::List& l = c.lists[size_t(k)];
-        if (o.keep_light_ids) a.light.insert(a.light.end(), l.light.begin(), l.light.end());
-        if (o.keep_origins) a.origin.insert(a.origin.end(), l.origin.begin(), l.origin.end());
-      }
-    return a;
-  };
-  return BuildPhotonMap(o, std::move(compact), in_order, attributes);
 }
 
 // Fills `maps` (its global, direct and caustic maps and their stats.stored_* and build_seconds)
