@@ -22,7 +22,7 @@ constexpr uint32_t kVersion = 2;
 // One map of `o` from the lists of `kinds` of all chunks, concatenated in that order (kind by
 // kind, each in photon order: the lists a whole trace gives; the order decides the balanced
 // tree), built. The photons go from the chunks straight into the map. With keep_light_ids /
-// keep_origins, their attributes are gathered in the same order once the map is built (so the
+// keep_origins, their attributes are gathered in the same order once the map is built (so a
 // concatenated copy and the build's memory never peak together) and stored in the map's
 // post-build order in `attributes`.
 std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<const PhotonChunk> chunks,
@@ -42,18 +42,25 @@ std::unique_ptr<PhotonMap> FillFromChunks(const PhotonMapsOptions& o, std::span<
   }
   std::vector<uint32_t> original;
   map->PrepareForQuery(&original);
-  PhotonAttributes in_order;
-  for (PhotonKind k : kinds)
-    for (const PhotonChunk& c : chunks) {
-      const PhotonChunk::List& l = c.lists[size_t(k)];
-      if (o.keep_light_ids) in_order.light.insert(in_order.light.end(), l.light.begin(), l.light.end());
-      if (o.keep_origins) in_order.origin.insert(in_order.origin.end(), l.origin.begin(), l.origin.end());
-    }
+  // The attributes in photon order: one list's own (a local build's map of one kind), else the
+  // lists concatenated.
+  PhotonChunk::List joined;
+  const PhotonChunk::List* in_order = &joined;
+  if (chunks.size() == 1 && kinds.size() == 1) {
+    in_order = &chunks.front().lists[size_t(*kinds.begin())];
+  } else {
+    for (PhotonKind k : kinds)
+      for (const PhotonChunk& c : chunks) {
+        const PhotonChunk::List& l = c.lists[size_t(k)];
+        if (o.keep_light_ids) joined.light.insert(joined.light.end(), l.light.begin(), l.light.end());
+        if (o.keep_origins) joined.origin.insert(joined.origin.end(), l.origin.begin(), l.origin.end());
+      }
+  }
   if (o.keep_light_ids) attributes->light.resize(n);
   if (o.keep_origins) attributes->origin.resize(n);
   for (size_t i = 0; i < n; ++i) {
-    if (o.keep_light_ids) attributes->light[i] = in_order.light[original[i]];
-    if (o.keep_origins) attributes->origin[i] = in_order.origin[original[i]];
+    if (o.keep_light_ids) attributes->light[i] = in_order->light[original[i]];
+    if (o.keep_origins) attributes->origin[i] = in_order->origin[original[i]];
   }
   return map;
 }
