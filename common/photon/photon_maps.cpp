@@ -1,55 +1,17 @@
 #include "common/photon/photon_maps.h"
 
 #include <spdlog/spdlog.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <array>
 #include <chrono>
 #include <optional>
+#include <vector>
 
 #include "common/core/error.h"
-#include "common/photon/photon_maps_fill.h"
+#include "common/photon/photon_chunk.h"
 
 namespace pf {
 namespace {
-
-// One map from the traced lists of `kinds`, concatenated in that order.
-std::unique_ptr<PhotonMap> MakeFilled(const PhotonMapsOptions& o, const PhotonTracingResult& traced,
-                                      std::initializer_list<PhotonKind> kinds, PhotonAttributes* attributes) {
-  const std::array<const TracedPhotons*, 3> by_kind = {&traced.direct, &traced.indirect, &traced.caustic};
-  size_t n = 0;
-  for (PhotonKind k : kinds) n += by_kind[size_t(k)]->size();
-  // Compressing to 18 bytes (two arc functions and a frexp per photon) is independent per
-  // photon: done in parallel into place, then added in one piece (same order as one by one).
-  std::vector<Photon> compact(n);
-  tbb::task_arena arena(o.tracing.threads > 0 ? o.tracing.threads : tbb::task_arena::automatic);
-  size_t offset = 0;
-  for (PhotonKind k : kinds) {
-    const TracedPhotons& l = *by_kind[size_t(k)];
-    arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, l.size(), 16384), [&](const auto& range) {
-        for (size_t i = range.begin(); i != range.end(); ++i) {
-          const TracedPhoton& p = l[i];
-          compact[offset + i] = Photon::Make(p.position, p.direction, p.power);
-        }
-      });
-    });
-    offset += l.size();
-  }
-  const auto in_order = [&] {
-    PhotonAttributes a;
-    for (PhotonKind k : kinds)
-      for (const TracedPhoton& p : *by_kind[size_t(k)]) {
-        if (o.keep_light_ids) a.light.push_back(p.light);
-        if (o.keep_origins) a.origin.push_back(p.origin);
-      }
-    return a;
-  };
-  return BuildPhotonMap(o, std::move(compact), in_order, attributes);
-}
 
 // Seeds of the pilot of `importance auto`: fixed, not the map's, so the decision is a function of
 // the scene, the camera and the settings alone.
@@ -84,8 +46,6 @@ ImportancePilot RunImportancePilot(const EmbreeScene& scene, const LightSampler&
 
 PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& lights,
                              const PhotonMapsOptions& options, const Camera* camera) {
-  PhotonMaps maps;
-  maps.seed = options.tracing.map_seed;
   // Wald 1999, §4.7: importance-driven storing.
   bool use_importance = options.importance.mode == ImportanceMode::kOn;
   if (options.importance.mode != ImportanceMode::kOff && !camera)
@@ -100,58 +60,61 @@ PhotonMaps PhotonMaps::Build(const EmbreeScene& scene, const LightSampler& light
         100.0 * pilot.rejected_fraction, 100.0 * kImportanceAutoThreshold, 1.0 - pilot.rejected_fraction,
         options.importance.min_probability, options.importance.strength, pilot.seconds);
   }
+  // The options the pieces are traced and assembled with: the importance map every piece reads,
+  // and `caustic auto` resolved.
+  PhotonMapsOptions resolved = options;
   std::optional<ImportanceMap> importance;
-  PhotonTracerOptions tracing = options.tracing;
   if (use_importance) {
     importance = ImportanceMap::Build(scene, *camera, options.importance, options.tracing.map_seed,
                                       options.tracing.sampler, options.tracing.threads);
-    tracing.importance = &*importance;
-    maps.stats.importance = true;
-    maps.stats.importons = importance->stats().stored;
-    maps.stats.importance_seconds = importance->stats().seconds;
+    resolved.tracing.importance = &*importance;
   }
   const bool need_caustic =
       options.caustic == CausticMapMode::kOn ||
       (options.caustic == CausticMapMode::kAuto && SceneNeedsCausticMap(scene.description()));
   if (options.caustic == CausticMapMode::kAuto && !need_caustic)
     spdlog::info("photon maps: no specular or glossy surface in the scene: no caustic map");
+  resolved.caustic = need_caustic ? CausticMapMode::kOn : CausticMapMode::kOff;
 
-  const PhotonTracingResult traced = TracePhotons(scene, lights, tracing);
-  maps.stats.emitted = traced.emitted;
-  maps.stats.rays = traced.rays;
-  maps.stats.rejected = traced.rejected;
-  maps.stats.trace_seconds = traced.seconds + maps.stats.importance_seconds;
-  maps.stats.emitted_power = traced.emitted_power;
-  maps.stats.stored_power = traced.StoredPower();
-
-  FillPhotonMaps(
-      options, need_caustic, {traced.direct.size(), traced.indirect.size(), traced.caustic.size()},
-      [&](std::initializer_list<PhotonKind> kinds, PhotonAttributes* attributes) {
-        return MakeFilled(options, traced, kinds, attributes);
-      },
-      &maps);
+  // The map as pieces [0, N), assembled as the coordinator assembles its workers' pieces: one
+  // piece (photon_maps.h says why).
+  std::vector<PhotonChunk> pieces;
+  if (options.tracing.photons > 0)
+    pieces.push_back(TracePhotonChunk(scene, lights, resolved, 0, options.tracing.photons));
+  uint64_t traced_caustic = 0, traced_stored = 0;
+  for (const PhotonChunk& c : pieces) {
+    traced_caustic += c.lists[size_t(PhotonKind::kCaustic)].photons.size();
+    traced_stored += c.counts.stored;
+  }
+  PhotonMaps maps = AssemblePhotonMaps(pieces, resolved);
+  std::vector<PhotonChunk>().swap(pieces);
+  PhotonMapsStats& st = maps.stats;
+  const double trace_seconds = st.trace_seconds;
+  if (importance) {
+    st.importance = true;
+    st.importons = importance->stats().stored;
+    st.importance_seconds = importance->stats().seconds;
+    st.trace_seconds += st.importance_seconds;
+  }
   spdlog::info(
       "photon maps (seed {}): {} emitted, {} global + {} caustic stored ({} direct), trace {:.2f}s, build "
       "{:.2f}s",
-      options.tracing.map_seed, traced.emitted, maps.stats.stored_global, maps.stats.stored_caustic,
-      maps.stats.stored_direct, traced.seconds, maps.stats.build_seconds);
+      options.tracing.map_seed, st.emitted, st.stored_global, st.stored_caustic, st.stored_direct,
+      trace_seconds, st.build_seconds);
   if (options.tracing.caustic_split > 1)
     spdlog::info(
         "caustic splitting (seed {}): S = {} by {}: {} caustic photons; {} chains split, {} of {} mutations "
         "accepted",
         options.tracing.map_seed, options.tracing.caustic_split,
-        CausticSplitMethodName(options.tracing.caustic_split_method), traced.caustic.size(), traced.chains,
-        traced.accepted, traced.mutations);
+        CausticSplitMethodName(options.tracing.caustic_split_method), traced_caustic, st.chains, st.accepted,
+        st.mutations);
   if (importance)
     spdlog::info(
         "importance (seed {}): {} importons stored of {} traced ({:.2f}s); {} diffuse hits not stored "
-        "({:.1f}%), "
-        "p_min {}, strength {}",
+        "({:.1f}%), p_min {}, strength {}",
         options.tracing.map_seed, importance->stats().stored, importance->stats().traced,
-        importance->stats().seconds, traced.rejected,
-        100.0 * double(traced.rejected) /
-            double(std::max<uint64_t>(
-                1, traced.rejected + traced.direct.size() + traced.indirect.size() + traced.caustic.size())),
+        importance->stats().seconds, st.rejected,
+        100.0 * double(st.rejected) / double(std::max<uint64_t>(1, st.rejected + traced_stored)),
         options.importance.min_probability, options.importance.strength);
   return maps;
 }

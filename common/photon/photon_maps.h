@@ -2,6 +2,18 @@
 // The photon maps of one map seed (Wald 1999, §2.2): photon tracing plus the structures built
 // over its output. "Model only what the scene needs": the caustic map is built only when the
 // scene has singular surfaces (or when forced), and each decision is logged.
+//
+// One build path for local and distributed maps: PhotonMaps::Build traces the map as pieces
+// [0, N) (TracePhotonChunk, photon_chunk.h) and fills and builds the maps from them with
+// AssemblePhotonMaps, the function the coordinator calls on the pieces its workers traced
+// (docs/farm.md, "Photon maps traced once"). What only a local build does comes before the
+// pieces: resolving `caustic auto`, the pilot of `importance auto` and the importance map (§4.7),
+// which every piece then reads. A local build is one piece [0, N): its stats.stored_power (kept
+// in the map file) is then the whole trace's double sum bit for bit, which several pieces would
+// only match up to float rounding (AssemblePhotonMaps); the photons, and so the maps and images,
+// are the same for any cuts. One piece traced in parallel costs the CPU time of the former
+// whole trace, and frees each traced list as soon as it is compressed to 18 bytes
+// (docs/results/one-build-path.md).
 
 #include <memory>
 #include <mutex>
@@ -51,6 +63,8 @@ struct PhotonMapsStats {
   double trace_seconds = 0, build_seconds = 0;
   uint64_t rays = 0;
   Rgb emitted_power, stored_power;  // stored_power: Σ Φ over all stored photons (before compression)
+  // Metropolis caustic splitting (§4.6.2): singular chains split, mutations tried and accepted.
+  uint64_t chains = 0, mutations = 0, accepted = 0;
   // Importance (§4.7): whether the map was thinned, the diffuse hits it did not store, and the
   // importance map's size and build time (included in trace_seconds).
   bool importance = false;
@@ -95,6 +109,8 @@ struct PhotonMaps {
   std::shared_ptr<Derived> derived = std::make_shared<Derived>();
 
   // `camera` (in the scene's frame) is required when options.importance.mode is not off.
+  // stats.trace_seconds covers the importance map, the trace and the compression to 18 bytes;
+  // build_seconds the maps' build (AssemblePhotonMaps).
   static PhotonMaps Build(const EmbreeScene& scene, const LightSampler& lights,
                           const PhotonMapsOptions& options, const Camera* camera = nullptr);
 };

@@ -58,6 +58,17 @@ double Sum(const TracedPhotons& list) {
   return sum;
 }
 
+// The tracer's options for `photons` photons of map seed `seed`, split S = `split` by `method`.
+PhotonTracerOptions TracerOptions(uint64_t photons, uint64_t seed, uint32_t split = 1,
+                                  CausticSplitMethod method = CausticSplitMethod::kBrute) {
+  PhotonTracerOptions o;
+  o.photons = photons;
+  o.map_seed = seed;
+  o.caustic_split = split;
+  o.caustic_split_method = method;
+  return o;
+}
+
 // Stored caustic and non-caustic power of each seed's map.
 struct PowerSamples {
   std::vector<double> caustic, global;
@@ -68,11 +79,7 @@ PowerSamples Measure(const Scene& scene, uint64_t photons, uint32_t split, Caust
                      int seeds) {
   PowerSamples out;
   for (int seed = 0; seed < seeds; ++seed) {
-    PhotonTracerOptions o;
-    o.photons = photons;
-    o.map_seed = 1000 + uint64_t(seed);
-    o.caustic_split = split;
-    o.caustic_split_method = method;
+    const PhotonTracerOptions o = TracerOptions(photons, 1000 + uint64_t(seed), split, method);
     const PhotonTracingResult r = TracePhotons(scene.accel, scene.lights, o);
     out.caustic.push_back(Sum(r.caustic));
     out.global.push_back(Sum(r.direct) + Sum(r.indirect));
@@ -157,9 +164,7 @@ bool Same(const TracedPhotons& a, const TracedPhotons& b) {
 // worth of stores (±5 %), not S·N.
 TEST(CausticSplitting, GlobalMapKeepsItsSize) {
   const Scene scene;
-  PhotonTracerOptions o;
-  o.photons = 20000;
-  o.map_seed = 3;
+  PhotonTracerOptions o = TracerOptions(20000, 3);
   const PhotonTracingResult none = TracePhotons(scene.accel, scene.lights, o);
   o.caustic_split = 6;
   o.caustic_split_method = CausticSplitMethod::kMetropolis;
@@ -182,9 +187,7 @@ TEST(CausticSplitting, GlobalMapKeepsItsSize) {
 // S = 1 is no splitting, bit for bit, with either method.
 TEST(CausticSplitting, SplitOfOneIsBitIdenticalToNoSplitting) {
   const Scene scene;
-  PhotonTracerOptions o;
-  o.photons = 10000;
-  o.map_seed = 11;
+  PhotonTracerOptions o = TracerOptions(10000, 11);
   const PhotonTracingResult none = TracePhotons(scene.accel, scene.lights, o);
   for (CausticSplitMethod method : {CausticSplitMethod::kBrute, CausticSplitMethod::kMetropolis}) {
     o.caustic_split = 1;
@@ -216,11 +219,7 @@ TEST(CausticSplitting, SamePhotonsForAnyThreadCount) {
   const Scene scene;
   for (CausticSplitMethod method : {CausticSplitMethod::kBrute, CausticSplitMethod::kMetropolis}) {
     SCOPED_TRACE(CausticSplitMethodName(method));
-    PhotonTracerOptions o;
-    o.photons = 3 * kPhotonTracingChunk + 100;
-    o.map_seed = 21;
-    o.caustic_split = 5;
-    o.caustic_split_method = method;
+    PhotonTracerOptions o = TracerOptions(3 * kPhotonTracingChunk + 100, 21, 5, method);
     o.threads = 1;
     const PhotonTracingResult one = TracePhotons(scene.accel, scene.lights, o);
     for (int threads : {2, 3}) {
@@ -273,6 +272,11 @@ TEST(CausticSplitting, PiecesAssembleToTheOneProcessMap) {
     EXPECT_EQ(Comparable(DeserializePhotonMaps(SerializePhotonMaps(assembled))),
               Comparable(DeserializePhotonMaps(SerializePhotonMaps(whole))));
     EXPECT_EQ(assembled.stats.emitted, whole.stats.emitted);
+    // The chains travel with the pieces: the farm's maps count what a local build counts.
+    EXPECT_EQ(assembled.stats.chains, whole.stats.chains);
+    EXPECT_EQ(assembled.stats.mutations, whole.stats.mutations);
+    EXPECT_EQ(assembled.stats.accepted, whole.stats.accepted);
+    if (method == CausticSplitMethod::kMetropolis) EXPECT_GT(whole.stats.mutations, 0u);
   }
 }
 

@@ -11,6 +11,7 @@
 #include "common/camera/camera.h"
 #include "common/lights/light_sampler.h"
 #include "common/photon/importance_map.h"
+#include "common/photon/photon_chunk.h"
 #include "common/photon/photon_maps.h"
 #include "common/plan/task_executor.h"
 #include "common/render/job_render_settings.h"
@@ -119,6 +120,35 @@ MeanAndError Summarise(const std::vector<double>& v) {
   return m;
 }
 
+// Whether two maps hold the same photons in the same order, byte for byte.
+bool SamePhotons(const PhotonMap& a, const PhotonMap& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.photons().data(), b.photons().data(), a.size() * sizeof(Photon)) == 0;
+}
+
+// Importance-driven storing pieces like the rest (photon_chunk.h): photons traced in pieces
+// against the map's importance map assemble to PhotonMaps::Build's maps, rejections included.
+TEST(ImportanceMapTest, PiecesAssembleToTheBuiltMap) {
+  const TwoRooms r = MakeTwoRooms();
+  const EmbreeScene accel(r.scene);
+  const LightSampler lights(accel);
+  const Camera camera(r.camera);
+  PhotonMapsOptions o = MapsOptionsOf(ImportanceMode::kOn, 20001, 5, 2);
+  const PhotonMaps whole = PhotonMaps::Build(accel, lights, o, &camera);
+  ASSERT_TRUE(whole.stats.importance);
+  ASSERT_GT(whole.stats.rejected, 0u);
+  const ImportanceMap importance = ImportanceMap::Build(accel, camera, o.importance, o.tracing.map_seed,
+                                                        o.tracing.sampler, o.tracing.threads);
+  o.tracing.importance = &importance;
+  const std::vector<uint64_t> cuts = {0, 8192, 12288, 20001};
+  std::vector<PhotonChunk> pieces;
+  for (size_t i = 0; i + 1 < cuts.size(); ++i)
+    pieces.push_back(TracePhotonChunk(accel, lights, o, cuts[i], cuts[i + 1]));
+  const PhotonMaps assembled = AssemblePhotonMaps(pieces, o);
+  EXPECT_EQ(assembled.stats.rejected, whole.stats.rejected);
+  EXPECT_TRUE(SamePhotons(*assembled.global, *whole.global));
+}
+
 // The same photons for any thread count (chunks in order; the acceptance table filled by
 // whichever thread comes first holds the same bits).
 TEST(ImportanceMapTest, SameMapForAnyThreadCount) {
@@ -138,14 +168,8 @@ TEST(ImportanceMapTest, SameMapForAnyThreadCount) {
   ASSERT_TRUE(one.direct && two.direct);
   EXPECT_GT(one.stats.rejected, 0u);
   EXPECT_EQ(one.stats.rejected, two.stats.rejected);
-  ASSERT_EQ(one.global->size(), two.global->size());
-  ASSERT_EQ(one.direct->size(), two.direct->size());
-  EXPECT_EQ(std::memcmp(one.global->photons().data(), two.global->photons().data(),
-                        one.global->size() * sizeof(Photon)),
-            0);
-  EXPECT_EQ(std::memcmp(one.direct->photons().data(), two.direct->photons().data(),
-                        one.direct->size() * sizeof(Photon)),
-            0);
+  EXPECT_TRUE(SamePhotons(*one.global, *two.global));
+  EXPECT_TRUE(SamePhotons(*one.direct, *two.direct));
 }
 
 // The importance map itself: high where the camera looks (B's back wall, the door wall), p_min in
