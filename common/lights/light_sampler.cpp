@@ -116,14 +116,12 @@ void LightSampler::AddPunctualLights(std::vector<double>* weights) {
 
 LightSample LightSampler::MakePunctualSample(uint32_t index, float pdf_select) const {
   const PunctualEmitter& e = punctual_[index];
-  LightSample ls;
-  ls.position = e.position;
-  ls.normal = e.direction;
-  ls.radiance = e.intensity;
-  ls.light = e.light;
-  ls.pdf_area = pdf_select;
-  ls.punctual = index;
-  return ls;
+  return LightSample{.position = e.position,
+                     .normal = e.direction,
+                     .radiance = e.intensity,
+                     .light = e.light,
+                     .pdf_area = pdf_select,
+                     .punctual = index};
 }
 
 DeltaIncidence LightSampler::Incidence(const LightSample& ls, const Vec3& x) const {

@@ -11,6 +11,7 @@
 #include "common/scene/manifest.h"
 #include "common/scene/scene_bundle.h"
 #include "common/scene/scene_loader.h"
+#include "tests/util/input_error.h"
 #include "tests/util/temp_dir.h"
 
 namespace pf {
@@ -31,17 +32,6 @@ class ManifestLightsTest : public test_util::TempDirTest {
     Write("dark.mtl", "newmtl grey\nKd 0.5 0.5 0.5\n");
     Write("dark.obj", "mtllib dark.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl grey\nf 1 2 3\n");
     return "dark.obj";
-  }
-
-  template <typename F>
-  static std::string ErrorOf(F&& f) {
-    try {
-      f();
-    } catch (const InputError& e) {
-      return e.what();
-    }
-    ADD_FAILURE() << "expected an InputError";
-    return "";
   }
 };
 
@@ -123,7 +113,7 @@ TEST_F(ManifestLightsTest, EachMalformedKeyIsNamed) {
   };
   for (const auto& [lights, expected] : cases) {
     const fs::path p = Write("bad.json", R"({"geometry": "a.obj", )" + lights + "}");
-    const std::string msg = ErrorOf([&] { LoadManifest(p); });
+    const std::string msg = testing::InputErrorOf([&] { LoadManifest(p); });
     EXPECT_THAT(msg, HasSubstr(expected)) << lights;
     EXPECT_EQ(msg.rfind(p.string() + ": ", 0), 0u) << "message must start with the file: " << msg;
   }
@@ -144,7 +134,7 @@ TEST_F(ManifestLightsTest, LightsGetIdsAfterTheEmittersAndScaleWithTheScene) {
   EXPECT_EQ(s.punctual_lights[0].position, Vec3d(0, 10, 0));
   EXPECT_EQ(s.punctual_lights[1].direction, Vec3(0, -1, 0));
   // The box (1.99 m) fits at 1e38, the light 5 m up does not.
-  EXPECT_THAT(ErrorOf([&] { LoadScene(p, 1e38); }),
+  EXPECT_THAT(testing::InputErrorOf([&] { LoadScene(p, 1e38); }),
               HasSubstr("lit.json: scale override: 1e+38 makes lights[0].position overflow a 32-bit float"));
 }
 
@@ -171,22 +161,23 @@ TEST_F(ManifestLightsTest, TheBundleHashCoversTheLightsAndTheBundleLoadsThem) {
 
 TEST_F(ManifestLightsTest, ASceneWithoutLightIsAnInputErrorSayingWhy) {
   const std::string obj = DarkObj();
-  std::string msg = ErrorOf([&] { LoadScene(dir_ / obj); });
+  std::string msg = testing::InputErrorOf([&] { LoadScene(dir_ / obj); });
   EXPECT_EQ(msg.rfind((dir_ / obj).string() + ": ", 0), 0u) << msg;
   EXPECT_THAT(msg, HasSubstr("the scene has no light: no material emits"));
   EXPECT_THAT(msg, HasSubstr("a manifest can add them"));
   EXPECT_THAT(msg, Not(HasSubstr("Ka")));
 
   const fs::path m = Write("dark.json", R"({"geometry": "dark.obj"})");
-  msg = ErrorOf([&] { LoadScene(m); });
+  msg = testing::InputErrorOf([&] { LoadScene(m); });
   EXPECT_EQ(msg.rfind(m.string() + ": ", 0), 0u) << msg;
   EXPECT_THAT(msg, HasSubstr("the manifest has no \"lights\""));
-  EXPECT_THAT(ErrorOf([&] { LoadBundle(dir_, "dark.json"); }), HasSubstr("the scene has no light"));
+  EXPECT_THAT(testing::InputErrorOf([&] { LoadBundle(dir_, "dark.json"); }),
+              HasSubstr("the scene has no light"));
 
   // tinyobjloader's cornell_box.obj: the lamp has Ka 20 20 20 and no Ke.
   Write("ka.mtl", "newmtl light\nKa 20 20 20\nKd 0.5 0.5 0.5\nnewmtl wall\nKa 0 0 0\nKd 0.5 0.5 0.5\n");
   Write("ka.obj", "mtllib ka.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl light\nf 1 2 3\nusemtl wall\nf 1 3 2\n");
-  msg = ErrorOf([&] { LoadScene(dir_ / "ka.obj"); });
+  msg = testing::InputErrorOf([&] { LoadScene(dir_ / "ka.obj"); });
   EXPECT_THAT(msg, HasSubstr("material 'light' has Ka but no Ke: Ka is not emission in pf; use Ke"));
   EXPECT_THAT(msg, Not(HasSubstr("'wall'")));
 

@@ -231,6 +231,10 @@ TEST(PunctualLights, PhotonPowerIsTheLightsPower) {
     EXPECT_NEAR(per_light[1][c], spot_power[c], 1e-3 * spot_power[c]) << "spot, channel " << c;
   }
   EXPECT_NEAR(spot_inner / spot_count, (1 - ci) / cone, 5e-3);
+  std::printf(
+      "[ analytic ] photon power / light power: point %.6f, spot %.6f; spot inner-cone share %.4f for %.4f\n",
+      per_light[0].g / point_power.g, per_light[1].g / spot_power.g, spot_inner / spot_count,
+      (1 - ci) / cone);
 }
 
 // A directional light's photons leave a disc of the bounding sphere's radius R with Φ = E⊥·π·R²
@@ -254,6 +258,8 @@ TEST(PunctualLights, DirectionalPhotonsDeliverIrradianceTimesArea) {
   Rgb received;
   for (const TracedPhoton& p : r.direct) received += p.power;
   const double cos_theta = -sun.direction.z;
+  std::printf("[ analytic ] directional photons on the square / (E·A·cos θ): %.5f\n",
+              received.g / (sun.intensity.g * 4.0 * cos_theta));
   for (int c = 0; c < 3; ++c)
     EXPECT_NEAR(received[c], sun.intensity[c] * 4.0 * cos_theta, 0.01 * sun.intensity[c] * 4.0 * cos_theta)
         << "channel " << c;
