@@ -6,10 +6,22 @@
 
 namespace pf {
 
+Rgb DeltaLightContribution(const LightSampler& lights, const LightSample& ls, const Bsdf& bsdf, const Vec3& x,
+                           const Vec3& wo, uint32_t lobes, TraceCounters& counters) {
+  const DeltaIncidence in = lights.Incidence(ls, x);
+  if (in.irradiance.IsBlack()) return Rgb(0.0f);  // outside a spot's cone
+  const Rgb f = bsdf.EvalLobes(wo, in.wi, lobes);
+  if (f.IsBlack()) return Rgb(0.0f);
+  ++counters.shadow_rays;
+  if (!lights.Unoccluded(x, bsdf.geometric_normal(), in)) return Rgb(0.0f);
+  return f * in.irradiance * (std::fabs(Dot(in.wi, bsdf.shading_normal())) / ls.pdf_area);
+}
+
 Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t light, const Bsdf& bsdf,
                    const Vec3& x, const Vec3& wo, uint32_t lobes, float u_select, Sample2 u,
                    TraceCounters& counters) {
   const LightSample ls = lights.SampleLight(light, u_select, u.u, u.v);
+  if (ls.delta()) return DeltaLightContribution(lights, ls, bsdf, x, wo, lobes, counters);
   const Vec3 to_light = ls.position - x;
   const float dist2 = LengthSquared(to_light);
   if (!(dist2 > 0.0f)) return Rgb(0.0f);

@@ -20,6 +20,9 @@
 //   (cos > 0.9) — the thesis found ×20 on SCENE10 from scanline coherence. Here the cache
 //   lives only within the samples of one pixel (t_pixel_epoch), because reusing it across
 //   pixels would make the image depend on which pixels a thread rendered before.
+//
+// Punctual lights (point, spot, directional; light_sampler.h) are lights like the others here:
+// each its own light id, power and photons; their one "sample" is the light itself.
 
 #include <cstdint>
 #include <limits>
@@ -60,6 +63,12 @@ class MonteCarloDirectLight {
 Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t light, const Bsdf& bsdf,
                    const Vec3& x, const Vec3& wo, uint32_t lobes, float u_select, Sample2 u,
                    TraceCounters& counters);
+
+// A delta light's sample (point, spot, directional; ls.delta()): f·E·|cos θ|·V / p, with E the
+// irradiance it sends to x (LightSampler::Incidence) and p = ls.pdf_area the probability of its
+// choice. No MIS: no BSDF sample can hit a delta light (Veach 1997, §9.2.3).
+Rgb DeltaLightContribution(const LightSampler& lights, const LightSample& ls, const Bsdf& bsdf, const Vec3& x,
+                           const Vec3& wo, uint32_t lobes, TraceCounters& counters);
 
 enum class NonContributingMode { kOneRandom, kEachOne };
 

@@ -1,6 +1,8 @@
 #include "common/lights/light_sampler.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 namespace pf {
 
@@ -19,6 +21,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     weights.push_back(w);
     total_power_ += m.emission * (kPi * area);
   }
+  AddPunctualLights(&weights);
   double total = 0;
   for (double w : weights) total += w;
   cdf_.resize(weights.size());
@@ -26,7 +29,11 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
   for (size_t i = 0; i < weights.size(); ++i) {
     acc += weights[i];
     cdf_[i] = float(acc / total);
-    select_prob_by_tri_[triangles_[i]] = float(weights[i] / total);
+    if (i < triangles_.size()) {
+      select_prob_by_tri_[triangles_[i]] = float(weights[i] / total);
+    } else {
+      punctual_prob_.push_back(float(weights[i] / total));
+    }
   }
   if (!cdf_.empty()) cdf_.back() = 1.0f;
 
@@ -39,7 +46,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     const size_t slot = (id == kNoLight || id >= num_ids) ? num_ids : id;
     if (light_index_by_id_[slot] == uint32_t(-1)) {
       light_index_by_id_[slot] = uint32_t(lights_.size());
-      lights_.push_back(LightGroup{id, {}, {}, {}, Rgb(0.0f)});
+      lights_.push_back(LightGroup{id, {}, {}, {}, Rgb(0.0f), kNotPunctual});
     }
     LightGroup& g = lights_[light_index_by_id_[slot]];
     g.triangles.push_back(tri);
@@ -47,6 +54,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     g.power += s.materials[s.triangle_material[tri]].emission * (kPi * scene.triangle_area(tri));
   }
   for (LightGroup& g : lights_) {
+    if (g.triangles.empty()) continue;
     double sum = 0;
     for (float w : g.prob) sum += w;
     double acc = 0;
@@ -58,6 +66,88 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     }
     g.cdf.back() = 1.0f;
   }
+  // Each punctual light is a light of its own, after those of the triangles (its id is one of
+  // the scene's 0..num_lights-1, given by the loader after the emitting primitives').
+  for (size_t k = 0; k < punctual_.size(); ++k) {
+    const uint32_t id = punctual_[k].light;
+    const size_t slot = id < num_ids ? id : num_ids;
+    light_index_by_id_[slot] = uint32_t(lights_.size());
+    lights_.push_back(LightGroup{id, {}, {}, {}, punctual_[k].power, uint32_t(k)});
+  }
+}
+
+void LightSampler::AddPunctualLights(std::vector<double>* weights) {
+  const SceneDescription& s = scene_->description();
+  const Bounds3& bounds = scene_->bounds();
+  const Vec3 centre = bounds.Empty() ? Vec3(0.0f) : bounds.Center();
+  const float radius = bounds.Empty() ? 0.0f : 0.5f * Length(bounds.Diagonal());
+  for (const PunctualLight& l : s.punctual_lights) {
+    PunctualEmitter e;
+    e.kind = l.kind;
+    e.position = Vec3(l.position - s.origin);  // into the scene's frame (scene_frame.h), in double
+    e.direction = Normalize(l.direction);
+    e.intensity = l.intensity;
+    e.light = l.light;
+    switch (l.kind) {
+      case PunctualLight::Kind::kPoint:
+        e.power = l.intensity * (4.0f * kPi);
+        break;
+      case PunctualLight::Kind::kSpot: {
+        e.cos_inner = std::cos(l.inner_cone_deg * kPi / 180.0f);
+        e.cos_outer = std::cos(l.outer_cone_deg * kPi / 180.0f);
+        // ∫ falloff dω over the cone: the flat inner cap plus the squared ramp (its mean is 1/3).
+        e.power = l.intensity * (2.0f * kPi * ((1.0f - e.cos_inner) + (e.cos_inner - e.cos_outer) / 3.0f));
+        break;
+      }
+      case PunctualLight::Kind::kDirectional:
+        // E⊥ through the disc of the bounding sphere's radius: every ray that can hit the scene.
+        e.position = centre;
+        e.radius = radius;
+        e.power = l.intensity * (kPi * radius * radius);
+        break;
+    }
+    const double w = double(std::max(e.power.Luminance(), 1e-6f * e.power.Max()));
+    if (!(w > 0.0) || !e.power.IsFinite()) continue;
+    punctual_.push_back(e);
+    weights->push_back(w);
+    total_power_ += e.power;
+  }
+}
+
+LightSample LightSampler::MakePunctualSample(uint32_t index, float pdf_select) const {
+  const PunctualEmitter& e = punctual_[index];
+  return LightSample{.position = e.position,
+                     .normal = e.direction,
+                     .radiance = e.intensity,
+                     .light = e.light,
+                     .pdf_area = pdf_select,
+                     .punctual = index};
+}
+
+DeltaIncidence LightSampler::Incidence(const LightSample& ls, const Vec3& x) const {
+  const PunctualEmitter& e = punctual_[ls.punctual];
+  DeltaIncidence in;
+  if (e.kind == PunctualLight::Kind::kDirectional) {
+    in.wi = -e.direction;
+    in.irradiance = e.intensity;
+    in.distance = std::numeric_limits<float>::infinity();
+    return in;
+  }
+  const Vec3 d = e.position - x;
+  const float dist2 = LengthSquared(d);
+  if (!(dist2 > 0.0f)) return in;  // at the light itself: nothing defined, nothing sent
+  in.distance = std::sqrt(dist2);
+  in.wi = d / in.distance;
+  const float falloff = e.kind == PunctualLight::Kind::kSpot
+                            ? SpotFalloff(-Dot(in.wi, e.direction), e.cos_inner, e.cos_outer)
+                            : 1.0f;
+  in.irradiance = e.intensity * (falloff / dist2);
+  return in;
+}
+
+bool LightSampler::Unoccluded(const Vec3& x, const Vec3& ng, const DeltaIncidence& in) const {
+  const Vec3 origin = OffsetRayOrigin(x, Dot(in.wi, ng) >= 0.0f ? ng : -ng, scene_->epsilon());
+  return !scene_->Occluded(Ray{origin, in.wi, in.distance});
 }
 
 LightSample LightSampler::MakeSample(uint32_t tri, float u1, float u2, float pdf_select) const {
@@ -75,6 +165,7 @@ LightSample LightSampler::MakeSample(uint32_t tri, float u1, float u2, float pdf
 
 LightSample LightSampler::SampleLight(size_t light, float u_select, float u1, float u2) const {
   const LightGroup& g = lights_[light];
+  if (g.punctual != kNotPunctual) return MakePunctualSample(g.punctual, 1.0f);
   const size_t i = std::min<size_t>(std::upper_bound(g.cdf.begin(), g.cdf.end(), u_select) - g.cdf.begin(),
                                     g.cdf.size() - 1);
   return MakeSample(g.triangles[i], u1, u2, g.prob[i]);
@@ -92,6 +183,10 @@ LightSample LightSampler::Sample(float u_select, float u1, float u2) const {
 }
 
 LightSample LightSampler::EmitterSample(size_t emitter, float u1, float u2) const {
+  if (emitter >= triangles_.size()) {
+    const size_t k = emitter - triangles_.size();
+    return MakePunctualSample(uint32_t(k), punctual_prob_[k]);
+  }
   const uint32_t tri = triangles_[emitter];
   return MakeSample(tri, u1, u2, select_prob_by_tri_[tri]);
 }

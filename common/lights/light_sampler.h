@@ -3,9 +3,17 @@
 // (Φ = π·A·luminance(Le) for a Lambertian one-sided emitter), then a uniform point on it.
 // Used for next-event estimation (path tracer, §4.2.1 direct light) and for photon emission
 // (§2.2: photons per light ∝ its power).
+//
+// Punctual lights (point, spot, directional: punctual_light.h) are emitters too, numbered after
+// the triangles and chosen ∝ their power alike: point 4π·I, spot 2π·I·[(1 − cos θi) +
+// (cos θi − cos θo)/3], directional E⊥·π·R² with R the radius of the scene's bounding sphere
+// (the disc its photons leave from, photon_tracer.cpp). Their samples are delta samples
+// (LightSample::delta()): one position or direction, pdf_area the probability of the choice.
+// A scene without them has exactly the emitters, probabilities and light numbers it had before.
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "common/accel/embree_scene.h"
@@ -13,20 +21,47 @@
 
 namespace pf {
 
+inline constexpr uint32_t kNotPunctual = std::numeric_limits<uint32_t>::max();
+
 struct LightSample {
-  Vec3 position;
-  Vec3 normal;   // front-face normal of the emitter (emission side)
-  Rgb radiance;  // Le
+  Vec3 position;  // punctual: the light's position (point, spot) in the scene's frame
+  Vec3 normal;    // front-face normal of the emitter (emission side); punctual: its direction
+  Rgb radiance;   // Le; punctual: I (W/sr) or E⊥ (W/m²)
   uint32_t triangle = 0;
   uint32_t light = 0;
-  float pdf_area = 0;  // probability density per unit area (incl. the triangle choice)
+  float pdf_area = 0;                // probability density per unit area (incl. the triangle choice);
+                                     // punctual: the probability of choosing the light
+  uint32_t punctual = kNotPunctual;  // index into LightSampler::punctual(), or kNotPunctual
+  bool delta() const { return punctual != kNotPunctual; }
+};
+
+// A punctual light as the sampler and the photon tracer use it: in the scene's frame, cosines
+// precomputed, its power Φ (RGB, W).
+struct PunctualEmitter {
+  PunctualLight::Kind kind = PunctualLight::Kind::kPoint;
+  Vec3 position;  // point, spot; directional: the centre of the scene's bounding sphere
+  Vec3 direction;
+  Rgb intensity;                        // I or E⊥
+  float cos_inner = 1, cos_outer = -1;  // spot
+  float radius = 0;                     // directional: R of the scene's bounding sphere
+  Rgb power;
+  uint32_t light = 0;
+};
+
+// What a delta light sends to a point x: the unit direction towards it, the irradiance on a
+// surface facing it (I·falloff/d² or E⊥; black outside a spot's cone) and the distance to it
+// (infinite for a directional light).
+struct DeltaIncidence {
+  Vec3 wi;
+  Rgb irradiance;
+  float distance = 0;
 };
 
 class LightSampler {
  public:
   explicit LightSampler(const EmbreeScene& scene);
 
-  bool empty() const { return triangles_.empty(); }
+  bool empty() const { return triangles_.empty() && punctual_.empty(); }
   // Picks an emitter triangle ∝ power with u_select, then a uniform point with (u1, u2).
   LightSample Sample(float u_select, float u1, float u2) const;
   // Sample(u_select, u1, u2) in two steps, EmitterSample(EmitterIndex(u_select), u1, u2): which
@@ -39,9 +74,17 @@ class LightSampler {
   LightSample EmitterSample(size_t emitter, float u1, float u2) const;
   // Density per unit area of sampling this point on triangle `tri` (0 if it does not emit).
   float PdfArea(uint32_t tri) const;
-  // Total emitted power Σ π·A·Le (RGB), W.
+  // Total emitted power Σ π·A·Le + Σ Φ of the punctual lights (RGB), W.
   const Rgb& total_power() const { return total_power_; }
   size_t num_emitting_triangles() const { return triangles_.size(); }
+  // Every emitter EmitterIndex can give: the triangles, then the punctual lights.
+  size_t num_emitters() const { return triangles_.size() + punctual_.size(); }
+  const std::vector<PunctualEmitter>& punctual() const { return punctual_; }
+
+  // A delta sample's light at x (ls.delta()), and whether nothing blocks the way from x (ng: the
+  // geometric normal there, the shadow ray's origin is offset along it) to it.
+  DeltaIncidence Incidence(const LightSample& ls, const Vec3& x) const;
+  bool Unoccluded(const Vec3& x, const Vec3& ng, const DeltaIncidence& in) const;
 
   // Per light (one emitting source primitive, scene.triangle_light), for direct-light
   // estimators that sample each light separately (§4.2.1, §4.2.3). Lights are numbered
@@ -50,7 +93,7 @@ class LightSampler {
   size_t num_lights() const { return lights_.size(); }
   const Rgb& light_power(size_t light) const { return lights_[light].power; }
   // Samples light `light` alone: a triangle ∝ power within it, a uniform point on it.
-  // pdf_area is the density within that light.
+  // pdf_area is the density within that light (1 for a punctual light's delta sample).
   LightSample SampleLight(size_t light, float u_select, float u1, float u2) const;
   // Which light a scene light id is (kNoLight → the extra one); num_lights() if unknown.
   size_t LightIndex(uint32_t scene_light_id) const;
@@ -62,13 +105,18 @@ class LightSampler {
     std::vector<float> cdf;
     std::vector<float> prob;  // selection probability within the light, per entry of triangles
     Rgb power;
+    uint32_t punctual = kNotPunctual;  // a punctual light's group has no triangles
   };
   LightSample MakeSample(uint32_t tri, float u1, float u2, float pdf_select) const;
+  LightSample MakePunctualSample(uint32_t index, float pdf_select) const;
+  void AddPunctualLights(std::vector<double>* weights);
   std::vector<LightGroup> lights_;
   std::vector<uint32_t> light_index_by_id_;  // scene id → index in lights_ (kNoLight slot last)
 
   const EmbreeScene* scene_;
   std::vector<uint32_t> triangles_;        // emissive triangle ids
+  std::vector<PunctualEmitter> punctual_;  // emitters num_emitting_triangles() and on
+  std::vector<float> punctual_prob_;       // their selection probabilities
   std::vector<float> cdf_;                 // cumulative selection probability, last = 1
   std::vector<float> select_prob_by_tri_;  // per scene triangle; 0 for non-emitters
   Rgb total_power_;

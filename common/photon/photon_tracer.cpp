@@ -3,9 +3,11 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <chrono>
+#include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <memory>
@@ -42,12 +44,46 @@ const char* CausticSplitMethodName(CausticSplitMethod m) {
   return m == CausticSplitMethod::kMetropolis ? "metropolis" : "brute";
 }
 
+namespace {
+
+// A punctual light's emitter (photon_tracer.h, PhotonEmitter): Φ/(p·N) per photon, every photon
+// of the light carrying the same power because its directions follow the light's own angular
+// distribution (and a directional light's points are uniform on its disc).
+PhotonEmitter PunctualPhotonEmitter(const PunctualEmitter& p, float p_select, uint64_t emitted) {
+  PhotonEmitter e;
+  e.punctual = true;
+  e.kind = p.kind;
+  e.normal = p.direction;
+  e.frame = Frame(p.direction);
+  e.power = p.power * (1.0f / (p_select * float(emitted)));
+  e.light = p.light;
+  e.a = p.position;
+  if (p.kind == PunctualLight::Kind::kSpot) {
+    e.cos_inner = p.cos_inner;
+    e.cos_outer = p.cos_outer;
+    const float cap = 1.0f - p.cos_inner, ramp = (p.cos_inner - p.cos_outer) / 3.0f;
+    e.cap_probability = cap / (cap + ramp);
+  } else if (p.kind == PunctualLight::Kind::kDirectional) {
+    e.radius = p.radius;
+    // The disc stands beyond the bounding sphere, facing along the light (a little beyond it, so
+    // that no surface on the sphere is in front of a photon's origin).
+    e.a = p.position - p.direction * (1.01f * p.radius);
+  }
+  return e;
+}
+
+}  // namespace
+
 std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const LightSampler& lights,
                                           uint64_t emitted) {
   std::vector<PhotonEmitter> emitters;
-  emitters.reserve(lights.num_emitting_triangles());
-  for (size_t i = 0; i < lights.num_emitting_triangles(); ++i) {
+  emitters.reserve(lights.num_emitters());
+  for (size_t i = 0; i < lights.num_emitters(); ++i) {
     const LightSample ls = lights.EmitterSample(i, 0.0f, 0.0f);
+    if (ls.delta()) {
+      emitters.push_back(PunctualPhotonEmitter(lights.punctual()[ls.punctual], ls.pdf_area, emitted));
+      continue;
+    }
     const auto& t = desc.triangles[ls.triangle];
     PhotonEmitter e;
     e.a = desc.positions[t[0]];
@@ -139,9 +175,54 @@ struct Emission {
   Vec3 position;
   Ray ray;
 };
+// A punctual light's photon from the same two numbers (photon_tracer.h, PhotonEmitter): from its
+// point, uniform over the sphere (point) or ∝ the falloff within the cone (spot), or from a
+// uniform point of its disc (directional). Nothing to offset: no surface emits it.
+Emission EmitPunctual(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir) {
+  Emission e;
+  e.position = em.a;
+  Vec3 local;
+  float s, c;
+  SinCos2Pi(u_dir.v, &s, &c);
+  switch (em.kind) {
+    case PunctualLight::Kind::kPoint: {
+      const float z = 1.0f - 2.0f * u_dir.u;
+      const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+      local = Vec3(r * c, r * s, z);
+      break;
+    }
+    case PunctualLight::Kind::kSpot: {
+      // cos θ: uniform on the flat cap [cos θi, 1], or on the ramp with density ∝ t², t =
+      // (cos θ − cos θo)/(cos θi − cos θo), whose inverse CDF is t = ∛u.
+      float cos_theta;
+      if (u_dir.u < em.cap_probability) {
+        cos_theta = 1.0f - (u_dir.u / em.cap_probability) * (1.0f - em.cos_inner);
+      } else {
+        const float u = (u_dir.u - em.cap_probability) / (1.0f - em.cap_probability);
+        cos_theta = em.cos_outer + std::cbrt(u) * (em.cos_inner - em.cos_outer);
+      }
+      const float r = std::sqrt(std::max(0.0f, 1.0f - cos_theta * cos_theta));
+      local = Vec3(r * c, r * s, cos_theta);
+      break;
+    }
+    case PunctualLight::Kind::kDirectional: {
+      float ds, dc;
+      SinCos2Pi(u_point.v, &ds, &dc);
+      const float r = em.radius * std::sqrt(u_point.u);
+      e.position = em.a + em.frame.s * (r * dc) + em.frame.t * (r * ds);
+      local = Vec3(0.0f, 0.0f, 1.0f);
+      break;
+    }
+  }
+  e.ray = Ray{e.position, Normalize(em.frame.ToWorld(local))};
+  return e;
+}
+
 [[gnu::always_inline]] inline Emission Emit(const PhotonEmitter& em, Sampler& sampler, float epsilon) {
   Emission e;
   const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
+  if (em.punctual) [[unlikely]]
+    return EmitPunctual(em, u_point, sampler.PhotonGet2D(kPhotonDirectionSlot));
   e.position = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
   const Sample2 u_dir = sampler.PhotonGet2D(kPhotonDirectionSlot);
   e.ray = Ray{OffsetRayOrigin(e.position, em.normal, epsilon),
@@ -295,7 +376,10 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
     }
     mw->chain.reset();
   };
-  if (metropolis) {
+  // A chain starts at the light only for an area light: its mutations jitter the emitted
+  // direction about the emitter's cosine lobe. A punctual light's caustics are stored unsplit
+  // (weight 1, as a chain that cannot be split is) — unbiased, only not refined.
+  if (metropolis && !em.punctual) {
     ChainStart start;
     start.position = e.position;
     start.ray_origin_light = ray.origin;

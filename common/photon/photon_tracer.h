@@ -3,9 +3,10 @@
 //
 // Photons leave the emitters with probability ∝ power (stratified over the photon index, so
 // each light gets its share up to ±1 photon), cosine-distributed about the emitter's front
-// normal, each carrying Φ = Φ_light / (p_light · N). At every hit on a surface with a diffuse
-// component the photon is stored; then Russian roulette on the material's reflectances picks
-// diffuse / specular / glossy / transmission / absorption, scaling Φ per channel by ρ/P.
+// normal, each carrying Φ = Φ_light / (p_light · N). Punctual lights (point, spot, directional)
+// emit as PhotonEmitter below says, with the same per-photon power rule. At every hit on a surface with a
+// diffuse component the photon is stored; then Russian roulette on the material's reflectances picks diffuse
+// / specular / glossy / transmission / absorption, scaling Φ per channel by ρ/P.
 //
 // Classification (§2.1, the thesis's definition of caustic paths L (S|D)* S+ D): a stored
 // photon is *caustic* if every interaction since the last diffuse one was singular (and there
@@ -102,12 +103,22 @@ struct PhotonTracingResult {
 // shares: the vertices its point is sampled between, the emission frame (the cosine lobe, §2.2),
 // and Φ of one photon of `emitted` — what LightSampler::Sample and the power formula give per
 // photon (test PhotonTracer.EmissionIsTheLightSamplersSample), computed once per trace.
+//
+// A punctual light (light_sampler.h, punctual = true) has one entry: `a` its position (a
+// directional light: the centre of its disc of `radius`, beyond the scene's bounding sphere),
+// `normal`/`frame` its direction, and photons distributed like its emission (uniform over the
+// sphere; within a spot's cone ∝ its falloff; uniform over the directional light's disc), so each
+// carries Φ/(p·N) with Φ its power.
 struct PhotonEmitter {
   Vec3 a, b, c;
   Vec3 normal;
   Frame frame;
   Rgb power;
   uint32_t light = 0;
+  bool punctual = false;
+  PunctualLight::Kind kind = PunctualLight::Kind::kPoint;
+  float cos_inner = 1, cos_outer = -1, cap_probability = 1;  // spot: cos θ sampling (photon_tracer.cpp)
+  float radius = 0;                                          // directional: the disc's
 };
 std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const LightSampler& lights,
                                           uint64_t emitted);

@@ -1,5 +1,6 @@
 #include "common/render/path_tracer.h"
 
+#include "common/estimators/direct_light.h"
 #include "common/materials/bsdf.h"
 #include "common/sampling/sample_layout.h"
 
@@ -55,7 +56,11 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
       const LightSample ls = lights_.Sample(u_sel, u.u, u.v);
       const Vec3 to_light = ls.position - hit->position;
       const float dist2 = LengthSquared(to_light);
-      if (dist2 > 0.0f) {
+      if (ls.delta()) {
+        // A point, spot or directional light: no BSDF sample can reach it, so no MIS weight.
+        radiance +=
+            throughput * DeltaLightContribution(lights_, ls, bsdf, hit->position, wo, kLobeAll, counters);
+      } else if (dist2 > 0.0f) {
         const Vec3 wi = to_light / std::sqrt(dist2);
         const float cos_light = -Dot(wi, ls.normal);
         if (cos_light > 0.0f) {

@@ -162,6 +162,74 @@ class Parser {
     return o;
   }
 
+  // A "lights" entry (punctual_light.h; docs/scene-manifest.md, "lights"). Keys another type
+  // does not use are warned about, like unknown keys.
+  PunctualLight Light(const Json& v, const std::string& key) const {
+    using Kind = PunctualLight::Kind;
+    if (!v.is_object()) Fail(key, "expected an object");
+    CheckKeys(
+        v, key,
+        {"type", "name", "position", "direction", "color", "intensity", "inner_cone_deg", "outer_cone_deg"});
+    PunctualLight l;
+    if (!v.contains("type")) Fail(key + ".type", "missing (expected \"point\", \"spot\" or \"directional\")");
+    const std::string type = String(v["type"], key + ".type");
+    if (type == "point") {
+      l.kind = Kind::kPoint;
+    } else if (type == "spot") {
+      l.kind = Kind::kSpot;
+    } else if (type == "directional") {
+      l.kind = Kind::kDirectional;
+    } else {
+      Fail(key + ".type", "expected \"point\", \"spot\" or \"directional\"");
+    }
+    const auto unused = [&](const char* name) {
+      if (v.contains(name))
+        Warn("key '" + key + "." + name + "' is not used by a " + type + " light; ignored");
+    };
+    if (v.contains("name")) l.name = String(v["name"], key + ".name");
+    if (l.kind == Kind::kDirectional) {
+      unused("position");
+    } else {
+      if (!v.contains("position")) Fail(key + ".position", "missing (expected 3 numbers)");
+      l.position = Point(v["position"], key + ".position");
+    }
+    if (l.kind == Kind::kPoint) {
+      unused("direction");
+    } else {
+      if (!v.contains("direction")) Fail(key + ".direction", "missing (expected 3 numbers)");
+      const Vec3 d = Direction(v["direction"], key + ".direction");
+      if (!(LengthSquared(d) > 0.0f) || !IsFinite(Normalize(d)))
+        Fail(key + ".direction", "expected a non-zero vector");
+      l.direction = Normalize(d);
+    }
+    const Rgb color = v.contains("color") ? Colour(v["color"], key + ".color") : Rgb(1.0f);
+    const float intensity =
+        v.contains("intensity") ? float(Number(v["intensity"], key + ".intensity")) : 1.0f;
+    if (!(intensity >= 0.0f) || !std::isfinite(intensity))
+      Fail(key + ".intensity", "expected a finite number >= 0");
+    l.intensity = color * intensity;
+    if (l.intensity.IsBlack() || !l.intensity.IsFinite())
+      Fail(key + (v.contains("intensity") ? ".intensity" : ".color"),
+           "color x intensity must be finite and not black (a light that emits nothing)");
+    if (l.kind == Kind::kSpot) {
+      const auto angle = [&](const char* name, float fallback) {
+        if (!v.contains(name)) return fallback;
+        const double a = Number(v[name], key + "." + name);
+        if (!(a >= 0.0 && a <= 90.0)) Fail(key + "." + name, "expected degrees in [0, 90]");
+        return float(a);
+      };
+      l.inner_cone_deg = angle("inner_cone_deg", 0.0f);
+      l.outer_cone_deg = angle("outer_cone_deg", 45.0f);
+      if (!(l.outer_cone_deg > l.inner_cone_deg))
+        Fail(key + ".outer_cone_deg",
+             "expected an angle greater than inner_cone_deg (" + std::to_string(l.inner_cone_deg) + ")");
+    } else {
+      unused("inner_cone_deg");
+      unused("outer_cone_deg");
+    }
+    return l;
+  }
+
  private:
   std::string file_;
   std::vector<std::string>* warnings_;
@@ -212,8 +280,9 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
   m.file = file;
   Parser p(file_name, &m.warnings);
   if (!root.is_object()) throw InputError(SourceLocation{file_name, 0}, "a manifest must be a JSON object");
-  p.CheckKeys(root, "",
-              {"version", "name", "geometry", "scale", "cameras", "settings", "materials", "notes"});
+  p.CheckKeys(
+      root, "",
+      {"version", "name", "geometry", "scale", "cameras", "lights", "settings", "materials", "notes"});
 
   if (root.contains("version")) {
     const Json& v = root["version"];
@@ -249,6 +318,13 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
       if (!names.insert(cam.name).second) p.Fail(key + ".name", "duplicate camera name \"" + cam.name + "\"");
       m.cameras.push_back(std::move(cam));
     }
+  }
+
+  if (root.contains("lights")) {
+    const Json& lights = root["lights"];
+    if (!lights.is_array()) p.Fail("lights", "expected an array of light objects");
+    for (size_t i = 0; i < lights.size(); ++i)
+      m.lights.push_back(p.Light(lights[i], "lights[" + std::to_string(i) + "]"));
   }
 
   if (root.contains("settings")) {

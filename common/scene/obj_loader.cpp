@@ -438,6 +438,9 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
     std::vector<std::string> material_warnings;
     scene.materials.push_back(MaterialFromMtl(FromTinyObj(tm), &material_warnings));
     for (const std::string& w : material_warnings) scene.warnings.push_back(file + ": " + w);
+    const auto positive = [](const tinyobj::real_t* c) { return c[0] > 0 || c[1] > 0 || c[2] > 0; };
+    if (positive(tm.ambient) && !scene.materials.back().IsEmissive())
+      scene.ambient_only_materials.push_back(tm.name);
   }
   uint32_t default_material = kNoLight;  // "none yet"
   auto material_index = [&](int id) -> uint32_t {

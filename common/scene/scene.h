@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/core/math.h"
+#include "common/scene/punctual_light.h"
 
 namespace pf {
 
@@ -65,11 +66,16 @@ struct SceneDescription {
   // group with Ke) is one light, so that photons can be tagged with it (§4.2.3).
   std::vector<uint32_t> triangle_light;  // kNoLight for non-emitters
   uint32_t num_lights = 0;
+  // Point, spot and directional lights (punctual_light.h), from a manifest's "lights"; each has
+  // its own id after the emitting primitives' (num_lights counts them too).
+  std::vector<PunctualLight> punctual_lights;
 
   std::vector<Material> materials;
   std::vector<CameraSpec> cameras;    // from a manifest; may be empty
   std::vector<std::string> warnings;  // non-fatal loader messages, "file:line: reason"
   std::string source;                 // the file it was loaded from
+  // OBJ materials with Ka but no Ke: named when the scene has no light (Ka is not emission).
+  std::vector<std::string> ambient_only_materials;
 
   size_t NumTriangles() const { return triangles.size(); }
   // In the scene's frame (add origin for world coordinates).

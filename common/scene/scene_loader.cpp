@@ -124,6 +124,13 @@ void ApplyScale(double scale, const SourceLocation& where, const std::string& fi
     if (!(LengthSquared(Vec3(c.look_at - c.eye)) > 0.0f))
       fail("makes " + key + ".look_at coincide with its eye");
   }
+  for (size_t i = 0; i < scene->punctual_lights.size(); ++i) {
+    PunctualLight& l = scene->punctual_lights[i];
+    l.position *= scale;
+    if (!IsFinite(Vec3(l.position)))
+      fail("makes lights[" + std::to_string(i) + "].position overflow a 32-bit float (" +
+           FormatNumber(MaxComponent(Abs(l.position))) + ")");
+  }
   scene->origin *= scale;
   for (Vec3& p : scene->positions) p = Vec3(Vec3d(p) * scale);
 }
@@ -171,6 +178,11 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
   SceneDescription scene = LoadGeometry(manifest.geometry, root);
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
   scene.cameras = manifest.cameras;
+  // Each punctual light is one light, numbered after the emitting primitives (scene.h).
+  for (PunctualLight light : manifest.lights) {
+    light.light = scene.num_lights++;
+    scene.punctual_lights.push_back(std::move(light));
+  }
   if (scale_override > 0.0)
     ApplyScale(scale_override, SourceLocation{manifest_file, 0}, "scale override", &scene);
   else
@@ -178,6 +190,22 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
   scene.warnings.insert(scene.warnings.begin(), manifest.warnings.begin(), manifest.warnings.end());
   scene.source = manifest_file;
   return scene;
+}
+
+// A scene without any light renders black: an input error, never a black image with exit 0. Here
+// because every render reads its scene through LoadScene (pf render, the coordinator's upload,
+// the workers' bundles), and said once with every reason we know of.
+void RequireLight(const SceneDescription& scene, const std::filesystem::path& path) {
+  if (scene.num_lights > 0) return;
+  const bool manifest = LowerExtension(path) == ".json";
+  std::string why = "the scene has no light: no material emits (MGF 'ed', OBJ/MTL 'Ke')";
+  why +=
+      manifest
+          ? " and the manifest has no \"lights\""
+          : " and a bare geometry file has no \"lights\" (a manifest can add them, docs/scene-manifest.md)";
+  for (const std::string& name : scene.ambient_only_materials)
+    why += "; material '" + name + "' has Ka but no Ke: Ka is not emission in pf; use Ke";
+  throw InputError(SourceLocation{path.string(), 0}, why);
 }
 
 // A load frees most of what it allocated (tinyobjloader's per-face lists, the MGF loader's double
@@ -196,6 +224,7 @@ SceneDescription LoadScene(const std::filesystem::path& path, double scale_overr
                            const std::filesystem::path& root) {
   SceneDescription scene = LoadSceneFiles(path, scale_override, root);
   ReturnFreedMemory();
+  RequireLight(scene, path);
   return scene;
 }
 

@@ -6,7 +6,8 @@
 //          attaches its cameras. `source` is the manifest's path.
 //   .mgf   MGF 2.0 (mgf_loader.h), no cameras.
 //   .obj   Wavefront OBJ/MTL (obj_loader.h), no cameras.
-// Anything else is an InputError that lists these. Bare files carry no camera; use
+// Anything else is an InputError that lists these. So is a scene without any light (no emitting
+// material, no manifest "lights"): it would render black. Bare files carry no camera; use
 // DefaultCamera() for them (and for manifests without "cameras").
 
 #include <filesystem>

@@ -21,8 +21,9 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
+// It emits (LoadScene refuses a scene without light), in 12 lines like a plain quad's.
 constexpr const char* kQuadMgf =
-    "m white =\n  c\n  rd .5\n"
+    "m white =\n  c\n  ed 10\n"
     "v a =\n p 0 0 0\nv b =\n p 1 0 0\nv c =\n p 1 1 0\nv d =\n p 0 1 0\n"
     "f a b c d\n";
 // An outside file whose words would show up in "unknown entity" warnings if it were read.
@@ -91,7 +92,8 @@ TEST_F(SceneReferenceTest, ManifestGeometryOutsideTheSceneFolderIsRefused) {
                 "b.json:1: key 'geometry'", true);
   ExpectRefused(Write("scene/c.json", R"({"geometry": "/nonexistent/x.obj"})"), "is an absolute path");
   Write("scene/geo/quad.obj", kQuadObj);
-  Write("scene/d.json", R"({"geometry": "geo/quad.obj"})");
+  Write("scene/d.json",
+        R"({"geometry": "geo/quad.obj", "lights": [{"type": "point", "position": [0, 0, 1]}]})");
   EXPECT_EQ(LoadError(dir_ / "scene/d.json"), "");
 }
 
@@ -104,7 +106,7 @@ TEST_F(SceneReferenceTest, ObjMtllibOutsideTheSceneFolderIsRefused) {
   // the manifest (still inside the root).
   Write("scene/shared.mtl", "newmtl red\nKd 1 0 0\n");
   Write("scene/geo/q.obj", std::string("mtllib ../shared.mtl\nusemtl red\n") + kQuadObj);
-  Write("scene/q.json", R"({"geometry": "geo/q.obj"})");
+  Write("scene/q.json", R"({"geometry": "geo/q.obj", "lights": [{"type": "point", "position": [0, 0, 1]}]})");
   const SceneDescription s = LoadScene(dir_ / "scene/q.json");
   ASSERT_EQ(s.materials.size(), 1u);
   EXPECT_EQ(s.materials[0].name, "red");
@@ -189,7 +191,9 @@ TEST_F(SceneReferenceTest, ObjVerticesMustBeFiniteNumbers) {
   }
   const fs::path n = Write("scene/badn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 nan 1\nf 1//1 2//1 3//1\n");
   EXPECT_THAT(LoadError(n), HasSubstr("badn.obj:4: vn coordinate 'nan'"));
-  EXPECT_EQ(LoadError(Write("scene/ok.obj", "v 0 0 0\nv 1.5e2 -0 0\nv 0 1 +0.5\nf 1 2 3\n")), "");
+  // Its vertices are fine: only refused for having no light (LoadScene's last check).
+  EXPECT_THAT(LoadError(Write("scene/ok.obj", "v 0 0 0\nv 1.5e2 -0 0\nv 0 1 +0.5\nf 1 2 3\n")),
+              HasSubstr("ok.obj: the scene has no light"));
 }
 
 }  // namespace

@@ -141,6 +141,26 @@ TEST(Cli, RenderShowsManifestWarnings) {
   EXPECT_NE(r.err.find("colour_grading"), std::string::npos) << r.err;
 }
 
+// A scene without any light would render black: exit 3 (bad input), naming the file and why —
+// here tinyobjloader's cornell_box.obj case, a lamp with only Ka.
+TEST(Cli, SceneWithoutLightIsBadInput) {
+  TestDir dir;
+  std::ofstream(dir / "ka.mtl") << "newmtl lamp\nKa 20 20 20\nKd 0.5 0.5 0.5\n";
+  std::ofstream(dir / "ka.obj") << "mtllib ka.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\n";
+  const RunResult r = RunCommand(TinyRender((dir / "ka.obj").string(), dir / "a.exr"), dir.path(), 60);
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("ka.obj"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the scene has no light"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("Ka is not emission in pf; use Ke"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "a.exr"));
+  // The same geometry with a manifest light renders.
+  std::ofstream(dir / "lit.json")
+      << R"({"geometry": "ka.obj", "lights": [{"type": "point", "position": [0.2, 0.2, 1]}],
+      "cameras": [{"eye": [0.3, 0.3, 2], "look_at": [0.3, 0.3, 0]}]})";
+  const RunResult lit = RunCommand(TinyRender((dir / "lit.json").string(), dir / "b.exr"), dir.path(), 60);
+  EXPECT_EQ(lit.exit_code, 0) << lit.err;
+}
+
 TEST(Cli, FlagLimitsAreTheFarmsLimits) {
   TestDir dir;
   const std::vector<std::string> base = TinyRender(Binaries::Scene(), dir / "a.exr");

@@ -100,6 +100,11 @@ TEST(FarmValidation, BadJobsAreRejectedNamingTheField) {
   bad.entry = "bad.mgf";
   bad.files = {{"bad.mgf", "# a broken MGF file\nv p1 =\n\tp 0 0\n"}};
   EXPECT_REJECTED(client.UploadScene(bad), INVALID_ARGUMENT, "bad.mgf:3");
+  // A scene without any light would render black: refused on upload, saying why.
+  SceneBundle dark;
+  dark.entry = "dark.obj";
+  dark.files = {{"dark.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"}};
+  EXPECT_REJECTED(client.UploadScene(dark), INVALID_ARGUMENT, "dark.obj: the scene has no light");
 
   // The same through the pf binary: exit 3 and the field on stderr; usage errors exit 2.
   const std::vector<std::string> base = {
