@@ -1,9 +1,9 @@
 #pragma once
-// What the gRPC handlers call: the coordinator's operations, one interface (docs/design.md, S10). The handlers (render_service.cpp, worker_service.cpp) only
-// translate — a request's fields are checked and turned into these calls, the outcome into a
-// response and a status — and choose the thread: cheap calls on gRPC's thread, those marked
-// "executor" on executor() (never O(pixels) or O(photons) work on an RPC thread). Everything
-// behind it (which parts the coordinator has, how they are locked, what is stored when) is
+// What the gRPC handlers call: the coordinator's operations, one interface (docs/design.md, S10). The
+// handlers (render_service.cpp, worker_service.cpp) only translate — a request's fields are checked and
+// turned into these calls, the outcome into a response and a status — and choose the thread: cheap calls on
+// gRPC's thread, those marked "executor" on executor() (never O(pixels) or O(photons) work on an RPC thread).
+// Everything behind it (which parts the coordinator has, how they are locked, what is stored when) is
 // CoordinatorOperations' (coordinator_operations.h), so a handler cannot reach past it into the
 // scheduler, the stores or the maps, and tests can put a fake behind the handlers.
 //
@@ -102,7 +102,8 @@ class CoordinatorApi {
   virtual FailOutcome FailTask(const std::string& lease_id, const std::string& worker_id,
                                const std::string& reason, bool retryable) = 0;
   // Executor: the files of a stored scene, (bundle path, file). NotFoundError if unknown.
-  virtual std::vector<std::pair<std::string, std::filesystem::path>> SceneFiles(const std::string& scene_hash) = 0;
+  virtual std::vector<std::pair<std::string, std::filesystem::path>> SceneFiles(
+      const std::string& scene_hash) = 0;
   // Photon-map pieces (distributed_maps.h): an upload's admission, its end, and its bytes
   // (executor: parsed, checked and stored).
   virtual DistributedMaps::UploadAdmission BeginPieceUpload(const std::string& lease_id,

@@ -32,8 +32,9 @@ AdmittedJob CoordinatorOperations::AdmitJob(const v1::JobSpec& spec, const std::
   AdmittedJob job;
   job.config = ValidateJobSpec(spec, p_.scenes, std::max(1u, live));
   job.client = client;
-  job.reservation = p_.admission.AdmitJob(client, ScheduledTaskCount(job.config),
-                                          uint64_t(job.config.camera.width) * uint64_t(job.config.camera.height));
+  job.reservation =
+      p_.admission.AdmitJob(client, ScheduledTaskCount(job.config),
+                            uint64_t(job.config.camera.width) * uint64_t(job.config.camera.height));
   return job;
 }
 
@@ -81,10 +82,12 @@ std::optional<std::string> CoordinatorOperations::WorkerSeen(const WorkerHello& 
           hello.version.empty() ? "none (older than the check)" : limits::Quote(hello.version);
       p_.scheduler.activity().WorkerSeen(hello.worker_id, hello.peer, hello.threads, hello.version,
                                          /*refused=*/true);
-      spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'", limits::Quote(hello.worker_id),
-                   worker_build, p_.build_version);
-      return "worker_version: this worker's build is " + worker_build + ", the coordinator's '" + p_.build_version +
-             "'; farms run one build (docs/farm.md, Upgrades): run workers of the coordinator's build, or start "
+      spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'",
+                   limits::Quote(hello.worker_id), worker_build, p_.build_version);
+      return "worker_version: this worker's build is " + worker_build + ", the coordinator's '" +
+             p_.build_version +
+             "'; farms run one build (docs/farm.md, Upgrades): run workers of the coordinator's build, or "
+             "start "
              "the coordinator with --allow-mixed-versions";
     }
   }
@@ -124,7 +127,8 @@ CompleteResult CoordinatorOperations::CompleteTask(const std::string& lease_id, 
   return result;
 }
 
-void CoordinatorOperations::AcknowledgeWhenStored(const CompleteResult& merged, std::span<const float> rgb_sums,
+void CoordinatorOperations::AcknowledgeWhenStored(const CompleteResult& merged,
+                                                  std::span<const float> rgb_sums,
                                                   std::function<void(const std::string& not_stored)> answer) {
   if (!p_.persister.durable_acks()) {
     answer("");
@@ -132,14 +136,15 @@ void CoordinatorOperations::AcknowledgeWhenStored(const CompleteResult& merged, 
   }
   // Not stored: the result is in this coordinator's memory and stored when the disk allows, or
   // re-run after a restart (never counted twice); the worker must not count it as merged.
-  p_.persister.JournalThenAck(
-      merged.job_id, merged.task_id, merged.epoch, merged.merge_seq, rgb_sums,
-      [answer = std::move(answer), job = merged.job_id, task = merged.task_id](const std::string& not_stored) {
-        if (!not_stored.empty())
-          spdlog::warn("job {} task {}: result merged but not stored ({}): not acknowledged", job, task,
-                       not_stored);
-        answer(not_stored);
-      });
+  p_.persister.JournalThenAck(merged.job_id, merged.task_id, merged.epoch, merged.merge_seq, rgb_sums,
+                              [answer = std::move(answer), job = merged.job_id,
+                               task = merged.task_id](const std::string& not_stored) {
+                                if (!not_stored.empty())
+                                  spdlog::warn(
+                                      "job {} task {}: result merged but not stored ({}): not acknowledged",
+                                      job, task, not_stored);
+                                answer(not_stored);
+                              });
 }
 
 FailOutcome CoordinatorOperations::FailTask(const std::string& lease_id, const std::string& worker_id,
@@ -162,7 +167,8 @@ void CoordinatorOperations::EndPieceUpload(const std::string& lease_id) {
 }
 
 DistributedMaps::Accepted CoordinatorOperations::AcceptPiece(const std::string& lease_id,
-                                                             const std::string& worker_id, const std::string& bytes) {
+                                                             const std::string& worker_id,
+                                                             const std::string& bytes) {
   return p_.maps.AcceptChunk(lease_id, worker_id, bytes);
 }
 

@@ -51,14 +51,17 @@ class CoordinatorOperations final : public CoordinatorApi {
   void CancelWait(uint64_t waiter) override;
   void ReturnLease(const std::string& lease_id) override;
   std::optional<BuiltMap> MapFor(const std::string& job_id, uint64_t map_index) override;
-  ExtendResult ExtendLease(const std::string& lease_id, const std::string& worker_id, double progress) override;
+  ExtendResult ExtendLease(const std::string& lease_id, const std::string& worker_id,
+                           double progress) override;
   CompleteResult CompleteTask(const std::string& lease_id, const std::string& worker_id,
-                              std::span<const float> rgb_sums, RadiancePart part, const TaskStats& stats) override;
+                              std::span<const float> rgb_sums, RadiancePart part,
+                              const TaskStats& stats) override;
   void AcknowledgeWhenStored(const CompleteResult& merged, std::span<const float> rgb_sums,
                              std::function<void(const std::string& not_stored)> answer) override;
   FailOutcome FailTask(const std::string& lease_id, const std::string& worker_id, const std::string& reason,
                        bool retryable) override;
-  std::vector<std::pair<std::string, std::filesystem::path>> SceneFiles(const std::string& scene_hash) override;
+  std::vector<std::pair<std::string, std::filesystem::path>> SceneFiles(
+      const std::string& scene_hash) override;
   DistributedMaps::UploadAdmission BeginPieceUpload(const std::string& lease_id,
                                                     const std::string& worker_id) override;
   void EndPieceUpload(const std::string& lease_id) override;

@@ -37,8 +37,12 @@ std::vector<std::string> Split(const std::string& text) {
 }
 
 // The largest channel of any emitting material's Le: the scale of every radiance in the scene
-// (the per-job result bound, server/jobs/job_spec.h).
+// (the per-job result bound, server/jobs/job_spec.h). With area lights alone it bounds every
+// radiance an energy-conserving BSDF reflects. A punctual light has no Le: a surface at distance
+// d reflects ρ/π·I/d², unbounded as d → 0, so such a scene has no bound (-1, unknown: results are
+// still checked for everything else, docs/farm.md "Results").
 double MaxEmission(const SceneDescription& scene) {
+  if (!scene.punctual_lights.empty()) return -1;
   double m = 0;
   for (const Material& mat : scene.materials)
     for (int c = 0; c < 3; ++c) m = std::max(m, double(mat.emission[c]));
@@ -127,8 +131,6 @@ UploadResult SceneStore::Upload(const SceneBundle& bundle) {
   info.files = bundle.files.size();
   info.camera = scene.cameras.empty() ? DefaultCamera(scene) : scene.cameras.front();
   info.warnings = scene.warnings;
-  if (scene.num_lights == 0)
-    info.warnings.push_back(bundle.entry + ": the scene has no emitters: images will be black");
 
   // false: a concurrent upload of the same bundle won the race, or the folder survived a crash.
   PublishDirectory(tmp, dir_ / hash);

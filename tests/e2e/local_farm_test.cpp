@@ -71,6 +71,34 @@ TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
   }
 }
 
+// Point, spot and directional lights on the farm: a scene lit by them alone (scenes/lamp-stage: no
+// emitting material, so the coordinator's result bound from the brightest Le does not apply) renders
+// on two workers bit-identically to the single-process render, with both integrators.
+TEST_F(LocalFarmTest, PunctualLightsRenderOnTheFarmAsLocally) {
+  TestDir dir;
+  const std::string scene = (std::filesystem::path(Binaries::Scene()).parent_path().parent_path() /
+                             "lamp-stage" / "lamp-stage.json")
+                                .string();
+  for (const std::string integrator : {"photonmap", "path"}) {
+    const std::vector<std::string> photon_map = {"--photons", "4000", "--k", "20"};
+    const std::vector<std::string> base =
+        Concat({Binaries::Pf(), "render", scene, "--integrator", integrator, "--res", "40x30", "--spp", "2",
+                "--seed", "5", "--plan", "multiple-maps", "--no-png", "-q"},
+               integrator == "photonmap" ? photon_map : std::vector<std::string>{});
+    const std::string local = (dir / (integrator + "-local.exr")).string();
+    const RunResult l = RunCommand(Concat(base, {"--local-only", "-o", local}), dir.path());
+    ASSERT_EQ(l.exit_code, 0) << l.err;
+    const Image reference = ReadImage(local);
+    EXPECT_GT(PixelSum(reference), 0.0) << integrator << ": the lamps lit nothing";
+    const std::string farm = (dir / (integrator + "-farm.exr")).string();
+    const RunResult f =
+        RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "-o", farm}), dir.path());
+    ASSERT_EQ(f.exit_code, 0) << f.err;
+    EXPECT_TRUE(BitIdentical(ReadImage(farm), reference)) << integrator;
+    ExpectNoProcessLeft();
+  }
+}
+
 // `pf render` of the shipped scene with the photon map (`photons`, k = 20) at 24x16, no PNG, quiet.
 std::vector<std::string> PhotonMapRender24x16(const std::string& photons,
                                               const std::vector<std::string>& more) {

@@ -40,7 +40,9 @@ class ScriptedCoordinator final : public CoordinatorApi {
 
   Executor& executor() override { return pool; }
   Reservation AdmitSceneUpload(const std::string&, uint64_t) override { return Unexpected<Reservation>(); }
-  UploadResult StoreScene(const SceneBundle&, const Reservation&) override { return Unexpected<UploadResult>(); }
+  UploadResult StoreScene(const SceneBundle&, const Reservation&) override {
+    return Unexpected<UploadResult>();
+  }
   AdmittedJob AdmitJob(const v1::JobSpec& spec, const std::string&) override {
     ++calls;
     return admit_job ? admit_job(spec) : Unexpected<AdmittedJob>();
@@ -116,7 +118,8 @@ class RpcHandlersTest : public ::testing::Test {
     builder.RegisterService(&worker_);
     server_ = builder.BuildAndStart();
     ASSERT_NE(port, 0);
-    auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials());
+    auto channel =
+        grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials());
     render_stub_ = v1::RenderService::NewStub(channel);
     worker_stub_ = v1::WorkerService::NewStub(channel);
   }
