@@ -1,7 +1,8 @@
-// DistributedMaps (docs/farm.md, "Photon maps traced once") under a Scheduler, with a fake clock: the piece
-// queue that TraceChunk leases come from — oldest map first, a returned (undelivered) lease queued again at
-// once without counting an attempt, expiry — and the piece leases the Scheduler's one lease table holds
-// (lease_table.h), without a gRPC server or a worker.
+// DistributedMaps (docs/farm.md, "Photon maps traced once") under a Scheduler, with a fake clock: the pieces
+// in the Scheduler's one queue that TraceChunk leases come from — oldest map first, a returned (undelivered)
+// lease queued again at once without counting an attempt, expiry, a map left to the workers leaving the
+// queue — and the piece leases the Scheduler's one lease table holds (lease_table.h), without a gRPC server
+// or a worker.
 #include "server/scheduling/distributed_maps.h"
 
 #include <gmock/gmock.h>
@@ -221,6 +222,27 @@ TEST_F(DistributedMapsTest, AWorkerFailingPiecesIsBlocklistedAndCannotUseAPieceU
   int piece_events = 0;
   for (const v1::TaskEvent& e : scheduler.activity().Events(id)) piece_events += e.kind() == "piece-failed";
   EXPECT_EQ(piece_events, 3);
+}
+
+// A piece failed on max_attempts distinct workers leaves its map to the workers: the map's queued
+// pieces leave the Scheduler's queue in the same hold of its lock, and its render task is queued.
+TEST_F(DistributedMapsTest, AMapLeftToTheWorkersLeavesTheQueueAndReleasesItsRenderTasks) {
+  const std::string id = AddJob(scheduler_, 11);
+  for (const char* worker : {"w1", "w2", "w3"}) {
+    const std::optional<Lease> l = scheduler_.TryLease({worker, {}});
+    ASSERT_TRUE(l && l->chunk);
+    EXPECT_EQ(l->chunk->chunk_index, 0u) << "the failed piece is queued again, lowest first";
+    EXPECT_EQ(scheduler_.Fail(l->lease_id, worker, "out of memory", true), FailOutcome::kFailed);
+  }
+  EXPECT_EQ(maps_.counters().maps_left_to_workers, 1u);
+  EXPECT_EQ(maps_.counters().chunks_leased, 3u);
+  const std::optional<Lease> task = scheduler_.TryLease({"w4", {}});
+  ASSERT_TRUE(task.has_value());
+  EXPECT_FALSE(task->chunk.has_value()) << "pieces 1 and 2 left the queue with their map";
+  EXPECT_EQ(task->job_id, id);
+  EXPECT_FALSE(maps_.MapFor(id, 0).has_value()) << "its worker traces the map";
+  EXPECT_FALSE(scheduler_.TryLease({"w4", {}}).has_value());
+  EXPECT_EQ(maps_.counters().chunks_leased, 3u);
 }
 
 }  // namespace
