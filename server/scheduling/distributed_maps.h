@@ -23,26 +23,25 @@
 // Not a scheduler of its own: the component the Scheduler calls for what is map-specific. The
 // Scheduler owns the queue of pieces as of render tasks — one TaskQueue (task_queue.h) whose items
 // are render tasks or pieces (a map's key and a piece index; pieces first, oldest map first, lowest
-// piece first, a map passed over for a worker blocklisted in one of its jobs) — and their leases —
-// one LeaseTable (lease_table.h) whose
-// entries say their kind (render task | map piece) and what they name, one issuer and one form of
-// id (the job, the piece, the attempt and 128 bits from the CSPRNG: it cannot be guessed, and a
-// restarted coordinator never hands out an id again), one path for ExtendLease, FailTask,
-// ReturnLease and the upload (Scheduler::FindLiveLease, dispatching by the entry's kind, never by
-// the id's form) and one expiry tick (Scheduler::Tick). A lease is bound to the worker it was
-// leased to: ExtendLease, the upload and FailTask of another worker change nothing (kNotHolder;
-// docs/security.md, "Leases are bound to their worker"); the presenter is blocklisted in every job
-// of the map. Here: each piece's state — moved only as PieceTransitions allows (map_states.h) —
-// attempts and failed workers, the piece and map files, the checks and the assembly; no queue and
-// no choice of the next piece. The Scheduler leases the piece its queue chose (LeasePiece) and tells
-// what became of a lease (PieceReturned, PieceLeaseEnded); each answer is a MapUpdate
-// (map_tracing_hook.h) — the maps whose queued pieces changed (the Scheduler sets them in its queue
-// from QueuedPiecesOf), failed attempts to count against their workers, maps to release — that the
-// Scheduler applies in the same hold of its lock. Events that begin here (an upload refused, an
-// assembly done or failed, a stored piece unreadable, a conviction) hand their update to
-// Scheduler::ApplyMapUpdate. A piece that moves on without the Scheduler (stored, its map left to
-// the workers or purged) leaves a lease entry that is no longer current (PieceLeaseCurrent): the
-// Scheduler drops it on its next use or at its deadline.
+// piece first, a map passed over for a worker blocklisted in one of its jobs) — and their leases:
+// one LeaseTable (lease_table.h) whose entries say their kind (render task | map piece) and what
+// they name, one issuer and one form of id (the job, the piece, the attempt and 128 bits from the
+// CSPRNG: it cannot be guessed, and a restarted coordinator never hands out an id again), one path
+// for ExtendLease, FailTask, ReturnLease and the upload (Scheduler::FindLiveLease, dispatching by
+// the entry's kind, never by the id's form) and one expiry tick (Scheduler::Tick). A lease is bound
+// to the worker it was leased to: ExtendLease, the upload and FailTask of another worker change
+// nothing (kNotHolder; docs/security.md, "Leases are bound to their worker"); the presenter is
+// blocklisted in every job of the map. Here: each piece's state — moved only as PieceTransitions
+// allows (map_states.h) — attempts and failed workers, the piece and map files, the checks and the
+// assembly; no queue and no choice of the next piece. The Scheduler leases the piece its queue
+// chose (LeasePiece) and tells what became of a lease (PieceReturned, PieceLeaseEnded); each answer
+// is a MapUpdate (map_tracing_hook.h) — the maps whose queued pieces changed (the Scheduler sets
+// them in its queue from QueuedPiecesOf), failed attempts to count against their workers, maps to
+// release — that the Scheduler applies in the same hold of its lock. Events that begin here (an
+// upload refused, an assembly done or failed, a stored piece unreadable, a conviction) hand their
+// update to Scheduler::ApplyMapUpdate. A piece that moves on without the Scheduler (stored, its map
+// left to the workers or purged) leaves a lease entry that is no longer current
+// (PieceLeaseCurrent): the Scheduler drops it on its next use or at its deadline.
 //
 // Map builds are not a kind of the queue: the queue holds work leased to workers, with leases,
 // attempts and blocklists, and an assembly is the coordinator's own — one at a time on its builder

@@ -56,9 +56,9 @@
 //      sees an accumulator that agrees with the job's merged tasks (checkpoints rely on it).
 // A result is decided exactly once: by its claim (ignored) or by its commit.
 //
-// Long polls. LeaseOrWait answers at once if a task is queued, else parks the caller until a
-// task is queued (submit, re-queue, a task source adding tasks) or its wait expires (Tick) — no
-// busy waiting; callbacks always run outside the lock, exactly once per waiter.
+// Long polls. LeaseOrWait answers at once if a task or a map piece is queued, else parks the
+// caller until one is (submit, re-queue, a task source adding tasks, a map update) or its wait
+// expires (Tick) — no busy waiting; callbacks always run outside the lock, exactly once per waiter.
 //
 // Verification (result_verification.h; docs/farm.md "Result verification"): a fraction of merged
 // results, chosen by the CSPRNG when they arrive, and every result the outlier test flags, are

@@ -4,17 +4,18 @@
 // (docs/farm.md "Photon maps traced once"; distributed_maps.h) — and which item a worker gets.
 //
 // Map pieces are served before render tasks (a render task waits for its map, so the map's pieces
-// come first): the oldest map first (its creation order, which a map traced again after a
+// come first; the Scheduler serves a queued verification, result_verification.h, between the two
+// kinds): the oldest map first (its creation order, which a map traced again after a
 // conviction keeps), then the lowest piece. A worker blocklisted for a job of a map is passed over
 // that map (ChoosePiece's filter). A piece is named by its map's key and its index; what a piece is
 // (its photons, attempts, state) stays with the map (map_states.h), which tells the Scheduler which
 // maps' queued pieces changed and the Scheduler sets them here (SetMapPieces). A held job (below)
 // holds back its render tasks only: pieces may serve several jobs, and are not held.
 //
-// Render tasks. Jobs are served by priority (higher first), then submission order. Within the chosen job a
-// worker gets the lowest queued task id — unless it reported cached photon maps and a queued
-// task of that job uses one of them: then the lowest such task (map affinity; tiles of one map
-// are adjacent in the plan). Affinity never crosses jobs: a map seed means a map only together
+// Render tasks. Jobs are served by priority (higher first), then submission order. Within the
+// chosen job a worker gets the lowest queued task id — unless it reported cached photon maps and a
+// queued task of that job uses one of them: then the lowest such task (map affinity; tiles of one
+// map are adjacent in the plan). Affinity never crosses jobs: a map seed means a map only together
 // with the job's scene and settings.
 //
 // A worker may have to pass some jobs or tasks by (worker health, worker_health.h: blocklisted for
