@@ -194,8 +194,9 @@ TEST_F(DistributedMapsTest, TheLeaseTableDispatchesByKind) {
 }
 
 // Piece failures count against their worker in the map's job (worker_health.h): a worker that
-// fails pieces 3 times is blocklisted — it is leased no more of the job's pieces — and the piece,
-// failed on one worker only, is not given up: another worker traces it.
+// fails pieces 3 times is blocklisted — it is leased no more of the job's pieces, but those of
+// another job's map — and the piece, failed on one worker only, is not given up: another worker
+// traces it (lowest piece of the oldest map first).
 TEST_F(DistributedMapsTest, AWorkerFailingPiecesIsBlocklistedAndCannotUseAPieceUp) {
   Scheduler& scheduler = scheduler_;
   const std::string id = AddJob(scheduler, 11);
@@ -215,6 +216,12 @@ TEST_F(DistributedMapsTest, AWorkerFailingPiecesIsBlocklistedAndCannotUseAPieceU
   ASSERT_EQ(s.blocklisted_workers_size(), 1);
   EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "flaky");
   EXPECT_FALSE(scheduler.TryLease({"flaky", {}}).has_value()) << "no more pieces of this job";
+  // The queue passes it over the older map, not over every map: a later job's pieces are its.
+  const std::string later = AddJob(scheduler, 12);
+  const std::optional<Lease> other = scheduler.TryLease({"flaky", {}});
+  ASSERT_TRUE(other && other->chunk);
+  EXPECT_EQ(other->job_id, later);
+  EXPECT_EQ(other->chunk->chunk_index, 0u);
   const std::optional<Lease> retry = scheduler.TryLease({"healthy", {}});
   ASSERT_TRUE(retry && retry->chunk);
   EXPECT_EQ(retry->chunk->chunk_index, 1u);
