@@ -177,13 +177,13 @@ const std::string* DistributedMaps::KeyFor(const Job& job, uint64_t map_index) {
   return &it->second;
 }
 
-DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index, const std::string& key) {
+DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index, const std::string& key,
+                                             MapUpdate& update) {
   auto it = maps_.find(key);
   if (it != maps_.end()) return it->second;
   Map& m = maps_[key];
   m.key = key;
   m.seq = next_seq_++;
-  tracing_[m.seq] = key;  // the initial state; SetStateLocked keeps the index from here on
   m.job_id = job.id();
   m.map_index = map_index;
   m.map_seed = MapSeed(job.config().seed, map_index);
@@ -215,15 +215,17 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
   if (m.done == m.chunks.size()) {
     SetStateLocked(m, Map::State::kBuilding);
     QueueBuild(key);
+  } else {
+    update.maps.insert(key);  // its pieces join the Scheduler's queue
   }
   return m;
 }
 
-bool DistributedMaps::RenderTaskReady(const Job& job, const TaskSpec& task) {
+bool DistributedMaps::RenderTaskReady(const Job& job, const TaskSpec& task, MapUpdate& update) {
   std::lock_guard lock(mu_);
   const std::string* key = KeyFor(job, task.map_index);
   if (!key) return true;
-  Map& m = MapOf(job, task.map_index, *key);
+  Map& m = MapOf(job, task.map_index, *key, update);
   if (m.state == Map::State::kBuilt || m.state == Map::State::kLeftToWorkers) return true;
   m.waiting.insert({job.id(), task.map_index});
   return false;
@@ -231,37 +233,36 @@ bool DistributedMaps::RenderTaskReady(const Job& job, const TaskSpec& task) {
 
 void DistributedMaps::SetStateLocked(Map& m, Map::State state) {
   MapTransitions().Move(m.state, state);
-  if (state == Map::State::kTracing)
-    tracing_[m.seq] = m.key;
-  else
-    tracing_.erase(m.seq);
 }
 
-std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, const JobFilter& may_lease,
+MapTracingHook::QueuedPieces DistributedMaps::QueuedPiecesOf(const std::string& map_key) {
+  std::lock_guard lock(mu_);
+  QueuedPieces queued;
+  auto it = maps_.find(map_key);
+  if (it == maps_.end()) return queued;
+  const Map& m = it->second;
+  queued.map_seq = m.seq;
+  if (m.state != Map::State::kTracing) return queued;
+  for (uint32_t c = 0; c < m.chunks.size(); ++c)
+    if (m.chunks[c].state == Chunk::State::kQueued) queued.pieces.push_back(c);
+  return queued;
+}
+
+std::optional<Lease> DistributedMaps::LeasePiece(const TaskQueue::Piece& piece, const std::string& worker_id,
                                                  const IssuePieceLease& issue) {
   std::lock_guard lock(mu_);
-  const Map* best = nullptr;
-  uint32_t pick = 0;
-  for (const auto& [seq, key] : tracing_) {  // oldest map first
-    const Map& m = maps_.at(key);
-    if (may_lease) {  // not for a worker blocklisted for a job of the map
-      const std::vector<std::string> jobs = JobsOfLocked(m);
-      if (!std::all_of(jobs.begin(), jobs.end(), may_lease)) continue;
-    }
-    for (uint32_t c = 0; c < m.chunks.size() && !best; ++c)
-      if (m.chunks[c].state == Chunk::State::kQueued) {
-        best = &m;
-        pick = c;
-      }
-    if (best) break;
-  }
-  if (!best) return std::nullopt;
-  Map& m = maps_.at(best->key);
+  auto it = maps_.find(piece.map_key);
+  if (it == maps_.end() || it->second.state != Map::State::kTracing ||
+      piece.index >= it->second.chunks.size() ||
+      it->second.chunks[piece.index].state != Chunk::State::kQueued)
+    return std::nullopt;
+  Map& m = it->second;
+  const uint32_t pick = piece.index;
   Chunk& chunk = m.chunks[pick];
   PieceTransitions().Move(chunk.state, Chunk::State::kLeased);
   ++chunk.attempts;
   chunk.lease_id = issue(m.job_id, m.key, pick, chunk.attempts);
-  chunk.worker_id = request.worker_id;
+  chunk.worker_id = worker_id;
   ++counters_.chunks_leased;
   Lease lease;
   lease.lease_id = chunk.lease_id;
@@ -279,9 +280,8 @@ std::optional<Lease> DistributedMaps::LeaseChunk(const LeaseRequest& request, co
   c.chunk_count = uint32_t(m.chunks.size());
   lease.chunk = c;
   spdlog::info("job {} map {} piece {}/{}: leased to {} (photons [{}, {}), attempt {}, map {})", m.job_id,
-               m.map_index, pick, m.chunks.size(),
-               limits::Quote(request.worker_id, limits::kMaxWorkerIdBytes), c.photon_begin, c.photon_end,
-               chunk.attempts, ShortKey(m.key));
+               m.map_index, pick, m.chunks.size(), limits::Quote(worker_id, limits::kMaxWorkerIdBytes),
+               c.photon_begin, c.photon_end, chunk.attempts, ShortKey(m.key));
   return lease;
 }
 
@@ -448,7 +448,7 @@ void DistributedMaps::Build(const std::string& key) {
     const uint64_t begin = uint64_t(c) * chunk_photons;
     return ChunkFile(key, begin, std::min(photons, begin + chunk_photons));
   };
-  std::vector<std::pair<std::string, uint64_t>> release;
+  MapUpdate update;  // for the Scheduler: pieces queued again, or the map's render tasks released
   const auto t0 = std::chrono::steady_clock::now();
   try {
     std::vector<PhotonChunk> pieces;
@@ -467,12 +467,13 @@ void DistributedMaps::Build(const std::string& key) {
         PieceTransitions().Check(m.chunks[c].state, Chunk::State::kQueued);
         m.chunks[c] = Chunk{};
         --m.done;
+        update.maps.insert(key);
         spdlog::warn("job {} map {} piece {}: stored piece unreadable ({}): traced again", job_id, map_index,
                      c, e.what());
       }
     }
     if (pieces.size() != count) {
-      if (scheduler_) scheduler_->NotifyMapPieces();
+      if (scheduler_) scheduler_->ApplyMapUpdate(update);
       return;
     }
     const auto t_read = std::chrono::steady_clock::now();
@@ -511,7 +512,7 @@ void DistributedMaps::Build(const std::string& key) {
       SetStateLocked(m, Map::State::kBuilt);
       m.built = built;
       m.contributors = tracers;
-      release.assign(m.waiting.begin(), m.waiting.end());
+      update.release.assign(m.waiting.begin(), m.waiting.end());
       m.waiting.clear();
       ++counters_.maps_built;
       // Under the lock: a conviction may trace the map again right after, into the same folder.
@@ -521,43 +522,32 @@ void DistributedMaps::Build(const std::string& key) {
   } catch (const std::exception& e) {
     std::lock_guard lock(mu_);
     if (maps_.at(key).generation == generation)
-      LeaveToWorkersLocked(maps_.at(key), std::string("assembly failed: ") + e.what(), &release);
+      LeaveToWorkersLocked(maps_.at(key), std::string("assembly failed: ") + e.what(), update);
   }
-  Release(release);
+  if (scheduler_) scheduler_->ApplyMapUpdate(update);
 }
 
-void DistributedMaps::Report(const std::vector<PieceFailure>& failures) {
-  if (!scheduler_) return;
-  for (const PieceFailure& f : failures)
-    scheduler_->PieceAttemptFailed(f.job_id, f.worker_id, f.piece, f.attempt, f.kind, f.reason);
-}
-
-void DistributedMaps::Release(const std::vector<std::pair<std::string, uint64_t>>& release) {
-  if (!scheduler_) return;
-  for (const auto& [job, index] : release) scheduler_->ReleaseMap(job, index);
-}
-
-void DistributedMaps::LeaveToWorkersLocked(Map& m, const std::string& why,
-                                           std::vector<std::pair<std::string, uint64_t>>* release) {
+void DistributedMaps::LeaveToWorkersLocked(Map& m, const std::string& why, MapUpdate& update) {
   spdlog::warn("job {} map {}: left to the workers (each traces it): {}", m.job_id, m.map_index, why);
   SetStateLocked(m, Map::State::kLeftToWorkers);  // its piece leases are no longer current
-  release->insert(release->end(), m.waiting.begin(), m.waiting.end());
+  update.maps.insert(m.key);                      // its queued pieces leave the Scheduler's queue
+  update.release.insert(update.release.end(), m.waiting.begin(), m.waiting.end());
   m.waiting.clear();
   ++counters_.maps_left_to_workers;
 }
 
 void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& kind, const std::string& why,
-                                    std::vector<std::pair<std::string, uint64_t>>* release,
-                                    std::vector<PieceFailure>* failures) {
+                                    MapUpdate& update) {
   Chunk& c = m.chunks[index];
   spdlog::warn("job {} map {} piece {}: attempt {} ended: {}", m.job_id, m.map_index, index, c.attempts, why);
-  failures->push_back(PieceFailure{m.job_id, c.worker_id, kind, why, index, c.attempts});
+  update.failures.push_back(PieceFailure{m.job_id, c.worker_id, kind, why, index, c.attempts});
   if (c.worker_id.empty())
     ++c.unattributed_failures;
   else if (std::find(c.failed_workers.begin(), c.failed_workers.end(), c.worker_id) == c.failed_workers.end())
     c.failed_workers.push_back(c.worker_id);
   PieceTransitions().Move(c.state, Chunk::State::kQueued);
   c.lease_id.clear();
+  update.maps.insert(m.key);
   // Failures on max_attempts distinct workers, as for a task (scheduler.h): one bad worker is
   // blocklisted for the job before it can use the piece up.
   const uint32_t distinct = uint32_t(c.failed_workers.size()) + c.unattributed_failures;
@@ -565,7 +555,7 @@ void DistributedMaps::RequeueLocked(Map& m, uint32_t index, const std::string& k
     LeaveToWorkersLocked(m,
                          "piece " + std::to_string(index) + " failed " + std::to_string(c.attempts) +
                              " times, on " + std::to_string(distinct) + " workers",
-                         release);
+                         update);
 }
 
 bool DistributedMaps::PieceLeaseCurrent(const std::string& map_key, uint32_t piece,
@@ -584,43 +574,40 @@ std::vector<std::string> DistributedMaps::JobsOfMap(const std::string& map_key) 
   return it == maps_.end() ? std::vector<std::string>{} : JobsOfLocked(it->second);
 }
 
-void DistributedMaps::PieceReturned(const std::string& map_key, uint32_t piece, const std::string& lease_id) {
+MapUpdate DistributedMaps::PieceReturned(const std::string& map_key, uint32_t piece,
+                                         const std::string& lease_id) {
   std::lock_guard lock(mu_);
+  MapUpdate update;
   auto it = maps_.find(map_key);
-  if (it == maps_.end() || it->second.state != Map::State::kTracing) return;
+  if (it == maps_.end() || it->second.state != Map::State::kTracing) return update;
   Map& m = it->second;
   Chunk& c = m.chunks[piece];
-  if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return;
+  if (c.state != Chunk::State::kLeased || c.lease_id != lease_id) return update;
   PieceTransitions().Move(c.state, Chunk::State::kQueued);
   c.lease_id.clear();
   --c.attempts;
   ++counters_.chunks_returned;
+  update.maps.insert(map_key);
   spdlog::info("job {} map {} piece {}: lease {} never reached the worker: queued again", m.job_id,
                m.map_index, piece, lease_id);
+  return update;
 }
 
-void DistributedMaps::PieceLeaseEnded(const PieceLeaseEnd& end) {
-  std::vector<std::pair<std::string, uint64_t>> release;
-  std::vector<PieceFailure> failures;
-  {
-    std::lock_guard lock(mu_);
-    auto it = maps_.find(end.map_key);
-    if (it == maps_.end() || it->second.state != Map::State::kTracing) return;
-    Map& m = it->second;
-    const Chunk& c = m.chunks[end.piece];
-    if (c.state != Chunk::State::kLeased || c.lease_id != end.lease_id) return;
-    if (end.why == PieceLeaseEnd::Why::kExpired) {
-      ++counters_.chunks_expired;
-      RequeueLocked(m, end.piece, "piece-expired", "lease expired (worker " + end.worker_id + ")", &release,
-                    &failures);
-    } else {
-      RequeueLocked(m, end.piece, "piece-failed", "failed by " + end.worker_id + ": " + end.reason, &release,
-                    &failures);
-    }
+MapUpdate DistributedMaps::PieceLeaseEnded(const PieceLeaseEnd& end) {
+  std::lock_guard lock(mu_);
+  MapUpdate update;
+  auto it = maps_.find(end.map_key);
+  if (it == maps_.end() || it->second.state != Map::State::kTracing) return update;
+  Map& m = it->second;
+  const Chunk& c = m.chunks[end.piece];
+  if (c.state != Chunk::State::kLeased || c.lease_id != end.lease_id) return update;
+  if (end.why == PieceLeaseEnd::Why::kExpired) {
+    ++counters_.chunks_expired;
+    RequeueLocked(m, end.piece, "piece-expired", "lease expired (worker " + end.worker_id + ")", update);
+  } else {
+    RequeueLocked(m, end.piece, "piece-failed", "failed by " + end.worker_id + ": " + end.reason, update);
   }
-  Report(failures);
-  Release(release);
-  if (scheduler_) scheduler_->NotifyMapPieces();
+  return update;
 }
 
 DistributedMaps::Counters DistributedMaps::counters() const {

@@ -2,11 +2,12 @@
 // Photon maps traced once (docs/farm.md "Photon maps traced once"): the coordinator's
 // side of distributed photon tracing.
 //
-//   job submitted ──▶ map pieces queued (TraceChunk tasks, served before render tasks)
+//   job submitted ──▶ map pieces queued in the Scheduler's TaskQueue (TraceChunk tasks, served
+//                     before render tasks)
 //   worker traces photons [b, e) ──UploadPhotonChunk──▶ piece checked, written to disk
 //   all pieces in ──▶ assembled and balanced once, here, on a thread of its own (never under
 //                     the scheduler's lock) ──▶ <data-dir>/maps/<key>.pfmaps
-//   ──▶ Scheduler::ReleaseMap: the render tasks of that map join the queue; their Task.map says
+//   ──▶ released (MapUpdate::release): the render tasks of that map join the queue; their Task.map says
 //       where to fetch it (FetchMap) — or the worker traces it itself if that is faster.
 //
 // Which maps: MapTracingMode::kDistributed — every map of the job (kd-tree only, checked at
@@ -20,26 +21,38 @@
 // Address of the map's MapKey (common/photon/map_key.h), the key type of every map cache.
 //
 // Not a scheduler of its own: the component the Scheduler calls for what is map-specific. The
-// Scheduler owns the leases of pieces as of render tasks — one LeaseTable (lease_table.h) whose
-// entries say their kind (render task | map piece) and what they name, one issuer and one form of
-// id (the job, the piece, the attempt and 128 bits from the CSPRNG: it cannot be guessed, and a
-// restarted coordinator never hands out an id again), one path for ExtendLease, FailTask,
-// ReturnLease and the upload (Scheduler::FindLiveLease, dispatching by the entry's kind, never by
-// the id's form) and one expiry tick (Scheduler::Tick). A lease is bound to the worker it was
-// leased to: ExtendLease, the upload and FailTask of another worker change nothing (kNotHolder;
-// docs/security.md, "Leases are bound to their worker"); the presenter is blocklisted in every job
-// of the map. Here: which piece is next (LeaseChunk, under the Scheduler's lock, oldest map first;
-// pieces are served before render tasks), each piece's state — moved only as PieceTransitions
-// allows (map_states.h) — attempts and failed workers, the piece and map files, the checks and
-// the assembly. The Scheduler tells it what became of a lease: PieceReturned (under its lock),
-// PieceLeaseEnded (failed or expired; outside its lock). A piece that moves on without the
-// Scheduler (stored, its map left to the workers or purged) leaves an entry that is no longer
-// current (PieceLeaseCurrent): the Scheduler drops it on its next use or at its deadline.
+// Scheduler owns the queue of pieces as of render tasks — one TaskQueue (task_queue.h) whose items
+// are render tasks or pieces (a map's key and a piece index; pieces first, oldest map first, lowest
+// piece first, a map passed over for a worker blocklisted in one of its jobs) — and their leases:
+// one LeaseTable (lease_table.h) whose entries say their kind (render task | map piece) and what
+// they name, one issuer and one form of id (the job, the piece, the attempt and 128 bits from the
+// CSPRNG: it cannot be guessed, and a restarted coordinator never hands out an id again), one path
+// for ExtendLease, FailTask, ReturnLease and the upload (Scheduler::FindLiveLease, dispatching by
+// the entry's kind, never by the id's form) and one expiry tick (Scheduler::Tick). A lease is bound
+// to the worker it was leased to: ExtendLease, the upload and FailTask of another worker change
+// nothing (kNotHolder; docs/security.md, "Leases are bound to their worker"); the presenter is
+// blocklisted in every job of the map. Here: each piece's state — moved only as PieceTransitions
+// allows (map_states.h) — attempts and failed workers, the piece and map files, the checks and the
+// assembly; no queue and no choice of the next piece. The Scheduler leases the piece its queue
+// chose (LeasePiece) and tells what became of a lease (PieceReturned, PieceLeaseEnded); each answer
+// is a MapUpdate (map_tracing_hook.h) — the maps whose queued pieces changed (the Scheduler sets
+// them in its queue from QueuedPiecesOf), failed attempts to count against their workers, maps to
+// release — that the Scheduler applies in the same hold of its lock. Events that begin here (an
+// upload refused, an assembly done or failed, a stored piece unreadable, a conviction) hand their
+// update to Scheduler::ApplyMapUpdate. A piece that moves on without the Scheduler (stored, its map
+// left to the workers or purged) leaves a lease entry that is no longer current
+// (PieceLeaseCurrent): the Scheduler drops it on its next use or at its deadline.
 //
-// Locks: the Scheduler's lock, then mu_ (LeaseChunk, PieceLeaseCurrent, JobsOfMap, PieceReturned,
-// RenderTaskReady are called under the Scheduler's lock and take mu_ briefly); this class calls
-// the Scheduler (PieceLeaseOf, ReleaseMap, PieceAttemptFailed, ConvictWorker, NotifyMapPieces) only
-// without mu_. Checking a piece and assembling a map hold neither lock.
+// Map builds are not a kind of the queue: the queue holds work leased to workers, with leases,
+// attempts and blocklists, and an assembly is the coordinator's own — one at a time on its builder
+// thread, from the pieces on its disk — so it is a checked map state (kBuilding, map_states.h) with
+// the builder's FIFO (docs/design.md, "One queue").
+//
+// Locks: the Scheduler's lock, then mu_ (RenderTaskReady, QueuedPiecesOf, LeasePiece,
+// PieceLeaseCurrent, JobsOfMap, PieceReturned, PieceLeaseEnded are called under the Scheduler's
+// lock and take mu_ briefly, and never call the Scheduler); this class calls the Scheduler
+// (PieceLeaseOf, ConvictWorker, ApplyMapUpdate) only without mu_. Checking a piece and assembling a
+// map hold neither lock.
 //
 // Pieces checked: besides its photon range and attributes, an upload's first kPhotonTracingChunk
 // photons are traced here and must equal the upload's, bit for bit (photon i depends on the map
@@ -60,7 +73,7 @@
 // worker's cache serves the old one (worker/map_obtainer.cpp checks it).
 //
 // Failures: a piece whose lease runs out or whose worker fails it is queued again (attempt + 1),
-// and the failure counts against the worker in the map's job (Scheduler::PieceAttemptFailed:
+// and the failure counts against the worker in the map's job (MapUpdate::failures:
 // blocklist, quarantine; a blocklisted worker is leased no pieces of that job). After failures on
 // max_attempts distinct workers, or if assembling fails, the map is left to the workers (its
 // render tasks are released without a built map and each worker traces it, as with kLocal) —
@@ -127,17 +140,17 @@ class DistributedMaps final : public MapTracingHook {
   void SetScheduler(Scheduler* scheduler) { scheduler_ = scheduler; }
 
   // MapTracingHook, under the scheduler's lock (map_tracing_hook.h).
-  bool RenderTaskReady(const Job& job, const TaskSpec& task) override;
-  std::optional<Lease> LeaseChunk(const LeaseRequest& request, const JobFilter& may_lease,
+  bool RenderTaskReady(const Job& job, const TaskSpec& task, MapUpdate& update) override;
+  QueuedPieces QueuedPiecesOf(const std::string& map_key) override;
+  std::optional<Lease> LeasePiece(const TaskQueue::Piece& piece, const std::string& worker_id,
                                   const IssuePieceLease& issue) override;
   bool PieceLeaseCurrent(const std::string& map_key, uint32_t piece, const std::string& lease_id) override;
   std::vector<std::string> JobsOfMap(const std::string& map_key) override;
   // A piece lease that never reached its worker (the long poll was cancelled): queued again at
   // once, its attempt not counted, instead of idling until the lease runs out.
-  void PieceReturned(const std::string& map_key, uint32_t piece, const std::string& lease_id) override;
-  // MapTracingHook, outside the scheduler's lock: a piece's lease failed or ran out (see the header
-  // comment, "Failures").
-  void PieceLeaseEnded(const PieceLeaseEnd& end) override;
+  MapUpdate PieceReturned(const std::string& map_key, uint32_t piece, const std::string& lease_id) override;
+  // A piece's lease failed or ran out (see the header comment, "Failures").
+  MapUpdate PieceLeaseEnded(const PieceLeaseEnd& end) override;
 
   // The built map a render task of `job_id` with this map index should fetch; nullopt if its
   // workers trace it (not distributed, or left to them).
@@ -191,7 +204,7 @@ class DistributedMaps final : public MapTracingHook {
     using State = MapState;  // moved only by SetStateLocked, as MapTransitions allows
     State state = State::kTracing;
     std::string key;
-    uint64_t seq = 0;  // creation order: pieces are served oldest map first
+    uint64_t seq = 0;  // creation order: the Scheduler's queue serves pieces oldest map first
     std::string job_id;
     uint64_t map_index = 0, map_seed = 0;
     std::shared_ptr<const JobConfig> config;
@@ -207,29 +220,20 @@ class DistributedMaps final : public MapTracingHook {
     BuiltMap built;
     std::set<std::string> contributors;
   };
-  // A failed piece attempt, reported to the scheduler (its worker health) outside mu_.
-  struct PieceFailure {
-    std::string job_id, worker_id, kind, reason;
-    uint32_t piece = 0, attempt = 0;
-  };
-
   // Under mu_.
   const std::string* KeyFor(const Job& job, uint64_t map_index);  // null: not distributed
-  Map& MapOf(const Job& job, uint64_t map_index, const std::string& key);
+  // The map of that key, created (its pieces in `update`) if it is new.
+  Map& MapOf(const Job& job, uint64_t map_index, const std::string& key, MapUpdate& update);
   // The piece's attempt failed (`kind`: piece-failed, piece-expired, piece-refused): queued again, the
-  // failure noted in `failures` for the scheduler.
+  // failure noted in `update` for the scheduler.
   void RequeueLocked(Map& map, uint32_t chunk, const std::string& kind, const std::string& why,
-                     std::vector<std::pair<std::string, uint64_t>>* release,
-                     std::vector<PieceFailure>* failures);
-  void LeaveToWorkersLocked(Map& map, const std::string& why,
-                            std::vector<std::pair<std::string, uint64_t>>* release);
+                     MapUpdate& update);
+  void LeaveToWorkersLocked(Map& map, const std::string& why, MapUpdate& update);
   // A piece's file is named by its photon range, so pieces found on disk are reused only for the
   // same range (a coordinator restarted with another --map-chunk-photons traces its pieces anew).
   std::filesystem::path ChunkFile(const std::string& key, uint64_t begin, uint64_t end) const;
   void Scan();
   void Build(const std::string& key);  // on builder_
-  void Release(const std::vector<std::pair<std::string, uint64_t>>& release);
-  void Report(const std::vector<PieceFailure>& failures);
 
   // Why `chunk` (uploaded as `bytes`) is not the coordinator's trace of it, "" if it is (or the
   // scene cannot be loaded here): its first photons, or with `in_full` all of it (see the header
@@ -244,8 +248,8 @@ class DistributedMaps final : public MapTracingHook {
   // each: the first may have ended).
   std::vector<std::string> JobsOfLocked(const Map& map) const;
   // A piece that is not the coordinator's trace: counted, and with `convict` its attempt failed (the
-  // piece queued again) and its uploader convicted in every job of the map. Call without mu_ and
-  // check_mu_.
+  // piece queued again) and its uploader convicted in every job of the map, then the failure
+  // reported. Call without mu_ and check_mu_.
   void RefuseAndConvict(const std::string& key, uint32_t index, const std::string& lease_id,
                         const std::string& worker_id, const std::string& why);
   // Drops the scene CheckFirstPhotons keeps once no map of it is tracing.
@@ -257,9 +261,6 @@ class DistributedMaps final : public MapTracingHook {
   Scheduler* scheduler_ = nullptr;
   mutable std::mutex mu_;
   std::map<std::string, Map> maps_;
-  // The maps in state kTracing by creation order (seq → key): LeaseChunk and Tick look at these
-  // only, not at every map ever created. Kept in step by SetStateLocked.
-  std::map<uint64_t, std::string> tracing_;
   void SetStateLocked(Map& m, Map::State state);
   uint64_t next_seq_ = 1;
   std::unordered_set<std::string> uploading_;  // leases with an admitted upload stream

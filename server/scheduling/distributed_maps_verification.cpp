@@ -77,8 +77,7 @@ std::string DistributedMaps::MismatchOf(const JobConfig& config, uint64_t map_se
 void DistributedMaps::RefuseAndConvict(const std::string& key, uint32_t index, const std::string& lease_id,
                                        const std::string& worker_id, const std::string& why) {
   std::vector<std::string> job_ids;
-  std::vector<std::pair<std::string, uint64_t>> release;
-  std::vector<PieceFailure> failures;
+  MapUpdate update;
   {
     std::lock_guard lock(mu_);
     ++counters_.chunks_refused;
@@ -90,19 +89,18 @@ void DistributedMaps::RefuseAndConvict(const std::string& key, uint32_t index, c
     // left to the workers like one that keeps failing. (Its lease in the Scheduler's table is then
     // no longer current: PieceLeaseCurrent.)
     if (m.state == Map::State::kTracing && c.state == Chunk::State::kLeased && c.lease_id == lease_id)
-      RequeueLocked(m, index, "piece-refused", "refused: " + why, &release, &failures);
+      RequeueLocked(m, index, "piece-refused", "refused: " + why, update);
   }
   spdlog::error("job {} piece {}: worker {} uploaded a piece that is not the coordinator's trace: convicted",
                 job_ids.front(), index, limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
   if (scheduler_) {
     // In every job waiting for the map (the first one may have ended), before the failed attempt
-    // is reported: a convicted worker's blocklisting never makes a job fail for "no worker left".
+    // is reported (the update): a convicted worker's blocklisting never makes a job fail for "no
+    // worker left".
     for (const std::string& job_id : job_ids)
       scheduler_->ConvictWorker(job_id, worker_id, index, "map piece " + std::to_string(index) + ": " + why);
+    scheduler_->ApplyMapUpdate(update);
   }
-  Report(failures);
-  Release(release);
-  if (scheduler_) scheduler_->NotifyMapPieces();
 }
 
 std::vector<std::string> DistributedMaps::JobsOfLocked(const Map& m) const {
@@ -115,6 +113,7 @@ std::vector<std::string> DistributedMaps::JobsOfLocked(const Map& m) const {
 std::vector<std::string> DistributedMaps::WorkerConvicted(const std::string& worker_id) {
   std::set<std::string> purged;  // keys of built maps deleted: the jobs that used them restart
   size_t pieces = 0;
+  MapUpdate update;  // maps traced again, or with pieces queued again
   {
     std::lock_guard lock(mu_);
     for (auto& [key, m] : maps_) {
@@ -133,6 +132,7 @@ std::vector<std::string> DistributedMaps::WorkerConvicted(const std::string& wor
         m.built = BuiltMap{};
         SetStateLocked(m, Map::State::kTracing);
         purged.insert(key);
+        update.maps.insert(key);
         continue;
       }
       if (m.state != Map::State::kTracing) continue;
@@ -145,10 +145,12 @@ std::vector<std::string> DistributedMaps::WorkerConvicted(const std::string& wor
           c = Chunk{};
           --m.done;
           ++pieces;
+          update.maps.insert(key);
         } else if (c.state == Chunk::State::kLeased && c.worker_id == worker_id) {
           // Its lease is no longer current (PieceLeaseCurrent); its upload would be refused anyway.
           PieceTransitions().Move(c.state, Chunk::State::kQueued);
           c.lease_id.clear();
+          update.maps.insert(key);
         }
       }
     }
@@ -188,7 +190,7 @@ std::vector<std::string> DistributedMaps::WorkerConvicted(const std::string& wor
         "maps: worker {} convicted: {} stored maps and {} pieces it traced deleted, traced again without it; "
         "{} jobs used those maps",
         limits::Quote(worker_id, limits::kMaxWorkerIdBytes), purged.size(), pieces, jobs.size());
-  if (scheduler_ && (!purged.empty() || pieces > 0)) scheduler_->NotifyMapPieces();
+  if (scheduler_) scheduler_->ApplyMapUpdate(update);
   return jobs;
 }
 
@@ -197,10 +199,10 @@ void DistributedMaps::ReleaseCheckSceneIfUnused() {
   if (!check_scene_) return;
   {
     std::lock_guard lock(mu_);
-    for (const auto& [seq, key] : tracing_) {
-      const Map& m = maps_.at(key);
-      if (m.config->scene_hash == check_scene_hash_ && m.done < m.chunks.size()) return;
-    }
+    for (const auto& [key, m] : maps_)
+      if (m.state == Map::State::kTracing && m.config->scene_hash == check_scene_hash_ &&
+          m.done < m.chunks.size())
+        return;
   }
   check_scene_.reset();
   check_scene_hash_.clear();

@@ -1,27 +1,33 @@
 #pragma once
 // The scheduler's hook for photon maps traced once (docs/farm.md "Photon maps traced
-// once"): work that comes before render tasks (pieces of maps to trace) and a gate that keeps a
-// render task out of the queue until its map is built. Implemented by DistributedMaps
+// once"): what is map-specific about the pieces of maps to trace, and a gate that keeps a render
+// task out of the queue until its map is built. Implemented by DistributedMaps
 // (distributed_maps.h); a Scheduler without one behaves as before.
 //
-// The leases of pieces are the Scheduler's (lease_table.h: one table, one issuer, one path for
-// ExtendLease, FailTask, ReturnLease, uploads and expiry); the hook keeps what is map-specific —
-// which piece is next, its attempts and state (map_states.h), the pieces on disk, their checks and
-// the assembly — and is told by the Scheduler what became of a piece's lease.
+// The queue and the leases of pieces are the Scheduler's: a piece waits in its one TaskQueue
+// (task_queue.h: pieces before render tasks, oldest map first) and is leased through its one
+// LeaseTable (lease_table.h: one issuer, one path for ExtendLease, FailTask, ReturnLease, uploads
+// and expiry). The hook keeps what a piece is — its state (map_states.h), attempts and failed
+// workers, the pieces on disk, their checks and the assembly — and answers each event with a
+// MapUpdate: which maps' queued pieces changed, which attempts failed, which maps are ready. The
+// Scheduler applies it under its lock (ApplyMapUpdate); the hook never calls the Scheduler back
+// from a call of the Scheduler.
 
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/plan/task_plan.h"
+#include "server/scheduling/task_queue.h"
 
 namespace pf::server {
 
 class Job;
 struct Lease;
-struct LeaseRequest;
 
 // A lease on photons [photon_begin, photon_end) of a map (Task.trace_chunk).
 struct TraceChunkLease {
@@ -30,8 +36,7 @@ struct TraceChunkLease {
   uint32_t chunk_index = 0, chunk_count = 0;
 };
 
-// What became of a piece's lease, told by the Scheduler outside its lock (a failure is reported
-// back to the Scheduler's worker health, and may release render tasks).
+// What became of a piece's lease, told by the Scheduler under its lock.
 struct PieceLeaseEnd {
   enum class Why { kFailed, kExpired };
   Why why = Why::kFailed;
@@ -41,21 +46,46 @@ struct PieceLeaseEnd {
   std::string reason;  // kFailed: the worker's
 };
 
+// A failed piece attempt (`kind`: piece-failed, piece-expired, piece-refused): it counts against
+// its worker in the job like a render task's (worker health: blocklist, quarantine, no worker left).
+struct PieceFailure {
+  std::string job_id, worker_id, kind, reason;
+  uint32_t piece = 0, attempt = 0;
+};
+
+// What a map event changed, for the Scheduler to apply under its lock (in this order).
+struct MapUpdate {
+  // Maps whose queued pieces changed: the Scheduler sets their pieces in its queue from
+  // MapTracingHook::QueuedPiecesOf (the map's state is the truth, so an update applied late or
+  // twice leaves the queue right).
+  std::set<std::string> maps = {};
+  std::vector<PieceFailure> failures = {};
+  // (job, map index): the map is built or left to the workers; its held render tasks join the queue.
+  std::vector<std::pair<std::string, uint64_t>> release = {};
+  bool empty() const { return maps.empty() && failures.empty() && release.empty(); }
+};
+
 class MapTracingHook {
  public:
   virtual ~MapTracingHook() = default;
   // Called under the scheduler's lock: they must not call back into the Scheduler and must not do
   // O(photons) work or I/O.
   // Whether `task` of `job` may be queued now (its map is built, or traced by its worker). If not,
-  // the scheduler holds it back until Scheduler::ReleaseMap(job, map index).
-  virtual bool RenderTaskReady(const Job& job, const TaskSpec& task) = 0;
-  // A piece of a map to trace, as a lease with Lease::chunk set; served before render tasks.
-  // Only of jobs `may_lease(job_id)` allows (worker health: not blocklisted for the job; null: any).
-  // Its lease id comes from `issue` (the Scheduler's LeaseTable, which holds the deadline).
-  using JobFilter = std::function<bool(const std::string& job_id)>;
+  // the scheduler holds it back until the map is released (MapUpdate::release); a map created for
+  // it adds its pieces to `update`.
+  virtual bool RenderTaskReady(const Job& job, const TaskSpec& task, MapUpdate& update) = 0;
+  // The map's creation order and its queued pieces (none unless it is tracing).
+  struct QueuedPieces {
+    uint64_t map_seq = 0;
+    std::vector<uint32_t> pieces;
+  };
+  virtual QueuedPieces QueuedPiecesOf(const std::string& map_key) = 0;
+  // The piece the queue chose, leased to `worker_id`, as a lease with Lease::chunk set; its lease
+  // id comes from `issue` (the Scheduler's LeaseTable, which holds the deadline). nullopt if the
+  // piece is not queued in its map.
   using IssuePieceLease = std::function<std::string(const std::string& job_id, const std::string& map_key,
                                                     uint32_t piece, uint32_t attempt)>;
-  virtual std::optional<Lease> LeaseChunk(const LeaseRequest& request, const JobFilter& may_lease,
+  virtual std::optional<Lease> LeasePiece(const TaskQueue::Piece& piece, const std::string& worker_id,
                                           const IssuePieceLease& issue) = 0;
   // Whether `lease_id` is still the lease of the piece: a piece may be stored, or its map left to
   // the workers or purged, without the Scheduler (its table entry is then dropped on its next use).
@@ -63,12 +93,13 @@ class MapTracingHook {
   // The jobs a piece of the map counts in (the map's job and every job waiting for it).
   virtual std::vector<std::string> JobsOfMap(const std::string& map_key) = 0;
   // The lease never reached its worker: the piece is queued again, its attempt not counted.
-  virtual void PieceReturned(const std::string& map_key, uint32_t piece, const std::string& lease_id) = 0;
+  virtual MapUpdate PieceReturned(const std::string& map_key, uint32_t piece,
+                                  const std::string& lease_id) = 0;
+  // A piece's lease failed or ran out: queued again (attempt + 1), the failure in the update (or,
+  // after failures on too many workers, the map left to the workers: its render tasks released).
+  virtual MapUpdate PieceLeaseEnded(const PieceLeaseEnd& end) = 0;
 
   // Called *outside* the scheduler's locks.
-  // A piece's lease failed or ran out: queued again (attempt + 1), the failure reported to the
-  // Scheduler (PieceAttemptFailed).
-  virtual void PieceLeaseEnded(const PieceLeaseEnd& end) = 0;
   // A worker was convicted (docs/farm.md "Result verification"; it may delete files): every stored
   // map holding pieces it traced is deleted and traced again, without its pieces. Returns the ids
   // of the jobs whose render tasks used such a built map (the scheduler restarts the active ones).

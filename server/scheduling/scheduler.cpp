@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <exception>
 #include <utility>
 
 #include "common/core/error.h"
@@ -51,25 +50,12 @@ void Scheduler::Run(Effects& fx) {
   std::function<void(const std::string&)> change;
   std::function<void()> persist;
   RefereeHook* referee = nullptr;
-  MapTracingHook* maps = nullptr;
   {
     std::lock_guard lock(mu_);
     change = change_listener_;
     persist = persist_listener_;
     referee = referee_;
-    maps = map_hook_;
   }
-  // Every ended piece goes back to its map even if the bookkeeping of another throws: a piece whose
-  // end is not delivered stays leased in its map with no lease behind it, and no tick finds it.
-  if (maps)
-    for (const PieceLeaseEnd& end : fx.piece_ends) {
-      try {
-        maps->PieceLeaseEnded(end);
-      } catch (const std::exception& e) {
-        spdlog::error("map {} piece {}: the end of lease {} was not recorded: {}", end.map_key.substr(0, 12),
-                      end.piece, end.lease_id, e.what());
-      }
-    }
   for (auto& [done, lease] : fx.callbacks) done(std::move(lease));
   for (RefereeCase& c : fx.referee) {
     if (referee)
@@ -150,36 +136,44 @@ void Scheduler::SetMapTracingHook(MapTracingHook* work) {
   map_hook_ = work;
 }
 
-void Scheduler::ReleaseMap(const std::string& job_id, uint64_t map_index) {
+void Scheduler::ApplyMapUpdate(const MapUpdate& update) {
+  if (update.empty()) return;
   Effects fx;
   {
     std::lock_guard lock(mu_);
-    auto it = held_.find({job_id, map_index});
-    if (it == held_.end()) return;
-    const std::vector<uint64_t> ids = std::move(it->second);
-    held_.erase(it);
-    Job* job = jobs_.Find(job_id);
-    if (!job || !job->active()) return;
-    size_t released = 0;
-    for (uint64_t id : ids)
-      if (job->runtime(id).state == TaskState::kQueued) {
-        queue_.Push(*job, id);
-        ++released;
-      }
-    spdlog::info("job {}: map {} ready: {} render tasks queued", job_id, map_index, released);
-    Touch(*job, fx);
+    ApplyMapUpdateLocked(update, clock_.Now(), fx);
     ServeWaiters(fx);
   }
   Run(fx);
 }
 
-void Scheduler::NotifyMapPieces() {
-  Effects fx;
-  {
-    std::lock_guard lock(mu_);
-    ServeWaiters(fx);
-  }
-  Run(fx);
+void Scheduler::ApplyMapUpdateLocked(const MapUpdate& update, double now, Effects& fx) {
+  if (!map_hook_) return;
+  for (const std::string& key : update.maps) QueueMapPiecesLocked(key);
+  for (const PieceFailure& failure : update.failures) PieceAttemptFailedLocked(failure, now, fx);
+  for (const auto& [job_id, map_index] : update.release) ReleaseMapLocked(job_id, map_index, fx);
+}
+
+void Scheduler::QueueMapPiecesLocked(const std::string& map_key) {
+  const MapTracingHook::QueuedPieces queued = map_hook_->QueuedPiecesOf(map_key);
+  queue_.SetMapPieces(map_key, queued.map_seq, queued.pieces);
+}
+
+void Scheduler::ReleaseMapLocked(const std::string& job_id, uint64_t map_index, Effects& fx) {
+  auto it = held_.find({job_id, map_index});
+  if (it == held_.end()) return;
+  const std::vector<uint64_t> ids = std::move(it->second);
+  held_.erase(it);
+  Job* job = jobs_.Find(job_id);
+  if (!job || !job->active()) return;
+  size_t released = 0;
+  for (uint64_t id : ids)
+    if (job->runtime(id).state == TaskState::kQueued) {
+      queue_.Push(*job, id);
+      ++released;
+    }
+  spdlog::info("job {}: map {} ready: {} render tasks queued", job_id, map_index, released);
+  Touch(*job, fx);
 }
 
 SchedulerCounters Scheduler::counters() const {

@@ -7,7 +7,8 @@
 // This class is the facade and the one lock; the rules live in pieces beside it:
 //   task_source.h  where a job's tasks come from: all at submission (static plans), or created
 //                  from the merged results (dynamic plans), asked after every merge
-//   task_queue.h   queued tasks: priority, then submission order, then map affinity
+//   task_queue.h   the one queue, of render tasks and map pieces: pieces first (oldest map
+//                  first), then tasks by priority, submission order and map affinity
 //   lease_table.h  lease id → what it names (a render task, or a map piece: its kind); which ran
 //                  out. One path (FindLiveLease) for Extend, Fail, ReturnLease, Complete, piece
 //                  uploads and expiry, dispatching by the entry's kind
@@ -55,9 +56,9 @@
 //      sees an accumulator that agrees with the job's merged tasks (checkpoints rely on it).
 // A result is decided exactly once: by its claim (ignored) or by its commit.
 //
-// Long polls. LeaseOrWait answers at once if a task is queued, else parks the caller until a
-// task is queued (submit, re-queue, a task source adding tasks) or its wait expires (Tick) — no
-// busy waiting; callbacks always run outside the lock, exactly once per waiter.
+// Long polls. LeaseOrWait answers at once if a task or a map piece is queued, else parks the
+// caller until one is (submit, re-queue, a task source adding tasks, a map update) or its wait
+// expires (Tick) — no busy waiting; callbacks always run outside the lock, exactly once per waiter.
 //
 // Verification (result_verification.h; docs/farm.md "Result verification"): a fraction of merged
 // results, chosen by the CSPRNG when they arrive, and every result the outlier test flags, are
@@ -297,10 +298,6 @@ class Scheduler final : public PersistSource {
   };
   PieceLeaseRef PieceLeaseOf(const std::string& lease_id, const std::string& worker_id,
                              const std::string& call);
-  // A map piece's attempt failed (DistributedMaps; `kind`: piece-failed, piece-expired, piece-refused): it
-  // counts against the worker in the job like a task's (blocklist, quarantine, no worker left).
-  void PieceAttemptFailed(const std::string& job_id, const std::string& worker_id, uint32_t piece,
-                          uint32_t attempt, const std::string& kind, const std::string& reason);
 
   // --- Time --- expires leases, long polls and time budgets. Call periodically.
   void Tick();
@@ -324,11 +321,11 @@ class Scheduler final : public PersistSource {
   // --- Photon maps traced once (docs/farm.md, "Photon maps traced once"; map_tracing_hook.h) ---
   // Set before jobs are added; `work` outlives the scheduler's use of it.
   void SetMapTracingHook(MapTracingHook* work);
-  // The map `map_index` of the job is built (or left to its workers): its held render tasks join
-  // the queue. Call outside MapTracingHook's own lock.
-  void ReleaseMap(const std::string& job_id, uint64_t map_index);
-  // Map pieces were queued (or re-queued): parked long polls may now get one.
-  void NotifyMapPieces();
+  // A map event that began outside the Scheduler (an upload refused, an assembly, a conviction):
+  // its update applied as the hook's answers are (map_tracing_hook.h) — the maps' queued pieces set
+  // in the queue, failed attempts counted against their workers, released maps' render tasks
+  // queued — and parked long polls served. Call outside MapTracingHook's own lock.
+  void ApplyMapUpdate(const MapUpdate& update);
 
   SchedulerCounters counters() const;
   const SchedulerOptions& options() const { return options_; }
@@ -349,8 +346,6 @@ class Scheduler final : public PersistSource {
       std::string evidence;
     };
     std::vector<Hijack> hijacks;
-    // Piece leases that failed or ran out: Run tells the map hook (PieceLeaseEnded).
-    std::vector<PieceLeaseEnd> piece_ends;
   };
   struct Waiter {
     LeaseRequest request;
@@ -413,9 +408,23 @@ class Scheduler final : public PersistSource {
   // The one lease path, for both kinds (lease_table.h): the lease if it is current; expires it (and
   // returns null) if it ran out; drops a piece's entry the map hook no longer knows as current.
   LeaseTable::Entry* FindLiveLease(const std::string& lease_id, double now, Effects& fx);
-  // A map piece's lease ran out or was failed by its holder: erased; the hook hears of it in Run.
+  // A map piece's lease ran out or was failed by its holder: erased, the hook told, its update
+  // applied, parked long polls served.
   void EndPieceLeaseLocked(const std::string& lease_id, PieceLeaseEnd::Why why, const std::string& reason,
-                           Effects& fx);
+                           double now, Effects& fx);
+  // Photon maps traced once (map_tracing_hook.h). The queued piece a worker gets, leased (before
+  // verifications and render tasks); sets *passed if it was passed over a map (blocklisted).
+  std::optional<Lease> LeasePieceLocked(const LeaseRequest& request, double now, bool failed_before,
+                                        bool* passed);
+  // The hook's update (MapUpdate, in its order); ApplyMapUpdate without the lock and the serving.
+  void ApplyMapUpdateLocked(const MapUpdate& update, double now, Effects& fx);
+  // The map's queued pieces in the queue become those the hook says are queued (QueuedPiecesOf).
+  void QueueMapPiecesLocked(const std::string& map_key);
+  // A map piece's attempt failed: it counts against the worker in the job like a task's.
+  void PieceAttemptFailedLocked(const PieceFailure& failure, double now, Effects& fx);
+  // The map `map_index` of the job is built (or left to its workers): its held render tasks join
+  // the queue.
+  void ReleaseMapLocked(const std::string& job_id, uint64_t map_index, Effects& fx);
   // A call (`call`) with a live lease `entry` of either kind from `worker_id`: false (and the
   // caller refused: NotTheHolderLocked) unless the worker holds it.
   bool HolderLocked(const LeaseTable::Entry& entry, const std::string& worker_id, const std::string& call,

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <utility>
 
 #include "common/core/error.h"
@@ -18,10 +19,15 @@ namespace v1 = photonfarm::v1;
 // Queue
 
 void Scheduler::Enqueue(Job& job, uint64_t task_id, Effects& fx) {
-  if (map_hook_ && !map_hook_->RenderTaskReady(job, job.task(task_id))) {
-    held_[{job.id(), job.task(task_id).map_index}].push_back(task_id);
-    Touch(job, fx);
-    return;
+  if (map_hook_) {
+    MapUpdate update;  // a map created for the task: its pieces join the queue
+    const bool ready = map_hook_->RenderTaskReady(job, job.task(task_id), update);
+    if (!update.empty()) ApplyMapUpdateLocked(update, clock_.Now(), fx);
+    if (!ready) {
+      held_[{job.id(), job.task(task_id).map_index}].push_back(task_id);
+      Touch(job, fx);
+      return;
+    }
   }
   queue_.Push(job, task_id);
   Touch(job, fx);
@@ -33,8 +39,7 @@ void Scheduler::Dequeue(Job& job, uint64_t task_id) {
 
 void Scheduler::ServeWaiters(Effects& fx) {
   const double now = clock_.Now();
-  for (auto it = waiters_.begin();
-       it != waiters_.end() && (!queue_.empty() || map_hook_ || verification_.HasQueued());) {
+  for (auto it = waiters_.begin(); it != waiters_.end() && (!queue_.empty() || verification_.HasQueued());) {
     bool restricted = false;
     std::optional<Lease> lease = LeaseLocked(it->second.request, now, fx, &restricted);
     if (lease) {
@@ -97,25 +102,8 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
   // A worker with no failed attempt in a running job is blocklisted nowhere and avoids nothing:
   // it skips the checks below (the lease path of a healthy farm).
   const bool failed_before = health_.FailedInActiveJob(worker);
-  if (map_hook_) {
-    MapTracingHook::JobFilter may_lease;
-    if (failed_before)
-      may_lease = [&](const std::string& job_id) {
-        if (!health_.IsBlocklisted(job_id, worker)) return true;
-        passed = true;
-        return false;
-      };
-    // Its id comes from the one lease table, which keeps the holder and the deadline.
-    const MapTracingHook::IssuePieceLease issue = [&](const std::string& job_id, const std::string& map_key,
-                                                      uint32_t piece, uint32_t attempt) {
-      return leases_.IssuePiece(job_id, map_key, piece, attempt, worker, now + options_.lease_seconds);
-    };
-    if (std::optional<Lease> chunk = map_hook_->LeaseChunk(request, may_lease, issue)) {
-      chunk->worker_id = worker;
-      chunk->lease_seconds = options_.lease_seconds;
-      return chunk;
-    }
-  }
+  if (map_hook_ && queue_.has_pieces())
+    if (std::optional<Lease> piece = LeasePieceLocked(request, now, failed_before, &passed)) return piece;
   if (verification_.HasQueued())
     if (std::optional<Lease> check = LeaseVerificationLocked(request, now, fx, &passed)) return check;
   std::optional<TaskQueue::Position> after;  // jobs up to here have nothing for this worker
@@ -188,6 +176,39 @@ std::optional<Lease> Scheduler::LeaseLocked(const LeaseRequest& request, double 
   return std::nullopt;
 }
 
+std::optional<Lease> Scheduler::LeasePieceLocked(const LeaseRequest& request, double now, bool failed_before,
+                                                 bool* passed) {
+  const std::string& worker = request.worker_id;
+  TaskQueue::MapFilter may_lease;  // not for a worker blocklisted for a job of the map
+  if (failed_before)
+    may_lease = [&](const std::string& map_key) {
+      for (const std::string& job_id : map_hook_->JobsOfMap(map_key))
+        if (health_.IsBlocklisted(job_id, worker)) {
+          *passed = true;
+          return false;
+        }
+      return true;
+    };
+  // Its id comes from the one lease table, which keeps the holder and the deadline.
+  const MapTracingHook::IssuePieceLease issue = [&](const std::string& job_id, const std::string& map_key,
+                                                    uint32_t piece, uint32_t attempt) {
+    return leases_.IssuePiece(job_id, map_key, piece, attempt, worker, now + options_.lease_seconds);
+  };
+  while (const std::optional<TaskQueue::Piece> piece = queue_.ChoosePiece(may_lease)) {
+    queue_.RemovePiece(piece->map_seq, piece->index);
+    if (std::optional<Lease> lease = map_hook_->LeasePiece(*piece, worker, issue)) {
+      lease->worker_id = worker;
+      lease->lease_seconds = options_.lease_seconds;
+      return lease;
+    }
+    // Not queued in its map any more: an update made outside this lock and not yet applied (a map
+    // left to the workers when a refused upload failed its piece once too often). The map's pieces
+    // are set again from it.
+    QueueMapPiecesLocked(piece->map_key);
+  }
+  return std::nullopt;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Workers
 
@@ -242,7 +263,7 @@ LeaseTable::Entry* Scheduler::FindLiveLease(const std::string& lease_id, double 
       return nullptr;
     }
     if (now >= entry->deadline) {
-      EndPieceLeaseLocked(lease_id, PieceLeaseEnd::Why::kExpired, "", fx);
+      EndPieceLeaseLocked(lease_id, PieceLeaseEnd::Why::kExpired, "", now, fx);
       return nullptr;
     }
     return entry;
@@ -258,10 +279,22 @@ LeaseTable::Entry* Scheduler::FindLiveLease(const std::string& lease_id, double 
 }
 
 void Scheduler::EndPieceLeaseLocked(const std::string& lease_id, PieceLeaseEnd::Why why,
-                                    const std::string& reason, Effects& fx) {
+                                    const std::string& reason, double now, Effects& fx) {
   const LeaseTable::Entry& e = *leases_.Find(lease_id);
-  fx.piece_ends.push_back(PieceLeaseEnd{why, e.map_key, uint32_t(e.task_id), lease_id, e.worker_id, reason});
+  const PieceLeaseEnd end{why, e.map_key, uint32_t(e.task_id), lease_id, e.worker_id, reason};
   leases_.Erase(lease_id);
+  if (!map_hook_) return;
+  MapUpdate update;
+  try {
+    update = map_hook_->PieceLeaseEnded(end);
+  } catch (const std::exception& ex) {
+    // One piece's bookkeeping failing must not fail the call (a tick expires many leases at once).
+    spdlog::error("map {} piece {}: the end of lease {} was not recorded: {}", end.map_key.substr(0, 12),
+                  end.piece, end.lease_id, ex.what());
+    return;
+  }
+  ApplyMapUpdateLocked(update, now, fx);
+  ServeWaiters(fx);
 }
 
 bool Scheduler::HolderLocked(const LeaseTable::Entry& entry, const std::string& worker_id,

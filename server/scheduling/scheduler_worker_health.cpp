@@ -84,25 +84,18 @@ bool Scheduler::AnotherWaiterCanTake(const Job& job, const TaskRuntime& rt, cons
   return false;
 }
 
-void Scheduler::PieceAttemptFailed(const std::string& job_id, const std::string& worker_id, uint32_t piece,
-                                   uint32_t attempt, const std::string& kind, const std::string& reason) {
-  Effects fx;
-  {
-    std::lock_guard lock(mu_);
-    const double now = clock_.Now();
-    if (Job* job = jobs_.Find(job_id)) {
-      activity_.TaskEvent(job_id, kind, piece, attempt, worker_id, reason);
-      if (job->active() && CountFailure(*job, worker_id, piece, attempt, reason, now)) {
-        if (const std::string none = NoWorkerLeft(*job); !none.empty()) {
-          const std::string why = "map piece " + std::to_string(piece) + " attempt " +
-                                  std::to_string(attempt) + " failed: " + reason + "; gave up: " + none;
-          FinishJob(*job, JobState::kFailed, why, now, fx);
-          spdlog::error("job {}: failed: {}", job_id, why);
-        }
-      }
+void Scheduler::PieceAttemptFailedLocked(const PieceFailure& f, double now, Effects& fx) {
+  Job* job = jobs_.Find(f.job_id);
+  if (!job) return;
+  activity_.TaskEvent(f.job_id, f.kind, f.piece, f.attempt, f.worker_id, f.reason);
+  if (job->active() && CountFailure(*job, f.worker_id, f.piece, f.attempt, f.reason, now)) {
+    if (const std::string none = NoWorkerLeft(*job); !none.empty()) {
+      const std::string why = "map piece " + std::to_string(f.piece) + " attempt " +
+                              std::to_string(f.attempt) + " failed: " + f.reason + "; gave up: " + none;
+      FinishJob(*job, JobState::kFailed, why, now, fx);
+      spdlog::error("job {}: failed: {}", f.job_id, why);
     }
   }
-  Run(fx);
 }
 
 FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& worker_id,
@@ -117,11 +110,11 @@ FailOutcome Scheduler::Fail(const std::string& lease_id, const std::string& work
       outcome = *check;
     } else if (LeaseTable::Entry* ref = FindLiveLease(lease_id, now, fx)) {
       if (ref->kind == LeaseKind::kMapPiece) {
-        // A piece: queued again by the map hook (Run), the failure counted against its worker
-        // (PieceAttemptFailed); `retryable` does not apply (a piece is left to the workers instead).
+        // A piece: queued again, the failure counted against its worker (the hook's update);
+        // `retryable` does not apply (a piece is left to the workers instead).
         if (HolderLocked(*ref, worker_id, "FailTask", fx)) {
           outcome = FailOutcome::kFailed;
-          EndPieceLeaseLocked(lease_id, PieceLeaseEnd::Why::kFailed, reason, fx);
+          EndPieceLeaseLocked(lease_id, PieceLeaseEnd::Why::kFailed, reason, now, fx);
         } else {
           outcome = FailOutcome::kNotHolder;
         }
@@ -154,11 +147,12 @@ void Scheduler::ReturnLease(const std::string& lease_id) {
     if (ReturnVerificationLocked(lease_id, fx)) {
       ServeWaiters(fx);
     } else if (entry = leases_.Find(lease_id); entry && entry->kind == LeaseKind::kMapPiece) {
-      // A piece: queued again at once by the map hook, its attempt not counted.
+      // A piece: queued again at once, its attempt not counted.
       const std::string map_key = entry->map_key;
       const uint32_t piece = uint32_t(entry->task_id);
       leases_.Erase(lease_id);
-      if (map_hook_) map_hook_->PieceReturned(map_key, piece, lease_id);
+      if (map_hook_)
+        ApplyMapUpdateLocked(map_hook_->PieceReturned(map_key, piece, lease_id), clock_.Now(), fx);
       ServeWaiters(fx);
     } else {
       if (!entry || entry->job->runtime(entry->task_id).merging) return;

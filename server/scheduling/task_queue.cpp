@@ -69,4 +69,34 @@ std::optional<TaskQueue::Pick> TaskQueue::Choose(const Job& job, std::span<const
   return pick;
 }
 
+void TaskQueue::SetMapPieces(const std::string& map_key, uint64_t map_seq,
+                             std::span<const uint32_t> indices) {
+  if (indices.empty()) {
+    pieces_.erase(map_seq);
+    return;
+  }
+  MapPieces& m = pieces_[map_seq];
+  m.key = map_key;
+  m.indices = std::set<uint32_t>(indices.begin(), indices.end());
+}
+
+void TaskQueue::RemovePiece(uint64_t map_seq, uint32_t index) {
+  auto it = pieces_.find(map_seq);
+  if (it == pieces_.end()) return;
+  it->second.indices.erase(index);
+  if (it->second.indices.empty()) pieces_.erase(it);
+}
+
+size_t TaskQueue::queued_pieces() const {
+  size_t n = 0;
+  for (const auto& [seq, m] : pieces_) n += m.indices.size();
+  return n;
+}
+
+std::optional<TaskQueue::Piece> TaskQueue::ChoosePiece(const MapFilter& may_lease) const {
+  for (const auto& [seq, m] : pieces_)  // oldest map first; a map here has queued pieces
+    if (!may_lease || may_lease(m.key)) return Piece{m.key, seq, *m.indices.begin()};
+  return std::nullopt;
+}
+
 }  // namespace pf::server

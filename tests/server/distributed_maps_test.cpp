@@ -1,7 +1,8 @@
-// DistributedMaps (docs/farm.md, "Photon maps traced once") under a Scheduler, with a fake clock: the piece
-// queue that TraceChunk leases come from — oldest map first, a returned (undelivered) lease queued again at
-// once without counting an attempt, expiry — and the piece leases the Scheduler's one lease table holds
-// (lease_table.h), without a gRPC server or a worker.
+// DistributedMaps (docs/farm.md, "Photon maps traced once") under a Scheduler, with a fake clock: the pieces
+// in the Scheduler's one queue that TraceChunk leases come from — oldest map first, a returned (undelivered)
+// lease queued again at once without counting an attempt, expiry, a map left to the workers leaving the
+// queue — and the piece leases the Scheduler's one lease table holds (lease_table.h), without a gRPC server
+// or a worker.
 #include "server/scheduling/distributed_maps.h"
 
 #include <gmock/gmock.h>
@@ -193,8 +194,9 @@ TEST_F(DistributedMapsTest, TheLeaseTableDispatchesByKind) {
 }
 
 // Piece failures count against their worker in the map's job (worker_health.h): a worker that
-// fails pieces 3 times is blocklisted — it is leased no more of the job's pieces — and the piece,
-// failed on one worker only, is not given up: another worker traces it.
+// fails pieces 3 times is blocklisted — it is leased no more of the job's pieces, but those of
+// another job's map — and the piece, failed on one worker only, is not given up: another worker
+// traces it (lowest piece of the oldest map first).
 TEST_F(DistributedMapsTest, AWorkerFailingPiecesIsBlocklistedAndCannotUseAPieceUp) {
   Scheduler& scheduler = scheduler_;
   const std::string id = AddJob(scheduler, 11);
@@ -214,6 +216,12 @@ TEST_F(DistributedMapsTest, AWorkerFailingPiecesIsBlocklistedAndCannotUseAPieceU
   ASSERT_EQ(s.blocklisted_workers_size(), 1);
   EXPECT_EQ(s.blocklisted_workers(0).worker_id(), "flaky");
   EXPECT_FALSE(scheduler.TryLease({"flaky", {}}).has_value()) << "no more pieces of this job";
+  // The queue passes it over the older map, not over every map: a later job's pieces are its.
+  const std::string later = AddJob(scheduler, 12);
+  const std::optional<Lease> other = scheduler.TryLease({"flaky", {}});
+  ASSERT_TRUE(other && other->chunk);
+  EXPECT_EQ(other->job_id, later);
+  EXPECT_EQ(other->chunk->chunk_index, 0u);
   const std::optional<Lease> retry = scheduler.TryLease({"healthy", {}});
   ASSERT_TRUE(retry && retry->chunk);
   EXPECT_EQ(retry->chunk->chunk_index, 1u);
@@ -221,6 +229,27 @@ TEST_F(DistributedMapsTest, AWorkerFailingPiecesIsBlocklistedAndCannotUseAPieceU
   int piece_events = 0;
   for (const v1::TaskEvent& e : scheduler.activity().Events(id)) piece_events += e.kind() == "piece-failed";
   EXPECT_EQ(piece_events, 3);
+}
+
+// A piece failed on max_attempts distinct workers leaves its map to the workers: the map's queued
+// pieces leave the Scheduler's queue in the same hold of its lock, and its render task is queued.
+TEST_F(DistributedMapsTest, AMapLeftToTheWorkersLeavesTheQueueAndReleasesItsRenderTasks) {
+  const std::string id = AddJob(scheduler_, 11);
+  for (const char* worker : {"w1", "w2", "w3"}) {
+    const std::optional<Lease> l = scheduler_.TryLease({worker, {}});
+    ASSERT_TRUE(l && l->chunk);
+    EXPECT_EQ(l->chunk->chunk_index, 0u) << "the failed piece is queued again, lowest first";
+    EXPECT_EQ(scheduler_.Fail(l->lease_id, worker, "out of memory", true), FailOutcome::kFailed);
+  }
+  EXPECT_EQ(maps_.counters().maps_left_to_workers, 1u);
+  EXPECT_EQ(maps_.counters().chunks_leased, 3u);
+  const std::optional<Lease> task = scheduler_.TryLease({"w4", {}});
+  ASSERT_TRUE(task.has_value());
+  EXPECT_FALSE(task->chunk.has_value()) << "pieces 1 and 2 left the queue with their map";
+  EXPECT_EQ(task->job_id, id);
+  EXPECT_FALSE(maps_.MapFor(id, 0).has_value()) << "its worker traces the map";
+  EXPECT_FALSE(scheduler_.TryLease({"w4", {}}).has_value());
+  EXPECT_EQ(maps_.counters().chunks_leased, 3u);
 }
 
 }  // namespace

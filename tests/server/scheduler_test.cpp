@@ -1176,47 +1176,54 @@ TEST(SchedulerTaskSource, TimeBudgetStopsAHierarchicalJobBeforeItsLocalization) 
 namespace pf::server {
 namespace {
 
-// Render tasks whose map is not ready are held out of the queue
-// (the hook's pieces are leased first, parked long polls get them), and ReleaseMap queues them;
-// a hook that says "ready" changes nothing.
+// Render tasks whose map is not ready are held out of the queue (the map's pieces, in the
+// Scheduler's one queue, are leased first, parked long polls get them), and a released map
+// (MapUpdate::release) queues them; a hook that says "ready" changes nothing.
 class FakeMapHook final : public MapTracingHook {
  public:
-  bool RenderTaskReady(const Job& /*job*/, const TaskSpec& task) override {
+  bool RenderTaskReady(const Job& /*job*/, const TaskSpec& task, MapUpdate& update) override {
+    update.maps.insert("key");  // its pieces join the queue (idempotent)
     return ready.count(task.map_index) > 0;
   }
-  std::optional<Lease> LeaseChunk(const LeaseRequest& /*request*/, const JobFilter& /*may_lease*/,
+  QueuedPieces QueuedPiecesOf(const std::string& /*map_key*/) override {
+    return {1, std::vector<uint32_t>(queued.begin(), queued.end())};
+  }
+  std::optional<Lease> LeasePiece(const TaskQueue::Piece& piece, const std::string& /*worker_id*/,
                                   const IssuePieceLease& issue) override {
-    if (pieces == 0) return std::nullopt;
-    --pieces;
+    if (!queued.erase(piece.index)) return std::nullopt;
     Lease l;
-    l.lease_id = issue("job", "key", 0, 1);
-    l.chunk = TraceChunkLease{"key", 0, 4096, 0, 1};
+    l.lease_id = issue("job", piece.map_key, piece.index, 1);
+    l.chunk = TraceChunkLease{piece.map_key, 0, 4096, piece.index, 8};
     return l;
   }
   bool PieceLeaseCurrent(const std::string&, uint32_t, const std::string&) override { return true; }
   std::vector<std::string> JobsOfMap(const std::string&) override { return {}; }
-  void PieceReturned(const std::string&, uint32_t, const std::string&) override {}
-  void PieceLeaseEnded(const PieceLeaseEnd& end) override {
+  MapUpdate PieceReturned(const std::string&, uint32_t, const std::string&) override { return {}; }
+  MapUpdate PieceLeaseEnded(const PieceLeaseEnd& end) override {
     ended.push_back(end.lease_id);
     if (throw_on_end) throw std::runtime_error("bookkeeping failed");
+    return {};
   }
   std::set<uint64_t> ready;
-  int pieces = 0;
+  std::set<uint32_t> queued;  // the map's queued pieces
   bool throw_on_end = false;
   std::vector<std::string> ended;
 };
 
-// A piece's lease ends in the scheduler's table and reaches its map afterwards: one end whose
-// bookkeeping throws must not keep the others from their maps (they would stay leased for ever).
+// A piece's lease ends in the scheduler's table and reaches its map in the same hold of the lock:
+// one end whose bookkeeping throws must not keep the others from their maps (they would stay
+// leased for ever), nor fail the tick.
 TEST_F(SchedulerTest, EveryExpiredPieceReachesItsMapEvenIfOneThrows) {
   FakeMapHook hook;
-  hook.pieces = 2;
+  hook.queued = {0, 1};
   hook.throw_on_end = true;
   scheduler_.SetMapTracingHook(&hook);
   Submit(MakeConfig(MultipleMaps(1, 2), 4, 4));
   const Lease a = MustLease("w1");
   const Lease b = MustLease("w2");
   ASSERT_TRUE(a.chunk.has_value() && b.chunk.has_value());
+  EXPECT_EQ(a.chunk->chunk_index, 0u) << "lowest piece first";
+  EXPECT_EQ(b.chunk->chunk_index, 1u);
   clock_.Advance(31);
   EXPECT_NO_THROW(scheduler_.Tick());
   std::sort(hook.ended.begin(), hook.ended.end());
@@ -1228,7 +1235,7 @@ TEST_F(SchedulerTest, EveryExpiredPieceReachesItsMapEvenIfOneThrows) {
 
 TEST_F(SchedulerTest, RenderTasksWaitForTheirMapAndPiecesComeFirst) {
   FakeMapHook hook;
-  hook.pieces = 1;
+  hook.queued = {0};
   hook.ready = {1};
   scheduler_.SetMapTracingHook(&hook);
   const std::string id = Submit(MakeConfig(MultipleMaps(2, 2), 4, 4));  // 2 maps x 4 tiles
@@ -1249,14 +1256,15 @@ TEST_F(SchedulerTest, RenderTasksWaitForTheirMapAndPiecesComeFirst) {
     answered = true;
   });
   EXPECT_FALSE(answered);
-  hook.pieces = 1;
-  scheduler_.NotifyMapPieces();
+  hook.queued = {3};
+  scheduler_.ApplyMapUpdate(MapUpdate{.maps = {"key"}});
   ASSERT_TRUE(answered);
   ASSERT_TRUE(parked.has_value() && parked->chunk.has_value());
+  EXPECT_EQ(parked->chunk->chunk_index, 3u);
   hook.ready.insert(0);
-  scheduler_.ReleaseMap(id, 0);
+  scheduler_.ApplyMapUpdate(MapUpdate{.release = {{id, 0}}});
   for (int i = 0; i < 4; ++i) EXPECT_EQ(MustLease().task.map_index, 0u);
-  scheduler_.ReleaseMap(id, 0);  // twice: nothing more
+  scheduler_.ApplyMapUpdate(MapUpdate{.release = {{id, 0}}});  // twice: nothing more
   EXPECT_FALSE(scheduler_.TryLease({"w1", {}}).has_value());
   scheduler_.SetMapTracingHook(nullptr);
 }
