@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "common/core/error.h"
+
 namespace pf {
 
 LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
@@ -107,7 +109,11 @@ void LightSampler::AddPunctualLights(std::vector<double>* weights) {
         break;
     }
     const double w = double(std::max(e.power.Luminance(), 1e-6f * e.power.Max()));
-    if (!(w > 0.0) || !e.power.IsFinite()) continue;
+    // Never dropped in silence: the scene counted it as a light (the loader's no-light check).
+    if (!(w > 0.0) || !e.power.IsFinite())
+      throw InputError("light '" + l.name + "': its power is not a finite positive number (intensity " +
+                       std::to_string(l.intensity.Max()) + "; a directional light over a scene of radius " +
+                       std::to_string(radius) + ")");
     punctual_.push_back(e);
     weights->push_back(w);
     total_power_ += e.power;

@@ -62,10 +62,13 @@ class LightSampler {
   explicit LightSampler(const EmbreeScene& scene);
 
   bool empty() const { return triangles_.empty() && punctual_.empty(); }
-  // Picks an emitter triangle ∝ power with u_select, then a uniform point with (u1, u2).
+  // Picks an emitter ∝ power with u_select — an emitting triangle or a punctual light — then a
+  // uniform point on the triangle with (u1, u2) (a punctual light's sample is its position or
+  // direction).
   LightSample Sample(float u_select, float u1, float u2) const;
   // Sample(u_select, u1, u2) in two steps, EmitterSample(EmitterIndex(u_select), u1, u2): which
-  // emitting triangle (0 .. num_emitting_triangles() − 1) u_select picks, and the sample on it.
+  // emitter (0 .. num_emitters() − 1: the triangles, then the punctual lights) u_select picks,
+  // and the sample on it.
   // For callers that keep per emitter what does not depend on the point (the photon tracer).
   size_t EmitterIndex(float u_select) const {
     return std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(),
@@ -89,7 +92,8 @@ class LightSampler {
   // Per light (one emitting source primitive, scene.triangle_light), for direct-light
   // estimators that sample each light separately (§4.2.1, §4.2.3). Lights are numbered
   // 0..num_lights()-1 in the order of their first emitting triangle (LightIndex maps a scene
-  // light id to its number); triangles without an id form one extra light.
+  // light id to its number), triangles without an id form one extra light, and each punctual
+  // light is one more, after all of those.
   size_t num_lights() const { return lights_.size(); }
   const Rgb& light_power(size_t light) const { return lights_[light].power; }
   // Samples light `light` alone: a triangle ∝ power within it, a uniform point on it.

@@ -211,6 +211,11 @@ class Parser {
     if (l.intensity.IsBlack() || !l.intensity.IsFinite())
       Fail(key + (v.contains("intensity") ? ".intensity" : ".color"),
            "color x intensity must be finite and not black (a light that emits nothing)");
+    // Its power (4π·I, or E⊥ over the scene's disc) must stay a finite float: 1e20 W/sr is
+    // ~10^17 times the brightest lamp anyone models.
+    if (l.intensity.Max() > kMaxLightIntensity)
+      Fail(key + (v.contains("intensity") ? ".intensity" : ".color"),
+           "color x intensity exceeds " + std::to_string(kMaxLightIntensity) + " in a channel");
     if (l.kind == Kind::kSpot) {
       const auto angle = [&](const char* name, float fallback) {
         if (!v.contains(name)) return fallback;
@@ -220,9 +225,12 @@ class Parser {
       };
       l.inner_cone_deg = angle("inner_cone_deg", 0.0f);
       l.outer_cone_deg = angle("outer_cone_deg", 45.0f);
-      if (!(l.outer_cone_deg > l.inner_cone_deg))
-        Fail(key + ".outer_cone_deg",
-             "expected an angle greater than inner_cone_deg (" + std::to_string(l.inner_cone_deg) + ")");
+      // The falloff divides by cos θi − cos θo: narrower than 0.1° and float cosines of the two
+      // angles are too close to tell apart (the spot would emit nothing).
+      if (!(l.outer_cone_deg >= l.inner_cone_deg + kMinSpotFalloffDeg))
+        Fail(key + ".outer_cone_deg", "expected an angle at least " + std::to_string(kMinSpotFalloffDeg) +
+                                          " degrees greater than inner_cone_deg (" +
+                                          std::to_string(l.inner_cone_deg) + ")");
     } else {
       unused("inner_cone_deg");
       unused("outer_cone_deg");

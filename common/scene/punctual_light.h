@@ -20,6 +20,12 @@
 
 namespace pf {
 
+// Limits a scene's lights must keep (checked where they are read, the manifest): the largest
+// channel of I or E⊥, so that every power stays a finite float, and the narrowest spot falloff
+// band (outer − inner half-angle), so that the float cosines of the two angles differ.
+inline constexpr float kMaxLightIntensity = 1e20f;
+inline constexpr float kMinSpotFalloffDeg = 0.1f;
+
 struct PunctualLight {
   enum class Kind : uint8_t { kPoint, kSpot, kDirectional };
   Kind kind = Kind::kPoint;

@@ -108,6 +108,12 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   if (!scene)
     throw NotFoundError("spec.scene_hash: unknown scene " + limits::Quote(hash) +
                         " (upload it with UploadScene first)");
+  // Stored by an older coordinator, which took a scene without light with a warning; every
+  // worker would now refuse to load it (common/scene/scene_loader.h, a scene without light).
+  if (scene->lights == 0)
+    throw InputError(
+        "spec.scene_hash: scene " + limits::Quote(hash) +
+        " has no light (no emitting material and no manifest \"lights\"); add one and upload it again");
   job.scene_hash = hash;
   job.scene_entry = scene->entry;
   if (scene->max_emission >= 0) job.max_sample_radiance = limits::kResultRadianceFactor * scene->max_emission;

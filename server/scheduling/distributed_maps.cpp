@@ -259,9 +259,11 @@ std::optional<Lease> DistributedMaps::LeasePiece(const TaskQueue::Piece& piece, 
   Map& m = it->second;
   const uint32_t pick = piece.index;
   Chunk& chunk = m.chunks[pick];
+  // The id first: if issuing throws, the piece is still queued, not leased with no lease behind it.
+  std::string lease_id = issue(m.job_id, m.key, pick, chunk.attempts + 1);
   PieceTransitions().Move(chunk.state, Chunk::State::kLeased);
   ++chunk.attempts;
-  chunk.lease_id = issue(m.job_id, m.key, pick, chunk.attempts);
+  chunk.lease_id = std::move(lease_id);
   chunk.worker_id = worker_id;
   ++counters_.chunks_leased;
   Lease lease;

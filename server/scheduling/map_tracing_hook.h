@@ -59,6 +59,8 @@ struct MapUpdate {
   // MapTracingHook::QueuedPiecesOf (the map's state is the truth, so an update applied late or
   // twice leaves the queue right).
   std::set<std::string> maps = {};
+  // Failed attempts, each counted against its worker when applied: an update is applied once (a
+  // second application would count the failures again; `maps` and `release` would be harmless).
   std::vector<PieceFailure> failures = {};
   // (job, map index): the map is built or left to the workers; its held render tasks join the queue.
   std::vector<std::pair<std::string, uint64_t>> release = {};

@@ -196,7 +196,14 @@ std::optional<Lease> Scheduler::LeasePieceLocked(const LeaseRequest& request, do
   };
   while (const std::optional<TaskQueue::Piece> piece = queue_.ChoosePiece(may_lease)) {
     queue_.RemovePiece(piece->map_seq, piece->index);
-    if (std::optional<Lease> lease = map_hook_->LeasePiece(*piece, worker, issue)) {
+    std::optional<Lease> lease;
+    try {
+      lease = map_hook_->LeasePiece(*piece, worker, issue);
+    } catch (...) {
+      QueueMapPiecesLocked(piece->map_key);  // still queued in its map: back in the queue
+      throw;
+    }
+    if (lease) {
       lease->worker_id = worker;
       lease->lease_seconds = options_.lease_seconds;
       return lease;
@@ -282,17 +289,22 @@ void Scheduler::EndPieceLeaseLocked(const std::string& lease_id, PieceLeaseEnd::
                                     const std::string& reason, double now, Effects& fx) {
   const LeaseTable::Entry& e = *leases_.Find(lease_id);
   const PieceLeaseEnd end{why, e.map_key, uint32_t(e.task_id), lease_id, e.worker_id, reason};
-  leases_.Erase(lease_id);
-  if (!map_hook_) return;
+  if (!map_hook_) {
+    leases_.Erase(lease_id);
+    return;
+  }
   MapUpdate update;
   try {
     update = map_hook_->PieceLeaseEnded(end);
   } catch (const std::exception& ex) {
     // One piece's bookkeeping failing must not fail the call (a tick expires many leases at once).
-    spdlog::error("map {} piece {}: the end of lease {} was not recorded: {}", end.map_key.substr(0, 12),
-                  end.piece, end.lease_id, ex.what());
+    // The entry stays: its map still has the piece leased, and a later tick ends it again, instead
+    // of the piece staying leased with no lease behind it.
+    spdlog::error("map {} piece {}: the end of lease {} was not recorded (tried again at the next tick): {}",
+                  end.map_key.substr(0, 12), end.piece, end.lease_id, ex.what());
     return;
   }
+  leases_.Erase(lease_id);
   ApplyMapUpdateLocked(update, now, fx);
   ServeWaiters(fx);
 }

@@ -276,7 +276,9 @@ TEST(CausticSplitting, PiecesAssembleToTheOneProcessMap) {
     EXPECT_EQ(assembled.stats.chains, whole.stats.chains);
     EXPECT_EQ(assembled.stats.mutations, whole.stats.mutations);
     EXPECT_EQ(assembled.stats.accepted, whole.stats.accepted);
-    if (method == CausticSplitMethod::kMetropolis) EXPECT_GT(whole.stats.mutations, 0u);
+    if (method == CausticSplitMethod::kMetropolis) {
+      EXPECT_GT(whole.stats.mutations, 0u);
+    }
   }
 }
 

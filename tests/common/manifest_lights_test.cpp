@@ -109,7 +109,13 @@ TEST_F(ManifestLightsTest, EachMalformedKeyIsNamed) {
        "key 'lights[0].inner_cone_deg': expected a number"},
       {R"("lights": [{"type": "spot", "position": [0, 1, 0], "direction": [0, -1, 0], "inner_cone_deg": 30,
            "outer_cone_deg": 30}])",
-       "key 'lights[0].outer_cone_deg': expected an angle greater than inner_cone_deg"},
+       "key 'lights[0].outer_cone_deg': expected an angle at least 0.1"},
+      // So narrow that cos θi and cos θo are one float: the spot would emit nothing.
+      {R"("lights": [{"type": "spot", "position": [0, 1, 0], "direction": [0, -1, 0], "outer_cone_deg": 0.01}])",
+       "key 'lights[0].outer_cone_deg': expected an angle at least 0.1"},
+      // 4π·I would overflow a float: the light would be dropped and the scene render black.
+      {R"("lights": [{"type": "point", "position": [0, 1, 0], "intensity": 3e37}])",
+       "key 'lights[0].intensity': color x intensity exceeds"},
   };
   for (const auto& [lights, expected] : cases) {
     const fs::path p = Write("bad.json", R"({"geometry": "a.obj", )" + lights + "}");

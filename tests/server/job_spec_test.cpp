@@ -11,6 +11,7 @@
 
 #include "proto/convert.h"
 #include "tests/server/server_test_util.h"
+#include "tests/util/input_error.h"
 
 namespace pf::server {
 namespace {
@@ -43,6 +44,15 @@ v1::JobSpec PhotonMapSpec() {
   settings.photons = 1000;
   SettingsToProto(settings, spec.mutable_settings());
   return spec;
+}
+
+// A scene an older coordinator stored without any light (it warned and took it): every worker
+// would refuse to load it, so the job is refused at the edge, naming the field.
+TEST(JobSpecValidation, ASceneWithoutLightIsRefused) {
+  const TraitsCatalog dark(/*caustic_paths=*/0, /*lights=*/0);
+  const std::string message = pf::testing::InputErrorOf([&] { ValidateJobSpec(PhotonMapSpec(), dark); });
+  EXPECT_EQ(message.rfind("spec.scene_hash: ", 0), 0u) << message;
+  EXPECT_NE(message.find("has no light"), std::string::npos) << message;
 }
 
 TEST(JobSpecResolution, TheScenesAutoSettingsAreStoredConcrete) {

@@ -219,6 +219,7 @@ TEST_F(RenderServiceTest, TaskCapIsOneLimitExactlyAtTwoToTheTwenty) {
   } catalog;
   catalog.info.hash = hash_;
   catalog.info.entry = "cornell-box.json";
+  catalog.info.lights = 1;
   auto maps_spec = [&](uint32_t maps, uint32_t width) {
     v1::JobSpec spec = ValidSpec();
     spec.mutable_camera()->set_width(width);
@@ -257,6 +258,7 @@ TEST_F(RenderServiceTest, TheResultBoundComesFromTheScenesBrightestEmitter) {
   } catalog;
   catalog.info.hash = hash_;
   catalog.info.entry = "cornell-box.json";
+  catalog.info.lights = 1;
   catalog.info.max_emission = -1;
   EXPECT_EQ(ValidateJobSpec(ValidSpec(), catalog).max_sample_radiance,
             std::numeric_limits<double>::infinity());

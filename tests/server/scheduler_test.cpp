@@ -1190,6 +1190,7 @@ class FakeMapHook final : public MapTracingHook {
   }
   std::optional<Lease> LeasePiece(const TaskQueue::Piece& piece, const std::string& /*worker_id*/,
                                   const IssuePieceLease& issue) override {
+    if (throw_on_lease) throw std::runtime_error("no lease id");  // before the piece changes
     if (!queued.erase(piece.index)) return std::nullopt;
     Lease l;
     l.lease_id = issue("job", piece.map_key, piece.index, 1);
@@ -1206,14 +1207,30 @@ class FakeMapHook final : public MapTracingHook {
   }
   std::set<uint64_t> ready;
   std::set<uint32_t> queued;  // the map's queued pieces
-  bool throw_on_end = false;
+  bool throw_on_end = false, throw_on_lease = false;
   std::vector<std::string> ended;
 };
+
+// A piece whose lease could not be made stays queued in the one queue (it is still queued in its
+// map), and is leased once leasing works again.
+TEST_F(SchedulerTest, APieceWhoseLeaseFailsStaysQueued) {
+  FakeMapHook hook;
+  hook.queued = {0};
+  hook.throw_on_lease = true;
+  scheduler_.SetMapTracingHook(&hook);
+  Submit(MakeConfig(MultipleMaps(1, 2), 4, 4));
+  EXPECT_THROW(scheduler_.TryLease({"w1", {}}), std::runtime_error);
+  hook.throw_on_lease = false;
+  const Lease piece = MustLease("w1");
+  ASSERT_TRUE(piece.chunk.has_value()) << "the piece left the queue when its lease failed";
+  EXPECT_EQ(piece.chunk->chunk_index, 0u);
+  scheduler_.SetMapTracingHook(nullptr);
+}
 
 // A piece's lease ends in the scheduler's table and reaches its map in the same hold of the lock:
 // one end whose bookkeeping throws must not keep the others from their maps (they would stay
 // leased for ever), nor fail the tick.
-TEST_F(SchedulerTest, EveryExpiredPieceReachesItsMapEvenIfOneThrows) {
+TEST_F(SchedulerTest, AnExpiredPieceTheMapDidNotRecordIsEndedAgain) {
   FakeMapHook hook;
   hook.queued = {0, 1};
   hook.throw_on_end = true;
@@ -1230,6 +1247,16 @@ TEST_F(SchedulerTest, EveryExpiredPieceReachesItsMapEvenIfOneThrows) {
   std::vector<std::string> leased{a.lease_id, b.lease_id};
   std::sort(leased.begin(), leased.end());
   EXPECT_EQ(hook.ended, leased);
+  // Not recorded by the map: the leases stay, and the next tick ends them again; once recorded
+  // they are gone (no third end).
+  hook.throw_on_end = false;
+  hook.ended.clear();
+  scheduler_.Tick();
+  std::sort(hook.ended.begin(), hook.ended.end());
+  EXPECT_EQ(hook.ended, leased) << "an end the map did not record is tried again";
+  hook.ended.clear();
+  scheduler_.Tick();
+  EXPECT_TRUE(hook.ended.empty()) << "a recorded end is not repeated";
   scheduler_.SetMapTracingHook(nullptr);
 }
 

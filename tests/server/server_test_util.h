@@ -86,6 +86,7 @@ class FakeCatalog final : public SceneCatalog {
     SceneInfo info;
     info.hash = kHash;
     info.entry = "scene.mgf";
+    info.lights = 1;  // a scene without light is refused (job_spec.h)
     return info;
   }
 };
