@@ -61,8 +61,9 @@ std::string LimitsHelp() {
 void AddFarmOptions(CLI::App* app, pf::FarmArgs& f) {
   app->add_option("--coordinator", f.coordinator, "Coordinator HOST:PORT (default $PF_COORDINATOR)")
       ->check(kCoordinatorAddress);
-  app->add_option("--token-file", f.token_file,
-                  "File holding the client's bearer token, one line (default $PF_TOKEN)");
+  app->add_option(
+      "--token-file", f.token_file,
+      "File holding the client's bearer token, one line (default $PF_TOKEN_FILE, else $PF_TOKEN)");
   app->add_option("--tls-ca", f.tls_ca,
                   "PEM roots of the coordinator's TLS certificate: connect with TLS (default $PF_TLS_CA)");
   app->add_option("--tls-cert", f.tls_cert, "PEM client certificate (with --tls-key; default $PF_TLS_CERT)");

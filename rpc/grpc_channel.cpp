@@ -78,9 +78,13 @@ std::string ParseToken(std::string_view text, const std::string& source) {
   return std::string(text);
 }
 
-std::string ResolveToken(const std::string& token_file, const char* env_name) {
+std::string ResolveToken(const std::string& token_file, const char* env_name, const char* file_env_name) {
   if (!token_file.empty())
     return ParseToken(ReadFileOrThrow(token_file, "--token-file"), "--token-file '" + token_file + "'");
+  if (const char* file = file_env_name ? std::getenv(file_env_name) : nullptr) {
+    const std::string source = std::string("$") + file_env_name;
+    return ParseToken(ReadFileOrThrow(file, source), source + " '" + file + "'");
+  }
   const char* env = std::getenv(env_name);
   if (env == nullptr) return "";
   return ParseToken(env, std::string("$") + env_name);

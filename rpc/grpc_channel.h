@@ -63,9 +63,11 @@ std::shared_ptr<grpc::Channel> MakeCoordinatorChannel(const std::string& address
 // abort gRPC) and at most 4096 bytes. Anything else is an InputError naming `source`.
 std::string ParseToken(std::string_view text, const std::string& source);
 
-// The bearer token: the whole of `token_file` if given, else $`env_name` if set (set but blank is
-// an error, not "no token"), else "". Parsed with ParseToken; InputError if unreadable.
-std::string ResolveToken(const std::string& token_file, const char* env_name = "PF_TOKEN");
+// The bearer token: the whole of `token_file` if given, else of the file $`file_env_name` names
+// if that is set (nullptr: not looked at), else $`env_name` if set (set but blank is an error, not
+// "no token"), else "". Parsed with ParseToken; InputError if unreadable.
+std::string ResolveToken(const std::string& token_file, const char* env_name = "PF_TOKEN",
+                         const char* file_env_name = "PF_TOKEN_FILE");
 
 // Sets a deadline `timeout` from now and, if `token` is non-empty, the
 // "authorization: Bearer <token>" metadata.

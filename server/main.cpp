@@ -1,6 +1,6 @@
 // pf-coordinator: the photonfarm coordinator (server/coordinator.h; docs/farm.md, "Coordinator").
 //
-//   pf-coordinator --data-dir DIR [--listen 127.0.0.1:0]
+//   pf-coordinator --data-dir DIR [--listen 127.0.0.1:0] [--config FILE]
 //                  [--client-token-file FILE] [--worker-token-file FILE]
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]] [--insecure]
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
@@ -152,6 +152,12 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "warning", "error", "critical", "off"}));
+  // A deployment's settings in one file (deploy/README.md): every option above by its long name,
+  // TOML `key = value` (a repeatable one as an array); the command line wins over the file. A key
+  // the coordinator does not know is a usage error, not ignored.
+  app.set_config("--config", "",
+                 "TOML file of these options by long name (key = value); the command line wins");
+  app.allow_config_extras(CLI::config_extras_mode::error);
   app.set_version_flag("--version", "pf-coordinator " PF_VERSION);
   try {
     app.parse(argc, argv);
@@ -182,8 +188,8 @@ int main(int argc, char** argv) {
   std::signal(SIGPIPE, SIG_IGN);
 
   try {
-    options.client_token = pf::ResolveToken(client_token_file, "PF_CLIENT_TOKEN");
-    options.worker_token = pf::ResolveToken(worker_token_file, "PF_WORKER_TOKEN");
+    options.client_token = pf::ResolveToken(client_token_file, "PF_CLIENT_TOKEN", nullptr);
+    options.worker_token = pf::ResolveToken(worker_token_file, "PF_WORKER_TOKEN", nullptr);
     if (!options.client_token.empty() && options.client_token == options.worker_token)
       throw pf::InputError("the client and worker tokens are the same: roles need different credentials");
     options.tls_cert_pem = ReadPem(tls_cert, "--tls-cert");

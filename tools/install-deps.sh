@@ -15,8 +15,11 @@ PACKAGES=(
   # The farm: gRPC, Protobuf, SQLite, and the Python client.
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libsqlite3-dev sqlite3
   libssl-dev  # SHA-256 of scene bundles (OpenSSL EVP)
-  openssl     # the TLS e2e tests make their certificates with the openssl CLI
+  openssl     # deploy/make-credentials.sh and the TLS e2e tests make certificates with the openssl CLI
   python3 python3-grpcio python3-protobuf
+  # The deployment recipes' test (tests/deploy): compose.yaml read with PyYAML, units checked by
+  # systemd-analyze (nothing is started by systemd).
+  python3-yaml systemd
   # Fuzzing the MGF parser (libFuzzer lives in clang's runtime).
   clang libclang-rt-14-dev
   # Formatting check of the test command (tools/check-format.sh): Debian 12 ships version 14.

@@ -53,8 +53,9 @@ int RunWorkerProcess(int argc, char** argv, std::shared_ptr<WorkerFaults> faults
   app.add_option("--coordinator", o.coordinator, "Coordinator address HOST:PORT")
       ->required()
       ->check(CLI::Validator([](std::string& v) { return pf::CoordinatorAddressProblem(v); }, "HOST:PORT"));
-  app.add_option("--token-file", token_file,
-                 "File holding the worker's bearer token, one line (default: $PF_TOKEN)");
+  app.add_option(
+      "--token-file", token_file,
+      "File holding the worker's bearer token, one line (default: $PF_TOKEN_FILE, else $PF_TOKEN)");
   app.add_option("--tls-ca", tls_ca,
                  "PEM roots of the coordinator's TLS certificate: connect with TLS (default: $PF_TLS_CA)");
   app.add_option("--tls-cert", tls_cert,

@@ -49,6 +49,34 @@ TEST(Cli, UsageErrorsExitTwoInAllThreeBinaries) {
   EXPECT_EQ(r.exit_code, 2) << r.err;
 }
 
+// pf-coordinator --config FILE: options by long name in TOML, the command line over the file, an
+// unknown key or an unreadable file a usage error naming it (deploy/README.md).
+TEST(Cli, CoordinatorConfigFileSetsOptionsAndTheCommandLineWins) {
+  TestDir dir;
+  {
+    std::ofstream(dir / "coordinator.toml") << "# a deployment's settings\n"
+                                            << "lease-seconds = 7.5\n"
+                                            << "max-attempts = 9\n"
+                                            << "limit = [\"jobs_total=17\", \"jobs_per_client=5\"]\n";
+  }
+  CoordinatorProcess coordinator(dir / "data", dir.path(),
+                                 {"--config", (dir / "coordinator.toml").string(), "--max-attempts", "4"});
+  const std::string log = ReadFile(coordinator.process().log());
+  EXPECT_NE(log.find("lease 7.5 s"), std::string::npos) << log;
+  EXPECT_NE(log.find("max attempts 4 "), std::string::npos) << "the command line wins\n" << log;
+  EXPECT_NE(log.find("jobs_per_client=5 jobs_total=17"), std::string::npos) << log;
+
+  { std::ofstream(dir / "bad.toml") << "lease-seconds = 3\nleese-seconds = 4\n"; }
+  RunResult r = RunCommand(
+      {Binaries::Coordinator(), "--data-dir", (dir / "d2").string(), "--config", (dir / "bad.toml").string()},
+      dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("leese"), std::string::npos) << r.err;
+  r = RunCommand({Binaries::Coordinator(), "--config", (dir / "missing.toml").string()}, dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("missing.toml"), std::string::npos) << r.err;
+}
+
 TEST(Cli, VersionOnAllThreeBinaries) {
   TestDir dir;
   for (const auto& [bin, name] :

@@ -149,6 +149,15 @@ TEST(FarmValidation, WrongTokenIsUnauthenticated) {
   r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator.address()}, dir.path(), 30,
                  {{"PF_TOKEN", "s3cret-token"}});
   EXPECT_EQ(r.exit_code, 0) << r.err;
+  // PF_TOKEN_FILE (the deployment recipes' worker.env and client.env) wins over PF_TOKEN; a file it
+  // names that cannot be read is an error naming the variable.
+  r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator.address()}, dir.path(), 30,
+                 {{"PF_TOKEN", "guess"}, {"PF_TOKEN_FILE", (dir / "token").string()}});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  r = RunCommand({Binaries::Pf(), "list", "--coordinator", coordinator.address()}, dir.path(), 30,
+                 {{"PF_TOKEN_FILE", (dir / "no-such-token").string()}});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("$PF_TOKEN_FILE"), std::string::npos) << r.err;
 
   // A worker with the wrong token gets nothing, says why, and keeps trying (the operator may fix
   // the token file and restart it; it does not crash-loop); an empty token file is a usage error.
