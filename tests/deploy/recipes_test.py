@@ -22,6 +22,7 @@ SIGTERM must stop every process with exit 0. Exit 0 pass, 1 fail."""
 import argparse
 import json
 import os
+import random
 import re
 import shlex
 import shutil
@@ -39,10 +40,25 @@ class Failure(Exception):
     pass
 
 
-def free_port():
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def free_port(taken=()):
+    """A port no one listens on, below the kernel's ephemeral range: a recipe's ports are fixed
+    in its files before its coordinator starts (seconds later, after make-credentials), and a port
+    from that range could meanwhile go to another test's coordinator on port 0 — gRPC binds with
+    SO_REUSEPORT, so both would listen and loopback calls would reach the other one."""
+    with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
+        low = int(f.read().split()[0])
+    rng = random.Random()
+    for _ in range(1000):
+        port = rng.randrange(max(1024, low - 12000), low)
+        if port in taken:
+            continue
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("0.0.0.0", port))
+            except OSError:
+                continue
+        return port
+    raise Failure("no free port below the ephemeral range")
 
 
 def wait_for(what, predicate, seconds):
@@ -59,7 +75,8 @@ class Farm:
 
     def __init__(self, args, tmp):
         self.args, self.tmp, self.procs = args, tmp, []
-        self.port, self.http_port = free_port(), free_port()
+        self.port = free_port()
+        self.http_port = free_port(taken=(self.port,))
 
     def binary(self, name):
         return {"pf": os.path.join(self.args.build, "client", "pf"),
