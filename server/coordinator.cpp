@@ -159,6 +159,10 @@ int Coordinator::Start() {
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  // gRPC binds with SO_REUSEPORT by default: a second coordinator on a port in use would start and
+  // the kernel would split the connections between the two (each with its own jobs and data dir).
+  // Without it, the second one fails to listen.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.RegisterService(render_service_.get());
   builder.RegisterService(worker_service_.get());
   server_ = builder.BuildAndStart();

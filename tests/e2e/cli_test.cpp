@@ -77,6 +77,21 @@ TEST(Cli, CoordinatorConfigFileSetsOptionsAndTheCommandLineWins) {
   EXPECT_NE(r.err.find("missing.toml"), std::string::npos) << r.err;
 }
 
+// A second coordinator on a port one already serves exits 1; with gRPC's default SO_REUSEPORT it
+// used to start, and the kernel split the connections between two coordinators with two data dirs.
+TEST(Cli, ASecondCoordinatorOnAPortInUseDoesNotStart) {
+  TestDir dir;
+  CoordinatorProcess first(dir / "data", dir.path());
+  const RunResult r =
+      RunCommand({Binaries::Coordinator(), "--listen", "127.0.0.1:" + std::to_string(first.port()),
+                  "--data-dir", (dir / "other").string()},
+                 dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find("cannot listen on 127.0.0.1:" + std::to_string(first.port())), std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.out.find("listening on"), std::string::npos) << r.out;
+}
+
 TEST(Cli, VersionOnAllThreeBinaries) {
   TestDir dir;
   for (const auto& [bin, name] :
