@@ -28,7 +28,8 @@ std::string OneLine(std::string text) {
 }  // namespace
 
 bool IsSupportedGltfExtension(const std::string& name) {
-  return std::find(kSupportedExtensions.begin(), kSupportedExtensions.end(), name) != kSupportedExtensions.end();
+  return std::find(kSupportedExtensions.begin(), kSupportedExtensions.end(), name) !=
+         kSupportedExtensions.end();
 }
 
 GltfDocument::GltfDocument() : model(std::make_unique<tinygltf::Model>()) {}
@@ -40,7 +41,8 @@ GltfDocument ReadGltfDocument(const std::filesystem::path& path) {
   GltfDocument doc;
   doc.file = path.filename().string();
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(SourceLocation{doc.file, 0}, "no such file");
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(SourceLocation{doc.file, 0}, "no such file");
 
   tinygltf::TinyGLTF reader;
   std::string err;
@@ -56,13 +58,14 @@ GltfDocument ReadGltfDocument(const std::filesystem::path& path) {
   const tinygltf::Model& m = *doc.model;
   for (const std::string& ext : m.extensionsRequired) {
     if (!IsSupportedGltfExtension(ext)) {
-      throw InputError(SourceLocation{doc.file, 0},
-                       "extensionsRequired: '" + ext + "' is not supported (the data cannot be read without it)");
+      throw InputError(
+          SourceLocation{doc.file, 0},
+          "extensionsRequired: '" + ext + "' is not supported (the data cannot be read without it)");
     }
   }
   for (const std::string& ext : m.extensionsUsed) {
-    const bool required =
-        std::find(m.extensionsRequired.begin(), m.extensionsRequired.end(), ext) != m.extensionsRequired.end();
+    const bool required = std::find(m.extensionsRequired.begin(), m.extensionsRequired.end(), ext) !=
+                          m.extensionsRequired.end();
     if (!required && !IsSupportedGltfExtension(ext)) {
       doc.warnings.push_back(doc.file + ": extensionsUsed: '" + ext + "' is not supported; ignored");
     }
