@@ -201,6 +201,7 @@ Worker::Outcome Worker::RunTask(const v1::Task& task) {
   if (const std::optional<Outcome> ended = ObtainMap(task, ctx, parsed, *scene)) return *ended;
   // e.g. the fetches outlasted a lease the coordinator could not extend
   if (keeper.lost()) return Abandon(ctx, "the lease is gone before the render started");
+  if (options_.faults) options_.faults->At("render", ctx);
   return ExecuteSupervised(task, ctx, parsed, std::move(scene), t0, std::move(exec), keeper);
 }
 

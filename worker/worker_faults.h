@@ -14,8 +14,9 @@ namespace pf::worker {
 class WorkerFaults {
  public:
   virtual ~WorkerFaults() = default;
-  // At a step of a map task: `where` is "trace" (before tracing a piece), "upload" (before sending
-  // it) or "fetch" (before fetching a built map); `context` names the task. May block.
+  // At a step of a task: `where` is "trace" (before tracing a piece), "upload" (before sending
+  // it), "fetch" (before fetching a built map) or "render" (before rendering a render task, its
+  // scene and map at hand); `context` names the task. May block; the lease is kept alive.
   virtual void At(const char* /*where*/, const std::string& /*context*/) {}
   // A part of a fetched map as received, before its checks.
   virtual void OnMapPart(std::string& /*data*/, uint32_t /*index*/, const std::string& /*map_key*/) {}

@@ -177,7 +177,7 @@ TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {
       StartCoordinatorWithJob(dir, {"--lease-seconds", "3"}, job.ToFlags());
   ASSERT_FALSE(job_id.empty());
   std::vector<fs::path> logs;
-  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);
+  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs, 0.1);
 
   // Crash once a third of the tasks are merged.
   ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 7; }, 120));

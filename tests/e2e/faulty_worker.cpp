@@ -1,6 +1,7 @@
-// pf-worker with injected faults (worker/worker_faults.h), for the kill-point and corrupted-map
-// tests (map_tracing_test.cpp): the same process as pf-worker (RunWorkerProcess), plus
-//   PF_TEST_PAUSE_AT=trace|upload|fetch[:TEXT]  sleep at that step (only where the task's context
+// pf-worker with injected faults (worker/worker_faults.h), for the kill-point, paced and
+// corrupted-map tests (map_tracing_test.cpp, hierarchical_test.cpp): the same process as pf-worker
+// (RunWorkerProcess), plus
+//   PF_TEST_PAUSE_AT=trace|upload|fetch|render[:TEXT]  sleep at that step (only where the task's context
 //                                               contains TEXT, e.g. "upload:piece=2/"), logging
 //                                               "test-pause at ..." so a test can SIGKILL it there;
 //   PF_TEST_PAUSE_SECONDS=S                     how long (default 120): a pause that ends stands

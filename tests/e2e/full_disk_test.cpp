@@ -58,7 +58,7 @@ JobArgs DiskJob() {
   job.photons = 40000;
   job.k = 50;
   job.stride = 2;
-  job.rounds = 6;  // 24 tasks of ~0.1-0.3 s
+  job.rounds = 6;  // 24 tasks, paced at ≥ 0.1 s each (StartTwoPatientWorkers)
   job.spp = 2;
   return job;
 }
@@ -89,7 +89,7 @@ TEST_F(FullDisk, NothingAcknowledgedIsLostAndTheImageIsRightAfterACrashOnAFullDi
   auto [coordinator, port, address, job_id] = StartCoordinatorWithJob(dir, args, job.ToFlags());
   ASSERT_FALSE(job_id.empty());
   std::vector<fs::path> logs;
-  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);
+  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs, 0.1);
   ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 4; }, 120));
 
   disk.Fill();
@@ -149,7 +149,7 @@ TEST_F(FullDisk, ASigtermWhoseFinalFlushCannotStoreEverythingExitsOne) {
   const std::string job_id = SubmitJob(dir, coordinator.address(), job.ToFlags());
   std::vector<fs::path> logs;
   std::vector<std::unique_ptr<Process>> workers =
-      StartTwoPatientWorkers(coordinator.address(), dir.path(), &logs);
+      StartTwoPatientWorkers(coordinator.address(), dir.path(), &logs, 0.1);
   ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 2; }, 120));
   disk.Fill();
   FarmClient client(coordinator.address(), "");

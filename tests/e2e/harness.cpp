@@ -211,9 +211,12 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
   if (!ok) throw std::runtime_error("pf-coordinator did not start: " + ReadFile(process_->log()));
 }
 
-std::unique_ptr<Process> StartWorker(const std::string& address, const fs::path& dir, const std::string& id,
-                                     std::vector<std::string> extra_args) {
-  std::vector<std::string> argv = {Binaries::Worker(),
+namespace {
+// A worker's command line: `binary` against `address` with 1 thread, its own cache folder.
+std::vector<std::string> WorkerArgv(const std::string& binary, const std::string& address,
+                                    const fs::path& dir, const std::string& id,
+                                    const std::vector<std::string>& extra_args) {
+  std::vector<std::string> argv = {binary,
                                    "--coordinator",
                                    address,
                                    "--threads",
@@ -227,7 +230,21 @@ std::unique_ptr<Process> StartWorker(const std::string& address, const fs::path&
                                    "--max-backoff",
                                    "0.5"};
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
-  return std::make_unique<Process>(id, argv, dir / (id + ".log"));
+  return argv;
+}
+}  // namespace
+
+std::unique_ptr<Process> StartWorker(const std::string& address, const fs::path& dir, const std::string& id,
+                                     std::vector<std::string> extra_args) {
+  return std::make_unique<Process>(id, WorkerArgv(Binaries::Worker(), address, dir, id, extra_args),
+                                   dir / (id + ".log"));
+}
+
+std::unique_ptr<Process> StartFaultyWorker(const std::string& address, const fs::path& dir,
+                                           const std::string& id, std::map<std::string, std::string> env,
+                                           std::vector<std::string> extra_args) {
+  return std::make_unique<Process>(id, WorkerArgv(Binaries::FaultyWorker(), address, dir, id, extra_args),
+                                   dir / (id + ".log"), fs::path{}, std::move(env));
 }
 
 RunResult RunCommand(const std::vector<std::string>& argv, const fs::path& dir, double timeout,

@@ -107,6 +107,11 @@ class CoordinatorProcess {
 // pf-worker against `address` with 1 thread, its own cache folder and log.
 std::unique_ptr<Process> StartWorker(const std::string& address, const std::filesystem::path& dir,
                                      const std::string& id, std::vector<std::string> extra_args = {});
+// StartWorker's command line run by the faulty worker (pf-worker with injected faults), with the
+// PF_TEST_* variables (faulty_worker.cpp) in `env` that choose them.
+std::unique_ptr<Process> StartFaultyWorker(const std::string& address, const std::filesystem::path& dir,
+                                           const std::string& id, std::map<std::string, std::string> env,
+                                           std::vector<std::string> extra_args = {});
 
 struct RunResult {
   int exit_code = -1;
@@ -167,12 +172,23 @@ std::set<uint64_t> LeasedTasksSince(const std::vector<std::filesystem::path>& wo
                                     const std::vector<size_t>& offsets, const std::string& job_id);
 
 // Workers w1 and w2 (StartWorker) that retry their reports for 30 s, so that a result outlives
-// a coordinator restart; `logs` receives their log files.
-inline std::vector<std::unique_ptr<Process>> StartTwoPatientWorkers(
-    const std::string& address, const std::filesystem::path& dir, std::vector<std::filesystem::path>* logs) {
+// a coordinator restart; `logs` receives their log files. With `seconds_per_task` > 0 they pause
+// that long before each render task (the faulty worker, PF_TEST_PAUSE_AT=render): a test that
+// kills the coordinator after some merges then still finds the job running, however fast the
+// machine renders.
+inline std::vector<std::unique_ptr<Process>> StartTwoPatientWorkers(const std::string& address,
+                                                                    const std::filesystem::path& dir,
+                                                                    std::vector<std::filesystem::path>* logs,
+                                                                    double seconds_per_task = 0) {
   std::vector<std::unique_ptr<Process>> workers;
   for (const char* id : {"w1", "w2"}) {
-    workers.push_back(StartWorker(address, dir, id, {"--report-retry", "30"}));
+    if (seconds_per_task > 0)
+      workers.push_back(StartFaultyWorker(
+          address, dir, id,
+          {{"PF_TEST_PAUSE_AT", "render"}, {"PF_TEST_PAUSE_SECONDS", std::to_string(seconds_per_task)}},
+          {"--report-retry", "30"}));
+    else
+      workers.push_back(StartWorker(address, dir, id, {"--report-retry", "30"}));
     logs->push_back(dir / (std::string(id) + ".log"));
   }
   return workers;

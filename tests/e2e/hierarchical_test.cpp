@@ -129,7 +129,9 @@ void KilledWorkerAndCoordinatorRestart(const std::vector<std::string>& flags, ui
   victim->Wait(5);
 
   std::vector<fs::path> logs;
-  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs);
+  // Paced at 0.1 s a task: the ~30 tasks left after the 12th merge take the two workers over a
+  // second, however fast the machine renders them, so the crash comes before the job ends.
+  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs, 0.1);
   // The coordinator crashes once a few tasks are merged (the job has 40 static tasks).
   ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 12; }, 120));
   coordinator->process().Signal(SIGKILL);
@@ -152,7 +154,7 @@ void KilledWorkerAndCoordinatorRestart(const std::vector<std::string>& flags, ui
 }
 
 TEST(HierarchicalFarm, KilledWorkerAndCoordinatorRestartGiveTheLocalImage) {
-  KilledWorkerAndCoordinatorRestart(HierarchicalFlags(40000), 40);  // tasks of ~0.1-0.3 s
+  KilledWorkerAndCoordinatorRestart(HierarchicalFlags(40000), 40);
 }
 
 // The same with --hier-part indirect: its emission + direct light tasks (one per row band of 8:
@@ -220,8 +222,12 @@ TEST(HierarchicalFarm, ThreeWorkersKilledWorkerAndRestartMidLevelGiveTheLocalIma
 
   std::vector<fs::path> logs;
   std::vector<std::unique_ptr<Process>> workers;
+  // Paced at 0.05 s a task, so that a level ≥ 1 (20, 10 or 5 tasks) lasts long enough to be
+  // caught half merged however fast the machine renders.
   for (const char* id : {"w1", "w2", "w3"}) {
-    workers.push_back(StartWorker(address, dir.path(), id, {"--report-retry", "30"}));
+    workers.push_back(StartFaultyWorker(address, dir.path(), id,
+                                        {{"PF_TEST_PAUSE_AT", "render"}, {"PF_TEST_PAUSE_SECONDS", "0.05"}},
+                                        {"--report-retry", "30"}));
     logs.push_back(dir / (std::string(id) + ".log"));
   }
   // w3 dies holding a lease.

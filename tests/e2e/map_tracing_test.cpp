@@ -52,18 +52,6 @@ void ExpectSucceedsBitIdentical(const std::string& address, const std::string& j
   EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
 }
 
-// StartWorker's command line for the faulty worker (pf-worker with injected faults), with the
-// environment variables that choose them.
-std::unique_ptr<Process> StartWorkerWithEnv(const std::string& address, const fs::path& dir,
-                                            const std::string& id, std::map<std::string, std::string> env) {
-  return std::make_unique<Process>(
-      id,
-      std::vector<std::string>{Binaries::FaultyWorker(), "--coordinator", address, "--threads", "1",
-                               "--worker-id", id, "--cache-dir", (dir / ("cache-" + id)).string(),
-                               "--poll-seconds", "1", "--max-backoff", "0.5"},
-      dir / (id + ".log"), fs::path{}, std::move(env));
-}
-
 size_t Count(const fs::path& log, const std::string& re) {
   return Grep(log, re).size();
 }
@@ -136,8 +124,8 @@ struct ShortLeaseFarm {
 // A worker paused at `where` (PF_TEST_PAUSE_AT) is SIGKILLed there; a second worker finishes.
 void KillWhile(const std::string& where) {
   ShortLeaseFarm farm;
-  auto victim = StartWorkerWithEnv(farm.coordinator.address(), farm.dir.path(), "victim",
-                                   {{"PF_TEST_PAUSE_AT", where}});
+  auto victim =
+      StartFaultyWorker(farm.coordinator.address(), farm.dir.path(), "victim", {{"PF_TEST_PAUSE_AT", where}});
   ASSERT_TRUE(WaitUntil([&] { return Count(victim->log(), "test-pause at " + where) > 0; }, 60))
       << ReadFile(victim->log());
   victim->Signal(SIGKILL);
@@ -184,8 +172,8 @@ TEST(MapTracingFarm, WorkerKilledWhileFetchingTheMapIsRedone) {
 // only the render was covered and these leases ran out mid-fetch).
 void SlowStepKeepsItsLease(const std::string& where) {
   ShortLeaseFarm farm;
-  auto worker = StartWorkerWithEnv(farm.coordinator.address(), farm.dir.path(), "slow",
-                                   {{"PF_TEST_PAUSE_AT", where}, {"PF_TEST_PAUSE_SECONDS", "4"}});
+  auto worker = StartFaultyWorker(farm.coordinator.address(), farm.dir.path(), "slow",
+                                  {{"PF_TEST_PAUSE_AT", where}, {"PF_TEST_PAUSE_SECONDS", "4"}});
   v1::JobStatus st;
   ASSERT_NO_FATAL_FAILURE(
       ExpectSucceedsBitIdentical(farm.coordinator.address(), farm.job_id, farm.reference, &st));
@@ -286,7 +274,7 @@ TEST(MapTracingFarm, CorruptMapPartIsRefusedAndFetchedAgain) {
   CoordinatorProcess coordinator(dir / "data", dir.path(), {"--map-chunk-photons", "16384"});
   const std::string job_id = Submit(dir, coordinator.address());
   auto worker =
-      StartWorkerWithEnv(coordinator.address(), dir.path(), "w", {{"PF_TEST_CORRUPT_MAP_PART", "1"}});
+      StartFaultyWorker(coordinator.address(), dir.path(), "w", {{"PF_TEST_CORRUPT_MAP_PART", "1"}});
   v1::JobStatus st;
   ASSERT_NO_FATAL_FAILURE(ExpectSucceedsBitIdentical(coordinator.address(), job_id, reference, &st));
   const fs::path log = worker->log();
@@ -344,7 +332,7 @@ TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   const std::vector<std::string> args = {"--lease-seconds", "1.5", "--map-chunk-photons", "16384"};
   auto [life1, port, address, job_id] = StartCoordinatorWithJob(dir, args, TiledJobFlags());
   // Life 1: pieces 0 and 1 stored, then the coordinator dies (its worker too, paused before piece 2).
-  auto w1 = StartWorkerWithEnv(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
+  auto w1 = StartFaultyWorker(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
   ASSERT_TRUE(WaitUntil([&] { return Count(w1->log(), "test-pause at upload") > 0; }, 60))
       << ReadFile(w1->log());
   const fs::path log1 = life1->process().log();
@@ -355,7 +343,7 @@ TEST(MapTracingFarm, RestartedCoordinatorResumesPiecesAndBuiltMaps) {
   auto life2 = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), args, port);
   const fs::path log2 = life2->process().log();
   EXPECT_EQ(Count(log2, "in 3 pieces of 16384 \\(2 already traced on disk\\)"), 1u) << ReadFile(log2);
-  auto w2 = StartWorkerWithEnv(address, dir.path(), "w2", {{"PF_TEST_PAUSE_AT", "fetch"}});
+  auto w2 = StartFaultyWorker(address, dir.path(), "w2", {{"PF_TEST_PAUSE_AT", "fetch"}});
   ASSERT_TRUE(WaitUntil([&] { return Count(w2->log(), "test-pause at fetch") > 0; }, 60))
       << ReadFile(w2->log());
   EXPECT_EQ(Count(w2->log(), "uploaded-piece .*piece=2/3 .*accepted=true"), 1u) << ReadFile(w2->log());
@@ -387,7 +375,7 @@ TEST(MapTracingFarm, RestartWithAnotherPieceSizeTracesThePiecesAnew) {
   const Image reference = LocalReference(dir);
   auto [life1, port, address, job_id] = StartCoordinatorWithJob(
       dir, {"--lease-seconds", "1.5", "--map-chunk-photons", "16384"}, TiledJobFlags());
-  auto w1 = StartWorkerWithEnv(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
+  auto w1 = StartFaultyWorker(address, dir.path(), "w1", {{"PF_TEST_PAUSE_AT", "upload:piece=2/"}});
   ASSERT_TRUE(WaitUntil([&] { return Count(w1->log(), "test-pause at upload") > 0; }, 60))
       << ReadFile(w1->log());
   ASSERT_EQ(Count(life1->process().log(), "piece [0-9]+: stored \\("), 2u)

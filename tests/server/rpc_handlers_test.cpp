@@ -120,8 +120,8 @@ class RpcHandlersTest : public ::testing::Test {
     ASSERT_NE(port, 0);
     auto channel =
         grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials());
-    render_stub_ = v1::RenderService::NewStub(channel);
-    worker_stub_ = v1::WorkerService::NewStub(channel);
+    render_client_ = v1::RenderService::NewStub(channel);
+    worker_client_ = v1::WorkerService::NewStub(channel);
   }
   void TearDown() override { server_->Shutdown(); }
 
@@ -138,8 +138,8 @@ class RpcHandlersTest : public ::testing::Test {
   RenderServiceImpl render_{coordinator_, watches_};
   WorkerServiceImpl worker_{coordinator_};
   std::unique_ptr<grpc::Server> server_;
-  std::unique_ptr<v1::RenderService::Stub> render_stub_;
-  std::unique_ptr<v1::WorkerService::Stub> worker_stub_;
+  std::unique_ptr<v1::RenderService::Stub> render_client_;
+  std::unique_ptr<v1::WorkerService::Stub> worker_client_;
 };
 
 TEST_F(RpcHandlersTest, ErrorsOfTheCoordinatorBecomeTheirCodesNamingTheField) {
@@ -147,7 +147,7 @@ TEST_F(RpcHandlersTest, ErrorsOfTheCoordinatorBecomeTheirCodesNamingTheField) {
     throw InputError("spec.camera.width: must be between 1 and 16384");
   };
   v1::SubmitJobResponse submitted;
-  grpc::Status st = render_stub_->SubmitJob(Context().get(), v1::SubmitJobRequest(), &submitted);
+  grpc::Status st = render_client_->SubmitJob(Context().get(), v1::SubmitJobRequest(), &submitted);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(st.error_message().rfind("spec.camera.width:", 0), 0u) << st.error_message();
 
@@ -157,7 +157,7 @@ TEST_F(RpcHandlersTest, ErrorsOfTheCoordinatorBecomeTheirCodesNamingTheField) {
   v1::GetJobRequest get;
   get.set_job_id("job-1");
   v1::JobStatus status;
-  st = render_stub_->GetJob(Context().get(), get, &status);
+  st = render_client_->GetJob(Context().get(), get, &status);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND);
   EXPECT_EQ(st.error_message(), "job_id: unknown job");
 }
@@ -165,7 +165,7 @@ TEST_F(RpcHandlersTest, ErrorsOfTheCoordinatorBecomeTheirCodesNamingTheField) {
 TEST_F(RpcHandlersTest, MalformedRequestsNeverReachTheCoordinator) {
   v1::GetJobRequest get;  // no job id
   v1::JobStatus status;
-  grpc::Status st = render_stub_->GetJob(Context().get(), get, &status);
+  grpc::Status st = render_client_->GetJob(Context().get(), get, &status);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("job_id"), std::string::npos) << st.error_message();
 
@@ -173,7 +173,7 @@ TEST_F(RpcHandlersTest, MalformedRequestsNeverReachTheCoordinator) {
   lease.set_worker_id("w1");
   lease.set_wait_seconds(-1);
   v1::LeaseTaskResponse leased;
-  st = worker_stub_->LeaseTask(Context().get(), lease, &leased);
+  st = worker_client_->LeaseTask(Context().get(), lease, &leased);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("wait_seconds"), std::string::npos) << st.error_message();
 
@@ -182,7 +182,7 @@ TEST_F(RpcHandlersTest, MalformedRequestsNeverReachTheCoordinator) {
   complete.set_worker_id("w1");
   complete.set_part(v1::RadiancePart(77));
   v1::CompleteTaskResponse completed;
-  st = worker_stub_->CompleteTask(Context().get(), complete, &completed);
+  st = worker_client_->CompleteTask(Context().get(), complete, &completed);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(st.error_message().rfind("part:", 0), 0u) << st.error_message();
   EXPECT_EQ(coordinator_.calls.load(), 0) << "the coordinator was asked about a malformed request";
@@ -197,12 +197,12 @@ TEST_F(RpcHandlersTest, AWorkerOfAnotherBuildIsRefusedWithTheCoordinatorsReason)
   lease.set_worker_id("w1");
   lease.set_worker_version("other");
   v1::LeaseTaskResponse leased;
-  grpc::Status st = worker_stub_->LeaseTask(Context().get(), lease, &leased);
+  grpc::Status st = worker_client_->LeaseTask(Context().get(), lease, &leased);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
   EXPECT_EQ(st.error_message(), "worker_version: this worker's build is 'other'");
 
   lease.set_worker_version("same");
-  st = worker_stub_->LeaseTask(Context().get(), lease, &leased);
+  st = worker_client_->LeaseTask(Context().get(), lease, &leased);
   EXPECT_TRUE(st.ok()) << st.error_message();
   EXPECT_FALSE(leased.has_task());
 }
@@ -218,7 +218,7 @@ TEST_F(RpcHandlersTest, EachFailOutcomeHasItsCode) {
       {FailOutcome::kNotHolder, grpc::StatusCode::PERMISSION_DENIED}};
   for (const auto& [outcome, code] : cases) {
     coordinator_.fail_task = [outcome = outcome] { return outcome; };
-    EXPECT_EQ(worker_stub_->FailTask(Context().get(), fail, &failed).error_code(), code);
+    EXPECT_EQ(worker_client_->FailTask(Context().get(), fail, &failed).error_code(), code);
   }
 }
 
@@ -234,12 +234,12 @@ TEST_F(RpcHandlersTest, AMergedResultIsAcknowledgedOnlyOnceStored) {
   complete.set_lease_id("job-1.task-3.0.abc");
   complete.set_worker_id("w1");
   v1::CompleteTaskResponse completed;
-  grpc::Status st = worker_stub_->CompleteTask(Context().get(), complete, &completed);
+  grpc::Status st = worker_client_->CompleteTask(Context().get(), complete, &completed);
   EXPECT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(completed.merged());
 
   coordinator_.not_stored = "No space left on device";
-  st = worker_stub_->CompleteTask(Context().get(), complete, &completed);
+  st = worker_client_->CompleteTask(Context().get(), complete, &completed);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE);
   EXPECT_NE(st.error_message().find("No space left on device"), std::string::npos) << st.error_message();
 
@@ -250,7 +250,7 @@ TEST_F(RpcHandlersTest, AMergedResultIsAcknowledgedOnlyOnceStored) {
     return r;
   };
   v1::CompleteTaskResponse rejected;
-  st = worker_stub_->CompleteTask(Context().get(), complete, &rejected);
+  st = worker_client_->CompleteTask(Context().get(), complete, &rejected);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(st.error_message().rfind("rgb_sums:", 0), 0u) << st.error_message();
   EXPECT_FALSE(rejected.merged());
