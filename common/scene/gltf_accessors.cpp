@@ -23,7 +23,9 @@ struct View {
 View Locate(const GltfDocument& doc, int index, size_t element_size) {
   const tinygltf::Model& m = *doc.model;
   const std::string where = "accessors[" + std::to_string(index) + "]";
-  auto fail = [&](const std::string& why) { throw InputError(SourceLocation{doc.file, 0}, where + ": " + why); };
+  auto fail = [&](const std::string& why) {
+    throw InputError(SourceLocation{doc.file, 0}, where + ": " + why);
+  };
   if (index < 0 || static_cast<size_t>(index) >= m.accessors.size()) fail("no such accessor");
   const tinygltf::Accessor& a = m.accessors[static_cast<size_t>(index)];
   if (a.sparse.isSparse) fail("sparse accessors are not supported");
@@ -32,7 +34,8 @@ View Locate(const GltfDocument& doc, int index, size_t element_size) {
   if (v.buffer < 0 || static_cast<size_t>(v.buffer) >= m.buffers.size()) fail("buffer view has no buffer");
   const std::vector<unsigned char>& b = m.buffers[static_cast<size_t>(v.buffer)].data;
   const size_t stride = v.byteStride != 0 ? v.byteStride : element_size;
-  if (v.byteOffset > b.size() || v.byteLength > b.size() - v.byteOffset) fail("buffer view outside its buffer");
+  if (v.byteOffset > b.size() || v.byteLength > b.size() - v.byteOffset)
+    fail("buffer view outside its buffer");
   if (a.count == 0) return View{nullptr, stride, 0};
   const size_t need = a.byteOffset + stride * (a.count - 1) + element_size;
   if (stride < element_size || need > v.byteLength) fail("out of range of its buffer view");
@@ -69,9 +72,11 @@ std::vector<uint32_t> ReadGltfIndices(const GltfDocument& doc, int accessor) {
   if (accessor >= 0 && static_cast<size_t>(accessor) < doc.model->accessors.size()) {
     const tinygltf::Accessor& a = doc.model->accessors[static_cast<size_t>(accessor)];
     if (a.type == TINYGLTF_TYPE_SCALAR && a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) width = 1;
-    if (a.type == TINYGLTF_TYPE_SCALAR && a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) width = 2;
+    if (a.type == TINYGLTF_TYPE_SCALAR && a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)
+      width = 2;
     if (a.type == TINYGLTF_TYPE_SCALAR && a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) width = 4;
-    if (width == 0) throw InputError(SourceLocation{doc.file, 0}, where + ": indices must be unsigned SCALAR");
+    if (width == 0)
+      throw InputError(SourceLocation{doc.file, 0}, where + ": indices must be unsigned SCALAR");
   }
   const View view = Locate(doc, accessor, width);
   std::vector<uint32_t> out(view.count);

@@ -9,28 +9,16 @@
 #include <string>
 
 #include "common/core/error.h"
+#include "tests/common/gltf_test_util.h"
 #include "tests/util/temp_dir.h"
 
 namespace pf {
 namespace {
 
+using gltf_test::Base64;
+using gltf_test::Floats;
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
-
-std::string Base64(const std::string& bytes) {
-  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  for (size_t i = 0; i < bytes.size(); i += 3) {
-    uint32_t n = static_cast<uint32_t>(static_cast<unsigned char>(bytes[i])) << 16;
-    if (i + 1 < bytes.size()) n |= static_cast<uint32_t>(static_cast<unsigned char>(bytes[i + 1])) << 8;
-    if (i + 2 < bytes.size()) n |= static_cast<uint32_t>(static_cast<unsigned char>(bytes[i + 2]));
-    out += kAlphabet[(n >> 18) & 63];
-    out += kAlphabet[(n >> 12) & 63];
-    out += i + 1 < bytes.size() ? kAlphabet[(n >> 6) & 63] : '=';
-    out += i + 2 < bytes.size() ? kAlphabet[n & 63] : '=';
-  }
-  return out;
-}
 
 // One buffer holding `bytes`, one view over all of it, one accessor.
 GltfDocument OneAccessor(const test_util::TempDir& dir, const std::string& bytes, int component_type,
@@ -39,15 +27,9 @@ GltfDocument OneAccessor(const test_util::TempDir& dir, const std::string& bytes
       R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":)" + std::to_string(bytes.size()) +
       R"(,"uri":"data:application/octet-stream;base64,)" + Base64(bytes) +
       R"("}],"bufferViews":[{"buffer":0,"byteLength":)" + std::to_string(bytes.size()) +
-      R"(}],"accessors":[{"bufferView":0,"componentType":)" + std::to_string(component_type) + R"(,"count":)" +
-      std::to_string(count) + R"(,"type":")" + type + R"("}]})";
+      R"(}],"accessors":[{"bufferView":0,"componentType":)" + std::to_string(component_type) +
+      R"(,"count":)" + std::to_string(count) + R"(,"type":")" + type + R"("}]})";
   return ReadGltfDocument(dir.Write("scene.gltf", json));
-}
-
-std::string Floats(std::initializer_list<float> values) {
-  std::string out;
-  for (float f : values) out.append(reinterpret_cast<const char*>(&f), sizeof f);
-  return out;
 }
 
 TEST(GltfAccessors, IndicesOfEveryWidth) {

@@ -87,6 +87,15 @@ TEST(GltfDocument, UsedOnlyExtensionsWarnOnceEachAndSupportedOnesDoNot) {
   EXPECT_THAT(doc.warnings[1], HasSubstr("'KHR_materials_volume'"));
 }
 
+TEST(GltfDocument, FileReferencesAreDecodedAndSkipDataUris) {
+  EXPECT_THAT(
+      GltfFileReferences(
+          R"({"buffers":[{"uri":"mesh%20a+b.bin"},{"uri":"data:application/octet-stream;base64,AAAA"}],
+                                    "images":[{"uri":"tex/wood.png"},{"bufferView":0}]})"),
+      ::testing::ElementsAre("mesh a b.bin", "tex/wood.png"));
+  EXPECT_TRUE(GltfFileReferences("not json").empty());
+}
+
 // A GLB (glTF 2.0 spec, "Binary glTF Layout"): 12-byte header, JSON chunk, BIN chunk, each chunk
 // padded to four bytes.
 TEST(GltfDocument, ReadsABinaryContainer) {

@@ -1,0 +1,56 @@
+// libFuzzer target for the glTF 2.0 loader (tinygltf plus our checks and mapping: gltf_document,
+// gltf_accessors, gltf_loader, gltf_materials, gltf_lights). The contract: for any input, LoadGltf
+// either returns a scene whose indices are all in range and whose positions are finite, or throws
+// pf::InputError. Anything else (another exception, a crash, a sanitizer report, a hang) is a
+// finding. Inputs starting with the GLB magic "glTF" are loaded as .glb, others as .gltf.
+// External buffers resolve only inside the current directory (the scene root); run_mgf_fuzz.sh
+// runs this from a scratch folder holding a small m.bin, and the root check is part of what is
+// fuzzed.
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "common/core/error.h"
+#include "common/scene/gltf_loader.h"
+
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  spdlog::set_level(spdlog::level::off);
+  return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const bool binary = size >= 4 && std::memcmp(data, "glTF", 4) == 0;
+  const std::filesystem::path file =
+      std::filesystem::current_path() / (binary ? "fuzz-input.glb" : "fuzz-input.gltf");
+  {
+    std::ofstream out(file, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(data), std::streamsize(size));
+  }
+  try {
+    const pf::SceneDescription scene = pf::LoadGltf(file);
+    if (scene.triangle_material.size() != scene.triangles.size() ||
+        scene.triangle_light.size() != scene.triangles.size() ||
+        (!scene.normals.empty() && scene.normals.size() != scene.positions.size()))
+      __builtin_trap();
+    for (size_t t = 0; t < scene.triangles.size(); ++t) {
+      for (uint32_t v : scene.triangles[t])
+        if (v >= scene.positions.size()) __builtin_trap();
+      if (scene.triangle_material[t] >= scene.materials.size()) __builtin_trap();
+      const uint32_t light = scene.triangle_light[t];
+      if (light != pf::kNoLight && light >= scene.num_lights) __builtin_trap();
+    }
+    for (const pf::Vec3& p : scene.positions)
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) __builtin_trap();
+    for (const pf::PunctualLight& l : scene.punctual_lights)
+      if (!l.intensity.IsFinite() || l.light >= scene.num_lights) __builtin_trap();
+  } catch (const pf::InputError&) {
+    // Rejected input: the expected outcome for most mutations.
+  }
+  return 0;
+}
