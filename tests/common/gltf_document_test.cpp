@@ -10,6 +10,8 @@
 #include <string>
 
 #include "common/core/error.h"
+#include "tests/common/gltf_test_util.h"
+#include "tests/util/input_error.h"
 #include "tests/util/temp_dir.h"
 
 namespace pf {
@@ -32,12 +34,7 @@ std::string TriangleGltf(const std::string& extra = "", const std::string& buffe
 }
 
 std::string ErrorOf(const std::filesystem::path& p) {
-  try {
-    ReadGltfDocument(p);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
+  return testing::InputErrorOf([&] { ReadGltfDocument(p); });
 }
 
 TEST(GltfDocument, ReadsAValidFileWithoutWarnings) {

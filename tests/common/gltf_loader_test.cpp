@@ -13,6 +13,7 @@
 #include "common/scene/scene_bundle.h"
 #include "common/scene/scene_loader.h"
 #include "tests/common/gltf_test_util.h"
+#include "tests/util/input_error.h"
 #include "tests/util/temp_dir.h"
 
 namespace pf {
@@ -38,12 +39,7 @@ constexpr const char* kTriangleMesh =
 constexpr const char* kLamp = R"("materials":[{"name":"lamp","emissiveFactor":[1,1,1]}])";
 
 std::string ErrorOf(const std::filesystem::path& p) {
-  try {
-    LoadGltf(p);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return testing::InputErrorOf([&] { LoadGltf(p); });
 }
 
 Vec3d World(const SceneDescription& s, uint32_t vertex) {
@@ -130,7 +126,7 @@ TEST(GltfLoader, FirstPerspectiveCameraInNodeOrder) {
   EXPECT_NEAR(c.vfov_degrees, 0.5 * 180.0 / 3.14159265358979, 1e-4);
   EXPECT_EQ(c.width, 768);
   EXPECT_EQ(c.height, 512);
-  EXPECT_THAT(testing::PrintToString(s.warnings),
+  EXPECT_THAT(::testing::PrintToString(s.warnings),
               HasSubstr("cameras[0]: a orthographic camera is not supported"));
 }
 
@@ -177,7 +173,7 @@ TEST(GltfLoader, PunctualLightsInRadiometricUnitsAndSpotAngles) {
   // Ids follow the emitting triangle's (light 0).
   EXPECT_EQ(s.num_lights, 4u);
   EXPECT_EQ(spot.light, 1u);
-  EXPECT_THAT(testing::PrintToString(s.warnings), HasSubstr("lights[1]: range"));
+  EXPECT_THAT(::testing::PrintToString(s.warnings), HasSubstr("lights[1]: range"));
 }
 
 TEST(GltfLoader, SpotConeAnglesOutOfOrderAreAnError) {
@@ -238,7 +234,7 @@ TEST(GltfLoader, NonTriangleModesAreSkippedWithAWarningNamingThePrimitive) {
       "meshes":[{"primitives":[{"attributes":{"POSITION":0},"material":0},{"attributes":{"POSITION":0},"mode":1}]}],)";
   const SceneDescription s = LoadGltf(dir.Write("scene.gltf", Triangle().Json(rest + kLamp)));
   EXPECT_EQ(s.triangles.size(), 1u);
-  EXPECT_THAT(testing::PrintToString(s.warnings),
+  EXPECT_THAT(::testing::PrintToString(s.warnings),
               HasSubstr("meshes[0].primitives[1]: mode 1 is not TRIANGLES"));
 }
 

@@ -30,21 +30,20 @@ TEST(GltfFarmTest, GltfSceneRendersOnTheFarmAsLocally) {
   BecomeSubreaper();
   TestDir dir;
   for (const std::string integrator : {"photonmap", "path"}) {
-    const std::vector<std::string> photon_map = {"--photons", "4000", "--k", "20"};
-    const std::vector<std::string> base =
-        Concat({Binaries::Pf(), "render", GltfRoom(), "--integrator", integrator, "--res", "40x32", "--spp",
-                "2", "--seed", "7", "--plan", "multiple-maps", "--no-png", "-q"},
-               integrator == "photonmap" ? photon_map : std::vector<std::string>{});
-    const std::string local = (dir / (integrator + "-local.exr")).string();
-    const RunResult l = RunCommand(Concat(base, {"--local-only", "-o", local}), dir.path());
-    ASSERT_EQ(l.exit_code, 0) << l.err;
-    const Image reference = ReadImage(local);
-    EXPECT_GT(PixelSum(reference), 0.0) << integrator << ": the glTF scene rendered black";
-    const std::string farm = (dir / (integrator + "-farm.exr")).string();
-    const RunResult f =
-        RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "-o", farm}), dir.path());
-    ASSERT_EQ(f.exit_code, 0) << f.err;
-    EXPECT_TRUE(BitIdentical(ReadImage(farm), reference)) << integrator;
+    std::vector<std::string> args = {
+        Binaries::Pf(), "render", GltfRoom(), "--integrator",  integrator, "--res", "40x32", "--spp", "2",
+        "--seed",       "7",      "--plan",   "multiple-maps", "--no-png", "-q"};
+    if (integrator == "photonmap") args = Concat(args, {"--photons", "4000", "--k", "20"});
+    // `where` is "--local-only" or a two-worker farm; the image it writes.
+    auto render = [&](const std::vector<std::string>& where, const std::string& name) {
+      const std::string out = (dir / (integrator + "-" + name + ".exr")).string();
+      const RunResult r = RunCommand(Concat(Concat(args, where), {"-o", out}), dir.path());
+      EXPECT_EQ(r.exit_code, 0) << name << ": " << r.err;
+      return ReadImage(out);
+    };
+    const Image local = render({"--local-only"}, "local");
+    EXPECT_GT(PixelSum(local), 0.0) << integrator << ": the glTF scene rendered black";
+    EXPECT_TRUE(BitIdentical(render({"--workers", "2", "--threads", "1"}, "farm"), local)) << integrator;
   }
   std::vector<std::string> left;
   WaitUntil([&] { return (left = LiveChildren()).empty(); }, 5);
