@@ -30,11 +30,16 @@ namespace fs = std::filesystem;
 struct Confinement {
   fs::path root;
   fs::path base_dir;
-  std::string refused;  // the first refused reference and why
+  std::string tinygltf_base;  // the folder tinygltf joins a uri to: the entry's path up to its last '/'
+  std::string refused;        // the first refused reference and why
 };
 
 bool ConfinedFileExists(const std::string& path, void* user) {
   auto* c = static_cast<Confinement*>(user);
+  // tinygltf looks for a uri next to the file, then in the working directory ("./" + uri). The
+  // second is never the scene's: not found, and not a refusal to report either.
+  if (!c->tinygltf_base.empty() && path.rfind("./", 0) == 0 && path.rfind(c->tinygltf_base + "/", 0) != 0)
+    return false;
   const fs::path rel = fs::absolute(fs::path(path))
                            .lexically_normal()
                            .lexically_relative(fs::absolute(c->base_dir).lexically_normal());
@@ -128,6 +133,9 @@ GltfDocument ReadGltfDocument(const std::filesystem::path& path, const std::file
   Confinement confinement;
   confinement.base_dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   confinement.root = root.empty() ? confinement.base_dir : root;
+  const std::string entry = path.string();
+  if (const size_t slash = entry.find_last_of("/\\"); slash != std::string::npos)
+    confinement.tinygltf_base = entry.substr(0, slash);
   tinygltf::TinyGLTF reader;
   reader.SetFsCallbacks(
       tinygltf::FsCallbacks{&ConfinedFileExists, &VerbatimPath, &ReadConfinedFile, nullptr, &confinement});
