@@ -10,6 +10,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libembree-dev libopenexr-dev libspdlog-dev libfmt-dev libtbb-dev libtinyobjloader-dev
+  libtinygltf-dev  # glTF 2.0 scenes (header-only tiny_gltf.h; uses nlohmann-json and stb)
   libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libpng-dev
   libnanoflann-dev
   # The farm: gRPC, Protobuf, SQLite, and the Python client.

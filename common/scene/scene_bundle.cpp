@@ -9,6 +9,7 @@
 
 #include "common/core/error.h"
 #include "common/core/sha256.h"
+#include "common/scene/gltf_document.h"
 #include "common/scene/scene_loader.h"
 #include "common/scene/scene_reference.h"
 
@@ -91,12 +92,36 @@ uint64_t SceneBundle::TotalBytes() const {
 }
 
 namespace {
-// Renders kept next to a scene (references, previews) are outputs, never inputs: the loaders
-// read no images (materials carry no textures), so shipping them would only cost upload time.
-bool IsRenderedImage(const fs::path& rel) {
+// Renders kept next to a scene (references, previews) are outputs, never inputs, so shipping
+// them would only cost upload time; an image a glTF of the folder refers to is an input
+// (GltfReferencedFiles).
+std::string LowerExtension(const fs::path& rel) {
   std::string ext = rel.extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+bool IsRenderedImage(const fs::path& rel) {
+  const std::string ext = LowerExtension(rel);
   return ext == ".exr" || ext == ".png";
+}
+
+bool IsGltfText(const fs::path& rel) {
+  return LowerExtension(rel) == ".gltf";
+}
+
+// The bundle paths of every file a .gltf among `listed` (relative to the scene folder `root`)
+// refers to by uri. A reference that leaves the folder names no listed file and so adds nothing.
+std::set<std::string> GltfReferencedFiles(const std::vector<fs::path>& listed, const fs::path& root) {
+  std::set<std::string> referenced;
+  for (const fs::path& rel : listed) {
+    std::error_code ec;
+    // One over the limit fails the collection anyway; it is not read twice for that.
+    if (!IsGltfText(rel) || !(fs::file_size(root / rel, ec) <= kMaxBundleBytes)) continue;
+    for (const std::string& ref : GltfFileReferences(ReadWholeFile(root / rel)))
+      referenced.insert((rel.parent_path() / fs::path(ref)).lexically_normal().generic_string());
+  }
+  return referenced;
 }
 }  // namespace
 
@@ -107,22 +132,25 @@ SceneBundle CollectBundle(const fs::path& entry) {
   const fs::path root = entry.has_parent_path() ? entry.parent_path() : fs::path(".");
   SceneBundle bundle;
   bundle.entry = entry.filename().generic_string();
-  uint64_t total = 0;
+  std::vector<fs::path> listed;  // relative to root
   for (fs::recursive_directory_iterator it(root, fs::directory_options::none, ec), end; !ec && it != end;
        it.increment(ec)) {
-    if (!it->is_regular_file(ec)) continue;
-    const fs::path rel = it->path().lexically_relative(root);
-    if (IsRenderedImage(rel)) continue;
-    const uint64_t size = it->file_size(ec);
-    if (ec) break;
+    if (it->is_regular_file(ec)) listed.push_back(it->path().lexically_relative(root));
+  }
+  if (ec) throw SystemError(root.string() + ": cannot list the scene folder: " + ec.message());
+  const std::set<std::string> referenced = GltfReferencedFiles(listed, root);
+  uint64_t total = 0;
+  for (const fs::path& rel : listed) {
+    if (IsRenderedImage(rel) && !referenced.count(rel.generic_string())) continue;
+    const uint64_t size = fs::file_size(root / rel, ec);
+    if (ec) throw SystemError((root / rel).string() + ": cannot read its size: " + ec.message());
     total += size;
     if (total > kMaxBundleBytes || bundle.files.size() + 1 > kMaxBundleFiles)
       throw InputError(SourceLocation{root.string(), 0},
                        "the scene folder holds more than the bundle limit (" + LimitMessage() +
                            "); keep each scene in its own folder");
-    bundle.files.emplace_back(rel.generic_string(), ReadWholeFile(it->path()));
+    bundle.files.emplace_back(rel.generic_string(), ReadWholeFile(root / rel));
   }
-  if (ec) throw SystemError(root.string() + ": cannot list the scene folder: " + ec.message());
   std::sort(bundle.files.begin(), bundle.files.end());
   ValidateBundle(bundle);
   return bundle;

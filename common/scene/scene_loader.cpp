@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "common/core/error.h"
+#include "common/scene/gltf_loader.h"
 #include "common/scene/material_kinds.h"
 #include "common/scene/mgf_loader.h"
 #include "common/scene/obj_loader.h"
@@ -21,7 +22,7 @@
 namespace pf {
 namespace {
 
-constexpr const char* kSupported = "supported: .json (scene manifest), .mgf, .obj";
+constexpr const char* kSupported = "supported: .json (scene manifest), .mgf, .obj, .gltf, .glb";
 
 std::string FormatNumber(double v) {
   char text[32];
@@ -47,6 +48,7 @@ SceneDescription LoadGeometry(const std::filesystem::path& path, const std::file
     return LoadMgf(path, options);
   }
   if (ext == ".obj") return LoadObj(path, root);
+  if (ext == ".gltf" || ext == ".glb") return LoadGltf(path, root);
   throw InputError(SourceLocation{path.string(), 0},
                    "unsupported scene file extension '" + ext + "' (" + kSupported + ")");
 }
@@ -146,7 +148,7 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
       !root_or_empty.empty() ? root_or_empty
                              : (path.has_parent_path() ? path.parent_path() : std::filesystem::path("."));
   const std::string ext = LowerExtension(path);
-  if (ext == ".mgf" || ext == ".obj") {
+  if (ext == ".mgf" || ext == ".obj" || ext == ".gltf" || ext == ".glb") {
     SceneDescription scene = LoadGeometry(path, root);
     if (scale_override > 0.0)
       ApplyScale(scale_override, SourceLocation{path.string(), 0}, "scale override", &scene);
@@ -166,10 +168,10 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
     throw InputError(SourceLocation{manifest_file, manifest.geometry_line},
                      "key 'geometry': " + QuoteReference(manifest.geometry_reference) + " " + problem);
   const std::string geometry_ext = LowerExtension(manifest.geometry);
-  if (geometry_ext != ".mgf" && geometry_ext != ".obj")
+  if (geometry_ext != ".mgf" && geometry_ext != ".obj" && geometry_ext != ".gltf" && geometry_ext != ".glb")
     throw InputError(SourceLocation{manifest_file, 0},
                      "key 'geometry': '" + manifest.geometry.string() +
-                         "' is not a geometry file (supported: .mgf, .obj)");
+                         "' is not a geometry file (supported: .mgf, .obj, .gltf, .glb)");
   std::error_code ec;
   if (!std::filesystem::is_regular_file(manifest.geometry, ec))
     throw InputError(SourceLocation{manifest_file, 0},
@@ -177,8 +179,10 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
 
   SceneDescription scene = LoadGeometry(manifest.geometry, root);
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
-  scene.cameras = manifest.cameras;
-  // Each punctual light is one light, numbered after the emitting primitives (scene.h).
+  // A glTF's own cameras stay unless the manifest names some.
+  if (!manifest.cameras.empty()) scene.cameras = manifest.cameras;
+  // Each punctual light is one light, numbered after the emitting primitives and the geometry's
+  // own lights (scene.h).
   for (PunctualLight light : manifest.lights) {
     light.light = scene.num_lights++;
     scene.punctual_lights.push_back(std::move(light));
@@ -197,12 +201,13 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
 // the workers' bundles), and said once with every reason we know of.
 void RequireLight(const SceneDescription& scene, const std::filesystem::path& path) {
   if (scene.num_lights > 0) return;
-  const bool manifest = LowerExtension(path) == ".json";
-  std::string why = "the scene has no light: no material emits (MGF 'ed', OBJ/MTL 'Ke')";
-  why +=
-      manifest
-          ? " and the manifest has no \"lights\""
-          : " and a bare geometry file has no \"lights\" (a manifest can add them, docs/scene-manifest.md)";
+  const std::string ext = LowerExtension(path);
+  std::string why = "the scene has no light: no material emits (MGF 'ed', OBJ/MTL 'Ke', glTF emissiveFactor)";
+  why += ext == ".json" ? " and the manifest has no \"lights\""
+         : ext == ".gltf" || ext == ".glb"
+             ? " and the file has no KHR_lights_punctual light on a node of its scene"
+             : " and a bare geometry file has no \"lights\" (a manifest can add "
+               "them, docs/scene-manifest.md)";
   for (const std::string& name : scene.ambient_only_materials)
     why += "; material '" + name + "' has Ka but no Ke: Ka is not emission in pf; use Ke";
   throw InputError(SourceLocation{path.string(), 0}, why);

@@ -6,6 +6,9 @@
 //          attaches its cameras. `source` is the manifest's path.
 //   .mgf   MGF 2.0 (mgf_loader.h), no cameras.
 //   .obj   Wavefront OBJ/MTL (obj_loader.h), no cameras.
+//   .gltf, .glb  glTF 2.0 (gltf_loader.h), with its camera and KHR_lights_punctual lights; a
+//          manifest may name one as its geometry (the manifest's cameras, if any, replace the
+//          file's; its lights are added).
 // Anything else is an InputError that lists these. So is a scene without any light (no emitting
 // material, no manifest "lights"): it would render black. Bare files carry no camera; use
 // DefaultCamera() for them (and for manifests without "cameras").

@@ -15,6 +15,7 @@
 
 #include "common/core/error.h"
 #include "common/scene/obj_loader.h"
+#include "tests/fuzz/scene_invariants.h"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   spdlog::set_level(spdlog::level::off);
@@ -30,19 +31,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   try {
     const pf::SceneDescription scene = pf::LoadObj(file);
-    if (scene.triangle_material.size() != scene.triangles.size() ||
-        scene.triangle_light.size() != scene.triangles.size() ||
-        (!scene.normals.empty() && scene.normals.size() != scene.positions.size()))
-      __builtin_trap();
-    for (size_t t = 0; t < scene.triangles.size(); ++t) {
-      for (uint32_t v : scene.triangles[t])
-        if (v >= scene.positions.size()) __builtin_trap();
-      if (scene.triangle_material[t] >= scene.materials.size()) __builtin_trap();
-      const uint32_t light = scene.triangle_light[t];
-      if (light != pf::kNoLight && light >= scene.num_lights) __builtin_trap();
-    }
-    for (const pf::Vec3& p : scene.positions)
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) __builtin_trap();
+    pf::fuzz::TrapUnlessWellFormed(scene);
   } catch (const pf::InputError&) {
     // Rejected input: the expected outcome for most mutations.
   }

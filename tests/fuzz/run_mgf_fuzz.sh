@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the scene fuzzers with clang (libFuzzer + ASan + UBSan) and runs them within one time
-# budget: the MGF loader half of it, the OBJ loader and the manifest parser a quarter each.
+# budget: the MGF loader half of it, the OBJ loader, the manifest parser and the glTF loader a
+# sixth each.
 #   tests/fuzz/run_mgf_fuzz.sh [seconds]      (default 30, total)
 # Environment: PF_FUZZ_BUILD_DIR (default <repo>/build-fuzz), PF_FUZZ_JOBS (build jobs, 2).
 # Exits non-zero on a finding; the reproducer is left in <build>/mgf_fuzz_run/artifacts/ and can
@@ -16,9 +17,9 @@ mkdir -p "$build"
 CC=clang CXX=clang++ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPF_BUILD_FUZZ=ON -DPF_BUILD_TESTS=OFF -DPF_BUILD_BENCH=OFF \
   >"$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 2; }
-cmake --build "$build" --target mgf_fuzz obj_fuzz manifest_fuzz -j "$jobs"
+cmake --build "$build" --target mgf_fuzz obj_fuzz manifest_fuzz gltf_fuzz -j "$jobs"
 mgf_seconds=$(( (seconds + 1) / 2 ))
-other_seconds=$(( (seconds - mgf_seconds + 1) / 2 ))
+other_seconds=$(( (seconds - mgf_seconds + 2) / 3 ))
 [ "$other_seconds" -ge 1 ] || other_seconds=1
 
 # Scratch directory: the harness only lets includes resolve inside its working directory, and
@@ -48,12 +49,15 @@ fuzz() {
 cd "$run"
 fuzz mgf "$mgf_seconds" -dict="$repo/tests/fuzz/mgf.dict"
 
-# The OBJ loader and the manifest parser, each in its own scratch folder (the OBJ harness writes
-# its input to a file there; `mtllib m.mtl` resolves inside it, anything else must be refused).
-for target in obj manifest; do
+# The OBJ loader, the manifest parser and the glTF loader, each in its own scratch folder (the OBJ
+# and glTF harnesses write their input to a file there; `mtllib m.mtl` and the buffer `m.bin`
+# resolve inside it, anything else must be refused).
+for target in obj manifest gltf; do
   dir="$build/${target}_fuzz_run"
   mkdir -p "$dir/corpus" "$dir/artifacts"
   [ "$target" = obj ] && printf 'newmtl lamp\nKe 1 1 1\nnewmtl wall\nKd .5 .5 .5\n' >"$dir/m.mtl"
+  # gltf_corpus/external.gltf's buffer: one triangle's positions, normals (+z) and u16 indices.
+  [ "$target" = gltf ] && python3 -c 'import struct,sys; sys.stdout.buffer.write(struct.pack("<9f", 0,0,0, 1,0,0, 0,1,0) + struct.pack("<9f", 0,0,1, 0,0,1, 0,0,1) + struct.pack("<3H", 0,1,2) + bytes(2))' >"$dir/m.bin"
   cd "$dir"
   fuzz "$target" "$other_seconds"
 done

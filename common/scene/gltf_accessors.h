@@ -1,0 +1,21 @@
+#pragma once
+// Reading glTF 2.0 accessors (spec §3.6.2) into pf's types: VEC3 float attributes and triangle
+// indices of any width. Every error names the file and the accessor ("scene.gltf: accessors[2]:
+// ..."); tinygltf has checked that buffers exist, not that a view or accessor stays inside them.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/core/math.h"
+#include "common/scene/gltf_document.h"
+
+namespace pf {
+
+// A VEC3 FLOAT accessor (POSITION, NORMAL). Sparse accessors are refused. A NaN or an infinity
+// is an InputError naming the accessor and the element.
+std::vector<Vec3d> ReadGltfVec3(const GltfDocument& doc, int accessor);
+
+// A SCALAR UNSIGNED_BYTE / UNSIGNED_SHORT / UNSIGNED_INT accessor (primitive indices).
+std::vector<uint32_t> ReadGltfIndices(const GltfDocument& doc, int accessor);
+
+}  // namespace pf

@@ -1,0 +1,111 @@
+// glTF materials → Material (gltf_materials.h).
+#include "common/scene/gltf_materials.h"
+
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/core/error.h"
+
+namespace pf {
+
+namespace {
+
+// Below this Ward α the lobe is a mirror (gltf_materials.h).
+constexpr float kMirrorRoughness = 1e-3f;
+
+float Unit(double v) {
+  return float(std::clamp(v, 0.0, 1.0));
+}
+
+// A number of an extension's object, or `fallback` if the extension or the key is absent.
+double ExtensionNumber(const tinygltf::Material& m, const char* extension, const char* key, double fallback) {
+  const auto it = m.extensions.find(extension);
+  if (it == m.extensions.end() || !it->second.IsObject() || !it->second.Has(key)) return fallback;
+  const tinygltf::Value& v = it->second.Get(key);
+  return v.IsNumber() ? v.GetNumberAsDouble() : fallback;
+}
+
+bool HasExtensionTexture(const tinygltf::Material& m, const char* extension, const char* key) {
+  const auto it = m.extensions.find(extension);
+  return it != m.extensions.end() && it->second.IsObject() && it->second.Has(key);
+}
+
+// The texture slots a material uses, in the spec's order.
+std::vector<std::string> TextureSlots(const tinygltf::Material& m) {
+  std::vector<std::string> slots;
+  if (m.pbrMetallicRoughness.baseColorTexture.index >= 0) slots.push_back("baseColorTexture");
+  if (m.pbrMetallicRoughness.metallicRoughnessTexture.index >= 0) slots.push_back("metallicRoughnessTexture");
+  if (m.normalTexture.index >= 0) slots.push_back("normalTexture");
+  if (m.occlusionTexture.index >= 0) slots.push_back("occlusionTexture");
+  if (m.emissiveTexture.index >= 0) slots.push_back("emissiveTexture");
+  if (HasExtensionTexture(m, "KHR_materials_transmission", "transmissionTexture"))
+    slots.push_back("transmissionTexture");
+  return slots;
+}
+
+}  // namespace
+
+Material DefaultGltfMaterial() {
+  Material m;
+  m.name = "(glTF default)";
+  m.diffuse_reflectance = Rgb(1.0f);
+  return m;
+}
+
+Material MapGltfMaterial(const tinygltf::Material& g, size_t index, const std::string& file,
+                         std::vector<std::string>* warnings) {
+  const std::string where =
+      "materials[" + std::to_string(index) + "]" + (g.name.empty() ? "" : " '" + g.name + "'");
+  const std::vector<double>& bc = g.pbrMetallicRoughness.baseColorFactor;
+  const Rgb base = bc.size() >= 3 ? Rgb(Unit(bc[0]), Unit(bc[1]), Unit(bc[2])) : Rgb(1.0f);
+  const float metallic = Unit(g.pbrMetallicRoughness.metallicFactor);
+  const float roughness = Unit(g.pbrMetallicRoughness.roughnessFactor);
+  const float transmission =
+      Unit(ExtensionNumber(g, "KHR_materials_transmission", "transmissionFactor", 0.0));
+  const double ior = ExtensionNumber(g, "KHR_materials_ior", "ior", 1.5);
+  const double strength = ExtensionNumber(g, "KHR_materials_emissive_strength", "emissiveStrength", 1.0);
+
+  Material m;
+  m.name = g.name.empty() ? "materials[" + std::to_string(index) + "]" : g.name;
+  m.diffuse_reflectance = base * ((1.0f - metallic) * (1.0f - transmission));
+  m.specular_reflectance = base * metallic;
+  const float alpha = roughness * roughness;
+  m.specular_roughness = alpha < kMirrorRoughness ? 0.0f : alpha;
+  m.specular_transmittance = base * ((1.0f - metallic) * transmission);
+  if (transmission > 0.0f) {
+    if (!(ior >= 1.0 && ior <= 10.0))
+      throw InputError(
+          SourceLocation{file, 0},
+          where + ": KHR_materials_ior.ior must be a number in [1, 10], got " + std::to_string(ior));
+    m.ior = float(ior);
+  }
+  if (g.emissiveFactor.size() >= 3) {
+    if (!(strength >= 0.0))
+      throw InputError(SourceLocation{file, 0},
+                       where + ": KHR_materials_emissive_strength.emissiveStrength must be >= 0");
+    for (int c = 0; c < 3; ++c) {
+      const double le = std::clamp(g.emissiveFactor[size_t(c)], 0.0, 1.0) * strength;
+      if (!(le <= double(kMaxLightIntensity)))
+        throw InputError(SourceLocation{file, 0}, where + ": emissiveFactor x emissiveStrength exceeds " +
+                                                      std::to_string(kMaxLightIntensity));
+      (c == 0 ? m.emission.r : c == 1 ? m.emission.g : m.emission.b) = float(le);
+    }
+  }
+  m.one_sided = !g.doubleSided;
+
+  const std::vector<std::string> slots = TextureSlots(g);
+  if (!slots.empty()) {
+    std::string list;
+    for (const std::string& s : slots) list += (list.empty() ? "" : ", ") + s;
+    warnings->push_back(file + ": " + where + ": textures are not applied yet: " + list +
+                        " (the factors alone are used)");
+  }
+  if (g.alphaMode != "OPAQUE" && !g.alphaMode.empty())
+    warnings->push_back(file + ": " + where + ": alphaMode " + g.alphaMode +
+                        " is not applied (the surface is opaque)");
+  return m;
+}
+
+}  // namespace pf
