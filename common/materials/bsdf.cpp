@@ -67,6 +67,11 @@
 //   face") is seen η² too bright by camera paths relative to its photons, whose flux is right;
 //   such enclosures are better modelled as thin glass (ior = 1).
 // * transmission_roughness > 0 is rendered as perfect (delta) transmission.
+// * GGX microfacet lobes (Material::microfacet, docs/renderer.md "Microfacet lobes"): a
+//   kConductor material's ρs slot is a GGX conductor with Schlick's F0 = ρs (flag glossy; below
+//   α = 1e-3 the mirror, weighted by Schlick's F); a kDielectric material with τs and ior != 1 is
+//   the rough dielectric of bsdf_rough_dielectric.cpp (flags glossy reflection / transmission;
+//   below α = 1e-3 the Fresnel dielectric above). bsdf_microfacet.h has the formulas.
 // * Robustness: no NaN/Inf ever leaves this file. α < 1e-4 is a mirror; wo in the surface
 //   plane, degenerate normals (ng unusable → black BSDF; ns unusable or perpendicular to ng →
 //   ns = ng), cos → 0, exp underflow (exponent > 80 → 0) and non-finite results give zero /
