@@ -73,8 +73,12 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   const bool after_query = test && options.direction_test == FeasibilityTest::kAfterQuery;
   const bool occlusion = options.occlusion_test && context.origins && context.scene;
   const Material& m = bsdf.material();
+  // A GGX lobe (Material::microfacet) is never Lambertian, whatever specular_roughness says.
   const bool lambertian_only =
-      !(lobes & kLobeGlossyReflection) || m.specular_reflectance.IsBlack() || m.specular_roughness <= 0.0f;
+      m.microfacet == Material::Microfacet::kNone
+          ? !(lobes & kLobeGlossyReflection) || m.specular_reflectance.IsBlack() ||
+                m.specular_roughness <= 0.0f
+          : !bsdf.HasLobes(lobes & (kLobeGlossyReflection | kLobeGlossyTransmission));
   Rgb front(0.0f), back(0.0f), sum(0.0f);
   int used = 0;
   for (size_t i = first; i < used_end; ++i) {

@@ -67,6 +67,11 @@
 //   face") is seen η² too bright by camera paths relative to its photons, whose flux is right;
 //   such enclosures are better modelled as thin glass (ior = 1).
 // * transmission_roughness > 0 is rendered as perfect (delta) transmission.
+// * GGX microfacet lobes (Material::microfacet, docs/renderer.md "Microfacet lobes"): a
+//   kConductor material's ρs slot is a GGX conductor with Schlick's F0 = ρs (flag glossy; below
+//   α = 1e-3 the mirror, weighted by Schlick's F); a kDielectric material with τs and ior != 1 is
+//   the rough dielectric of bsdf_rough_dielectric.cpp (flags glossy reflection / transmission;
+//   below α = 1e-3 the Fresnel dielectric above). bsdf_microfacet.h has the formulas.
 // * Robustness: no NaN/Inf ever leaves this file. α < 1e-4 is a mirror; wo in the surface
 //   plane, degenerate normals (ng unusable → black BSDF; ns unusable or perpendicular to ng →
 //   ns = ng), cos → 0, exp underflow (exponent > 80 → 0) and non-finite results give zero /
@@ -78,13 +83,16 @@
 #include <bit>
 #include <cmath>
 
+#include "common/materials/bsdf_microfacet.h"
+
 namespace pf {
 namespace {
 
 constexpr float kMinGlossyAlpha = 1e-4f;   // below: perfect mirror
 constexpr float kThinIorEps = 1e-4f;       // |ior − 1| <= this: thin straight-through
 constexpr float kMaxWardExponent = 80.0f;  // exp(−80) ≈ 1.8e-35: the Ward lobe is zero beyond
-constexpr uint32_t kNonDeltaLobes = kLobeDiffuseReflection | kLobeGlossyReflection | kLobeDiffuseTransmission;
+constexpr uint32_t kNonDeltaLobes =
+    kLobeDiffuseReflection | kLobeGlossyReflection | kLobeDiffuseTransmission | kLobeGlossyTransmission;
 
 // Channel mean used as selection probability; negative or NaN means disable the lobe.
 float SelectionMean(const Rgb& c) {
@@ -156,11 +164,18 @@ float FresnelDielectric(float cos_i, float eta) {
 
 BsdfLobes BsdfLobes::Of(const Material& material) {
   BsdfLobes l;
-  l.glossy = material.specular_roughness >= kMinGlossyAlpha;  // false for NaN
-  l.alpha = l.glossy ? material.specular_roughness : 0.0f;
-  if (!std::isfinite(l.alpha)) {
-    l.glossy = false;
-    l.alpha = 0.0f;
+  if (material.microfacet == Material::Microfacet::kConductor) {
+    // ρs is a GGX conductor (α = r² >= 1e-3) or a mirror with Schlick's Fresnel.
+    l.conductor = true;
+    l.alpha = MicrofacetAlpha(material.microfacet_roughness);
+    l.glossy = l.alpha > 0.0f;
+  } else {
+    l.glossy = material.specular_roughness >= kMinGlossyAlpha;  // false for NaN
+    l.alpha = l.glossy ? material.specular_roughness : 0.0f;
+    if (!std::isfinite(l.alpha)) {
+      l.glossy = false;
+      l.alpha = 0.0f;
+    }
   }
 
   l.mean[kSlotDiffuseR] = SelectionMean(material.diffuse_reflectance);
@@ -171,7 +186,16 @@ BsdfLobes BsdfLobes::Of(const Material& material) {
   const float ior = material.ior;
   l.dielectric =
       l.mean[kSlotSpecularT] > 0.0f && std::isfinite(ior) && ior > 0.0f && std::abs(ior - 1.0f) > kThinIorEps;
-  if (l.dielectric) {
+  if (l.dielectric && material.microfacet == Material::Microfacet::kDielectric) {
+    const float alpha = MicrofacetAlpha(material.microfacet_roughness);
+    if (alpha > 0.0f) {  // else the smooth (delta) Fresnel dielectric below
+      l.dielectric = false;
+      l.rough_dielectric = true;
+      l.alpha = alpha;
+      l.glossy = false;
+    }
+  }
+  if (l.dielectric || l.rough_dielectric) {
     // Only the Fresnel lobe; SampleDielectric computes its roulette probabilities per wo.
     l.mean[kSlotDiffuseR] = l.mean[kSlotSpecularR] = l.mean[kSlotDiffuseT] = 0.0f;
     l.p_normalized[kSlotSpecularT] = 1.0f;
@@ -213,19 +237,21 @@ Bsdf::Bsdf(const Material& material, const BsdfLobes& lobes, const Vec3& ns, con
 }
 
 bool Bsdf::HasNonDelta() const {
+  if (lobes_.rough_dielectric) return valid_;
   return valid_ && !lobes_.dielectric &&
          (lobes_.mean[kSlotDiffuseR] > 0.0f || (lobes_.glossy && lobes_.mean[kSlotSpecularR] > 0.0f) ||
           lobes_.mean[kSlotDiffuseT] > 0.0f);
 }
 
 bool Bsdf::HasDiffuse() const {
-  return valid_ && !lobes_.dielectric &&
+  return valid_ && !lobes_.dielectric && !lobes_.rough_dielectric &&
          (lobes_.mean[kSlotDiffuseR] > 0.0f || lobes_.mean[kSlotDiffuseT] > 0.0f);
 }
 
 bool Bsdf::HasLobes(uint32_t lobes) const {
   if (!valid_) return false;
   if (lobes_.dielectric) return (lobes & (kLobeSpecularReflection | kLobeSpecularTransmission)) != 0;
+  if (lobes_.rough_dielectric) return (lobes & (kLobeGlossyReflection | kLobeGlossyTransmission)) != 0;
   for (int i = 0; i < kNumSlots; ++i) {
     if (lobes_.mean[i] > 0.0f && (SlotLobe(i) & lobes) != 0) return true;
   }
@@ -287,6 +313,11 @@ void Bsdf::EvalPdf(const Vec3& wo, const Vec3& wi, uint32_t lobes, const float* 
   Vec3 n;
   float side;
   if (lobes_.dielectric || !LobeNormal(wo, &n, &side)) return;
+  if (lobes_.rough_dielectric) {
+    // Eval, EvalLobes and Pdf (kNormalized); Sample's roulette calls it with its own mode.
+    EvalPdfRoughDielectric(wo, wi, lobes, Mode::kNormalized, f, pdf);
+    return;
+  }
   const float cos_g = Dot(wi, ng_) * side;
   const Material& m = *material_;
   if (cos_g > 0.0f) {  // reflection
@@ -295,9 +326,17 @@ void Bsdf::EvalPdf(const Vec3& wo, const Vec3& wi, uint32_t lobes, const float* 
       *pdf += probs[kSlotDiffuseR] * std::max(0.0f, Dot(wi, n)) * kInvPi;
     }
     if ((lobes & kLobeGlossyReflection) && lobes_.glossy && lobes_.mean[kSlotSpecularR] > 0.0f) {
-      const WardValue ward = WardLobe(wo, wi, n, lobes_.alpha);
-      *f += m.specular_reflectance * ward.f;
-      *pdf += probs[kSlotSpecularR] * ward.pdf;
+      if (lobes_.conductor) {
+        const Frame frame(n);
+        const MicrofacetValue ggx = GgxConductor(frame.ToLocal(wo), frame.ToLocal(wi), lobes_.alpha,
+                                                 m.specular_reflectance, m.microfacet_f90);
+        *f += ggx.f;
+        *pdf += probs[kSlotSpecularR] * ggx.pdf;
+      } else {
+        const WardValue ward = WardLobe(wo, wi, n, lobes_.alpha);
+        *f += m.specular_reflectance * ward.f;
+        *pdf += probs[kSlotSpecularR] * ward.pdf;
+      }
     }
   } else if (cos_g < 0.0f) {  // transmission
     if ((lobes & kLobeDiffuseTransmission) && lobes_.mean[kSlotDiffuseT] > 0.0f) {
@@ -341,6 +380,15 @@ float Bsdf::RouletteProbability(const Vec3& wo, uint32_t lobes) const {
     if ((lobes & kLobeSpecularReflection) != 0) p += fresnel;
     if ((lobes & kLobeSpecularTransmission) != 0) p += (1.0f - fresnel) * lobes_.p_roulette[kSlotSpecularT];
     return p;
+  }
+  if (lobes_.rough_dielectric) {
+    // F at the macro normal: the branch probabilities depend on the sampled microfacet, so this
+    // is their value for a smooth surface. Only Metropolis caustic splitting asks, and it never
+    // splits a chain through a glossy lobe (photon_tracer.cpp).
+    float p_reflect, p_refract;
+    RoughBranches(FresnelDielectric(Dot(wo, n), EtaFor(side)), Mode::kRussianRoulette, lobes, &p_reflect,
+                  &p_refract);
+    return p_reflect + p_refract;
   }
   float probs[kNumSlots];
   SelectionProbabilities(Mode::kRussianRoulette, lobes, probs);
@@ -415,6 +463,7 @@ std::optional<BsdfSample> Bsdf::Sample(const Vec3& wo, float u_lobe, float u1, f
   bool n_is_shading = false;
   if (!LobeNormal(wo, &n, &side, &n_is_shading)) return std::nullopt;
   if (lobes_.dielectric) return SampleDielectric(wo, n, side, u_lobe, mode, lobes);
+  if (lobes_.rough_dielectric) return SampleRoughDielectric(wo, n, side, u_lobe, u1, u2, mode, lobes);
   // The particle walks (photons, importons, §2.2) sample the cosine lobes with the polynomial
   // azimuth (CosineHemisphereFast); camera paths keep libm's, so rendered camera paths and the
   // scenes' references stay bit for bit.
@@ -456,7 +505,21 @@ std::optional<BsdfSample> Bsdf::Sample(const Vec3& wo, float u_lobe, float u1, f
       break;
     }
     case kSlotSpecularR:
-      if (lobes_.glossy) {
+      if (lobes_.conductor) {
+        if (lobes_.glossy) {  // GGX: reflect wo about a visible normal (Heitz 2018)
+          const Vec3 m_local = SampleGgxVisibleNormal(frame.ToLocal(wo), lobes_.alpha, u1, u2);
+          const Vec3 h = frame.ToWorld(m_local);
+          const float wo_h = Dot(wo, h);
+          if (!(wo_h > 0.0f)) return std::nullopt;
+          s.wi = Normalize(h * (2.0f * wo_h) - wo);
+          s.lobe = kLobeGlossyReflection;
+        } else {  // the smooth conductor: a mirror with Schlick's Fresnel (the GGX limit α → 0)
+          s.wi = Reflect(wo, n);
+          s.lobe = kLobeSpecularReflection;
+          s.is_delta = true;
+          s.weight = SchlickFresnel(m.specular_reflectance, m.microfacet_f90, Dot(wo, n)) / p_slot;
+        }
+      } else if (lobes_.glossy) {
         // Ward's half-vector sampling; ln(1 − u1) has the law of ln u1 and is finite on [0,1)
         // (1 − u1 is exact for the 24-bit uniforms of Rng).
         const float tan2 = -lobes_.alpha * lobes_.alpha * std::log(1.0f - u1);

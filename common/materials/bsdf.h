@@ -29,13 +29,23 @@ enum LobeFlags : uint32_t {
   kLobeSpecularReflection = 1u << 2,  // perfect mirror or Fresnel reflection (delta)
   kLobeDiffuseTransmission = 1u << 3,
   kLobeSpecularTransmission = 1u << 4,  // refraction or thin straight-through (delta)
-  kLobeAll = (1u << 5) - 1,
+  kLobeGlossyTransmission = 1u << 5,    // rough (GGX) refraction (bsdf_microfacet.h)
+  kLobeAll = (1u << 6) - 1,
 };
 
 // Wald's classification (§2.1): diffuse interactions are regular (D), specular and glossy ones
-// singular (S). Used for caustic-vs-diffuse photon storage.
+// singular (S). Used for caustic-vs-diffuse photon storage. Every microfacet (GGX) lobe is
+// glossy, hence singular, at every roughness from the delta threshold (α = r² >= 1e-3,
+// bsdf_microfacet.h) up to r = 1: photons are stored only on Lambertian lobes, because the
+// photon map shader's estimates (precomputed irradiance, irradiance cache, gathering) are
+// ρd/π·E and would be wrong for a GGX lobe however rough.
 constexpr bool IsSingular(uint32_t lobe) {
-  return (lobe & (kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission)) != 0;
+  return (lobe & (kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission |
+                  kLobeGlossyTransmission)) != 0;
+}
+// A non-delta singular lobe (Ward or GGX reflection, GGX refraction).
+constexpr bool IsGlossy(uint32_t lobe) {
+  return (lobe & (kLobeGlossyReflection | kLobeGlossyTransmission)) != 0;
 }
 
 struct BsdfSample {
@@ -56,9 +66,14 @@ struct BsdfLobes {
 
   static BsdfLobes Of(const Material& material);
 
-  float alpha = 0.0f;                  // Ward α of the reflection lobe; 0 = mirror
-  bool glossy = false;                 // ρs is a Ward lobe (α >= 1e-4), else a mirror
-  bool dielectric = false;             // τs with ior != 1: Fresnel dielectric only
+  float alpha = 0.0f;       // Ward (or GGX) α of the reflection lobe; 0 = mirror
+  bool glossy = false;      // ρs is a Ward lobe (α >= 1e-4) or a GGX one, else a mirror
+  bool dielectric = false;  // τs with ior != 1: Fresnel dielectric only
+  // Material::Microfacet::kConductor: ρs is GGX (glossy) or a mirror with Schlick's Fresnel.
+  bool conductor = false;
+  // Material::Microfacet::kDielectric with α >= 1e-3 (else `dielectric`): GGX reflection and
+  // refraction (Walter et al. 2007) only; alpha is its GGX α.
+  bool rough_dielectric = false;
   float mean[kNumSlots] = {};          // channel means of ρd, ρs, τd, τs (>= 0)
   float p_normalized[kNumSlots] = {};  // Mode::kNormalized selection probabilities
   float p_roulette[kNumSlots] = {};    // Mode::kRussianRoulette selection probabilities
@@ -133,6 +148,15 @@ class Bsdf {
   void EvalPdf(const Vec3& wo, const Vec3& wi, uint32_t lobes, const float* probs, Rgb* f, float* pdf) const;
   std::optional<BsdfSample> SampleDielectric(const Vec3& wo, const Vec3& n, float side, float u_lobe,
                                              Mode mode, uint32_t lobes) const;
+  // The rough dielectric (bsdf_rough_dielectric.cpp): its two branch probabilities for the
+  // Fresnel term F, the EvalPdf of its lobes, and Sample.
+  void RoughBranches(float fresnel, Mode mode, uint32_t lobes, float* p_reflect, float* p_refract) const;
+  void EvalPdfRoughDielectric(const Vec3& wo, const Vec3& wi, uint32_t lobes, Mode mode, Rgb* f,
+                              float* pdf) const;
+  std::optional<BsdfSample> SampleRoughDielectric(const Vec3& wo, const Vec3& n, float side, float u_lobe,
+                                                  float u1, float u2, Mode mode, uint32_t lobes) const;
+  // The index ratio n(other side) / n(wo's side) of the dielectric for wo on `side`.
+  float EtaFor(float side) const { return side > 0.0f ? material_->ior : 1.0f / material_->ior; }
 
   const Material* material_;
   Vec3 ns_, ng_;
@@ -149,8 +173,8 @@ class Bsdf {
 //   kDiffuse  — Sample would choose the diffuse reflection lobe, the first of its cdf walk, and
 //               return exactly *wi and `diffuse_weight` (ρd/P: with ns = ng the lobe normal is
 //               the shading normal on wo's side, bsdf.cpp);
-//   kBsdf     — any other case (another lobe, a smooth hit, a dielectric, an unusable ng): call
-//               Bsdf::Sample.
+//   kBsdf     — any other case (another lobe — GGX ones included —, a smooth hit, a dielectric
+//               smooth or rough, an unusable ng): call Bsdf::Sample.
 // The same floating-point operations as Sample, in the same order (and no FMA contraction,
 // CMakeLists.txt), so the photons are the same bit for bit (BsdfWalkRoulette tests); a photon
 // bounce built a Bsdf and walked Sample's general path, a third of a Cornell photon ray's
@@ -160,9 +184,9 @@ struct WalkRoulette {
 
   static WalkRoulette Of(const Material& material, const BsdfLobes& lobes) {
     WalkRoulette w;
-    w.dielectric = lobes.dielectric;
-    w.has_diffuse = !lobes.dielectric && (lobes.mean[BsdfLobes::kSlotDiffuseR] > 0.0f ||
-                                          lobes.mean[BsdfLobes::kSlotDiffuseT] > 0.0f);
+    w.dielectric = lobes.dielectric || lobes.rough_dielectric;
+    w.has_diffuse = !w.dielectric && (lobes.mean[BsdfLobes::kSlotDiffuseR] > 0.0f ||
+                                      lobes.mean[BsdfLobes::kSlotDiffuseT] > 0.0f);
     w.p_diffuse = lobes.p_roulette[BsdfLobes::kSlotDiffuseR];
     w.diffuse_weight = material.diffuse_reflectance / w.p_diffuse;
     // Sample's cdf walk: the positive probabilities summed in slot order; u_lobe below the
@@ -194,7 +218,7 @@ struct WalkRoulette {
     return Outcome::kDiffuse;
   }
 
-  bool dielectric = false;
+  bool dielectric = false;  // smooth or rough: always the general path
   bool has_diffuse = false;
   float p_diffuse = 0.0f;    // the roulette's probability of the diffuse reflection lobe
   float absorb_from = 0.0f;  // u_lobe >= this: absorbed

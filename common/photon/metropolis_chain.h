@@ -28,7 +28,7 @@ inline constexpr float kMetropolisJitterMin = 0.01f, kMetropolisJitterMax = 0.5f
 
 // The lobes that continue a singular chain.
 inline constexpr uint32_t kSingularLobes =
-    kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
+    kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission | kLobeGlossyTransmission;
 
 // Where a singular chain starts (Wald 1999, §4.6.2): the light, or a Lambertian diffuse bounce.
 // Its direction ω was drawn with a density ∝ max(0, ω·axis) on the side `side` (emission: the

@@ -426,7 +426,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
         // The chain goes on: its characteristic and its probability factor grow.
         state.lobes.push_back(s->lobe);
         state.q *= double(s->pdf);
-        if (s->lobe == kLobeGlossyReflection) state.splittable = false;
+        if (IsGlossy(s->lobe)) state.splittable = false;
       } else {
         if (!state.lobes.empty()) state.q *= 1.0 - double(bsdf.RouletteProbability(wo, kSingularLobes));
         end_chain(false);

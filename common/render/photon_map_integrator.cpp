@@ -12,7 +12,7 @@ namespace {
 
 constexpr uint32_t kDiffuseLobes = kLobeDiffuseReflection | kLobeDiffuseTransmission;
 constexpr uint32_t kSingularLobes =
-    kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission;
+    kLobeGlossyReflection | kLobeSpecularReflection | kLobeSpecularTransmission | kLobeGlossyTransmission;
 
 // Per-thread query scratch, reused across queries (NearestPhotons allocates only at first).
 NearestPhotons& Scratch() {

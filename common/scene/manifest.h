@@ -21,11 +21,11 @@ namespace pf {
 // A manifest's "materials" entry: changes applied to every material of that name after the
 // geometry is loaded (scene_loader.cpp, ApplyMaterialOverride).
 struct MaterialOverride {
-  enum class Kind { kUnchanged, kDiffuse, kGlossy, kMirror, kGlass };
+  enum class Kind { kUnchanged, kDiffuse, kGlossy, kMirror, kGlass, kMetal, kRoughGlass };
   Kind kind = Kind::kUnchanged;
   std::optional<Rgb> diffuse;       // ρd
   std::optional<Rgb> specular;      // ρs
-  std::optional<float> roughness;   // Ward α of ρs
+  std::optional<float> roughness;   // Ward α of ρs, or GGX roughness r (metal, rough-glass)
   std::optional<Rgb> transmission;  // τs
   std::optional<float> ior;
   std::optional<Rgb> emission;  // Le, W/(m²·sr)

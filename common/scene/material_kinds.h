@@ -2,9 +2,9 @@
 // The material kinds by name (a manifest's materials.<name>.kind, docs/scene-manifest.md): a
 // registry of what each kind makes of a loaded material and which of its parameters it needs,
 // in the manner of Mitsuba's BSDF plugins by name. There is one BSDF (materials/bsdf.h: diffuse
-// + specular/Ward reflection and transmission, from a Material); a kind is a recipe for its
-// parameters. The registry lives in scene/ because the manifest and the scene loader, which build
-// through it, are below materials/ (common/CMakeLists.txt, the layers). A new kind is an entry
+// + specular/Ward reflection and transmission, or GGX microfacet lobes, from a Material); a kind
+// is a recipe for its parameters. The registry lives in scene/ because the manifest and the scene loader,
+// which build through it, are below materials/ (common/CMakeLists.txt, the layers). A new kind is an entry
 // here.
 
 #include <functional>
@@ -34,7 +34,7 @@ struct MaterialKind {
 // Every kind, in the order the manifest's documentation lists them.
 // GetKind(kUnchanged) is nullptr: no kind given, the loaded material stays.
 const NamedRegistry<MaterialKind>& MaterialKinds();
-// "\"diffuse\", \"glossy\", \"mirror\", \"glass\"" (for "expected one of ...").
+// "\"diffuse\", \"glossy\", \"mirror\", \"glass\", \"metal\", \"rough-glass\"" (for "expected one of ...").
 std::string QuotedMaterialKindNames();
 
 }  // namespace pf

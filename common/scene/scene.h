@@ -32,6 +32,16 @@ struct Material {
   float ior = 1.0f;                     // Index of refraction inside (behind the front face).
   Rgb emission{};                       // Le in W/(m²·sr), emitted from the front side only.
   bool one_sided = false;               // MGF `sides 1` (recorded; surfaces are shaded two-sided).
+  // GGX microfacet lobes instead of Ward's (materials/bsdf_microfacet.h, docs/renderer.md
+  // "Microfacet lobes"). kConductor: ρs is a rough metal with Schlick's F0 = ρs. kDielectric:
+  // τs and ior are a rough glass (Walter et al. 2007; exact Fresnel). Roughness below 0.0316
+  // (α = r² < 1e-3) is the smooth (delta) mirror / dielectric. kNone keeps Ward's model above.
+  enum class Microfacet : uint8_t { kNone, kConductor, kDielectric };
+  Microfacet microfacet = Microfacet::kNone;
+  float microfacet_roughness = 0.0f;  // glTF perceptual roughness r in [0, 1]; GGX α = r².
+  // The conductor's Schlick reflectance at grazing incidence, F = F0 + (F90 − F0)(1 − cos)⁵:
+  // 1 for a metal; below 1 keeps a Lambertian lobe beside it energy-conserving (metallic_roughness.h).
+  float microfacet_f90 = 1.0f;
 
   bool IsEmissive() const { return !emission.IsBlack(); }
 };

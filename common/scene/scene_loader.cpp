@@ -66,7 +66,9 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
       if (const MaterialKind* kind = MaterialKinds().GetKind(o.kind)) kind->apply(&m);
       if (o.diffuse) m.diffuse_reflectance = *o.diffuse;
       if (o.specular) m.specular_reflectance = *o.specular;
-      if (o.roughness) m.specular_roughness = *o.roughness;
+      if (o.roughness)  // Ward α, or the GGX roughness r of a microfacet material (scene.h)
+        (m.microfacet == Material::Microfacet::kNone ? m.specular_roughness : m.microfacet_roughness) =
+            *o.roughness;
       if (o.transmission) m.specular_transmittance = *o.transmission;
       if (o.ior) m.ior = *o.ior;
       if (o.emission) {

@@ -41,9 +41,10 @@ Material Everything() {
 }
 
 TEST(MaterialKinds, EveryKindParsesAndMakesItsMaterial) {
-  ASSERT_EQ(MaterialKinds().entries().size(), 4u);
+  ASSERT_EQ(MaterialKinds().entries().size(), 6u);
   for (const MaterialKind& k : MaterialKinds().entries()) {
-    const std::string extra = k.name == "glossy" ? R"(, "roughness": 0.2)" : "";
+    const bool rough = k.name == "glossy" || k.name == "metal" || k.name == "rough-glass";
+    const std::string extra = rough ? R"(, "roughness": 0.2)" : "";
     EXPECT_EQ(Parse(R"({"kind": ")" + std::string(k.name) + "\"" + extra + "}").kind, k.kind) << k.name;
     EXPECT_EQ(MaterialKinds().GetKind(k.kind), &k);
     EXPECT_EQ(MaterialKinds().Get(k.name), &k);
@@ -65,12 +66,34 @@ TEST(MaterialKinds, EveryKindParsesAndMakesItsMaterial) {
   MaterialKinds().Get("glass")->apply(&m);
   EXPECT_EQ(m.specular_transmittance, Rgb(1.0f));
   EXPECT_EQ(m.ior, 1.5f);
+  EXPECT_EQ(m.microfacet, Material::Microfacet::kNone);
+  // The GGX kinds: a white metal (ρs = F0), a rough glass; the Ward kinds undo them.
+  m = Everything();
+  MaterialKinds().Get("metal")->apply(&m);
+  EXPECT_EQ(m.microfacet, Material::Microfacet::kConductor);
+  EXPECT_EQ(m.specular_reflectance, Rgb(0.2f));
+  EXPECT_TRUE(m.diffuse_reflectance.IsBlack() && m.specular_transmittance.IsBlack() &&
+              m.diffuse_transmittance.IsBlack());
+  m = Material{};
+  MaterialKinds().Get("metal")->apply(&m);
+  EXPECT_EQ(m.specular_reflectance, Rgb(1.0f));
+  m = Everything();
+  MaterialKinds().Get("rough-glass")->apply(&m);
+  EXPECT_EQ(m.microfacet, Material::Microfacet::kDielectric);
+  EXPECT_EQ(m.specular_transmittance, Rgb(0.1f));
+  EXPECT_EQ(m.ior, 1.3f);
+  EXPECT_TRUE(m.diffuse_reflectance.IsBlack() && m.specular_reflectance.IsBlack());
+  m.microfacet_roughness = 0.5f;
+  MaterialKinds().Get("glass")->apply(&m);
+  EXPECT_EQ(m.microfacet, Material::Microfacet::kNone);
+  EXPECT_EQ(m.microfacet_roughness, 0.0f);
 }
 
 TEST(MaterialKinds, UnknownKindListsTheKnownOnes) {
   EXPECT_THAT(
       ParseError(R"({"kind": "velvet"})"),
-      HasSubstr("key 'materials.m.kind': expected one of \"diffuse\", \"glossy\", \"mirror\", \"glass\""));
+      HasSubstr("key 'materials.m.kind': expected one of \"diffuse\", \"glossy\", \"mirror\", \"glass\", "
+                "\"metal\", \"rough-glass\""));
 }
 
 TEST(MaterialKinds, AKindRefusesAParameterItNeedsNamingIt) {
@@ -79,6 +102,13 @@ TEST(MaterialKinds, AKindRefusesAParameterItNeedsNamingIt) {
   EXPECT_THAT(ParseError(R"({"kind": "glossy", "roughness": 0})"),
               HasSubstr("key 'materials.m.roughness': kind \"glossy\" needs a Ward roughness > 0"));
   EXPECT_EQ(ParseError(R"({"kind": "mirror", "roughness": 0})"), "(no error)");
+  EXPECT_THAT(
+      ParseError(R"({"kind": "metal"})"),
+      HasSubstr("key 'materials.m.roughness': missing (kind \"metal\" needs a GGX roughness in [0, 1])"));
+  EXPECT_THAT(ParseError(R"({"kind": "rough-glass", "roughness": 1.5})"),
+              HasSubstr("key 'materials.m.roughness': kind \"rough-glass\" needs a GGX roughness in [0, 1]"));
+  EXPECT_EQ(ParseError(R"({"kind": "metal", "roughness": 0})"), "(no error)");
+  EXPECT_EQ(ParseError(R"({"kind": "rough-glass", "roughness": 1})"), "(no error)");
 }
 
 }  // namespace

@@ -463,7 +463,7 @@ TEST_F(ManifestTest, EachMalformedKeyIsNamed) {
       {R"({"geometry": "a.obj", "settings": [1]})", "key 'settings'"},
       {R"({"geometry": "a.obj", "materials": []})", "key 'materials'"},
       {R"({"geometry": "a.obj", "materials": {"x": 1}})", "key 'materials.x'"},
-      {R"({"geometry": "a.obj", "materials": {"x": {"kind": "metal"}}})", "key 'materials.x.kind'"},
+      {R"({"geometry": "a.obj", "materials": {"x": {"kind": "velvet"}}})", "key 'materials.x.kind'"},
       {R"({"geometry": "a.obj", "materials": {"x": {"diffuse": [1, 2]}}})", "key 'materials.x.diffuse'"},
       {R"({"geometry": "a.obj", "materials": {"x": {"emission": [1, -2, 0]}}})",
        "key 'materials.x.emission'"},
