@@ -7,13 +7,11 @@
 #include <cmath>
 
 #include "common/core/error.h"
+#include "common/scene/metallic_roughness.h"
 
 namespace pf {
 
 namespace {
-
-// Below this Ward α the lobe is a mirror (gltf_materials.h).
-constexpr float kMirrorRoughness = 1e-3f;
 
 float Unit(double v) {
   return float(std::clamp(v, 0.0, 1.0));
@@ -67,20 +65,17 @@ Material MapGltfMaterial(const tinygltf::Material& g, size_t index, const std::s
   const double ior = ExtensionNumber(g, "KHR_materials_ior", "ior", 1.5);
   const double strength = ExtensionNumber(g, "KHR_materials_emissive_strength", "emissiveStrength", 1.0);
 
-  Material m;
+  if (transmission > 0.0f && !(ior >= 1.0 && ior <= 10.0))
+    throw InputError(
+        SourceLocation{file, 0},
+        where + ": KHR_materials_ior.ior must be a number in [1, 10], got " + std::to_string(ior));
+  // glTF's metallic-roughness model on pf's GGX lobes (metallic_roughness.h).
+  Material m = MetallicRoughnessMaterial(MetallicRoughness{.base_color = base,
+                                                           .metallic = metallic,
+                                                           .roughness = roughness,
+                                                           .transmission = transmission,
+                                                           .ior = float(ior)});
   m.name = g.name.empty() ? "materials[" + std::to_string(index) + "]" : g.name;
-  m.diffuse_reflectance = base * ((1.0f - metallic) * (1.0f - transmission));
-  m.specular_reflectance = base * metallic;
-  const float alpha = roughness * roughness;
-  m.specular_roughness = alpha < kMirrorRoughness ? 0.0f : alpha;
-  m.specular_transmittance = base * ((1.0f - metallic) * transmission);
-  if (transmission > 0.0f) {
-    if (!(ior >= 1.0 && ior <= 10.0))
-      throw InputError(
-          SourceLocation{file, 0},
-          where + ": KHR_materials_ior.ior must be a number in [1, 10], got " + std::to_string(ior));
-    m.ior = float(ior);
-  }
   if (g.emissiveFactor.size() >= 3) {
     if (!(strength >= 0.0))
       throw InputError(SourceLocation{file, 0},

@@ -201,16 +201,19 @@ TEST(GltfLoader, MaterialMapping) {
           "extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":8}}}])";
   const SceneDescription s = LoadGltf(dir.Write("scene.gltf", Triangle().Json(rest)));
   ASSERT_EQ(s.materials.size(), 4u);
+  // metallic_roughness.h: F0 = 0.04·(1 − m) + b·m, ρd = b·(1 − m)·0.96, GGX roughness r.
   const Material& wood = s.materials[0];
-  EXPECT_NEAR(wood.diffuse_reflectance.r, 0.8f * 0.75f, 1e-6f);
-  EXPECT_NEAR(wood.specular_reflectance.g, 0.6f * 0.25f, 1e-6f);
-  EXPECT_NEAR(wood.specular_roughness, 0.25f, 1e-6f);
+  EXPECT_EQ(wood.microfacet, Material::Microfacet::kConductor);
+  EXPECT_NEAR(wood.diffuse_reflectance.r, 0.8f * 0.75f * 0.96f, 1e-6f);
+  EXPECT_NEAR(wood.specular_reflectance.g, 0.04f * 0.75f + 0.6f * 0.25f, 1e-6f);
+  EXPECT_NEAR(wood.microfacet_roughness, 0.5f, 1e-6f);
   EXPECT_TRUE(wood.one_sided);
   const Material& chrome = s.materials[1];
   EXPECT_EQ(chrome.diffuse_reflectance, Rgb(0.0f));
   EXPECT_EQ(chrome.specular_reflectance, Rgb(1.0f));
-  EXPECT_EQ(chrome.specular_roughness, 0.0f);  // a mirror
+  EXPECT_EQ(chrome.microfacet_roughness, 0.0f);  // a mirror (below the GGX delta threshold)
   const Material& glass = s.materials[2];
+  EXPECT_EQ(glass.microfacet, Material::Microfacet::kDielectric);
   EXPECT_EQ(glass.specular_transmittance, Rgb(1.0f));
   EXPECT_EQ(glass.diffuse_reflectance, Rgb(0.0f));
   EXPECT_FLOAT_EQ(glass.ior, 1.33f);
