@@ -9,6 +9,7 @@
 
 #include "common/core/error.h"
 #include "common/core/sha256.h"
+#include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "common/scene/scene_reference.h"
 
@@ -98,6 +99,23 @@ bool IsRenderedImage(const fs::path& rel) {
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   return ext == ".exr" || ext == ".png";
 }
+
+// The images a manifest entry reads (its "environment.file"), relative to the entry's folder:
+// inputs, shipped whatever their extension. A manifest that does not parse names none: loading
+// the bundle reports it.
+std::set<std::string> InputImages(const fs::path& entry) {
+  std::set<std::string> images;
+  std::string ext = entry.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".json") return images;
+  try {
+    const SceneManifest manifest = LoadManifest(entry);
+    if (manifest.environment && !manifest.environment->file.empty())
+      images.insert(fs::path(manifest.environment->file).lexically_normal().generic_string());
+  } catch (const InputError&) {
+  }
+  return images;
+}
 }  // namespace
 
 SceneBundle CollectBundle(const fs::path& entry) {
@@ -107,12 +125,13 @@ SceneBundle CollectBundle(const fs::path& entry) {
   const fs::path root = entry.has_parent_path() ? entry.parent_path() : fs::path(".");
   SceneBundle bundle;
   bundle.entry = entry.filename().generic_string();
+  const std::set<std::string> inputs = InputImages(entry);
   uint64_t total = 0;
   for (fs::recursive_directory_iterator it(root, fs::directory_options::none, ec), end; !ec && it != end;
        it.increment(ec)) {
     if (!it->is_regular_file(ec)) continue;
     const fs::path rel = it->path().lexically_relative(root);
-    if (IsRenderedImage(rel)) continue;
+    if (IsRenderedImage(rel) && !inputs.count(rel.generic_string())) continue;
     const uint64_t size = it->file_size(ec);
     if (ec) break;
     total += size;

@@ -9,9 +9,9 @@
 // directory, recursively, with paths relative to that directory ('/'-separated). This covers
 // everything a scene can refer to without parsing it: MGF `i` includes below the entry's folder,
 // OBJ + MTL, a manifest and its geometry — but no .exr/.png (references and previews stored
-// next to a scene are outputs; no loader reads images). Files *outside* the entry's folder (an
-// MGF include of "../x.mgf", a manifest pointing to "/abs/path.obj") are not collected; loading
-// the bundle then fails with the loader's file:line message. Keep each scene in its own folder.
+// next to a scene are outputs) unless the manifest reads it (its "environment.file"). Files *outside* the
+// entry's folder (an MGF include of "../x.mgf", a manifest pointing to "/abs/path.obj") are not collected;
+// loading the bundle then fails with the loader's file:line message. Keep each scene in its own folder.
 //
 // Limits: at most kMaxBundleBytes of file content in total and kMaxBundleFiles files; over
 // them CollectBundle / ValidateBundle throw InputError naming the limit.
