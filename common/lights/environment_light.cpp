@@ -51,7 +51,8 @@ EnvironmentLight::EnvironmentLight(const Environment& environment, const Vec3& c
   integrated_ = Rgb(float(integrated[0]), float(integrated[1]), float(integrated[2]));
   power_ = integrated_ * (kPi * radius * radius);
   if (!(integrated_.Luminance() > 0.0f) || !power_.IsFinite())
-    throw InputError("environment" + (environment.file.empty() ? std::string() : " '" + environment.file + "'") +
+    throw InputError("environment" +
+                     (environment.file.empty() ? std::string() : " '" + environment.file + "'") +
                      ": its power is not a finite positive number (is the image black?)");
 }
 

@@ -25,12 +25,12 @@
 namespace pf {
 
 struct Environment {
-  std::string file;                     // the image as the manifest names it; empty: constant colour
-  Rgb color{};                          // the constant radiance, W/(m²·sr) (before strength)
-  float rotation_deg = 0.0f;            // about +Y
-  float strength = 1.0f;                // scales every texel
+  std::string file;                      // the image as the manifest names it; empty: constant colour
+  Rgb color{};                           // the constant radiance, W/(m²·sr) (before strength)
+  float rotation_deg = 0.0f;             // about +Y
+  float strength = 1.0f;                 // scales every texel
   std::shared_ptr<const Image> image{};  // the file's pixels (linear), shared by copies of the scene
-  uint32_t light = 0;                   // the scene light id (scene.h)
+  uint32_t light = 0;                    // the scene light id (scene.h)
 
   int width() const { return image ? image->width() : 1; }
   int height() const { return image ? image->height() : 1; }

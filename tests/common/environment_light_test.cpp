@@ -44,7 +44,8 @@ Environment ImageEnvironment(int w, int h, float rotation = 0.0f) {
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const float up = 1.0f - float(y) / float(h);
-      image->at(x, y) = Rgb(0.2f + 0.3f * up, 0.3f + 0.4f * up, 0.5f + 0.5f * up) * (0.5f + float(x % 3) * 0.25f);
+      image->at(x, y) =
+          Rgb(0.2f + 0.3f * up, 0.3f + 0.4f * up, 0.5f + 0.5f * up) * (0.5f + float(x % 3) * 0.25f);
     }
   for (int y = h / 4; y < h / 4 + 2; ++y)
     for (int x = w / 4; x < w / 4 + 2; ++x) image->at(x, y) = Rgb(200.0f, 180.0f, 150.0f);
@@ -79,7 +80,8 @@ std::vector<int> Coverage(const EmbreeScene& accel, const Camera& camera) {
     for (int x = 0; x < camera.width(); ++x) {
       int hits = 0;
       for (int j = 0; j < 8; ++j)
-        for (int i = 0; i < 8; ++i) hits += accel.Intersect(camera.GenerateRay(x, y, (i + 0.5f) / 8, (j + 0.5f) / 8)).has_value();
+        for (int i = 0; i < 8; ++i)
+          hits += accel.Intersect(camera.GenerateRay(x, y, (i + 0.5f) / 8, (j + 0.5f) / 8)).has_value();
       out.push_back(hits == 64 ? 1 : hits == 0 ? 0 : -1);
     }
   return out;
@@ -109,7 +111,8 @@ void ExpectConvexFurnace(const Image& img, const std::vector<int>& coverage, con
         ++object;
         for (int k = 0; k < 3; ++k) {
           sum[k] += c[k];
-          EXPECT_NEAR(c[k], want[k], pixel_tolerance * want[k]) << what << " object pixel (" << x << "," << y << ")";
+          EXPECT_NEAR(c[k], want[k], pixel_tolerance * want[k])
+              << what << " object pixel (" << x << "," << y << ")";
         }
       } else if (same_around(x, y, 0)) {
         ++sky;
@@ -118,7 +121,8 @@ void ExpectConvexFurnace(const Image& img, const std::vector<int>& coverage, con
     }
   ASSERT_GT(object, 50) << what;
   ASSERT_GT(sky, 50) << what;
-  for (int k = 0; k < 3; ++k) EXPECT_NEAR(sum[k] / object, want[k], 0.01 * want[k]) << what << " channel " << k;
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(sum[k] / object, want[k], 0.01 * want[k]) << what << " channel " << k;
   std::printf("[ analytic ] %s: object mean / (rho L) = %.4f %.4f %.4f over %d pixels\n", what.c_str(),
               sum[0] / object / want[0], sum[1] / object / want[1], sum[2] / object / want[2], object);
 }
@@ -145,17 +149,18 @@ TEST(EnvironmentLight, ConvexObjectUnderAUniformSkyIsAlbedoTimesL_PhotonMap) {
     const PhotonMaps maps = testing::MapsFor(accel, lights, io, 20000, 5);
     EXPECT_EQ(maps.global->size(), 0u) << "a convex object has no indirect light";
     const PhotonMapIntegrator integrator(accel, &lights, maps, io);
-    ExpectConvexFurnace(RenderImage(integrator, camera, RenderOptions{.spp = 256, .seed = 3}), coverage,
-                        mode == DirectLightMode::kMonteCarlo ? "photon map, Monte Carlo direct"
-                                                             : "photon map, PhotonDirect");
+    ExpectConvexFurnace(
+        RenderImage(integrator, camera, RenderOptions{.spp = 256, .seed = 3}), coverage,
+        mode == DirectLightMode::kMonteCarlo ? "photon map, Monte Carlo direct" : "photon map, PhotonDirect");
   }
   // Standalone (§2.5): the direct photons themselves, k-nearest density estimation (a pixel's
   // estimate has the noise of its k = 200 photons, about 7 %).
   PhotonMapIntegratorOptions io;
   io.global.k = 200;
   const PhotonMaps maps = testing::MapsFor(accel, lights, io, 400000, 5);
-  ExpectConvexFurnace(RenderImage(PhotonMapIntegrator(accel, maps, io), camera, RenderOptions{.spp = 4, .seed = 3}),
-                      coverage, "photon map, photons only", 0.25);
+  ExpectConvexFurnace(
+      RenderImage(PhotonMapIntegrator(accel, maps, io), camera, RenderOptions{.spp = 4, .seed = 3}), coverage,
+      "photon map, photons only", 0.25);
 }
 
 // The radiance a Lambertian floor (normal +Y) reflects under `env`: ρ/π·∫_{y>0} L cos θ dω, by a
@@ -202,7 +207,8 @@ TEST(EnvironmentLight, FloorUnderAnImageSkyIsRhoOverPiTimesIrradiance) {
   PhotonMapIntegratorOptions io;
   io.direct = DirectLightMode::kMonteCarlo;
   const PhotonMaps maps = testing::MapsFor(accel, lights, io, 20000, 5);
-  check(RenderImage(PhotonMapIntegrator(accel, &lights, maps, io), camera, RenderOptions{.spp = 256, .seed = 7}),
+  check(RenderImage(PhotonMapIntegrator(accel, &lights, maps, io), camera,
+                    RenderOptions{.spp = 256, .seed = 7}),
         "photon map, Monte Carlo direct");
 }
 
@@ -261,9 +267,11 @@ TEST(EnvironmentLight, SamplesMatchThePdf) {
   for (int row = 0; row < h; ++row)
     for (int col = 0; col < w; ++col) {
       const float z = 0.5f * (env.RowZ(row) + env.RowZ(row + 1));
-      const double expected = kN * light.Pdf(env.ToWorld(env.Direction(z, col, 0.5f))) * env.CellSolidAngle(row);
+      const double expected =
+          kN * light.Pdf(env.ToWorld(env.Direction(z, col, 0.5f))) * env.CellSolidAngle(row);
       if (expected < 5) continue;
-      chi2 += (count[size_t(row * w + col)] - expected) * (count[size_t(row * w + col)] - expected) / expected;
+      chi2 +=
+          (count[size_t(row * w + col)] - expected) * (count[size_t(row * w + col)] - expected) / expected;
       ++dof;
     }
   // Mean dof, standard deviation √(2·dof): 5σ above the mean fails.
@@ -342,7 +350,8 @@ TEST(EnvironmentLight, IsTheLastEmitterAndLight) {
   EXPECT_TRUE(lights.SampleLight(1, 0.5f, 0.5f, 0.5f).environment);
   // Chosen ∝ power: the environment's share of the total.
   const double env_power = lights.light_power(1).Luminance(), total = lights.total_power().Luminance();
-  EXPECT_NEAR(lights.EmitterSample(lights.num_emitting_triangles(), 0.5f, 0.5f).pdf_area, env_power / total, 1e-5);
+  EXPECT_NEAR(lights.EmitterSample(lights.num_emitting_triangles(), 0.5f, 0.5f).pdf_area, env_power / total,
+              1e-5);
 }
 
 }  // namespace

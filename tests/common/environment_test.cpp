@@ -77,20 +77,26 @@ TEST_F(EnvironmentTest, BadInputNamesTheFileAndTheKey) {
   Image nan(2, 1);
   nan.at(1, 0).g = std::numeric_limits<float>::quiet_NaN();
   WriteExr(dir_ / "nan.exr", nan);
-  EXPECT_THAT(ErrorOf(Manifest(R"({"file": "nan.exr"})")), HasSubstr("nan.exr: pixel (1, 0) is not a finite"));
+  EXPECT_THAT(ErrorOf(Manifest(R"({"file": "nan.exr"})")),
+              HasSubstr("nan.exr: pixel (1, 0) is not a finite"));
   EXPECT_THAT(ErrorOf(Manifest(R"({"file": "../outside.hdr"})")),
               HasSubstr("key 'environment.file': '../outside.hdr' resolves outside"));
   EXPECT_THAT(ErrorOf(Manifest(R"({"color": [1, -1, 0]})")),
               HasSubstr("key 'environment.color': expected 3 finite non-negative numbers"));
   EXPECT_THAT(ErrorOf(Manifest(R"({"color": [1, "nan", 0]})")), HasSubstr("key 'environment.color'"));
-  EXPECT_THAT(ErrorOf(Manifest(R"({"color": 0})")), HasSubstr("key 'environment.color': expected a colour that is not black"));
-  EXPECT_THAT(ErrorOf(Manifest(R"({"color": 1, "file": "sky.hdr"})")), HasSubstr("key 'environment': expected exactly one of"));
-  EXPECT_THAT(ErrorOf(Manifest(R"({"strength": 2})")), HasSubstr("key 'environment': expected exactly one of"));
+  EXPECT_THAT(ErrorOf(Manifest(R"({"color": 0})")),
+              HasSubstr("key 'environment.color': expected a colour that is not black"));
+  EXPECT_THAT(ErrorOf(Manifest(R"({"color": 1, "file": "sky.hdr"})")),
+              HasSubstr("key 'environment': expected exactly one of"));
+  EXPECT_THAT(ErrorOf(Manifest(R"({"strength": 2})")),
+              HasSubstr("key 'environment': expected exactly one of"));
   EXPECT_THAT(ErrorOf(Manifest(R"({"color": 1, "strength": -1})")), HasSubstr("key 'environment.strength'"));
-  EXPECT_THAT(ErrorOf(Manifest(R"({"color": 1, "rotation": "left"})")), HasSubstr("key 'environment.rotation'"));
+  EXPECT_THAT(ErrorOf(Manifest(R"({"color": 1, "rotation": "left"})")),
+              HasSubstr("key 'environment.rotation'"));
   EXPECT_THAT(ErrorOf(Manifest(R"([1, 2])")), HasSubstr("key 'environment': expected an object"));
   WriteHdr("black.hdr", 4, 2, 0.0f);
-  EXPECT_THAT(ErrorOf(Manifest(R"({"file": "black.hdr"})")), HasSubstr("key 'environment.file': 'black.hdr' is black"));
+  EXPECT_THAT(ErrorOf(Manifest(R"({"file": "black.hdr"})")),
+              HasSubstr("key 'environment.file': 'black.hdr' is black"));
 }
 
 // The environment's image is an input: shipped in the bundle even as an .exr (renders kept next to

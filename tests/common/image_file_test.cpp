@@ -88,7 +88,8 @@ TEST_F(ImageFileTest, BadInputNamesTheFile) {
   Image nan(2, 2);
   nan.at(1, 0) = Rgb(1.0f, std::numeric_limits<float>::quiet_NaN(), 0.0f);
   WriteExr(dir_ / "nan.exr", nan);
-  EXPECT_THAT(ErrorOf(dir_ / "nan.exr"), HasSubstr("nan.exr: pixel (1, 0) is not a finite non-negative colour"));
+  EXPECT_THAT(ErrorOf(dir_ / "nan.exr"),
+              HasSubstr("nan.exr: pixel (1, 0) is not a finite non-negative colour"));
   Image negative(2, 2);
   negative.at(0, 1) = Rgb(-1.0f, 0.0f, 0.0f);
   WriteExr(dir_ / "negative.exr", negative);
@@ -102,7 +103,8 @@ TEST_F(ImageFileTest, OversizedImageIsRefusedFromItsHeader) {
     ReadLinearImage(dir_ / "huge.hdr");
     ADD_FAILURE() << "read";
   } catch (const LimitError& e) {
-    EXPECT_THAT(std::string(e.what()), HasSubstr("huge.hdr: image of 100000x100000 pixels exceeds the limit"));
+    EXPECT_THAT(std::string(e.what()),
+                HasSubstr("huge.hdr: image of 100000x100000 pixels exceeds the limit"));
   }
 }
 
