@@ -24,10 +24,6 @@
 namespace pf {
 namespace {
 
-using testing::AddMaterial;
-using testing::AddQuad;
-using testing::AddSphere;
-
 constexpr float kAlbedo = 0.5f;
 const Rgb kSky(0.6f, 0.8f, 1.0f);
 
@@ -61,8 +57,9 @@ Environment ImageEnvironment(int w, int h, float rotation = 0.0f) {
 // `environment` alone.
 SceneDescription SphereUnder(const Environment& environment) {
   SceneDescription s;
-  AddSphere(s, Vec3(0.0f), 1.0f, 3, AddMaterial(s, Material{.diffuse_reflectance = Rgb(kAlbedo)}), false,
-            kNoLight, false);
+  testing::AddSphere(s, Vec3(0.0f), 1.0f, 3,
+                     testing::AddMaterial(s, Material{.diffuse_reflectance = Rgb(kAlbedo)}), false, kNoLight,
+                     false);
   s.environment = environment;
   s.environment->light = 0;
   s.num_lights = 1;
@@ -143,16 +140,12 @@ TEST(EnvironmentLight, ConvexObjectUnderAUniformSkyIsAlbedoTimesL_PhotonMap) {
   const LightSampler lights(accel);
   const Camera camera(SphereCamera());
   const std::vector<int> coverage = Coverage(accel, camera);
-  for (const DirectLightMode mode : {DirectLightMode::kMonteCarlo, DirectLightMode::kPhotonDirect}) {
-    PhotonMapIntegratorOptions io;
-    io.direct = mode;
-    const PhotonMaps maps = testing::MapsFor(accel, lights, io, 20000, 5);
-    EXPECT_EQ(maps.global->size(), 0u) << "a convex object has no indirect light";
-    const PhotonMapIntegrator integrator(accel, &lights, maps, io);
-    ExpectConvexFurnace(
-        RenderImage(integrator, camera, RenderOptions{.spp = 256, .seed = 3}), coverage,
-        mode == DirectLightMode::kMonteCarlo ? "photon map, Monte Carlo direct" : "photon map, PhotonDirect");
-  }
+  // A convex object has no indirect light: with separate direct light the global map is empty.
+  testing::ForEachSeparateDirectIntegrator(
+      accel, lights, [&](const Integrator& integrator, const char* name) {
+        ExpectConvexFurnace(RenderImage(integrator, camera, RenderOptions{.spp = 256, .seed = 3}), coverage,
+                            name);
+      });
   // Standalone (§2.5): the direct photons themselves, k-nearest density estimation (a pixel's
   // estimate has the noise of its k = 200 photons, about 7 %).
   PhotonMapIntegratorOptions io;
@@ -186,8 +179,8 @@ Rgb FloorRadiance(const Environment& env) {
 TEST(EnvironmentLight, FloorUnderAnImageSkyIsRhoOverPiTimesIrradiance) {
   const Environment env = ImageEnvironment(64, 32, 30.0f);
   SceneDescription s;
-  AddQuad(s, {-20, 0, 20}, {20, 0, 20}, {20, 0, -20}, {-20, 0, -20},
-          AddMaterial(s, Material{.diffuse_reflectance = Rgb(kAlbedo)}));
+  testing::AddQuad(s, {-20, 0, 20}, {20, 0, 20}, {20, 0, -20}, {-20, 0, -20},
+                   testing::AddMaterial(s, Material{.diffuse_reflectance = Rgb(kAlbedo)}));
   s.environment = env;
   s.num_lights = 1;
   const EmbreeScene accel(s);

@@ -20,13 +20,13 @@
 namespace pf {
 namespace {
 
-namespace fs = std::filesystem;
+using std::filesystem::path;
 using ::testing::HasSubstr;
 
 // A one-triangle OBJ without any emitter, and a manifest over it with `environment` (JSON).
 class EnvironmentTest : public test_util::TempDirTest {
  protected:
-  fs::path Manifest(const std::string& environment) const {
+  path Manifest(const std::string& environment) const {
     tmp_.Write("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     return tmp_.Write("scene.json",
                       "{\"geometry\": \"tri.obj\"" +
@@ -36,7 +36,7 @@ class EnvironmentTest : public test_util::TempDirTest {
     const std::vector<float> rgb(size_t(w * h * 3), value);
     ASSERT_TRUE(stbi_write_hdr((dir_ / name).c_str(), w, h, 3, rgb.data()));
   }
-  static std::string ErrorOf(const fs::path& manifest) {
+  static std::string ErrorOf(const path& manifest) {
     try {
       LoadScene(manifest);
     } catch (const InputError& e) {
@@ -106,7 +106,7 @@ TEST_F(EnvironmentTest, ItsImageTravelsInTheBundle) {
   sky.at(0, 0) = Rgb(1.0f);
   WriteExr(dir_ / "sky.exr", sky);
   WriteExr(dir_ / "render.exr", sky);
-  const fs::path manifest = Manifest(R"({"file": "sky.exr"})");
+  const path manifest = Manifest(R"({"file": "sky.exr"})");
   const SceneBundle bundle = CollectBundle(manifest);
   std::vector<std::string> names;
   for (const auto& [path, content] : bundle.files) names.push_back(path);
