@@ -13,6 +13,7 @@ PACKAGES=(
   libtinygltf-dev  # glTF 2.0 scenes (header-only tiny_gltf.h; uses nlohmann-json and stb)
   libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libpng-dev
   libnanoflann-dev
+  libstb-dev  # image files: .hdr, .png, .jpg (common/image/image_file.cpp)
   # The farm: gRPC, Protobuf, SQLite, and the Python client.
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libsqlite3-dev sqlite3
   libssl-dev  # SHA-256 of scene bundles (OpenSSL EVP)

@@ -17,11 +17,23 @@ Rgb DeltaLightContribution(const LightSampler& lights, const LightSample& ls, co
   return f * in.irradiance * (std::fabs(Dot(in.wi, bsdf.shading_normal())) / ls.pdf_area);
 }
 
+Rgb EnvironmentLightContribution(const LightSampler& lights, const LightSample& ls, const Bsdf& bsdf,
+                                 const Vec3& x, const Vec3& wo, uint32_t lobes, TraceCounters& counters) {
+  const float pdf = ls.pdf_area * ls.pdf_direction;
+  if (!(pdf > 0.0f) || ls.radiance.IsBlack()) return Rgb(0.0f);
+  const Rgb f = bsdf.EvalLobes(wo, ls.wi, lobes);
+  if (f.IsBlack()) return Rgb(0.0f);
+  ++counters.shadow_rays;
+  if (!lights.UnoccludedTowards(x, bsdf.geometric_normal(), ls.wi)) return Rgb(0.0f);
+  return f * ls.radiance * (std::fabs(Dot(ls.wi, bsdf.shading_normal())) / pdf);
+}
+
 Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t light, const Bsdf& bsdf,
                    const Vec3& x, const Vec3& wo, uint32_t lobes, float u_select, Sample2 u,
                    TraceCounters& counters) {
   const LightSample ls = lights.SampleLight(light, u_select, u.u, u.v);
   if (ls.delta()) return DeltaLightContribution(lights, ls, bsdf, x, wo, lobes, counters);
+  if (ls.environment) return EnvironmentLightContribution(lights, ls, bsdf, x, wo, lobes, counters);
   const Vec3 to_light = ls.position - x;
   const float dist2 = LengthSquared(to_light);
   if (!(dist2 > 0.0f)) return Rgb(0.0f);

@@ -22,7 +22,9 @@
 //   pixels would make the image depend on which pixels a thread rendered before.
 //
 // Punctual lights (point, spot, directional; light_sampler.h) are lights like the others here:
-// each its own light id, power and photons; their one "sample" is the light itself.
+// each its own light id, power and photons; their one "sample" is the light itself. So is the
+// environment (environment_light.h): its samples are directions, importance-sampled by its
+// luminance, and its photons are tagged with its light id.
 
 #include <cstdint>
 #include <limits>
@@ -69,6 +71,11 @@ Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t 
 // choice. No MIS: no BSDF sample can hit a delta light (Veach 1997, §9.2.3).
 Rgb DeltaLightContribution(const LightSampler& lights, const LightSample& ls, const Bsdf& bsdf, const Vec3& x,
                            const Vec3& wo, uint32_t lobes, TraceCounters& counters);
+
+// An environment sample (ls.environment): f·L·|cos θ|·V / p with p = ls.pdf_area·ls.pdf_direction
+// its density per solid angle; 0 where p is 0. Unweighted: a caller with MIS weighs it.
+Rgb EnvironmentLightContribution(const LightSampler& lights, const LightSample& ls, const Bsdf& bsdf,
+                                 const Vec3& x, const Vec3& wo, uint32_t lobes, TraceCounters& counters);
 
 enum class NonContributingMode { kOneRandom, kEachOne };
 

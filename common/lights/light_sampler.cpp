@@ -24,6 +24,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     total_power_ += m.emission * (kPi * area);
   }
   AddPunctualLights(&weights);
+  AddEnvironment(&weights);
   double total = 0;
   for (double w : weights) total += w;
   cdf_.resize(weights.size());
@@ -33,8 +34,10 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     cdf_[i] = float(acc / total);
     if (i < triangles_.size()) {
       select_prob_by_tri_[triangles_[i]] = float(weights[i] / total);
-    } else {
+    } else if (i < triangles_.size() + punctual_.size()) {
       punctual_prob_.push_back(float(weights[i] / total));
+    } else {
+      environment_prob_ = float(weights[i] / total);
     }
   }
   if (!cdf_.empty()) cdf_.back() = 1.0f;
@@ -76,6 +79,41 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     light_index_by_id_[slot] = uint32_t(lights_.size());
     lights_.push_back(LightGroup{id, {}, {}, {}, punctual_[k].power, uint32_t(k)});
   }
+  if (environment_) {
+    const uint32_t id = environment_->light();
+    const size_t slot = id < num_ids ? id : num_ids;
+    light_index_by_id_[slot] = uint32_t(lights_.size());
+    lights_.push_back(LightGroup{id, {}, {}, {}, environment_->power(), kNotPunctual, true});
+  }
+}
+
+void LightSampler::AddEnvironment(std::vector<double>* weights) {
+  const SceneDescription& s = scene_->description();
+  if (!s.environment) return;
+  const Bounds3& bounds = scene_->bounds();
+  const Vec3 centre = bounds.Empty() ? Vec3(0.0f) : bounds.Center();
+  const float radius = bounds.Empty() ? 0.0f : 0.5f * Length(bounds.Diagonal());
+  environment_ = std::make_unique<EnvironmentLight>(*s.environment, centre, radius);
+  const Rgb& power = environment_->power();
+  const double w = double(std::max(power.Luminance(), 1e-6f * power.Max()));
+  // Never dropped in silence: the scene counted it as a light (the loader's no-light check).
+  if (!(w > 0.0))
+    throw InputError("environment: its power is not a finite positive number (a scene of radius " +
+                     std::to_string(radius) + ")");
+  weights->push_back(w);
+  total_power_ += power;
+}
+
+LightSample LightSampler::MakeEnvironmentSample(float u1, float u2, float pdf_select) const {
+  const EnvironmentLight::DirectionSample d = environment_->Sample(u1, u2);
+  LightSample ls;
+  ls.radiance = d.radiance;
+  ls.light = environment_->light();
+  ls.pdf_area = pdf_select;
+  ls.environment = true;
+  ls.wi = d.wi;
+  ls.pdf_direction = d.pdf;
+  return ls;
 }
 
 void LightSampler::AddPunctualLights(std::vector<double>* weights) {
@@ -172,6 +210,7 @@ LightSample LightSampler::MakeSample(uint32_t tri, float u1, float u2, float pdf
 LightSample LightSampler::SampleLight(size_t light, float u_select, float u1, float u2) const {
   const LightGroup& g = lights_[light];
   if (g.punctual != kNotPunctual) return MakePunctualSample(g.punctual, 1.0f);
+  if (g.environment) return MakeEnvironmentSample(u1, u2, 1.0f);
   const size_t i = std::min<size_t>(std::upper_bound(g.cdf.begin(), g.cdf.end(), u_select) - g.cdf.begin(),
                                     g.cdf.size() - 1);
   return MakeSample(g.triangles[i], u1, u2, g.prob[i]);
@@ -189,6 +228,8 @@ LightSample LightSampler::Sample(float u_select, float u1, float u2) const {
 }
 
 LightSample LightSampler::EmitterSample(size_t emitter, float u1, float u2) const {
+  if (emitter >= triangles_.size() + punctual_.size())
+    return MakeEnvironmentSample(u1, u2, environment_prob_);
   if (emitter >= triangles_.size()) {
     const size_t k = emitter - triangles_.size();
     return MakePunctualSample(uint32_t(k), punctual_prob_[k]);

@@ -10,14 +10,21 @@
 // (the disc its photons leave from, photon_tracer.cpp). Their samples are delta samples
 // (LightSample::delta()): one position or direction, pdf_area the probability of the choice.
 // A scene without them has exactly the emitters, probabilities and light numbers it had before.
+//
+// The environment (environment_light.h), if the scene has one, is the last emitter and the last
+// light, chosen ∝ its power π·R²·∫L dω (R as for a directional light). Its samples are
+// directions (LightSample::environment): wi, L(wi), and pdf_area · pdf_direction the density
+// per solid angle.
 
 #include <algorithm>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "common/accel/embree_scene.h"
 #include "common/core/math.h"
+#include "common/lights/environment_light.h"
 
 namespace pf {
 
@@ -32,6 +39,11 @@ struct LightSample {
   float pdf_area = 0;                // probability density per unit area (incl. the triangle choice);
                                      // punctual: the probability of choosing the light
   uint32_t punctual = kNotPunctual;  // index into LightSampler::punctual(), or kNotPunctual
+  // The environment's sample: position and normal unused, wi the direction towards it, pdf_area
+  // the probability of the choice, pdf_direction the solid-angle density of wi.
+  bool environment = false;
+  Vec3 wi{};
+  float pdf_direction = 0;
   bool delta() const { return punctual != kNotPunctual; }
 };
 
@@ -61,7 +73,7 @@ class LightSampler {
  public:
   explicit LightSampler(const EmbreeScene& scene);
 
-  bool empty() const { return triangles_.empty() && punctual_.empty(); }
+  bool empty() const { return triangles_.empty() && punctual_.empty() && !environment_; }
   // Picks an emitter ∝ power with u_select — an emitting triangle or a punctual light — then a
   // uniform point on the triangle with (u1, u2) (a punctual light's sample is its position or
   // direction).
@@ -81,13 +93,21 @@ class LightSampler {
   const Rgb& total_power() const { return total_power_; }
   size_t num_emitting_triangles() const { return triangles_.size(); }
   // Every emitter EmitterIndex can give: the triangles, then the punctual lights.
-  size_t num_emitters() const { return triangles_.size() + punctual_.size(); }
+  size_t num_emitters() const { return triangles_.size() + punctual_.size() + (environment_ ? 1 : 0); }
   const std::vector<PunctualEmitter>& punctual() const { return punctual_; }
+  // The environment (null if the scene has none), and the solid-angle density with which Sample
+  // gives direction wi from it (its choice included): for MIS with BSDF samples that escape.
+  const EnvironmentLight* environment() const { return environment_.get(); }
+  float PdfEnvironment(const Vec3& wi) const { return environment_prob_ * environment_->Pdf(wi); }
 
   // A delta sample's light at x (ls.delta()), and whether nothing blocks the way from x (ng: the
   // geometric normal there, the shadow ray's origin is offset along it) to it.
   DeltaIncidence Incidence(const LightSample& ls, const Vec3& x) const;
   bool Unoccluded(const Vec3& x, const Vec3& ng, const DeltaIncidence& in) const;
+  // Whether nothing blocks the way from x along wi to infinity (the environment).
+  bool UnoccludedTowards(const Vec3& x, const Vec3& ng, const Vec3& wi) const {
+    return Unoccluded(x, ng, DeltaIncidence{wi, Rgb(0.0f), std::numeric_limits<float>::infinity()});
+  }
 
   // Per light (one emitting source primitive, scene.triangle_light), for direct-light
   // estimators that sample each light separately (§4.2.1, §4.2.3). Lights are numbered
@@ -110,19 +130,24 @@ class LightSampler {
     std::vector<float> prob;  // selection probability within the light, per entry of triangles
     Rgb power;
     uint32_t punctual = kNotPunctual;  // a punctual light's group has no triangles
+    bool environment = false;          // nor has the environment's
   };
   LightSample MakeSample(uint32_t tri, float u1, float u2, float pdf_select) const;
   LightSample MakePunctualSample(uint32_t index, float pdf_select) const;
+  LightSample MakeEnvironmentSample(float u1, float u2, float pdf_select) const;
   void AddPunctualLights(std::vector<double>* weights);
+  void AddEnvironment(std::vector<double>* weights);
   std::vector<LightGroup> lights_;
   std::vector<uint32_t> light_index_by_id_;  // scene id → index in lights_ (kNoLight slot last)
 
   const EmbreeScene* scene_;
-  std::vector<uint32_t> triangles_;        // emissive triangle ids
-  std::vector<PunctualEmitter> punctual_;  // emitters num_emitting_triangles() and on
-  std::vector<float> punctual_prob_;       // their selection probabilities
-  std::vector<float> cdf_;                 // cumulative selection probability, last = 1
-  std::vector<float> select_prob_by_tri_;  // per scene triangle; 0 for non-emitters
+  std::vector<uint32_t> triangles_;                // emissive triangle ids
+  std::vector<PunctualEmitter> punctual_;          // emitters num_emitting_triangles() and on
+  std::vector<float> punctual_prob_;               // their selection probabilities
+  std::unique_ptr<EnvironmentLight> environment_;  // the last emitter, if any
+  float environment_prob_ = 0;                     // its selection probability
+  std::vector<float> cdf_;                         // cumulative selection probability, last = 1
+  std::vector<float> select_prob_by_tri_;          // per scene triangle; 0 for non-emitters
   Rgb total_power_;
 };
 

@@ -80,6 +80,16 @@ std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const Li
   emitters.reserve(lights.num_emitters());
   for (size_t i = 0; i < lights.num_emitters(); ++i) {
     const LightSample ls = lights.EmitterSample(i, 0.0f, 0.0f);
+    if (ls.environment) {
+      PhotonEmitter e;
+      e.punctual = true;
+      e.environment = lights.environment();
+      e.radius = e.environment->radius();
+      e.power = Rgb(kPi * e.radius * e.radius / (ls.pdf_area * float(emitted)));
+      e.light = ls.light;
+      emitters.push_back(e);
+      continue;
+    }
     if (ls.delta()) {
       emitters.push_back(PunctualPhotonEmitter(lights.punctual()[ls.punctual], ls.pdf_area, emitted));
       continue;
@@ -174,7 +184,25 @@ const PhotonEmitter& ChooseEmitter(const LightSampler& lights, const PhotonTrace
 struct Emission {
   Vec3 position;
   Ray ray;
+  Rgb power;  // the photon's: the emitter's, or for the environment's per direction
 };
+
+// An environment photon (environment_light.h): direction ω by its distribution from u_dir, a
+// uniform point of the disc of radius R perpendicular to ω from u_point, the disc's centre
+// beyond the bounding sphere (as a directional light's), travelling along −ω.
+Emission EmitEnvironment(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir) {
+  const EnvironmentLight& env = *em.environment;
+  const EnvironmentLight::DirectionSample d = env.Sample(u_dir.u, u_dir.v);
+  const Frame frame(-d.wi);
+  float ds, dc;
+  SinCos2Pi(u_point.v, &ds, &dc);
+  const float r = em.radius * std::sqrt(u_point.u);
+  Emission e;
+  e.position = env.centre() + d.wi * (1.01f * em.radius) + frame.s * (r * dc) + frame.t * (r * ds);
+  e.ray = Ray{e.position, -d.wi};
+  e.power = d.pdf > 0.0f ? em.power * d.radiance * (1.0f / d.pdf) : Rgb(0.0f);
+  return e;
+}
 // A punctual light's photon from the same two numbers (photon_tracer.h, PhotonEmitter): from its
 // point, uniform over the sphere (point) or ∝ the falloff within the cone (spot), or from a
 // uniform point of its disc (directional). Nothing to offset: no surface emits it.
@@ -215,18 +243,22 @@ Emission EmitPunctual(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir) {
     }
   }
   e.ray = Ray{e.position, Normalize(em.frame.ToWorld(local))};
+  e.power = em.power;
   return e;
 }
 
 [[gnu::always_inline]] inline Emission Emit(const PhotonEmitter& em, Sampler& sampler, float epsilon) {
   Emission e;
   const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
-  if (em.punctual) [[unlikely]]
+  if (em.punctual) [[unlikely]] {
+    if (em.environment) return EmitEnvironment(em, u_point, sampler.PhotonGet2D(kPhotonDirectionSlot));
     return EmitPunctual(em, u_point, sampler.PhotonGet2D(kPhotonDirectionSlot));
+  }
   e.position = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
   const Sample2 u_dir = sampler.PhotonGet2D(kPhotonDirectionSlot);
   e.ray = Ray{OffsetRayOrigin(e.position, em.normal, epsilon),
               em.frame.ToWorld(CosineHemisphereFast(u_dir.u, u_dir.v))};
+  e.power = em.power;
   return e;
 }
 
@@ -276,7 +308,7 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   const Emission e = Emit(em, sampler, scene.epsilon());
   Vec3 previous = e.position;
   Ray ray = e.ray;
-  Rgb power = em.power;
+  Rgb power = e.power;
   const uint32_t light = em.light;
   bool any_singular_since_diffuse = false;
   WalkHit hit;
@@ -337,7 +369,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
   Sampler sampler = Sampler::ForPhoton(shared.stream, index);
   const PhotonEmitter& em = ChooseEmitter(lights, o, shared, sampler, index);
   const Emission e = Emit(em, sampler, scene.epsilon());
-  Rgb power = em.power;
+  Rgb power = e.power;
   const Vec3 dir = e.ray.direction;
   Vec3 previous = e.position;
   Ray ray = e.ray;

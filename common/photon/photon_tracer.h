@@ -4,7 +4,9 @@
 // Photons leave the emitters with probability ∝ power (stratified over the photon index, so
 // each light gets its share up to ±1 photon), cosine-distributed about the emitter's front
 // normal, each carrying Φ = Φ_light / (p_light · N). Punctual lights (point, spot, directional)
-// emit as PhotonEmitter below says, with the same per-photon power rule. At every hit on a surface with a
+// emit as PhotonEmitter below says, with the same per-photon power rule; the environment
+// (environment_light.h) from a disc beyond the scene's bounding sphere, its photons' power
+// L(ω)·π·R²/(pdf(ω)·p_light·N). At every hit on a surface with a
 // diffuse component the photon is stored; then Russian roulette on the material's reflectances picks diffuse
 // / specular / glossy / transmission / absorption, scaling Φ per channel by ρ/P.
 //
@@ -119,6 +121,9 @@ struct PhotonEmitter {
   PunctualLight::Kind kind = PunctualLight::Kind::kPoint;
   float cos_inner = 1, cos_outer = -1, cap_probability = 1;  // spot: cos θ sampling (photon_tracer.cpp)
   float radius = 0;                                          // directional: the disc's
+  // The environment's emitter (punctual too: no surface, caustics unsplit): its photons' power
+  // varies with their direction, `power` is π·R²/(p·N) to multiply by L(ω)/pdf(ω).
+  const EnvironmentLight* environment = nullptr;
 };
 std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const LightSampler& lights,
                                           uint64_t emitted);

@@ -30,7 +30,17 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
   for (int depth = 0; depth < options_.max_depth; ++depth) {
     ++counters.rays;
     const std::optional<SurfaceHit> hit = scene_.Intersect(ray);
-    if (!hit) break;  // no environment light
+    if (!hit) {
+      // The environment seen by an escaping ray, MIS-weighted against light sampling like an
+      // emitter's emission below.
+      if (const EnvironmentLight* environment = lights_.environment()) {
+        const Rgb le = environment->Radiance(ray.direction);
+        radiance +=
+            throughput * le *
+            (previous_was_delta ? 1.0f : PowerHeuristic(previous_pdf, lights_.PdfEnvironment(ray.direction)));
+      }
+      break;
+    }
     const Material& material = desc.materials[hit->material];
     const PathVertexSlots slots = SlotsOfVertex(depth);
 
@@ -60,6 +70,10 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
         // A point, spot or directional light: no BSDF sample can reach it, so no MIS weight.
         radiance +=
             throughput * DeltaLightContribution(lights_, ls, bsdf, hit->position, wo, kLobeAll, counters);
+      } else if (ls.environment) {
+        const Rgb c = EnvironmentLightContribution(lights_, ls, bsdf, hit->position, wo, kLobeAll, counters);
+        if (!c.IsBlack())
+          radiance += throughput * c * PowerHeuristic(ls.pdf_area * ls.pdf_direction, bsdf.Pdf(wo, ls.wi));
       } else if (dist2 > 0.0f) {
         const Vec3 wi = to_light / std::sqrt(dist2);
         const float cos_light = -Dot(wi, ls.normal);

@@ -212,7 +212,11 @@ Rgb PhotonMapIntegrator::GatherRays(const Bsdf& bsdf, const SurfaceHit& hit, con
     if (!s || s->weight.IsBlack()) continue;
     ++counters.rays;
     const std::optional<SurfaceHit> y = scene_.Intersect(Ray{scene_.SpawnOrigin(hit, s->wi), s->wi});
-    if (!y) continue;
+    if (!y) {
+      // The environment is an emitter seen by the gather ray, counted like a hit emitter's Le.
+      if (!separate_direct && desc.environment) sum += s->weight * desc.environment->Radiance(s->wi);
+      continue;
+    }
     if (inverse_distance_sum && y->t > 0.0f) {
       *inverse_distance_sum += 1.0 / double(y->t);
       ++*hits;
@@ -278,11 +282,17 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
   for (int depth = 0; depth < options_.max_depth; ++depth) {
     ++counters.rays;
     const std::optional<SurfaceHit> hit = scene_.Intersect(ray);
-    if (!hit) break;
+    if (!hit) {
+      // The environment, seen like an emitter below: this path is camera + singular bounces only.
+      if (unmapped_part && desc.environment)
+        radiance += throughput * desc.environment->Radiance(ray.direction);
+      break;
+    }
     const Material& material = desc.materials[hit->material];
     const PathVertexSlots slots = SlotsOfVertex(depth);
     // Every path reaching here came from the camera through singular bounces only, so
-    // emission is never counted twice (diffuse bounces end the path in an estimate).
+    // emission (and the environment's, above) is never counted twice (diffuse bounces end the path in an
+    // estimate).
     if (unmapped_part && material.IsEmissive() && hit->front_face) radiance += throughput * material.emission;
 
     const Bsdf bsdf(material, hit->shading_normal, hit->geometric_normal);

@@ -2,7 +2,10 @@
 // The photon map shader in a distribution ray tracer (Wald 1999, §2.5) and the better
 // estimators of chapter 4.
 //
-//  * Emitters are seen directly by camera rays and through singular (specular/glossy) paths.
+//  * Emitters are seen directly by camera rays and through singular (specular/glossy) paths;
+//    so is the environment, by the rays that leave the scene. Its light on estimated lobes comes
+//    from its photons (direct ones included, or through the direct-light estimators when direct
+//    light is separate), like an area light's: counted once (§2.5).
 //  * Singular lobes are followed by recursion: specular exactly, glossy by importance-sampled
 //    Monte Carlo up to `glossy_depth` glossy bounces; beyond that the glossy lobe is
 //    approximated by the photon-map estimate like the diffuse lobes (§2.5).
@@ -13,10 +16,10 @@
 //    With the local pass (§4.3, `local_pass_rays` > 0) the first such surface replaces its
 //    photon-map estimate of the non-caustic light by final gathering: N_lp rays sampled from the
 //    diffuse lobes (cosine-weighted for Lambertian surfaces), each reading the maps at its hit y
-//    (L(y) = global + direct photons + caustics at y, plus y's emission when direct light is not
-//    separate). Gather rays that hit a purely singular surface add nothing: light reaching x
-//    through a mirror from a diffuse surface is a caustic path at x (the thesis's definition,
-//    (S|D)* S+ D) and is already in x's caustic map.
+//    (L(y) = global + direct photons + caustics at y, plus y's emission — or the environment's
+//    for a ray that escapes — when direct light is not separate). Gather rays that hit a purely singular
+//    surface add nothing: light reaching x through a mirror from a diffuse surface is a caustic path at x
+//    (the thesis's definition, (S|D)* S+ D) and is already in x's caustic map.
 // One sample per camera path: the caller's samples per pixel average the stochastic choices.
 
 #include <memory>

@@ -238,6 +238,35 @@ class Parser {
     return l;
   }
 
+  // The "environment" object (environment.h; docs/scene-manifest.md, "environment"): a constant
+  // "color" or an image "file", with "rotation" (degrees about +Y) and "strength".
+  Environment EnvironmentOf(const Json& v, const std::string& key) const {
+    if (!v.is_object()) Fail(key, "expected an object with \"color\" or \"file\"");
+    CheckKeys(v, key, {"color", "file", "rotation", "strength"});
+    Environment e;
+    if (v.contains("color") == v.contains("file"))
+      Fail(key, "expected exactly one of \"color\" (constant radiance) and \"file\" (an image)");
+    if (v.contains("file")) {
+      e.file = String(v["file"], key + ".file");
+      if (e.file.empty()) Fail(key + ".file", "expected a non-empty file name");
+    } else {
+      e.color = Colour(v["color"], key + ".color");
+      if (e.color.IsBlack())
+        Fail(key + ".color", "expected a colour that is not black (a light that emits nothing)");
+    }
+    if (v.contains("rotation")) e.rotation_deg = float(Number(v["rotation"], key + ".rotation"));
+    if (v.contains("strength")) {
+      e.strength = float(Number(v["strength"], key + ".strength"));
+      if (!(e.strength > 0.0f) || !std::isfinite(e.strength))
+        Fail(key + ".strength", "expected a finite number > 0");
+    }
+    // Every power (π·R²·∫L dω) must stay a finite float, like a punctual light's.
+    if ((e.color * e.strength).Max() > kMaxLightIntensity || !(e.color * e.strength).IsFinite())
+      Fail(key + ".color",
+           "color x strength exceeds " + std::to_string(kMaxLightIntensity) + " in a channel");
+    return e;
+  }
+
  private:
   std::string file_;
   std::vector<std::string>* warnings_;
@@ -288,9 +317,9 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
   m.file = file;
   Parser p(file_name, &m.warnings);
   if (!root.is_object()) throw InputError(SourceLocation{file_name, 0}, "a manifest must be a JSON object");
-  p.CheckKeys(
-      root, "",
-      {"version", "name", "geometry", "scale", "cameras", "lights", "settings", "materials", "notes"});
+  p.CheckKeys(root, "",
+              {"version", "name", "geometry", "scale", "cameras", "lights", "environment", "settings",
+               "materials", "notes"});
 
   if (root.contains("version")) {
     const Json& v = root["version"];
@@ -334,6 +363,8 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
     for (size_t i = 0; i < lights.size(); ++i)
       m.lights.push_back(p.Light(lights[i], "lights[" + std::to_string(i) + "]"));
   }
+
+  if (root.contains("environment")) m.environment = p.EnvironmentOf(root["environment"], "environment");
 
   if (root.contains("settings")) {
     const Json& s = root["settings"];

@@ -1,10 +1,9 @@
 #pragma once
 // The per-scene manifest: a small JSON file that pairs a geometry file (MGF or OBJ) with
-// cameras, punctual lights, suggested render settings, material overrides and notes. The format is documented
-// in docs/scene-manifest.md; this header is its in-memory form. Parsing validates every key
-// and reports type errors as InputError "file: key 'cameras[0].eye': expected 3 numbers"
-// (JSON syntax errors carry the line). Unknown keys are warnings, not errors, so that newer
-// manifests still load.
+// cameras, punctual lights, an environment, suggested render settings, material overrides and notes. The
+// format is documented in docs/scene-manifest.md; this header is its in-memory form. Parsing validates every
+// key and reports type errors as InputError "file: key 'cameras[0].eye': expected 3 numbers" (JSON syntax
+// errors carry the line). Unknown keys are warnings, not errors, so that newer manifests still load.
 
 #include <filesystem>
 #include <map>
@@ -46,7 +45,8 @@ struct SceneManifest {
   std::vector<CameraSpec> cameras;  // "cameras", in file order
   std::map<std::string, SettingValue> settings;
   std::map<std::string, MaterialOverride> materials;
-  std::vector<PunctualLight> lights;  // "lights", in file order (ids are given by LoadScene)
+  std::vector<PunctualLight> lights;       // "lights", in file order (ids are given by LoadScene)
+  std::optional<Environment> environment;  // "environment"; its image is read by LoadScene
   std::string notes;
   std::vector<std::string> warnings;  // "file: reason"
 };

@@ -9,10 +9,12 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/core/math.h"
+#include "common/scene/environment.h"
 #include "common/scene/punctual_light.h"
 
 namespace pf {
@@ -79,6 +81,8 @@ struct SceneDescription {
   // Point, spot and directional lights (punctual_light.h), from a manifest's "lights"; each has
   // its own id after the emitting primitives' (num_lights counts them too).
   std::vector<PunctualLight> punctual_lights;
+  // The sky (environment.h), from a manifest's "environment": one light more, its id the last.
+  std::optional<Environment> environment;
 
   std::vector<Material> materials;
   std::vector<CameraSpec> cameras;    // from a manifest; may be empty

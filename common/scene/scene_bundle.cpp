@@ -10,6 +10,7 @@
 #include "common/core/error.h"
 #include "common/core/sha256.h"
 #include "common/scene/gltf_document.h"
+#include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "common/scene/scene_reference.h"
 
@@ -123,6 +124,22 @@ std::set<std::string> GltfReferencedFiles(const std::vector<fs::path>& listed, c
   }
   return referenced;
 }
+
+// The images a manifest entry reads (its "environment.file"), relative to the entry's folder:
+// inputs, shipped whatever their extension. A manifest that does not parse names none: loading
+// the bundle reports it.
+std::set<std::string> InputImages(const fs::path& entry) {
+  std::set<std::string> images;
+  if (LowerExtension(entry) != ".json") return images;
+  try {
+    const SceneManifest manifest = LoadManifest(entry);
+    if (manifest.environment && !manifest.environment->file.empty())
+      images.insert(fs::path(manifest.environment->file).lexically_normal().generic_string());
+  } catch (const InputError&) {
+  }
+  return images;
+}
+
 }  // namespace
 
 SceneBundle CollectBundle(const fs::path& entry) {
@@ -138,7 +155,8 @@ SceneBundle CollectBundle(const fs::path& entry) {
     if (it->is_regular_file(ec)) listed.push_back(it->path().lexically_relative(root));
   }
   if (ec) throw SystemError(root.string() + ": cannot list the scene folder: " + ec.message());
-  const std::set<std::string> referenced = GltfReferencedFiles(listed, root);
+  std::set<std::string> referenced = GltfReferencedFiles(listed, root);
+  referenced.merge(InputImages(entry));
   uint64_t total = 0;
   for (const fs::path& rel : listed) {
     if (IsRenderedImage(rel) && !referenced.count(rel.generic_string())) continue;

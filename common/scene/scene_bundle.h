@@ -10,9 +10,10 @@
 // everything a scene can refer to without parsing it: MGF `i` includes below the entry's folder,
 // OBJ + MTL, a manifest and its geometry, a .gltf and its .bin buffers — but no .exr/.png
 // (references and previews stored next to a scene are outputs) unless a .gltf in the folder
-// refers to it by uri (a texture: an input, gltf_document.h GltfFileReferences). Files *outside* the entry's
-// folder (an MGF include of "../x.mgf", a manifest pointing to "/abs/path.obj") are not collected; loading
-// the bundle then fails with the loader's file:line message. Keep each scene in its own folder.
+// refers to it by uri (a texture: an input, gltf_document.h GltfFileReferences) or the manifest
+// reads it (its "environment.file"). Files *outside* the entry's folder (an MGF include of
+// "../x.mgf", a manifest pointing to "/abs/path.obj") are not collected; loading the bundle then
+// fails with the loader's file:line message. Keep each scene in its own folder.
 //
 // Limits: at most kMaxBundleBytes of file content in total and kMaxBundleFiles files; over
 // them CollectBundle / ValidateBundle throw InputError naming the limit.

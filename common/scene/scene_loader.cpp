@@ -189,6 +189,14 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
     light.light = scene.num_lights++;
     scene.punctual_lights.push_back(std::move(light));
   }
+  // The environment is one light more, the last (scene.h); its image is read here, confined like
+  // the geometry (a bundle ships it: scene_bundle.h).
+  if (manifest.environment) {
+    scene.environment = manifest.environment;
+    LoadEnvironmentImage(path, root, path.has_parent_path() ? path.parent_path() : std::filesystem::path("."),
+                         &*scene.environment);
+    scene.environment->light = scene.num_lights++;
+  }
   if (scale_override > 0.0)
     ApplyScale(scale_override, SourceLocation{manifest_file, 0}, "scale override", &scene);
   else
@@ -205,11 +213,12 @@ void RequireLight(const SceneDescription& scene, const std::filesystem::path& pa
   if (scene.num_lights > 0) return;
   const std::string ext = LowerExtension(path);
   std::string why = "the scene has no light: no material emits (MGF 'ed', OBJ/MTL 'Ke', glTF emissiveFactor)";
-  why += ext == ".json" ? " and the manifest has no \"lights\""
+  why += ext == ".json" ? " and the manifest has no \"lights\" and no \"environment\""
          : ext == ".gltf" || ext == ".glb"
-             ? " and the file has no KHR_lights_punctual light on a node of its scene"
-             : " and a bare geometry file has no \"lights\" (a manifest can add "
-               "them, docs/scene-manifest.md)";
+             ? " and the file has no KHR_lights_punctual light on a node of its scene (a manifest can add "
+               "\"lights\" or an \"environment\", docs/scene-manifest.md)"
+             : " and a bare geometry file has no \"lights\" (a manifest can add them or an \"environment\", "
+               "docs/scene-manifest.md)";
   for (const std::string& name : scene.ambient_only_materials)
     why += "; material '" + name + "' has Ka but no Ke: Ka is not emission in pf; use Ke";
   throw InputError(SourceLocation{path.string(), 0}, why);

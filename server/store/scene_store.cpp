@@ -40,9 +40,10 @@ std::vector<std::string> Split(const std::string& text) {
 // (the per-job result bound, server/jobs/job_spec.h). With area lights alone it bounds every
 // radiance an energy-conserving BSDF reflects. A punctual light has no Le: a surface at distance
 // d reflects ρ/π·I/d², unbounded as d → 0, so such a scene has no bound (-1, unknown: results are
-// still checked for everything else, docs/farm.md "Results").
+// still checked for everything else, docs/farm.md "Results"). An environment's texels are not
+// among the materials: no bound either.
 double MaxEmission(const SceneDescription& scene) {
-  if (!scene.punctual_lights.empty()) return -1;
+  if (!scene.punctual_lights.empty() || scene.environment) return -1;
   double m = 0;
   for (const Material& mat : scene.materials)
     for (int c = 0; c < 3; ++c) m = std::max(m, double(mat.emission[c]));

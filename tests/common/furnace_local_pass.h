@@ -25,6 +25,21 @@ inline PhotonMaps MapsFor(const EmbreeScene& accel, const LightSampler& lights,
   return PhotonMaps::Build(accel, lights, mo);
 }
 
+// For Monte Carlo direct light and PhotonDirect in turn, in a scene with direct light only (no
+// global photon, asserted): the integrator over 20000 photons (seed 5) and its name, to `check`.
+template <typename Check>
+void ForEachSeparateDirectIntegrator(const EmbreeScene& accel, const LightSampler& lights, Check&& check) {
+  for (const DirectLightMode mode : {DirectLightMode::kMonteCarlo, DirectLightMode::kPhotonDirect}) {
+    PhotonMapIntegratorOptions io;
+    io.direct = mode;
+    const PhotonMaps maps = MapsFor(accel, lights, io, 20000, 5);
+    EXPECT_EQ(maps.global->size(), 0u) << "only direct light: no indirect photon";
+    const PhotonMapIntegrator integrator(accel, &lights, maps, io);
+    check(integrator, mode == DirectLightMode::kMonteCarlo ? "photon map, Monte Carlo direct"
+                                                           : "photon map, PhotonDirect");
+  }
+}
+
 // The local pass of the furnace checks: final gathering with 16 rays from the k = 50 photon-map
 // estimate, direct light by `mode` (direct photons estimated as the global ones).
 inline PhotonMapIntegratorOptions FurnaceLocalPassOptions(DirectLightMode mode) {

@@ -129,16 +129,11 @@ void ExpectBothIntegratorsMatch(const PunctualLight& light, const std::string& w
   ExpectMatches(
       RenderImage(PathTracer(accel, lights), Camera(FloorCamera()), RenderOptions{.spp = kSpp, .seed = 3}),
       want, what + ", path tracer");
-  for (const DirectLightMode mode : {DirectLightMode::kMonteCarlo, DirectLightMode::kPhotonDirect}) {
-    PhotonMapIntegratorOptions io;
-    io.direct = mode;
-    const PhotonMaps maps = testing::MapsFor(accel, lights, io, 20000, 5);
-    EXPECT_EQ(maps.global->size(), 0u) << "no indirect light on a lone floor";
-    const PhotonMapIntegrator integrator(accel, &lights, maps, io);
-    ExpectMatches(RenderImage(integrator, Camera(FloorCamera()), RenderOptions{.spp = kSpp, .seed = 3}), want,
-                  what + (mode == DirectLightMode::kMonteCarlo ? ", photon map, Monte Carlo direct"
-                                                               : ", photon map, PhotonDirect"));
-  }
+  testing::ForEachSeparateDirectIntegrator(
+      accel, lights, [&](const Integrator& integrator, const char* name) {
+        ExpectMatches(RenderImage(integrator, Camera(FloorCamera()), RenderOptions{.spp = kSpp, .seed = 3}),
+                      want, what + ", " + name);
+      });
 }
 
 TEST(PunctualLights, FloorUnderAPointLightIsICosOverDistanceSquared) {

@@ -767,7 +767,8 @@ TEST(CuratedScenesTest, EveryManifestLoads) {
         lights.insert(s.triangle_light[t]);
       }
     }
-    EXPECT_EQ(lights.size() + s.punctual_lights.size(), s.num_lights) << "every light id is used";
+    EXPECT_EQ(lights.size() + s.punctual_lights.size() + (s.environment ? 1 : 0), s.num_lights)
+        << "every light id is used";
     for (const Vec3& v : s.positions) ASSERT_TRUE(IsFinite(v));
     // Cameras look at something inside the scene's bounds.
     const Bounds3 b = s.ComputeBounds();

@@ -71,14 +71,13 @@ TEST_F(LocalFarmTest, PlainRenderIsTheFarmsDefaultJob) {
   }
 }
 
-// Point, spot and directional lights on the farm: a scene lit by them alone (scenes/lamp-stage: no
-// emitting material, so the coordinator's result bound from the brightest Le does not apply) renders
-// on two workers bit-identically to the single-process render, with both integrators.
-TEST_F(LocalFarmTest, PunctualLightsRenderOnTheFarmAsLocally) {
+// A shipped scene (scenes/<folder>/<folder>.json) rendered on two workers is bit-identical to the
+// single-process render, with both integrators; `what` lit the image.
+void ExpectShippedSceneRendersOnTheFarmAsLocally(const std::string& folder, const std::string& what) {
   TestDir dir;
-  const std::string scene = (std::filesystem::path(Binaries::Scene()).parent_path().parent_path() /
-                             "lamp-stage" / "lamp-stage.json")
-                                .string();
+  const std::string scene =
+      (std::filesystem::path(Binaries::Scene()).parent_path().parent_path() / folder / (folder + ".json"))
+          .string();
   for (const std::string integrator : {"photonmap", "path"}) {
     const std::vector<std::string> photon_map = {"--photons", "4000", "--k", "20"};
     const std::vector<std::string> base =
@@ -89,14 +88,28 @@ TEST_F(LocalFarmTest, PunctualLightsRenderOnTheFarmAsLocally) {
     const RunResult l = RunCommand(Concat(base, {"--local-only", "-o", local}), dir.path());
     ASSERT_EQ(l.exit_code, 0) << l.err;
     const Image reference = ReadImage(local);
-    EXPECT_GT(PixelSum(reference), 0.0) << integrator << ": the lamps lit nothing";
+    EXPECT_GT(PixelSum(reference), 0.0) << integrator << ": the " << what << " lit nothing";
     const std::string farm = (dir / (integrator + "-farm.exr")).string();
     const RunResult f =
         RunCommand(Concat(base, {"--workers", "2", "--threads", "1", "-o", farm}), dir.path());
     ASSERT_EQ(f.exit_code, 0) << f.err;
     EXPECT_TRUE(BitIdentical(ReadImage(farm), reference)) << integrator;
-    ExpectNoProcessLeft();
   }
+}
+
+// Point, spot and directional lights on the farm: a scene lit by them alone (scenes/lamp-stage: no
+// emitting material, so the coordinator's result bound from the brightest Le does not apply) renders
+// on two workers bit-identically to the single-process render, with both integrators.
+TEST_F(LocalFarmTest, PunctualLightsRenderOnTheFarmAsLocally) {
+  ExpectShippedSceneRendersOnTheFarmAsLocally("lamp-stage", "lamps");
+  ExpectNoProcessLeft();
+}
+
+// The environment on the farm: scenes/sky-courtyard, lit by its sky image alone (shipped in the
+// bundle: an input, scene_bundle.h), the same bits on two workers as locally, both integrators.
+TEST_F(LocalFarmTest, EnvironmentLightRendersOnTheFarmAsLocally) {
+  ExpectShippedSceneRendersOnTheFarmAsLocally("sky-courtyard", "sky");
+  ExpectNoProcessLeft();
 }
 
 // `pf render` of the shipped scene with the photon map (`photons`, k = 20) at 24x16, no PNG, quiet.

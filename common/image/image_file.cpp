@@ -1,0 +1,117 @@
+#include "common/image/image_file.h"
+
+#include <stb/stb_image.h>
+
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <system_error>
+
+#include "common/core/error.h"
+#include "common/image/exr_io.h"
+
+namespace pf {
+namespace {
+
+std::string LowerExtension(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+[[noreturn]] void Fail(const std::filesystem::path& path, const std::string& reason) {
+  throw InputError(SourceLocation{path.string(), 0}, reason);
+}
+
+void CheckSize(const std::filesystem::path& path, int width, int height) {
+  if (width <= 0 || height <= 0) Fail(path, "the image has no pixels");
+  if (width > kMaxImageFileSide || height > kMaxImageFileSide)
+    throw LimitError(SourceLocation{path.string(), 0},
+                     "image of " + std::to_string(width) + "x" + std::to_string(height) +
+                         " pixels exceeds the limit of " + std::to_string(kMaxImageFileSide) + " per side");
+}
+
+struct StbFree {
+  void operator()(void* p) const { stbi_image_free(p); }
+};
+
+// One pixel's channels (1..4 of them: grey, grey+alpha, RGB, RGBA) as linear RGB.
+template <typename T, typename Decode>
+Image ToImage(const T* data, int width, int height, int channels, Decode decode) {
+  Image image(width, height);
+  for (size_t i = 0; i < image.size(); ++i) {
+    const T* p = data + i * size_t(channels);
+    image[i] = channels >= 3 ? Rgb(decode(p[0]), decode(p[1]), decode(p[2])) : Rgb(decode(p[0]));
+  }
+  return image;
+}
+
+Image ReadWithStb(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  int width = 0, height = 0, channels = 0;
+  // The header alone first: an oversized image is refused before its pixels are decoded.
+  if (!stbi_info(name.c_str(), &width, &height, &channels))
+    Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
+  CheckSize(path, width, height);
+  if (stbi_is_hdr(name.c_str())) {
+    const std::unique_ptr<float, StbFree> data(stbi_loadf(name.c_str(), &width, &height, &channels, 0));
+    if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
+    return ToImage(data.get(), width, height, channels, [](float v) { return v; });
+  }
+  if (stbi_is_16_bit(name.c_str())) {
+    const std::unique_ptr<stbi_us, StbFree> data(stbi_load_16(name.c_str(), &width, &height, &channels, 0));
+    if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
+    return ToImage(data.get(), width, height, channels, [](stbi_us v) {
+      const float c = float(v) / 65535.0f;
+      return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+    });
+  }
+  const std::unique_ptr<stbi_uc, StbFree> data(stbi_load(name.c_str(), &width, &height, &channels, 0));
+  if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
+  return ToImage(data.get(), width, height, channels, SrgbToLinear8);
+}
+
+}  // namespace
+
+float SrgbToLinear8(unsigned char code) {
+  static const auto table = [] {
+    std::array<float, 256> t{};
+    for (int i = 0; i < 256; ++i) {
+      const double c = i / 255.0;
+      t[size_t(i)] = float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+    }
+    return t;
+  }();
+  return table[code];
+}
+
+Image ReadLinearImage(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) Fail(path, "image file not found (or not a regular file)");
+  const std::string ext = LowerExtension(path);
+  Image image;
+  if (ext == ".exr") {
+    try {
+      image = ReadExr(path);
+    } catch (const SystemError& e) {
+      Fail(path, std::string("cannot read the EXR image: ") + e.what());
+    }
+    CheckSize(path, image.width(), image.height());
+  } else if (ext == ".hdr" || ext == ".png" || ext == ".jpg" || ext == ".jpeg") {
+    image = ReadWithStb(path);
+  } else {
+    Fail(path, "unsupported image extension '" + ext + "' (supported: .hdr, .exr, .png, .jpg, .jpeg)");
+  }
+  for (int y = 0; y < image.height(); ++y)
+    for (int x = 0; x < image.width(); ++x) {
+      const Rgb& c = image.at(x, y);
+      if (!c.IsFinite() || c[0] < 0.0f || c[1] < 0.0f || c[2] < 0.0f)
+        Fail(path, "pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                       ") is not a finite non-negative colour");
+    }
+  return image;
+}
+
+}  // namespace pf

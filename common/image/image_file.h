@@ -1,0 +1,28 @@
+#pragma once
+// Reading an image file as linear float RGB, whatever its format: Radiance .hdr, PNG and JPEG
+// through stb_image (Debian's compiled libstb), OpenEXR through exr_io.h. The one place scene
+// inputs (an environment map, image textures) read pixels from, so that every one of them has
+// the same formats, limits and messages.
+//
+// 8-bit and 16-bit PNG/JPEG are sRGB-encoded (IEC 61966-2-1) and decoded to linear; .hdr and .exr
+// are linear already. Alpha is dropped; grey images are replicated to R = G = B.
+
+#include <filesystem>
+
+#include "common/image/image.h"
+
+namespace pf {
+
+// Largest width or height accepted (and so at most 16384² pixels, 3 GiB of float RGB): a 100k²
+// texture would take 120 GB; refused before its pixels are decoded.
+inline constexpr int kMaxImageFileSide = 16384;
+
+// Throws InputError naming the file: missing or unreadable, an unsupported extension, a corrupt
+// or truncated file, a side above kMaxImageFileSide, a pixel that is not a finite non-negative
+// colour (NaN, ±inf or negative values an EXR can hold).
+Image ReadLinearImage(const std::filesystem::path& path);
+
+// The sRGB transfer function's inverse for one 8-bit code value (exact table lookup).
+float SrgbToLinear8(unsigned char code);
+
+}  // namespace pf

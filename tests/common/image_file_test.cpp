@@ -1,0 +1,112 @@
+// ReadLinearImage (common/image/image_file.h): each format's pixels as linear RGB, the sRGB decode
+// of 8-bit files, and every bad input an InputError naming the file.
+#include "common/image/image_file.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <stb/stb_image_write.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "common/core/error.h"
+#include "common/image/exr_io.h"
+#include "tests/util/temp_dir.h"
+
+namespace pf {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+class ImageFileTest : public test_util::TempDirTest {
+ protected:
+  // The InputError message ReadLinearImage gives for `path` ("" and a failure if none).
+  static std::string ErrorOf(const fs::path& path) {
+    try {
+      ReadLinearImage(path);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << path << " was read";
+    return "";
+  }
+};
+
+TEST_F(ImageFileTest, HdrIsLinearFloat) {
+  const std::vector<float> rgb = {0.25f, 1.5f, 1000.0f, 0.0f, 0.5f, 2.0f};
+  const fs::path path = dir_ / "sky.hdr";
+  ASSERT_TRUE(stbi_write_hdr(path.c_str(), 2, 1, 3, rgb.data()));
+  const Image img = ReadLinearImage(path);
+  ASSERT_EQ(img.width(), 2);
+  ASSERT_EQ(img.height(), 1);
+  // RGBE keeps 8 bits of mantissa per channel, relative to the largest channel.
+  EXPECT_NEAR(img.at(0, 0).r, 0.25f, 1000.0f / 256);
+  EXPECT_NEAR(img.at(0, 0).b, 1000.0f, 1000.0f / 256);
+  EXPECT_NEAR(img.at(1, 0).g, 0.5f, 2.0f / 256);
+  EXPECT_NEAR(img.at(1, 0).b, 2.0f, 2.0f / 256);
+}
+
+TEST_F(ImageFileTest, EightBitPngIsSrgbDecoded) {
+  const unsigned char pixels[] = {0, 128, 255, 10, 10, 10};
+  const fs::path path = dir_ / "tex.png";
+  ASSERT_TRUE(stbi_write_png(path.c_str(), 2, 1, 3, pixels, 6));
+  const Image img = ReadLinearImage(path);
+  EXPECT_EQ(img.at(0, 0).r, 0.0f);
+  EXPECT_NEAR(img.at(0, 0).g, 0.2158605, 1e-6);  // ((128/255 + 0.055)/1.055)^2.4
+  EXPECT_EQ(img.at(0, 0).b, 1.0f);
+  EXPECT_NEAR(img.at(1, 0).r, 10.0 / 255 / 12.92, 1e-7);  // the linear segment
+}
+
+TEST_F(ImageFileTest, GreyJpegIsReplicated) {
+  const unsigned char pixels[] = {200, 200, 200, 200};
+  const fs::path path = dir_ / "grey.jpg";
+  ASSERT_TRUE(stbi_write_jpg(path.c_str(), 2, 2, 1, pixels, 100));
+  const Image img = ReadLinearImage(path);
+  EXPECT_NEAR(img.at(1, 1).r, SrgbToLinear8(200), 0.02);
+  EXPECT_EQ(img.at(1, 1).r, img.at(1, 1).b);
+}
+
+TEST_F(ImageFileTest, ExrGoesThroughTheExrReader) {
+  Image img(3, 2);
+  img.at(2, 1) = Rgb(7.0f, 8.0f, 9.0f);
+  WriteExr(dir_ / "sky.exr", img);
+  const Image back = ReadLinearImage(dir_ / "sky.exr");
+  EXPECT_EQ(back.at(2, 1).g, 8.0f);
+}
+
+TEST_F(ImageFileTest, BadInputNamesTheFile) {
+  EXPECT_THAT(ErrorOf(dir_ / "missing.hdr"), HasSubstr("missing.hdr: image file not found"));
+  tmp_.Write("corrupt.hdr", "#?RADIANCE\nthis is not an image");
+  EXPECT_THAT(ErrorOf(dir_ / "corrupt.hdr"), HasSubstr("corrupt.hdr: cannot decode the image"));
+  tmp_.Write("corrupt.exr", "not an exr at all");
+  EXPECT_THAT(ErrorOf(dir_ / "corrupt.exr"), HasSubstr("corrupt.exr: cannot read the EXR image"));
+  tmp_.Write("image.tga", "x");
+  EXPECT_THAT(ErrorOf(dir_ / "image.tga"), HasSubstr("unsupported image extension '.tga'"));
+  Image nan(2, 2);
+  nan.at(1, 0) = Rgb(1.0f, std::numeric_limits<float>::quiet_NaN(), 0.0f);
+  WriteExr(dir_ / "nan.exr", nan);
+  EXPECT_THAT(ErrorOf(dir_ / "nan.exr"),
+              HasSubstr("nan.exr: pixel (1, 0) is not a finite non-negative colour"));
+  Image negative(2, 2);
+  negative.at(0, 1) = Rgb(-1.0f, 0.0f, 0.0f);
+  WriteExr(dir_ / "negative.exr", negative);
+  EXPECT_THAT(ErrorOf(dir_ / "negative.exr"), HasSubstr("pixel (0, 1) is not a finite non-negative colour"));
+}
+
+// A header claiming 100000 × 100000 pixels is refused before any pixel is decoded.
+TEST_F(ImageFileTest, OversizedImageIsRefusedFromItsHeader) {
+  tmp_.Write("huge.hdr", "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n");
+  try {
+    ReadLinearImage(dir_ / "huge.hdr");
+    ADD_FAILURE() << "read";
+  } catch (const LimitError& e) {
+    EXPECT_THAT(std::string(e.what()),
+                HasSubstr("huge.hdr: image of 100000x100000 pixels exceeds the limit"));
+  }
+}
+
+}  // namespace
+}  // namespace pf
