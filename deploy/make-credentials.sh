@@ -97,19 +97,12 @@ tls-cert = "$dir/coordinator.pem"
 tls-key = "$dir/coordinator.key"
 tls-client-ca = "$dir/ca.pem"
 EOF
-cat >"$dir/worker.env" <<EOF
-PF_COORDINATOR=$first_host:$port
-PF_TOKEN_FILE=$dir/worker-token
-PF_TLS_CA=$dir/ca.pem
-PF_TLS_CERT=$dir/worker.pem
-PF_TLS_KEY=$dir/worker.key
-EOF
-cat >"$dir/client.env" <<EOF
-PF_COORDINATOR=$first_host:$port
-PF_TOKEN_FILE=$dir/client-token
-PF_TLS_CA=$dir/ca.pem
-PF_TLS_CERT=$dir/client.pem
-PF_TLS_KEY=$dir/client.key
-EOF
+# role (worker | client): the PF_* variables pf-worker and pf read, for that role's credentials.
+write_env() {
+  printf 'PF_COORDINATOR=%s:%s\nPF_TOKEN_FILE=%s\nPF_TLS_CA=%s\nPF_TLS_CERT=%s\nPF_TLS_KEY=%s\n' \
+    "$first_host" "$port" "$dir/$1-token" "$dir/ca.pem" "$dir/$1.pem" "$dir/$1.key" >"$dir/$1.env"
+}
+write_env worker
+write_env client
 chmod 0644 "$dir/ca.pem" "$dir/coordinator.pem" "$dir/worker.pem" "$dir/client.pem"
 echo "credentials for $first_host in $dir (SAN $san)"
