@@ -150,12 +150,21 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
       // The rest (ranges, map count) is checked by ValidatePlan with the image size.
       break;
     }
+    case v1::Plan::kProgressive:
+      out.kind = PlanKind::kProgressive;
+      out.maps = p.progressive().passes();
+      out.samples_per_pixel = p.progressive().samples_per_pixel();
+      out.tile_size = p.progressive().tile_size();
+      RequireAtLeastOne(out.maps, field + ".progressive.passes");
+      check_spp(out.samples_per_pixel, field + ".progressive.samples_per_pixel");
+      break;
     case v1::Plan::kAutoPlan:
       throw InputError(field +
                        ".auto_plan: not resolved (the coordinator replaces it by the plan it chooses)");
     default:
-      throw InputError(field +
-                       ": one of multiple_maps, maps_in_turn, skipping, hierarchical, auto_plan is required");
+      throw InputError(
+          field +
+          ": one of multiple_maps, maps_in_turn, skipping, hierarchical, progressive, auto_plan is required");
   }
   return out;
 }
@@ -197,6 +206,13 @@ void PlanToProto(const PlanSpec& p, v1::Plan* out) {
       // Unset for part all: such plans serialise exactly as before the setting existed.
       if (p.hierarchy_part == HierarchyPart::kIndirect) m->set_part(v1::HIERARCHY_PART_INDIRECT);
       m->set_direct_samples_per_pixel(p.direct_samples);
+      break;
+    }
+    case PlanKind::kProgressive: {
+      auto* m = out->mutable_progressive();
+      m->set_passes(p.maps);
+      m->set_samples_per_pixel(p.samples_per_pixel);
+      m->set_tile_size(p.tile_size);
       break;
     }
   }
@@ -269,6 +285,7 @@ TaskSpec TaskSpecFromProto(const v1::Task& t) {
   s.pixels = PixelSubsetFromProto(t.pixels(), "task.pixels");
   s.sample_begin = t.sample_begin();
   s.sample_end = t.sample_end();
+  s.progressive = t.progressive();
   if (s.sample_end <= s.sample_begin) throw InputError("task.sample_end: must be > sample_begin");
   switch (t.part()) {
     case v1::RADIANCE_PART_ALL:
@@ -294,6 +311,7 @@ void TaskSpecToProto(const TaskSpec& spec, v1::Task* out) {
   PixelSubsetToProto(spec.pixels, out->mutable_pixels());
   out->set_sample_begin(spec.sample_begin);
   out->set_sample_end(spec.sample_end);
+  if (spec.progressive) out->set_progressive(true);
   out->set_part(spec.part == RadiancePart::kMapped     ? v1::RADIANCE_PART_MAPPED
                 : spec.part == RadiancePart::kUnmapped ? v1::RADIANCE_PART_UNMAPPED
                                                        : v1::RADIANCE_PART_ALL);
