@@ -12,6 +12,8 @@
 
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -29,33 +31,30 @@ int main(int argc, char** argv) {
   int k = 50, queries = 20000, repeats = 5;
   bool cpu_clock = false;
   std::string json_path;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
-    if (a == "--photons")
-      photons = std::stoull(next());
-    else if (a == "--k")
-      k = std::stoi(next());
-    else if (a == "--queries")
-      queries = std::max(1, std::stoi(next()));
-    else if (a == "--repeats")
-      repeats = std::max(1, std::stoi(next()));
-    else if (a == "--clock")
-      cpu_clock = next() == "cpu";
-    else if (a == "--json")
-      json_path = next();
-    else {
+  const std::map<std::string, std::function<void(const std::string&)>> flags = {
+      {"--photons", [&](const std::string& v) { photons = std::stoull(v); }},
+      {"--k", [&](const std::string& v) { k = std::stoi(v); }},
+      {"--queries", [&](const std::string& v) { queries = std::max(1, std::stoi(v)); }},
+      {"--repeats", [&](const std::string& v) { repeats = std::max(1, std::stoi(v)); }},
+      {"--clock", [&](const std::string& v) { cpu_clock = v == "cpu"; }},
+      {"--json", [&](const std::string& v) { json_path = v; }}};
+  for (int i = 1; i < argc; i += 2) {
+    const auto flag = flags.find(argv[i]);
+    if (flag == flags.end() || i + 1 >= argc) {
       std::fprintf(stderr,
                    "usage: %s [--photons N] [--k K] [--queries Q] [--repeats N] [--clock wall|cpu] "
                    "[--json out.json]\n",
                    argv[0]);
       return 2;
     }
+    flag->second(argv[i + 1]);
   }
   spdlog::set_level(spdlog::level::warn);
   const auto scenes = pf::bench::SceneManifests({"cornell-box", "office3"});
   const std::vector<std::pair<std::string, PhotonMapKind>> structures = {
-      {"kdtree", PhotonMapKind::kKdTree}, {"grid", PhotonMapKind::kGrid}, {"bucket", PhotonMapKind::kBucketKdTree}};
+      {"kdtree", PhotonMapKind::kKdTree},
+      {"grid", PhotonMapKind::kGrid},
+      {"bucket", PhotonMapKind::kBucketKdTree}};
   double load[3] = {0, 0, 0};
   getloadavg(load, 3);
   std::printf(

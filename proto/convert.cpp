@@ -95,15 +95,20 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
     if (spp > kMaxSamplesPerPixel)
       throw LimitError(f + ": exceeds the limit " + std::to_string(kMaxSamplesPerPixel));
   };
+  // Multiple maps and progressive: maps (passes) × samples per pixel over tiles.
+  auto read_maps = [&](PlanKind kind, const auto& m, uint32_t maps, const char* maps_field) {
+    out.kind = kind;
+    out.maps = maps;
+    out.samples_per_pixel = m.samples_per_pixel();
+    out.tile_size = m.tile_size();
+    const std::string f = field + std::string(maps_field);
+    RequireAtLeastOne(out.maps, f);
+    check_spp(out.samples_per_pixel, f.substr(0, f.rfind('.')) + ".samples_per_pixel");
+  };
   switch (p.kind_case()) {
     case v1::Plan::kMultipleMaps:
-      out.kind = PlanKind::kMultipleMaps;
-      out.maps = p.multiple_maps().maps();
-      out.samples_per_pixel = p.multiple_maps().samples_per_pixel();
-      out.tile_size = p.multiple_maps().tile_size();
+      read_maps(PlanKind::kMultipleMaps, p.multiple_maps(), p.multiple_maps().maps(), ".multiple_maps.maps");
       out.tail_tile_size = p.multiple_maps().tail_tile_size();
-      RequireAtLeastOne(out.maps, field + ".multiple_maps.maps");
-      check_spp(out.samples_per_pixel, field + ".multiple_maps.samples_per_pixel");
       break;
     case v1::Plan::kMapsInTurn:
       out.kind = PlanKind::kMapsInTurn;
@@ -150,13 +155,8 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
       // The rest (ranges, map count) is checked by ValidatePlan with the image size.
       break;
     }
-    case v1::Plan::kProgressive:
-      out.kind = PlanKind::kProgressive;
-      out.maps = p.progressive().passes();
-      out.samples_per_pixel = p.progressive().samples_per_pixel();
-      out.tile_size = p.progressive().tile_size();
-      RequireAtLeastOne(out.maps, field + ".progressive.passes");
-      check_spp(out.samples_per_pixel, field + ".progressive.samples_per_pixel");
+    case v1::Plan::kProgressive:  // multiple maps whose maps are the passes
+      read_maps(PlanKind::kProgressive, p.progressive(), p.progressive().passes(), ".progressive.passes");
       break;
     case v1::Plan::kAutoPlan:
       throw InputError(field +

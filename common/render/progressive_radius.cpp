@@ -23,7 +23,7 @@ double DerivedInitialRadius(const Bounds3& b, uint64_t photons, int k) {
 
 float ProgressivePassRadius(const JobRenderSettings& s, const Bounds3& scene_bounds, uint64_t pass) {
   const double r1 = s.progressive_radius > 0.0f ? double(s.progressive_radius)
-                                                 : DerivedInitialRadius(scene_bounds, s.photons, s.k);
+                                                : DerivedInitialRadius(scene_bounds, s.photons, s.k);
   return float(r1 * std::sqrt(ProgressiveRadiusFactor2(s.progressive_alpha, pass)));
 }
 

@@ -47,9 +47,9 @@ TEST(PlanFactory, EveryRegisteredNameBuildsAndDescribesItself) {
 
 TEST(PlanFactory, UnknownNameListsTheKnownOnes) {
   EXPECT_THAT(
-      InputErrorOf([] { MakePlan("progressive", PlanSpec{}, 8, 8); }),
-      HasSubstr("plan: no plan is called 'progressive' (known: multiple-maps, maps-in-turn, skipping or "
-                "hierarchical)"));
+      InputErrorOf([] { MakePlan("lightcuts", PlanSpec{}, 8, 8); }),
+      HasSubstr("plan: no plan is called 'lightcuts' (known: multiple-maps, maps-in-turn, skipping, "
+                "hierarchical or progressive)"));
 }
 
 void ExpectRefused(const std::string& name, const PlanSpec& parameters, const std::string& field) {

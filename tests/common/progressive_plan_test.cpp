@@ -41,9 +41,13 @@ class ProgressiveConsistency : public ::testing::Test {
     s.direct = DirectLightMode::kNone;
     s.caustic = CausticMapMode::kOff;
     s.photons = 4000;
-    s.k = 50;
-    const Image img =
-        RenderPlanLocally(*runtime_, camera_, s, PlanSpec{.kind = kind, .maps = maps, .samples_per_pixel = 1}, 9, 0);
+    // A large k: the multiple maps' blur dominates their error, as it does at a farm's photon
+    // counts. The first radius is about the k-NN radius under the light (~1300 photons/m² there),
+    // not the derived one: the 10 m floor's bounding box spreads them over 240 m².
+    s.k = 200;
+    s.progressive_radius = 0.22f;
+    const Image img = RenderPlanLocally(*runtime_, camera_, s,
+                                        PlanSpec{.kind = kind, .maps = maps, .samples_per_pixel = 1}, 9, 0);
     double se = 0, mean = 0;
     for (size_t i = 0; i < img.pixels().size(); ++i) {
       const Rgb d = img.pixels()[i] - reference_->pixels()[i];
@@ -65,12 +69,13 @@ std::unique_ptr<Image> ProgressiveConsistency::reference_;
 
 TEST_F(ProgressiveConsistency, ErrorKeepsFallingWhereMultipleMapsFlatten) {
   const double p4 = RelativeError(PlanKind::kProgressive, 4), p64 = RelativeError(PlanKind::kProgressive, 64);
-  const double m4 = RelativeError(PlanKind::kMultipleMaps, 4), m64 = RelativeError(PlanKind::kMultipleMaps, 64);
+  const double m4 = RelativeError(PlanKind::kMultipleMaps, 4),
+               m64 = RelativeError(PlanKind::kMultipleMaps, 64);
   RecordProperty("errors", std::to_string(p4) + " " + std::to_string(p64) + " " + std::to_string(m4) + " " +
                                std::to_string(m64));
   // 16x the passes: r² falls by 16^(α−1) ≈ 0.40 (bias) and the noise by 16^(−α/2) ≈ 0.40.
   EXPECT_LT(p64, 0.6 * p4) << p4 << " -> " << p64;
-  // The same maps with the k nearest stop at the bias of k = 50.
+  // The same maps with the k nearest stop at the bias of k = 200.
   EXPECT_GT(m64, 0.7 * m4) << m4 << " -> " << m64;
   EXPECT_LT(p64, 0.7 * m64) << "progressive " << p64 << " vs multiple maps " << m64;
 }

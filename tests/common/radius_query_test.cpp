@@ -28,7 +28,8 @@ TEST(RadiusQuery, EveryStructureFindsTheBruteForceBall) {
     photons.push_back(Photon::Make(p, Normalize(Vec3(0.3f, -1.0f, 0.2f)), Rgb(1.0f)));
   }
   const auto below = FunctionFilter([](const Photon& p, std::size_t) { return p.Position().y < 0.1f; });
-  for (const PhotonMapKind kind : {PhotonMapKind::kKdTree, PhotonMapKind::kGrid, PhotonMapKind::kBucketKdTree}) {
+  for (const PhotonMapKind kind :
+       {PhotonMapKind::kKdTree, PhotonMapKind::kGrid, PhotonMapKind::kBucketKdTree}) {
     std::unique_ptr<PhotonMap> map = MakePhotonMap(kind);
     map->AddPhotons(photons);
     map->PrepareForQuery();

@@ -8,9 +8,9 @@ namespace pf::e2e {
 namespace {
 
 std::vector<std::string> ProgressiveFlags(const std::string& plan) {
-  return {"--integrator", "photonmap", "--photons", "2000", "--k", "20",   "--plan", plan, "--passes",
-          "3",            "--maps",    "3",        "--tile",   "16", "--spp", "1",  "--res",  "33x33",
-          "--seed",       "5"};
+  return {"--integrator", "photonmap", "--photons", "2000",   "--k",    "20",     "--plan",
+          plan,           "--passes",  "3",         "--maps", "3",      "--tile", "16",
+          "--spp",        "1",         "--res",     "33x33",  "--seed", "5"};
 }
 
 TEST(ProgressiveFarm, BitIdenticalForOneAndTwoWorkersAndLocal) {
