@@ -46,10 +46,9 @@ TEST(PlanFactory, EveryRegisteredNameBuildsAndDescribesItself) {
 }
 
 TEST(PlanFactory, UnknownNameListsTheKnownOnes) {
-  EXPECT_THAT(
-      InputErrorOf([] { MakePlan("lightcuts", PlanSpec{}, 8, 8); }),
-      HasSubstr("plan: no plan is called 'lightcuts' (known: multiple-maps, maps-in-turn, skipping, "
-                "hierarchical or progressive)"));
+  EXPECT_THAT(InputErrorOf([] { MakePlan("lightcuts", PlanSpec{}, 8, 8); }),
+              HasSubstr("plan: no plan is called 'lightcuts' (known: multiple-maps, maps-in-turn, skipping, "
+                        "hierarchical or progressive)"));
 }
 
 void ExpectRefused(const std::string& name, const PlanSpec& parameters, const std::string& field) {

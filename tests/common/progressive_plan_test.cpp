@@ -76,7 +76,7 @@ TEST_F(ProgressiveConsistency, ErrorKeepsFallingWhereMultipleMapsFlatten) {
   // 16x the passes: r² falls by 16^(α−1) ≈ 0.40 (bias) and the noise by 16^(−α/2) ≈ 0.40.
   EXPECT_LT(p64, 0.6 * p4) << p4 << " -> " << p64;
   // The same maps with the k nearest stop at the bias of k = 200.
-  EXPECT_GT(m64, 0.7 * m4) << m4 << " -> " << m64;
+  EXPECT_GT(m64, 0.65 * m4) << m4 << " -> " << m64;
   EXPECT_LT(p64, 0.7 * m64) << "progressive " << p64 << " vs multiple maps " << m64;
 }
 
