@@ -25,9 +25,10 @@ double ProgressiveRadiusFactor2(double alpha, uint64_t pass);
 
 // The initial radius when none is given: the disk that holds about k photons of a map of
 // `photons` emitted photons, if they were spread evenly over the surface of the scene's bounding
-// box (area A = 2(xy + yz + zx)): π r_1² · photons / A = k. A room's walls are its bounding box,
-// so this is the density of a closed interior; an open scene's photons are denser where they land
-// and start with fewer in the disk (still consistent: r_1 only sets where the schedule starts).
+// box (area A = 2(xy + yz + zx)): π r_1² · photons / A = k. Photons land unevenly and a map stores
+// several bounces of each, so where photons are found the disk holds more (2.3 k on the Cornell
+// box, 10 k in office3: docs/results/progressive-photon-mapping.md); r_1 only sets where the
+// schedule starts, the estimate is consistent for any r_1.
 double DerivedInitialRadius(const Bounds3& scene_bounds, uint64_t photons, int k);
 
 // Pass p's radius for these (resolved) settings and scene: progressive_radius, or the derived one
