@@ -172,15 +172,19 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a, bool all) {
       "over --tile tiles, averaged), maps-in-turn (sample i from map i), skipping (per round a "
       "seeded pixel permutation, stride^2 tasks each with its own map), hierarchical (4.5: "
       "multilevel sampling, every sample of a pixel from its own map, --levels/--dims/--base-samples/"
-      "--min-samples/--decay/--localize-*; --tile = rows per task), or auto (the default of --workers and "
+      "--min-samples/--decay/--localize-*; --tile = rows per task), progressive (Knaus & Zwicker 2011: "
+      "--passes independent maps of --photons photons, each estimating with every photon within a radius "
+      "that shrinks from pass to pass, settings progressive-alpha/-radius; consistent), or auto (the default "
+      "of --workers and "
       "`pf submit`; --local-only defaults to multiple-maps): the coordinator picks the plan, the number "
       "of "
       "maps and photons per map from the scene, the workers and the stop rule, with --photons the budget "
       "over all maps and --spp the samples per pixel over all maps (docs/farm.md, \"Choosing the plan\")";
-  app->add_option("--plan", a.plan,
-                  all ? plan_help
-                      : "auto, multiple-maps, maps-in-turn, skipping or hierarchical (Wald 1999, 4.4; "
-                        "--help-all tells more)")
+  app->add_option(
+         "--plan", a.plan,
+         all ? plan_help
+             : "auto, multiple-maps, maps-in-turn, skipping, hierarchical or progressive (Wald 1999, 4.4; "
+               "--help-all tells more)")
       ->check(CLI::IsMember(PlanNamesWithAuto()));
   // Which plan-shape flags were given: --plan auto chooses them itself.
   auto shape = [&a, more](CLI::Option* o) {
@@ -188,6 +192,8 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a, bool all) {
     return more(o->capture_default_str());
   };
   shape(app->add_option("--maps", a.maps, "multiple-maps: number of independent maps"));
+  shape(app->add_option("--passes", a.passes,
+                        "progressive: passes (independent maps, each with its radius r_p)"));
   shape(app->add_option("--stride", a.stride, "skipping: S (S^2 tasks per round)"));
   shape(app->add_option("--rounds", a.rounds, "skipping: rounds"));
   shape(app->add_option("--tile", a.tile,
@@ -284,6 +290,10 @@ PreparedJob PrepareJob(const RenderArgs& a) {
     pl->mutable_multiple_maps()->set_samples_per_pixel(a.spp);
     pl->mutable_multiple_maps()->set_tile_size(a.tile);
     pl->mutable_multiple_maps()->set_tail_tile_size(TailTileFor(a));
+  } else if (plan == "progressive") {
+    pl->mutable_progressive()->set_passes(a.passes);
+    pl->mutable_progressive()->set_samples_per_pixel(a.spp);
+    pl->mutable_progressive()->set_tile_size(a.tile);
   } else if (plan == "maps-in-turn") {
     pl->mutable_maps_in_turn()->set_samples_per_pixel(a.spp);
     pl->mutable_maps_in_turn()->set_tile_size(a.tile);

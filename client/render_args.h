@@ -38,6 +38,7 @@ struct RenderArgs {
   // Plan (farm and --local-only); plan.empty() = the classic single-process render.
   std::string plan;
   uint32_t maps = 1;
+  uint32_t passes = 8;  // progressive
   uint32_t stride = 2;
   uint32_t rounds = 1;
   uint32_t tile = 64;

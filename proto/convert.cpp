@@ -95,15 +95,20 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
     if (spp > kMaxSamplesPerPixel)
       throw LimitError(f + ": exceeds the limit " + std::to_string(kMaxSamplesPerPixel));
   };
+  // Multiple maps and progressive: maps (passes) × samples per pixel over tiles.
+  auto read_maps = [&](PlanKind kind, const auto& m, uint32_t maps, const char* maps_field) {
+    out.kind = kind;
+    out.maps = maps;
+    out.samples_per_pixel = m.samples_per_pixel();
+    out.tile_size = m.tile_size();
+    const std::string f = field + std::string(maps_field);
+    RequireAtLeastOne(out.maps, f);
+    check_spp(out.samples_per_pixel, f.substr(0, f.rfind('.')) + ".samples_per_pixel");
+  };
   switch (p.kind_case()) {
     case v1::Plan::kMultipleMaps:
-      out.kind = PlanKind::kMultipleMaps;
-      out.maps = p.multiple_maps().maps();
-      out.samples_per_pixel = p.multiple_maps().samples_per_pixel();
-      out.tile_size = p.multiple_maps().tile_size();
+      read_maps(PlanKind::kMultipleMaps, p.multiple_maps(), p.multiple_maps().maps(), ".multiple_maps.maps");
       out.tail_tile_size = p.multiple_maps().tail_tile_size();
-      RequireAtLeastOne(out.maps, field + ".multiple_maps.maps");
-      check_spp(out.samples_per_pixel, field + ".multiple_maps.samples_per_pixel");
       break;
     case v1::Plan::kMapsInTurn:
       out.kind = PlanKind::kMapsInTurn;
@@ -150,12 +155,16 @@ PlanSpec PlanFromProto(const v1::Plan& p, const std::string& field) {
       // The rest (ranges, map count) is checked by ValidatePlan with the image size.
       break;
     }
+    case v1::Plan::kProgressive:  // multiple maps whose maps are the passes
+      read_maps(PlanKind::kProgressive, p.progressive(), p.progressive().passes(), ".progressive.passes");
+      break;
     case v1::Plan::kAutoPlan:
       throw InputError(field +
                        ".auto_plan: not resolved (the coordinator replaces it by the plan it chooses)");
     default:
-      throw InputError(field +
-                       ": one of multiple_maps, maps_in_turn, skipping, hierarchical, auto_plan is required");
+      throw InputError(
+          field +
+          ": one of multiple_maps, maps_in_turn, skipping, hierarchical, progressive, auto_plan is required");
   }
   return out;
 }
@@ -197,6 +206,13 @@ void PlanToProto(const PlanSpec& p, v1::Plan* out) {
       // Unset for part all: such plans serialise exactly as before the setting existed.
       if (p.hierarchy_part == HierarchyPart::kIndirect) m->set_part(v1::HIERARCHY_PART_INDIRECT);
       m->set_direct_samples_per_pixel(p.direct_samples);
+      break;
+    }
+    case PlanKind::kProgressive: {
+      auto* m = out->mutable_progressive();
+      m->set_passes(p.maps);
+      m->set_samples_per_pixel(p.samples_per_pixel);
+      m->set_tile_size(p.tile_size);
       break;
     }
   }
@@ -269,6 +285,7 @@ TaskSpec TaskSpecFromProto(const v1::Task& t) {
   s.pixels = PixelSubsetFromProto(t.pixels(), "task.pixels");
   s.sample_begin = t.sample_begin();
   s.sample_end = t.sample_end();
+  s.progressive = t.progressive();
   if (s.sample_end <= s.sample_begin) throw InputError("task.sample_end: must be > sample_begin");
   switch (t.part()) {
     case v1::RADIANCE_PART_ALL:
@@ -294,6 +311,7 @@ void TaskSpecToProto(const TaskSpec& spec, v1::Task* out) {
   PixelSubsetToProto(spec.pixels, out->mutable_pixels());
   out->set_sample_begin(spec.sample_begin);
   out->set_sample_end(spec.sample_end);
+  if (spec.progressive) out->set_progressive(true);
   out->set_part(spec.part == RadiancePart::kMapped     ? v1::RADIANCE_PART_MAPPED
                 : spec.part == RadiancePart::kUnmapped ? v1::RADIANCE_PART_UNMAPPED
                                                        : v1::RADIANCE_PART_ALL);

@@ -37,20 +37,26 @@ RadianceEstimateResult EstimateRadiance(const PhotonMap& map, const Bsdf& bsdf, 
   auto feasible = [&side](const Photon& p) { return Dot(p.Direction(), side) > 0.0f; };
   const auto filter = FunctionFilter([&](const Photon& p, std::size_t) { return feasible(p); });
   const bool in_query = test && options.direction_test == FeasibilityTest::kInQuery;
-  map.QueryWithHint(x, options.k, options.max_radius, context.radius_hint, nearest,
-                    in_query ? &filter : nullptr);
+  if (options.radius_query)
+    map.QueryRadius(x, options.max_radius, nearest, in_query ? &filter : nullptr);
+  else
+    map.QueryWithHint(x, options.k, options.max_radius, context.radius_hint, nearest,
+                      in_query ? &filter : nullptr);
 
   if (nearest.empty()) return result;
-  if (options.min_fraction > 0.0f && float(nearest.size()) < options.min_fraction * float(options.k))
+  if (!options.radius_query && options.min_fraction > 0.0f &&
+      float(nearest.size()) < options.min_fraction * float(options.k))
     return result;
 
   // Entries [first, used_end) are summed over a radius² r2. Without adaptive k the heap order
   // is enough: its first entry is the farthest photon (at r), the one excluded from the sum.
   // Adaptive k needs distance order (sorting k entries costs about as much as the query).
-  const bool full = nearest.full();
+  const bool full = nearest.full() && !options.radius_query;
   size_t first = 0, used_end = nearest.size();
   float r2 = nearest.MaxDistanceSquared();
-  if (options.adaptive_k_min > 0 && full) {
+  if (options.radius_query) {
+    r2 = options.max_radius * options.max_radius;  // the disk searched, whatever it holds
+  } else if (options.adaptive_k_min > 0 && full) {
     nearest.Sort();
     thread_local std::vector<Vec3> positions;
     positions.clear();

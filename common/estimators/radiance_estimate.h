@@ -48,6 +48,10 @@ struct RadianceEstimateOptions {
   // |cog − x|/r for k uniform photons in a disk. For k ≤ 22, d0 ≥ d1: noise alone cannot be
   // told from a border and the rule keeps k (adaptive k is off). 0 = off.
   int adaptive_k_min = 0;
+  // Progressive photon mapping's pass estimate (Knaus & Zwicker 2011, §4; docs/renderer.md,
+  // "Progressive plan"): every feasible photon within max_radius (PhotonMap::QueryRadius), none
+  // excluded, over the disk π max_radius²; k, min_fraction and adaptive k are not used.
+  bool radius_query = false;
 };
 
 // What an estimate may need beyond the map: per-photon attributes and the scene for shadow rays.

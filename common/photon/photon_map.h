@@ -460,6 +460,24 @@ class PhotonMap {
     return false;
   }
 
+  // A range query: every accepted photon in the open ball of radius `radius` around x, into
+  // `nearest`, the farthest first (no k: the pass estimate of progressive photon mapping, Knaus &
+  // Zwicker 2011, §4, sums all photons within the pass's radius). Written once for every structure
+  // on top of Query: a k-NN query whose heap does not fill returns exactly the ball's candidates
+  // (its bound stays radius² until it is full), so it runs with k = max(64, the previous k) and
+  // again with 4k until the heap is not full or k covers the whole map. `nearest` keeps its k, so
+  // the next query of a thread starts at the size the last one needed.
+  void QueryRadius(const Vec3& x, float radius, NearestPhotons& nearest,
+                   const PhotonFilter* filter = nullptr) const {
+    std::size_t k = std::max<std::size_t>(64, nearest.k());
+    for (;;) {
+      const std::size_t kk = std::min(k, std::max<std::size_t>(photons_.size(), 1));
+      Query(x, int(kk), radius, nearest, filter);
+      if (!nearest.full() || kk >= photons_.size()) return;
+      k *= 4;
+    }
+  }
+
   std::size_t size() const { return photons_.size(); }
   bool empty() const { return photons_.empty(); }
   // Post-build order once prepared.

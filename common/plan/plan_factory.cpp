@@ -31,6 +31,16 @@ void ValidateSkipping(const PlanSpec& plan, int width, int height) {
   if (plan.samples_per_pixel < 1) throw InputError("plan.skipping.samples_per_pixel: must be >= 1");
 }
 
+void ValidateProgressive(const PlanSpec& plan, int, int) {
+  if (plan.maps < 1) throw InputError("plan.progressive.passes: must be >= 1");
+  if (plan.samples_per_pixel < 1) throw InputError("plan.progressive.samples_per_pixel: must be >= 1");
+}
+
+std::string DescribeProgressive(const PlanSpec& p) {
+  return "progressive (Knaus & Zwicker 2011): " + std::to_string(p.maps) + " passes x " +
+         std::to_string(p.samples_per_pixel) + " spp, radius query, tile " + std::to_string(p.tile_size);
+}
+
 std::string DescribeMultipleMaps(const PlanSpec& p) {
   return "multiple maps: " + std::to_string(p.maps) + " maps x " + std::to_string(p.samples_per_pixel) +
          " spp, tile " + std::to_string(p.tile_size) +
@@ -71,7 +81,8 @@ const NamedRegistry<PlanEntry>& Plans() {
       "plan", {{"multiple-maps", K::kMultipleMaps, ValidateMultipleMaps, DescribeMultipleMaps},
                {"maps-in-turn", K::kMapsInTurn, ValidateMapsInTurn, DescribeMapsInTurn},
                {"skipping", K::kSkipping, ValidateSkipping, DescribeSkipping},
-               {"hierarchical", K::kHierarchical, ValidateHierarchicalPlan, DescribeHierarchical}});
+               {"hierarchical", K::kHierarchical, ValidateHierarchicalPlan, DescribeHierarchical},
+               {"progressive", K::kProgressive, ValidateProgressive, DescribeProgressive}});
   return registry;
 }
 

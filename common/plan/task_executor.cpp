@@ -12,6 +12,7 @@
 #include "common/photon/map_key.h"
 #include "common/plan/accumulator.h"
 #include "common/render/integrator_factory.h"
+#include "common/render/progressive_radius.h"
 #include "common/render/render_settings_rules.h"
 #include "common/render/renderer.h"
 
@@ -92,12 +93,15 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
   std::shared_ptr<const PhotonMaps> maps;
   if (integrator_entry.UsesPhotonMaps())
     maps = TaskMaps(scene, scene_key, camera, camera_spec, settings, task, threads, cache, cancel, out);
-  const std::unique_ptr<const Integrator> integrator =
-      integrator_entry.build(settings, {.scene = &scene.accel,
-                                        .lights = &scene.lights,
-                                        .maps = maps.get(),
-                                        .threads = threads,
-                                        .part = task.part});
+  const std::unique_ptr<const Integrator> integrator = integrator_entry.build(
+      settings,
+      {.scene = &scene.accel,
+       .lights = &scene.lights,
+       .maps = maps.get(),
+       .threads = threads,
+       .part = task.part,
+       .pass_radius =
+           task.progressive ? ProgressivePassRadius(settings, scene.accel.bounds(), task.map_index) : 0.0f});
   const RenderStats stats =
       RenderPixels(*integrator, camera, pixels, task.sample_begin, task.sample_end, task.pixel_seed, threads,
                    sums, progress, cancel, settings.sampler, streams);

@@ -96,6 +96,7 @@ void ValidatePlan(const PlanSpec& plan, int width, int height) {
 
 uint64_t CountTasks(const PlanSpec& plan, int width, int height) {
   switch (plan.kind) {
+    case PlanKind::kProgressive:
     case PlanKind::kMultipleMaps:
       return uint64_t(plan.maps - 1) * NumTiles(plan.tile_size, width, height) +
              NumTailTiles(plan.tile_size, plan.tail_tile_size, width, height);
@@ -136,6 +137,7 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
     tasks.push_back(t);
   };
   switch (plan.kind) {
+    case PlanKind::kProgressive:
     case PlanKind::kMultipleMaps: {
       const auto tiles = Tiles(plan.tile_size, width, height);
       // Map-major order: the tiles of one map are adjacent, so a worker that has built map m
@@ -171,6 +173,9 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
     case PlanKind::kHierarchical:
       break;  // above
   }
+  // A progressive pass is a multiple-maps map whose estimates read the pass's radius.
+  if (plan.kind == PlanKind::kProgressive)
+    for (TaskSpec& t : tasks) t.progressive = true;
   return tasks;
 }
 

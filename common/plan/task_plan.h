@@ -14,6 +14,10 @@
 //      different map for each sample of a pixel (§4.5; common/plan/hierarchical.h). ExpandPlan
 //      gives its static tasks (every level's detail tasks); the localization tasks follow from
 //      the merged results (HierarchicalTasks).
+//  (e) kProgressive: progressive photon mapping in Knaus & Zwicker's form (2011): pass p is the
+//      multiple-maps plan's map p — its own map over the whole image in tiles, samples [0, spp) —
+//      whose estimates sum every photon within the pass's radius r_p (render/progressive_radius.h)
+//      instead of the k nearest. The image is the plain mean over passes, the multiple-maps merge.
 //
 // Seeds: map m of a job has map seed HashKey(job_seed, "map", m) and its pixel samples draw
 // from streams keyed by HashKey(job_seed, "pix", m): samples of different maps are independent.
@@ -26,7 +30,7 @@
 
 namespace pf {
 
-enum class PlanKind { kMultipleMaps, kMapsInTurn, kSkipping, kHierarchical };
+enum class PlanKind { kMultipleMaps, kMapsInTurn, kSkipping, kHierarchical, kProgressive };
 
 // What the hierarchical plan's levels render (common/plan/hierarchical.h, "Parts"): the whole
 // radiance, or only its photon-map part, with emission and direct light rendered per pixel by
@@ -35,7 +39,7 @@ enum class HierarchyPart { kAll, kIndirect };
 
 struct PlanSpec {
   PlanKind kind = PlanKind::kMultipleMaps;
-  uint32_t maps = 1;               // kMultipleMaps: s
+  uint32_t maps = 1;               // kMultipleMaps: s; kProgressive: the passes
   uint32_t samples_per_pixel = 1;  // per map (a), total (b), per task and pixel (c), per map and pixel (d)
   uint32_t tile_size = 0;          // (a), (b): 0 = one tile = whole image; (d): rows per task, 0 = all
   // (a): the last row of tiles of the last map in tiles of this side (0 = like the others), so
@@ -84,6 +88,9 @@ struct TaskSpec {
   // plan with HierarchyPart::kIndirect (its levels and localization: kMapped; its per-pixel
   // emission + direct light tasks: kUnmapped).
   RadiancePart part = RadiancePart::kAll;
+  // A progressive plan's pass (map_index = the pass): estimates sum the photons within the
+  // pass's radius (render/progressive_radius.h) rather than the k nearest.
+  bool progressive = false;
 };
 
 // Throws InputError naming the field ("plan.skipping.stride: must be ≥ 1") for invalid plans.
@@ -105,7 +112,8 @@ std::vector<TaskSpec> ExpandPlan(const PlanSpec& plan, int width, int height, ui
 //   once all levels are complete, docs/renderer.md "Localization"; 3: a detail task's pixels
 //   share one random-number stream, renderer.h PixelStreams — same ids, other pixel values);
 //   4 with HierarchyPart::kIndirect (emission + direct light tasks first, the levels render the
-//   map part only: other ids and values; kAll keeps 3, its tasks are unchanged).
+//   map part only: other ids and values; kAll keeps 3, its tasks are unchanged);
+//   progressive: 0 (new).
 uint32_t PlanExpansionVersion(const PlanSpec& plan);
 
 uint64_t MapSeed(uint64_t job_seed, uint64_t map_index);

@@ -52,6 +52,11 @@ std::unique_ptr<Integrator> BuildPhotonMapIntegrator(const JobRenderSettings& s,
   PhotonMapIntegratorOptions options = s.IntegratorOptions(in.scene->bounds());
   options.precomputed.threads = in.threads;
   options.part = in.part;
+  if (in.pass_radius > 0.0f)
+    for (RadianceEstimateOptions* o : {&options.global, &options.caustic, &options.direct_photons}) {
+      o->radius_query = true;
+      o->max_radius = in.pass_radius;
+    }
   return std::make_unique<PhotonMapIntegrator>(*in.scene, in.lights, *in.maps, options);
 }
 

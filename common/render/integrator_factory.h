@@ -34,6 +34,9 @@ struct IntegratorInputs {
   const PhotonMaps* maps = nullptr;
   int threads = 1;  // for work done once before the pixels (precomputed irradiance, §4.3)
   RadiancePart part = RadiancePart::kAll;
+  // > 0: a progressive pass (render/progressive_radius.h): every map estimate sums the photons
+  // within this radius (RadianceEstimateOptions::radius_query) instead of the k nearest.
+  float pass_radius = 0.0f;
 };
 
 struct IntegratorEntry {

@@ -86,6 +86,11 @@ struct JobRenderSettings {
   // Caustic splitting (Wald 1999, §4.6; photon_tracer.h): S× the caustic photons; 1 = off.
   uint32_t caustic_split = 1;
   CausticSplitMethod caustic_split_method = CausticSplitMethod::kBrute;
+  // The progressive plan (plan_factory.h; progressive_radius.h, Knaus & Zwicker 2011): the
+  // schedule's α and the first pass's radius (0 = derived from the scene and the photons per pass).
+  // Read only by a progressive plan's tasks; they change no map (the radius is a query setting).
+  double progressive_alpha = 2.0 / 3.0;
+  float progressive_radius = 0.0f;
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every
   // worker and `pf render` decide alike. `choices` (optional) receives each decision and its reason.

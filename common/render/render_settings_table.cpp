@@ -143,6 +143,21 @@ std::vector<RenderSetting> MakeTable() {
                                 .max = kInf,
                                 .applies = [](const S& s) { return s.caustic != CausticMapMode::kOff; },
                                 .applies_when = "caustic != off"}));
+  t.push_back(Real<&S::progressive_alpha>(
+      {.name = "progressive-alpha",
+       .group = G::kEstimate,
+       .help = "Progressive plan: alpha of the radius schedule r_p^2 = r_1^2 prod_{i=1..p} (i+alpha)/(i+1) "
+               "(Knaus & Zwicker 2011; 2/3 balances bias and variance)",
+       .min = 0.01,
+       .max = 0.99}));
+  t.push_back(Real<&S::progressive_radius>(
+      {.name = "progressive-radius",
+       .group = G::kEstimate,
+       .help = "Progressive plan: the first pass's search radius (0 = the disk holding about k photons "
+               "of a map spread over the scene's bounding box; docs/renderer.md \"Progressive plan\")",
+       .unit = "scene units",
+       .min = 0,
+       .max = kInf}));
   t.push_back(
       Int<&S::glossy_depth>({.name = "glossy-depth",
                              .group = G::kEstimate,

@@ -82,6 +82,8 @@ std::string PlanField(const PlanSpec& plan) {
       return "spec.plan.skipping";
     case PlanKind::kHierarchical:
       return "spec.plan.hierarchical";
+    case PlanKind::kProgressive:
+      return "spec.plan.progressive";
   }
   return "spec.plan";
 }

@@ -22,15 +22,15 @@ using ::testing::HasSubstr;
 
 TEST(PlanFactory, EveryPlanKindHasOneEntry) {
   // pf render --plan's names (client/render_args.cpp lists them after `auto`) and the kinds.
-  EXPECT_EQ(Plans().Names(),
-            (std::vector<std::string>{"multiple-maps", "maps-in-turn", "skipping", "hierarchical"}));
+  EXPECT_EQ(Plans().Names(), (std::vector<std::string>{"multiple-maps", "maps-in-turn", "skipping",
+                                                       "hierarchical", "progressive"}));
   std::set<PlanKind> kinds;
   for (const PlanEntry& e : Plans().entries()) {
     EXPECT_TRUE(kinds.insert(e.kind).second) << e.name;
     EXPECT_EQ(&Plans().FindKind(e.kind), &e);
   }
-  for (PlanKind k :
-       {PlanKind::kMultipleMaps, PlanKind::kMapsInTurn, PlanKind::kSkipping, PlanKind::kHierarchical})
+  for (PlanKind k : {PlanKind::kMultipleMaps, PlanKind::kMapsInTurn, PlanKind::kSkipping,
+                     PlanKind::kHierarchical, PlanKind::kProgressive})
     EXPECT_EQ(Plans().FindKind(k).kind, k);
 }
 
@@ -46,10 +46,9 @@ TEST(PlanFactory, EveryRegisteredNameBuildsAndDescribesItself) {
 }
 
 TEST(PlanFactory, UnknownNameListsTheKnownOnes) {
-  EXPECT_THAT(
-      InputErrorOf([] { MakePlan("progressive", PlanSpec{}, 8, 8); }),
-      HasSubstr("plan: no plan is called 'progressive' (known: multiple-maps, maps-in-turn, skipping or "
-                "hierarchical)"));
+  EXPECT_THAT(InputErrorOf([] { MakePlan("lightcuts", PlanSpec{}, 8, 8); }),
+              HasSubstr("plan: no plan is called 'lightcuts' (known: multiple-maps, maps-in-turn, skipping, "
+                        "hierarchical or progressive)"));
 }
 
 void ExpectRefused(const std::string& name, const PlanSpec& parameters, const std::string& field) {

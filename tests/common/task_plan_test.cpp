@@ -191,6 +191,43 @@ TEST(TaskPlan, TailTilesHaveTheirOwnExpansionVersion) {
   EXPECT_EQ(PlanExpansionVersion(tail), 1u);
 }
 
+// Progressive photon mapping (Knaus & Zwicker 2011): pass p is the multiple-maps plan's map p
+// — the same ids, seeds and pixels — marked so that its estimates read the pass's radius.
+TEST(TaskPlan, ProgressivePassesAreMultipleMapsWithTheRadiusQuery) {
+  const PlanSpec progressive{
+      .kind = PlanKind::kProgressive, .maps = 5, .samples_per_pixel = 2, .tile_size = 8};
+  PlanSpec multiple = progressive;
+  multiple.kind = PlanKind::kMultipleMaps;
+  ExpectCoverage(progressive, 20, 13, 10, 5);
+  const auto p = ExpandPlan(progressive, 20, 13, 7), m = ExpandPlan(multiple, 20, 13, 7);
+  ASSERT_EQ(p.size(), m.size());
+  EXPECT_EQ(p.size(), CountTasks(progressive, 20, 13));
+  for (size_t i = 0; i < p.size(); ++i) {
+    EXPECT_TRUE(p[i].progressive);
+    EXPECT_FALSE(m[i].progressive);
+    EXPECT_EQ(p[i].task_id, m[i].task_id);
+    EXPECT_EQ(p[i].map_index, m[i].map_index);
+    EXPECT_EQ(p[i].map_seed, MapSeed(7, p[i].map_index));
+    EXPECT_EQ(p[i].pixel_seed, m[i].pixel_seed);
+    EXPECT_EQ(PixelsOf(p[i].pixels, 20, 13), PixelsOf(m[i].pixels, 20, 13));
+  }
+  EXPECT_EQ(PlanExpansionVersion(progressive), 0u);
+  EXPECT_EQ(CountRounds(progressive), 1u);
+  EXPECT_NE(DescribePlan(progressive).find("5 passes"), std::string::npos);
+  for (const auto& [plan, field] : std::vector<std::pair<PlanSpec, std::string>>{
+           {{.kind = PlanKind::kProgressive, .maps = 0}, "plan.progressive.passes"},
+           {{.kind = PlanKind::kProgressive, .samples_per_pixel = 0}, "plan.progressive.samples_per_pixel"},
+           {{.kind = PlanKind::kProgressive, .tile_size = 64, .tail_tile_size = 32},
+            "multiple-maps option"}}) {
+    try {
+      ValidatePlan(plan, 64, 64);
+      ADD_FAILURE() << field;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(Accumulator, OrderOfMergingDoesNotChangeABit) {
   const int w = 6, h = 5;
   std::mt19937 gen(3);

@@ -261,6 +261,26 @@ RunResult RunCommand(const std::vector<std::string>& argv, const fs::path& dir, 
   return r;
 }
 
+Image RenderLocallyToImage(const TestDir& dir, const std::vector<std::string>& flags) {
+  const RunResult r = RenderLocally(dir, flags);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return ReadImage(dir / "local.exr");
+}
+
+void ExpectLocalFarmsBitIdentical(const TestDir& dir, const std::vector<std::string>& flags,
+                                  const Image& reference, std::initializer_list<int> worker_counts,
+                                  const std::string& stem) {
+  for (int workers : worker_counts) {
+    const std::string out = (dir / (stem + std::to_string(workers) + ".exr")).string();
+    const RunResult r = RunCommand(
+        Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, flags),
+               {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "--no-png", "-q"}),
+        dir.path());
+    ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
+    EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
+  }
+}
+
 Image ReadImage(const fs::path& path) {
   return ReadExr(path);
 }

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <optional>
@@ -211,6 +212,15 @@ inline RunResult RenderLocally(const TestDir& dir, const std::vector<std::string
                            {"--local-only", "-o", (dir / "local.exr").string(), "--no-png", "-q"}),
                     dir.path());
 }
+
+// RenderLocally's image (a failure if pf failed).
+Image RenderLocallyToImage(const TestDir& dir, const std::vector<std::string>& flags);
+
+// `pf render --workers N` (a local farm) of the shipped scene with `flags` for each N renders
+// `reference` bit for bit; the images are written to dir/<stem>N.exr.
+void ExpectLocalFarmsBitIdentical(const TestDir& dir, const std::vector<std::string>& flags,
+                                  const Image& reference, std::initializer_list<int> worker_counts,
+                                  const std::string& stem);
 
 // `pf submit` of the shipped scene with `flags` to `address`: the job id, or "" (with a failure)
 // if it failed.

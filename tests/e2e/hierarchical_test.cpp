@@ -50,32 +50,10 @@ std::vector<std::string> HierarchicalFlags(int photons) {
           "11"};
 }
 
-Image LocalReference(const TestDir& dir, const std::vector<std::string>& flags) {
-  const RunResult r = RenderLocally(dir, flags);
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  return ReadImage(dir / "local.exr");
-}
-
-// `pf render --workers N` (a local farm) for each N renders `reference` bit for bit; the images are
-// written to dir/<stem>N.exr.
-void ExpectLocalFarmsBitIdentical(const TestDir& dir, const std::vector<std::string>& flags,
-                                  const Image& reference, std::initializer_list<int> worker_counts,
-                                  const std::string& stem) {
-  for (int workers : worker_counts) {
-    const std::string out = (dir / (stem + std::to_string(workers) + ".exr")).string();
-    const RunResult r = RunCommand(
-        Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, flags),
-               {"--workers", std::to_string(workers), "--threads", "1", "-o", out, "--no-png", "-q"}),
-        dir.path());
-    ASSERT_EQ(r.exit_code, 0) << "workers=" << workers << "\n" << r.err;
-    EXPECT_TRUE(BitIdentical(ReadImage(out), reference)) << "workers=" << workers;
-  }
-}
-
 TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
   TestDir dir;
   const std::vector<std::string> flags = HierarchicalFlags(2000);
-  const Image reference = LocalReference(dir, flags);
+  const Image reference = RenderLocallyToImage(dir, flags);
   ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
   ExpectLocalFarmsBitIdentical(dir, flags, reference, {1, 2, 3}, "farm-");
 }
@@ -87,9 +65,9 @@ TEST(HierarchicalFarm, BitIdenticalForOneTwoThreeWorkersAndLocal) {
 TEST(HierarchicalFarm, IndirectPartBitIdenticalForOneAndThreeWorkersAndLocal) {
   TestDir dir;
   std::vector<std::string> flags = HierarchicalFlags(2000);
-  const Image whole = LocalReference(dir, flags);
+  const Image whole = RenderLocallyToImage(dir, flags);
   flags.insert(flags.end(), {"--hier-part", "indirect", "--hier-direct-samples", "2"});
-  const Image reference = LocalReference(dir, flags);
+  const Image reference = RenderLocallyToImage(dir, flags);
   ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
   EXPECT_FALSE(BitIdentical(whole, reference));
   // Both estimate the same radiance: summed over the pixels that are not the light (below 2 in
@@ -112,7 +90,7 @@ TEST(HierarchicalFarm, IndirectPartBitIdenticalForOneAndThreeWorkersAndLocal) {
 // `static_tasks`: the plan's tasks before any localization.
 void KilledWorkerAndCoordinatorRestart(const std::vector<std::string>& flags, uint64_t static_tasks) {
   TestDir dir;
-  const Image reference = LocalReference(dir, flags);
+  const Image reference = RenderLocallyToImage(dir, flags);
   const std::vector<std::string> coordinator_args = {"--lease-seconds", "2", "--max-attempts", "10"};
   auto [coordinator, port, address, job_id] = StartCoordinatorWithJob(dir, coordinator_args, flags);
   ASSERT_FALSE(job_id.empty());
@@ -213,7 +191,7 @@ int LevelInProgress(const std::vector<std::pair<size_t, size_t>>& levels, size_t
 TEST(HierarchicalFarm, ThreeWorkersKilledWorkerAndRestartMidLevelGiveTheLocalImage) {
   TestDir dir;
   const std::vector<std::string> flags = LongerLevelsFlags();
-  const Image reference = LocalReference(dir, flags);
+  const Image reference = RenderLocallyToImage(dir, flags);
   const std::vector<TaskSpec> tasks = StaticTasksOfLongerLevels();
   ASSERT_EQ(tasks.size(), 75u);
   const std::vector<std::string> coordinator_args = {"--lease-seconds", "2", "--max-attempts", "10"};

@@ -245,7 +245,8 @@ TEST(Convert, BadSettingsNameTheirField) {
 }
 
 TEST(Convert, PlansRoundTripAndNameTheirField) {
-  for (const PlanKind kind : {PlanKind::kMultipleMaps, PlanKind::kMapsInTurn, PlanKind::kSkipping}) {
+  for (const PlanKind kind :
+       {PlanKind::kMultipleMaps, PlanKind::kMapsInTurn, PlanKind::kSkipping, PlanKind::kProgressive}) {
     PlanSpec p;
     p.kind = kind;
     p.maps = 3;
@@ -260,6 +261,7 @@ TEST(Convert, PlansRoundTripAndNameTheirField) {
     EXPECT_EQ(back.kind, kind);
     EXPECT_EQ(back.samples_per_pixel, 5u);
     EXPECT_EQ(back.tail_tile_size, p.tail_tile_size);
+    if (kind == PlanKind::kProgressive) EXPECT_EQ(back.maps, 3u);  // the passes
     v1::Plan again;
     PlanToProto(back, &again);
     EXPECT_EQ(again.SerializeAsString(), proto.SerializeAsString());
@@ -276,6 +278,10 @@ TEST(Convert, PlansRoundTripAndNameTheirField) {
   spp.mutable_multiple_maps()->set_samples_per_pixel(kMaxSamplesPerPixel + 1);
   EXPECT_THAT(ErrorOf<LimitError>([&] { PlanFromProto(spp, "spec.plan"); }),
               StartsWith("spec.plan.multiple_maps.samples_per_pixel:"));
+  v1::Plan passes;
+  passes.mutable_progressive()->set_samples_per_pixel(1);
+  EXPECT_THAT(ErrorOf([&] { PlanFromProto(passes, "spec.plan"); }),
+              StartsWith("spec.plan.progressive.passes:"));
 }
 
 TEST(Convert, TasksRoundTripAndRefuseEmptySampleRanges) {
@@ -298,9 +304,14 @@ TEST(Convert, TasksRoundTripAndRefuseEmptySampleRanges) {
   EXPECT_EQ(back.pixels.kind, PixelSubset::Kind::kPermutationStride);
   EXPECT_EQ(back.pixels.offset, 2u);
   EXPECT_EQ(back.sample_end, 8u);
+  EXPECT_FALSE(back.progressive);
   v1::Task again;
   TaskSpecToProto(back, &again);
   EXPECT_EQ(again.SerializeAsString(), proto.SerializeAsString());
+  t.progressive = true;  // a progressive plan's pass
+  v1::Task pass;
+  TaskSpecToProto(t, &pass);
+  EXPECT_TRUE(TaskSpecFromProto(pass).progressive);
 
   proto.set_sample_end(4);
   EXPECT_THAT(ErrorOf([&] { TaskSpecFromProto(proto); }), StartsWith("task.sample_end:"));
