@@ -261,7 +261,9 @@ TEST(Convert, PlansRoundTripAndNameTheirField) {
     EXPECT_EQ(back.kind, kind);
     EXPECT_EQ(back.samples_per_pixel, 5u);
     EXPECT_EQ(back.tail_tile_size, p.tail_tile_size);
-    if (kind == PlanKind::kProgressive) EXPECT_EQ(back.maps, 3u);  // the passes
+    if (kind == PlanKind::kProgressive) {
+      EXPECT_EQ(back.maps, 3u);  // the passes
+    }
     v1::Plan again;
     PlanToProto(back, &again);
     EXPECT_EQ(again.SerializeAsString(), proto.SerializeAsString());
