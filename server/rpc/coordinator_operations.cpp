@@ -61,8 +61,9 @@ std::vector<v1::WorkerInfo> CoordinatorOperations::Workers() {
 }
 
 std::vector<v1::TaskEvent> CoordinatorOperations::JobEvents(const std::string& job_id, uint64_t* dropped) {
-  p_.scheduler.Status(job_id);  // NotFoundError for an unknown job
-  return p_.scheduler.activity().Events(job_id, dropped);
+  // NotFoundError for an unknown job; the whole id of a prefix.
+  const std::string id = p_.scheduler.Status(job_id).job_id();
+  return p_.scheduler.activity().Events(id, dropped);
 }
 
 ResolvedImage CoordinatorOperations::JobImage(const std::string& job_id, v1::JobStatus* status) {

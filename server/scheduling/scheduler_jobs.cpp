@@ -147,7 +147,9 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
 
 Job& Scheduler::FindJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
-  return jobs_.Get(job_id);  // jobs are never removed: the reference outlives the lock
+  // An id or a unique prefix of one (JobRegistry::Resolve). Jobs are never removed: the reference
+  // outlives the lock.
+  return jobs_.Get(jobs_.Resolve(job_id));
 }
 
 void Scheduler::RefreshNoise(Job& job) {

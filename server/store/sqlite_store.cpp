@@ -359,4 +359,12 @@ uint64_t SqliteStore::CountTasks(const std::string& job_id, TaskState state) {
   return st.Step() ? uint64_t(st.ColInt(0)) : 0;
 }
 
+void SqliteStore::DeleteJob(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  Transaction tx(db_);
+  Statement(db_, "DELETE FROM tasks WHERE job_id = ?1").Text(1, job_id).Run();
+  Statement(db_, "DELETE FROM jobs WHERE id = ?1").Text(1, job_id).Run();
+  tx.Commit();
+}
+
 }  // namespace pf::server

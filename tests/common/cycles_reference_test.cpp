@@ -51,7 +51,8 @@ Rendered RenderAgainstCycles(const char* integrator, uint32_t spp, uint64_t phot
   camera.width = reference.width();
   camera.height = reference.height();
   Rendered out;
-  out.image = RenderImage(*tracer, Camera(camera, scene.description.origin), RenderOptions{.spp = spp, .seed = 7});
+  out.image =
+      RenderImage(*tracer, Camera(camera, scene.description.origin), RenderOptions{.spp = spp, .seed = 7});
   // No exclusion: rmse_lowfreq over every 4x4 block, the emitter's included.
   const std::vector<uint8_t> nothing_excluded(reference.width() * reference.height(), 0);
   out.stats = CompareImages(out.image, reference, &nothing_excluded);
