@@ -40,6 +40,8 @@ class JobStore {
   // job; the scheduler keeps every Job for its lifetime (Scheduler::FindJob) and does not call it
   // yet.
   virtual void DeleteJob(const std::string& job_id) = 0;
+  // Stores whether a user paused the job (PauseJob / ResumeJob): recovery restores it.
+  virtual void SetJobPaused(const std::string& job_id, bool paused) = 0;
 };
 
 }  // namespace pf::server
