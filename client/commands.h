@@ -54,6 +54,7 @@ int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& ou
 int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& output, const std::string& png);
 int RunList(const FarmArgs& f, bool all, bool json);
 int RunCancel(const FarmArgs& f, const std::string& job_id);
+int RunPause(const FarmArgs& f, const std::string& job_id, bool paused);  // pf pause / pf resume
 int RunWorkers(const FarmArgs& f, bool json);
 int RunEvents(const FarmArgs& f, const std::string& job_id, bool json);
 

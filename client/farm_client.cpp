@@ -88,6 +88,11 @@ v1::JobStatus FarmClient::CancelJob(const std::string& job_id) {
   return Call(&Stub::CancelJob, WithJobId<v1::CancelJobRequest>(job_id)).status();
 }
 
+v1::JobStatus FarmClient::SetJobPaused(const std::string& job_id, bool paused) {
+  if (paused) return Call(&Stub::PauseJob, WithJobId<v1::PauseJobRequest>(job_id)).status();
+  return Call(&Stub::ResumeJob, WithJobId<v1::ResumeJobRequest>(job_id)).status();
+}
+
 std::vector<v1::WorkerInfo> FarmClient::ListWorkers() {
   const v1::ListWorkersResponse resp = Call(&Stub::ListWorkers, v1::ListWorkersRequest());
   return {resp.workers().begin(), resp.workers().end()};

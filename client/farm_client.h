@@ -33,6 +33,8 @@ class FarmClient {
   std::vector<photonfarm::v1::JobStatus> ListJobs(bool include_finished,
                                                   uint32_t page_size = limits::kMaxListJobsPageSize);
   photonfarm::v1::JobStatus CancelJob(const std::string& job_id);
+  // PauseJob (paused = true) or ResumeJob.
+  photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused);
   std::vector<photonfarm::v1::WorkerInfo> ListWorkers();
   photonfarm::v1::ListJobEventsResponse ListJobEvents(const std::string& job_id);
   // The current merged image, reassembled from its chunks: EXR bytes.

@@ -56,6 +56,11 @@ std::string PlanText(const v1::JobStatus& s) {
   }
 }
 
+// The state a person reads: "paused" for a queued or running job a user paused (pf pause).
+const char* StateText(const v1::JobStatus& s) {
+  return s.paused() ? "paused" : JobStateName(s.state());
+}
+
 nlohmann::json StatusJson(const v1::JobStatus& s) {
   nlohmann::json blocklisted = nlohmann::json::array();
   for (const v1::BlocklistedWorker& b : s.blocklisted_workers())
@@ -81,14 +86,15 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"blocklisted_workers", blocklisted},
           {"storage_error", s.storage_error()},
           {"paused_for_storage", s.paused_for_storage()},
+          {"paused", s.paused()},
           {"verifications_pending", s.verifications_pending()},
           {"results_verified", s.results_verified()}};
 }
 
 std::string Summary(const v1::JobStatus& s) {
   std::string out =
-      fmt::format("job {} {}: {}/{} tasks, {} samples, {}", s.job_id(), JobStateName(s.state()),
-                  s.tasks_done(), s.tasks_total(), s.samples_merged(), FormatDuration(s.elapsed_seconds()));
+      fmt::format("job {} {}: {}/{} tasks, {} samples, {}", s.job_id(), StateText(s), s.tasks_done(),
+                  s.tasks_total(), s.samples_merged(), FormatDuration(s.elapsed_seconds()));
   if (s.estimated_noise_rms() >= 0) out += fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms());
   if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
   // Result verification (docs/farm.md): the job succeeds once its pending verifications are done.
@@ -257,8 +263,8 @@ int RunList(const FarmArgs& f, bool all, bool json) {
   std::printf("%-14s %-10s %8s %12s %10s %10s  %s\n", "JOB", "STATE", "PRIORITY", "TASKS", "ELAPSED", "NOISE",
               "NAME");
   for (const v1::JobStatus& s : jobs)
-    std::printf("%-14s %-10s %8d %12s %10s %10s  %s\n", s.job_id().c_str(), JobStateName(s.state()),
-                s.spec().priority(), fmt::format("{}/{}", s.tasks_done(), s.tasks_total()).c_str(),
+    std::printf("%-14s %-10s %8d %12s %10s %10s  %s\n", s.job_id().c_str(), StateText(s), s.spec().priority(),
+                fmt::format("{}/{}", s.tasks_done(), s.tasks_total()).c_str(),
                 FormatDuration(s.elapsed_seconds()).c_str(),
                 s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()).c_str() : "-",
                 s.spec().name().c_str());
@@ -268,6 +274,13 @@ int RunList(const FarmArgs& f, bool all, bool json) {
 int RunCancel(const FarmArgs& f, const std::string& job_id) {
   FarmClient client = Connect(f);
   const v1::JobStatus s = client.CancelJob(job_id);
+  std::printf("%s\n", Summary(s).c_str());
+  return kExitOk;
+}
+
+int RunPause(const FarmArgs& f, const std::string& job_id, bool paused) {
+  FarmClient client = Connect(f);
+  const v1::JobStatus s = client.SetJobPaused(job_id, paused);
   std::printf("%s\n", Summary(s).c_str());
   return kExitOk;
 }

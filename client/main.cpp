@@ -6,7 +6,7 @@
 //   pf submit SCENE [options]                 upload the scene, submit a job, print its id
 //   pf watch JOB [-o out.exr]                 progress (and snapshots) until the job ends
 //   pf get JOB -o out.exr                     the current merged image
-//   pf list / pf cancel JOB                   jobs of a coordinator
+//   pf list / cancel / pause / resume JOB     jobs of a coordinator
 //   pf diff / merge / preview / info          images and scenes
 //
 // Exit codes: client/commands.h (0 ok, 1 failure, 2 usage, 3 invalid input, 130 interrupted).
@@ -234,6 +234,16 @@ int main(int argc, char** argv) {
   cancel->add_option("job", cancel_job, "Job id")->required();
   AddFarmOptions(cancel, cf);
 
+  FarmArgs pf_args, rf;
+  std::string pause_job, resume_job;
+  CLI::App* pause = app.add_subcommand(
+      "pause", "Pause a queued or running job: no new tasks start, running ones finish and are merged");
+  pause->add_option("job", pause_job, "Job id")->required();
+  AddFarmOptions(pause, pf_args);
+  CLI::App* resume = app.add_subcommand("resume", "Resume a paused job");
+  resume->add_option("job", resume_job, "Job id")->required();
+  AddFarmOptions(resume, rf);
+
   std::string diff_a, diff_ref, diff_err, diff_scene, diff_camera;
   double diff_scale = 0;
   bool diff_json = false;
@@ -348,6 +358,8 @@ int main(int argc, char** argv) {
     if (*get) return RunGet(gf, get_job, get_out, get_png);
     if (*list) return RunList(lf, list_all, list_json);
     if (*cancel) return RunCancel(cf, cancel_job);
+    if (*pause) return RunPause(pf_args, pause_job, true);
+    if (*resume) return RunPause(rf, resume_job, false);
     if (*diff)
       return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera, diff_region);
     if (*info) return RunInfo(info_scene);

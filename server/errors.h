@@ -21,6 +21,13 @@ class UnavailableError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The request is valid but the job's state forbids it (pausing a finished job). The message names
+// the state ("job 'job-…' is SUCCEEDED: …"). → FAILED_PRECONDITION.
+class PreconditionError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Data the coordinator had acknowledged is gone or corrupt (a damaged checkpoint of a finished
 // job). The message names the job, never a server path. → DATA_LOSS (clients must not read it
 // as "your input was invalid").

@@ -163,6 +163,9 @@ class Job {
   }
   // Restarted and not yet stored (restart_checkpoint_seq, restart_row_pending).
   bool restart_pending() const { return restart_checkpoint_seq != 0 || restart_row_pending; }
+  // Held back from leasing (TaskQueue::Hold) for any reason: a user's pause, its results cannot
+  // be stored, or its restart is not stored yet.
+  bool held() const { return paused || paused_for_storage || restart_pending(); }
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
 
   // ETA from recent throughput (Scheduler: RecordCompletion on every merge of a live result).
@@ -212,6 +215,8 @@ class Job {
   // A result of the job could be stored neither in the journal nor in a checkpoint: no new
   // leases until a checkpoint of the job is written (the queue holds the job's tasks back).
   bool paused_for_storage = false;
+  // Paused by a user (PauseJob, docs/farm.md "Pausing a job"): held like the above until ResumeJob.
+  bool paused = false;
   // The last checkpoint failed: try again at every flush instead of waiting until one is due.
   bool checkpoint_retry = false;
   // Restarted (Restart) and held back from leasing until a checkpoint of merge_seq ≥ this is

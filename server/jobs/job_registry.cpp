@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "common/core/error.h"
 #include "proto/limits.h"
 #include "server/errors.h"
 #include "server/jobs/random_id.h"
@@ -11,7 +12,7 @@ namespace pf::server {
 std::pair<uint64_t, std::string> JobRegistry::Allocate() {
   ++last_seq_;
   // The sequence number orders jobs; the id is random (random_id.h): never reused.
-  return {last_seq_, "job-" + RandomHex(16)};
+  return {last_seq_, kJobIdPrefix + RandomHex(16)};
 }
 
 void JobRegistry::ReserveUpTo(uint64_t seq) {
@@ -48,6 +49,25 @@ const Job& JobRegistry::Get(const std::string& id) const {
   const Job* job = Find(id);
   if (!job) throw NotFoundError("job_id: unknown job " + limits::Quote(id));
   return *job;
+}
+
+const std::string& JobRegistry::Resolve(const std::string& id_or_prefix) const {
+  if (auto it = by_id_.find(id_or_prefix); it != by_id_.end()) return it->first;
+  const std::string prefix =
+      id_or_prefix.rfind(kJobIdPrefix, 0) == 0 ? id_or_prefix : kJobIdPrefix + id_or_prefix;
+  std::vector<const std::string*> matches;  // in submission order, so the listing is stable
+  if (prefix.size() > kJobIdPrefix.size()) {
+    for (const auto& [seq, job] : by_seq_)
+      if (job->id().compare(0, prefix.size(), prefix) == 0) matches.push_back(&job->id());
+  }
+  if (matches.size() == 1) return *matches[0];
+  if (matches.empty()) throw NotFoundError("job_id: unknown job " + limits::Quote(id_or_prefix));
+  constexpr size_t kListed = 10;
+  std::string list;
+  for (size_t i = 0; i < matches.size() && i < kListed; ++i) list += (i ? ", " : "") + *matches[i];
+  if (matches.size() > kListed) list += ", ...";
+  throw InputError("job_id: " + limits::Quote(id_or_prefix) +
+                   " is ambiguous: " + std::to_string(matches.size()) + " jobs match (" + list + ")");
 }
 
 std::vector<Job*> JobRegistry::InSubmissionOrder() const {

@@ -1,6 +1,7 @@
 #pragma once
 // All jobs the coordinator knows, by id and in submission order, and the allocation of job ids
-// ("job-<seq>", seq increasing across restarts). Not thread-safe: the Scheduler's lock guards it.
+// ("job-" and 32 random hex digits; the seq, increasing across restarts, orders them). Not
+// thread-safe: the Scheduler's lock guards it.
 
 #include <cstdint>
 #include <map>
@@ -12,6 +13,8 @@
 #include "server/jobs/job.h"
 
 namespace pf::server {
+
+inline const std::string kJobIdPrefix = "job-";
 
 class JobRegistry {
  public:
@@ -26,6 +29,10 @@ class JobRegistry {
   // Throws NotFoundError("job_id: unknown job '<id>'").
   Job& Get(const std::string& id);
   const Job& Get(const std::string& id) const;
+  // The id a user typed: an exact id, or a unique prefix of one (with or without "job-": ids are
+  // long random hex, docs/farm.md "Job ids"). Throws NotFoundError when nothing matches and
+  // InputError naming the field and listing the candidates when several do.
+  const std::string& Resolve(const std::string& id_or_prefix) const;
   std::vector<Job*> InSubmissionOrder() const;
   size_t size() const { return by_id_.size(); }
 

@@ -64,6 +64,8 @@ class CoordinatorApi {
   virtual photonfarm::v1::JobStatus JobStatus(const std::string& job_id) = 0;  // NotFoundError
   virtual Scheduler::JobPage ListJobs(bool include_finished, uint64_t after_seq, size_t limit) = 0;
   virtual photonfarm::v1::JobStatus CancelJob(const std::string& job_id) = 0;
+  // PauseJob / ResumeJob: the flag set in memory, then stored (PreconditionError for a finished job).
+  virtual photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused) = 0;
   virtual std::vector<photonfarm::v1::WorkerInfo> Workers() = 0;
   // NotFoundError for an unknown job; `dropped`: events no longer kept.
   virtual std::vector<photonfarm::v1::TaskEvent> JobEvents(const std::string& job_id, uint64_t* dropped) = 0;

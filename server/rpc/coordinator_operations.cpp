@@ -56,13 +56,30 @@ v1::JobStatus CoordinatorOperations::CancelJob(const std::string& job_id) {
   return p_.scheduler.Cancel(job_id);
 }
 
+v1::JobStatus CoordinatorOperations::SetJobPaused(const std::string& job_id, bool paused) {
+  v1::JobStatus status = p_.scheduler.SetPaused(job_id, paused);
+  try {
+    p_.db.SetJobPaused(status.job_id(), paused);  // a restarted coordinator keeps it paused
+  } catch (...) {
+    // Not stored: undone, so that memory and disk agree; the caller may try again (UNAVAILABLE).
+    try {
+      p_.scheduler.SetPaused(status.job_id(), !paused);
+    } catch (const PreconditionError&) {
+      // It finished meanwhile: a finished job's flag means nothing (recovery ignores it).
+    }
+    throw;
+  }
+  return status;
+}
+
 std::vector<v1::WorkerInfo> CoordinatorOperations::Workers() {
   return p_.scheduler.activity().Workers();
 }
 
 std::vector<v1::TaskEvent> CoordinatorOperations::JobEvents(const std::string& job_id, uint64_t* dropped) {
-  p_.scheduler.Status(job_id);  // NotFoundError for an unknown job
-  return p_.scheduler.activity().Events(job_id, dropped);
+  // NotFoundError for an unknown job; the whole id of a prefix.
+  const std::string id = p_.scheduler.Status(job_id).job_id();
+  return p_.scheduler.activity().Events(id, dropped);
 }
 
 ResolvedImage CoordinatorOperations::JobImage(const std::string& job_id, v1::JobStatus* status) {

@@ -48,9 +48,10 @@ void AddJobMetadata(const photonfarm::v1::JobStatus& status, ImageMetadata& meta
 
 }  // namespace
 
-ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& job_id,
+ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& requested_id,
                               photonfarm::v1::JobStatus* status) {
-  JobSnapshot snap = scheduler.Snapshot(job_id, /*with_image=*/true);
+  JobSnapshot snap = scheduler.Snapshot(requested_id, /*with_image=*/true);
+  const std::string job_id = snap.status.job_id();  // the whole id of a prefix (JobRegistry::Resolve)
   ResolvedImage image;
   if (snap.image) {
     image = std::move(*snap.image);

@@ -161,6 +161,26 @@ grpc::ServerUnaryReactor* RenderServiceImpl::CancelJob(grpc::CallbackServerConte
   });
 }
 
+grpc::ServerUnaryReactor* RenderServiceImpl::PauseJob(grpc::CallbackServerContext* context,
+                                                      const v1::PauseJobRequest* request,
+                                                      v1::PauseJobResponse* response) {
+  return FinishGuarded(context, "PauseJob", [&] {
+    RequireJobId(request->job_id());
+    *response->mutable_status() = api_.SetJobPaused(request->job_id(), true);
+    return grpc::Status::OK;
+  });
+}
+
+grpc::ServerUnaryReactor* RenderServiceImpl::ResumeJob(grpc::CallbackServerContext* context,
+                                                       const v1::ResumeJobRequest* request,
+                                                       v1::ResumeJobResponse* response) {
+  return FinishGuarded(context, "ResumeJob", [&] {
+    RequireJobId(request->job_id());
+    *response->mutable_status() = api_.SetJobPaused(request->job_id(), false);
+    return grpc::Status::OK;
+  });
+}
+
 grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerContext* context,
                                                          const v1::ListWorkersRequest* /*request*/,
                                                          v1::ListWorkersResponse* response) {

@@ -29,6 +29,8 @@ grpc::Status StatusFromException(std::exception_ptr error, std::string_view rpc)
     return Logged(spdlog::level::info, rpc, grpc::StatusCode::INVALID_ARGUMENT, "INVALID_ARGUMENT", e);
   } catch (const NotFoundError& e) {
     return Logged(spdlog::level::info, rpc, grpc::StatusCode::NOT_FOUND, "NOT_FOUND", e);
+  } catch (const PreconditionError& e) {
+    return Logged(spdlog::level::info, rpc, grpc::StatusCode::FAILED_PRECONDITION, "FAILED_PRECONDITION", e);
   } catch (const DataLossError& e) {
     return Logged(spdlog::level::err, rpc, grpc::StatusCode::DATA_LOSS, "DATA_LOSS", e);
   } catch (const UnavailableError& e) {

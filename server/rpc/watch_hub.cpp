@@ -232,6 +232,7 @@ grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(grpc::CallbackServerCont
                                                         const grpc::Status& precheck) {
   if (!precheck.ok()) return new FinishedReactor(precheck);
   double interval = request.min_interval_seconds();
+  std::string job_id;  // the whole id of a prefix (JobRegistry::Resolve)
   const grpc::Status status = Guarded("WatchJob", [&] {
     if (!std::isfinite(interval) || interval < 0 || interval > kMaxInterval)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
@@ -242,15 +243,15 @@ grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(grpc::CallbackServerCont
     } catch (const InputError& e) {
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
     }
-    scheduler_.Status(request.job_id());  // NOT_FOUND for an unknown job
+    job_id = scheduler_.Status(request.job_id()).job_id();  // NOT_FOUND for an unknown job
     return grpc::Status::OK;
   });
   if (!status.ok()) return new FinishedReactor(status);
   if (interval == 0) interval = kDefaultInterval;
 
   auto* reactor = new WatchReactor();
-  reactor->session = std::make_shared<WatchSession>(reactor, context, scheduler_, executor_, clock_,
-                                                    request.job_id(), request.include_images(), interval);
+  reactor->session = std::make_shared<WatchSession>(reactor, context, scheduler_, executor_, clock_, job_id,
+                                                    request.include_images(), interval);
   std::shared_ptr<WatchSession> session = reactor->session;
   bool closed;
   grpc::Status over_budget;
@@ -282,7 +283,7 @@ grpc::ServerWriteReactor<v1::JobUpdate>* WatchHub::Open(grpc::CallbackServerCont
                              " watches are open, the budget watchers_total = " + std::to_string(total_) +
                              " (pf-coordinator --limit watchers_total=N); retry later");
       else
-        sessions_.emplace(request.job_id(), Entry{client, session});
+        sessions_.emplace(job_id, Entry{client, session});
     }
   }
   if (!over_budget.ok()) {

@@ -416,6 +416,7 @@ RecoveryReport RecoverJobs(JobStore& db, const SceneCatalog& scenes, const fs::p
       report.acknowledged_lost += acknowledged_lost;
     }
     job->RestoreState(row.state, row.failure_reason, now);
+    job->paused = row.paused;  // AddJob holds its tasks back (docs/farm.md "Pausing a job")
     // A restart's time budget starts anew (Job::Restart): the row's time is the dropped epoch's.
     job->RestoreElapsed(rerender || restart_from_checkpoint ? 0.0 : row.elapsed_seconds);
     if (rerender) job->row_dirty = true;  // stored as QUEUED again

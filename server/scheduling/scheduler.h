@@ -224,6 +224,10 @@ class Scheduler final : public PersistSource {
   JobPage ListPage(bool include_finished, uint64_t after_seq, size_t limit);
   // Cancels queued and leased tasks; idempotent for finished jobs (returns their status).
   photonfarm::v1::JobStatus Cancel(const std::string& job_id);
+  // Pauses (no new leases; leases in flight finish and are merged) or resumes a queued or running
+  // job; idempotent. PreconditionError naming the state for a finished job. In memory only: the
+  // caller stores the flag (JobStore::SetJobPaused; docs/farm.md "Pausing a job").
+  photonfarm::v1::JobStatus SetPaused(const std::string& job_id, bool paused);
   JobSnapshot Snapshot(const std::string& job_id, bool with_image);
   // Queued and running jobs, their tasks and pixels, and how many of them `client` submitted
   // (Job::client). O(1).

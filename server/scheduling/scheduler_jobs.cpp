@@ -8,6 +8,7 @@
 
 #include "common/core/error.h"
 #include "proto/limits.h"
+#include "server/errors.h"
 #include "server/scheduling/scheduler.h"
 #include "server/scheduling/stop_rules.h"
 
@@ -67,6 +68,7 @@ void Scheduler::AddJob(std::unique_ptr<Job> job) {
     j.samples_merged = acc ? acc->samples_merged() : j.stored_samples_merged;
     if (j.active()) {
       Charge(j, +1);
+      if (j.paused) queue_.Hold(j);  // recovery: paused before the restart (docs/farm.md "Pausing a job")
       for (uint64_t id = 0; id < j.num_tasks(); ++id)
         if (j.runtime(id).state == TaskState::kQueued) Enqueue(j, id, fx);
       AddTasksFromSource(j, fx);  // recovery: the tasks the merged results had created
@@ -106,6 +108,7 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
                           ? job.results_storage_error
                           : job.results_storage_error + "; " + job.rows_storage_error);
   s.set_paused_for_storage(job.paused_for_storage);
+  s.set_paused(job.paused && job.active());
   // Progress and ETA count work (Job::task_work: tasks, or the hierarchical plan's pixel samples and
   // maps), including what the plan's task source expects to create (its localization tasks).
   // As of the last merge (the hierarchical source reads the accumulator, guarded by image_mu).
@@ -147,7 +150,9 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
 
 Job& Scheduler::FindJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
-  return jobs_.Get(job_id);  // jobs are never removed: the reference outlives the lock
+  // An id or a unique prefix of one (JobRegistry::Resolve). Jobs are never removed: the reference
+  // outlives the lock.
+  return jobs_.Get(jobs_.Resolve(job_id));
 }
 
 void Scheduler::RefreshNoise(Job& job) {
@@ -226,6 +231,32 @@ v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
   }
   Run(fx);
   RefreshNoise(job);  // the final estimate
+  std::lock_guard lock(mu_);
+  return BuildStatus(job, clock_.Now());
+}
+
+v1::JobStatus Scheduler::SetPaused(const std::string& job_id, bool paused) {
+  Effects fx;
+  Job& job = FindJob(job_id);
+  {
+    std::lock_guard lock(mu_);
+    if (!job.active())
+      throw PreconditionError("job_id: job " + limits::Quote(job.id()) + " is " + JobStateName(job.state()) +
+                              ": only a queued or running job can be " + (paused ? "paused" : "resumed"));
+    if (job.paused != paused) {
+      job.paused = paused;
+      if (paused) {
+        queue_.Hold(job);  // leases in flight finish and are merged; nothing new is leased
+        spdlog::info("job {}: paused: no new leases until it is resumed ({} tasks still running)", job.id(),
+                     job.count(TaskState::kLeased));
+      } else {
+        spdlog::info("job {}: resumed", job.id());
+        if (!job.held() && queue_.Unhold(job)) ServeWaiters(fx);
+      }
+      fx.changed.insert(job.id());
+    }
+  }
+  Run(fx);
   std::lock_guard lock(mu_);
   return BuildStatus(job, clock_.Now());
 }

@@ -112,7 +112,7 @@ void Scheduler::CheckpointStored(const Checkpoint& cp, const CheckpointSeal& sea
       job->restart_checkpoint_seq = 0;
       if (!job->restart_pending() && job->active()) job->RestartClock(clock_.Now());
     }
-    if (!job->paused_for_storage && !job->restart_pending() && queue_.Unhold(*job)) {
+    if (!job->held() && queue_.Unhold(*job)) {
       spdlog::info("job {}: resumed: its results can be stored{}", job->id(),
                    job->epoch() > 0 ? " and its restart is stored" : "");
       ServeWaiters(fx);
@@ -265,7 +265,7 @@ void Scheduler::RowsStored(const RowBatch& rows) {
       if (job->restart_row_pending && row.epoch == job->epoch()) {
         job->restart_row_pending = false;
         if (!job->restart_pending() && job->active()) job->RestartClock(clock_.Now());
-        if (!job->paused_for_storage && !job->restart_pending() && queue_.Unhold(*job)) {
+        if (!job->held() && queue_.Unhold(*job)) {
           spdlog::info("job {}: its restart is stored: leasing again", job->id());
           ServeWaiters(fx);
         }

@@ -46,6 +46,9 @@ struct JobRow {
   // (docs/farm.md, "Result verification"): recovery keeps both.
   uint32_t epoch = 0;
   std::string convicted = {};
+  // Paused by a user (PauseJob, docs/farm.md "Pausing a job"): written by JobStore::SetJobPaused
+  // only, read by recovery.
+  bool paused = false;
 };
 
 struct TaskRow {

@@ -186,6 +186,8 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
   AddColumnIfMissing("jobs", "checkpoint_digest", "TEXT NOT NULL DEFAULT ''");
   AddColumnIfMissing("jobs", "epoch", "INTEGER NOT NULL DEFAULT 0");
   AddColumnIfMissing("jobs", "convicted", "TEXT NOT NULL DEFAULT ''");
+  // … and before pf pause jobs.paused (none paused).
+  AddColumnIfMissing("jobs", "paused", "INTEGER NOT NULL DEFAULT 0");
 }
 
 SqliteStore::~SqliteStore() {
@@ -311,7 +313,7 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
   Statement st(
       db_,
       "SELECT id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds, samples_merged, "
-      "noise_rms, checkpoint_tasks, checkpoint_digest, epoch, convicted FROM jobs ORDER BY seq");
+      "noise_rms, checkpoint_tasks, checkpoint_digest, epoch, convicted, paused FROM jobs ORDER BY seq");
   while (st.Step()) {
     JobRow j;
     j.job_id = st.ColText(0);
@@ -327,6 +329,7 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
     j.checkpoint.digest = DigestFromText(st.ColText(10));
     j.epoch = uint32_t(st.ColInt(11));
     j.convicted = st.ColText(12);
+    j.paused = st.ColInt(13) != 0;
     out.push_back(std::move(j));
   }
   return out;
@@ -357,6 +360,19 @@ uint64_t SqliteStore::CountTasks(const std::string& job_id, TaskState state) {
   Statement st(db_, "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND state = ?2");
   st.Text(1, job_id).Int(2, int(state));
   return st.Step() ? uint64_t(st.ColInt(0)) : 0;
+}
+
+void SqliteStore::DeleteJob(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  Transaction tx(db_);
+  Statement(db_, "DELETE FROM tasks WHERE job_id = ?1").Text(1, job_id).Run();
+  Statement(db_, "DELETE FROM jobs WHERE id = ?1").Text(1, job_id).Run();
+  tx.Commit();
+}
+
+void SqliteStore::SetJobPaused(const std::string& job_id, bool paused) {
+  std::lock_guard lock(mu_);
+  Statement(db_, "UPDATE jobs SET paused = ?2 WHERE id = ?1").Text(1, job_id).Int(2, paused ? 1 : 0).Run();
 }
 
 }  // namespace pf::server

@@ -50,6 +50,8 @@ class SqliteStore final : public JobStore {
   std::vector<JobRow> LoadJobs() override;
   std::vector<TaskRow> LoadTasks(const std::string& job_id) override;
   uint64_t CountTasks(const std::string& job_id, TaskState state) override;
+  void DeleteJob(const std::string& job_id) override;
+  void SetJobPaused(const std::string& job_id, bool paused) override;
 
  private:
   void Exec(const char* sql);

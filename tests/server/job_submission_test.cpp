@@ -47,6 +47,8 @@ class MemoryJobStore final : public JobStore {
   std::vector<JobRow> LoadJobs() override { return jobs; }
   std::vector<TaskRow> LoadTasks(const std::string&) override { return {}; }
   uint64_t CountTasks(const std::string&, TaskState) override { return 0; }
+  void DeleteJob(const std::string&) override { throw std::logic_error("not used by admission"); }
+  void SetJobPaused(const std::string&, bool) override { throw std::logic_error("not used by admission"); }
 };
 
 class JobSubmissionTest : public ::testing::Test {

@@ -97,6 +97,27 @@ TEST(SqliteStore, RowsSurviveReopening) {
   EXPECT_EQ(tasks[2].state, TaskState::kDone);
 }
 
+// A deleted job's rows are gone after reopening (a restart never brings it back); the other
+// job keeps its rows, and deleting an unknown id changes nothing.
+TEST(SqliteStore, DeletedJobsDoNotComeBackAfterReopening) {
+  TempDir dir;
+  const fs::path file = dir.path() / "coordinator.db";
+  {
+    SqliteStore db(file);
+    db.InsertJob({"job-1", 1, "s1", JobState::kQueued, "", 42, 0}, {Row("job-1", 0), Row("job-1", 1)});
+    db.InsertJob({"job-2", 2, "s2", JobState::kQueued, "", 43, 0}, {Row("job-2", 0)});
+    db.DeleteJob("job-1");
+    db.DeleteJob("job-unknown");
+  }
+  SqliteStore db(file);
+  const auto jobs = db.LoadJobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].job_id, "job-2");
+  EXPECT_TRUE(db.LoadTasks("job-1").empty());
+  EXPECT_EQ(db.CountTasks("job-1", TaskState::kQueued), 0u);
+  EXPECT_EQ(db.LoadTasks("job-2").size(), 1u);
+}
+
 // Scenes.max_emission (the result bound's scale) is added to databases made before it
 // existed; their scenes read back as -1 (unknown: jobs of them get no upper bound), new ones
 // keep their value.
