@@ -482,6 +482,55 @@ TEST_F(RenderServiceTest, UnknownJobsAreNotFound) {
   EXPECT_EQ(wreader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
 }
 
+// A unique prefix of an id (without "job-") works in every RPC that takes one and the answers name
+// the whole id; the image and the events are the job's (docs/farm.md "Job ids").
+TEST_F(RenderServiceTest, AUniqueIdPrefixWorksInEveryJobRpc) {
+  v1::SubmitJobResponse submitted;
+  ASSERT_TRUE(Submit(ValidSpec(), &submitted).ok());
+  const std::string id = submitted.job_id();
+  const std::string prefix = id.substr(4, 8);
+  v1::CancelJobRequest cancel;  // finished: its image is served from the checkpoint
+  cancel.set_job_id(prefix);
+  v1::CancelJobResponse cancelled;
+  grpc::Status st = live_->render->CancelJob(Ctx().get(), cancel, &cancelled);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(cancelled.status().job_id(), id);
+  v1::GetJobRequest get;
+  get.set_job_id(prefix);
+  v1::JobStatus status;
+  st = live_->render->GetJob(Ctx().get(), get, &status);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(status.job_id(), id);
+  EXPECT_EQ(status.state(), v1::JOB_STATE_CANCELLED);
+  v1::ListJobEventsRequest events;
+  events.set_job_id(prefix);
+  v1::ListJobEventsResponse ev;
+  st = live_->render->ListJobEvents(Ctx().get(), events, &ev);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  v1::WatchJobRequest watch;
+  watch.set_job_id(prefix);
+  auto wctx = Ctx();
+  auto wreader = live_->render->WatchJob(wctx.get(), watch);
+  v1::JobUpdate update;
+  ASSERT_TRUE(wreader->Read(&update));
+  EXPECT_EQ(update.status().job_id(), id);
+  while (wreader->Read(&update)) {
+  }
+  EXPECT_TRUE(wreader->Finish().ok());
+  for (const std::string& typed : {prefix, "job-" + prefix}) {
+    v1::GetImageRequest img;
+    img.set_job_id(typed);
+    auto ctx = Ctx();
+    auto reader = live_->render->GetImage(ctx.get(), img);
+    v1::ImageChunk chunk;
+    size_t chunks = 0;
+    while (reader->Read(&chunk)) ++chunks;
+    st = reader->Finish();
+    EXPECT_TRUE(st.ok()) << typed << ": " << st.error_message();
+    EXPECT_GT(chunks, 0u);
+  }
+}
+
 // An 8000-byte job id was echoed into the error (the client saw RESOURCE_EXHAUSTED
 // for the oversized status); a 1 MiB lease id wrote a 1 MiB log line per call. Ids are checked
 // at the edge: bounded, printable, and never echoed in full.
