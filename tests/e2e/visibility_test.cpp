@@ -79,7 +79,7 @@ TEST(Visibility, WorkersAndEventsShowWhoRanWhatAndTheRetries) {
   r = RunCommand(Concat({Binaries::Pf(), "events", id}, at), dir.path());
   EXPECT_NE(r.out.find("rejected"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("w1"), std::string::npos) << r.out;
-  r = RunCommand(Concat({Binaries::Pf(), "events", "job-999"}, at), dir.path());
+  r = RunCommand(Concat({Binaries::Pf(), "events", "job-unknown"}, at), dir.path());
   EXPECT_EQ(r.exit_code, 3) << r.err;
 }
 

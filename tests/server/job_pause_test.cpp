@@ -63,7 +63,7 @@ TEST_F(PauseSchedulerTest, OnlyAQueuedOrRunningJobPauses) {
   } catch (const PreconditionError& e) {
     EXPECT_THAT(e.what(), HasSubstr("CANCELLED"));
   }
-  EXPECT_THROW(scheduler_.SetPaused("job-999", true), NotFoundError);
+  EXPECT_THROW(scheduler_.SetPaused("job-unknown", true), NotFoundError);
 }
 
 class PauseRpcTest : public testing::LiveCoordinatorTest {
