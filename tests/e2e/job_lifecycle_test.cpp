@@ -81,7 +81,8 @@ TEST(JobLifecycle, APausedJobStaysPausedAcrossACoordinatorRestart) {
   ASSERT_EQ(Pf(dir, address, {"pause", id}).exit_code, 0);
   coordinator->process().Signal(SIGTERM);
   ASSERT_TRUE(coordinator->process().Wait(20).has_value());
-  coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), std::vector<std::string>{}, port);
+  coordinator =
+      std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), std::vector<std::string>{}, port);
 
   auto worker = StartWorker(address, dir.path(), "w1");
   const fs::path log = dir / "w1.log";
