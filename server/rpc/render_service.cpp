@@ -81,8 +81,11 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
     reactor->Finish(admitted);
     return reactor;
   }
+  // The reservation is released before the answer is sent: a client that uploads again as soon
+  // as it has the answer must find its slot free (the lambda that holds it may be destroyed
+  // only after the answer has left).
   const bool posted = api_.executor().Post([this, reactor, request, response, upload] {
-    reactor->Finish(Guarded("UploadScene", [&] {
+    const grpc::Status status = Guarded("UploadScene", [&] {
       if (request->bundle().files_size() == 0)
         throw InputError("bundle.files: at least one file is required");
       SceneBundle bundle;
@@ -96,9 +99,14 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
       response->set_lights(result.info.lights);
       for (const std::string& w : result.info.warnings) response->add_warnings(w);
       return grpc::Status::OK;
-    }));
+    });
+    upload->Release();
+    reactor->Finish(status);
   });
-  if (!posted) reactor->Finish(Busy());
+  if (!posted) {
+    upload->Release();
+    reactor->Finish(Busy());
+  }
   return reactor;
 }
 
