@@ -13,6 +13,7 @@
 #include "common/photon/photon_tracer.h"
 #include "common/plan/plan_choice.h"
 #include "common/plan/plan_factory.h"
+#include "common/render/progressive_radius.h"
 #include "common/render/render_settings_table.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
@@ -134,6 +135,11 @@ void CheckSettingArgs(const RenderArgs& a) {
   } catch (const InputError& e) {
     throw CLI::ValidationError(e.what());
   }
+  // The radius schedule is read only by a progressive plan's tasks (progressive_radius.h).
+  if (a.plan != "progressive")
+    for (const GivenSetting& g : SettingsGiven(a.settings))
+      if (g.name.starts_with(kProgressiveSettingPrefix))
+        throw CLI::ValidationError(g.source, "applies only with --plan progressive");
   // Who traces the maps is a farm setting; in one process they are traced here.
   if (!a.submit && a.workers == 0)
     for (const GivenSetting& g : SettingsGiven(a.settings))

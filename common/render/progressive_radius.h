@@ -10,6 +10,7 @@
 // (∝ r²) vanishes while the variance of the average still falls like p^−α (Knaus & Zwicker, §4.2).
 
 #include <cstdint>
+#include <string_view>
 
 #include "common/core/math.h"
 
@@ -19,6 +20,10 @@ struct JobRenderSettings;
 
 // Knaus & Zwicker's recommended α (§5: 2/3 balances the rates of bias and variance).
 inline constexpr double kDefaultProgressiveAlpha = 2.0 / 3.0;
+
+// The settings only the progressive plan's tasks read (progressive-alpha, progressive-radius) start
+// with this: with any other plan they do nothing, so pf refuses them and the coordinator warns.
+inline constexpr std::string_view kProgressiveSettingPrefix = "progressive-";
 
 // r_p² / r_1² for 0-based pass p (the product above, in double).
 double ProgressiveRadiusFactor2(double alpha, uint64_t pass);

@@ -10,6 +10,7 @@
 
 #include "common/core/error.h"
 #include "common/plan/plan_choice.h"
+#include "common/render/progressive_radius.h"
 #include "common/render/render_settings_rules.h"
 #include "proto/convert.h"
 #include "server/errors.h"
@@ -146,6 +147,11 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
     if (!job.auto_choices.empty()) SettingsToProto(job.settings, job.spec.mutable_settings());
   }
   job.plan = PlanFromProto(accepted.plan(), "spec.plan");
+  if (job.plan.kind != PlanKind::kProgressive)
+    for (const std::string& name : NonDefaultSettings(job.settings))
+      if (name.starts_with(kProgressiveSettingPrefix))
+        spdlog::warn("job {}: setting {} applies only to the progressive plan",
+                     limits::Quote(accepted.name()), name);
   try {
     ValidatePlan(job.plan, job.camera.width, job.camera.height);
   } catch (const LimitError&) {

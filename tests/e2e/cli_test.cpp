@@ -114,6 +114,19 @@ TEST(Cli, BogusLogLevelIsAUsageError) {
   EXPECT_EQ(r.exit_code, 2) << r.err;
 }
 
+// The radius schedule is read only by the progressive plan: with another plan pf refuses it
+// (exit 2, naming the setting) instead of rendering as if it had not been given.
+TEST(Cli, ProgressiveSettingsWithAnotherPlanAreRefused) {
+  TestDir dir;
+  RunResult r = RunCommand({Binaries::Pf(), "render", Binaries::Scene(), "--integrator", "photonmap", "--set",
+                            "progressive-alpha=0.5", "-q", "-o", (dir / "x.exr").string()},
+                           dir.path(), 30);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("progressive-alpha"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--plan progressive"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "x.exr"));
+}
+
 TEST(Cli, CoordinatorAddressWithoutPortIsRefused) {
   TestDir dir;
   // gRPC would read "localhost" as localhost:443 and retry "nonsense" forever.
