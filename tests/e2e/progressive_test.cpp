@@ -7,24 +7,20 @@
 namespace pf::e2e {
 namespace {
 
-std::vector<std::string> ProgressiveFlags(const std::string& plan) {
-  return {"--integrator", "photonmap", "--photons", "2000",   "--k",    "20",     "--plan",
-          plan,           "--passes",  "3",         "--maps", "3",      "--tile", "16",
-          "--spp",        "1",         "--res",     "33x33",  "--seed", "5"};
+// The same job under `plan`, whose number of maps is given by `count_flag` (--passes for the
+// progressive plan, --maps for multiple maps).
+std::vector<std::string> Flags(const std::string& plan, const std::string& count_flag) {
+  return {"--integrator", "photonmap", "--photons", "2000", "--k",   "20",    "--plan", plan, count_flag, "3",
+          "--tile",       "16",        "--spp",     "1",    "--res", "33x33", "--seed", "5"};
 }
 
 TEST(ProgressiveFarm, BitIdenticalForOneAndTwoWorkersAndLocal) {
   TestDir dir;
-  std::vector<std::string> flags = ProgressiveFlags("progressive");
-  // --maps is a multiple-maps flag: the progressive plan reads --passes.
-  flags.erase(flags.begin() + 10, flags.begin() + 12);
+  const std::vector<std::string> flags = Flags("progressive", "--passes");
   const Image reference = RenderLocallyToImage(dir, flags);
   ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
   ExpectLocalFarmsBitIdentical(dir, flags, reference, {1, 2}, "farm-");
-
-  std::vector<std::string> multiple = ProgressiveFlags("multiple-maps");
-  multiple.erase(multiple.begin() + 8, multiple.begin() + 10);
-  EXPECT_FALSE(BitIdentical(RenderLocallyToImage(dir, multiple), reference))
+  EXPECT_FALSE(BitIdentical(RenderLocallyToImage(dir, Flags("multiple-maps", "--maps")), reference))
       << "the progressive passes rendered like multiple maps";
 }
 
