@@ -148,6 +148,14 @@ bool IntersectClosest(RTCScene scene, const Ray& ray, RTCRayHit* rh) {
   return rh->hit.geomID != RTC_INVALID_GEOMETRY_ID;
 }
 
+// The texture coordinates at barycentrics (u, v) of a triangle (scene.uvs non-empty).
+TextureCoordinates InterpolatedUv(const SceneDescription& s, const std::array<uint32_t, 3>& tri, float u,
+                                  float v) {
+  const float w = 1.0f - u - v;
+  const TextureCoordinates &a = s.uvs[tri[0]], &b = s.uvs[tri[1]], &c = s.uvs[tri[2]];
+  return {a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
+}
+
 }  // namespace
 
 bool EmbreeScene::InterpolatedNormal(uint32_t triangle, float u, float v, const Vec3& ng, Vec3* n) const {
@@ -186,6 +194,7 @@ std::optional<SurfaceHit> EmbreeScene::Intersect(const Ray& ray) const {
       !InterpolatedNormal(hit.triangle, rh.hit.u, rh.hit.v, hit.geometric_normal, &hit.shading_normal))
     hit.shading_normal = hit.geometric_normal;
   hit.material = s.triangle_material[hit.triangle];
+  if (!s.uvs.empty()) hit.uv = InterpolatedUv(s, tri, rh.hit.u, rh.hit.v);
   hit.light = s.triangle_light.empty() ? kNoLight : s.triangle_light[hit.triangle];
   return hit;
 }
@@ -203,6 +212,7 @@ bool EmbreeScene::IntersectWalk(const Ray& ray, WalkHit* hit) const {
                                                                hit->geometric_normal, &hit->shading_normal);
   if (!hit->interpolated) hit->shading_normal = hit->geometric_normal;
   hit->material = s.triangle_material[triangle];
+  if (!s.uvs.empty()) hit->uv = InterpolatedUv(s, tri, rh.hit.u, rh.hit.v);
   return true;
 }
 

@@ -13,6 +13,7 @@
 #endif
 
 #include "common/core/math.h"
+#include "common/scene/texture.h"
 
 namespace pf {
 
@@ -32,6 +33,7 @@ struct SurfaceHit {
   uint32_t material = 0;
   uint32_t light = 0xffffffffu;  // kNoLight unless the triangle emits
   bool front_face = true;        // the ray arrived on the front side
+  TextureCoordinates uv{};       // interpolated; (0, 0) when the scene has none (texture.h)
 };
 
 // What a particle walk (the photon walk of Wald 1999, §2.2) reads of a hit: SurfaceHit's fields
@@ -43,6 +45,7 @@ struct WalkHit {
   Vec3 shading_normal;
   uint32_t material = 0;
   bool interpolated = false;  // shading_normal came from vertex normals (else it is ng, bit for bit)
+  TextureCoordinates uv{};    // as SurfaceHit's
 };
 
 // The next float above / below a finite v, by its bits (std::nextafter is a libm call; this is

@@ -5,9 +5,13 @@
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <memory>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include "common/core/error.h"
 #include "common/image/exr_io.h"
@@ -48,29 +52,53 @@ Image ToImage(const T* data, int width, int height, int channels, Decode decode)
   return image;
 }
 
-Image ReadWithStb(const std::filesystem::path& path) {
-  const std::string name = path.string();
+// PNG, JPEG or Radiance HDR bytes through stb_image; `path` names them in messages.
+Image DecodeWithStb(const unsigned char* bytes, size_t size, const std::filesystem::path& path) {
+  if (size > size_t(std::numeric_limits<int>::max())) Fail(path, "the image file is too large to decode");
+  const int n = int(size);
   int width = 0, height = 0, channels = 0;
   // The header alone first: an oversized image is refused before its pixels are decoded.
-  if (!stbi_info(name.c_str(), &width, &height, &channels))
+  if (!stbi_info_from_memory(bytes, n, &width, &height, &channels))
     Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
   CheckSize(path, width, height);
-  if (stbi_is_hdr(name.c_str())) {
-    const std::unique_ptr<float, StbFree> data(stbi_loadf(name.c_str(), &width, &height, &channels, 0));
+  if (stbi_is_hdr_from_memory(bytes, n)) {
+    const std::unique_ptr<float, StbFree> data(
+        stbi_loadf_from_memory(bytes, n, &width, &height, &channels, 0));
     if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
     return ToImage(data.get(), width, height, channels, [](float v) { return v; });
   }
-  if (stbi_is_16_bit(name.c_str())) {
-    const std::unique_ptr<stbi_us, StbFree> data(stbi_load_16(name.c_str(), &width, &height, &channels, 0));
+  if (stbi_is_16_bit_from_memory(bytes, n)) {
+    const std::unique_ptr<stbi_us, StbFree> data(
+        stbi_load_16_from_memory(bytes, n, &width, &height, &channels, 0));
     if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
     return ToImage(data.get(), width, height, channels, [](stbi_us v) {
       const float c = float(v) / 65535.0f;
       return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
     });
   }
-  const std::unique_ptr<stbi_uc, StbFree> data(stbi_load(name.c_str(), &width, &height, &channels, 0));
+  const std::unique_ptr<stbi_uc, StbFree> data(
+      stbi_load_from_memory(bytes, n, &width, &height, &channels, 0));
   if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
   return ToImage(data.get(), width, height, channels, SrgbToLinear8);
+}
+
+Image ReadWithStb(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                         std::istreambuf_iterator<char>());
+  if (!in.good() && !in.eof()) Fail(path, "cannot read the image file");
+  return DecodeWithStb(bytes.data(), bytes.size(), path);
+}
+
+// Every pixel a finite non-negative colour (an EXR or HDR can hold anything).
+void CheckPixels(const Image& image, const std::filesystem::path& path) {
+  for (int y = 0; y < image.height(); ++y)
+    for (int x = 0; x < image.width(); ++x) {
+      const Rgb& c = image.at(x, y);
+      if (!c.IsFinite() || c[0] < 0.0f || c[1] < 0.0f || c[2] < 0.0f)
+        Fail(path, "pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                       ") is not a finite non-negative colour");
+    }
 }
 
 }  // namespace
@@ -104,13 +132,14 @@ Image ReadLinearImage(const std::filesystem::path& path) {
   } else {
     Fail(path, "unsupported image extension '" + ext + "' (supported: .hdr, .exr, .png, .jpg, .jpeg)");
   }
-  for (int y = 0; y < image.height(); ++y)
-    for (int x = 0; x < image.width(); ++x) {
-      const Rgb& c = image.at(x, y);
-      if (!c.IsFinite() || c[0] < 0.0f || c[1] < 0.0f || c[2] < 0.0f)
-        Fail(path, "pixel (" + std::to_string(x) + ", " + std::to_string(y) +
-                       ") is not a finite non-negative colour");
-    }
+  CheckPixels(image, path);
+  return image;
+}
+
+Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name) {
+  if (size == 0) Fail(name, "the image holds no bytes");
+  Image image = DecodeWithStb(bytes, size, name);
+  CheckPixels(image, name);
   return image;
 }
 

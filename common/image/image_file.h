@@ -7,7 +7,9 @@
 // 8-bit and 16-bit PNG/JPEG are sRGB-encoded (IEC 61966-2-1) and decoded to linear; .hdr and .exr
 // are linear already. Alpha is dropped; grey images are replicated to R = G = B.
 
+#include <cstddef>
 #include <filesystem>
+#include <string>
 
 #include "common/image/image.h"
 
@@ -21,6 +23,11 @@ inline constexpr int kMaxImageFileSide = 16384;
 // or truncated file, a side above kMaxImageFileSide, a pixel that is not a finite non-negative
 // colour (NaN, ±inf or negative values an EXR can hold).
 Image ReadLinearImage(const std::filesystem::path& path);
+
+// The same for an image held in memory (a glTF image in a buffer or a data: URI): PNG, JPEG or
+// Radiance HDR, recognised by content; `name` stands for the file in messages
+// ("scene.glb: images[0]").
+Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name);
 
 // The sRGB transfer function's inverse for one 8-bit code value (exact table lookup).
 float SrgbToLinear8(unsigned char code);

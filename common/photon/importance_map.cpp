@@ -13,6 +13,7 @@
 #include "common/materials/bsdf.h"
 #include "common/photon/photon_map_factory.h"
 #include "common/sampling/sample_layout.h"
+#include "common/scene/surface_material.h"
 
 namespace pf {
 
@@ -57,7 +58,8 @@ void TraceImporton(const EmbreeScene& scene, const Camera& camera, const Importa
   for (int bounce = 0; bounce < 64; ++bounce) {
     const std::optional<SurfaceHit> hit = scene.Intersect(ray);
     if (!hit) return;
-    const Material& m = desc.materials[hit->material];
+    Material textured;
+    const Material& m = MaterialAt(desc, hit->material, hit->uv, &textured);
     const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
     if (bsdf.HasDiffuse()) {

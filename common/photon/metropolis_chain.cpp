@@ -1,4 +1,5 @@
 #include "common/photon/metropolis_chain.h"
+#include "common/scene/surface_material.h"
 
 #include <algorithm>
 #include <cmath>
@@ -43,7 +44,8 @@ bool TraceChain(const EmbreeScene& scene, const ChainStart& c, const ChainState&
     const std::optional<SurfaceHit> hit = scene.Intersect(ray);
     if (!hit) return i == n && like.escaped;
     if (i == n && like.escaped) return false;
-    const Material& m = desc.materials[hit->material];
+    Material textured;
+    const Material& m = MaterialAt(desc, hit->material, hit->uv, &textured);
     const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
     if (i >= 1 && bsdf.HasDiffuse())

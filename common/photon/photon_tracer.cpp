@@ -19,6 +19,7 @@
 #include "common/materials/bsdf.h"
 #include "common/photon/metropolis_chain.h"
 #include "common/sampling/sample_layout.h"
+#include "common/scene/surface_material.h"
 
 namespace pf {
 
@@ -312,10 +313,24 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   const uint32_t light = em.light;
   bool any_singular_since_diffuse = false;
   WalkHit hit;
+  // A textured material's lobes and roulette depend on the hit (surface_material.h): made per hit.
+  Material textured;
+  BsdfLobes textured_lobes;
+  WalkRoulette textured_roulette;
   for (int bounce = 0; bounce < o.max_bounces; ++bounce) {
     ++out.rays;
     if (!scene.IntersectWalk(ray, &hit)) return;
-    const WalkRoulette& roulette = shared.walk[hit.material];
+    const Material* material = &desc.materials[hit.material];
+    const BsdfLobes* lobes = &shared.lobes[hit.material];
+    const WalkRoulette* walk = &shared.walk[hit.material];
+    if (IsTextured(*material)) {
+      material = &MaterialAt(desc, hit.material, hit.uv, &textured);
+      textured_lobes = BsdfLobes::Of(textured);
+      textured_roulette = WalkRoulette::Of(textured, textured_lobes);
+      lobes = &textured_lobes;
+      walk = &textured_roulette;
+    }
+    const WalkRoulette& roulette = *walk;
     const Vec3 wo = -ray.direction;
     if (roulette.Stores(hit.geometric_normal)) {
       Rgb stored_power = power;
@@ -337,8 +352,7 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
       weight = roulette.diffuse_weight;
       lobe = kLobeDiffuseReflection;
     } else {
-      const Bsdf bsdf(desc.materials[hit.material], shared.lobes[hit.material], hit.shading_normal,
-                      hit.geometric_normal);
+      const Bsdf bsdf(*material, *lobes, hit.shading_normal, hit.geometric_normal);
       const std::optional<BsdfSample> s = bsdf.Sample(wo, ul, u.u, u.v, Bsdf::Mode::kRussianRoulette);
       if (!s) return;  // absorbed
       wi = s->wi;
@@ -430,8 +444,11 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
       end_chain(true);
       return;
     }
-    const Material& m = desc.materials[hit->material];
-    const Bsdf bsdf(m, shared.lobes[hit->material], hit->shading_normal, hit->geometric_normal);
+    Material textured;
+    const Material& m = MaterialAt(desc, hit->material, hit->uv, &textured);
+    const Bsdf bsdf = IsTextured(desc.materials[hit->material])
+                          ? Bsdf(m, hit->shading_normal, hit->geometric_normal)
+                          : Bsdf(m, shared.lobes[hit->material], hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;
     Rgb stored_power = power;
     // (Metropolis splitting and importance-driven storing are never combined: TracePhotons.)

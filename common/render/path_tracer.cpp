@@ -3,6 +3,7 @@
 #include "common/estimators/direct_light.h"
 #include "common/materials/bsdf.h"
 #include "common/sampling/sample_layout.h"
+#include "common/scene/surface_material.h"
 
 namespace pf {
 namespace {
@@ -41,7 +42,8 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
       }
       break;
     }
-    const Material& material = desc.materials[hit->material];
+    Material textured;
+    const Material& material = MaterialAt(desc, hit->material, hit->uv, &textured);
     const PathVertexSlots slots = SlotsOfVertex(depth);
 
     // Emission seen by the BSDF-sampled ray, MIS-weighted against light sampling.

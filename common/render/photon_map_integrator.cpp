@@ -6,6 +6,7 @@
 
 #include "common/core/error.h"
 #include "common/materials/bsdf.h"
+#include "common/scene/surface_material.h"
 
 namespace pf {
 namespace {
@@ -221,7 +222,8 @@ Rgb PhotonMapIntegrator::GatherRays(const Bsdf& bsdf, const SurfaceHit& hit, con
       *inverse_distance_sum += 1.0 / double(y->t);
       ++*hits;
     }
-    const Material& my = desc.materials[y->material];
+    Material textured;
+    const Material& my = MaterialAt(desc, y->material, y->uv, &textured);
     Rgb Ly(0.0f);
     if (!separate_direct && my.IsEmissive() && y->front_face) Ly += my.emission;
     const Bsdf by(my, y->shading_normal, y->geometric_normal);
@@ -288,7 +290,8 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
         radiance += throughput * desc.environment->Radiance(ray.direction);
       break;
     }
-    const Material& material = desc.materials[hit->material];
+    Material textured;
+    const Material& material = MaterialAt(desc, hit->material, hit->uv, &textured);
     const PathVertexSlots slots = SlotsOfVertex(depth);
     // Every path reaching here came from the camera through singular bounces only, so
     // emission (and the environment's, above) is never counted twice (diffuse bounces end the path in an

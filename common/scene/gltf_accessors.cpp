@@ -66,6 +66,45 @@ std::vector<Vec3d> ReadGltfVec3(const GltfDocument& doc, int accessor) {
   return out;
 }
 
+std::vector<std::array<float, 2>> ReadGltfTexCoords(const GltfDocument& doc, int accessor) {
+  const std::string where = "accessors[" + std::to_string(accessor) + "]";
+  size_t width = 0;  // bytes per component
+  if (accessor >= 0 && static_cast<size_t>(accessor) < doc.model->accessors.size()) {
+    const tinygltf::Accessor& a = doc.model->accessors[static_cast<size_t>(accessor)];
+    if (a.type == TINYGLTF_TYPE_VEC2 && a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT) width = 4;
+    if (a.type == TINYGLTF_TYPE_VEC2 && a.normalized &&
+        a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE)
+      width = 1;
+    if (a.type == TINYGLTF_TYPE_VEC2 && a.normalized &&
+        a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)
+      width = 2;
+    if (width == 0)
+      throw InputError(
+          SourceLocation{doc.file, 0},
+          where + ": texture coordinates must be VEC2 of FLOAT or normalized UNSIGNED_BYTE/SHORT");
+  }
+  const View view = Locate(doc, accessor, 2 * width);
+  std::vector<std::array<float, 2>> out(view.count);
+  for (size_t i = 0; i < view.count; ++i) {
+    const unsigned char* p = view.data + i * view.stride;
+    for (size_t c = 0; c < 2; ++c) {
+      float v = 0.0f;
+      if (width == 4) {
+        std::memcpy(&v, p + 4 * c, sizeof v);
+      } else if (width == 1) {
+        v = float(p[c]) / 255.0f;
+      } else {
+        v = float(uint32_t(p[2 * c]) | uint32_t(p[2 * c + 1]) << 8) / 65535.0f;  // little-endian
+      }
+      if (!std::isfinite(v))
+        throw InputError(SourceLocation{doc.file, 0},
+                         where + ": element " + std::to_string(i) + " is not finite (NaN or infinity)");
+      out[i][c] = v;
+    }
+  }
+  return out;
+}
+
 std::vector<uint32_t> ReadGltfIndices(const GltfDocument& doc, int accessor) {
   const std::string where = "accessors[" + std::to_string(accessor) + "]";
   size_t width = 0;

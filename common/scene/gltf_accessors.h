@@ -3,6 +3,7 @@
 // indices of any width. Every error names the file and the accessor ("scene.gltf: accessors[2]:
 // ..."); tinygltf has checked that buffers exist, not that a view or accessor stays inside them.
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -14,6 +15,10 @@ namespace pf {
 // A VEC3 FLOAT accessor (POSITION, NORMAL). Sparse accessors are refused. A NaN or an infinity
 // is an InputError naming the accessor and the element.
 std::vector<Vec3d> ReadGltfVec3(const GltfDocument& doc, int accessor);
+
+// A VEC2 accessor of texture coordinates (TEXCOORD_n, spec §3.7.2.1): FLOAT, or normalized
+// UNSIGNED_BYTE / UNSIGNED_SHORT. A non-finite element is an InputError naming it.
+std::vector<std::array<float, 2>> ReadGltfTexCoords(const GltfDocument& doc, int accessor);
 
 // A SCALAR UNSIGNED_BYTE / UNSIGNED_SHORT / UNSIGNED_INT accessor (primitive indices).
 std::vector<uint32_t> ReadGltfIndices(const GltfDocument& doc, int accessor);

@@ -66,9 +66,11 @@ bool ReadConfinedFile(std::vector<unsigned char>* out, std::string* err, const s
   return tinygltf::ReadWholeFile(out, err, path, nullptr);
 }
 
-// Images are kept as read, not decoded (gltf_document.h).
-bool KeepImageUndecoded(tinygltf::Image*, const int, std::string*, std::string*, int, int,
-                        const unsigned char*, int, void*) {
+// Images are kept as read (their encoded bytes in Image::image), not decoded: the textures a
+// material uses are decoded by gltf_textures.cpp, after their size is checked.
+bool KeepImageUndecoded(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
+                        const unsigned char* bytes, int size, void*) {
+  if (image && bytes && size > 0) image->image.assign(bytes, bytes + size);
   return true;
 }
 

@@ -14,8 +14,9 @@
 //
 // Files: external buffers and images (uri) resolve only inside the scene's root folder
 // (scene_reference.h), never in the process's working directory (tinygltf's fallback); a refused
-// buffer is an InputError naming the reference. Images are read but never decoded: textures are
-// not applied yet (gltf_materials.h), and a 100k x 100k texture must not cost gigabytes.
+// buffer is an InputError naming the reference. Images are kept encoded (tinygltf::Image::image
+// holds the file's bytes): gltf_textures.h decodes those a material uses, after checking their
+// size, so a 100k x 100k texture costs its compressed bytes, not gigabytes.
 
 #include <filesystem>
 #include <memory>

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <set>
 #include <string>
@@ -16,6 +17,7 @@
 #include "common/scene/gltf_document.h"
 #include "common/scene/gltf_lights.h"
 #include "common/scene/gltf_materials.h"
+#include "common/scene/gltf_textures.h"
 #include "common/scene/mgf_transform.h"
 #include "common/scene/scene_frame.h"
 
@@ -87,9 +89,21 @@ Vec3d UnitOrZero(const Vec3d& v) {
 class GltfSceneBuilder {
  public:
   GltfSceneBuilder(const GltfDocument& doc, const SceneBudget& budget, SceneDescription* scene)
-      : doc_(doc), m_(*doc.model), budget_(budget), scene_(scene), visited_(m_.nodes.size(), false) {
-    for (size_t i = 0; i < m_.materials.size(); ++i)
+      : doc_(doc),
+        m_(*doc.model),
+        budget_(budget),
+        scene_(scene),
+        visited_(m_.nodes.size(), false),
+        textures_(doc, scene) {
+    for (size_t i = 0; i < m_.materials.size(); ++i) {
       scene_->materials.push_back(MapGltfMaterial(m_.materials[i], i, doc_.file, &scene_->warnings));
+      const tinygltf::TextureInfo& base = m_.materials[i].pbrMetallicRoughness.baseColorTexture;
+      if (base.index < 0) continue;
+      const std::string where = Indexed("materials", i) + ".pbrMetallicRoughness.baseColorTexture";
+      scene_->materials.back().base_color_texture = textures_.Use(base.index, where);
+      if (base.texCoord < 0) Fail(where + ": texCoord must be >= 0");
+      texcoord_set_[uint32_t(i)] = base.texCoord;
+    }
   }
 
   // Every node of the scene's roots, depth first (an explicit stack: a hostile file may nest
@@ -130,6 +144,7 @@ class GltfSceneBuilder {
       if (ahead > 1.0 && std::isfinite(ahead)) c.look_at = c.eye + forward * ahead;
     }
     StoreInSceneFrame(world_, scene_);
+    if (!scene_->textures.empty()) scene_->uvs = std::move(uvs_);
     for (const Vec3& p : scene_->positions)
       if (!IsFinite(p)) Fail("a transformed vertex does not fit a 32-bit float");
     if (any_normal_) scene_->normals = std::move(normals_);
@@ -239,6 +254,7 @@ class GltfSceneBuilder {
              " vertices in the scene (SceneBudget::max_vertices)");
       const uint32_t material = MaterialIndex(where, prim.material);
 
+      AddTexCoords(where, prim, material, positions.size());
       const uint32_t base = uint32_t(world_.size());
       for (size_t v = 0; v < positions.size(); ++v) {
         world_.push_back(world.Point(positions[v]));
@@ -256,6 +272,30 @@ class GltfSceneBuilder {
         triangle_instance_.push_back(instance);
       }
     }
+  }
+
+  // The texture coordinates of a primitive's vertices, when the scene has textures: the set its
+  // material's texture reads (TEXCOORD_<texCoord>), (0, 0) for an untextured material; a textured
+  // material without its set gets (0, 0) and a warning (the texture's first texel then).
+  void AddTexCoords(const std::string& where, const tinygltf::Primitive& prim, uint32_t material,
+                    size_t count) {
+    if (scene_->textures.empty()) return;
+    const auto set = texcoord_set_.find(material);
+    if (set != texcoord_set_.end()) {
+      const std::string name = "TEXCOORD_" + std::to_string(set->second);
+      if (const auto it = prim.attributes.find(name); it != prim.attributes.end()) {
+        const std::vector<TextureCoordinates> uv =
+            Accessor(where, [&] { return ReadGltfTexCoords(doc_, it->second); });
+        if (uv.size() != count)
+          Fail(where + ": " + name + " has " + std::to_string(uv.size()) + " elements, POSITION " +
+               std::to_string(count));
+        uvs_.insert(uvs_.end(), uv.begin(), uv.end());
+        return;
+      }
+      WarnOnce(where + ": its material's texture reads " + name +
+               ", which the primitive lacks (the texture's corner is used)");
+    }
+    uvs_.resize(uvs_.size() + count, TextureCoordinates{0.0f, 0.0f});
   }
 
   // The first perspective camera in node order (gltf_loader.h): eye at the node's origin,
@@ -312,6 +352,9 @@ class GltfSceneBuilder {
   SceneDescription* scene_;
   std::vector<bool> visited_;
   std::set<std::string> warned_;
+  GltfTextures textures_;
+  std::map<uint32_t, int> texcoord_set_;  // a textured material's TEXCOORD_n
+  std::vector<TextureCoordinates> uvs_;   // one per world_ vertex when the scene has textures
   uint32_t default_material_ = kNoLight;  // "none yet"
   std::vector<Vec3d> world_;
   std::vector<Vec3> normals_;

@@ -30,10 +30,10 @@ bool HasExtensionTexture(const tinygltf::Material& m, const char* extension, con
   return it != m.extensions.end() && it->second.IsObject() && it->second.Has(key);
 }
 
-// The texture slots a material uses, in the spec's order.
-std::vector<std::string> TextureSlots(const tinygltf::Material& m) {
+// The texture slots a material uses that are not applied, in the spec's order (baseColorTexture
+// is: gltf_textures.h).
+std::vector<std::string> UnappliedTextureSlots(const tinygltf::Material& m) {
   std::vector<std::string> slots;
-  if (m.pbrMetallicRoughness.baseColorTexture.index >= 0) slots.push_back("baseColorTexture");
   if (m.pbrMetallicRoughness.metallicRoughnessTexture.index >= 0) slots.push_back("metallicRoughnessTexture");
   if (m.normalTexture.index >= 0) slots.push_back("normalTexture");
   if (m.occlusionTexture.index >= 0) slots.push_back("occlusionTexture");
@@ -70,11 +70,13 @@ Material MapGltfMaterial(const tinygltf::Material& g, size_t index, const std::s
         SourceLocation{file, 0},
         where + ": KHR_materials_ior.ior must be a number in [1, 10], got " + std::to_string(ior));
   // glTF's metallic-roughness model on pf's GGX lobes (metallic_roughness.h).
-  Material m = MetallicRoughnessMaterial(MetallicRoughness{.base_color = base,
-                                                           .metallic = metallic,
-                                                           .roughness = roughness,
-                                                           .transmission = transmission,
-                                                           .ior = float(ior)});
+  const MetallicRoughness params{.base_color = base,
+                                 .metallic = metallic,
+                                 .roughness = roughness,
+                                 .transmission = transmission,
+                                 .ior = float(ior)};
+  Material m = MetallicRoughnessMaterial(params);
+  m.metallic_roughness = params;
   m.name = g.name.empty() ? "materials[" + std::to_string(index) + "]" : g.name;
   if (g.emissiveFactor.size() >= 3) {
     if (!(strength >= 0.0))
@@ -90,12 +92,12 @@ Material MapGltfMaterial(const tinygltf::Material& g, size_t index, const std::s
   }
   m.one_sided = !g.doubleSided;
 
-  const std::vector<std::string> slots = TextureSlots(g);
+  const std::vector<std::string> slots = UnappliedTextureSlots(g);
   if (!slots.empty()) {
     std::string list;
     for (const std::string& s : slots) list += (list.empty() ? "" : ", ") + s;
-    warnings->push_back(file + ": " + where + ": textures are not applied yet: " + list +
-                        " (the factors alone are used)");
+    warnings->push_back(file + ": " + where + ": textures not applied: " + list +
+                        " (their factors alone are used; only baseColorTexture is applied)");
   }
   if (g.alphaMode != "OPAQUE" && !g.alphaMode.empty())
     warnings->push_back(file + ": " + where + ": alphaMode " + g.alphaMode +

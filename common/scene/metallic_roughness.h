@@ -3,21 +3,10 @@
 // Material with GGX lobes (materials/bsdf_microfacet.h), for scene loaders (glTF) to call.
 // docs/renderer.md, "Microfacet lobes", documents the mapping and what it approximates.
 
+#include "common/scene/metallic_roughness_params.h"
 #include "common/scene/scene.h"
 
 namespace pf {
-
-// The glTF parameters of one material (defaults: the specification's).
-struct MetallicRoughness {
-  Rgb base_color{1.0f};       // baseColorFactor (× texture), linear
-  float metallic = 1.0f;      // metallicFactor, [0, 1]
-  float roughness = 1.0f;     // roughnessFactor, [0, 1]; GGX α = roughness²
-  float transmission = 0.0f;  // KHR_materials_transmission, [0, 1]
-  float ior = 1.5f;           // KHR_materials_ior (> 0; 0 in the extension means 1.5 here)
-};
-
-// glTF's dielectric specular reflectance at normal incidence, ((ior − 1)/(ior + 1))² at 1.5.
-inline constexpr float kGltfDielectricF0 = 0.04f;
 
 // The Material (GGX conductor lobe + Lambertian lobe, or a GGX dielectric):
 //   F0 (ρs, Schlick) = 0.04·(1 − metallic) + base_color·metallic

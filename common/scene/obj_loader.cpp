@@ -5,17 +5,20 @@
 
 #include <tiny_obj_loader.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <regex>
 #include <sstream>
 #include <string_view>
 #include <unordered_map>
 
 #include "common/core/error.h"
+#include "common/image/image_file.h"
 #include "common/scene/scene_frame.h"
 #include "common/scene/scene_reference.h"
 
@@ -240,23 +243,25 @@ SceneExpansion ScanStatements(std::istream& in, const std::string& file, const S
   return counts;
 }
 
-// Output vertices, one per (position, normal) pair, numbered in first-use order. Almost every OBJ
-// gives a position one normal or none, so the first pair of each position is kept in flat
-// tables (8 bytes per position) and only further normals of a position go to a hash map.
+// Output vertices, one per (position, normal, texture coordinate) triple, numbered in first-use
+// order. Almost every OBJ gives a position one normal or none (and one `vt` or none), so the
+// first triple of each position is kept in flat tables (12 bytes per position) and only further
+// ones of a position go to a hash map.
 class VertexTable {
  public:
   static constexpr uint32_t kNone = 0xffffffffu;
-  explicit VertexTable(size_t positions) : first_(positions, kNone), first_normal_(positions, 0) {}
-  // The vertex of (position, normal + 1); `make` creates it (and returns its number) if absent.
+  explicit VertexTable(size_t positions) : first_(positions, kNone), first_attributes_(positions, 0) {}
+  // The vertex of (position, attributes: normal + 1 | (texcoord + 1) << 32); `make` creates it
+  // (and returns its number) if absent.
   template <typename Make>
-  uint32_t Find(uint32_t position, uint32_t normal_plus_one, Make make) {
+  uint32_t Find(uint32_t position, uint64_t attributes, Make make) {
     if (first_[position] == kNone) {
       first_[position] = make();
-      first_normal_[position] = normal_plus_one;
+      first_attributes_[position] = attributes;
       return first_[position];
     }
-    if (first_normal_[position] == normal_plus_one) return first_[position];
-    const uint64_t key = (uint64_t(position) << 32) | normal_plus_one;
+    if (first_attributes_[position] == attributes) return first_[position];
+    const Key key{position, attributes};
     const auto it = others_.find(key);
     if (it != others_.end()) return it->second;
     const uint32_t v = make();
@@ -265,8 +270,19 @@ class VertexTable {
   }
 
  private:
-  std::vector<uint32_t> first_, first_normal_;
-  std::unordered_map<uint64_t, uint32_t> others_;
+  struct Key {
+    uint32_t position;
+    uint64_t attributes;
+    bool operator==(const Key&) const = default;
+  };
+  struct KeyHash {
+    size_t operator()(const Key& k) const {
+      return std::hash<uint64_t>()(k.attributes * 0x9e3779b97f4a7c15ull ^ k.position);
+    }
+  };
+  std::vector<uint32_t> first_;
+  std::vector<uint64_t> first_attributes_;
+  std::unordered_map<Key, uint32_t, KeyHash> others_;
 };
 
 // The line of the first `mtllib` statement that names `reference` (0 if none is found).
@@ -294,6 +310,68 @@ MtlParameters FromTinyObj(const tinyobj::material_t& m) {
   p.d = float(m.dissolve);
   p.illum = m.illum;
   return p;
+}
+
+// The maps of a material this loader does not apply, named in its warning.
+std::vector<std::string> UnappliedMaps(const tinyobj::material_t& m) {
+  std::vector<std::string> maps;
+  const std::pair<const char*, const std::string*> slots[] = {{"map_Ka", &m.ambient_texname},
+                                                              {"map_Ks", &m.specular_texname},
+                                                              {"map_Ns", &m.specular_highlight_texname},
+                                                              {"bump", &m.bump_texname},
+                                                              {"disp", &m.displacement_texname},
+                                                              {"map_d", &m.alpha_texname},
+                                                              {"refl", &m.reflection_texname},
+                                                              {"map_Ke", &m.emissive_texname},
+                                                              {"map_Pr", &m.roughness_texname},
+                                                              {"map_Pm", &m.metallic_texname},
+                                                              {"norm", &m.normal_texname}};
+  for (const auto& [slot, name] : slots)
+    if (!name->empty()) maps.push_back(slot);
+  return maps;
+}
+
+// map_Kd of each material as an image texture (texture.h) multiplying Kd; the other maps are
+// warned about once per material. The image is resolved like an mtllib (scene_reference.h:
+// inside `root`, relative to the OBJ's folder) and read once however many materials use it.
+void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const std::filesystem::path& root,
+                     const std::filesystem::path& base_dir, const std::string& file,
+                     SceneDescription* scene) {
+  std::map<std::filesystem::path, std::shared_ptr<const Image>> images;
+  for (size_t i = 0; i < materials.size(); ++i) {
+    const tinyobj::material_t& tm = materials[i];
+    const std::string where = "material '" + tm.name + "'";
+    const std::vector<std::string> unapplied = UnappliedMaps(tm);
+    if (!unapplied.empty()) {
+      std::string list;
+      for (const std::string& m : unapplied) list += (list.empty() ? "" : ", ") + m;
+      scene->warnings.push_back(file + ": " + where + ": " + list + " not applied (only map_Kd is)");
+    }
+    if (tm.diffuse_texname.empty()) continue;
+    const std::string ref = "map_Kd " + QuoteReference(tm.diffuse_texname);
+    std::filesystem::path resolved;
+    const std::string problem = SceneReferenceProblem(root, base_dir, tm.diffuse_texname, &resolved);
+    if (!problem.empty()) throw InputError(SourceLocation{file, 0}, where + ": " + ref + " " + problem);
+    std::shared_ptr<const Image>& image = images[resolved];
+    if (!image) {
+      try {
+        image = std::make_shared<const Image>(ReadLinearImage(resolved));
+      } catch (const LimitError& e) {
+        throw LimitError(SourceLocation{file, 0}, where + ": " + ref + ": " + e.reason());
+      } catch (const InputError& e) {
+        throw InputError(SourceLocation{file, 0}, where + ": " + ref + ": " + e.reason());
+      }
+    }
+    const tinyobj::texture_option_t& opt = tm.diffuse_texopt;
+    if (opt.scale[0] != 1 || opt.scale[1] != 1 || opt.origin_offset[0] != 0 || opt.origin_offset[1] != 0)
+      scene->warnings.push_back(file + ": " + where + ": " + ref + ": options -s and -o are not applied");
+    Texture texture;
+    texture.source = tm.diffuse_texname;
+    texture.image = image;
+    texture.wrap_u = texture.wrap_v = opt.clamp ? TextureWrap::kClampToEdge : TextureWrap::kRepeat;
+    scene->materials[i].base_color_texture = int32_t(scene->textures.size());
+    scene->textures.push_back(std::move(texture));
+  }
 }
 
 }  // namespace
@@ -391,8 +469,11 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
   const bool ok = tinyobj::LoadObj(&attrib, &shapes, &materials, &tiny_warning, &tiny_error, &in, &mtl_reader,
                                    /*triangulate=*/true,
                                    /*default_vcols_fallback=*/false);
-  // Not needed: released before the scene is built next to tinyobjloader's arrays.
-  std::vector<tinyobj::real_t>().swap(attrib.texcoords);
+  // Not needed (texture coordinates: unless a material has a texture): released before the scene
+  // is built next to tinyobjloader's arrays.
+  const bool textured = std::any_of(materials.begin(), materials.end(),
+                                    [](const tinyobj::material_t& m) { return !m.diffuse_texname.empty(); });
+  if (!textured) std::vector<tinyobj::real_t>().swap(attrib.texcoords);
   std::vector<tinyobj::real_t>().swap(attrib.colors);
   if (!mtl_reader.refused_reference().empty()) {
     const std::string& ref = mtl_reader.refused_reference();
@@ -426,6 +507,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
 
   const long num_v = long(attrib.vertices.size() / 3);
   const long num_vn = long(attrib.normals.size() / 3);
+  const long num_vt = long(attrib.texcoords.size() / 2);  // 0 unless textured
   auto bad_faces = [&](const std::string& reason) {
     const int line = FindFirstBadFaceLine(path, num_v, num_vn);
     throw InputError(SourceLocation{file, line},
@@ -442,6 +524,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
     if (positive(tm.ambient) && !scene.materials.back().IsEmissive())
       scene.ambient_only_materials.push_back(tm.name);
   }
+  ReadObjTextures(materials, root.empty() ? base_dir : root, base_dir, file, &scene);
   uint32_t default_material = kNoLight;  // "none yet"
   auto material_index = [&](int id) -> uint32_t {
     if (id >= 0 && size_t(id) < scene.materials.size()) return uint32_t(id);
@@ -488,8 +571,9 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
       size_t(std::min<uint64_t>({uint64_t(num_v), corners, budget.max_vertices}));
   scene.positions.reserve(expected_vertices);
 
-  // Vertices shared per (position, normal) pair.
+  // Vertices shared per (position, normal, texture coordinate).
   VertexTable vertex_of{size_t(num_v)};
+  if (textured) scene.uvs.reserve(expected_vertices);
   std::vector<Vec3> normals;
   if (num_vn > 0) normals.reserve(expected_vertices);
   bool any_normal = false;
@@ -497,7 +581,13 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
     if (idx.vertex_index < 0 || idx.vertex_index >= num_v || idx.normal_index < -1 ||
         idx.normal_index >= num_vn)
       bad_faces("face references a vertex or normal that does not exist");
-    return vertex_of.Find(uint32_t(idx.vertex_index), uint32_t(idx.normal_index + 1), [&] {
+    // Without textures the coordinates are not read (num_vt is 0): every `vt` counts as none.
+    const bool has_uv = idx.texcoord_index >= 0 && idx.texcoord_index < num_vt;
+    if (textured && idx.texcoord_index >= num_vt)
+      bad_faces("face references a texture coordinate that does not exist");
+    const uint64_t attributes = uint64_t(uint32_t(idx.normal_index + 1)) |
+                                uint64_t(has_uv ? uint32_t(idx.texcoord_index + 1) : 0u) << 32;
+    return vertex_of.Find(uint32_t(idx.vertex_index), attributes, [&] {
       const Vec3 p = InSceneFrame(world_position(size_t(idx.vertex_index)), scene.origin);
       if (!IsFinite(p))
         throw InputError(SourceLocation{file, 0},
@@ -517,6 +607,13 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
         }
       }
       normals.push_back(n);
+      if (textured) {
+        // OBJ's v runs upwards, glTF's (texture.h) downwards from the image's top.
+        const size_t k = size_t(has_uv ? idx.texcoord_index : 0) * 2;
+        scene.uvs.push_back(
+            has_uv ? TextureCoordinates{float(attrib.texcoords[k]), 1.0f - float(attrib.texcoords[k + 1])}
+                   : TextureCoordinates{0.0f, 0.0f});
+      }
       return uint32_t(scene.positions.size() - 1);
     });
   };

@@ -15,7 +15,9 @@
 
 #include "common/core/math.h"
 #include "common/scene/environment.h"
+#include "common/scene/metallic_roughness_params.h"
 #include "common/scene/punctual_light.h"
+#include "common/scene/texture.h"
 
 namespace pf {
 
@@ -44,6 +46,12 @@ struct Material {
   // The conductor's Schlick reflectance at grazing incidence, F = F0 + (F90 − F0)(1 − cos)⁵:
   // 1 for a metal; below 1 keeps a Lambertian lobe beside it energy-conserving (metallic_roughness.h).
   float microfacet_f90 = 1.0f;
+  // An image texture (SceneDescription::textures index, −1: none) whose colour at the hit
+  // multiplies the base colour (docs/renderer.md, "Textures"): for a material mapped from glTF's
+  // metallic-roughness parameters (`metallic_roughness` set) the material is mapped again from
+  // baseColorFactor × texel; otherwise (OBJ map_Kd) ρd is multiplied by the texel.
+  int32_t base_color_texture = -1;
+  std::optional<MetallicRoughness> metallic_roughness{};  // the glTF parameters it was mapped from
 
   bool IsEmissive() const { return !emission.IsBlack(); }
 };
@@ -72,6 +80,9 @@ struct SceneDescription {
   // Per-vertex shading normals; empty, or one per position. A zero vector means "none":
   // triangles touching such a vertex use their geometric normal.
   std::vector<Vec3> normals;
+  // Texture coordinates (texture.h's convention); empty, or one per position. Loaders read them
+  // only when a material has a texture.
+  std::vector<TextureCoordinates> uvs;
   std::vector<std::array<uint32_t, 3>> triangles;
   std::vector<uint32_t> triangle_material;  // index into materials, one per triangle
   // Light id per triangle: every emitting source primitive (an MGF face or sphere, an OBJ
@@ -85,6 +96,7 @@ struct SceneDescription {
   std::optional<Environment> environment;
 
   std::vector<Material> materials;
+  std::vector<Texture> textures;      // Material::base_color_texture indexes them
   std::vector<CameraSpec> cameras;    // from a manifest; may be empty
   std::vector<std::string> warnings;  // non-fatal loader messages, "file:line: reason"
   std::string source;                 // the file it was loaded from

@@ -107,20 +107,55 @@ bool IsRenderedImage(const fs::path& rel) {
   return ext == ".exr" || ext == ".png";
 }
 
-bool IsGltfText(const fs::path& rel) {
-  return LowerExtension(rel) == ".gltf";
+// The JSON text of a .gltf, or of a .glb's first chunk (glTF 2.0 spec, §4.4: a 12-byte header,
+// then a chunk of u32le length, u32le type "JSON", the text); "" for anything else.
+std::string GltfJsonText(const fs::path& rel, const std::string& content) {
+  const std::string ext = LowerExtension(rel);
+  if (ext == ".gltf") return content;
+  if (ext != ".glb" || content.size() < 20 || content.compare(0, 4, "glTF") != 0) return {};
+  uint32_t length = 0;
+  for (int k = 0; k < 4; ++k) length |= uint32_t(static_cast<unsigned char>(content[12 + k])) << (8 * k);
+  if (content.compare(16, 4, "JSON") != 0 || length > content.size() - 20) return {};
+  return content.substr(20, length);
 }
 
-// The bundle paths of every file a .gltf among `listed` (relative to the scene folder `root`)
+// The bundle paths of every file a .gltf or .glb among `listed` (relative to the scene folder `root`)
 // refers to by uri. A reference that leaves the folder names no listed file and so adds nothing.
 std::set<std::string> GltfReferencedFiles(const std::vector<fs::path>& listed, const fs::path& root) {
   std::set<std::string> referenced;
   for (const fs::path& rel : listed) {
     std::error_code ec;
     // One over the limit fails the collection anyway; it is not read twice for that.
-    if (!IsGltfText(rel) || !(fs::file_size(root / rel, ec) <= kMaxBundleBytes)) continue;
-    for (const std::string& ref : GltfFileReferences(ReadWholeFile(root / rel)))
+    const std::string ext = LowerExtension(rel);
+    if ((ext != ".gltf" && ext != ".glb") || !(fs::file_size(root / rel, ec) <= kMaxBundleBytes)) continue;
+    for (const std::string& ref : GltfFileReferences(GltfJsonText(rel, ReadWholeFile(root / rel))))
       referenced.insert((rel.parent_path() / fs::path(ref)).lexically_normal().generic_string());
+  }
+  return referenced;
+}
+
+// The bundle paths of the image files the .mtl files among `listed` name in map statements
+// (map_Kd and the others: obj_loader.cpp reads map_Kd and warns about the rest, so a scene renders
+// the same from its bundle). The file name is the statement's last word (options come first),
+// resolved from the .mtl's folder and from the scene folder, as obj_loader.cpp may resolve it.
+std::set<std::string> MtlReferencedFiles(const std::vector<fs::path>& listed, const fs::path& root) {
+  std::set<std::string> referenced;
+  for (const fs::path& rel : listed) {
+    std::error_code ec;
+    if (LowerExtension(rel) != ".mtl" || !(fs::file_size(root / rel, ec) <= kMaxBundleBytes)) continue;
+    std::istringstream text(ReadWholeFile(root / rel));
+    for (std::string line; std::getline(text, line);) {
+      std::istringstream words(line);
+      std::string keyword, word, last;
+      words >> keyword;
+      const bool map = keyword.rfind("map_", 0) == 0 || keyword == "bump" || keyword == "disp" ||
+                       keyword == "decal" || keyword == "refl" || keyword == "norm";
+      if (!map) continue;
+      while (words >> word) last = word;
+      if (last.empty()) continue;
+      referenced.insert((rel.parent_path() / fs::path(last)).lexically_normal().generic_string());
+      referenced.insert(fs::path(last).lexically_normal().generic_string());
+    }
   }
   return referenced;
 }
@@ -157,6 +192,7 @@ SceneBundle CollectBundle(const fs::path& entry) {
   if (ec) throw SystemError(root.string() + ": cannot list the scene folder: " + ec.message());
   std::set<std::string> referenced = GltfReferencedFiles(listed, root);
   referenced.merge(InputImages(entry));
+  referenced.merge(MtlReferencedFiles(listed, root));
   uint64_t total = 0;
   for (const fs::path& rel : listed) {
     if (IsRenderedImage(rel) && !referenced.count(rel.generic_string())) continue;

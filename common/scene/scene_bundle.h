@@ -10,8 +10,9 @@
 // everything a scene can refer to without parsing it: MGF `i` includes below the entry's folder,
 // OBJ + MTL, a manifest and its geometry, a .gltf and its .bin buffers — but no .exr/.png
 // (references and previews stored next to a scene are outputs) unless a .gltf in the folder
-// refers to it by uri (a texture: an input, gltf_document.h GltfFileReferences) or the manifest
-// reads it (its "environment.file"). Files *outside* the entry's folder (an MGF include of
+// refers to it by uri (a texture: an input, gltf_document.h GltfFileReferences), a .mtl names it
+// in a map statement (map_Kd ...) or the manifest reads it (its "environment.file"). Files *outside* the
+// entry's folder (an MGF include of
 // "../x.mgf", a manifest pointing to "/abs/path.obj") are not collected; loading the bundle then
 // fails with the loader's file:line message. Keep each scene in its own folder.
 //

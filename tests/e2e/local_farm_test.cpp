@@ -112,6 +112,13 @@ TEST_F(LocalFarmTest, EnvironmentLightRendersOnTheFarmAsLocally) {
   ExpectNoProcessLeft();
 }
 
+// Image textures on the farm: scenes/textured-room (a .glb with an embedded PNG and an external
+// one the bundle ships), the same bits on two workers as locally, both integrators.
+TEST_F(LocalFarmTest, TexturedGlbRendersOnTheFarmAsLocally) {
+  ExpectShippedSceneRendersOnTheFarmAsLocally("textured-room", "spot and panel");
+  ExpectNoProcessLeft();
+}
+
 // `pf render` of the shipped scene with the photon map (`photons`, k = 20) at 24x16, no PNG, quiet.
 std::vector<std::string> PhotonMapRender24x16(const std::string& photons,
                                               const std::vector<std::string>& more) {

@@ -1,0 +1,81 @@
+// glTF textures (gltf_textures.h).
+#include "common/scene/gltf_textures.h"
+
+#include <tiny_gltf.h>
+
+#include "common/core/error.h"
+#include "common/image/image_file.h"
+
+namespace pf {
+namespace {
+
+TextureWrap WrapOf(int mode) {
+  switch (mode) {
+    case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE:
+      return TextureWrap::kClampToEdge;
+    case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT:
+      return TextureWrap::kMirroredRepeat;
+    default:
+      return TextureWrap::kRepeat;
+  }
+}
+
+}  // namespace
+
+void GltfTextures::WarnOnce(const std::string& warning) {
+  if (warned_.insert(warning).second) scene_->warnings.push_back(doc_.file + ": " + warning);
+}
+
+std::shared_ptr<const Image> GltfTextures::DecodedImage(int image, const std::string& where) {
+  const tinygltf::Model& m = *doc_.model;
+  if (image < 0 || size_t(image) >= m.images.size())
+    throw InputError(SourceLocation{doc_.file, 0},
+                     where + ": image " + std::to_string(image) + " does not exist");
+  std::shared_ptr<const Image>& decoded = images_[image];
+  if (decoded) return decoded;
+  const tinygltf::Image& g = m.images[size_t(image)];
+  const bool file = !g.uri.empty() && g.uri.rfind("data:", 0) != 0;
+  const std::string element = "images[" + std::to_string(image) + "]" + (file ? " '" + g.uri + "'" : "");
+  if (g.image.empty())
+    throw InputError(SourceLocation{doc_.file, 0},
+                     where + ": " + element +
+                         (file ? ": the file is missing from the scene folder, unreadable or empty"
+                               : ": no image data (a missing or empty buffer view or data URI)"));
+  const std::string name = doc_.file + ": " + where + ": " + element;
+  // DecodeLinearImage's errors name `name` (its SourceLocation), already the whole element path.
+  decoded = std::make_shared<const Image>(DecodeLinearImage(g.image.data(), g.image.size(), name));
+  return decoded;
+}
+
+int32_t GltfTextures::Use(int texture, const std::string& where) {
+  const tinygltf::Model& m = *doc_.model;
+  if (texture < 0 || size_t(texture) >= m.textures.size())
+    throw InputError(SourceLocation{doc_.file, 0},
+                     where + ": texture " + std::to_string(texture) + " does not exist");
+  if (const auto it = texture_index_.find(texture); it != texture_index_.end()) return it->second;
+  const tinygltf::Texture& t = m.textures[size_t(texture)];
+  const std::string element = where + ": textures[" + std::to_string(texture) + "]";
+  if (t.source < 0)
+    throw InputError(SourceLocation{doc_.file, 0},
+                     element + ": no source image (only PNG and JPEG sources are read; KTX2/basisu is not)");
+  Texture out;
+  out.image = DecodedImage(t.source, element);
+  out.source = "images[" + std::to_string(t.source) + "]";
+  if (t.sampler >= 0) {
+    if (size_t(t.sampler) >= m.samplers.size())
+      throw InputError(SourceLocation{doc_.file, 0},
+                       element + ": sampler " + std::to_string(t.sampler) + " does not exist");
+    const tinygltf::Sampler& s = m.samplers[size_t(t.sampler)];
+    out.wrap_u = WrapOf(s.wrapS);
+    out.wrap_v = WrapOf(s.wrapT);
+    if (s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST)
+      WarnOnce("samplers[" + std::to_string(t.sampler) +
+               "]: magFilter NEAREST is not applied (textures are filtered bilinearly)");
+  }
+  const int32_t index = int32_t(scene_->textures.size());
+  scene_->textures.push_back(std::move(out));
+  texture_index_.emplace(texture, index);
+  return index;
+}
+
+}  // namespace pf
