@@ -22,7 +22,6 @@
 #include "common/core/atomic_file.h"
 #include "common/core/error.h"
 #include "common/image/exr_io.h"
-#include "common/render/render_settings_text.h"
 #include "proto/convert.h"
 #include "rpc/address.h"
 
@@ -469,13 +468,10 @@ int RunFarmRender(const RenderArgs& a) {
   }
   cleanup(false);
 
+  // The coordinator's header says what the image is of, as pf render's does (docs/farm.md, "Image
+  // headers"): kept as it is; pf adds how it was made.
   ImageMetadata meta;
   Image image = DecodeExrFromMemory(bytes, &meta);
-  meta["scene"] = a.scene;
-  // Every setting as the workers resolved it for this scene (the coordinator's header leaves `auto`).
-  RecordRenderSettings(SettingsFromProto(st.spec().settings(), "spec.settings").Resolved(job.scene), meta);
-  meta["plan"] = DescribePlan(PlanFromProto(st.spec().plan(), "spec.plan"));  // as the coordinator chose it
-  meta["seed"] = std::to_string(a.seed);
   meta["farm.workers"] = std::to_string(a.workers);
   meta["farm.job_id"] = st.job_id();
   meta["tasks"] = std::to_string(st.tasks_done());
@@ -486,7 +482,8 @@ int RunFarmRender(const RenderArgs& a) {
   WriteExr(output, image, meta);
   WritePreviewFor(output, a.png, a.no_png, image);
   std::printf("rendered %dx%d on %d workers, %s, %llu tasks in %.2f s -> %s\n", image.width(), image.height(),
-              a.workers, meta["plan"].c_str(), (unsigned long long)st.tasks_done(), seconds, output.c_str());
+              a.workers, DescribePlan(PlanFromProto(st.spec().plan(), "spec.plan")).c_str(),
+              (unsigned long long)st.tasks_done(), seconds, output.c_str());
   return kExitOk;
 }
 

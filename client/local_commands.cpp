@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <unistd.h>
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -25,6 +26,7 @@
 #include "common/image/png_io.h"
 #include "common/lights/light_sampler.h"
 #include "common/plan/hierarchical.h"
+#include "common/plan/render_header.h"
 #include "common/plan/task_executor.h"
 #include "common/render/emitter_coverage.h"
 #include "common/render/integrator_factory.h"
@@ -32,6 +34,7 @@
 #include "common/render/photon_map_integrator.h"
 #include "common/render/render_settings_text.h"
 #include "common/render/renderer.h"
+#include "common/scene/scene_bundle.h"
 #include "common/scene/scene_loader.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
@@ -128,20 +131,20 @@ int RunLocalPlan(const RenderArgs& a) {
   const std::string output =
       a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
   ImageMetadata meta = {
-      {"scene", a.scene},
       {"spp", fmt::format("{}", double(total_samples) / (double(camera.width) * camera.height))},
-      {"plan", DescribePlan(plan)},
-      {"seed", std::to_string(a.seed)},
       {"tasks", std::to_string(tasks.size())},
       {"render_seconds", fmt::format("{:.3f}", seconds)},
       {"rays", std::to_string(totals.rays)},
-      {"nonfinite_samples", std::to_string(totals.nonfinite_samples)},
-      {"camera.eye", FormatVec(camera.eye)},
-      {"camera.look_at", FormatVec(camera.look_at)},
-      {"camera.up", FormatVec(camera.up)},
-      {"camera.vfov_degrees", fmt::format("{}", camera.vfov_degrees)}};
-  // Every setting, with each `auto` as this scene resolved it (docs/settings.md, "In the EXR header").
-  RecordRenderSettings(settings.Resolved(runtime.description), meta);
+      {"nonfinite_samples", std::to_string(totals.nonfinite_samples)}};
+  // What the image is of, in the keys and values the farm's images carry (docs/farm.md, "Image
+  // headers"): every setting with each `auto` as this scene resolved it.
+  RecordRender({.scene = job.bundle.entry,
+                .scene_hash = BundleHash(job.bundle),
+                .camera = camera,
+                .settings = settings.Resolved(runtime.description),
+                .plan = plan,
+                .seed = a.seed},
+               meta);
   if (Integrators().FindKind(settings.integrator).UsesPhotonMaps()) {
     meta["photons.maps_built"] = std::to_string(totals.maps_built);
     meta["photons.emitted"] = std::to_string(totals.photons_emitted);
@@ -263,7 +266,8 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output, 
   std::vector<Image> first_two;
   std::vector<std::string> seeds;
   std::map<std::string, std::string> seed_owner;
-  std::map<std::string, std::string> first_value;  // integrator / scene / camera of the first input
+  std::map<std::string, std::string> first_value;  // the first value of each SameRenderKey
+  ImageMetadata common;                            // what every input's header says alike
   for (const std::string& path : inputs) {
     ImageMetadata meta;
     const Image img = ReadExr(path, &meta);
@@ -280,32 +284,50 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output, 
     } else if (assume_spp <= 0) {
       throw InputError(path + ": its header has no spp, so its weight is unknown; pass --assume-spp N");
     }
-    if (meta.count("seed")) {
-      auto [it, fresh] = seed_owner.emplace(meta["seed"], path);
+    // Its seed, or the seeds of a merged image.
+    std::vector<std::string> own_seeds;
+    if (meta.count("seed")) own_seeds.push_back(meta["seed"]);
+    if (meta.count("seeds"))
+      for (size_t b = 0, e; b < meta["seeds"].size(); b = e + 1) {
+        e = std::min(meta["seeds"].find(',', b), meta["seeds"].size());
+        own_seeds.push_back(meta["seeds"].substr(b, e - b));
+      }
+    for (const std::string& seed : own_seeds) {
+      auto [it, fresh] = seed_owner.emplace(seed, path);
       if (!fresh)
         spdlog::warn(
             "{} and {} were both rendered with seed {}: the same noise twice, the average is no better",
-            it->second, path, meta["seed"]);
+            it->second, path, seed);
     }
-    for (const std::string& key : {SettingHeaderKey("integrator"), std::string("scene"),
-                                   std::string("camera.eye"), std::string("camera.look_at")}) {
-      if (!meta.count(key)) continue;
-      auto [it, fresh] = first_value.emplace(key, meta[key]);
-      if (!fresh && it->second != meta[key])
+    // What the image is of (render_header.h SameRenderKey): the scene, the camera, every setting.
+    // A key only one of the two holds (a file of an older pf) is not compared.
+    for (const auto& [key, value] : meta) {
+      if (!SameRenderKey(key)) continue;
+      auto [it, fresh] = first_value.emplace(key, value);
+      if (!fresh && it->second != value)
         spdlog::warn("{}: {} {} differs from the first input's {}: the average mixes different renders", path,
-                     key, meta[key], it->second);
+                     key, value, it->second);
+    }
+    if (first_two.empty()) {  // the first input
+      for (const auto& [key, value] : meta)
+        if (SameRenderKey(key) || key == "plan") common.emplace(key, value);
+    } else {
+      for (auto it = common.begin(); it != common.end();)
+        it = meta.count(it->first) && meta[it->first] == it->second ? std::next(it) : common.erase(it);
     }
     if (meta.count("render_seconds")) seconds += std::stod(meta["render_seconds"]);
-    if (meta.count("seed")) seeds.push_back(meta["seed"]);
+    seeds.insert(seeds.end(), own_seeds.begin(), own_seeds.end());
     for (size_t i = 0; i < img.size(); ++i) sum[i] += img[i] * float(w);
     total_weight += w;
     if (first_two.size() < 2) first_two.push_back(img);
   }
   for (Rgb& c : sum.pixels()) c *= float(1.0 / total_weight);
-  ImageMetadata meta = {{"spp", fmt::format("{}", total_weight)},
-                        {"render_seconds", fmt::format("{:.1f}", seconds)},
-                        {"merged_from", fmt::format("{}", fmt::join(inputs, ","))},
-                        {"seeds", fmt::format("{}", fmt::join(seeds, ","))}};
+  // The merged image is of what every input was of: those keys carry over, so it can be merged again.
+  ImageMetadata meta = common;
+  meta.insert({{"spp", fmt::format("{}", total_weight)},
+               {"render_seconds", fmt::format("{:.1f}", seconds)},
+               {"merged_from", fmt::format("{}", fmt::join(inputs, ","))},
+               {"seeds", fmt::format("{}", fmt::join(seeds, ","))}});
   if (first_two.size() == 2) {
     const double noise = CompareImages(first_two[0], first_two[1]).rmse / 2.0;
     meta["estimated_noise_rmse"] = fmt::format("{:.6g}", noise);

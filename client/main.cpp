@@ -275,7 +275,7 @@ int main(int argc, char** argv) {
       "merge",
       "Average EXRs rendered with different seeds, weighted by their spp (the 'spp' of each header).\n"
       "Refuses an EXR without spp unless --assume-spp; warns about repeated seeds (the same noise twice)\n"
-      "and about images of different integrators, scenes or cameras");
+      "and about images of another scene, camera or setting (the header's scene.hash, camera.*, settings.*)");
   merge->add_option("inputs", merge_inputs, "EXR files")->required()->check(CLI::ExistingFile);
   merge->add_option("-o,--output", merge_output, "Output EXR (PIZ-compressed)")
       ->required()

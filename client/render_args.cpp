@@ -10,6 +10,7 @@
 #include <variant>
 
 #include "common/core/error.h"
+#include "common/core/real_text.h"
 #include "common/photon/photon_tracer.h"
 #include "common/plan/plan_choice.h"
 #include "common/plan/plan_factory.h"
@@ -71,14 +72,13 @@ uint32_t TailTileFor(const RenderArgs& a) {
 }  // namespace
 
 std::string FormatVec(const Vec3& v) {
-  return fmt::format("{},{},{}", v.x, v.y, v.z);
+  return RealText(Vec3d(v));
 }
 
 std::string FormatVec(const Vec3d& v) {
-  // A point that is a float (every camera of a scene around the origin) prints as before, as
-  // the shortest text of that float; others as the shortest text of the double.
-  if (Vec3d(Vec3(v)) == v) return FormatVec(Vec3(v));
-  return fmt::format("{},{},{}", v.x, v.y, v.z);
+  // A component that is a float (every camera of a scene around the origin) prints as the
+  // shortest text of that float; others as the shortest text of the double (real_text.h).
+  return RealText(v);
 }
 
 void ApplyManifestSettings(RenderArgs& a) {

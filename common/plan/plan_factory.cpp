@@ -1,6 +1,9 @@
 #include "common/plan/plan_factory.h"
 
+#include <fmt/format.h>
+
 #include "common/core/error.h"
+#include "common/core/real_text.h"
 #include "common/plan/hierarchy.h"
 #include "common/render/renderer.h"
 
@@ -73,16 +76,54 @@ std::string DescribeHierarchical(const PlanSpec& p) {
               : "");
 }
 
+// " flag=value" of PlanRecordText.
+std::string Flag(std::string_view flag, std::string_view value) {
+  return fmt::format(" {}={}", flag, value);
+}
+std::string Flag(std::string_view flag, uint32_t value) {
+  return Flag(flag, std::to_string(value));
+}
+std::string Flag(std::string_view flag, double value) {
+  return Flag(flag, RealText(value));
+}
+
+std::string RecordMultipleMaps(const PlanSpec& p) {
+  return Flag("maps", p.maps) + Flag("spp", p.samples_per_pixel) + Flag("tile", p.tile_size);
+}
+
+std::string RecordMapsInTurn(const PlanSpec& p) {
+  return Flag("spp", p.samples_per_pixel) + Flag("tile", p.tile_size);
+}
+
+std::string RecordSkipping(const PlanSpec& p) {
+  return Flag("stride", p.stride) + Flag("rounds", p.rounds) + Flag("spp", p.samples_per_pixel);
+}
+
+std::string RecordHierarchical(const PlanSpec& p) {
+  std::string out = Flag("levels", p.levels) + Flag("dims", p.dims) + Flag("base-samples", p.base_samples) +
+                    Flag("min-samples", p.min_samples) + Flag("decay", p.decay) +
+                    Flag("localize-threshold", p.localize_threshold) +
+                    Flag("localize-contrast", p.localize_contrast) + Flag("tile", p.tile_size) +
+                    Flag("hier-part", p.hierarchy_part == HierarchyPart::kIndirect ? "indirect" : "all");
+  if (p.hierarchy_part == HierarchyPart::kIndirect) out += Flag("hier-direct-samples", p.direct_samples);
+  return out;
+}
+
+std::string RecordProgressive(const PlanSpec& p) {
+  return Flag("passes", p.maps) + Flag("spp", p.samples_per_pixel) + Flag("tile", p.tile_size);
+}
+
 }  // namespace
 
 const NamedRegistry<PlanEntry>& Plans() {
   using K = PlanKind;
   static const NamedRegistry<PlanEntry> registry(
-      "plan", {{"multiple-maps", K::kMultipleMaps, ValidateMultipleMaps, DescribeMultipleMaps},
-               {"maps-in-turn", K::kMapsInTurn, ValidateMapsInTurn, DescribeMapsInTurn},
-               {"skipping", K::kSkipping, ValidateSkipping, DescribeSkipping},
-               {"hierarchical", K::kHierarchical, ValidateHierarchicalPlan, DescribeHierarchical},
-               {"progressive", K::kProgressive, ValidateProgressive, DescribeProgressive}});
+      "plan",
+      {{"multiple-maps", K::kMultipleMaps, ValidateMultipleMaps, DescribeMultipleMaps, RecordMultipleMaps},
+       {"maps-in-turn", K::kMapsInTurn, ValidateMapsInTurn, DescribeMapsInTurn, RecordMapsInTurn},
+       {"skipping", K::kSkipping, ValidateSkipping, DescribeSkipping, RecordSkipping},
+       {"hierarchical", K::kHierarchical, ValidateHierarchicalPlan, DescribeHierarchical, RecordHierarchical},
+       {"progressive", K::kProgressive, ValidateProgressive, DescribeProgressive, RecordProgressive}});
   return registry;
 }
 

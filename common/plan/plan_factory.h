@@ -23,6 +23,9 @@ struct PlanEntry {
   std::function<void(const PlanSpec&, int width, int height)> validate = nullptr;
   // One line: the plan and its parameters (DescribePlan).
   std::function<std::string(const PlanSpec&)> describe = nullptr;
+  // The parameters that shape the image, as " flag=value" each, named as pf render's flags
+  // (PlanRecordText: the EXR header's `plan`).
+  std::function<std::string(const PlanSpec&)> record = nullptr;
 };
 
 // Every plan, in the order of pf render --plan's list (after `auto`, which chooses one of them:

@@ -232,4 +232,9 @@ std::string DescribePlan(const PlanSpec& p) {
   return Plans().FindKind(p.kind).describe(p);
 }
 
+std::string PlanRecordText(const PlanSpec& p) {
+  const PlanEntry& entry = Plans().FindKind(p.kind);
+  return std::string(entry.name) + entry.record(p);
+}
+
 }  // namespace pf

@@ -128,4 +128,11 @@ uint64_t CountPixels(const PixelSubset& subset, int width, int height);
 
 std::string DescribePlan(const PlanSpec& plan);
 
+// The plan as the EXR header's `plan` records it (docs/farm.md, "Image headers"): its name, then
+// " flag=value" for each parameter that shapes the image, named and ordered as pf render's flags,
+// e.g. "multiple-maps maps=4 spp=2 tile=64". Real values as RealText (common/core/real_text.h).
+// A stable format: text compared across pf versions and between pf render and the farm. The tail
+// tile is left out: it only schedules the last tiles, the image is the same without it.
+std::string PlanRecordText(const PlanSpec& plan);
+
 }  // namespace pf

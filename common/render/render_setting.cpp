@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "common/core/error.h"
+#include "common/core/real_text.h"
 
 namespace pf {
 
@@ -25,10 +26,10 @@ const char* SettingGroupTitle(SettingGroup g) {
 std::string FormatRenderSettingValue(const RenderSettingValue& v) {
   if (const bool* b = std::get_if<bool>(&v)) return *b ? "true" : "false";
   if (const int64_t* i = std::get_if<int64_t>(&v)) return std::to_string(*i);
-  // A float setting's value (every real one today) as the float's shortest text: 0.05, not
-  // 0.05000000074505806. Still one text per value, so two floats one step apart differ.
-  if (const double* d = std::get_if<double>(&v))
-    return double(float(*d)) == *d ? fmt::format("{}", float(*d)) : fmt::format("{}", *d);
+  // A float setting's value (every real one but progressive-alpha) as the float's shortest text:
+  // 0.05, not 0.05000000074505806 (real_text.h). Still one text per value, so two floats one step
+  // apart differ.
+  if (const double* d = std::get_if<double>(&v)) return RealText(*d);
   return std::get<std::string>(v);
 }
 

@@ -5,7 +5,7 @@
 #include <ctime>
 
 #include "common/core/error.h"
-#include "common/render/render_settings_text.h"
+#include "common/plan/render_header.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
 #include "server/assembly/image_snapshot.h"
@@ -15,26 +15,20 @@
 namespace pf::server {
 namespace {
 
-std::string Vec(const photonfarm::v1::Vec3& v) {
-  return fmt::format("{},{},{}", v.x(), v.y(), v.z());
-}
-
-// What the image is of, so that `pf info x.exr` and `pf merge` can tell (docs/farm.md, "Command-line
-// contract"): the job's scene, camera, integrator, photon-map settings, plan and seed, the build and the
-// date.
-void AddJobMetadata(const photonfarm::v1::JobStatus& status, ImageMetadata& meta) {
+// What the image is of, in the keys and values pf render writes (common/plan/render_header.h,
+// docs/farm.md "Image headers"), so that `pf info x.exr` and `pf merge` can tell; then the job's
+// name and state, the build and the date.
+void AddJobMetadata(const photonfarm::v1::JobStatus& status, const JobConfig& config, ImageMetadata& meta) {
   namespace v1 = photonfarm::v1;
-  const v1::JobSpec& spec = status.spec();
-  meta["job_name"] = spec.name();
-  meta["scene"] = spec.scene_hash();
-  meta["seed"] = std::to_string(spec.seed());
-  meta["camera.eye"] = Vec(spec.camera().eye());
-  meta["camera.look_at"] = Vec(spec.camera().look_at());
-  meta["camera.up"] = Vec(spec.camera().up());
-  meta["camera.vfov_degrees"] = fmt::format("{}", spec.camera().vfov_degrees());
-  // Every setting as submitted (an `auto` stays auto here: the scene decides it on the workers).
-  RecordRenderSettings(SettingsFromProto(spec.settings(), "spec.settings"), meta);
-  meta["plan"] = spec.plan().ShortDebugString();
+  // The config's settings are the spec's as echoed: resolved at submission (job_spec.cpp).
+  RecordRender({.scene = config.scene_entry,
+                .scene_hash = config.scene_hash,
+                .camera = config.camera,
+                .settings = config.settings,
+                .plan = config.plan,
+                .seed = config.seed},
+               meta);
+  meta["job_name"] = config.name;
   meta["job_state"] = v1::JobState_Name(status.state());
   meta["version"] = PF_VERSION;
   // The job's submission time, not "now": the same merged state encodes to the same bytes.
@@ -90,7 +84,7 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& requested
                                            int(snap.status.spec().camera().height()));
     image = ResolveSnapshot(job_id, acc);
   }
-  AddJobMetadata(snap.status, image.metadata);
+  AddJobMetadata(snap.status, *snap.config, image.metadata);
   if (status) *status = std::move(snap.status);
   return image;
 }

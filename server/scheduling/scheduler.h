@@ -164,9 +164,10 @@ struct CompleteResult {
 // A consistent view of a job for clients: its status and (optionally) its merged image.
 struct JobSnapshot {
   photonfarm::v1::JobStatus status;
-  std::optional<ResolvedImage> image;  // if requested and the accumulator is in memory
-  std::string checkpoint_path;         // else: read the image from here (finished, reloaded jobs)
-  CheckpointSeal checkpoint_seal;      // … and only if the file carries this seal
+  std::shared_ptr<const JobConfig> config;  // the validated job: what its image is of
+  std::optional<ResolvedImage> image;       // if requested and the accumulator is in memory
+  std::string checkpoint_path;              // else: read the image from here (finished, reloaded jobs)
+  CheckpointSeal checkpoint_seal;           // … and only if the file carries this seal
 };
 
 // What the queued and running jobs hold, for the coordinator's budgets (server/rpc/budgets.h).

@@ -264,6 +264,7 @@ v1::JobStatus Scheduler::SetPaused(const std::string& job_id, bool paused) {
 JobSnapshot Scheduler::Snapshot(const std::string& job_id, bool with_image) {
   Job& job = FindJob(job_id);
   JobSnapshot snap;
+  snap.config = job.shared_config();
   if (!with_image) {
     RefreshNoise(job);
     std::lock_guard lock(mu_);

@@ -1,0 +1,25 @@
+#include "common/plan/render_header.h"
+
+#include "common/core/real_text.h"
+#include "common/render/render_settings_text.h"
+
+namespace pf {
+
+void RecordRender(const RenderRecord& r, ImageMetadata& meta) {
+  meta["scene"] = r.scene;
+  meta["scene.hash"] = r.scene_hash;
+  meta["camera.eye"] = RealText(r.camera.eye);
+  meta["camera.look_at"] = RealText(r.camera.look_at);
+  meta["camera.up"] = RealText(Vec3d(r.camera.up));
+  meta["camera.vfov_degrees"] = RealText(r.camera.vfov_degrees);
+  RecordRenderSettings(r.settings, meta);
+  meta["plan"] = PlanRecordText(r.plan);
+  meta["seed"] = std::to_string(r.seed);
+}
+
+bool SameRenderKey(std::string_view key) {
+  return key == "scene" || key == "scene.hash" || key.starts_with("camera.") ||
+         key.starts_with(SettingHeaderKey(""));
+}
+
+}  // namespace pf
