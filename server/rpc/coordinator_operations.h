@@ -42,6 +42,7 @@ class CoordinatorOperations final : public CoordinatorApi {
   Scheduler::JobPage ListJobs(bool include_finished, uint64_t after_seq, size_t limit) override;
   photonfarm::v1::JobStatus CancelJob(const std::string& job_id) override;
   photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused) override;
+  photonfarm::v1::DeleteJobResponse DeleteJob(const std::string& job_id) override;
   std::vector<photonfarm::v1::WorkerInfo> Workers() override;
   std::vector<photonfarm::v1::TaskEvent> JobEvents(const std::string& job_id, uint64_t* dropped) override;
   ResolvedImage JobImage(const std::string& job_id, photonfarm::v1::JobStatus* status) override;

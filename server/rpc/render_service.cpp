@@ -189,6 +189,16 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ResumeJob(grpc::CallbackServerConte
   });
 }
 
+grpc::ServerUnaryReactor* RenderServiceImpl::DeleteJob(grpc::CallbackServerContext* context,
+                                                       const v1::DeleteJobRequest* request,
+                                                       v1::DeleteJobResponse* response) {
+  return FinishGuarded(context, "DeleteJob", [&] {
+    RequireJobId(request->job_id());
+    *response = api_.DeleteJob(request->job_id());
+    return grpc::Status::OK;
+  });
+}
+
 grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerContext* context,
                                                          const v1::ListWorkersRequest* /*request*/,
                                                          v1::ListWorkersResponse* response) {
