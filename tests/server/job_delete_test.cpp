@@ -220,7 +220,8 @@ TEST_F(DeleteRpcTest, ADeletedJobsFilesGoAndARestartDoesNotBringItBack) {
   EXPECT_EQ(Get(gone).error_code(), grpc::StatusCode::NOT_FOUND);
   EXPECT_TRUE(Get(kept).ok());
   const RecoveryReport& recovered = live_->coordinator->recovery();
-  EXPECT_EQ(recovered.jobs_resumed + recovered.jobs_finished + recovered.jobs_failed, 1u) << "only the kept job";
+  EXPECT_EQ(recovered.jobs_resumed + recovered.jobs_finished + recovered.jobs_failed, 1u)
+      << "only the kept job";
 }
 
 }  // namespace
