@@ -61,8 +61,6 @@ int RunDelete(const FarmArgs& f, const std::vector<std::string>& job_ids);
 // pf purge: deletes the succeeded, failed and cancelled jobs that finished more than
 // `older_than_seconds` ago (only lists them with `dry_run`).
 int RunPurge(const FarmArgs& f, double older_than_seconds, bool dry_run);
-// "7d", "12h", "30m", "45s" or plain seconds → seconds; InputError naming `what` otherwise.
-double ParseAge(const std::string& text, const std::string& what);
 int RunWorkers(const FarmArgs& f, bool json);
 int RunEvents(const FarmArgs& f, const std::string& job_id, bool json);
 

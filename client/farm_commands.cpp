@@ -5,9 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
-#include <charconv>
 #include <chrono>
-#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
@@ -22,6 +20,7 @@
 #include "client/local_farm.h"
 #include "client/progress.h"
 #include "common/core/atomic_file.h"
+#include "common/core/duration_text.h"
 #include "common/core/error.h"
 #include "common/image/exr_io.h"
 #include "common/render/render_settings_text.h"
@@ -302,38 +301,6 @@ std::string DeletedLine(const v1::DeleteJobResponse& d) {
 }
 
 }  // namespace
-
-double ParseAge(const std::string& text, const std::string& what) {
-  double value = 0;
-  const char* begin = text.data();
-  const char* end = text.data() + text.size();
-  const auto [ptr, ec] = std::from_chars(begin, end, value);
-  double unit = 1;
-  if (ec == std::errc{} && ptr + 1 == end) {
-    switch (*ptr) {
-      case 's':
-        unit = 1;
-        break;
-      case 'm':
-        unit = 60;
-        break;
-      case 'h':
-        unit = 3600;
-        break;
-      case 'd':
-        unit = 86400;
-        break;
-      default:
-        unit = -1;
-    }
-  } else if (ec != std::errc{} || ptr != end) {
-    unit = -1;
-  }
-  if (unit < 0 || !std::isfinite(value) || value < 0)
-    throw InputError(what + ": " + text +
-                     " is not a duration (a number of seconds, or with s, m, h or d: 7d, 12h)");
-  return value * unit;
-}
 
 int RunDelete(const FarmArgs& f, const std::vector<std::string>& job_ids) {
   FarmClient client = Connect(f);

@@ -23,6 +23,7 @@
 #include "client/commands.h"
 #include "client/did_you_mean.h"
 #include "client/interrupt.h"
+#include "common/core/duration_text.h"
 #include "common/core/error.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
@@ -260,7 +261,7 @@ int main(int argc, char** argv) {
       ->required()
       ->check([](const std::string& v) {
         try {
-          pf::ParseAge(v, "--older-than");
+          pf::ParseDurationText(v, "");
           return std::string();
         } catch (const std::exception& e) {
           return std::string(e.what());
@@ -386,7 +387,7 @@ int main(int argc, char** argv) {
     if (*pause) return RunPause(pf_args, pause_job, true);
     if (*resume) return RunPause(rf, resume_job, false);
     if (*del) return RunDelete(df, delete_jobs);
-    if (*purge) return RunPurge(uf, ParseAge(purge_age, "--older-than"), purge_dry_run);
+    if (*purge) return RunPurge(uf, ParseDurationText(purge_age, "--older-than"), purge_dry_run);
     if (*diff)
       return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera, diff_region);
     if (*info) return RunInfo(info_scene);

@@ -88,6 +88,22 @@ v1::DeleteJobResponse CoordinatorOperations::DeleteJob(const std::string& job_id
   return out;
 }
 
+size_t CoordinatorOperations::DeleteFinishedBefore(int64_t cutoff_unix_ms) {
+  size_t deleted = 0;
+  for (const std::string& id : p_.scheduler.FinishedBefore(cutoff_unix_ms)) {
+    try {
+      DeleteJob(id);
+      ++deleted;
+    } catch (const NotFoundError&) {
+      // deleted meanwhile (pf delete)
+    } catch (const std::exception& e) {
+      spdlog::warn("job {}: not deleted by --retain-finished now: {}", id, e.what());
+    }
+  }
+  if (deleted > 0) spdlog::info("--retain-finished: {} finished jobs deleted", deleted);
+  return deleted;
+}
+
 std::vector<v1::WorkerInfo> CoordinatorOperations::Workers() {
   return p_.scheduler.activity().Workers();
 }

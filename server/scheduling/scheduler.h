@@ -239,6 +239,8 @@ class Scheduler final : public PersistSource {
   // the caller's (Persister::DeleteJob).
   std::string CheckRemovable(const std::string& job_id);
   std::shared_ptr<const JobConfig> RemoveJob(const std::string& job_id);
+  // The succeeded, failed and cancelled jobs that ended before `cutoff_unix_ms` (Job::finished_unix_ms).
+  std::vector<std::string> FinishedBefore(int64_t cutoff_unix_ms) const;
   // The configs of every job it knows (which stored maps remaining jobs use).
   std::vector<std::shared_ptr<const JobConfig>> JobConfigs() const;
   // Queued and running jobs, their tasks and pixels, and how many of them `client` submitted

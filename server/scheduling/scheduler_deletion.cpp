@@ -57,6 +57,15 @@ std::shared_ptr<const JobConfig> Scheduler::RemoveJob(const std::string& job_id)
   return config;
 }
 
+std::vector<std::string> Scheduler::FinishedBefore(int64_t cutoff_unix_ms) const {
+  std::lock_guard lock(mu_);
+  std::vector<std::string> ids;
+  for (const Job* job : jobs_.InSubmissionOrder())
+    if (!job->active() && job->finished_unix_ms > 0 && job->finished_unix_ms < cutoff_unix_ms)
+      ids.push_back(job->id());
+  return ids;
+}
+
 std::vector<std::shared_ptr<const JobConfig>> Scheduler::JobConfigs() const {
   std::lock_guard lock(mu_);
   std::vector<std::shared_ptr<const JobConfig>> out;

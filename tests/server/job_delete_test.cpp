@@ -5,8 +5,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <fstream>
 #include <memory>
+#include <thread>
 
 #include "server/errors.h"
 #include "server/scheduling/distributed_maps.h"
@@ -222,6 +224,50 @@ TEST_F(DeleteRpcTest, ADeletedJobsFilesGoAndARestartDoesNotBringItBack) {
   const RecoveryReport& recovered = live_->coordinator->recovery();
   EXPECT_EQ(recovered.jobs_resumed + recovered.jobs_finished + recovered.jobs_failed, 1u)
       << "only the kept job";
+}
+
+// pf-coordinator --retain-finished: a finished job goes once it ended longer ago than the retention,
+// not before; a live job stays whatever its age.
+TEST(Retention, AFinishedJobIsDeletedOnceItIsOlderThanTheRetention) {
+  testing::TempDir dir;
+  FakeClock clock;
+  CoordinatorOptions options = testing::CountingOptions(dir.path() / "data");
+  options.clock = &clock;
+  options.retain_finished_seconds = 3600;
+  LiveCoordinator live(options);
+  const std::string hash = testing::UploadCornell(live);
+  auto submit = [&](uint64_t seed) {
+    v1::SubmitJobRequest req;
+    *req.mutable_spec() = test_util::CornellPhotonMapSpec(hash, 32, 24, /*rounds=*/2, seed);
+    v1::SubmitJobResponse resp;
+    EXPECT_TRUE(live.render->SubmitJob(Ctx().get(), req, &resp).ok());
+    return resp.job_id();
+  };
+  auto exists = [&](const std::string& id) {
+    v1::GetJobRequest req;
+    req.set_job_id(id);
+    v1::JobStatus s;
+    const grpc::Status st = live.render->GetJob(Ctx().get(), req, &s);
+    EXPECT_TRUE(st.ok() || st.error_code() == grpc::StatusCode::NOT_FOUND) << st.error_message();
+    return st.ok();
+  };
+  const std::string finished = submit(3), queued = submit(4);
+  v1::CancelJobRequest cancel;
+  cancel.set_job_id(finished);
+  v1::CancelJobResponse cancelled;
+  ASSERT_TRUE(live.render->CancelJob(Ctx().get(), cancel, &cancelled).ok());
+
+  clock.Advance(1800);  // half the retention: checked (the check is due), kept
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_TRUE(exists(finished));
+  clock.Advance(1800 + kRetentionCheckSeconds + 1);
+  bool gone = false;
+  for (int i = 0; i < 100 && !gone; ++i) {
+    gone = !exists(finished);
+    if (!gone) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_TRUE(gone) << "not deleted past the retention";
+  EXPECT_TRUE(exists(queued)) << "a live job stays";
 }
 
 }  // namespace
