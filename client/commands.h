@@ -55,6 +55,12 @@ int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& outp
 int RunList(const FarmArgs& f, bool all, bool json);
 int RunCancel(const FarmArgs& f, const std::string& job_id);
 int RunPause(const FarmArgs& f, const std::string& job_id, bool paused);  // pf pause / pf resume
+// pf delete: each job (an id or a unique prefix) in turn; a failure is reported and the others
+// still go. The exit code of the last failure (FAILED_PRECONDITION for a live job: 1).
+int RunDelete(const FarmArgs& f, const std::vector<std::string>& job_ids);
+// pf purge: deletes the succeeded, failed and cancelled jobs that finished more than
+// `older_than_seconds` ago (only lists them with `dry_run`).
+int RunPurge(const FarmArgs& f, double older_than_seconds, bool dry_run);
 int RunWorkers(const FarmArgs& f, bool json);
 int RunEvents(const FarmArgs& f, const std::string& job_id, bool json);
 

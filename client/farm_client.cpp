@@ -93,6 +93,10 @@ v1::JobStatus FarmClient::SetJobPaused(const std::string& job_id, bool paused) {
   return Call(&Stub::ResumeJob, WithJobId<v1::ResumeJobRequest>(job_id)).status();
 }
 
+v1::DeleteJobResponse FarmClient::DeleteJob(const std::string& job_id) {
+  return Call(&Stub::DeleteJob, WithJobId<v1::DeleteJobRequest>(job_id));
+}
+
 std::vector<v1::WorkerInfo> FarmClient::ListWorkers() {
   const v1::ListWorkersResponse resp = Call(&Stub::ListWorkers, v1::ListWorkersRequest());
   return {resp.workers().begin(), resp.workers().end()};

@@ -35,6 +35,7 @@ class FarmClient {
   photonfarm::v1::JobStatus CancelJob(const std::string& job_id);
   // PauseJob (paused = true) or ResumeJob.
   photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused);
+  photonfarm::v1::DeleteJobResponse DeleteJob(const std::string& job_id);
   std::vector<photonfarm::v1::WorkerInfo> ListWorkers();
   photonfarm::v1::ListJobEventsResponse ListJobEvents(const std::string& job_id);
   // The current merged image, reassembled from its chunks: EXR bytes.

@@ -20,6 +20,7 @@
 #include "client/local_farm.h"
 #include "client/progress.h"
 #include "common/core/atomic_file.h"
+#include "common/core/duration_text.h"
 #include "common/core/error.h"
 #include "common/image/exr_io.h"
 #include "proto/convert.h"
@@ -282,6 +283,72 @@ int RunPause(const FarmArgs& f, const std::string& job_id, bool paused) {
   const v1::JobStatus s = client.SetJobPaused(job_id, paused);
   std::printf("%s\n", Summary(s).c_str());
   return kExitOk;
+}
+
+namespace {
+
+std::string Bytes(uint64_t bytes) {
+  if (bytes < 1024) return fmt::format("{} B", bytes);
+  if (bytes < (uint64_t(1) << 20)) return fmt::format("{:.1f} KiB", double(bytes) / 1024);
+  if (bytes < (uint64_t(1) << 30)) return fmt::format("{:.1f} MiB", double(bytes) / double(1 << 20));
+  return fmt::format("{:.2f} GiB", double(bytes) / double(1 << 30));
+}
+
+std::string DeletedLine(const v1::DeleteJobResponse& d) {
+  return fmt::format("deleted {}: {} freed{}", d.job_id(), Bytes(d.bytes_freed()),
+                     d.maps_removed() > 0 ? fmt::format(" ({} photon maps)", d.maps_removed()) : "");
+}
+
+}  // namespace
+
+int RunDelete(const FarmArgs& f, const std::vector<std::string>& job_ids) {
+  FarmClient client = Connect(f);
+  int code = kExitOk;
+  for (const std::string& id : job_ids) {
+    try {
+      std::printf("%s\n", DeletedLine(client.DeleteJob(id)).c_str());
+    } catch (const RpcError& e) {
+      spdlog::error("{}: {}", id, e.what());
+      code = ExitCodeFor(e);
+    }
+  }
+  return code;
+}
+
+int RunPurge(const FarmArgs& f, double older_than_seconds, bool dry_run) {
+  FarmClient client = Connect(f);
+  const int64_t now_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                             std::chrono::system_clock::now().time_since_epoch())
+                             .count();
+  const int64_t cutoff_ms = now_ms - int64_t(older_than_seconds * 1000.0);
+  int code = kExitOk;
+  uint64_t jobs = 0, bytes = 0;
+  for (const v1::JobStatus& s : client.ListJobs(/*include_finished=*/true)) {
+    if (!IsFinalState(s.state()) || s.finished_unix_ms() <= 0 || s.finished_unix_ms() > cutoff_ms) continue;
+    const std::string age = FormatDuration(double(now_ms - s.finished_unix_ms()) / 1000.0);
+    if (dry_run) {
+      std::printf("would delete %s %s (%s, finished %s ago)\n", s.job_id().c_str(), JobStateName(s.state()),
+                  s.spec().name().c_str(), age.c_str());
+      ++jobs;
+      continue;
+    }
+    try {
+      const v1::DeleteJobResponse d = client.DeleteJob(s.job_id());
+      std::printf("%s (%s, %s, finished %s ago)\n", DeletedLine(d).c_str(), JobStateName(s.state()),
+                  s.spec().name().c_str(), age.c_str());
+      ++jobs;
+      bytes += d.bytes_freed();
+    } catch (const RpcError& e) {
+      if (e.code() == grpc::StatusCode::NOT_FOUND) continue;  // deleted meanwhile by someone else
+      spdlog::error("{}: {}", s.job_id(), e.what());
+      code = ExitCodeFor(e);
+    }
+  }
+  if (dry_run)
+    std::printf("%lu jobs would be deleted\n", static_cast<unsigned long>(jobs));
+  else
+    std::printf("purged %lu jobs, %s freed\n", static_cast<unsigned long>(jobs), Bytes(bytes).c_str());
+  return code;
 }
 
 int RunWorkers(const FarmArgs& f, bool json) {

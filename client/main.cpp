@@ -7,6 +7,7 @@
 //   pf watch JOB [-o out.exr]                 progress (and snapshots) until the job ends
 //   pf get JOB -o out.exr                     the current merged image
 //   pf list / cancel / pause / resume JOB     jobs of a coordinator
+//   pf delete JOB... / pf purge --older-than  finished jobs and their files go
 //   pf diff / merge / preview / info          images and scenes
 //
 // Exit codes: client/commands.h (0 ok, 1 failure, 2 usage, 3 invalid input, 130 interrupted).
@@ -22,6 +23,7 @@
 #include "client/commands.h"
 #include "client/did_you_mean.h"
 #include "client/interrupt.h"
+#include "common/core/duration_text.h"
 #include "common/core/error.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
@@ -244,6 +246,30 @@ int main(int argc, char** argv) {
   resume->add_option("job", resume_job, "Job id")->required();
   AddFarmOptions(resume, rf);
 
+  FarmArgs df, uf;
+  std::vector<std::string> delete_jobs;
+  CLI::App* del = app.add_subcommand(
+      "delete", "Delete finished jobs: their image, checkpoint and photon maps no other job uses");
+  del->add_option("job", delete_jobs,
+                  "Job ids (or unique prefixes); a queued or running job: cancel it first")
+      ->required();
+  AddFarmOptions(del, df);
+  std::string purge_age;
+  bool purge_dry_run = false;
+  CLI::App* purge = app.add_subcommand("purge", "Delete the jobs that finished more than a while ago");
+  purge->add_option("--older-than", purge_age, "Finished more than this long ago: 7d, 12h, 30m, or seconds")
+      ->required()
+      ->check([](const std::string& v) {
+        try {
+          pf::ParseDurationText(v, "");
+          return std::string();
+        } catch (const std::exception& e) {
+          return std::string(e.what());
+        }
+      });
+  purge->add_flag("--dry-run", purge_dry_run, "Only list the jobs it would delete");
+  AddFarmOptions(purge, uf);
+
   std::string diff_a, diff_ref, diff_err, diff_scene, diff_camera;
   double diff_scale = 0;
   bool diff_json = false;
@@ -360,6 +386,8 @@ int main(int argc, char** argv) {
     if (*cancel) return RunCancel(cf, cancel_job);
     if (*pause) return RunPause(pf_args, pause_job, true);
     if (*resume) return RunPause(rf, resume_job, false);
+    if (*del) return RunDelete(df, delete_jobs);
+    if (*purge) return RunPurge(uf, ParseDurationText(purge_age, "--older-than"), purge_dry_run);
     if (*diff)
       return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera, diff_region);
     if (*info) return RunInfo(info_scene);

@@ -14,6 +14,7 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 
 #include "common/core/error.h"
@@ -282,12 +283,29 @@ void Coordinator::TickLoop() {
     try {
       scheduler_->Tick();
       watches_->Tick();
+      MaybeApplyRetention();
     } catch (const std::exception& e) {
       spdlog::error("tick: {}", e.what());
     }
     lock.lock();
     cv_.wait_for(lock, std::chrono::duration<double>(options_.tick_seconds), [&] { return stopping_; });
   }
+}
+
+void Coordinator::MaybeApplyRetention() {
+  const double retain = options_.retain_finished_seconds;
+  if (retain <= 0 || clock_->Now() < next_retention_ || retention_running_.exchange(true)) return;
+  next_retention_ = clock_->Now() + std::min(kRetentionCheckSeconds, std::max(0.1, retain / 10));
+  const int64_t cutoff_ms = clock_->UnixMillis() - int64_t(retain * 1000.0);
+  const bool posted = executor_->Post([this, cutoff_ms] {
+    try {
+      operations_->DeleteFinishedBefore(cutoff_ms);
+    } catch (const std::exception& e) {
+      spdlog::error("retention: {}", e.what());
+    }
+    retention_running_ = false;
+  });
+  if (!posted) retention_running_ = false;  // busy: next time
 }
 
 void Coordinator::Shutdown() {

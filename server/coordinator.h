@@ -27,6 +27,7 @@
 
 #include <grpcpp/security/server_credentials.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <filesystem>
 #include <memory>
@@ -61,6 +62,9 @@ class StatusHttpServer;
 class DistributedMaps;
 class Referee;
 
+// How often --retain-finished looks for jobs to delete (at most).
+inline constexpr double kRetentionCheckSeconds = 60;
+
 // Defaults of --verify-fraction and --verify-piece-fraction (docs/farm.md "Result verification":
 // their cost is measured there).
 inline constexpr double kDefaultVerifyFraction = 0.03;
@@ -89,7 +93,10 @@ struct CoordinatorOptions {
   uint32_t quarantine_jobs = 3;
   double quarantine_seconds = 900;
   double checkpoint_interval_seconds = 0;  // 0: durable acknowledgements (persister.h)
-  double tick_seconds = 0.05;              // lease/long-poll/budget/watch timer resolution
+  // Retention (docs/farm.md "Deleting jobs"): > 0 deletes finished jobs this long after they ended,
+  // checked every kRetentionCheckSeconds (or a tenth of it, if shorter); 0 keeps them.
+  double retain_finished_seconds = 0;
+  double tick_seconds = 0.05;  // lease/long-poll/budget/watch timer resolution
   size_t executor_threads = 2;
   double shutdown_grace_seconds = 5;
   const Clock* clock = nullptr;  // null: the system clock
@@ -157,6 +164,8 @@ class Coordinator {
  private:
   void Stop(bool graceful);
   void TickLoop();
+  // --retain-finished: the finished jobs past it are deleted (on the executor, one run at a time).
+  void MaybeApplyRetention();
   std::shared_ptr<grpc::ServerCredentials> ServerCredentials() const;
   void CheckHttpTransport() const;
 
@@ -189,6 +198,8 @@ class Coordinator {
   bool stopped_ = false;
   bool stored_everything_ = false;
   std::thread tick_thread_;
+  double next_retention_ = 0;  // Clock::Now() of the next check (tick thread only)
+  std::atomic<bool> retention_running_{false};
 };
 
 }  // namespace pf::server

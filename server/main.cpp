@@ -6,7 +6,7 @@
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
 //                  [--allow-mixed-versions] [--limit NAME=VALUE ...]
 //                  [--verify-fraction 0.03] [--no-verify-outliers] [--verify-piece-fraction 0.1]
-//                  [--referee-threads 1]
+//                  [--referee-threads 1] [--retain-finished 7d]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
 // :0; with --http a second line, "http on HOST:PORT", for the web status page, with " (https)" when it
@@ -28,6 +28,7 @@
 #include <sstream>
 #include <thread>
 
+#include "common/core/duration_text.h"
 #include "common/core/error.h"
 #include "photonfarm_version.h"
 #include "rpc/grpc_channel.h"
@@ -97,6 +98,18 @@ int main(int argc, char** argv) {
                  "The window of --quarantine-after, and how long a quarantine lasts")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 30.0 * 86400));
+  std::string retain_finished;
+  app.add_option("--retain-finished", retain_finished,
+                 "Delete succeeded, failed and cancelled jobs this long after they finished (7d, 12h, 30m or "
+                 "seconds), as pf purge --older-than does; default: keep them (docs/farm.md, Deleting jobs)")
+      ->check([](const std::string& v) {
+        try {
+          pf::ParseDurationText(v, "");
+          return std::string();
+        } catch (const std::exception& e) {
+          return std::string(e.what());
+        }
+      });
   app.add_option("--checkpoint-ms", checkpoint_ms,
                  "0: journal every result and acknowledge it only once stored (docs/farm.md, Durability); N: "
                  "no journal, acknowledge at once, checkpoint at most every N ms (a crash re-runs up to N ms "
@@ -166,6 +179,8 @@ int main(int argc, char** argv) {
                             : 2;  // --help/--version: 0; usage errors: 2 (CLI11's own codes are 105, 109...)
   }
   options.checkpoint_interval_seconds = checkpoint_ms / 1000.0;
+  if (!retain_finished.empty())
+    options.retain_finished_seconds = pf::ParseDurationText(retain_finished, "--retain-finished");
 
   auto logger = spdlog::stderr_color_mt("pf-coordinator");
   spdlog::set_default_logger(logger);

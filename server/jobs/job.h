@@ -167,6 +167,9 @@ class Job {
   // be stored, or its restart is not stored yet.
   bool held() const { return paused || paused_for_storage || restart_pending(); }
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
+  // When it reached its terminal state (Unix ms; Scheduler::FinishJob, stored in its row); 0 while
+  // active. pf purge --older-than reads it (docs/farm.md "Deleting jobs").
+  int64_t finished_unix_ms = 0;
 
   // ETA from recent throughput (Scheduler: RecordCompletion on every merge of a live result).
   EtaEstimator eta;

@@ -51,6 +51,21 @@ const Job& JobRegistry::Get(const std::string& id) const {
   return *job;
 }
 
+std::shared_ptr<Job> JobRegistry::Shared(const std::string& id) const {
+  auto it = by_id_.find(id);
+  if (it == by_id_.end()) throw NotFoundError("job_id: unknown job " + limits::Quote(id));
+  return it->second;
+}
+
+std::shared_ptr<Job> JobRegistry::Remove(const std::string& id) {
+  auto it = by_id_.find(id);
+  if (it == by_id_.end()) throw NotFoundError("job_id: unknown job " + limits::Quote(id));
+  std::shared_ptr<Job> job = std::move(it->second);
+  by_id_.erase(it);
+  by_seq_.erase(job->seq());
+  return job;
+}
+
 const std::string& JobRegistry::Resolve(const std::string& id_or_prefix) const {
   if (auto it = by_id_.find(id_or_prefix); it != by_id_.end()) return it->first;
   const std::string prefix =

@@ -1,7 +1,8 @@
 #pragma once
 // All jobs the coordinator knows, by id and in submission order, and the allocation of job ids
 // ("job-" and 32 random hex digits; the seq, increasing across restarts, orders them). Not
-// thread-safe: the Scheduler's lock guards it.
+// thread-safe: the Scheduler's lock guards it. Jobs are shared: whoever holds a Job beyond the lock
+// holds it by Shared (a deleted job, Remove, lives until the last holder lets go).
 
 #include <cstdint>
 #include <map>
@@ -29,6 +30,11 @@ class JobRegistry {
   // Throws NotFoundError("job_id: unknown job '<id>'").
   Job& Get(const std::string& id);
   const Job& Get(const std::string& id) const;
+  // The job as its owners hold it (NotFoundError like Get).
+  std::shared_ptr<Job> Shared(const std::string& id) const;
+  // Forgets the job (pf delete): Find, Resolve and InSubmissionOrder no longer see it; its id and
+  // seq are never allocated again. NotFoundError for an unknown id.
+  std::shared_ptr<Job> Remove(const std::string& id);
   // The id a user typed: an exact id, or a unique prefix of one (with or without "job-": ids are
   // long random hex, docs/farm.md "Job ids"). Throws NotFoundError when nothing matches and
   // InputError naming the field and listing the candidates when several do.
@@ -38,7 +44,7 @@ class JobRegistry {
 
  private:
   uint64_t last_seq_ = 0;
-  std::unordered_map<std::string, std::unique_ptr<Job>> by_id_;
+  std::unordered_map<std::string, std::shared_ptr<Job>> by_id_;
   std::map<uint64_t, Job*> by_seq_;
 };
 

@@ -66,6 +66,8 @@ class CoordinatorApi {
   virtual photonfarm::v1::JobStatus CancelJob(const std::string& job_id) = 0;
   // PauseJob / ResumeJob: the flag set in memory, then stored (PreconditionError for a finished job).
   virtual photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused) = 0;
+  // DeleteJob (docs/farm.md "Deleting jobs"): NotFoundError, PreconditionError for a live job.
+  virtual photonfarm::v1::DeleteJobResponse DeleteJob(const std::string& job_id) = 0;
   virtual std::vector<photonfarm::v1::WorkerInfo> Workers() = 0;
   // NotFoundError for an unknown job; `dropped`: events no longer kept.
   virtual std::vector<photonfarm::v1::TaskEvent> JobEvents(const std::string& job_id, uint64_t* dropped) = 0;

@@ -72,6 +72,38 @@ v1::JobStatus CoordinatorOperations::SetJobPaused(const std::string& job_id, boo
   return status;
 }
 
+v1::DeleteJobResponse CoordinatorOperations::DeleteJob(const std::string& job_id) {
+  // Checked first (NOT_FOUND, FAILED_PRECONDITION): a finished job stays finished, so the removal
+  // below, after its rows are deleted, cannot be refused.
+  const std::string id = p_.scheduler.CheckRemovable(job_id);
+  std::shared_ptr<const JobConfig> config;
+  v1::DeleteJobResponse out;
+  out.set_job_id(id);
+  out.set_bytes_freed(p_.persister.DeleteJob(id, [&] { config = p_.scheduler.RemoveJob(id); }));
+  // Its stored maps no remaining job uses (the job is gone: JobConfigs no longer lists it).
+  const DistributedMaps::Removed maps = p_.maps.RemoveMapsOf(id, *config, p_.scheduler.JobConfigs());
+  out.set_bytes_freed(out.bytes_freed() + maps.bytes);
+  out.set_maps_removed(maps.maps);
+  spdlog::info("job {}: deleted: {} bytes freed ({} photon maps)", id, out.bytes_freed(), maps.maps);
+  return out;
+}
+
+size_t CoordinatorOperations::DeleteFinishedBefore(int64_t cutoff_unix_ms) {
+  size_t deleted = 0;
+  for (const std::string& id : p_.scheduler.FinishedBefore(cutoff_unix_ms)) {
+    try {
+      DeleteJob(id);
+      ++deleted;
+    } catch (const NotFoundError&) {
+      // deleted meanwhile (pf delete)
+    } catch (const std::exception& e) {
+      spdlog::warn("job {}: not deleted by --retain-finished now: {}", id, e.what());
+    }
+  }
+  if (deleted > 0) spdlog::info("--retain-finished: {} finished jobs deleted", deleted);
+  return deleted;
+}
+
 std::vector<v1::WorkerInfo> CoordinatorOperations::Workers() {
   return p_.scheduler.activity().Workers();
 }

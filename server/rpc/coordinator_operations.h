@@ -42,6 +42,11 @@ class CoordinatorOperations final : public CoordinatorApi {
   Scheduler::JobPage ListJobs(bool include_finished, uint64_t after_seq, size_t limit) override;
   photonfarm::v1::JobStatus CancelJob(const std::string& job_id) override;
   photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused) override;
+  photonfarm::v1::DeleteJobResponse DeleteJob(const std::string& job_id) override;
+  // --retain-finished (docs/farm.md "Deleting jobs"): deletes every finished job that ended before
+  // `cutoff_unix_ms`, as DeleteJob does; one that cannot be deleted now is logged and left for the
+  // next run. Returns how many were deleted.
+  size_t DeleteFinishedBefore(int64_t cutoff_unix_ms);
   std::vector<photonfarm::v1::WorkerInfo> Workers() override;
   std::vector<photonfarm::v1::TaskEvent> JobEvents(const std::string& job_id, uint64_t* dropped) override;
   ResolvedImage JobImage(const std::string& job_id, photonfarm::v1::JobStatus* status) override;

@@ -189,6 +189,29 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ResumeJob(grpc::CallbackServerConte
   });
 }
 
+grpc::ServerUnaryReactor* RenderServiceImpl::DeleteJob(grpc::CallbackServerContext* context,
+                                                       const v1::DeleteJobRequest* request,
+                                                       v1::DeleteJobResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const grpc::Status valid = Guarded("DeleteJob", [&] {
+    RequireJobId(request->job_id());
+    return grpc::Status::OK;
+  });
+  if (!valid.ok()) {
+    reactor->Finish(valid);
+    return reactor;
+  }
+  // Off the RPC thread: it waits for a flush in progress and removes files.
+  const bool posted = api_.executor().Post([this, reactor, request, response] {
+    reactor->Finish(Guarded("DeleteJob", [&] {
+      *response = api_.DeleteJob(request->job_id());
+      return grpc::Status::OK;
+    }));
+  });
+  if (!posted) reactor->Finish(Busy());
+  return reactor;
+}
+
 grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerContext* context,
                                                          const v1::ListWorkersRequest* /*request*/,
                                                          v1::ListWorkersResponse* response) {

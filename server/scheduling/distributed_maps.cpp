@@ -13,6 +13,7 @@
 #include "common/photon/map_key.h"
 #include "common/photon/photon_chunk.h"
 #include "common/photon/photon_maps_bytes.h"
+#include "common/plan/hierarchy.h"
 #include "common/scene/scene_bundle.h"
 #include "photonfarm_version.h"
 #include "proto/convert.h"
@@ -148,15 +149,34 @@ fs::path DistributedMaps::ChunkFile(const std::string& key, uint64_t begin, uint
   return options_.dir / (key + ".chunks") / (std::to_string(begin) + "-" + std::to_string(end));
 }
 
-const std::string* DistributedMaps::KeyFor(const Job& job, uint64_t map_index) {
-  const JobConfig& config = job.config();
+bool MayDistributeMaps(const JobConfig& config) {
   const JobRenderSettings& s = config.settings;
   // An importance-driven map (§4.7) depends on the camera's importons, which a piece's tracer does
   // not build: such maps are traced where they are used (distributed + importance is rejected
   // at submission, proto/convert.cpp).
-  if (s.integrator != IntegratorKind::kPhotonMap || s.map_tracing == MapTracingMode::kLocal ||
-      s.importance != ImportanceMode::kOff || !CanSerialize(s.structure) || s.photons == 0)
-    return nullptr;
+  return s.integrator == IntegratorKind::kPhotonMap && s.map_tracing != MapTracingMode::kLocal &&
+         s.importance == ImportanceMode::kOff && CanSerialize(s.structure) && s.photons != 0;
+}
+
+uint64_t PlanMapCount(const PlanSpec& plan) {
+  switch (plan.kind) {
+    case PlanKind::kMultipleMaps:
+    case PlanKind::kProgressive:
+      return plan.maps;
+    case PlanKind::kMapsInTurn:
+      return plan.samples_per_pixel;
+    case PlanKind::kSkipping:
+      return uint64_t(plan.rounds) * plan.stride * plan.stride;
+    case PlanKind::kHierarchical:
+      return MakeHierarchySchedule(plan).nmax;  // every level's maps; localization reuses level 0's
+  }
+  return 0;
+}
+
+const std::string* DistributedMaps::KeyFor(const Job& job, uint64_t map_index) {
+  const JobConfig& config = job.config();
+  const JobRenderSettings& s = config.settings;
+  if (!MayDistributeMaps(config)) return nullptr;
   const auto id = std::make_pair(job.id(), map_index);
   if (auto it = keys_.find(id); it != keys_.end()) return &it->second;
   if (s.map_tracing == MapTracingMode::kAuto) {
@@ -610,6 +630,65 @@ MapUpdate DistributedMaps::PieceLeaseEnded(const PieceLeaseEnd& end) {
     RequeueLocked(m, end.piece, "piece-failed", "failed by " + end.worker_id + ": " + end.reason, update);
   }
   return update;
+}
+
+DistributedMaps::Removed DistributedMaps::RemoveMapsOf(
+    const std::string& job_id, const JobConfig& deleted,
+    const std::vector<std::shared_ptr<const JobConfig>>& remaining) {
+  Removed out;
+  std::vector<std::string> candidates;
+  if (MayDistributeMaps(deleted)) {
+    // Keys are hashes (outside the locks): a remaining job shares the deleted one's maps only with
+    // its scene, settings and seed, i.e. the same key for map 0.
+    const std::string first = DistributedMapKey(deleted, MapSeed(deleted.seed, 0));
+    uint64_t used_below = 0;
+    for (const std::shared_ptr<const JobConfig>& other : remaining)
+      if (other->seed == deleted.seed && MayDistributeMaps(*other) &&
+          DistributedMapKey(*other, MapSeed(other->seed, 0)) == first)
+        used_below = std::max(used_below, PlanMapCount(other->plan));
+    for (uint64_t i = used_below; i < PlanMapCount(deleted.plan); ++i)
+      candidates.push_back(DistributedMapKey(deleted, MapSeed(deleted.seed, i)));
+  }
+  std::lock_guard lock(mu_);
+  for (auto it = keys_.lower_bound({job_id, 0}); it != keys_.end() && it->first.first == job_id;)
+    it = keys_.erase(it);
+  shared_maps_.erase(job_id);
+  std::set<std::string> protected_keys;  // of jobs registered since `remaining` was taken
+  for (const auto& [id, key] : keys_) protected_keys.insert(key);
+  for (const std::string& key : candidates) {
+    if (protected_keys.count(key)) continue;
+    if (auto m = maps_.find(key); m != maps_.end()) {
+      if (m->second.state == Map::State::kTracing || m->second.state == Map::State::kBuilding ||
+          !m->second.waiting.empty())
+        continue;
+      maps_.erase(m);
+    }
+    on_disk_.erase(key);
+    chunks_on_disk_.erase(key);
+    uint64_t bytes = 0;
+    bool found = false;
+    std::error_code ec;
+    const fs::path file = MapFileOf(options_.dir, key);
+    for (const fs::path& f : {file, TracersFile(file)}) {
+      const uintmax_t size = fs::file_size(f, ec);
+      if (!ec && fs::remove(f, ec)) {
+        bytes += size;
+        found = found || f == file;
+      }
+    }
+    const fs::path chunks = options_.dir / (key + ".chunks");
+    if (fs::is_directory(chunks, ec)) {
+      for (fs::recursive_directory_iterator c(chunks, ec), end; !ec && c != end; c.increment(ec))
+        if (std::error_code fec; c->is_regular_file(fec)) bytes += c->file_size(fec);
+      fs::remove_all(chunks, ec);
+      found = true;
+    }
+    if (!found) continue;
+    ++out.maps;
+    out.bytes += bytes;
+    spdlog::info("job {}: map {} removed with the job ({} bytes)", job_id, ShortKey(key), bytes);
+  }
+  return out;
 }
 
 DistributedMaps::Counters DistributedMaps::counters() const {

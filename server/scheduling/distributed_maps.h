@@ -176,6 +176,19 @@ class DistributedMaps final : public MapTracingHook {
   // A convicted worker (MapTracingHook, outside the scheduler's locks): see the header comment.
   std::vector<std::string> WorkerConvicted(const std::string& worker_id) override;
 
+  // A deleted job (docs/farm.md "Deleting jobs"), already gone from the Scheduler: its maps that no
+  // job in `remaining` uses — built, left to the workers or found on disk, with their pieces and
+  // `.by` records — are removed from memory and from `dir`. A map is used by a remaining job of the
+  // same scene, render settings and seed whose plan reaches its index (PlanMapCount; the key of a
+  // job registered since is protected too); a map still tracing or building is kept (its pieces
+  // may be leased). Returns the maps removed and their bytes.
+  struct Removed {
+    uint32_t maps = 0;
+    uint64_t bytes = 0;
+  };
+  Removed RemoveMapsOf(const std::string& job_id, const JobConfig& deleted,
+                       const std::vector<std::shared_ptr<const JobConfig>>& remaining);
+
   // Waits for a running assembly; no new ones.
   void Stop();
 
@@ -291,5 +304,9 @@ class DistributedMaps final : public MapTracingHook {
 
 // The content address of map `map_seed` of a job (see the header comment).
 std::string DistributedMapKey(const JobConfig& config, uint64_t map_seed);
+// Whether the job's maps may be traced once and stored (KeyFor's rule, before kAuto's choice).
+bool MayDistributeMaps(const JobConfig& config);
+// The map indices a plan's tasks use are below this (a dynamic plan's created tasks included).
+uint64_t PlanMapCount(const PlanSpec& plan);
 
 }  // namespace pf::server

@@ -91,6 +91,19 @@ void FarmActivity::WorkerLost(const std::string& worker_id, bool lost) {
   WorkerLocked(worker_id).info.set_lost(lost);
 }
 
+void FarmActivity::ForgetJob(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  events_.erase(job_id);
+  for (auto& [id, w] : workers_) {
+    auto* ids = w.info.mutable_blocklisted_job_ids();
+    for (int i = 0; i < ids->size();)
+      if (ids->Get(i) == job_id)
+        ids->DeleteSubrange(i, 1);
+      else
+        ++i;
+  }
+}
+
 void FarmActivity::WorkerBlocklisted(const std::string& worker_id, const std::string& job_id) {
   if (worker_id.empty()) return;
   std::lock_guard lock(mu_);

@@ -43,6 +43,9 @@ class FarmActivity {
   void WorkerBlocklisted(const std::string& worker_id, const std::string& job_id);
   void WorkerQuarantined(const std::string& worker_id, double until, const std::string& reason);
 
+  // A deleted job (pf delete): its events go, and it leaves the workers' blocklisted job lists.
+  void ForgetJob(const std::string& job_id);
+
   std::vector<photonfarm::v1::WorkerInfo> Workers() const;
   // Events of `job_id`, oldest first; `dropped` = older events no longer kept. Empty for a job
   // with no events (the caller checks that the job exists).

@@ -335,6 +335,10 @@ RecoveryReport RecoverJobs(JobStore& db, const SceneCatalog& scenes, const fs::p
       job->checkpoint_path = cp_file.string();
       job->RestoreState(row.state, row.failure_reason, now);
       job->RestoreElapsed(row.elapsed_seconds);
+      // A row from before the column: its end estimated (it ran at least that long after submission).
+      job->finished_unix_ms = row.finished_unix_ms != 0
+                                  ? row.finished_unix_ms
+                                  : row.submitted_unix_ms + int64_t(row.elapsed_seconds * 1000.0);
       job->stored_samples_merged = row.samples_merged;
       job->stored_noise_rms = row.noise_rms;
       job->checkpoint_seal = expected_seal;
@@ -416,6 +420,7 @@ RecoveryReport RecoverJobs(JobStore& db, const SceneCatalog& scenes, const fs::p
       report.acknowledged_lost += acknowledged_lost;
     }
     job->RestoreState(row.state, row.failure_reason, now);
+    if (IsTerminal(row.state)) job->finished_unix_ms = row.finished_unix_ms;
     job->paused = row.paused;  // AddJob holds its tasks back (docs/farm.md "Pausing a job")
     // A restart's time budget starts anew (Job::Restart): the row's time is the dropped epoch's.
     job->RestoreElapsed(rerender || restart_from_checkpoint ? 0.0 : row.elapsed_seconds);

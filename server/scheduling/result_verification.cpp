@@ -218,6 +218,12 @@ void ResultVerification::CountVerified(const Job& job) {
   ++jobs_[&job].verified;
 }
 
+bool ResultVerification::Names(const Job& job) const {
+  for (const auto& [id, v] : all_)
+    if (v->job == &job) return true;
+  return false;
+}
+
 void ResultVerification::DropJob(const Job& job, bool ended) {
   for (auto it = all_.begin(); it != all_.end();) {
     Verification& v = *it->second;

@@ -145,6 +145,10 @@ class ResultVerification {
   // The job restarted (its results are gone: its references and counts too) or ended: its queued
   // and leased verifications are dropped, those with the referee detached.
   void DropJob(const Job& job, bool ended);
+  // Whether a verification (a detached one with the referee included) still names the job.
+  bool Names(const Job& job) const;
+  // A deleted job (pf delete; after DropJob, and only if !Names): its counts go.
+  void ForgetJob(const Job& job) { jobs_.erase(&job); }
 
  private:
   struct JobState {

@@ -230,6 +230,20 @@ class Scheduler final : public PersistSource {
   // caller stores the flag (JobStore::SetJobPaused; docs/farm.md "Pausing a job").
   photonfarm::v1::JobStatus SetPaused(const std::string& job_id, bool paused);
   JobSnapshot Snapshot(const std::string& job_id, bool with_image);
+  // Deleting a job (docs/farm.md "Deleting jobs"; scheduler_deletion.cpp). CheckRemovable: the
+  // whole id of `job_id` (an id or a unique prefix) if the job may be deleted, else
+  // PreconditionError naming its state (only a succeeded, failed or cancelled job; not while a
+  // verification of it is with the referee). RemoveJob: the same check, then the job is forgotten —
+  // by the registry, the queue, the task sources, worker health, verification and the activity
+  // lists — and its config returned (its stored maps are the caller's). Whoever still holds the Job
+  // (FindJob is shared) keeps a valid object that nothing reaches any more. The rows and files are
+  // the caller's (Persister::DeleteJob).
+  std::string CheckRemovable(const std::string& job_id);
+  std::shared_ptr<const JobConfig> RemoveJob(const std::string& job_id);
+  // The succeeded, failed and cancelled jobs that ended before `cutoff_unix_ms` (Job::finished_unix_ms).
+  std::vector<std::string> FinishedBefore(int64_t cutoff_unix_ms) const;
+  // The configs of every job it knows (which stored maps remaining jobs use).
+  std::vector<std::shared_ptr<const JobConfig>> JobConfigs() const;
   // Queued and running jobs, their tasks and pixels, and how many of them `client` submitted
   // (Job::client). O(1).
   ActiveLoad Load(const std::string& client) const;
@@ -404,8 +418,8 @@ class Scheduler final : public PersistSource {
   // Ends the job: cancels every queued and leased task, then transitions.
   void FinishJob(Job& job, JobState state, const std::string& reason, double now, Effects& fx);
   void MaybeSucceed(Job& job, double now, Effects& fx);
-  // The job (jobs are never removed, so the reference stays valid without the lock).
-  Job& FindJob(const std::string& job_id);
+  // The job, shared: it stays valid without the lock even if it is deleted meanwhile (RemoveJob).
+  std::shared_ptr<Job> FindJob(const std::string& job_id);
   // Brings the cached noise estimate up to date if stale (an O(pixels) pass under image_mu; call
   // without mu_).
   void RefreshNoise(Job& job);
@@ -437,6 +451,8 @@ class Scheduler final : public PersistSource {
   // Appends and queues the tasks the job's source creates from its merged results.
   void AddTasksFromSource(Job& job, Effects& fx);
   photonfarm::v1::JobStatus BuildStatus(Job& job, double now);
+  // CheckRemovable under the lock: the job, or PreconditionError.
+  Job& RemovableLocked(const std::string& job_id);
   // Counts an active job into load_ (AddJob: +1) or its end (FinishJob: −1; its tasks and pixels
   // leave load_ with ReleaseFinishedTasks).
   void Charge(Job& job, int sign);

@@ -24,6 +24,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
   // 1. Claim (global lock, O(1)): the lease must be live; it is pinned (TaskRuntime::merging) so
   //    that it neither expires nor takes a second result while this one is checked.
   Job* job = nullptr;
+  std::shared_ptr<Job> held;  // keeps the job valid until the result is decided (RemoveJob)
   uint64_t task_id = 0;
   TaskSpec task;                   // a copy: the job's task vector may grow (AppendTasks) meanwhile
   bool needs_accumulator = false;  // read under the lock: the pointer changes under both locks
@@ -49,6 +50,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
                    result.reason);
     } else {
       job = ref->job;
+      held = jobs_.Shared(job->id());
       task_id = ref->task_id;
       task = job->task(task_id);
       job->runtime(task_id).merging = true;

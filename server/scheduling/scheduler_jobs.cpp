@@ -109,6 +109,7 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
                           : job.results_storage_error + "; " + job.rows_storage_error);
   s.set_paused_for_storage(job.paused_for_storage);
   s.set_paused(job.paused && job.active());
+  s.set_finished_unix_ms(job.active() ? 0 : job.finished_unix_ms);
   // Progress and ETA count work (Job::task_work: tasks, or the hierarchical plan's pixel samples and
   // maps), including what the plan's task source expects to create (its localization tasks).
   // As of the last merge (the hierarchical source reads the accumulator, guarded by image_mu).
@@ -148,11 +149,11 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   return s;
 }
 
-Job& Scheduler::FindJob(const std::string& job_id) {
+std::shared_ptr<Job> Scheduler::FindJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
-  // An id or a unique prefix of one (JobRegistry::Resolve). Jobs are never removed: the reference
-  // outlives the lock.
-  return jobs_.Get(jobs_.Resolve(job_id));
+  // An id or a unique prefix of one (JobRegistry::Resolve). Shared: a job deleted meanwhile
+  // (RemoveJob) stays valid for this caller.
+  return jobs_.Shared(jobs_.Resolve(job_id));
 }
 
 void Scheduler::RefreshNoise(Job& job) {
@@ -176,20 +177,22 @@ void Scheduler::RefreshNoise(Job& job) {
 }
 
 v1::JobStatus Scheduler::Status(const std::string& job_id) {
-  Job& job = FindJob(job_id);
+  const std::shared_ptr<Job> held = FindJob(job_id);
+  Job& job = *held;
   RefreshNoise(job);
   std::lock_guard lock(mu_);
   return BuildStatus(job, clock_.Now());
 }
 
 void Scheduler::RefreshNoiseOfAll(bool include_finished) {
-  std::vector<Job*> jobs;
+  std::vector<std::shared_ptr<Job>> jobs;
   {
     std::lock_guard lock(mu_);
     for (Job* job : jobs_.InSubmissionOrder())
-      if ((include_finished || job->active()) && job->accumulator_if_loaded()) jobs.push_back(job);
+      if ((include_finished || job->active()) && job->accumulator_if_loaded())
+        jobs.push_back(jobs_.Shared(job->id()));
   }
-  for (Job* job : jobs) RefreshNoise(*job);
+  for (const std::shared_ptr<Job>& job : jobs) RefreshNoise(*job);
 }
 
 std::vector<v1::JobStatus> Scheduler::List(bool include_finished) {
@@ -221,7 +224,8 @@ Scheduler::JobPage Scheduler::ListPage(bool include_finished, uint64_t after_seq
 
 v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
   Effects fx;
-  Job& job = FindJob(job_id);
+  const std::shared_ptr<Job> held = FindJob(job_id);
+  Job& job = *held;
   {
     std::lock_guard lock(mu_);
     if (job.active()) {
@@ -237,7 +241,8 @@ v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
 
 v1::JobStatus Scheduler::SetPaused(const std::string& job_id, bool paused) {
   Effects fx;
-  Job& job = FindJob(job_id);
+  const std::shared_ptr<Job> held = FindJob(job_id);
+  Job& job = *held;
   {
     std::lock_guard lock(mu_);
     if (!job.active())
@@ -262,7 +267,8 @@ v1::JobStatus Scheduler::SetPaused(const std::string& job_id, bool paused) {
 }
 
 JobSnapshot Scheduler::Snapshot(const std::string& job_id, bool with_image) {
-  Job& job = FindJob(job_id);
+  const std::shared_ptr<Job> held = FindJob(job_id);
+  Job& job = *held;
   JobSnapshot snap;
   snap.config = job.shared_config();
   if (!with_image) {
@@ -304,6 +310,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
   if (state == JobState::kSucceeded && job.state() == JobState::kQueued)
     job.TransitionTo(JobState::kRunning, now);
   job.TransitionTo(state, now, reason);
+  job.finished_unix_ms = clock_.UnixMillis();
   health_.JobEnded(job.id());
   verification_.DropJob(job, /*ended=*/true);
   // The final noise estimate is an O(pixels) pass: computed off this lock by the next status,

@@ -38,13 +38,13 @@ std::vector<Checkpoint> Scheduler::CollectCheckpoints(bool due) {
   std::vector<Checkpoint> out;
   // One job at a time under its image_mu (the global lock only for O(1) bookkeeping): free what
   // is on disk, the final noise estimate of a finished job, checkpoints.
-  std::vector<Job*> loaded;
+  std::vector<std::shared_ptr<Job>> loaded;  // shared: a job deleted meanwhile stays valid here
   {
     std::lock_guard lock(mu_);
     for (Job* job : jobs_.InSubmissionOrder())
-      if (job->accumulator_if_loaded()) loaded.push_back(job);
+      if (job->accumulator_if_loaded()) loaded.push_back(jobs_.Shared(job->id()));
   }
-  for (Job* job : loaded) {
+  for (const std::shared_ptr<Job>& job : loaded) {
     std::lock_guard image(job->image_mu);
     bool final_noise = false, checkpoint = false;
     Checkpoint cp;
@@ -85,10 +85,10 @@ std::vector<Checkpoint> Scheduler::CollectCheckpoints(bool due) {
 }
 
 void Scheduler::CheckpointStored(const Checkpoint& cp, const CheckpointSeal& seal, const std::string& path) {
-  Job* job = nullptr;
+  std::shared_ptr<Job> job;
   {
     std::lock_guard lock(mu_);
-    job = jobs_.Find(cp.job_id);
+    if (jobs_.Find(cp.job_id)) job = jobs_.Shared(cp.job_id);
   }
   if (!job) return;
   Effects fx;
@@ -202,6 +202,7 @@ RowBatch Scheduler::CollectRowsLocked(uint64_t* released) {
       row.noise_rms = job->accumulator_if_loaded() ? job->noise_cache : job->stored_noise_rms;
       row.checkpoint = job->checkpoint_seal;
       row.epoch = job->epoch();
+      row.finished_unix_ms = job->finished_unix_ms;
       for (const std::string& w : job->convicted_workers)
         row.convicted += (row.convicted.empty() ? "" : "\n") + w;
       batch.jobs.push_back(std::move(row));

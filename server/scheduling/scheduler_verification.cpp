@@ -414,11 +414,11 @@ void Scheduler::RefereeVerdict(uint64_t verification_id, const std::string& dige
 bool Scheduler::Convict(const std::string& job_id, const std::vector<std::string>& workers, uint64_t task_id,
                         const std::string& evidence, std::optional<uint32_t> result_epoch,
                         uint64_t verification_id) {
-  Job* job = nullptr;
+  std::shared_ptr<Job> job;  // shared: valid without the lock even if the job is deleted meanwhile
   MapTracingHook* hook = nullptr;
   {
     std::lock_guard lock(mu_);
-    job = jobs_.Find(job_id);
+    if (jobs_.Find(job_id)) job = jobs_.Shared(job_id);
     hook = map_hook_;
     if (!job && verification_id != 0) verification_.Remove(verification_id);
   }
@@ -439,10 +439,10 @@ bool Scheduler::Convict(const std::string& job_id, const std::vector<std::string
   const bool restarted =
       ConvictInJob(*job, workers, task_id, evidence, result_epoch, verification_id, used_here);
   for (const auto& [id, convicted] : used_their_maps) {
-    Job* other = nullptr;
+    std::shared_ptr<Job> other;
     {
       std::lock_guard lock(mu_);
-      other = jobs_.Find(id);
+      if (jobs_.Find(id)) other = jobs_.Shared(id);
     }
     if (other)
       ConvictInJob(*other, convicted, 0,

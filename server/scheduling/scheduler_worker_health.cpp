@@ -185,7 +185,8 @@ uint32_t Scheduler::JobEpoch(const std::string& job_id) {
 uint64_t Scheduler::StoredMergeSeq(const std::string& job_id) {
   std::lock_guard lock(mu_);
   const Job* job = jobs_.Find(job_id);
-  return job ? job->checkpoint_written_seq : 0;
+  // A job unknown here was deleted (pf delete) after the merge: nothing of it is written again.
+  return job ? job->checkpoint_written_seq : ~uint64_t(0);
 }
 
 void Scheduler::RestoreConvictions(const std::string& job_id, const std::vector<std::string>& workers) {

@@ -37,6 +37,12 @@ bool TaskQueue::Unhold(Job& job) {
   return true;
 }
 
+void TaskQueue::Forget(const Job& job) {
+  queues_.erase(&job);
+  held_.erase(&job);
+  if (auto it = ready_.find(PositionOf(job)); it != ready_.end() && it->second == &job) ready_.erase(it);
+}
+
 TaskQueue::Position TaskQueue::PositionOf(const Job& job) {
   return {-int64_t(job.config().priority), job.seq()};
 }

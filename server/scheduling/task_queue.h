@@ -56,6 +56,8 @@ class TaskQueue {
   // Unhold. Both idempotent.
   void Hold(const Job& job);
   bool Unhold(Job& job);  // true if it was held
+  // A deleted job (pf delete): nothing of it stays queued or held.
+  void Forget(const Job& job);
 
   // Nothing to serve: no render task of a job that is not held, and no map piece.
   bool empty() const { return ready_.empty() && pieces_.empty(); }

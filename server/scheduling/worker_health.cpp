@@ -157,6 +157,11 @@ bool WorkerHealth::AnyLiveWorker(const std::function<bool(const std::string&)>& 
   return false;
 }
 
+void WorkerHealth::ForgetJob(const std::string& job_id) {
+  JobEnded(job_id);
+  jobs_.erase(job_id);
+}
+
 void WorkerHealth::JobEnded(const std::string& job_id) {
   auto it = jobs_.find(job_id);
   if (it == jobs_.end()) return;

@@ -93,6 +93,8 @@ class WorkerHealth {
   bool AnyLiveWorker(const std::function<bool(const std::string& worker_id)>& eligible, double now) const;
   // The job ended: its failure counts are dropped (its blocklist stays, for its status).
   void JobEnded(const std::string& job_id);
+  // A deleted job (pf delete): its blocklist goes too.
+  void ForgetJob(const std::string& job_id);
 
  private:
   struct Worker {

@@ -37,8 +37,7 @@ class JobStore {
   virtual uint64_t CountTasks(const std::string& job_id, TaskState state) = 0;
   // Removes the job's row and all its task rows in one transaction: recovery, which starts from
   // the rows, never sees the job again. An unknown id is no error. The store's half of deleting a
-  // job; the scheduler keeps every Job for its lifetime (Scheduler::FindJob) and does not call it
-  // yet.
+  // job (Persister::DeleteJob; docs/farm.md "Deleting jobs").
   virtual void DeleteJob(const std::string& job_id) = 0;
   // Stores whether a user paused the job (PauseJob / ResumeJob): recovery restores it.
   virtual void SetJobPaused(const std::string& job_id, bool paused) = 0;

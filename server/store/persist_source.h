@@ -38,6 +38,7 @@ class PersistSource {
   virtual uint32_t JobEpoch(const std::string& job_id) = 0;
   // The merge_seq of the job's last stored checkpoint: a result whose merge came at or before it
   // is stored already (a checkpoint of merge_seq S holds the job's first S merges of its epoch).
+  // For an unknown (deleted) job: the largest value — nothing of it is written any more.
   virtual uint64_t StoredMergeSeq(const std::string& job_id) = 0;
   // These merged results are in the job's journal, synced.
   virtual void ResultsJournaled(const std::string& job_id, std::span<const uint64_t> task_ids) = 0;

@@ -2,8 +2,10 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <iterator>
 #include <set>
 #include <tuple>
 
@@ -348,6 +350,39 @@ bool Persister::Flush(bool force_checkpoints) {
   }
   CloseJournalsBeyondTheCap();
   return ok;
+}
+
+uint64_t Persister::DeleteJob(const std::string& job_id, const std::function<void()>& forget) {
+  std::lock_guard flush_lock(flush_mu_);
+  db_.DeleteJob(job_id);
+  forget();
+  std::vector<Pending> dropped;
+  {
+    std::lock_guard lock(mu_);
+    auto keep = std::stable_partition(pending_.begin(), pending_.end(),
+                                      [&](const Pending& p) { return p.job_id != job_id; });
+    std::move(keep, pending_.end(), std::back_inserter(dropped));
+    pending_.erase(keep, pending_.end());
+  }
+  for (Pending& p : dropped) Answer(p.ack, "the job was deleted");
+  if (auto it = journals_.find(job_id); it != journals_.end()) {
+    it->second->CloseFile();
+    journals_.erase(it);
+  }
+  uint64_t bytes = 0;
+  const std::string prefix = job_id + ".";
+  std::error_code ec;
+  std::vector<fs::path> files;
+  for (fs::directory_iterator it(checkpoint_dir_, ec), end; !ec && it != end; it.increment(ec))
+    if (it->path().filename().string().starts_with(prefix)) files.push_back(it->path());
+  for (const fs::path& f : files) {
+    std::error_code size_ec, remove_ec;
+    const uintmax_t size = fs::file_size(f, size_ec);
+    if (fs::remove(f, remove_ec) && !size_ec) bytes += size;
+    if (remove_ec)
+      spdlog::warn("job {}: {} not removed: {}", job_id, f.filename().string(), remove_ec.message());
+  }
+  return bytes;
 }
 
 void Persister::CloseJournalsBeyondTheCap() {

@@ -104,6 +104,14 @@ class Persister {
   // everything it tried to write was written.
   bool FlushNow(bool checkpoints_due = true);
 
+  // Deletes a finished job's stored state (docs/farm.md "Deleting jobs"), with no flush running:
+  // its rows first (a failure changes nothing; a crash after it leaves files that recovery sets
+  // aside as orphaned, never a job), then `forget` (the job leaves memory: nothing of it is
+  // collected again), then its results still waiting for the journal are answered "not stored"
+  // and never written, and its files in the checkpoint directory — checkpoint, journal, and what
+  // recovery set aside of them (<job>.*) — are removed. Returns the bytes removed.
+  uint64_t DeleteJob(const std::string& job_id, const std::function<void()>& forget);
+
   uint64_t checkpoints_written() const;
   uint64_t journal_entries_written() const;
 

@@ -49,6 +49,9 @@ struct JobRow {
   // Paused by a user (PauseJob, docs/farm.md "Pausing a job"): written by JobStore::SetJobPaused
   // only, read by recovery.
   bool paused = false;
+  // When the job reached its terminal state (Job::finished_unix_ms); 0 while active, and in rows
+  // written before the column (recovery then estimates it: submitted + elapsed).
+  int64_t finished_unix_ms = 0;
 };
 
 struct TaskRow {

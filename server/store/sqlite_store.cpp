@@ -188,6 +188,8 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
   AddColumnIfMissing("jobs", "convicted", "TEXT NOT NULL DEFAULT ''");
   // … and before pf pause jobs.paused (none paused).
   AddColumnIfMissing("jobs", "paused", "INTEGER NOT NULL DEFAULT 0");
+  // … and before pf purge jobs.finished_unix_ms (0: recovery estimates it).
+  AddColumnIfMissing("jobs", "finished_unix_ms", "INTEGER NOT NULL DEFAULT 0");
 }
 
 SqliteStore::~SqliteStore() {
@@ -283,8 +285,8 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
   Transaction tx(db_);
   Statement job(db_,
                 "UPDATE jobs SET state = ?2, failure_reason = ?3, elapsed_seconds = ?4, samples_merged = ?5, "
-                "noise_rms = ?6, checkpoint_tasks = ?7, checkpoint_digest = ?8, epoch = ?9, convicted = ?10 "
-                "WHERE id = ?1");
+                "noise_rms = ?6, checkpoint_tasks = ?7, checkpoint_digest = ?8, epoch = ?9, convicted = ?10, "
+                "finished_unix_ms = ?11 WHERE id = ?1");
   for (const JobRow& j : jobs)
     job.Text(1, j.job_id)
         .Int(2, int(j.state))
@@ -296,6 +298,7 @@ void SqliteStore::Apply(const std::vector<JobRow>& jobs, const std::vector<TaskR
         .Text(8, DigestText(j.checkpoint.digest))
         .Int(9, j.epoch)
         .Text(10, j.convicted)
+        .Int(11, j.finished_unix_ms)
         .Run();
   Statement task(db_, kUpsertTask);
   for (const TaskRow& t : tasks) UpsertTask(task, t);
@@ -313,7 +316,8 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
   Statement st(
       db_,
       "SELECT id, seq, spec, state, failure_reason, submitted_unix_ms, elapsed_seconds, samples_merged, "
-      "noise_rms, checkpoint_tasks, checkpoint_digest, epoch, convicted, paused FROM jobs ORDER BY seq");
+      "noise_rms, checkpoint_tasks, checkpoint_digest, epoch, convicted, paused, finished_unix_ms FROM jobs "
+      "ORDER BY seq");
   while (st.Step()) {
     JobRow j;
     j.job_id = st.ColText(0);
@@ -330,6 +334,7 @@ std::vector<JobRow> SqliteStore::LoadJobs() {
     j.epoch = uint32_t(st.ColInt(11));
     j.convicted = st.ColText(12);
     j.paused = st.ColInt(13) != 0;
+    j.finished_unix_ms = st.ColInt(14);
     out.push_back(std::move(j));
   }
   return out;

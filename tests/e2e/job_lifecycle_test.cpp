@@ -1,9 +1,13 @@
 // `pf pause` / `pf resume` against a real coordinator and workers (docs/farm.md "Pausing a job"):
 // a paused job starts no task while its leases in flight finish, resumes to the image of an
-// unpaused run bit for bit, and stays paused across a coordinator restart.
+// unpaused run bit for bit, and stays paused across a coordinator restart. `pf delete` (docs/farm.md
+// "Deleting jobs"): a finished job's files and the photon maps only it used leave the data
+// directory, another job's stay retrievable, a restart does not bring it back, a live job is refused.
 #include <signal.h>
 
 #include <chrono>
+#include <regex>
+#include <set>
 #include <thread>
 
 #include "client/farm_client.h"
@@ -99,6 +103,141 @@ TEST(JobLifecycle, APausedJobStaysPausedAcrossACoordinatorRestart) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("FAILED_PRECONDITION"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("SUCCEEDED"), std::string::npos) << r.err;
+}
+
+// The short keys (12 hex digits) of the maps the coordinator traced once for `job_id`.
+std::set<std::string> MapKeysOf(const fs::path& coordinator_log, const std::string& job_id) {
+  std::set<std::string> keys;
+  const std::regex re("job " + job_id + " map [0-9]+: traced once, distributed .*key ([0-9a-f]{12})");
+  for (const std::string& line : ReadLines(coordinator_log)) {
+    std::smatch m;
+    if (std::regex_search(line, m, re)) keys.insert(m[1].str());
+  }
+  return keys;
+}
+
+// Files of the maps directory whose name starts with one of `keys`.
+size_t MapFilesOf(const fs::path& maps_dir, const std::set<std::string>& keys) {
+  size_t n = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(maps_dir))
+    n += keys.count(e.path().filename().string().substr(0, 12));
+  return n;
+}
+
+size_t FilesStartingWith(const fs::path& dir, const std::string& prefix) {
+  size_t n = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    n += e.path().filename().string().rfind(prefix, 0) == 0;
+  return n;
+}
+
+TEST(JobLifecycle, ADeletedJobLeavesTheDataDirectoryAndStaysDeletedAcrossARestart) {
+  TestDir dir;
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path());
+  const std::string address = coordinator->address();
+  const int port = coordinator->port();
+  JobArgs a = LifecycleJob(), b = LifecycleJob();
+  b.seed = a.seed + 1;  // other maps
+  const std::vector<std::string> distributed = {"--map-tracing", "distributed"};
+  const std::string id_a = SubmitJob(dir, address, Concat(a.ToFlags(), distributed));
+  const std::string id_b = SubmitJob(dir, address, Concat(b.ToFlags(), distributed));
+  ASSERT_FALSE(id_a.empty());
+  ASSERT_FALSE(id_b.empty());
+  {
+    auto w1 = StartWorker(address, dir.path(), "w1");
+    auto w2 = StartWorker(address, dir.path(), "w2");
+    FarmClient client(address, "");
+    ASSERT_EQ(WaitForJob(client, id_a, 90).state(), v1::JOB_STATE_SUCCEEDED);
+    ASSERT_EQ(WaitForJob(client, id_b, 90).state(), v1::JOB_STATE_SUCCEEDED);
+  }  // the workers stop: a job submitted from now on stays queued
+  const fs::path checkpoints = dir / "data" / "checkpoints", maps = dir / "data" / "maps";
+  const std::set<std::string> keys_a = MapKeysOf(coordinator->process().log(), id_a);
+  const std::set<std::string> keys_b = MapKeysOf(coordinator->process().log(), id_b);
+  ASSERT_EQ(keys_a.size(), 12u) << "one map per task of the skipping plan";
+  ASSERT_EQ(keys_b.size(), 12u);
+  // The final checkpoint of a finished job is written by the persister shortly after it ends.
+  ASSERT_TRUE(WaitUntil([&] { return FilesStartingWith(checkpoints, id_a + ".acc") == 1; }, 10));
+  ASSERT_EQ(MapFilesOf(maps, keys_a), 2 * keys_a.size()) << "each map and its .by record";
+  const size_t files_b = MapFilesOf(maps, keys_b);
+  ASSERT_EQ(files_b, 2 * keys_b.size());
+  FarmClient client(address, "");
+  const Image image_b = DecodeImage(client.GetImage(id_b));
+
+  // Refused: a live job, an unknown id (exit 3), no id.
+  JobArgs c = LifecycleJob();
+  c.seed = a.seed + 2;  // not A's maps: a queued job of A's seed would keep them
+  const std::string id_c = SubmitJob(dir, address, c.ToFlags());
+  ASSERT_FALSE(id_c.empty());
+  RunResult r = Pf(dir, address, {"delete", id_c});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("FAILED_PRECONDITION"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("cancel it first"), std::string::npos) << r.err;
+  r = Pf(dir, address, {"delete", "job-notahexprefix"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.err.find("NOT_FOUND"), std::string::npos) << r.err;
+  EXPECT_EQ(client.GetJob(id_c).state(), v1::JOB_STATE_QUEUED) << "a refused delete changes nothing";
+
+  // Deleted by a prefix of its id.
+  r = Pf(dir, address, {"delete", id_a.substr(0, 12)});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("deleted " + id_a), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(12 photon maps)"), std::string::npos) << r.out;
+  r = Pf(dir, address, {"list", "--all"});
+  EXPECT_EQ(r.out.find(id_a), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(id_b), std::string::npos) << r.out;
+  EXPECT_EQ(FilesStartingWith(checkpoints, id_a), 0u) << "its checkpoint and journal";
+  EXPECT_EQ(MapFilesOf(maps, keys_a), 0u) << "the maps only it used";
+  EXPECT_EQ(FilesStartingWith(checkpoints, id_b + ".acc"), 1u);
+  EXPECT_EQ(MapFilesOf(maps, keys_b), files_b) << "the other job's maps stay";
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(id_b)), image_b));
+  try {
+    client.GetJob(id_a);
+    ADD_FAILURE() << "GetJob of a deleted job";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), grpc::StatusCode::NOT_FOUND);
+  }
+
+  // A restart does not bring it back; the other job is still there, image and all.
+  coordinator->process().Signal(SIGTERM);
+  ASSERT_TRUE(coordinator->process().Wait(20).has_value());
+  coordinator =
+      std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), std::vector<std::string>{}, port);
+  r = Pf(dir, address, {"list", "--all"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out.find(id_a), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(id_b), std::string::npos) << r.out;
+  EXPECT_EQ(Pf(dir, address, {"get", id_a, "-o", (dir / "a.exr").string()}).exit_code, 3);
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(id_b)), image_b));
+  EXPECT_TRUE(Grep(coordinator->process().log(), "orphaned").empty()) << "no file of it was left behind";
+}
+
+// pf purge --older-than: finished jobs older than that go (dry run first), younger and live ones stay.
+TEST(JobLifecycle, PurgeDeletesTheJobsThatFinishedLongerAgo) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const std::string address = coordinator.address();
+  const std::string old_id = SubmitJob(dir, address, LifecycleJob().ToFlags());
+  ASSERT_FALSE(old_id.empty());
+  FarmClient client(address, "");
+  ASSERT_EQ(Pf(dir, address, {"cancel", old_id}).exit_code, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  const std::string young_id = SubmitJob(dir, address, LifecycleJob().ToFlags());
+  ASSERT_EQ(Pf(dir, address, {"cancel", young_id}).exit_code, 0);
+  const std::string live_id = SubmitJob(dir, address, LifecycleJob().ToFlags());
+
+  RunResult r = Pf(dir, address, {"purge", "--older-than", "2s", "--dry-run"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("would delete " + old_id), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(young_id), std::string::npos) << r.out;
+  EXPECT_EQ(client.ListJobs(true).size(), 3u) << "a dry run deletes nothing";
+  r = Pf(dir, address, {"purge", "--older-than", "2s"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("deleted " + old_id), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("purged 1 jobs"), std::string::npos) << r.out;
+  std::set<std::string> left;
+  for (const v1::JobStatus& s : client.ListJobs(true)) left.insert(s.job_id());
+  EXPECT_EQ(left, (std::set<std::string>{young_id, live_id}));
+  EXPECT_EQ(Pf(dir, address, {"purge", "--older-than", "soon"}).exit_code, 2) << "not a duration";
 }
 
 }  // namespace

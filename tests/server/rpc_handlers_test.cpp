@@ -55,6 +55,7 @@ class ScriptedCoordinator final : public CoordinatorApi {
   Scheduler::JobPage ListJobs(bool, uint64_t, size_t) override { return Unexpected<Scheduler::JobPage>(); }
   v1::JobStatus CancelJob(const std::string&) override { return Unexpected<v1::JobStatus>(); }
   v1::JobStatus SetJobPaused(const std::string&, bool) override { return Unexpected<v1::JobStatus>(); }
+  v1::DeleteJobResponse DeleteJob(const std::string&) override { return Unexpected<v1::DeleteJobResponse>(); }
   std::vector<v1::WorkerInfo> Workers() override { return Unexpected<std::vector<v1::WorkerInfo>>(); }
   std::vector<v1::TaskEvent> JobEvents(const std::string&, uint64_t*) override {
     return Unexpected<std::vector<v1::TaskEvent>>();
