@@ -259,14 +259,7 @@ int main(int argc, char** argv) {
   CLI::App* purge = app.add_subcommand("purge", "Delete the jobs that finished more than a while ago");
   purge->add_option("--older-than", purge_age, "Finished more than this long ago: 7d, 12h, 30m, or seconds")
       ->required()
-      ->check([](const std::string& v) {
-        try {
-          pf::ParseDurationText(v, "");
-          return std::string();
-        } catch (const std::exception& e) {
-          return std::string(e.what());
-        }
-      });
+      ->check(pf::DurationTextProblem);
   purge->add_flag("--dry-run", purge_dry_run, "Only list the jobs it would delete");
   AddFarmOptions(purge, uf);
 

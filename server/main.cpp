@@ -102,14 +102,7 @@ int main(int argc, char** argv) {
   app.add_option("--retain-finished", retain_finished,
                  "Delete succeeded, failed and cancelled jobs this long after they finished (7d, 12h, 30m or "
                  "seconds), as pf purge --older-than does; default: keep them (docs/farm.md, Deleting jobs)")
-      ->check([](const std::string& v) {
-        try {
-          pf::ParseDurationText(v, "");
-          return std::string();
-        } catch (const std::exception& e) {
-          return std::string(e.what());
-        }
-      });
+      ->check(pf::DurationTextProblem);
   app.add_option("--checkpoint-ms", checkpoint_ms,
                  "0: journal every result and acknowledge it only once stored (docs/farm.md, Durability); N: "
                  "no journal, acknowledge at once, checkpoint at most every N ms (a crash re-runs up to N ms "

@@ -28,4 +28,15 @@ inline double ParseDurationText(const std::string& text, const std::string& what
   return value * unit;
 }
 
+// "" if `text` is a duration ParseDurationText accepts, else why not: a command-line option's
+// validator (CLI11's check()).
+inline std::string DurationTextProblem(const std::string& text) {
+  try {
+    ParseDurationText(text, "");
+    return {};
+  } catch (const InputError& e) {
+    return e.what();
+  }
+}
+
 }  // namespace pf
