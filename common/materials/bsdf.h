@@ -184,6 +184,7 @@ struct WalkRoulette {
 
   static WalkRoulette Of(const Material& material, const BsdfLobes& lobes) {
     WalkRoulette w;
+    w.textured = material.base_color_texture >= 0;
     w.dielectric = lobes.dielectric || lobes.rough_dielectric;
     w.has_diffuse = !w.dielectric && (lobes.mean[BsdfLobes::kSlotDiffuseR] > 0.0f ||
                                       lobes.mean[BsdfLobes::kSlotDiffuseT] > 0.0f);
@@ -218,6 +219,10 @@ struct WalkRoulette {
     return Outcome::kDiffuse;
   }
 
+  // The material has a texture (scene/surface_material.h): this roulette is the untextured
+  // material's, and the walk makes one per hit instead. Kept here so that the walk's per-hit test
+  // reads the table it reads anyway, not the material.
+  bool textured = false;
   bool dielectric = false;  // smooth or rough: always the general path
   bool has_diffuse = false;
   float p_diffuse = 0.0f;    // the roulette's probability of the diffuse reflection lobe
