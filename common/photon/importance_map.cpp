@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #include "common/accel/embree_scene.h"
@@ -58,7 +59,7 @@ void TraceImporton(const EmbreeScene& scene, const Camera& camera, const Importa
   for (int bounce = 0; bounce < 64; ++bounce) {
     const std::optional<SurfaceHit> hit = scene.Intersect(ray);
     if (!hit) return;
-    Material textured;
+    std::optional<Material> textured;  // filled only for a textured material
     const Material& m = MaterialAt(desc, hit->material, hit->uv, &textured);
     const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;

@@ -1,9 +1,11 @@
 #include "common/photon/metropolis_chain.h"
-#include "common/scene/surface_material.h"
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <utility>
+
+#include "common/scene/surface_material.h"
 
 namespace pf {
 namespace {
@@ -44,7 +46,7 @@ bool TraceChain(const EmbreeScene& scene, const ChainStart& c, const ChainState&
     const std::optional<SurfaceHit> hit = scene.Intersect(ray);
     if (!hit) return i == n && like.escaped;
     if (i == n && like.escaped) return false;
-    Material textured;
+    std::optional<Material> textured;  // filled only for a textured material
     const Material& m = MaterialAt(desc, hit->material, hit->uv, &textured);
     const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
     const Vec3 wo = -ray.direction;

@@ -314,8 +314,7 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
   bool any_singular_since_diffuse = false;
   WalkHit hit;
   // A textured material's lobes and roulette depend on the hit (surface_material.h): made per hit,
-  // in scratch space built at the walk's first textured hit (an untextured walk builds none: it
-  // cost 2-4 % of the walk when built for every photon).
+  // in scratch space built at the walk's first textured hit (an untextured walk builds none).
   struct TexturedHit {
     Material material;
     BsdfLobes lobes;
@@ -330,7 +329,9 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
     const BsdfLobes* lobes = &shared.lobes[hit.material];
     if (walk->textured) {
       if (!textured) textured.emplace();
-      material = &MaterialAt(desc, hit.material, hit.uv, &textured->material);
+      ApplyTexel(*material, desc.textures[size_t(material->base_color_texture)].Lookup(hit.uv),
+                 &textured->material);
+      material = &textured->material;
       textured->lobes = BsdfLobes::Of(*material);
       textured->roulette = WalkRoulette::Of(*material, textured->lobes);
       lobes = &textured->lobes;
@@ -450,7 +451,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
       end_chain(true);
       return;
     }
-    Material textured;
+    std::optional<Material> textured;  // filled only for a textured material
     const Material& m = MaterialAt(desc, hit->material, hit->uv, &textured);
     const Bsdf bsdf = IsTextured(desc.materials[hit->material])
                           ? Bsdf(m, hit->shading_normal, hit->geometric_normal)

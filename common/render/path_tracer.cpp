@@ -1,5 +1,7 @@
 #include "common/render/path_tracer.h"
 
+#include <optional>
+
 #include "common/estimators/direct_light.h"
 #include "common/materials/bsdf.h"
 #include "common/sampling/sample_layout.h"
@@ -42,7 +44,7 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
       }
       break;
     }
-    Material textured;
+    std::optional<Material> textured;  // filled only for a textured material
     const Material& material = MaterialAt(desc, hit->material, hit->uv, &textured);
     const PathVertexSlots slots = SlotsOfVertex(depth);
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "common/core/error.h"
@@ -222,7 +223,7 @@ Rgb PhotonMapIntegrator::GatherRays(const Bsdf& bsdf, const SurfaceHit& hit, con
       *inverse_distance_sum += 1.0 / double(y->t);
       ++*hits;
     }
-    Material textured;
+    std::optional<Material> textured;  // filled only for a textured material
     const Material& my = MaterialAt(desc, y->material, y->uv, &textured);
     Rgb Ly(0.0f);
     if (!separate_direct && my.IsEmissive() && y->front_face) Ly += my.emission;
@@ -290,7 +291,7 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
         radiance += throughput * desc.environment->Radiance(ray.direction);
       break;
     }
-    Material textured;
+    std::optional<Material> textured;  // filled only for a textured material
     const Material& material = MaterialAt(desc, hit->material, hit->uv, &textured);
     const PathVertexSlots slots = SlotsOfVertex(depth);
     // Every path reaching here came from the camera through singular bounces only, so

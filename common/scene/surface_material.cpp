@@ -34,11 +34,12 @@ void ApplyTexel(const Material& material, const Rgb& texel, Material* out) {
 }
 
 const Material& MaterialAt(const SceneDescription& scene, uint32_t index, const TextureCoordinates& uv,
-                           Material* scratch) {
+                           std::optional<Material>* scratch) {
   const Material& material = scene.materials[index];
   if (!IsTextured(material)) return material;
-  ApplyTexel(material, scene.textures[size_t(material.base_color_texture)].Lookup(uv), scratch);
-  return *scratch;
+  if (!*scratch) scratch->emplace();
+  ApplyTexel(material, scene.textures[size_t(material.base_color_texture)].Lookup(uv), &**scratch);
+  return **scratch;
 }
 
 }  // namespace pf

@@ -6,6 +6,7 @@
 // reads the albedo at its query point.
 
 #include <cstdint>
+#include <optional>
 
 #include "common/scene/scene.h"
 
@@ -16,11 +17,11 @@ namespace pf {
 void ApplyTexel(const Material& material, const Rgb& texel, Material* out);
 
 // The material of scene material `index` at texture coordinates `uv`: a reference to
-// scene.materials[index] when it has no texture (no copy: the common case costs nothing),
-// otherwise *scratch, filled by ApplyTexel with the texture's colour at uv. The reference lives
-// as long as both the scene and *scratch.
+// scene.materials[index] when it has no texture (no copy, and *scratch stays empty: the common
+// case costs the test alone), otherwise **scratch, filled by ApplyTexel with the texture's
+// colour at uv. The reference lives as long as both the scene and *scratch.
 const Material& MaterialAt(const SceneDescription& scene, uint32_t index, const TextureCoordinates& uv,
-                           Material* scratch);
+                           std::optional<Material>* scratch);
 
 inline bool IsTextured(const Material& material) {
   return material.base_color_texture >= 0;
