@@ -83,6 +83,14 @@ Image DecodeWithStb(const unsigned char* bytes, size_t size, const std::filesyst
 }
 
 Image ReadWithStb(const std::filesystem::path& path) {
+  // The file is decoded from memory: a file larger than any image of the side limit could be is
+  // refused before it is read.
+  std::error_code ec;
+  const uintmax_t bytes_on_disk = std::filesystem::file_size(path, ec);
+  if (ec || bytes_on_disk > kMaxImageFileBytes)
+    throw LimitError(
+        SourceLocation{path.string(), 0},
+        "image file larger than " + std::to_string(kMaxImageFileBytes >> 20) + " MiB (or unreadable)");
   std::ifstream in(path, std::ios::binary);
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
                                          std::istreambuf_iterator<char>());

@@ -8,6 +8,7 @@
 // are linear already. Alpha is dropped; grey images are replicated to R = G = B.
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -18,6 +19,9 @@ namespace pf {
 // Largest width or height accepted (and so at most 16384² pixels, 3 GiB of float RGB): a 100k²
 // texture would take 120 GB; refused before its pixels are decoded.
 inline constexpr int kMaxImageFileSide = 16384;
+// Largest PNG, JPEG or HDR file read (they are decoded from memory): 1 GiB, more than an
+// uncompressed 8-bit RGBA image of the side limit takes.
+inline constexpr uintmax_t kMaxImageFileBytes = uintmax_t(1) << 30;
 
 // Throws InputError naming the file: missing or unreadable, an unsupported extension, a corrupt
 // or truncated file, a side above kMaxImageFileSide, a pixel that is not a finite non-negative

@@ -339,7 +339,10 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
     }
     const WalkRoulette& roulette = *walk;
     const Vec3 wo = -ray.direction;
-    if (roulette.Stores(hit.geometric_normal)) {
+    // Whether a photon is stored is the material's, not the texel's: a photon records incident
+    // flux, and the albedo is read at the estimate's query point (a black texel stores photons
+    // too, else the estimate next to it would find a hole).
+    if (shared.walk[hit.material].Stores(hit.geometric_normal)) {
       Rgb stored_power = power;
       if (!o.importance ||
           AcceptByImportance(o, sampler, bounce, hit.position, hit.geometric_normal, wo, &stored_power, out))

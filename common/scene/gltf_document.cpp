@@ -68,9 +68,11 @@ bool ReadConfinedFile(std::vector<unsigned char>* out, std::string* err, const s
 
 // Images are kept as read (their encoded bytes in Image::image), not decoded: the textures a
 // material uses are decoded by gltf_textures.cpp, after their size is checked.
+// An image in a buffer view is not copied here: tinygltf hands over the view's bytes without
+// checking that the view lies inside its buffer, so gltf_textures.cpp reads it after that check.
 bool KeepImageUndecoded(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
                         const unsigned char* bytes, int size, void*) {
-  if (image && bytes && size > 0) image->image.assign(bytes, bytes + size);
+  if (image && image->bufferView < 0 && bytes && size > 0) image->image.assign(bytes, bytes + size);
   return true;
 }
 

@@ -36,6 +36,21 @@ std::shared_ptr<const Image> GltfTextures::DecodedImage(int image, const std::st
   const tinygltf::Image& g = m.images[size_t(image)];
   const bool file = !g.uri.empty() && g.uri.rfind("data:", 0) != 0;
   const std::string element = "images[" + std::to_string(image) + "]" + (file ? " '" + g.uri + "'" : "");
+  if (g.bufferView >= 0) {
+    // The view's bytes, checked to lie inside its buffer (gltf_document.cpp keeps none of them).
+    auto fail = [&](const std::string& why) {
+      throw InputError(SourceLocation{doc_.file, 0}, where + ": " + element + ": " + why);
+    };
+    if (size_t(g.bufferView) >= m.bufferViews.size()) fail("buffer view does not exist");
+    const tinygltf::BufferView& v = m.bufferViews[size_t(g.bufferView)];
+    if (v.buffer < 0 || size_t(v.buffer) >= m.buffers.size()) fail("buffer view has no buffer");
+    const std::vector<unsigned char>& b = m.buffers[size_t(v.buffer)].data;
+    if (v.byteOffset > b.size() || v.byteLength > b.size() - v.byteOffset)
+      fail("buffer view outside its buffer");
+    const std::string name = doc_.file + ": " + where + ": " + element;
+    decoded = std::make_shared<const Image>(DecodeLinearImage(b.data() + v.byteOffset, v.byteLength, name));
+    return decoded;
+  }
   if (g.image.empty())
     throw InputError(SourceLocation{doc_.file, 0},
                      where + ": " + element +

@@ -71,6 +71,10 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
             *o.roughness;
       if (o.transmission) m.specular_transmittance = *o.transmission;
       if (o.ior) m.ior = *o.ior;
+      // Overridden colours are this material's now: a texture multiplies the overridden ρd
+      // (surface_material.h) instead of re-mapping the glTF parameters over the override.
+      if (MaterialKinds().GetKind(o.kind) || o.diffuse || o.specular || o.transmission)
+        m.metallic_roughness.reset();
       if (o.emission) {
         if (!m.IsEmissive() || o.emission->IsBlack())
           throw InputError(SourceLocation{manifest_file, 0},

@@ -231,6 +231,26 @@ TEST(GltfLoader, MaterialMapping) {
   EXPECT_EQ(texture_warnings, 1);
 }
 
+// An image in a buffer view that leaves its buffer: an error naming the element, never a read
+// past the buffer (tinygltf hands the view's bytes over unchecked; gltf_textures.cpp checks).
+TEST(GltfLoader, ImageBufferViewOutsideItsBufferIsAnError) {
+  test_util::TempDir dir("pf_gltf_test");
+  const std::string rest = R"("scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],)" + std::string(kTriangleMesh) +
+                           R"(,"textures":[{"source":0}],"images":[{"bufferView":3,"mimeType":"image/png"}],
+      "materials":[{"name":"lamp","emissiveFactor":[1,1,1],
+                    "pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}])";
+  std::string json = Triangle().Json(rest);
+  // View 3, after the three of the accessors: a million bytes past the buffer's end.
+  const std::string views_end = "],\"accessors\":[";
+  const size_t at = json.find(views_end);
+  ASSERT_NE(at, std::string::npos);
+  json.insert(at, R"(,{"buffer":0,"byteOffset":1000000,"byteLength":4096})");
+  EXPECT_THAT(
+      ErrorOf(dir.Write("scene.gltf", json)),
+      HasSubstr("scene.gltf: materials[0].pbrMetallicRoughness.baseColorTexture: textures[0]: images[0]: "
+                "buffer view outside its buffer"));
+}
+
 TEST(GltfLoader, NonTriangleModesAreSkippedWithAWarningNamingThePrimitive) {
   test_util::TempDir dir("pf_gltf_test");
   const std::string rest = R"("scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
