@@ -100,8 +100,11 @@ void KilledWorkerAndCoordinatorRestart(const std::vector<std::string>& flags, ui
         << "every level's detail tasks from the start";
   }
 
-  // A victim, SIGKILLed while it holds a lease.
-  std::unique_ptr<Process> victim = StartWorker(address, dir.path(), "victim");
+  // A victim, SIGKILLed while it holds a lease. Paced at 0.5 s a render task (below the 2 s lease):
+  // unpaced it rendered the whole job's 5-pixel tasks between two polls of its log and was never
+  // seen mid-task (a CI run failed so).
+  std::unique_ptr<Process> victim = StartFaultyWorker(
+      address, dir.path(), "victim", {{"PF_TEST_PAUSE_AT", "render"}, {"PF_TEST_PAUSE_SECONDS", "0.5"}});
   ASSERT_TRUE(WaitUntil([&] { return MidTask(victim->log()); }, 60)) << ReadFile(victim->log());
   victim->Signal(SIGKILL);
   victim->Wait(5);
