@@ -78,6 +78,9 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"elapsed_seconds", s.elapsed_seconds()},
           {"eta_seconds", s.eta_seconds()},
           {"estimated_noise_rms", s.estimated_noise_rms()},
+          {"estimated_bias_rms", s.estimated_bias_rms()},
+          {"estimated_error_rms", s.estimated_error_rms()},
+          {"target_missed", s.target_missed()},
           {"rounds_done", s.rounds_done()},
           {"priority", s.spec().priority()},
           {"submitted_unix_ms", s.submitted_unix_ms()},
@@ -96,6 +99,11 @@ std::string Summary(const v1::JobStatus& s) {
       fmt::format("job {} {}: {}/{} tasks, {} samples, {}", s.job_id(), StateText(s), s.tasks_done(),
                   s.tasks_total(), s.samples_merged(), FormatDuration(s.elapsed_seconds()));
   if (s.estimated_noise_rms() >= 0) out += fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms());
+  // The progressive plan's display-referred error and its bias part (docs/renderer.md).
+  if (s.estimated_error_rms() >= 0)
+    out += fmt::format(", estimated error {:.4g} (bias {:.4g})", s.estimated_error_rms(),
+                       s.estimated_bias_rms());
+  if (!s.target_missed().empty()) out += "; target not met: " + s.target_missed();
   if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
   // Result verification (docs/farm.md): the job succeeds once its pending verifications are done.
   if (s.results_verified() > 0 || s.verifications_pending() > 0)

@@ -21,6 +21,7 @@
 #include "common/accel/embree_scene.h"
 #include "common/camera/camera.h"
 #include "common/core/error.h"
+#include "common/core/real_text.h"
 #include "common/image/exr_io.h"
 #include "common/image/image_diff.h"
 #include "common/image/png_io.h"
@@ -93,16 +94,23 @@ int RunLocalPlan(const RenderArgs& a) {
   const JobRenderSettings settings = SettingsFromProto(job.spec.settings(), "spec.settings");
   PlanSpec plan = PlanFromProto(job.spec.plan(), "spec.plan");
   if (a.max_rounds > 0 && plan.kind == PlanKind::kSkipping) plan.rounds = std::min(plan.rounds, a.max_rounds);
-  if (a.time_budget > 0 || a.target_noise > 0)
-    spdlog::warn(
-        "--time-budget/--target-noise apply to farm jobs only; the local render runs the whole plan");
+  // The farm's stop rule, here (docs/renderer.md, "Budgets"): the render stops after a whole map
+  // (pass, round) once the budget is used up or the targets are met.
+  const bool unbiased = !Integrators().FindKind(settings.integrator).UsesPhotonMaps();
+  const LocalStopRule stop{
+      .time_budget_seconds = a.time_budget,
+      .targets =
+          JudgedTargets({.target_noise_rms = a.target_noise, .target_error_rms = a.target_error}, unbiased)};
+  if (unbiased && a.target_error > 0)
+    spdlog::info("--target-error {}: the path tracer is unbiased, its error is its noise", a.target_error);
+  if (const std::string problem = LocalStopProblem(stop, plan); !problem.empty()) throw InputError(problem);
   ValidatePlan(plan, camera.width, camera.height);
   // The farm's cap (proto/limits.h), so that a plan renders locally exactly when it can be submitted.
   if (const std::string problem = limits::TaskCountProblem(CountTasks(plan, camera.width, camera.height));
       !problem.empty())
     throw InputError(problem);
   uint64_t total_pixels = 0, total_samples = 0;
-  const std::vector<TaskSpec> tasks = ExpandPlan(plan, camera.width, camera.height, a.seed);
+  std::vector<TaskSpec> tasks = ExpandPlan(plan, camera.width, camera.height, a.seed);
   for (const TaskSpec& t : tasks) {
     const uint64_t n = CountPixels(t.pixels, camera.width, camera.height);
     total_pixels += n;
@@ -121,11 +129,34 @@ int RunLocalPlan(const RenderArgs& a) {
   const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::atomic<uint64_t> progress{0};
   LocalRenderTotals totals;
+  LocalStopReport stopped;
   Image image;
   const auto t1 = std::chrono::steady_clock::now();
   {
     ProgressBar bar(progress, total_pixels, !a.quiet);
-    image = RenderPlanLocally(runtime, camera, settings, plan, a.seed, a.threads, &progress, &totals);
+    image = RenderPlanLocally(runtime, camera, settings, plan, a.seed, a.threads, &progress, &totals, stop,
+                              &stopped);
+  }
+  if (!stopped.stopped_by.empty()) {
+    // The image is the plan's with the units rendered: record that plan, which reproduces it.
+    if (plan.kind == PlanKind::kSkipping)
+      plan.rounds = uint32_t(stopped.units_done);
+    else
+      plan.maps = uint32_t(stopped.units_done);
+    tasks = ExpandPlan(plan, camera.width, camera.height, a.seed);
+    total_samples = 0;
+    for (const TaskSpec& t : tasks)
+      total_samples += CountPixels(t.pixels, camera.width, camera.height) * (t.sample_end - t.sample_begin);
+    spdlog::info("stopped by the {} after {} of {} {}: the image is the plan {}", stopped.stopped_by,
+                 stopped.units_done, stopped.units_planned, stopped.unit, PlanRecordText(plan));
+  }
+  if (stop.targets.any()) {
+    const std::string reached = DescribeTargets(stop.targets, stopped.estimates);
+    if (stopped.targets_met)
+      spdlog::info("target met: {}", reached);
+    else
+      spdlog::warn("target not met after {} {}: {}; render with a larger budget or more {}",
+                   stopped.units_done, stopped.unit, reached, stopped.unit);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   const std::string output =
@@ -153,6 +184,21 @@ int RunLocalPlan(const RenderArgs& a) {
     meta["photons.cache_interpolations"] = std::to_string(totals.cache_interpolations);
     meta["photons.map_seconds"] = fmt::format("{:.3f}", totals.map_seconds);
   }
+  if (stop.any()) {
+    meta["stop.stopped_by"] = stopped.stopped_by.empty() ? "plan complete" : stopped.stopped_by;
+    meta["stop.units_done"] = fmt::format("{} {}", stopped.units_done, stopped.unit);
+    if (stop.time_budget_seconds > 0) meta["stop.time_budget_seconds"] = RealText(stop.time_budget_seconds);
+    if (stop.targets.target_noise_rms > 0)
+      meta["stop.target_noise_rms"] = RealText(stop.targets.target_noise_rms);
+    if (stop.targets.target_error_rms > 0)
+      meta["stop.target_error_rms"] = RealText(stop.targets.target_error_rms);
+    if (stop.targets.any()) meta["stop.targets_met"] = stopped.targets_met ? "yes" : "no";
+  }
+  const ErrorEstimates& e = stopped.estimates;
+  for (const auto& [key, value] :
+       {std::pair{"noise_rms", e.noise}, std::pair{"display_noise_rms", e.display_noise},
+        std::pair{"bias_rms", e.bias}, std::pair{"error_rms", e.error}})
+    meta[std::string("estimate.") + key] = value < 0 ? "unknown" : fmt::format("{:.6g}", value);
   AddProvenance(meta);
   WriteExr(output, image, meta);
   WritePreviewFor(output, a.png, a.no_png, image);

@@ -339,8 +339,8 @@ int main(int argc, char** argv) {
     // A plain render (no --plan, --local-only or --workers) is the default plan in this process:
     // the other plan and farm options would be silently ignored.
     if (*render && ra.workers == 0 && !ra.local_only && ra.plan.empty())
-      for (const char* opt : {"--maps", "--passes", "--stride", "--rounds", "--tile", "--max-rounds",
-                              "--time-budget", "--target-noise", "--priority", "--name"})
+      for (const char* opt :
+           {"--maps", "--passes", "--stride", "--rounds", "--tile", "--max-rounds", "--priority", "--name"})
         if (render->count(opt) > 0)
           throw CLI::ValidationError(
               opt, std::string(

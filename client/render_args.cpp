@@ -14,6 +14,7 @@
 #include "common/photon/photon_tracer.h"
 #include "common/plan/plan_choice.h"
 #include "common/plan/plan_factory.h"
+#include "common/plan/stop_targets.h"
 #include "common/render/progressive_radius.h"
 #include "common/render/render_settings_table.h"
 #include "common/scene/manifest.h"
@@ -236,6 +237,9 @@ void AddPlanOptions(CLI::App* app, RenderArgs& a, bool all) {
                   "Stop rule: seconds (0 = none; the image then depends on timing)");
   more(app->add_option("--target-noise", a.target_noise,
                        "Stop rule: estimated noise RMS to reach (0 = none)"));
+  app->add_option("--target-error", a.target_error,
+                  "Stop rule: estimated error RMS (noise and bias) to reach; progressive plan or path tracer")
+      ->check(CLI::NonNegativeNumber);
   more(app->add_option("--priority", a.priority, "Job priority (higher first)"));
   more(app->add_option("--name", a.name, "Job name (default: the scene's file name)"));
 }
@@ -279,9 +283,28 @@ PreparedJob PrepareJob(const RenderArgs& a) {
 
   // --plan auto is the farm's default (docs/farm.md, "Choosing the plan": --workers, submit); --local-only
   // and a plain render keep multiple maps unless asked.
-  const std::string plan = !a.plan.empty()                                ? a.plan
-                           : (a.workers > 0 && !a.local_only) || a.submit ? "auto"
-                                                                          : "multiple-maps";
+  const bool farm_default = (a.workers > 0 && !a.local_only) || a.submit;
+  const bool budget = a.time_budget > 0 || a.target_noise > 0 || a.target_error > 0;
+  std::string plan = !a.plan.empty() ? a.plan : farm_default ? "auto" : "multiple-maps";
+  // A render in this process with a budget and no plan (docs/renderer.md, "Budgets"): the
+  // consistent plan of its integrator, open-ended, so that the budget decides how far it gets —
+  // the path tracer's independent sample sets, the photon map's progressive passes (a fixed-size
+  // map would stop improving at its bias however long it ran).
+  uint32_t maps = a.maps, passes = a.passes;
+  const auto given = [&a](const char* flag) {
+    return std::find(a.plan_flags_given.begin(), a.plan_flags_given.end(), flag) != a.plan_flags_given.end();
+  };
+  if (budget && a.plan.empty() && !farm_default) {
+    plan = a.integrator == "photonmap" ? "progressive" : "multiple-maps";
+    if (plan == "multiple-maps") maps = kOpenEndedPasses;
+    spdlog::info(
+        "plan {}: chosen for the budget ({}), until the budget ends it", plan,
+        plan == "progressive" ? "the photon map's consistent plan" : "the path tracer's sample sets");
+  }
+  if (budget && plan == "progressive" && !given("--passes")) {
+    passes = kOpenEndedPasses;
+    spdlog::info("progressive: up to {} passes, until the budget ends it (--passes sets the count)", passes);
+  }
   v1::Plan* pl = s.mutable_plan();
   if (plan == "auto") {
     if (!a.plan_flags_given.empty())
@@ -292,12 +315,12 @@ PreparedJob PrepareJob(const RenderArgs& a) {
     pl->mutable_auto_plan()->set_workers(uint32_t(std::max(0, a.workers)));  // 0: the coordinator counts
     pl->mutable_auto_plan()->set_samples_per_pixel(a.spp);
   } else if (plan == "multiple-maps") {
-    pl->mutable_multiple_maps()->set_maps(a.maps);
+    pl->mutable_multiple_maps()->set_maps(maps);
     pl->mutable_multiple_maps()->set_samples_per_pixel(a.spp);
     pl->mutable_multiple_maps()->set_tile_size(a.tile);
     pl->mutable_multiple_maps()->set_tail_tile_size(TailTileFor(a));
   } else if (plan == "progressive") {
-    pl->mutable_progressive()->set_passes(a.passes);
+    pl->mutable_progressive()->set_passes(passes);
     pl->mutable_progressive()->set_samples_per_pixel(a.spp);
     pl->mutable_progressive()->set_tile_size(a.tile);
   } else if (plan == "maps-in-turn") {
@@ -327,6 +350,7 @@ PreparedJob PrepareJob(const RenderArgs& a) {
   s.mutable_stop()->set_max_rounds(a.max_rounds);
   s.mutable_stop()->set_time_budget_seconds(a.time_budget);
   s.mutable_stop()->set_target_noise_rms(a.target_noise);
+  s.mutable_stop()->set_target_error_rms(a.target_error);
   s.set_priority(a.priority);
   if ((a.local_only || (a.workers == 0 && !a.submit)) && s.plan().has_auto_plan()) {
     // The coordinator's resolution, here: the local render runs the plan the farm would.

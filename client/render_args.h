@@ -57,6 +57,7 @@ struct RenderArgs {
   uint32_t max_rounds = 0;
   double time_budget = 0;
   double target_noise = 0;
+  double target_error = 0;  // progressive plan (or the unbiased path tracer): noise and bias
   int32_t priority = 0;
   std::string name;
   // Where to run.

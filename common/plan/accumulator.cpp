@@ -14,6 +14,8 @@ constexpr double kFixedScale = 4294967296.0;  // 2^32
 constexpr double kMaxTaskSum = 1073741824.0;  // 2^30
 constexpr char kMagic[8] = {'P', 'F', 'A', 'C', 'C', 'U', 'M', '1'};
 constexpr char kHierarchicalMagic[8] = {'P', 'F', 'A', 'C', 'C', 'H', 'L', '1'};
+// The weighted-mean body followed by the progressive plan's bias fits (progressive_bias.h).
+constexpr char kProgressiveMagic[8] = {'P', 'F', 'A', 'C', 'C', 'P', 'B', '1'};
 
 }  // namespace
 
@@ -26,9 +28,10 @@ Accumulator::Accumulator(int width, int height)
       lum_sum_(size_t(width) * height, 0.0),
       lum_sum2_(size_t(width) * height, 0.0) {}
 
-Accumulator::Accumulator(const PlanSpec& plan, int width, int height) {
+Accumulator::Accumulator(const PlanSpec& plan, int width, int height, double progressive_alpha) {
   if (plan.kind != PlanKind::kHierarchical) {
     *this = Accumulator(width, height);
+    if (plan.kind == PlanKind::kProgressive) bias_.emplace(progressive_alpha, width, height);
     return;
   }
   width_ = width;
@@ -38,7 +41,11 @@ Accumulator::Accumulator(const PlanSpec& plan, int width, int height) {
 
 void Accumulator::AddValidated(const TaskSpec& task, std::span<const uint32_t> pixels,
                                std::span<const float> rgb_sums, uint32_t samples) {
-  if (!hierarchy_) return AddValidated(pixels, rgb_sums, samples);
+  if (!hierarchy_) {
+    AddValidated(pixels, rgb_sums, samples);
+    if (bias_ && task.progressive) bias_->Add(task.map_index, pixels, rgb_sums, samples);
+    return;
+  }
   if (hierarchy_->Add(task, pixels, rgb_sums, samples)) {
     samples_merged_ += uint64_t(pixels.size()) * samples;
     ++tasks_merged_;
@@ -129,12 +136,32 @@ double Accumulator::EstimatedNoiseRms() const {
   return covered ? std::sqrt(sum_var / covered) : -1.0;
 }
 
+double Accumulator::EstimatedBiasRms() const {
+  return bias_ ? bias_->BiasRms() : -1.0;
+}
+
+double Accumulator::EstimatedErrorRms() const {
+  return Estimates().error;
+}
+
+ErrorEstimates Accumulator::Estimates() const {
+  ErrorEstimates e;
+  e.noise = EstimatedNoiseRms();
+  if (bias_) {
+    e.display_noise = bias_->NoiseRms();
+    e.bias = bias_->BiasRms();
+    e.error = bias_->ErrorRms();
+  }
+  return e;
+}
+
 std::string Accumulator::Serialize() const {
   std::string out;
   if (!hierarchy_) out.reserve(sizeof(kMagic) + 24 + sums_.size() * 8 + samples_.size() * 24);
   ByteWriter w(out);
   // One header for both layouts; the magic says which body follows.
   w.PutBytes(hierarchy_ ? std::string_view(kHierarchicalMagic, sizeof(kHierarchicalMagic))
+             : bias_    ? std::string_view(kProgressiveMagic, sizeof(kProgressiveMagic))
                         : std::string_view(kMagic, sizeof(kMagic)));
   w.Put<int32_t>(width_);
   w.Put<int32_t>(height_);
@@ -149,6 +176,7 @@ std::string Accumulator::Serialize() const {
   w.PutArray<uint32_t>(maps_);
   w.PutArray<double>(lum_sum_);
   w.PutArray<double>(lum_sum2_);
+  if (bias_) bias_->SerializeTo(w);
   return out;
 }
 
@@ -161,7 +189,7 @@ Accumulator Accumulator::Deserialize(std::string_view in, const PlanSpec* plan) 
     const int32_t w = r.Get<int32_t>(), h = r.Get<int32_t>();
     if (w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28))
       throw InputError("accumulator checkpoint: bad size");
-    Accumulator a(*plan, w, h);
+    Accumulator a(*plan, w, h, /*progressive_alpha, unused by the hierarchical plan=*/0.5);
     a.samples_merged_ = r.Get<uint64_t>();
     a.tasks_merged_ = r.Get<uint64_t>();
     a.hierarchy_->DeserializeFrom(r);
@@ -171,8 +199,12 @@ Accumulator Accumulator::Deserialize(std::string_view in, const PlanSpec* plan) 
   }
   if (plan && plan->kind == PlanKind::kHierarchical)
     throw InputError("accumulator checkpoint: not hierarchical, but the job's plan is");
-  if (in.size() < sizeof(kMagic) || std::memcmp(in.data(), kMagic, sizeof(kMagic)) != 0)
+  const bool progressive = in.size() >= sizeof(kProgressiveMagic) &&
+                           std::memcmp(in.data(), kProgressiveMagic, sizeof(kProgressiveMagic)) == 0;
+  if (!progressive && (in.size() < sizeof(kMagic) || std::memcmp(in.data(), kMagic, sizeof(kMagic)) != 0))
     throw InputError("accumulator checkpoint: bad magic");
+  // A progressive job's checkpoint from before the bias fits (kMagic) restores without them: its
+  // bias stays unknown rather than fitted to the later passes only.
   ByteReader r(in.substr(sizeof(kMagic)), "accumulator checkpoint");
   const int32_t w = r.Get<int32_t>(), h = r.Get<int32_t>();
   if (w <= 0 || h <= 0 || int64_t(w) * h > (int64_t(1) << 28))
@@ -185,7 +217,7 @@ Accumulator Accumulator::Deserialize(std::string_view in, const PlanSpec* plan) 
   const size_t n = size_t(w) * h;
   // Sizes are checked before allocating: a corrupt header must not allocate gigabytes.
   constexpr size_t kBytesPerPixel = 3 * sizeof(int64_t) + 2 * sizeof(uint32_t) + 2 * sizeof(double);
-  if (r.remaining() != n * kBytesPerPixel)
+  if (r.remaining() < n * kBytesPerPixel || (!progressive && r.remaining() != n * kBytesPerPixel))
     r.Fail(r.remaining() < n * kBytesPerPixel ? "truncated" : "trailing bytes");
   a.sums_.resize(3 * n);
   a.samples_.resize(n);
@@ -197,6 +229,10 @@ Accumulator Accumulator::Deserialize(std::string_view in, const PlanSpec* plan) 
   r.GetArray<uint32_t>(a.maps_);
   r.GetArray<double>(a.lum_sum_);
   r.GetArray<double>(a.lum_sum2_);
+  if (progressive) {
+    a.bias_ = ProgressiveBias::DeserializeFrom(r, w, h);
+    if (r.remaining() != 0) r.Fail("trailing bytes");
+  }
   return a;
 }
 

@@ -11,6 +11,8 @@
 // independent, so the spread of the per-map pixel means (luminance) estimates the pixel's
 // variance; EstimatedNoiseRms is the RMS over pixels covered by ≥ 2 maps of the standard error
 // of their mean. Kept in double: it only steers progress and the stop rule, never the image.
+// For the progressive plan the accumulator also estimates the bias the noise estimate cannot see
+// (progressive_bias.h), from the passes' radii: the schedule's α is the job's progressive-alpha.
 
 #include <cstdint>
 #include <limits>
@@ -21,7 +23,9 @@
 #include <vector>
 
 #include "common/image/image.h"
+#include "common/plan/error_estimates.h"
 #include "common/plan/hierarchical.h"
+#include "common/plan/progressive_bias.h"
 #include "common/plan/task_plan.h"
 
 namespace pf {
@@ -43,8 +47,9 @@ class Accumulator {
   Accumulator() = default;
   Accumulator(int width, int height);
   // For a job's plan: the hierarchical plan (§4.5) assembles interpolation and details
-  // (HierarchicalAssembly); every other plan is the weighted mean above.
-  Accumulator(const PlanSpec& plan, int width, int height);
+  // (HierarchicalAssembly); every other plan is the weighted mean above. progressive_alpha is the
+  // job's progressive-alpha setting (the radius schedule): read by the progressive plan only.
+  Accumulator(const PlanSpec& plan, int width, int height, double progressive_alpha);
 
   // Checks a task result before anything is merged: 3 values per pixel, each finite and ≥ 0
   // (every estimator of the renderer is a sum of products of non-negative terms: emission,
@@ -70,6 +75,15 @@ class Accumulator {
 
   Image Resolve() const;             // Σ/n per pixel; black where n = 0
   double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps, and for the hierarchical plan
+  // The progressive plan's bias indicator (ProgressiveBias::BiasRms); < 0 for other plans, before
+  // kMinPassesForBias passes, and for a checkpoint written before the indicator existed.
+  double EstimatedBiasRms() const;
+  // ProgressiveBias::ErrorRms, √(noise² + bias²) of display-clamped luminance: the expected RMS
+  // error of a pixel against the converged image, the number --target-error compares; < 0 for
+  // other plans and while either part is unknown.
+  double EstimatedErrorRms() const;
+  ErrorEstimates Estimates() const;  // the three above, noise computed once
+  const ProgressiveBias* progressive_bias() const { return bias_ ? &*bias_ : nullptr; }
   uint64_t samples_merged() const { return samples_merged_; }
   uint64_t tasks_merged() const { return tasks_merged_; }
   int width() const { return width_; }
@@ -92,6 +106,7 @@ class Accumulator {
   uint64_t samples_merged_ = 0;
   uint64_t tasks_merged_ = 0;
   std::optional<HierarchicalAssembly> hierarchy_;
+  std::optional<ProgressiveBias> bias_;  // the progressive plan's
 };
 
 }  // namespace pf

@@ -137,9 +137,18 @@ void LocalRenderTotals::Add(const TaskOutput& out) {
   render_seconds += out.render_seconds;
 }
 
+std::string LocalStopProblem(const LocalStopRule& rule, const PlanSpec& plan) {
+  if (rule.any() && plan.kind == PlanKind::kHierarchical)
+    return "the hierarchical plan cannot stop early in one process (its levels complete the image "
+           "together); give --maps, or run it on the farm, where a time budget keeps what was merged";
+  return StopTargetsProblem(rule.targets, plan, "stop");
+}
+
 Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
                         const JobRenderSettings& settings, const PlanSpec& plan, uint64_t seed, int threads,
-                        std::atomic<uint64_t>* progress, LocalRenderTotals* totals) {
+                        std::atomic<uint64_t>* progress, LocalRenderTotals* totals, const LocalStopRule& stop,
+                        LocalStopReport* report) {
+  if (const std::string problem = LocalStopProblem(stop, plan); !problem.empty()) throw InputError(problem);
   PhotonMapCache cache(1);
   if (plan.kind == PlanKind::kHierarchical) {
     // Wald 1999, §4.5: the static tasks, then each level's localization tasks as the merged
@@ -169,12 +178,40 @@ Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
     spdlog::info("hierarchical: {} points localized (levels 1..{}: {})", localized, plan.levels, per_level);
     return assembly.Resolve();
   }
-  Accumulator acc(camera.width, camera.height);
-  for (const TaskSpec& task : ExpandPlan(plan, camera.width, camera.height, seed)) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Accumulator acc(plan, camera.width, camera.height, settings.progressive_alpha);
+  const std::vector<TaskSpec> tasks = ExpandPlan(plan, camera.width, camera.height, seed);
+  // A unit ends where the next task starts another map (another round for skipping, whose tasks
+  // each have their own map); ExpandPlan lists a unit's tasks together.
+  const bool by_round = plan.kind == PlanKind::kSkipping;
+  const auto unit_of = [by_round](const TaskSpec& t) { return by_round ? uint64_t(t.round) : t.map_index; };
+  LocalStopReport rep;
+  rep.unit = by_round ? "rounds" : plan.kind == PlanKind::kProgressive ? "passes" : "maps";
+  rep.units_planned = tasks.empty() ? 0 : unit_of(tasks.back()) + 1;
+  for (size_t i = 0; i < tasks.size(); ++i) {
+    const TaskSpec& task = tasks[i];
     const TaskOutput out = ExecuteTask(scene, "local", camera, settings, task, threads, &cache, progress);
-    acc.Add(out.pixel_indices, out.rgb_sums, out.samples);
+    const ResultCheck check =
+        Accumulator::ValidateTaskResult(out.rgb_sums, out.pixel_indices.size(), out.samples);
+    if (!check.ok()) throw InputError(check.reason);
+    acc.AddValidated(task, out.pixel_indices, out.rgb_sums, out.samples);
     if (totals) totals->Add(out);
+    if (i + 1 < tasks.size() && unit_of(tasks[i + 1]) == unit_of(task)) continue;
+    rep.units_done = unit_of(task) + 1;
+    if (!stop.any() || i + 1 == tasks.size()) continue;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (stop.targets.any() && StopTargetsMet(stop.targets, acc.Estimates())) {
+      rep.stopped_by = "targets met";
+      break;
+    }
+    if (stop.time_budget_seconds > 0 && elapsed >= stop.time_budget_seconds) {
+      rep.stopped_by = "time budget";
+      break;
+    }
   }
+  rep.estimates = acc.Estimates();
+  rep.targets_met = StopTargetsMet(stop.targets, rep.estimates);
+  if (report) *report = rep;
   return acc.Resolve();
 }
 

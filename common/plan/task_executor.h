@@ -14,6 +14,7 @@
 
 #include "common/image/image.h"
 #include "common/photon/map_cache.h"
+#include "common/plan/stop_targets.h"
 #include "common/plan/task_plan.h"
 #include "common/render/job_render_settings.h"
 #include "common/render/scene_runtime.h"
@@ -56,9 +57,32 @@ TaskOutput ExecuteTask(const SceneRuntime& scene, const std::string& scene_key, 
                        PhotonMapCache* cache = nullptr, std::atomic<uint64_t>* progress = nullptr,
                        const std::atomic<bool>* cancel = nullptr);
 
-// The whole plan in this process, merged with the farm's Accumulator (same arithmetic).
+// A render in one process stops like a farm job (docs/farm.md, "Stop rules"): at the end of a
+// whole unit of its plan — a map (a progressive pass), a skipping round — once the time budget is
+// used up or the targets are met. The image is then exactly the plan's with that many units (the
+// same plan with --maps/--passes/--rounds = units_done), whatever the threads.
+struct LocalStopRule {
+  double time_budget_seconds = 0;  // 0 = none; wall time from the first task
+  StopTargets targets;
+  bool any() const { return time_budget_seconds > 0 || targets.any(); }
+};
+struct LocalStopReport {
+  std::string unit = "maps";  // what units_* count: maps, passes, rounds
+  uint64_t units_done = 0, units_planned = 0;
+  std::string stopped_by;    // "" (the whole plan ran), "time budget", "targets met"
+  ErrorEstimates estimates;  // the Accumulator's at the end
+  bool targets_met = false;
+};
+
+// "" if `rule` can stop `plan` in one process; else why not (the hierarchical plan's levels are
+// not units that leave a complete image).
+std::string LocalStopProblem(const LocalStopRule& rule, const PlanSpec& plan);
+
+// The whole plan in this process, merged with the farm's Accumulator (same arithmetic), or its
+// first units until `stop` ends it (LocalStopProblem must be "").
 Image RenderPlanLocally(const SceneRuntime& scene, const CameraSpec& camera,
                         const JobRenderSettings& settings, const PlanSpec& plan, uint64_t seed, int threads,
-                        std::atomic<uint64_t>* progress = nullptr, LocalRenderTotals* totals = nullptr);
+                        std::atomic<uint64_t>* progress = nullptr, LocalRenderTotals* totals = nullptr,
+                        const LocalStopRule& stop = {}, LocalStopReport* report = nullptr);
 
 }  // namespace pf

@@ -20,13 +20,18 @@ ResolvedImage ResolveSnapshot(const std::string& job_id, const Accumulator& acc)
   out.image = acc.Resolve();
   out.samples_merged = acc.samples_merged();
   const double pixels = double(acc.width()) * acc.height();
-  const double noise = acc.EstimatedNoiseRms();
-  out.noise_rms = noise;
+  out.estimates = acc.Estimates();
+  const double noise = out.estimates.noise;
   out.metadata["job_id"] = job_id;
   out.metadata["spp"] = Format6(pixels > 0 ? double(acc.samples_merged()) / pixels : 0.0);
   out.metadata["samples_merged"] = std::to_string(acc.samples_merged());
   out.metadata["tasks_merged"] = std::to_string(acc.tasks_merged());
   out.metadata["noise_rms"] = noise < 0 ? "unknown" : Format6(noise);
+  // The progressive plan's bias indicator and the error it implies (common/plan/progressive_bias.h).
+  if (acc.progressive_bias()) {
+    out.metadata["bias_rms"] = out.estimates.bias < 0 ? "unknown" : Format6(out.estimates.bias);
+    out.metadata["error_rms"] = out.estimates.error < 0 ? "unknown" : Format6(out.estimates.error);
+  }
   return out;
 }
 

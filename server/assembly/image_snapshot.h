@@ -26,7 +26,7 @@ struct ResolvedImage {
   Image image;
   ImageMetadata metadata;
   uint64_t samples_merged = 0;
-  double noise_rms = -1;  // Accumulator::EstimatedNoiseRms at that moment
+  ErrorEstimates estimates;  // Accumulator::Estimates at that moment
 };
 ResolvedImage ResolveSnapshot(const std::string& job_id, const Accumulator& acc);
 

@@ -89,6 +89,9 @@ nlohmann::json JobJson(const v1::JobStatus& s) {
           {"elapsed_seconds", s.elapsed_seconds()},
           {"eta_seconds", s.eta_seconds()},
           {"estimated_noise_rms", s.estimated_noise_rms()},
+          {"estimated_bias_rms", s.estimated_bias_rms()},
+          {"estimated_error_rms", s.estimated_error_rms()},
+          {"target_missed", s.target_missed()},
           {"samples_merged", s.samples_merged()},
           {"width", s.spec().camera().width()},
           {"height", s.spec().camera().height()}};

@@ -87,7 +87,8 @@ void Job::Restart(std::vector<TaskSpec> tasks, double now) {
   for (const TaskSpec& t : tasks_) CountIntoGroup(t);
   // An empty accumulator, not none: the persister checkpoints loaded accumulators only, and the
   // checkpoint of nothing is what replaces the old image on disk.
-  accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height);
+  accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height,
+                                               config_->settings.progressive_alpha);
   ++merge_seq_;
   ++epoch_;
   samples_merged = 0;
@@ -100,6 +101,8 @@ void Job::Restart(std::vector<TaskSpec> tasks, double now) {
   elapsed_before_ = 0;
   if (running_since_) running_since_ = now;
   noise_cache = -1;
+  estimates_cache = {};
+  target_missed.clear();
   noise_checked_seq = ~uint64_t(0);
   noise_checked_at = -1e300;
   noise_target_checked_at = -1e300;
@@ -114,8 +117,8 @@ void Job::Restart(std::vector<TaskSpec> tasks, double now) {
 
 Accumulator& Job::accumulator() {
   if (!accumulator_)
-    accumulator_ =
-        std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height);
+    accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height,
+                                                 config_->settings.progressive_alpha);
   return *accumulator_;
 }
 
@@ -123,6 +126,7 @@ void Job::ReleaseAccumulator(const std::string& path) {
   if (active() || !accumulator_ || checkpoint_written_seq != merge_seq_) return;
   stored_samples_merged = accumulator_->samples_merged();
   stored_noise_rms = noise_cache;
+  stored_estimates = estimates_cache;
   checkpoint_path = path;
   accumulator_.reset();
 }

@@ -184,9 +184,14 @@ class Job {
   uint64_t noise_checked_seq = ~uint64_t(0);
   uint32_t noise_checked_coverage = 0;
   double noise_cache = -1;
-  // Sets the cached estimate (computed by the caller from this job's accumulator).
-  void SetNoise(double noise, double now) {
-    noise_cache = noise;
+  ErrorEstimates estimates_cache;  // all of them (noise_cache = its noise)
+  // Set when the job succeeds without meeting its target (stop_rules.h): DescribeTargets' line.
+  // In memory: a restarted coordinator does not know it.
+  std::string target_missed;
+  // Sets the cached estimates (computed by the caller from this job's accumulator).
+  void SetNoise(const ErrorEstimates& e, double now) {
+    noise_cache = e.noise;
+    estimates_cache = e;
     noise_checked_at = now;
     noise_checked_seq = merge_seq_;
     noise_checked_coverage = full_coverage_;
@@ -229,6 +234,8 @@ class Job {
   bool restart_row_pending = false;
   uint64_t stored_samples_merged = 0;  // their figures as last stored
   double stored_noise_rms = -1;
+  // The estimates when the accumulator was released; in memory only (a restart keeps the noise).
+  ErrorEstimates stored_estimates;
   // The accumulator's samples_merged as of its last merge, readable under the Scheduler's lock
   // alone (the accumulator needs image_mu); equals stored_samples_merged once it is released.
   uint64_t samples_merged = 0;

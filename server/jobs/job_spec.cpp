@@ -1,5 +1,8 @@
 #include "server/jobs/job_spec.h"
 
+#include "common/plan/stop_targets.h"
+#include "common/render/integrator_factory.h"
+
 #include "proto/limits.h"
 
 #include <spdlog/spdlog.h>
@@ -174,18 +177,23 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
 
   RequireFiniteNonNegative(accepted.stop().time_budget_seconds(), "spec.stop.time_budget_seconds");
   RequireFiniteNonNegative(accepted.stop().target_noise_rms(), "spec.stop.target_noise_rms");
+  RequireFiniteNonNegative(accepted.stop().target_error_rms(), "spec.stop.target_error_rms");
   job.stop.max_rounds = accepted.stop().max_rounds();
   job.stop.time_budget_seconds = accepted.stop().time_budget_seconds();
-  job.stop.target_noise_rms = accepted.stop().target_noise_rms();
+  // As judged (stop_targets.h): the path tracer's target error is a target noise.
+  const StopTargets targets =
+      JudgedTargets({.target_noise_rms = accepted.stop().target_noise_rms(),
+                     .target_error_rms = accepted.stop().target_error_rms()},
+                    !Integrators().FindKind(job.settings.integrator).UsesPhotonMaps());
+  job.stop.target_noise_rms = targets.target_noise_rms;
+  job.stop.target_error_rms = targets.target_error_rms;
+  if (const std::string problem = StopTargetsProblem(targets, job.plan, "spec.stop"); !problem.empty())
+    throw InputError(problem);
   // The noise estimate compares independent maps per pixel; a hierarchical pixel's value mixes
   // its parents' maps with its own details, which that estimate does not model.
   if (job.plan.kind == PlanKind::kHierarchical && job.stop.max_rounds > 0)
     throw InputError(
         "spec.stop.max_rounds: the hierarchical plan has no rounds (its levels all belong to one image); use "
-        "time_budget_seconds");
-  if (job.plan.kind == PlanKind::kHierarchical && job.stop.target_noise_rms > 0)
-    throw InputError(
-        "spec.stop.target_noise_rms: not available for the hierarchical plan (no noise estimate); use "
         "time_budget_seconds");
 
   job.seed = accepted.seed();

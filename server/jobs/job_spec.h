@@ -18,7 +18,8 @@
 //                        proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
 //                        more than limits::kMaxTasksPerJob tasks, or a task of more than
 //                        kMaxPixelsPerTask pixels                           RESOURCE_EXHAUSTED
-//   spec.stop            time_budget_seconds, target_noise_rms finite and ≥ 0
+//   spec.stop            time_budget_seconds, target_noise_rms, target_error_rms finite and ≥ 0;
+//                        the targets as StopTargetsProblem allows them (common/plan/stop_targets.h)
 //
 // Why kMaxPixelsPerTask: a task's result carries 3 floats per pixel in one CompleteTask message,
 // which must fit the coordinator's 64 MiB receive limit (4 Mi pixels = 48 MiB). Use tiles for
@@ -30,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "common/plan/stop_targets.h"
 #include "common/plan/task_executor.h"
 #include "common/plan/task_plan.h"
 #include "common/scene/scene.h"
@@ -46,6 +48,10 @@ struct StopRule {
   uint32_t max_rounds = 0;         // 0 = all planned rounds
   double time_budget_seconds = 0;  // 0 = none
   double target_noise_rms = 0;     // 0 = none
+  double target_error_rms = 0;     // 0 = none; the progressive plan's (common/plan/stop_targets.h)
+  StopTargets targets() const {
+    return {.target_noise_rms = target_noise_rms, .target_error_rms = target_error_rms};
+  }
 };
 
 // A validated job.

@@ -81,7 +81,8 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& requested
     Accumulator acc = stored ? std::move(*stored)
                              : Accumulator(PlanFromProto(snap.status.spec().plan(), "spec.plan"),
                                            int(snap.status.spec().camera().width()),
-                                           int(snap.status.spec().camera().height()));
+                                           int(snap.status.spec().camera().height()),
+                                           snap.config->settings.progressive_alpha);
     image = ResolveSnapshot(job_id, acc);
   }
   AddJobMetadata(snap.status, *snap.config, image.metadata);

@@ -145,7 +145,8 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
   // The job's first merge allocates its accumulator (O(pixels)) here, before the commit: once a
   // task is recorded as merged nothing may fail, or its samples would be lost.
   std::unique_ptr<Accumulator> fresh;
-  if (checked.valid && needs_accumulator) fresh = std::make_unique<Accumulator>(config.plan, width, height);
+  if (checked.valid && needs_accumulator)
+    fresh = std::make_unique<Accumulator>(config.plan, width, height, config.settings.progressive_alpha);
   if (options_.probe) options_.probe->BeforeCommit(lease_id);
   unpin.armed = false;  // from here on the commit below unpins
 
@@ -218,7 +219,9 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       // first merge may have installed one meanwhile: then ours is dropped. The fallback covers a
       // claim that saw one loaded (it is released only for finished jobs, whose results the
       // commit refuses).
-      if (!fresh) fresh = std::make_unique<Accumulator>(config.plan, width, height);  // not reached
+      if (!fresh)
+        fresh = std::make_unique<Accumulator>(config.plan, width, height,
+                                              config.settings.progressive_alpha);  // not reached
       std::lock_guard lock(mu_);
       job->set_accumulator(std::move(fresh));
     }
@@ -230,15 +233,17 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
       job->samples_merged = acc.samples_merged();
       noise_due = NoiseTargetDue(*job, clock_.Now(), options_.noise_check_interval);
     }
-    const double noise = noise_due ? acc.EstimatedNoiseRms() : -1;  // O(pixels), off the lock
+    const ErrorEstimates estimates =
+        noise_due ? acc.Estimates() : ErrorEstimates{};  // O(pixels), off the lock
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
     if (noise_due && job->active()) {
       job->noise_target_checked_at = now;
-      job->SetNoise(noise, now);
+      job->SetNoise(estimates, now);
       if (NoiseTargetMet(*job)) {
-        spdlog::info("job {}: estimated noise {:.4g} <= target {:.4g} after {} tasks: done", job->id(),
-                     job->noise_cache, config.stop.target_noise_rms, job->count(TaskState::kDone));
+        spdlog::info("job {}: {} after {} tasks: done", job->id(),
+                     DescribeTargets(config.stop.targets(), job->estimates_cache),
+                     job->count(TaskState::kDone));
         SucceedOnTarget(*job, now, fx);
       }
     }

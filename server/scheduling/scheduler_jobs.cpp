@@ -103,6 +103,13 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   if (!job.accumulator_if_loaded()) job.noise_cache = job.stored_noise_rms;
   // The estimate as last refreshed (RefreshNoise, outside this lock: it is an O(pixels) pass).
   s.set_estimated_noise_rms(job.noise_cache);
+  if (!job.accumulator_if_loaded()) {
+    job.estimates_cache = job.stored_estimates;  // released with the accumulator, not stored on disk
+    job.estimates_cache.noise = job.noise_cache;
+  }
+  s.set_estimated_bias_rms(job.estimates_cache.bias);
+  s.set_estimated_error_rms(job.estimates_cache.error);
+  s.set_target_missed(job.target_missed);
   s.set_storage_error(job.results_storage_error.empty() ? job.rows_storage_error
                       : job.rows_storage_error.empty()
                           ? job.results_storage_error
@@ -171,9 +178,9 @@ void Scheduler::RefreshNoise(Job& job) {
                     job.full_coverage() != job.noise_checked_coverage || !job.active()))
       return;
   }
-  const double noise = acc->EstimatedNoiseRms();
+  const ErrorEstimates estimates = acc->Estimates();
   std::lock_guard lock(mu_);
-  job.SetNoise(noise, clock_.Now());
+  job.SetNoise(estimates, clock_.Now());
 }
 
 v1::JobStatus Scheduler::Status(const std::string& job_id) {
@@ -284,7 +291,7 @@ JobSnapshot Scheduler::Snapshot(const std::string& job_id, bool with_image) {
   std::lock_guard lock(mu_);
   const double now = clock_.Now();
   if (snap.image)
-    job.SetNoise(snap.image->noise_rms, now);  // the status says what the image says
+    job.SetNoise(snap.image->estimates, now);  // the status says what the image says
   else {
     snap.checkpoint_path = job.checkpoint_path;
     snap.checkpoint_seal = job.checkpoint_seal;
@@ -347,6 +354,13 @@ void Scheduler::MaybeSucceed(Job& job, double now, Effects& fx) {
   if (verification_.Pending(job) > 0) {  // not before its results are verified
     RefereeIfNoVerifierLocked(job, now, fx);
     return;
+  }
+  const StopTargets targets = job.config().stop.targets();
+  if (targets.any() && !StopTargetsMet(targets, job.estimates_cache)) {
+    job.target_missed = DescribeTargets(targets, job.estimates_cache);
+    spdlog::warn("job {}: target not met: {}; it succeeds with the image it has ({})", job.id(),
+                 job.target_missed, job.stopping ? "time budget" : "every task is done");
+    activity_.TaskEvent(job.id(), "target_missed", 0, 0, "", job.target_missed);
   }
   FinishJob(job, JobState::kSucceeded, "", now, fx);
   spdlog::info("job {}: succeeded: {} of {} tasks merged in {:.3f} s{}", job.id(),

@@ -68,9 +68,9 @@ std::vector<Checkpoint> Scheduler::CollectCheckpoints(bool due) {
     }
     const Accumulator& acc = *job->accumulator_if_loaded();
     if (final_noise) {
-      const double noise = acc.EstimatedNoiseRms();
+      const ErrorEstimates estimates = acc.Estimates();
       std::lock_guard lock(mu_);
-      job->SetNoise(noise, clock_.Now());
+      job->SetNoise(estimates, clock_.Now());
       job->row_dirty = true;
     }
     if (checkpoint) {

@@ -8,13 +8,16 @@ bool TimeBudgetReached(const Job& job, double now) {
 }
 
 bool NoiseTargetDue(const Job& job, double now, double check_interval) {
-  if (job.config().stop.target_noise_rms <= 0 || !job.active() || job.full_coverage() < 2) return false;
+  const StopTargets targets = job.config().stop.targets();
+  // The bias fit needs kMinPassesForBias passes of every block before it says anything.
+  const uint32_t coverage = targets.target_error_rms > 0 ? kMinPassesForBias : 2;
+  if (!targets.any() || !job.active() || job.full_coverage() < coverage) return false;
   const bool waiting = job.count(TaskState::kQueued) + job.count(TaskState::kLeased) > 0;
   return !(now - job.noise_target_checked_at < check_interval && waiting);
 }
 
 bool NoiseTargetMet(const Job& job) {
-  return job.noise_cache >= 0 && job.noise_cache <= job.config().stop.target_noise_rms;
+  return StopTargetsMet(job.config().stop.targets(), job.estimates_cache);
 }
 
 }  // namespace pf::server

@@ -9,7 +9,12 @@
 //                 SUCCEEDS and its remaining tasks are cancelled. The estimate is an O(pixels)
 //                 pass, so it is refreshed at most every noise_check_interval — except when no
 //                 task is left to wait for.
+//  target error   the same, with √(noise² + bias²) of the progressive plan (common/plan/
+//                 stop_targets.h) once every pixel has kMinPassesForBias passes. A job that runs
+//                 out of tasks (or time) first SUCCEEDS with its image and says which target it
+//                 missed (JobStatus.target_missed).
 
+#include "common/plan/stop_targets.h"
 #include "server/jobs/job.h"
 
 namespace pf::server {

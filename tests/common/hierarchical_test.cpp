@@ -14,6 +14,7 @@
 #include "common/core/error.h"
 #include "common/core/rng.h"
 #include "common/plan/accumulator.h"
+#include "common/render/progressive_radius.h"
 
 namespace pf {
 namespace {
@@ -300,7 +301,7 @@ TEST(Hierarchical, AccumulatorMergesAndCheckpointsTheAssembly) {
   };
   std::vector<TaskSpec> tasks;
   const HierarchicalAssembly direct = RunPlan(plan, w, h, f, 0, false, &tasks);
-  Accumulator acc(plan, w, h);
+  Accumulator acc(plan, w, h, kDefaultProgressiveAlpha);
   for (const TaskSpec& t : tasks) {
     const std::vector<uint32_t> px = PixelsOf(t.pixels, w, h);
     acc.AddValidated(t, px, RenderTask(t, px, w, f, 0), 1);
@@ -401,7 +402,7 @@ TEST(Hierarchical, IndirectPartHierarchyOfTheMapPartPlusThePerPixelPart) {
   }
   EXPECT_TRUE(a == b);
   // Checkpoints carry the per-pixel part; a plan without it refuses them.
-  Accumulator acc(split, w, h);
+  Accumulator acc(split, w, h, kDefaultProgressiveAlpha);
   for (const TaskSpec& t : tasks) {
     const std::vector<uint32_t> px = PixelsOf(t.pixels, w, h);
     acc.AddValidated(t, px, sums_of(t, px), t.sample_end - t.sample_begin);

@@ -252,7 +252,7 @@ TEST(Cli, LocalPlanTaskCapIsTheFarms) {
 TEST(Cli, PlainRenderRefusesPlanOptions) {
   TestDir dir;
   for (const std::vector<std::string>& extra :
-       {std::vector<std::string>{"--stride", "4"}, {"--time-budget", "5"}, {"--rounds", "2"}}) {
+       {std::vector<std::string>{"--stride", "4"}, {"--maps", "5"}, {"--rounds", "2"}}) {
     const RunResult r =
         RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), extra), dir.path(), 60);
     EXPECT_EQ(r.exit_code, 2) << extra[0] << ": " << r.err;

@@ -2,6 +2,11 @@
 // passes travel as tasks whose estimates read each pass's radius, and the image is bit-identical to
 // the single-process render of the same plan and seed (`pf render --local-only`) for 1 and 2
 // workers, and it is not the multiple-maps image of the same maps (the radius query is used).
+// Its stop rules: --target-error (the bias indicator, common/plan/progressive_bias.h) locally and
+// on the farm, a missed target said by the job, and the target refused where it cannot be judged.
+#include <cstdlib>
+
+#include "common/image/exr_io.h"
 #include "tests/e2e/harness.h"
 
 namespace pf::e2e {
@@ -22,6 +27,146 @@ TEST(ProgressiveFarm, BitIdenticalForOneAndTwoWorkersAndLocal) {
   ExpectLocalFarmsBitIdentical(dir, flags, reference, {1, 2}, "farm-");
   EXPECT_FALSE(BitIdentical(RenderLocallyToImage(dir, Flags("multiple-maps", "--maps")), reference))
       << "the progressive passes rendered like multiple maps";
+}
+
+// The progressive job of the stop-rule tests, with `extra` flags; written to dir/<name>.
+std::vector<std::string> TargetRender(const TestDir& dir, const std::string& name,
+                                      const std::vector<std::string>& extra) {
+  return Concat({Binaries::Pf(),
+                 "render",
+                 Binaries::Scene(),
+                 "--integrator",
+                 "photonmap",
+                 "--photons",
+                 "2000",
+                 "--plan",
+                 "progressive",
+                 "--tile",
+                 "32",
+                 "--spp",
+                 "1",
+                 "--res",
+                 "48x48",
+                 "--seed",
+                 "5",
+                 "-o",
+                 (dir / name).string(),
+                 "--no-png",
+                 "-q"},
+                extra);
+}
+
+double MetaNumber(const ImageMetadata& meta, const std::string& key) {
+  const auto it = meta.find(key);
+  if (it == meta.end()) {
+    ADD_FAILURE() << "no header key " << key;
+    return -1;
+  }
+  return std::strtod(it->second.c_str(), nullptr);
+}
+
+TEST(ProgressiveStop, TargetErrorStopsLocallyAtTheImageOfThatManyPasses) {
+  TestDir dir;
+  // The error estimate after 16 passes, as the target: the open-ended render must reach it by then.
+  RunResult r =
+      RunCommand(Concat(TargetRender(dir, "p16.exr", {"--passes", "16"}), {"--local-only"}), dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ImageMetadata meta16;
+  ReadExr(dir / "p16.exr", &meta16);
+  const double target = MetaNumber(meta16, "estimate.error_rms");
+  ASSERT_GT(target, 0.0);
+  r = RunCommand(Concat(TargetRender(dir, "t.exr", {"--target-error", std::to_string(target * 1.0001)}),
+                        {"--local-only"}),
+                 dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ImageMetadata meta;
+  const Image stopped = ReadExr(dir / "t.exr", &meta);
+  EXPECT_EQ(meta["stop.stopped_by"], "targets met");
+  EXPECT_EQ(meta["stop.targets_met"], "yes");
+  EXPECT_LE(MetaNumber(meta, "estimate.error_rms"), target * 1.0001);
+  const int passes = std::atoi(meta["stop.units_done"].c_str());
+  EXPECT_GE(passes, 8);  // the bias fit's minimum (kMinPassesForBias)
+  EXPECT_LE(passes, 16);
+  EXPECT_NE(meta["plan"].find("passes=" + std::to_string(passes)), std::string::npos) << meta["plan"];
+  // The image is exactly the plan with that many passes.
+  r = RunCommand(Concat(TargetRender(dir, "n.exr", {"--passes", std::to_string(passes)}), {"--local-only"}),
+                 dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(BitIdentical(ReadImage(dir / "n.exr"), stopped));
+}
+
+TEST(ProgressiveStop, FarmJobMeetsItsTargetOrSaysItMissedIt) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  auto worker = StartWorker(coordinator.address(), dir.path(), "w1");
+  FarmClient client(coordinator.address(), "");
+  // Reachable: the error after 16 passes of the same job (rendered here).
+  RunResult r =
+      RunCommand(Concat(TargetRender(dir, "p16.exr", {"--passes", "16"}), {"--local-only"}), dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ImageMetadata meta16;
+  ReadExr(dir / "p16.exr", &meta16);
+  const double target = MetaNumber(meta16, "estimate.error_rms");
+  const std::vector<std::string> job = {"--integrator", "photonmap", "--photons", "2000",  "--plan",
+                                        "progressive",  "--tile",    "32",        "--spp", "1",
+                                        "--res",        "48x48",     "--seed",    "5"};
+  const std::string met =
+      SubmitJob(dir, coordinator.address(), Concat(job, {"--target-error", std::to_string(target * 1.0001)}));
+  ASSERT_FALSE(met.empty());
+  const auto st = WaitForJob(client, met, 240);
+  EXPECT_EQ(st.state(), photonfarm::v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_GE(st.estimated_error_rms(), 0.0);
+  EXPECT_LE(st.estimated_error_rms(), target * 1.0001);
+  EXPECT_GE(st.estimated_bias_rms(), 0.0);
+  EXPECT_GT(st.tasks_cancelled(), 0u) << "the open-ended job ran all its passes";
+  EXPECT_EQ(st.target_missed(), "");
+  // Unreachable in 8 passes: the job succeeds with its image and says what it reached.
+  const std::string missed =
+      SubmitJob(dir, coordinator.address(), Concat(job, {"--passes", "8", "--target-error", "1e-9"}));
+  ASSERT_FALSE(missed.empty());
+  const auto st2 = WaitForJob(client, missed, 240);
+  EXPECT_EQ(st2.state(), photonfarm::v1::JOB_STATE_SUCCEEDED) << st2.failure_reason();
+  EXPECT_NE(st2.target_missed().find("above target 1e-09"), std::string::npos) << st2.target_missed();
+  std::string logs;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    if (entry.path().filename().string().starts_with("coordinator-")) logs += ReadFile(entry.path());
+  EXPECT_NE(logs.find("target not met"), std::string::npos);
+}
+
+TEST(ProgressiveStop, TargetErrorIsRefusedWhereItCannotBeJudged) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const std::vector<std::string> multiple = {"--integrator", "photonmap",     "--photons",      "2000",
+                                             "--plan",       "multiple-maps", "--maps",         "4",
+                                             "--res",        "16x16",         "--target-error", "0.01"};
+  const RunResult farm = RunCommand(
+      Concat({Binaries::Pf(), "submit", Binaries::Scene(), "--coordinator", coordinator.address()}, multiple),
+      dir.path());
+  EXPECT_EQ(farm.exit_code, 3) << farm.err;
+  EXPECT_NE(farm.err.find("spec.stop.target_error_rms: needs the progressive plan"), std::string::npos)
+      << farm.err;
+  const RunResult local =
+      RunCommand(Concat(Concat({Binaries::Pf(), "render", Binaries::Scene()}, multiple),
+                        {"--local-only", "-o", (dir / "m.exr").string(), "--no-png", "-q"}),
+                 dir.path());
+  EXPECT_EQ(local.exit_code, 3) << local.err;
+  EXPECT_NE(local.err.find("target_error_rms: needs the progressive plan"), std::string::npos) << local.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.exr"));
+}
+
+TEST(ProgressiveStop, PlainRenderWithABudgetRunsTheConsistentPlanOpenEnded) {
+  TestDir dir;
+  const RunResult r = RunCommand(
+      {Binaries::Pf(), "render", Binaries::Scene(), "--integrator", "photonmap", "--photons", "2000", "--res",
+       "24x24", "--spp", "1", "--time-budget", "1", "-o", (dir / "b.exr").string(), "--no-png"},
+      dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("plan progressive: chosen for the budget"), std::string::npos) << r.err;
+  ImageMetadata meta;
+  ReadExr(dir / "b.exr", &meta);
+  EXPECT_EQ(meta["stop.stopped_by"], "time budget");
+  EXPECT_EQ(meta["plan"].rfind("progressive passes=", 0), 0u) << meta["plan"];
+  EXPECT_NE(meta["plan"], "progressive passes=1024 spp=1 tile=64");
 }
 
 }  // namespace

@@ -45,7 +45,7 @@ class SchedulerConcurrencyTest : public testing::SchedulerFixture {
 // The job's tasks merged one after another into a fresh accumulator: the reference.
 Accumulator SerialMerge(const JobConfig& config, const std::vector<Lease>& leases,
                         const std::string& job_id) {
-  Accumulator acc(config.plan, config.camera.width, config.camera.height);
+  Accumulator acc(config.plan, config.camera.width, config.camera.height, config.settings.progressive_alpha);
   ResultMerger merger;
   std::map<uint64_t, const Lease*> by_task;
   for (const Lease& l : leases)
