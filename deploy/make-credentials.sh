@@ -9,8 +9,9 @@
 #   worker.pem, worker.key         the workers' client certificate (mTLS: --tls-client-ca ca.pem)
 #   client.pem, client.key         a client certificate for pf (the status page's and budgets' name)
 #   client-token, worker-token     two bearer tokens: the roles need different ones (docs/security.md)
-#   coordinator.toml               `pf-coordinator --config DIR/coordinator.toml`: TLS + mTLS, both
-#                                  tokens, gRPC on 0.0.0.0:PORT and the status page on 0.0.0.0:HTTP-PORT
+#   coordinator.toml               `pf-coordinator --config DIR/coordinator.toml`: deploy/coordinator.toml
+#                                  with DIR's paths: TLS + mTLS, both tokens, gRPC on 0.0.0.0:PORT, the
+#                                  status page on 0.0.0.0:HTTP-PORT, retention and the maps quota
 #   worker.env                     PF_* variables for pf-worker and deploy/slurm/pf-worker.sbatch
 #   client.env                     PF_* variables for pf (submit, watch, get, ...)
 #                                  (both name the first HOST, or 127.0.0.1, as PF_COORDINATOR)
@@ -86,17 +87,10 @@ rm -f "$dir/ca.srl"
 openssl rand -hex 32 >"$dir/client-token"
 openssl rand -hex 32 >"$dir/worker-token"
 
-cat >"$dir/coordinator.toml" <<EOF
-# pf-coordinator --config $dir/coordinator.toml [--data-dir DIR]
-# Every pf-coordinator option by its long name; the command line wins (pf-coordinator --help).
-listen = "0.0.0.0:$port"
-http = "0.0.0.0:$http_port"
-client-token-file = "$dir/client-token"
-worker-token-file = "$dir/worker-token"
-tls-cert = "$dir/coordinator.pem"
-tls-key = "$dir/coordinator.key"
-tls-client-ca = "$dir/ca.pem"
-EOF
+# deploy/coordinator.toml with this folder's paths and ports (it names /etc/photonfarm, the
+# systemd recipe's folder).
+sed -e "s|/etc/photonfarm|$dir|g" -e "s|:7000\"|:$port\"|" -e "s|:8080\"|:$http_port\"|" \
+  "$(dirname "$0")/coordinator.toml" >"$dir/coordinator.toml"
 # role (worker | client): the PF_* variables pf-worker and pf read, for that role's credentials.
 write_env() {
   printf 'PF_COORDINATOR=%s:%s\nPF_TOKEN_FILE=%s\nPF_TLS_CA=%s\nPF_TLS_CERT=%s\nPF_TLS_KEY=%s\n' \

@@ -88,6 +88,7 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   mo.chunk_photons = options_.map_chunk_photons;
   mo.verify_fraction = verify ? options_.verify_piece_fraction : 0;
   mo.convict = verify;
+  mo.quota_bytes = options_.maps_quota_bytes;
   maps_ = std::make_unique<DistributedMaps>(
       mo, *clock_, [s = scenes_.get()](const std::string& hash) { return s->DirectoryOf(hash); });
   maps_->SetScheduler(scheduler_.get());
@@ -122,6 +123,8 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
         "rendered again from zero, {} images of failed or cancelled jobs lost",
         recovery_.acknowledged_lost, recovery_.jobs_rerendered, recovery_.images_lost);
   persister_->Start();
+  // The map store's quota at start-up, once the jobs are known (the maps live jobs use stay).
+  maps_->EnforceQuotaNow();
 
   operations_ = std::make_unique<CoordinatorOperations>(
       CoordinatorParts{.scheduler = *scheduler_,
@@ -194,6 +197,11 @@ int Coordinator::Start() {
                                            : "TLS + client certificates for workers",
       options_.client_token.empty() ? "off" : "required", options_.worker_token.empty() ? "off" : "required");
   spdlog::info("budgets: {}", DescribeBudgets(options_.budgets));
+  spdlog::info("map store: {}", options_.maps_quota_bytes == 0
+                                    ? std::string("no quota")
+                                    : "quota " + std::to_string(options_.maps_quota_bytes) + " bytes");
+  if (options_.retain_finished_seconds > 0)
+    spdlog::info("finished jobs retained {} s", options_.retain_finished_seconds);
   if (!options_.allow_mixed_versions)
     spdlog::info(
         "result verification: {:.3g} of merged results re-rendered by another worker{}, {:.3g} of map pieces "

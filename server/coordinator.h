@@ -7,6 +7,7 @@
 //   coordinator.db          SQLite: scenes, jobs, tasks (server/store/sqlite_store.h)
 //   checkpoints/<job>.acc   accumulator + merged task ids (server/store/checkpoint.h)
 //   scenes/<hash>/          stored scene bundles (server/store/scene_store.h)
+//   maps/                   built photon maps and their pieces (server/scheduling/map_store_files.h)
 //   LOCK                    flock'ed while a coordinator uses the directory
 //
 // gRPC server settings (docs/farm.md, "Coordinator: message sizes and keepalive"):
@@ -109,6 +110,9 @@ struct CoordinatorOptions {
   // Photon maps traced once (server/scheduling/distributed_maps.h).
   int map_build_threads = 1;           // threads of one map's assembly and balance
   uint64_t map_chunk_photons = 65536;  // photons per traced piece
+  // The map store's quota in bytes (pf-coordinator --maps-quota; server/scheduling/map_quota.h),
+  // 0 = none: past it the least recently used maps no live job uses are evicted.
+  uint64_t maps_quota_bytes = 0;
   // Lease to workers of another build too (LeaseTaskRequest.worker_version; docs/farm.md
   // "Upgrades"). Off: such a worker's LeaseTask is FAILED_PRECONDITION.
   bool allow_mixed_versions = false;

@@ -6,7 +6,7 @@
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
 //                  [--allow-mixed-versions] [--limit NAME=VALUE ...]
 //                  [--verify-fraction 0.03] [--no-verify-outliers] [--verify-piece-fraction 0.1]
-//                  [--referee-threads 1] [--retain-finished 7d]
+//                  [--referee-threads 1] [--retain-finished 7d] [--maps-quota 2G]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
 // :0; with --http a second line, "http on HOST:PORT", for the web status page, with " (https)" when it
@@ -28,6 +28,7 @@
 #include <sstream>
 #include <thread>
 
+#include "common/core/byte_size_text.h"
 #include "common/core/duration_text.h"
 #include "common/core/error.h"
 #include "photonfarm_version.h"
@@ -123,6 +124,12 @@ int main(int argc, char** argv) {
                  "Photons per traced piece of a distributed map (rounded up to a multiple of 4096)")
       ->capture_default_str()
       ->check(CLI::Range(uint64_t(4096), uint64_t(1) << 28));
+  std::string maps_quota;
+  app.add_option("--maps-quota", maps_quota,
+                 "Most bytes the stored photon maps (DATA-DIR/maps) may hold (500M, 2G): past it the least "
+                 "recently used maps no queued, running or paused job uses are deleted; default: no limit "
+                 "(docs/farm.md, The map store's quota)")
+      ->check(pf::ByteSizeTextProblem);
   app.add_flag("--allow-mixed-versions", options.allow_mixed_versions,
                "Lease to workers of another build too. By default a worker whose `pf-worker --version` "
                "differs from this coordinator's (" PF_VERSION
@@ -174,6 +181,7 @@ int main(int argc, char** argv) {
   options.checkpoint_interval_seconds = checkpoint_ms / 1000.0;
   if (!retain_finished.empty())
     options.retain_finished_seconds = pf::ParseDurationText(retain_finished, "--retain-finished");
+  if (!maps_quota.empty()) options.maps_quota_bytes = pf::ParseByteSizeText(maps_quota, "--maps-quota");
 
   auto logger = spdlog::stderr_color_mt("pf-coordinator");
   spdlog::set_default_logger(logger);

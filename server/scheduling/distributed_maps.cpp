@@ -214,6 +214,7 @@ DistributedMaps::Map& DistributedMaps::MapOf(const Job& job, uint64_t map_index,
     SetStateLocked(m, Map::State::kBuilt);
     m.built = built->second.built;
     m.contributors = built->second.contributors;
+    TouchLocked(key);  // a use (the quota's order)
     spdlog::info("job {} map {}: built map {} found on disk ({} bytes)", job.id(), map_index, ShortKey(key),
                  m.built.bytes);
     return m;
@@ -319,8 +320,10 @@ std::optional<BuiltMap> DistributedMaps::MapFor(const std::string& job_id, uint6
 std::optional<fs::path> DistributedMaps::MapFile(const std::string& key) {
   std::lock_guard lock(mu_);
   auto it = maps_.find(key);
-  if (it != maps_.end() && it->second.state == Map::State::kBuilt) return MapFileOf(options_.dir, key);
-  if (on_disk_.count(key)) return MapFileOf(options_.dir, key);
+  if ((it != maps_.end() && it->second.state == Map::State::kBuilt) || on_disk_.count(key)) {
+    TouchLocked(key);  // served: a use (the quota's order)
+    return MapFileOf(options_.dir, key);
+  }
   return std::nullopt;
 }
 
@@ -547,6 +550,7 @@ void DistributedMaps::Build(const std::string& key) {
       LeaveToWorkersLocked(maps_.at(key), std::string("assembly failed: ") + e.what(), update);
   }
   if (scheduler_) scheduler_->ApplyMapUpdate(update);
+  EnforceQuotaNow();  // a map stored: the quota (this map is live: its jobs wait for it)
 }
 
 void DistributedMaps::LeaveToWorkersLocked(Map& m, const std::string& why, MapUpdate& update) {

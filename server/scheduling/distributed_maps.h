@@ -117,6 +117,8 @@ struct DistributedMapsOptions {
   // builds may trace other photons).
   double verify_fraction = 0;
   bool convict = false;
+  // The store's quota in bytes (pf-coordinator --maps-quota; map_quota.h), 0 = none.
+  uint64_t quota_bytes = 0;
 };
 
 struct BuiltMap {
@@ -189,6 +191,23 @@ class DistributedMaps final : public MapTracingHook {
   Removed RemoveMapsOf(const std::string& job_id, const JobConfig& deleted,
                        const std::vector<std::shared_ptr<const JobConfig>>& remaining);
 
+  // The quota (map_quota.h, docs/farm.md "The map store's quota"): when the store holds more than
+  // options.quota_bytes, the least recently used maps go — never one a queued, running or paused
+  // job of `jobs` may use (every map index its plan reaches, as RemoveMapsOf reasons), one of a job
+  // registered since `jobs` was taken, or one still tracing or building. Each eviction is logged; a
+  // quota only live maps keep exceeded is warned about once (until it is met again). Called after a
+  // map is built (EnforceQuotaNow, with the Scheduler's jobs) and at start-up. One run at a time.
+  struct Evicted {
+    uint32_t maps = 0;
+    uint64_t bytes = 0;
+    uint64_t bytes_after = 0;  // the store once they are gone
+    bool met = true;
+  };
+  Evicted EnforceQuota(const std::vector<Scheduler::KnownJob>& jobs);
+  // EnforceQuota with the Scheduler's jobs (nothing without a quota or a Scheduler). Call without
+  // the Scheduler's lock and mu_.
+  void EnforceQuotaNow();
+
   // Waits for a running assembly; no new ones.
   void Stop();
 
@@ -198,6 +217,8 @@ class DistributedMaps final : public MapTracingHook {
     // Verification: pieces traced again in full, pieces refused as not the coordinator's trace,
     // stored maps deleted because a convicted worker traced pieces of them.
     uint64_t chunks_verified_in_full = 0, chunks_refused = 0, maps_purged = 0;
+    // The quota: maps evicted, and their bytes.
+    uint64_t maps_evicted = 0, bytes_evicted = 0;
   };
   Counters counters() const;
 
@@ -285,6 +306,12 @@ class DistributedMaps final : public MapTracingHook {
   // Photon ranges found by Scan, with who traced them.
   std::map<std::string, std::map<std::pair<uint64_t, uint64_t>, std::string>> chunks_on_disk_;
   Counters counters_;
+  // The quota: one EnforceQuota at a time (lock order: quota_mu_, then mu_); whether the quota was
+  // found unmeetable (warned once until it is met again).
+  std::mutex quota_mu_;
+  bool quota_warned_ = false;
+  // A map's use for the quota's order: its file's modification time set to now (map_quota.h).
+  void TouchLocked(const std::string& key) const;
   // The scene of the last checked upload. Lock order: check_mu_, then mu_.
   std::mutex check_mu_;
   std::string check_scene_hash_;

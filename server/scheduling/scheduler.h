@@ -244,6 +244,14 @@ class Scheduler final : public PersistSource {
   std::vector<std::string> FinishedBefore(int64_t cutoff_unix_ms) const;
   // The configs of every job it knows (which stored maps remaining jobs use).
   std::vector<std::shared_ptr<const JobConfig>> JobConfigs() const;
+  // Every job it knows, with its config and whether it is live (queued, running or paused): which
+  // stored maps the map store's quota may evict (DistributedMaps::EnforceQuota).
+  struct KnownJob {
+    std::string id;
+    std::shared_ptr<const JobConfig> config;
+    bool active = false;
+  };
+  std::vector<KnownJob> KnownJobs() const;
   // Queued and running jobs, their tasks and pixels, and how many of them `client` submitted
   // (Job::client). O(1).
   ActiveLoad Load(const std::string& client) const;

@@ -73,4 +73,14 @@ std::vector<std::shared_ptr<const JobConfig>> Scheduler::JobConfigs() const {
   return out;
 }
 
+std::vector<Scheduler::KnownJob> Scheduler::KnownJobs() const {
+  std::lock_guard lock(mu_);
+  std::vector<KnownJob> out;
+  for (const Job* job : jobs_.InSubmissionOrder())
+    // A finished job whose results a verification still has with the referee counts as live: the
+    // referee may render its tasks.
+    out.push_back({job->id(), job->shared_config(), job->active() || verification_.Names(*job)});
+  return out;
+}
+
 }  // namespace pf::server

@@ -1,5 +1,6 @@
 #include "server/store/sqlite_store.h"
 
+#include <spdlog/spdlog.h>
 #include <sqlite3.h>
 
 #include <cerrno>
@@ -170,6 +171,10 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
     throw SystemError(path_ + ": cannot open database: " + msg);
   }
   sqlite3_busy_timeout(db_, 5000);
+  // Deleted jobs give their pages back to the file system (DeleteJob: incremental_vacuum; docs/farm.md
+  // "Deleting jobs"). Set before the first table of a new database; one made before is converted
+  // once, below.
+  Exec("PRAGMA auto_vacuum = INCREMENTAL");
   Exec("PRAGMA journal_mode = WAL");
   Exec("PRAGMA synchronous = FULL");
   Exec("PRAGMA foreign_keys = ON");
@@ -190,6 +195,16 @@ SqliteStore::SqliteStore(const std::filesystem::path& db_file) : path_(db_file.s
   AddColumnIfMissing("jobs", "paused", "INTEGER NOT NULL DEFAULT 0");
   // … and before pf purge jobs.finished_unix_ms (0: recovery estimates it).
   AddColumnIfMissing("jobs", "finished_unix_ms", "INTEGER NOT NULL DEFAULT 0");
+  // A database from before incremental vacuuming: one VACUUM rewrites it with it (once; O(size)).
+  int64_t auto_vacuum = 0;
+  {
+    Statement st(db_, "PRAGMA auto_vacuum");  // finalized before the VACUUM
+    if (st.Step()) auto_vacuum = st.ColInt(0);
+  }
+  if (auto_vacuum != 2) {  // 2: incremental
+    spdlog::info("{}: converting to incremental vacuuming (one VACUUM)", path_);
+    Exec("VACUUM");
+  }
 }
 
 SqliteStore::~SqliteStore() {
@@ -373,6 +388,15 @@ void SqliteStore::DeleteJob(const std::string& job_id) {
   Statement(db_, "DELETE FROM tasks WHERE job_id = ?1").Text(1, job_id).Run();
   Statement(db_, "DELETE FROM jobs WHERE id = ?1").Text(1, job_id).Run();
   tx.Commit();
+  // The freed pages leave the file: moved to its end and cut off (incremental_vacuum), then the WAL
+  // is checkpointed into the database, which shrinks, and truncated. Best effort: the job is deleted
+  // either way, and the next deletion frees what this one could not.
+  try {
+    Exec("PRAGMA incremental_vacuum");
+    Exec("PRAGMA wal_checkpoint(TRUNCATE)");
+  } catch (const std::exception& e) {
+    spdlog::warn("job {}: the database did not shrink after its deletion: {}", job_id, e.what());
+  }
 }
 
 void SqliteStore::SetJobPaused(const std::string& job_id, bool paused) {

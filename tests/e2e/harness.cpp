@@ -181,9 +181,6 @@ bool WaitUntil(const std::function<bool()>& predicate, double seconds) {
 CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path& log_dir,
                                        std::vector<std::string> extra_args, int port,
                                        const std::string& token_file) {
-  static int counter = 0;
-  const std::string n = std::to_string(++counter);
-  const fs::path out = log_dir / ("coordinator-" + n + ".out");
   std::vector<std::string> argv = {Binaries::Coordinator(), "--listen", "127.0.0.1:" + std::to_string(port),
                                    "--data-dir", data_dir.string()};
   if (!token_file.empty()) argv.insert(argv.end(), {"--client-token-file", token_file});
@@ -192,6 +189,18 @@ CoordinatorProcess::CoordinatorProcess(const fs::path& data_dir, const fs::path&
   if (std::find(extra_args.begin(), extra_args.end(), "--verify-fraction") == extra_args.end())
     argv.insert(argv.end(), {"--verify-fraction", "0"});
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
+  Start(argv, log_dir);
+}
+
+CoordinatorProcess::CoordinatorProcess(ConfigFileOnly, const fs::path& config_file, const fs::path& log_dir,
+                                       const std::vector<std::string>& extra_args) {
+  Start(Concat({Binaries::Coordinator(), "--config", config_file.string()}, extra_args), log_dir);
+}
+
+void CoordinatorProcess::Start(const std::vector<std::string>& argv, const fs::path& log_dir) {
+  static int counter = 0;
+  const std::string n = std::to_string(++counter);
+  const fs::path out = log_dir / ("coordinator-" + n + ".out");
   process_ = std::make_unique<Process>(
       "pf-coordinator", argv, log_dir / ("coordinator-" + n + ".log"), out,
       std::map<std::string, std::string>{{"PF_TOKEN", ""}, {"PF_CLIENT_TOKEN", ""}, {"PF_WORKER_TOKEN", ""}});

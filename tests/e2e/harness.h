@@ -93,12 +93,18 @@ class CoordinatorProcess {
   CoordinatorProcess(const std::filesystem::path& data_dir, const std::filesystem::path& log_dir,
                      std::vector<std::string> extra_args = {}, int port = 0,
                      const std::string& token_file = "");
+  // `pf-coordinator --config FILE` and `extra_args`, nothing else: no --listen, --data-dir or
+  // --verify-fraction of the harness (the file's listen must print a port: 127.0.0.1:0).
+  struct ConfigFileOnly {};
+  CoordinatorProcess(ConfigFileOnly, const std::filesystem::path& config_file,
+                     const std::filesystem::path& log_dir, const std::vector<std::string>& extra_args = {});
   const std::string& address() const { return address_; }
   int port() const { return port_; }
   int http_port() const { return http_port_; }  // the status page's ("http on" line); 0 without --http
   Process& process() { return *process_; }
 
  private:
+  void Start(const std::vector<std::string>& argv, const std::filesystem::path& log_dir);
   std::unique_ptr<Process> process_;
   std::string address_;
   int port_ = 0;

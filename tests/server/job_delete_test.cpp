@@ -4,6 +4,9 @@
 // remaining job's stay; through DeleteJob the job's files go and a restart does not bring it back.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <cstdio>
 
 #include <chrono>
 #include <fstream>
@@ -107,6 +110,70 @@ TEST(SqliteStoreDelete, TheFinishTimeIsStoredAndADeletedJobHasNoRowsLeft) {
   ASSERT_EQ(rows.size(), 1u);
   EXPECT_EQ(rows[0].job_id, "job-1");
   EXPECT_EQ(rows[0].finished_unix_ms, 123456789);
+}
+
+// The database shrinks when jobs are deleted (incremental vacuuming, then a WAL checkpoint): 16 jobs
+// of 2000 task rows, 15 deleted — the file holds one job's rows after, and no free pages. A database
+// made without incremental vacuuming is converted when it is opened. The sizes are logged for
+// docs/farm.md "Deleting jobs".
+TEST(SqliteStoreDelete, TheDatabaseShrinksAfterDeletionsAndAnOldOneIsConverted) {
+  testing::TempDir dir;
+  const fs::path file = dir.path() / "coordinator.db";
+  auto bytes = [&] {
+    std::error_code ec;
+    const fs::path wal = file.string() + "-wal";
+    return fs::file_size(file) + (fs::exists(wal) ? fs::file_size(wal, ec) : 0);
+  };
+  auto pragma = [&](const char* name) {
+    sqlite3* db = nullptr;
+    EXPECT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
+    sqlite3_stmt* st = nullptr;
+    sqlite3_prepare_v2(db, (std::string("PRAGMA ") + name).c_str(), -1, &st, nullptr);
+    const int64_t value = sqlite3_step(st) == SQLITE_ROW ? sqlite3_column_int64(st, 0) : -1;
+    sqlite3_finalize(st);
+    sqlite3_close(db);
+    return value;
+  };
+  uint64_t full = 0, one_left = 0;
+  {
+    SqliteStore db(file);
+    for (int j = 0; j < 16; ++j) {
+      const std::string id = "job-" + std::to_string(j);
+      db.InsertJob({id, uint64_t(j + 1), "s1", JobState::kQueued, "", 42, 0}, {});
+      std::vector<TaskRow> tasks;
+      for (uint64_t t = 0; t < 2000; ++t)
+        tasks.push_back(
+            {id, t, TaskState::kDone, 1, 0, "a last error of some length, as a failed attempt leaves"});
+      db.Apply({}, tasks);
+    }
+    full = bytes();
+    for (int j = 0; j < 15; ++j) db.DeleteJob("job-" + std::to_string(j));
+    one_left = bytes();
+    EXPECT_EQ(db.LoadTasks("job-15").size(), 2000u);
+  }
+  std::printf("coordinator.db with 16 jobs of 2000 task rows: %llu bytes; after 15 deleted: %llu bytes\n",
+              (unsigned long long)full, (unsigned long long)one_left);
+  EXPECT_LT(one_left * 5, full) << "the database did not shrink: " << full << " -> " << one_left;
+  EXPECT_EQ(pragma("freelist_count"), 0);
+  EXPECT_EQ(pragma("auto_vacuum"), 2);
+
+  // A database from before: no auto-vacuum. Opened, it is converted, and deletions shrink it again.
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "PRAGMA auto_vacuum = NONE; VACUUM;", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+  }
+  ASSERT_EQ(pragma("auto_vacuum"), 0);
+  {
+    SqliteStore db(file);
+    EXPECT_EQ(db.LoadTasks("job-15").size(), 2000u) << "nothing lost by the conversion";
+    const uint64_t before = bytes();
+    db.DeleteJob("job-15");
+    EXPECT_LT(bytes() * 5, before);
+  }
+  EXPECT_EQ(pragma("auto_vacuum"), 2);
+  EXPECT_EQ(pragma("freelist_count"), 0);
 }
 
 // The map store: maps of the deleted job that a remaining job of the same scene, settings and seed
