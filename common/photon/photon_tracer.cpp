@@ -329,8 +329,7 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
     const BsdfLobes* lobes = &shared.lobes[hit.material];
     if (walk->textured) {
       if (!textured) textured.emplace();
-      ApplyTexel(*material, desc.textures[size_t(material->base_color_texture)].Lookup(hit.uv),
-                 &textured->material);
+      ApplyTexels(*material, TexelsAt(desc, *material, hit.uv), &textured->material);
       material = &textured->material;
       textured->lobes = BsdfLobes::Of(*material);
       textured->roulette = WalkRoulette::Of(*material, textured->lobes);
