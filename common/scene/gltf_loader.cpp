@@ -107,9 +107,10 @@ class GltfSceneBuilder {
       if (!alpha_read[t]) scene_->textures[t].alpha.reset();
   }
 
-  // A material's baseColorTexture (colour: sRGB) and metallicRoughnessTexture (data: linear),
-  // and its alpha mask's texture (the base colour's alpha: specification §3.9.3). One set of
-  // texture coordinates per vertex: the base colour's when both textures name one.
+  // A material's baseColorTexture (colour: sRGB), metallicRoughnessTexture (data: linear) and
+  // emissiveTexture (colour), and its alpha mask's texture (the base colour's alpha:
+  // specification §3.9.3). One set of texture coordinates per vertex: the first of those
+  // textures' in that order.
   void AddMaterialTextures(size_t i, Material* material) {
     const tinygltf::PbrMetallicRoughness& pbr = m_.materials[i].pbrMetallicRoughness;
     const tinygltf::TextureInfo& base = pbr.baseColorTexture;
@@ -130,6 +131,22 @@ class GltfSceneBuilder {
       else if (mr.texCoord != base.texCoord)
         WarnOnce(where + ": reads TEXCOORD_" + std::to_string(mr.texCoord) + ", baseColorTexture TEXCOORD_" +
                  std::to_string(base.texCoord) + ": both read TEXCOORD_" + std::to_string(base.texCoord) +
+                 " (one set of texture coordinates per vertex)");
+    }
+    // emissiveTexture (colour: sRGB) multiplies emissiveFactor × emissiveStrength; moot (and
+    // not decoded) when they are black.
+    const tinygltf::TextureInfo& emissive = m_.materials[i].emissiveTexture;
+    if (emissive.index >= 0 && material->IsEmissive()) {
+      const std::string where = Indexed("materials", i) + ".emissiveTexture";
+      material->emission_texture = textures_.Use(emissive.index, where, ImageCodes::kColor);
+      if (emissive.texCoord < 0) Fail(where + ": texCoord must be >= 0");
+      const auto set = texcoord_set_.find(uint32_t(i));
+      if (set == texcoord_set_.end())
+        texcoord_set_[uint32_t(i)] = emissive.texCoord;
+      else if (set->second != emissive.texCoord)
+        WarnOnce(where + ": reads TEXCOORD_" + std::to_string(emissive.texCoord) +
+                 ", the material's other textures TEXCOORD_" + std::to_string(set->second) +
+                 ": it reads TEXCOORD_" + std::to_string(set->second) +
                  " (one set of texture coordinates per vertex)");
     }
     if (material->HasAlphaMask()) {

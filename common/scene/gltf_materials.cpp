@@ -31,12 +31,11 @@ bool HasExtensionTexture(const tinygltf::Material& m, const char* extension, con
 }
 
 // The texture slots a material uses that are not applied, in the spec's order (baseColorTexture
-// and metallicRoughnessTexture are: gltf_loader.cpp, gltf_textures.h).
+// metallicRoughnessTexture and emissiveTexture are: gltf_loader.cpp, gltf_textures.h).
 std::vector<std::string> UnappliedTextureSlots(const tinygltf::Material& m) {
   std::vector<std::string> slots;
   if (m.normalTexture.index >= 0) slots.push_back("normalTexture");
   if (m.occlusionTexture.index >= 0) slots.push_back("occlusionTexture");
-  if (m.emissiveTexture.index >= 0) slots.push_back("emissiveTexture");
   if (HasExtensionTexture(m, "KHR_materials_transmission", "transmissionTexture"))
     slots.push_back("transmissionTexture");
   return slots;
@@ -96,8 +95,8 @@ Material MapGltfMaterial(const tinygltf::Material& g, size_t index, const std::s
     std::string list;
     for (const std::string& s : slots) list += (list.empty() ? "" : ", ") + s;
     warnings->push_back(file + ": " + where + ": textures not applied: " + list +
-                        " (their factors alone are used; only baseColorTexture and "
-                        "metallicRoughnessTexture are applied)");
+                        " (their factors alone are used; only baseColorTexture, "
+                        "metallicRoughnessTexture and emissiveTexture are applied)");
   }
   // Alpha (specification §3.9.4; docs/gltf.md, "Alpha"): MASK cuts the surface out where
   // baseColorFactor.a × the base colour texture's alpha < alphaCutoff (the loader adds the

@@ -321,7 +321,6 @@ std::vector<std::string> UnappliedMaps(const tinyobj::material_t& m) {
                                                               {"bump", &m.bump_texname},
                                                               {"disp", &m.displacement_texname},
                                                               {"refl", &m.reflection_texname},
-                                                              {"map_Ke", &m.emissive_texname},
                                                               {"map_Pr", &m.roughness_texname},
                                                               {"map_Pm", &m.metallic_texname},
                                                               {"norm", &m.normal_texname}};
@@ -330,9 +329,9 @@ std::vector<std::string> UnappliedMaps(const tinyobj::material_t& m) {
   return maps;
 }
 
-// map_Kd of each material as an image texture (texture.h) multiplying Kd, map_d as an alpha
-// mask (docs/renderer.md, "Alpha masks"); the other maps are warned about once per material. An
-// image is resolved like an mtllib (scene_reference.h: inside `root`, relative to the OBJ's
+// map_Kd of each material as an image texture (texture.h) multiplying Kd, map_Ke multiplying Ke,
+// map_d as an alpha mask (docs/renderer.md, "Alpha masks"); the other maps are warned about once per
+// material. An image is resolved like an mtllib (scene_reference.h: inside `root`, relative to the OBJ's
 // folder) and read once however many materials use it.
 void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const std::filesystem::path& root,
                      const std::filesystem::path& base_dir, const std::string& file,
@@ -349,7 +348,7 @@ void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const st
       std::string list;
       for (const std::string& m : unapplied) list += (list.empty() ? "" : ", ") + m;
       scene->warnings.push_back(file + ": " + where + ": " + list +
-                                " not applied (only map_Kd and map_d are)");
+                                " not applied (only map_Kd, map_d and map_Ke are)");
     }
     // The image `name` names for `slot`, resolved, decoded by `read` (errors name the slot).
     const auto resolve = [&](const char* slot, const std::string& name, std::string* ref) {
@@ -383,6 +382,22 @@ void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const st
       texture.image = image;
       texture.wrap_u = texture.wrap_v = wrap_of(ref, tm.diffuse_texopt);
       scene->materials[i].base_color_texture = int32_t(scene->textures.size());
+      scene->textures.push_back(std::move(texture));
+    }
+    if (!tm.emissive_texname.empty() && !scene->materials[i].IsEmissive())
+      scene->warnings.push_back(file + ": " + where +
+                                ": map_Ke not applied (the material has no Ke to multiply)");
+    if (!tm.emissive_texname.empty() && scene->materials[i].IsEmissive()) {
+      // map_Ke multiplies Ke (sRGB, like map_Kd); without Ke it has nothing to multiply.
+      std::string ref;
+      const std::filesystem::path resolved = resolve("map_Ke", tm.emissive_texname, &ref);
+      std::shared_ptr<const Image>& image = images[resolved];
+      if (!image) image = std::make_shared<const Image>(read(ref, resolved, ImageCodes::kColor).rgb);
+      Texture texture;
+      texture.source = tm.emissive_texname;
+      texture.image = image;
+      texture.wrap_u = texture.wrap_v = wrap_of(ref, tm.emissive_texopt);
+      scene->materials[i].emission_texture = int32_t(scene->textures.size());
       scene->textures.push_back(std::move(texture));
     }
     if (!tm.alpha_texname.empty()) {
@@ -515,7 +530,7 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
   // Not needed (texture coordinates: unless a material has a texture): released before the scene
   // is built next to tinyobjloader's arrays.
   const bool textured = std::any_of(materials.begin(), materials.end(), [](const tinyobj::material_t& m) {
-    return !m.diffuse_texname.empty() || !m.alpha_texname.empty();
+    return !m.diffuse_texname.empty() || !m.alpha_texname.empty() || !m.emissive_texname.empty();
   });
   if (!textured) std::vector<tinyobj::real_t>().swap(attrib.texcoords);
   std::vector<tinyobj::real_t>().swap(attrib.colors);

@@ -34,7 +34,8 @@
 //               such a material into glass (docs/scene-manifest.md, "materials").
 //   Ni        → ior for glass only; opaque and dissolve materials get ior = 1 (OBJ exporters
 //               write Ni on every material, meaningless without transmission).
-//   map_Kd    → an image texture multiplying Kd (sRGB-decoded); map_d → an alpha mask: the
+//   map_Kd    → an image texture multiplying Kd (sRGB-decoded); map_Ke → one multiplying Ke
+//               (sRGB; ignored without Ke); map_d → an alpha mask: the
 //               surface is cut out, for every ray, where the map (its alpha channel, or its grey
 //               value without one; linear) is below kObjAlphaCutoff. `d` keeps its meaning above
 //               (dissolve) beside map_d. Both ignored on an emitter (warned).

@@ -59,6 +59,10 @@ struct Material {
   // An alpha-mask cut-out (glTF alphaMode MASK, OBJ map_d; docs/renderer.md, "Alpha masks"): the
   // surface is absent, for every ray, where alpha_factor × (alpha_texture's alpha at the hit, 1
   // without one) < alpha_cutoff. A cutoff of 0 (alpha is never below it) is an opaque surface.
+  // An image texture (textures index, −1: none) multiplying the emission: Le(x) = emission ×
+  // texel (glTF emissiveTexture, OBJ map_Ke; sRGB). Light sampling and photon emission stay
+  // power-correct (lights/light_sampler.h).
+  int32_t emission_texture = -1;
   float alpha_cutoff = 0.0f;
   float alpha_factor = 1.0f;
   int32_t alpha_texture = -1;
@@ -69,7 +73,8 @@ struct Material {
 
 // Whether a material's BSDF varies over its surface (scene/surface_material.h builds it per hit).
 inline bool IsTextured(const Material& material) {
-  return material.base_color_texture >= 0 || material.metallic_roughness_texture >= 0;
+  return material.base_color_texture >= 0 || material.metallic_roughness_texture >= 0 ||
+         material.emission_texture >= 0;
 }
 
 inline constexpr uint32_t kNoLight = 0xffffffffu;

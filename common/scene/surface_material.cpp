@@ -14,12 +14,15 @@ MaterialTexels TexelsAt(const SceneDescription& scene, const Material& material,
     t.base_color = scene.textures[size_t(material.base_color_texture)].Lookup(uv);
   if (material.metallic_roughness_texture >= 0)
     t.metallic_roughness = scene.textures[size_t(material.metallic_roughness_texture)].Lookup(uv);
+  if (material.emission_texture >= 0)
+    t.emission = scene.textures[size_t(material.emission_texture)].Lookup(uv);
   return t;
 }
 
 void ApplyTexels(const Material& material, const MaterialTexels& texels, Material* out) {
   *out = material;
-  if (!IsTextured(material)) return;
+  if (material.emission_texture >= 0) out->emission = material.emission * texels.emission;
+  if (material.base_color_texture < 0 && material.metallic_roughness_texture < 0) return;
   if (material.metallic_roughness) {
     // glTF: baseColor = factor × texel, metallic = factor × B, roughness = factor × G
     // (specification §3.9.2), mapped exactly as the loader maps the factors

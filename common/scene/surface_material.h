@@ -16,6 +16,7 @@ namespace pf {
 struct MaterialTexels {
   Rgb base_color{1.0f};          // base_color_texture's colour
   Rgb metallic_roughness{1.0f};  // metallic_roughness_texture's (G: roughness, B: metallic)
+  Rgb emission{1.0f};            // emission_texture's
 };
 
 // The texels of `material`'s textures at texture coordinates `uv`.
@@ -25,7 +26,8 @@ MaterialTexels TexelsAt(const SceneDescription& scene, const Material& material,
 // `material` with `texels` applied (scene.h, Material::base_color_texture and
 // metallic_roughness_texture): a material mapped from glTF's metallic-roughness parameters is
 // mapped again from baseColorFactor × base texel, metallicFactor × B and roughnessFactor × G;
-// an OBJ material has ρd multiplied by the base texel. Not textured: the material itself.
+// an OBJ material has ρd multiplied by the base texel; the emission is multiplied by its texel.
+// Not textured: the material itself.
 // Copies into *out, which must not be `material`.
 void ApplyTexels(const Material& material, const MaterialTexels& texels, Material* out);
 
