@@ -15,6 +15,7 @@
 #include <string>
 
 #include "common/core/error.h"
+#include "common/scene/surface_material.h"
 
 namespace pf {
 namespace {
@@ -49,7 +50,38 @@ RTCDevice ProcessDevice() {
   return device;
 }
 
+// The texture coordinates at barycentrics (u, v) of a triangle (scene.uvs non-empty).
+TextureCoordinates InterpolatedUv(const SceneDescription& s, const std::array<uint32_t, 3>& tri, float u,
+                                  float v) {
+  const float w = 1.0f - u - v;
+  const TextureCoordinates &a = s.uvs[tri[0]], &b = s.uvs[tri[1]], &c = s.uvs[tri[2]];
+  return {a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
+}
+
+bool AnyAlphaMask(const SceneDescription& scene) {
+  for (const Material& m : scene.materials)
+    if (m.HasAlphaMask()) return true;
+  return false;
+}
+
 }  // namespace
+
+void EmbreeScene::CutOutFilter(const RTCFilterFunctionNArguments* args) {
+  const auto* self = static_cast<const EmbreeScene*>(args->geometryUserPtr);
+  const SceneDescription& s = *self->scene_;
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const uint32_t triangle = RTCHitN_primID(args->hit, args->N, i);
+    const Material& m = s.materials[s.triangle_material[triangle]];
+    if (!m.HasAlphaMask()) continue;
+    // The texture coordinates Intersect gives the same hit (the same barycentrics).
+    const TextureCoordinates uv =
+        s.uvs.empty() ? TextureCoordinates{0.0f, 0.0f}
+                      : InterpolatedUv(s, s.triangles[triangle], RTCHitN_u(args->hit, args->N, i),
+                                       RTCHitN_v(args->hit, args->N, i));
+    if (IsCutOut(s, m, uv)) args->valid[i] = 0;
+  }
+}
 
 struct EmbreeScene::EmbreeHandles {
   RTCScene scene = nullptr;
@@ -100,6 +132,15 @@ EmbreeScene::EmbreeScene(const SceneDescription& scene)
         indices[3 * i + k] = scene.triangles[i][k];
       }
     }
+    if (AnyAlphaMask(scene)) {
+      // Deterministic: whether a hit is cut out is a function of the hit alone.
+      if (!rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED))
+        throw SystemError(
+            "the scene has alpha masks, and this Embree library was built without filter functions");
+      rtcSetGeometryUserData(geom, this);
+      rtcSetGeometryIntersectFilterFunction(geom, CutOutFilter);
+      rtcSetGeometryOccludedFilterFunction(geom, CutOutFilter);
+    }
     rtcCommitGeometry(geom);
     rtcAttachGeometryByID(embree_->scene, geom, 0);
     rtcReleaseGeometry(geom);
@@ -146,14 +187,6 @@ bool IntersectClosest(RTCScene scene, const Ray& ray, RTCRayHit* rh) {
   rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(scene, &context, rh);
   return rh->hit.geomID != RTC_INVALID_GEOMETRY_ID;
-}
-
-// The texture coordinates at barycentrics (u, v) of a triangle (scene.uvs non-empty).
-TextureCoordinates InterpolatedUv(const SceneDescription& s, const std::array<uint32_t, 3>& tri, float u,
-                                  float v) {
-  const float w = 1.0f - u - v;
-  const TextureCoordinates &a = s.uvs[tri[0]], &b = s.uvs[tri[1]], &c = s.uvs[tri[2]];
-  return {a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
 }
 
 }  // namespace

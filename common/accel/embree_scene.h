@@ -9,6 +9,8 @@
 #include "common/accel/ray.h"
 #include "common/scene/scene.h"
 
+struct RTCFilterFunctionNArguments;  // embree3/rtcore_geometry.h
+
 namespace pf {
 
 class EmbreeScene {
@@ -19,6 +21,11 @@ class EmbreeScene {
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
+  // Every query below skips a surface point an alpha mask cuts out (scene.h,
+  // Material::alpha_cutoff; docs/renderer.md, "Alpha masks"): camera and gather rays, shadow and
+  // visibility rays and photon walks alike, by an Embree filter on scenes with a mask (none
+  // without, so an unmasked scene traces as before).
+  //
   // Closest hit along the ray in (0, t_max], or nullopt.
   std::optional<SurfaceHit> Intersect(const Ray& ray) const;
   // The same closest hit for a particle walk: false for a miss, else *hit holds Intersect's
@@ -47,6 +54,9 @@ class EmbreeScene {
   // when one is zero or the interpolation is degenerate. Only for a scene with vertex normals
   // (the callers test that, so a scene without them makes no call per ray).
   bool InterpolatedNormal(uint32_t triangle, float u, float v, const Vec3& ng, Vec3* n) const;
+  // Embree's intersection and occlusion filter for scenes with an alpha mask: rejects a hit
+  // whose material is masked and cut out at the hit's texture coordinates.
+  static void CutOutFilter(const RTCFilterFunctionNArguments* args);
   const SceneDescription* scene_;
   std::unique_ptr<EmbreeHandles> embree_;
   std::vector<Vec3> face_normals_;

@@ -41,19 +41,36 @@ struct StbFree {
   void operator()(void* p) const { stbi_image_free(p); }
 };
 
-// One pixel's channels (1..4 of them: grey, grey+alpha, RGB, RGBA) as linear RGB.
-template <typename T, typename Decode>
-Image ToImage(const T* data, int width, int height, int channels, Decode decode) {
-  Image image(width, height);
+// One pixel's channels (1..4 of them: grey, grey+alpha, RGB, RGBA) as linear RGB, and the
+// alpha channel (channels 2 and 4) as `alpha(code)`.
+template <typename T, typename Decode, typename Alpha>
+ImageWithAlpha ToImage(const T* data, int width, int height, int channels, Decode decode, Alpha alpha) {
+  ImageWithAlpha out{Image(width, height), {}};
+  Image& image = out.rgb;
+  const bool has_alpha = channels == 2 || channels == 4;
+  if (has_alpha) out.alpha.resize(image.size());
   for (size_t i = 0; i < image.size(); ++i) {
     const T* p = data + i * size_t(channels);
     image[i] = channels >= 3 ? Rgb(decode(p[0]), decode(p[1]), decode(p[2])) : Rgb(decode(p[0]));
+    if (has_alpha) out.alpha[i] = alpha(p[channels - 1]);
   }
-  return image;
+  return out;
+}
+
+float Srgb16(stbi_us v) {
+  const float c = float(v) / 65535.0f;
+  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+float Linear16(stbi_us v) {
+  return float(v) / 65535.0f;
+}
+float Linear8(stbi_uc v) {
+  return float(v) / 255.0f;
 }
 
 // PNG, JPEG or Radiance HDR bytes through stb_image; `path` names them in messages.
-Image DecodeWithStb(const unsigned char* bytes, size_t size, const std::filesystem::path& path) {
+ImageWithAlpha DecodeWithStb(const unsigned char* bytes, size_t size, const std::filesystem::path& path,
+                             ImageCodes codes) {
   if (size > size_t(std::numeric_limits<int>::max())) Fail(path, "the image file is too large to decode");
   const int n = int(size);
   int width = 0, height = 0, channels = 0;
@@ -65,24 +82,23 @@ Image DecodeWithStb(const unsigned char* bytes, size_t size, const std::filesyst
     const std::unique_ptr<float, StbFree> data(
         stbi_loadf_from_memory(bytes, n, &width, &height, &channels, 0));
     if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
-    return ToImage(data.get(), width, height, channels, [](float v) { return v; });
+    const auto same = [](float v) { return v; };
+    return ToImage(data.get(), width, height, channels, same, same);
   }
+  const bool color = codes == ImageCodes::kColor;
   if (stbi_is_16_bit_from_memory(bytes, n)) {
     const std::unique_ptr<stbi_us, StbFree> data(
         stbi_load_16_from_memory(bytes, n, &width, &height, &channels, 0));
     if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
-    return ToImage(data.get(), width, height, channels, [](stbi_us v) {
-      const float c = float(v) / 65535.0f;
-      return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-    });
+    return ToImage(data.get(), width, height, channels, color ? Srgb16 : Linear16, Linear16);
   }
   const std::unique_ptr<stbi_uc, StbFree> data(
       stbi_load_from_memory(bytes, n, &width, &height, &channels, 0));
   if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
-  return ToImage(data.get(), width, height, channels, SrgbToLinear8);
+  return ToImage(data.get(), width, height, channels, color ? SrgbToLinear8 : Linear8, Linear8);
 }
 
-Image ReadWithStb(const std::filesystem::path& path) {
+ImageWithAlpha ReadWithStb(const std::filesystem::path& path, ImageCodes codes) {
   // The file is decoded from memory: a file larger than any image of the side limit could be is
   // refused before it is read.
   std::error_code ec;
@@ -95,7 +111,7 @@ Image ReadWithStb(const std::filesystem::path& path) {
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
                                          std::istreambuf_iterator<char>());
   if (!in.good() && !in.eof()) Fail(path, "cannot read the image file");
-  return DecodeWithStb(bytes.data(), bytes.size(), path);
+  return DecodeWithStb(bytes.data(), bytes.size(), path, codes);
 }
 
 // Every pixel a finite non-negative colour (an EXR or HDR can hold anything).
@@ -123,32 +139,41 @@ float SrgbToLinear8(unsigned char code) {
   return table[code];
 }
 
-Image ReadLinearImage(const std::filesystem::path& path) {
+ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes codes) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) Fail(path, "image file not found (or not a regular file)");
   const std::string ext = LowerExtension(path);
-  Image image;
+  ImageWithAlpha image;
   if (ext == ".exr") {
     try {
-      image = ReadExr(path);
+      image.rgb = ReadExr(path);
     } catch (const SystemError& e) {
       Fail(path, std::string("cannot read the EXR image: ") + e.what());
     }
-    CheckSize(path, image.width(), image.height());
+    CheckSize(path, image.rgb.width(), image.rgb.height());
   } else if (ext == ".hdr" || ext == ".png" || ext == ".jpg" || ext == ".jpeg") {
-    image = ReadWithStb(path);
+    image = ReadWithStb(path, codes);
   } else {
     Fail(path, "unsupported image extension '" + ext + "' (supported: .hdr, .exr, .png, .jpg, .jpeg)");
   }
-  CheckPixels(image, path);
+  CheckPixels(image.rgb, path);
+  return image;
+}
+
+Image ReadLinearImage(const std::filesystem::path& path) {
+  return ReadImageWithAlpha(path, ImageCodes::kColor).rgb;
+}
+
+ImageWithAlpha DecodeImageWithAlpha(const unsigned char* bytes, size_t size, const std::string& name,
+                                    ImageCodes codes) {
+  if (size == 0) Fail(name, "the image holds no bytes");
+  ImageWithAlpha image = DecodeWithStb(bytes, size, name, codes);
+  CheckPixels(image.rgb, name);
   return image;
 }
 
 Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name) {
-  if (size == 0) Fail(name, "the image holds no bytes");
-  Image image = DecodeWithStb(bytes, size, name);
-  CheckPixels(image, name);
-  return image;
+  return DecodeImageWithAlpha(bytes, size, name, ImageCodes::kColor).rgb;
 }
 
 }  // namespace pf

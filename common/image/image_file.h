@@ -5,12 +5,16 @@
 // the same formats, limits and messages.
 //
 // 8-bit and 16-bit PNG/JPEG are sRGB-encoded (IEC 61966-2-1) and decoded to linear; .hdr and .exr
-// are linear already. Alpha is dropped; grey images are replicated to R = G = B.
+// are linear already, unless the slot they serve holds data (ImageCodes::kData: glTF's
+// metallicRoughnessTexture, a mask), whose codes are read linearly as code / max. Grey images
+// are replicated to R = G = B. The alpha channel (grey+alpha, RGBA) is linear in every format
+// (PNG's and glTF's convention); ReadLinearImage and DecodeLinearImage drop it.
 
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "common/image/image.h"
 
@@ -23,6 +27,18 @@ inline constexpr int kMaxImageFileSide = 16384;
 // uncompressed 8-bit RGBA image of the side limit takes.
 inline constexpr uintmax_t kMaxImageFileBytes = uintmax_t(1) << 30;
 
+// How an 8- or 16-bit PNG/JPEG code becomes a value: kColor by the sRGB curve (colour slots:
+// glTF baseColor and emissive, OBJ map_Kd, environment maps), kData as code / max (data slots:
+// glTF metallicRoughness, masks). HDR and EXR are linear either way.
+enum class ImageCodes : uint8_t { kColor, kData };
+
+// A decoded image and its alpha channel, row-major like its pixels; `alpha` is empty when the
+// file has none (RGB, grey, HDR, EXR).
+struct ImageWithAlpha {
+  Image rgb;
+  std::vector<float> alpha;
+};
+
 // Throws InputError naming the file: missing or unreadable, an unsupported extension, a corrupt
 // or truncated file, a side above kMaxImageFileSide, a pixel that is not a finite non-negative
 // colour (NaN, ±inf or negative values an EXR can hold).
@@ -32,6 +48,11 @@ Image ReadLinearImage(const std::filesystem::path& path);
 // Radiance HDR, recognised by content; `name` stands for the file in messages
 // ("scene.glb: images[0]").
 Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name);
+
+// The same two with the codes read as `codes` says, and the alpha channel kept.
+ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes codes);
+ImageWithAlpha DecodeImageWithAlpha(const unsigned char* bytes, size_t size, const std::string& name,
+                                    ImageCodes codes);
 
 // The sRGB transfer function's inverse for one 8-bit code value (exact table lookup).
 float SrgbToLinear8(unsigned char code);

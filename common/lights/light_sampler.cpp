@@ -8,20 +8,45 @@
 
 namespace pf {
 
+Rgb MeanEmissionTexel(const Texture& texture, const TextureCoordinates& a, const TextureCoordinates& b,
+                      const TextureCoordinates& c) {
+  // Texels covered: the triangle's area in texture space times the image's texel count.
+  const double area = 0.5 * std::abs((double(b[0]) - a[0]) * (double(c[1]) - a[1]) -
+                                     (double(c[0]) - a[0]) * (double(b[1]) - a[1]));
+  const double texels = area * texture.image->width() * texture.image->height();
+  const int side =
+      int(std::clamp(std::ceil(2.0 * std::sqrt(std::isfinite(texels) ? texels : 0.0)), 4.0, 64.0));
+  Rgb sum(0.0f);
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j)
+      sum += texture.Lookup(
+          UvOnTriangle(a, b, c, (float(i) + 0.5f) / float(side), (float(j) + 0.5f) / float(side)));
+  return sum * (1.0f / float(side * side));
+}
+
 LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
   const SceneDescription& s = scene.description();
   select_prob_by_tri_.assign(s.triangles.size(), 0.0f);
   std::vector<double> weights;
+  std::vector<Rgb> emission;  // per entry of triangles_: Le, times the texture's mean if textured
   for (uint32_t t = 0; t < s.triangles.size(); ++t) {
     const Material& m = s.materials[s.triangle_material[t]];
     if (!m.IsEmissive()) continue;
     const float area = scene.triangle_area(t);
     if (!(area > 0.0f)) continue;
-    const double w = double(kPi) * area * std::max(m.emission.Luminance(), 1e-6f * m.emission.Max());
+    Rgb le = m.emission;
+    if (m.emission_texture >= 0 && !s.uvs.empty()) {
+      const auto& tri = s.triangles[t];
+      le = le * MeanEmissionTexel(s.textures[size_t(m.emission_texture)], s.uvs[tri[0]], s.uvs[tri[1]],
+                                  s.uvs[tri[2]]);
+    }
+    // The floor keeps a textured triangle whose estimate is black selectable (unbiased).
+    const double w = double(kPi) * area * std::max(le.Luminance(), 1e-6f * m.emission.Max());
     if (!(w > 0.0)) continue;
     triangles_.push_back(t);
     weights.push_back(w);
-    total_power_ += m.emission * (kPi * area);
+    emission.push_back(le);
+    total_power_ += le * (kPi * area);
   }
   AddPunctualLights(&weights);
   AddEnvironment(&weights);
@@ -56,7 +81,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     LightGroup& g = lights_[light_index_by_id_[slot]];
     g.triangles.push_back(tri);
     g.prob.push_back(float(weights[i]));  // normalised below
-    g.power += s.materials[s.triangle_material[tri]].emission * (kPi * scene.triangle_area(tri));
+    g.power += emission[i] * (kPi * scene.triangle_area(tri));
   }
   for (LightGroup& g : lights_) {
     if (g.triangles.empty()) continue;
@@ -200,7 +225,11 @@ LightSample LightSampler::MakeSample(uint32_t tri, float u1, float u2, float pdf
   LightSample ls;
   ls.position = SampleTriangle(s.positions[t[0]], s.positions[t[1]], s.positions[t[2]], u1, u2);
   ls.normal = scene_->triangle_normal(tri);
-  ls.radiance = s.materials[s.triangle_material[tri]].emission;
+  const Material& m = s.materials[s.triangle_material[tri]];
+  ls.radiance = m.emission;
+  if (m.emission_texture >= 0 && !s.uvs.empty())
+    ls.radiance = ls.radiance * s.textures[size_t(m.emission_texture)].Lookup(
+                                    UvOnTriangle(s.uvs[t[0]], s.uvs[t[1]], s.uvs[t[2]], u1, u2));
   ls.triangle = tri;
   ls.light = s.triangle_light.empty() ? 0 : s.triangle_light[tri];
   ls.pdf_area = pdf_select / scene_->triangle_area(tri);

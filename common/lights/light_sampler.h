@@ -1,6 +1,13 @@
 #pragma once
 // Emitters of a scene: every emissive triangle, chosen with probability ∝ its power
 // (Φ = π·A·luminance(Le) for a Lambertian one-sided emitter), then a uniform point on it.
+//
+// A textured emitter (Material::emission_texture: Le(x) = Le·texel(x)) is chosen ∝ π·A·Le·m,
+// m the texture's mean over the triangle estimated by a stratified quadrature
+// (MeanEmissionTexel), and its sample's radiance is Le·texel at the sampled point: the
+// estimate weighs the choice only, so next-event estimation stays unbiased whatever its error
+// (the pdf is the one used, p/A). Photons likewise carry Le·texel(x)·π/(p/A·N) (photon_tracer.cpp):
+// their expected total is the exact power. total_power() and light_power() use the estimate.
 // Used for next-event estimation (path tracer, §4.2.1 direct light) and for photon emission
 // (§2.2: photons per light ∝ its power).
 //
@@ -17,6 +24,7 @@
 // per solid angle.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -157,5 +165,21 @@ inline Vec3 SampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, float u1
   // On the triangle's plane to ½ ulp at any magnitude of the coordinates (ray.h).
   return InterpolateOnTriangle(a, b, c, double(su) * (1.0 - double(u2)), double(su) * double(u2));
 }
+
+// The texture coordinates of SampleTriangle's point for (u1, u2) on a triangle whose vertices
+// have coordinates a, b, c (the same barycentrics).
+inline TextureCoordinates UvOnTriangle(const TextureCoordinates& a, const TextureCoordinates& b,
+                                       const TextureCoordinates& c, float u1, float u2) {
+  const float su = std::sqrt(u1);
+  const double b1 = double(su) * (1.0 - double(u2)), b2 = double(su) * double(u2);
+  return {float(a[0] + b1 * (double(b[0]) - a[0]) + b2 * (double(c[0]) - a[0])),
+          float(a[1] + b1 * (double(b[1]) - a[1]) + b2 * (double(c[1]) - a[1]))};
+}
+
+// The mean of `texture` over the triangle with texture coordinates a, b, c (area-weighted),
+// by a stratified quadrature of SampleTriangle's points: from 4² points up to 64², about four
+// per texel the triangle covers.
+Rgb MeanEmissionTexel(const Texture& texture, const TextureCoordinates& a, const TextureCoordinates& b,
+                      const TextureCoordinates& c);
 
 }  // namespace pf

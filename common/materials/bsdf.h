@@ -184,10 +184,17 @@ struct WalkRoulette {
 
   static WalkRoulette Of(const Material& material, const BsdfLobes& lobes) {
     WalkRoulette w;
-    w.textured = material.base_color_texture >= 0;
+    w.textured = IsTextured(material);
     w.dielectric = lobes.dielectric || lobes.rough_dielectric;
     w.has_diffuse = !w.dielectric && (lobes.mean[BsdfLobes::kSlotDiffuseR] > 0.0f ||
                                       lobes.mean[BsdfLobes::kSlotDiffuseT] > 0.0f);
+    // A metallic-roughness texture can lower metallic to 0 at some texels, giving the surface a
+    // diffuse lobe there: storing is the material's (photon_tracer.cpp), so it stores wherever
+    // that can happen (an opaque base colour that is not black).
+    if (material.metallic_roughness_texture >= 0 && material.metallic_roughness &&
+        material.metallic_roughness->transmission == 0.0f &&
+        !material.metallic_roughness->base_color.IsBlack())
+      w.has_diffuse = true;
     w.p_diffuse = lobes.p_roulette[BsdfLobes::kSlotDiffuseR];
     w.diffuse_weight = material.diffuse_reflectance / w.p_diffuse;
     // Sample's cdf walk: the positive probabilities summed in slot order; u_lobe below the

@@ -104,6 +104,15 @@ std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const Li
     e.frame = Frame(ls.normal);
     // Φ = Le·π·A / (p_select·N): the pdf already holds p_select/A.
     e.power = ls.radiance * (kPi / (ls.pdf_area * float(emitted)));
+    const Material& m = desc.materials[desc.triangle_material[ls.triangle]];
+    if (m.emission_texture >= 0 && !desc.uvs.empty()) {
+      // Le·texel(x) per photon (Emit): the sample above read the texel at one corner.
+      e.power = m.emission * (kPi / (ls.pdf_area * float(emitted)));
+      e.emission_texture = &desc.textures[size_t(m.emission_texture)];
+      e.uv_a = desc.uvs[t[0]];
+      e.uv_b = desc.uvs[t[1]];
+      e.uv_c = desc.uvs[t[2]];
+    }
     e.light = ls.light;
     emitters.push_back(e);
   }
@@ -260,6 +269,9 @@ Emission EmitPunctual(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir) {
   e.ray = Ray{OffsetRayOrigin(e.position, em.normal, epsilon),
               em.frame.ToWorld(CosineHemisphereFast(u_dir.u, u_dir.v))};
   e.power = em.power;
+  if (em.emission_texture) [[unlikely]]
+    e.power =
+        em.power * em.emission_texture->Lookup(UvOnTriangle(em.uv_a, em.uv_b, em.uv_c, u_point.u, u_point.v));
   return e;
 }
 
@@ -329,8 +341,7 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
     const BsdfLobes* lobes = &shared.lobes[hit.material];
     if (walk->textured) {
       if (!textured) textured.emplace();
-      ApplyTexel(*material, desc.textures[size_t(material->base_color_texture)].Lookup(hit.uv),
-                 &textured->material);
+      ApplyTexels(*material, TexelsAt(desc, *material, hit.uv), &textured->material);
       material = &textured->material;
       textured->lobes = BsdfLobes::Of(*material);
       textured->roulette = WalkRoulette::Of(*material, textured->lobes);

@@ -124,6 +124,10 @@ struct PhotonEmitter {
   // The environment's emitter (punctual too: no surface, caustics unsplit): its photons' power
   // varies with their direction, `power` is π·R²/(p·N) to multiply by L(ω)/pdf(ω).
   const EnvironmentLight* environment = nullptr;
+  // A textured emitting triangle (scene.h, Material::emission_texture): `power` is Le·π/(p·N)
+  // with the untextured Le, to multiply by the texel at the photon's point (light_sampler.h).
+  const Texture* emission_texture = nullptr;
+  TextureCoordinates uv_a{}, uv_b{}, uv_c{};
 };
 std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const LightSampler& lights,
                                           uint64_t emitted);

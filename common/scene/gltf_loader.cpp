@@ -97,12 +97,68 @@ class GltfSceneBuilder {
         textures_(doc, scene) {
     for (size_t i = 0; i < m_.materials.size(); ++i) {
       scene_->materials.push_back(MapGltfMaterial(m_.materials[i], i, doc_.file, &scene_->warnings));
-      const tinygltf::TextureInfo& base = m_.materials[i].pbrMetallicRoughness.baseColorTexture;
-      if (base.index < 0) continue;
-      const std::string where = Indexed("materials", i) + ".pbrMetallicRoughness.baseColorTexture";
-      scene_->materials.back().base_color_texture = textures_.Use(base.index, where);
+      AddMaterialTextures(i, &scene_->materials.back());
+    }
+    // Alpha channels no mask reads are let go (a 4096² RGBA texture's is 64 MiB).
+    std::vector<bool> alpha_read(scene_->textures.size(), false);
+    for (const Material& m : scene_->materials)
+      if (m.alpha_texture >= 0) alpha_read[size_t(m.alpha_texture)] = true;
+    for (size_t t = 0; t < scene_->textures.size(); ++t)
+      if (!alpha_read[t]) scene_->textures[t].alpha.reset();
+  }
+
+  // A material's baseColorTexture (colour: sRGB), metallicRoughnessTexture (data: linear) and
+  // emissiveTexture (colour), and its alpha mask's texture (the base colour's alpha:
+  // specification §3.9.3). One set of texture coordinates per vertex: the first of those
+  // textures' in that order.
+  void AddMaterialTextures(size_t i, Material* material) {
+    const tinygltf::PbrMetallicRoughness& pbr = m_.materials[i].pbrMetallicRoughness;
+    const tinygltf::TextureInfo& base = pbr.baseColorTexture;
+    const tinygltf::TextureInfo& mr = pbr.metallicRoughnessTexture;
+    const std::string prefix = Indexed("materials", i) + ".pbrMetallicRoughness.";
+    if (base.index >= 0) {
+      const std::string where = prefix + "baseColorTexture";
+      material->base_color_texture = textures_.Use(base.index, where, ImageCodes::kColor);
       if (base.texCoord < 0) Fail(where + ": texCoord must be >= 0");
       texcoord_set_[uint32_t(i)] = base.texCoord;
+    }
+    if (mr.index >= 0) {
+      const std::string where = prefix + "metallicRoughnessTexture";
+      material->metallic_roughness_texture = textures_.Use(mr.index, where, ImageCodes::kData);
+      if (mr.texCoord < 0) Fail(where + ": texCoord must be >= 0");
+      if (base.index < 0)
+        texcoord_set_[uint32_t(i)] = mr.texCoord;
+      else if (mr.texCoord != base.texCoord)
+        WarnOnce(where + ": reads TEXCOORD_" + std::to_string(mr.texCoord) + ", baseColorTexture TEXCOORD_" +
+                 std::to_string(base.texCoord) + ": both read TEXCOORD_" + std::to_string(base.texCoord) +
+                 " (one set of texture coordinates per vertex)");
+    }
+    // emissiveTexture (colour: sRGB) multiplies emissiveFactor × emissiveStrength; moot (and
+    // not decoded) when they are black.
+    const tinygltf::TextureInfo& emissive = m_.materials[i].emissiveTexture;
+    if (emissive.index >= 0 && material->IsEmissive()) {
+      const std::string where = Indexed("materials", i) + ".emissiveTexture";
+      material->emission_texture = textures_.Use(emissive.index, where, ImageCodes::kColor);
+      if (emissive.texCoord < 0) Fail(where + ": texCoord must be >= 0");
+      const auto set = texcoord_set_.find(uint32_t(i));
+      if (set == texcoord_set_.end())
+        texcoord_set_[uint32_t(i)] = emissive.texCoord;
+      else if (set->second != emissive.texCoord)
+        WarnOnce(where + ": reads TEXCOORD_" + std::to_string(emissive.texCoord) +
+                 ", the material's other textures TEXCOORD_" + std::to_string(set->second) +
+                 ": it reads TEXCOORD_" + std::to_string(set->second) +
+                 " (one set of texture coordinates per vertex)");
+    }
+    if (material->HasAlphaMask()) {
+      material->alpha_texture = material->base_color_texture;
+      // A mask that can cut nothing (no alpha texels, the factor at or above the cutoff) is dropped:
+      // the surface is opaque and its rays pay no filter (accel/embree_scene.cpp).
+      const bool textured_alpha =
+          material->alpha_texture >= 0 && scene_->textures[size_t(material->alpha_texture)].alpha;
+      if (!textured_alpha && material->alpha_factor >= material->alpha_cutoff) {
+        material->alpha_cutoff = 0.0f;
+        material->alpha_texture = -1;
+      }
     }
   }
 

@@ -31,13 +31,11 @@ bool HasExtensionTexture(const tinygltf::Material& m, const char* extension, con
 }
 
 // The texture slots a material uses that are not applied, in the spec's order (baseColorTexture
-// is: gltf_textures.h).
+// metallicRoughnessTexture and emissiveTexture are: gltf_loader.cpp, gltf_textures.h).
 std::vector<std::string> UnappliedTextureSlots(const tinygltf::Material& m) {
   std::vector<std::string> slots;
-  if (m.pbrMetallicRoughness.metallicRoughnessTexture.index >= 0) slots.push_back("metallicRoughnessTexture");
   if (m.normalTexture.index >= 0) slots.push_back("normalTexture");
   if (m.occlusionTexture.index >= 0) slots.push_back("occlusionTexture");
-  if (m.emissiveTexture.index >= 0) slots.push_back("emissiveTexture");
   if (HasExtensionTexture(m, "KHR_materials_transmission", "transmissionTexture"))
     slots.push_back("transmissionTexture");
   return slots;
@@ -97,11 +95,29 @@ Material MapGltfMaterial(const tinygltf::Material& g, size_t index, const std::s
     std::string list;
     for (const std::string& s : slots) list += (list.empty() ? "" : ", ") + s;
     warnings->push_back(file + ": " + where + ": textures not applied: " + list +
-                        " (their factors alone are used; only baseColorTexture is applied)");
+                        " (their factors alone are used; only baseColorTexture, "
+                        "metallicRoughnessTexture and emissiveTexture are applied)");
   }
-  if (g.alphaMode != "OPAQUE" && !g.alphaMode.empty())
+  // Alpha (specification §3.9.4; docs/gltf.md, "Alpha"): MASK cuts the surface out where
+  // baseColorFactor.a × the base colour texture's alpha < alphaCutoff (the loader adds the
+  // texture); BLEND is rendered as MASK at 0.5 (a path tracer's rays see a surface or not). An
+  // emitter stays opaque: its light is sampled over its whole area (light/).
+  if (g.alphaMode == "MASK" || g.alphaMode == "BLEND") {
+    const bool blend = g.alphaMode == "BLEND";
+    if (blend)
+      warnings->push_back(file + ": " + where +
+                          ": alphaMode BLEND is rendered as MASK with alphaCutoff 0.5 (no partial coverage)");
+    if (m.IsEmissive()) {
+      warnings->push_back(file + ": " + where + ": alphaMode " + g.alphaMode +
+                          " is not applied to an emitting material (the surface is opaque)");
+    } else {
+      m.alpha_cutoff = blend ? 0.5f : float(std::max(g.alphaCutoff, 0.0));
+      m.alpha_factor = bc.size() >= 4 ? Unit(bc[3]) : 1.0f;
+    }
+  } else if (g.alphaMode != "OPAQUE" && !g.alphaMode.empty()) {
     warnings->push_back(file + ": " + where + ": alphaMode " + g.alphaMode +
-                        " is not applied (the surface is opaque)");
+                        " is not a glTF alpha mode (the surface is opaque)");
+  }
   return m;
 }
 

@@ -26,13 +26,18 @@ void GltfTextures::WarnOnce(const std::string& warning) {
   if (warned_.insert(warning).second) scene_->warnings.push_back(doc_.file + ": " + warning);
 }
 
-std::shared_ptr<const Image> GltfTextures::DecodedImage(int image, const std::string& where) {
+const GltfTextures::Decoded& GltfTextures::DecodedImage(int image, const std::string& where,
+                                                        ImageCodes codes) {
   const tinygltf::Model& m = *doc_.model;
   if (image < 0 || size_t(image) >= m.images.size())
     throw InputError(SourceLocation{doc_.file, 0},
                      where + ": image " + std::to_string(image) + " does not exist");
-  std::shared_ptr<const Image>& decoded = images_[image];
-  if (decoded) return decoded;
+  Decoded& decoded = images_[{image, codes}];
+  if (decoded.rgb) return decoded;
+  const auto keep = [&](ImageWithAlpha im) {
+    decoded.rgb = std::make_shared<const Image>(std::move(im.rgb));
+    if (!im.alpha.empty()) decoded.alpha = std::make_shared<const std::vector<float>>(std::move(im.alpha));
+  };
   const tinygltf::Image& g = m.images[size_t(image)];
   const bool file = !g.uri.empty() && g.uri.rfind("data:", 0) != 0;
   const std::string element = "images[" + std::to_string(image) + "]" + (file ? " '" + g.uri + "'" : "");
@@ -48,7 +53,7 @@ std::shared_ptr<const Image> GltfTextures::DecodedImage(int image, const std::st
     if (v.byteOffset > b.size() || v.byteLength > b.size() - v.byteOffset)
       fail("buffer view outside its buffer");
     const std::string name = doc_.file + ": " + where + ": " + element;
-    decoded = std::make_shared<const Image>(DecodeLinearImage(b.data() + v.byteOffset, v.byteLength, name));
+    keep(DecodeImageWithAlpha(b.data() + v.byteOffset, v.byteLength, name, codes));
     return decoded;
   }
   if (g.image.empty())
@@ -58,23 +63,25 @@ std::shared_ptr<const Image> GltfTextures::DecodedImage(int image, const std::st
                                : ": no image data (a missing or empty buffer view or data URI)"));
   const std::string name = doc_.file + ": " + where + ": " + element;
   // DecodeLinearImage's errors name `name` (its SourceLocation), already the whole element path.
-  decoded = std::make_shared<const Image>(DecodeLinearImage(g.image.data(), g.image.size(), name));
+  keep(DecodeImageWithAlpha(g.image.data(), g.image.size(), name, codes));
   return decoded;
 }
 
-int32_t GltfTextures::Use(int texture, const std::string& where) {
+int32_t GltfTextures::Use(int texture, const std::string& where, ImageCodes codes) {
   const tinygltf::Model& m = *doc_.model;
   if (texture < 0 || size_t(texture) >= m.textures.size())
     throw InputError(SourceLocation{doc_.file, 0},
                      where + ": texture " + std::to_string(texture) + " does not exist");
-  if (const auto it = texture_index_.find(texture); it != texture_index_.end()) return it->second;
+  if (const auto it = texture_index_.find({texture, codes}); it != texture_index_.end()) return it->second;
   const tinygltf::Texture& t = m.textures[size_t(texture)];
   const std::string element = where + ": textures[" + std::to_string(texture) + "]";
   if (t.source < 0)
     throw InputError(SourceLocation{doc_.file, 0},
                      element + ": no source image (only PNG and JPEG sources are read; KTX2/basisu is not)");
   Texture out;
-  out.image = DecodedImage(t.source, element);
+  const Decoded& decoded = DecodedImage(t.source, element, codes);
+  out.image = decoded.rgb;
+  out.alpha = decoded.alpha;
   out.source = "images[" + std::to_string(t.source) + "]";
   if (t.sampler >= 0) {
     if (size_t(t.sampler) >= m.samplers.size())
@@ -89,7 +96,7 @@ int32_t GltfTextures::Use(int texture, const std::string& where) {
   }
   const int32_t index = int32_t(scene_->textures.size());
   scene_->textures.push_back(std::move(out));
-  texture_index_.emplace(texture, index);
+  texture_index_.emplace(std::make_pair(texture, codes), index);
   return index;
 }
 

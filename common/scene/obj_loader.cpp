@@ -320,9 +320,7 @@ std::vector<std::string> UnappliedMaps(const tinyobj::material_t& m) {
                                                               {"map_Ns", &m.specular_highlight_texname},
                                                               {"bump", &m.bump_texname},
                                                               {"disp", &m.displacement_texname},
-                                                              {"map_d", &m.alpha_texname},
                                                               {"refl", &m.reflection_texname},
-                                                              {"map_Ke", &m.emissive_texname},
                                                               {"map_Pr", &m.roughness_texname},
                                                               {"map_Pm", &m.metallic_texname},
                                                               {"norm", &m.normal_texname}};
@@ -331,13 +329,17 @@ std::vector<std::string> UnappliedMaps(const tinyobj::material_t& m) {
   return maps;
 }
 
-// map_Kd of each material as an image texture (texture.h) multiplying Kd; the other maps are
-// warned about once per material. The image is resolved like an mtllib (scene_reference.h:
-// inside `root`, relative to the OBJ's folder) and read once however many materials use it.
+// map_Kd of each material as an image texture (texture.h) multiplying Kd, map_Ke multiplying Ke,
+// map_d as an alpha mask (docs/renderer.md, "Alpha masks"); the other maps are warned about once per
+// material. An image is resolved like an mtllib (scene_reference.h: inside `root`, relative to the OBJ's
+// folder) and read once however many materials use it.
 void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const std::filesystem::path& root,
                      const std::filesystem::path& base_dir, const std::string& file,
                      SceneDescription* scene) {
   std::map<std::filesystem::path, std::shared_ptr<const Image>> images;
+  std::map<std::filesystem::path,
+           std::pair<std::shared_ptr<const Image>, std::shared_ptr<const std::vector<float>>>>
+      masks;
   for (size_t i = 0; i < materials.size(); ++i) {
     const tinyobj::material_t& tm = materials[i];
     const std::string where = "material '" + tm.name + "'";
@@ -345,32 +347,88 @@ void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const st
     if (!unapplied.empty()) {
       std::string list;
       for (const std::string& m : unapplied) list += (list.empty() ? "" : ", ") + m;
-      scene->warnings.push_back(file + ": " + where + ": " + list + " not applied (only map_Kd is)");
+      scene->warnings.push_back(file + ": " + where + ": " + list +
+                                " not applied (only map_Kd, map_d and map_Ke are)");
     }
-    if (tm.diffuse_texname.empty()) continue;
-    const std::string ref = "map_Kd " + QuoteReference(tm.diffuse_texname);
-    std::filesystem::path resolved;
-    const std::string problem = SceneReferenceProblem(root, base_dir, tm.diffuse_texname, &resolved);
-    if (!problem.empty()) throw InputError(SourceLocation{file, 0}, where + ": " + ref + " " + problem);
-    std::shared_ptr<const Image>& image = images[resolved];
-    if (!image) {
+    // The image `name` names for `slot`, resolved, decoded by `read` (errors name the slot).
+    const auto resolve = [&](const char* slot, const std::string& name, std::string* ref) {
+      *ref = std::string(slot) + " " + QuoteReference(name);
+      std::filesystem::path resolved;
+      const std::string problem = SceneReferenceProblem(root, base_dir, name, &resolved);
+      if (!problem.empty()) throw InputError(SourceLocation{file, 0}, where + ": " + *ref + " " + problem);
+      return resolved;
+    };
+    const auto read = [&](const std::string& ref, const std::filesystem::path& path, ImageCodes codes) {
       try {
-        image = std::make_shared<const Image>(ReadLinearImage(resolved));
+        return ReadImageWithAlpha(path, codes);
       } catch (const LimitError& e) {
         throw LimitError(SourceLocation{file, 0}, where + ": " + ref + ": " + e.reason());
       } catch (const InputError& e) {
         throw InputError(SourceLocation{file, 0}, where + ": " + ref + ": " + e.reason());
       }
+    };
+    const auto wrap_of = [&](const std::string& ref, const tinyobj::texture_option_t& opt) {
+      if (opt.scale[0] != 1 || opt.scale[1] != 1 || opt.origin_offset[0] != 0 || opt.origin_offset[1] != 0)
+        scene->warnings.push_back(file + ": " + where + ": " + ref + ": options -s and -o are not applied");
+      return opt.clamp ? TextureWrap::kClampToEdge : TextureWrap::kRepeat;
+    };
+    if (!tm.diffuse_texname.empty()) {
+      std::string ref;
+      const std::filesystem::path resolved = resolve("map_Kd", tm.diffuse_texname, &ref);
+      std::shared_ptr<const Image>& image = images[resolved];
+      if (!image) image = std::make_shared<const Image>(read(ref, resolved, ImageCodes::kColor).rgb);
+      Texture texture;
+      texture.source = tm.diffuse_texname;
+      texture.image = image;
+      texture.wrap_u = texture.wrap_v = wrap_of(ref, tm.diffuse_texopt);
+      scene->materials[i].base_color_texture = int32_t(scene->textures.size());
+      scene->textures.push_back(std::move(texture));
     }
-    const tinyobj::texture_option_t& opt = tm.diffuse_texopt;
-    if (opt.scale[0] != 1 || opt.scale[1] != 1 || opt.origin_offset[0] != 0 || opt.origin_offset[1] != 0)
-      scene->warnings.push_back(file + ": " + where + ": " + ref + ": options -s and -o are not applied");
-    Texture texture;
-    texture.source = tm.diffuse_texname;
-    texture.image = image;
-    texture.wrap_u = texture.wrap_v = opt.clamp ? TextureWrap::kClampToEdge : TextureWrap::kRepeat;
-    scene->materials[i].base_color_texture = int32_t(scene->textures.size());
-    scene->textures.push_back(std::move(texture));
+    if (!tm.emissive_texname.empty() && !scene->materials[i].IsEmissive())
+      scene->warnings.push_back(file + ": " + where +
+                                ": map_Ke not applied (the material has no Ke to multiply)");
+    if (!tm.emissive_texname.empty() && scene->materials[i].IsEmissive()) {
+      // map_Ke multiplies Ke (sRGB, like map_Kd); without Ke it has nothing to multiply.
+      std::string ref;
+      const std::filesystem::path resolved = resolve("map_Ke", tm.emissive_texname, &ref);
+      std::shared_ptr<const Image>& image = images[resolved];
+      if (!image) image = std::make_shared<const Image>(read(ref, resolved, ImageCodes::kColor).rgb);
+      Texture texture;
+      texture.source = tm.emissive_texname;
+      texture.image = image;
+      texture.wrap_u = texture.wrap_v = wrap_of(ref, tm.emissive_texopt);
+      scene->materials[i].emission_texture = int32_t(scene->textures.size());
+      scene->textures.push_back(std::move(texture));
+    }
+    if (!tm.alpha_texname.empty()) {
+      std::string ref;
+      const std::filesystem::path resolved = resolve("map_d", tm.alpha_texname, &ref);
+      if (scene->materials[i].IsEmissive()) {
+        scene->warnings.push_back(file + ": " + where + ": " + ref +
+                                  " not applied to an emitting material (the surface is opaque)");
+        continue;
+      }
+      auto& mask = masks[resolved];
+      if (!mask.first) {
+        // The map's alpha channel when it has one, else its (grey) value: linear either way.
+        ImageWithAlpha im = read(ref, resolved, ImageCodes::kData);
+        if (im.alpha.empty()) {
+          im.alpha.resize(im.rgb.size());
+          for (size_t k = 0; k < im.rgb.size(); ++k) im.alpha[k] = im.rgb[k].r;
+        }
+        mask.first = std::make_shared<const Image>(std::move(im.rgb));
+        mask.second = std::make_shared<const std::vector<float>>(std::move(im.alpha));
+      }
+      Texture texture;
+      texture.source = tm.alpha_texname;
+      texture.image = mask.first;
+      texture.alpha = mask.second;
+      texture.wrap_u = texture.wrap_v = wrap_of(ref, tm.alpha_texopt);
+      Material& m = scene->materials[i];
+      m.alpha_texture = int32_t(scene->textures.size());
+      m.alpha_cutoff = kObjAlphaCutoff;
+      scene->textures.push_back(std::move(texture));
+    }
   }
 }
 
@@ -471,8 +529,9 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
                                    /*default_vcols_fallback=*/false);
   // Not needed (texture coordinates: unless a material has a texture): released before the scene
   // is built next to tinyobjloader's arrays.
-  const bool textured = std::any_of(materials.begin(), materials.end(),
-                                    [](const tinyobj::material_t& m) { return !m.diffuse_texname.empty(); });
+  const bool textured = std::any_of(materials.begin(), materials.end(), [](const tinyobj::material_t& m) {
+    return !m.diffuse_texname.empty() || !m.alpha_texname.empty() || !m.emissive_texname.empty();
+  });
   if (!textured) std::vector<tinyobj::real_t>().swap(attrib.texcoords);
   std::vector<tinyobj::real_t>().swap(attrib.colors);
   if (!mtl_reader.refused_reference().empty()) {

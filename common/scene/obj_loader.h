@@ -34,7 +34,12 @@
 //               such a material into glass (docs/scene-manifest.md, "materials").
 //   Ni        → ior for glass only; opaque and dissolve materials get ior = 1 (OBJ exporters
 //               write Ni on every material, meaningless without transmission).
-//   Ka, maps, `illum` 0/1/2/8/9, PBR extensions (Pr, Pm, ...) are ignored.
+//   map_Kd    → an image texture multiplying Kd (sRGB-decoded); map_Ke → one multiplying Ke
+//               (sRGB; ignored without Ke); map_d → an alpha mask: the
+//               surface is cut out, for every ray, where the map (its alpha channel, or its grey
+//               value without one; linear) is below kObjAlphaCutoff. `d` keeps its meaning above
+//               (dissolve) beside map_d. Both ignored on an emitter (warned).
+//   Ka, other maps, `illum` 0/1/2/8/9, PBR extensions (Pr, Pm, ...) are ignored.
 //   If ρd + ρs + τs > 1 in a channel, all three are scaled down to sum to 1 there, with a
 //   warning (energy conservation).
 //
@@ -64,6 +69,9 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
 
 // Phong exponents at or above this are treated as a perfect mirror.
 inline constexpr float kMirrorPhongExponent = 1000.0f;
+// map_d cuts the surface out where the map is below this (glTF's default alphaCutoff: a map of
+// 0s and 1s, the usual foliage or fence mask, cuts where it is 0 whatever the filter's blend).
+inline constexpr float kObjAlphaCutoff = 0.5f;
 
 // Ward α for a Phong exponent: sqrt(2 / (Ns + 2)); negative Ns counts as 0. Returns 0
 // (perfect mirror) for Ns >= kMirrorPhongExponent.

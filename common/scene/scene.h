@@ -51,10 +51,31 @@ struct Material {
   // metallic-roughness parameters (`metallic_roughness` set) the material is mapped again from
   // baseColorFactor × texel; otherwise (OBJ map_Kd) ρd is multiplied by the texel.
   int32_t base_color_texture = -1;
+  // glTF's metallicRoughnessTexture (a textures index, −1: none; only with `metallic_roughness`):
+  // its blue channel multiplies metallicFactor and its green roughnessFactor before the mapping
+  // (docs/renderer.md, "Textures"). It reads the same texture coordinates as the base colour.
+  int32_t metallic_roughness_texture = -1;
   std::optional<MetallicRoughness> metallic_roughness{};  // the glTF parameters it was mapped from
+  // An alpha-mask cut-out (glTF alphaMode MASK, OBJ map_d; docs/renderer.md, "Alpha masks"): the
+  // surface is absent, for every ray, where alpha_factor × (alpha_texture's alpha at the hit, 1
+  // without one) < alpha_cutoff. A cutoff of 0 (alpha is never below it) is an opaque surface.
+  // An image texture (textures index, −1: none) multiplying the emission: Le(x) = emission ×
+  // texel (glTF emissiveTexture, OBJ map_Ke; sRGB). Light sampling and photon emission stay
+  // power-correct (lights/light_sampler.h).
+  int32_t emission_texture = -1;
+  float alpha_cutoff = 0.0f;
+  float alpha_factor = 1.0f;
+  int32_t alpha_texture = -1;
 
   bool IsEmissive() const { return !emission.IsBlack(); }
+  bool HasAlphaMask() const { return alpha_cutoff > 0.0f; }
 };
+
+// Whether a material's BSDF varies over its surface (scene/surface_material.h builds it per hit).
+inline bool IsTextured(const Material& material) {
+  return material.base_color_texture >= 0 || material.metallic_roughness_texture >= 0 ||
+         material.emission_texture >= 0;
+}
 
 inline constexpr uint32_t kNoLight = 0xffffffffu;
 
@@ -96,7 +117,7 @@ struct SceneDescription {
   std::optional<Environment> environment;
 
   std::vector<Material> materials;
-  std::vector<Texture> textures;      // Material::base_color_texture indexes them
+  std::vector<Texture> textures;      // Material's *_texture members index them
   std::vector<CameraSpec> cameras;    // from a manifest; may be empty
   std::vector<std::string> warnings;  // non-fatal loader messages, "file:line: reason"
   std::string source;                 // the file it was loaded from

@@ -75,6 +75,9 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
       // (surface_material.h) instead of re-mapping the glTF parameters over the override.
       if (MaterialKinds().GetKind(o.kind) || o.diffuse || o.specular || o.transmission)
         m.metallic_roughness.reset();
+      // A metallic-roughness texture re-maps metallic and roughness per hit: an override of
+      // either (or of the parameters it maps from) stops it.
+      if (!m.metallic_roughness || o.roughness) m.metallic_roughness_texture = -1;
       if (o.emission) {
         if (!m.IsEmissive() || o.emission->IsBlack())
           throw InputError(SourceLocation{manifest_file, 0},

@@ -12,19 +12,37 @@
 
 namespace pf {
 
-// `material` with `texel` applied to its base colour (scene.h, Material::base_color_texture).
-// Not textured: the material itself. Copies into *out, which must not be `material`.
-void ApplyTexel(const Material& material, const Rgb& texel, Material* out);
+// The texels a material's textures give at a hit: white (1) for a slot without a texture.
+struct MaterialTexels {
+  Rgb base_color{1.0f};          // base_color_texture's colour
+  Rgb metallic_roughness{1.0f};  // metallic_roughness_texture's (G: roughness, B: metallic)
+  Rgb emission{1.0f};            // emission_texture's
+};
+
+// The texels of `material`'s textures at texture coordinates `uv`.
+MaterialTexels TexelsAt(const SceneDescription& scene, const Material& material,
+                        const TextureCoordinates& uv);
+
+// `material` with `texels` applied (scene.h, Material::base_color_texture and
+// metallic_roughness_texture): a material mapped from glTF's metallic-roughness parameters is
+// mapped again from baseColorFactor × base texel, metallicFactor × B and roughnessFactor × G;
+// an OBJ material has ρd multiplied by the base texel; the emission is multiplied by its texel.
+// Not textured: the material itself.
+// Copies into *out, which must not be `material`.
+void ApplyTexels(const Material& material, const MaterialTexels& texels, Material* out);
 
 // The material of scene material `index` at texture coordinates `uv`: a reference to
 // scene.materials[index] when it has no texture (no copy, and *scratch stays empty: the common
-// case costs the test alone), otherwise **scratch, filled by ApplyTexel with the texture's
-// colour at uv. The reference lives as long as both the scene and *scratch.
+// case costs the test alone), otherwise **scratch, filled by ApplyTexels with its textures'
+// texels at uv. The reference lives as long as both the scene and *scratch.
 const Material& MaterialAt(const SceneDescription& scene, uint32_t index, const TextureCoordinates& uv,
                            std::optional<Material>* scratch);
 
-inline bool IsTextured(const Material& material) {
-  return material.base_color_texture >= 0;
+// The alpha of a masked material at `uv` (scene.h, Material::alpha_cutoff), and whether the
+// surface is cut out there: alpha < cutoff.
+float AlphaAt(const SceneDescription& scene, const Material& material, const TextureCoordinates& uv);
+inline bool IsCutOut(const SceneDescription& scene, const Material& material, const TextureCoordinates& uv) {
+  return AlphaAt(scene, material, uv) < material.alpha_cutoff;
 }
 
 }  // namespace pf

@@ -11,14 +11,17 @@
 // camera samples per pixel), which converge to the box-filtered texture; a mip pyramid would add
 // a ray differential to every path vertex for a bias the farm's sample counts remove anyway.
 //
-// Colour: the image is linear RGB as image/image_file.h decodes it (PNG/JPEG as sRGB, EXR/HDR
-// linear): right for colour slots (baseColor, map_Kd); data slots (metallic-roughness, normals)
-// are not read (the loaders warn).
+// Values: the image is linear RGB as image/image_file.h decodes it for the slot the texture
+// serves: 8/16-bit codes by the sRGB curve for colour slots (baseColor, map_Kd), as code / max for
+// data slots (glTF metallicRoughness; ImageCodes::kData). The alpha channel, when a slot reads
+// it (a mask: glTF baseColor under alphaMode MASK, OBJ map_d), is linear and filtered like the
+// colour.
 
 #include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "common/core/math.h"
 #include "common/image/image.h"
@@ -36,9 +39,14 @@ struct Texture {
   std::shared_ptr<const Image> image;  // linear RGB, never empty; shared by textures of one image
   TextureWrap wrap_u = TextureWrap::kRepeat;
   TextureWrap wrap_v = TextureWrap::kRepeat;
+  // Per texel (row-major, the image's size) or null (alpha 1 everywhere): the coverage a mask
+  // reads (scene.h, Material::alpha_cutoff).
+  std::shared_ptr<const std::vector<float>> alpha;
 
   // The bilinearly filtered colour at `uv`. A non-finite coordinate reads texel (0, 0).
   Rgb Lookup(const TextureCoordinates& uv) const;
+  // The alpha at `uv`, filtered the same way (1 without an alpha channel).
+  float LookupAlpha(const TextureCoordinates& uv) const;
 };
 
 // The texel index of an integer index `i` on an axis of `size` texels under `wrap`.

@@ -36,6 +36,7 @@ class GltfBuilder {
   int AddVec3(std::initializer_list<float> xyz) {
     return Add(Floats(xyz), 5126, "VEC3", int(xyz.size() / 3));
   }
+  int AddVec2(std::initializer_list<float> uv) { return Add(Floats(uv), 5126, "VEC2", int(uv.size() / 2)); }
   int AddIndices16(std::initializer_list<uint16_t> indices) {
     std::string bytes;
     for (uint16_t i : indices) bytes.append(reinterpret_cast<const char*>(&i), sizeof i);

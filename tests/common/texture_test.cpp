@@ -130,13 +130,13 @@ TEST(Texture, GltfTexelRemapsTheMetallicRoughnessBaseColour) {
   m.base_color_texture = 0;
   m.metallic_roughness = MetallicRoughness{.base_color = Rgb(0.5f), .metallic = 0.0f, .roughness = 0.5f};
   Material out;
-  ApplyTexel(m, Rgb(1.0f, 0.5f, 0.0f), &out);
+  ApplyTexels(m, MaterialTexels{.base_color = Rgb(1.0f, 0.5f, 0.0f)}, &out);
   // ρd = base·texel·(1 − metallic)·0.96 (metallic_roughness.h).
   ExpectRgbNear(out.diffuse_reflectance, Rgb(0.48f, 0.24f, 0.0f), 1e-6f);
   ExpectRgbNear(out.specular_reflectance, Rgb(0.04f), 1e-6f);
   // A metal: F0 = base·texel.
   m.metallic_roughness->metallic = 1.0f;
-  ApplyTexel(m, Rgb(1.0f, 0.5f, 0.0f), &out);
+  ApplyTexels(m, MaterialTexels{.base_color = Rgb(1.0f, 0.5f, 0.0f)}, &out);
   ExpectRgbNear(out.specular_reflectance, Rgb(0.5f, 0.25f, 0.0f), 1e-6f);
   ExpectRgbNear(out.diffuse_reflectance, Rgb(0.0f), 1e-6f);
 }
