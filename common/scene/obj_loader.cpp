@@ -372,34 +372,30 @@ void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const st
         scene->warnings.push_back(file + ": " + where + ": " + ref + ": options -s and -o are not applied");
       return opt.clamp ? TextureWrap::kClampToEdge : TextureWrap::kRepeat;
     };
-    if (!tm.diffuse_texname.empty()) {
+    // A colour map (sRGB) of `statement` as a new scene texture; its index.
+    const auto colour_texture = [&](const char* statement, const std::string& name,
+                                    const tinyobj::texture_option_t& opt) {
       std::string ref;
-      const std::filesystem::path resolved = resolve("map_Kd", tm.diffuse_texname, &ref);
+      const std::filesystem::path resolved = resolve(statement, name, &ref);
       std::shared_ptr<const Image>& image = images[resolved];
       if (!image) image = std::make_shared<const Image>(read(ref, resolved, ImageCodes::kColor).rgb);
       Texture texture;
-      texture.source = tm.diffuse_texname;
+      texture.source = name;
       texture.image = image;
-      texture.wrap_u = texture.wrap_v = wrap_of(ref, tm.diffuse_texopt);
-      scene->materials[i].base_color_texture = int32_t(scene->textures.size());
+      texture.wrap_u = texture.wrap_v = wrap_of(ref, opt);
       scene->textures.push_back(std::move(texture));
-    }
+      return int32_t(scene->textures.size() - 1);
+    };
+    if (!tm.diffuse_texname.empty())
+      scene->materials[i].base_color_texture =
+          colour_texture("map_Kd", tm.diffuse_texname, tm.diffuse_texopt);
     if (!tm.emissive_texname.empty() && !scene->materials[i].IsEmissive())
       scene->warnings.push_back(file + ": " + where +
                                 ": map_Ke not applied (the material has no Ke to multiply)");
-    if (!tm.emissive_texname.empty() && scene->materials[i].IsEmissive()) {
-      // map_Ke multiplies Ke (sRGB, like map_Kd); without Ke it has nothing to multiply.
-      std::string ref;
-      const std::filesystem::path resolved = resolve("map_Ke", tm.emissive_texname, &ref);
-      std::shared_ptr<const Image>& image = images[resolved];
-      if (!image) image = std::make_shared<const Image>(read(ref, resolved, ImageCodes::kColor).rgb);
-      Texture texture;
-      texture.source = tm.emissive_texname;
-      texture.image = image;
-      texture.wrap_u = texture.wrap_v = wrap_of(ref, tm.emissive_texopt);
-      scene->materials[i].emission_texture = int32_t(scene->textures.size());
-      scene->textures.push_back(std::move(texture));
-    }
+    // map_Ke multiplies Ke (sRGB, like map_Kd); without Ke it has nothing to multiply.
+    if (!tm.emissive_texname.empty() && scene->materials[i].IsEmissive())
+      scene->materials[i].emission_texture =
+          colour_texture("map_Ke", tm.emissive_texname, tm.emissive_texopt);
     if (!tm.alpha_texname.empty()) {
       std::string ref;
       const std::filesystem::path resolved = resolve("map_d", tm.alpha_texname, &ref);

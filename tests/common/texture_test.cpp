@@ -31,6 +31,7 @@
 #include "common/scene/scene_loader.h"
 #include "common/scene/surface_material.h"
 #include "common/scene/texture.h"
+#include "tests/common/scene_render_util.h"
 
 namespace pf {
 namespace {
@@ -191,18 +192,7 @@ TEST(Texture, ObjLoaderReadsMapKdAndFlipsV) {
 void ExpectQuadrantsMatch(const char* integrator) {
   const fs::path dir = WriteTexturedPlane(std::string("render_") + integrator);
   const SceneRuntime scene(LoadScene(dir / "plane.json"));
-  JobRenderSettings settings;
-  SetRenderSetting(settings, "integrator", integrator, "integrator");
-  settings.photons = 200000;
-  settings = settings.Resolved(scene.description);
-  PhotonMaps maps;
-  const IntegratorInputs inputs{.scene = &scene.accel, .lights = &scene.lights, .maps = &maps};
-  if (Integrators().Find(integrator, "integrator").UsesPhotonMaps())
-    maps = PhotonMaps::Build(scene.accel, scene.lights, settings.MapsOptions());
-  const auto tracer = MakeIntegrator(integrator, settings, inputs);
-  const CameraSpec camera = scene.description.cameras.front();
-  const Image image =
-      RenderImage(*tracer, Camera(camera, scene.description.origin), RenderOptions{.spp = 64, .seed = 3});
+  const Image image = render_test::RenderScene(scene, integrator, 64, 200000);
   // fov 45° at distance 1/tan(22.5°): the quad fills the 32 x 32 image; quadrant q's inner pixels.
   for (int q = 0; q < 4; ++q) {
     const int x0 = (q % 2) * 16 + 4, y0 = (q / 2) * 16 + 4;
