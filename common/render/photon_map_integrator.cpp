@@ -6,6 +6,7 @@
 #include <string>
 
 #include "common/core/error.h"
+#include "common/estimators/direct_light.h"
 #include "common/materials/bsdf.h"
 #include "common/scene/surface_material.h"
 
@@ -198,6 +199,18 @@ Rgb PhotonMapIntegrator::DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3
   return Rgb(0.0f);
 }
 
+Rgb PhotonMapIntegrator::DeltaLightsOnFollowedLobes(const Bsdf& bsdf, const Vec3& x, const Vec3& wo,
+                                                    uint32_t lobes, TraceCounters& counters) const {
+  if (!lights_ || lights_->punctual().empty() || !bsdf.HasLobes(lobes)) return Rgb(0.0f);
+  Rgb sum(0.0f);
+  // Punctual lights are numbered after every area light (light_sampler.h); pdf_area is 1.
+  for (size_t light = lights_->num_lights() - lights_->punctual().size(); light < lights_->num_lights();
+       ++light)
+    sum += DeltaLightContribution(*lights_, lights_->SampleLight(light, 0.5f, 0.5f, 0.5f), bsdf, x, wo, lobes,
+                                  counters);
+  return sum;
+}
+
 Rgb PhotonMapIntegrator::GatherRays(const Bsdf& bsdf, const SurfaceHit& hit, const Vec3& wo, uint32_t lobes,
                                     Sampler& sampler, const PathVertexSlots& slots, TraceCounters& counters,
                                     double* inverse_distance_sum, int* hits) const {
@@ -332,6 +345,10 @@ Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCou
       }
       radiance += throughput * L;
     }
+    // A followed glossy lobe sees the punctual lights only through this: its rays cannot hit them.
+    const uint32_t followed_glossy = followed & (kLobeGlossyReflection | kLobeGlossyTransmission);
+    if (unmapped_part && followed_glossy)
+      radiance += throughput * DeltaLightsOnFollowedLobes(bsdf, hit->position, wo, followed_glossy, counters);
     if (!bsdf.HasLobes(followed)) break;
     const float ul = sampler.Get1D(slots.bsdf_lobe);
     const Sample2 u = sampler.Get2D(slots.bsdf_dir);

@@ -114,6 +114,11 @@ class PhotonMapIntegrator final : public Integrator {
                   bool include_direct_photons, TraceCounters& counters, bool camera_path = false) const;
   Rgb DirectLight(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes, Sampler& sampler,
                   const PathVertexSlots& slots, TraceCounters& counters) const;
+  // The light of every punctual light on `lobes` (glossy lobes the path follows): a followed ray
+  // finds area emitters and the environment by hitting them, a delta light never. Deterministic
+  // (no sample drawn): each light's contribution, summed.
+  Rgb DeltaLightsOnFollowedLobes(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
+                                 TraceCounters& counters) const;
   Rgb Trace(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters, IrradianceCache* cache) const;
   // The local pass at x: the cache's interpolation or a new record when `cache` is given and
   // x's diffuse part is Lambertian reflection, GatherRays otherwise.
