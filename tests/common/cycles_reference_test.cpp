@@ -21,6 +21,7 @@
 #include "common/render/renderer.h"
 #include "common/render/scene_runtime.h"
 #include "common/scene/scene_loader.h"
+#include "tests/common/scene_render_util.h"
 
 namespace pf {
 namespace {
@@ -36,23 +37,9 @@ struct Rendered {
 Rendered RenderAgainstCycles(const char* integrator, uint32_t spp, uint64_t photons) {
   const Image reference = ReadExr(kSceneDir / "cycles-lambert-64.exr");
   const SceneRuntime scene(LoadScene(kSceneDir / "blender-box-lambert.json"));
-  JobRenderSettings settings;
-  SetRenderSetting(settings, "integrator", integrator, "integrator");
-  settings.photons = photons;
-  settings = settings.Resolved(scene.description);
-  PhotonMaps maps;
-  const IntegratorInputs inputs{.scene = &scene.accel, .lights = &scene.lights, .maps = &maps};
-  if (Integrators().Find(integrator, "integrator").UsesPhotonMaps()) {
-    PhotonMapsOptions mo = settings.MapsOptions();
-    maps = PhotonMaps::Build(scene.accel, scene.lights, mo);
-  }
-  const auto tracer = MakeIntegrator(integrator, settings, inputs);
-  CameraSpec camera = scene.description.cameras.front();
-  camera.width = reference.width();
-  camera.height = reference.height();
   Rendered out;
   out.image =
-      RenderImage(*tracer, Camera(camera, scene.description.origin), RenderOptions{.spp = spp, .seed = 7});
+      render_test::RenderScene(scene, integrator, spp, photons, reference.width(), reference.height(), 7);
   // No exclusion: rmse_lowfreq over every 4x4 block, the emitter's included.
   const std::vector<uint8_t> nothing_excluded(reference.width() * reference.height(), 0);
   out.stats = CompareImages(out.image, reference, &nothing_excluded);

@@ -17,8 +17,9 @@
 
 namespace pf::render_test {
 
+// width/height 0: the camera's own; `seed` the pixel samples'.
 inline Image RenderScene(const SceneRuntime& scene, const std::string& integrator, uint32_t spp,
-                         uint64_t photons) {
+                         uint64_t photons, int width = 0, int height = 0, uint64_t seed = 3) {
   JobRenderSettings settings;
   SetRenderSetting(settings, "integrator", integrator, "integrator");
   settings.photons = photons;
@@ -28,8 +29,11 @@ inline Image RenderScene(const SceneRuntime& scene, const std::string& integrato
   if (Integrators().Find(integrator, "integrator").UsesPhotonMaps())
     maps = PhotonMaps::Build(scene.accel, scene.lights, settings.MapsOptions());
   const auto tracer = MakeIntegrator(integrator, settings, inputs);
-  const CameraSpec camera = scene.description.cameras.front();
-  return RenderImage(*tracer, Camera(camera, scene.description.origin), RenderOptions{.spp = spp, .seed = 3});
+  CameraSpec camera = scene.description.cameras.front();
+  if (width > 0) camera.width = width;
+  if (height > 0) camera.height = height;
+  return RenderImage(*tracer, Camera(camera, scene.description.origin),
+                     RenderOptions{.spp = spp, .seed = seed});
 }
 
 inline Image RenderScene(const std::filesystem::path& file, const std::string& integrator, uint32_t spp,

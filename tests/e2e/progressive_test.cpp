@@ -65,17 +65,25 @@ double MetaNumber(const ImageMetadata& meta, const std::string& key) {
   return std::strtod(it->second.c_str(), nullptr);
 }
 
+// The error estimate of the stop-rule job after 16 passes, rendered in this process (-1 and a
+// failure if pf failed).
+double ErrorAfter16Passes(const TestDir& dir) {
+  const RunResult r =
+      RunCommand(Concat(TargetRender(dir, "p16.exr", {"--passes", "16"}), {"--local-only"}), dir.path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  if (r.exit_code != 0) return -1;
+  ImageMetadata meta;
+  ReadExr(dir / "p16.exr", &meta);
+  return MetaNumber(meta, "estimate.error_rms");
+}
+
 TEST(ProgressiveStop, TargetErrorStopsLocallyAtTheImageOfThatManyPasses) {
   TestDir dir;
   // The error estimate after 16 passes, as the target: the open-ended render must reach it by then.
-  RunResult r =
-      RunCommand(Concat(TargetRender(dir, "p16.exr", {"--passes", "16"}), {"--local-only"}), dir.path());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  ImageMetadata meta16;
-  ReadExr(dir / "p16.exr", &meta16);
-  const double target = MetaNumber(meta16, "estimate.error_rms");
+  const double target = ErrorAfter16Passes(dir);
   ASSERT_GT(target, 0.0);
-  r = RunCommand(Concat(TargetRender(dir, "t.exr", {"--target-error", std::to_string(target * 1.0001)}),
+  RunResult r =
+      RunCommand(Concat(TargetRender(dir, "t.exr", {"--target-error", std::to_string(target * 1.0001)}),
                         {"--local-only"}),
                  dir.path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -101,12 +109,7 @@ TEST(ProgressiveStop, FarmJobMeetsItsTargetOrSaysItMissedIt) {
   auto worker = StartWorker(coordinator.address(), dir.path(), "w1");
   FarmClient client(coordinator.address(), "");
   // Reachable: the error after 16 passes of the same job (rendered here).
-  RunResult r =
-      RunCommand(Concat(TargetRender(dir, "p16.exr", {"--passes", "16"}), {"--local-only"}), dir.path());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  ImageMetadata meta16;
-  ReadExr(dir / "p16.exr", &meta16);
-  const double target = MetaNumber(meta16, "estimate.error_rms");
+  const double target = ErrorAfter16Passes(dir);
   const std::vector<std::string> job = {"--integrator", "photonmap", "--photons", "2000",  "--plan",
                                         "progressive",  "--tile",    "32",        "--spp", "1",
                                         "--res",        "48x48",     "--seed",    "5"};
