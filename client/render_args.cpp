@@ -294,6 +294,12 @@ PreparedJob PrepareJob(const RenderArgs& a) {
   const auto given = [&a](const char* flag) {
     return std::find(a.plan_flags_given.begin(), a.plan_flags_given.end(), flag) != a.plan_flags_given.end();
   };
+  // A target error is judged only for the progressive plan (stop_targets.h): the photon map's
+  // jobs with one and no --plan get that plan on the farm too, where auto would choose another.
+  if (a.target_error > 0 && a.plan.empty() && farm_default && a.integrator == "photonmap") {
+    plan = "progressive";
+    spdlog::info("plan progressive: chosen for --target-error (the plan whose bias is estimated)");
+  }
   if (budget && a.plan.empty() && !farm_default) {
     plan = a.integrator == "photonmap" ? "progressive" : "multiple-maps";
     if (plan == "multiple-maps") maps = kOpenEndedPasses;

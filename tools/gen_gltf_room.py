@@ -157,19 +157,24 @@ def look_rotation(direction):
     return [axis[0] * s, axis[1] * s, axis[2] * s, w]
 
 
+# The room's materials, shared with tools/gen_textured_room.py.
+WHITE = {"name": "White", "pbrMetallicRoughness": {"baseColorFactor": [0.75, 0.75, 0.75, 1], "metallicFactor": 0,
+                                                   "roughnessFactor": 1}}
+RED = {"name": "Red", "pbrMetallicRoughness": {"baseColorFactor": [0.63, 0.065, 0.05, 1], "metallicFactor": 0,
+                                               "roughnessFactor": 1}}
+GREEN = {"name": "Green", "pbrMetallicRoughness": {"baseColorFactor": [0.14, 0.45, 0.091, 1], "metallicFactor": 0,
+                                                   "roughnessFactor": 1}}
+LAMP = {"name": "Lamp", "emissiveFactor": [1, 0.95, 0.85],
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 6}}}
+
+
 def main():
     b = Builder()
     materials = [
-        {"name": "White", "pbrMetallicRoughness": {"baseColorFactor": [0.75, 0.75, 0.75, 1], "metallicFactor": 0,
-                                                   "roughnessFactor": 1}},
-        {"name": "Red", "pbrMetallicRoughness": {"baseColorFactor": [0.63, 0.065, 0.05, 1], "metallicFactor": 0,
-                                                 "roughnessFactor": 1}},
-        {"name": "Green", "pbrMetallicRoughness": {"baseColorFactor": [0.14, 0.45, 0.091, 1], "metallicFactor": 0,
-                                                   "roughnessFactor": 1}},
+        WHITE, RED, GREEN,
         {"name": "Gold", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.78, 0.34, 1], "metallicFactor": 1,
                                                   "roughnessFactor": 0.3}},
-        {"name": "Lamp", "emissiveFactor": [1, 0.95, 0.85],
-         "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 6}}},
+        LAMP,
     ]
     white, red, green, gold, lamp = range(5)
     meshes = [room(b, white, red, green), cube(b, white), sphere(b, gold), panel(b, lamp)]

@@ -65,14 +65,7 @@ def main():
     b.bin += stripes
 
     materials = [
-        {"name": "White", "pbrMetallicRoughness": {"baseColorFactor": [0.75, 0.75, 0.75, 1], "metallicFactor": 0,
-                                                   "roughnessFactor": 1}},
-        {"name": "Red", "pbrMetallicRoughness": {"baseColorFactor": [0.63, 0.065, 0.05, 1], "metallicFactor": 0,
-                                                 "roughnessFactor": 1}},
-        {"name": "Green", "pbrMetallicRoughness": {"baseColorFactor": [0.14, 0.45, 0.091, 1], "metallicFactor": 0,
-                                                   "roughnessFactor": 1}},
-        {"name": "Lamp", "emissiveFactor": [1, 0.95, 0.85],
-         "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 6}}},
+        room.WHITE, room.RED, room.GREEN, room.LAMP,
         {"name": "CheckerFloor", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0,
                                                           "roughnessFactor": 1}},
         {"name": "StripedWall", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.9, 0.9, 1],

@@ -136,14 +136,6 @@ double Accumulator::EstimatedNoiseRms() const {
   return covered ? std::sqrt(sum_var / covered) : -1.0;
 }
 
-double Accumulator::EstimatedBiasRms() const {
-  return bias_ ? bias_->BiasRms() : -1.0;
-}
-
-double Accumulator::EstimatedErrorRms() const {
-  return Estimates().error;
-}
-
 ErrorEstimates Accumulator::Estimates() const {
   ErrorEstimates e;
   e.noise = EstimatedNoiseRms();

@@ -75,14 +75,11 @@ class Accumulator {
 
   Image Resolve() const;             // Σ/n per pixel; black where n = 0
   double EstimatedNoiseRms() const;  // < 0 while no pixel has two maps, and for the hierarchical plan
-  // The progressive plan's bias indicator (ProgressiveBias::BiasRms); < 0 for other plans, before
-  // kMinPassesForBias passes, and for a checkpoint written before the indicator existed.
-  double EstimatedBiasRms() const;
-  // ProgressiveBias::ErrorRms, √(noise² + bias²) of display-clamped luminance: the expected RMS
-  // error of a pixel against the converged image, the number --target-error compares; < 0 for
-  // other plans and while either part is unknown.
-  double EstimatedErrorRms() const;
-  ErrorEstimates Estimates() const;  // the three above, noise computed once
+  // EstimatedNoiseRms and, for the progressive plan, its bias indicator and error estimate
+  // (ProgressiveBias: BiasRms, ErrorRms — display-clamped; the number --target-error compares).
+  // bias/error < 0 for other plans, before kMinPassesForBias passes, and for a checkpoint written
+  // before the indicator existed.
+  ErrorEstimates Estimates() const;
   const ProgressiveBias* progressive_bias() const { return bias_ ? &*bias_ : nullptr; }
   uint64_t samples_merged() const { return samples_merged_; }
   uint64_t tasks_merged() const { return tasks_merged_; }

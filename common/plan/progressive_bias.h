@@ -60,13 +60,10 @@ class ProgressiveBias {
   double NoiseRms() const;
   // √(NoiseRms² + BiasRms²); < 0 while either is unknown.
   double ErrorRms() const;
-  // The estimated squared bias of each block (row-major, blocks_x() × blocks_y()); NaN where the
+  // The estimated squared bias of each block (row-major, ⌈width/16⌉ per row); NaN where the
   // block has fewer than kMinPassesForBias passes or one radius only. Unclamped: noise can make it
   // negative.
   std::vector<double> BlockBias2() const;
-  int blocks_x() const { return blocks_x_; }
-  int blocks_y() const { return blocks_y_; }
-  double alpha() const { return alpha_; }
 
   void SerializeTo(ByteWriter& w) const;
   static ProgressiveBias DeserializeFrom(ByteReader& r, int width, int height);

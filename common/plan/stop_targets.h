@@ -6,7 +6,7 @@
 //  target noise   the per-map noise estimate (Accumulator::EstimatedNoiseRms), which cannot see
 //                 the photon map's bias: a plan of maps of a fixed size meets it while its image
 //                 stays as biased as one map.
-//  target error   √(noise² + bias²) (Accumulator::EstimatedErrorRms) with the progressive plan's
+//  target error   √(noise² + bias²) (Accumulator::Estimates().error) with the progressive plan's
 //                 bias indicator (progressive_bias.h): the progressive plan only, the one whose
 //                 bias falls with its passes and can be estimated from them.
 

@@ -135,19 +135,19 @@ TEST(ProgressiveBias, TravelsInTheAccumulatorCheckpoint) {
   const PlanSpec plan{.kind = PlanKind::kProgressive, .maps = 16, .samples_per_pixel = 1};
   Accumulator acc(plan, 40, 24, kAlpha);
   AddSyntheticPasses(nullptr, &acc, 40, 24, 16, 0.05, 0.2, 11);
-  ASSERT_GT(acc.EstimatedBiasRms(), 0.0);
+  ASSERT_GT(acc.Estimates().bias, 0.0);
   const Accumulator back = Accumulator::Deserialize(acc.Serialize(), &plan);
   EXPECT_EQ(back, acc);
-  EXPECT_EQ(back.EstimatedBiasRms(), acc.EstimatedBiasRms());
+  EXPECT_EQ(back.Estimates().bias, acc.Estimates().bias);
   const ErrorEstimates e = back.Estimates();
   EXPECT_NEAR(e.error, std::hypot(back.progressive_bias()->NoiseRms(), e.bias), 1e-12);
   // A multiple-maps accumulator has no bias fits: its checkpoint has the old format, and a
   // progressive job restored from such a checkpoint keeps its bias unknown.
   Accumulator plain(PlanSpec{.kind = PlanKind::kMultipleMaps}, 40, 24, kAlpha);
   AddSyntheticPasses(nullptr, &plain, 40, 24, 16, 0.05, 0.2, 11);
-  EXPECT_LT(plain.EstimatedBiasRms(), 0.0);
+  EXPECT_LT(plain.Estimates().bias, 0.0);
   const Accumulator restored = Accumulator::Deserialize(plain.Serialize(), &plan);
-  EXPECT_LT(restored.EstimatedBiasRms(), 0.0);
+  EXPECT_LT(restored.Estimates().bias, 0.0);
   EXPECT_EQ(restored.Resolve().pixels(), plain.Resolve().pixels());
   // Truncated bias fits are an error, not a silent loss.
   const std::string bytes = acc.Serialize();

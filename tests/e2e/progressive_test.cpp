@@ -155,6 +155,15 @@ TEST(ProgressiveStop, TargetErrorIsRefusedWhereItCannotBeJudged) {
   EXPECT_EQ(local.exit_code, 3) << local.err;
   EXPECT_NE(local.err.find("target_error_rms: needs the progressive plan"), std::string::npos) << local.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "m.exr"));
+  // Without --plan, a target error gives the photon map's farm job the progressive plan, not auto's.
+  const std::string id = SubmitJob(
+      dir, coordinator.address(),
+      {"--integrator", "photonmap", "--photons", "2000", "--res", "16x16", "--target-error", "0.01"});
+  ASSERT_FALSE(id.empty());
+  FarmClient client(coordinator.address(), "");
+  const auto st = client.GetJob(id);
+  EXPECT_TRUE(st.spec().plan().has_progressive()) << st.spec().plan().DebugString();
+  EXPECT_EQ(st.spec().plan().progressive().passes(), 1024u);
 }
 
 TEST(ProgressiveStop, PlainRenderWithABudgetRunsTheConsistentPlanOpenEnded) {
