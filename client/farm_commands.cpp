@@ -67,6 +67,10 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
     blocklisted.push_back({{"worker_id", b.worker_id()},
                            {"failed_attempts", b.failed_attempts()},
                            {"last_error", b.last_error()}});
+  // What each `auto` setting became and why (pf's integrator, the coordinator's choices).
+  nlohmann::json auto_settings = nlohmann::json::array();
+  for (const v1::AutoSetting& a : s.spec().auto_settings())
+    auto_settings.push_back({{"setting", a.setting()}, {"value", a.value()}, {"reason", a.reason()}});
   return {{"job_id", s.job_id()},
           {"name", s.spec().name()},
           {"state", JobStateName(s.state())},
@@ -86,6 +90,7 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"submitted_unix_ms", s.submitted_unix_ms()},
           {"plan", PlanText(s)},
           {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()},
+          {"auto_settings", auto_settings},
           {"blocklisted_workers", blocklisted},
           {"storage_error", s.storage_error()},
           {"paused_for_storage", s.paused_for_storage()},
@@ -115,6 +120,9 @@ std::string Summary(const v1::JobStatus& s) {
   out += "; plan " + PlanText(s);
   if (s.spec().plan().has_chosen_by_auto())
     out += " (auto: " + s.spec().plan().chosen_by_auto().reason() + ")";
+  for (int i = 0; i < s.spec().auto_settings_size(); ++i)
+    out += fmt::format("{} {} {}", i == 0 ? "; auto:" : ",", s.spec().auto_settings(i).setting(),
+                       s.spec().auto_settings(i).value());
   // Workers that get none of this job's work any more (docs/farm.md, "Worker health").
   for (int i = 0; i < s.blocklisted_workers_size(); ++i) {
     const v1::BlocklistedWorker& b = s.blocklisted_workers(i);

@@ -169,12 +169,17 @@ int RunLocalPlan(const RenderArgs& a) {
       {"nonfinite_samples", std::to_string(totals.nonfinite_samples)}};
   // What the image is of, in the keys and values the farm's images carry (docs/farm.md, "Image
   // headers"): every setting with each `auto` as this scene resolved it.
+  // The auto choices as a farm job's header lists them: pf's own (the integrator), then the
+  // ones the coordinator would make at submission.
+  std::vector<AutoChoice> auto_choices = AutoChoicesFromProto(job.spec.auto_settings(), "spec.auto_settings");
+  const JobRenderSettings resolved = settings.Resolved(runtime.description, &auto_choices);
   RecordRender({.scene = job.bundle.entry,
                 .scene_hash = BundleHash(job.bundle),
                 .camera = camera,
-                .settings = settings.Resolved(runtime.description),
+                .settings = resolved,
                 .plan = plan,
-                .seed = a.seed},
+                .seed = a.seed,
+                .auto_choices = auto_choices},
                meta);
   if (Integrators().FindKind(settings.integrator).UsesPhotonMaps()) {
     meta["photons.maps_built"] = std::to_string(totals.maps_built);
@@ -205,9 +210,10 @@ int RunLocalPlan(const RenderArgs& a) {
   if (totals.nonfinite_samples > 0)
     spdlog::warn("{} samples were NaN/Inf and were dropped", totals.nonfinite_samples);
   std::printf("rendered %dx%d locally, %s, %s, %zu tasks in %.2f s (+%.2f s load): %.2f M rays/s -> %s\n",
-              camera.width, camera.height, a.integrator.c_str(), DescribePlan(plan).c_str(), tasks.size(),
-              seconds, load_seconds, seconds > 0 ? double(totals.rays) / seconds * 1e-6 : 0.0,
-              output.c_str());
+              camera.width, camera.height,
+              std::string(Integrators().FindKind(settings.integrator).name).c_str(),
+              DescribePlan(plan).c_str(), tasks.size(), seconds, load_seconds,
+              seconds > 0 ? double(totals.rays) / seconds * 1e-6 : 0.0, output.c_str());
   return kExitOk;
 }
 

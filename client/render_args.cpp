@@ -15,8 +15,11 @@
 #include "common/plan/plan_choice.h"
 #include "common/plan/plan_factory.h"
 #include "common/plan/stop_targets.h"
+#include "common/render/integrator_choice.h"
+#include "common/render/integrator_factory.h"
 #include "common/render/progressive_radius.h"
 #include "common/render/render_settings_table.h"
+#include "common/render/scene_runtime.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
@@ -70,6 +73,39 @@ uint32_t TailTileFor(const RenderArgs& a) {
   return farm && a.tile >= 32 && half % 16 == 0 ? half : 0;
 }
 
+// With `--integrator auto`: the photon map was asked for by a setting only it reads, or by a plan
+// only it has.
+bool PhotonMapAsked(const RenderArgs& a) {
+  if (a.plan == "progressive") return true;
+  JobRenderSettings path;
+  path.integrator = IntegratorKind::kPath;
+  for (const GivenSetting& g : SettingsGiven(a.settings))
+    if (const RenderSetting* row = FindRenderSetting(g.name); row && !IntegratorReads(path, *row))
+      return true;
+  return false;
+}
+
+// `--integrator auto` for this scene and camera (integrator_choice.h): the pilot traces the
+// camera the job renders with.
+IntegratorChoice ChooseIntegratorFor(const SceneDescription& scene, const CameraSpec& camera,
+                                     const RenderArgs& a) {
+  IntegratorEvidence e;
+  e.photon_map_settings_given = PhotonMapAsked(a);
+  for (const GivenSetting& g : SettingsGiven(a.settings))
+    e.occlusion_test_given |= g.name == "occlusion-test";
+  e.specular_surfaces = SceneHasSpecularSurfaces(scene);
+  e.lights = int(scene.num_lights);
+  {
+    const SceneRuntime runtime(scene);
+    // How far the first progressive pass searches with the default photons and k.
+    const JobRenderSettings defaults;
+    const float leak_distance =
+        float(DerivedInitialRadius(runtime.accel.bounds(), defaults.photons, defaults.k));
+    e.reach = MeasureLightReach(runtime, Camera(camera, scene.origin), leak_distance);
+  }
+  return ChooseIntegrator(e);
+}
+
 }  // namespace
 
 std::string FormatVec(const Vec3& v) {
@@ -111,9 +147,11 @@ void ApplyManifestSettings(RenderArgs& a) {
 void AddSceneOptions(CLI::App* app, RenderArgs& a, bool all) {
   auto more = [all](CLI::Option* o) { return all ? o : o->group(""); };
   app->add_option("scene", a.scene, "Scene manifest (.json) or geometry file (.mgf, .obj)")->required();
-  app->add_option("--integrator", a.integrator, "path (reference path tracer) or photonmap (Wald 1999)")
+  app->add_option("--integrator", a.integrator,
+                  "auto (chosen from the scene and a pilot of shadow rays, logged), path (reference path "
+                  "tracer) or photonmap (Wald 1999)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"path", "photonmap"}));
+      ->check(CLI::IsMember({"auto", "path", "photonmap"}));
   app->add_option("--spp", a.spp, "Samples per pixel (with --plan: per map or per task; see --help-all)")
       ->capture_default_str()
       ->check(CLI::Range(1u, kMaxSamplesPerPixel));
@@ -132,7 +170,11 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a, bool all) {
 
 void CheckSettingArgs(const RenderArgs& a) {
   try {
-    SettingsFromArgs(a.settings, a.integrator);
+    // Before the scene is loaded `auto` is judged by what was asked: photon-map settings make it the
+    // photon map, and without them every setting given is one the path tracer reads too.
+    SettingsFromArgs(a.settings, a.integrator != "auto" ? a.integrator
+                                 : PhotonMapAsked(a)    ? "photonmap"
+                                                        : "path");
   } catch (const InputError& e) {
     throw CLI::ValidationError(e.what());
   }
@@ -267,14 +309,28 @@ CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a) {
   return cam;
 }
 
-PreparedJob PrepareJob(const RenderArgs& a) {
+PreparedJob PrepareJob(const RenderArgs& args) {
   PreparedJob p;
-  p.scene = LoadScene(a.scene);
+  p.scene = LoadScene(args.scene);
   for (const std::string& w : p.scene.warnings) spdlog::warn("scene: {}", w);
-  p.bundle = CollectBundle(a.scene);
+  p.bundle = CollectBundle(args.scene);
   v1::JobSpec& s = p.spec;
-  s.set_name(a.name.empty() ? std::filesystem::path(a.scene).filename().string() : a.name);
-  CameraToProto(ChooseCamera(p.scene, a), s.mutable_camera());
+  s.set_name(args.name.empty() ? std::filesystem::path(args.scene).filename().string() : args.name);
+  const CameraSpec camera = ChooseCamera(p.scene, args);
+  CameraToProto(camera, s.mutable_camera());
+  // `--integrator auto`, decided here where the scene is loaded: the job carries the concrete
+  // integrator, and the choice and its reason ride along in spec.auto_settings (the image header's
+  // auto.* keys).
+  RenderArgs a = args;
+  if (a.integrator == "auto") {
+    const IntegratorChoice chosen = ChooseIntegratorFor(p.scene, camera, a);
+    a.integrator = chosen.integrator == IntegratorKind::kPath ? "path" : "photonmap";
+    if (chosen.occlusion_test) a.settings.long_flags.push_back({"occlusion-test", "true", "integrator auto"});
+    for (const AutoChoice& c : chosen.choices) {
+      spdlog::info("auto {} = {}: {}", c.setting, c.value, c.reason);
+      AutoChoiceToProto(c, s.add_auto_settings());
+    }
+  }
 
   RenderSettingsFromArgs(a, s.mutable_settings());
   // Validates (InputError naming the flag's field) and tells the user what `auto` becomes here;

@@ -21,7 +21,8 @@ namespace pf {
 
 struct RenderArgs {
   std::string scene;
-  std::string integrator = "path";
+  // auto: chosen from the scene by ChooseIntegrator (integrator_choice.h), logged and recorded.
+  std::string integrator = "auto";
   uint32_t spp = 16;
   bool spp_given = false;  // on the command line
   std::string output;

@@ -218,6 +218,27 @@ void PlanToProto(const PlanSpec& p, v1::Plan* out) {
   }
 }
 
+std::vector<AutoChoice> AutoChoicesFromProto(const google::protobuf::RepeatedPtrField<v1::AutoSetting>& in,
+                                             const std::string& field) {
+  if (size_t(in.size()) > limits::kMaxAutoSettings)
+    throw InputError(field + ": more than " + std::to_string(limits::kMaxAutoSettings) + " entries");
+  std::vector<AutoChoice> out;
+  for (int i = 0; i < in.size(); ++i) {
+    const std::string at = field + "[" + std::to_string(i) + "].";
+    limits::CheckText(in[i].setting(), (at + "setting").c_str(), limits::kMaxAutoSettingTextBytes);
+    limits::CheckText(in[i].value(), (at + "value").c_str(), limits::kMaxAutoSettingTextBytes);
+    limits::CheckText(in[i].reason(), (at + "reason").c_str(), limits::kMaxAutoSettingTextBytes);
+    out.push_back({in[i].setting(), in[i].value(), in[i].reason()});
+  }
+  return out;
+}
+
+void AutoChoiceToProto(const AutoChoice& c, v1::AutoSetting* out) {
+  out->set_setting(c.setting);
+  out->set_value(c.value);
+  out->set_reason(c.reason);
+}
+
 PixelSubset PixelSubsetFromProto(const v1::PixelSubset& p, const std::string& field) {
   PixelSubset out;
   switch (p.kind_case()) {

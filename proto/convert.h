@@ -40,6 +40,12 @@ void PlanToProto(const PlanSpec& p, photonfarm::v1::Plan* out);
 bool ResolveAutoPlan(photonfarm::v1::JobSpec* spec, int width, int height, int caustic_paths,
                      uint32_t workers, bool maps_can_be_shipped, const std::string& field);
 
+// spec.auto_settings (what each `auto` became, and why) ↔ core. From-proto checks the count and
+// the texts (limits.h) and throws InputError naming `field` ("spec.auto_settings[2].reason: ...").
+std::vector<AutoChoice> AutoChoicesFromProto(
+    const google::protobuf::RepeatedPtrField<photonfarm::v1::AutoSetting>& in, const std::string& field);
+void AutoChoiceToProto(const AutoChoice& c, photonfarm::v1::AutoSetting* out);
+
 PixelSubset PixelSubsetFromProto(const photonfarm::v1::PixelSubset& p, const std::string& field);
 void PixelSubsetToProto(const PixelSubset& p, photonfarm::v1::PixelSubset* out);
 

@@ -14,11 +14,13 @@
 
 namespace pf::limits {
 
-inline constexpr size_t kMaxIdBytes = 128;        // job_id, lease_id, scene_hash in requests
-inline constexpr size_t kMaxWorkerIdBytes = 256;  // LeaseTaskRequest.worker_id
-inline constexpr size_t kMaxJobNameBytes = 256;   // JobSpec.name
-inline constexpr size_t kMaxEchoBytes = 64;       // of an untrusted string quoted in a message or log
-inline constexpr size_t kMaxReasonBytes = 4096;   // FailTaskRequest.reason (cut, then sanitized)
+inline constexpr size_t kMaxIdBytes = 128;                // job_id, lease_id, scene_hash in requests
+inline constexpr size_t kMaxWorkerIdBytes = 256;          // LeaseTaskRequest.worker_id
+inline constexpr size_t kMaxJobNameBytes = 256;           // JobSpec.name
+inline constexpr size_t kMaxAutoSettings = 16;            // JobSpec.auto_settings
+inline constexpr size_t kMaxAutoSettingTextBytes = 1024;  // each of their texts
+inline constexpr size_t kMaxEchoBytes = 64;               // of an untrusted string quoted in a message or log
+inline constexpr size_t kMaxReasonBytes = 4096;           // FailTaskRequest.reason (cut, then sanitized)
 
 // Tasks of one job (JobSpec.plan expanded): the coordinator keeps a TaskSpec and a TaskRuntime
 // per task in memory and a row per task in SQLite. The one cap for the farm (SubmitJob,

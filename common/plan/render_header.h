@@ -13,12 +13,15 @@
 //                        (render_settings_text.h RecordRenderSettings)
 //   plan                 PlanRecordText: "multiple-maps maps=4 spp=2 tile=64"
 //   seed                 the job's seed
+//   auto.<setting>       "value: reason" for each `auto` setting that was resolved (the integrator,
+//                        the caustic map, direct light, ...): what was chosen and why
 //
 // Real numbers read back to the same value (common/core/real_text.h): 3.9f is "3.9".
 
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "common/image/image.h"
 #include "common/plan/task_plan.h"
@@ -34,6 +37,7 @@ struct RenderRecord {
   JobRenderSettings settings;  // resolved (JobRenderSettings::Resolved)
   PlanSpec plan;
   uint64_t seed = 0;
+  std::vector<AutoChoice> auto_choices;  // in the order they were made
 };
 
 // Writes the keys above into `meta` (replacing any of the same name).

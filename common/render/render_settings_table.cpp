@@ -73,7 +73,9 @@ std::vector<RenderSetting> MakeTable() {
   t.push_back(Choice<&S::integrator>(
       {.name = "integrator",
        .group = G::kRenderer,
-       .help = "What estimates the radiance (pf render's default is path)",
+       .help =
+           "What estimates the radiance (pf render and pf submit choose it by default: --integrator auto, "
+           "docs/renderer.md 'Choosing the integrator')",
        .choices = {{"path", "reference path tracer (NEE + MIS + Russian roulette)"},
                    {"photonmap",
                     "photon-map estimate in a distribution ray tracer (Wald 1999, 2.5) with the chapter-4 "

@@ -149,6 +149,13 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
         &job.auto_choices);
     if (!job.auto_choices.empty()) SettingsToProto(job.settings, job.spec.mutable_settings());
   }
+  // What pf chose (its integrator), checked, then what was resolved here, so the stored job and
+  // its images say why each `auto` became what it is (the header's auto.* keys).
+  AutoChoicesFromProto(accepted.auto_settings(), "spec.auto_settings");
+  if (size_t(accepted.auto_settings_size()) + job.auto_choices.size() > limits::kMaxAutoSettings)
+    throw InputError("spec.auto_settings: more than " + std::to_string(limits::kMaxAutoSettings) +
+                     " entries with the coordinator's own " + std::to_string(job.auto_choices.size()));
+  for (const AutoChoice& c : job.auto_choices) AutoChoiceToProto(c, job.spec.add_auto_settings());
   job.plan = PlanFromProto(accepted.plan(), "spec.plan");
   if (job.plan.kind != PlanKind::kProgressive)
     for (const std::string& name : NonDefaultSettings(job.settings))

@@ -26,7 +26,8 @@ void AddJobMetadata(const photonfarm::v1::JobStatus& status, const JobConfig& co
                 .camera = config.camera,
                 .settings = config.settings,
                 .plan = config.plan,
-                .seed = config.seed},
+                .seed = config.seed,
+                .auto_choices = AutoChoicesFromProto(config.spec.auto_settings(), "spec.auto_settings")},
                meta);
   meta["job_name"] = config.name;
   meta["job_state"] = v1::JobState_Name(status.state());

@@ -253,8 +253,9 @@ TEST(Cli, PlainRenderRefusesPlanOptions) {
   TestDir dir;
   for (const std::vector<std::string>& extra :
        {std::vector<std::string>{"--stride", "4"}, {"--maps", "5"}, {"--rounds", "2"}}) {
-    const RunResult r =
-        RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), extra), dir.path(), 60);
+    const RunResult r = RunCommand(
+        Concat(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), {"--integrator", "path"}), extra),
+        dir.path(), 60);
     EXPECT_EQ(r.exit_code, 2) << extra[0] << ": " << r.err;
     EXPECT_NE(r.err.find("plan renders only"), std::string::npos) << r.err;
   }
@@ -266,8 +267,9 @@ TEST(Cli, PathTracerRefusesPhotonMapOptions) {
   TestDir dir;
   for (const std::vector<std::string>& extra :
        {std::vector<std::string>{"--photons", "1000"}, {"--caustic-split", "4"}, {"--occlusion-test"}}) {
-    const RunResult r =
-        RunCommand(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), extra), dir.path(), 60);
+    const RunResult r = RunCommand(
+        Concat(Concat(TinyRender(Binaries::Scene(), dir / "a.exr"), {"--integrator", "path"}), extra),
+        dir.path(), 60);
     EXPECT_EQ(r.exit_code, 2) << extra[0] << ": " << r.err;
     EXPECT_NE(r.err.find(extra[0]), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("photon-map integrator only"), std::string::npos) << r.err;
@@ -348,6 +350,44 @@ TEST(Cli, InfoOfASceneSaysWhatAutoWouldChoose) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("auto        caustic-map = "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("auto        direct = monte-carlo: 1 light (< 8)"), std::string::npos) << r.out;
+}
+
+// `--integrator auto`, pf render's and pf submit's default (docs/renderer.md, "Choosing the
+// integrator"): chosen from the scene and a pilot, logged, and recorded with its reason in the
+// image header; a setting only the photon map reads asks for it; a named integrator is no choice.
+TEST(Cli, IntegratorAutoChoosesFromTheSceneAndTheHeaderSaysWhy) {
+  TestDir dir;
+  const fs::path scenes = fs::path(Binaries::Scene()).parent_path().parent_path();
+  const auto render = [&](const std::string& scene, const std::vector<std::string>& extra) {
+    const fs::path out = dir / "auto.exr";
+    const RunResult r = RunCommand(Concat(TinyRender(scene, out), extra), dir.path(), 120);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return std::pair{HeaderOf(out), r.err};
+  };
+  {
+    const auto [header, log] = render(Binaries::Scene(), {});
+    EXPECT_EQ(header.at("settings.integrator"), "path");
+    EXPECT_EQ(header.at("auto.integrator").rfind("path: ", 0), 0u) << header.at("auto.integrator");
+    EXPECT_NE(header.at("auto.integrator").find("lit directly"), std::string::npos);
+    EXPECT_NE(log.find("auto integrator = path"), std::string::npos) << log;
+  }
+  {
+    const auto [header, log] = render((scenes / "cornell-sphere/cornell-sphere.json").string(), {});
+    EXPECT_EQ(header.at("settings.integrator"), "photonmap");
+    EXPECT_NE(header.at("auto.integrator").find("mirror or glass"), std::string::npos);
+    EXPECT_EQ(header.count("auto.caustic-map"), 1u) << "the photon map's own auto settings follow";
+  }
+  {
+    const auto [header, log] = render(Binaries::Scene(), {"--set", "k=30"});
+    EXPECT_EQ(header.at("settings.integrator"), "photonmap");
+    EXPECT_NE(header.at("auto.integrator").find("settings only the photon map reads"), std::string::npos);
+  }
+  {
+    const auto [header, log] =
+        render((scenes / "cornell-sphere/cornell-sphere.json").string(), {"--integrator", "path"});
+    EXPECT_EQ(header.at("settings.integrator"), "path");
+    EXPECT_EQ(header.count("auto.integrator"), 0u) << "forced, not chosen";
+  }
 }
 
 }  // namespace

@@ -129,5 +129,35 @@ TEST(ImageHeader, FarmAndLocalImagesOfOneRenderCarryTheSameHeader) {
   EXPECT_EQ(HeaderOf(dir / "mixed.exr").count("settings.photons"), 0u);
 }
 
+// Every `auto` a job resolved, with its reason: pf's integrator choice (made where the scene is
+// loaded) and the coordinator's (caustic map, direct light), stored with the job and written as
+// auto.* keys, the same for a farm job and a render in this process.
+TEST(ImageHeader, AutoChoicesAndTheirReasonsAreRecordedAlikeOnTheFarmAndLocally) {
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path());
+  const auto worker = StartWorker(coordinator.address(), dir.path(), "w1");
+  // No --integrator: auto, which a photon-map setting makes the photon map.
+  const std::vector<std::string> flags = {"--res", "16x16",        "--spp", "1",
+                                          "--set", "photons=2000", "--set", "k=20"};
+  const std::string id = SubmitJob(dir, coordinator.address(), flags);
+  ASSERT_FALSE(id.empty());
+  const fs::path farm = dir / "farm.exr";
+  const RunResult r = RunCommand(
+      {Binaries::Pf(), "watch", id, "-q", "-o", farm.string(), "--coordinator", coordinator.address()},
+      dir.path(), 120);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(RenderLocally(dir, flags).exit_code, 0);
+  std::map<std::string, std::string> farm_auto, local_auto;
+  for (const auto& [key, value] : HeaderOf(farm))
+    if (key.starts_with("auto.")) farm_auto[key] = value;
+  for (const auto& [key, value] : HeaderOf(dir / "local.exr"))
+    if (key.starts_with("auto.")) local_auto[key] = value;
+  ASSERT_EQ(farm_auto.count("auto.integrator"), 1u);
+  EXPECT_EQ(farm_auto.at("auto.integrator").rfind("photonmap: settings only the photon map reads", 0), 0u);
+  EXPECT_EQ(farm_auto.count("auto.caustic-map"), 1u) << "the coordinator's choice";
+  EXPECT_EQ(farm_auto.count("auto.direct"), 1u);
+  EXPECT_EQ(farm_auto, local_auto);
+}
+
 }  // namespace
 }  // namespace pf::e2e

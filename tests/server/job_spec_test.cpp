@@ -78,6 +78,38 @@ TEST(JobSpecResolution, TheScenesAutoSettingsAreStoredConcrete) {
   EXPECT_EQ(again.spec.SerializeAsString(), config.spec.SerializeAsString());
 }
 
+// pf's own choice (the integrator) arrives in spec.auto_settings; the coordinator's follow it, and
+// the stored spec keeps them all (the image header's auto.* keys), once.
+TEST(JobSpecResolution, TheChoicesAndTheirReasonsAreStoredWithTheJob) {
+  const TraitsCatalog glass_one_light(/*caustic_paths=*/1, /*lights=*/1);
+  v1::JobSpec spec = PhotonMapSpec();
+  AutoChoiceToProto({"integrator", "photonmap", "mirror or glass surfaces"}, spec.add_auto_settings());
+  const JobConfig config = ValidateJobSpec(spec, glass_one_light);
+  const std::vector<AutoChoice> stored =
+      AutoChoicesFromProto(config.spec.auto_settings(), "spec.auto_settings");
+  ASSERT_EQ(stored.size(), 3u);
+  EXPECT_EQ(stored[0].setting, "integrator");
+  EXPECT_EQ(stored[0].reason, "mirror or glass surfaces");
+  EXPECT_EQ(stored[1].setting, "caustic-map");
+  EXPECT_EQ(stored[2].setting, "direct");
+  EXPECT_EQ(stored[2].reason, config.auto_choices[1].reason);
+  const JobConfig again = ValidateJobSpec(config.spec, glass_one_light);
+  EXPECT_EQ(again.spec.auto_settings_size(), 3) << "recovery adds nothing";
+}
+
+TEST(JobSpecValidation, AutoSettingsAreBoundedTextNamingTheirField) {
+  const TraitsCatalog glass_one_light(/*caustic_paths=*/1, /*lights=*/1);
+  v1::JobSpec spec = PhotonMapSpec();
+  AutoChoiceToProto({"integrator", "path", "line\nforged"}, spec.add_auto_settings());
+  std::string message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, glass_one_light); });
+  EXPECT_EQ(message.rfind("spec.auto_settings[0].reason ", 0), 0u) << message;
+  spec = PhotonMapSpec();
+  for (size_t i = 0; i + 1 < limits::kMaxAutoSettings; ++i)
+    AutoChoiceToProto({"integrator", "path", "why"}, spec.add_auto_settings());
+  message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, glass_one_light); });
+  EXPECT_EQ(message.rfind("spec.auto_settings: more than", 0), 0u) << message << ": with the coordinator's 2";
+}
+
 TEST(JobSpecResolution, ManyLightsAndNoSpecularSurfaceChooseOtherwise) {
   const TraitsCatalog diffuse_many_lights(/*caustic_paths=*/0, /*lights=*/kPhotonDirectMinLights);
   const JobConfig config = ValidateJobSpec(PhotonMapSpec(), diffuse_many_lights);

@@ -1,0 +1,90 @@
+#!/usr/bin/python3
+"""The best image in a time budget: `pf render SCENE --time-budget T` with no method flags (the
+`auto` integrator and plan) against the path tracer and hand-picked photon-map configurations
+at the same budget, on every shipped scene with a converged reference
+(docs/results/time-budget.md).
+
+Every image is `pf render SCENE --res <reference's> --time-budget T --local-only --threads N
+--seed S <flags>`, judged with `pf diff --json --scene` against the scene's reference: rmse_display
+(luminance clamped to the display white), rmse_masked (without the lights seen directly and a
+2-pixel band), rmse_lowfreq (4x4 block means outside that mask). The budget is wall time inside pf
+(it stops at the first whole pass past it), so the CPU time of each run is recorded too; run it on
+an otherwise idle machine.
+
+    bench/time_budget.py [--scenes cornell-box,...] [--budgets 10,60] [--configs default,path,...]
+                         [--threads 2] [--json docs/results/time-budget.json]
+
+Prints a Markdown table: each error and its ratio to the best configuration of that scene and budget.
+"""
+import argparse
+import json
+import pathlib
+import tempfile
+
+from bench_common import ROOT, exr_string, run, timed
+
+SCENES = {  # name: (manifest, converged path-traced reference, its resolution)
+    "cornell-box": ("scenes/cornell-box/cornell-box.json", "scenes/cornell-box/reference-256.exr", "256x256"),
+    "cornell-sphere": ("scenes/cornell-sphere/cornell-sphere.json", "scenes/cornell-sphere/reference-256.exr",
+                       "256x256"),
+    "scene5": ("scenes/scene5/scene5.json", "scenes/scene5/reference-160.exr", "160x120"),
+    "scene8": ("scenes/scene8/scene8.json", "scenes/scene8/reference-320.exr", "320x240"),
+    "scene10": ("scenes/scene10/scene10.json", "scenes/scene10/reference-320.exr", "320x240"),
+    "invisibledate": ("scenes/invisibledate/invisibledate.json", "scenes/invisibledate/reference-320.exr",
+                      "320x240"),
+    "bathroom": ("scenes/bathroom/bathroom.json", "scenes/bathroom/reference-160.exr", "160x120"),
+    "conference": ("scenes/conference/conference.json", "scenes/conference/reference-160.exr", "160x120"),
+}
+CONFIGS = {  # name: pf render flags
+    "default": [],
+    "path": ["--integrator", "path"],
+    "photonmap": ["--integrator", "photonmap"],
+    "photonmap-occl": ["--integrator", "photonmap", "--set", "occlusion-test=true"],
+    "photonmap-50k": ["--integrator", "photonmap", "--set", "photons=50000"],
+}
+METRICS = ("rmse_display", "rmse_masked", "rmse_lowfreq")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--pf", default=str(ROOT / "build/client/pf"))
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--budgets", default="10")
+    ap.add_argument("--configs", default="default,path,photonmap")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", default="")
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for scene in args.scenes.split(","):
+            manifest, reference, res = SCENES[scene]
+            for budget in args.budgets.split(","):
+                for config in args.configs.split(","):
+                    exr = pathlib.Path(tmp) / f"{scene}-{budget}-{config}.exr"
+                    cmd = [args.pf, "render", manifest, "--res", res, "--time-budget", budget, "--local-only",
+                           "--threads", str(args.threads), "--seed", str(args.seed), "--no-png", "-q", "-o",
+                           str(exr)] + CONFIGS[config]
+                    cpu, wall = timed(cmd)
+                    d = json.loads(run([args.pf, "diff", exr, reference, "--json", "--scene", manifest]).stdout)
+                    row = {"scene": scene, "budget_s": float(budget), "config": config, "cpu_s": cpu,
+                           "wall_s": wall, "integrator": exr_string(exr, "pf:settings.integrator"),
+                           "plan": exr_string(exr, "pf:plan"), "auto": [exr_string(exr, f"pf:auto.{k}") for k in ("integrator", "occlusion-test")],
+                           "mean_ratio": d["mean"] / d["reference_mean"], **{m: d[m] for m in METRICS}}
+                    print(json.dumps(row), flush=True)
+                    rows.append(row)
+    if args.json:
+        pathlib.Path(args.json).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1) + "\n")
+    print("\n| scene | budget s | config | CPU s | mean/ref | display | masked | lowfreq | "
+          "display/best | masked/best | lowfreq/best |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        peers = [p for p in rows if p["scene"] == r["scene"] and p["budget_s"] == r["budget_s"]]
+        best = {m: min(p[m] for p in peers) for m in METRICS}
+        ratios = " | ".join(f"{r[m] / best[m]:.2f}" if best[m] > 0 else "-" for m in METRICS)
+        print(f"| {r['scene']} | {r['budget_s']:g} | {r['config']} | {r['cpu_s']:.1f} | {r['mean_ratio']:.3f} | "
+              f"{r['rmse_display']:.5f} | {r['rmse_masked']:.5f} | {r['rmse_lowfreq']:.5f} | {ratios} |")
+
+
+if __name__ == "__main__":
+    main()

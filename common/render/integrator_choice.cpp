@@ -1,0 +1,66 @@
+#include "common/render/integrator_choice.h"
+
+#include <fmt/format.h>
+
+#include "common/materials/bsdf.h"
+
+namespace pf {
+
+bool SceneHasSpecularSurfaces(const SceneDescription& scene) {
+  const Vec3 n(0.0f, 0.0f, 1.0f);
+  for (const Material& m : scene.materials)
+    if (Bsdf(m, n, n).HasLobes(kLobeSpecularReflection | kLobeSpecularTransmission)) return true;
+  return false;
+}
+
+IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
+  IntegratorChoice c;
+  const std::string seen = fmt::format(
+      "{:.0f}% of the {} surface points the camera sees are lit directly, {:.1f}% unlit next to lit space "
+      "behind a thin wall",
+      100.0 * e.reach.lit_fraction, e.reach.points, 100.0 * e.reach.leak_fraction);
+  const auto choose = [&c](IntegratorKind kind, std::string reason) {
+    c.integrator = kind;
+    c.choices.push_back(
+        {"integrator", kind == IntegratorKind::kPath ? "path" : "photonmap", std::move(reason)});
+  };
+  if (e.photon_map_settings_given) {
+    choose(IntegratorKind::kPhotonMap, "settings only the photon map reads were given; " + seen);
+  } else if (e.specular_surfaces) {
+    choose(IntegratorKind::kPhotonMap,
+           "mirror or glass surfaces: the light they reflect or refract onto diffuse surfaces (caustics) "
+           "reaches no shadow ray, photons carry it (Wald 1999, 2.2); " +
+               seen);
+  } else if (e.lights >= kPhotonDirectMinLights) {
+    choose(IntegratorKind::kPhotonMap,
+           fmt::format("{} lights (>= {}): the direct photons tell which lights reach a point, so its shadow "
+                       "rays go there (PhotonDirect, 4.2.3); ",
+                       e.lights, kPhotonDirectMinLights) +
+               seen);
+  } else if (e.reach.points > 0 && e.reach.lit_fraction < kIndirectlyLitBelow) {
+    choose(
+        IntegratorKind::kPhotonMap,
+        seen + fmt::format(" (< {:.0f}%): the rest is lit through openings, which paths find by chance and "
+                           "photons along the way light goes",
+                           100.0 * kIndirectlyLitBelow));
+  } else {
+    choose(
+        IntegratorKind::kPath,
+        seen + fmt::format(
+                   ", no mirror or glass, {} light{}: shadow rays find the light (unbiased, no photon map)",
+                   e.lights, e.lights == 1 ? "" : "s"));
+    return c;
+  }
+  if (e.reach.leak_fraction > kLeakyAbove && !e.occlusion_test_given) {
+    c.occlusion_test = true;
+    c.choices.push_back(
+        {"occlusion-test", "true",
+         fmt::format("{:.1f}% of the points the camera sees are unlit, with lit space behind a wall "
+                     "within the photon search radius (> {:.0f}%): photons whose "
+                     "origin the point cannot see are dropped (no light bleeding, 4.1.1)",
+                     100.0 * e.reach.leak_fraction, 100.0 * kLeakyAbove)});
+  }
+  return c;
+}
+
+}  // namespace pf

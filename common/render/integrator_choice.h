@@ -1,0 +1,47 @@
+#pragma once
+// What `integrator auto` (the default of pf render and pf submit) becomes for a scene and camera,
+// and why (docs/renderer.md, "Choosing the integrator"; measured in docs/results/time-budget.md).
+// Decided once, where the scene is loaded (pf), from the scene's materials and a pilot of camera and
+// shadow rays (light_reach.h), so the job stores a concrete integrator and every worker renders
+// the same one. Each part can be forced: --integrator path|photonmap, --set occlusion-test=....
+
+#include <vector>
+
+#include "common/render/job_render_settings.h"
+#include "common/render/light_reach.h"
+
+namespace pf {
+
+// Below this lit fraction the scene is taken as lit through openings: the photon map, with the
+// occlusion test (Wald 1999, §4.1.1) against light bleeding through the walls between the lit and
+// the unlit parts.
+inline constexpr double kIndirectlyLitBelow = 0.5;
+// Above this leak fraction (LightReach::leak_fraction) a photon map gets the occlusion test.
+inline constexpr double kLeakyAbove = 0.01;
+
+struct IntegratorEvidence {
+  bool photon_map_settings_given = false;  // the user set a setting only the photon map reads
+  bool occlusion_test_given = false;       // the user set occlusion-test either way
+  bool specular_surfaces = false;          // SceneHasSpecularSurfaces
+  int lights = 0;                          // SceneDescription::num_lights
+  LightReach reach;                        // MeasureLightReach with the job's camera
+};
+
+struct IntegratorChoice {
+  IntegratorKind integrator = IntegratorKind::kPath;
+  bool occlusion_test = false;      // turn the occlusion test on (only if not given)
+  std::vector<AutoChoice> choices;  // "integrator", and "occlusion-test" when it is turned on
+};
+
+// A perfect mirror or glass (a delta lobe, bsdf.h) on some material: light reflected or refracted
+// onto a diffuse surface there (L S+ D, a caustic) is reached by no shadow ray.
+bool SceneHasSpecularSurfaces(const SceneDescription& scene);
+
+// The rule, in order: photon-map settings given → the photon map; specular surfaces → the photon
+// map (caustics); kPhotonDirectMinLights lights or more → the photon map (PhotonDirect, §4.2.3);
+// a lit fraction below kIndirectlyLitBelow → the photon map; else the path tracer (unbiased, and
+// as fast where most of what is seen sees a light). A photon map chosen here gets the occlusion
+// test when the leak fraction is above kLeakyAbove.
+IntegratorChoice ChooseIntegrator(const IntegratorEvidence& evidence);
+
+}  // namespace pf

@@ -1,0 +1,127 @@
+#include "common/render/light_reach.h"
+
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <cmath>
+
+#include "common/materials/bsdf.h"
+
+namespace pf {
+namespace {
+
+// A uniform number in [0, 1) from (cell, sample, dimension): splitmix64 of their mix, so the pilot
+// needs no sampler state and gives the same answer on any thread count.
+float HashedUniform(uint64_t cell, uint64_t sample, uint64_t dim) {
+  uint64_t z =
+      cell * 0x9e3779b97f4a7c15ull + sample * 0xbf58476d1ce4e5b9ull + dim * 0x94d049bb133111ebull + 1;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  z ^= z >> 31;
+  return float(z >> 40) * 0x1.0p-24f;
+}
+
+// Whether light sample `ls` reaches x on the side `n` faces (the side the camera sees).
+bool Reaches(const SceneRuntime& scene, const LightSample& ls, const Vec3& x, const Vec3& n) {
+  if (ls.environment) return Dot(n, ls.wi) > 0.0f && scene.lights.UnoccludedTowards(x, n, ls.wi);
+  if (ls.delta()) {
+    const DeltaIncidence in = scene.lights.Incidence(ls, x);
+    return !in.irradiance.IsBlack() && Dot(n, in.wi) > 0.0f && scene.lights.Unoccluded(x, n, in);
+  }
+  const Vec3 to_light = ls.position - x;
+  if (Dot(n, to_light) <= 0.0f || Dot(ls.normal, to_light) >= 0.0f) return false;  // behind x or the emitter
+  return scene.accel.Visible(x, n, ls.position, ls.normal);
+}
+
+// Whether a photon search of radius `reach` around the hit x (seen on side n) would reach, through
+// a wall, space that some light reaches: rays from x over its visible hemisphere (8 azimuths at two
+// elevations) that meet a surface within `reach` are followed through it (and through the wall's
+// far face, if that is within reach too) to the point just beyond, which is tested for light on
+// the side the ray goes. A sphere search does not stop at walls: photons stored there would be
+// found from x (light bleeding, Wald 1999, §3.3.4).
+template <typename LitAt>
+bool BehindThinWall(const SceneRuntime& scene, const SurfaceHit& x, const Vec3& n, float reach,
+                    const LitAt& lit_at) {
+  const Frame frame(n);
+  const float step = std::max(1e-3f * reach, 4.0f * scene.accel.epsilon());
+  uint64_t salt = 1u << 20;
+  for (const float sin_elevation : {0.2f, 0.6f}) {
+    const float cos_elevation = std::sqrt(1.0f - sin_elevation * sin_elevation);
+    for (int a = 0; a < 8; ++a, salt += 1u << 10) {
+      const float phi = float(a) * 0.25f * 3.14159265f;
+      const Vec3 dir =
+          frame.ToWorld({std::cos(phi) * cos_elevation, std::sin(phi) * cos_elevation, sin_elevation});
+      const std::optional<SurfaceHit> wall =
+          scene.accel.Intersect(Ray{scene.accel.SpawnOrigin(x, dir), dir, reach});
+      if (!wall) continue;
+      float left = reach - wall->t;
+      Vec3 beyond = wall->position;
+      const std::optional<SurfaceHit> far_face =
+          scene.accel.Intersect(Ray{scene.accel.SpawnOrigin(*wall, dir), dir, left});
+      if (far_face) {  // a wall with thickness: its other face is within reach too
+        left -= far_face->t;
+        beyond = far_face->position;
+      }
+      if (left <= step) continue;
+      if (lit_at(beyond + dir * step, dir, salt)) return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+LightReach MeasureLightReach(const SceneRuntime& scene, const Camera& camera, float leak_distance, int grid,
+                             int shadow_rays) {
+  const SceneDescription& desc = scene.description;
+  std::atomic<int> points{0}, lit{0}, specular{0}, leaks{0};
+  tbb::parallel_for(0, grid, [&](int j) {
+    int row_points = 0, row_lit = 0, row_specular = 0, row_leaks = 0;
+    for (int i = 0; i < grid; ++i) {
+      const float fx = (float(i) + 0.5f) / float(grid) * float(camera.width());
+      const float fy = (float(j) + 0.5f) / float(grid) * float(camera.height());
+      const int px = std::min(int(fx), camera.width() - 1), py = std::min(int(fy), camera.height() - 1);
+      const Ray ray = camera.GenerateRay(px, py, fx - float(px), fy - float(py));
+      const std::optional<SurfaceHit> hit = scene.accel.Intersect(ray);
+      if (!hit) continue;
+      const Material& m = desc.materials[hit->material];
+      if (m.IsEmissive() && hit->front_face) continue;
+      const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
+      if (!bsdf.HasNonDelta()) {
+        row_specular += bsdf.HasLobes(kLobeSpecularReflection | kLobeSpecularTransmission);
+        continue;
+      }
+      ++row_points;
+      const Vec3 n =
+          Dot(hit->geometric_normal, ray.direction) < 0.0f ? hit->geometric_normal : -hit->geometric_normal;
+      const uint64_t cell = uint64_t(j) * uint64_t(grid) + uint64_t(i);
+      // Whether some light sample reaches x on the side `side` faces; `salt` draws other numbers.
+      const auto lit_at = [&](const Vec3& x, const Vec3& side, uint64_t salt) {
+        for (int s = 0; s < shadow_rays; ++s) {
+          const uint64_t k = uint64_t(s) + salt;
+          const LightSample ls = scene.lights.Sample(HashedUniform(cell, k, 0), HashedUniform(cell, k, 1),
+                                                     HashedUniform(cell, k, 2));
+          if (ls.pdf_area > 0.0f && Reaches(scene, ls, x, side)) return true;
+        }
+        return false;
+      };
+      if (lit_at(hit->position, n, 0)) {
+        ++row_lit;
+        continue;
+      }
+      if (leak_distance > 0.0f && BehindThinWall(scene, *hit, n, leak_distance, lit_at)) ++row_leaks;
+    }
+    points += row_points;
+    lit += row_lit;
+    specular += row_specular;
+    leaks += row_leaks;
+  });
+  LightReach r;
+  r.points = points.load();
+  r.lit_fraction = r.points > 0 ? double(lit.load()) / double(r.points) : 0.0;
+  r.specular_fraction = double(specular.load()) / double(grid * grid);
+  r.leak_fraction = r.points > 0 ? double(leaks.load()) / double(r.points) : 0.0;
+  return r;
+}
+
+}  // namespace pf
