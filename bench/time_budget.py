@@ -15,6 +15,8 @@ an otherwise idle machine.
                          [--threads 2] [--json docs/results/time-budget.json]
 
 Prints a Markdown table: each error and its ratio to the best configuration of that scene and budget.
+A configuration that `default` resolved to (the same integrator and occlusion test) is not run again:
+the default's row stands for it, marked "(= default)".
 """
 import argparse
 import json
@@ -40,8 +42,12 @@ CONFIGS = {  # name: pf render flags
     "path": ["--integrator", "path"],
     "photonmap": ["--integrator", "photonmap"],
     "photonmap-occl": ["--integrator", "photonmap", "--set", "occlusion-test=true"],
-    "photonmap-50k": ["--integrator", "photonmap", "--set", "photons=50000"],
+    # Fewer samples per pass: more passes in the budget, so a smaller last radius (less bias).
+    "default-spp4": ["--spp", "4"],
+    "default-spp1": ["--spp", "1"],
 }
+# What each named configuration is after resolution: (integrator, occlusion test).
+RESOLVED = {"path": ("path", False), "photonmap": ("photonmap", False), "photonmap-occl": ("photonmap", True)}
 METRICS = ("rmse_display", "rmse_masked", "rmse_lowfreq")
 
 
@@ -60,7 +66,14 @@ def main():
         for scene in args.scenes.split(","):
             manifest, reference, res = SCENES[scene]
             for budget in args.budgets.split(","):
+                default_resolved = None
                 for config in args.configs.split(","):
+                    # A configuration that `default` resolved to is the same command: its row stands for both.
+                    if default_resolved is not None and RESOLVED.get(config) == default_resolved[0]:
+                        row = dict(default_resolved[1], config=config, same_as="default")
+                        print(json.dumps(row), flush=True)
+                        rows.append(row)
+                        continue
                     exr = pathlib.Path(tmp) / f"{scene}-{budget}-{config}.exr"
                     cmd = [args.pf, "render", manifest, "--res", res, "--time-budget", budget, "--local-only",
                            "--threads", str(args.threads), "--seed", str(args.seed), "--no-png", "-q", "-o",
@@ -73,6 +86,9 @@ def main():
                            "mean_ratio": d["mean"] / d["reference_mean"], **{m: d[m] for m in METRICS}}
                     print(json.dumps(row), flush=True)
                     rows.append(row)
+                    if config == "default":
+                        occlusion = exr_string(exr, "pf:settings.occlusion-test")
+                        default_resolved = ((row["integrator"], occlusion == "true"), row)
     if args.json:
         pathlib.Path(args.json).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1) + "\n")
     print("\n| scene | budget s | config | CPU s | mean/ref | display | masked | lowfreq | "
@@ -82,7 +98,8 @@ def main():
         peers = [p for p in rows if p["scene"] == r["scene"] and p["budget_s"] == r["budget_s"]]
         best = {m: min(p[m] for p in peers) for m in METRICS}
         ratios = " | ".join(f"{r[m] / best[m]:.2f}" if best[m] > 0 else "-" for m in METRICS)
-        print(f"| {r['scene']} | {r['budget_s']:g} | {r['config']} | {r['cpu_s']:.1f} | {r['mean_ratio']:.3f} | "
+        config = r["config"] + (" (= default)" if r.get("same_as") else "")
+        print(f"| {r['scene']} | {r['budget_s']:g} | {config} | {r['cpu_s']:.1f} | {r['mean_ratio']:.3f} | "
               f"{r['rmse_display']:.5f} | {r['rmse_masked']:.5f} | {r['rmse_lowfreq']:.5f} | {ratios} |")
 
 

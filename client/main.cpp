@@ -338,10 +338,13 @@ int main(int argc, char** argv) {
       throw CLI::ValidationError("--local-only", "cannot be combined with --workers");
     // A plain render (no --plan, --local-only or --workers) is the default plan in this process:
     // the other plan and farm options would be silently ignored.
+    // With a budget it runs the photon map's progressive plan (docs/renderer.md, "Budgets"), whose
+    // most passes --passes sets (PrepareJob refuses it if the budget's plan is the path tracer's).
+    const bool budget = ra.time_budget > 0 || ra.target_noise > 0 || ra.target_error > 0;
     if (*render && ra.workers == 0 && !ra.local_only && ra.plan.empty())
       for (const char* opt :
            {"--maps", "--passes", "--stride", "--rounds", "--tile", "--max-rounds", "--priority", "--name"})
-        if (render->count(opt) > 0)
+        if (render->count(opt) > 0 && !(budget && std::string_view(opt) == "--passes"))
           throw CLI::ValidationError(
               opt, std::string(
                        "applies to plan renders only (add --plan P, --local-only or "

@@ -356,12 +356,21 @@ PreparedJob PrepareJob(const RenderArgs& args) {
     plan = "progressive";
     spdlog::info("plan progressive: chosen for --target-error (the plan whose bias is estimated)");
   }
+  uint32_t spp = a.spp;
   if (budget && a.plan.empty() && !farm_default) {
     plan = a.integrator == "photonmap" ? "progressive" : "multiple-maps";
     if (plan == "multiple-maps") maps = kOpenEndedPasses;
     spdlog::info(
         "plan {}: chosen for the budget ({}), until the budget ends it", plan,
         plan == "progressive" ? "the photon map's consistent plan" : "the path tracer's sample sets");
+    if (plan == "multiple-maps" && given("--passes"))
+      throw InputError("--passes: the budget runs the path tracer's sample sets here (" + a.integrator +
+                       " integrator), which have no passes; give --plan progressive "
+                       "with --integrator photonmap, or leave --passes out");
+    if (plan == "progressive" && !a.spp_given) {
+      spp = kBudgetPassSamples;
+      spdlog::info("progressive: {} samples per pixel per pass (--spp sets them)", spp);
+    }
   }
   if (budget && plan == "progressive" && !given("--passes")) {
     passes = kOpenEndedPasses;
@@ -383,7 +392,7 @@ PreparedJob PrepareJob(const RenderArgs& args) {
     pl->mutable_multiple_maps()->set_tail_tile_size(TailTileFor(a));
   } else if (plan == "progressive") {
     pl->mutable_progressive()->set_passes(passes);
-    pl->mutable_progressive()->set_samples_per_pixel(a.spp);
+    pl->mutable_progressive()->set_samples_per_pixel(spp);
     pl->mutable_progressive()->set_tile_size(a.tile);
   } else if (plan == "maps-in-turn") {
     pl->mutable_maps_in_turn()->set_samples_per_pixel(a.spp);

@@ -29,6 +29,11 @@ struct StopTargets {
 // this many passes: its stop rule ends it long before (at 1024 passes of 200k photons the
 // estimate's radius is 0.10 of the first, and the noise 1/100 of one pass's).
 inline constexpr uint32_t kOpenEndedPasses = 1024;
+// Samples per pixel of each pass of a progressive render that its budget chose (no --spp): with
+// fewer per pass, more passes fit the budget and the last radius is smaller. At 60 s, 4 instead of
+// 16 lowered all three errors on CornellBox-Sphere and INVISIBLEDATE by 5-23 %; 1 traced so many
+// maps that the noise rose (docs/results/time-budget.md).
+inline constexpr uint32_t kBudgetPassSamples = 4;
 
 // The targets as judged: an unbiased integrator's (the path tracer's) error is its noise, so its
 // target error becomes a target noise of the same value, for any plan.

@@ -31,12 +31,6 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
            "mirror or glass surfaces: the light they reflect or refract onto diffuse surfaces (caustics) "
            "reaches no shadow ray, photons carry it (Wald 1999, 2.2); " +
                seen);
-  } else if (e.lights >= kPhotonDirectMinLights) {
-    choose(IntegratorKind::kPhotonMap,
-           fmt::format("{} lights (>= {}): the direct photons tell which lights reach a point, so its shadow "
-                       "rays go there (PhotonDirect, 4.2.3); ",
-                       e.lights, kPhotonDirectMinLights) +
-               seen);
   } else if (e.reach.points > 0 && e.reach.lit_fraction < kIndirectlyLitBelow) {
     choose(
         IntegratorKind::kPhotonMap,

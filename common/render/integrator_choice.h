@@ -23,7 +23,7 @@ struct IntegratorEvidence {
   bool photon_map_settings_given = false;  // the user set a setting only the photon map reads
   bool occlusion_test_given = false;       // the user set occlusion-test either way
   bool specular_surfaces = false;          // SceneHasSpecularSurfaces
-  int lights = 0;                          // SceneDescription::num_lights
+  int lights = 0;                          // SceneDescription::num_lights (for the reason)
   LightReach reach;                        // MeasureLightReach with the job's camera
 };
 
@@ -38,10 +38,10 @@ struct IntegratorChoice {
 bool SceneHasSpecularSurfaces(const SceneDescription& scene);
 
 // The rule, in order: photon-map settings given → the photon map; specular surfaces → the photon
-// map (caustics); kPhotonDirectMinLights lights or more → the photon map (PhotonDirect, §4.2.3);
-// a lit fraction below kIndirectlyLitBelow → the photon map; else the path tracer (unbiased, and
-// as fast where most of what is seen sees a light). A photon map chosen here gets the occlusion
-// test when the leak fraction is above kLeakyAbove.
+// map (caustics); a lit fraction below kIndirectlyLitBelow → the photon map; else the path tracer
+// (unbiased, and as good where most of what is seen sees a light: many lights alone do not make
+// the photon map the better choice, CONFERENCE in docs/results/time-budget.md). A photon map
+// chosen here gets the occlusion test when the leak fraction is above kLeakyAbove.
 IntegratorChoice ChooseIntegrator(const IntegratorEvidence& evidence);
 
 }  // namespace pf
