@@ -19,7 +19,6 @@
 #include "common/render/integrator_factory.h"
 #include "common/render/progressive_radius.h"
 #include "common/render/render_settings_table.h"
-#include "common/render/scene_runtime.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
@@ -74,9 +73,9 @@ uint32_t TailTileFor(const RenderArgs& a) {
 }
 
 // With `--integrator auto`: the photon map was asked for by a setting only it reads, or by a plan
-// only it has.
+// only it has (progressive; hierarchical with its indirect part apart).
 bool PhotonMapAsked(const RenderArgs& a) {
-  if (a.plan == "progressive") return true;
+  if (a.plan == "progressive" || (a.plan == "hierarchical" && a.hier_part == "indirect")) return true;
   JobRenderSettings path;
   path.integrator = IntegratorKind::kPath;
   for (const GivenSetting& g : SettingsGiven(a.settings))
@@ -85,24 +84,36 @@ bool PhotonMapAsked(const RenderArgs& a) {
   return false;
 }
 
-// `--integrator auto` for this scene and camera (integrator_choice.h): the pilot traces the
-// camera the job renders with.
+// An `integrator` row of --set, a settings file or the manifest: a named integrator, as
+// --integrator is (the command line's over the manifest's).
+std::optional<GivenSetting> IntegratorRowGiven(const RenderArgs& a) {
+  std::optional<GivenSetting> found;
+  for (const GivenSetting& g : a.settings.manifest)
+    if (g.name == "integrator") found = g;
+  for (const GivenSetting& g : SettingsGiven(a.settings))
+    if (g.name == "integrator") found = g;
+  return found;
+}
+
+// `--integrator auto` for this scene and camera (integrator_choice.h). The user's occlusion
+// settings, on the command line, in a settings file or in the manifest, are theirs to keep: the
+// per-site test and the camera path's are exclusive (render_settings_rules.h).
 IntegratorChoice ChooseIntegratorFor(const SceneDescription& scene, const CameraSpec& camera,
                                      const RenderArgs& a) {
-  IntegratorEvidence e;
+  // The manifest's rows first, so that the command line's win; only what sets the search radius.
+  std::vector<GivenSetting> given = a.settings.manifest;
+  const std::vector<GivenSetting> command_line = SettingsGiven(a.settings);
+  given.insert(given.end(), command_line.begin(), command_line.end());
+  JobRenderSettings radius_settings;
+  for (const GivenSetting& g : given)
+    if (g.name == "photons" || g.name == "k" || g.name == "progressive-radius") {
+      const RenderSetting& row = *FindRenderSetting(g.name);
+      row.set(radius_settings, ParseRenderSettingValue(row, g.text, g.source));
+    }
+  IntegratorEvidence e = SceneEvidence(scene, camera, radius_settings);
   e.photon_map_settings_given = PhotonMapAsked(a);
-  for (const GivenSetting& g : SettingsGiven(a.settings))
-    e.occlusion_test_given |= g.name == "occlusion-test";
-  e.specular_surfaces = SceneHasSpecularSurfaces(scene);
-  e.lights = int(scene.num_lights);
-  {
-    const SceneRuntime runtime(scene);
-    // How far the first progressive pass searches with the default photons and k.
-    const JobRenderSettings defaults;
-    const float leak_distance =
-        float(DerivedInitialRadius(runtime.accel.bounds(), defaults.photons, defaults.k));
-    e.reach = MeasureLightReach(runtime, Camera(camera, scene.origin), leak_distance);
-  }
+  for (const GivenSetting& g : given)
+    e.occlusion_test_given |= g.name == "occlusion-test" || g.name == "site-occlusion-test";
   return ChooseIntegrator(e);
 }
 
@@ -172,7 +183,9 @@ void CheckSettingArgs(const RenderArgs& a) {
   try {
     // Before the scene is loaded `auto` is judged by what was asked: photon-map settings make it the
     // photon map, and without them every setting given is one the path tracer reads too.
+    const std::optional<GivenSetting> row = IntegratorRowGiven(a);
     SettingsFromArgs(a.settings, a.integrator != "auto" ? a.integrator
+                                 : row                  ? row->text
                                  : PhotonMapAsked(a)    ? "photonmap"
                                                         : "path");
   } catch (const InputError& e) {
@@ -322,6 +335,12 @@ PreparedJob PrepareJob(const RenderArgs& args) {
   // integrator, and the choice and its reason ride along in spec.auto_settings (the image header's
   // auto.* keys).
   RenderArgs a = args;
+  if (a.integrator == "auto") {
+    if (const std::optional<GivenSetting> row = IntegratorRowGiven(a)) {
+      a.integrator = row->text;
+      spdlog::info("integrator {} from {}", row->text, row->source);
+    }
+  }
   if (a.integrator == "auto") {
     const IntegratorChoice chosen = ChooseIntegratorFor(p.scene, camera, a);
     a.integrator = chosen.integrator == IntegratorKind::kPath ? "path" : "photonmap";

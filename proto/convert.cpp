@@ -1,9 +1,11 @@
 #include "proto/convert.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/core/error.h"
 #include "common/plan/plan_choice.h"
+#include "common/render/render_settings_table.h"
 #include "proto/limits.h"
 
 namespace pf {
@@ -228,6 +230,16 @@ std::vector<AutoChoice> AutoChoicesFromProto(const google::protobuf::RepeatedPtr
     limits::CheckText(in[i].setting(), (at + "setting").c_str(), limits::kMaxAutoSettingTextBytes);
     limits::CheckText(in[i].value(), (at + "value").c_str(), limits::kMaxAutoSettingTextBytes);
     limits::CheckText(in[i].reason(), (at + "reason").c_str(), limits::kMaxAutoSettingTextBytes);
+    // A row of the settings table, by its name or its old flag's ("caustic-map"), once: the header
+    // key auto.<setting> is one per setting, and a client cannot make up others.
+    const std::string& name = in[i].setting();
+    const auto& table = RenderSettingsTable();
+    if (std::none_of(table.begin(), table.end(),
+                     [&](const RenderSetting& row) { return row.name == name || row.legacy_flag == name; }))
+      throw InputError(at + "setting: " + limits::Quote(name) +
+                       " is not a render setting (pf settings lists them)");
+    if (std::any_of(out.begin(), out.end(), [&](const AutoChoice& c) { return c.setting == name; }))
+      throw InputError(at + "setting: " + limits::Quote(name) + " is listed twice");
     out.push_back({in[i].setting(), in[i].value(), in[i].reason()});
   }
   return out;

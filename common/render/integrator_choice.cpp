@@ -2,7 +2,12 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
+#include "common/camera/camera.h"
 #include "common/materials/bsdf.h"
+#include "common/render/progressive_radius.h"
+#include "common/render/scene_runtime.h"
 
 namespace pf {
 
@@ -11,6 +16,21 @@ bool SceneHasSpecularSurfaces(const SceneDescription& scene) {
   for (const Material& m : scene.materials)
     if (Bsdf(m, n, n).HasLobes(kLobeSpecularReflection | kLobeSpecularTransmission)) return true;
   return false;
+}
+
+IntegratorEvidence SceneEvidence(const SceneDescription& scene, const CameraSpec& camera,
+                                 const JobRenderSettings& settings) {
+  IntegratorEvidence e;
+  e.specular_surfaces = SceneHasSpecularSurfaces(scene);
+  e.lights = int(scene.num_lights);
+  const SceneRuntime runtime(scene);
+  const JobRenderSettings defaults;
+  const Bounds3& bounds = runtime.accel.bounds();
+  const double radius = std::max({DerivedInitialRadius(bounds, defaults.photons, defaults.k),
+                                  DerivedInitialRadius(bounds, settings.photons, settings.k),
+                                  double(settings.progressive_radius)});
+  e.reach = MeasureLightReach(runtime, Camera(camera, scene.origin), float(radius));
+  return e;
 }
 
 IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {

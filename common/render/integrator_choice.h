@@ -37,6 +37,14 @@ struct IntegratorChoice {
 // onto a diffuse surface there (L S+ D, a caustic) is reached by no shadow ray.
 bool SceneHasSpecularSurfaces(const SceneDescription& scene);
 
+// What the scene and its camera tell (the user's part of the evidence is the caller's): its
+// materials, its lights and the pilot (MeasureLightReach). The pilot's leak distance is the first
+// progressive pass's radius (progressive_radius.h) for the larger of the radii of `settings`
+// (photons, k, progressive-radius as the job has them) and of the default photons and k, so that
+// the guard errs towards the occlusion test.
+IntegratorEvidence SceneEvidence(const SceneDescription& scene, const CameraSpec& camera,
+                                 const JobRenderSettings& settings);
+
 // The rule, in order: photon-map settings given → the photon map; specular surfaces → the photon
 // map (caustics); a lit fraction below kIndirectlyLitBelow → the photon map; else the path tracer
 // (unbiased, and as good where most of what is seen sees a light: many lights alone do not make

@@ -67,11 +67,9 @@ struct JobRenderSettings {
   float light_uniform_fraction = 0.0f;    // MC: defensive mixing β
   int photon_direct_k = 50;
   NonContributingMode non_contributing = NonContributingMode::kOneRandom;
-  float photon_direct_cache = 0.25f;  // neighbour-set cache radius fraction; 0 = off
-  int local_pass_rays = 0;            // §4.3; 0 = off
-  // Precomputed irradiance (Christensen 1999): as accurate as the full estimate at 2-7x less CPU
-  // (docs/renderer.md, "Better estimates", why it is the default).
-  LocalPassLookup local_pass_lookup = LocalPassLookup::kPrecomputed;
+  float photon_direct_cache = 0.25f;                           // neighbour-set cache radius fraction; 0 = off
+  int local_pass_rays = 0;                                     // §4.3; 0 = off
+  LocalPassLookup local_pass_lookup = LocalPassLookup::kFull;  // precomputed irradiance (Christensen 1999)
   bool site_occlusion_test = true;  // precomputed sites drop photons of unseen origin (§4.1.1)
   float irradiance_cache_error =
       0.0f;                     // local pass: irradiance caching, Ward's a (irradiance_cache.h); 0 = off

@@ -17,14 +17,11 @@ struct LightReach {
   // (its front side for an emitter, within a spot's cone): 1 in a room with its lamp in view
   // of every wall, near 0 for a room lit through a door.
   double lit_fraction = 0.0;
-  // Of all camera rays, the fraction whose first hit is a perfect mirror or glass (a delta lobe,
-  // bsdf.h): what the camera sees of specular surfaces.
-  double specular_fraction = 0.0;
   // Of the points, the fraction that no light reaches but from which a photon search of radius
   // `leak_distance` would reach, through a wall, space that a light reaches (probe rays over the
-  // visible hemisphere, followed through the first surface they meet). A photon-map estimate there
-  // finds the photons of the lit side: light bleeding (Wald 1999, §3.3.4), which the occlusion test
-  // (§4.1.1) removes.
+  // visible hemisphere, followed through the first surface they meet and a wall's far face). A photon-map
+  // estimate there finds the photons of the lit side: light bleeding (Wald 1999, §3.3.4), which the occlusion
+  // test (§4.1.1) removes.
   double leak_fraction = 0.0;
 };
 

@@ -76,13 +76,14 @@ TEST(DefaultRender, InvisibleDateWithoutMethodFlagsMatchesItsReference) {
   const auto [image, meta] = render({"--passes", "24"}, "default.exr");
   EXPECT_EQ(meta.at("settings.integrator"), "photonmap");
   EXPECT_EQ(meta.at("settings.occlusion-test"), "true");
+  EXPECT_EQ(meta.count("auto.occlusion-test"), 1u) << "chosen, and recorded why";
   EXPECT_EQ(meta.at("plan").rfind("progressive passes=24", 0), 0u) << meta.at("plan");
   const Judged chosen = Judge(image, reference);
   EXPECT_NEAR(chosen.mean_ratio, 1.0, 0.03);
   EXPECT_LT(chosen.worst_block_excess, kGlow) << "a block glows";
 
   const auto [leaky, leaky_meta] =
-      render({"--passes", "4", "--integrator", "photonmap", "--set", "occlusion-test=false"}, "leaky.exr");
+      render({"--passes", "24", "--integrator", "photonmap", "--set", "occlusion-test=false"}, "leaky.exr");
   const Judged forced = Judge(leaky, reference);
   EXPECT_GT(forced.mean_ratio, 1.2) << "the light of the next room bleeds through the walls";
   EXPECT_GT(forced.worst_block_excess, kGlow) << "the check must see the seams";

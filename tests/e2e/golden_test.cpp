@@ -72,8 +72,7 @@ std::vector<GoldenJob> Jobs() {
             {"--plan", "hierarchical", "--levels", "2", "--base-samples", "4", "--seed", "19"})},
       {"auto_plan_farm", box,
        with(with(PhotonMapFlags("6000"), farm),
-            {"--plan", "auto", "--spp", "2", "--seed", "20", "--direct", "mc", "--local-pass", "2",
-             "--local-pass-lookup", "full"})},  // as recorded, before precomputed became the default
+            {"--plan", "auto", "--spp", "2", "--seed", "20", "--direct", "mc", "--local-pass", "2"})},
   };
 }
 

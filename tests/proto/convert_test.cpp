@@ -107,7 +107,7 @@ TEST(Convert, EverySettingRoundTrips) {
   pm.set_occlusion_test(true);
   pm.set_adaptive_k_min(10);
   pm.set_kd_split(v1::KD_SPLIT_CYCLE);
-  pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_FULL);  // not the default
+  pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
   pm.set_irradiance_cache_error(0.25);
   pm.set_importance(v1::IMPORTANCE_MODE_AUTO);
   pm.set_importance_min_probability(0.125);
@@ -142,7 +142,7 @@ TEST(Convert, SiteOcclusionTestOffRoundTrips) {
   v1::RenderSettings s = GoodSettings();
   v1::PhotonMapSettings& pm = *s.mutable_photon_map();
   pm.set_local_pass_rays(8);
-  pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_FULL);  // not the default
+  pm.set_local_pass_lookup(v1::LOCAL_PASS_LOOKUP_PRECOMPUTED);
   pm.set_site_occlusion_test(v1::SITE_OCCLUSION_TEST_OFF);
   const JobRenderSettings core = SettingsFromProto(s, "spec.settings");
   EXPECT_FALSE(core.site_occlusion_test);

@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 
+#include "common/render/render_settings_table.h"
 #include "proto/convert.h"
 #include "tests/server/server_test_util.h"
 #include "tests/util/input_error.h"
@@ -104,8 +105,19 @@ TEST(JobSpecValidation, AutoSettingsAreBoundedTextNamingTheirField) {
   std::string message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, glass_one_light); });
   EXPECT_EQ(message.rfind("spec.auto_settings[0].reason ", 0), 0u) << message;
   spec = PhotonMapSpec();
-  for (size_t i = 0; i + 1 < limits::kMaxAutoSettings; ++i)
-    AutoChoiceToProto({"integrator", "path", "why"}, spec.add_auto_settings());
+  AutoChoiceToProto({"no-such-setting", "1", "why"}, spec.add_auto_settings());
+  message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, glass_one_light); });
+  EXPECT_EQ(message.rfind("spec.auto_settings[0].setting: ", 0), 0u) << message;
+  spec = PhotonMapSpec();
+  AutoChoiceToProto({"integrator", "path", "why"}, spec.add_auto_settings());
+  AutoChoiceToProto({"integrator", "photonmap", "why not"}, spec.add_auto_settings());
+  message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, glass_one_light); });
+  EXPECT_EQ(message.rfind("spec.auto_settings[1].setting: ", 0), 0u) << message;
+  EXPECT_NE(message.find("twice"), std::string::npos) << message;
+  spec = PhotonMapSpec();
+  ASSERT_GE(RenderSettingsTable().size(), limits::kMaxAutoSettings);
+  for (size_t i = 0; i + 1 < limits::kMaxAutoSettings; ++i)  // distinct rows, one short of the cap
+    AutoChoiceToProto({std::string(RenderSettingsTable()[i].name), "x", "why"}, spec.add_auto_settings());
   message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, glass_one_light); });
   EXPECT_EQ(message.rfind("spec.auto_settings: more than", 0), 0u) << message << ": with the coordinator's 2";
 }
