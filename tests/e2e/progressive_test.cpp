@@ -1,11 +1,17 @@
 // The progressive plan (Knaus & Zwicker 2011; common/plan/task_plan.h (e)) on a real farm: the
 // passes travel as tasks whose estimates read each pass's radius, and the image is bit-identical to
 // the single-process render of the same plan and seed (`pf render --local-only`) for 1 and 2
-// workers, and it is not the multiple-maps image of the same maps (the radius query is used).
+// workers, and it is not the multiple-maps image of the same maps (the radius query is used). The
+// same holds with faults: a worker SIGKILLed mid-pass and the coordinator kill -9'd and restarted
+// on its data dir lose and double-count nothing (each task merged once, the image bit-identical).
 // Its stop rules: --target-error (the bias indicator, common/plan/progressive_bias.h) locally and
 // on the farm, a missed target said by the job, and the target refused where it cannot be judged.
-#include <cstdlib>
+#include <signal.h>
 
+#include <cstdlib>
+#include <set>
+
+#include "client/farm_client.h"
 #include "common/image/exr_io.h"
 #include "tests/e2e/harness.h"
 
@@ -19,14 +25,75 @@ std::vector<std::string> Flags(const std::string& plan, const std::string& count
           "--tile",       "16",        "--spp",     "1",    "--res", "33x33", "--seed", "5"};
 }
 
-TEST(ProgressiveFarm, BitIdenticalForOneAndTwoWorkersAndLocal) {
+TEST(ProgressiveFarm, BitIdenticalForOneTwoAndThreeWorkersAndLocal) {
   TestDir dir;
   const std::vector<std::string> flags = Flags("progressive", "--passes");
   const Image reference = RenderLocallyToImage(dir, flags);
   ASSERT_GT(PixelSum(reference), 0.0) << "the reference image is black";
-  ExpectLocalFarmsBitIdentical(dir, flags, reference, {1, 2}, "farm-");
+  ExpectLocalFarmsBitIdentical(dir, flags, reference, {1, 2, 3}, "farm-");
   EXPECT_FALSE(BitIdentical(RenderLocallyToImage(dir, Flags("multiple-maps", "--maps")), reference))
       << "the progressive passes rendered like multiple maps";
+}
+
+// Passes long enough to be caught mid-flight: 8 passes of 20000 photons, 4 tiles each.
+std::vector<std::string> FaultFlags() {
+  return {"--integrator", "photonmap",   "--photons", "20000", "--k",    "20",
+          "--plan",       "progressive", "--passes",  "8",     "--tile", "24",
+          "--spp",        "2",           "--res",     "48x48", "--seed", "11"};
+}
+
+TEST(ProgressiveFarm, AKilledWorkerAndACoordinatorRestartLoseAndDoubleNothing) {
+  namespace v1 = photonfarm::v1;
+  TestDir dir;
+  const Image reference = RenderLocallyToImage(dir, FaultFlags());
+  ASSERT_GT(PixelSum(reference), 0.0);
+  auto [coordinator, port, address, job_id] =
+      StartCoordinatorWithJob(dir, {"--lease-seconds", "2", "--max-attempts", "10"}, FaultFlags());
+  ASSERT_FALSE(job_id.empty());
+  std::vector<std::filesystem::path> logs;
+  // Two workers pausing 0.1 s before each render task keep the job running long enough for both
+  // faults, however fast the machine; a third is SIGKILLed while it holds a lease.
+  std::vector<std::unique_ptr<Process>> workers = StartTwoPatientWorkers(address, dir.path(), &logs, 0.1);
+  workers.push_back(StartWorker(address, dir.path(), "victim", {"--report-retry", "30"}));
+  logs.push_back(dir / "victim.log");
+  Process* victim = workers.back().get();
+  ASSERT_TRUE(WaitUntil([&] { return MidTask(victim->log()); }, 60)) << ReadFile(victim->log());
+  victim->Signal(SIGKILL);
+  victim->Wait(5);
+
+  // Then the coordinator, once some passes' tasks are merged.
+  ASSERT_TRUE(WaitUntil([&] { return MergedTaskTotal(logs, job_id) >= 6; }, 120));
+  coordinator->process().Signal(SIGKILL);
+  coordinator->process().Wait(5);
+  const std::map<uint64_t, int> before = MergedTaskCounts(logs, job_id);
+  const std::vector<size_t> offsets = LineCounts(logs);
+  coordinator = std::make_unique<CoordinatorProcess>(
+      dir / "data", dir.path(), std::vector<std::string>{"--lease-seconds", "2", "--max-attempts", "10"},
+      port);
+  EXPECT_FALSE(Grep(coordinator->process().log(), "resumed").empty())
+      << ReadFile(coordinator->process().log());
+
+  FarmClient client(address, "");
+  const v1::JobStatus st = WaitForJob(client, job_id, 240);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << st.failure_reason();
+  EXPECT_LT(before.size(), st.tasks_total()) << "the job finished before the coordinator crash";
+  EXPECT_EQ(st.tasks_done(), st.tasks_total());
+  // No task acknowledged before the crash ran again after it, none was acknowledged twice.
+  const std::set<uint64_t> leased_after = LeasedTasksSince(logs, offsets, job_id);
+  for (const auto& [task, count] : before)
+    EXPECT_FALSE(leased_after.count(task)) << "task " << task << " re-run";
+  for (const auto& [task, count] : MergedTaskCounts(logs, job_id)) EXPECT_EQ(count, 1) << "task " << task;
+  EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
+  std::printf("victim killed after %zu leases; crash after %zu merged tasks; %zu leased after; %llu in all\n",
+              Grep(victim->log(), "leased job=").size(), before.size(), leased_after.size(),
+              (unsigned long long)st.tasks_total());
+  for (auto& w : workers)
+    if (w.get() != victim) w->Signal(SIGTERM);
+  for (auto& w : workers) {
+    if (w.get() != victim) {
+      EXPECT_TRUE(w->Wait(20).has_value()) << w->name();
+    }
+  }
 }
 
 // The progressive job of the stop-rule tests, with `extra` flags; written to dir/<name>.
