@@ -61,6 +61,16 @@ int RunDelete(const FarmArgs& f, const std::vector<std::string>& job_ids);
 // pf purge: deletes the succeeded, failed and cancelled jobs that finished more than
 // `older_than_seconds` ago (only lists them with `dry_run`).
 int RunPurge(const FarmArgs& f, double older_than_seconds, bool dry_run);
+// pf requeue (docs/farm.md "Requeueing a job"): a new job that re-runs or continues a finished
+// one; its id on stdout. `length_flag`/`length`: --passes, --maps or --rounds and its value (0:
+// unchanged), checked against the job's plan; a stop-rule value < 0 keeps the job's.
+struct RequeueArgs {
+  std::string job_id;
+  std::string length_flag;
+  uint32_t length = 0;
+  double time_budget = -1, target_noise = -1, target_error = -1;
+};
+int RunRequeue(const FarmArgs& f, const RequeueArgs& r);
 int RunWorkers(const FarmArgs& f, bool json);
 int RunEvents(const FarmArgs& f, const std::string& job_id, bool json);
 

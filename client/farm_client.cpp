@@ -97,6 +97,10 @@ v1::DeleteJobResponse FarmClient::DeleteJob(const std::string& job_id) {
   return Call(&Stub::DeleteJob, WithJobId<v1::DeleteJobRequest>(job_id));
 }
 
+v1::RequeueJobResponse FarmClient::RequeueJob(const v1::RequeueJobRequest& request) {
+  return Call(&Stub::RequeueJob, request);
+}
+
 std::vector<v1::WorkerInfo> FarmClient::ListWorkers() {
   const v1::ListWorkersResponse resp = Call(&Stub::ListWorkers, v1::ListWorkersRequest());
   return {resp.workers().begin(), resp.workers().end()};

@@ -36,6 +36,7 @@ class FarmClient {
   // PauseJob (paused = true) or ResumeJob.
   photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused);
   photonfarm::v1::DeleteJobResponse DeleteJob(const std::string& job_id);
+  photonfarm::v1::RequeueJobResponse RequeueJob(const photonfarm::v1::RequeueJobRequest& request);
   std::vector<photonfarm::v1::WorkerInfo> ListWorkers();
   photonfarm::v1::ListJobEventsResponse ListJobEvents(const std::string& job_id);
   // The current merged image, reassembled from its chunks: EXR bytes.

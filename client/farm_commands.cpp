@@ -91,6 +91,7 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"plan", PlanText(s)},
           {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()},
           {"auto_settings", auto_settings},
+          {"requeued_from", s.spec().requeued_from()},
           {"blocklisted_workers", blocklisted},
           {"storage_error", s.storage_error()},
           {"paused_for_storage", s.paused_for_storage()},
@@ -123,6 +124,7 @@ std::string Summary(const v1::JobStatus& s) {
   for (int i = 0; i < s.spec().auto_settings_size(); ++i)
     out += fmt::format("{} {} {}", i == 0 ? "; auto:" : ",", s.spec().auto_settings(i).setting(),
                        s.spec().auto_settings(i).value());
+  if (!s.spec().requeued_from().empty()) out += "; requeued from " + s.spec().requeued_from();
   // Workers that get none of this job's work any more (docs/farm.md, "Worker health").
   for (int i = 0; i < s.blocklisted_workers_size(); ++i) {
     const v1::BlocklistedWorker& b = s.blocklisted_workers(i);
@@ -291,6 +293,37 @@ int RunCancel(const FarmArgs& f, const std::string& job_id) {
   FarmClient client = Connect(f);
   const v1::JobStatus s = client.CancelJob(job_id);
   std::printf("%s\n", Summary(s).c_str());
+  return kExitOk;
+}
+
+int RunRequeue(const FarmArgs& f, const RequeueArgs& r) {
+  FarmClient client = Connect(f);
+  const v1::JobStatus before = client.GetJob(r.job_id);
+  v1::RequeueJobRequest request;
+  request.set_job_id(before.job_id());
+  if (!r.length_flag.empty()) {
+    const v1::Plan& plan = before.spec().plan();
+    const char* flag = plan.has_progressive()     ? "--passes"
+                       : plan.has_multiple_maps() ? "--maps"
+                       : plan.has_skipping()      ? "--rounds"
+                                                  : "";
+    if (r.length_flag != flag)
+      throw InputError(
+          r.length_flag + ": job " + before.job_id() + "'s plan has " +
+          (*flag ? std::string(flag + 2) + " (give " + flag + ")" : std::string("no length to extend")));
+    request.set_extend_to(r.length);
+  }
+  if (r.time_budget >= 0 || r.target_noise >= 0 || r.target_error >= 0) {
+    v1::StopRule& stop = *request.mutable_stop();
+    stop = before.spec().stop();
+    if (r.time_budget >= 0) stop.set_time_budget_seconds(r.time_budget);
+    if (r.target_noise >= 0) stop.set_target_noise_rms(r.target_noise);
+    if (r.target_error >= 0) stop.set_target_error_rms(r.target_error);
+  }
+  const v1::RequeueJobResponse out = client.RequeueJob(request);
+  spdlog::info("job {} ({}) requeued as job {}: {} merged tasks carried", before.job_id(),
+               JobStateName(before.state()), out.job_id(), out.tasks_carried());
+  std::printf("%s\n", out.job_id().c_str());
   return kExitOk;
 }
 

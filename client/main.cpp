@@ -8,6 +8,7 @@
 //   pf get JOB -o out.exr                     the current merged image
 //   pf list / cancel / pause / resume JOB     jobs of a coordinator
 //   pf delete JOB... / pf purge --older-than  finished jobs and their files go
+//   pf requeue JOB [--passes N]              a finished job re-run or continued
 //   pf diff / merge / preview / info          images and scenes
 //
 // Exit codes: client/commands.h (0 ok, 1 failure, 2 usage, 3 invalid input, 130 interrupted).
@@ -246,6 +247,39 @@ int main(int argc, char** argv) {
   resume->add_option("job", resume_job, "Job id")->required();
   AddFarmOptions(resume, rf);
 
+  FarmArgs qf;
+  RequeueArgs requeue_args;
+  uint32_t requeue_passes = 0, requeue_maps = 0, requeue_rounds = 0;
+  CLI::App* requeue = app.add_subcommand(
+      "requeue", "A new job from a finished one: re-runs what it did not render, or continues it further");
+  requeue
+      ->add_option("job", requeue_args.job_id, "A succeeded, failed or cancelled job (id or unique prefix)")
+      ->required();
+  CLI::Option* rq_passes =
+      requeue->add_option("--passes", requeue_passes, "Continue a progressive job to this many passes")
+          ->check(CLI::PositiveNumber);
+  CLI::Option* rq_maps =
+      requeue->add_option("--maps", requeue_maps, "Continue a multiple-maps job to this many maps")
+          ->check(CLI::PositiveNumber);
+  CLI::Option* rq_rounds =
+      requeue->add_option("--rounds", requeue_rounds, "Continue a skipping job to this many rounds")
+          ->check(CLI::PositiveNumber);
+  rq_passes->excludes(rq_maps)->excludes(rq_rounds);
+  rq_maps->excludes(rq_rounds);
+  requeue
+      ->add_option("--time-budget", requeue_args.time_budget,
+                   "New stop rule: seconds from the requeue (0 = none)")
+      ->check(CLI::NonNegativeNumber);
+  requeue
+      ->add_option("--target-error", requeue_args.target_error,
+                   "New stop rule: estimated error RMS (0 = none)")
+      ->check(CLI::NonNegativeNumber);
+  requeue
+      ->add_option("--target-noise", requeue_args.target_noise,
+                   "New stop rule: estimated noise RMS (0 = none)")
+      ->check(CLI::NonNegativeNumber);
+  AddFarmOptions(requeue, qf);
+
   FarmArgs df, uf;
   std::vector<std::string> delete_jobs;
   CLI::App* del = app.add_subcommand(
@@ -383,6 +417,15 @@ int main(int argc, char** argv) {
     if (*pause) return RunPause(pf_args, pause_job, true);
     if (*resume) return RunPause(rf, resume_job, false);
     if (*del) return RunDelete(df, delete_jobs);
+    if (*requeue) {
+      for (auto [option, value] : {std::pair{rq_passes, requeue_passes}, std::pair{rq_maps, requeue_maps},
+                                   std::pair{rq_rounds, requeue_rounds}})
+        if (option->count() > 0) {
+          requeue_args.length_flag = option->get_name();
+          requeue_args.length = value;
+        }
+      return RunRequeue(qf, requeue_args);
+    }
     if (*purge) return RunPurge(uf, ParseDurationText(purge_age, "--older-than"), purge_dry_run);
     if (*diff)
       return RunDiff(diff_a, diff_ref, diff_err, diff_scale, diff_json, diff_scene, diff_camera, diff_region);

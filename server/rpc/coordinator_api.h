@@ -38,6 +38,12 @@ struct AdmittedJob {
   Reservation reservation;
 };
 
+// A requeue admitted (RequeueJob): the finished job it starts from and the new job, validated.
+struct AdmittedRequeue {
+  Scheduler::FinishedJob source;
+  AdmittedJob job;
+};
+
 // A built photon map to stream to a worker: its file and the digest its trailer holds.
 struct BuiltMapFile {
   std::filesystem::path file;
@@ -68,6 +74,13 @@ class CoordinatorApi {
   virtual photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused) = 0;
   // DeleteJob (docs/farm.md "Deleting jobs"): NotFoundError, PreconditionError for a live job.
   virtual photonfarm::v1::DeleteJobResponse DeleteJob(const std::string& job_id) = 0;
+  // RequeueJob (docs/farm.md "Requeueing a job"; server/scheduling/job_requeue.h): the finished
+  // job, the new spec validated and the budgets, in memory (NotFoundError, PreconditionError for
+  // a live job, InputError naming the field).
+  virtual AdmittedRequeue AdmitRequeue(const photonfarm::v1::RequeueJobRequest& request,
+                                       const std::string& client) = 0;
+  // Executor: carries the finished job's results, stores and queues the new job.
+  virtual photonfarm::v1::RequeueJobResponse RequeueJob(AdmittedRequeue requeue) = 0;
   virtual std::vector<photonfarm::v1::WorkerInfo> Workers() = 0;
   // NotFoundError for an unknown job; `dropped`: events no longer kept.
   virtual std::vector<photonfarm::v1::TaskEvent> JobEvents(const std::string& job_id, uint64_t* dropped) = 0;

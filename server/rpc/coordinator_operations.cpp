@@ -10,6 +10,7 @@
 #include "common/photon/photon_maps_bytes.h"
 #include "server/errors.h"
 #include "server/rpc/job_images.h"
+#include "server/scheduling/job_requeue.h"
 #include "server/scheduling/job_submission.h"
 
 namespace pf::server {
@@ -25,6 +26,13 @@ UploadResult CoordinatorOperations::StoreScene(const SceneBundle& bundle, const 
 }
 
 AdmittedJob CoordinatorOperations::AdmitJob(const v1::JobSpec& spec, const std::string& client) {
+  if (!spec.requeued_from().empty())
+    throw InputError(
+        "spec.requeued_from: set by the coordinator for a requeued job (RequeueJob), not by a client");
+  return AdmitSpec(spec, client);
+}
+
+AdmittedJob CoordinatorOperations::AdmitSpec(const v1::JobSpec& spec, const std::string& client) {
   // --plan auto without a worker count plans for the workers seen in the last minute.
   uint32_t live = 0;
   for (const v1::WorkerInfo& w : p_.scheduler.activity().Workers())
@@ -42,6 +50,26 @@ std::string CoordinatorOperations::SubmitJob(AdmittedJob job) {
   std::string id = SubmitValidatedJob(p_.scheduler, p_.db, std::move(job.config), job.client);
   job.reservation.Release();  // the scheduler counts the job now
   return id;
+}
+
+AdmittedRequeue CoordinatorOperations::AdmitRequeue(const v1::RequeueJobRequest& request,
+                                                    const std::string& client) {
+  AdmittedRequeue out;
+  out.source = p_.scheduler.FinishedJobOf(request.job_id());
+  out.job = AdmitSpec(
+      RequeuedSpec(out.source, request.extend_to(), request.has_stop() ? &request.stop() : nullptr), client);
+  return out;
+}
+
+v1::RequeueJobResponse CoordinatorOperations::RequeueJob(AdmittedRequeue requeue) {
+  const RequeuedJob job =
+      RequeueValidatedJob(p_.scheduler, p_.db, p_.persister.checkpoint_dir(), requeue.source,
+                          std::move(requeue.job.config), requeue.job.client);
+  requeue.job.reservation.Release();  // the scheduler counts the job now
+  v1::RequeueJobResponse out;
+  out.set_job_id(job.job_id);
+  out.set_tasks_carried(job.tasks_carried);
+  return out;
 }
 
 v1::JobStatus CoordinatorOperations::JobStatus(const std::string& job_id) {

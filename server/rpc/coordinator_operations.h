@@ -43,6 +43,9 @@ class CoordinatorOperations final : public CoordinatorApi {
   photonfarm::v1::JobStatus CancelJob(const std::string& job_id) override;
   photonfarm::v1::JobStatus SetJobPaused(const std::string& job_id, bool paused) override;
   photonfarm::v1::DeleteJobResponse DeleteJob(const std::string& job_id) override;
+  AdmittedRequeue AdmitRequeue(const photonfarm::v1::RequeueJobRequest& request,
+                               const std::string& client) override;
+  photonfarm::v1::RequeueJobResponse RequeueJob(AdmittedRequeue requeue) override;
   // --retain-finished (docs/farm.md "Deleting jobs"): deletes every finished job that ended before
   // `cutoff_unix_ms`, as DeleteJob does; one that cannot be deleted now is logged and left for the
   // next run. Returns how many were deleted.
@@ -76,6 +79,8 @@ class CoordinatorOperations final : public CoordinatorApi {
   BuiltMapFile MapFile(const std::string& map_key) override;
 
  private:
+  // Validation and budgets of a spec, whoever wrote it (AdmitJob: a client; AdmitRequeue: RequeuedSpec).
+  AdmittedJob AdmitSpec(const photonfarm::v1::JobSpec& spec, const std::string& client);
   CoordinatorParts p_;
 };
 

@@ -135,6 +135,31 @@ grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerConte
   return reactor;
 }
 
+grpc::ServerUnaryReactor* RenderServiceImpl::RequeueJob(grpc::CallbackServerContext* context,
+                                                        const v1::RequeueJobRequest* request,
+                                                        v1::RequeueJobResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  // As SubmitJob: checked and budgeted here, the checkpoint copy and the rows on the executor.
+  auto admitted = std::make_shared<AdmittedRequeue>();
+  const grpc::Status valid = Guarded("RequeueJob", [&] {
+    RequireJobId(request->job_id());
+    *admitted = api_.AdmitRequeue(*request, ClientOf(*context));
+    return grpc::Status::OK;
+  });
+  if (!valid.ok()) {
+    reactor->Finish(valid);
+    return reactor;
+  }
+  const bool posted = api_.executor().Post([this, reactor, response, admitted] {
+    reactor->Finish(Guarded("RequeueJob", [&] {
+      *response = api_.RequeueJob(std::move(*admitted));
+      return grpc::Status::OK;
+    }));
+  });
+  if (!posted) reactor->Finish(Busy());
+  return reactor;
+}
+
 grpc::ServerUnaryReactor* RenderServiceImpl::GetJob(grpc::CallbackServerContext* context,
                                                     const v1::GetJobRequest* request,
                                                     v1::JobStatus* response) {

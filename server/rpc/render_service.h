@@ -25,6 +25,7 @@ class RenderServiceImpl final : public photonfarm::v1::RenderService::CallbackSe
   PF_UNARY_HANDLER(PauseJob, PauseJobRequest, PauseJobResponse);
   PF_UNARY_HANDLER(ResumeJob, ResumeJobRequest, ResumeJobResponse);
   PF_UNARY_HANDLER(DeleteJob, DeleteJobRequest, DeleteJobResponse);
+  PF_UNARY_HANDLER(RequeueJob, RequeueJobRequest, RequeueJobResponse);
   PF_STREAM_HANDLER(WatchJob, WatchJobRequest, JobUpdate);
   PF_UNARY_HANDLER(ListWorkers, ListWorkersRequest, ListWorkersResponse);
   PF_UNARY_HANDLER(ListJobEvents, ListJobEventsRequest, ListJobEventsResponse);

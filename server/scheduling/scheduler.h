@@ -240,6 +240,19 @@ class Scheduler final : public PersistSource {
   // the caller's (Persister::DeleteJob).
   std::string CheckRemovable(const std::string& job_id);
   std::shared_ptr<const JobConfig> RemoveJob(const std::string& job_id);
+  // What RequeueJob starts from (server/scheduling/job_requeue.h): a finished job's config and the
+  // checkpoint that holds its merged results. PreconditionError naming the state for a queued or
+  // running job (scheduler_deletion.cpp, beside the other check of finished jobs).
+  struct FinishedJob {
+    std::string job_id;  // the whole id of a prefix
+    std::shared_ptr<const JobConfig> config;
+    JobState state = JobState::kSucceeded;
+    uint64_t tasks_total = 0;  // the plan's tasks, including those a stop rule cancelled
+    uint64_t tasks_done = 0;   // merged
+    std::string checkpoint_path;
+    CheckpointSeal seal;  // of its last checkpoint on disk; its tasks < tasks_done while the final one is not
+  };
+  FinishedJob FinishedJobOf(const std::string& job_id);
   // The succeeded, failed and cancelled jobs that ended before `cutoff_unix_ms` (Job::finished_unix_ms).
   std::vector<std::string> FinishedBefore(int64_t cutoff_unix_ms) const;
   // The configs of every job it knows (which stored maps remaining jobs use).

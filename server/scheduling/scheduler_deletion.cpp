@@ -1,4 +1,5 @@
-// Scheduler, part: deleting a finished job (scheduler.h, "Jobs"; docs/farm.md "Deleting jobs").
+// Scheduler, part: deleting a finished job (scheduler.h, "Jobs"; docs/farm.md "Deleting jobs"), and
+// the finished job a requeue starts from.
 // The job leaves every structure that names it, under the one lock; holders of the Job itself
 // (FindJob, Complete, CollectCheckpoints: shared) keep a valid object nothing reaches any more.
 #include <spdlog/spdlog.h>
@@ -27,6 +28,23 @@ Job& Scheduler::RemovableLocked(const std::string& job_id) {
 std::string Scheduler::CheckRemovable(const std::string& job_id) {
   std::lock_guard lock(mu_);
   return RemovableLocked(job_id).id();
+}
+
+Scheduler::FinishedJob Scheduler::FinishedJobOf(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  const Job& job = jobs_.Get(jobs_.Resolve(job_id));
+  if (job.active())
+    throw PreconditionError("job_id: job " + limits::Quote(job.id()) + " is " + JobStateName(job.state()) +
+                            ": only a succeeded, failed or cancelled job can be requeued");
+  FinishedJob out;
+  out.job_id = job.id();
+  out.config = job.shared_config();
+  out.state = job.state();
+  out.tasks_total = job.num_tasks();
+  out.tasks_done = job.count(TaskState::kDone);
+  out.checkpoint_path = job.checkpoint_path;
+  out.seal = job.checkpoint_seal;
+  return out;
 }
 
 std::shared_ptr<const JobConfig> Scheduler::RemoveJob(const std::string& job_id) {

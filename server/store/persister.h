@@ -79,6 +79,7 @@ class Persister {
   std::filesystem::path CheckpointFile(const std::string& job_id) const {
     return CheckpointFile(checkpoint_dir_, job_id);
   }
+  const std::filesystem::path& checkpoint_dir() const { return checkpoint_dir_; }
   bool durable_acks() const { return interval_ <= 0; }
 
   void Start();

@@ -56,6 +56,10 @@ class ScriptedCoordinator final : public CoordinatorApi {
   v1::JobStatus CancelJob(const std::string&) override { return Unexpected<v1::JobStatus>(); }
   v1::JobStatus SetJobPaused(const std::string&, bool) override { return Unexpected<v1::JobStatus>(); }
   v1::DeleteJobResponse DeleteJob(const std::string&) override { return Unexpected<v1::DeleteJobResponse>(); }
+  AdmittedRequeue AdmitRequeue(const v1::RequeueJobRequest&, const std::string&) override {
+    return Unexpected<AdmittedRequeue>();
+  }
+  v1::RequeueJobResponse RequeueJob(AdmittedRequeue) override { return Unexpected<v1::RequeueJobResponse>(); }
   std::vector<v1::WorkerInfo> Workers() override { return Unexpected<std::vector<v1::WorkerInfo>>(); }
   std::vector<v1::TaskEvent> JobEvents(const std::string&, uint64_t*) override {
     return Unexpected<std::vector<v1::TaskEvent>>();
