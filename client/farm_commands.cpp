@@ -92,6 +92,7 @@ nlohmann::json StatusJson(const v1::JobStatus& s) {
           {"plan_auto_reason", s.spec().plan().chosen_by_auto().reason()},
           {"auto_settings", auto_settings},
           {"requeued_from", s.spec().requeued_from()},
+          {"waiting_for", std::vector<std::string>(s.waiting_for().begin(), s.waiting_for().end())},
           {"blocklisted_workers", blocklisted},
           {"storage_error", s.storage_error()},
           {"paused_for_storage", s.paused_for_storage()},
@@ -109,7 +110,8 @@ std::string Summary(const v1::JobStatus& s) {
   if (s.estimated_error_rms() >= 0)
     out += fmt::format(", estimated error {:.4g} (bias {:.4g})", s.estimated_error_rms(),
                        s.estimated_bias_rms());
-  if (!s.target_missed().empty()) out += "; target not met: " + s.target_missed();
+  if (!s.target_missed().empty())
+    out += "; target not met: " + s.target_missed() + " (pf requeue " + s.job_id() + " continues it)";
   if (!s.failure_reason().empty()) out += ": " + s.failure_reason();
   // Result verification (docs/farm.md): the job succeeds once its pending verifications are done.
   if (s.results_verified() > 0 || s.verifications_pending() > 0)
@@ -125,6 +127,7 @@ std::string Summary(const v1::JobStatus& s) {
     out += fmt::format("{} {} {}", i == 0 ? "; auto:" : ",", s.spec().auto_settings(i).setting(),
                        s.spec().auto_settings(i).value());
   if (!s.spec().requeued_from().empty()) out += "; requeued from " + s.spec().requeued_from();
+  for (int i = 0; i < s.waiting_for_size(); ++i) out += (i == 0 ? "; waiting for " : ", ") + s.waiting_for(i);
   // Workers that get none of this job's work any more (docs/farm.md, "Worker health").
   for (int i = 0; i < s.blocklisted_workers_size(); ++i) {
     const v1::BlocklistedWorker& b = s.blocklisted_workers(i);

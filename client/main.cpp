@@ -177,6 +177,8 @@ int main(int argc, char** argv) {
       app.add_subcommand("submit", "Upload a scene and submit a render job; prints the job id");
   AddSceneOptions(submit, sa, true);
   AddPlanOptions(submit, sa, true);
+  submit->add_option("--after", sa.after,
+                     "Start once this job has succeeded (fail if it fails or is cancelled); repeatable");
   AddFarmOptions(submit, sf);
 
   FarmArgs wf;

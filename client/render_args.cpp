@@ -442,6 +442,7 @@ PreparedJob PrepareJob(const RenderArgs& args) {
   s.mutable_stop()->set_target_noise_rms(a.target_noise);
   s.mutable_stop()->set_target_error_rms(a.target_error);
   s.set_priority(a.priority);
+  for (const std::string& id : a.after) s.add_after(id);
   if ((a.local_only || (a.workers == 0 && !a.submit)) && s.plan().has_auto_plan()) {
     // The coordinator's resolution, here: the local render runs the plan the farm would.
     const CameraSpec cam = CameraFromProto(s.camera(), "spec.camera");

@@ -61,6 +61,8 @@ struct RenderArgs {
   double target_error = 0;  // progressive plan (or the unbiased path tracer): noise and bias
   int32_t priority = 0;
   std::string name;
+  // pf submit --after JOB (repeatable): jobs it waits for (docs/farm.md "Job dependencies").
+  std::vector<std::string> after;
   // Where to run.
   int workers = 0;
   bool local_only = false;

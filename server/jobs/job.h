@@ -165,7 +165,10 @@ class Job {
   bool restart_pending() const { return restart_checkpoint_seq != 0 || restart_row_pending; }
   // Held back from leasing (TaskQueue::Hold) for any reason: a user's pause, its results cannot
   // be stored, or its restart is not stored yet.
-  bool held() const { return paused || paused_for_storage || restart_pending(); }
+  bool held() const { return paused || paused_for_storage || restart_pending() || !waiting_for.empty(); }
+  // The jobs of its spec.after that have not succeeded yet (docs/farm.md "Job dependencies"):
+  // held until none is left. In memory: AddJob derives it from the other jobs' states.
+  std::set<std::string> waiting_for;
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
   // When it reached its terminal state (Unix ms; Scheduler::FinishJob, stored in its row); 0 while
   // active. pf purge --older-than reads it (docs/farm.md "Deleting jobs").

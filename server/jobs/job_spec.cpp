@@ -103,6 +103,16 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   JobConfig job;
   limits::CheckText(spec.name(), "spec.name", kMaxJobNameBytes);
   job.name = spec.name();
+  if (size_t(spec.after_size()) > limits::kMaxDependencies)
+    throw InputError("spec.after: more than " + std::to_string(limits::kMaxDependencies) + " jobs");
+  for (int i = 0; i < spec.after_size(); ++i) {
+    const std::string field = "spec.after[" + std::to_string(i) + "]";
+    if (spec.after(i).empty()) throw InputError(field + ": empty (a job id or a unique prefix of one)");
+    limits::CheckText(spec.after(i), field.c_str(), limits::kMaxIdBytes);
+    if (std::find(job.after.begin(), job.after.end(), spec.after(i)) != job.after.end())
+      throw InputError(field + ": " + limits::Quote(spec.after(i)) + " is named twice");
+    job.after.push_back(spec.after(i));
+  }
 
   const std::string& hash = spec.scene_hash();
   if (hash.empty()) throw InputError("spec.scene_hash: required (the hash UploadScene returned)");

@@ -18,6 +18,8 @@
 //                        proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
 //                        more than limits::kMaxTasksPerJob tasks, or a task of more than
 //                        kMaxPixelsPerTask pixels                           RESOURCE_EXHAUSTED
+//   spec.after           ≤ limits::kMaxDependencies ids, each non-empty, ≤ kMaxIdBytes, distinct
+//                        (that each names a known job is the admission's check)  INVALID_ARGUMENT
 //   spec.stop            time_budget_seconds, target_noise_rms, target_error_rms finite and ≥ 0;
 //                        the targets as StopTargetsProblem allows them (common/plan/stop_targets.h)
 //
@@ -65,6 +67,9 @@ struct JobConfig {
   uint64_t seed = 0;
   StopRule stop;
   int32_t priority = 0;
+  // The jobs it waits for (JobSpec.after; docs/farm.md "Job dependencies"), as stored: whole ids
+  // once admitted (CoordinatorOperations::AdmitJob resolves prefixes).
+  std::vector<std::string> after;
   // The spec as accepted, with the camera, an auto plan and the scene's `auto` settings resolved:
   // echoed in JobStatus.spec and stored.
   photonfarm::v1::JobSpec spec;

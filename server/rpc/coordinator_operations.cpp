@@ -39,6 +39,20 @@ AdmittedJob CoordinatorOperations::AdmitSpec(const v1::JobSpec& spec, const std:
     if (w.seconds_since_seen() <= 60 && !w.refused()) ++live;
   AdmittedJob job;
   job.config = ValidateJobSpec(spec, p_.scenes, std::max(1u, live));
+  // Dependencies are stored as whole ids of jobs known now (docs/farm.md "Job dependencies").
+  job.config.spec.clear_after();
+  for (size_t i = 0; i < job.config.after.size(); ++i) {
+    std::string& id = job.config.after[i];
+    try {
+      id = p_.scheduler.ResolveJobId(id);
+    } catch (const NotFoundError& e) {
+      const std::string why = e.what();
+      throw NotFoundError("spec.after[" + std::to_string(i) + "]" + why.substr(why.find(':')));
+    }
+    if (std::count(job.config.after.begin(), job.config.after.begin() + int64_t(i), id) > 0)
+      throw InputError("spec.after[" + std::to_string(i) + "]: job " + limits::Quote(id) + " is named twice");
+    job.config.spec.add_after(id);
+  }
   job.client = client;
   job.reservation =
       p_.admission.AdmitJob(client, ScheduledTaskCount(job.config),

@@ -87,6 +87,7 @@ std::optional<Checkpoint> CarriedResults(const Scheduler::FinishedJob& source, c
 v1::JobSpec RequeuedSpec(const Scheduler::FinishedJob& source, uint32_t extend_to, const v1::StopRule* stop) {
   v1::JobSpec spec = source.config->spec;
   spec.set_requeued_from(source.job_id);
+  spec.clear_after();  // a requeue is asked for now: what the job waited for has ended
   if (stop) *spec.mutable_stop() = *stop;
   if (extend_to == 0) return spec;
   v1::Plan& plan = *spec.mutable_plan();

@@ -25,7 +25,8 @@
 namespace pf::server {
 
 // The new job's spec: `source`'s stored spec with the plan's length set to `extend_to` (0 = the
-// same) and its stop rule replaced by `stop` when given; requeued_from names the source. Throws
+// same) and its stop rule replaced by `stop` when given; requeued_from names the source, and it
+// waits for nothing (spec.after: the source ran, so what it waited for has ended). Throws
 // InputError naming the field: extend_to below the plan's length, for a plan that has none
 // (maps in turn, hierarchical), or for multiple maps ending in tail tiles (the last map's tasks
 // differ from an inner map's, so the plans would share no last map).

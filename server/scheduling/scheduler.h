@@ -239,6 +239,8 @@ class Scheduler final : public PersistSource {
   // (FindJob is shared) keeps a valid object that nothing reaches any more. The rows and files are
   // the caller's (Persister::DeleteJob).
   std::string CheckRemovable(const std::string& job_id);
+  // The whole id of a job id or a unique prefix of one; NotFoundError naming job_id.
+  std::string ResolveJobId(const std::string& id_or_prefix);
   std::shared_ptr<const JobConfig> RemoveJob(const std::string& job_id);
   // What RequeueJob starts from (server/scheduling/job_requeue.h): a finished job's config and the
   // checkpoint that holds its merged results. PreconditionError naming the state for a queued or
@@ -441,6 +443,12 @@ class Scheduler final : public PersistSource {
   void MaybeSucceed(Job& job, double now, Effects& fx);
   // The job, shared: it stays valid without the lock even if it is deleted meanwhile (RemoveJob).
   std::shared_ptr<Job> FindJob(const std::string& job_id);
+  // Job dependencies (docs/farm.md "Job dependencies"; scheduler_dependencies.cpp). AddJob: the
+  // jobs of the job's spec.after that have not succeeded become its waiting_for (it is held while
+  // one is left); returns why it fails instead — one of them failed, was cancelled or is unknown —
+  // or "". FinishJob: the live jobs waiting for `job` are released (it succeeded) or failed.
+  std::string WaitForDependencies(Job& job);
+  void ReleaseDependents(const Job& job, double now, Effects& fx);
   // Brings the cached noise estimate up to date if stale (an O(pixels) pass under image_mu; call
   // without mu_).
   void RefreshNoise(Job& job);

@@ -17,6 +17,14 @@ Job& Scheduler::RemovableLocked(const std::string& job_id) {
   if (job.active())
     throw PreconditionError("job_id: job " + limits::Quote(job.id()) + " is " + JobStateName(job.state()) +
                             ": only a succeeded, failed or cancelled job can be deleted (cancel it first)");
+  // A live job that names it in --after would find no dependency after a restart and fail.
+  for (const Job* other : jobs_.InSubmissionOrder())
+    if (other->active() && std::find(other->config().after.begin(), other->config().after.end(), job.id()) !=
+                               other->config().after.end())
+      throw PreconditionError("job_id: job " + limits::Quote(job.id()) +
+                              " is a dependency (--after) of job " + limits::Quote(other->id()) +
+                              ", which is " + JobStateName(other->state()) +
+                              "; it can be deleted once that job has ended");
   // A verification with the referee reads the Job when its verdict comes (RefereeVerdict).
   if (verification_.Names(job))
     throw PreconditionError("job_id: job " + limits::Quote(job.id()) +

@@ -69,11 +69,16 @@ void Scheduler::AddJob(std::unique_ptr<Job> job) {
     if (j.active()) {
       Charge(j, +1);
       if (j.paused) queue_.Hold(j);  // recovery: paused before the restart (docs/farm.md "Pausing a job")
+      const std::string dependency_failed = WaitForDependencies(j);
+      if (!j.waiting_for.empty()) queue_.Hold(j);
       for (uint64_t id = 0; id < j.num_tasks(); ++id)
         if (j.runtime(id).state == TaskState::kQueued) Enqueue(j, id, fx);
       AddTasksFromSource(j, fx);  // recovery: the tasks the merged results had created
       const double now = clock_.Now();
-      MaybeSucceed(j, now, fx);  // recovery: everything may already be merged
+      if (!dependency_failed.empty())
+        FinishJob(j, JobState::kFailed, dependency_failed, now, fx);
+      else
+        MaybeSucceed(j, now, fx);  // recovery: everything may already be merged
       ServeWaiters(fx);
     }
     fx.changed.insert(j.id());
@@ -110,6 +115,7 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   s.set_estimated_bias_rms(job.estimates_cache.bias);
   s.set_estimated_error_rms(job.estimates_cache.error);
   s.set_target_missed(job.target_missed);
+  for (const std::string& id : job.waiting_for) s.add_waiting_for(id);
   s.set_storage_error(job.results_storage_error.empty() ? job.rows_storage_error
                       : job.rows_storage_error.empty()
                           ? job.results_storage_error
@@ -320,6 +326,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
   job.finished_unix_ms = clock_.UnixMillis();
   health_.JobEnded(job.id());
   verification_.DropJob(job, /*ended=*/true);
+  ReleaseDependents(job, now, fx);
   // The final noise estimate is an O(pixels) pass: computed off this lock by the next status,
   // snapshot or persist (RefreshNoise, CollectPersistBatch), whichever comes first.
   Touch(job, fx);
@@ -358,8 +365,10 @@ void Scheduler::MaybeSucceed(Job& job, double now, Effects& fx) {
   const StopTargets targets = job.config().stop.targets();
   if (targets.any() && !StopTargetsMet(targets, job.estimates_cache)) {
     job.target_missed = DescribeTargets(targets, job.estimates_cache);
-    spdlog::warn("job {}: target not met: {}; it succeeds with the image it has ({})", job.id(),
-                 job.target_missed, job.stopping ? "time budget" : "every task is done");
+    spdlog::warn(
+        "job {}: target not met: {}; it succeeds with the image it has ({}); `pf requeue {}` "
+        "with more passes or a new budget continues it (docs/farm.md \"Requeueing a job\")",
+        job.id(), job.target_missed, job.stopping ? "time budget" : "every task is done", job.id());
     activity_.TaskEvent(job.id(), "target_missed", 0, 0, "", job.target_missed);
   }
   FinishJob(job, JobState::kSucceeded, "", now, fx);

@@ -122,6 +122,25 @@ TEST(JobSpecValidation, AutoSettingsAreBoundedTextNamingTheirField) {
   EXPECT_EQ(message.rfind("spec.auto_settings: more than", 0), 0u) << message << ": with the coordinator's 2";
 }
 
+TEST(JobSpecValidation, DependenciesAreAFewDistinctIdsNamingTheirField) {
+  const TraitsCatalog catalog(/*caustic_paths=*/0, /*lights=*/1);
+  v1::JobSpec spec = PhotonMapSpec();
+  spec.add_after("job-1");
+  spec.add_after("job-2");
+  EXPECT_EQ(ValidateJobSpec(spec, catalog).after, (std::vector<std::string>{"job-1", "job-2"}));
+  spec.add_after("job-1");
+  std::string message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, catalog); });
+  EXPECT_EQ(message, "spec.after[2]: 'job-1' is named twice");
+  spec = PhotonMapSpec();
+  spec.add_after("");
+  message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, catalog); });
+  EXPECT_EQ(message.rfind("spec.after[0]: empty", 0), 0u) << message;
+  spec = PhotonMapSpec();
+  for (size_t i = 0; i <= limits::kMaxDependencies; ++i) spec.add_after("job-" + std::to_string(i));
+  message = pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, catalog); });
+  EXPECT_EQ(message, "spec.after: more than 16 jobs");
+}
+
 TEST(JobSpecResolution, ManyLightsAndNoSpecularSurfaceChooseOtherwise) {
   const TraitsCatalog diffuse_many_lights(/*caustic_paths=*/0, /*lights=*/kPhotonDirectMinLights);
   const JobConfig config = ValidateJobSpec(PhotonMapSpec(), diffuse_many_lights);
