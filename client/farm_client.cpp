@@ -189,17 +189,29 @@ v1::JobStatus FarmClient::Watch(const std::string& job_id, bool include_images, 
       active_ = nullptr;
     }
     if (final_seen) return last;
-    if (cancelled_) throw RpcError(grpc::Status(grpc::StatusCode::CANCELLED, "watch cancelled"));
+    {
+      std::lock_guard lock(mutex_);
+      if (cancelled_) throw RpcError(grpc::Status(grpc::StatusCode::CANCELLED, "watch cancelled"));
+    }
+    // A CANCELLED this client did not ask for comes from a coordinator shutting down (its server
+    // cancels the streams in flight, including one that subscribed in its last moments): as
+    // transient as UNAVAILABLE.
+    const bool transient = IsTransient(status) || status.error_code() == grpc::StatusCode::CANCELLED;
     if (status.ok()) {
-      // The stream ended without a final state (e.g. the coordinator is shutting down): poll once.
-      last = GetJob(job_id);
-      if (IsFinalState(last.state())) {
-        v1::JobUpdate u;
-        *u.mutable_status() = last;
-        on_update(u);
-        return last;
+      // The stream ended without a final state (e.g. the coordinator is shutting down): poll once,
+      // and if the coordinator is gone already, re-subscribe as below.
+      try {
+        last = GetJob(job_id);
+        if (IsFinalState(last.state())) {
+          v1::JobUpdate u;
+          *u.mutable_status() = last;
+          on_update(u);
+          return last;
+        }
+      } catch (const RpcError& e) {
+        if (!IsTransient(e.status()) && e.code() != grpc::StatusCode::CANCELLED) throw;
       }
-    } else if (!IsTransient(status)) {
+    } else if (!transient) {
       throw RpcError(status);
     } else if (retries == 0 && !any) {
       // A refused certificate will not be accepted on the next attempt.

@@ -1,6 +1,8 @@
 // (e) WatchJob on a multi-round skipping job delivers several image snapshots whose estimated
 // noise decreases, and the last one equals GetImage; `pf watch -o` keeps the EXR up to date
-// (atomically rewritten) and ends with the final image.
+// (atomically rewritten) and ends with the final image. `pf watch` outlives coordinator restarts
+// within its window: 10 graceful (SIGTERM) and 10 kill -9 restarts while two watches follow a job,
+// and both end with the job (exit 0, the final image).
 #include <signal.h>
 
 #include <algorithm>
@@ -218,6 +220,44 @@ TEST(FarmWatch, EtaTracksTheTimeThatRemains) {
   EXPECT_LE(median, 2.0) << trace;
   worker->Signal(SIGTERM);
   EXPECT_EQ(worker->Wait(20).value_or(-1), 0);
+}
+
+TEST(FarmWatch, EveryWatchOutlivesTwentyCoordinatorRestarts) {
+  TestDir dir;
+  JobArgs job;
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir / "data", dir.path());
+  const int port = coordinator->port();
+  const std::string address = coordinator->address();
+  // No worker yet: the job stays queued through every restart.
+  const std::string id = SubmitJob(dir, address, job.ToFlags());
+  ASSERT_FALSE(id.empty());
+  Process image_watch(
+      "watch-image",
+      {Binaries::Pf(), "watch", id, "-o", (dir / "watched.exr").string(), "-q", "--coordinator", address},
+      dir / "watch-image.log");
+  Process json_watch("watch-json", {Binaries::Pf(), "watch", id, "--json", "--coordinator", address},
+                     dir / "watch-json.err", dir / "watch-json.out");
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  for (int restart = 0; restart < 20; ++restart) {
+    // Alternately graceful and kill -9, each followed by a pause in which the watches re-subscribe.
+    coordinator->process().Signal(restart % 2 == 0 ? SIGTERM : SIGKILL);
+    ASSERT_TRUE(coordinator->process().Wait(20).has_value()) << "restart " << restart;
+    coordinator =
+        std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), std::vector<std::string>{}, port);
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    ASSERT_TRUE(image_watch.Running()) << "restart " << restart << ": " << ReadFile(dir / "watch-image.log");
+    ASSERT_TRUE(json_watch.Running()) << "restart " << restart << ": " << ReadFile(dir / "watch-json.err");
+  }
+  auto worker = StartWorker(address, dir.path(), "w1");
+  EXPECT_EQ(image_watch.Wait(60).value_or(-1), 0) << ReadFile(dir / "watch-image.log");
+  EXPECT_EQ(json_watch.Wait(60).value_or(-1), 0) << ReadFile(dir / "watch-json.err");
+  const std::vector<std::string> updates = ReadLines(dir / "watch-json.out");
+  ASSERT_FALSE(updates.empty());
+  EXPECT_EQ(nlohmann::json::parse(updates.back()).at("state"), "succeeded") << updates.back();
+  FarmClient client(address, "");
+  EXPECT_TRUE(BitIdentical(ReadImage(dir / "watched.exr"), DecodeImage(client.GetImage(id))));
+  worker->Signal(SIGTERM);
+  EXPECT_TRUE(worker->Wait(20).has_value());
 }
 
 }  // namespace
