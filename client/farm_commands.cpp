@@ -56,9 +56,11 @@ std::string PlanText(const v1::JobStatus& s) {
   }
 }
 
-// The state a person reads: "paused" for a queued or running job a user paused (pf pause).
+// The state a person reads: "paused" for a queued or running job a user paused (pf pause),
+// "waiting" for a queued one whose dependencies have not succeeded yet (pf submit --after).
 const char* StateText(const v1::JobStatus& s) {
-  return s.paused() ? "paused" : JobStateName(s.state());
+  if (s.paused()) return "paused";
+  return s.waiting_for_size() > 0 ? "waiting" : JobStateName(s.state());
 }
 
 nlohmann::json StatusJson(const v1::JobStatus& s) {

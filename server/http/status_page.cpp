@@ -78,6 +78,7 @@ nlohmann::json JobJson(const v1::JobStatus& s) {
           {"name", s.spec().name()},
           {"state", pf::JobStateName(s.state())},
           {"paused", s.paused()},  // pf pause (docs/farm.md "Pausing a job")
+          {"waiting_for", std::vector<std::string>(s.waiting_for().begin(), s.waiting_for().end())},
           {"failure_reason", s.failure_reason()},
           {"tasks",
            {{"total", s.tasks_total()},
@@ -168,7 +169,10 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           "style=\"width:{:.0f}%\"></span></span> "
           "{:.1f}%</td><td>{}/{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></"
           "tr>\n",
-          Escape(s.job_id()), Escape(s.spec().name()), s.paused() ? "paused" : pf::JobStateName(s.state()),
+          Escape(s.job_id()), Escape(s.spec().name()),
+          s.paused()                 ? "paused"
+          : s.waiting_for_size() > 0 ? "waiting"
+                                     : pf::JobStateName(s.state()),
           s.failure_reason().empty() ? "" : ": " + Escape(s.failure_reason()), 100 * frac, 100 * frac,
           s.tasks_done(), s.tasks_total(), s.tasks_running(), s.tasks_queued(), s.tasks_cancelled(),
           Duration(s.elapsed_seconds()),

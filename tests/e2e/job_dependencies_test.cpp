@@ -47,6 +47,8 @@ TEST(JobDependencies, AJobStartsOnceItsDependenciesSucceededAndFailsWhenOneIsCan
   const RunResult paused = Pf(dir, address, {"pause", b});  // its summary says what it waits for
   EXPECT_NE(paused.out.find("waiting for " + a), std::string::npos) << paused.out;
   ASSERT_EQ(Pf(dir, address, {"resume", b}).exit_code, 0);
+  const RunResult listed = Pf(dir, address, {"list"});
+  EXPECT_NE(listed.out.find("waiting"), std::string::npos) << listed.out;
 
   // A cancelled dependency fails its dependents, and theirs.
   const std::string x = SubmitAfter(dir, address, {});
