@@ -325,7 +325,20 @@ int RunRequeue(const FarmArgs& f, const RequeueArgs& r) {
     if (r.target_noise >= 0) stop.set_target_noise_rms(r.target_noise);
     if (r.target_error >= 0) stop.set_target_error_rms(r.target_error);
   }
-  const v1::RequeueJobResponse out = client.RequeueJob(request);
+  // A job that has just ended may still be writing its final results: tried again for 30 s.
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  v1::RequeueJobResponse out;
+  for (;;) {
+    try {
+      out = client.RequeueJob(request);
+      break;
+    } catch (const RpcError& e) {
+      if (e.code() != grpc::StatusCode::UNAVAILABLE || std::chrono::steady_clock::now() > give_up ||
+          std::string(e.what()).find("still being written") == std::string::npos)
+        throw;
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+  }
   spdlog::info("job {} ({}) requeued as job {}: {} merged tasks carried", before.job_id(),
                JobStateName(before.state()), out.job_id(), out.tasks_carried());
   std::printf("%s\n", out.job_id().c_str());

@@ -169,6 +169,9 @@ class Job {
   // The jobs of its spec.after that have not succeeded yet (docs/farm.md "Job dependencies"):
   // held until none is left. In memory: AddJob derives it from the other jobs' states.
   std::set<std::string> waiting_for;
+  // Its deletion has begun (Scheduler::CheckRemovable): no new job may name it in --after. Stays
+  // set if the deletion then fails (a later one proceeds).
+  bool deleting = false;
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
   // When it reached its terminal state (Unix ms; Scheduler::FinishJob, stored in its row); 0 while
   // active. pf purge --older-than reads it (docs/farm.md "Deleting jobs").

@@ -43,11 +43,17 @@ AdmittedJob CoordinatorOperations::AdmitSpec(const v1::JobSpec& spec, const std:
   job.config.spec.clear_after();
   for (size_t i = 0; i < job.config.after.size(); ++i) {
     std::string& id = job.config.after[i];
+    // The registry's errors name job_id: named here by the field they are about.
+    const auto field = [&](const std::exception& e) {
+      const std::string why = e.what();
+      return "spec.after[" + std::to_string(i) + "]" + why.substr(std::min(why.find(':'), why.size()));
+    };
     try {
       id = p_.scheduler.ResolveJobId(id);
     } catch (const NotFoundError& e) {
-      const std::string why = e.what();
-      throw NotFoundError("spec.after[" + std::to_string(i) + "]" + why.substr(why.find(':')));
+      throw NotFoundError(field(e));
+    } catch (const InputError& e) {  // an ambiguous prefix
+      throw InputError(field(e));
     }
     if (std::count(job.config.after.begin(), job.config.after.begin() + int64_t(i), id) > 0)
       throw InputError("spec.after[" + std::to_string(i) + "]: job " + limits::Quote(id) + " is named twice");

@@ -12,6 +12,7 @@
 #include "proto/limits.h"
 #include "server/errors.h"
 #include "server/scheduling/checkpoint_restore.h"
+#include "server/scheduling/job_submission.h"
 #include "server/store/checkpoint.h"
 #include "server/store/persister.h"
 
@@ -43,8 +44,8 @@ std::optional<Checkpoint> CarriedResults(const Scheduler::FinishedJob& source, c
   if (source.tasks_done == 0) return std::nullopt;
   const std::string& id = source.job_id;
   if (source.seal.tasks < source.tasks_done)
-    throw PreconditionError("job_id: job " + limits::Quote(id) +
-                            ": its final results are still being written to disk; try again in a moment");
+    throw UnavailableError("job_id: job " + limits::Quote(id) +
+                           ": its final results are still being written to disk; try again in a moment");
   const v1::JobSpec& before = source.config->spec;
   const v1::JobSpec& now = job.config().spec;
   if (before.plan().build() != now.plan().build()) {
@@ -145,12 +146,7 @@ RequeuedJob RequeueValidatedJob(Scheduler& scheduler, JobStore& db, const fs::pa
     throw PreconditionError("job_id: job " + limits::Quote(source.job_id) +
                             " merged every task of its plan; requeue it with extend_to (more passes, maps or "
                             "rounds) to continue it");
-  JobRow row;
-  row.job_id = job->id();
-  row.seq = job->seq();
-  row.spec = job->config().spec.SerializeAsString();
-  row.state = JobState::kQueued;
-  row.submitted_unix_ms = job->submitted_unix_ms();
+  JobRow row = QueuedJobRow(*job);
   std::vector<TaskRow> done_rows;
   const uint64_t tasks_carried = carried ? carried->merged_task_ids.size() : 0;
   if (carried) {
@@ -167,17 +163,24 @@ RequeuedJob RequeueValidatedJob(Scheduler& scheduler, JobStore& db, const fs::pa
       done.state = TaskState::kDone;
     }
   }
-  db.InsertJob(row, done_rows);  // durable before the client hears the id
-  job->dirty_tasks.clear();      // their rows are the ones just written
+  try {
+    db.InsertJob(row, done_rows);  // durable before the client hears the id
+  } catch (...) {
+    // No row names the checkpoint: it must not stay behind as an orphan of a lost job table.
+    std::error_code ec;
+    if (carried) fs::remove(job->checkpoint_path, ec);
+    throw;
+  }
+  job->dirty_tasks.clear();  // their rows are the ones just written
   const JobConfig& c = job->config();
   spdlog::info("job {}: requeued from job {} ({}): {}, {} tasks, {} carried, {} to render", job->id(),
                source.job_id, JobStateName(source.state), DescribePlan(c.plan), job->num_tasks(),
                tasks_carried, job->count(TaskState::kQueued));
   RequeuedJob out{job->id(), tasks_carried};
-  const std::vector<std::string> convicted = carried ? carried->convicted : std::vector<std::string>{};
+  // Workers convicted of a wrong result of the finished job stay off the new one (AddJob
+  // blocklists them before it serves any worker).
+  if (carried) job->convicted_workers = carried->convicted;
   scheduler.AddJob(std::move(job));
-  // Workers convicted of a wrong result of the finished job stay off the results carried from it.
-  if (!convicted.empty()) scheduler.RestoreConvictions(out.job_id, convicted);
   return out;
 }
 

@@ -9,9 +9,10 @@
 // does not depend on which job merged a task).
 //
 // Durable in the order recovery reads it: the carried results are written as the new job's own
-// checkpoint first (an orphan if the coordinator dies now: recovery sets it aside), then its row
-// with that checkpoint's seal and the carried tasks' DONE rows in one insert, and only then is the
-// job scheduled. The finished job is not touched; deleting it later takes nothing from the new one.
+// checkpoint first (an orphan if the coordinator dies now: recovery sets it aside; removed if the
+// insert below fails), then its row and the carried tasks' DONE rows in one insert, and only then
+// is the job scheduled (recovery resumes an unfinished job from its checkpoint file, as ever). The finished
+// job is not touched; deleting it later takes nothing from the new one.
 
 #include <cstdint>
 #include <filesystem>
@@ -40,8 +41,9 @@ struct RequeuedJob {
 
 // Admits `config` (RequeuedSpec validated again, ValidateJobSpec) as a new job carrying
 // `source`'s merged results (see above). Throws PreconditionError when there is nothing left to
-// render (every task of the new plan merged already) or the source's final checkpoint is not
-// written yet, and what the store throws (nothing is then scheduled). Carries nothing — the new
+// render (every task of the new plan merged already), UnavailableError while the source's final
+// checkpoint is not written yet (pf requeue retries), and what the store throws (nothing is then
+// scheduled, and the new checkpoint file is removed). Carries nothing — the new
 // job renders everything, with a warning logged — when the source's checkpoint fails its seal or
 // was rendered by another build (docs/farm.md, Upgrades: an image never mixes builds).
 RequeuedJob RequeueValidatedJob(Scheduler& scheduler, JobStore& db,

@@ -9,16 +9,21 @@
 
 namespace pf::server {
 
+JobRow QueuedJobRow(const Job& job) {
+  JobRow row;
+  row.job_id = job.id();
+  row.seq = job.seq();
+  row.spec = job.config().spec.SerializeAsString();
+  row.state = JobState::kQueued;
+  row.submitted_unix_ms = job.submitted_unix_ms();
+  return row;
+}
+
 std::string SubmitValidatedJob(Scheduler& scheduler, JobStore& db, JobConfig config,
                                const std::string& client) {
   std::unique_ptr<Job> job = scheduler.PrepareJob(std::move(config));
   job->client = client;
-  JobRow row;
-  row.job_id = job->id();
-  row.seq = job->seq();
-  row.spec = job->config().spec.SerializeAsString();
-  row.state = JobState::kQueued;
-  row.submitted_unix_ms = job->submitted_unix_ms();
+  const JobRow row = QueuedJobRow(*job);
   db.InsertJob(row, {});  // durable before the client hears the id
   const JobConfig& c = job->config();
   spdlog::info("job {}: submitted{}: scene {}, {}x{}, {}, {} tasks, seed {}, priority {}", job->id(),

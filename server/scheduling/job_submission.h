@@ -15,6 +15,9 @@
 
 namespace pf::server {
 
+// The row of a job just prepared (Scheduler::PrepareJob): QUEUED, its spec as accepted.
+JobRow QueuedJobRow(const Job& job);
+
 // Returns the new job's id. Throws what the store throws (the job is then not scheduled).
 std::string SubmitValidatedJob(Scheduler& scheduler, JobStore& db, JobConfig config,
                                const std::string& client);

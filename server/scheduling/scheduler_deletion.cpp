@@ -17,14 +17,6 @@ Job& Scheduler::RemovableLocked(const std::string& job_id) {
   if (job.active())
     throw PreconditionError("job_id: job " + limits::Quote(job.id()) + " is " + JobStateName(job.state()) +
                             ": only a succeeded, failed or cancelled job can be deleted (cancel it first)");
-  // A live job that names it in --after would find no dependency after a restart and fail.
-  for (const Job* other : jobs_.InSubmissionOrder())
-    if (other->active() && std::find(other->config().after.begin(), other->config().after.end(), job.id()) !=
-                               other->config().after.end())
-      throw PreconditionError("job_id: job " + limits::Quote(job.id()) +
-                              " is a dependency (--after) of job " + limits::Quote(other->id()) +
-                              ", which is " + JobStateName(other->state()) +
-                              "; it can be deleted once that job has ended");
   // A verification with the referee reads the Job when its verdict comes (RefereeVerdict).
   if (verification_.Names(job))
     throw PreconditionError("job_id: job " + limits::Quote(job.id()) +
@@ -35,7 +27,20 @@ Job& Scheduler::RemovableLocked(const std::string& job_id) {
 
 std::string Scheduler::CheckRemovable(const std::string& job_id) {
   std::lock_guard lock(mu_);
-  return RemovableLocked(job_id).id();
+  Job& job = RemovableLocked(job_id);
+  // A queued job that names it in --after would find no dependency after a restart and fail.
+  // Checked here only, and the job marked: from now on no new job can name it (ResolveJobId,
+  // WaitForDependencies), so RemoveJob, after the rows are gone, has no reason to refuse.
+  for (const Job* other : jobs_.InSubmissionOrder())
+    if (other->state() == JobState::kQueued &&
+        std::find(other->config().after.begin(), other->config().after.end(), job.id()) !=
+            other->config().after.end())
+      throw PreconditionError("job_id: job " + limits::Quote(job.id()) +
+                              " is a dependency (--after) of job " + limits::Quote(other->id()) +
+                              ", which is QUEUED; it can be deleted once that job "
+                              "has started or ended");
+  job.deleting = true;
+  return job.id();
 }
 
 Scheduler::FinishedJob Scheduler::FinishedJobOf(const std::string& job_id) {

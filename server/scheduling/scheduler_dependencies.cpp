@@ -15,15 +15,13 @@
 
 namespace pf::server {
 
-std::string Scheduler::ResolveJobId(const std::string& id_or_prefix) {
-  std::lock_guard lock(mu_);
-  return jobs_.Resolve(id_or_prefix);
-}
-
 std::string Scheduler::WaitForDependencies(Job& job) {
   for (const std::string& id : job.config().after) {
+    // A job that has started had every dependency succeed (a restart may not know one any more:
+    // its spec no longer loads).
+    if (job.state() != JobState::kQueued) continue;
     const Job* dependency = jobs_.Find(id);
-    if (!dependency)
+    if (!dependency || dependency->deleting)
       return "job " + limits::Quote(id) + " it waits for (--after) is unknown to this coordinator";
     if (dependency->state() == JobState::kSucceeded) continue;
     if (!dependency->active())

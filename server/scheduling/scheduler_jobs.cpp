@@ -67,6 +67,10 @@ void Scheduler::AddJob(std::unique_ptr<Job> job) {
     const Accumulator* acc = j.accumulator_if_loaded();
     j.samples_merged = acc ? acc->samples_merged() : j.stored_samples_merged;
     if (j.active()) {
+      // Workers convicted of a wrong result among the results it starts from (a requeue's carried
+      // checkpoint) get none of its tasks, from the first lease on.
+      for (const std::string& w : j.convicted_workers)
+        health_.Blocklist(j.id(), w, "convicted of a wrong result of the results it carries", clock_.Now());
       Charge(j, +1);
       if (j.paused) queue_.Hold(j);  // recovery: paused before the restart (docs/farm.md "Pausing a job")
       const std::string dependency_failed = WaitForDependencies(j);
@@ -160,6 +164,14 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
     b->set_last_error(entry.last_error);
   }
   return s;
+}
+
+std::string Scheduler::ResolveJobId(const std::string& id_or_prefix) {
+  std::lock_guard lock(mu_);
+  const std::string& id = jobs_.Resolve(id_or_prefix);
+  // One being deleted is gone for every new reference to it (scheduler_deletion.cpp).
+  if (jobs_.Get(id).deleting) throw NotFoundError("job_id: unknown job " + limits::Quote(id_or_prefix));
+  return id;
 }
 
 std::shared_ptr<Job> Scheduler::FindJob(const std::string& job_id) {
@@ -319,7 +331,8 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
       activity_.TaskEvent(job.id(), "cancelled", id, rt.attempts, rt.worker_id, "the job ended while leased");
     }
   }
-  queue_.Unhold(job);  // nothing of it is queued any more: forget that it was held
+  queue_.Unhold(job);       // nothing of it is queued any more: forget that it was held
+  job.waiting_for.clear();  // an ended job waits for nothing
   if (state == JobState::kSucceeded && job.state() == JobState::kQueued)
     job.TransitionTo(JobState::kRunning, now);
   job.TransitionTo(state, now, reason);

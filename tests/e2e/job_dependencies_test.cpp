@@ -68,8 +68,11 @@ TEST(JobDependencies, AJobStartsOnceItsDependenciesSucceededAndFailsWhenOneIsCan
   std::vector<fs::path> logs;
   auto workers = StartTwoPatientWorkers(address, dir.path(), &logs, 0.1);
   int early = 0;
-  for (bool done = false; !done;) {
-    const v1::JobStatus sa = client.GetJob(a), sb = client.GetJob(b), sc = client.GetJob(c);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  for (bool done = false; !done && std::chrono::steady_clock::now() < deadline;) {
+    // Read in reverse order: states only move forward, so a dependency read later is never
+    // behind the job that waits for it.
+    const v1::JobStatus sc = client.GetJob(c), sb = client.GetJob(b), sa = client.GetJob(a);
     if (sa.state() != v1::JOB_STATE_SUCCEEDED && (sb.tasks_running() + sb.tasks_done() > 0)) ++early;
     if (sb.state() != v1::JOB_STATE_SUCCEEDED && (sc.tasks_running() + sc.tasks_done() > 0)) ++early;
     done = sc.state() != v1::JOB_STATE_QUEUED && sc.state() != v1::JOB_STATE_RUNNING;

@@ -113,7 +113,7 @@ TEST(Requeue, ACancelledJobReRunsOnlyWhatItHadNotMerged) {
   FarmClient client(coordinator.address(), "");
   const v1::JobStatus cancelled = WaitForJob(client, first, 30);
   ASSERT_EQ(cancelled.state(), v1::JOB_STATE_CANCELLED);
-  // Leases in flight at the cancel may still be merged: wait until the job holds none.
+  // The cancel drops the leases in flight (a late result is ignored): wait until it holds none.
   ASSERT_TRUE(WaitUntil([&] { return client.GetJob(first).tasks_running() == 0; }, 30));
   const uint64_t merged = client.GetJob(first).tasks_done();
   ASSERT_LT(merged, 16u) << "the job finished before the cancel";

@@ -240,11 +240,15 @@ TEST(FarmWatch, EveryWatchOutlivesTwentyCoordinatorRestarts) {
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   for (int restart = 0; restart < 20; ++restart) {
     // Alternately graceful and kill -9, each followed by a pause in which the watches re-subscribe.
+    const size_t updates_before = ReadLines(dir / "watch-json.out").size();
     coordinator->process().Signal(restart % 2 == 0 ? SIGTERM : SIGKILL);
     ASSERT_TRUE(coordinator->process().Wait(20).has_value()) << "restart " << restart;
     coordinator =
         std::make_unique<CoordinatorProcess>(dir / "data", dir.path(), std::vector<std::string>{}, port);
-    std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    // The JSON watch has subscribed again once it prints the status the new stream starts with.
+    ASSERT_TRUE(WaitUntil([&] { return ReadLines(dir / "watch-json.out").size() > updates_before; }, 20))
+        << "restart " << restart << ": " << ReadFile(dir / "watch-json.err");
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
     ASSERT_TRUE(image_watch.Running()) << "restart " << restart << ": " << ReadFile(dir / "watch-image.log");
     ASSERT_TRUE(json_watch.Running()) << "restart " << restart << ": " << ReadFile(dir / "watch-json.err");
   }

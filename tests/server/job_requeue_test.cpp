@@ -105,7 +105,7 @@ TEST_F(JobRequeueTest, AJobWhoseFinalResultsAreNotOnDiskYetIsRefused) {
         RequeueValidatedJob(scheduler_, db, dir_.path() / "checkpoints", source,
                             Validated(RequeuedSpec(source, 0, nullptr)), "");
       },
-      ::testing::ThrowsMessage<PreconditionError>(HasSubstr("its final results are still being written")));
+      ::testing::ThrowsMessage<UnavailableError>(HasSubstr("its final results are still being written")));
   EXPECT_TRUE(db.LoadJobs().empty()) << "nothing stored";
   EXPECT_TRUE(scheduler_.List(/*include_finished=*/true).empty()) << "nothing scheduled";
 }
