@@ -32,6 +32,18 @@ class Integrator {
                         PixelBlockState& /*block*/) const {
     return Li(camera_ray, sampler, counters);
   }
+  // Emitters seen directly (docs/renderer.md, "Emitters seen directly"). An integrator that says
+  // true here lets RenderPixels estimate the emission a camera ray sees at its first hit apart
+  // from the rest of Li, with more (cheap) primary rays in the pixels that see an emitting
+  // surface. PrimaryEmission must return exactly what Li adds for it — the first hit's own
+  // emission, or the environment an escaping camera ray sees — and set `surface_emitter` when the
+  // ray hit an emitting surface.
+  virtual bool SplitsPrimaryEmission() const { return false; }
+  virtual Rgb PrimaryEmission(const Ray& /*camera_ray*/, TraceCounters& /*counters*/,
+                              bool* surface_emitter) const {
+    *surface_emitter = false;
+    return Rgb(0.0f);
+  }
   virtual const char* name() const = 0;
 };
 

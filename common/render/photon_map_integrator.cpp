@@ -282,6 +282,25 @@ Rgb PhotonMapIntegrator::LiInBlock(const Ray& camera_ray, Sampler& sampler, Trac
   return Trace(camera_ray, sampler, counters, &static_cast<IrradianceCacheBlock&>(block).cache);
 }
 
+bool PhotonMapIntegrator::SplitsPrimaryEmission() const {
+  return options_.part != RadiancePart::kMapped && options_.max_depth > 0;
+}
+
+// Trace's first vertex, emission only: the same test and the same material lookup.
+Rgb PhotonMapIntegrator::PrimaryEmission(const Ray& camera_ray, TraceCounters& counters,
+                                         bool* surface_emitter) const {
+  *surface_emitter = false;
+  const SceneDescription& desc = scene_.description();
+  ++counters.rays;
+  const std::optional<SurfaceHit> hit = scene_.Intersect(camera_ray);
+  if (!hit) return desc.environment ? desc.environment->Radiance(camera_ray.direction) : Rgb(0.0f);
+  std::optional<Material> textured;
+  const Material& material = MaterialAt(desc, hit->material, hit->uv, &textured);
+  if (!material.IsEmissive() || !hit->front_face) return Rgb(0.0f);
+  *surface_emitter = true;
+  return material.emission;
+}
+
 Rgb PhotonMapIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters,
                                IrradianceCache* cache) const {
   const SceneDescription& desc = scene_.description();

@@ -103,6 +103,9 @@ class PhotonMapIntegrator final : public Integrator {
   std::unique_ptr<PixelBlockState> NewPixelBlockState() const override;
   Rgb LiInBlock(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters,
                 PixelBlockState& block) const override;
+  // The emission part of the radiance only (radiance_part.h: not for kMapped).
+  bool SplitsPrimaryEmission() const override;
+  Rgb PrimaryEmission(const Ray& camera_ray, TraceCounters& counters, bool* surface_emitter) const override;
   const char* name() const override { return "photonmap"; }
 
  private:

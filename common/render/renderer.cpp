@@ -10,9 +10,14 @@
 #include <numeric>
 
 #include "common/core/error.h"
+#include "common/core/rng.h"
 #include "common/sampling/sample_layout.h"
 
 namespace pf {
+namespace {
+// Keys the extra primary rays of "Emitters seen directly" apart from every sampler stream.
+constexpr uint64_t kEmissionRayTag = 0x656d697373696f6eull;  // "emission"
+}  // namespace
 
 RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std::span<const uint32_t> pixels,
                          uint32_t sample_begin, uint32_t sample_end, uint64_t seed, int threads,
@@ -25,6 +30,18 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std
   };
   tbb::enumerable_thread_specific<Local> locals;
   const int width = camera.width();
+  const bool split_emission = integrator.SplitsPrimaryEmission() && streams == PixelStreams::kPerPixel;
+  // Whether the pixel's fixed lattice of camera rays sees an emitting surface.
+  auto sees_emitter = [&](int px, int py, TraceCounters& counters) {
+    for (int j = 0; j < kEmitterPilotGrid * kEmitterPilotGrid; ++j) {
+      const float u = (float(j % kEmitterPilotGrid) + 0.5f) / float(kEmitterPilotGrid);
+      const float v = (float(j / kEmitterPilotGrid) + 0.5f) / float(kEmitterPilotGrid);
+      bool surface = false;
+      integrator.PrimaryEmission(camera.GenerateRay(px, py, u, v), counters, &surface);
+      if (surface) return true;
+    }
+    return false;
+  };
   // One pixel: its samples in order, summed into sums[i].
   auto render_pixel = [&](size_t i, Local& local, PixelBlockState* block) {
     const uint32_t p = pixels[i];
@@ -33,12 +50,25 @@ RenderStats RenderPixels(const Integrator& integrator, const Camera& camera, std
     Rgb sum = sums[i];
     // The pixel's keys and slot seeds, once (PixelStreams: the pixel's own or the call's shared one).
     const PixelStream stream(sampler_kind, seed, streams == PixelStreams::kShared ? kSharedStreamPixel : p);
+    const bool split = split_emission && sees_emitter(px, py, local.counters);
     for (uint32_t s = sample_begin; s < sample_end; ++s) {
       Sampler sampler = Sampler::ForPixelSample(stream, s);
       const Sample2 uv = sampler.Get2D(kPixelSlot);
       const Ray ray = camera.GenerateRay(px, py, uv.u, uv.v);
-      const Rgb L = block ? integrator.LiInBlock(ray, sampler, local.counters, *block)
-                          : integrator.Li(ray, sampler, local.counters);
+      Rgb L = block ? integrator.LiInBlock(ray, sampler, local.counters, *block)
+                    : integrator.Li(ray, sampler, local.counters);
+      if (split) {
+        bool surface = false;
+        L = L - integrator.PrimaryEmission(ray, local.counters, &surface);
+        Rng rng = Rng::ForKey(HashKey(seed, p, s, kEmissionRayTag));
+        Rgb emission(0.0f);
+        for (int j = 0; j < kEmissionRaysPerSample; ++j) {
+          const float u = (float(j % kEmissionStrata) + rng.Uniform()) / float(kEmissionStrata);
+          const float v = (float(j / kEmissionStrata) + rng.Uniform()) / float(kEmissionStrata);
+          emission += integrator.PrimaryEmission(camera.GenerateRay(px, py, u, v), local.counters, &surface);
+        }
+        L += emission * (1.0f / float(kEmissionRaysPerSample));
+      }
       if (L.IsFinite()) {
         sum += L;
       } else {

@@ -6,6 +6,17 @@
 // Determinism: sample s of pixel p draws from Sampler::ForPixelSample(kind, seed, p, s) (a value
 // depends only on seed, p, s and the slot) and the samples of a pixel are summed in order, so any
 // thread count gives bit-identical sums.
+//
+// Emitters seen directly (docs/renderer.md, same title): with an integrator that splits off the
+// first hit's emission (Integrator::SplitsPrimaryEmission) and per-pixel streams, a pixel whose
+// kEmitterPilotGrid² lattice of camera rays hits an emitting surface estimates that emission with
+// kEmissionRaysPerSample jittered-stratified primary rays per sample instead of the sample's one:
+// sample s adds Li − E(ray_s) + mean_j E(ray_sj), whose expectation is Li's. The lattice is a fixed
+// function of the pixel, so choosing the pixels adds no bias; the extra rays are intersections
+// only (no photon query, no shading), drawn from Rng::ForKey(seed, p, s, tag).
+inline constexpr int kEmitterPilotGrid = 2;
+inline constexpr int kEmissionStrata = 4;  // kEmissionStrata² rays per sample
+inline constexpr int kEmissionRaysPerSample = kEmissionStrata * kEmissionStrata;
 
 #include <atomic>
 #include <cstdint>

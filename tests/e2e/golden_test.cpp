@@ -2,7 +2,9 @@
 // render, the in-process plan render (--local-only) and a farm of real processes — rendered
 // bit-for-bit as the committed EXRs under tests/data/golden/ (recorded at ed93769, before the
 // settings table, the scheduler's layering and the one task queue; pixels only, the header may
-// gain fields). A refactor that changes one bit of one pixel fails here.
+// gain fields; the four photon-map jobs of the Cornell box re-recorded when the emission seen
+// directly became a split estimate, docs/renderer.md "Emitters seen directly"). A refactor that
+// changes one bit of one pixel fails here.
 //
 // Recording is deliberate: PF_GOLDEN_RECORD=1 rewrites the files from this build (and fails the
 // test, so that such a run is never mistaken for a check), for a change that is meant to change
