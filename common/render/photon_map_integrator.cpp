@@ -283,7 +283,11 @@ Rgb PhotonMapIntegrator::LiInBlock(const Ray& camera_ray, Sampler& sampler, Trac
 }
 
 bool PhotonMapIntegrator::SplitsPrimaryEmission() const {
-  return options_.part != RadiancePart::kMapped && options_.max_depth > 0;
+  // Without an emitting surface no pixel's lattice could see one: nothing to pay for. A textured
+  // emission is the material's emission times the texel, so a black one never emits.
+  const std::vector<Material>& materials = scene_.description().materials;
+  return options_.part != RadiancePart::kMapped && options_.max_depth > 0 &&
+         std::any_of(materials.begin(), materials.end(), [](const Material& m) { return m.IsEmissive(); });
 }
 
 // Trace's first vertex, emission only: the same test and the same material lookup.

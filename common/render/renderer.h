@@ -14,9 +14,6 @@
 // sample s adds Li − E(ray_s) + mean_j E(ray_sj), whose expectation is Li's. The lattice is a fixed
 // function of the pixel, so choosing the pixels adds no bias; the extra rays are intersections
 // only (no photon query, no shading), drawn from Rng::ForKey(seed, p, s, tag).
-inline constexpr int kEmitterPilotGrid = 2;
-inline constexpr int kEmissionStrata = 4;  // kEmissionStrata² rays per sample
-inline constexpr int kEmissionRaysPerSample = kEmissionStrata * kEmissionStrata;
 
 #include <atomic>
 #include <cstdint>
@@ -31,6 +28,10 @@ inline constexpr int kEmissionRaysPerSample = kEmissionStrata * kEmissionStrata;
 namespace pf {
 
 inline constexpr uint32_t kPixelBlockSide = 16;
+// Emitters seen directly (above).
+inline constexpr int kEmitterPilotGrid = 2;
+inline constexpr int kEmissionStrata = 4;  // kEmissionStrata² rays per sample
+inline constexpr int kEmissionRaysPerSample = kEmissionStrata * kEmissionStrata;
 
 struct RenderOptions {
   uint32_t spp = 16;

@@ -172,6 +172,9 @@ class Job {
   // Its deletion has begun (Scheduler::CheckRemovable): no new job may name it in --after. Stays
   // set if the deletion then fails (a later one proceeds).
   bool deleting = false;
+  // Its dependencies succeeded once already: a SUCCEEDED job that recovery renders again (its
+  // image failed its seal) does not wait for them, nor fails if one was deleted since.
+  bool dependencies_met = false;
   int64_t submitted_unix_ms() const { return submitted_unix_ms_; }
   // When it reached its terminal state (Unix ms; Scheduler::FinishJob, stored in its row); 0 while
   // active. pf purge --older-than reads it (docs/farm.md "Deleting jobs").

@@ -379,7 +379,10 @@ RecoveryReport RecoverJobs(JobStore& db, const SceneCatalog& scenes, const fs::p
     job->paused = row.paused;  // AddJob holds its tasks back (docs/farm.md "Pausing a job")
     // A restart's time budget starts anew (Job::Restart): the row's time is the dropped epoch's.
     job->RestoreElapsed(rerender || restart_from_checkpoint ? 0.0 : row.elapsed_seconds);
-    if (rerender) job->row_dirty = true;  // stored as QUEUED again
+    if (rerender) {
+      job->row_dirty = true;         // stored as QUEUED again
+      job->dependencies_met = true;  // it succeeded before (scheduler_dependencies.cpp)
+    }
     const uint64_t merged = job->count(TaskState::kDone);
     const uint64_t requeued = job->count(TaskState::kQueued);
     report.tasks_merged += merged;

@@ -28,17 +28,17 @@ Job& Scheduler::RemovableLocked(const std::string& job_id) {
 std::string Scheduler::CheckRemovable(const std::string& job_id) {
   std::lock_guard lock(mu_);
   Job& job = RemovableLocked(job_id);
-  // A queued job that names it in --after would find no dependency after a restart and fail.
-  // Checked here only, and the job marked: from now on no new job can name it (ResolveJobId,
-  // WaitForDependencies), so RemoveJob, after the rows are gone, has no reason to refuse.
+  // A live job that names it in --after would find no dependency after a restart and fail (a
+  // running one too: its RUNNING row may not be stored yet). Checked here only, and the job
+  // marked: from now on no new job can name it (ResolveJobId, WaitForDependencies) nor requeue
+  // it, so RemoveJob, after the rows are gone, has no reason to refuse.
   for (const Job* other : jobs_.InSubmissionOrder())
-    if (other->state() == JobState::kQueued &&
-        std::find(other->config().after.begin(), other->config().after.end(), job.id()) !=
-            other->config().after.end())
+    if (other->active() && std::find(other->config().after.begin(), other->config().after.end(), job.id()) !=
+                               other->config().after.end())
       throw PreconditionError("job_id: job " + limits::Quote(job.id()) +
                               " is a dependency (--after) of job " + limits::Quote(other->id()) +
-                              ", which is QUEUED; it can be deleted once that job "
-                              "has started or ended");
+                              ", which is " + JobStateName(other->state()) +
+                              "; it can be deleted once that job has ended");
   job.deleting = true;
   return job.id();
 }
@@ -46,6 +46,7 @@ std::string Scheduler::CheckRemovable(const std::string& job_id) {
 Scheduler::FinishedJob Scheduler::FinishedJobOf(const std::string& job_id) {
   std::lock_guard lock(mu_);
   const Job& job = jobs_.Get(jobs_.Resolve(job_id));
+  if (job.deleting) throw NotFoundError("job_id: job " + limits::Quote(job.id()) + " is being deleted");
   if (job.active())
     throw PreconditionError("job_id: job " + limits::Quote(job.id()) + " is " + JobStateName(job.state()) +
                             ": only a succeeded, failed or cancelled job can be requeued");

@@ -4,7 +4,7 @@
 // dependencies' states decide, so a restarted coordinator re-derives the same answer: jobs are
 // added in submission order and a dependency is always submitted before its dependents (its id
 // must be known at admission), and a job named by a live job's `after` cannot be deleted
-// (RemovableLocked).
+// (CheckRemovable, which also makes a job being deleted unnameable).
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -17,9 +17,9 @@ namespace pf::server {
 
 std::string Scheduler::WaitForDependencies(Job& job) {
   for (const std::string& id : job.config().after) {
-    // A job that has started had every dependency succeed (a restart may not know one any more:
-    // its spec no longer loads).
-    if (job.state() != JobState::kQueued) continue;
+    // A job that has started, or that succeeded before and is rendered again (recovery), had
+    // every dependency succeed (a restart may not know one any more: its spec no longer loads).
+    if (job.state() != JobState::kQueued || job.dependencies_met) continue;
     const Job* dependency = jobs_.Find(id);
     if (!dependency || dependency->deleting)
       return "job " + limits::Quote(id) + " it waits for (--after) is unknown to this coordinator";
