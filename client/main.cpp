@@ -270,7 +270,7 @@ int main(int argc, char** argv) {
   rq_maps->excludes(rq_rounds);
   requeue
       ->add_option("--time-budget", requeue_args.time_budget,
-                   "New stop rule: seconds from the requeue (0 = none)")
+                   "New stop rule: seconds of rendering (0 = none)")
       ->check(CLI::NonNegativeNumber);
   requeue
       ->add_option("--target-error", requeue_args.target_error,
