@@ -34,6 +34,31 @@ grpc::ServerUnaryReactor* FinishGuarded(grpc::CallbackServerContext* context, st
   return reactor;
 }
 
+// A call in two steps: `check` (validation and budgets: cheap, memory only) on the RPC thread,
+// then, if it passed, `work` on the executor (expansion, SQLite, files). Each step's exception is
+// the call's status (Guarded); a full or stopping executor is UNAVAILABLE (Busy).
+template <typename Check, typename Work>
+grpc::ServerUnaryReactor* CheckThenWork(grpc::CallbackServerContext* context, Executor& executor,
+                                        std::string_view rpc, Check&& check, Work work) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const grpc::Status valid = Guarded(rpc, [&] {
+    check();
+    return grpc::Status::OK;
+  });
+  if (!valid.ok()) {
+    reactor->Finish(valid);
+    return reactor;
+  }
+  const bool posted = executor.Post([reactor, rpc, work] {
+    reactor->Finish(Guarded(rpc, [&] {
+      work();
+      return grpc::Status::OK;
+    }));
+  });
+  if (!posted) reactor->Finish(Busy());
+  return reactor;
+}
+
 void RequireJobId(const std::string& id) {
   limits::CheckId(id, "job_id");
 }
@@ -113,51 +138,27 @@ grpc::ServerUnaryReactor* RenderServiceImpl::UploadScene(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* RenderServiceImpl::SubmitJob(grpc::CallbackServerContext* context,
                                                        const v1::SubmitJobRequest* request,
                                                        v1::SubmitJobResponse* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  // Validation and the budgets are cheap (memory only) and happen here, before anything is
-  // expanded or stored (docs/security.md "Budgets").
+  // Validation and the budgets happen before anything is expanded or stored (docs/security.md
+  // "Budgets").
   auto admitted = std::make_shared<AdmittedJob>();
-  const grpc::Status valid = Guarded("SubmitJob", [&] {
-    *admitted = api_.AdmitJob(request->spec(), ClientOf(*context));
-    return grpc::Status::OK;
-  });
-  if (!valid.ok()) {
-    reactor->Finish(valid);
-    return reactor;
-  }
-  const bool posted = api_.executor().Post([this, reactor, response, admitted] {
-    reactor->Finish(Guarded("SubmitJob", [&] {
-      response->set_job_id(api_.SubmitJob(std::move(*admitted)));
-      return grpc::Status::OK;
-    }));
-  });
-  if (!posted) reactor->Finish(Busy());
-  return reactor;
+  return CheckThenWork(
+      context, api_.executor(), "SubmitJob",
+      [&] { *admitted = api_.AdmitJob(request->spec(), ClientOf(*context)); },
+      [this, response, admitted] { response->set_job_id(api_.SubmitJob(std::move(*admitted))); });
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::RequeueJob(grpc::CallbackServerContext* context,
                                                         const v1::RequeueJobRequest* request,
                                                         v1::RequeueJobResponse* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  // As SubmitJob: checked and budgeted here, the checkpoint copy and the rows on the executor.
+  // As SubmitJob: checked and budgeted first, the checkpoint copy and the rows on the executor.
   auto admitted = std::make_shared<AdmittedRequeue>();
-  const grpc::Status valid = Guarded("RequeueJob", [&] {
-    RequireJobId(request->job_id());
-    *admitted = api_.AdmitRequeue(*request, ClientOf(*context));
-    return grpc::Status::OK;
-  });
-  if (!valid.ok()) {
-    reactor->Finish(valid);
-    return reactor;
-  }
-  const bool posted = api_.executor().Post([this, reactor, response, admitted] {
-    reactor->Finish(Guarded("RequeueJob", [&] {
-      *response = api_.RequeueJob(std::move(*admitted));
-      return grpc::Status::OK;
-    }));
-  });
-  if (!posted) reactor->Finish(Busy());
-  return reactor;
+  return CheckThenWork(
+      context, api_.executor(), "RequeueJob",
+      [&] {
+        RequireJobId(request->job_id());
+        *admitted = api_.AdmitRequeue(*request, ClientOf(*context));
+      },
+      [this, response, admitted] { *response = api_.RequeueJob(std::move(*admitted)); });
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::GetJob(grpc::CallbackServerContext* context,
@@ -217,24 +218,10 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ResumeJob(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* RenderServiceImpl::DeleteJob(grpc::CallbackServerContext* context,
                                                        const v1::DeleteJobRequest* request,
                                                        v1::DeleteJobResponse* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const grpc::Status valid = Guarded("DeleteJob", [&] {
-    RequireJobId(request->job_id());
-    return grpc::Status::OK;
-  });
-  if (!valid.ok()) {
-    reactor->Finish(valid);
-    return reactor;
-  }
   // Off the RPC thread: it waits for a flush in progress and removes files.
-  const bool posted = api_.executor().Post([this, reactor, request, response] {
-    reactor->Finish(Guarded("DeleteJob", [&] {
-      *response = api_.DeleteJob(request->job_id());
-      return grpc::Status::OK;
-    }));
-  });
-  if (!posted) reactor->Finish(Busy());
-  return reactor;
+  return CheckThenWork(
+      context, api_.executor(), "DeleteJob", [&] { RequireJobId(request->job_id()); },
+      [this, request, response] { *response = api_.DeleteJob(request->job_id()); });
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::ListWorkers(grpc::CallbackServerContext* context,
