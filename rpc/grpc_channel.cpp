@@ -20,7 +20,13 @@ std::shared_ptr<grpc::Channel> MakeCoordinatorChannel(const std::string& address
     args.SetInt(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
   }
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
-  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
+  // gRPC takes this "minimum backoff" as the shortest time a connection attempt may take
+  // (TCP connect plus TLS handshake). It must stay long: with the synchronous API an attempt
+  // made in the background advances only while a call waits on the channel or when gRPC's
+  // backup poller runs (every 5 s), so a short limit aborted every TLS handshake whose reply
+  // already sat in the socket, and a worker cut off by a network partition never reconnected
+  // ("Handshake read failed", tests/deploy/multihost_test.py). 20 s is gRPC's own default.
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 20000);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, o.max_reconnect_backoff_ms);
   // Results of large tiles and scene bundles may exceed the 4 MiB default; the coordinator
   // enforces its own documented limits.

@@ -22,6 +22,7 @@ PACKAGES=(
   # The deployment recipes' test (tests/deploy): compose.yaml read with PyYAML, units checked by
   # systemd-analyze (nothing is started by systemd).
   python3-yaml systemd
+  iproute2  # the multi-host test (tests/deploy/multihost_test.py): `ip netns`, veth, a bridge
   # Fuzzing the MGF parser (libFuzzer lives in clang's runtime).
   clang libclang-rt-14-dev
   # Formatting check of the test command (tools/check-format.sh): Debian 12 ships version 14.

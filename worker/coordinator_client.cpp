@@ -78,6 +78,9 @@ CoordinatorClient::Extension CoordinatorClient::ExtendLease(const std::string& l
   v1::ExtendLeaseResponse resp;
   grpc::ClientContext cctx;
   PrepareContext(&cctx, options_.token, std::min(interval, Seconds(options_.rpc_timeout_seconds)));
+  // While the coordinator is unreachable the call waits for the channel to reconnect (until its
+  // deadline) instead of failing at once: a waiting call is what drives the reconnection.
+  cctx.set_wait_for_ready(true);
   Extension e;
   e.status = worker_service_->ExtendLease(&cctx, req, &resp);
   if (e.status.ok()) {
@@ -117,6 +120,7 @@ CoordinatorClient::Completion CoordinatorClient::CompleteTask(const v1::Task& ta
   while (true) {
     grpc::ClientContext cctx;
     PrepareContext(&cctx, options_.token, Seconds(options_.rpc_timeout_seconds));
+    cctx.set_wait_for_ready(true);  // as ExtendLease: wait for the channel, and so drive it
     v1::CompleteTaskResponse resp;
     c.status = worker_service_->CompleteTask(&cctx, req, &resp);
     c.merged = c.status.ok() && resp.merged();

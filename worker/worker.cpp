@@ -85,9 +85,16 @@ bool Worker::InterruptibleSleep(std::chrono::milliseconds d, bool wake_on_stop) 
   return wake_.wait_for(lock, d, [&] { return abort_.load() || (wake_on_stop && stop_.load()); });
 }
 
-void Worker::BackoffSleep() {
+void Worker::BackoffSleep(bool wake_on_stop) {
   SetState(State::kBackoff);
-  InterruptibleSleep(Seconds(backoff_.NextSeconds()));
+  auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(Seconds(backoff_.NextSeconds()));
+  if (!wake_on_stop) {  // but not past the grace period of a stop request
+    std::lock_guard lock(mutex_);
+    if (stop_.load())
+      wait = std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(stop_deadline_ - Clock::now()),
+                        std::chrono::milliseconds(0), wait);
+  }
+  InterruptibleSleep(wait, wake_on_stop);
 }
 
 bool Worker::WaitForConnection() {
@@ -330,7 +337,9 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
   };
   retry.wait = [this, &ctx](int attempts) {
     backoff_.AtLeast(attempts);
-    BackoffSleep();
+    // Not woken by a stop request: the result is still retried until the grace period ends
+    // (retry.stop), and a sleep that returned at once made that a busy loop.
+    BackoffSleep(/*wake_on_stop=*/false);
     SetState(State::kReporting, ctx);
   };
   const CoordinatorClient::Completion c = client_.CompleteTask(task, output, ctx, retry);

@@ -89,7 +89,9 @@ class Worker {
   // Moves to `s` after checking the move (WorkerTransitions); logs it at debug level.
   void SetState(State s, const std::string& context = "");
   bool WaitForConnection();
-  void BackoffSleep();
+  // Sleeps the next backoff; a stop request ends the sleep early unless `wake_on_stop` is false
+  // (a retry loop that keeps running after the request, until its own deadline).
+  void BackoffSleep(bool wake_on_stop = true);
   // Returns nullopt on "no task now"; sets *status on RPC failure.
   std::optional<photonfarm::v1::Task> Lease(grpc::Status* status);
 
