@@ -438,6 +438,8 @@ int RunWorkers(const FarmArgs& f, bool json) {
                      {"seconds_since_seen", w.seconds_since_seen()},
                      {"version", w.version()},
                      {"refused", w.refused()},
+                     {"refused_reason", w.refused_reason()},
+                     {"refused_calls", w.refused_calls()},
                      {"lost", w.lost()},
                      {"quarantined", w.quarantined()},
                      {"quarantine_reason", w.quarantine_reason()},
@@ -455,7 +457,7 @@ int RunWorkers(const FarmArgs& f, bool json) {
   for (const v1::WorkerInfo& w : workers) {
     // Worker health (docs/farm.md): quarantined and lost workers say so where the task would be.
     const std::string current =
-        w.refused()       ? "refused (build)"
+        w.refused()       ? "refused"
         : w.quarantined() ? "quarantined " + FormatDuration(w.quarantine_seconds_left())
         : w.lost()        ? "lost"
         : w.busy()        ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id())
@@ -464,6 +466,9 @@ int RunWorkers(const FarmArgs& f, bool json) {
                 w.peer().c_str(), w.threads(), current.c_str(), (unsigned long long)w.tasks_done(),
                 (unsigned long long)w.tasks_failed(), w.photons_per_second(),
                 (FormatDuration(w.seconds_since_seen()) + " ago").c_str(), w.version().c_str());
+    if (w.refused())
+      std::printf("  refused: %s (%llu calls)\n", w.refused_reason().c_str(),
+                  (unsigned long long)w.refused_calls());
     if (w.quarantined()) std::printf("  quarantined: %s\n", w.quarantine_reason().c_str());
     if (w.blocklisted_job_ids_size() > 0) {
       std::string jobs;

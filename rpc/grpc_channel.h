@@ -52,6 +52,13 @@ struct ChannelOptions {
   int max_reconnect_backoff_ms = 2000;
 };
 
+// The worker id a worker announces in every WorkerService call's metadata, so that a call the
+// coordinator's auth hook refuses (a wrong token) can be listed under it in `pf workers`: that
+// hook sees no peer address. Printable ASCII, at most kMaxAnnouncedIdBytes (AnnouncedWorkerId).
+inline constexpr char kWorkerIdMetadata[] = "pf-worker-id";
+inline constexpr size_t kMaxAnnouncedIdBytes = 64;
+std::string AnnouncedWorkerId(std::string_view worker_id);
+
 // A channel to HOST:PORT with the options above: TLS when options.tls.ca_pem is set, else
 // plaintext.
 std::shared_ptr<grpc::Channel> MakeCoordinatorChannel(const std::string& address,

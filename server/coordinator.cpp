@@ -19,6 +19,8 @@
 
 #include "common/core/error.h"
 #include "photonfarm_version.h"
+#include "proto/limits.h"
+#include "rpc/grpc_channel.h"
 #include "server/executor.h"
 #include "server/rpc/auth.h"
 #include "server/rpc/coordinator_operations.h"
@@ -102,8 +104,16 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   executor_ = std::make_unique<Executor>(options_.executor_threads);
   watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_, options_.budgets);
   admission_ = std::make_unique<Admission>(options_.budgets, *scheduler_, *scenes_);
-  auth_ = std::make_shared<RoleAuthProcessor>(RoleTokens{options_.client_token, options_.worker_token},
-                                              !options_.tls_client_ca_pem.empty());
+  auth_ = std::make_shared<RoleAuthProcessor>(
+      RoleTokens{options_.client_token, options_.worker_token}, !options_.tls_client_ca_pem.empty(),
+      [&activity = scheduler_->activity()](const std::string& announced_id, const grpc::Status& status) {
+        // Listed in pf workers and the web page; logged once per caller and reason.
+        const std::string reason =
+            StatusCodeName(status.error_code()) + std::string(": ") + status.error_message();
+        if (activity.WorkerRefused(announced_id, reason))
+          spdlog::warn("worker {} refused: {} (further refusals are counted in pf workers)",
+                       limits::Quote(announced_id.empty() ? "(no worker id)" : announced_id), reason);
+      });
   scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
   scheduler_->SetChangeListener([w = watches_.get()](const std::string& job_id) { w->Notify(job_id); });
 

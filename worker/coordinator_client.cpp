@@ -23,6 +23,12 @@ std::string Short(const std::string& key) {
 
 }  // namespace
 
+void CoordinatorClient::Prepare(grpc::ClientContext* context, std::chrono::milliseconds timeout) const {
+  PrepareContext(context, options_.token, timeout);
+  // Named in every call, so that a refused one is listed under this worker (pf workers).
+  context->AddMetadata(kWorkerIdMetadata, AnnouncedWorkerId(options_.worker_id));
+}
+
 bool IsConnectionError(const grpc::Status& s) {
   return s.error_code() == grpc::StatusCode::UNAVAILABLE ||
          s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
@@ -47,7 +53,7 @@ grpc::Status CoordinatorClient::LeaseTask(const std::vector<uint64_t>& cached_ma
   req.set_wait_seconds(options_.poll_seconds);
   req.set_worker_version(PF_VERSION);
   grpc::ClientContext ctx;
-  PrepareContext(&ctx, options_.token, Seconds(options_.poll_seconds + options_.rpc_timeout_seconds));
+  Prepare(&ctx, Seconds(options_.poll_seconds + options_.rpc_timeout_seconds));
   {
     std::lock_guard lock(poll_mutex_);
     if (polls_cancelled_) return grpc::Status::CANCELLED;
@@ -77,7 +83,7 @@ CoordinatorClient::Extension CoordinatorClient::ExtendLease(const std::string& l
   req.set_progress(progress);
   v1::ExtendLeaseResponse resp;
   grpc::ClientContext cctx;
-  PrepareContext(&cctx, options_.token, std::min(interval, Seconds(options_.rpc_timeout_seconds)));
+  Prepare(&cctx, std::min(interval, Seconds(options_.rpc_timeout_seconds)));
   // While the coordinator is unreachable the call waits for the channel to reconnect (until its
   // deadline) instead of failing at once: a waiting call is what drives the reconnection.
   cctx.set_wait_for_ready(true);
@@ -119,7 +125,7 @@ CoordinatorClient::Completion CoordinatorClient::CompleteTask(const v1::Task& ta
   c.bytes = req.ByteSizeLong();
   while (true) {
     grpc::ClientContext cctx;
-    PrepareContext(&cctx, options_.token, Seconds(options_.rpc_timeout_seconds));
+    Prepare(&cctx, Seconds(options_.rpc_timeout_seconds));
     cctx.set_wait_for_ready(true);  // as ExtendLease: wait for the channel, and so drive it
     v1::CompleteTaskResponse resp;
     c.status = worker_service_->CompleteTask(&cctx, req, &resp);
@@ -142,7 +148,7 @@ void CoordinatorClient::FailTask(const std::string& lease_id, const std::string&
   req.set_retryable(retryable);
   for (int attempt = 0; attempt < 2; ++attempt) {
     grpc::ClientContext cctx;
-    PrepareContext(&cctx, options_.token, Seconds(std::min(options_.rpc_timeout_seconds, 5.0)));
+    Prepare(&cctx, Seconds(std::min(options_.rpc_timeout_seconds, 5.0)));
     v1::FailTaskResponse resp;
     const grpc::Status status = worker_service_->FailTask(&cctx, req, &resp);
     if (status.ok() || !IsConnectionError(status)) {
@@ -156,7 +162,7 @@ void CoordinatorClient::FailTask(const std::string& lease_id, const std::string&
 SceneBundle CoordinatorClient::FetchScene(const std::string& hash, const std::string& entry) {
   if (entry.empty()) throw InputError("task for scene " + hash + " without scene_entry");
   grpc::ClientContext ctx;
-  PrepareContext(&ctx, options_.token, Seconds(options_.fetch_timeout_seconds));
+  Prepare(&ctx, Seconds(options_.fetch_timeout_seconds));
   v1::FetchSceneRequest req;
   req.set_scene_hash(hash);
   std::unique_ptr<grpc::ClientReader<v1::SceneFile>> reader = worker_service_->FetchScene(&ctx, req);
@@ -181,7 +187,7 @@ SceneBundle CoordinatorClient::FetchScene(const std::string& hash, const std::st
 
 std::string CoordinatorClient::FetchMap(const v1::MapRef& ref, const std::string& ctx) {
   grpc::ClientContext cctx;
-  PrepareContext(&cctx, options_.token, Seconds(options_.fetch_timeout_seconds));
+  Prepare(&cctx, Seconds(options_.fetch_timeout_seconds));
   v1::FetchMapRequest req;
   req.set_map_key(ref.map_key());
   std::unique_ptr<grpc::ClientReader<v1::MapBytes>> reader(worker_service_->FetchMap(&cctx, req));
@@ -222,7 +228,7 @@ CoordinatorClient::Upload CoordinatorClient::UploadPhotonChunk(const std::string
                                                                std::string bytes) {
   if (options_.faults) options_.faults->OnPiece(bytes);  // tests only: a malicious worker
   grpc::ClientContext cctx;
-  PrepareContext(&cctx, options_.token, Seconds(options_.fetch_timeout_seconds));
+  Prepare(&cctx, Seconds(options_.fetch_timeout_seconds));
   v1::UploadPhotonChunkResponse response;
   std::unique_ptr<grpc::ClientWriter<v1::PhotonChunkPart>> writer(
       worker_service_->UploadPhotonChunk(&cctx, &response));

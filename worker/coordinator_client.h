@@ -107,6 +107,9 @@ class CoordinatorClient {
   uint64_t map_parts_refused() const { return map_parts_refused_.load(); }
 
  private:
+  // The deadline, the bearer token and this worker's announced id (kWorkerIdMetadata).
+  void Prepare(grpc::ClientContext* context, std::chrono::milliseconds timeout) const;
+
   WorkerOptions options_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<photonfarm::v1::WorkerService::Stub> worker_service_;

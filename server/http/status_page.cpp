@@ -104,6 +104,10 @@ nlohmann::json WorkerJson(const v1::WorkerInfo& w) {
           {"threads", w.threads()},
           {"version", w.version()},
           {"refused", w.refused()},
+          {"refused_reason", w.refused_reason()},
+          {"refused_calls", w.refused_calls()},
+          {"lost", w.lost()},
+          {"quarantined", w.quarantined()},
           {"busy", w.busy()},
           {"current_job_id", w.current_job_id()},
           {"current_task_id", w.current_task_id()},
@@ -195,9 +199,12 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4g}</td><td>{} "
           "ago</td><td>{}</td></tr>\n",
           Escape(w.worker_id()), Escape(w.peer()), w.threads(),
-          w.refused() ? std::string("refused: another build")
-          : w.busy()  ? Escape(w.current_job_id()) + " task " + std::to_string(w.current_task_id())
-                      : "idle",
+          // Worker health (docs/farm.md), as pf workers says it.
+          w.refused()       ? "refused: " + Escape(w.refused_reason())
+          : w.quarantined() ? "quarantined: " + Escape(w.quarantine_reason())
+          : w.lost()        ? std::string("lost")
+          : w.busy()        ? Escape(w.current_job_id()) + " task " + std::to_string(w.current_task_id())
+                            : "idle",
           w.tasks_done(), w.tasks_failed(), w.photons_per_second(), Duration(w.seconds_since_seen()),
           Escape(w.version()));
     html += "</table>\n";

@@ -61,17 +61,20 @@ grpc::Status Authorize(const RoleTokens& tokens, std::string_view method, std::s
 
 grpc::Status RoleAuthProcessor::Process(const InputMetadata& auth_metadata, grpc::AuthContext* context,
                                         OutputMetadata* consumed_auth_metadata, OutputMetadata*) {
-  std::string_view method, authorization;
+  std::string_view method, authorization, worker_id;
   for (const auto& [key, value] : auth_metadata) {
     const std::string_view k(key.data(), key.size());
     if (k == ":path") method = std::string_view(value.data(), value.size());
     if (k == "authorization") authorization = std::string_view(value.data(), value.size());
+    if (k == kWorkerIdMetadata) worker_id = std::string_view(value.data(), value.size());
   }
   grpc::Status status = Authorize(tokens_, method, authorization);
   if (status.ok() && worker_needs_certificate_ && StartsWith(method, kWorkerService) &&
       (context == nullptr || context->FindPropertyValues("x509_pem_cert").empty()))
     status = {grpc::StatusCode::UNAUTHENTICATED,
               "WorkerService needs a client certificate signed by the coordinator's --tls-client-ca"};
+  if (!status.ok() && on_worker_refused_ && StartsWith(method, kWorkerService))
+    on_worker_refused_(std::string(worker_id), status);
   // The token is consumed: handlers never see it (and cannot log it).
   if (status.ok() && !authorization.empty())
     consumed_auth_metadata->insert({"authorization", std::string(authorization)});

@@ -12,9 +12,12 @@
 
 #include <grpcpp/security/auth_metadata_processor.h>
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
+
+#include "rpc/grpc_channel.h"  // kWorkerIdMetadata
 
 namespace pf::server {
 
@@ -35,10 +38,17 @@ inline constexpr std::string_view kWebStatusMethod = "/photonfarm.v1.RenderServi
 
 class RoleAuthProcessor final : public grpc::AuthMetadataProcessor {
  public:
+  // A refused WorkerService call: the announced worker id ("" if none) and the refusal.
+  using WorkerRefused = std::function<void(const std::string& announced_id, const grpc::Status& status)>;
+
   // `worker_needs_certificate`: WorkerService calls must come over TLS with a verified client
   // certificate (the server's --tls-client-ca; gRPC has checked it in the handshake).
-  RoleAuthProcessor(RoleTokens tokens, bool worker_needs_certificate)
-      : tokens_(std::move(tokens)), worker_needs_certificate_(worker_needs_certificate) {}
+  // `on_worker_refused` runs on gRPC's thread for every refused WorkerService call: it must not
+  // block (FarmActivity::WorkerRefused).
+  RoleAuthProcessor(RoleTokens tokens, bool worker_needs_certificate, WorkerRefused on_worker_refused = {})
+      : tokens_(std::move(tokens)),
+        worker_needs_certificate_(worker_needs_certificate),
+        on_worker_refused_(std::move(on_worker_refused)) {}
   bool IsBlocking() const override { return false; }  // memory only: runs on gRPC's thread
   grpc::Status Process(const InputMetadata& auth_metadata, grpc::AuthContext* context,
                        OutputMetadata* consumed_auth_metadata, OutputMetadata* response_metadata) override;
@@ -46,6 +56,7 @@ class RoleAuthProcessor final : public grpc::AuthMetadataProcessor {
  private:
   RoleTokens tokens_;
   bool worker_needs_certificate_;
+  WorkerRefused on_worker_refused_;
 };
 
 }  // namespace pf::server

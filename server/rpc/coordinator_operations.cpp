@@ -36,7 +36,7 @@ AdmittedJob CoordinatorOperations::AdmitSpec(const v1::JobSpec& spec, const std:
   // --plan auto without a worker count plans for the workers seen in the last minute.
   uint32_t live = 0;
   for (const v1::WorkerInfo& w : p_.scheduler.activity().Workers())
-    if (w.seconds_since_seen() <= 60 && !w.refused()) ++live;
+    if (w.seconds_since_seen() <= kLiveSeconds && !w.refused()) ++live;
   AdmittedJob job;
   job.config = ValidateJobSpec(spec, p_.scenes, std::max(1u, live));
   // Dependencies are stored as whole ids of jobs known now (docs/farm.md "Job dependencies").
@@ -178,7 +178,7 @@ std::optional<std::string> CoordinatorOperations::WorkerSeen(const WorkerHello& 
       const std::string worker_build =
           hello.version.empty() ? "none (older than the check)" : limits::Quote(hello.version);
       p_.scheduler.activity().WorkerSeen(hello.worker_id, hello.peer, hello.threads, hello.version,
-                                         /*refused=*/true);
+                                         "another build: " + worker_build);
       spdlog::warn("worker {} refused: its build {} is not the coordinator's '{}'",
                    limits::Quote(hello.worker_id), worker_build, p_.build_version);
       return "worker_version: this worker's build is " + worker_build + ", the coordinator's '" +

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "rpc/grpc_channel.h"
+
 namespace pf::server {
 namespace v1 = photonfarm::v1;
 
@@ -21,14 +23,34 @@ FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
 }
 
 void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
-                              const std::string& version, bool refused) {
+                              const std::string& version, const std::string& refused_reason) {
   std::lock_guard lock(mu_);
   Worker& w = WorkerLocked(worker_id);
   w.info.set_peer(peer);
   w.info.set_threads(threads);
   w.info.set_version(version);
-  w.info.set_refused(refused);
+  w.info.set_refused(!refused_reason.empty());
+  w.info.set_refused_reason(refused_reason);
+  w.info.set_refused_calls(refused_reason.empty() ? 0 : w.info.refused_calls() + 1);
   w.last_seen = clock_.Now();
+}
+
+bool FarmActivity::WorkerRefused(const std::string& announced_id, const std::string& reason) {
+  std::string id = AnnouncedWorkerId(announced_id);  // untrusted: printable and short
+  if (id.empty()) id = "(no worker id)";
+  std::lock_guard lock(mu_);
+  const double now = clock_.Now();
+  auto it = workers_.find(id);
+  // An id any caller may announce: a live worker's entry keeps saying what that worker does.
+  if (it != workers_.end() && !it->second.info.refused() && now - it->second.last_seen < kLiveSeconds)
+    id += " (refused)";
+  Worker& w = WorkerLocked(id);
+  const bool first = !w.info.refused() || w.info.refused_reason() != reason;
+  w.info.set_refused(true);
+  w.info.set_refused_reason(reason);
+  w.info.set_refused_calls(first ? 1 : w.info.refused_calls() + 1);
+  w.last_seen = now;
+  return first;
 }
 
 void FarmActivity::TaskEvent(const std::string& job_id, const std::string& kind, uint64_t task_id,

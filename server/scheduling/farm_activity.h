@@ -19,16 +19,26 @@ namespace pf::server {
 
 inline constexpr size_t kMaxEventsPerJob = 10000;
 inline constexpr size_t kMaxWorkersKept = 4096;
+// A worker seen within this many seconds counts as live (--plan auto's worker count; a refused
+// caller does not take over a live worker's entry).
+inline constexpr double kLiveSeconds = 60;
 
 class FarmActivity {
  public:
   explicit FarmActivity(const Clock& clock) : clock_(clock) {}
 
   // A LeaseTask call from `worker_id` (its peer address, threads and version string).
-  // `refused`: the coordinator refused its lease (another build): listed with refused = true and
-  // its version, so `pf workers` and the web page say why it gets no work (docs/farm.md, Upgrades).
+  // `refused_reason` non-empty: the coordinator refused its lease (another build): listed as
+  // refused with the reason and its version, so `pf workers` and the web page say why it gets no
+  // work (docs/farm.md, Upgrades).
   void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
-                  const std::string& version, bool refused = false);
+                  const std::string& version, const std::string& refused_reason = "");
+  // A WorkerService call refused before it reached the farm (auth.h: a wrong or missing token or
+  // client certificate), from the worker id the caller announced (untrusted: made printable and
+  // short; "" = none announced). Listed as refused with the reason and a count; a name a live,
+  // accepted worker holds is not taken over (the refusal is listed as "<id> (refused)"). True for
+  // the first refusal of that entry (log it once; later ones are counted).
+  bool WorkerRefused(const std::string& announced_id, const std::string& reason);
   // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned, revoked,
   // confirmed (a result above the job's bound reproduced by another worker, then merged); about a
   // map piece (task_id = the piece's index): piece-failed, piece-expired, piece-refused; about the worker in

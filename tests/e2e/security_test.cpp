@@ -218,6 +218,13 @@ TEST_F(TlsFarm, WorkersNeedAClientCertificate) {
                              {"--tls-ca", Path("ca.pem"), "--token-file", Path("worker-token")});
   EXPECT_TRUE(WaitUntil([&] { return !Grep(no_cert->log(), "client certificate").empty(); }, 15))
       << ReadFile(no_cert->log());
+  // Listed as refused, with the reason, under the id it announced (docs/farm.md "Worker health").
+  FarmClient client(coordinator_->address(), "tls-client-token", 10, CaOnly());
+  bool listed = false;
+  for (const photonfarm::v1::WorkerInfo& w : client.ListWorkers())
+    listed |= w.worker_id() == "w-nocert" && w.refused() &&
+              w.refused_reason().find("needs a client certificate") != std::string::npos;
+  EXPECT_TRUE(listed);
   no_cert->Signal(SIGTERM);
   no_cert->Wait(10);
 

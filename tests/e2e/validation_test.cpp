@@ -6,6 +6,7 @@
 
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "client/farm_client.h"
 #include "tests/e2e/harness.h"
@@ -167,6 +168,21 @@ TEST(FarmValidation, WrongTokenIsUnauthenticated) {
   EXPECT_TRUE(WaitUntil([&] { return !Grep(worker->log(), "UNAUTHENTICATED").empty(); }, 10))
       << ReadFile(worker->log());
   EXPECT_TRUE(worker->Running());
+  // ... and the coordinator lists it as refused, with the reason and a count, under its id.
+  const auto refused = [&]() -> std::optional<v1::WorkerInfo> {
+    for (const v1::WorkerInfo& w : right.ListWorkers())
+      if (w.worker_id() == "w-wrong" && w.refused()) return w;
+    return std::nullopt;
+  };
+  EXPECT_TRUE(WaitUntil([&] { return refused().has_value(); }, 10));
+  if (const std::optional<v1::WorkerInfo> w = refused()) {
+    EXPECT_EQ(w->refused_reason(), "UNAUTHENTICATED: authorization: invalid bearer token");
+    EXPECT_GE(w->refused_calls(), 1u);
+  }
+  r = RunCommand({Binaries::Pf(), "workers", "--coordinator", coordinator.address()}, dir.path(), 30,
+                 {{"PF_TOKEN", "s3cret-token"}});
+  EXPECT_NE(r.out.find("refused: UNAUTHENTICATED: authorization: invalid bearer token"), std::string::npos)
+      << r.out;
   worker->Signal(SIGTERM);
   EXPECT_EQ(worker->Wait(10).value_or(-1), 0);
   auto empty_token = StartWorker(coordinator.address(), dir.path(), "w-empty", {"--token-file", "/dev/null"});
