@@ -28,6 +28,7 @@
 #include "server/rpc/watch_hub.h"
 #include "server/rpc/worker_service.h"
 #include "server/scheduling/scheduler.h"
+#include "server/store/data_quota.h"
 #include "server/store/persister.h"
 #include "server/store/scene_store.h"
 #include "server/store/sqlite_store.h"
@@ -115,7 +116,10 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
                        limits::Quote(announced_id.empty() ? "(no worker id)" : announced_id), reason);
       });
   scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
-  scheduler_->SetChangeListener([w = watches_.get()](const std::string& job_id) { w->Notify(job_id); });
+  scheduler_->SetChangeListener([this, w = watches_.get()](const std::string& job_id) {
+    w->Notify(job_id);
+    data_changed_ = true;  // a merge or a state change: files may have grown (--data-quota)
+  });
 
   recovery_ = RecoverJobs(*db_, *scenes_, options_.data_dir / "checkpoints", *scheduler_, *clock_,
                           /*keep_other_builds=*/options_.allow_mixed_versions);
@@ -210,6 +214,7 @@ int Coordinator::Start() {
   spdlog::info("map store: {}", options_.maps_quota_bytes == 0
                                     ? std::string("no quota")
                                     : "quota " + std::to_string(options_.maps_quota_bytes) + " bytes");
+  if (options_.data_quota_bytes > 0) spdlog::info("data dir: quota {} bytes", options_.data_quota_bytes);
   if (options_.retain_finished_seconds > 0)
     spdlog::info("finished jobs retained {} s", options_.retain_finished_seconds);
   if (!options_.allow_mixed_versions)
@@ -302,6 +307,7 @@ void Coordinator::TickLoop() {
       scheduler_->Tick();
       watches_->Tick();
       MaybeApplyRetention();
+      MaybeApplyDataQuota();
     } catch (const std::exception& e) {
       spdlog::error("tick: {}", e.what());
     }
@@ -324,6 +330,45 @@ void Coordinator::MaybeApplyRetention() {
     retention_running_ = false;
   });
   if (!posted) retention_running_ = false;  // busy: next time
+}
+
+void Coordinator::MaybeApplyDataQuota() {
+  const uint64_t quota = options_.data_quota_bytes;
+  const double now = clock_->Now();
+  // Measured soon after the jobs change (a finished job's final files appear at its last change),
+  // and now and then regardless.
+  if (quota == 0 || now < next_quota_check_ ||
+      (!data_changed_ && now < last_quota_check_ + kRetentionCheckSeconds) || quota_running_.exchange(true))
+    return;
+  next_quota_check_ = now + kDataQuotaCheckSeconds;
+  last_quota_check_ = now;
+  data_changed_ = false;
+  const bool posted = executor_->Post([this, quota] {
+    try {
+      const uint64_t bytes = DirectoryBytes(options_.data_dir);
+      if (bytes > uint64_t(double(quota) * kDataQuotaHighWater)) {
+        const auto deleted =
+            operations_->DeleteFinishedOverQuota(bytes, uint64_t(double(quota) * kDataQuotaLowWater));
+        const uint64_t after = DirectoryBytes(options_.data_dir);
+        if (deleted.jobs > 0)
+          spdlog::info(
+              "--data-quota: {} finished jobs deleted ({} bytes freed); the data dir holds {} of {} bytes",
+              deleted.jobs, deleted.bytes_freed, after, quota);
+        if (after > quota && !quota_warned_)
+          spdlog::warn(
+              "--data-quota: the data dir holds {} bytes, more than the quota of {}, and no finished job "
+              "is left to delete (queued, running and paused jobs are kept)",
+              after, quota);
+        quota_warned_ = after > quota;
+      } else {
+        quota_warned_ = false;
+      }
+    } catch (const std::exception& e) {
+      spdlog::error("--data-quota: {}", e.what());
+    }
+    quota_running_ = false;
+  });
+  if (!posted) quota_running_ = false;  // busy: next time
 }
 
 void Coordinator::Shutdown() {

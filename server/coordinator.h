@@ -113,6 +113,9 @@ struct CoordinatorOptions {
   // The map store's quota in bytes (pf-coordinator --maps-quota; server/scheduling/map_quota.h),
   // 0 = none: past it the least recently used maps no live job uses are evicted.
   uint64_t maps_quota_bytes = 0;
+  // The data dir's quota in bytes (pf-coordinator --data-quota; server/store/data_quota.h), 0 =
+  // none: past it the finished jobs that ended first are deleted.
+  uint64_t data_quota_bytes = 0;
   // Lease to workers of another build too (LeaseTaskRequest.worker_version; docs/farm.md
   // "Upgrades"). Off: such a worker's LeaseTask is FAILED_PRECONDITION.
   bool allow_mixed_versions = false;
@@ -170,6 +173,8 @@ class Coordinator {
   void TickLoop();
   // --retain-finished: the finished jobs past it are deleted (on the executor, one run at a time).
   void MaybeApplyRetention();
+  // --data-quota (server/store/data_quota.h): the same, for the data dir's size.
+  void MaybeApplyDataQuota();
   std::shared_ptr<grpc::ServerCredentials> ServerCredentials() const;
   void CheckHttpTransport() const;
 
@@ -204,6 +209,11 @@ class Coordinator {
   std::thread tick_thread_;
   double next_retention_ = 0;  // Clock::Now() of the next check (tick thread only)
   std::atomic<bool> retention_running_{false};
+  double next_quota_check_ = 0;  // --data-quota: as the two above
+  double last_quota_check_ = 0;
+  std::atomic<bool> quota_running_{false};
+  std::atomic<bool> data_changed_{true};  // a job changed since the last measurement
+  bool quota_warned_ = false;  // a quota only live jobs exceed was warned about (executor task only)
 };
 
 }  // namespace pf::server

@@ -6,7 +6,7 @@
 //                  [--lease-seconds 30] [--max-attempts 3] [--checkpoint-ms 0] [--log-level info]
 //                  [--allow-mixed-versions] [--limit NAME=VALUE ...]
 //                  [--verify-fraction 0.03] [--no-verify-outliers] [--verify-piece-fraction 0.1]
-//                  [--referee-threads 1] [--retain-finished 7d] [--maps-quota 2G]
+//                  [--referee-threads 1] [--retain-finished 7d] [--maps-quota 2G] [--data-quota 50G]
 //
 // Prints one line on stdout once it serves — "listening on HOST:PORT" (the bound port, also for
 // :0; with --http a second line, "http on HOST:PORT", for the web status page, with " (https)" when it
@@ -130,6 +130,12 @@ int main(int argc, char** argv) {
                  "recently used maps no queued, running or paused job uses are deleted; default: no limit "
                  "(docs/farm.md, The map store's quota)")
       ->check(pf::ByteSizeTextProblem);
+  std::string data_quota;
+  app.add_option("--data-quota", data_quota,
+                 "Most bytes DATA-DIR may hold (50G): past it the finished jobs that ended first are "
+                 "deleted as pf delete does; queued, running and paused jobs never; default: no limit "
+                 "(docs/farm.md, The data dir's quota)")
+      ->check(pf::ByteSizeTextProblem);
   app.add_flag("--allow-mixed-versions", options.allow_mixed_versions,
                "Lease to workers of another build too. By default a worker whose `pf-worker --version` "
                "differs from this coordinator's (" PF_VERSION
@@ -182,6 +188,7 @@ int main(int argc, char** argv) {
   if (!retain_finished.empty())
     options.retain_finished_seconds = pf::ParseDurationText(retain_finished, "--retain-finished");
   if (!maps_quota.empty()) options.maps_quota_bytes = pf::ParseByteSizeText(maps_quota, "--maps-quota");
+  if (!data_quota.empty()) options.data_quota_bytes = pf::ParseByteSizeText(data_quota, "--data-quota");
 
   auto logger = spdlog::stderr_color_mt("pf-coordinator");
   spdlog::set_default_logger(logger);

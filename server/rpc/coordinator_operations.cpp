@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <limits>
 
 #include "common/core/error.h"
 #include "common/photon/photon_maps_bytes.h"
@@ -150,6 +151,23 @@ size_t CoordinatorOperations::DeleteFinishedBefore(int64_t cutoff_unix_ms) {
   }
   if (deleted > 0) spdlog::info("--retain-finished: {} finished jobs deleted", deleted);
   return deleted;
+}
+
+CoordinatorOperations::QuotaDeletion CoordinatorOperations::DeleteFinishedOverQuota(uint64_t bytes,
+                                                                                    uint64_t target) {
+  QuotaDeletion out;
+  for (const std::string& id : p_.scheduler.FinishedBefore(std::numeric_limits<int64_t>::max())) {
+    if (bytes <= target + out.bytes_freed) break;
+    try {
+      out.bytes_freed += DeleteJob(id).bytes_freed();
+      ++out.jobs;
+    } catch (const NotFoundError&) {
+      // deleted meanwhile (pf delete)
+    } catch (const std::exception& e) {
+      spdlog::warn("job {}: not deleted by --data-quota now: {}", id, e.what());
+    }
+  }
+  return out;
 }
 
 std::vector<v1::WorkerInfo> CoordinatorOperations::Workers() {

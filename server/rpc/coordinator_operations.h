@@ -50,6 +50,13 @@ class CoordinatorOperations final : public CoordinatorApi {
   // `cutoff_unix_ms`, as DeleteJob does; one that cannot be deleted now is logged and left for the
   // next run. Returns how many were deleted.
   size_t DeleteFinishedBefore(int64_t cutoff_unix_ms);
+  // --data-quota (server/store/data_quota.h): while `bytes` (what the data dir holds) less what
+  // was freed exceeds `target`, deletes the finished job that ended first, as DeleteJob does.
+  struct QuotaDeletion {
+    size_t jobs = 0;
+    uint64_t bytes_freed = 0;
+  };
+  QuotaDeletion DeleteFinishedOverQuota(uint64_t bytes, uint64_t target);
   std::vector<photonfarm::v1::WorkerInfo> Workers() override;
   std::vector<photonfarm::v1::TaskEvent> JobEvents(const std::string& job_id, uint64_t* dropped) override;
   ResolvedImage JobImage(const std::string& job_id, photonfarm::v1::JobStatus* status) override;

@@ -255,7 +255,8 @@ class Scheduler final : public PersistSource {
     CheckpointSeal seal;  // of its last checkpoint on disk; its tasks < tasks_done while the final one is not
   };
   FinishedJob FinishedJobOf(const std::string& job_id);
-  // The succeeded, failed and cancelled jobs that ended before `cutoff_unix_ms` (Job::finished_unix_ms).
+  // The succeeded, failed and cancelled jobs that ended before `cutoff_unix_ms` (Job::finished_unix_ms),
+  // the one that ended first first (--data-quota deletes in this order).
   std::vector<std::string> FinishedBefore(int64_t cutoff_unix_ms) const;
   // The configs of every job it knows (which stored maps remaining jobs use).
   std::vector<std::shared_ptr<const JobConfig>> JobConfigs() const;

@@ -91,10 +91,14 @@ std::shared_ptr<const JobConfig> Scheduler::RemoveJob(const std::string& job_id)
 
 std::vector<std::string> Scheduler::FinishedBefore(int64_t cutoff_unix_ms) const {
   std::lock_guard lock(mu_);
-  std::vector<std::string> ids;
+  std::vector<std::pair<int64_t, std::string>> ended;
   for (const Job* job : jobs_.InSubmissionOrder())
     if (!job->active() && job->finished_unix_ms > 0 && job->finished_unix_ms < cutoff_unix_ms)
-      ids.push_back(job->id());
+      ended.emplace_back(job->finished_unix_ms, job->id());
+  std::stable_sort(ended.begin(), ended.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<std::string> ids;
+  for (auto& [ms, id] : ended) ids.push_back(std::move(id));
   return ids;
 }
 

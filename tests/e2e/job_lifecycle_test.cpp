@@ -5,7 +5,10 @@
 // directory, another job's stay retrievable, a restart does not bring it back, a live job is refused.
 #include <signal.h>
 
+#include <atomic>
 #include <chrono>
+#include <deque>
+#include <filesystem>
 #include <regex>
 #include <set>
 #include <thread>
@@ -238,6 +241,76 @@ TEST(JobLifecycle, PurgeDeletesTheJobsThatFinishedLongerAgo) {
   for (const v1::JobStatus& s : client.ListJobs(true)) left.insert(s.job_id());
   EXPECT_EQ(left, (std::set<std::string>{young_id, live_id}));
   EXPECT_EQ(Pf(dir, address, {"purge", "--older-than", "soon"}).exit_code, 2) << "not a duration";
+}
+
+// The bytes of every regular file under `dir` (what --data-quota measures: server/store/data_quota.h,
+// restated here so that the test does not take the coordinator's word for it).
+uint64_t BytesUnder(const fs::path& dir) {
+  uint64_t total = 0;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code fec;
+    if (it->is_regular_file(fec)) total += it->file_size(fec) * !fec;
+  }
+  return total;
+}
+
+// --data-quota (docs/farm.md "The data dir's quota"): 200 jobs of 256x256 pixels, each leaving 3 MB
+// of checkpoint (600 MB in all), through a coordinator with a 100 MB quota. Sampled every 20 ms
+// and after every job, the data dir never holds more than the quota; every job succeeds (a job
+// deleted while live would not); the jobs that ended last are kept, the ones that ended first go.
+TEST(JobLifecycle, ADataDirUnderAQuotaStaysUnderItThrough200Jobs) {
+  TestDir dir;
+  constexpr uint64_t kQuota = uint64_t(100) << 20;
+  constexpr int kJobs = 200;
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--data-quota", "100M"});
+  const std::string address = coordinator.address();
+  std::vector<std::unique_ptr<Process>> workers;
+  for (const char* id : {"q1", "q2"}) workers.push_back(StartWorker(address, dir.path(), id));
+  std::atomic<bool> done{false};
+  std::atomic<uint64_t> most{0};
+  std::thread sampler([&] {
+    while (!done) {
+      const uint64_t bytes = BytesUnder(dir / "data");
+      if (bytes > most) most = bytes;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
+  FarmClient client(address, "");
+  std::vector<std::string> ids;
+  std::deque<std::string> in_flight;
+  int succeeded = 0;
+  const auto finish_oldest = [&] {
+    const v1::JobStatus st = WaitForJob(client, in_flight.front(), 120);
+    EXPECT_EQ(st.state(), v1::JOB_STATE_SUCCEEDED) << in_flight.front();
+    succeeded += st.state() == v1::JOB_STATE_SUCCEEDED;
+    in_flight.pop_front();
+    EXPECT_LE(BytesUnder(dir / "data"), kQuota);
+  };
+  for (int i = 0; i < kJobs; ++i) {
+    ids.push_back(SubmitJob(dir, address,
+                            {"--integrator", "path", "--spp", "1", "--res", "256x256", "--plan",
+                             "multiple-maps", "--seed", std::to_string(i + 1)}));
+    ASSERT_FALSE(ids.back().empty());
+    in_flight.push_back(ids.back());
+    if (in_flight.size() >= 3) finish_oldest();
+  }
+  while (!in_flight.empty()) finish_oldest();
+  done = true;
+  sampler.join();
+  EXPECT_EQ(succeeded, kJobs);
+  EXPECT_LE(most.load(), kQuota) << "most bytes seen in the data dir";
+  std::printf("most bytes seen in the data dir: %.1f MB of a %.0f MB quota\n", double(most) / (1 << 20),
+              double(kQuota) / (1 << 20));
+  // Without the quota the jobs would hold 600 MB: most of them were deleted, the first ones first.
+  const std::vector<v1::JobStatus> left = client.ListJobs(true);
+  EXPECT_LT(left.size(), 40u);
+  EXPECT_GT(left.size(), 10u);
+  std::set<std::string> kept;
+  for (const v1::JobStatus& s : left) kept.insert(s.job_id());
+  EXPECT_FALSE(kept.count(ids.front()));
+  for (int i = kJobs - 5; i < kJobs; ++i)
+    EXPECT_TRUE(kept.count(ids[i])) << "job " << i << " of the last five";
 }
 
 }  // namespace
