@@ -192,9 +192,9 @@ int Coordinator::Start() {
   }
   tick_thread_ = std::thread([this] { TickLoop(); });
   if (!options_.http_listen.empty()) {
-    http_ = std::make_unique<StatusHttpServer>(*scheduler_,
-                                               RoleTokens{options_.client_token, options_.worker_token},
-                                               options_.tls_cert_pem, options_.tls_key_pem);
+    http_ = std::make_unique<StatusHttpServer>(
+        *scheduler_, RoleTokens{options_.client_token, options_.worker_token}, options_.tls_cert_pem,
+        options_.tls_key_pem, operations_.get());
     http_port_ = http_->Start(options_.http_listen);
   }
   spdlog::info(

@@ -9,10 +9,13 @@
 #include "common/core/error.h"
 #include "common/image/png_io.h"
 #include "proto/convert.h"
+#include "rpc/grpc_channel.h"
 #include "server/errors.h"
 #include "server/http/http_gate.h"
 #include "server/rpc/auth.h"
+#include "server/rpc/coordinator_api.h"
 #include "server/rpc/job_images.h"
+#include "server/rpc/status_mapping.h"
 #include "server/scheduling/scheduler.h"
 
 namespace pf::server {
@@ -44,6 +47,34 @@ std::string Escape(const std::string& text) {
     }
   }
   return out;
+}
+
+// The HTTP answer to a refused action, from its gRPC code (server/rpc/status_mapping.h).
+int HttpStatusOf(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::INVALID_ARGUMENT:
+      return 400;
+    case grpc::StatusCode::NOT_FOUND:
+      return 404;
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      return 409;
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      return 429;
+    case grpc::StatusCode::UNAVAILABLE:
+      return 503;
+    default:
+      return 500;
+  }
+}
+
+// A job's buttons: pause or resume and cancel while it is live, requeue and delete once it ended.
+std::string ActionButtons(const v1::JobStatus& s) {
+  const auto button = [&](const char* action) {
+    return fmt::format("<button onclick=\"act('{0}', '{1}')\">{1}</button>", Escape(s.job_id()), action);
+  };
+  if (s.state() == v1::JOB_STATE_QUEUED || s.state() == v1::JOB_STATE_RUNNING)
+    return button(s.paused() ? "resume" : "pause") + " " + button("cancel");
+  return button("requeue") + " " + button("delete");
 }
 
 std::string Duration(double s) {
@@ -165,13 +196,14 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
         "<table "
         "id=\"jobs\"><tr><th>job</th><th>name</th><th>state</th><th>progress</th><th>done</th><th>running</"
         "th>"
-        "<th>queued</th><th>cancelled</th><th>elapsed</th><th>ETA</th><th>noise</th></tr>\n";
+        "<th>queued</th><th>cancelled</th><th>elapsed</th><th>ETA</th><th>noise</th><th>actions</th></tr>\n";
     for (const v1::JobStatus& s : jobs) {
       const double frac = s.progress();
       html += fmt::format(
           "<tr><td>{}</td><td>{}</td><td>{}{}</td><td><span class=\"bar\"><span "
           "style=\"width:{:.0f}%\"></span></span> "
-          "{:.1f}%</td><td>{}/{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></"
+          "{:.1f}%</td><td>{}/{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</"
+          "td><td>{}</td></"
           "tr>\n",
           Escape(s.job_id()), Escape(s.spec().name()),
           s.paused()                 ? "paused"
@@ -182,7 +214,8 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           Duration(s.elapsed_seconds()),
           s.state() == v1::JOB_STATE_RUNNING || s.state() == v1::JOB_STATE_QUEUED ? Duration(s.eta_seconds())
                                                                                   : "-",
-          s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-");
+          s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-",
+          ActionButtons(s));
     }
     html += "</table>\n";
   }
@@ -209,14 +242,27 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           Escape(w.version()));
     html += "</table>\n";
   }
+  // The buttons' requests (POST /jobs/<id>/<action>, with the header that proves they come from
+  // this page); the answer of a refused one is shown as it is.
+  html += R"(<script>
+async function act(id, action) {
+  if ((action === 'cancel' || action === 'delete') && !confirm(action + ' job ' + id + '?')) return;
+  const r = await fetch('/jobs/' + encodeURIComponent(id) + '/' + action,
+                        {method: 'POST', headers: {'X-Photonfarm-Action': action}, credentials: 'same-origin'});
+  if (!r.ok) alert(action + ' ' + id + ': ' + (await r.text()));
+  location.reload();
+}
+</script>
+)";
   html += "</body></html>\n";
   return html;
 }
 
 StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, const std::string& tls_cert_pem,
-                                   const std::string& tls_key_pem)
+                                   const std::string& tls_key_pem, CoordinatorApi* actions)
     : scheduler_(scheduler),
       tokens_(std::move(tokens)),
+      actions_(actions),
       server_(std::make_unique<GatedHttpServer>(HttpLimits{}, tls_cert_pem, tls_key_pem)) {
   httplib::Server& svr = *server_;
   svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
@@ -266,6 +312,54 @@ StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, cons
           res.set_content(std::string(e.what()) + "\n", "text/plain");
         }
       });
+  svr.Post(R"(/jobs/([A-Za-z0-9._-]+)/(cancel|pause|resume|requeue|delete))",
+           [this](const httplib::Request& req, httplib::Response& res) { Act(req, res); });
+}
+
+void StatusHttpServer::Act(const httplib::Request& req, httplib::Response& res) {
+  const std::string job_id = req.matches[1];
+  const std::string action = req.matches[2];
+  res.set_header("Cache-Control", "no-store");
+  const auto refuse = [&](int code, const std::string& why) {
+    res.status = code;
+    res.set_content(nlohmann::json{{"error", why}}.dump(), "application/json");
+  };
+  if (actions_ == nullptr) return refuse(404, "this status page is read-only");
+  // Cross-site request forgery: a browser sends the page's credentials (Basic) with any request
+  // to this origin, but a page of another origin cannot add this header without a CORS
+  // preflight, which this server never grants.
+  if (req.get_header_value("X-Photonfarm-Action") != action)
+    return refuse(403,
+                  "the header X-Photonfarm-Action: " + action + " is required (the page's buttons send it)");
+  if (req.has_header("Origin")) {
+    const std::string own = std::string(tls() ? "https://" : "http://") + req.get_header_value("Host");
+    if (req.get_header_value("Origin") != own)
+      return refuse(403, "Origin " + req.get_header_value("Origin") + " is not this page's (" + own + ")");
+  }
+  const std::string client = "web:" + req.remote_addr;
+  nlohmann::json out;
+  const grpc::Status status = Guarded("web " + action, [&] {
+    if (action == "cancel") {
+      out = JobJson(actions_->CancelJob(job_id));
+    } else if (action == "pause" || action == "resume") {
+      out = JobJson(actions_->SetJobPaused(job_id, action == "pause"));
+    } else if (action == "delete") {
+      const v1::DeleteJobResponse d = actions_->DeleteJob(job_id);
+      out = {{"job_id", d.job_id()}, {"bytes_freed", d.bytes_freed()}, {"maps_removed", d.maps_removed()}};
+    } else {  // requeue: as it was (pf requeue without options)
+      v1::RequeueJobRequest request;
+      request.set_job_id(job_id);
+      const v1::RequeueJobResponse r = actions_->RequeueJob(actions_->AdmitRequeue(request, client));
+      out = {{"job_id", r.job_id()}, {"requeued_from", job_id}, {"tasks_carried", r.tasks_carried()}};
+    }
+    return grpc::Status::OK;
+  });
+  spdlog::info("http: {} job {} from {}: {}", action, job_id, client,
+               status.ok()
+                   ? "done"
+                   : std::string(StatusCodeName(status.error_code())) + ": " + status.error_message());
+  if (!status.ok()) return refuse(HttpStatusOf(status.error_code()), status.error_message());
+  res.set_content(out.dump(), "application/json");
 }
 
 StatusHttpServer::~StatusHttpServer() {

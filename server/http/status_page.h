@@ -7,6 +7,13 @@
 //                              preview; the page reloads itself every 2 s
 //   GET /api/status            the same as JSON
 //   GET /jobs/<id>/preview.png the job's merged image now, tone-mapped (auto exposure)
+//   POST /jobs/<id>/<action>   cancel, pause, resume, requeue (as it was) or delete the job, as
+//                              pf does (the page's buttons); JSON answer, HTTP code from the gRPC
+//                              one (404 unknown job, 409 not in a state for it, ...). Cross-site
+//                              requests are refused (403): the request must carry the header
+//                              `X-Photonfarm-Action: <action>`, which a page of another site
+//                              cannot send without a CORS preflight this server never answers,
+//                              and an `Origin` header, when present, must be this server's.
 //
 // Credentials are the gRPC side's (server/rpc/auth.h, one check): with a token configured every
 // request needs `Authorization: Bearer <token>` — or HTTP Basic with the token as the password,
@@ -26,6 +33,13 @@ namespace pf::server {
 
 class Scheduler;
 class GatedHttpServer;
+class CoordinatorApi;
+}  // namespace pf::server
+namespace httplib {
+struct Request;
+struct Response;
+}  // namespace httplib
+namespace pf::server {
 
 // "PORT" or ":PORT" mean 127.0.0.1:PORT; else HOST:PORT. InputError if malformed.
 std::pair<std::string, int> ParseHttpListen(const std::string& listen);
@@ -37,8 +51,9 @@ std::string RenderStatusPage(const std::vector<photonfarm::v1::JobStatus>& jobs,
 class StatusHttpServer {
  public:
   // With `tls_cert_pem` (and its key): HTTPS with that certificate. InputError if it does not load.
+  // `actions`: what the POST routes call (null: the page is read-only and they answer 404).
   StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, const std::string& tls_cert_pem = "",
-                   const std::string& tls_key_pem = "");
+                   const std::string& tls_key_pem = "", CoordinatorApi* actions = nullptr);
   ~StatusHttpServer();  // Stop()
   StatusHttpServer(const StatusHttpServer&) = delete;
   StatusHttpServer& operator=(const StatusHttpServer&) = delete;
@@ -50,8 +65,12 @@ class StatusHttpServer {
   bool tls() const;  // served over HTTPS
 
  private:
+  // POST /jobs/<id>/<action> (see the header comment).
+  void Act(const httplib::Request& req, httplib::Response& res);
+
   Scheduler& scheduler_;
   const RoleTokens tokens_;
+  CoordinatorApi* actions_;
   std::unique_ptr<GatedHttpServer> server_;
 };
 

@@ -7,9 +7,11 @@
 #include <signal.h>
 
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <thread>
 
+#include "client/farm_client.h"
 #include "common/image/png_io.h"
 #include "tests/e2e/harness.h"
 #include "tests/util/raw_connection.h"
@@ -67,6 +69,78 @@ TEST(WebStatus, SameTokenAsGrpc) {
   r = http.Get("/jobs/job-999/preview.png");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 404);
+}
+
+// The page's actions (POST /jobs/<id>/<action>; docs/farm.md "The web status page"): the client
+// credential only, the page's own header and origin only (cross-site requests are 403), and each
+// does what pf does: pause, resume, cancel, requeue, delete, with the gRPC refusals as HTTP codes.
+TEST(WebStatus, ActionsNeedTheClientTokenAndThePagesHeaderAndDoWhatPfDoes) {
+  TestDir dir;
+  std::ofstream(dir / "token") << "s3cret-token\n";
+  std::ofstream(dir / "worker-token") << "w0rker-token\n";
+  CoordinatorProcess coordinator(
+      dir / "data", dir.path(),
+      {"--http", "127.0.0.1:0", "--worker-token-file", (dir / "worker-token").string()}, 0,
+      (dir / "token").string());
+  const int port = coordinator.http_port();
+  ASSERT_GT(port, 0);
+  const std::string id = Submit(dir, coordinator.address(), JobArgs(), {{"PF_TOKEN", "s3cret-token"}});
+  FarmClient client(coordinator.address(), "s3cret-token");
+  httplib::Client http("127.0.0.1", port);
+  const std::string own = "http://127.0.0.1:" + std::to_string(port);
+  const auto post = [&](const std::string& job, const std::string& action, httplib::Headers headers) {
+    auto r = http.Post("/jobs/" + job + "/" + action, headers, "", "text/plain");
+    EXPECT_TRUE(r) << action;
+    return r ? std::make_pair(r->status, r->body) : std::make_pair(0, std::string());
+  };
+  const httplib::Headers page = {
+      {"Authorization", "Bearer s3cret-token"}, {"X-Photonfarm-Action", "pause"}, {"Origin", own}};
+  // Refused: no credential, the worker's, no header, another action's header, another site.
+  EXPECT_EQ(post(id, "pause", {{"X-Photonfarm-Action", "pause"}}).first, 401);
+  EXPECT_EQ(
+      post(id, "pause", {{"Authorization", "Bearer w0rker-token"}, {"X-Photonfarm-Action", "pause"}}).first,
+      401);
+  EXPECT_EQ(post(id, "pause", {{"Authorization", "Bearer s3cret-token"}}).first, 403);
+  EXPECT_EQ(
+      post(id, "pause", {{"Authorization", "Bearer s3cret-token"}, {"X-Photonfarm-Action", "cancel"}}).first,
+      403);
+  EXPECT_EQ(post(id, "pause",
+                 {{"Authorization", "Bearer s3cret-token"},
+                  {"X-Photonfarm-Action", "pause"},
+                  {"Origin", "http://evil.example"}})
+                .first,
+            403);
+  EXPECT_FALSE(client.GetJob(id).paused()) << "a refused request changed the job";
+  EXPECT_EQ(http.Get("/jobs/" + id + "/pause", {{"Authorization", "Bearer s3cret-token"}})->status, 404);
+
+  // Done, as pf does it (no worker: the job stays queued).
+  const auto act = [&](const std::string& job, const std::string& action) {
+    httplib::Headers h = {{"Authorization", "Bearer s3cret-token"}, {"X-Photonfarm-Action", action}};
+    if (action != "cancel") h.insert({"Origin", own});  // optional: a request without one is the page's too
+    return post(job, action, h);
+  };
+  auto [code, body] = act(id, "pause");
+  EXPECT_EQ(code, 200) << body;
+  EXPECT_TRUE(client.GetJob(id).paused());
+  EXPECT_EQ(act(id, "resume").first, 200);
+  EXPECT_FALSE(client.GetJob(id).paused());
+  std::tie(code, body) = act(id, "delete");
+  EXPECT_EQ(code, 409) << "a live job is not deleted: " << body;
+  EXPECT_EQ(act(id, "cancel").first, 200);
+  EXPECT_EQ(client.GetJob(id).state(), photonfarm::v1::JOB_STATE_CANCELLED);
+  std::tie(code, body) = act(id, "requeue");
+  ASSERT_EQ(code, 200) << body;
+  const std::string requeued = nlohmann::json::parse(body).at("job_id");
+  EXPECT_EQ(client.GetJob(requeued).spec().requeued_from(), id);
+  EXPECT_EQ(act(id, "delete").first, 200);
+  EXPECT_THROW(client.GetJob(id), RpcError);
+  EXPECT_EQ(act("job-0123456789abcdef0123456789abcdef", "cancel").first, 404);
+  // The page offers the requeued job's live buttons.
+  http.set_basic_auth("anyone", "s3cret-token");
+  const auto r = http.Get("/");
+  ASSERT_TRUE(r);
+  EXPECT_NE(r->body.find("act('" + requeued + "', 'pause')"), std::string::npos) << r->body;
+  EXPECT_EQ(r->body.find("act('" + id + "'"), std::string::npos) << "the deleted job is still offered";
 }
 
 // Mean absolute difference of two screenshots' RGB over the square [x0, x0+n) x [y0, y0+n), and
