@@ -167,7 +167,7 @@ std::pair<std::string, int> ParseHttpListen(const std::string& listen) {
 std::string RenderStatusPage(const std::vector<v1::JobStatus>& jobs,
                              const std::vector<v1::WorkerInfo>& workers) {
   std::string html = R"(<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><meta http-equiv="refresh" content="2">
+<html lang="en"><head><meta charset="utf-8"><noscript><meta http-equiv="refresh" content="2"></noscript>
 <title>photonfarm</title>
 <style>
 body { font: 14px/1.4 sans-serif; margin: 8px; background: #fafafa; color: #222; }
@@ -188,7 +188,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
         "<figure><img id=\"preview-{0}\" alt=\"preview of {0}\" src=\"/jobs/{0}/preview.png?samples={1}\">"
         "<figcaption>{0} {2}</figcaption></figure>\n",
         Escape(s.job_id()), s.samples_merged(), Escape(pf::JobStateName(s.state())));
-  html += "</div>\n<h2>Jobs</h2>\n";
+  html += "</div>\n<div id=\"jobs-section\"><h2>Jobs</h2>\n";
   if (jobs.empty())
     html += "<p>No jobs.</p>\n";
   else {
@@ -219,7 +219,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
     }
     html += "</table>\n";
   }
-  html += "<h2>Workers</h2>\n";
+  html += "</div>\n<div id=\"workers-section\"><h2>Workers</h2>\n";
   if (workers.empty())
     html += "<p>No worker has contacted this coordinator since it started.</p>\n";
   else {
@@ -242,15 +242,37 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           Escape(w.version()));
     html += "</table>\n";
   }
+  html += "</div>\n";
   // The buttons' requests (POST /jobs/<id>/<action>, with the header that proves they come from
   // this page); the answer of a refused one is shown as it is.
+  // Updates in place every 2 s (without JavaScript: the <noscript> reload): the page is fetched
+  // again and its two tables swapped in; a preview image is replaced only when its job merged
+  // more samples (its URL names the count), so unchanged images are not fetched again and the
+  // page neither flickers nor loses its scroll position.
   html += R"(<script>
+async function update() {
+  const r = await fetch(location.pathname, {credentials: 'same-origin', cache: 'no-store'});
+  if (!r.ok) return;
+  const next = new DOMParser().parseFromString(await r.text(), 'text/html');
+  for (const id of ['jobs-section', 'workers-section'])
+    document.getElementById(id).replaceWith(document.adoptNode(next.getElementById(id)));
+  const shown = document.getElementById('previews'), fresh = next.getElementById('previews');
+  const keep = new Map([...shown.children].map(f => [f.querySelector('img').getAttribute('src'), f]));
+  shown.replaceChildren(...[...fresh.children].map(f => {
+    const old = keep.get(f.querySelector('img').getAttribute('src'));
+    if (!old) return document.adoptNode(f);
+    old.querySelector('figcaption').replaceWith(document.adoptNode(f.querySelector('figcaption')));
+    return old;
+  }));
+}
+function tick() { update().catch(() => {}).finally(() => setTimeout(tick, 2000)); }
+setTimeout(tick, 2000);
 async function act(id, action) {
   if ((action === 'cancel' || action === 'delete') && !confirm(action + ' job ' + id + '?')) return;
   const r = await fetch('/jobs/' + encodeURIComponent(id) + '/' + action,
                         {method: 'POST', headers: {'X-Photonfarm-Action': action}, credentials: 'same-origin'});
   if (!r.ok) alert(action + ' ' + id + ': ' + (await r.text()));
-  location.reload();
+  await update();
 }
 </script>
 )";

@@ -180,6 +180,41 @@ RunResult Chromium(const TestDir& dir, const std::vector<std::string>& args, con
   return RunCommand(Concat(argv, args), dir.path(), 90, {{"HOME", dir.path().string()}});
 }
 
+// The page updates itself in place (no reload): loaded as it was with one job, its update()
+// swaps in the tables and previews of the page as it is after a second job was submitted. The
+// newer page is handed to it through a stubbed fetch, so the test does not depend on when
+// Chromium's timer fires relative to the submission.
+TEST(WebStatus, ThePageUpdatesItselfInPlace) {
+  ASSERT_TRUE(fs::exists("/usr/bin/chromium")) << "Debian's chromium (tools/install-deps.sh) is needed";
+  TestDir dir;
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--http", "127.0.0.1:0"});
+  httplib::Client http("127.0.0.1", coordinator.http_port());
+  const std::string first = Submit(dir, coordinator.address(), JobArgs());
+  const auto before = http.Get("/");
+  ASSERT_TRUE(before);
+  const std::string second = Submit(dir, coordinator.address(), JobArgs());
+  const auto after = http.Get("/");
+  ASSERT_TRUE(after);
+  ASSERT_EQ(before->body.find(second), std::string::npos);
+  ASSERT_NE(after->body.find(second), std::string::npos);
+  std::string page = before->body;
+  // The newer page as a JS string literal inside a <script>: "</" would end the element.
+  std::string literal = nlohmann::json(after->body).dump();
+  for (size_t at = literal.find("</"); at != std::string::npos; at = literal.find("</", at + 3))
+    literal.replace(at, 2, "<\\/");
+  const std::string stub =
+      "<script>window.fetch = async () => new Response(" + literal + ", {status: 200});</script>";
+  page.insert(page.find("<head>") + 6, stub);
+  std::ofstream(dir / "page.html") << page;
+  const RunResult r =
+      Chromium(dir, {"--dump-dom", "--virtual-time-budget=10000", "file://" + (dir / "page.html").string()},
+               "profile-update");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("act('" + second + "', 'pause')"), std::string::npos) << "the jobs table\n" << r.out;
+  EXPECT_NE(r.out.find("id=\"preview-" + second + "\""), std::string::npos) << "the previews\n" << r.out;
+  EXPECT_NE(r.out.find("id=\"preview-" + first + "\""), std::string::npos) << r.out;
+}
+
 TEST(WebStatus, ChromiumShowsJobsWorkersAndALivePreview) {
   ASSERT_TRUE(fs::exists("/usr/bin/chromium")) << "Debian's chromium (tools/install-deps.sh) is needed";
   TestDir dir;
