@@ -441,6 +441,7 @@ int RunWorkers(const FarmArgs& f, bool json) {
                      {"refused_reason", w.refused_reason()},
                      {"refused_calls", w.refused_calls()},
                      {"lost", w.lost()},
+                     {"offline", w.offline()},
                      {"quarantined", w.quarantined()},
                      {"quarantine_reason", w.quarantine_reason()},
                      {"quarantine_seconds_left", w.quarantine_seconds_left()},
@@ -459,6 +460,7 @@ int RunWorkers(const FarmArgs& f, bool json) {
     const std::string current =
         w.refused()       ? "refused"
         : w.quarantined() ? "quarantined " + FormatDuration(w.quarantine_seconds_left())
+        : w.offline()     ? "offline"
         : w.lost()        ? "lost"
         : w.busy()        ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id())
                           : "idle";

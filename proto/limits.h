@@ -72,6 +72,18 @@ inline constexpr float kMaxVfovDegrees = 179.9f;
 }  // namespace pf
 namespace pf::limits {
 
+// The worker id a worker announces in every WorkerService call's metadata, so that a call the
+// coordinator's auth hook refuses (a wrong token) can be listed under it in `pf workers`: that
+// hook sees no peer address (docs/farm.md "Worker health"). Untrusted on the coordinator's side:
+// AnnouncedWorkerId makes it printable ASCII without spaces, at most kMaxAnnouncedIdBytes.
+inline constexpr char kWorkerIdMetadata[] = "pf-worker-id";
+inline constexpr size_t kMaxAnnouncedIdBytes = 64;
+inline std::string AnnouncedWorkerId(std::string_view worker_id) {
+  std::string id;
+  for (const char c : worker_id.substr(0, kMaxAnnouncedIdBytes)) id += (c >= 0x21 && c <= 0x7e) ? c : '?';
+  return id;
+}
+
 // `text` for a log line or an error message: non-printable bytes (\n, ESC, ...) as \xNN, cut to
 // `max_bytes` with "...", in single quotes.
 inline std::string Quote(std::string_view text, size_t max_bytes = kMaxEchoBytes) {

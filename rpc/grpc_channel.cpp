@@ -112,12 +112,6 @@ ClientTls ResolveClientTls(std::string ca_file, std::string cert_file, std::stri
   return tls;
 }
 
-std::string AnnouncedWorkerId(std::string_view worker_id) {
-  std::string id;
-  for (const char c : worker_id.substr(0, kMaxAnnouncedIdBytes)) id += (c >= 0x21 && c <= 0x7e) ? c : '?';
-  return id;
-}
-
 void PrepareContext(grpc::ClientContext* context, const std::string& token,
                     std::chrono::milliseconds timeout) {
   context->set_deadline(std::chrono::system_clock::now() + timeout);

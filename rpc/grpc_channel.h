@@ -7,7 +7,8 @@
 // Keepalive: a ping every 10 s even without calls (so an idle worker long-polling a coordinator
 // that vanished without closing its sockets notices within ~15 s); the coordinator permits
 // pings at that rate. Reconnect backoff is capped at 2 s (gRPC's default cap is 120 s), so a
-// restarted coordinator is found quickly; the worker adds its own jittered backoff on top.
+// restarted coordinator is found quickly (a closed port refuses at once); the worker adds its own
+// jittered backoff on top. One connection attempt may take up to 20 s (grpc_channel.cpp says why).
 
 #include <grpcpp/grpcpp.h>
 
@@ -51,13 +52,6 @@ struct ChannelOptions {
   int keepalive_timeout_ms = 5000;
   int max_reconnect_backoff_ms = 2000;
 };
-
-// The worker id a worker announces in every WorkerService call's metadata, so that a call the
-// coordinator's auth hook refuses (a wrong token) can be listed under it in `pf workers`: that
-// hook sees no peer address. Printable ASCII, at most kMaxAnnouncedIdBytes (AnnouncedWorkerId).
-inline constexpr char kWorkerIdMetadata[] = "pf-worker-id";
-inline constexpr size_t kMaxAnnouncedIdBytes = 64;
-std::string AnnouncedWorkerId(std::string_view worker_id);
 
 // A channel to HOST:PORT with the options above: TLS when options.tls.ca_pem is set, else
 // plaintext.

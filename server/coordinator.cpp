@@ -5,6 +5,7 @@
 #include "server/scheduling/referee.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/security/server_credentials.h>
@@ -16,6 +17,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <mutex>
 
 #include "common/core/error.h"
 #include "photonfarm_version.h"
@@ -105,15 +107,32 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   executor_ = std::make_unique<Executor>(options_.executor_threads);
   watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_, options_.budgets);
   admission_ = std::make_unique<Admission>(options_.budgets, *scheduler_, *scenes_);
+  // Refused workers are listed in pf workers and the web page; logged once per caller and reason,
+  // and at most once a second (unauthenticated callers choose their ids: a flood of made-up ids
+  // must not fill the log).
+  struct RefusalLog {
+    std::mutex mu;
+    double last = -1e9;
+    uint64_t unlogged = 0;
+  };
   auth_ = std::make_shared<RoleAuthProcessor>(
       RoleTokens{options_.client_token, options_.worker_token}, !options_.tls_client_ca_pem.empty(),
-      [&activity = scheduler_->activity()](const std::string& announced_id, const grpc::Status& status) {
-        // Listed in pf workers and the web page; logged once per caller and reason.
+      [&activity = scheduler_->activity(), &clock = *clock_, log = std::make_shared<RefusalLog>()](
+          const std::string& announced_id, const grpc::Status& status) {
         const std::string reason =
             StatusCodeName(status.error_code()) + std::string(": ") + status.error_message();
-        if (activity.WorkerRefused(announced_id, reason))
-          spdlog::warn("worker {} refused: {} (further refusals are counted in pf workers)",
-                       limits::Quote(announced_id.empty() ? "(no worker id)" : announced_id), reason);
+        if (!activity.WorkerRefused(announced_id, reason)) return;
+        std::lock_guard lock(log->mu);
+        if (clock.Now() - log->last < 1.0) {
+          ++log->unlogged;
+          return;
+        }
+        log->last = clock.Now();
+        spdlog::warn(
+            "worker {} refused: {} (further refusals are counted in pf workers{})",
+            limits::Quote(announced_id.empty() ? "(no worker id)" : announced_id), reason,
+            log->unlogged == 0 ? "" : fmt::format("; {} other refused callers not logged", log->unlogged));
+        log->unlogged = 0;
       });
   scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
   scheduler_->SetChangeListener([this, w = watches_.get()](const std::string& job_id) {
@@ -345,11 +364,14 @@ void Coordinator::MaybeApplyDataQuota() {
   data_changed_ = false;
   const bool posted = executor_->Post([this, quota] {
     try {
+      const auto t0 = std::chrono::steady_clock::now();
       const uint64_t bytes = DirectoryBytes(options_.data_dir);
+      const double walk = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      next_quota_check_ = std::max(next_quota_check_.load(), clock_->Now() + 10 * walk);
       if (bytes > uint64_t(double(quota) * kDataQuotaHighWater)) {
         const auto deleted =
             operations_->DeleteFinishedOverQuota(bytes, uint64_t(double(quota) * kDataQuotaLowWater));
-        const uint64_t after = DirectoryBytes(options_.data_dir);
+        const uint64_t after = deleted.jobs == 0 ? bytes : DirectoryBytes(options_.data_dir);
         if (deleted.jobs > 0)
           spdlog::info(
               "--data-quota: {} finished jobs deleted ({} bytes freed); the data dir holds {} of {} bytes",

@@ -209,7 +209,7 @@ class Coordinator {
   std::thread tick_thread_;
   double next_retention_ = 0;  // Clock::Now() of the next check (tick thread only)
   std::atomic<bool> retention_running_{false};
-  double next_quota_check_ = 0;  // --data-quota: as the two above
+  std::atomic<double> next_quota_check_{0};  // --data-quota: as the two above
   double last_quota_check_ = 0;
   std::atomic<bool> quota_running_{false};
   std::atomic<bool> data_changed_{true};  // a job changed since the last measurement

@@ -8,6 +8,7 @@
 #include "common/core/error.h"
 #include "common/core/sha256.h"
 #include "photonfarm_version.h"
+#include "proto/limits.h"
 
 namespace pf::worker {
 namespace v1 = photonfarm::v1;
@@ -26,7 +27,7 @@ std::string Short(const std::string& key) {
 void CoordinatorClient::Prepare(grpc::ClientContext* context, std::chrono::milliseconds timeout) const {
   PrepareContext(context, options_.token, timeout);
   // Named in every call, so that a refused one is listed under this worker (pf workers).
-  context->AddMetadata(kWorkerIdMetadata, AnnouncedWorkerId(options_.worker_id));
+  context->AddMetadata(limits::kWorkerIdMetadata, limits::AnnouncedWorkerId(options_.worker_id));
 }
 
 bool IsConnectionError(const grpc::Status& s) {
@@ -83,10 +84,10 @@ CoordinatorClient::Extension CoordinatorClient::ExtendLease(const std::string& l
   req.set_progress(progress);
   v1::ExtendLeaseResponse resp;
   grpc::ClientContext cctx;
+  // Fails at once while the channel is down (no wait_for_ready): the lease keeper's thread must
+  // stop promptly on a stop or an abort. CompleteTask's waiting call and gRPC's backup poller
+  // drive the reconnection.
   Prepare(&cctx, std::min(interval, Seconds(options_.rpc_timeout_seconds)));
-  // While the coordinator is unreachable the call waits for the channel to reconnect (until its
-  // deadline) instead of failing at once: a waiting call is what drives the reconnection.
-  cctx.set_wait_for_ready(true);
   Extension e;
   e.status = worker_service_->ExtendLease(&cctx, req, &resp);
   if (e.status.ok()) {
@@ -125,8 +126,15 @@ CoordinatorClient::Completion CoordinatorClient::CompleteTask(const v1::Task& ta
   c.bytes = req.ByteSizeLong();
   while (true) {
     grpc::ClientContext cctx;
-    Prepare(&cctx, Seconds(options_.rpc_timeout_seconds));
-    cctx.set_wait_for_ready(true);  // as ExtendLease: wait for the channel, and so drive it
+    const auto until = retry.until ? std::min(retry.until(), retry.give_up) : retry.give_up;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
+    Prepare(&cctx, std::clamp(left, std::chrono::milliseconds(100),
+                              std::chrono::duration_cast<std::chrono::milliseconds>(
+                                  Seconds(options_.rpc_timeout_seconds))));
+    // While the coordinator is unreachable the call waits for the channel to reconnect instead of
+    // failing at once: with the synchronous API a waiting call is what drives the reconnection (a
+    // worker cut off by a partition never reconnected without it: tests/deploy/multihost_test.py).
+    cctx.set_wait_for_ready(true);
     v1::CompleteTaskResponse resp;
     c.status = worker_service_->CompleteTask(&cctx, req, &resp);
     c.merged = c.status.ok() && resp.merged();
@@ -157,6 +165,17 @@ void CoordinatorClient::FailTask(const std::string& lease_id, const std::string&
     }
   }
   spdlog::warn("FailTask {}: coordinator unreachable; the lease will expire", ctx);
+}
+
+void CoordinatorClient::LeaveFarm() {
+  v1::LeaveFarmRequest req;
+  req.set_worker_id(options_.worker_id);
+  grpc::ClientContext cctx;
+  Prepare(&cctx, std::chrono::milliseconds(2000));
+  v1::LeaveFarmResponse resp;
+  const grpc::Status status = worker_service_->LeaveFarm(&cctx, req, &resp);
+  if (!status.ok())
+    spdlog::info("LeaveFarm: {} (the coordinator will list this worker lost)", StatusToString(status));
 }
 
 SceneBundle CoordinatorClient::FetchScene(const std::string& hash, const std::string& entry) {

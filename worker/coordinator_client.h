@@ -67,11 +67,13 @@ class CoordinatorClient {
 
   // CompleteTask with the task's pixel sums and statistics. While the coordinator is unreachable
   // the result is kept and the call retried: `wait(attempts)` between tries (the loop's backoff),
-  // until `give_up` or `stop()`.
+  // until `give_up` or `stop()`. Each try waits for the channel to reconnect, at most the RPC
+  // timeout and never past `until()` (a stop request's grace period; null: give_up).
   struct RetryWhileAway {
     std::chrono::steady_clock::time_point give_up;
     std::function<bool()> stop;
     std::function<void(int attempts)> wait;
+    std::function<std::chrono::steady_clock::time_point()> until;
   };
   struct Completion {
     grpc::Status status;  // of the last attempt
@@ -85,6 +87,10 @@ class CoordinatorClient {
   // FailTask, tried twice while the coordinator is unreachable, then left to expire (logged).
   void FailTask(const std::string& lease_id, const std::string& ctx, const std::string& reason,
                 bool retryable);
+
+  // LeaveFarm: this worker stops on its own (listed offline, not lost). One try of at most 2 s;
+  // a coordinator that does not answer lists the worker lost later instead.
+  void LeaveFarm();
 
   // FetchScene: the bundle of `hash`, whose files with `entry` (Task.scene_entry) must hash to it.
   // Throws RpcError, or InputError when they do not.
@@ -107,7 +113,7 @@ class CoordinatorClient {
   uint64_t map_parts_refused() const { return map_parts_refused_.load(); }
 
  private:
-  // The deadline, the bearer token and this worker's announced id (kWorkerIdMetadata).
+  // The deadline, the bearer token and this worker's announced id (limits::kWorkerIdMetadata).
   void Prepare(grpc::ClientContext* context, std::chrono::milliseconds timeout) const;
 
   WorkerOptions options_;

@@ -87,14 +87,20 @@ bool Worker::InterruptibleSleep(std::chrono::milliseconds d, bool wake_on_stop) 
 
 void Worker::BackoffSleep(bool wake_on_stop) {
   SetState(State::kBackoff);
-  auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(Seconds(backoff_.NextSeconds()));
-  if (!wake_on_stop) {  // but not past the grace period of a stop request
-    std::lock_guard lock(mutex_);
-    if (stop_.load())
-      wait = std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(stop_deadline_ - Clock::now()),
-                        std::chrono::milliseconds(0), wait);
+  const auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(Seconds(backoff_.NextSeconds()));
+  if (wake_on_stop) {
+    InterruptibleSleep(wait);
+    return;
   }
-  InterruptibleSleep(wait, wake_on_stop);
+  // Not ended by a stop request, but never past its grace period (also one that arrives while
+  // it sleeps: a notification recomputes the end).
+  const Clock::time_point end = Clock::now() + wait;
+  std::unique_lock lock(mutex_);
+  while (!abort_.load()) {
+    const Clock::time_point until = stop_.load() ? std::min(end, stop_deadline_) : end;
+    if (Clock::now() >= until) break;
+    wake_.wait_until(lock, until);
+  }
 }
 
 bool Worker::WaitForConnection() {
@@ -176,6 +182,9 @@ int Worker::Run() {
     }
   }
   SetState(State::kStopping);
+  // Said as it leaves, so that the coordinator lists it offline rather than lost; not after an
+  // abort (exit now) or a refusal of its build (it never joined).
+  if (exit_code == 0 && !abort_.load()) client_.LeaveFarm();
   const WorkerCounters c = counters();
   spdlog::info(
       "worker {} stopped: {} leased, {} completed ({} merged), {} failed, {} abandoned ({} cancelled), {} "
@@ -334,6 +343,10 @@ Worker::Outcome Worker::Report(const v1::Task& task, const std::string& ctx, con
   retry.stop = [this] {
     std::lock_guard lock(mutex_);
     return abort_.load() || (stop_.load() && Clock::now() >= stop_deadline_);
+  };
+  retry.until = [this] {
+    std::lock_guard lock(mutex_);
+    return stop_.load() ? stop_deadline_ : Clock::time_point::max();
   };
   retry.wait = [this, &ctx](int attempts) {
     backoff_.AtLeast(attempts);

@@ -138,6 +138,7 @@ nlohmann::json WorkerJson(const v1::WorkerInfo& w) {
           {"refused_reason", w.refused_reason()},
           {"refused_calls", w.refused_calls()},
           {"lost", w.lost()},
+          {"offline", w.offline()},
           {"quarantined", w.quarantined()},
           {"busy", w.busy()},
           {"current_job_id", w.current_job_id()},
@@ -235,6 +236,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
           // Worker health (docs/farm.md), as pf workers says it.
           w.refused()       ? "refused: " + Escape(w.refused_reason())
           : w.quarantined() ? "quarantined: " + Escape(w.quarantine_reason())
+          : w.offline()     ? std::string("offline")
           : w.lost()        ? std::string("lost")
           : w.busy()        ? Escape(w.current_job_id()) + " task " + std::to_string(w.current_task_id())
                             : "idle",

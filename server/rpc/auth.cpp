@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "proto/limits.h"
+
 namespace pf::server {
 namespace {
 
@@ -66,7 +68,7 @@ grpc::Status RoleAuthProcessor::Process(const InputMetadata& auth_metadata, grpc
     const std::string_view k(key.data(), key.size());
     if (k == ":path") method = std::string_view(value.data(), value.size());
     if (k == "authorization") authorization = std::string_view(value.data(), value.size());
-    if (k == kWorkerIdMetadata) worker_id = std::string_view(value.data(), value.size());
+    if (k == limits::kWorkerIdMetadata) worker_id = std::string_view(value.data(), value.size());
   }
   grpc::Status status = Authorize(tokens_, method, authorization);
   if (status.ok() && worker_needs_certificate_ && StartsWith(method, kWorkerService) &&

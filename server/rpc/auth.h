@@ -17,8 +17,6 @@
 #include <string>
 #include <string_view>
 
-#include "rpc/grpc_channel.h"  // kWorkerIdMetadata
-
 namespace pf::server {
 
 struct RoleTokens {

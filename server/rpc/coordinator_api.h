@@ -101,6 +101,8 @@ class CoordinatorApi {
   virtual void CancelWait(uint64_t waiter) = 0;
   // A lease that never reached its worker: queued again at once.
   virtual void ReturnLease(const std::string& lease_id) = 0;
+  // The worker is leaving (LeaveFarm): offline, not lost (Scheduler::WorkerLeft).
+  virtual void WorkerLeft(const std::string& worker_id) = 0;
   // The built map a render task of `job_id` fetches; nullopt if its worker traces it.
   virtual std::optional<BuiltMap> MapFor(const std::string& job_id, uint64_t map_index) = 0;
   virtual ExtendResult ExtendLease(const std::string& lease_id, const std::string& worker_id,

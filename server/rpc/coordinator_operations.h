@@ -66,6 +66,7 @@ class CoordinatorOperations final : public CoordinatorApi {
                        std::function<void(std::optional<Lease>)> done) override;
   void CancelWait(uint64_t waiter) override;
   void ReturnLease(const std::string& lease_id) override;
+  void WorkerLeft(const std::string& worker_id) override;
   std::optional<BuiltMap> MapFor(const std::string& job_id, uint64_t map_index) override;
   ExtendResult ExtendLease(const std::string& lease_id, const std::string& worker_id,
                            double progress) override;

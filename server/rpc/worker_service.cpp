@@ -254,6 +254,18 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
   return reactor;
 }
 
+grpc::ServerUnaryReactor* WorkerServiceImpl::LeaveFarm(grpc::CallbackServerContext* context,
+                                                       const v1::LeaveFarmRequest* request,
+                                                       v1::LeaveFarmResponse* /*response*/) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  reactor->Finish(Guarded("LeaveFarm", [&] {
+    RequireWorkerId(request->worker_id());
+    api_.WorkerLeft(request->worker_id());
+    return grpc::Status::OK;
+  }));
+  return reactor;
+}
+
 grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(
     grpc::CallbackServerContext* /*context*/, const v1::FetchSceneRequest* request) {
   const grpc::Status precheck = Guarded("FetchScene", [&] {

@@ -12,6 +12,7 @@
 //                With durable acknowledgements (--checkpoint-ms 0, the default) the answer waits
 //                until the result is in the journal on disk (server/store/persister.h).
 //  FailTask      gives a task back (retryable: re-queued up to the attempt limit).
+//  LeaveFarm     a worker stopping on its own: offline, not lost, until it calls again.
 //  FetchScene    the stored bundle as SceneFile messages in path order; a file larger than
 //                1 MiB arrives as consecutive messages with the same path (concatenate them).
 //                The entry file's path is Task.scene_entry.
@@ -43,6 +44,7 @@ class WorkerServiceImpl final : public photonfarm::v1::WorkerService::CallbackSe
   grpc::ServerReadReactor<photonfarm::v1::PhotonChunkPart>* UploadPhotonChunk(
       grpc::CallbackServerContext* context, photonfarm::v1::UploadPhotonChunkResponse* response) override;
   PF_STREAM_HANDLER(FetchMap, FetchMapRequest, MapBytes);
+  PF_UNARY_HANDLER(LeaveFarm, LeaveFarmRequest, LeaveFarmResponse);
 
  private:
   CoordinatorApi& api_;

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "rpc/grpc_channel.h"
+#include "proto/limits.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
@@ -33,18 +33,28 @@ void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& p
   w.info.set_refused_reason(refused_reason);
   w.info.set_refused_calls(refused_reason.empty() ? 0 : w.info.refused_calls() + 1);
   w.last_seen = clock_.Now();
+  if (refused_reason.empty()) refused_.erase(worker_id);  // its credential works now
 }
 
 bool FarmActivity::WorkerRefused(const std::string& announced_id, const std::string& reason) {
-  std::string id = AnnouncedWorkerId(announced_id);  // untrusted: printable and short
+  std::string id = limits::AnnouncedWorkerId(announced_id);  // untrusted: printable and short
   if (id.empty()) id = "(no worker id)";
   std::lock_guard lock(mu_);
   const double now = clock_.Now();
-  auto it = workers_.find(id);
-  // An id any caller may announce: a live worker's entry keeps saying what that worker does.
-  if (it != workers_.end() && !it->second.info.refused() && now - it->second.last_seen < kLiveSeconds)
-    id += " (refused)";
-  Worker& w = WorkerLocked(id);
+  // An id any caller may announce: a worker's entry keeps saying what that worker does.
+  if (workers_.count(id)) id += " (refused)";
+  auto it = refused_.find(id);
+  if (it == refused_.end()) {
+    if (refused_.size() >= kMaxRefusedKept) {  // forget the least recently refused
+      auto oldest = refused_.begin();
+      for (auto r = refused_.begin(); r != refused_.end(); ++r)
+        if (r->second.last_seen < oldest->second.last_seen) oldest = r;
+      refused_.erase(oldest);
+    }
+    it = refused_.emplace(id, Worker{}).first;
+    it->second.info.set_worker_id(id);
+  }
+  Worker& w = it->second;
   const bool first = !w.info.refused() || w.info.refused_reason() != reason;
   w.info.set_refused(true);
   w.info.set_refused_reason(reason);
@@ -107,6 +117,19 @@ void FarmActivity::WorkerStats(const std::string& worker_id, uint64_t photons_em
       w.info.busy_seconds() > 0 ? double(w.info.photons_emitted()) / w.info.busy_seconds() : 0.0);
 }
 
+void FarmActivity::WorkerOffline(const std::string& worker_id, bool offline) {
+  std::lock_guard lock(mu_);
+  auto it = workers_.find(worker_id);
+  if (it == workers_.end() || it->second.info.offline() == offline) return;
+  it->second.info.set_offline(offline);
+  if (offline) {
+    it->second.info.set_lost(false);
+    it->second.info.set_busy(false);
+    it->second.info.clear_current_job_id();
+    it->second.info.set_current_task_id(0);
+  }
+}
+
 void FarmActivity::WorkerLost(const std::string& worker_id, bool lost) {
   if (worker_id.empty()) return;
   std::lock_guard lock(mu_);
@@ -147,7 +170,7 @@ std::vector<v1::WorkerInfo> FarmActivity::Workers() const {
   std::lock_guard lock(mu_);
   const double now = clock_.Now();
   std::vector<v1::WorkerInfo> out;
-  out.reserve(workers_.size());
+  out.reserve(workers_.size() + refused_.size());
   for (const auto& [id, w] : workers_) {
     out.push_back(w.info);
     v1::WorkerInfo& info = out.back();
@@ -157,6 +180,10 @@ std::vector<v1::WorkerInfo> FarmActivity::Workers() const {
       info.set_quarantine_seconds_left(w.quarantined_until - now);
     else
       info.clear_quarantine_reason();
+  }
+  for (const auto& [id, w] : refused_) {
+    out.push_back(w.info);
+    out.back().set_seconds_since_seen(std::max(0.0, now - w.last_seen));
   }
   return out;
 }

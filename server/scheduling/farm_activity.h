@@ -19,6 +19,10 @@ namespace pf::server {
 
 inline constexpr size_t kMaxEventsPerJob = 10000;
 inline constexpr size_t kMaxWorkersKept = 4096;
+// Callers refused before reaching the farm (WorkerRefused), kept apart from the workers: any
+// number of unauthenticated calls with made-up ids then costs at most this many entries and never
+// pushes a worker of the farm out (the least recently refused goes first).
+inline constexpr size_t kMaxRefusedKept = 256;
 // A worker seen within this many seconds counts as live (--plan auto's worker count; a refused
 // caller does not take over a live worker's entry).
 inline constexpr double kLiveSeconds = 60;
@@ -35,9 +39,10 @@ class FarmActivity {
                   const std::string& version, const std::string& refused_reason = "");
   // A WorkerService call refused before it reached the farm (auth.h: a wrong or missing token or
   // client certificate), from the worker id the caller announced (untrusted: made printable and
-  // short; "" = none announced). Listed as refused with the reason and a count; a name a live,
-  // accepted worker holds is not taken over (the refusal is listed as "<id> (refused)"). True for
-  // the first refusal of that entry (log it once; later ones are counted).
+  // short; "" = none announced). Listed as refused with the reason and a count, apart from the
+  // workers (kMaxRefusedKept); a name an accepted worker holds is listed as "<id> (refused)". An
+  // entry goes when a LeaseTask under its id is accepted. True for the first refusal of that
+  // entry and reason (log it once; later ones are counted).
   bool WorkerRefused(const std::string& announced_id, const std::string& reason);
   // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned, revoked,
   // confirmed (a result above the job's bound reproduced by another worker, then merged); about a
@@ -50,6 +55,9 @@ class FarmActivity {
   // Worker health as the scheduler decided it (worker_health.h): lost or live again, blocklisted
   // for a job, quarantined until `until` (Clock::Now seconds) for `reason`.
   void WorkerLost(const std::string& worker_id, bool lost);
+  // Said it is leaving (LeaveFarm): offline until its next call (false). A worker never listed
+  // stays unlisted.
+  void WorkerOffline(const std::string& worker_id, bool offline);
   void WorkerBlocklisted(const std::string& worker_id, const std::string& job_id);
   void WorkerQuarantined(const std::string& worker_id, double until, const std::string& reason);
 
@@ -76,6 +84,7 @@ class FarmActivity {
   const Clock& clock_;
   mutable std::mutex mu_;
   std::map<std::string, Worker> workers_;
+  std::map<std::string, Worker> refused_;  // WorkerRefused's entries
   std::map<std::string, JobEvents> events_;
 };
 

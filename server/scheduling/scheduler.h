@@ -294,6 +294,8 @@ class Scheduler final : public PersistSource {
                    bool retryable);
   // A lease that never reached its worker: back to the queue, no failure counted.
   void ReturnLease(const std::string& lease_id);
+  // The worker is leaving (LeaveFarm): listed as offline, never marked lost while it is silent.
+  void WorkerLeft(const std::string& worker_id);
 
   // A worker sent a result of the job (a render task or a map piece) that another render proved
   // wrong (docs/farm.md, "Result verification"), or presented another worker's lease. The worker

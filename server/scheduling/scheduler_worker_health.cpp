@@ -17,13 +17,22 @@ namespace v1 = photonfarm::v1;
 // ---------------------------------------------------------------------------------------------
 // Worker health (worker_health.h)
 
+void Scheduler::WorkerLeft(const std::string& worker_id) {
+  std::lock_guard lock(mu_);
+  if (!health_.Left(worker_id)) return;  // never seen polling: no worker of the farm
+  activity_.WorkerOffline(worker_id, true);
+  spdlog::info("worker {}: left the farm (offline)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
+}
+
 void Scheduler::PolledLocked(const std::string& worker_id, double now) {
+  activity_.WorkerOffline(worker_id, false);
   if (!health_.Polled(worker_id, now)) return;
   activity_.WorkerLost(worker_id, false);
   spdlog::info("worker {}: live again (it called)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
 }
 
 void Scheduler::HeardLocked(const std::string& worker_id, double now) {
+  activity_.WorkerOffline(worker_id, false);
   if (!health_.Heard(worker_id, now)) return;
   activity_.WorkerLost(worker_id, false);
   spdlog::info("worker {}: live again (it called)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));

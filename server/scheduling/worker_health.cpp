@@ -42,12 +42,13 @@ bool WorkerHealth::Heard(const std::string& worker_id, double now) {
   w.last_call = std::max(w.last_call, now);
   const bool was_lost = w.lost;
   w.lost = false;
+  w.left = false;
   return was_lost;
 }
 
 bool WorkerHealth::LeaseRanOut(const std::string& worker_id, double renewed, double now) {
   auto it = workers_.find(worker_id);
-  if (it == workers_.end() || it->second.lost) return false;
+  if (it == workers_.end() || it->second.lost || it->second.left) return false;
   // The lease was renewed at the same clock reading as the worker's call that renewed it; a
   // millisecond of slack absorbs the rounding of deadline − lease_seconds.
   if (it->second.last_call > renewed + 1e-3 || now < renewed) return false;
@@ -58,11 +59,19 @@ bool WorkerHealth::LeaseRanOut(const std::string& worker_id, double renewed, dou
 std::vector<std::pair<std::string, double>> WorkerHealth::MarkSilentLost(double now) {
   std::vector<std::pair<std::string, double>> lost;
   for (auto& [id, w] : workers_)
-    if (!w.lost && now - w.last_call > options_.lost_seconds) {
+    if (!w.lost && !w.left && now - w.last_call > options_.lost_seconds) {
       w.lost = true;
       lost.emplace_back(id, now - w.last_call);
     }
   return lost;
+}
+
+bool WorkerHealth::Left(const std::string& worker_id) {
+  auto it = workers_.find(worker_id);
+  if (it == workers_.end()) return false;
+  it->second.left = true;
+  it->second.lost = false;
+  return true;
 }
 
 bool WorkerHealth::Lost(const std::string& worker_id) const {

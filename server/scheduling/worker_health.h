@@ -68,6 +68,9 @@ class WorkerHealth {
   // Workers that just became lost by silence (see the header comment), with their silence.
   std::vector<std::pair<std::string, double>> MarkSilentLost(double now);
   bool Lost(const std::string& worker_id) const;
+  // The worker said it is leaving (LeaveFarm): it is not marked lost while it stays silent. Its
+  // next call (Polled, Heard) makes it online again. False for a worker never seen.
+  bool Left(const std::string& worker_id);
 
   // A failed attempt attributed to the worker in the job (`reason` for the blocklist entry).
   // `convicted`: it sent a result that another render proved wrong (docs/farm.md, "Result
@@ -100,6 +103,7 @@ class WorkerHealth {
   struct Worker {
     double last_call = 0;
     bool lost = false;
+    bool left = false;                // said it is leaving (LeaveFarm) and has not called since
     uint32_t active_jobs_failed = 0;  // jobs not ended with a failed attempt of it
     double quarantined_until = -std::numeric_limits<double>::infinity();
     std::deque<std::pair<double, std::string>> blocklistings;  // (when, job) within the window

@@ -13,14 +13,15 @@
 
 namespace pf::server {
 
-inline constexpr double kDataQuotaHighWater = 0.9;
-inline constexpr double kDataQuotaLowWater = 0.8;
-// The data dir is measured at most this often, and only after jobs changed (a merge, a state
-// change), or once every kRetentionCheckSeconds.
+inline constexpr double kDataQuotaHighWater = 0.85;
+inline constexpr double kDataQuotaLowWater = 0.7;
+// The data dir is measured at most this often (or ten times as long as the last measurement took,
+// if longer: a large store is not walked back to back), and only after jobs changed (a merge, a
+// state change), or once every kRetentionCheckSeconds.
 inline constexpr double kDataQuotaCheckSeconds = 0.05;
 
 // The bytes of every regular file under `dir`, recursively (entries that vanish or cannot be
-// read while it walks are skipped: jobs write and delete files meanwhile).
+// read while it walks are skipped, the rest still counted: jobs write and delete files meanwhile).
 uint64_t DirectoryBytes(const std::filesystem::path& dir);
 
 }  // namespace pf::server

@@ -30,6 +30,7 @@ as skipped, with the reason. Exit 0 pass, 1 fail."""
 import argparse
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -87,6 +88,16 @@ class Network:
 
     def argv(self, host, argv):
         return ["ip", "netns", "exec", self.ns[host]] + argv
+
+
+def remove_stale_namespaces():
+    """Namespaces an earlier run left behind when it was killed (CTest's timeout skips `finally`):
+    pfmh<pid>-* of a process that no longer exists."""
+    listing = ip("netns", "list", check=False).stdout
+    for line in listing.splitlines():
+        m = re.match(r"(pfmh(\d+)-\S+)", line)
+        if m and not os.path.exists("/proc/" + m.group(2)):
+            ip("netns", "del", m.group(1), check=False)
 
 
 def skip_reason():
@@ -230,10 +241,14 @@ def run(farm):
     watch = farm.pf("watch", job, "-q", "-o", farm_exr, "--timeout", "60", timeout=300, check=False)
     if watch.returncode != 0 or "succeeded" not in watch.stdout:
         raise Failure("pf watch: exit %d: %s%s" % (watch.returncode, watch.stdout, watch.stderr))
-    wait_for("worker-b to be live again", lambda: not farm.workers()["worker-b"]["lost"], 3 * LEASE_SECONDS)
-    # Its result of the task it lost was kept through the partition and reported, not merged.
-    stale = "completed job=%s task=%d attempt=1 merged=false" % (job, task_b)
-    wait_for("worker-b to report its stale result", lambda: stale in farm.log("worker-b"), 3 * LEASE_SECONDS)
+    wait_for("worker-b to be live again", lambda: not farm.workers()["worker-b"]["lost"], 60)
+    # Its result of the task it lost was kept through the partition and reported, not merged; or,
+    # if its render outlasted the partition (a loaded machine), the coordinator told it the lease
+    # was gone and it dropped the task. Either way it heard from the coordinator about that task.
+    ctx = "job=%s task=%d attempt=1" % (job, task_b)
+    wait_for("worker-b to hear that its task %d was taken from it" % task_b,
+             lambda: any(ctx in line and ("merged=false" in line or "abandoned" in line)
+                         for line in farm.log("worker-b").splitlines()), 60)
 
     # Nothing lost, nothing counted twice, the short cut survived.
     events = farm.events(job)
@@ -269,6 +284,7 @@ def main():
     if reason:
         print("SKIP: " + reason)
         return 77
+    remove_stale_namespaces()
     tmp = tempfile.mkdtemp(prefix="pf-multihost-")
     net = Network()
     farm = Farm(args, tmp, net)

@@ -9,6 +9,9 @@
 #include <signal.h>
 #include <nlohmann/json.hpp>
 
+#include <chrono>
+#include <cstdio>
+#include <optional>
 #include <regex>
 #include <set>
 #include <thread>
@@ -166,6 +169,39 @@ TEST(FarmFaults, AFlakyWorkerIsBlocklistedAndTheImageEqualsACleanRun) {
   EXPECT_TRUE(BitIdentical(DecodeImage(client.GetImage(job_id)), reference));
   real->Signal(SIGTERM);
   EXPECT_EQ(real->Wait(20).value_or(-1), 0);
+}
+
+// Worker health as pf workers shows it (docs/farm.md "Worker health"): a worker stopped with
+// SIGTERM says it leaves and is listed offline, never lost; a SIGKILLed one is listed lost within
+// two lease periods of the kill.
+TEST(FarmFaults, AStoppedWorkerIsOfflineAndAKilledOneIsLostWithinTwoLeases) {
+  TestDir dir;
+  constexpr double kLease = 2;
+  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--lease-seconds", "2"});
+  FarmClient client(coordinator.address(), "");
+  auto stopped = StartWorker(coordinator.address(), dir.path(), "w-stopped");
+  auto killed = StartWorker(coordinator.address(), dir.path(), "w-killed");
+  const auto info = [&](const std::string& id) -> std::optional<v1::WorkerInfo> {
+    for (const v1::WorkerInfo& w : client.ListWorkers())
+      if (w.worker_id() == id) return w;
+    return std::nullopt;
+  };
+  ASSERT_TRUE(WaitUntil([&] { return info("w-stopped") && info("w-killed"); }, 30));
+  stopped->Signal(SIGTERM);
+  EXPECT_EQ(stopped->Wait(20).value_or(-1), 0);
+  killed->Signal(SIGKILL);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_TRUE(WaitUntil([&] { return info("w-killed")->lost(); }, 4 * kLease));
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_LE(seconds, 2 * kLease + 0.5) << "lost after " << seconds << " s";
+  std::printf("the SIGKILLed worker was listed lost %.2f s after the kill (lease %.0f s)\n", seconds, kLease);
+  std::this_thread::sleep_for(std::chrono::duration<double>(2 * kLease));
+  EXPECT_TRUE(info("w-stopped")->offline());
+  EXPECT_FALSE(info("w-stopped")->lost()) << "it said it was leaving";
+  const RunResult r =
+      RunCommand({Binaries::Pf(), "workers", "--coordinator", coordinator.address()}, dir.path());
+  EXPECT_TRUE(std::regex_search(r.out, std::regex("w-stopped +\\S+ +[0-9]+ +offline"))) << r.out;
+  EXPECT_TRUE(std::regex_search(r.out, std::regex("w-killed +\\S+ +[0-9]+ +lost"))) << r.out;
 }
 
 TEST(FarmFaults, CoordinatorCrashResumesWithoutRerunningMergedTasks) {

@@ -54,10 +54,11 @@ TEST(FarmActivity, AnAnnouncedIdIsUntrustedAndCannotTakeOverALiveWorker) {
   EXPECT_FALSE(Find(workers, "render-3")->refused()) << "the live worker's entry was taken over";
   ASSERT_TRUE(Find(workers, "render-3 (refused)").has_value());
   EXPECT_TRUE(Find(workers, "render-3 (refused)")->refused());
-  // Once the worker has been silent for a minute, the name is no longer a live worker's.
-  clock.Advance(kLiveSeconds + 1);
+  // Also once the worker has been silent for long: the name stays the worker's.
+  clock.Advance(3600);
   activity.WorkerRefused("render-3", "UNAUTHENTICATED: authorization: invalid bearer token");
-  EXPECT_TRUE(Find(activity.Workers(), "render-3")->refused());
+  EXPECT_FALSE(Find(activity.Workers(), "render-3")->refused());
+  EXPECT_EQ(Find(activity.Workers(), "render-3 (refused)")->refused_calls(), 2u);
   // No id, and ids that are long or not printable.
   activity.WorkerRefused("", "UNAUTHENTICATED: authorization: missing (expected 'Bearer <token>')");
   EXPECT_TRUE(Find(activity.Workers(), "(no worker id)").has_value());
@@ -65,6 +66,24 @@ TEST(FarmActivity, AnAnnouncedIdIsUntrustedAndCannotTakeOverALiveWorker) {
   EXPECT_TRUE(Find(activity.Workers(), std::string(64, 'x')).has_value());
   activity.WorkerRefused("bad\nid\x01", "UNAUTHENTICATED: authorization: invalid bearer token");
   EXPECT_TRUE(Find(activity.Workers(), "bad?id?").has_value());
+}
+
+TEST(FarmActivity, AFloodOfRefusedCallersNeverPushesAWorkerOut) {
+  FakeClock clock;
+  FarmActivity activity(clock);
+  for (int i = 0; i < 50; ++i) activity.WorkerSeen("node-" + std::to_string(i), "ipv4:10.0.0.1:1", 2, "v1");
+  for (int i = 0; i < 20000; ++i) {
+    clock.Advance(0.001);
+    activity.WorkerRefused("made-up-" + std::to_string(i),
+                           "UNAUTHENTICATED: authorization: invalid bearer token");
+  }
+  const std::vector<v1::WorkerInfo> workers = activity.Workers();
+  size_t refused = 0;
+  for (const v1::WorkerInfo& w : workers) refused += w.refused();
+  EXPECT_EQ(refused, kMaxRefusedKept);
+  for (int i = 0; i < 50; ++i) EXPECT_TRUE(Find(workers, "node-" + std::to_string(i)).has_value()) << i;
+  EXPECT_TRUE(Find(workers, "made-up-19999").has_value()) << "the most recent refusal is kept";
+  EXPECT_FALSE(Find(workers, "made-up-0").has_value());
 }
 
 }  // namespace

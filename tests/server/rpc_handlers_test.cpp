@@ -76,6 +76,7 @@ class ScriptedCoordinator final : public CoordinatorApi {
   }
   void CancelWait(uint64_t) override {}
   void ReturnLease(const std::string&) override { Unexpected<int>(); }
+  void WorkerLeft(const std::string&) override { Unexpected<int>(); }
   std::optional<BuiltMap> MapFor(const std::string&, uint64_t) override {
     return Unexpected<std::optional<BuiltMap>>();
   }

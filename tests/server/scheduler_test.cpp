@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <set>
 
 #include "common/core/rng.h"
@@ -453,6 +454,34 @@ TEST_F(SchedulerTest, WorkerThatStopsPollingIsLostAndLiveAgainWhenItCalls) {
   EXPECT_FALSE(scheduler_.TryLease({"gone", {}}).has_value());
   EXPECT_FALSE(lost("gone"));
   EXPECT_TRUE(answers.empty());
+}
+
+// A worker that says it is leaving (LeaveFarm) is offline and never lost while it stays silent;
+// one that just goes silent is lost; a call makes the leaver online again. An id that never
+// polled is not listed by leaving.
+TEST_F(SchedulerTest, AWorkerThatLeavesIsOfflineNotLostAndOnlineAgainWhenItCalls) {
+  for (const char* worker : {"leaving", "silent"}) {
+    scheduler_.activity().WorkerSeen(worker, "ipv4:10.0.0.1:1", 1, "v1");
+    EXPECT_FALSE(scheduler_.TryLease({worker, {}}).has_value());
+  }
+  scheduler_.WorkerLeft("leaving");
+  scheduler_.WorkerLeft("stranger");
+  const auto info = [&](const std::string& worker) -> std::optional<v1::WorkerInfo> {
+    for (const v1::WorkerInfo& w : scheduler_.activity().Workers())
+      if (w.worker_id() == worker) return w;
+    return std::nullopt;
+  };
+  clock_.Advance(600);
+  scheduler_.Tick();
+  ASSERT_TRUE(info("leaving").has_value());
+  EXPECT_TRUE(info("leaving")->offline());
+  EXPECT_FALSE(info("leaving")->lost()) << "it said it was leaving";
+  EXPECT_TRUE(info("silent")->lost());
+  EXPECT_FALSE(info("silent")->offline());
+  EXPECT_FALSE(info("stranger").has_value());
+  EXPECT_FALSE(scheduler_.TryLease({"leaving", {}}).has_value());
+  EXPECT_FALSE(info("leaving")->offline()) << "online again when it calls";
+  EXPECT_FALSE(info("leaving")->lost());
 }
 
 // A farm of one worker still fails a broken job after its attempts (no worker is left that may
