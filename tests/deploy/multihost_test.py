@@ -32,13 +32,12 @@ import json
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 
-from recipes_test import Failure, base_env, env_file, wait_for
+from recipes_test import Failure, base_env, env_file, stop_processes, wait_for
 
 LEASE_SECONDS = 8.0
 HOSTS = {"coordinator": "198.18.0.1", "worker-a": "198.18.0.2", "worker-b": "198.18.0.3",
@@ -174,19 +173,7 @@ class Farm:
         raise Failure("%s rendered no task of the job within %d s" % (worker, seconds))
 
     def stop(self, check=True):
-        problems = []
-        for name, p in sorted(self.procs, key=lambda np: "coordinator" in np[0]):
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-            try:
-                rc = p.wait(timeout=90)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                rc = "hung"
-            if rc != 0:
-                problems.append("%s exited %s:\n%s" % (name, rc, self.log(name)[-3000:]))
-        if check and problems:
-            raise Failure("\n".join(problems))
+        stop_processes(self.procs, self.log, check)
 
 
 def run(farm):

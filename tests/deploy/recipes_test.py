@@ -129,20 +129,25 @@ class Farm:
         print("job " + job + ": succeeded, bit-identical to the local render")
 
     def stop(self, check=True):
-        """SIGTERM to every process (workers first); each must exit 0."""
-        problems = []
-        for name, p in sorted(self.procs, key=lambda np: "coordinator" in np[0]):
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-            try:
-                rc = p.wait(timeout=90)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                rc = "hung"
-            if rc != 0:
-                problems.append("%s exited %s:\n%s" % (name, rc, self.log(name)[-3000:]))
-        if check and problems:
-            raise Failure("\n".join(problems))
+        stop_processes(self.procs, self.log, check)
+
+
+def stop_processes(procs, log, check=True):
+    """SIGTERM to every (name, Popen) of `procs`, workers before the coordinator; each must exit 0
+    (`log(name)`: its log, quoted when it did not)."""
+    problems = []
+    for name, p in sorted(procs, key=lambda np: "coordinator" in np[0]):
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+        try:
+            rc = p.wait(timeout=90)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            rc = "hung"
+        if rc != 0:
+            problems.append("%s exited %s:\n%s" % (name, rc, log(name)[-3000:]))
+    if check and problems:
+        raise Failure("\n".join(problems))
 
 
 def env_file(path):
