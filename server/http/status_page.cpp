@@ -4,6 +4,7 @@
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
+#include <ctime>
 #include <nlohmann/json.hpp>
 
 #include "common/core/error.h"
@@ -201,10 +202,12 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
     for (const v1::JobStatus& s : jobs) {
       const double frac = s.progress();
       html += fmt::format(
-          "<tr><td>{}</td><td>{}</td><td>{}{}</td><td><span class=\"bar\"><span "
-          "style=\"width:{:.0f}%\"></span></span> "
-          "{:.1f}%</td><td>{}/{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</"
-          "td><td>{}</td></"
+          "<tr><td><a href=\"/jobs/{0}\">{0}</a></td><td>{1}</td><td>{2}{3}</td><td><span "
+          "class=\"bar\"><span "
+          "style=\"width:{4:.0f}%\"></span></span> "
+          "{5:.1f}%</td><td>{6}/{7}</td><td>{8}</td><td>{9}</td><td>{10}</td><td>{11}</td><td>{12}</"
+          "td><td>{13}</"
+          "td><td>{14}</td></"
           "tr>\n",
           Escape(s.job_id()), Escape(s.spec().name()),
           s.paused()                 ? "paused"
@@ -282,6 +285,49 @@ async function act(id, action) {
   return html;
 }
 
+std::string RenderJobPage(const v1::JobStatus& s, const std::vector<v1::TaskEvent>& events,
+                          uint64_t dropped) {
+  const std::string id = Escape(s.job_id());
+  std::string html = fmt::format(
+      R"(<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{0}</title>
+<style>
+body {{ font: 14px/1.4 sans-serif; margin: 8px; background: #fafafa; color: #222; }}
+table {{ border-collapse: collapse; margin-bottom: 16px; }}
+th, td {{ border: 1px solid #ccc; padding: 2px 8px; text-align: left; }}
+img {{ max-width: 512px; max-height: 512px; background: #000; image-rendering: pixelated; }}
+</style></head><body>
+<p><a href="/">all jobs</a></p>
+<h2 id="job">{0} {1}</h2>
+<p>{2}{3}, {4}/{5} tasks, {6} samples merged, elapsed {7}{8}</p>
+<p><img id="preview" alt="preview of {0}" src="/jobs/{0}/preview.png?samples={6}"></p>
+<p><a id="exr" href="/jobs/{0}/image.exr" download>the image now (EXR)</a> · <a id="png" href="/jobs/{0}/preview.png" download="{0}.png">preview (PNG)</a></p>
+<h3>Events</h3>
+)",
+      id, Escape(s.spec().name()), pf::JobStateName(s.state()),
+      s.failure_reason().empty() ? "" : ": " + Escape(s.failure_reason()), s.tasks_done(), s.tasks_total(),
+      s.samples_merged(), Duration(s.elapsed_seconds()),
+      s.estimated_noise_rms() >= 0 ? fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms()) : "");
+  if (dropped > 0) html += fmt::format("<p>({} older events not kept)</p>\n", dropped);
+  html +=
+      "<table id=\"events\"><tr><th>time (UTC)</th><th>event</th><th>task</th><th>attempt</th><th>worker</th>"
+      "<th>detail</th></tr>\n";
+  // Newest first, as a person reads a log of what just happened.
+  for (auto e = events.rbegin(); e != events.rend(); ++e) {
+    const std::time_t t = std::time_t(e->unix_ms() / 1000);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char when[32];
+    std::strftime(when, sizeof(when), "%Y-%m-%d %H:%M:%S", &tm);
+    html +=
+        fmt::format("<tr><td>{}.{:03d}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+                    when, int(e->unix_ms() % 1000), Escape(e->kind()), e->task_id(), e->attempt(),
+                    Escape(e->worker_id()), Escape(e->detail()));
+  }
+  html += "</table>\n</body></html>\n";
+  return html;
+}
+
 StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, const std::string& tls_cert_pem,
                                    const std::string& tls_key_pem, CoordinatorApi* actions)
     : scheduler_(scheduler),
@@ -336,6 +382,39 @@ StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, cons
           res.set_content(std::string(e.what()) + "\n", "text/plain");
         }
       });
+  svr.Get(R"(/jobs/([A-Za-z0-9._-]+))", [this](const httplib::Request& req, httplib::Response& res) {
+    const std::string job_id = req.matches[1];
+    res.set_header("Cache-Control", "no-store");
+    try {
+      const v1::JobStatus status = scheduler_.Status(job_id);
+      uint64_t dropped = 0;
+      const std::vector<v1::TaskEvent> events = scheduler_.activity().Events(status.job_id(), &dropped);
+      res.set_content(RenderJobPage(status, events, dropped), "text/html; charset=utf-8");
+    } catch (const NotFoundError& e) {
+      res.status = 404;
+      res.set_content(std::string(e.what()) + "\n", "text/plain");
+    }
+  });
+  svr.Get(R"(/jobs/([A-Za-z0-9._-]+)/image\.exr)",
+          [this](const httplib::Request& req, httplib::Response& res) {
+            const std::string job_id = req.matches[1];
+            res.set_header("Cache-Control", "no-store");
+            try {
+              // The merged image now, as GetImage sends it (its header says what it is of).
+              std::string exr;
+              for (const v1::ImageChunk& chunk : EncodeJobImage(scheduler_, job_id).chunks)
+                exr += chunk.exr_bytes();
+              res.set_header("Content-Disposition", "attachment; filename=\"" + job_id + ".exr\"");
+              res.set_content(std::move(exr), "image/x-exr");
+            } catch (const NotFoundError& e) {
+              res.status = 404;
+              res.set_content(std::string(e.what()) + "\n", "text/plain");
+            } catch (const std::exception& e) {
+              spdlog::warn("http: image of job {}: {}", job_id, e.what());
+              res.status = 500;
+              res.set_content(std::string(e.what()) + "\n", "text/plain");
+            }
+          });
   svr.Post(R"(/jobs/([A-Za-z0-9._-]+)/(cancel|pause|resume|requeue|delete))",
            [this](const httplib::Request& req, httplib::Response& res) { Act(req, res); });
 }

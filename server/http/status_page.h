@@ -7,6 +7,8 @@
 //                              preview; the page reloads itself every 2 s
 //   GET /api/status            the same as JSON
 //   GET /jobs/<id>/preview.png the job's merged image now, tone-mapped (auto exposure)
+//   GET /jobs/<id>             the job's page: status, preview, events (newest first), downloads
+//   GET /jobs/<id>/image.exr   the merged image now, as GetImage sends it (encoded in memory)
 //   POST /jobs/<id>/<action>   cancel, pause, resume, requeue (as it was) or delete the job, as
 //                              pf does (the page's buttons); JSON answer, HTTP code from the gRPC
 //                              one (404 unknown job, 409 not in a state for it, ...). Cross-site
@@ -47,6 +49,11 @@ std::pair<std::string, int> ParseHttpListen(const std::string& listen);
 // The page for these jobs and workers (pure: tested without a server).
 std::string RenderStatusPage(const std::vector<photonfarm::v1::JobStatus>& jobs,
                              const std::vector<photonfarm::v1::WorkerInfo>& workers);
+
+// One job's page (GET /jobs/<id>): its status, a larger preview, downloads of the image (EXR) and
+// the preview (PNG), and its events newest first (`dropped`: older ones no longer kept).
+std::string RenderJobPage(const photonfarm::v1::JobStatus& status,
+                          const std::vector<photonfarm::v1::TaskEvent>& events, uint64_t dropped);
 
 class StatusHttpServer {
  public:

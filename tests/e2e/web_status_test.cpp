@@ -143,6 +143,45 @@ TEST(WebStatus, ActionsNeedTheClientTokenAndThePagesHeaderAndDoWhatPfDoes) {
   EXPECT_EQ(r->body.find("act('" + id + "'"), std::string::npos) << "the deleted job is still offered";
 }
 
+// A job's page (GET /jobs/<id>): its events newest first, naming the worker, and the image as an
+// EXR download equal to what GetImage sends; an unknown job is 404, no token 401.
+TEST(WebStatus, AJobsPageShowsItsEventsAndTheImageDownloadsAsTheFarmHasIt) {
+  TestDir dir;
+  CoordinatorProcess coordinator = WithTokenAndStatusPage(dir);
+  JobArgs job;
+  job.rounds = 1;
+  const std::string id = Submit(dir, coordinator.address(), job, {{"PF_TOKEN", "s3cret-token"}});
+  auto worker =
+      StartWorker(coordinator.address(), dir.path(), "w-page", {"--token-file", (dir / "token").string()});
+  FarmClient client(coordinator.address(), "s3cret-token");
+  ASSERT_EQ(WaitForJob(client, id, 120).state(), photonfarm::v1::JOB_STATE_SUCCEEDED);
+  httplib::Client http("127.0.0.1", coordinator.http_port());
+  EXPECT_EQ(http.Get("/jobs/" + id)->status, 401);
+  http.set_bearer_token_auth("s3cret-token");
+  auto r = http.Get("/jobs/" + id);
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200);
+  EXPECT_NE(r->body.find("succeeded"), std::string::npos) << r->body;
+  EXPECT_TRUE(
+      std::regex_search(r->body, std::regex("<td>merged</td><td>[0-9]+</td><td>1</td><td>w-page</td>")))
+      << r->body;
+  EXPECT_LT(r->body.find("<td>merged</td>"), r->body.find("<td>leased</td>")) << "newest first";
+  EXPECT_NE(r->body.find("/jobs/" + id + "/image.exr"), std::string::npos);
+  r = http.Get("/jobs/" + id + "/image.exr");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200);
+  EXPECT_EQ(r->get_header_value("Content-Disposition"), "attachment; filename=\"" + id + ".exr\"");
+  EXPECT_TRUE(BitIdentical(DecodeImage(r->body), DecodeImage(client.GetImage(id))));
+  EXPECT_EQ(DecodeImage(r->body).width(), job.res);
+  EXPECT_EQ(http.Get("/jobs/job-0123456789abcdef0123456789abcdef")->status, 404);
+  EXPECT_EQ(http.Get("/jobs/job-0123456789abcdef0123456789abcdef/image.exr")->status, 404);
+  // The jobs table links the job's page.
+  r = http.Get("/");
+  EXPECT_NE(r->body.find("<a href=\"/jobs/" + id + "\">"), std::string::npos) << r->body;
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(20).value_or(-1), 0);
+}
+
 // Mean absolute difference of two screenshots' RGB over the square [x0, x0+n) x [y0, y0+n), and
 // the standard deviation of the first one's values there.
 struct Region {
