@@ -37,7 +37,7 @@ AdmittedJob CoordinatorOperations::AdmitSpec(const v1::JobSpec& spec, const std:
   // --plan auto without a worker count plans for the workers seen in the last minute.
   uint32_t live = 0;
   for (const v1::WorkerInfo& w : p_.scheduler.activity().Workers())
-    if (w.seconds_since_seen() <= kLiveSeconds && !w.refused()) ++live;
+    if (w.seconds_since_seen() <= kLiveSeconds && !w.refused() && !w.offline()) ++live;
   AdmittedJob job;
   job.config = ValidateJobSpec(spec, p_.scenes, std::max(1u, live));
   // Dependencies are stored as whole ids of jobs known now (docs/farm.md "Job dependencies").

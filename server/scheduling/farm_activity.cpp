@@ -33,7 +33,10 @@ void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& p
   w.info.set_refused_reason(refused_reason);
   w.info.set_refused_calls(refused_reason.empty() ? 0 : w.info.refused_calls() + 1);
   w.last_seen = clock_.Now();
-  if (refused_reason.empty()) refused_.erase(worker_id);  // its credential works now
+  if (refused_reason.empty()) {  // its credential works now
+    refused_.erase(worker_id);
+    refused_.erase(worker_id + " (refused)");
+  }
 }
 
 bool FarmActivity::WorkerRefused(const std::string& announced_id, const std::string& reason) {

@@ -23,8 +23,8 @@ inline constexpr size_t kMaxWorkersKept = 4096;
 // number of unauthenticated calls with made-up ids then costs at most this many entries and never
 // pushes a worker of the farm out (the least recently refused goes first).
 inline constexpr size_t kMaxRefusedKept = 256;
-// A worker seen within this many seconds counts as live (--plan auto's worker count; a refused
-// caller does not take over a live worker's entry).
+// A worker seen within this many seconds (and not offline) counts as live: --plan auto's worker
+// count.
 inline constexpr double kLiveSeconds = 60;
 
 class FarmActivity {

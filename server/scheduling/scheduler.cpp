@@ -94,8 +94,10 @@ void Scheduler::Tick() {
   {
     std::lock_guard lock(mu_);
     const double now = clock_.Now();
-    // A long poll still open is a call in progress: a worker waiting for work is not silent.
-    for (const auto& [id, waiter] : waiters_) PolledLocked(waiter.request.worker_id, now);
+    // A long poll still open is a call in progress: a worker waiting for work is not silent. Not
+    // one of a worker that has left: its poll's cancellation may reach us after its LeaveFarm.
+    for (const auto& [id, waiter] : waiters_)
+      if (!health_.HasLeft(waiter.request.worker_id)) PolledLocked(waiter.request.worker_id, now);
     // Leases of both kinds, through the one path: it expires what ran out (a task whose result
     // arrived in time is pinned: Complete decides it).
     for (const std::string& id : leases_.Expired(now)) FindLiveLease(id, now, fx);

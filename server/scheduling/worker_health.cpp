@@ -74,6 +74,11 @@ bool WorkerHealth::Left(const std::string& worker_id) {
   return true;
 }
 
+bool WorkerHealth::HasLeft(const std::string& worker_id) const {
+  auto it = workers_.find(worker_id);
+  return it != workers_.end() && it->second.left;
+}
+
 bool WorkerHealth::Lost(const std::string& worker_id) const {
   auto it = workers_.find(worker_id);
   return it != workers_.end() && it->second.lost;
@@ -156,13 +161,13 @@ const std::map<std::string, WorkerHealth::Blocklisted>& WorkerHealth::BlocklistO
 bool WorkerHealth::AnyLiveWorkerMayRun(const std::string& job_id) const {
   const auto& blocklist = BlocklistOf(job_id);
   for (const auto& [id, w] : workers_)
-    if (!w.lost && !blocklist.count(id)) return true;
+    if (!w.lost && !w.left && !blocklist.count(id)) return true;
   return false;
 }
 
 bool WorkerHealth::AnyLiveWorker(const std::function<bool(const std::string&)>& eligible, double now) const {
   for (const auto& [id, w] : workers_)
-    if (!w.lost && w.quarantined_until <= now && eligible(id)) return true;
+    if (!w.lost && !w.left && w.quarantined_until <= now && eligible(id)) return true;
   return false;
 }
 

@@ -15,6 +15,9 @@
 //               the lease was last renewed, or it has not called for `lost_seconds` (two lease
 //               periods) with no long poll open. Live again at its next call. Lost workers do not
 //               count as workers that could still run a job (Scheduler: "no worker left").
+//   left        a worker that said it is leaving (LeaveFarm): offline, never lost while silent,
+//               and, like a lost one, no worker that could still run a job. Online again at its
+//               next call.
 //
 // In memory only, like FarmActivity: a restarted coordinator starts with every worker healthy
 // (the durable record of a task is its attempt and failure counts). Not thread-safe: the
@@ -71,6 +74,7 @@ class WorkerHealth {
   // The worker said it is leaving (LeaveFarm): it is not marked lost while it stays silent. Its
   // next call (Polled, Heard) makes it online again. False for a worker never seen.
   bool Left(const std::string& worker_id);
+  bool HasLeft(const std::string& worker_id) const;
 
   // A failed attempt attributed to the worker in the job (`reason` for the blocklist entry).
   // `convicted`: it sent a result that another render proved wrong (docs/farm.md, "Result

@@ -503,6 +503,22 @@ TEST_F(SchedulerTest, OneWorkerFarmFailsABrokenJobAfterThreeAttemptsNamingTheWor
   EXPECT_FALSE(scheduler_.TryLease({"only", {}}).has_value());
 }
 
+// A worker that left (LeaveFarm) is no worker that could still run a job: with the only other
+// worker blocklisted, the broken job fails instead of waiting for the one that left.
+TEST_F(SchedulerTest, AWorkerThatLeftDoesNotKeepABrokenJobWaiting) {
+  const std::string id = Submit(MakeConfig(MultipleMaps(2, 0), 4, 4));
+  EXPECT_TRUE(scheduler_.TryLease({"restarted", {}}).has_value());  // a worker that then stopped
+  scheduler_.WorkerLeft("restarted");
+  for (uint32_t attempt = 1; attempt <= 3; ++attempt) {
+    const Lease l = MustLease("only");
+    EXPECT_EQ(scheduler_.Fail(l.lease_id, "only", "the scene crashes the renderer", true),
+              FailOutcome::kFailed);
+  }
+  const v1::JobStatus s = scheduler_.Status(id);
+  EXPECT_EQ(s.state(), v1::JOB_STATE_FAILED);
+  EXPECT_THAT(s.failure_reason(), HasSubstr("no worker left to run the job"));
+}
+
 // A task fails its job after failures on max_attempts distinct workers.
 TEST_F(SchedulerTest, ATaskFailsItsJobAfterFailuresOnThreeDistinctWorkers) {
   const std::string id = Submit(MakeConfig(MultipleMaps(1, 0), 4, 4));
