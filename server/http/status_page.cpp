@@ -78,6 +78,23 @@ std::string ActionButtons(const v1::JobStatus& s) {
   return button("requeue") + " " + button("delete");
 }
 
+// A GET about one job: `answer(job_id)` fills the response; an unknown job is 404, another
+// error 500 (logged with `what`).
+template <typename F>
+void AnswerForJob(httplib::Response& res, const std::string& job_id, const char* what, F&& answer) {
+  res.set_header("Cache-Control", "no-store");
+  try {
+    answer(job_id);
+  } catch (const NotFoundError& e) {
+    res.status = 404;
+    res.set_content(std::string(e.what()) + "\n", "text/plain");
+  } catch (const std::exception& e) {
+    spdlog::warn("http: {} of job {}: {}", what, job_id, e.what());
+    res.status = 500;
+    res.set_content(std::string(e.what()) + "\n", "text/plain");
+  }
+}
+
 std::string Duration(double s) {
   if (s < 0) return "?";
   if (s < 60) return fmt::format("{:.1f} s", s);
@@ -368,52 +385,29 @@ StatusHttpServer::StatusHttpServer(Scheduler& scheduler, RoleTokens tokens, cons
   });
   svr.Get(
       R"(/jobs/([A-Za-z0-9._-]+)/preview\.png)", [this](const httplib::Request& req, httplib::Response& res) {
-        const std::string job_id = req.matches[1];
-        try {
+        AnswerForJob(res, req.matches[1], "preview", [&](const std::string& job_id) {
           const ResolvedImage image = ResolveJobImage(scheduler_, job_id, nullptr);
-          res.set_header("Cache-Control", "no-store");
           res.set_content(EncodePngPreview(image.image, PreviewOptions{.auto_exposure = true}), "image/png");
-        } catch (const NotFoundError& e) {
-          res.status = 404;
-          res.set_content(std::string(e.what()) + "\n", "text/plain");
-        } catch (const std::exception& e) {
-          spdlog::warn("http: preview of job {}: {}", job_id, e.what());
-          res.status = 500;
-          res.set_content(std::string(e.what()) + "\n", "text/plain");
-        }
+        });
       });
   svr.Get(R"(/jobs/([A-Za-z0-9._-]+))", [this](const httplib::Request& req, httplib::Response& res) {
-    const std::string job_id = req.matches[1];
-    res.set_header("Cache-Control", "no-store");
-    try {
+    AnswerForJob(res, req.matches[1], "page", [&](const std::string& job_id) {
       const v1::JobStatus status = scheduler_.Status(job_id);
       uint64_t dropped = 0;
       const std::vector<v1::TaskEvent> events = scheduler_.activity().Events(status.job_id(), &dropped);
       res.set_content(RenderJobPage(status, events, dropped), "text/html; charset=utf-8");
-    } catch (const NotFoundError& e) {
-      res.status = 404;
-      res.set_content(std::string(e.what()) + "\n", "text/plain");
-    }
+    });
   });
   svr.Get(R"(/jobs/([A-Za-z0-9._-]+)/image\.exr)",
           [this](const httplib::Request& req, httplib::Response& res) {
-            const std::string job_id = req.matches[1];
-            res.set_header("Cache-Control", "no-store");
-            try {
+            AnswerForJob(res, req.matches[1], "image", [&](const std::string& job_id) {
               // The merged image now, as GetImage sends it (its header says what it is of).
               std::string exr;
               for (const v1::ImageChunk& chunk : EncodeJobImage(scheduler_, job_id).chunks)
                 exr += chunk.exr_bytes();
               res.set_header("Content-Disposition", "attachment; filename=\"" + job_id + ".exr\"");
               res.set_content(std::move(exr), "image/x-exr");
-            } catch (const NotFoundError& e) {
-              res.status = 404;
-              res.set_content(std::string(e.what()) + "\n", "text/plain");
-            } catch (const std::exception& e) {
-              spdlog::warn("http: image of job {}: {}", job_id, e.what());
-              res.status = 500;
-              res.set_content(std::string(e.what()) + "\n", "text/plain");
-            }
+            });
           });
   svr.Post(R"(/jobs/([A-Za-z0-9._-]+)/(cancel|pause|resume|requeue|delete))",
            [this](const httplib::Request& req, httplib::Response& res) { Act(req, res); });
