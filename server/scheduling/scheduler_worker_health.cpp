@@ -25,14 +25,15 @@ void Scheduler::WorkerLeft(const std::string& worker_id) {
 }
 
 void Scheduler::PolledLocked(const std::string& worker_id, double now) {
-  activity_.WorkerOffline(worker_id, false);
+  // Online again if it had left (only then: this runs for every parked poll at every tick).
+  if (health_.HasLeft(worker_id)) activity_.WorkerOffline(worker_id, false);
   if (!health_.Polled(worker_id, now)) return;
   activity_.WorkerLost(worker_id, false);
   spdlog::info("worker {}: live again (it called)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
 }
 
 void Scheduler::HeardLocked(const std::string& worker_id, double now) {
-  activity_.WorkerOffline(worker_id, false);
+  if (health_.HasLeft(worker_id)) activity_.WorkerOffline(worker_id, false);
   if (!health_.Heard(worker_id, now)) return;
   activity_.WorkerLost(worker_id, false);
   spdlog::info("worker {}: live again (it called)", limits::Quote(worker_id, limits::kMaxWorkerIdBytes));
