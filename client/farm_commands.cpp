@@ -16,6 +16,7 @@
 
 #include "client/commands.h"
 #include "client/farm_client.h"
+#include "client/frame_files.h"
 #include "client/interrupt.h"
 #include "client/local_farm.h"
 #include "client/progress.h"
@@ -197,13 +198,13 @@ v1::JobStatus WatchWithProgress(FarmClient& client, const std::string& job_id, c
         if (output.empty()) return;
         if (stream_images) {
           if (u.has_image() && !u.image().exr_bytes().empty())
-            WriteFileAtomically(output, u.image().exr_bytes());
+            WriteJobImage(output, u.image().exr_bytes(), u.status().spec());
           return;
         }
         const auto now = std::chrono::steady_clock::now();
         if (u.status().tasks_done() > snapshot_tasks && !IsFinalState(u.status().state()) &&
             now - last_snapshot >= Seconds(snapshot_every)) {
-          WriteFileAtomically(output, client.GetImage(job_id));
+          WriteJobImage(output, client.GetImage(job_id), u.status().spec());
           snapshot_tasks = u.status().tasks_done();
           last_snapshot = now;
         }
@@ -253,11 +254,12 @@ int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& ou
     throw;
   }
   SetInterruptHandler({});
+  std::string written;
   if (!output.empty()) {
     uint64_t samples = 0;
-    WriteFileAtomically(output, client.GetImage(job_id, &samples));
+    written = WriteJobImage(output, client.GetImage(job_id, &samples), st.spec());
   }
-  if (!json) std::printf("%s%s\n", Summary(st).c_str(), output.empty() ? "" : (" -> " + output).c_str());
+  if (!json) std::printf("%s%s\n", Summary(st).c_str(), written.empty() ? "" : (" -> " + written).c_str());
   return ExitCodeForState(st.state());
 }
 
@@ -267,10 +269,13 @@ int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& outp
   FarmClient client = Connect(f);
   uint64_t samples = 0;
   const std::string bytes = client.GetImage(job_id, &samples);
-  WriteFileAtomically(output, bytes);
+  const v1::JobSpec spec = client.GetJob(job_id).spec();
+  if (IsAnimation(spec) && !png.empty())
+    throw InputError("--png: an animation is written as one EXR per frame, without previews");
+  const std::string written = WriteJobImage(output, bytes, spec);
   if (!png.empty()) WritePreviewFor(output, png, false, DecodeExrFromMemory(bytes));
   std::printf("job %s: %zu bytes, %llu samples merged -> %s\n", job_id.c_str(), bytes.size(),
-              (unsigned long long)samples, output.c_str());
+              (unsigned long long)samples, written.c_str());
   return kExitOk;
 }
 
@@ -620,11 +625,19 @@ int RunFarmRender(const RenderArgs& a) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   meta["render_seconds"] = fmt::format("{:.3f}", seconds);
   AddProvenance(meta);
-  WriteExr(output, image, meta);
-  WritePreviewFor(output, a.png, a.no_png, image);
-  std::printf("rendered %dx%d on %d workers, %s, %llu tasks in %.2f s -> %s\n", image.width(), image.height(),
-              a.workers, DescribePlan(PlanFromProto(st.spec().plan(), "spec.plan")).c_str(),
-              (unsigned long long)st.tasks_done(), seconds, output.c_str());
+  std::string written = output;
+  if (IsAnimation(st.spec())) {
+    const std::vector<std::string> paths =
+        WriteFrameFiles(FramePattern(output, "-o"), bytes, st.spec(), meta);
+    written = paths.front() + " .. " + paths.back() + " (" + std::to_string(paths.size()) + " frames)";
+  } else {
+    WriteExr(output, image, meta);
+    WritePreviewFor(output, a.png, a.no_png, image);
+  }
+  std::printf("rendered %dx%d on %d workers, %s, %llu tasks in %.2f s -> %s\n", image.width(),
+              int(st.spec().camera().height()), a.workers,
+              DescribePlan(PlanFromProto(st.spec().plan(), "spec.plan")).c_str(),
+              (unsigned long long)st.tasks_done(), seconds, written.c_str());
   return kExitOk;
 }
 

@@ -75,13 +75,21 @@ void FarmProgress::Update(const photonfarm::v1::JobStatus& s) {
   const std::string noise =
       s.estimated_noise_rms() >= 0 ? fmt::format("{:.4g}", s.estimated_noise_rms()) : "-";
   const std::string eta = s.eta_seconds() >= 0 ? FormatDuration(s.eta_seconds()) : "?";
+  // An animation: how many of its frames are complete (docs/farm.md "Animation").
+  std::string frames;
+  if (s.frames_size() > 0) {
+    const auto complete = std::count_if(s.frames().begin(), s.frames().end(), [](const auto& f) {
+      return f.tasks_total() > 0 && f.tasks_done() == f.tasks_total();
+    });
+    frames = fmt::format("  frames {}/{}", complete, s.frames_size());
+  }
   if (tty_) {
     constexpr int kWidth = 30;
     std::string bar(size_t(frac * kWidth), '#');
     bar.resize(kWidth, '.');
-    std::fprintf(stderr, "\r[%s] %5.1f%%  %llu/%llu tasks  %llu running  %s  ETA %s  noise %s\033[K",
+    std::fprintf(stderr, "\r[%s] %5.1f%%  %llu/%llu tasks%s  %llu running  %s  ETA %s  noise %s\033[K",
                  bar.c_str(), 100.0 * frac, (unsigned long long)s.tasks_done(),
-                 (unsigned long long)s.tasks_total(), (unsigned long long)s.tasks_running(),
+                 (unsigned long long)s.tasks_total(), frames.c_str(), (unsigned long long)s.tasks_running(),
                  FormatDuration(s.elapsed_seconds()).c_str(), eta.c_str(), noise.c_str());
     std::fflush(stderr);
     drawn_ = true;
@@ -89,9 +97,9 @@ void FarmProgress::Update(const photonfarm::v1::JobStatus& s) {
     const int decile = int(frac * 10.0);
     if (decile > last_decile_ || s.state() != last_state_) {
       last_decile_ = decile;
-      std::fprintf(stderr, "progress %5.1f%%  %llu/%llu tasks  elapsed %s  ETA %s  noise %s\n", 100.0 * frac,
-                   (unsigned long long)s.tasks_done(), (unsigned long long)s.tasks_total(),
-                   FormatDuration(s.elapsed_seconds()).c_str(), eta.c_str(), noise.c_str());
+      std::fprintf(stderr, "progress %5.1f%%  %llu/%llu tasks%s  elapsed %s  ETA %s  noise %s\n",
+                   100.0 * frac, (unsigned long long)s.tasks_done(), (unsigned long long)s.tasks_total(),
+                   frames.c_str(), FormatDuration(s.elapsed_seconds()).c_str(), eta.c_str(), noise.c_str());
     }
   }
   last_state_ = s.state();

@@ -12,6 +12,7 @@
 #include "common/core/error.h"
 #include "common/core/real_text.h"
 #include "common/photon/photon_tracer.h"
+#include "common/plan/frame_tasks.h"
 #include "common/plan/plan_choice.h"
 #include "common/plan/plan_factory.h"
 #include "common/plan/stop_targets.h"
@@ -19,9 +20,11 @@
 #include "common/render/integrator_factory.h"
 #include "common/render/progressive_radius.h"
 #include "common/render/render_settings_table.h"
+#include "common/scene/camera_path.h"
 #include "common/scene/manifest.h"
 #include "common/scene/scene_loader.h"
 #include "proto/convert.h"
+#include "proto/limits.h"
 
 namespace pf {
 namespace v1 = photonfarm::v1;
@@ -170,6 +173,9 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a, bool all) {
                        "Seed: the same seed gives the same image on any thread or worker count")
            ->capture_default_str());
   app->add_option("--camera", a.camera_name, "Named camera of the manifest (default: its first)");
+  app->add_option("--frames", a.frames,
+                  "Animation: frames A-B (or all) of the manifest's camera_path, one job on a farm "
+                  "(pf submit, --workers N) sharing its photon maps; -o out.%04d.exr");
   more(app->add_option("--eye", a.eye, "Camera position X,Y,Z (overrides the manifest)"));
   more(app->add_option("--look-at", a.look_at, "Point the camera looks at X,Y,Z"));
   more(app->add_option("--up", a.up, "Up vector X,Y,Z (image right = forward x up)"));
@@ -322,6 +328,56 @@ CameraSpec ChooseCamera(const SceneDescription& scene, const RenderArgs& a) {
   return cam;
 }
 
+namespace {
+
+// --frames: the frames' cameras from the manifest's camera path, each `camera` (the resolution,
+// and the up and field of view a key leaves out) moved along it (common/scene/camera_path.h).
+void AddFrames(const SceneDescription& scene, const RenderArgs& a, const CameraSpec& camera, v1::JobSpec* s) {
+  if (a.local_only || (a.workers == 0 && !a.submit))
+    throw InputError("--frames: an animation renders on a farm (pf submit, or pf render --workers N)");
+  if (!a.png.empty())
+    throw InputError("--png: an animation is written as one EXR per frame, without previews");
+  for (const auto& [value, flag] : {std::pair{&a.eye, "--eye"}, {&a.look_at, "--look-at"}, {&a.up, "--up"}})
+    if (!value->empty())
+      throw InputError(std::string(flag) + ": not with --frames (the camera path moves the camera)");
+  if (a.fov != 0.0f) throw InputError("--fov: not with --frames (the camera path sets the field of view)");
+  const CameraPath& path = scene.camera_path;
+  if (path.keys.empty())
+    throw InputError(
+        "--frames: the scene has no camera path (a manifest's \"camera_path\": docs/scene-manifest.md)");
+  int first = path.first_frame(), last = path.last_frame();
+  if (a.frames != "all") {
+    const size_t dash = a.frames.find('-');
+    try {
+      size_t used = 0;
+      first = std::stoi(a.frames.substr(0, dash), &used);
+      if (used != (dash == std::string::npos ? a.frames.size() : dash)) throw std::invalid_argument("");
+      last = first;
+      if (dash != std::string::npos) {
+        last = std::stoi(a.frames.substr(dash + 1), &used);
+        if (used != a.frames.size() - dash - 1) throw std::invalid_argument("");
+      }
+    } catch (const std::logic_error&) {
+      throw InputError("--frames: '" + a.frames + "': expected FIRST-LAST, one frame number or all");
+    }
+    if (first > last || first < path.first_frame() || last > path.last_frame())
+      throw InputError("--frames: " + a.frames + " is not within the camera path's frames " +
+                       std::to_string(path.first_frame()) + "-" + std::to_string(path.last_frame()));
+  }
+  if (size_t(last - first + 1) > limits::kMaxFrames)
+    throw InputError("--frames: " + std::to_string(last - first + 1) + " frames exceed the limit of " +
+                     std::to_string(limits::kMaxFrames) + " per job; submit the range in parts");
+  v1::Animation* anim = s->mutable_animation();
+  anim->set_first_frame(uint32_t(first));
+  for (const CameraSpec& c : CamerasOfFrames(path, camera, first, last))
+    CameraToProto(c, anim->add_cameras());
+  // spec.camera is the first frame's: the integrator's choice and the resolution read it.
+  *s->mutable_camera() = anim->cameras(0);
+  spdlog::info("animation: frames {}-{} ({}) along the camera path", first, last, last - first + 1);
+}
+
+}  // namespace
+
 PreparedJob PrepareJob(const RenderArgs& args) {
   PreparedJob p;
   p.scene = LoadScene(args.scene);
@@ -329,8 +385,12 @@ PreparedJob PrepareJob(const RenderArgs& args) {
   p.bundle = CollectBundle(args.scene);
   v1::JobSpec& s = p.spec;
   s.set_name(args.name.empty() ? std::filesystem::path(args.scene).filename().string() : args.name);
-  const CameraSpec camera = ChooseCamera(p.scene, args);
+  CameraSpec camera = ChooseCamera(p.scene, args);
   CameraToProto(camera, s.mutable_camera());
+  if (!args.frames.empty()) {
+    AddFrames(p.scene, args, camera, &s);
+    camera = CameraFromProto(s.camera(), "spec.camera");
+  }
   // `--integrator auto`, decided here where the scene is loaded: the job carries the concrete
   // integrator, and the choice and its reason ride along in spec.auto_settings (the image header's
   // auto.* keys).
@@ -361,6 +421,20 @@ PreparedJob PrepareJob(const RenderArgs& args) {
   const bool farm_default = (a.workers > 0 && !a.local_only) || a.submit;
   const bool budget = a.time_budget > 0 || a.target_noise > 0 || a.target_error > 0;
   std::string plan = !a.plan.empty() ? a.plan : farm_default ? "auto" : "multiple-maps";
+  // An animation's maps are shared by all its frames (common/plan/frame_tasks.h): auto may choose
+  // skipping, whose every task traces its own map, so the default is multiple maps.
+  if (!a.frames.empty() && a.plan.empty()) {
+    plan = a.target_error > 0 && a.integrator == "photonmap" ? "progressive" : "multiple-maps";
+    spdlog::info("plan {}: chosen for an animation (every frame shares its maps; --plan sets another)", plan);
+  }
+  if (!a.frames.empty() && plan == "auto")
+    throw InputError(
+        "--plan auto: not with --frames (it may choose skipping, which shares no map between "
+        "frames); give multiple-maps, maps-in-turn or progressive");
+  if (!a.frames.empty())
+    if (const std::string problem = FramesPlanProblem(PlanSpec{.kind = Plans().Find(plan, "--plan").kind});
+        !problem.empty())
+      throw InputError("--plan " + plan + ": not with --frames: " + problem);
   // A render in this process with a budget and no plan (docs/renderer.md, "Budgets"): the
   // consistent plan of its integrator, open-ended, so that the budget decides how far it gets —
   // the path tracer's independent sample sets, the photon map's progressive passes (a fixed-size
@@ -371,7 +445,8 @@ PreparedJob PrepareJob(const RenderArgs& args) {
   };
   // A target error is judged only for the progressive plan (stop_targets.h): the photon map's
   // jobs with one and no --plan get that plan on the farm too, where auto would choose another.
-  if (a.target_error > 0 && a.plan.empty() && farm_default && a.integrator == "photonmap") {
+  if (a.target_error > 0 && a.plan.empty() && farm_default && a.integrator == "photonmap" &&
+      a.frames.empty()) {
     plan = "progressive";
     spdlog::info("plan progressive: chosen for --target-error (the plan whose bias is estimated)");
   }

@@ -32,6 +32,8 @@ struct RenderArgs {
   uint64_t seed = 1;
   std::string camera_name;
   std::string eye, look_at, up, res;
+  // --frames A-B | all: an animation along the manifest's camera path (docs/farm.md "Animation").
+  std::string frames;
   float fov = 0.0f;
   bool quiet = false;
   // Every other render setting (--set, --settings, the manifest's "settings"; settings_args.h).

@@ -19,6 +19,7 @@ inline constexpr size_t kMaxWorkerIdBytes = 256;          // LeaseTaskRequest.wo
 inline constexpr size_t kMaxJobNameBytes = 256;           // JobSpec.name
 inline constexpr size_t kMaxAutoSettings = 16;            // JobSpec.auto_settings
 inline constexpr size_t kMaxDependencies = 16;            // JobSpec.after
+inline constexpr size_t kMaxFrames = 10000;               // JobSpec.animation.cameras
 inline constexpr size_t kMaxAutoSettingTextBytes = 1024;  // each of their texts
 inline constexpr size_t kMaxEchoBytes = 64;               // of an untrusted string quoted in a message or log
 inline constexpr size_t kMaxReasonBytes = 4096;           // FailTaskRequest.reason (cut, then sanitized)

@@ -5,13 +5,17 @@
 
 namespace pf {
 
+void RecordCamera(const CameraSpec& camera, ImageMetadata& meta) {
+  meta["camera.eye"] = RealText(camera.eye);
+  meta["camera.look_at"] = RealText(camera.look_at);
+  meta["camera.up"] = RealText(Vec3d(camera.up));
+  meta["camera.vfov_degrees"] = RealText(camera.vfov_degrees);
+}
+
 void RecordRender(const RenderRecord& r, ImageMetadata& meta) {
   meta["scene"] = r.scene;
   meta["scene.hash"] = r.scene_hash;
-  meta["camera.eye"] = RealText(r.camera.eye);
-  meta["camera.look_at"] = RealText(r.camera.look_at);
-  meta["camera.up"] = RealText(Vec3d(r.camera.up));
-  meta["camera.vfov_degrees"] = RealText(r.camera.vfov_degrees);
+  RecordCamera(r.camera, meta);
   RecordRenderSettings(r.settings, meta);
   meta["plan"] = PlanRecordText(r.plan);
   meta["seed"] = std::to_string(r.seed);

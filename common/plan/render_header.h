@@ -42,6 +42,8 @@ struct RenderRecord {
 
 // Writes the keys above into `meta` (replacing any of the same name).
 void RecordRender(const RenderRecord& record, ImageMetadata& meta);
+// The camera.* keys alone (an animation's frame files replace them with their frame's camera).
+void RecordCamera(const CameraSpec& camera, ImageMetadata& meta);
 
 // Whether two images whose headers hold different values under `key` are renders of different
 // things — their average mixes them: the scene, the camera and every setting. The plan and the

@@ -91,6 +91,9 @@ struct TaskSpec {
   // A progressive plan's pass (map_index = the pass): estimates sum the photons within the
   // pass's radius (render/progressive_radius.h) rather than the k nearest.
   bool progressive = false;
+  // An animation's frame (frame_tasks.h): the index of the frame among the job's frames, whose
+  // camera renders the task; `pixels` are then rows of the stacked image of all frames. 0 otherwise.
+  uint32_t frame = 0;
 };
 
 // Throws InputError naming the field ("plan.skipping.stride: must be ≥ 1") for invalid plans.

@@ -19,6 +19,7 @@ namespace {
 using Json = nlohmann::json;
 
 constexpr int kMaxResolution = 65536;
+constexpr int64_t kMaxFrameNumber = 999999;
 
 class Parser {
  public:
@@ -94,6 +95,39 @@ class Parser {
         Fail(key, "expected 3 finite non-negative numbers or one number");
     }
     return c;
+  }
+
+  // "camera_path": [{"frame": 1, "eye": [...], "look_at": [...], "up"?: [...], "fov"?: deg}, ...],
+  // frames integers ≥ 0 in strictly increasing order.
+  CameraPath Path(const Json& v, const std::string& key) const {
+    if (!v.is_array() || v.empty()) Fail(key, "expected a non-empty array of camera keys");
+    CameraPath path;
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string k = key + "[" + std::to_string(i) + "]";
+      const Json& e = v[i];
+      if (!e.is_object()) Fail(k, "expected an object");
+      CheckKeys(e, k, {"frame", "eye", "look_at", "up", "fov"});
+      CameraKey c;
+      if (!e.contains("frame") || !e["frame"].is_number_integer() || e["frame"].get<int64_t>() < 0 ||
+          e["frame"].get<int64_t>() > kMaxFrameNumber)
+        Fail(k + ".frame", "expected an integer in [0, " + std::to_string(kMaxFrameNumber) + "]");
+      c.frame = int(e["frame"].get<int64_t>());
+      if (!path.keys.empty() && c.frame <= path.keys.back().frame)
+        Fail(k + ".frame", "expected frames in strictly increasing order (the key before is frame " +
+                               std::to_string(path.keys.back().frame) + ")");
+      if (!e.contains("eye")) Fail(k + ".eye", "missing (expected 3 numbers)");
+      if (!e.contains("look_at")) Fail(k + ".look_at", "missing (expected 3 numbers)");
+      c.eye = Point(e["eye"], k + ".eye");
+      c.look_at = Point(e["look_at"], k + ".look_at");
+      if (e.contains("up")) c.up = Direction(e["up"], k + ".up");
+      if (e.contains("fov")) {
+        const double fov = Number(e["fov"], k + ".fov");
+        if (!(fov > 0.0 && fov < 180.0)) Fail(k + ".fov", "expected degrees in (0, 180)");
+        c.vfov_degrees = float(fov);
+      }
+      path.keys.push_back(c);
+    }
+    return path;
   }
 
   CameraSpec Camera(const Json& v, const std::string& key, size_t index) const {
@@ -318,8 +352,8 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
   Parser p(file_name, &m.warnings);
   if (!root.is_object()) throw InputError(SourceLocation{file_name, 0}, "a manifest must be a JSON object");
   p.CheckKeys(root, "",
-              {"version", "name", "geometry", "scale", "cameras", "lights", "environment", "settings",
-               "materials", "notes"});
+              {"version", "name", "geometry", "scale", "cameras", "camera_path", "lights", "environment",
+               "settings", "materials", "notes"});
 
   if (root.contains("version")) {
     const Json& v = root["version"];
@@ -356,6 +390,8 @@ SceneManifest ParseManifest(const std::string& text, const std::filesystem::path
       m.cameras.push_back(std::move(cam));
     }
   }
+
+  if (root.contains("camera_path")) m.camera_path = p.Path(root["camera_path"], "camera_path");
 
   if (root.contains("lights")) {
     const Json& lights = root["lights"];

@@ -43,6 +43,7 @@ struct SceneManifest {
   double scale = 1.0;               // "scale": multiplies positions and camera points
   int scale_line = 0;               // line of the "scale" key (0 if absent or not found)
   std::vector<CameraSpec> cameras;  // "cameras", in file order
+  CameraPath camera_path;           // "camera_path": keys by frame (camera_path.h)
   std::map<std::string, SettingValue> settings;
   std::map<std::string, MaterialOverride> materials;
   std::vector<PunctualLight> lights;       // "lights", in file order (ids are given by LoadScene)

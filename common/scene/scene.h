@@ -92,6 +92,22 @@ struct CameraSpec {
   int height = 512;
 };
 
+// A key of a camera path (camera_path.h): the camera at frame `frame`.
+struct CameraKey {
+  int frame = 0;  // ≥ 0; a path's keys in strictly increasing frame order
+  Vec3d eye;
+  Vec3d look_at;
+  std::optional<Vec3> up;             // the base camera's when absent
+  std::optional<float> vfov_degrees;  // the base camera's when absent
+};
+
+// A camera moving through a static scene (camera_path.h; a manifest's "camera_path").
+struct CameraPath {
+  std::vector<CameraKey> keys;  // empty: no path
+  int first_frame() const { return keys.empty() ? 0 : keys.front().frame; }
+  int last_frame() const { return keys.empty() ? -1 : keys.back().frame; }
+};
+
 struct SceneDescription {
   // Triangle soup with shared vertices, in the scene's frame (scene_frame.h): positions[i] is
   // the world point origin + positions[i]. origin is 0 unless the scene is far from the world
@@ -119,6 +135,7 @@ struct SceneDescription {
   std::vector<Material> materials;
   std::vector<Texture> textures;      // Material's *_texture members index them
   std::vector<CameraSpec> cameras;    // from a manifest; may be empty
+  CameraPath camera_path;             // a manifest's "camera_path"; no keys when it has none
   std::vector<std::string> warnings;  // non-fatal loader messages, "file:line: reason"
   std::string source;                 // the file it was loaded from
   // OBJ materials with Ka but no Ke: named when the scene has no light (Ka is not emission).

@@ -135,6 +135,16 @@ void ApplyScale(double scale, const SourceLocation& where, const std::string& fi
     if (!(LengthSquared(Vec3(c.look_at - c.eye)) > 0.0f))
       fail("makes " + key + ".look_at coincide with its eye");
   }
+  for (size_t i = 0; i < scene->camera_path.keys.size(); ++i) {
+    CameraKey& k = scene->camera_path.keys[i];
+    const std::string key = "camera_path[" + std::to_string(i) + "]";
+    for (const auto& [point, name] : {std::pair{&k.eye, ".eye"}, std::pair{&k.look_at, ".look_at"}}) {
+      *point *= scale;
+      if (!IsFinite(Vec3(*point)))
+        fail("makes " + key + name + " overflow a 32-bit float (" + FormatNumber(MaxComponent(Abs(*point))) +
+             ")");
+    }
+  }
   for (size_t i = 0; i < scene->punctual_lights.size(); ++i) {
     PunctualLight& l = scene->punctual_lights[i];
     l.position *= scale;
@@ -190,6 +200,7 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
   // A glTF's own cameras stay unless the manifest names some.
   if (!manifest.cameras.empty()) scene.cameras = manifest.cameras;
+  scene.camera_path = manifest.camera_path;
   // Each punctual light is one light, numbered after the emitting primitives and the geometry's
   // own lights (scene.h).
   for (PunctualLight light : manifest.lights) {

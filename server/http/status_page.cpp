@@ -123,7 +123,12 @@ std::string Base64Decode(std::string_view in) {
 }
 
 nlohmann::json JobJson(const v1::JobStatus& s) {
+  // An animation's frames (docs/farm.md "Animation"): each frame's merged and scheduled tasks.
+  nlohmann::json frames = nlohmann::json::array();
+  for (const v1::FrameProgress& f : s.frames())
+    frames.push_back({{"frame", f.frame()}, {"done", f.tasks_done()}, {"total", f.tasks_total()}});
   return {{"job_id", s.job_id()},
+          {"frames", frames},
           {"name", s.spec().name()},
           {"state", pf::JobStateName(s.state())},
           {"paused", s.paused()},  // pf pause (docs/farm.md "Pausing a job")
@@ -319,12 +324,19 @@ img {{ max-width: 512px; max-height: 512px; background: #000; image-rendering: p
 <p>{2}{3}, {4}/{5} tasks, {6} samples merged, elapsed {7}{8}</p>
 <p><img id="preview" alt="preview of {0}" src="/jobs/{0}/preview.png?samples={6}"></p>
 <p><a id="exr" href="/jobs/{0}/image.exr" download>the image now (EXR)</a> · <a id="png" href="/jobs/{0}/preview.png" download="{0}.png">preview (PNG)</a></p>
-<h3>Events</h3>
 )",
       id, Escape(s.spec().name()), pf::JobStateName(s.state()),
       s.failure_reason().empty() ? "" : ": " + Escape(s.failure_reason()), s.tasks_done(), s.tasks_total(),
       s.samples_merged(), Duration(s.elapsed_seconds()),
       s.estimated_noise_rms() >= 0 ? fmt::format(", estimated noise {:.4g}", s.estimated_noise_rms()) : "");
+  if (s.frames_size() > 0) {
+    // The preview shows the frames stacked top to bottom, as the job's image holds them.
+    html += "<h3>Frames</h3>\n<table id=\"frames\"><tr><th>frame</th><th>tasks merged</th></tr>\n";
+    for (const v1::FrameProgress& f : s.frames())
+      html += fmt::format("<tr><td>{}</td><td>{}/{}</td></tr>\n", f.frame(), f.tasks_done(), f.tasks_total());
+    html += "</table>\n";
+  }
+  html += "<h3>Events</h3>\n";
   if (dropped > 0) html += fmt::format("<p>({} older events not kept)</p>\n", dropped);
   html +=
       "<table id=\"events\"><tr><th>time (UTC)</th><th>event</th><th>task</th><th>attempt</th><th>worker</th>"

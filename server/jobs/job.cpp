@@ -29,7 +29,7 @@ void Job::AddWork(const std::vector<TaskSpec>& tasks) {
     // the job (the default farm job: 12 tiles + 16 tail tiles).
     for (const TaskSpec& t : tasks) {
       const uint64_t w =
-          CountPixels(t.pixels, c.camera.width, c.camera.height) * (t.sample_end - t.sample_begin);
+          CountPixels(t.pixels, c.camera.width, c.image_height()) * (t.sample_end - t.sample_begin);
       task_work_.push_back(w);
       work_[size_t(TaskState::kQueued)] += w;
     }
@@ -47,6 +47,11 @@ void Job::AddWork(const std::vector<TaskSpec>& tasks) {
 }
 
 void Job::CountIntoGroup(const TaskSpec& t) {
+  if (!config_->frames.empty()) {
+    frame_done_.resize(config_->frames.size(), 0);
+    frame_total_.resize(config_->frames.size(), 0);
+    ++frame_total_.at(t.frame);
+  }
   const uint64_t g = GroupOf(t);
   if (g >= group_remaining_.size()) {
     group_remaining_.resize(g + 1, 0);
@@ -83,11 +88,13 @@ void Job::Restart(std::vector<TaskSpec> tasks, double now) {
   AddWork(tasks_);
   group_remaining_.clear();
   group_total_.clear();
+  frame_done_.clear();
+  frame_total_.clear();
   full_coverage_ = 0;
   for (const TaskSpec& t : tasks_) CountIntoGroup(t);
   // An empty accumulator, not none: the persister checkpoints loaded accumulators only, and the
   // checkpoint of nothing is what replaces the old image on disk.
-  accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height,
+  accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->image_height(),
                                                config_->settings.progressive_alpha);
   ++merge_seq_;
   ++epoch_;
@@ -117,8 +124,8 @@ void Job::Restart(std::vector<TaskSpec> tasks, double now) {
 
 Accumulator& Job::accumulator() {
   if (!accumulator_)
-    accumulator_ = std::make_unique<Accumulator>(config_->plan, config_->camera.width, config_->camera.height,
-                                                 config_->settings.progressive_alpha);
+    accumulator_ = std::make_unique<Accumulator>(
+        config_->plan, config_->camera.width, config_->image_height(), config_->settings.progressive_alpha);
   return *accumulator_;
 }
 
@@ -174,6 +181,8 @@ void Job::RestoreState(JobState state, const std::string& reason, double now) {
 
 void Job::SetTaskState(uint64_t id, TaskState next) {
   TaskRuntime& rt = runtime_.at(id);
+  if (!frame_done_.empty() && (rt.state == TaskState::kDone) != (next == TaskState::kDone))
+    next == TaskState::kDone ? ++frame_done_.at(tasks_.at(id).frame) : --frame_done_.at(tasks_.at(id).frame);
   --counts_[size_t(rt.state)];
   ++counts_[size_t(next)];
   work_[size_t(rt.state)] -= task_work(id);

@@ -12,6 +12,7 @@
 #include <cmath>
 
 #include "common/core/error.h"
+#include "common/plan/frame_tasks.h"
 #include "common/plan/plan_choice.h"
 #include "common/render/progressive_radius.h"
 #include "common/render/render_settings_rules.h"
@@ -48,6 +49,52 @@ CameraSpec ResolveCamera(const v1::JobSpec& spec, const SceneInfo& scene) {
   CameraSpec cam = CameraFromProto(c, "spec.camera");
   cam.name = scene.camera.name;
   return cam;
+}
+
+// spec.animation → job->frames (rules in job_spec.h), after job->camera is resolved.
+void ResolveFrames(const v1::JobSpec& spec, JobConfig* job) {
+  const v1::Animation& a = spec.animation();
+  if (a.cameras_size() == 0) throw InputError("spec.animation.cameras: empty (one camera per frame)");
+  if (size_t(a.cameras_size()) > limits::kMaxFrames)
+    throw LimitError("spec.animation.cameras: " + std::to_string(a.cameras_size()) +
+                     " frames exceed the limit of " + std::to_string(limits::kMaxFrames) +
+                     " per job; split the frame range into several jobs");
+  const uint64_t pixels =
+      uint64_t(job->camera.width) * uint64_t(job->camera.height) * uint64_t(a.cameras_size());
+  if (pixels > kMaxImagePixels)
+    throw LimitError("spec.animation.cameras: " + std::to_string(a.cameras_size()) + " frames of " +
+                     std::to_string(job->camera.width) + "x" + std::to_string(job->camera.height) + " are " +
+                     std::to_string(pixels) + " pixels, over the limit of " +
+                     std::to_string(kMaxImagePixels) +
+                     " per job (the frames share one image); split the frame range into several jobs");
+  if (uint64_t(a.first_frame()) + uint64_t(a.cameras_size()) > uint64_t(std::numeric_limits<uint32_t>::max()))
+    throw InputError("spec.animation.first_frame: the last frame's number must fit 32 bits");
+  for (int i = 0; i < a.cameras_size(); ++i) {
+    const std::string field = "spec.animation.cameras[" + std::to_string(i) + "]";
+    v1::Camera c = a.cameras(i);
+    if ((c.width() != 0 || c.height() != 0) &&
+        (int(c.width()) != job->camera.width || int(c.height()) != job->camera.height))
+      throw InputError(field + ".width/height: " + std::to_string(c.width()) + "x" +
+                       std::to_string(c.height()) + " differs from the job's " +
+                       std::to_string(job->camera.width) + "x" + std::to_string(job->camera.height) +
+                       " (set 0: every frame has the job's resolution)");
+    c.set_width(uint32_t(job->camera.width));
+    c.set_height(uint32_t(job->camera.height));
+    CameraSpec cam = CameraFromProto(c, field);
+    cam.name = "frame " + std::to_string(uint64_t(a.first_frame()) + uint64_t(i));
+    job->frames.push_back(std::move(cam));
+  }
+  // spec.camera names the resolution; a view in it that is not the first frame's would be ignored.
+  if (!WantsSceneCamera(spec)) {
+    const CameraSpec& f = job->frames.front();
+    const CameraSpec& c = job->camera;
+    if (c.eye != f.eye || c.look_at != f.look_at || c.up != f.up || c.vfov_degrees != f.vfov_degrees)
+      throw InputError(
+          "spec.camera: its view differs from spec.animation.cameras[0]'s; with an animation set only its "
+          "width/height, or the first frame's camera");
+  }
+  job->camera = job->frames.front();
+  job->first_frame = a.first_frame();
 }
 
 void RequireFiniteNonNegative(double v, const std::string& field) {
@@ -135,11 +182,19 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   if (scene->max_emission >= 0) job.max_sample_radiance = limits::kResultRadianceFactor * scene->max_emission;
 
   job.camera = ResolveCamera(spec, *scene);
+  if (spec.has_animation()) ResolveFrames(spec, &job);
   // From here on the spec as the job stores and echoes it: an `auto_plan` is replaced by the
   // chosen plan, so a resumed job keeps it and the image does not depend on the farm at the time
   // of a restart. Every rule below reads this spec once.
   job.spec = spec;
   CameraToProto(job.camera, job.spec.mutable_camera());
+  for (int i = 0; i < job.spec.animation().cameras_size(); ++i)
+    CameraToProto(job.frames[size_t(i)], job.spec.mutable_animation()->mutable_cameras(i));
+  if (!job.frames.empty() && job.spec.plan().has_auto_plan())
+    throw InputError(
+        "spec.plan.auto_plan: not with spec.animation (auto may choose skipping, whose every task has its "
+        "own "
+        "map); give multiple_maps, maps_in_turn or progressive, whose maps every frame shares");
   if (job.spec.plan().has_auto_plan())
     ResolveAutoPlan(&job.spec, job.camera.width, job.camera.height, scene->caustic_paths,
                     std::max(1u, live_workers), kMapsCanBeShipped, "spec");
@@ -179,10 +234,19 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   } catch (const InputError& e) {
     RethrowUnderSpec(e);
   }
+  if (!job.frames.empty()) {
+    if (const std::string problem = FramesPlanProblem(job.plan); !problem.empty())
+      throw InputError(PlanField(job.plan) + ": not with spec.animation: " + problem);
+    // Each frame's importons make its own importance map (§4.7): correct, but nothing is shared.
+    if (job.settings.importance != ImportanceMode::kOff)
+      spdlog::warn(
+          "job {}: importance-driven maps depend on the camera: each of the {} frames traces its own",
+          limits::Quote(accepted.name()), job.frames.size());
+  }
   // The split hierarchy renders the photon-map shader's two parts apart (radiance_part.h).
   if (job.plan.kind == PlanKind::kHierarchical && job.plan.hierarchy_part == HierarchyPart::kIndirect)
     CheckRadiancePartsApart(job.settings, "spec.plan.hierarchical.part");
-  const uint64_t tasks = CountTasks(job.plan, job.camera.width, job.camera.height);
+  const uint64_t tasks = CountFrameTasks(job.plan, job.camera.width, job.camera.height, job.frame_count());
   if (const std::string problem = limits::TaskCountProblem(tasks); !problem.empty())
     throw LimitError(problem);
   const uint64_t task_pixels = MaxPixelsPerTask(job.plan, job.camera.width, job.camera.height);
@@ -220,7 +284,7 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
 
 std::vector<TaskSpec> ScheduledTasks(const JobConfig& config) {
   std::vector<TaskSpec> tasks =
-      ExpandPlan(config.plan, config.camera.width, config.camera.height, config.seed);
+      ExpandFrames(config.plan, config.camera.width, config.camera.height, config.seed, config.frame_count());
   // Rounds are skipping's; a hierarchical task's `round` is its level, all of which are scheduled.
   const uint32_t rounds = config.plan.kind == PlanKind::kHierarchical ? ~0u : config.ScheduledRounds();
   tasks.erase(
@@ -237,7 +301,7 @@ uint64_t ScheduledTaskCount(const JobConfig& config) {
   // Skipping expands round by round, stride² tasks each (task_plan.h); ScheduledTasks keeps the
   // rounds below ScheduledRounds. Every other plan schedules all of its static tasks.
   if (plan.kind == PlanKind::kSkipping) return uint64_t(config.ScheduledRounds()) * plan.stride * plan.stride;
-  return CountTasks(plan, config.camera.width, config.camera.height);
+  return CountFrameTasks(plan, config.camera.width, config.camera.height, config.frame_count());
 }
 
 }  // namespace pf::server

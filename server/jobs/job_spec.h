@@ -18,6 +18,11 @@
 //                        proto/convert.h PlanFromProto, then ValidatePlan (S² ≤ pixels, …)
 //                        more than limits::kMaxTasksPerJob tasks, or a task of more than
 //                        kMaxPixelsPerTask pixels                           RESOURCE_EXHAUSTED
+//   spec.animation       1 ≤ cameras ≤ limits::kMaxFrames, each a full camera at the job's
+//                        resolution (width/height 0 or equal); spec.camera's view, if given, is
+//                        cameras[0]'s; the plan not auto_plan and one FramesPlanProblem allows;
+//                        width × height × frames ≤ kMaxImagePixels           INVALID_ARGUMENT /
+//                                                                           RESOURCE_EXHAUSTED
 //   spec.after           ≤ limits::kMaxDependencies ids, each non-empty, ≤ kMaxIdBytes, distinct
 //                        (that each names a known job is the admission's check)  INVALID_ARGUMENT
 //   spec.stop            time_budget_seconds, target_noise_rms, target_error_rms finite and ≥ 0;
@@ -81,8 +86,20 @@ struct JobConfig {
   // emitter; infinite when the scene's emission is unknown (a database from before the bound).
   double max_sample_radiance = std::numeric_limits<double>::infinity();
 
+  // An animation (spec.animation; common/plan/frame_tasks.h): its frames' cameras, frames[0] =
+  // camera, and the number of its first frame. Empty for a still image.
+  std::vector<CameraSpec> frames;
+  uint32_t first_frame = 0;
+
   // Rounds that are scheduled: min(plan rounds, stop.max_rounds) (max_rounds 0 = all).
   uint32_t ScheduledRounds() const;
+  uint32_t frame_count() const { return frames.empty() ? 1u : uint32_t(frames.size()); }
+  // The job's image — its frames stacked top to bottom — is camera.width × image_height().
+  int image_height() const { return camera.height * int(frame_count()); }
+  // The camera that renders `task`: its frame's.
+  const CameraSpec& CameraOf(const TaskSpec& task) const {
+    return frames.empty() ? camera : frames.at(task.frame);
+  }
 };
 
 // Throws InputError / LimitError / NotFoundError naming the field (rules above). A plan of
@@ -91,8 +108,8 @@ struct JobConfig {
 JobConfig ValidateJobSpec(const photonfarm::v1::JobSpec& spec, const SceneCatalog& scenes,
                           uint32_t live_workers = 1);
 
-// The tasks a job schedules: ExpandPlan restricted to rounds < ScheduledRounds(). Task ids are
-// the expansion's, so they are equal to the index in the result.
+// The tasks a job schedules: ExpandFrames (ExpandPlan for a still image) restricted to rounds <
+// ScheduledRounds(). Task ids are the expansion's, so they are equal to the index in the result.
 std::vector<TaskSpec> ScheduledTasks(const JobConfig& config);
 // ScheduledTasks(config).size() without expanding the plan: what the budgets (server/rpc/budgets.h)
 // and the recovery of a finished job count.

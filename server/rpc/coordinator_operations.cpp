@@ -63,7 +63,7 @@ AdmittedJob CoordinatorOperations::AdmitSpec(const v1::JobSpec& spec, const std:
   job.client = client;
   job.reservation =
       p_.admission.AdmitJob(client, ScheduledTaskCount(job.config),
-                            uint64_t(job.config.camera.width) * uint64_t(job.config.camera.height));
+                            uint64_t(job.config.camera.width) * uint64_t(job.config.image_height()));
   return job;
 }
 

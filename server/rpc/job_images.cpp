@@ -29,6 +29,11 @@ void AddJobMetadata(const photonfarm::v1::JobStatus& status, const JobConfig& co
                 .seed = config.seed,
                 .auto_choices = AutoChoicesFromProto(config.spec.auto_settings(), "spec.auto_settings")},
                meta);
+  // An animation's image is its frames stacked (frame_tasks.h); pf writes each frame to a file of
+  // its own with its camera and number (client/frame_files.h).
+  if (!config.frames.empty())
+    meta["animation.frames"] = std::to_string(config.first_frame) + "-" +
+                               std::to_string(uint64_t(config.first_frame) + config.frames.size() - 1);
   meta["job_name"] = config.name;
   meta["job_state"] = v1::JobState_Name(status.state());
   meta["version"] = PF_VERSION;
@@ -79,11 +84,10 @@ ResolvedImage ResolveJobImage(Scheduler& scheduler, const std::string& requested
     if (stored && stored->samples_merged() != snap.status.samples_merged())
       throw lost("holds " + std::to_string(stored->samples_merged()) + " samples, " +
                  std::to_string(snap.status.samples_merged()) + " expected");
-    Accumulator acc = stored ? std::move(*stored)
-                             : Accumulator(PlanFromProto(snap.status.spec().plan(), "spec.plan"),
-                                           int(snap.status.spec().camera().width()),
-                                           int(snap.status.spec().camera().height()),
-                                           snap.config->settings.progressive_alpha);
+    Accumulator acc =
+        stored ? std::move(*stored)
+               : Accumulator(PlanFromProto(snap.status.spec().plan(), "spec.plan"), snap.config->camera.width,
+                             snap.config->image_height(), snap.config->settings.progressive_alpha);
     image = ResolveSnapshot(job_id, acc);
   }
   AddJobMetadata(snap.status, *snap.config, image.metadata);

@@ -12,6 +12,7 @@
 
 #include "common/core/error.h"
 #include "common/core/sha256.h"
+#include "common/plan/frame_tasks.h"
 #include "proto/convert.h"
 #include "server/errors.h"
 #include "server/rpc/buffered_stream.h"
@@ -50,8 +51,9 @@ void FillTask(const Lease& lease, v1::Task* task, CoordinatorApi& api) {
     ref->set_bytes(map->bytes);
     ref->set_digest(map->digest);
   }
-  TaskSpecToProto(lease.task, task);
-  CameraToProto(lease.config->camera, task->mutable_camera());
+  // An animation's task is its frame's (common/plan/frame_tasks.h): that camera, the frame's own rows.
+  TaskSpecToProto(FrameLocalTask(lease.task, lease.config->camera.height), task);
+  CameraToProto(lease.config->CameraOf(lease.task), task->mutable_camera());
 }
 
 void RequireLeaseId(const std::string& id) {

@@ -21,7 +21,7 @@ bool ApplyCheckpoint(const Checkpoint& cp, const CheckpointSeal& seal, Job& job,
     return false;
   }
   auto acc = std::make_unique<Accumulator>(Accumulator::Deserialize(cp.accumulator, &job.config().plan));
-  if (acc->width() != job.config().camera.width || acc->height() != job.config().camera.height) {
+  if (acc->width() != job.config().camera.width || acc->height() != job.config().image_height()) {
     *problem = "image size differs from the job's";
     return false;
   }

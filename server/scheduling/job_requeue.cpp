@@ -56,7 +56,8 @@ std::optional<Checkpoint> CarriedResults(const Scheduler::FinishedJob& source, c
     return std::nullopt;
   }
   if (before.scene_hash() != now.scene_hash() || before.seed() != now.seed() ||
-      !Equal(before.settings(), now.settings()) || !Equal(before.camera(), now.camera())) {
+      !Equal(before.settings(), now.settings()) || !Equal(before.camera(), now.camera()) ||
+      !Equal(before.animation(), now.animation())) {
     spdlog::warn(
         "job {}: requeue of job {} carries none of its results: its settings validate differently now",
         job.id(), id);

@@ -76,7 +76,7 @@ uint64_t ReplayEntries(const std::vector<JournalEntry>& entries, Job& job, Resul
     const TaskSpec& task = job.task(e.task_id);
     // No plausibility bound: a journaled result was accepted (possibly confirmed) before the crash.
     const CheckedResult checked =
-        ResultMerger::Check(task, job.config().camera.width, job.config().camera.height, e.rgb_sums);
+        ResultMerger::Check(task, job.config().camera.width, job.config().image_height(), e.rgb_sums);
     if (!checked.valid) {
       spdlog::error("job {} task {}: journal entry invalid ({}); the task is re-run", job.id(), e.task_id,
                     checked.problem);

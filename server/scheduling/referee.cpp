@@ -1,5 +1,7 @@
 #include "server/scheduling/referee.h"
 
+#include "common/plan/frame_tasks.h"
+
 #include <spdlog/spdlog.h>
 
 #include <chrono>
@@ -52,8 +54,10 @@ void Referee::Render(const RefereeCase& c) {
   std::string digest, error;
   try {
     const std::shared_ptr<const SceneRuntime> scene = SceneOf(config.scene_hash, config.scene_entry);
-    const TaskOutput out = ExecuteTask(*scene, config.scene_hash, config.camera, config.settings, c.task,
-                                       threads_, &maps_, nullptr, &stopping_);
+    // As a worker renders it (worker_service.cpp): an animation's task with its frame's camera.
+    const TaskOutput out =
+        ExecuteTask(*scene, config.scene_hash, config.CameraOf(c.task), config.settings,
+                    FrameLocalTask(c.task, config.camera.height), threads_, &maps_, nullptr, &stopping_);
     digest = ResultMerger::Digest(out.rgb_sums);
   } catch (const Cancelled&) {
     return;  // stopping: no verdict

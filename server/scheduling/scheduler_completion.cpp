@@ -93,7 +93,7 @@ CompleteResult Scheduler::Complete(const std::string& lease_id, const std::strin
   // 2. Check (no lock, O(pixels)): the one check of a worker's result (the edge), and the pixel
   //    indices the merge needs. The configuration is immutable.
   const JobConfig& config = job->config();
-  const int width = config.camera.width, height = config.camera.height;
+  const int width = config.camera.width, height = config.image_height();
   CheckedResult checked = ResultMerger::Check(task, width, height, rgb_sums, config.max_sample_radiance);
   if (part != task.part && checked.valid) {
     // Hierarchical plan with part indirect (radiance_part.h): a worker that does not know

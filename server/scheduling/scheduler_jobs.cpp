@@ -104,6 +104,12 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
   s.set_tasks_running(job.count(TaskState::kLeased));
   s.set_tasks_queued(job.count(TaskState::kQueued));
   s.set_tasks_cancelled(cancelled);
+  for (size_t f = 0; f < job.frame_total().size(); ++f) {
+    v1::FrameProgress* fp = s.add_frames();
+    fp->set_frame(job.config().first_frame + uint32_t(f));
+    fp->set_tasks_done(job.frame_done()[f]);
+    fp->set_tasks_total(job.frame_total()[f]);
+  }
   const double elapsed = job.ElapsedSeconds(now);
   s.set_elapsed_seconds(elapsed);
   s.set_rounds_done(job.rounds_done());
@@ -348,7 +354,7 @@ void Scheduler::FinishJob(Job& job, JobState state, const std::string& reason, d
 void Scheduler::Charge(Job& job, int sign) {
   if (sign > 0) {
     job.charged_tasks = job.num_tasks();
-    job.charged_pixels = uint64_t(job.config().camera.width) * uint64_t(job.config().camera.height);
+    job.charged_pixels = uint64_t(job.config().camera.width) * uint64_t(job.config().image_height());
     ++load_.jobs;
     load_.tasks += job.charged_tasks;
     load_.pixels += job.charged_pixels;

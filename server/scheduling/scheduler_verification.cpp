@@ -132,7 +132,7 @@ CompleteResult Scheduler::CompleteVerification(const std::string& lease_id, cons
   CheckedResult checked{std::nullopt, "", ResultCheck::Verdict::kOk};
   std::string digest;
   try {
-    checked = ResultMerger::Check(task, config->camera.width, config->camera.height, rgb_sums);
+    checked = ResultMerger::Check(task, config->camera.width, config->image_height(), rgb_sums);
     if (checked.valid && part != task.part)
       checked = CheckedResult{std::nullopt, "part: the result is not of the task's part",
                               ResultCheck::Verdict::kInvalid};

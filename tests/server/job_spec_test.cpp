@@ -176,3 +176,91 @@ TEST(JobSpecResolution, UnknownTraitsAndThePathTracerLeaveTheSpecAsSent) {
 
 }  // namespace
 }  // namespace pf::server
+
+namespace pf::server {
+namespace {
+
+// An animation of the 12 x 10 test job: `frames` cameras moving along x, the multiple-maps plan.
+v1::JobSpec AnimationSpec(int frames) {
+  v1::JobSpec spec = testing::SkippingSpec(2, 1);
+  spec.mutable_plan()->Clear();
+  v1::MultipleMaps* mm = spec.mutable_plan()->mutable_multiple_maps();
+  mm->set_maps(2);
+  mm->set_samples_per_pixel(1);
+  mm->set_tile_size(16);
+  spec.mutable_animation()->set_first_frame(7);
+  for (int f = 0; f < frames; ++f) {
+    v1::Camera* c = spec.mutable_animation()->add_cameras();
+    *c = spec.camera();
+    c->mutable_eye()->set_x(0.25 * f);
+    c->set_width(0);
+    c->set_height(0);
+  }
+  return spec;
+}
+
+TEST(JobSpecAnimation, FramesAreTheJobsCamerasAtItsResolutionOverTheStillPlansTasks) {
+  const testing::FakeCatalog scenes;
+  v1::JobSpec spec = AnimationSpec(3);
+  spec.mutable_camera()->mutable_eye()->set_x(0);  // = cameras[0]'s view
+  const JobConfig config = ValidateJobSpec(spec, scenes);
+  ASSERT_EQ(config.frames.size(), 3u);
+  EXPECT_EQ(config.first_frame, 7u);
+  EXPECT_EQ(config.image_height(), 30);
+  EXPECT_EQ(config.frames[2].eye.x, 0.5);
+  EXPECT_EQ(config.frames[2].width, 12);
+  EXPECT_EQ(config.frames[2].height, 10);
+  EXPECT_EQ(config.camera.eye, config.frames[0].eye);
+  const uint64_t still = CountTasks(config.plan, 12, 10);
+  EXPECT_EQ(ScheduledTasks(config).size(), 3 * still);
+  EXPECT_EQ(ScheduledTaskCount(config), 3 * still);
+  TaskSpec last = ScheduledTasks(config).back();
+  EXPECT_EQ(last.frame, 2u);
+  EXPECT_EQ(config.CameraOf(last).eye.x, 0.5);
+  // Stored with every frame's resolution; validating it again (recovery) changes nothing.
+  EXPECT_EQ(config.spec.animation().cameras(1).width(), 12u);
+  const JobConfig again = ValidateJobSpec(config.spec, scenes);
+  EXPECT_EQ(again.spec.SerializeAsString(), config.spec.SerializeAsString());
+  EXPECT_EQ(again.frames.size(), 3u);
+}
+
+TEST(JobSpecAnimation, WhatCannotBeAnAnimationIsRefusedNamingTheField) {
+  const testing::FakeCatalog scenes;
+  const auto error = [&](const v1::JobSpec& spec) {
+    return pf::testing::InputErrorOf([&] { ValidateJobSpec(spec, scenes); });
+  };
+  v1::JobSpec empty = AnimationSpec(0);
+  empty.mutable_animation()->set_first_frame(1);
+  EXPECT_EQ(error(empty).rfind("spec.animation.cameras: empty", 0), 0u) << error(empty);
+
+  v1::JobSpec blind = AnimationSpec(3);
+  *blind.mutable_animation()->mutable_cameras(1)->mutable_look_at() = blind.animation().cameras(1).eye();
+  EXPECT_EQ(error(blind).rfind("spec.animation.cameras[1].look_at", 0), 0u) << error(blind);
+
+  v1::JobSpec other_size = AnimationSpec(3);
+  other_size.mutable_animation()->mutable_cameras(2)->set_width(24);
+  other_size.mutable_animation()->mutable_cameras(2)->set_height(20);
+  EXPECT_EQ(error(other_size).rfind("spec.animation.cameras[2].width/height: 24x20 differs", 0), 0u)
+      << error(other_size);
+
+  v1::JobSpec other_view = AnimationSpec(3);
+  other_view.mutable_camera()->mutable_eye()->set_x(9);
+  EXPECT_EQ(error(other_view).rfind("spec.camera: its view differs", 0), 0u) << error(other_view);
+
+  v1::JobSpec skipping = AnimationSpec(3);
+  skipping.mutable_plan()->mutable_skipping()->set_stride(2);
+  skipping.mutable_plan()->mutable_skipping()->set_rounds(1);
+  skipping.mutable_plan()->mutable_skipping()->set_samples_per_pixel(1);
+  EXPECT_EQ(error(skipping).rfind("spec.plan.skipping: not with spec.animation", 0), 0u) << error(skipping);
+
+  v1::JobSpec automatic = AnimationSpec(3);
+  automatic.mutable_plan()->mutable_auto_plan()->set_samples_per_pixel(1);
+  EXPECT_EQ(error(automatic).rfind("spec.plan.auto_plan: not with spec.animation", 0), 0u)
+      << error(automatic);
+
+  v1::JobSpec too_many = AnimationSpec(int(limits::kMaxFrames) + 1);
+  EXPECT_THROW(ValidateJobSpec(too_many, scenes), LimitError);
+}
+
+}  // namespace
+}  // namespace pf::server
