@@ -97,8 +97,8 @@ struct CameraKey {
   int frame = 0;  // ≥ 0; a path's keys in strictly increasing frame order
   Vec3d eye;
   Vec3d look_at;
-  std::optional<Vec3> up;             // the base camera's when absent
-  std::optional<float> vfov_degrees;  // the base camera's when absent
+  std::optional<Vec3> up = std::nullopt;             // the base camera's when absent
+  std::optional<float> vfov_degrees = std::nullopt;  // the base camera's when absent
 };
 
 // A camera moving through a static scene (camera_path.h; a manifest's "camera_path").

@@ -45,7 +45,9 @@ TEST(FrameTasks, EachFrameRendersTheStillImagesTasksInItsOwnRowsMapByMap) {
       EXPECT_GE(t.pixels.y0, t.frame * kHeight);
       EXPECT_LE(t.pixels.y1, (t.frame + 1) * kHeight);
       // Map by map: a map's tasks for every frame before the next map's.
-      if (i > 0) EXPECT_LE(tasks[i - 1].map_index, t.map_index);
+      if (i > 0) {
+        EXPECT_LE(tasks[i - 1].map_index, t.map_index);
+      }
       per_frame[t.frame].insert(Rendered(FrameLocalTask(t, kHeight)));
     }
     std::multiset<decltype(Rendered(still[0]))> expected;
