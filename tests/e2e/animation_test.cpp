@@ -5,6 +5,7 @@
 // to a single-frame job of that frame's camera with the same seed — and those four jobs trace nothing,
 // because their maps have the same keys (the key holds no camera).
 #include <gtest/gtest.h>
+#include <httplib.h>
 
 #include <filesystem>
 #include <string>
@@ -34,7 +35,8 @@ size_t CountInLogs(const std::vector<fs::path>& logs, const std::string& re) {
 
 TEST(Animation, FramesShareOneSetOfMapsAndAreBitIdenticalToSingleFrameJobs) {
   TestDir dir;
-  CoordinatorProcess coordinator(dir / "data", dir.path(), {"--map-chunk-photons", "16384"});
+  CoordinatorProcess coordinator(dir / "data", dir.path(),
+                                 {"--map-chunk-photons", "16384", "--http", "127.0.0.1:0"});
   const std::string address = coordinator.address();
   const std::string animation = SubmitJob(dir, address, Concat(AnimationFlags(), {"--frames", "20-23"}));
   ASSERT_FALSE(animation.empty());
@@ -53,6 +55,20 @@ TEST(Animation, FramesShareOneSetOfMapsAndAreBitIdenticalToSingleFrameJobs) {
     EXPECT_GT(st.frames(f).tasks_total(), 0u);
     EXPECT_EQ(st.frames(f).tasks_done(), st.frames(f).tasks_total());
   }
+  // pf watch counts the complete frames.
+  const RunResult watch =
+      RunCommand({Binaries::Pf(), "watch", animation, "--coordinator", address}, dir.path());
+  EXPECT_EQ(watch.exit_code, 0) << watch.err;
+  EXPECT_NE(watch.err.find("tasks  frames 4/4"), std::string::npos) << watch.err;
+  // The web page's job page lists the frames, its JSON too.
+  httplib::Client http("127.0.0.1", coordinator.http_port());
+  const auto page = http.Get("/jobs/" + animation);
+  ASSERT_TRUE(page);
+  EXPECT_NE(page->body.find("<table id=\"frames\">"), std::string::npos) << page->body;
+  EXPECT_NE(page->body.find("<tr><td>23</td><td>"), std::string::npos) << page->body;
+  const auto api = http.Get("/api/status");
+  ASSERT_TRUE(api);
+  EXPECT_NE(api->body.find("\"frames\":[{\"done\""), std::string::npos) << api->body;
   const fs::path clog = coordinator.process().log();
   EXPECT_EQ(Grep(clog, "built once from 3 pieces").size(), 2u) << "two maps, each built once";
   EXPECT_EQ(CountInLogs(logs, "uploaded-piece .* accepted=true"), 6u) << "each piece traced once";
