@@ -105,6 +105,35 @@ std::vector<std::array<float, 2>> ReadGltfTexCoords(const GltfDocument& doc, int
   return out;
 }
 
+std::vector<double> ReadGltfFloats(const GltfDocument& doc, int accessor, int components) {
+  const std::string where = "accessors[" + std::to_string(accessor) + "]";
+  const int type = components == 1   ? TINYGLTF_TYPE_SCALAR
+                   : components == 3 ? TINYGLTF_TYPE_VEC3
+                                     : TINYGLTF_TYPE_VEC4;
+  if (accessor >= 0 && static_cast<size_t>(accessor) < doc.model->accessors.size()) {
+    const tinygltf::Accessor& a = doc.model->accessors[static_cast<size_t>(accessor)];
+    if (a.type != type || a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+      throw InputError(SourceLocation{doc.file, 0}, where + ": expected " +
+                                                        (components == 1   ? std::string("SCALAR")
+                                                         : components == 3 ? std::string("VEC3")
+                                                                           : std::string("VEC4")) +
+                                                        " of FLOAT");
+  }
+  const size_t n = static_cast<size_t>(components);
+  const View view = Locate(doc, accessor, n * sizeof(float));
+  std::vector<double> out(view.count * n);
+  for (size_t i = 0; i < view.count; ++i)
+    for (size_t c = 0; c < n; ++c) {
+      float f = 0.0f;
+      std::memcpy(&f, view.data + i * view.stride + c * sizeof f, sizeof f);
+      if (!std::isfinite(f))
+        throw InputError(SourceLocation{doc.file, 0},
+                         where + ": element " + std::to_string(i) + " is not finite (NaN or infinity)");
+      out[i * n + c] = f;
+    }
+  return out;
+}
+
 std::vector<uint32_t> ReadGltfIndices(const GltfDocument& doc, int accessor) {
   const std::string where = "accessors[" + std::to_string(accessor) + "]";
   size_t width = 0;

@@ -20,6 +20,11 @@ std::vector<Vec3d> ReadGltfVec3(const GltfDocument& doc, int accessor);
 // UNSIGNED_BYTE / UNSIGNED_SHORT. A non-finite element is an InputError naming it.
 std::vector<std::array<float, 2>> ReadGltfTexCoords(const GltfDocument& doc, int accessor);
 
+// A FLOAT accessor of `components` per element (1: SCALAR, 3: VEC3, 4: VEC4; animation samplers'
+// times and values, spec §3.11), flat: element i's components at [i·components, (i+1)·components).
+// A NaN or an infinity is an InputError naming the accessor and the element.
+std::vector<double> ReadGltfFloats(const GltfDocument& doc, int accessor, int components);
+
 // A SCALAR UNSIGNED_BYTE / UNSIGNED_SHORT / UNSIGNED_INT accessor (primitive indices).
 std::vector<uint32_t> ReadGltfIndices(const GltfDocument& doc, int accessor);
 

@@ -14,6 +14,7 @@
 
 #include "common/core/error.h"
 #include "common/scene/gltf_accessors.h"
+#include "common/scene/gltf_camera_path.h"
 #include "common/scene/gltf_document.h"
 #include "common/scene/gltf_lights.h"
 #include "common/scene/gltf_materials.h"
@@ -182,7 +183,13 @@ class GltfSceneBuilder {
       const Affine world = mgf::Compose(parent, LocalTransform(node));
       if (!world.IsFinite() || !IsFinite(Vec3(world.t))) Fail(where + ": its world transform is not finite");
       if (node.mesh >= 0) AddMesh(where, size_t(node.mesh), world);
-      if (node.camera >= 0) AddCamera(where, size_t(node.camera), world);
+      if (node.camera >= 0) {
+        const bool had_camera = !scene_->cameras.empty();
+        AddCamera(where, size_t(node.camera), world);
+        // The scene's camera: its animation, if any, is the scene's camera path.
+        if (!had_camera && !scene_->cameras.empty())
+          scene_->camera_path = GltfCameraPath(doc_, index, parent, &scene_->warnings);
+      }
       AddLight(where, node, world);
       if (node.skin >= 0) WarnOnce(where + ": skins are not applied (the mesh is rendered in its bind pose)");
       for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.emplace_back(*c, world);
@@ -449,11 +456,15 @@ SceneDescription LoadGltf(const std::filesystem::path& path, const std::filesyst
   SceneDescription scene;
   scene.source = path.string();
   scene.warnings = doc.warnings;
-  if (!doc.model->animations.empty())
-    scene.warnings.push_back(doc.file + ": animations are not applied (the scene is rendered at rest)");
   GltfSceneBuilder builder(doc, budget, &scene);
   builder.VisitScene(SceneRoots(*doc.model, builder, &scene.warnings, doc.file));
   builder.Finish();
+  if (!doc.model->animations.empty())
+    scene.warnings.push_back(
+        doc.file + (scene.camera_path.keys.empty()
+                        ? ": animations are not applied (the scene is rendered at rest)"
+                        : ": animations other than the camera's are not applied (the scene is "
+                          "rendered at rest; the camera's is its camera path, pf submit --frames)"));
   return scene;
 }
 

@@ -36,6 +36,8 @@ class GltfBuilder {
   int AddVec3(std::initializer_list<float> xyz) {
     return Add(Floats(xyz), 5126, "VEC3", int(xyz.size() / 3));
   }
+  int AddScalars(std::initializer_list<float> v) { return Add(Floats(v), 5126, "SCALAR", int(v.size())); }
+  int AddVec4(std::initializer_list<float> v) { return Add(Floats(v), 5126, "VEC4", int(v.size() / 4)); }
   int AddVec2(std::initializer_list<float> uv) { return Add(Floats(uv), 5126, "VEC2", int(uv.size() / 2)); }
   int AddIndices16(std::initializer_list<uint16_t> indices) {
     std::string bytes;
