@@ -245,6 +245,8 @@ int RunWatch(const FarmArgs& f, const std::string& job_id, const std::string& ou
              bool json, bool quiet) {
   if (!output.empty()) CheckWritable(output, "-o");
   FarmClient client = Connect(f);
+  // An animation's frames go to a pattern: a bad one is said now, not when the first image arrives.
+  if (!output.empty() && IsAnimation(client.GetJob(job_id).spec())) FramePattern(output, "-o");
   SetInterruptHandler([&client](int) { client.Cancel(); });
   v1::JobStatus st;
   try {
@@ -268,10 +270,11 @@ int RunGet(const FarmArgs& f, const std::string& job_id, const std::string& outp
   if (!png.empty()) CheckWritable(png, "--png");
   FarmClient client = Connect(f);
   uint64_t samples = 0;
-  const std::string bytes = client.GetImage(job_id, &samples);
   const v1::JobSpec spec = client.GetJob(job_id).spec();
   if (IsAnimation(spec) && !png.empty())
     throw InputError("--png: an animation is written as one EXR per frame, without previews");
+  if (IsAnimation(spec)) FramePattern(output, "-o");
+  const std::string bytes = client.GetImage(job_id, &samples);
   const std::string written = WriteJobImage(output, bytes, spec);
   if (!png.empty()) WritePreviewFor(output, png, false, DecodeExrFromMemory(bytes));
   std::printf("job %s: %zu bytes, %llu samples merged -> %s\n", job_id.c_str(), bytes.size(),
@@ -524,6 +527,7 @@ int RunFarmRender(const RenderArgs& a) {
   const std::string output =
       a.output.empty() ? std::filesystem::path(a.scene).stem().string() + ".exr" : a.output;
   CheckWritable(output, "-o");
+  if (!a.frames.empty()) FramePattern(output, "-o");  // before a process starts
   if (!a.png.empty()) CheckWritable(a.png, "--png");
 
   LocalFarmOptions fo;

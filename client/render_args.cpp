@@ -70,6 +70,9 @@ void ParseResolution(const std::string& text, int& width, int& height) {
 // coordinator (plan_choice.cpp), with the same rule.
 uint32_t TailTileFor(const RenderArgs& a) {
   if (a.tail_tile >= 0) return uint32_t(a.tail_tile);
+  // An animation's many frames already end the job on small pieces of work (and a plan without
+  // tail tiles can be requeued with more maps).
+  if (!a.frames.empty()) return 0;
   const bool farm = (a.workers > 1 && !a.local_only) || a.submit;
   const uint32_t half = a.tile / 2;
   return farm && a.tile >= 32 && half % 16 == 0 ? half : 0;
@@ -468,6 +471,15 @@ PreparedJob PrepareJob(const RenderArgs& args) {
   }
   if (budget && plan == "progressive" && !given("--passes")) {
     passes = kOpenEndedPasses;
+    if (s.animation().cameras_size() > 0) {
+      // Every pass is a task per tile and frame: as many passes as a job's tasks allow.
+      const uint64_t side = a.tile == 0 ? 0 : a.tile;
+      const uint64_t tiles = side == 0 ? 1
+                                       : ((uint64_t(camera.width) + side - 1) / side) *
+                                             ((uint64_t(camera.height) + side - 1) / side);
+      const uint64_t per_pass = tiles * uint64_t(s.animation().cameras_size());
+      passes = uint32_t(std::clamp<uint64_t>(limits::kMaxTasksPerJob / per_pass, 1, kOpenEndedPasses));
+    }
     spdlog::info("progressive: up to {} passes, until the budget ends it (--passes sets the count)", passes);
   }
   v1::Plan* pl = s.mutable_plan();

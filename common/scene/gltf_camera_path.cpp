@@ -116,8 +116,8 @@ CameraPath GltfCameraPath(const GltfDocument& doc, int node, const Affine& paren
       const size_t keys = track.times.size(), per = cubic ? 3 : 1, k = size_t(track.components);
       if (keys == 0) fail("its sampler has no keys");
       if (out.size() != keys * per * k)
-        fail("its sampler has " + std::to_string(out.size() / k) + " output values for " + std::to_string(keys) +
-             " keys");
+        fail("its sampler has " + std::to_string(out.size() / k) + " output values for " +
+             std::to_string(keys) + " keys");
       for (size_t i = 1; i < keys; ++i)
         if (!(track.times[i] > track.times[i - 1])) fail("its key times are not strictly increasing");
       if (track.times.front() < 0) fail("its key times start before 0");
@@ -136,19 +136,18 @@ CameraPath GltfCameraPath(const GltfDocument& doc, int node, const Affine& paren
   std::map<long, double> frames;
   for (const std::optional<Track>* t : {&translation, &rotation})
     if (*t)
-      for (double time : (*t)->times)
-        frames.emplace(1 + std::lround(time * kGltfFramesPerSecond), time);
+      for (double time : (*t)->times) frames.emplace(1 + std::lround(time * kGltfFramesPerSecond), time);
   const std::vector<double> rest_t = n.translation.size() == 3 ? n.translation : std::vector<double>{0, 0, 0};
   const std::vector<double> rest_r = n.rotation.size() == 4 ? n.rotation : std::vector<double>{0, 0, 0, 1};
   const std::vector<double> rest_s = n.scale.size() == 3 ? n.scale : std::vector<double>{1, 1, 1};
   for (const auto& [frame, time] : frames) {
     if (frame > 999999) break;
-    const Affine world = mgf::Compose(
-        parent, Trs(translation ? translation->At(time) : rest_t, rotation ? rotation->At(time) : rest_r, rest_s));
+    const Affine world = mgf::Compose(parent, Trs(translation ? translation->At(time) : rest_t,
+                                                  rotation ? rotation->At(time) : rest_r, rest_s));
     const Vec3d forward = Unit(world.Vector(Vec3d(0, 0, -1))), up = Unit(world.Vector(Vec3d(0, 1, 0)));
     if (!world.IsFinite() || forward == Vec3d(0.0) || up == Vec3d(0.0))
-      throw InputError(SourceLocation{doc.file, 0},
-                       where + ": at " + std::to_string(time) + " s the camera's transform gives it no direction");
+      throw InputError(SourceLocation{doc.file, 0}, where + ": at " + std::to_string(time) +
+                                                        " s the camera's transform gives it no direction");
     path.keys.push_back({.frame = int(frame), .eye = world.t, .look_at = world.t + forward, .up = Vec3(up)});
   }
   return path;

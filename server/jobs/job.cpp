@@ -50,6 +50,7 @@ void Job::CountIntoGroup(const TaskSpec& t) {
   if (!config_->frames.empty()) {
     frame_done_.resize(config_->frames.size(), 0);
     frame_total_.resize(config_->frames.size(), 0);
+    frame_cancelled_.resize(config_->frames.size(), 0);
     ++frame_total_.at(t.frame);
   }
   const uint64_t g = GroupOf(t);
@@ -90,6 +91,7 @@ void Job::Restart(std::vector<TaskSpec> tasks, double now) {
   group_total_.clear();
   frame_done_.clear();
   frame_total_.clear();
+  frame_cancelled_.clear();
   full_coverage_ = 0;
   for (const TaskSpec& t : tasks_) CountIntoGroup(t);
   // An empty accumulator, not none: the persister checkpoints loaded accumulators only, and the
@@ -181,8 +183,13 @@ void Job::RestoreState(JobState state, const std::string& reason, double now) {
 
 void Job::SetTaskState(uint64_t id, TaskState next) {
   TaskRuntime& rt = runtime_.at(id);
-  if (!frame_done_.empty() && (rt.state == TaskState::kDone) != (next == TaskState::kDone))
-    next == TaskState::kDone ? ++frame_done_.at(tasks_.at(id).frame) : --frame_done_.at(tasks_.at(id).frame);
+  if (!frame_done_.empty()) {
+    const uint32_t frame = tasks_.at(id).frame;
+    if ((rt.state == TaskState::kDone) != (next == TaskState::kDone))
+      next == TaskState::kDone ? ++frame_done_.at(frame) : --frame_done_.at(frame);
+    if ((rt.state == TaskState::kCancelled) != (next == TaskState::kCancelled))
+      next == TaskState::kCancelled ? ++frame_cancelled_.at(frame) : --frame_cancelled_.at(frame);
+  }
   --counts_[size_t(rt.state)];
   ++counts_[size_t(next)];
   work_[size_t(rt.state)] -= task_work(id);

@@ -130,10 +130,12 @@ class Job {
   // differ in cost by orders of magnitude: pixel samples plus its map (HierarchicalTaskWork).
   uint64_t task_work(uint64_t id) const { return task_work_.empty() ? 1 : task_work_.at(id); }
   uint64_t work(TaskState s) const { return work_[size_t(s)]; }
-  // An animation's tasks per frame (index: the frame's among the job's): merged, and all scheduled
-  // ones. Empty for a still image and for a finished job reloaded after a restart (it has no tasks).
+  // An animation's tasks per frame (index: the frame's among the job's): merged, scheduled, and
+  // cancelled (by a stop rule, a cancel or a failure). Kept when the tasks are released (O(frames));
+  // empty for a still image and for a finished job reloaded after a restart (it has no tasks).
   const std::vector<uint64_t>& frame_done() const { return frame_done_; }
   const std::vector<uint64_t>& frame_total() const { return frame_total_; }
+  const std::vector<uint64_t>& frame_cancelled() const { return frame_cancelled_; }
 
   // Guards the accumulator (its content and whether it is loaded). Lock order: image_mu before the
   // Scheduler's lock, never the other way round.
@@ -275,7 +277,7 @@ class Job {
   // Coverage: per group (round for skipping, map index otherwise) tasks still unmerged.
   std::vector<uint64_t> group_remaining_;
   std::vector<uint64_t> group_total_;
-  std::vector<uint64_t> frame_done_, frame_total_;
+  std::vector<uint64_t> frame_done_, frame_total_, frame_cancelled_;
   void CountIntoGroup(const TaskSpec& t);
   uint32_t full_coverage_ = 0;
   uint64_t GroupOf(const TaskSpec& t) const;

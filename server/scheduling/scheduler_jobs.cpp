@@ -108,7 +108,8 @@ v1::JobStatus Scheduler::BuildStatus(Job& job, double now) {
     v1::FrameProgress* fp = s.add_frames();
     fp->set_frame(job.config().first_frame + uint32_t(f));
     fp->set_tasks_done(job.frame_done()[f]);
-    fp->set_tasks_total(job.frame_total()[f]);
+    // What will be merged: a task a stop rule cancelled is not waited for (as tasks_total).
+    fp->set_tasks_total(job.frame_total()[f] - job.frame_cancelled()[f]);
   }
   const double elapsed = job.ElapsedSeconds(now);
   s.set_elapsed_seconds(elapsed);

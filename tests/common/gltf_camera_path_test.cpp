@@ -48,9 +48,10 @@ std::string Scene(const std::string& interpolation, const std::string& more_chan
   const std::string t = std::to_string(times);
   return b.Json(std::string(R"("scenes":[{"nodes":[0,2]}],"nodes":[{"mesh":0},{"camera":0},
       {"translation":[0,1,0],"children":[1]}],
-      "animations":[{"samplers":[{"input":)") + t + R"(,"output":)" + std::to_string(moves) +
-                R"(,"interpolation":")" + interpolation + R"("},{"input":)" + t + R"(,"output":)" +
-                std::to_string(turns) + R"(,"interpolation":")" + interpolation + R"("}],
+      "animations":[{"samplers":[{"input":)") +
+                t + R"(,"output":)" + std::to_string(moves) + R"(,"interpolation":")" + interpolation +
+                R"("},{"input":)" + t + R"(,"output":)" + std::to_string(turns) + R"(,"interpolation":")" +
+                interpolation + R"("}],
       "channels":[{"sampler":0,"target":{"node":1,"path":"translation"}},
                   {"sampler":1,"target":{"node":1,"path":"rotation"}})" +
                 more_channels + R"(]}],)" + kMeshAndLamp);
@@ -91,14 +92,15 @@ TEST(GltfCameraPath, SlerpHalfwayAndStepHolds) {
   const int moves = b.AddVec3({0, 0, 0, 1, 0, 0, 2, 0, 0});
   for (const char* interpolation : {"LINEAR", "STEP"}) {
     SCOPED_TRACE(interpolation);
-    const std::string json = b.Json(
-        std::string(R"("scenes":[{"nodes":[0,1]}],"nodes":[{"mesh":0},{"camera":0}],
+    const std::string json =
+        b.Json(std::string(R"("scenes":[{"nodes":[0,1]}],"nodes":[{"mesh":0},{"camera":0}],
       "animations":[{"samplers":[{"input":)") +
-        std::to_string(rot_times) + R"(,"output":)" + std::to_string(turns) + R"(,"interpolation":")" +
-        interpolation + R"("},{"input":)" + std::to_string(move_times) + R"(,"output":)" + std::to_string(moves) +
-        R"(}],"channels":[{"sampler":0,"target":{"node":1,"path":"rotation"}},
+               std::to_string(rot_times) + R"(,"output":)" + std::to_string(turns) + R"(,"interpolation":")" +
+               interpolation + R"("},{"input":)" + std::to_string(move_times) + R"(,"output":)" +
+               std::to_string(moves) +
+               R"(}],"channels":[{"sampler":0,"target":{"node":1,"path":"rotation"}},
                           {"sampler":1,"target":{"node":1,"path":"translation"}}]}],)" +
-        kMeshAndLamp);
+               kMeshAndLamp);
     const CameraPath path = LoadGltf(dir.Write("b.gltf", json)).camera_path;
     ASSERT_EQ(path.keys.size(), 3u);
     EXPECT_EQ(path.keys[1].frame, 13);  // 1 + round(24 · 0.5)
@@ -116,8 +118,7 @@ TEST(GltfCameraPath, MalformedChannelsAreNamed) {
   test_util::TempDir dir("pf_gltf_camera_path");
   EXPECT_THAT(testing::InputErrorOf([&] { LoadGltf(dir.Write("c.gltf", Scene("BEZIER"))); }),
               HasSubstr("animations[0].channels[0]: unknown interpolation 'BEZIER'"));
-  const std::string scaled =
-      Scene("LINEAR", R"(,{"sampler":0,"target":{"node":1,"path":"scale"}})");
+  const std::string scaled = Scene("LINEAR", R"(,{"sampler":0,"target":{"node":1,"path":"scale"}})");
   EXPECT_THAT(::testing::PrintToString(LoadGltf(dir.Write("d.gltf", scaled)).warnings),
               HasSubstr("animations[0].channels[2]: the camera's scale is not animated"));
 }
