@@ -140,6 +140,19 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
     data_changed_ = true;  // a merge or a state change: files may have grown (--data-quota)
   });
 
+  // Events and worker statistics as the last life stored them (docs/farm.md "Activity across
+  // restarts"); without them `pf events` and `pf workers` start empty, nothing else changes.
+  try {
+    const ActivityRecords stored = db_->LoadActivity();
+    scheduler_->activity().Restore(stored);
+    if (!stored.empty())
+      spdlog::info("activity restored: {} task events, {} workers", stored.events.size(),
+                   stored.workers.size());
+  } catch (const std::exception& e) {
+    spdlog::error(
+        "activity: the stored events and worker statistics could not be read ({}); starting without",
+        e.what());
+  }
   recovery_ = RecoverJobs(*db_, *scenes_, options_.data_dir / "checkpoints", *scheduler_, *clock_,
                           /*keep_other_builds=*/options_.allow_mixed_versions);
   if (recovery_.jobs_resumed + recovery_.jobs_finished + recovery_.jobs_failed > 0)
@@ -327,11 +340,29 @@ void Coordinator::TickLoop() {
       watches_->Tick();
       MaybeApplyRetention();
       MaybeApplyDataQuota();
+      if (clock_->Now() >= next_activity_persist_) {
+        next_activity_persist_ = clock_->Now() + 1.0;
+        PersistActivity();
+      }
     } catch (const std::exception& e) {
       spdlog::error("tick: {}", e.what());
     }
     lock.lock();
     cv_.wait_for(lock, std::chrono::duration<double>(options_.tick_seconds), [&] { return stopping_; });
+  }
+}
+
+void Coordinator::PersistActivity() {
+  ActivityRecords changes = scheduler_->activity().TakeChanges();
+  if (changes.empty()) return;
+  try {
+    db_->SaveActivity(changes, kMaxEventsPerJob);
+    if (std::exchange(activity_storage_failing_, false)) spdlog::info("activity: stored again");
+  } catch (const std::exception& e) {
+    if (!std::exchange(activity_storage_failing_, true))
+      spdlog::warn("activity: task events and worker statistics not stored ({}); kept in memory, retried",
+                   e.what());
+    scheduler_->activity().ReturnChanges(std::move(changes));
   }
 }
 
@@ -421,6 +452,7 @@ void Coordinator::Stop(bool graceful) {
                           std::chrono::duration<double>(grace)));
   }
   if (tick_thread_.joinable()) tick_thread_.join();
+  if (graceful) PersistActivity();
   referee_->Stop();
   maps_->Stop();
   executor_->Stop();

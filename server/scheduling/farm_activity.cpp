@@ -8,6 +8,7 @@ namespace pf::server {
 namespace v1 = photonfarm::v1;
 
 FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
+  workers_changed_ = true;  // every caller changes it
   auto it = workers_.find(worker_id);
   if (it != workers_.end()) return it->second;
   if (workers_.size() >= kMaxWorkersKept) {  // forget the longest-silent worker
@@ -33,6 +34,11 @@ void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& p
   w.info.set_refused_reason(refused_reason);
   w.info.set_refused_calls(refused_reason.empty() ? 0 : w.info.refused_calls() + 1);
   w.last_seen = clock_.Now();
+  if (w.restored && refused_reason.empty()) {
+    w.restored = false;
+    w.info.set_lost(false);
+    w.info.set_offline(false);
+  }
   if (refused_reason.empty()) {  // its credential works now
     refused_.erase(worker_id);
     refused_.erase(worker_id + " (refused)");
@@ -77,6 +83,7 @@ void FarmActivity::TaskEvent(const std::string& job_id, const std::string& kind,
   e.set_attempt(attempt);
   e.set_worker_id(worker_id);
   e.set_detail(detail);
+  pending_events_.push_back({job_id, e.SerializeAsString()});
   if (je.events.size() > kMaxEventsPerJob) {
     je.events.pop_front();
     ++je.dropped;
@@ -124,6 +131,7 @@ void FarmActivity::WorkerOffline(const std::string& worker_id, bool offline) {
   std::lock_guard lock(mu_);
   auto it = workers_.find(worker_id);
   if (it == workers_.end() || it->second.info.offline() == offline) return;
+  workers_changed_ = true;
   it->second.info.set_offline(offline);
   if (offline) {
     it->second.info.set_lost(false);
@@ -142,6 +150,8 @@ void FarmActivity::WorkerLost(const std::string& worker_id, bool lost) {
 void FarmActivity::ForgetJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
   events_.erase(job_id);
+  std::erase_if(pending_events_, [&](const ActivityRecords::Event& e) { return e.job_id == job_id; });
+  workers_changed_ = true;
   for (auto& [id, w] : workers_) {
     auto* ids = w.info.mutable_blocklisted_job_ids();
     for (int i = 0; i < ids->size();)
@@ -167,6 +177,65 @@ void FarmActivity::WorkerQuarantined(const std::string& worker_id, double until,
   Worker& w = WorkerLocked(worker_id);
   w.quarantined_until = until;
   w.info.set_quarantine_reason(reason);
+}
+
+ActivityRecords FarmActivity::TakeChanges() {
+  std::lock_guard lock(mu_);
+  ActivityRecords out;
+  out.events.swap(pending_events_);
+  if (!workers_changed_) return out;
+  workers_changed_ = false;
+  const double now = clock_.Now();
+  const int64_t unix_ms = clock_.UnixMillis();
+  for (const auto& [id, w] : workers_)
+    out.workers.push_back(
+        {.worker_id = id,
+         .bytes = w.info.SerializeAsString(),
+         .last_seen_unix_ms = unix_ms - int64_t((now - w.last_seen) * 1000.0),
+         .quarantined_until_unix_s =
+             w.quarantined_until > now ? double(unix_ms) / 1000.0 + (w.quarantined_until - now) : 0.0});
+  return out;
+}
+
+void FarmActivity::ReturnChanges(ActivityRecords records) {
+  std::lock_guard lock(mu_);
+  // Older than what was recorded since: in front.
+  records.events.insert(records.events.end(), std::make_move_iterator(pending_events_.begin()),
+                        std::make_move_iterator(pending_events_.end()));
+  pending_events_ = std::move(records.events);
+  if (pending_events_.size() > kMaxPendingEvents)
+    pending_events_.erase(pending_events_.begin(),
+                          pending_events_.begin() + ptrdiff_t(pending_events_.size() - kMaxPendingEvents));
+  if (!records.workers.empty()) workers_changed_ = true;
+}
+
+void FarmActivity::Restore(const ActivityRecords& records) {
+  std::lock_guard lock(mu_);
+  const double now = clock_.Now();
+  const int64_t unix_ms = clock_.UnixMillis();
+  for (const ActivityRecords::Event& stored : records.events) {
+    v1::TaskEvent e;
+    if (!e.ParseFromString(stored.bytes)) continue;  // a record of another build: not shown
+    JobEvents& je = events_[stored.job_id];
+    je.events.push_back(std::move(e));
+    if (je.events.size() > kMaxEventsPerJob) {
+      je.events.pop_front();
+      ++je.dropped;
+    }
+  }
+  for (const ActivityRecords::Worker& stored : records.workers) {
+    Worker w;
+    if (!w.info.ParseFromString(stored.bytes)) continue;
+    w.info.set_worker_id(stored.worker_id);
+    w.info.set_busy(false);  // its lease, if any, ended with the coordinator
+    w.info.clear_current_job_id();
+    w.info.set_current_task_id(0);
+    w.last_seen = now - std::max<double>(0.0, double(unix_ms - stored.last_seen_unix_ms) / 1000.0);
+    w.restored = true;
+    if (stored.quarantined_until_unix_s > 0)
+      w.quarantined_until = now + (stored.quarantined_until_unix_s - double(unix_ms) / 1000.0);
+    workers_[stored.worker_id] = std::move(w);
+  }
 }
 
 std::vector<v1::WorkerInfo> FarmActivity::Workers() const {

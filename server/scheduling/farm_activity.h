@@ -1,9 +1,12 @@
 #pragma once
 // What the farm did, for people: the workers seen since the coordinator started (`pf workers`,
 // the web status page) and each job's task events — which worker ran which task, retries,
-// failures (`pf events JOB`). In memory only and bounded: a restart starts empty, and a job keeps
-// its newest kMaxEventsPerJob events. The scheduler records into it under its own lock; this
-// class has its own mutex and never calls out, so the lock order is always scheduler → activity.
+// failures (`pf events JOB`). Bounded: a job keeps its newest kMaxEventsPerJob events. Stored
+// (server/store/activity_store.h): the coordinator takes the changes every second (TakeChanges)
+// and hands them to the store, and a restarted coordinator starts from what is stored (Restore);
+// callers refused before reaching the farm are not stored. The scheduler records into it under its
+// own lock; this class has its own mutex and never calls out, so the lock order is always
+// scheduler → activity.
 
 #include <cstdint>
 #include <deque>
@@ -14,6 +17,7 @@
 
 #include "photonfarm/v1/farm.pb.h"
 #include "server/clock.h"
+#include "server/store/activity_store.h"
 
 namespace pf::server {
 
@@ -64,6 +68,15 @@ class FarmActivity {
   // A deleted job (pf delete): its events go, and it leaves the workers' blocklisted job lists.
   void ForgetJob(const std::string& job_id);
 
+  // Persistence (docs/farm.md "Activity across restarts"). The events recorded and, if any worker
+  // changed, every worker, since the last call; ReturnChanges puts back a batch the store could not
+  // take (the newest kMaxPendingEvents events are kept). Restore (at start, before any call) loads a
+  // store's records: the workers as they were, none busy (leases do not outlive a coordinator), seen
+  // when they were last seen.
+  ActivityRecords TakeChanges();
+  void ReturnChanges(ActivityRecords records);
+  void Restore(const ActivityRecords& records);
+
   std::vector<photonfarm::v1::WorkerInfo> Workers() const;
   // Events of `job_id`, oldest first; `dropped` = older events no longer kept. Empty for a job
   // with no events (the caller checks that the job exists).
@@ -74,18 +87,24 @@ class FarmActivity {
     photonfarm::v1::WorkerInfo info;
     double last_seen = 0;
     double quarantined_until = 0;
+    // Restored from the store (Restore): its lost and offline flags are the last life's, which
+    // this life's worker health never set, so its first accepted poll clears them.
+    bool restored = false;
   };
   struct JobEvents {
     std::deque<photonfarm::v1::TaskEvent> events;
     uint64_t dropped = 0;
   };
   Worker& WorkerLocked(const std::string& worker_id);
+  static constexpr size_t kMaxPendingEvents = 100000;
 
   const Clock& clock_;
   mutable std::mutex mu_;
   std::map<std::string, Worker> workers_;
   std::map<std::string, Worker> refused_;  // WorkerRefused's entries
   std::map<std::string, JobEvents> events_;
+  std::vector<ActivityRecords::Event> pending_events_;  // recorded, not yet taken (TakeChanges)
+  bool workers_changed_ = false;
 };
 
 }  // namespace pf::server

@@ -4,6 +4,7 @@
 #include <sqlite3.h>
 
 #include <cerrno>
+#include <set>
 
 #include "common/core/error.h"
 
@@ -60,6 +61,16 @@ CREATE TABLE IF NOT EXISTS tasks(
   failures INTEGER NOT NULL,
   last_error TEXT NOT NULL,
   PRIMARY KEY (job_id, task_id)) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS events(
+  seq INTEGER PRIMARY KEY AUTOINCREMENT,
+  job_id TEXT NOT NULL,
+  event BLOB NOT NULL);
+CREATE INDEX IF NOT EXISTS events_by_job ON events(job_id, seq);
+CREATE TABLE IF NOT EXISTS workers(
+  id TEXT PRIMARY KEY,
+  info BLOB NOT NULL,
+  last_seen_unix_ms INTEGER NOT NULL,
+  quarantined_until_unix_s REAL NOT NULL);
 )sql";
 
 // A prepared statement, finalized on scope exit.
@@ -386,6 +397,7 @@ void SqliteStore::DeleteJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
   Transaction tx(db_);
   Statement(db_, "DELETE FROM tasks WHERE job_id = ?1").Text(1, job_id).Run();
+  Statement(db_, "DELETE FROM events WHERE job_id = ?1").Text(1, job_id).Run();
   Statement(db_, "DELETE FROM jobs WHERE id = ?1").Text(1, job_id).Run();
   tx.Commit();
   // The freed pages leave the file: moved to its end and cut off (incremental_vacuum), then the WAL
@@ -402,6 +414,45 @@ void SqliteStore::DeleteJob(const std::string& job_id) {
 void SqliteStore::SetJobPaused(const std::string& job_id, bool paused) {
   std::lock_guard lock(mu_);
   Statement(db_, "UPDATE jobs SET paused = ?2 WHERE id = ?1").Text(1, job_id).Int(2, paused ? 1 : 0).Run();
+}
+
+void SqliteStore::SaveActivity(const ActivityRecords& records, size_t max_events_per_job) {
+  if (records.empty()) return;
+  std::lock_guard lock(mu_);
+  Transaction tx(db_);
+  Statement event(db_, "INSERT INTO events(job_id, event) VALUES (?1, ?2)");
+  std::set<std::string> jobs;
+  for (const ActivityRecords::Event& e : records.events) {
+    event.Text(1, e.job_id).Blob(2, e.bytes).Run();
+    jobs.insert(e.job_id);
+  }
+  // Each job keeps its newest events, as in memory (the older ones are counted there, not here).
+  Statement prune(db_,
+                  "DELETE FROM events WHERE job_id = ?1 AND seq <= (SELECT seq FROM events WHERE job_id = ?1 "
+                  "ORDER BY seq DESC LIMIT 1 OFFSET ?2)");
+  for (const std::string& job : jobs) prune.Text(1, job).Int(2, int64_t(max_events_per_job)).Run();
+  Statement worker(db_,
+                   "INSERT OR REPLACE INTO workers(id, info, last_seen_unix_ms, quarantined_until_unix_s) "
+                   "VALUES (?1, ?2, ?3, ?4)");
+  for (const ActivityRecords::Worker& w : records.workers)
+    worker.Text(1, w.worker_id)
+        .Blob(2, w.bytes)
+        .Int(3, w.last_seen_unix_ms)
+        .Real(4, w.quarantined_until_unix_s)
+        .Run();
+  tx.Commit();
+}
+
+ActivityRecords SqliteStore::LoadActivity() {
+  std::lock_guard lock(mu_);
+  ActivityRecords out;
+  Statement events(db_, "SELECT job_id, event FROM events ORDER BY seq");
+  while (events.Step()) out.events.push_back({events.ColText(0), events.ColBlob(1)});
+  Statement workers(db_,
+                    "SELECT id, info, last_seen_unix_ms, quarantined_until_unix_s FROM workers ORDER BY id");
+  while (workers.Step())
+    out.workers.push_back({workers.ColText(0), workers.ColBlob(1), workers.ColInt(2), workers.ColReal(3)});
+  return out;
 }
 
 }  // namespace pf::server

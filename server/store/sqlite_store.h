@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "server/store/activity_store.h"
 #include "server/store/job_store.h"
 #include "server/store/records.h"
 
@@ -32,7 +33,7 @@ struct sqlite3;
 
 namespace pf::server {
 
-class SqliteStore final : public JobStore {
+class SqliteStore final : public JobStore, public ActivityStore {
  public:
   // Opens (creating if needed) the database file and its schema.
   explicit SqliteStore(const std::filesystem::path& db_file);
@@ -52,6 +53,10 @@ class SqliteStore final : public JobStore {
   uint64_t CountTasks(const std::string& job_id, TaskState state) override;
   void DeleteJob(const std::string& job_id) override;
   void SetJobPaused(const std::string& job_id, bool paused) override;
+
+  // ActivityStore (server/store/activity_store.h).
+  void SaveActivity(const ActivityRecords& records, size_t max_events_per_job) override;
+  ActivityRecords LoadActivity() override;
 
  private:
   void Exec(const char* sql);

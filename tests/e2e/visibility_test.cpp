@@ -7,6 +7,7 @@
 #include <set>
 #include <thread>
 
+#include "client/farm_client.h"
 #include "photonfarm_version.h"
 #include "tests/e2e/harness.h"
 
@@ -81,6 +82,43 @@ TEST(Visibility, WorkersAndEventsShowWhoRanWhatAndTheRetries) {
   EXPECT_NE(r.out.find("w1"), std::string::npos) << r.out;
   r = RunCommand(Concat({Binaries::Pf(), "events", "job-unknown"}, at), dir.path());
   EXPECT_EQ(r.exit_code, 3) << r.err;
+}
+
+// Events and worker statistics outlive the coordinator (docs/farm.md "Activity across restarts"):
+// SIGKILLed two seconds after the job ended — the activity is stored every second — the next life
+// lists the job's events and the worker's merged tasks as the first life did.
+TEST(Visibility, EventsAndWorkerStatisticsSurviveACoordinatorKill) {
+  TestDir dir;
+  std::string id;
+  size_t events_before = 0;
+  {
+    CoordinatorProcess coordinator(dir / "data", dir.path());
+    id = Submit(dir, coordinator.address(), JobArgs{});
+    auto w1 = StartWorker(coordinator.address(), dir.path(), "w1");
+    FarmClient client(coordinator.address(), "");
+    ASSERT_EQ(WaitForJob(client, id, 120).state(), photonfarm::v1::JOB_STATE_SUCCEEDED);
+    events_before = size_t(client.ListJobEvents(id).events_size());
+    ASSERT_GE(events_before, 16u) << "8 tasks, each leased and merged";
+    w1->Signal(SIGTERM);
+    ASSERT_TRUE(w1->Wait(20).has_value());
+    std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+    coordinator.process().Signal(SIGKILL);
+    ASSERT_TRUE(coordinator.process().Wait(20).has_value());
+  }
+  CoordinatorProcess again(dir / "data", dir.path());
+  EXPECT_EQ(Grep(again.process().log(), "activity restored: [0-9]+ task events, 1 workers").size(), 1u)
+      << ReadFile(again.process().log());
+  FarmClient client(again.address(), "");
+  const photonfarm::v1::ListJobEventsResponse events = client.ListJobEvents(id);
+  ASSERT_EQ(size_t(events.events_size()), events_before);
+  EXPECT_EQ(events.events(events.events_size() - 1).kind(), "merged");
+  const std::vector<photonfarm::v1::WorkerInfo> workers = client.ListWorkers();
+  ASSERT_EQ(workers.size(), 1u);
+  EXPECT_EQ(workers[0].worker_id(), "w1");
+  EXPECT_EQ(workers[0].tasks_done(), 8u);
+  EXPECT_GT(workers[0].photons_emitted(), 0u);
+  EXPECT_FALSE(workers[0].busy());
+  EXPECT_GE(workers[0].seconds_since_seen(), 2.0) << "seen when the first life last saw it";
 }
 
 TEST(Visibility, WatchWithoutWorkersSaysSo) {

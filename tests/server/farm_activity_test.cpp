@@ -88,3 +88,90 @@ TEST(FarmActivity, AFloodOfRefusedCallersNeverPushesAWorkerOut) {
 
 }  // namespace
 }  // namespace pf::server
+
+// Events and worker statistics outlive a restart (docs/farm.md "Activity across restarts"): taken
+// in batches into a real SQLite file, restored by a new FarmActivity on the same file — the counts,
+// flags and events as they were, no worker busy, a deleted job's events gone, each job's newest
+// events kept.
+#include "server/store/sqlite_store.h"
+#include "tests/util/temp_dir.h"
+
+namespace pf::server {
+namespace {
+
+TEST(FarmActivityPersistence, EventsAndWorkerStatisticsComeBackFromTheStore) {
+  test_util::TempDir dir("pf_activity");
+  const auto db_file = dir.path() / "coordinator.db";
+  {
+    FakeClock clock;
+    FarmActivity activity(clock);
+    SqliteStore db(db_file);
+    activity.WorkerSeen("w1", "ipv4:10.0.0.7:4242", 8, "v1");
+    activity.TaskEvent("job-a", "leased", 3, 1, "w1");
+    activity.TaskEvent("job-a", "merged", 3, 1, "w1", "0.5 s");
+    activity.WorkerStats("w1", 1000, 2.0);
+    db.SaveActivity(activity.TakeChanges(), kMaxEventsPerJob);
+    EXPECT_TRUE(activity.TakeChanges().empty()) << "nothing changed since";
+    activity.TaskEvent("job-a", "leased", 4, 1, "w1");  // busy now
+    activity.TaskEvent("job-b", "failed", 0, 2, "w2", "out of memory");
+    activity.WorkerLost("w2", true);
+    activity.WorkerBlocklisted("w2", "job-b");
+    activity.WorkerQuarantined("w2", clock.Now() + 600, "3 jobs failed");
+    clock.Advance(5);
+    db.SaveActivity(activity.TakeChanges(), kMaxEventsPerJob);
+    // A job deleted with its events; a third job with more events than are kept.
+    activity.TaskEvent("job-c", "leased", 0, 1, "w1");
+    db.SaveActivity(activity.TakeChanges(), kMaxEventsPerJob);
+    db.DeleteJob("job-c");
+    for (int i = 0; i < 5; ++i) activity.TaskEvent("job-d", "leased", uint64_t(i), 1, "");
+    db.SaveActivity(activity.TakeChanges(), /*max_events_per_job=*/3);
+  }
+  FakeClock clock;
+  clock.Advance(7);  // the new life's clock is later
+  FarmActivity restored(clock);
+  SqliteStore db(db_file);
+  restored.Restore(db.LoadActivity());
+
+  const std::vector<v1::TaskEvent> a = restored.Events("job-a");
+  ASSERT_EQ(a.size(), 3u);
+  EXPECT_EQ(a[1].kind(), "merged");
+  EXPECT_EQ(a[1].detail(), "0.5 s");
+  EXPECT_EQ(restored.Events("job-b").at(0).detail(), "out of memory");
+  EXPECT_TRUE(restored.Events("job-c").empty()) << "deleted with its job";
+  const std::vector<v1::TaskEvent> d = restored.Events("job-d");
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_EQ(d.front().task_id(), 2u) << "the newest three";
+
+  const std::optional<v1::WorkerInfo> w1 = Find(restored.Workers(), "w1");
+  ASSERT_TRUE(w1.has_value());
+  EXPECT_EQ(w1->tasks_done(), 1u);
+  EXPECT_EQ(w1->photons_emitted(), 1000u);
+  EXPECT_EQ(w1->peer(), "ipv4:10.0.0.7:4242");
+  EXPECT_FALSE(w1->busy()) << "its lease ended with the coordinator";
+  EXPECT_NEAR(w1->seconds_since_seen(), 2.0, 1e-3) << "seen when it was last seen: its lease of job-c at 5 s";
+  const std::optional<v1::WorkerInfo> w2 = Find(restored.Workers(), "w2");
+  ASSERT_TRUE(w2.has_value());
+  EXPECT_TRUE(w2->lost());
+  EXPECT_EQ(w2->tasks_failed(), 1u);
+  ASSERT_EQ(w2->blocklisted_job_ids_size(), 1);
+  EXPECT_TRUE(w2->quarantined());
+  EXPECT_NEAR(w2->quarantine_seconds_left(), 600.0 - 7.0, 1e-3);
+  // Lost as the last life saw it, until it polls again (this life's health never marked it).
+  restored.WorkerSeen("w2", "ipv4:10.0.0.8:1", 4, "v1");
+  EXPECT_FALSE(Find(restored.Workers(), "w2")->lost());
+
+  // A batch the store could not take is put back, older than what came since.
+  restored.TaskEvent("job-a", "expired", 4, 1, "w1");
+  ActivityRecords batch = restored.TakeChanges();
+  restored.TaskEvent("job-a", "leased", 4, 2, "w2");
+  restored.ReturnChanges(std::move(batch));
+  const ActivityRecords again = restored.TakeChanges();
+  ASSERT_EQ(again.events.size(), 2u);
+  v1::TaskEvent first;
+  ASSERT_TRUE(first.ParseFromString(again.events[0].bytes));
+  EXPECT_EQ(first.kind(), "expired");
+  EXPECT_FALSE(again.workers.empty());
+}
+
+}  // namespace
+}  // namespace pf::server
