@@ -458,7 +458,7 @@ int RunWorkers(const FarmArgs& f, bool json) {
     return kExitOk;
   }
   if (workers.empty()) {
-    std::printf("no workers have contacted this coordinator since it started\n");
+    std::printf("no workers have contacted this coordinator\n");
     return kExitOk;
   }
   std::printf("%-24s %-22s %7s %-20s %6s %6s %12s %10s  %s\n", "WORKER", "PEER", "THREADS", "CURRENT", "DONE",

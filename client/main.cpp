@@ -219,7 +219,7 @@ int main(int argc, char** argv) {
   bool workers_json = false;
   CLI::App* workers = app.add_subcommand(
       "workers",
-      "List the workers the coordinator has seen since it started: current task, tasks done, photons/s");
+      "List the workers the coordinator has seen (stored across its restarts): task, tasks done, photons/s");
   workers->add_flag("--json", workers_json, "JSON output");
   AddFarmOptions(workers, wkf);
 

@@ -340,9 +340,14 @@ void Coordinator::TickLoop() {
       watches_->Tick();
       MaybeApplyRetention();
       MaybeApplyDataQuota();
-      if (clock_->Now() >= next_activity_persist_) {
+      // On the executor: a transaction with its fsync, which the lease expiry here must not wait for.
+      if (clock_->Now() >= next_activity_persist_ && !activity_running_.exchange(true)) {
         next_activity_persist_ = clock_->Now() + 1.0;
-        PersistActivity();
+        if (!executor_->Post([this] {
+              PersistActivity();
+              activity_running_ = false;
+            }))
+          activity_running_ = false;  // busy: next time
       }
     } catch (const std::exception& e) {
       spdlog::error("tick: {}", e.what());
@@ -452,10 +457,11 @@ void Coordinator::Stop(bool graceful) {
                           std::chrono::duration<double>(grace)));
   }
   if (tick_thread_.joinable()) tick_thread_.join();
-  if (graceful) PersistActivity();
   referee_->Stop();
   maps_->Stop();
   executor_->Stop();
+  // The rest of the activity, the referee's and the executor's last events included.
+  if (graceful) PersistActivity();
   const bool flushed = graceful && persister_->Stop();
   if (server_) server_->Wait();
   {

@@ -176,7 +176,7 @@ class Coordinator {
   // --data-quota (server/store/data_quota.h): the same, for the data dir's size.
   void MaybeApplyDataQuota();
   // The farm's activity since the last call into the database (activity_store.h): every second
-  // from the tick thread, once more at a graceful stop.
+  // on the executor (posted by the tick thread, one at a time), once more at a graceful stop.
   void PersistActivity();
   std::shared_ptr<grpc::ServerCredentials> ServerCredentials() const;
   void CheckHttpTransport() const;
@@ -210,9 +210,10 @@ class Coordinator {
   bool stopped_ = false;
   bool stored_everything_ = false;
   std::thread tick_thread_;
-  double next_retention_ = 0;              // Clock::Now() of the next check (tick thread only)
-  double next_activity_persist_ = 0;       // Clock::Now() of the next PersistActivity (tick thread only)
-  bool activity_storage_failing_ = false;  // logged once per failure run
+  double next_retention_ = 0;                  // Clock::Now() of the next check (tick thread only)
+  double next_activity_persist_ = 0;           // Clock::Now() of the next PersistActivity (tick thread only)
+  bool activity_storage_failing_ = false;      // logged once per failure run (one PersistActivity at a time)
+  std::atomic<bool> activity_running_{false};  // a PersistActivity is posted to the executor
   std::atomic<bool> retention_running_{false};
   std::atomic<double> next_quota_check_{0};  // --data-quota: as the two above
   double last_quota_check_ = 0;

@@ -247,7 +247,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
   }
   html += "</div>\n<div id=\"workers-section\"><h2>Workers</h2>\n";
   if (workers.empty())
-    html += "<p>No worker has contacted this coordinator since it started.</p>\n";
+    html += "<p>No worker has contacted this coordinator.</p>\n";
   else {
     html +=
         "<table id=\"workers\"><tr><th>worker</th><th>host</th><th>threads</th><th>current "

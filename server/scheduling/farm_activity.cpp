@@ -8,13 +8,16 @@ namespace pf::server {
 namespace v1 = photonfarm::v1;
 
 FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
-  workers_changed_ = true;  // every caller changes it
   auto it = workers_.find(worker_id);
-  if (it != workers_.end()) return it->second;
+  if (it != workers_.end()) {
+    it->second.dirty = true;  // every caller but WorkerSeen changes it (WorkerSeen decides itself)
+    return it->second;
+  }
   if (workers_.size() >= kMaxWorkersKept) {  // forget the longest-silent worker
     auto oldest = workers_.begin();
     for (auto w = workers_.begin(); w != workers_.end(); ++w)
       if (w->second.last_seen < oldest->second.last_seen) oldest = w;
+    forgotten_workers_.push_back(oldest->first);
     workers_.erase(oldest);
   }
   Worker& w = workers_[worker_id];
@@ -26,7 +29,10 @@ FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
 void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
                               const std::string& version, const std::string& refused_reason) {
   std::lock_guard lock(mu_);
+  const auto known = workers_.find(worker_id);
+  const bool was_dirty = known == workers_.end() || known->second.dirty;
   Worker& w = WorkerLocked(worker_id);
+  const std::string before = w.info.SerializeAsString();
   w.info.set_peer(peer);
   w.info.set_threads(threads);
   w.info.set_version(version);
@@ -39,6 +45,7 @@ void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& p
     w.info.set_lost(false);
     w.info.set_offline(false);
   }
+  w.dirty = was_dirty || w.info.SerializeAsString() != before;
   if (refused_reason.empty()) {  // its credential works now
     refused_.erase(worker_id);
     refused_.erase(worker_id + " (refused)");
@@ -131,7 +138,7 @@ void FarmActivity::WorkerOffline(const std::string& worker_id, bool offline) {
   std::lock_guard lock(mu_);
   auto it = workers_.find(worker_id);
   if (it == workers_.end() || it->second.info.offline() == offline) return;
-  workers_changed_ = true;
+  it->second.dirty = true;
   it->second.info.set_offline(offline);
   if (offline) {
     it->second.info.set_lost(false);
@@ -151,14 +158,15 @@ void FarmActivity::ForgetJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
   events_.erase(job_id);
   std::erase_if(pending_events_, [&](const ActivityRecords::Event& e) { return e.job_id == job_id; });
-  workers_changed_ = true;
   for (auto& [id, w] : workers_) {
     auto* ids = w.info.mutable_blocklisted_job_ids();
     for (int i = 0; i < ids->size();)
-      if (ids->Get(i) == job_id)
+      if (ids->Get(i) == job_id) {
         ids->DeleteSubrange(i, 1);
-      else
+        w.dirty = true;
+      } else {
         ++i;
+      }
   }
 }
 
@@ -183,17 +191,20 @@ ActivityRecords FarmActivity::TakeChanges() {
   std::lock_guard lock(mu_);
   ActivityRecords out;
   out.events.swap(pending_events_);
-  if (!workers_changed_) return out;
-  workers_changed_ = false;
+  out.forgotten_workers.swap(forgotten_workers_);
   const double now = clock_.Now();
   const int64_t unix_ms = clock_.UnixMillis();
-  for (const auto& [id, w] : workers_)
+  for (auto& [id, w] : workers_) {
+    if (!w.dirty && w.last_seen < w.stored_last_seen + kLastSeenStoreSeconds) continue;
+    w.dirty = false;
+    w.stored_last_seen = w.last_seen;
     out.workers.push_back(
         {.worker_id = id,
          .bytes = w.info.SerializeAsString(),
          .last_seen_unix_ms = unix_ms - int64_t((now - w.last_seen) * 1000.0),
          .quarantined_until_unix_s =
              w.quarantined_until > now ? double(unix_ms) / 1000.0 + (w.quarantined_until - now) : 0.0});
+  }
   return out;
 }
 
@@ -206,7 +217,10 @@ void FarmActivity::ReturnChanges(ActivityRecords records) {
   if (pending_events_.size() > kMaxPendingEvents)
     pending_events_.erase(pending_events_.begin(),
                           pending_events_.begin() + ptrdiff_t(pending_events_.size() - kMaxPendingEvents));
-  if (!records.workers.empty()) workers_changed_ = true;
+  for (const ActivityRecords::Worker& stored : records.workers)
+    if (auto it = workers_.find(stored.worker_id); it != workers_.end()) it->second.dirty = true;
+  forgotten_workers_.insert(forgotten_workers_.end(), records.forgotten_workers.begin(),
+                            records.forgotten_workers.end());
 }
 
 void FarmActivity::Restore(const ActivityRecords& records) {
@@ -223,18 +237,32 @@ void FarmActivity::Restore(const ActivityRecords& records) {
       ++je.dropped;
     }
   }
-  for (const ActivityRecords::Worker& stored : records.workers) {
+  // The most recently seen first: those beyond kMaxWorkersKept are forgotten, here and in the store.
+  std::vector<const ActivityRecords::Worker*> by_recency;
+  for (const ActivityRecords::Worker& stored : records.workers) by_recency.push_back(&stored);
+  std::stable_sort(by_recency.begin(), by_recency.end(),
+                   [](const auto* a, const auto* b) { return a->last_seen_unix_ms > b->last_seen_unix_ms; });
+  for (const ActivityRecords::Worker* stored : by_recency) {
     Worker w;
-    if (!w.info.ParseFromString(stored.bytes)) continue;
-    w.info.set_worker_id(stored.worker_id);
+    if (workers_.size() >= kMaxWorkersKept || !w.info.ParseFromString(stored->bytes)) {
+      forgotten_workers_.push_back(stored->worker_id);
+      continue;
+    }
+    w.info.set_worker_id(stored->worker_id);
     w.info.set_busy(false);  // its lease, if any, ended with the coordinator
     w.info.clear_current_job_id();
     w.info.set_current_task_id(0);
-    w.last_seen = now - std::max<double>(0.0, double(unix_ms - stored.last_seen_unix_ms) / 1000.0);
+    // This life's worker health (worker_health.h) starts without quarantines and blocklists: the
+    // list shows what is enforced.
+    w.info.clear_quarantine_reason();
+    w.info.clear_blocklisted_job_ids();
+    // Not heard from in this life: lost (or offline, if it had left) until it polls.
+    if (!w.info.offline()) w.info.set_lost(true);
     w.restored = true;
-    if (stored.quarantined_until_unix_s > 0)
-      w.quarantined_until = now + (stored.quarantined_until_unix_s - double(unix_ms) / 1000.0);
-    workers_[stored.worker_id] = std::move(w);
+    w.last_seen = now - std::max<double>(0.0, double(unix_ms - stored->last_seen_unix_ms) / 1000.0);
+    w.stored_last_seen = w.last_seen;
+    w.dirty = false;
+    workers_[stored->worker_id] = std::move(w);
   }
 }
 

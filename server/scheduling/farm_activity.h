@@ -1,5 +1,5 @@
 #pragma once
-// What the farm did, for people: the workers seen since the coordinator started (`pf workers`,
+// What the farm did, for people: the workers seen, in this life or a stored one (`pf workers`,
 // the web status page) and each job's task events — which worker ran which task, retries,
 // failures (`pf events JOB`). Bounded: a job keeps its newest kMaxEventsPerJob events. Stored
 // (server/store/activity_store.h): the coordinator takes the changes every second (TakeChanges)
@@ -68,11 +68,14 @@ class FarmActivity {
   // A deleted job (pf delete): its events go, and it leaves the workers' blocklisted job lists.
   void ForgetJob(const std::string& job_id);
 
-  // Persistence (docs/farm.md "Activity across restarts"). The events recorded and, if any worker
-  // changed, every worker, since the last call; ReturnChanges puts back a batch the store could not
-  // take (the newest kMaxPendingEvents events are kept). Restore (at start, before any call) loads a
-  // store's records: the workers as they were, none busy (leases do not outlive a coordinator), seen
-  // when they were last seen.
+  // Persistence (docs/farm.md "Activity across restarts"). The events recorded and the workers
+  // changed since the last call (a worker only polling: every kLastSeenStoreSeconds), and the
+  // workers evicted; ReturnChanges puts back a batch the store could not take (the newest
+  // kMaxPendingEvents events are kept). Restore (at start, before any call) loads a store's
+  // records, the kMaxWorkersKept most recently seen workers (the others are forgotten): their
+  // counts as they were, seen when they were last seen, none busy (leases end with a coordinator)
+  // and each lost (or offline) until it polls again; quarantine and blocklists are left out, as
+  // this life's worker health starts without them (worker_health.h).
   ActivityRecords TakeChanges();
   void ReturnChanges(ActivityRecords records);
   void Restore(const ActivityRecords& records);
@@ -90,7 +93,12 @@ class FarmActivity {
     // Restored from the store (Restore): its lost and offline flags are the last life's, which
     // this life's worker health never set, so its first accepted poll clears them.
     bool restored = false;
+    // Changed since it was last taken (TakeChanges); a poll alone changes only last_seen, which is
+    // taken at most every kLastSeenStoreSeconds.
+    bool dirty = true;
+    double stored_last_seen = -1e300;
   };
+  static constexpr double kLastSeenStoreSeconds = 30;
   struct JobEvents {
     std::deque<photonfarm::v1::TaskEvent> events;
     uint64_t dropped = 0;
@@ -104,7 +112,7 @@ class FarmActivity {
   std::map<std::string, Worker> refused_;  // WorkerRefused's entries
   std::map<std::string, JobEvents> events_;
   std::vector<ActivityRecords::Event> pending_events_;  // recorded, not yet taken (TakeChanges)
-  bool workers_changed_ = false;
+  std::vector<std::string> forgotten_workers_;          // evicted since the last TakeChanges
 };
 
 }  // namespace pf::server

@@ -19,7 +19,8 @@
 //               and, like a lost one, no worker that could still run a job. Online again at its
 //               next call.
 //
-// In memory only, like FarmActivity: a restarted coordinator starts with every worker healthy
+// In memory only: a restarted coordinator starts with every worker healthy (FarmActivity, which
+// is stored, shows no quarantine or blocklist of a past life for that reason)
 // (the durable record of a task is its attempt and failure counts). Not thread-safe: the
 // Scheduler's lock guards it, as it guards the lease table.
 

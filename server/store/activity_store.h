@@ -26,18 +26,21 @@ struct ActivityRecords {
     int64_t last_seen_unix_ms = 0;
     double quarantined_until_unix_s = 0;  // 0: not quarantined
   };
-  std::vector<Event> events;    // in the order they happened
-  std::vector<Worker> workers;  // each replaces the stored worker of its id
-  bool empty() const { return events.empty() && workers.empty(); }
+  std::vector<Event> events;                   // in the order they happened
+  std::vector<Worker> workers;                 // each replaces the stored worker of its id
+  std::vector<std::string> forgotten_workers;  // ids whose stored worker goes
+  bool empty() const { return events.empty() && workers.empty() && forgotten_workers.empty(); }
 };
 
 class ActivityStore {
  public:
   virtual ~ActivityStore() = default;
-  // Appends the events and replaces the workers, in one transaction; keeps each job's newest
+  // Appends the events of jobs that have a row (a job deleted meanwhile keeps none), replaces the
+  // workers and removes the forgotten ones, in one transaction; keeps each job's newest
   // `max_events_per_job` events.
   virtual void SaveActivity(const ActivityRecords& records, size_t max_events_per_job) = 0;
-  // Everything stored: events oldest first, workers by id.
+  // Everything stored (events of jobs without a row are removed first): events oldest first,
+  // workers by id.
   virtual ActivityRecords LoadActivity() = 0;
 };
 

@@ -62,7 +62,7 @@ CREATE TABLE IF NOT EXISTS tasks(
   last_error TEXT NOT NULL,
   PRIMARY KEY (job_id, task_id)) WITHOUT ROWID;
 CREATE TABLE IF NOT EXISTS events(
-  seq INTEGER PRIMARY KEY AUTOINCREMENT,
+  seq INTEGER PRIMARY KEY,
   job_id TEXT NOT NULL,
   event BLOB NOT NULL);
 CREATE INDEX IF NOT EXISTS events_by_job ON events(job_id, seq);
@@ -420,7 +420,9 @@ void SqliteStore::SaveActivity(const ActivityRecords& records, size_t max_events
   if (records.empty()) return;
   std::lock_guard lock(mu_);
   Transaction tx(db_);
-  Statement event(db_, "INSERT INTO events(job_id, event) VALUES (?1, ?2)");
+  // Only for a job that has a row: a job deleted while its events were on their way keeps none.
+  Statement event(
+      db_, "INSERT INTO events(job_id, event) SELECT ?1, ?2 WHERE EXISTS (SELECT 1 FROM jobs WHERE id = ?1)");
   std::set<std::string> jobs;
   for (const ActivityRecords::Event& e : records.events) {
     event.Text(1, e.job_id).Blob(2, e.bytes).Run();
@@ -440,12 +442,15 @@ void SqliteStore::SaveActivity(const ActivityRecords& records, size_t max_events
         .Int(3, w.last_seen_unix_ms)
         .Real(4, w.quarantined_until_unix_s)
         .Run();
+  Statement forget(db_, "DELETE FROM workers WHERE id = ?1");
+  for (const std::string& id : records.forgotten_workers) forget.Text(1, id).Run();
   tx.Commit();
 }
 
 ActivityRecords SqliteStore::LoadActivity() {
   std::lock_guard lock(mu_);
   ActivityRecords out;
+  Statement(db_, "DELETE FROM events WHERE job_id NOT IN (SELECT id FROM jobs)").Run();
   Statement events(db_, "SELECT job_id, event FROM events ORDER BY seq");
   while (events.Step()) out.events.push_back({events.ColText(0), events.ColBlob(1)});
   Statement workers(db_,
