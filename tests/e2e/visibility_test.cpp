@@ -118,7 +118,7 @@ TEST(Visibility, EventsAndWorkerStatisticsSurviveACoordinatorKill) {
   EXPECT_EQ(workers[0].tasks_done(), 8u);
   EXPECT_GT(workers[0].photons_emitted(), 0u);
   EXPECT_FALSE(workers[0].busy());
-  EXPECT_TRUE(workers[0].lost()) << "not heard from in this life";
+  EXPECT_TRUE(workers[0].offline()) << "it left the farm (SIGTERM: LeaveFarm) and has not called since";
   EXPECT_GE(workers[0].seconds_since_seen(), 2.0) << "seen when the first life last saw it";
 }
 
