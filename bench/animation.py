@@ -74,6 +74,15 @@ def farm_run(build, work, submit_all):
     return wall, cpu, maps, pieces, ids
 
 
+def fetch(build, work, fetch_all):
+    """Runs fetch_all(address) against a coordinator of its own on work's data (the run's is stopped)."""
+    coordinator, address = start_coordinator(os.path.join(build, "server", "pf-coordinator"), work, [])
+    try:
+        return fetch_all(address)
+    finally:
+        stop(coordinator)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--build", default=os.path.join(REPO, "build"))
@@ -95,13 +104,8 @@ def main():
             wall, cpu, maps, pieces, ids = farm_run(a.build, os.path.join(base, "animation"), submit_animation)
             runs["animation"].append({"wall": wall, "cpu": cpu, "maps_built": maps, "pieces": pieces})
             print(f"  animation {wall:7.2f} s wall {cpu:7.2f} s CPU  maps {maps} pieces {pieces}", file=sys.stderr)
-            # The frames, written by a coordinator of their own (the first one is stopped).
-            coordinator, address = start_coordinator(os.path.join(a.build, "server", "pf-coordinator"),
-                                                      os.path.join(base, "animation"), [])
-            try:
-                pf(client, "get", ids[0], "--coordinator", address, "-o", frames)
-            finally:
-                stop(coordinator)
+            fetch(a.build, os.path.join(base, "animation"),
+                  lambda address: pf(client, "get", ids[0], "--coordinator", address, "-o", frames))
             cameras = [(exr_string(frames % f, "pf:camera.eye"), exr_string(frames % f, "pf:camera.look_at"))
                        for f in range(1, a.frames + 1)]
 
@@ -112,17 +116,15 @@ def main():
             wall, cpu, maps, pieces, ids = farm_run(a.build, os.path.join(base, "jobs"), submit_jobs)
             runs["jobs"].append({"wall": wall, "cpu": cpu, "maps_built": maps, "pieces": pieces})
             print(f"  jobs      {wall:7.2f} s wall {cpu:7.2f} s CPU  maps {maps} pieces {pieces}", file=sys.stderr)
-            coordinator, address = start_coordinator(os.path.join(a.build, "server", "pf-coordinator"),
-                                                      os.path.join(base, "jobs"), [])
-            try:
+            def compare_frames(address):
                 for f, job in enumerate(ids, start=1):
                     single = os.path.join(base, f"job.{f:04d}.exr")
                     pf(client, "get", job, "--coordinator", address, "-o", single)
                     d = json.loads(pf(client, "diff", frames % f, single, "--json"))
                     if d["max_abs_error"] != 0:
                         sys.exit(f"frame {f}: differs from its single-frame job (max error {d['max_abs_error']})")
-            finally:
-                stop(coordinator)
+
+            fetch(a.build, os.path.join(base, "jobs"), compare_frames)
         med = {k: {m: statistics.median(r[m] for r in v) for m in ("wall", "cpu", "maps_built", "pieces")}
                for k, v in runs.items()}
         result = {

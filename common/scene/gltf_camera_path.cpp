@@ -9,6 +9,7 @@
 
 #include "common/core/error.h"
 #include "common/scene/gltf_accessors.h"
+#include "common/scene/gltf_transform.h"
 
 namespace pf {
 namespace {
@@ -58,22 +59,6 @@ struct Track {
     return out;
   }
 };
-
-Affine Trs(const std::vector<double>& t, const std::vector<double>& q, const std::vector<double>& s) {
-  Affine a;
-  double x = q[0], y = q[1], z = q[2], w = q[3];
-  const double norm = std::sqrt(x * x + y * y + z * z + w * w);
-  if (norm > 0.0 && std::isfinite(norm)) {
-    x /= norm, y /= norm, z /= norm, w /= norm;
-    a.m[0][0] = 1 - 2 * (y * y + z * z), a.m[0][1] = 2 * (x * y - z * w), a.m[0][2] = 2 * (x * z + y * w);
-    a.m[1][0] = 2 * (x * y + z * w), a.m[1][1] = 1 - 2 * (x * x + z * z), a.m[1][2] = 2 * (y * z - x * w);
-    a.m[2][0] = 2 * (x * z - y * w), a.m[2][1] = 2 * (y * z + x * w), a.m[2][2] = 1 - 2 * (x * x + y * y);
-  }
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) a.m[r][c] *= s[size_t(c)];
-  a.t = Vec3d(t[0], t[1], t[2]);
-  return a;
-}
 
 Vec3d Unit(const Vec3d& v) {
   const double l = std::sqrt(Dot(v, v));
@@ -142,8 +127,8 @@ CameraPath GltfCameraPath(const GltfDocument& doc, int node, const Affine& paren
   const std::vector<double> rest_s = n.scale.size() == 3 ? n.scale : std::vector<double>{1, 1, 1};
   for (const auto& [frame, time] : frames) {
     if (frame > 999999) break;
-    const Affine world = mgf::Compose(parent, Trs(translation ? translation->At(time) : rest_t,
-                                                  rotation ? rotation->At(time) : rest_r, rest_s));
+    const Affine world = mgf::Compose(parent, GltfTrs(translation ? translation->At(time) : rest_t,
+                                                      rotation ? rotation->At(time) : rest_r, rest_s));
     const Vec3d forward = Unit(world.Vector(Vec3d(0, 0, -1))), up = Unit(world.Vector(Vec3d(0, 1, 0)));
     if (!world.IsFinite() || forward == Vec3d(0.0) || up == Vec3d(0.0))
       throw InputError(SourceLocation{doc.file, 0}, where + ": at " + std::to_string(time) +

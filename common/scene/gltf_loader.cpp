@@ -19,6 +19,7 @@
 #include "common/scene/gltf_lights.h"
 #include "common/scene/gltf_materials.h"
 #include "common/scene/gltf_textures.h"
+#include "common/scene/gltf_transform.h"
 #include "common/scene/mgf_transform.h"
 #include "common/scene/scene_frame.h"
 
@@ -45,21 +46,7 @@ Affine LocalTransform(const tinygltf::Node& n) {
     a.t = Vec3d(n.matrix[12], n.matrix[13], n.matrix[14]);
     return a;
   }
-  if (n.rotation.size() == 4) {
-    double x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
-    const double norm = std::sqrt(x * x + y * y + z * z + w * w);
-    if (norm > 0.0 && std::isfinite(norm)) {
-      x /= norm, y /= norm, z /= norm, w /= norm;
-      a.m[0][0] = 1 - 2 * (y * y + z * z), a.m[0][1] = 2 * (x * y - z * w), a.m[0][2] = 2 * (x * z + y * w);
-      a.m[1][0] = 2 * (x * y + z * w), a.m[1][1] = 1 - 2 * (x * x + z * z), a.m[1][2] = 2 * (y * z - x * w);
-      a.m[2][0] = 2 * (x * z - y * w), a.m[2][1] = 2 * (y * z + x * w), a.m[2][2] = 1 - 2 * (x * x + y * y);
-    }
-  }
-  if (n.scale.size() == 3)
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) a.m[r][c] *= n.scale[size_t(c)];
-  if (n.translation.size() == 3) a.t = Vec3d(n.translation[0], n.translation[1], n.translation[2]);
-  return a;
+  return GltfTrs(n.translation, n.rotation, n.scale);
 }
 
 // Normals transform by the inverse transpose. Only its direction matters, so the cofactor

@@ -97,6 +97,20 @@ class Parser {
     return c;
   }
 
+  // A camera's or a camera key's required "eye" and "look_at".
+  void View(const Json& v, const std::string& key, Vec3d* eye, Vec3d* look_at) const {
+    if (!v.contains("eye")) Fail(key + ".eye", "missing (expected 3 numbers)");
+    if (!v.contains("look_at")) Fail(key + ".look_at", "missing (expected 3 numbers)");
+    *eye = Point(v["eye"], key + ".eye");
+    *look_at = Point(v["look_at"], key + ".look_at");
+  }
+
+  float FieldOfView(const Json& v, const std::string& key) const {
+    const double fov = Number(v, key);
+    if (!(fov > 0.0 && fov < 180.0)) Fail(key, "expected degrees in (0, 180)");
+    return float(fov);
+  }
+
   // "camera_path": [{"frame": 1, "eye": [...], "look_at": [...], "up"?: [...], "fov"?: deg}, ...],
   // frames integers ≥ 0 in strictly increasing order.
   CameraPath Path(const Json& v, const std::string& key) const {
@@ -115,16 +129,9 @@ class Parser {
       if (!path.keys.empty() && c.frame <= path.keys.back().frame)
         Fail(k + ".frame", "expected frames in strictly increasing order (the key before is frame " +
                                std::to_string(path.keys.back().frame) + ")");
-      if (!e.contains("eye")) Fail(k + ".eye", "missing (expected 3 numbers)");
-      if (!e.contains("look_at")) Fail(k + ".look_at", "missing (expected 3 numbers)");
-      c.eye = Point(e["eye"], k + ".eye");
-      c.look_at = Point(e["look_at"], k + ".look_at");
+      View(e, k, &c.eye, &c.look_at);
       if (e.contains("up")) c.up = Direction(e["up"], k + ".up");
-      if (e.contains("fov")) {
-        const double fov = Number(e["fov"], k + ".fov");
-        if (!(fov > 0.0 && fov < 180.0)) Fail(k + ".fov", "expected degrees in (0, 180)");
-        c.vfov_degrees = float(fov);
-      }
+      if (e.contains("fov")) c.vfov_degrees = FieldOfView(e["fov"], k + ".fov");
       path.keys.push_back(c);
     }
     return path;
@@ -139,16 +146,9 @@ class Parser {
       cam.name = String(v["name"], key + ".name");
       if (cam.name.empty()) Fail(key + ".name", "expected a non-empty string");
     }
-    if (!v.contains("eye")) Fail(key + ".eye", "missing (expected 3 numbers)");
-    if (!v.contains("look_at")) Fail(key + ".look_at", "missing (expected 3 numbers)");
-    cam.eye = Point(v["eye"], key + ".eye");
-    cam.look_at = Point(v["look_at"], key + ".look_at");
+    View(v, key, &cam.eye, &cam.look_at);
     if (v.contains("up")) cam.up = Direction(v["up"], key + ".up");
-    if (v.contains("fov")) {
-      const double fov = Number(v["fov"], key + ".fov");
-      if (!(fov > 0.0 && fov < 180.0)) Fail(key + ".fov", "expected degrees in (0, 180)");
-      cam.vfov_degrees = float(fov);
-    }
+    if (v.contains("fov")) cam.vfov_degrees = FieldOfView(v["fov"], key + ".fov");
     if (v.contains("resolution")) {
       const Json& r = v["resolution"];
       const std::string rkey = key + ".resolution";
