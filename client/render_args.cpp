@@ -176,9 +176,11 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a, bool all) {
                        "Seed: the same seed gives the same image on any thread or worker count")
            ->capture_default_str());
   app->add_option("--camera", a.camera_name, "Named camera of the manifest (default: its first)");
-  app->add_option("--frames", a.frames,
-                  "Animation: frames A-B (or all) of the manifest's camera_path, one job on a farm "
-                  "(pf submit, --workers N) sharing its photon maps; -o out.%04d.exr");
+  app->add_option(
+      "--frames", a.frames,
+      "Animation: frames A-B (or all) of the scene's camera path (a manifest's camera_path, a glTF "
+      "camera's animation), one job on a farm "
+      "(pf submit, --workers N) sharing its photon maps; -o out.%04d.exr");
   more(app->add_option("--eye", a.eye, "Camera position X,Y,Z (overrides the manifest)"));
   more(app->add_option("--look-at", a.look_at, "Point the camera looks at X,Y,Z"));
   more(app->add_option("--up", a.up, "Up vector X,Y,Z (image right = forward x up)"));
@@ -347,7 +349,8 @@ void AddFrames(const SceneDescription& scene, const RenderArgs& a, const CameraS
   const CameraPath& path = scene.camera_path;
   if (path.keys.empty())
     throw InputError(
-        "--frames: the scene has no camera path (a manifest's \"camera_path\": docs/scene-manifest.md)");
+        "--frames: the scene has no camera path (a manifest's \"camera_path\", docs/scene-manifest.md, or an "
+        "animated glTF camera, docs/gltf.md)");
   int first = path.first_frame(), last = path.last_frame();
   if (a.frames != "all") {
     const size_t dash = a.frames.find('-');

@@ -37,8 +37,10 @@ View Locate(const GltfDocument& doc, int index, size_t element_size) {
   if (v.byteOffset > b.size() || v.byteLength > b.size() - v.byteOffset)
     fail("buffer view outside its buffer");
   if (a.count == 0) return View{nullptr, stride, 0};
-  const size_t need = a.byteOffset + stride * (a.count - 1) + element_size;
-  if (stride < element_size || need > v.byteLength) fail("out of range of its buffer view");
+  // By division: a hostile count must not wrap the product around (stride · (count − 1)).
+  if (stride < element_size || a.byteOffset > v.byteLength || element_size > v.byteLength - a.byteOffset ||
+      a.count - 1 > (v.byteLength - a.byteOffset - element_size) / stride)
+    fail("out of range of its buffer view");
   return View{b.data() + v.byteOffset + a.byteOffset, stride, a.count};
 }
 

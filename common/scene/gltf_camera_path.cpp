@@ -42,7 +42,14 @@ struct Track {
       for (size_t c = 0; c < 3; ++c) out[c] = va[c] + (vb[c] - va[c]) * u;
       return out;
     }
-    // Quaternions: slerp along the shorter arc (spec §3.11, Appendix C).
+    // Quaternions: slerp along the shorter arc (spec §3.11, Appendix C), of unit quaternions.
+    for (std::vector<double>* q : {&va, &vb}) {
+      double norm = 0;
+      for (double v : *q) norm += v * v;
+      norm = std::sqrt(norm);
+      if (norm > 0 && std::isfinite(norm))
+        for (double& v : *q) v /= norm;
+    }
     double dot = 0;
     for (size_t c = 0; c < 4; ++c) dot += va[c] * vb[c];
     if (dot < 0) {
@@ -96,13 +103,15 @@ CameraPath GltfCameraPath(const GltfDocument& doc, int node, const Affine& paren
       const bool cubic = s.interpolation == "CUBICSPLINE";
       if (!track.step && !cubic && s.interpolation != "LINEAR" && !s.interpolation.empty())
         fail("unknown interpolation '" + s.interpolation + "'");
+      if ((ch.target_path == "rotation" ? rotation : translation).has_value())
+        fail("a second " + ch.target_path + " channel for the camera (glTF 2.0 §3.11: one per path)");
       track.times = ReadGltfFloats(doc, s.input, 1);
       const std::vector<double> out = ReadGltfFloats(doc, s.output, track.components);
       const size_t keys = track.times.size(), per = cubic ? 3 : 1, k = size_t(track.components);
       if (keys == 0) fail("its sampler has no keys");
       if (out.size() != keys * per * k)
-        fail("its sampler has " + std::to_string(out.size() / k) + " output values for " +
-             std::to_string(keys) + " keys");
+        fail("its sampler has " + std::to_string(out.size() / k) + " output values; " + std::to_string(keys) +
+             " keys need " + std::to_string(keys * per));
       for (size_t i = 1; i < keys; ++i)
         if (!(track.times[i] > track.times[i - 1])) fail("its key times are not strictly increasing");
       if (track.times.front() < 0) fail("its key times start before 0");
@@ -117,22 +126,36 @@ CameraPath GltfCameraPath(const GltfDocument& doc, int node, const Affine& paren
   }
   CameraPath path;
   if (!translation && !rotation) return path;
-  // Every key time of either track; a frame that two times round to keeps the first.
-  std::map<long, double> frames;
+  // A key at every frame from the first key's to the last key's, sampled at the frame's own time
+  // (f − 1)/24: STEP holds between keys and rotations are slerped frame by frame, which the path's
+  // linear interpolation between keys (camera_path.h) would not do.
+  double t_first = 1e300, t_last = 0;
   for (const std::optional<Track>* t : {&translation, &rotation})
-    if (*t)
-      for (double time : (*t)->times) frames.emplace(1 + std::lround(time * kGltfFramesPerSecond), time);
+    if (*t) {
+      t_first = std::min(t_first, (*t)->times.front());
+      t_last = std::max(t_last, (*t)->times.back());
+    }
+  const double max_time = double(kMaxGltfPathFrames - 1) / kGltfFramesPerSecond;
+  if (t_last > max_time) {
+    warnings->push_back(doc.file + ": " + where + ": the camera's keys after " + std::to_string(max_time) +
+                        " s (frame " + std::to_string(kMaxGltfPathFrames) + ") are not used");
+    t_last = max_time;
+    t_first = std::min(t_first, t_last);
+  }
+  const long first = 1 + std::lround(t_first * kGltfFramesPerSecond);
+  const long last = 1 + std::lround(t_last * kGltfFramesPerSecond);
   const std::vector<double> rest_t = n.translation.size() == 3 ? n.translation : std::vector<double>{0, 0, 0};
   const std::vector<double> rest_r = n.rotation.size() == 4 ? n.rotation : std::vector<double>{0, 0, 0, 1};
   const std::vector<double> rest_s = n.scale.size() == 3 ? n.scale : std::vector<double>{1, 1, 1};
-  for (const auto& [frame, time] : frames) {
-    if (frame > 999999) break;
+  for (long frame = first; frame <= last; ++frame) {
+    const double time = double(frame - 1) / kGltfFramesPerSecond;
     const Affine world = mgf::Compose(parent, GltfTrs(translation ? translation->At(time) : rest_t,
                                                       rotation ? rotation->At(time) : rest_r, rest_s));
     const Vec3d forward = Unit(world.Vector(Vec3d(0, 0, -1))), up = Unit(world.Vector(Vec3d(0, 1, 0)));
-    if (!world.IsFinite() || forward == Vec3d(0.0) || up == Vec3d(0.0))
-      throw InputError(SourceLocation{doc.file, 0}, where + ": at " + std::to_string(time) +
-                                                        " s the camera's transform gives it no direction");
+    if (!world.IsFinite() || !IsFinite(Vec3(world.t)) || forward == Vec3d(0.0) || up == Vec3d(0.0))
+      throw InputError(SourceLocation{doc.file, 0},
+                       where + ": at frame " + std::to_string(frame) +
+                           " the camera's transform is not finite or has no direction");
     path.keys.push_back({.frame = int(frame), .eye = world.t, .look_at = world.t + forward, .up = Vec3(up)});
   }
   return path;

@@ -174,8 +174,14 @@ class GltfSceneBuilder {
         const bool had_camera = !scene_->cameras.empty();
         AddCamera(where, size_t(node.camera), world);
         // The scene's camera: its animation, if any, is the scene's camera path.
-        if (!had_camera && !scene_->cameras.empty())
-          scene_->camera_path = GltfCameraPath(doc_, index, parent, &scene_->warnings);
+        // A malformed one is a warning: the scene renders still frames without it.
+        if (!had_camera && !scene_->cameras.empty()) {
+          try {
+            scene_->camera_path = GltfCameraPath(doc_, index, parent, &scene_->warnings);
+          } catch (const InputError& e) {
+            scene_->warnings.push_back(std::string(e.what()) + " (the camera's animation is not used)");
+          }
+        }
       }
       AddLight(where, node, world);
       if (node.skin >= 0) WarnOnce(where + ": skins are not applied (the mesh is rendered in its bind pose)");
@@ -447,11 +453,11 @@ SceneDescription LoadGltf(const std::filesystem::path& path, const std::filesyst
   builder.VisitScene(SceneRoots(*doc.model, builder, &scene.warnings, doc.file));
   builder.Finish();
   if (!doc.model->animations.empty())
-    scene.warnings.push_back(
-        doc.file + (scene.camera_path.keys.empty()
-                        ? ": animations are not applied (the scene is rendered at rest)"
-                        : ": animations other than the camera's are not applied (the scene is "
-                          "rendered at rest; the camera's is its camera path, pf submit --frames)"));
+    scene.warnings.push_back(doc.file +
+                             (scene.camera_path.keys.empty()
+                                  ? ": animations are not applied (the scene is rendered at rest)"
+                                  : ": animations are not applied, except the camera's as its camera path "
+                                    "(pf submit --frames); the scene is rendered at rest"));
   return scene;
 }
 

@@ -200,7 +200,10 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
   // A glTF's own cameras stay unless the manifest names some.
   if (!manifest.cameras.empty()) scene.cameras = manifest.cameras;
-  if (!manifest.camera_path.keys.empty()) scene.camera_path = manifest.camera_path;
+  // A glTF camera's path moves that camera: a manifest with cameras of its own drops it, and its own
+  // camera_path replaces it.
+  if (!manifest.cameras.empty() || !manifest.camera_path.keys.empty())
+    scene.camera_path = manifest.camera_path;
   // Each punctual light is one light, numbered after the emitting primitives and the geometry's
   // own lights (scene.h).
   for (PunctualLight light : manifest.lights) {

@@ -61,27 +61,30 @@ TEST(GltfCameraPath, KeysAreTheNodesWorldTransformAtFrameOnePlus24T) {
   test_util::TempDir dir("pf_gltf_camera_path");
   const SceneDescription s = LoadGltf(dir.Write("a.gltf", Scene("LINEAR")));
   const CameraPath& path = s.camera_path;
-  ASSERT_EQ(path.keys.size(), 3u);
-  EXPECT_EQ(path.keys[0].frame, 1);
-  EXPECT_EQ(path.keys[1].frame, 25);
-  EXPECT_EQ(path.keys[2].frame, 49);
+  // A key per frame, 1 (t = 0) to 49 (t = 2 s).
+  ASSERT_EQ(path.keys.size(), 49u);
+  for (size_t i = 0; i < path.keys.size(); ++i) EXPECT_EQ(path.keys[i].frame, int(i) + 1);
   ExpectNear(path.keys[0].eye, {0, 1, 0});  // the parent's lift
   ExpectNear(path.keys[0].look_at - path.keys[0].eye, {0, 0, -1});
-  ExpectNear(path.keys[2].eye, {4, 1, 0});
-  ExpectNear(path.keys[2].look_at - path.keys[2].eye, {-1, 0, 0});  // turned 90° about +y
-  ASSERT_TRUE(path.keys[1].up.has_value());
-  ExpectNear(Vec3d(*path.keys[1].up), {0, 1, 0});
-  EXPECT_THAT(::testing::PrintToString(s.warnings), HasSubstr("animations other than the camera's"));
+  ExpectNear(path.keys[24].eye, {2, 1, 0});
+  ExpectNear(path.keys[48].eye, {4, 1, 0});
+  ExpectNear(path.keys[48].look_at - path.keys[48].eye, {-1, 0, 0});  // turned 90° about +y
+  ASSERT_TRUE(path.keys[24].up.has_value());
+  ExpectNear(Vec3d(*path.keys[24].up), {0, 1, 0});
+  EXPECT_THAT(::testing::PrintToString(s.warnings),
+              HasSubstr("animations are not applied, except the camera's"));
 
-  // Between keys camera_path.h interpolates: frame 13 is halfway to the second key.
+  // Frame 13 (t = 0.5 s) halfway along the first second: moved 1 m, turned 45° (slerped).
   const CameraSpec mid = CameraAtFrame(path, s.cameras.at(0), 13);
   ExpectNear(mid.eye, {1, 1, 0});
+  ExpectNear(mid.look_at - mid.eye, {-std::sqrt(0.5), 0, -std::sqrt(0.5)});
 }
 
 TEST(GltfCameraPath, SlerpHalfwayAndStepHolds) {
   test_util::TempDir dir("pf_gltf_camera_path");
-  // A rotation keyed at 0 and 1 s and a translation keyed at 0.5 s between them: the path's key at
-  // frame 13 takes the rotation halfway — slerped (LINEAR) or held (STEP).
+  // A rotation keyed at 0 and 1 s (and a translation keyed at 0, 0.5 and 1 s): frame 13 takes the
+  // rotation halfway — slerped (LINEAR) or held (STEP) — and STEP still holds at frame 24, a frame
+  // before the next key.
   GltfBuilder b;
   b.AddVec3({0, 0, -5, 1, 0, -5, 0, 1, -5});
   b.AddIndices16({0, 1, 2});
@@ -102,22 +105,29 @@ TEST(GltfCameraPath, SlerpHalfwayAndStepHolds) {
                           {"sampler":1,"target":{"node":1,"path":"translation"}}]}],)" +
                kMeshAndLamp);
     const CameraPath path = LoadGltf(dir.Write("b.gltf", json)).camera_path;
-    ASSERT_EQ(path.keys.size(), 3u);
-    EXPECT_EQ(path.keys[1].frame, 13);  // 1 + round(24 · 0.5)
-    const Vec3d forward = path.keys[1].look_at - path.keys[1].eye;
+    ASSERT_EQ(path.keys.size(), 25u);
+    EXPECT_EQ(path.keys[12].frame, 13);  // 1 + 24 · 0.5
+    const Vec3d forward = path.keys[12].look_at - path.keys[12].eye;
+    const Vec3d before_key = path.keys[23].look_at - path.keys[23].eye;
     if (std::string(interpolation) == "LINEAR") {
       // 45° about +y: the slerp, not a normalised lerp of the matrices.
       ExpectNear(forward, {-std::sqrt(0.5), 0, -std::sqrt(0.5)});
     } else {
       ExpectNear(forward, {0, 0, -1});
+      ExpectNear(before_key, {0, 0, -1});
     }
   }
 }
 
 TEST(GltfCameraPath, MalformedChannelsAreNamed) {
   test_util::TempDir dir("pf_gltf_camera_path");
-  EXPECT_THAT(testing::InputErrorOf([&] { LoadGltf(dir.Write("c.gltf", Scene("BEZIER"))); }),
-              HasSubstr("animations[0].channels[0]: unknown interpolation 'BEZIER'"));
+  // A warning: the scene loads and renders still frames, without a path.
+  const SceneDescription bezier = LoadGltf(dir.Write("c.gltf", Scene("BEZIER")));
+  EXPECT_TRUE(bezier.camera_path.keys.empty());
+  EXPECT_THAT(
+      ::testing::PrintToString(bezier.warnings),
+      HasSubstr(
+          "animations[0].channels[0]: unknown interpolation 'BEZIER' (the camera's animation is not used)"));
   const std::string scaled = Scene("LINEAR", R"(,{"sampler":0,"target":{"node":1,"path":"scale"}})");
   EXPECT_THAT(::testing::PrintToString(LoadGltf(dir.Write("d.gltf", scaled)).warnings),
               HasSubstr("animations[0].channels[2]: the camera's scale is not animated"));
@@ -131,6 +141,10 @@ TEST(GltfCameraPath, AManifestsCameraPathIsPreferred) {
                 .camera_path.first_frame(),
             5);
   EXPECT_EQ(LoadScene(dir.Write("without.json", R"({"geometry": "a.gltf"})")).camera_path.last_frame(), 49);
+  // Cameras of the manifest's own: the glTF camera's motion is not theirs.
+  EXPECT_TRUE(LoadScene(dir.Write("cameras.json", R"({"geometry": "a.gltf", "cameras": [
+      {"eye": [0, 0, 3], "look_at": [0, 0, 0]}]})"))
+                  .camera_path.keys.empty());
 }
 
 }  // namespace
