@@ -22,7 +22,7 @@ using ::testing::HasSubstr;
 
 // One buffer holding `bytes`, one view over all of it, one accessor.
 GltfDocument OneAccessor(const test_util::TempDir& dir, const std::string& bytes, int component_type,
-                         const std::string& type, int count) {
+                         const std::string& type, uint64_t count) {
   const std::string json =
       R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":)" + std::to_string(bytes.size()) +
       R"(,"uri":"data:application/octet-stream;base64,)" + Base64(bytes) +
@@ -68,6 +68,19 @@ TEST(GltfAccessors, OutOfRangeAccessorIsAnError) {
   const GltfDocument doc = OneAccessor(dir, Floats({0, 0, 0, 1, 1, 1}), 5126, "VEC3", 3);
   try {
     ReadGltfVec3(doc, 0);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("scene.gltf: accessors[0]: out of range"));
+  }
+}
+
+// A count whose byte extent wraps a 64-bit product (16 · 2^62 = 2^66 ≡ 0) must not pass the range
+// check: it would read and write far past the buffer.
+TEST(GltfAccessors, AHugeCountCannotWrapTheRangeCheck) {
+  test_util::TempDir dir("pf_gltf_test");
+  const GltfDocument doc = OneAccessor(dir, Floats({0, 0, 0, 1}), 5126, "VEC4", (uint64_t(1) << 62) + 1);
+  try {
+    ReadGltfFloats(doc, 0, 4);
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("scene.gltf: accessors[0]: out of range"));
