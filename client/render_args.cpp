@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <regex>
 #include <sstream>
 #include <variant>
 
@@ -177,10 +178,13 @@ void AddSceneOptions(CLI::App* app, RenderArgs& a, bool all) {
            ->capture_default_str());
   app->add_option("--camera", a.camera_name, "Named camera of the manifest (default: its first)");
   app->add_option(
-      "--frames", a.frames,
-      "Animation: frames A-B (or all) of the scene's camera path (a manifest's camera_path, a glTF "
-      "camera's animation), one job on a farm "
-      "(pf submit, --workers N) sharing its photon maps; -o out.%04d.exr");
+         "--frames", a.frames,
+         "Animation: frames A-B (or all) of the scene's camera path (a manifest's camera_path, a glTF "
+         "camera's animation), one job on a farm "
+         "(pf submit, --workers N) sharing its photon maps; -o out.%04d.exr")
+      ->check([](const std::string& v) {  // an empty value would silently render a still image
+        return v.empty() ? std::string("expected FIRST-LAST, one frame number or all") : std::string();
+      });
   more(app->add_option("--eye", a.eye, "Camera position X,Y,Z (overrides the manifest)"));
   more(app->add_option("--look-at", a.look_at, "Point the camera looks at X,Y,Z"));
   more(app->add_option("--up", a.up, "Up vector X,Y,Z (image right = forward x up)"));
@@ -353,19 +357,13 @@ void AddFrames(const SceneDescription& scene, const RenderArgs& a, const CameraS
         "animated glTF camera, docs/gltf.md)");
   int first = path.first_frame(), last = path.last_frame();
   if (a.frames != "all") {
-    const size_t dash = a.frames.find('-');
-    try {
-      size_t used = 0;
-      first = std::stoi(a.frames.substr(0, dash), &used);
-      if (used != (dash == std::string::npos ? a.frames.size() : dash)) throw std::invalid_argument("");
-      last = first;
-      if (dash != std::string::npos) {
-        last = std::stoi(a.frames.substr(dash + 1), &used);
-        if (used != a.frames.size() - dash - 1) throw std::invalid_argument("");
-      }
-    } catch (const std::logic_error&) {
+    // Digits only ("+3", " 3" and "3x" are not frame numbers), at most 6 of them (frame ≤ 999999).
+    static const std::regex kRange(R"(([0-9]{1,6})(-([0-9]{1,6}))?)");
+    std::smatch m;
+    if (!std::regex_match(a.frames, m, kRange))
       throw InputError("--frames: '" + a.frames + "': expected FIRST-LAST, one frame number or all");
-    }
+    first = std::stoi(m[1].str());
+    last = m[3].matched ? std::stoi(m[3].str()) : first;
     if (first > last || first < path.first_frame() || last > path.last_frame())
       throw InputError("--frames: " + a.frames + " is not within the camera path's frames " +
                        std::to_string(path.first_frame()) + "-" + std::to_string(path.last_frame()));

@@ -120,6 +120,7 @@ TEST(Animation, FramesThatCannotBeRenderedAreRefusedWithTheReason) {
             "--frames: an animation renders on a farm"},
            {{"--frames", "1-4", "--workers", "1", "--plan", "skipping"}, "not with --frames"},
            {{"--frames", "x", "--workers", "1"}, "expected FIRST-LAST"},
+           {{"--frames", "+3", "--workers", "1"}, "expected FIRST-LAST"},
            {{"--frames", "1-4", "--workers", "1", "--eye", "0,1,3"}, "--eye: not with --frames"},
        }) {
     const RunResult r = RunCommand(
@@ -128,6 +129,12 @@ TEST(Animation, FramesThatCannotBeRenderedAreRefusedWithTheReason) {
     EXPECT_EQ(r.exit_code, 3) << r.err;
     EXPECT_NE(r.err.find(c.message), std::string::npos) << r.err;
   }
+  // An empty range is a usage error (exit 2), not a still image.
+  const RunResult empty = RunCommand({Binaries::Pf(), "render", Binaries::Scene(), "--frames", "",
+                                      "--workers", "1", "-o", (dir / "x.exr").string()},
+                                     dir.path());
+  EXPECT_EQ(empty.exit_code, 2) << empty.err;
+  EXPECT_NE(empty.err.find("expected FIRST-LAST"), std::string::npos) << empty.err;
 }
 
 }  // namespace
