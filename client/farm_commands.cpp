@@ -473,9 +473,10 @@ int RunWorkers(const FarmArgs& f, bool json) {
         : w.busy()        ? fmt::format("{} task {}", w.current_job_id(), w.current_task_id())
                           : "idle";
     std::printf("%-24s %-22s %7u %-20s %6llu %6llu %12.4g %10s  %s\n", w.worker_id().c_str(),
-                w.peer().c_str(), w.threads(), current.c_str(), (unsigned long long)w.tasks_done(),
-                (unsigned long long)w.tasks_failed(), w.photons_per_second(),
-                (FormatDuration(w.seconds_since_seen()) + " ago").c_str(), w.version().c_str());
+                w.peer().empty() ? "-" : w.peer().c_str(), w.threads(), current.c_str(),
+                (unsigned long long)w.tasks_done(), (unsigned long long)w.tasks_failed(),
+                w.photons_per_second(), (FormatDuration(w.seconds_since_seen()) + " ago").c_str(),
+                w.version().c_str());
     if (w.refused())
       std::printf("  refused: %s (%llu calls)\n", w.refused_reason().c_str(),
                   (unsigned long long)w.refused_calls());

@@ -28,6 +28,7 @@
 #include "server/rpc/coordinator_operations.h"
 #include "server/rpc/render_service.h"
 #include "server/rpc/watch_hub.h"
+#include "server/rpc/worker_gate.h"
 #include "server/rpc/worker_service.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/data_quota.h"
@@ -107,33 +108,36 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   executor_ = std::make_unique<Executor>(options_.executor_threads);
   watches_ = std::make_unique<WatchHub>(*scheduler_, *executor_, *clock_, options_.budgets);
   admission_ = std::make_unique<Admission>(options_.budgets, *scheduler_, *scenes_);
-  // Refused workers are listed in pf workers and the web page; logged once per caller and reason,
-  // and at most once a second (unauthenticated callers choose their ids: a flood of made-up ids
-  // must not fill the log).
+  // Refused workers are listed in pf workers and the web page, per address (auth.h); logged once
+  // per address (or id, where the address is not known) and reason, and at most once a second (a
+  // flood of refused calls must not fill the log).
   struct RefusalLog {
     std::mutex mu;
     double last = -1e9;
     uint64_t unlogged = 0;
   };
-  auth_ = std::make_shared<RoleAuthProcessor>(
-      RoleTokens{options_.client_token, options_.worker_token}, !options_.tls_client_ca_pem.empty(),
+  const OnWorkerRefused on_worker_refused =
       [&activity = scheduler_->activity(), &clock = *clock_, log = std::make_shared<RefusalLog>()](
-          const std::string& announced_id, const grpc::Status& status) {
+          const std::string& address, const std::string& announced_id, const grpc::Status& status) {
         const std::string reason =
             StatusCodeName(status.error_code()) + std::string(": ") + status.error_message();
-        if (!activity.WorkerRefused(announced_id, reason)) return;
+        if (!activity.WorkerRefused(address, announced_id, reason)) return;
         std::lock_guard lock(log->mu);
         if (clock.Now() - log->last < 1.0) {
           ++log->unlogged;
           return;
         }
         log->last = clock.Now();
-        spdlog::warn(
-            "worker {} refused: {} (further refusals are counted in pf workers{})",
-            limits::Quote(announced_id.empty() ? "(no worker id)" : announced_id), reason,
-            log->unlogged == 0 ? "" : fmt::format("; {} other refused callers not logged", log->unlogged));
+        spdlog::warn("worker {}{} refused: {} (further refusals are counted in pf workers{})",
+                     limits::Quote(announced_id.empty() ? "(no worker id)" : announced_id),
+                     address.empty() ? "" : " at " + limits::Quote(address), reason,
+                     log->unlogged == 0 ? "" : fmt::format("; {} other refusals not logged", log->unlogged));
         log->unlogged = 0;
-      });
+      };
+  const RoleTokens tokens{options_.client_token, options_.worker_token};
+  const bool worker_needs_certificate = !options_.tls_client_ca_pem.empty();
+  auth_ = std::make_shared<RoleAuthProcessor>(tokens, worker_needs_certificate, on_worker_refused);
+  worker_gate_ = std::make_unique<WorkerGate>(tokens, worker_needs_certificate, on_worker_refused);
   scheduler_->SetPersistListener([p = persister_.get()] { p->Wake(); });
   scheduler_->SetChangeListener([this, w = watches_.get()](const std::string& job_id) {
     w->Notify(job_id);
@@ -184,7 +188,7 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
                        .build_version = PF_VERSION,
                        .allow_mixed_versions = options_.allow_mixed_versions});
   render_service_ = std::make_unique<RenderServiceImpl>(*operations_, *watches_);
-  worker_service_ = std::make_unique<WorkerServiceImpl>(*operations_);
+  worker_service_ = std::make_unique<WorkerServiceImpl>(*operations_, *worker_gate_);
 }
 
 Coordinator::~Coordinator() {

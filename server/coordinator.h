@@ -56,6 +56,7 @@ class Executor;
 class WatchHub;
 class Admission;
 class RoleAuthProcessor;
+class WorkerGate;
 class RenderServiceImpl;
 class WorkerServiceImpl;
 class CoordinatorOperations;
@@ -195,6 +196,7 @@ class Coordinator {
   std::unique_ptr<WatchHub> watches_;
   std::unique_ptr<Admission> admission_;
   std::shared_ptr<RoleAuthProcessor> auth_;
+  std::unique_ptr<WorkerGate> worker_gate_;
   std::unique_ptr<CoordinatorOperations> operations_;  // what the handlers call (coordinator_api.h)
   std::unique_ptr<RenderServiceImpl> render_service_;
   std::unique_ptr<WorkerServiceImpl> worker_service_;

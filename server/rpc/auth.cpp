@@ -1,5 +1,7 @@
 #include "server/rpc/auth.h"
 
+#include <grpc/grpc_security_constants.h>
+
 #include <algorithm>
 
 #include "proto/limits.h"
@@ -8,7 +10,9 @@ namespace pf::server {
 namespace {
 
 constexpr std::string_view kRenderService = "/photonfarm.v1.RenderService/";
-constexpr std::string_view kWorkerService = "/photonfarm.v1.WorkerService/";
+constexpr std::string_view kWorkerService = kWorkerServicePrefix;
+// transport_security_type of gRPC's local credentials (LocalServerCredentials: loopback peers only).
+constexpr std::string_view kLocalTransport = "local";
 constexpr std::string_view kOpenPrefixes[] = {"/grpc.health.v1.Health/",
                                               "/grpc.reflection.v1alpha.ServerReflection/",
                                               "/grpc.reflection.v1.ServerReflection/"};
@@ -61,6 +65,15 @@ grpc::Status Authorize(const RoleTokens& tokens, std::string_view method, std::s
   return {grpc::StatusCode::UNAUTHENTICATED, "authorization: invalid bearer token"};
 }
 
+grpc::Status AdmitWorker(const RoleTokens& tokens, bool needs_certificate, std::string_view authorization,
+                         bool has_certificate) {
+  grpc::Status status = Authorize(tokens, kWorkerService, authorization);
+  if (status.ok() && needs_certificate && !has_certificate)
+    status = {grpc::StatusCode::UNAUTHENTICATED,
+              "WorkerService needs a client certificate signed by the coordinator's --tls-client-ca"};
+  return status;
+}
+
 grpc::Status RoleAuthProcessor::Process(const InputMetadata& auth_metadata, grpc::AuthContext* context,
                                         OutputMetadata* consumed_auth_metadata, OutputMetadata*) {
   std::string_view method, authorization, worker_id;
@@ -70,13 +83,22 @@ grpc::Status RoleAuthProcessor::Process(const InputMetadata& auth_metadata, grpc
     if (k == "authorization") authorization = std::string_view(value.data(), value.size());
     if (k == limits::kWorkerIdMetadata) worker_id = std::string_view(value.data(), value.size());
   }
+  if (StartsWith(method, kWorkerService)) {
+    const bool has_certificate =
+        context != nullptr && !context->FindPropertyValues(GRPC_X509_PEM_CERT_PROPERTY_NAME).empty();
+    bool local = false;
+    if (context != nullptr)
+      for (const grpc::string_ref& type :
+           context->FindPropertyValues(GRPC_TRANSPORT_SECURITY_TYPE_PROPERTY_NAME))
+        local |= std::string_view(type.data(), type.size()) == kLocalTransport;
+    // From this machine or a holder of the farm's certificates: WorkerGate decides, where the
+    // caller's address is known. The token stays in the metadata for it.
+    if (local || has_certificate) return grpc::Status::OK;
+    const grpc::Status status = AdmitWorker(tokens_, worker_needs_certificate_, authorization, false);
+    if (!status.ok() && on_worker_refused_) on_worker_refused_("", std::string(worker_id), status);
+    return status;  // admitted: the gate admits it again
+  }
   grpc::Status status = Authorize(tokens_, method, authorization);
-  if (status.ok() && worker_needs_certificate_ && StartsWith(method, kWorkerService) &&
-      (context == nullptr || context->FindPropertyValues("x509_pem_cert").empty()))
-    status = {grpc::StatusCode::UNAUTHENTICATED,
-              "WorkerService needs a client certificate signed by the coordinator's --tls-client-ca"};
-  if (!status.ok() && on_worker_refused_ && StartsWith(method, kWorkerService))
-    on_worker_refused_(std::string(worker_id), status);
   // The token is consumed: handlers never see it (and cannot log it).
   if (status.ok() && !authorization.empty())
     consumed_auth_metadata->insert({"authorization", std::string(authorization)});

@@ -12,6 +12,7 @@
 #include "common/scene/scene_bundle.h"
 #include "proto/convert.h"
 #include "proto/limits.h"
+#include "server/peer_host.h"
 #include "server/scheduling/scheduler.h"
 #include "server/store/scene_store.h"
 
@@ -117,10 +118,9 @@ std::string ClientOf(const grpc::CallbackServerContext& context) {
     if (!subject.empty()) return "cert:" + std::string(subject.front().data(), subject.front().size());
   }
   const std::string peer = context.peer();
-  if (peer.rfind("ipv4:", 0) == 0 || peer.rfind("ipv6:", 0) == 0) {
-    const size_t colon = peer.rfind(':');
-    if (colon > 5) return peer.substr(0, colon);
-  }
+  const std::string host = PeerHost(peer);
+  if (peer.starts_with("ipv4:")) return "ipv4:" + host;
+  if (peer.starts_with("ipv6:")) return "ipv6:[" + host + "]";
   return peer;
 }
 

@@ -66,6 +66,13 @@ void RequireWorkerId(const std::string& id) {
   limits::CheckId(id, "worker_id", limits::kMaxWorkerIdBytes);
 }
 
+// A unary call the gate refused: answered at once.
+grpc::ServerUnaryReactor* Refused(grpc::CallbackServerContext* context, const grpc::Status& status) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  reactor->Finish(status);
+  return reactor;
+}
+
 grpc::Status NotHolder() {
   return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
                       "lease_id: the lease is held by another worker; nothing was changed");
@@ -150,12 +157,14 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
 grpc::ServerUnaryReactor* WorkerServiceImpl::LeaseTask(grpc::CallbackServerContext* context,
                                                        const v1::LeaseTaskRequest* request,
                                                        v1::LeaseTaskResponse* response) {
+  if (grpc::Status admitted = gate_.Admit(*context); !admitted.ok()) return Refused(context, admitted);
   return new LeaseReactor(api_, context, request, response);
 }
 
 grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerContext* context,
                                                          const v1::ExtendLeaseRequest* request,
                                                          v1::ExtendLeaseResponse* response) {
+  if (grpc::Status admitted = gate_.Admit(*context); !admitted.ok()) return Refused(context, admitted);
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("ExtendLease", [&] {
     RequireLeaseId(request->lease_id());
@@ -173,6 +182,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::ExtendLease(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerContext* context,
                                                           const v1::CompleteTaskRequest* request,
                                                           v1::CompleteTaskResponse* response) {
+  if (grpc::Status admitted = gate_.Admit(*context); !admitted.ok()) return Refused(context, admitted);
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   CompleteResult result;
   grpc::Status status = Guarded("CompleteTask", [&] {
@@ -233,6 +243,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::CompleteTask(grpc::CallbackServerCo
 grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContext* context,
                                                       const v1::FailTaskRequest* request,
                                                       v1::FailTaskResponse* /*response*/) {
+  if (grpc::Status admitted = gate_.Admit(*context); !admitted.ok()) return Refused(context, admitted);
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   grpc::Status status = Guarded("FailTask", [&] {
     RequireLeaseId(request->lease_id());
@@ -259,6 +270,7 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::FailTask(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* WorkerServiceImpl::LeaveFarm(grpc::CallbackServerContext* context,
                                                        const v1::LeaveFarmRequest* request,
                                                        v1::LeaveFarmResponse* /*response*/) {
+  if (grpc::Status admitted = gate_.Admit(*context); !admitted.ok()) return Refused(context, admitted);
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   reactor->Finish(Guarded("LeaveFarm", [&] {
     RequireWorkerId(request->worker_id());
@@ -268,12 +280,14 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::LeaveFarm(grpc::CallbackServerConte
   return reactor;
 }
 
-grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(
-    grpc::CallbackServerContext* /*context*/, const v1::FetchSceneRequest* request) {
-  const grpc::Status precheck = Guarded("FetchScene", [&] {
-    limits::CheckId(request->scene_hash(), "scene_hash");
-    return grpc::Status::OK;
-  });
+grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::CallbackServerContext* context,
+                                                                       const v1::FetchSceneRequest* request) {
+  grpc::Status precheck = gate_.Admit(*context);
+  if (precheck.ok())
+    precheck = Guarded("FetchScene", [&] {
+      limits::CheckId(request->scene_hash(), "scene_hash");
+      return grpc::Status::OK;
+    });
   const std::string hash = request->scene_hash();
   // Streamed from the stored files, one chunk of ≤ kSceneChunkBytes at a time (buffered_stream.h);
   // a file larger than a chunk continues in the next message with the same path, an empty file
@@ -321,8 +335,14 @@ namespace {
 // checksum, the whole digest and the piece itself on an executor thread (S4: callbacks do not block).
 class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkPart> {
  public:
-  ChunkUploadReactor(CoordinatorApi& api, v1::UploadPhotonChunkResponse* response)
+  // `admitted`: the gate's answer; a refused stream is finished before anything is read.
+  ChunkUploadReactor(CoordinatorApi& api, v1::UploadPhotonChunkResponse* response,
+                     const grpc::Status& admitted)
       : api_(api), response_(response) {
+    if (!admitted.ok()) {
+      Finish(admitted);
+      return;
+    }
     StartRead(&part_);
   }
   void OnReadDone(bool ok) override {
@@ -449,16 +469,18 @@ class ChunkUploadReactor final : public grpc::ServerReadReactor<v1::PhotonChunkP
 }  // namespace
 
 grpc::ServerReadReactor<v1::PhotonChunkPart>* WorkerServiceImpl::UploadPhotonChunk(
-    grpc::CallbackServerContext* /*context*/, v1::UploadPhotonChunkResponse* response) {
-  return new ChunkUploadReactor(api_, response);
+    grpc::CallbackServerContext* context, v1::UploadPhotonChunkResponse* response) {
+  return new ChunkUploadReactor(api_, response, gate_.Admit(*context));
 }
 
-grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::CallbackServerContext* /*context*/,
+grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::CallbackServerContext* context,
                                                                     const v1::FetchMapRequest* request) {
-  const grpc::Status precheck = Guarded("FetchMap", [&] {
-    limits::CheckId(request->map_key(), "map_key");
-    return grpc::Status::OK;
-  });
+  grpc::Status precheck = gate_.Admit(*context);
+  if (precheck.ok())
+    precheck = Guarded("FetchMap", [&] {
+      limits::CheckId(request->map_key(), "map_key");
+      return grpc::Status::OK;
+    });
   const std::string key = request->map_key();
   // Streamed from the file one part at a time (like FetchScene), each part with its checksum.
   return ChunkedStreamReactor<v1::MapBytes>::Start(api_.executor(), "FetchMap", precheck, [this, key] {

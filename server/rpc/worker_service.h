@@ -20,6 +20,7 @@
 #include "photonfarm/v1/farm.grpc.pb.h"
 #include "server/rpc/coordinator_api.h"
 #include "server/rpc/handler_macros.h"
+#include "server/rpc/worker_gate.h"
 
 namespace pf::server {
 
@@ -33,7 +34,8 @@ inline constexpr uint64_t kMaxPhotonChunkBytes = uint64_t(512) << 20;
 
 class WorkerServiceImpl final : public photonfarm::v1::WorkerService::CallbackService {
  public:
-  explicit WorkerServiceImpl(CoordinatorApi& api) : api_(api) {}
+  // Every handler admits its call through `gate` first (worker_gate.h).
+  WorkerServiceImpl(CoordinatorApi& api, const WorkerGate& gate) : api_(api), gate_(gate) {}
 
   PF_UNARY_HANDLER(LeaseTask, LeaseTaskRequest, LeaseTaskResponse);
   PF_UNARY_HANDLER(ExtendLease, ExtendLeaseRequest, ExtendLeaseResponse);
@@ -48,6 +50,7 @@ class WorkerServiceImpl final : public photonfarm::v1::WorkerService::CallbackSe
 
  private:
   CoordinatorApi& api_;
+  const WorkerGate& gate_;
 };
 
 }  // namespace pf::server

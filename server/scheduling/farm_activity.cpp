@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "proto/limits.h"
+#include "server/peer_host.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
@@ -46,36 +47,45 @@ void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& p
     w.info.set_offline(false);
   }
   w.dirty = was_dirty || w.info.SerializeAsString() != before;
-  if (refused_reason.empty()) {  // its credential works now
-    refused_.erase(worker_id);
-    refused_.erase(worker_id + " (refused)");
+  if (refused_reason.empty()) {       // its credential works now
+    refused_.erase({"", worker_id});  // refused where its address was not known
+    const auto refused = refused_.find({PeerHost(peer), ""});
+    if (refused != refused_.end()) {
+      std::deque<std::string>& ids = refused->second.ids;
+      ids.erase(std::remove(ids.begin(), ids.end(), worker_id), ids.end());
+      if (ids.empty()) refused_.erase(refused);
+    }
   }
 }
 
-bool FarmActivity::WorkerRefused(const std::string& announced_id, const std::string& reason) {
+bool FarmActivity::WorkerRefused(const std::string& address, const std::string& announced_id,
+                                 const std::string& reason) {
   std::string id = limits::AnnouncedWorkerId(announced_id);  // untrusted: printable and short
   if (id.empty()) id = "(no worker id)";
+  const std::string where = limits::Printable(address, limits::kMaxEchoBytes);
+  // Per address; where it is not known, per announced id.
+  const std::pair<std::string, std::string> key{where, where.empty() ? id : ""};
   std::lock_guard lock(mu_);
-  const double now = clock_.Now();
-  // An id any caller may announce: a worker's entry keeps saying what that worker does.
-  if (workers_.count(id)) id += " (refused)";
-  auto it = refused_.find(id);
+  auto it = refused_.find(key);
+  const bool first = it == refused_.end() || it->second.info.refused_reason() != reason;
   if (it == refused_.end()) {
-    if (refused_.size() >= kMaxRefusedKept) {  // forget the least recently refused
+    if (refused_.size() >= kMaxRefusedKept) {  // forget the least recently refused address
       auto oldest = refused_.begin();
       for (auto r = refused_.begin(); r != refused_.end(); ++r)
         if (r->second.last_seen < oldest->second.last_seen) oldest = r;
       refused_.erase(oldest);
     }
-    it = refused_.emplace(id, Worker{}).first;
-    it->second.info.set_worker_id(id);
+    it = refused_.emplace(key, RefusedAddress{}).first;
+    it->second.info.set_peer(where);
+    it->second.info.set_refused(true);
   }
-  Worker& w = it->second;
-  const bool first = !w.info.refused() || w.info.refused_reason() != reason;
-  w.info.set_refused(true);
-  w.info.set_refused_reason(reason);
-  w.info.set_refused_calls(first ? 1 : w.info.refused_calls() + 1);
-  w.last_seen = now;
+  RefusedAddress& r = it->second;
+  r.ids.erase(std::remove(r.ids.begin(), r.ids.end(), id), r.ids.end());
+  r.ids.push_front(id);
+  if (r.ids.size() > kMaxRefusedIdsPerAddress) r.ids.pop_back();
+  r.info.set_refused_reason(reason);
+  r.info.set_refused_calls(r.info.refused_calls() + 1);
+  r.last_seen = clock_.Now();
   return first;
 }
 
@@ -281,9 +291,15 @@ std::vector<v1::WorkerInfo> FarmActivity::Workers() const {
     else
       info.clear_quarantine_reason();
   }
-  for (const auto& [id, w] : refused_) {
-    out.push_back(w.info);
-    out.back().set_seconds_since_seen(std::max(0.0, now - w.last_seen));
+  for (const auto& [key, r] : refused_) {
+    out.push_back(r.info);
+    std::string ids;
+    for (const std::string& id : r.ids) {
+      // An id any caller may announce: a worker's own entry keeps saying what that worker does.
+      ids += (ids.empty() ? "" : ", ") + id + (workers_.count(id) ? " (refused)" : "");
+    }
+    out.back().set_worker_id(ids);
+    out.back().set_seconds_since_seen(std::max(0.0, now - r.last_seen));
   }
   return out;
 }

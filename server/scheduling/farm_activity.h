@@ -13,6 +13,7 @@
 #include <map>
 #include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "photonfarm/v1/farm.pb.h"
@@ -23,10 +24,12 @@ namespace pf::server {
 
 inline constexpr size_t kMaxEventsPerJob = 10000;
 inline constexpr size_t kMaxWorkersKept = 4096;
-// Callers refused before reaching the farm (WorkerRefused), kept apart from the workers: any
-// number of unauthenticated calls with made-up ids then costs at most this many entries and never
-// pushes a worker of the farm out (the least recently refused goes first).
+// Callers refused before reaching the farm (WorkerRefused), one entry per address, kept apart from
+// the workers: any number of unauthenticated calls then costs at most this many entries and never
+// pushes a worker of the farm out (the least recently refused address goes first).
 inline constexpr size_t kMaxRefusedKept = 256;
+// The distinct worker ids an address announced in refused calls, newest first, that are listed.
+inline constexpr size_t kMaxRefusedIdsPerAddress = 4;
 // A worker seen within this many seconds (and not offline) counts as live: --plan auto's worker
 // count.
 inline constexpr double kLiveSeconds = 60;
@@ -42,12 +45,16 @@ class FarmActivity {
   void WorkerSeen(const std::string& worker_id, const std::string& peer, uint32_t threads,
                   const std::string& version, const std::string& refused_reason = "");
   // A WorkerService call refused before it reached the farm (auth.h: a wrong or missing token or
-  // client certificate), from the worker id the caller announced (untrusted: made printable and
-  // short; "" = none announced). Listed as refused with the reason and a count, apart from the
-  // workers (kMaxRefusedKept); a name an accepted worker holds is listed as "<id> (refused)". An
-  // entry goes when a LeaseTask under its id is accepted. True for the first refusal of that
-  // entry and reason (log it once; later ones are counted).
-  bool WorkerRefused(const std::string& announced_id, const std::string& reason);
+  // client certificate) from `address` (PeerHost: the connection's, not the caller's word; "" =
+  // not known, refused before its address was), announcing `announced_id` (untrusted: made
+  // printable and short; "" = none announced). Counted per address (where it is not known, per
+  // announced id) and listed as refused, apart from the workers (kMaxRefusedKept): the address as
+  // the peer, the ids it announced (kMaxRefusedIdsPerAddress, newest first; one an accepted worker
+  // holds as "<id> (refused)"), the last reason and the number of refused calls. An id leaves its
+  // address's entry (and its own entry without an address) when a LeaseTask under it from that
+  // address is accepted; an entry goes with its last id. True for an entry's first refusal and for
+  // a new reason (log it once; later ones are counted).
+  bool WorkerRefused(const std::string& address, const std::string& announced_id, const std::string& reason);
   // Task events; `kind` is one of leased, merged, failed, expired, rejected, returned, revoked,
   // confirmed (a result above the job's bound reproduced by another worker, then merged); about a
   // map piece (task_id = the piece's index): piece-failed, piece-expired, piece-refused; about the worker in
@@ -103,13 +110,19 @@ class FarmActivity {
     std::deque<photonfarm::v1::TaskEvent> events;
     uint64_t dropped = 0;
   };
+  struct RefusedAddress {
+    photonfarm::v1::WorkerInfo info;  // refused, its reason and count
+    std::deque<std::string> ids;      // announced, distinct, newest first
+    double last_seen = 0;
+  };
   Worker& WorkerLocked(const std::string& worker_id);
   static constexpr size_t kMaxPendingEvents = 100000;
 
   const Clock& clock_;
   mutable std::mutex mu_;
   std::map<std::string, Worker> workers_;
-  std::map<std::string, Worker> refused_;  // WorkerRefused's entries
+  // WorkerRefused's entries, by {address, ""}, or {"", announced id} where the address is not known.
+  std::map<std::pair<std::string, std::string>, RefusedAddress> refused_;
   std::map<std::string, JobEvents> events_;
   std::vector<ActivityRecords::Event> pending_events_;  // recorded, not yet taken (TakeChanges)
   std::vector<std::string> forgotten_workers_;          // evicted since the last TakeChanges

@@ -218,15 +218,28 @@ TEST_F(TlsFarm, WorkersNeedAClientCertificate) {
                              {"--tls-ca", Path("ca.pem"), "--token-file", Path("worker-token")});
   EXPECT_TRUE(WaitUntil([&] { return !Grep(no_cert->log(), "client certificate").empty(); }, 15))
       << ReadFile(no_cert->log());
-  // Listed as refused, with the reason, under the id it announced (docs/farm.md "Worker health").
+  // Listed as refused, with the reason, under the id it announced (docs/farm.md "Worker health"):
+  // refused inside gRPC before its request was read, where the address is not known.
   FarmClient client(coordinator_->address(), "tls-client-token", 10, CaOnly());
-  bool listed = false;
-  for (const photonfarm::v1::WorkerInfo& w : client.ListWorkers())
-    listed |= w.worker_id() == "w-nocert" && w.refused() &&
-              w.refused_reason().find("needs a client certificate") != std::string::npos;
-  EXPECT_TRUE(listed);
+  const auto listed = [&](const std::string& id, const std::string& peer, const std::string& reason) {
+    for (const photonfarm::v1::WorkerInfo& w : client.ListWorkers())
+      if (w.worker_id() == id && w.refused() && w.peer() == peer &&
+          w.refused_reason().find(reason) != std::string::npos)
+        return true;
+    return false;
+  };
+  EXPECT_TRUE(listed("w-nocert", "", "needs a client certificate"));
   no_cert->Signal(SIGTERM);
   no_cert->Wait(10);
+  // With a certificate and a wrong token: refused by the handlers' gate, counted at its address.
+  { std::ofstream(Path("wrong-token")) << "guess\n"; }
+  auto wrong_token = StartWorker(coordinator_->address(), dir_.path(), "w-badtoken",
+                                 {"--tls-ca", Path("ca.pem"), "--tls-cert", Path("worker.pem"), "--tls-key",
+                                  Path("worker.key"), "--token-file", Path("wrong-token")});
+  EXPECT_TRUE(WaitUntil([&] { return listed("w-badtoken", "127.0.0.1", "invalid bearer token"); }, 15))
+      << ReadFile(wrong_token->log());
+  wrong_token->Signal(SIGTERM);
+  wrong_token->Wait(10);
 
   // With it, a job renders end to end over mTLS.
   auto worker = StartWorker(coordinator_->address(), dir_.path(), "w-mtls",

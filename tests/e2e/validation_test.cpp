@@ -168,7 +168,8 @@ TEST(FarmValidation, WrongTokenIsUnauthenticated) {
   EXPECT_TRUE(WaitUntil([&] { return !Grep(worker->log(), "UNAUTHENTICATED").empty(); }, 10))
       << ReadFile(worker->log());
   EXPECT_TRUE(worker->Running());
-  // ... and the coordinator lists it as refused, with the reason and a count, under its id.
+  // ... and the coordinator lists it as refused, with the reason and a count, under its address
+  // and the id it announced.
   const auto refused = [&]() -> std::optional<v1::WorkerInfo> {
     for (const v1::WorkerInfo& w : right.ListWorkers())
       if (w.worker_id() == "w-wrong" && w.refused()) return w;
@@ -178,6 +179,7 @@ TEST(FarmValidation, WrongTokenIsUnauthenticated) {
   if (const std::optional<v1::WorkerInfo> w = refused()) {
     EXPECT_EQ(w->refused_reason(), "UNAUTHENTICATED: authorization: invalid bearer token");
     EXPECT_GE(w->refused_calls(), 1u);
+    EXPECT_EQ(w->peer(), "127.0.0.1");
   }
   r = RunCommand({Binaries::Pf(), "workers", "--coordinator", coordinator.address()}, dir.path(), 30,
                  {{"PF_TOKEN", "s3cret-token"}});

@@ -21,69 +21,122 @@ std::optional<v1::WorkerInfo> Find(const std::vector<v1::WorkerInfo>& workers, c
   return std::nullopt;
 }
 
-TEST(FarmActivity, ARefusedWorkerIsListedWithItsReasonAndCountUntilACallIsAccepted) {
+// The refused entry of `address`, or nullopt.
+std::optional<v1::WorkerInfo> RefusedAt(const std::vector<v1::WorkerInfo>& workers,
+                                        const std::string& address) {
+  for (const v1::WorkerInfo& w : workers)
+    if (w.refused() && w.peer() == address) return w;
+  return std::nullopt;
+}
+
+constexpr char kInvalid[] = "UNAUTHENTICATED: authorization: invalid bearer token";
+constexpr char kDenied[] = "PERMISSION_DENIED: authorization: WorkerService needs the worker credential";
+
+TEST(FarmActivity, RefusedCallsAreCountedPerAddressUntilTheCredentialWorks) {
   FakeClock clock;
   FarmActivity activity(clock);
-  EXPECT_TRUE(activity.WorkerRefused("host-17", "UNAUTHENTICATED: authorization: invalid bearer token"));
-  EXPECT_FALSE(activity.WorkerRefused("host-17", "UNAUTHENTICATED: authorization: invalid bearer token"));
-  EXPECT_FALSE(activity.WorkerRefused("host-17", "UNAUTHENTICATED: authorization: invalid bearer token"));
-  std::optional<v1::WorkerInfo> w = Find(activity.Workers(), "host-17");
+  EXPECT_TRUE(activity.WorkerRefused("10.0.0.7", "host-17", kInvalid));
+  EXPECT_FALSE(activity.WorkerRefused("10.0.0.7", "host-17", kInvalid));
+  EXPECT_FALSE(activity.WorkerRefused("10.0.0.7", "host-17", kInvalid));
+  std::optional<v1::WorkerInfo> w = RefusedAt(activity.Workers(), "10.0.0.7");
   ASSERT_TRUE(w.has_value());
-  EXPECT_TRUE(w->refused());
-  EXPECT_EQ(w->refused_reason(), "UNAUTHENTICATED: authorization: invalid bearer token");
+  EXPECT_EQ(w->worker_id(), "host-17");
+  EXPECT_EQ(w->refused_reason(), kInvalid);
   EXPECT_EQ(w->refused_calls(), 3u);
-  // Another reason is logged again (true) and counted afresh.
-  EXPECT_TRUE(activity.WorkerRefused(
-      "host-17", "PERMISSION_DENIED: authorization: WorkerService needs the worker credential"));
-  EXPECT_EQ(Find(activity.Workers(), "host-17")->refused_calls(), 1u);
-  // The token fixed: its next accepted call clears the refusal.
+  // Another reason is logged again (true); the address's count goes on.
+  EXPECT_TRUE(activity.WorkerRefused("10.0.0.7", "host-17", kDenied));
+  EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.7")->refused_calls(), 4u);
+  // A second worker on that host, and one on another: one entry per address.
+  EXPECT_FALSE(activity.WorkerRefused("10.0.0.7", "host-17b", kDenied)) << "same address, same reason";
+  EXPECT_TRUE(activity.WorkerRefused("10.0.0.8", "host-18", kInvalid));
+  w = RefusedAt(activity.Workers(), "10.0.0.7");
+  EXPECT_EQ(w->worker_id(), "host-17b, host-17");
+  EXPECT_EQ(w->refused_calls(), 5u);
+  EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.8")->refused_calls(), 1u);
+  // host-17's token fixed: its accepted call takes it off its address's entry (an accepted call
+  // from elsewhere does not) ...
+  activity.WorkerSeen("host-17", "ipv4:10.0.0.9:4242", 8, "v1");
+  EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.7")->worker_id(), "host-17b, host-17 (refused)");
   activity.WorkerSeen("host-17", "ipv4:10.0.0.7:4242", 8, "v1");
-  w = Find(activity.Workers(), "host-17");
-  EXPECT_FALSE(w->refused());
-  EXPECT_EQ(w->refused_reason(), "");
-  EXPECT_EQ(w->refused_calls(), 0u);
+  EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.7")->worker_id(), "host-17b");
+  std::optional<v1::WorkerInfo> accepted = Find(activity.Workers(), "host-17");
+  ASSERT_TRUE(accepted.has_value());
+  EXPECT_FALSE(accepted->refused());
+  EXPECT_EQ(accepted->refused_calls(), 0u);
+  // ... and the entry goes with its last id.
+  activity.WorkerSeen("host-17b", "ipv4:10.0.0.7:4243", 8, "v1");
+  EXPECT_FALSE(RefusedAt(activity.Workers(), "10.0.0.7").has_value());
+  EXPECT_TRUE(RefusedAt(activity.Workers(), "10.0.0.8").has_value());
+}
+
+TEST(FarmActivity, WhereTheAddressIsNotKnownRefusalsAreCountedPerAnnouncedId) {
+  FakeClock clock;
+  FarmActivity activity(clock);
+  EXPECT_TRUE(activity.WorkerRefused("", "w-x", kInvalid));
+  EXPECT_FALSE(activity.WorkerRefused("", "w-x", kInvalid));
+  EXPECT_TRUE(activity.WorkerRefused("", "w-y", kInvalid));
+  std::optional<v1::WorkerInfo> x = Find(activity.Workers(), "w-x");
+  ASSERT_TRUE(x.has_value());
+  EXPECT_TRUE(x->refused());
+  EXPECT_EQ(x->peer(), "");
+  EXPECT_EQ(x->refused_calls(), 2u);
+  EXPECT_EQ(Find(activity.Workers(), "w-y")->refused_calls(), 1u);
+  // Accepted from any address: its entry without an address goes.
+  activity.WorkerSeen("w-x", "ipv4:10.0.0.5:1", 2, "v1");
+  x = Find(activity.Workers(), "w-x");
+  ASSERT_TRUE(x.has_value());
+  EXPECT_FALSE(x->refused());
+  EXPECT_EQ(x->peer(), "ipv4:10.0.0.5:1");
+  EXPECT_TRUE(Find(activity.Workers(), "w-y")->refused());
 }
 
 TEST(FarmActivity, AnAnnouncedIdIsUntrustedAndCannotTakeOverALiveWorker) {
   FakeClock clock;
   FarmActivity activity(clock);
   activity.WorkerSeen("render-3", "ipv4:10.0.0.3:5000", 4, "v1");
-  activity.WorkerRefused("render-3", "UNAUTHENTICATED: authorization: invalid bearer token");
+  activity.WorkerRefused("10.6.6.6", "render-3", kInvalid);
   std::vector<v1::WorkerInfo> workers = activity.Workers();
   ASSERT_TRUE(Find(workers, "render-3").has_value());
   EXPECT_FALSE(Find(workers, "render-3")->refused()) << "the live worker's entry was taken over";
+  EXPECT_EQ(Find(workers, "render-3")->peer(), "ipv4:10.0.0.3:5000");
   ASSERT_TRUE(Find(workers, "render-3 (refused)").has_value());
-  EXPECT_TRUE(Find(workers, "render-3 (refused)")->refused());
+  EXPECT_EQ(Find(workers, "render-3 (refused)")->peer(), "10.6.6.6");
   // Also once the worker has been silent for long: the name stays the worker's.
   clock.Advance(3600);
-  activity.WorkerRefused("render-3", "UNAUTHENTICATED: authorization: invalid bearer token");
+  activity.WorkerRefused("10.6.6.6", "render-3", kInvalid);
   EXPECT_FALSE(Find(activity.Workers(), "render-3")->refused());
   EXPECT_EQ(Find(activity.Workers(), "render-3 (refused)")->refused_calls(), 2u);
-  // No id, and ids that are long or not printable.
-  activity.WorkerRefused("", "UNAUTHENTICATED: authorization: missing (expected 'Bearer <token>')");
+  // No id, and ids that are long or not printable; at most kMaxRefusedIdsPerAddress ids listed.
+  activity.WorkerRefused("10.0.0.1", "",
+                         "UNAUTHENTICATED: authorization: missing (expected 'Bearer <token>')");
   EXPECT_TRUE(Find(activity.Workers(), "(no worker id)").has_value());
-  activity.WorkerRefused(std::string(500, 'x'), "UNAUTHENTICATED: authorization: invalid bearer token");
+  activity.WorkerRefused("10.0.0.2", std::string(500, 'x'), kInvalid);
   EXPECT_TRUE(Find(activity.Workers(), std::string(64, 'x')).has_value());
-  activity.WorkerRefused("bad\nid\x01", "UNAUTHENTICATED: authorization: invalid bearer token");
+  activity.WorkerRefused("10.0.0.3", "bad\nid\x01", kInvalid);
   EXPECT_TRUE(Find(activity.Workers(), "bad?id?").has_value());
+  for (int i = 0; i < 10; ++i) activity.WorkerRefused("10.0.0.4", "id-" + std::to_string(i), kInvalid);
+  EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.4")->worker_id(), "id-9, id-8, id-7, id-6");
 }
 
 TEST(FarmActivity, AFloodOfRefusedCallersNeverPushesAWorkerOut) {
   FakeClock clock;
   FarmActivity activity(clock);
   for (int i = 0; i < 50; ++i) activity.WorkerSeen("node-" + std::to_string(i), "ipv4:10.0.0.1:1", 2, "v1");
-  for (int i = 0; i < 20000; ++i) {
+  // One address with any number of made-up ids is one entry; many addresses are at most kMaxRefusedKept.
+  for (int i = 0; i < 20000; ++i)
+    activity.WorkerRefused("10.9.9.9", "made-up-" + std::to_string(i), kInvalid);
+  for (int i = 0; i < 2000; ++i) {
     clock.Advance(0.001);
-    activity.WorkerRefused("made-up-" + std::to_string(i),
-                           "UNAUTHENTICATED: authorization: invalid bearer token");
+    activity.WorkerRefused("10.1." + std::to_string(i / 256) + "." + std::to_string(i % 256), "x", kInvalid);
   }
   const std::vector<v1::WorkerInfo> workers = activity.Workers();
   size_t refused = 0;
   for (const v1::WorkerInfo& w : workers) refused += w.refused();
   EXPECT_EQ(refused, kMaxRefusedKept);
   for (int i = 0; i < 50; ++i) EXPECT_TRUE(Find(workers, "node-" + std::to_string(i)).has_value()) << i;
-  EXPECT_TRUE(Find(workers, "made-up-19999").has_value()) << "the most recent refusal is kept";
-  EXPECT_FALSE(Find(workers, "made-up-0").has_value());
+  EXPECT_TRUE(RefusedAt(workers, "10.1.7.207").has_value()) << "the most recent refusal is kept";
+  EXPECT_FALSE(RefusedAt(workers, "10.1.0.0").has_value());
+  EXPECT_FALSE(RefusedAt(workers, "10.9.9.9").has_value()) << "the least recently refused address goes first";
 }
 
 }  // namespace

@@ -143,7 +143,8 @@ class RpcHandlersTest : public ::testing::Test {
   Scheduler scheduler_{clock_, SchedulerOptions{}};
   WatchHub watches_{scheduler_, coordinator_.pool, clock_, Budgets{}};
   RenderServiceImpl render_{coordinator_, watches_};
-  WorkerServiceImpl worker_{coordinator_};
+  WorkerGate open_gate_{RoleTokens{}, /*needs_certificate=*/false};  // no credentials configured
+  WorkerServiceImpl worker_{coordinator_, open_gate_};
   std::unique_ptr<grpc::Server> server_;
   std::unique_ptr<v1::RenderService::Stub> render_client_;
   std::unique_ptr<v1::WorkerService::Stub> worker_client_;
