@@ -257,7 +257,7 @@ th, td { border: 1px solid #ccc; padding: 2px 8px; text-align: left; }
       html += fmt::format(
           "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4g}</td><td>{} "
           "ago</td><td>{}</td></tr>\n",
-          Escape(w.worker_id()), Escape(w.peer()), w.threads(),
+          Escape(w.worker_id()), w.peer().empty() ? std::string("-") : Escape(w.peer()), w.threads(),
           // Worker health (docs/farm.md), as pf workers says it.
           w.refused()       ? "refused: " + Escape(w.refused_reason())
           : w.quarantined() ? "quarantined: " + Escape(w.quarantine_reason())

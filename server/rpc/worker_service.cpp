@@ -288,7 +288,7 @@ grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::Cal
       limits::CheckId(request->scene_hash(), "scene_hash");
       return grpc::Status::OK;
     });
-  const std::string hash = request->scene_hash();
+  const std::string hash = precheck.ok() ? request->scene_hash() : std::string();
   // Streamed from the stored files, one chunk of ≤ kSceneChunkBytes at a time (buffered_stream.h);
   // a file larger than a chunk continues in the next message with the same path, an empty file
   // is one empty message.
@@ -481,7 +481,7 @@ grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::Callba
       limits::CheckId(request->map_key(), "map_key");
       return grpc::Status::OK;
     });
-  const std::string key = request->map_key();
+  const std::string key = precheck.ok() ? request->map_key() : std::string();
   // Streamed from the file one part at a time (like FetchScene), each part with its checksum.
   return ChunkedStreamReactor<v1::MapBytes>::Start(api_.executor(), "FetchMap", precheck, [this, key] {
     const BuiltMapFile map = api_.MapFile(key);

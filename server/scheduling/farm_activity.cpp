@@ -1,12 +1,22 @@
 #include "server/scheduling/farm_activity.h"
 
 #include <algorithm>
+#include <set>
 
 #include "proto/limits.h"
 #include "server/peer_host.h"
 
 namespace pf::server {
 namespace v1 = photonfarm::v1;
+
+namespace {
+
+// A refused entry's address as it is stored and listed: printable, at most kMaxEchoBytes.
+std::string RefusedAddressKey(const std::string& address) {
+  return limits::Printable(address, limits::kMaxEchoBytes);
+}
+
+}  // namespace
 
 FarmActivity::Worker& FarmActivity::WorkerLocked(const std::string& worker_id) {
   auto it = workers_.find(worker_id);
@@ -47,12 +57,14 @@ void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& p
     w.info.set_offline(false);
   }
   w.dirty = was_dirty || w.info.SerializeAsString() != before;
-  if (refused_reason.empty()) {       // its credential works now
-    refused_.erase({"", worker_id});  // refused where its address was not known
-    const auto refused = refused_.find({PeerHost(peer), ""});
+  if (refused_reason.empty()) {  // its credential works now
+    // As its refused calls announced it (pf-worker-id carries at most kMaxAnnouncedIdBytes).
+    const std::string announced = limits::AnnouncedWorkerId(worker_id);
+    refused_.erase({"", announced});  // refused where its address was not known
+    const auto refused = refused_.find({RefusedAddressKey(PeerHost(peer)), ""});
     if (refused != refused_.end()) {
       std::deque<std::string>& ids = refused->second.ids;
-      ids.erase(std::remove(ids.begin(), ids.end(), worker_id), ids.end());
+      ids.erase(std::remove(ids.begin(), ids.end(), announced), ids.end());
       if (ids.empty()) refused_.erase(refused);
     }
   }
@@ -62,17 +74,23 @@ bool FarmActivity::WorkerRefused(const std::string& address, const std::string& 
                                  const std::string& reason) {
   std::string id = limits::AnnouncedWorkerId(announced_id);  // untrusted: printable and short
   if (id.empty()) id = "(no worker id)";
-  const std::string where = limits::Printable(address, limits::kMaxEchoBytes);
+  const std::string where = RefusedAddressKey(address);
   // Per address; where it is not known, per announced id.
   const std::pair<std::string, std::string> key{where, where.empty() ? id : ""};
   std::lock_guard lock(mu_);
   auto it = refused_.find(key);
   const bool first = it == refused_.end() || it->second.info.refused_reason() != reason;
   if (it == refused_.end()) {
-    if (refused_.size() >= kMaxRefusedKept) {  // forget the least recently refused address
-      auto oldest = refused_.begin();
-      for (auto r = refused_.begin(); r != refused_.end(); ++r)
-        if (r->second.last_seen < oldest->second.last_seen) oldest = r;
+    if (refused_.size() >= kMaxRefusedKept) {
+      // Forget the least recently refused entry, one without an address first: callers without an
+      // address choose their ids, so their made-up ids must not push out the addresses.
+      auto oldest = refused_.end();
+      for (auto r = refused_.begin(); r != refused_.end(); ++r) {
+        const bool unaddressed = r->first.first.empty();
+        if (oldest == refused_.end() || unaddressed > oldest->first.first.empty() ||
+            (unaddressed == oldest->first.first.empty() && r->second.last_seen < oldest->second.last_seen))
+          oldest = r;
+      }
       refused_.erase(oldest);
     }
     it = refused_.emplace(key, RefusedAddress{}).first;
@@ -291,12 +309,15 @@ std::vector<v1::WorkerInfo> FarmActivity::Workers() const {
     else
       info.clear_quarantine_reason();
   }
+  std::set<std::string> announced_by_workers;  // the workers' ids as a refused call announces them
+  if (!refused_.empty())
+    for (const auto& [id, w] : workers_) announced_by_workers.insert(limits::AnnouncedWorkerId(id));
   for (const auto& [key, r] : refused_) {
     out.push_back(r.info);
     std::string ids;
     for (const std::string& id : r.ids) {
       // An id any caller may announce: a worker's own entry keeps saying what that worker does.
-      ids += (ids.empty() ? "" : ", ") + id + (workers_.count(id) ? " (refused)" : "");
+      ids += (ids.empty() ? "" : ", ") + id + (announced_by_workers.count(id) ? " (refused)" : "");
     }
     out.back().set_worker_id(ids);
     out.back().set_seconds_since_seen(std::max(0.0, now - r.last_seen));

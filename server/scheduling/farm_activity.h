@@ -26,7 +26,8 @@ inline constexpr size_t kMaxEventsPerJob = 10000;
 inline constexpr size_t kMaxWorkersKept = 4096;
 // Callers refused before reaching the farm (WorkerRefused), one entry per address, kept apart from
 // the workers: any number of unauthenticated calls then costs at most this many entries and never
-// pushes a worker of the farm out (the least recently refused address goes first).
+// pushes a worker of the farm out. The least recently refused entry goes first, an entry without
+// an address before any with one (made-up ids cannot push out the addresses).
 inline constexpr size_t kMaxRefusedKept = 256;
 // The distinct worker ids an address announced in refused calls, newest first, that are listed.
 inline constexpr size_t kMaxRefusedIdsPerAddress = 4;

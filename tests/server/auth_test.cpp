@@ -7,6 +7,7 @@
 
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "proto/limits.h"
@@ -74,10 +75,14 @@ constexpr char kSubmit[] = "/photonfarm.v1.RenderService/SubmitJob";
 TEST(RoleAuthProcessor, WorkerCallsFromThisMachineOrWithACertificateAreLeftToTheGate) {
   // Local credentials (loopback) or a verified client certificate: passed on untouched, token kept
   // for the gate, whatever it is; the gate counts any refusal at the caller's address.
-  for (const FakeConnection& connection : {FakeConnection("local", false), FakeConnection("ssl", true)})
+  const std::pair<FakeConnection, bool> cases[] = {
+      {FakeConnection("local", false), false},  // the loopback listener (--tls-client-ca needs TLS)
+      {FakeConnection("ssl", true), true},      // mTLS
+  };
+  for (const auto& [connection, needs_certificate] : cases)
     for (const std::string token : {"", "guess", "client-token", "worker-token"}) {
       SCOPED_TRACE(token);
-      const Outcome o = Process(kLease, token, connection, /*worker_needs_certificate=*/true);
+      const Outcome o = Process(kLease, token, connection, needs_certificate);
       EXPECT_EQ(o.code, grpc::StatusCode::OK);
       EXPECT_FALSE(o.token_consumed);
       EXPECT_TRUE(o.refusals.empty());
@@ -111,7 +116,8 @@ TEST(RoleAuthProcessor, RenderServiceIsAlwaysDecidedHereAndItsTokenConsumed) {
     EXPECT_TRUE(o.token_consumed) << "handlers never see the client token";
     EXPECT_EQ(Process(kSubmit, "guess", connection).code, grpc::StatusCode::UNAUTHENTICATED);
     EXPECT_EQ(Process(kSubmit, "worker-token", connection).code, grpc::StatusCode::PERMISSION_DENIED);
-    EXPECT_TRUE(Process(kSubmit, "guess", connection).refusals.empty()) << "clients are not listed as workers";
+    EXPECT_TRUE(Process(kSubmit, "guess", connection).refusals.empty())
+        << "clients are not listed as workers";
   }
 }
 

@@ -45,19 +45,24 @@ TEST(FarmActivity, RefusedCallsAreCountedPerAddressUntilTheCredentialWorks) {
   EXPECT_EQ(w->refused_calls(), 3u);
   // Another reason is logged again (true); the address's count goes on.
   EXPECT_TRUE(activity.WorkerRefused("10.0.0.7", "host-17", kDenied));
+  ASSERT_TRUE(RefusedAt(activity.Workers(), "10.0.0.7").has_value());
   EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.7")->refused_calls(), 4u);
   // A second worker on that host, and one on another: one entry per address.
   EXPECT_FALSE(activity.WorkerRefused("10.0.0.7", "host-17b", kDenied)) << "same address, same reason";
   EXPECT_TRUE(activity.WorkerRefused("10.0.0.8", "host-18", kInvalid));
   w = RefusedAt(activity.Workers(), "10.0.0.7");
+  ASSERT_TRUE(w.has_value());
+  ASSERT_TRUE(RefusedAt(activity.Workers(), "10.0.0.8").has_value());
   EXPECT_EQ(w->worker_id(), "host-17b, host-17");
   EXPECT_EQ(w->refused_calls(), 5u);
   EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.8")->refused_calls(), 1u);
   // host-17's token fixed: its accepted call takes it off its address's entry (an accepted call
   // from elsewhere does not) ...
   activity.WorkerSeen("host-17", "ipv4:10.0.0.9:4242", 8, "v1");
+  ASSERT_TRUE(RefusedAt(activity.Workers(), "10.0.0.7").has_value());
   EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.7")->worker_id(), "host-17b, host-17 (refused)");
   activity.WorkerSeen("host-17", "ipv4:10.0.0.7:4242", 8, "v1");
+  ASSERT_TRUE(RefusedAt(activity.Workers(), "10.0.0.7").has_value());
   EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.7")->worker_id(), "host-17b");
   std::optional<v1::WorkerInfo> accepted = Find(activity.Workers(), "host-17");
   ASSERT_TRUE(accepted.has_value());
@@ -87,7 +92,30 @@ TEST(FarmActivity, WhereTheAddressIsNotKnownRefusalsAreCountedPerAnnouncedId) {
   ASSERT_TRUE(x.has_value());
   EXPECT_FALSE(x->refused());
   EXPECT_EQ(x->peer(), "ipv4:10.0.0.5:1");
+  EXPECT_FALSE(Find(activity.Workers(), "w-x (refused)").has_value()) << "its refused entry stayed";
+  ASSERT_TRUE(Find(activity.Workers(), "w-y").has_value());
   EXPECT_TRUE(Find(activity.Workers(), "w-y")->refused());
+}
+
+TEST(FarmActivity, AnIdLongerThanAnAnnouncedOneIsRecognisedByItsAnnouncedForm) {
+  // pf-worker-id carries at most 64 bytes of the id; LeaseTask carries it whole (up to 256).
+  FakeClock clock;
+  FarmActivity activity(clock);
+  const std::string id = "render-node." + std::string(80, 'd') + ".example-1234";
+  activity.WorkerRefused("10.0.0.7", id, kInvalid);
+  activity.WorkerRefused("", id, kInvalid);
+  activity.WorkerSeen("other", "ipv4:10.0.0.2:1", 2, "v1");
+  size_t refused = 0;
+  for (const v1::WorkerInfo& w : activity.Workers()) refused += w.refused();
+  EXPECT_EQ(refused, 2u);
+  activity.WorkerSeen(id, "ipv4:10.0.0.7:4242", 8, "v1");
+  refused = 0;
+  for (const v1::WorkerInfo& w : activity.Workers()) refused += w.refused();
+  EXPECT_EQ(refused, 0u) << "the worker's accepted poll cleared neither of its refused entries";
+  // Its name is recognised in its announced form: a refused caller announcing it is marked.
+  activity.WorkerRefused("10.6.6.6", id, kInvalid);
+  ASSERT_TRUE(RefusedAt(activity.Workers(), "10.6.6.6").has_value());
+  EXPECT_EQ(RefusedAt(activity.Workers(), "10.6.6.6")->worker_id(), id.substr(0, 64) + " (refused)");
 }
 
 TEST(FarmActivity, AnAnnouncedIdIsUntrustedAndCannotTakeOverALiveWorker) {
@@ -115,6 +143,7 @@ TEST(FarmActivity, AnAnnouncedIdIsUntrustedAndCannotTakeOverALiveWorker) {
   activity.WorkerRefused("10.0.0.3", "bad\nid\x01", kInvalid);
   EXPECT_TRUE(Find(activity.Workers(), "bad?id?").has_value());
   for (int i = 0; i < 10; ++i) activity.WorkerRefused("10.0.0.4", "id-" + std::to_string(i), kInvalid);
+  ASSERT_TRUE(RefusedAt(activity.Workers(), "10.0.0.4").has_value());
   EXPECT_EQ(RefusedAt(activity.Workers(), "10.0.0.4")->worker_id(), "id-9, id-8, id-7, id-6");
 }
 
@@ -137,6 +166,26 @@ TEST(FarmActivity, AFloodOfRefusedCallersNeverPushesAWorkerOut) {
   EXPECT_TRUE(RefusedAt(workers, "10.1.7.207").has_value()) << "the most recent refusal is kept";
   EXPECT_FALSE(RefusedAt(workers, "10.1.0.0").has_value());
   EXPECT_FALSE(RefusedAt(workers, "10.9.9.9").has_value()) << "the least recently refused address goes first";
+}
+
+TEST(FarmActivity, MadeUpIdsWithoutAnAddressNeverPushOutTheAddresses) {
+  FakeClock clock;
+  FarmActivity activity(clock);
+  for (int i = 0; i < 10; ++i) {
+    clock.Advance(1);
+    activity.WorkerRefused("10.2.0." + std::to_string(i), "w", kInvalid);
+  }
+  for (int i = 0; i < 5000; ++i) {
+    clock.Advance(0.001);
+    activity.WorkerRefused("", "made-up-" + std::to_string(i), kInvalid);
+  }
+  const std::vector<v1::WorkerInfo> workers = activity.Workers();
+  size_t refused = 0;
+  for (const v1::WorkerInfo& w : workers) refused += w.refused();
+  EXPECT_EQ(refused, kMaxRefusedKept);
+  for (int i = 0; i < 10; ++i)
+    EXPECT_TRUE(RefusedAt(workers, "10.2.0." + std::to_string(i)).has_value()) << i;
+  EXPECT_TRUE(Find(workers, "made-up-4999").has_value());
 }
 
 }  // namespace
