@@ -227,6 +227,16 @@ Image ReadExr(const std::filesystem::path& path, ImageMetadata* metadata) {
   });
 }
 
+std::pair<int, int> ReadExrSize(const std::filesystem::path& path) {
+  return CatchOpenExr(path.string(), "read", [&] {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i display_window = file.header().displayWindow();
+    CheckWindow(file.header().dataWindow(), "data window");
+    CheckWindow(display_window, "display window");
+    return std::pair<int, int>(int(WindowWidth(display_window)), int(WindowHeight(display_window)));
+  });
+}
+
 std::string EncodeExrToMemory(const Image& image, const ImageMetadata& metadata, ExrCompression compression) {
   return CatchOpenExr(kMemorySourceName, "write", [&] { return Encode(image, metadata, compression); });
 }

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "common/image/image.h"
 
@@ -38,6 +39,10 @@ void WriteExr(const std::filesystem::path& path, const Image& image, const Image
 // truncated or corrupt, lacks one of R, G, B, has subsampled R/G/B channels, or has a window
 // larger than kMaxExrPixels.
 Image ReadExr(const std::filesystem::path& path, ImageMetadata* metadata = nullptr);
+
+// The size (display window) of an EXR file's image, from its header alone (pixels unread);
+// SystemError as ReadExr, also for a window larger than kMaxExrPixels.
+std::pair<int, int> ReadExrSize(const std::filesystem::path& path);
 
 // The same encoding as WriteExr, into memory (e.g. for sending over gRPC). Deterministic: the
 // same image, metadata and compression give the same bytes.

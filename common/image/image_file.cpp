@@ -29,12 +29,13 @@ std::string LowerExtension(const std::filesystem::path& path) {
   throw InputError(SourceLocation{path.string(), 0}, reason);
 }
 
-void CheckSize(const std::filesystem::path& path, int width, int height) {
+void CheckSize(const std::filesystem::path& path, int width, int height, PixelAllowance* allowance) {
   if (width <= 0 || height <= 0) Fail(path, "the image has no pixels");
   if (width > kMaxImageFileSide || height > kMaxImageFileSide)
     throw LimitError(SourceLocation{path.string(), 0},
                      "image of " + std::to_string(width) + "x" + std::to_string(height) +
                          " pixels exceeds the limit of " + std::to_string(kMaxImageFileSide) + " per side");
+  if (allowance != nullptr) allowance->Charge(path.string(), width, height);
 }
 
 struct StbFree {
@@ -70,14 +71,14 @@ float Linear8(stbi_uc v) {
 
 // PNG, JPEG or Radiance HDR bytes through stb_image; `path` names them in messages.
 ImageWithAlpha DecodeWithStb(const unsigned char* bytes, size_t size, const std::filesystem::path& path,
-                             ImageCodes codes) {
+                             ImageCodes codes, PixelAllowance* allowance) {
   if (size > size_t(std::numeric_limits<int>::max())) Fail(path, "the image file is too large to decode");
   const int n = int(size);
   int width = 0, height = 0, channels = 0;
   // The header alone first: an oversized image is refused before its pixels are decoded.
   if (!stbi_info_from_memory(bytes, n, &width, &height, &channels))
     Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
-  CheckSize(path, width, height);
+  CheckSize(path, width, height, allowance);
   if (stbi_is_hdr_from_memory(bytes, n)) {
     const std::unique_ptr<float, StbFree> data(
         stbi_loadf_from_memory(bytes, n, &width, &height, &channels, 0));
@@ -98,7 +99,7 @@ ImageWithAlpha DecodeWithStb(const unsigned char* bytes, size_t size, const std:
   return ToImage(data.get(), width, height, channels, color ? SrgbToLinear8 : Linear8, Linear8);
 }
 
-ImageWithAlpha ReadWithStb(const std::filesystem::path& path, ImageCodes codes) {
+ImageWithAlpha ReadWithStb(const std::filesystem::path& path, ImageCodes codes, PixelAllowance* allowance) {
   // The file is decoded from memory: a file larger than any image of the side limit could be is
   // refused before it is read.
   std::error_code ec;
@@ -111,7 +112,7 @@ ImageWithAlpha ReadWithStb(const std::filesystem::path& path, ImageCodes codes) 
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
                                          std::istreambuf_iterator<char>());
   if (!in.good() && !in.eof()) Fail(path, "cannot read the image file");
-  return DecodeWithStb(bytes.data(), bytes.size(), path, codes);
+  return DecodeWithStb(bytes.data(), bytes.size(), path, codes, allowance);
 }
 
 // Every pixel a finite non-negative colour (an EXR or HDR can hold anything).
@@ -127,6 +128,17 @@ void CheckPixels(const Image& image, const std::filesystem::path& path) {
 
 }  // namespace
 
+void PixelAllowance::Charge(const std::string& source, int width, int height) {
+  const uint64_t pixels = uint64_t(width) * uint64_t(height);
+  if (pixels > limit_ - used_)
+    throw LimitError(SourceLocation{source, 0},
+                     "image of " + std::to_string(width) + "x" + std::to_string(height) +
+                         " pixels would bring the " + "scene's images to " + std::to_string(used_ + pixels) +
+                         " pixels, more than the budget of " + std::to_string(limit_) +
+                         " (SceneBudget::max_texels, docs/security.md)");
+  used_ += pixels;
+}
+
 float SrgbToLinear8(unsigned char code) {
   static const auto table = [] {
     std::array<float, 256> t{};
@@ -139,20 +151,23 @@ float SrgbToLinear8(unsigned char code) {
   return table[code];
 }
 
-ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes codes) {
+ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes codes,
+                                  PixelAllowance* allowance) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) Fail(path, "image file not found (or not a regular file)");
   const std::string ext = LowerExtension(path);
   ImageWithAlpha image;
   if (ext == ".exr") {
     try {
+      // The header first: the allowance is charged before the pixels are read.
+      const auto [width, height] = ReadExrSize(path);
+      CheckSize(path, width, height, allowance);
       image.rgb = ReadExr(path);
     } catch (const SystemError& e) {
       Fail(path, std::string("cannot read the EXR image: ") + e.what());
     }
-    CheckSize(path, image.rgb.width(), image.rgb.height());
   } else if (ext == ".hdr" || ext == ".png" || ext == ".jpg" || ext == ".jpeg") {
-    image = ReadWithStb(path, codes);
+    image = ReadWithStb(path, codes, allowance);
   } else {
     Fail(path, "unsupported image extension '" + ext + "' (supported: .hdr, .exr, .png, .jpg, .jpeg)");
   }
@@ -160,20 +175,21 @@ ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes 
   return image;
 }
 
-Image ReadLinearImage(const std::filesystem::path& path) {
-  return ReadImageWithAlpha(path, ImageCodes::kColor).rgb;
+Image ReadLinearImage(const std::filesystem::path& path, PixelAllowance* allowance) {
+  return ReadImageWithAlpha(path, ImageCodes::kColor, allowance).rgb;
 }
 
 ImageWithAlpha DecodeImageWithAlpha(const unsigned char* bytes, size_t size, const std::string& name,
-                                    ImageCodes codes) {
+                                    ImageCodes codes, PixelAllowance* allowance) {
   if (size == 0) Fail(name, "the image holds no bytes");
-  ImageWithAlpha image = DecodeWithStb(bytes, size, name, codes);
+  ImageWithAlpha image = DecodeWithStb(bytes, size, name, codes, allowance);
   CheckPixels(image.rgb, name);
   return image;
 }
 
-Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name) {
-  return DecodeImageWithAlpha(bytes, size, name, ImageCodes::kColor).rgb;
+Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name,
+                        PixelAllowance* allowance) {
+  return DecodeImageWithAlpha(bytes, size, name, ImageCodes::kColor, allowance).rgb;
 }
 
 }  // namespace pf

@@ -27,6 +27,22 @@ inline constexpr int kMaxImageFileSide = 16384;
 // uncompressed 8-bit RGBA image of the side limit takes.
 inline constexpr uintmax_t kMaxImageFileBytes = uintmax_t(1) << 30;
 
+// What one scene load may still decode, in pixels summed over all its images (SceneBudget::
+// max_texels, docs/security.md "Scene budgets"): images each within the side limit and small on
+// disk (a 16384² PNG of one colour is 1 MB) must not together exhaust memory. Each image is
+// charged from its header, before its pixels are decoded.
+class PixelAllowance {
+ public:
+  explicit PixelAllowance(uint64_t pixels) : limit_(pixels) {}
+  // Charges `pixels`, or throws LimitError naming `source`, the image's size and the budget.
+  void Charge(const std::string& source, int width, int height);
+  uint64_t used() const { return used_; }
+  uint64_t limit() const { return limit_; }
+
+ private:
+  uint64_t limit_, used_ = 0;
+};
+
 // How an 8- or 16-bit PNG/JPEG code becomes a value: kColor by the sRGB curve (colour slots:
 // glTF baseColor and emissive, OBJ map_Kd, environment maps), kData as code / max (data slots:
 // glTF metallicRoughness, masks). HDR and EXR are linear either way.
@@ -41,18 +57,20 @@ struct ImageWithAlpha {
 
 // Throws InputError naming the file: missing or unreadable, an unsupported extension, a corrupt
 // or truncated file, a side above kMaxImageFileSide, a pixel that is not a finite non-negative
-// colour (NaN, ±inf or negative values an EXR can hold).
-Image ReadLinearImage(const std::filesystem::path& path);
+// colour (NaN, ±inf or negative values an EXR can hold); LimitError past `allowance` (null: none).
+Image ReadLinearImage(const std::filesystem::path& path, PixelAllowance* allowance = nullptr);
 
 // The same for an image held in memory (a glTF image in a buffer or a data: URI): PNG, JPEG or
 // Radiance HDR, recognised by content; `name` stands for the file in messages
 // ("scene.glb: images[0]").
-Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name);
+Image DecodeLinearImage(const unsigned char* bytes, size_t size, const std::string& name,
+                        PixelAllowance* allowance = nullptr);
 
 // The same two with the codes read as `codes` says, and the alpha channel kept.
-ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes codes);
+ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes codes,
+                                  PixelAllowance* allowance = nullptr);
 ImageWithAlpha DecodeImageWithAlpha(const unsigned char* bytes, size_t size, const std::string& name,
-                                    ImageCodes codes);
+                                    ImageCodes codes, PixelAllowance* allowance = nullptr);
 
 // The sRGB transfer function's inverse for one 8-bit code value (exact table lookup).
 float SrgbToLinear8(unsigned char code);

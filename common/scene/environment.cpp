@@ -59,14 +59,15 @@ Rgb Environment::Radiance(const Vec3& wi) const {
 }
 
 void LoadEnvironmentImage(const std::filesystem::path& manifest, const std::filesystem::path& root,
-                          const std::filesystem::path& folder, Environment* environment) {
+                          const std::filesystem::path& folder, Environment* environment,
+                          PixelAllowance* texels) {
   if (environment->file.empty()) return;
   std::filesystem::path resolved;
   const std::string problem = SceneReferenceProblem(root, folder, environment->file, &resolved);
   if (!problem.empty())
     throw InputError(SourceLocation{manifest.string(), 0},
                      "key 'environment.file': " + QuoteReference(environment->file) + " " + problem);
-  auto image = std::make_shared<const Image>(ReadLinearImage(resolved));
+  auto image = std::make_shared<const Image>(ReadLinearImage(resolved, texels));
   float brightest = 0.0f;
   for (const Rgb& c : image->pixels()) brightest = std::max(brightest, c.Max());
   const auto fail = [&](const std::string& reason) {

@@ -24,6 +24,8 @@
 
 namespace pf {
 
+class PixelAllowance;  // common/image/image_file.h
+
 struct Environment {
   std::string file;                      // the image as the manifest names it; empty: constant colour
   Rgb color{};                           // the constant radiance, W/(m²·sr) (before strength)
@@ -55,7 +57,9 @@ struct Environment {
 // Reads environment->file (resolved against `folder`, confined to `root`: scene_reference.h) into
 // environment->image; a constant colour is left alone. Problems are InputErrors naming the
 // manifest and the key "environment.file", or the image file (image_file.h).
+// The image is charged to `texels` (SceneBudget::max_texels; null: no allowance).
 void LoadEnvironmentImage(const std::filesystem::path& manifest, const std::filesystem::path& root,
-                          const std::filesystem::path& folder, Environment* environment);
+                          const std::filesystem::path& folder, Environment* environment,
+                          PixelAllowance* texels = nullptr);
 
 }  // namespace pf

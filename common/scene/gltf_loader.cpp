@@ -76,13 +76,14 @@ Vec3d UnitOrZero(const Vec3d& v) {
 
 class GltfSceneBuilder {
  public:
-  GltfSceneBuilder(const GltfDocument& doc, const SceneBudget& budget, SceneDescription* scene)
+  GltfSceneBuilder(const GltfDocument& doc, const SceneBudget& budget, PixelAllowance* texels,
+                   SceneDescription* scene)
       : doc_(doc),
         m_(*doc.model),
         budget_(budget),
         scene_(scene),
         visited_(m_.nodes.size(), false),
-        textures_(doc, scene) {
+        textures_(doc, scene, texels) {
     for (size_t i = 0; i < m_.materials.size(); ++i) {
       scene_->materials.push_back(MapGltfMaterial(m_.materials[i], i, doc_.file, &scene_->warnings));
       AddMaterialTextures(i, &scene_->materials.back());
@@ -444,12 +445,13 @@ std::vector<int> SceneRoots(const tinygltf::Model& m, const GltfSceneBuilder& bu
 }  // namespace
 
 SceneDescription LoadGltf(const std::filesystem::path& path, const std::filesystem::path& root,
-                          const SceneBudget& budget) {
+                          const SceneBudget& budget, PixelAllowance* texels) {
+  PixelAllowance own(budget.max_texels);
   const GltfDocument doc = ReadGltfDocument(path, root);
   SceneDescription scene;
   scene.source = path.string();
   scene.warnings = doc.warnings;
-  GltfSceneBuilder builder(doc, budget, &scene);
+  GltfSceneBuilder builder(doc, budget, texels != nullptr ? texels : &own, &scene);
   builder.VisitScene(SceneRoots(*doc.model, builder, &scene.warnings, doc.file));
   builder.Finish();
   if (!doc.model->animations.empty())

@@ -24,8 +24,12 @@
 
 namespace pf {
 
+class PixelAllowance;  // common/image/image_file.h
+
 // `root`: the folder external buffers must stay in (empty: the folder of `path`).
+// `texels`: the load's image allowance, shared with its other images (null: budget.max_texels
+// for this file's).
 SceneDescription LoadGltf(const std::filesystem::path& path, const std::filesystem::path& root = {},
-                          const SceneBudget& budget = {});
+                          const SceneBudget& budget = {}, PixelAllowance* texels = nullptr);
 
 }  // namespace pf

@@ -53,7 +53,7 @@ const GltfTextures::Decoded& GltfTextures::DecodedImage(int image, const std::st
     if (v.byteOffset > b.size() || v.byteLength > b.size() - v.byteOffset)
       fail("buffer view outside its buffer");
     const std::string name = doc_.file + ": " + where + ": " + element;
-    keep(DecodeImageWithAlpha(b.data() + v.byteOffset, v.byteLength, name, codes));
+    keep(DecodeImageWithAlpha(b.data() + v.byteOffset, v.byteLength, name, codes, allowance_));
     return decoded;
   }
   if (g.image.empty())
@@ -63,7 +63,7 @@ const GltfTextures::Decoded& GltfTextures::DecodedImage(int image, const std::st
                                : ": no image data (a missing or empty buffer view or data URI)"));
   const std::string name = doc_.file + ": " + where + ": " + element;
   // DecodeLinearImage's errors name `name` (its SourceLocation), already the whole element path.
-  keep(DecodeImageWithAlpha(g.image.data(), g.image.size(), name, codes));
+  keep(DecodeImageWithAlpha(g.image.data(), g.image.size(), name, codes, allowance_));
   return decoded;
 }
 

@@ -21,7 +21,9 @@ namespace pf {
 
 class GltfTextures {
  public:
-  GltfTextures(const GltfDocument& doc, SceneDescription* scene) : doc_(doc), scene_(scene) {}
+  // Every image decoded is charged to `allowance` (SceneBudget::max_texels).
+  GltfTextures(const GltfDocument& doc, SceneDescription* scene, PixelAllowance* allowance)
+      : doc_(doc), scene_(scene), allowance_(allowance) {}
 
   // The index in scene->textures of glTF texture `texture`, referred to at `where`, its image's
   // codes read as `codes` says (kColor: sRGB; kData: linear); adds it (and decodes its image,
@@ -39,6 +41,7 @@ class GltfTextures {
 
   const GltfDocument& doc_;
   SceneDescription* scene_;
+  PixelAllowance* allowance_;
   std::map<std::pair<int, ImageCodes>, int32_t> texture_index_;
   std::map<std::pair<int, ImageCodes>, Decoded> images_;
   std::set<std::string> warned_;

@@ -334,7 +334,7 @@ std::vector<std::string> UnappliedMaps(const tinyobj::material_t& m) {
 // material. An image is resolved like an mtllib (scene_reference.h: inside `root`, relative to the OBJ's
 // folder) and read once however many materials use it.
 void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const std::filesystem::path& root,
-                     const std::filesystem::path& base_dir, const std::string& file,
+                     const std::filesystem::path& base_dir, const std::string& file, PixelAllowance* texels,
                      SceneDescription* scene) {
   std::map<std::filesystem::path, std::shared_ptr<const Image>> images;
   std::map<std::filesystem::path,
@@ -360,7 +360,7 @@ void ReadObjTextures(const std::vector<tinyobj::material_t>& materials, const st
     };
     const auto read = [&](const std::string& ref, const std::filesystem::path& path, ImageCodes codes) {
       try {
-        return ReadImageWithAlpha(path, codes);
+        return ReadImageWithAlpha(path, codes, texels);
       } catch (const LimitError& e) {
         throw LimitError(SourceLocation{file, 0}, where + ": " + ref + ": " + e.reason());
       } catch (const InputError& e) {
@@ -499,7 +499,7 @@ Material MaterialFromMtl(const MtlParameters& mtl, std::vector<std::string>* war
 }
 
 SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root,
-                         const SceneBudget& budget, SceneExpansion* counts) {
+                         const SceneBudget& budget, SceneExpansion* counts, PixelAllowance* texels) {
   const std::string file = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw InputError(SourceLocation{file, 0}, "no such file");
@@ -579,7 +579,9 @@ SceneDescription LoadObj(const std::filesystem::path& path, const std::filesyste
     if (positive(tm.ambient) && !scene.materials.back().IsEmissive())
       scene.ambient_only_materials.push_back(tm.name);
   }
-  ReadObjTextures(materials, root.empty() ? base_dir : root, base_dir, file, &scene);
+  PixelAllowance own(budget.max_texels);
+  ReadObjTextures(materials, root.empty() ? base_dir : root, base_dir, file,
+                  texels != nullptr ? texels : &own, &scene);
   uint32_t default_material = kNoLight;  // "none yet"
   auto material_index = [&](int id) -> uint32_t {
     if (id >= 0 && size_t(id) < scene.materials.size()) return uint32_t(id);

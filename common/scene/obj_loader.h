@@ -57,6 +57,8 @@
 
 namespace pf {
 
+class PixelAllowance;  // common/image/image_file.h
+
 // `mtllib` files resolve only inside `root` (scene_reference.h; empty = the OBJ's own folder):
 // a reference outside it is an InputError naming the file and line; a missing file inside it
 // is a warning (its faces get the default material).
@@ -64,8 +66,11 @@ namespace pf {
 // `v`/`vn`/`vt` vertices) and checked against `budget`: an InputError at the line where a count
 // crosses one (scene_budget.h). `counts`, if set, receives them.
 // Positions are read in double and stored in the scene's frame (scene_frame.h).
+// `texels`: the load's image allowance, shared with its other images (null: budget.max_texels
+// for this file's textures).
 SceneDescription LoadObj(const std::filesystem::path& path, const std::filesystem::path& root = {},
-                         const SceneBudget& budget = {}, SceneExpansion* counts = nullptr);
+                         const SceneBudget& budget = {}, SceneExpansion* counts = nullptr,
+                         PixelAllowance* texels = nullptr);
 
 // Phong exponents at or above this are treated as a perfect mirror.
 inline constexpr float kMirrorPhongExponent = 1000.0f;

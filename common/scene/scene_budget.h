@@ -48,6 +48,11 @@ struct SceneBudget {
   uint64_t max_vertices = 30'000'000;
   uint64_t max_instances = 1'000'000;
   uint64_t max_entities = 50'000'000;
+  // Pixels of all the images one load decodes (textures, the environment map), charged from each
+  // image's header before its pixels are decoded (PixelAllowance, image_file.h): one image of the
+  // side limit (16384²), four of 8192², or sixty-four of 2048²; at most 16 bytes a texel (float
+  // RGB and alpha), 4 GiB.
+  uint64_t max_texels = uint64_t(1) << 28;
 
   // "" if `e` is within every budget, else the first one it exceeds, as
   // "expands to up to N triangles, more than the budget of B (SceneBudget::max_triangles, docs/security.md)".

@@ -13,10 +13,12 @@
 #include <utility>
 
 #include "common/core/error.h"
+#include "common/image/image_file.h"
 #include "common/scene/gltf_loader.h"
 #include "common/scene/material_kinds.h"
 #include "common/scene/mgf_loader.h"
 #include "common/scene/obj_loader.h"
+#include "common/scene/scene_budget.h"
 #include "common/scene/scene_reference.h"
 
 namespace pf {
@@ -40,15 +42,16 @@ std::string LowerExtension(const std::filesystem::path& path) {
   return ext;
 }
 
-SceneDescription LoadGeometry(const std::filesystem::path& path, const std::filesystem::path& root) {
+SceneDescription LoadGeometry(const std::filesystem::path& path, const std::filesystem::path& root,
+                              PixelAllowance* texels) {
   const std::string ext = LowerExtension(path);
   if (ext == ".mgf") {
     MgfOptions options;
     options.include_root = root;
     return LoadMgf(path, options);
   }
-  if (ext == ".obj") return LoadObj(path, root);
-  if (ext == ".gltf" || ext == ".glb") return LoadGltf(path, root);
+  if (ext == ".obj") return LoadObj(path, root, {}, nullptr, texels);
+  if (ext == ".gltf" || ext == ".glb") return LoadGltf(path, root, {}, texels);
   throw InputError(SourceLocation{path.string(), 0},
                    "unsupported scene file extension '" + ext + "' (" + kSupported + ")");
 }
@@ -166,9 +169,11 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
   const std::filesystem::path root =
       !root_or_empty.empty() ? root_or_empty
                              : (path.has_parent_path() ? path.parent_path() : std::filesystem::path("."));
+  // Every image of the load (its textures and its environment) is charged to one allowance.
+  PixelAllowance texels(SceneBudget{}.max_texels);
   const std::string ext = LowerExtension(path);
   if (ext == ".mgf" || ext == ".obj" || ext == ".gltf" || ext == ".glb") {
-    SceneDescription scene = LoadGeometry(path, root);
+    SceneDescription scene = LoadGeometry(path, root, &texels);
     if (scale_override > 0.0)
       ApplyScale(scale_override, SourceLocation{path.string(), 0}, "scale override", &scene);
     return scene;
@@ -196,7 +201,7 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
     throw InputError(SourceLocation{manifest_file, 0},
                      "key 'geometry': file '" + manifest.geometry.string() + "' does not exist");
 
-  SceneDescription scene = LoadGeometry(manifest.geometry, root);
+  SceneDescription scene = LoadGeometry(manifest.geometry, root, &texels);
   ApplyMaterialOverrides(manifest.materials, manifest_file, &scene);
   // A glTF's own cameras stay unless the manifest names some.
   if (!manifest.cameras.empty()) scene.cameras = manifest.cameras;
@@ -215,7 +220,7 @@ SceneDescription LoadSceneFiles(const std::filesystem::path& path, double scale_
   if (manifest.environment) {
     scene.environment = manifest.environment;
     LoadEnvironmentImage(path, root, path.has_parent_path() ? path.parent_path() : std::filesystem::path("."),
-                         &*scene.environment);
+                         &*scene.environment, &texels);
     scene.environment->light = scene.num_lights++;
   }
   if (scale_override > 0.0)

@@ -7,6 +7,7 @@
 #include <stb/stb_image_write.h>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <string>
 #include <vector>
@@ -23,6 +24,13 @@ using ::testing::HasSubstr;
 
 class ImageFileTest : public test_util::TempDirTest {
  protected:
+  // The bytes of `path` after `write` made it.
+  template <typename Write>
+  static std::string ReadFile(const fs::path& path, Write write) {
+    write();
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }
   // The InputError message ReadLinearImage gives for `path` ("" and a failure if none).
   static std::string ErrorOf(const fs::path& path) {
     try {
@@ -106,6 +114,50 @@ TEST_F(ImageFileTest, OversizedImageIsRefusedFromItsHeader) {
     EXPECT_THAT(std::string(e.what()),
                 HasSubstr("huge.hdr: image of 100000x100000 pixels exceeds the limit"));
   }
+}
+
+// The pixels of all images of one load: each image is charged from its header (a header without
+// any pixel data behind it is enough), the first one past the allowance is refused naming it and
+// the budget, and the ones before it stay charged.
+TEST_F(ImageFileTest, AnAllowanceCountsThePixelsOfEveryImageFromTheirHeaders) {
+  tmp_.Write("a.hdr", "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2000 +X 2000\n");
+  tmp_.Write("b.hdr", "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2000 +X 1500\n");
+  PixelAllowance allowance(6'000'000);
+  // a.hdr: 4 M pixels fit, so it is decoded (stb_image decides what a file without pixel data
+  // gives; only a LimitError would be wrong here).
+  try {
+    ReadLinearImage(dir_ / "a.hdr", &allowance);
+  } catch (const LimitError& e) {
+    ADD_FAILURE() << e.what();
+  } catch (const InputError&) {
+  }
+  EXPECT_EQ(allowance.used(), 4'000'000u);
+  try {
+    ReadLinearImage(dir_ / "b.hdr", &allowance);
+    ADD_FAILURE() << "read";
+  } catch (const LimitError& e) {
+    EXPECT_THAT(std::string(e.what()),
+                HasSubstr("b.hdr: image of 1500x2000 pixels would bring the scene's images "
+                          "to 7000000 pixels, more than the budget of 6000000"));
+  }
+  EXPECT_EQ(allowance.used(), 4'000'000u);
+  // An EXR's header is read alone first, in memory too the same allowance applies.
+  Image small(3, 2);
+  WriteExr(dir_ / "small.exr", small);
+  PixelAllowance five(5);
+  EXPECT_THROW(ReadLinearImage(dir_ / "small.exr", &five), LimitError);
+  EXPECT_EQ(five.used(), 0u);
+  PixelAllowance six(6);
+  EXPECT_EQ(ReadLinearImage(dir_ / "small.exr", &six).width(), 3);
+  EXPECT_EQ(six.used(), 6u);
+  const std::string png = ReadFile(dir_ / "small.png", [&] {
+    const unsigned char pixels[12] = {};
+    EXPECT_TRUE(stbi_write_png((dir_ / "small.png").c_str(), 2, 2, 3, pixels, 6));
+  });
+  PixelAllowance three(3);
+  EXPECT_THROW(
+      DecodeLinearImage(reinterpret_cast<const unsigned char*>(png.data()), png.size(), "mem", &three),
+      LimitError);
 }
 
 }  // namespace
