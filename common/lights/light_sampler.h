@@ -121,7 +121,7 @@ class LightSampler {
   // estimators that sample each light separately (§4.2.1, §4.2.3). Lights are numbered
   // 0..num_lights()-1 in the order of their first emitting triangle (LightIndex maps a scene
   // light id to its number), triangles without an id form one extra light, and each punctual
-  // light is one more, after all of those.
+  // light is one more, after all of those, and the environment the last.
   size_t num_lights() const { return lights_.size(); }
   const Rgb& light_power(size_t light) const { return lights_[light].power; }
   // Samples light `light` alone: a triangle ∝ power within it, a uniform point on it.
@@ -129,6 +129,8 @@ class LightSampler {
   LightSample SampleLight(size_t light, float u_select, float u1, float u2) const;
   // Which light a scene light id is (kNoLight → the extra one); num_lights() if unknown.
   size_t LightIndex(uint32_t scene_light_id) const;
+  // Punctual light `index` (of punctual()) as SampleLight gives it: its delta sample, pdf_area 1.
+  LightSample PunctualSample(size_t index) const { return MakePunctualSample(uint32_t(index), 1.0f); }
 
  private:
   struct LightGroup {

@@ -203,11 +203,10 @@ Rgb PhotonMapIntegrator::DeltaLightsOnFollowedLobes(const Bsdf& bsdf, const Vec3
                                                     uint32_t lobes, TraceCounters& counters) const {
   if (!lights_ || lights_->punctual().empty() || !bsdf.HasLobes(lobes)) return Rgb(0.0f);
   Rgb sum(0.0f);
-  // Punctual lights are numbered after every area light (light_sampler.h); pdf_area is 1.
-  for (size_t light = lights_->num_lights() - lights_->punctual().size(); light < lights_->num_lights();
-       ++light)
-    sum += DeltaLightContribution(*lights_, lights_->SampleLight(light, 0.5f, 0.5f, 0.5f), bsdf, x, wo, lobes,
-                                  counters);
+  // Each punctual light by its own index: the lights are not numbered from the punctual ones to the
+  // end (an environment comes after them; light_sampler.h). pdf_area is 1.
+  for (size_t i = 0; i < lights_->punctual().size(); ++i)
+    sum += DeltaLightContribution(*lights_, lights_->PunctualSample(i), bsdf, x, wo, lobes, counters);
   return sum;
 }
 

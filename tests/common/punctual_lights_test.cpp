@@ -140,8 +140,10 @@ void ExpectBothIntegratorsMatch(const PunctualLight& light, const std::string& w
 // A glossy floor (GGX metal, roughness 0.5: a lobe the photon-map integrator follows by tracing
 // rays, which can never hit a delta light) under a point and a directional light: the photon-map
 // integrators render what the path tracer renders (its next-event estimate sees both lights),
-// not black.
-TEST(PunctualLights, GlossyFloorSeesPunctualLightsWithEveryIntegrator) {
+// not black. With `sky`, a dim uniform environment too, the last light of the scene: the
+// punctual lights are then not the last lights (a loop over "the last punctual().size() lights"
+// evaluated the environment as a delta light and crashed).
+void ExpectGlossyFloorSeesPunctualLights(bool sky) {
   SceneDescription scene;
   const uint32_t metal = AddMaterial(scene, MetallicRoughnessMaterial(MetallicRoughness{
                                                 .base_color = Rgb(0.9f, 0.7f, 0.5f), .roughness = 0.5f}));
@@ -150,6 +152,11 @@ TEST(PunctualLights, GlossyFloorSeesPunctualLightsWithEveryIntegrator) {
   scene.punctual_lights[0].light = 0;
   scene.punctual_lights[1].light = 1;
   scene.num_lights = 2;
+  if (sky) {
+    scene.environment.emplace();
+    scene.environment->color = Rgb(0.002f);
+    scene.environment->light = scene.num_lights++;
+  }
   const EmbreeScene accel(scene);
   const LightSampler lights(accel);
   const Image want =
@@ -171,6 +178,14 @@ TEST(PunctualLights, GlossyFloorSeesPunctualLightsWithEveryIntegrator) {
         }
         EXPECT_NEAR(sum_got, sum_want, 0.005 * sum_want) << name;
       });
+}
+
+TEST(PunctualLights, GlossyFloorSeesPunctualLightsWithEveryIntegrator) {
+  ExpectGlossyFloorSeesPunctualLights(false);
+}
+
+TEST(PunctualLights, GlossyFloorSeesPunctualLightsBesideAnEnvironment) {
+  ExpectGlossyFloorSeesPunctualLights(true);
 }
 
 TEST(PunctualLights, FloorUnderAPointLightIsICosOverDistanceSquared) {
