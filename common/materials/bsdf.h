@@ -188,12 +188,14 @@ struct WalkRoulette {
     w.dielectric = lobes.dielectric || lobes.rough_dielectric;
     w.has_diffuse = !w.dielectric && (lobes.mean[BsdfLobes::kSlotDiffuseR] > 0.0f ||
                                       lobes.mean[BsdfLobes::kSlotDiffuseT] > 0.0f);
-    // A metallic-roughness texture can lower metallic to 0 at some texels, giving the surface a
-    // diffuse lobe there: storing is the material's (photon_tracer.cpp), so it stores wherever
-    // that can happen (an opaque base colour that is not black).
-    if (material.metallic_roughness_texture >= 0 && material.metallic_roughness &&
-        material.metallic_roughness->transmission == 0.0f &&
-        !material.metallic_roughness->base_color.IsBlack())
+    // A metallic-roughness texture can lower metallic below 1 and a transmission texture can
+    // lower transmission to 0 at some texels, giving the surface a diffuse lobe there: storing is
+    // the material's (photon_tracer.cpp), so it stores wherever that can happen (an opaque,
+    // not wholly metallic texel of a base colour that is not black).
+    if (const std::optional<MetallicRoughness>& p = material.metallic_roughness;
+        p && (material.metallic_roughness_texture >= 0 || material.transmission_texture >= 0) &&
+        (p->transmission == 0.0f || material.transmission_texture >= 0) &&
+        (p->metallic < 1.0f || material.metallic_roughness_texture >= 0) && !p->base_color.IsBlack())
       w.has_diffuse = true;
     w.p_diffuse = lobes.p_roulette[BsdfLobes::kSlotDiffuseR];
     w.diffuse_weight = material.diffuse_reflectance / w.p_diffuse;

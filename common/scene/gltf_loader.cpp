@@ -7,6 +7,7 @@
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
@@ -96,10 +97,33 @@ class GltfSceneBuilder {
       if (!alpha_read[t]) scene_->textures[t].alpha.reset();
   }
 
-  // A material's baseColorTexture (colour: sRGB), metallicRoughnessTexture (data: linear) and
-  // emissiveTexture (colour), and its alpha mask's texture (the base colour's alpha:
-  // specification §3.9.3). One set of texture coordinates per vertex: the first of those
-  // textures' in that order.
+  // KHR_materials_transmission.transmissionTexture of material `i`, if it names one: its index
+  // (−1 where it is not a whole number) and texCoord (0 unless given).
+  std::optional<tinygltf::TextureInfo> TransmissionTexture(size_t i) const {
+    const auto ext = m_.materials[i].extensions.find("KHR_materials_transmission");
+    if (ext == m_.materials[i].extensions.end() || !ext->second.IsObject() ||
+        !ext->second.Has("transmissionTexture"))
+      return std::nullopt;
+    const tinygltf::Value& info = ext->second.Get("transmissionTexture");
+    tinygltf::TextureInfo out;
+    out.index = -1;
+    if (!info.IsObject()) return out;
+    const auto whole = [&](const char* key, int fallback) {
+      if (!info.Has(key)) return fallback;
+      const tinygltf::Value& v = info.Get(key);
+      if (!v.IsNumber()) return -1;
+      const double d = v.GetNumberAsDouble();
+      return d >= 0.0 && d <= 1e9 && d == std::floor(d) ? int(d) : -1;
+    };
+    out.index = whole("index", -1);
+    out.texCoord = whole("texCoord", 0);
+    return out;
+  }
+
+  // A material's baseColorTexture (colour: sRGB), metallicRoughnessTexture (data: linear),
+  // transmissionTexture (data) and emissiveTexture (colour), and its alpha mask's texture (the base colour's
+  // alpha: specification §3.9.3). One set of texture coordinates per vertex: the first of those textures' in
+  // that order.
   void AddMaterialTextures(size_t i, Material* material) {
     const tinygltf::PbrMetallicRoughness& pbr = m_.materials[i].pbrMetallicRoughness;
     const tinygltf::TextureInfo& base = pbr.baseColorTexture;
@@ -121,6 +145,27 @@ class GltfSceneBuilder {
         WarnOnce(where + ": reads TEXCOORD_" + std::to_string(mr.texCoord) + ", baseColorTexture TEXCOORD_" +
                  std::to_string(base.texCoord) + ": both read TEXCOORD_" + std::to_string(base.texCoord) +
                  " (one set of texture coordinates per vertex)");
+    }
+    // KHR_materials_transmission's transmissionTexture (data: linear, red channel) multiplies
+    // transmissionFactor; moot (and not decoded) when the factor is 0.
+    if (const std::optional<tinygltf::TextureInfo> transmission = TransmissionTexture(i)) {
+      const std::string where =
+          Indexed("materials", i) + ".extensions.KHR_materials_transmission.transmissionTexture";
+      if (transmission->index < 0) Fail(where + ": index must be >= 0");
+      if (transmission->texCoord < 0) Fail(where + ": texCoord must be >= 0");
+      if (!material->metallic_roughness || !(material->metallic_roughness->transmission > 0.0f)) {
+        WarnOnce(where + ": not applied: transmissionFactor is 0 (the texture multiplies it)");
+      } else {
+        material->transmission_texture = textures_.Use(transmission->index, where, ImageCodes::kData);
+        const auto set = texcoord_set_.find(uint32_t(i));
+        if (set == texcoord_set_.end())
+          texcoord_set_[uint32_t(i)] = transmission->texCoord;
+        else if (set->second != transmission->texCoord)
+          WarnOnce(where + ": reads TEXCOORD_" + std::to_string(transmission->texCoord) +
+                   ", the material's other textures TEXCOORD_" + std::to_string(set->second) +
+                   ": it reads TEXCOORD_" + std::to_string(set->second) +
+                   " (one set of texture coordinates per vertex)");
+      }
     }
     // emissiveTexture (colour: sRGB) multiplies emissiveFactor × emissiveStrength; moot (and
     // not decoded) when they are black.

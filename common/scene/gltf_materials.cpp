@@ -25,19 +25,13 @@ double ExtensionNumber(const tinygltf::Material& m, const char* extension, const
   return v.IsNumber() ? v.GetNumberAsDouble() : fallback;
 }
 
-bool HasExtensionTexture(const tinygltf::Material& m, const char* extension, const char* key) {
-  const auto it = m.extensions.find(extension);
-  return it != m.extensions.end() && it->second.IsObject() && it->second.Has(key);
-}
-
-// The texture slots a material uses that are not applied, in the spec's order (baseColorTexture
-// metallicRoughnessTexture and emissiveTexture are: gltf_loader.cpp, gltf_textures.h).
+// The texture slots a material uses that are not applied, in the spec's order (baseColorTexture,
+// metallicRoughnessTexture, emissiveTexture and transmissionTexture are: gltf_loader.cpp,
+// gltf_textures.h).
 std::vector<std::string> UnappliedTextureSlots(const tinygltf::Material& m) {
   std::vector<std::string> slots;
   if (m.normalTexture.index >= 0) slots.push_back("normalTexture");
   if (m.occlusionTexture.index >= 0) slots.push_back("occlusionTexture");
-  if (HasExtensionTexture(m, "KHR_materials_transmission", "transmissionTexture"))
-    slots.push_back("transmissionTexture");
   return slots;
 }
 
@@ -96,7 +90,7 @@ Material MapGltfMaterial(const tinygltf::Material& g, size_t index, const std::s
     for (const std::string& s : slots) list += (list.empty() ? "" : ", ") + s;
     warnings->push_back(file + ": " + where + ": textures not applied: " + list +
                         " (their factors alone are used; only baseColorTexture, "
-                        "metallicRoughnessTexture and emissiveTexture are applied)");
+                        "metallicRoughnessTexture, emissiveTexture and transmissionTexture are applied)");
   }
   // Alpha (specification §3.9.4; docs/gltf.md, "Alpha"): MASK cuts the surface out where
   // baseColorFactor.a × the base colour texture's alpha < alphaCutoff (the loader adds the

@@ -55,6 +55,11 @@ struct Material {
   // its blue channel multiplies metallicFactor and its green roughnessFactor before the mapping
   // (docs/renderer.md, "Textures"). It reads the same texture coordinates as the base colour.
   int32_t metallic_roughness_texture = -1;
+  // glTF's KHR_materials_transmission transmissionTexture (a textures index, −1: none; only with
+  // `metallic_roughness`): its red channel multiplies transmissionFactor before the mapping
+  // (docs/renderer.md, "Textures"), so it decides per texel between the opaque and the
+  // transmissive mapping. It reads the same texture coordinates as the base colour.
+  int32_t transmission_texture = -1;
   std::optional<MetallicRoughness> metallic_roughness{};  // the glTF parameters it was mapped from
   // An alpha-mask cut-out (glTF alphaMode MASK, OBJ map_d; docs/renderer.md, "Alpha masks"): the
   // surface is absent, for every ray, where alpha_factor × (alpha_texture's alpha at the hit, 1
@@ -74,7 +79,7 @@ struct Material {
 // Whether a material's BSDF varies over its surface (scene/surface_material.h builds it per hit).
 inline bool IsTextured(const Material& material) {
   return material.base_color_texture >= 0 || material.metallic_roughness_texture >= 0 ||
-         material.emission_texture >= 0;
+         material.transmission_texture >= 0 || material.emission_texture >= 0;
 }
 
 inline constexpr uint32_t kNoLight = 0xffffffffu;

@@ -81,6 +81,7 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
       // A metallic-roughness texture re-maps metallic and roughness per hit: an override of
       // either (or of the parameters it maps from) stops it.
       if (!m.metallic_roughness || o.roughness) m.metallic_roughness_texture = -1;
+      if (!m.metallic_roughness) m.transmission_texture = -1;
       if (o.emission) {
         if (!m.IsEmissive() || o.emission->IsBlack())
           throw InputError(SourceLocation{manifest_file, 0},

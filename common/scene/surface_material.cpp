@@ -14,6 +14,8 @@ MaterialTexels TexelsAt(const SceneDescription& scene, const Material& material,
     t.base_color = scene.textures[size_t(material.base_color_texture)].Lookup(uv);
   if (material.metallic_roughness_texture >= 0)
     t.metallic_roughness = scene.textures[size_t(material.metallic_roughness_texture)].Lookup(uv);
+  if (material.transmission_texture >= 0)
+    t.transmission = scene.textures[size_t(material.transmission_texture)].Lookup(uv).r;
   if (material.emission_texture >= 0)
     t.emission = scene.textures[size_t(material.emission_texture)].Lookup(uv);
   return t;
@@ -22,7 +24,9 @@ MaterialTexels TexelsAt(const SceneDescription& scene, const Material& material,
 void ApplyTexels(const Material& material, const MaterialTexels& texels, Material* out) {
   *out = material;
   if (material.emission_texture >= 0) out->emission = material.emission * texels.emission;
-  if (material.base_color_texture < 0 && material.metallic_roughness_texture < 0) return;
+  if (material.base_color_texture < 0 && material.metallic_roughness_texture < 0 &&
+      material.transmission_texture < 0)
+    return;
   if (material.metallic_roughness) {
     // glTF: baseColor = factor × texel, metallic = factor × B, roughness = factor × G
     // (specification §3.9.2), mapped exactly as the loader maps the factors
@@ -34,13 +38,15 @@ void ApplyTexels(const Material& material, const MaterialTexels& texels, Materia
       p.metallic = p.metallic * texels.metallic_roughness.b;
       p.roughness = p.roughness * texels.metallic_roughness.g;
     }
+    if (material.transmission_texture >= 0) p.transmission = p.transmission * texels.transmission;
     const Material mapped = MetallicRoughnessMaterial(p);
     out->diffuse_reflectance = mapped.diffuse_reflectance;
     out->specular_reflectance = mapped.specular_reflectance;
     out->specular_transmittance = mapped.specular_transmittance;
     out->microfacet_f90 = mapped.microfacet_f90;
-    if (material.metallic_roughness_texture >= 0) {
-      // Metallic decides the lobes too (a transmissive material is a dielectric below metallic 1).
+    if (material.metallic_roughness_texture >= 0 || material.transmission_texture >= 0) {
+      // Metallic and transmission decide the lobes too (a transmissive material is a dielectric
+      // below metallic 1).
       out->microfacet = mapped.microfacet;
       out->microfacet_roughness = mapped.microfacet_roughness;
       out->ior = mapped.microfacet == Material::Microfacet::kDielectric ? mapped.ior : material.ior;

@@ -16,6 +16,7 @@ namespace pf {
 struct MaterialTexels {
   Rgb base_color{1.0f};          // base_color_texture's colour
   Rgb metallic_roughness{1.0f};  // metallic_roughness_texture's (G: roughness, B: metallic)
+  float transmission = 1.0f;     // transmission_texture's red channel
   Rgb emission{1.0f};            // emission_texture's
 };
 
@@ -23,9 +24,10 @@ struct MaterialTexels {
 MaterialTexels TexelsAt(const SceneDescription& scene, const Material& material,
                         const TextureCoordinates& uv);
 
-// `material` with `texels` applied (scene.h, Material::base_color_texture and
-// metallic_roughness_texture): a material mapped from glTF's metallic-roughness parameters is
-// mapped again from baseColorFactor × base texel, metallicFactor × B and roughnessFactor × G;
+// `material` with `texels` applied (scene.h, Material::base_color_texture, metallic_roughness_texture
+// and transmission_texture): a material mapped from glTF's metallic-roughness parameters is
+// mapped again from baseColorFactor × base texel, metallicFactor × B, roughnessFactor × G and
+// transmissionFactor × R;
 // an OBJ material has ρd multiplied by the base texel; the emission is multiplied by its texel.
 // Not textured: the material itself.
 // Copies into *out, which must not be `material`.
