@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <mutex>
 #include <stdexcept>
 #include <system_error>
 #include <utility>
@@ -147,6 +148,17 @@ int64_t WindowHeight(const Imath::Box2i& box) {
   return int64_t(box.max.y) - box.min.y + 1;
 }
 
+// OpenEXR sizes a file's line buffers and offset table from its header when the file is opened,
+// before CheckWindow can look: its own header check refuses windows wider or taller than this
+// first (every window CheckWindow accepts is far smaller in one of its sides).
+void LimitHeaderSizes() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    Imf::Header::setMaxImageSize(1 << 20, 1 << 20);
+    Imf::Header::setMaxTileSize(1 << 20, 1 << 20);
+  });
+}
+
 void CheckWindow(const Imath::Box2i& box, const char* what) {
   const int64_t w = WindowWidth(box), h = WindowHeight(box);
   if (w <= 0 || h <= 0 || w * h > kMaxExrPixels) {
@@ -222,18 +234,24 @@ void WriteExr(const std::filesystem::path& path, const Image& image, const Image
 
 Image ReadExr(const std::filesystem::path& path, ImageMetadata* metadata) {
   return CatchOpenExr(path.string(), "read", [&] {
+    LimitHeaderSizes();
     Imf::InputFile file(path.c_str());
     return Decode(file, metadata);
   });
 }
 
-std::pair<int, int> ReadExrSize(const std::filesystem::path& path) {
+ExrWindows ReadExrWindows(const std::filesystem::path& path) {
   return CatchOpenExr(path.string(), "read", [&] {
+    LimitHeaderSizes();
     Imf::InputFile file(path.c_str());
-    const Imath::Box2i display_window = file.header().displayWindow();
-    CheckWindow(file.header().dataWindow(), "data window");
-    CheckWindow(display_window, "display window");
-    return std::pair<int, int>(int(WindowWidth(display_window)), int(WindowHeight(display_window)));
+    const Imath::Box2i data = file.header().dataWindow(), display = file.header().displayWindow();
+    CheckWindow(data, "data window");
+    CheckWindow(display, "display window");
+    return ExrWindows{.data_width = int(WindowWidth(data)),
+                      .data_height = int(WindowHeight(data)),
+                      .display_width = int(WindowWidth(display)),
+                      .display_height = int(WindowHeight(display)),
+                      .same = data == display};
   });
 }
 
@@ -243,6 +261,7 @@ std::string EncodeExrToMemory(const Image& image, const ImageMetadata& metadata,
 
 Image DecodeExrFromMemory(std::string_view bytes, ImageMetadata* metadata) {
   return CatchOpenExr(kMemorySourceName, "read", [&] {
+    LimitHeaderSizes();
     MemoryIStream stream(bytes);
     Imf::InputFile file(stream);
     return Decode(file, metadata);

@@ -40,9 +40,15 @@ void WriteExr(const std::filesystem::path& path, const Image& image, const Image
 // larger than kMaxExrPixels.
 Image ReadExr(const std::filesystem::path& path, ImageMetadata* metadata = nullptr);
 
-// The size (display window) of an EXR file's image, from its header alone (pixels unread);
+// The windows of an EXR file, from its header alone (pixels unread): ReadExr allocates the data
+// window, and the display window too where they differ (it returns the display window).
 // SystemError as ReadExr, also for a window larger than kMaxExrPixels.
-std::pair<int, int> ReadExrSize(const std::filesystem::path& path);
+struct ExrWindows {
+  int data_width = 0, data_height = 0;
+  int display_width = 0, display_height = 0;
+  bool same = true;  // the data window is the display window
+};
+ExrWindows ReadExrWindows(const std::filesystem::path& path);
 
 // The same encoding as WriteExr, into memory (e.g. for sending over gRPC). Deterministic: the
 // same image, metadata and compression give the same bytes.

@@ -79,10 +79,17 @@ ImageWithAlpha DecodeWithStb(const unsigned char* bytes, size_t size, const std:
   if (!stbi_info_from_memory(bytes, n, &width, &height, &channels))
     Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
   CheckSize(path, width, height, allowance);
+  // The decoders overwrite width and height: what they decode must be what was charged.
+  const int header_width = width, header_height = height;
+  const auto same_size = [&] {
+    if (width != header_width || height != header_height)
+      Fail(path, "cannot decode the image: its size differs from its header's");
+  };
   if (stbi_is_hdr_from_memory(bytes, n)) {
     const std::unique_ptr<float, StbFree> data(
         stbi_loadf_from_memory(bytes, n, &width, &height, &channels, 0));
     if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
+    same_size();
     const auto same = [](float v) { return v; };
     return ToImage(data.get(), width, height, channels, same, same);
   }
@@ -91,11 +98,13 @@ ImageWithAlpha DecodeWithStb(const unsigned char* bytes, size_t size, const std:
     const std::unique_ptr<stbi_us, StbFree> data(
         stbi_load_16_from_memory(bytes, n, &width, &height, &channels, 0));
     if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
+    same_size();
     return ToImage(data.get(), width, height, channels, color ? Srgb16 : Linear16, Linear16);
   }
   const std::unique_ptr<stbi_uc, StbFree> data(
       stbi_load_from_memory(bytes, n, &width, &height, &channels, 0));
   if (!data) Fail(path, std::string("cannot decode the image: ") + stbi_failure_reason());
+  same_size();
   return ToImage(data.get(), width, height, channels, color ? SrgbToLinear8 : Linear8, Linear8);
 }
 
@@ -133,7 +142,7 @@ void PixelAllowance::Charge(const std::string& source, int width, int height) {
   if (pixels > limit_ - used_)
     throw LimitError(SourceLocation{source, 0},
                      "image of " + std::to_string(width) + "x" + std::to_string(height) +
-                         " pixels would bring the " + "scene's images to " + std::to_string(used_ + pixels) +
+                         " pixels would bring the scene's images to " + std::to_string(used_ + pixels) +
                          " pixels, more than the budget of " + std::to_string(limit_) +
                          " (SceneBudget::max_texels, docs/security.md)");
   used_ += pixels;
@@ -159,10 +168,14 @@ ImageWithAlpha ReadImageWithAlpha(const std::filesystem::path& path, ImageCodes 
   ImageWithAlpha image;
   if (ext == ".exr") {
     try {
-      // The header first: the allowance is charged before the pixels are read.
-      const auto [width, height] = ReadExrSize(path);
-      CheckSize(path, width, height, allowance);
+      // The header first: the side limit and the allowance apply to what ReadExr allocates (the
+      // data window, and the display window where they differ) before the pixels are read.
+      const ExrWindows w = ReadExrWindows(path);
+      CheckSize(path, w.data_width, w.data_height, allowance);
+      if (!w.same) CheckSize(path, w.display_width, w.display_height, allowance);
       image.rgb = ReadExr(path);
+      if (image.rgb.width() != w.display_width || image.rgb.height() != w.display_height)
+        Fail(path, "the EXR image changed while it was read");
     } catch (const SystemError& e) {
       Fail(path, std::string("cannot read the EXR image: ") + e.what());
     }

@@ -6,6 +6,7 @@
 #include "common/core/error.h"
 #include "common/image/image_file.h"
 #include "common/scene/punctual_light.h"
+#include "common/scene/scene_budget.h"
 #include "common/scene/scene_reference.h"
 
 namespace pf {
@@ -67,7 +68,8 @@ void LoadEnvironmentImage(const std::filesystem::path& manifest, const std::file
   if (!problem.empty())
     throw InputError(SourceLocation{manifest.string(), 0},
                      "key 'environment.file': " + QuoteReference(environment->file) + " " + problem);
-  auto image = std::make_shared<const Image>(ReadLinearImage(resolved, texels));
+  PixelAllowance own(SceneBudget{}.max_texels);
+  auto image = std::make_shared<const Image>(ReadLinearImage(resolved, texels != nullptr ? texels : &own));
   float brightest = 0.0f;
   for (const Rgb& c : image->pixels()) brightest = std::max(brightest, c.Max());
   const auto fail = [&](const std::string& reason) {

@@ -57,7 +57,7 @@ struct Environment {
 // Reads environment->file (resolved against `folder`, confined to `root`: scene_reference.h) into
 // environment->image; a constant colour is left alone. Problems are InputErrors naming the
 // manifest and the key "environment.file", or the image file (image_file.h).
-// The image is charged to `texels` (SceneBudget::max_texels; null: no allowance).
+// The image is charged to `texels`, the load's allowance (null: SceneBudget::max_texels for it alone).
 void LoadEnvironmentImage(const std::filesystem::path& manifest, const std::filesystem::path& root,
                           const std::filesystem::path& folder, Environment* environment,
                           PixelAllowance* texels = nullptr);

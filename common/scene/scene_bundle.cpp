@@ -289,9 +289,16 @@ SceneDescription LoadBundle(const fs::path& dir, const std::string& entry) {
     scene.source = ReplaceAll(std::move(scene.source), prefix, "");
     return scene;
   } catch (const InputError& e) {
-    if (e.where().file.empty()) throw InputError(ReplaceAll(e.reason(), prefix, ""));
-    throw InputError(SourceLocation{ReplaceAll(e.where().file, prefix, ""), e.where().line},
-                     ReplaceAll(e.reason(), prefix, ""));
+    // A budget stays a LimitError (RESOURCE_EXHAUSTED on the farm), the rest InputErrors.
+    const bool limit = dynamic_cast<const LimitError*>(&e) != nullptr;
+    const SourceLocation where{ReplaceAll(e.where().file, prefix, ""), e.where().line};
+    const std::string reason = ReplaceAll(e.reason(), prefix, "");
+    if (where.file.empty()) {
+      if (limit) throw LimitError(reason);
+      throw InputError(reason);
+    }
+    if (limit) throw LimitError(where, reason);
+    throw InputError(where, reason);
   }
 }
 

@@ -6,6 +6,12 @@
 #include <gtest/gtest.h>
 #include <stb/stb_image_write.h>
 
+#include <ImathBox.h>
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfOutputFile.h>
+
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -158,6 +164,51 @@ TEST_F(ImageFileTest, AnAllowanceCountsThePixelsOfEveryImageFromTheirHeaders) {
   EXPECT_THROW(
       DecodeLinearImage(reinterpret_cast<const unsigned char*>(png.data()), png.size(), "mem", &three),
       LimitError);
+}
+
+// Charged before the pixels are decoded: a PNG with only its signature and header (8 x 8, no
+// image data) is a LimitError past the allowance, not the decoding error it would be otherwise.
+TEST_F(ImageFileTest, APngIsChargedFromItsHeaderBeforeItsPixels) {
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  png += std::string("\0\0\0\x0d", 4) + "IHDR" + std::string("\0\0\0\x08\0\0\0\x08\x08\x02\0\0\0", 13);
+  png += std::string(4, '\0');  // the chunk's CRC (stb_image does not check it)
+  const auto* bytes = reinterpret_cast<const unsigned char*>(png.data());
+  PixelAllowance three(3);
+  EXPECT_THROW(DecodeLinearImage(bytes, png.size(), "header-only.png", &three), LimitError);
+  PixelAllowance enough(64);
+  try {
+    DecodeLinearImage(bytes, png.size(), "header-only.png", &enough);
+    ADD_FAILURE() << "decoded";
+  } catch (const LimitError& e) {
+    ADD_FAILURE() << e.what();
+  } catch (const InputError& e) {
+    EXPECT_THAT(std::string(e.what()), HasSubstr("cannot decode the image"));
+  }
+  EXPECT_EQ(enough.used(), 64u);
+}
+
+// What an EXR allocates is its data window (and its display window where they differ): a 1 x 1
+// image whose data window is 64 x 64 is charged 4097 pixels, not 1.
+TEST_F(ImageFileTest, AnExrIsChargedForItsDataWindow) {
+  const fs::path path = dir_ / "window.exr";
+  {
+    Imf::Header header(Imath::Box2i({0, 0}, {0, 0}), Imath::Box2i({0, 0}, {63, 63}));
+    for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    std::vector<float> zeros(64 * 64, 0.0f);
+    Imf::OutputFile out(path.c_str(), header);
+    Imf::FrameBuffer fb;
+    for (const char* c : {"R", "G", "B"})
+      fb.insert(c, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(zeros.data()), sizeof(float),
+                              64 * sizeof(float)));
+    out.setFrameBuffer(fb);
+    out.writePixels(64);
+  }
+  PixelAllowance small(4096);
+  EXPECT_THROW(ReadLinearImage(path, &small), LimitError);
+  PixelAllowance enough(4097);
+  const Image image = ReadLinearImage(path, &enough);
+  EXPECT_EQ(image.width(), 1);
+  EXPECT_EQ(enough.used(), 4097u);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "common/scene/gltf_loader.h"
 #include "common/scene/obj_loader.h"
 #include "common/scene/scene_budget.h"
+#include "common/scene/scene_bundle.h"
 #include "tests/common/gltf_test_util.h"
 #include "tests/util/temp_dir.h"
 
@@ -97,6 +98,24 @@ TEST(TexelBudget, AnObjsMapsTogetherAreRefusedPastTheBudget) {
   EXPECT_EQ(LoadObj(obj, dir.path(), SceneBudget{.max_texels = 96}).textures.size(), 2u);
   EXPECT_THAT(LimitErrorOf([&] { LoadObj(obj, dir.path(), SceneBudget{.max_texels = 95}); }),
               HasSubstr("material 'b': map_Kd 'b.png': image of 8x4 pixels would bring"));
+}
+
+// The default budget, as every load has it (pf render, the coordinator's upload, a worker's
+// bundle): a PNG header claiming 16384² pixels (no pixel data behind it) after a 1 x 1 texture is
+// refused from its header, as a LimitError through LoadBundle too (RESOURCE_EXHAUSTED on the farm).
+TEST(TexelBudget, TheDefaultBudgetRefusesFromTheHeaderThroughABundle) {
+  test_util::TempDir dir("pf_texel_budget");
+  const std::filesystem::path gltf = WriteGltf(dir);
+  WritePng(dir.path() / "a.png", 1, 1);
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  png += std::string("\0\0\0\x0d", 4) + "IHDR" + std::string("\0\0\x40\0\0\0\x40\0\x08\x02\0\0\0", 13);
+  png += std::string(4, '\0');
+  dir.Write("b.png", png);
+  EXPECT_THAT(
+      LimitErrorOf([&] { LoadBundle(dir.path(), "s.gltf"); }),
+      HasSubstr("s.gltf: materials[0].pbrMetallicRoughness.metallicRoughnessTexture: textures[1]: "
+                "images[1] 'b.png': image of 16384x16384 pixels would bring the scene's images to 268435457 "
+                "pixels, more than the budget of 268435456"));
 }
 
 }  // namespace

@@ -33,8 +33,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::ofstream out(file, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), std::streamsize(size));
   }
-  // The MGF target's bounds: a 4 KB input stays far below them, but a bug must not make it slow.
-  static const pf::SceneBudget budget{.max_triangles = 50'000, .max_vertices = 150'000};
+  // The MGF target's bounds: a 4 KB input stays far below them, but a bug must not make it slow;
+  // images (data: URIs whose headers claim any size) at most 2^20 pixels, within libFuzzer's RSS limit.
+  static const pf::SceneBudget budget{
+      .max_triangles = 50'000, .max_vertices = 150'000, .max_texels = 1 << 20};
   try {
     const pf::SceneDescription scene = pf::LoadGltf(file, {}, budget);
     pf::fuzz::TrapUnlessWellFormed(scene);
