@@ -82,12 +82,13 @@ class LightSampler {
   explicit LightSampler(const EmbreeScene& scene);
 
   bool empty() const { return triangles_.empty() && punctual_.empty() && !environment_; }
-  // Picks an emitter ∝ power with u_select — an emitting triangle or a punctual light — then a
-  // uniform point on the triangle with (u1, u2) (a punctual light's sample is its position or
-  // direction).
+  // Picks an emitter ∝ power with u_select — an emitting triangle, a punctual light or the
+  // environment — then a uniform point on the triangle with (u1, u2) (a punctual light's sample
+  // is its position or direction, the environment's a direction).
   LightSample Sample(float u_select, float u1, float u2) const;
   // Sample(u_select, u1, u2) in two steps, EmitterSample(EmitterIndex(u_select), u1, u2): which
-  // emitter (0 .. num_emitters() − 1: the triangles, then the punctual lights) u_select picks,
+  // emitter (0 .. num_emitters() − 1: the triangles, then the punctual lights, then the
+  // environment) u_select picks,
   // and the sample on it.
   // For callers that keep per emitter what does not depend on the point (the photon tracer).
   size_t EmitterIndex(float u_select) const {
@@ -97,10 +98,10 @@ class LightSampler {
   LightSample EmitterSample(size_t emitter, float u1, float u2) const;
   // Density per unit area of sampling this point on triangle `tri` (0 if it does not emit).
   float PdfArea(uint32_t tri) const;
-  // Total emitted power Σ π·A·Le + Σ Φ of the punctual lights (RGB), W.
+  // Total emitted power Σ π·A·Le + Σ Φ of the punctual lights + the environment's (RGB), W.
   const Rgb& total_power() const { return total_power_; }
   size_t num_emitting_triangles() const { return triangles_.size(); }
-  // Every emitter EmitterIndex can give: the triangles, then the punctual lights.
+  // Every emitter EmitterIndex can give: the triangles, then the punctual lights, then the environment.
   size_t num_emitters() const { return triangles_.size() + punctual_.size() + (environment_ ? 1 : 0); }
   const std::vector<PunctualEmitter>& punctual() const { return punctual_; }
   // The environment (null if the scene has none), and the solid-angle density with which Sample

@@ -473,9 +473,13 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
     const Vec3 wo = -ray.direction;
     Rgb stored_power = power;
     // (Metropolis splitting and importance-driven storing are never combined: TracePhotons.)
-    if (bsdf.HasDiffuse() &&
-        (!o.importance || AcceptByImportance(o, sampler, bounce, hit->position, hit->geometric_normal, wo,
-                                             &stored_power, out))) {
+    // Storing is the material's, as in the plain walk: a textured material stores wherever a texel
+    // could give it a diffuse lobe (WalkRoulette::Of), not only where this one does.
+    const bool stores = IsTextured(desc.materials[hit->material])
+                            ? shared.walk[hit->material].Stores(hit->geometric_normal)
+                            : bsdf.HasDiffuse();
+    if (stores && (!o.importance || AcceptByImportance(o, sampler, bounce, hit->position,
+                                                       hit->geometric_normal, wo, &stored_power, out))) {
       const bool caustic = bounce > 0 && any_singular_since_diffuse;
       if (caustic && in_chain()) {
         // Weighted when the chain ends.

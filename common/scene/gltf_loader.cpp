@@ -151,8 +151,8 @@ class GltfSceneBuilder {
     if (const std::optional<tinygltf::TextureInfo> transmission = TransmissionTexture(i)) {
       const std::string where =
           Indexed("materials", i) + ".extensions.KHR_materials_transmission.transmissionTexture";
-      if (transmission->index < 0) Fail(where + ": index must be >= 0");
-      if (transmission->texCoord < 0) Fail(where + ": texCoord must be >= 0");
+      if (transmission->index < 0) Fail(where + ": must be an object whose index is a whole number >= 0");
+      if (transmission->texCoord < 0) Fail(where + ": texCoord must be a whole number >= 0");
       if (!material->metallic_roughness || !(material->metallic_roughness->transmission > 0.0f)) {
         WarnOnce(where + ": not applied: transmissionFactor is 0 (the texture multiplies it)");
       } else {

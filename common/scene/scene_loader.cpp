@@ -74,6 +74,12 @@ void ApplyMaterialOverrides(const std::map<std::string, MaterialOverride>& overr
             *o.roughness;
       if (o.transmission) m.specular_transmittance = *o.transmission;
       if (o.ior) m.ior = *o.ior;
+      // A texture re-maps the glTF parameters per hit: they take the overridden roughness and ior
+      // too (surface_material.h), or a textured hit would bring the file's values back.
+      if (m.metallic_roughness) {
+        if (o.roughness) m.metallic_roughness->roughness = *o.roughness;
+        if (o.ior) m.metallic_roughness->ior = *o.ior;
+      }
       // Overridden colours are this material's now: a texture multiplies the overridden ρd
       // (surface_material.h) instead of re-mapping the glTF parameters over the override.
       if (MaterialKinds().GetKind(o.kind) || o.diffuse || o.specular || o.transmission)

@@ -61,6 +61,10 @@ TEST(TransmissionTexture, TexelScalesTransmissionAndDecidesTheLobes) {
   EXPECT_EQ(out.microfacet, m.microfacet);
   EXPECT_EQ(out.specular_transmittance, m.specular_transmittance);
   EXPECT_EQ(out.diffuse_reflectance, m.diffuse_reflectance);
+  EXPECT_EQ(out.specular_reflectance, m.specular_reflectance);
+  EXPECT_EQ(out.microfacet_roughness, m.microfacet_roughness);
+  EXPECT_EQ(out.microfacet_f90, m.microfacet_f90);
+  EXPECT_EQ(out.ior, m.ior);
 }
 
 // The photon walk stores on a surface only where it has a diffuse lobe, decided per material: a
@@ -72,6 +76,18 @@ TEST(TransmissionTexture, AGlassThatATexelCanMakeOpaqueStoresPhotons) {
   EXPECT_FALSE(WalkRoulette::Of(m, BsdfLobes::Of(m)).has_diffuse) << "untextured glass stores nothing";
   m.transmission_texture = 0;
   EXPECT_TRUE(WalkRoulette::Of(m, BsdfLobes::Of(m)).has_diffuse);
+  // With a metallic-roughness texture too (metallicFactor 1: a texel's blue can lower it).
+  MetallicRoughness metal_glass = glass;
+  metal_glass.metallic = 1.0f;
+  Material both = MetallicRoughnessMaterial(metal_glass);
+  both.metallic_roughness = metal_glass;
+  both.transmission_texture = 0;
+  both.metallic_roughness_texture = 1;
+  EXPECT_TRUE(WalkRoulette::Of(both, BsdfLobes::Of(both)).has_diffuse);
+  // A black base colour has no diffuse lobe at any texel.
+  Material black = m;
+  black.metallic_roughness->base_color = Rgb(0.0f);
+  EXPECT_FALSE(WalkRoulette::Of(black, BsdfLobes::Of(black)).has_diffuse);
   // A metal (metallic 1, no metallic-roughness texture) has no diffuse lobe at any texel.
   MetallicRoughness metal = glass;
   metal.metallic = 1.0f;
@@ -132,6 +148,26 @@ TEST(TransmissionTexture, LoaderDecodesTheTextureLinearlyAndStopsWarning) {
   EXPECT_FLOAT_EQ(s.textures[0].Lookup({0.1f, 0.5f}).r, 1.0f);
   EXPECT_FLOAT_EQ(s.textures[0].Lookup({0.9f, 0.5f}).r, 0.0f);
   EXPECT_THAT(::testing::PrintToString(s.warnings), Not(HasSubstr("transmissionTexture")));
+}
+
+// A manifest override of roughness or ior holds at textured hits too: the texture re-maps the
+// glTF parameters, which take the override.
+TEST(TransmissionTexture, ManifestOverridesHoldAtTexturedHits) {
+  test_util::TempDir dir("pf_transmission_texture_test");
+  WriteScenes(dir);
+  dir.Write("o.json", std::string(R"({"version": 1, "geometry": "a.gltf",
+      "materials": {"textured": {"roughness": 0.05, "ior": 1.2}}, )") +
+                          kCamera + "}");
+  const SceneDescription s = LoadScene(dir.path() / "o.json");
+  const Material& m = s.materials[0];
+  ASSERT_EQ(m.transmission_texture, 0);
+  Material glass, opaque;
+  ApplyTexels(m, MaterialTexels{.transmission = 1.0f}, &glass);
+  ApplyTexels(m, MaterialTexels{.transmission = 0.0f}, &opaque);
+  EXPECT_EQ(glass.microfacet, Material::Microfacet::kDielectric);
+  EXPECT_EQ(glass.microfacet_roughness, 0.05f);
+  EXPECT_EQ(glass.ior, 1.2f);
+  EXPECT_EQ(opaque.microfacet_roughness, 0.05f);
 }
 
 TEST(TransmissionTexture, ATextureOnAFactorOfZeroIsAWarningNotADecode) {

@@ -69,10 +69,10 @@ class WorkerGateTest : public ::testing::Test {
   grpc::Status Call(const std::string& method, const std::string& token, const std::string& announced_id) {
     auto ctx = testing::Ctx(token, 10);
     if (!announced_id.empty()) ctx->AddMetadata(limits::kWorkerIdMetadata, announced_id);
-    grpc::GenericStub stub(live_->channel);
+    grpc::GenericStub generic_client(live_->channel);
     const grpc::Slice empty;
     grpc::ByteBuffer request(&empty, 1), response;
-    return test_util::BlockingGenericCall(stub, ctx.get(), method, &request, &response);
+    return test_util::BlockingGenericCall(generic_client, ctx.get(), method, &request, &response);
   }
 
   std::vector<v1::WorkerInfo> Workers() {
