@@ -25,18 +25,10 @@ using gltf_test::GltfBuilder;
 using ::testing::HasSubstr;
 using ::testing::Not;
 using texture_halves::ExpectHalvesMatch;
+using texture_halves::ExpectSameMaterial;
 using texture_halves::Halves;
 using texture_halves::Plane;
 using texture_halves::WritePng;
-
-void ExpectSameMaterial(const Material& got, const Material& want) {
-  EXPECT_EQ(got.diffuse_reflectance, want.diffuse_reflectance);
-  EXPECT_EQ(got.specular_reflectance, want.specular_reflectance);
-  EXPECT_EQ(got.specular_transmittance, want.specular_transmittance);
-  EXPECT_EQ(got.microfacet, want.microfacet);
-  EXPECT_EQ(got.microfacet_roughness, want.microfacet_roughness);
-  EXPECT_EQ(got.microfacet_f90, want.microfacet_f90);
-}
 
 TEST(MetallicRoughnessTexture, TexelScalesMetallicByBlueAndRoughnessByGreen) {
   const MetallicRoughness factors{.base_color = Rgb(0.5f, 0.25f, 1.0f), .metallic = 0.8f, .roughness = 0.6f};

@@ -14,10 +14,21 @@
 #include <string>
 #include <vector>
 
+#include "common/scene/scene.h"
 #include "tests/common/gltf_test_util.h"
 #include "tests/common/scene_render_util.h"
 
 namespace pf::texture_halves {
+
+// The lobes of two materials (what a per-hit re-mapping gives against what the mapping gives).
+inline void ExpectSameMaterial(const Material& got, const Material& want) {
+  EXPECT_EQ(got.diffuse_reflectance, want.diffuse_reflectance);
+  EXPECT_EQ(got.specular_reflectance, want.specular_reflectance);
+  EXPECT_EQ(got.specular_transmittance, want.specular_transmittance);
+  EXPECT_EQ(got.microfacet, want.microfacet);
+  EXPECT_EQ(got.microfacet_roughness, want.microfacet_roughness);
+  EXPECT_EQ(got.microfacet_f90, want.microfacet_f90);
+}
 
 // An 8-bit RGB PNG of `w` x `h` from row-major codes.
 inline void WritePng(const std::filesystem::path& path, int w, int h, const std::vector<unsigned char>& rgb) {

@@ -22,6 +22,7 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::Not;
 using texture_halves::ExpectHalvesMatch;
+using texture_halves::ExpectSameMaterial;
 using texture_halves::Halves;
 using texture_halves::Plane;
 using texture_halves::WritePng;
@@ -58,43 +59,34 @@ TEST(TransmissionTexture, TexelScalesTransmissionAndDecidesTheLobes) {
   EXPECT_EQ(out.ior, 1.4f);
   // White texels: the untextured material bit for bit.
   ApplyTexels(m, MaterialTexels{}, &out);
-  EXPECT_EQ(out.microfacet, m.microfacet);
-  EXPECT_EQ(out.specular_transmittance, m.specular_transmittance);
-  EXPECT_EQ(out.diffuse_reflectance, m.diffuse_reflectance);
-  EXPECT_EQ(out.specular_reflectance, m.specular_reflectance);
-  EXPECT_EQ(out.microfacet_roughness, m.microfacet_roughness);
-  EXPECT_EQ(out.microfacet_f90, m.microfacet_f90);
+  ExpectSameMaterial(out, m);
   EXPECT_EQ(out.ior, m.ior);
 }
 
 // The photon walk stores on a surface only where it has a diffuse lobe, decided per material: a
 // transmissive material that a texel can make opaque must store.
 TEST(TransmissionTexture, AGlassThatATexelCanMakeOpaqueStoresPhotons) {
+  // The material mapped from `p`, keeping `p`, with the given textures.
+  const auto mapped = [](const MetallicRoughness& p, int32_t transmission_texture, int32_t mr_texture) {
+    Material m = MetallicRoughnessMaterial(p);
+    m.metallic_roughness = p;
+    m.transmission_texture = transmission_texture;
+    m.metallic_roughness_texture = mr_texture;
+    return m;
+  };
+  const auto stores = [](const Material& m) { return WalkRoulette::Of(m, BsdfLobes::Of(m)).has_diffuse; };
   const MetallicRoughness glass{.base_color = Rgb(0.8f), .metallic = 0.0f, .transmission = 1.0f};
-  Material m = MetallicRoughnessMaterial(glass);
-  m.metallic_roughness = glass;
-  EXPECT_FALSE(WalkRoulette::Of(m, BsdfLobes::Of(m)).has_diffuse) << "untextured glass stores nothing";
-  m.transmission_texture = 0;
-  EXPECT_TRUE(WalkRoulette::Of(m, BsdfLobes::Of(m)).has_diffuse);
-  // With a metallic-roughness texture too (metallicFactor 1: a texel's blue can lower it).
+  EXPECT_FALSE(stores(mapped(glass, -1, -1))) << "untextured glass stores nothing";
+  EXPECT_TRUE(stores(mapped(glass, 0, -1)));
+  // metallicFactor 1: only a metallic-roughness texture (its blue) can lower it.
   MetallicRoughness metal_glass = glass;
   metal_glass.metallic = 1.0f;
-  Material both = MetallicRoughnessMaterial(metal_glass);
-  both.metallic_roughness = metal_glass;
-  both.transmission_texture = 0;
-  both.metallic_roughness_texture = 1;
-  EXPECT_TRUE(WalkRoulette::Of(both, BsdfLobes::Of(both)).has_diffuse);
+  EXPECT_TRUE(stores(mapped(metal_glass, 0, 1)));
+  EXPECT_FALSE(stores(mapped(metal_glass, 0, -1))) << "a metal has no diffuse lobe at any texel";
   // A black base colour has no diffuse lobe at any texel.
-  Material black = m;
-  black.metallic_roughness->base_color = Rgb(0.0f);
-  EXPECT_FALSE(WalkRoulette::Of(black, BsdfLobes::Of(black)).has_diffuse);
-  // A metal (metallic 1, no metallic-roughness texture) has no diffuse lobe at any texel.
-  MetallicRoughness metal = glass;
-  metal.metallic = 1.0f;
-  Material mm = MetallicRoughnessMaterial(metal);
-  mm.metallic_roughness = metal;
-  mm.transmission_texture = 0;
-  EXPECT_FALSE(WalkRoulette::Of(mm, BsdfLobes::Of(mm)).has_diffuse);
+  MetallicRoughness black = glass;
+  black.base_color = Rgb(0.0f);
+  EXPECT_FALSE(stores(mapped(black, 0, -1)));
 }
 
 // A sun from over the camera's shoulder and a blue sky: the glass half shows the sky through it,

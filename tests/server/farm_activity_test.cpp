@@ -29,6 +29,12 @@ std::optional<v1::WorkerInfo> RefusedAt(const std::vector<v1::WorkerInfo>& worke
   return std::nullopt;
 }
 
+size_t CountRefused(const std::vector<v1::WorkerInfo>& workers) {
+  size_t refused = 0;
+  for (const v1::WorkerInfo& w : workers) refused += w.refused();
+  return refused;
+}
+
 constexpr char kInvalid[] = "UNAUTHENTICATED: authorization: invalid bearer token";
 constexpr char kDenied[] = "PERMISSION_DENIED: authorization: WorkerService needs the worker credential";
 
@@ -105,13 +111,10 @@ TEST(FarmActivity, AnIdLongerThanAnAnnouncedOneIsRecognisedByItsAnnouncedForm) {
   activity.WorkerRefused("10.0.0.7", id, kInvalid);
   activity.WorkerRefused("", id, kInvalid);
   activity.WorkerSeen("other", "ipv4:10.0.0.2:1", 2, "v1");
-  size_t refused = 0;
-  for (const v1::WorkerInfo& w : activity.Workers()) refused += w.refused();
-  EXPECT_EQ(refused, 2u);
+  EXPECT_EQ(CountRefused(activity.Workers()), 2u);
   activity.WorkerSeen(id, "ipv4:10.0.0.7:4242", 8, "v1");
-  refused = 0;
-  for (const v1::WorkerInfo& w : activity.Workers()) refused += w.refused();
-  EXPECT_EQ(refused, 0u) << "the worker's accepted poll cleared neither of its refused entries";
+  EXPECT_EQ(CountRefused(activity.Workers()), 0u)
+      << "the worker's accepted poll cleared neither of its refused entries";
   // Its name is recognised in its announced form: a refused caller announcing it is marked.
   activity.WorkerRefused("10.6.6.6", id, kInvalid);
   ASSERT_TRUE(RefusedAt(activity.Workers(), "10.6.6.6").has_value());
@@ -159,9 +162,7 @@ TEST(FarmActivity, AFloodOfRefusedCallersNeverPushesAWorkerOut) {
     activity.WorkerRefused("10.1." + std::to_string(i / 256) + "." + std::to_string(i % 256), "x", kInvalid);
   }
   const std::vector<v1::WorkerInfo> workers = activity.Workers();
-  size_t refused = 0;
-  for (const v1::WorkerInfo& w : workers) refused += w.refused();
-  EXPECT_EQ(refused, kMaxRefusedKept);
+  EXPECT_EQ(CountRefused(workers), kMaxRefusedKept);
   for (int i = 0; i < 50; ++i) EXPECT_TRUE(Find(workers, "node-" + std::to_string(i)).has_value()) << i;
   EXPECT_TRUE(RefusedAt(workers, "10.1.7.207").has_value()) << "the most recent refusal is kept";
   EXPECT_FALSE(RefusedAt(workers, "10.1.0.0").has_value());
@@ -180,9 +181,7 @@ TEST(FarmActivity, MadeUpIdsWithoutAnAddressNeverPushOutTheAddresses) {
     activity.WorkerRefused("", "made-up-" + std::to_string(i), kInvalid);
   }
   const std::vector<v1::WorkerInfo> workers = activity.Workers();
-  size_t refused = 0;
-  for (const v1::WorkerInfo& w : workers) refused += w.refused();
-  EXPECT_EQ(refused, kMaxRefusedKept);
+  EXPECT_EQ(CountRefused(workers), kMaxRefusedKept);
   for (int i = 0; i < 10; ++i)
     EXPECT_TRUE(RefusedAt(workers, "10.2.0." + std::to_string(i)).has_value()) << i;
   EXPECT_TRUE(Find(workers, "made-up-4999").has_value());

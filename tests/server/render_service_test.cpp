@@ -565,17 +565,7 @@ TEST_F(RenderServiceTest, OverlongOrBinaryIdsAreRejectedWithoutEchoingThem) {
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
 }
 
-class TokenTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    CoordinatorOptions o = testing::CountingOptions(dir_.path() / "data");
-    o.client_token = "client-token";
-    o.worker_token = "worker-token";
-    live_ = std::make_unique<LiveCoordinator>(o);
-  }
-  TempDir dir_;
-  std::unique_ptr<LiveCoordinator> live_;
-};
+using TokenTest = testing::TokenCoordinatorTest;
 
 // Auth is checked by gRPC for every call (server/rpc/auth.h), per role: the client token opens
 // RenderService only, the worker token WorkerService only; the other role's token is

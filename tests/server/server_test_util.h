@@ -218,6 +218,19 @@ inline CoordinatorOptions CountingOptions(const fs::path& data_dir) {
   return o;
 }
 
+// A fixture: an in-process coordinator with both role tokens set ("client-token", "worker-token").
+class TokenCoordinatorTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    CoordinatorOptions o = CountingOptions(dir_.path() / "data");
+    o.client_token = "client-token";
+    o.worker_token = "worker-token";
+    live_ = std::make_unique<LiveCoordinator>(o);
+  }
+  TempDir dir_;
+  std::unique_ptr<LiveCoordinator> live_;
+};
+
 // A fixture: an in-process coordinator in a fresh data folder with the Cornell box uploaded.
 class LiveCoordinatorTest : public ::testing::Test {
  protected:

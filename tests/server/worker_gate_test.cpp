@@ -22,7 +22,6 @@
 namespace pf::server {
 namespace {
 using testing::LiveCoordinator;
-using testing::TempDir;
 namespace v1 = photonfarm::v1;
 
 TEST(AdmitWorker, TheWorkerCredentialAndWhereConfiguredACertificate) {
@@ -45,15 +44,8 @@ TEST(AdmitWorker, TheWorkerCredentialAndWhereConfiguredACertificate) {
   EXPECT_EQ(AdmitWorker({}, true, "", false).error_code(), grpc::StatusCode::UNAUTHENTICATED);
 }
 
-class WorkerGateTest : public ::testing::Test {
+class WorkerGateTest : public testing::TokenCoordinatorTest {
  protected:
-  void SetUp() override {
-    CoordinatorOptions o = testing::CountingOptions(dir_.path() / "data");
-    o.client_token = "client-token";
-    o.worker_token = "worker-token";
-    live_ = std::make_unique<LiveCoordinator>(o);
-  }
-
   // Every method of photonfarm.v1.WorkerService, as its HTTP/2 path.
   static std::vector<std::string> WorkerMethods() {
     const google::protobuf::ServiceDescriptor* service =
@@ -81,9 +73,6 @@ class WorkerGateTest : public ::testing::Test {
     EXPECT_TRUE(st.ok()) << st.error_message();
     return {r.workers().begin(), r.workers().end()};
   }
-
-  TempDir dir_;
-  std::unique_ptr<LiveCoordinator> live_;
 };
 
 TEST_F(WorkerGateTest, EveryMethodRefusesCallersWithoutTheWorkerCredential) {
