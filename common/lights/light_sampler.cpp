@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "common/core/error.h"
 
@@ -97,17 +98,22 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     g.cdf.back() = 1.0f;
   }
   // Each punctual light is a light of its own, after those of the triangles (its id is one of
-  // the scene's 0..num_lights-1, given by the loader after the emitting primitives').
+  // the scene's 0..num_lights-1, given by the loader after the emitting primitives'). An id out of
+  // that range would take the slot of the triangles without an id: a scene built wrongly.
+  const auto own_slot = [num_ids](uint32_t id, const char* what) {
+    if (id >= num_ids)
+      throw std::logic_error(std::string("light sampler: ") + what + " has light id " + std::to_string(id) +
+                             ", not below the scene's num_lights " + std::to_string(num_ids));
+    return size_t(id);
+  };
   for (size_t k = 0; k < punctual_.size(); ++k) {
     const uint32_t id = punctual_[k].light;
-    const size_t slot = id < num_ids ? id : num_ids;
-    light_index_by_id_[slot] = uint32_t(lights_.size());
+    light_index_by_id_[own_slot(id, "a punctual light")] = uint32_t(lights_.size());
     lights_.push_back(LightGroup{id, {}, {}, {}, punctual_[k].power, uint32_t(k)});
   }
   if (environment_) {
     const uint32_t id = environment_->light();
-    const size_t slot = id < num_ids ? id : num_ids;
-    light_index_by_id_[slot] = uint32_t(lights_.size());
+    light_index_by_id_[own_slot(id, "the environment")] = uint32_t(lights_.size());
     lights_.push_back(LightGroup{id, {}, {}, {}, environment_->power(), kNotPunctual, true});
   }
 }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <stdexcept>
 #include <string>
 
 #include "common/estimators/direct_light.h"
@@ -310,6 +311,20 @@ TEST(PunctualLights, DirectionalPhotonsDeliverIrradianceTimesArea) {
   for (int c = 0; c < 3; ++c)
     EXPECT_NEAR(received[c], sun.intensity[c] * 4.0 * cos_theta, 0.01 * sun.intensity[c] * 4.0 * cos_theta)
         << "channel " << c;
+}
+
+// A light id beyond the scene's num_lights would silently take the slot of the triangles without
+// an id (photon-direct's light of such photons): a scene built wrongly is refused instead.
+TEST(PunctualLights, AnIdBeyondTheScenesLightsIsRefused) {
+  SceneDescription s = testing::FloorUnderSquareLight(0.5f);
+  s.punctual_lights = {PointLight()};
+  s.punctual_lights[0].light = s.num_lights + 3;
+  s.num_lights += 1;
+  const EmbreeScene accel(s);
+  EXPECT_THROW(LightSampler lights(accel), std::logic_error);
+  s.punctual_lights[0].light = s.num_lights - 1;
+  const EmbreeScene fine(s);
+  EXPECT_NO_THROW(LightSampler lights(fine));
 }
 
 // With an area light beside them, punctual lights add emitters after its triangles and keep its
