@@ -37,7 +37,6 @@ class PixelAllowance {
   // Charges `pixels`, or throws LimitError naming `source`, the image's size and the budget.
   void Charge(const std::string& source, int width, int height);
   uint64_t used() const { return used_; }
-  uint64_t limit() const { return limit_; }
 
  private:
   uint64_t limit_, used_ = 0;

@@ -120,6 +120,17 @@ class GltfSceneBuilder {
     return out;
   }
 
+  // The texture at `where` of material `i` names TEXCOORD_`set`: the material's set if it has none
+  // yet; one naming another than the material's reads the material's (warned).
+  void ReadTexCoord(size_t i, const std::string& where, int set) {
+    const auto [it, first] = texcoord_set_.emplace(uint32_t(i), set);
+    if (!first && it->second != set)
+      WarnOnce(where + ": reads TEXCOORD_" + std::to_string(set) +
+               ", the material's other textures TEXCOORD_" + std::to_string(it->second) +
+               ": it reads TEXCOORD_" + std::to_string(it->second) +
+               " (one set of texture coordinates per vertex)");
+  }
+
   // A material's baseColorTexture (colour: sRGB), metallicRoughnessTexture (data: linear),
   // transmissionTexture (data) and emissiveTexture (colour), and its alpha mask's texture (the base colour's
   // alpha: specification §3.9.3). One set of texture coordinates per vertex: the first of those textures' in
@@ -157,14 +168,7 @@ class GltfSceneBuilder {
         WarnOnce(where + ": not applied: transmissionFactor is 0 (the texture multiplies it)");
       } else {
         material->transmission_texture = textures_.Use(transmission->index, where, ImageCodes::kData);
-        const auto set = texcoord_set_.find(uint32_t(i));
-        if (set == texcoord_set_.end())
-          texcoord_set_[uint32_t(i)] = transmission->texCoord;
-        else if (set->second != transmission->texCoord)
-          WarnOnce(where + ": reads TEXCOORD_" + std::to_string(transmission->texCoord) +
-                   ", the material's other textures TEXCOORD_" + std::to_string(set->second) +
-                   ": it reads TEXCOORD_" + std::to_string(set->second) +
-                   " (one set of texture coordinates per vertex)");
+        ReadTexCoord(i, where, transmission->texCoord);
       }
     }
     // emissiveTexture (colour: sRGB) multiplies emissiveFactor × emissiveStrength; moot (and
@@ -174,14 +178,7 @@ class GltfSceneBuilder {
       const std::string where = Indexed("materials", i) + ".emissiveTexture";
       material->emission_texture = textures_.Use(emissive.index, where, ImageCodes::kColor);
       if (emissive.texCoord < 0) Fail(where + ": texCoord must be >= 0");
-      const auto set = texcoord_set_.find(uint32_t(i));
-      if (set == texcoord_set_.end())
-        texcoord_set_[uint32_t(i)] = emissive.texCoord;
-      else if (set->second != emissive.texCoord)
-        WarnOnce(where + ": reads TEXCOORD_" + std::to_string(emissive.texCoord) +
-                 ", the material's other textures TEXCOORD_" + std::to_string(set->second) +
-                 ": it reads TEXCOORD_" + std::to_string(set->second) +
-                 " (one set of texture coordinates per vertex)");
+      ReadTexCoord(i, where, emissive.texCoord);
     }
     if (material->HasAlphaMask()) {
       material->alpha_texture = material->base_color_texture;

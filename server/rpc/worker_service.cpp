@@ -73,6 +73,18 @@ grpc::ServerUnaryReactor* Refused(grpc::CallbackServerContext* context, const gr
   return reactor;
 }
 
+// A streamed fetch's precheck: the gate, then the id the request names (`field`), read only once
+// the call is admitted.
+grpc::Status AdmitWithId(const WorkerGate& gate, const grpc::CallbackServerContext& context, const char* rpc,
+                         const std::string& id, const char* field) {
+  grpc::Status status = gate.Admit(context);
+  if (!status.ok()) return status;
+  return Guarded(rpc, [&] {
+    limits::CheckId(id, field);
+    return grpc::Status::OK;
+  });
+}
+
 grpc::Status NotHolder() {
   return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
                       "lease_id: the lease is held by another worker; nothing was changed");
@@ -282,12 +294,8 @@ grpc::ServerUnaryReactor* WorkerServiceImpl::LeaveFarm(grpc::CallbackServerConte
 
 grpc::ServerWriteReactor<v1::SceneFile>* WorkerServiceImpl::FetchScene(grpc::CallbackServerContext* context,
                                                                        const v1::FetchSceneRequest* request) {
-  grpc::Status precheck = gate_.Admit(*context);
-  if (precheck.ok())
-    precheck = Guarded("FetchScene", [&] {
-      limits::CheckId(request->scene_hash(), "scene_hash");
-      return grpc::Status::OK;
-    });
+  const grpc::Status precheck =
+      AdmitWithId(gate_, *context, "FetchScene", request->scene_hash(), "scene_hash");
   const std::string hash = precheck.ok() ? request->scene_hash() : std::string();
   // Streamed from the stored files, one chunk of ≤ kSceneChunkBytes at a time (buffered_stream.h);
   // a file larger than a chunk continues in the next message with the same path, an empty file
@@ -475,12 +483,7 @@ grpc::ServerReadReactor<v1::PhotonChunkPart>* WorkerServiceImpl::UploadPhotonChu
 
 grpc::ServerWriteReactor<v1::MapBytes>* WorkerServiceImpl::FetchMap(grpc::CallbackServerContext* context,
                                                                     const v1::FetchMapRequest* request) {
-  grpc::Status precheck = gate_.Admit(*context);
-  if (precheck.ok())
-    precheck = Guarded("FetchMap", [&] {
-      limits::CheckId(request->map_key(), "map_key");
-      return grpc::Status::OK;
-    });
+  const grpc::Status precheck = AdmitWithId(gate_, *context, "FetchMap", request->map_key(), "map_key");
   const std::string key = precheck.ok() ? request->map_key() : std::string();
   // Streamed from the file one part at a time (like FetchScene), each part with its checksum.
   return ChunkedStreamReactor<v1::MapBytes>::Start(api_.executor(), "FetchMap", precheck, [this, key] {

@@ -57,7 +57,7 @@ void FarmActivity::WorkerSeen(const std::string& worker_id, const std::string& p
     w.info.set_offline(false);
   }
   w.dirty = was_dirty || w.info.SerializeAsString() != before;
-  if (refused_reason.empty()) {  // its credential works now
+  if (refused_reason.empty() && !refused_.empty()) {  // its credential works now (polls: usually none)
     // As its refused calls announced it (pf-worker-id carries at most kMaxAnnouncedIdBytes).
     const std::string announced = limits::AnnouncedWorkerId(worker_id);
     refused_.erase({"", announced});  // refused where its address was not known
