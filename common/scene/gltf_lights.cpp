@@ -53,14 +53,17 @@ bool MapGltfLight(const tinygltf::Light& g, size_t index, const mgf::Affine& wor
   if (l.kind == Kind::kSpot) {
     const double inner = g.spot.innerConeAngle, outer = g.spot.outerConeAngle;
     const double half_pi = std::acos(0.0);
-    if (!(inner >= 0.0 && inner < outer && outer <= half_pi))
-      fail("spot cone angles must satisfy 0 <= innerConeAngle < outerConeAngle <= pi/2 (radians)");
+    // The specification asks for innerConeAngle < outerConeAngle, but Blender's exporter writes
+    // them equal for a spot lamp without blend: read as a hard-edged cone, not refused.
+    if (!(inner >= 0.0 && inner <= outer && outer > 0.0 && outer <= half_pi))
+      fail(
+          "spot cone angles must satisfy 0 <= innerConeAngle <= outerConeAngle <= pi/2, outerConeAngle > 0 "
+          "(radians)");
     l.inner_cone_deg = float(inner * 90.0 / half_pi);
     l.outer_cone_deg = float(outer * 90.0 / half_pi);
-    // The falloff divides by cos θi − cos θo (punctual_light.h): the manifest's limit.
-    if (!(l.outer_cone_deg >= l.inner_cone_deg + kMinSpotFalloffDeg))
-      fail("outerConeAngle must exceed innerConeAngle by at least " + std::to_string(kMinSpotFalloffDeg) +
-           " degrees");
+    // A falloff band narrower than the manifest's limit is a hard edge too: SpotFalloff and the
+    // photon emitter's cone sampling need no band then (punctual_light.h, photon_tracer.cpp).
+    if (l.outer_cone_deg < l.inner_cone_deg + kMinSpotFalloffDeg) l.inner_cone_deg = l.outer_cone_deg;
   }
   *out = l;
   return true;

@@ -22,7 +22,9 @@ namespace pf {
 
 // Limits a scene's lights must keep (checked where they are read, the manifest): the largest
 // channel of I or E⊥, so that every power stays a finite float, and the narrowest spot falloff
-// band (outer − inner half-angle), so that the float cosines of the two angles differ.
+// band (outer − inner half-angle), so that the float cosines of the two angles differ. A glTF
+// spot with a narrower band is read as a hard edge (inner = outer: equal cosines, no band, which
+// SpotFalloff and the photon emitter handle without dividing by it).
 inline constexpr float kMaxLightIntensity = 1e20f;
 inline constexpr float kMinSpotFalloffDeg = 0.1f;
 

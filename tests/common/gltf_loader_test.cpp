@@ -185,6 +185,27 @@ TEST(GltfLoader, SpotConeAnglesOutOfOrderAreAnError) {
               HasSubstr("scene.gltf: KHR_lights_punctual.lights[0]: spot cone angles"));
 }
 
+// Blender's exporter writes innerConeAngle = outerConeAngle for a spot lamp without blend, which
+// the specification does not allow (inner < outer): it is read as a hard-edged cone, and a band
+// narrower than the manifest's kMinSpotFalloffDeg too. An outer angle of 0 is still refused.
+TEST(GltfLoader, SpotWithEqualConeAnglesIsHardEdged) {
+  test_util::TempDir dir("pf_gltf_test");
+  const auto load = [&](const std::string& spot) {
+    const std::string rest = R"("extensions":{"KHR_lights_punctual":{"lights":[{"type":"spot","spot":)" +
+                             spot +
+                             R"(}]}},
+      "scenes":[{"nodes":[0,1]}],"nodes":[{"mesh":0},{"extensions":{"KHR_lights_punctual":{"light":0}}}],)";
+    return dir.Write("scene.gltf", Triangle().Json(rest + kTriangleMesh + "," + kLamp));
+  };
+  SceneDescription s = LoadGltf(load(R"({"innerConeAngle":0.5,"outerConeAngle":0.5})"));
+  ASSERT_EQ(s.punctual_lights.size(), 1u);
+  EXPECT_EQ(s.punctual_lights[0].inner_cone_deg, s.punctual_lights[0].outer_cone_deg);
+  EXPECT_NEAR(s.punctual_lights[0].outer_cone_deg, 0.5 * 180 / 3.14159265358979, 1e-4);
+  s = LoadGltf(load(R"({"innerConeAngle":0.4999,"outerConeAngle":0.5})"));
+  EXPECT_EQ(s.punctual_lights[0].inner_cone_deg, s.punctual_lights[0].outer_cone_deg);
+  EXPECT_THAT(ErrorOf(load(R"({"innerConeAngle":0,"outerConeAngle":0})")), HasSubstr("spot cone angles"));
+}
+
 TEST(GltfLoader, MaterialMapping) {
   test_util::TempDir dir("pf_gltf_test");
   const std::string rest = R"("scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],

@@ -285,6 +285,54 @@ TEST(PunctualLights, PhotonPowerIsTheLightsPower) {
       (1 - ci) / cone);
 }
 
+// A hard-edged spot (inner = outer angle: Blender's export of a spot lamp without blend): full
+// intensity up to the cone's angle and nothing beyond, no division by the empty falloff band, and
+// photons of power 2π·I·(1 − cos θo) in all, every one inside the cone.
+TEST(PunctualLights, AHardEdgedSpotLightsItsConeFullyAndNothingBeyond) {
+  PunctualLight spot = SpotLight();
+  spot.inner_cone_deg = spot.outer_cone_deg = 30;
+  spot.position = {0, 0, 2};
+  spot.direction = Vec3(0, 0, -1);
+  const double co = std::cos(30 * M_PI / 180);
+  {
+    const SceneDescription scene = FloorWith(spot);
+    const EmbreeScene accel(scene);
+    const LightSampler lights(accel);
+    const LightSample ls = lights.SampleLight(0, 0.5f, 0.5f, 0.5f);
+    const auto falloff_at = [&](double cos_theta) {
+      const double tan_theta = std::sqrt(1 - cos_theta * cos_theta) / cos_theta;
+      const Vec3 p(float(2 * tan_theta), 0, 0);
+      const double d2 = 4 + double(p.x) * p.x;
+      return double(lights.Incidence(ls, p).irradiance.r) / (6.0 / d2);
+    };
+    EXPECT_NEAR(falloff_at(1.0), 1.0, 1e-6);
+    EXPECT_NEAR(falloff_at(co + 1e-4), 1.0, 1e-5);
+    EXPECT_EQ(falloff_at(co - 1e-4), 0.0);
+  }
+  SceneDescription s;
+  AddSphere(s, Vec3(0.0f), 3.0f, 5, AddMaterial(s, Material{.diffuse_reflectance = Rgb(0.5f)}), true,
+            kNoLight, false);
+  spot.light = 0;
+  s.punctual_lights = {spot};
+  s.num_lights = 1;
+  const EmbreeScene accel(s);
+  const LightSampler lights(accel);
+  const Rgb power = spot.intensity * float(2 * M_PI * (1 - co));
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(lights.total_power()[c], power[c], 1e-5 * power[c]);
+  PhotonTracerOptions o;
+  o.photons = 20480;
+  const PhotonTracingResult r = TracePhotons(accel, lights, o);
+  ASSERT_EQ(r.direct.size(), size_t(o.photons));
+  Rgb sum;
+  for (const TracedPhoton& p : r.direct) {
+    ASSERT_TRUE(p.power.IsFinite());
+    sum += p.power;
+    EXPECT_GE(Dot(Normalize(p.position - Vec3(spot.position)), spot.direction), co - 1e-3)
+        << "a photon outside the cone";
+  }
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sum[c], power[c], 1e-3 * power[c]) << "channel " << c;
+}
+
 // A directional light's photons leave a disc of the bounding sphere's radius R with Φ = E⊥·π·R²
 // in all: a tilted square of area A receives E⊥·A·cos θ of it.
 TEST(PunctualLights, DirectionalPhotonsDeliverIrradianceTimesArea) {
