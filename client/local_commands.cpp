@@ -284,6 +284,8 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
     if (d.masked) {
       j["rmse_masked"] = d.rmse_masked;
       j["rmse_lowfreq"] = d.rmse_lowfreq;
+      j["mean_masked"] = d.mean_masked_a;
+      j["reference_mean_masked"] = d.mean_masked_b;
       j["pixels_masked"] = d.pixels_masked;
       j["blocks_lowfreq"] = d.blocks_lowfreq;
     }
@@ -295,8 +297,10 @@ int RunDiff(const std::string& a_path, const std::string& ref_path, const std::s
         d.rmse, d.rmse_display, d.display_white, d.relative_mse, d.max_abs_error, d.max_x, d.max_y, d.mean_a,
         d.mean_b);
     if (d.masked)
-      std::printf("RMSE masked %.6g (%zu pixels away from emitters)  low-frequency %.6g (%zu 4x4 blocks)\n",
-                  d.rmse_masked, d.pixels_masked, d.rmse_lowfreq, d.blocks_lowfreq);
+      std::printf(
+          "RMSE masked %.6g (%zu pixels away from emitters)  low-frequency %.6g (%zu 4x4 blocks)  mean there "
+          "%.6g vs %.6g\n",
+          d.rmse_masked, d.pixels_masked, d.rmse_lowfreq, d.blocks_lowfreq, d.mean_masked_a, d.mean_masked_b);
   }
   if (!error_image.empty()) {
     const Image err = FalseColourError(a, ref, error_scale > 0 ? error_scale : d.max_abs_error);

@@ -86,6 +86,16 @@ void AddMaskedMetrics(const Image& a, const Image& reference, const std::vector<
   stats->masked = true;
   stats->rmse_masked = RmseOver(a, reference, kept);
   stats->pixels_masked = size_t(std::count(kept.begin(), kept.end(), uint8_t(1)));
+  double sum_a = 0, sum_b = 0;
+  for (size_t i = 0; i < kept.size(); ++i)
+    if (kept[i]) {
+      sum_a += (double(a[i].r) + a[i].g + a[i].b) / 3.0;
+      sum_b += (double(reference[i].r) + reference[i].g + reference[i].b) / 3.0;
+    }
+  if (stats->pixels_masked > 0) {
+    stats->mean_masked_a = sum_a / double(stats->pixels_masked);
+    stats->mean_masked_b = sum_b / double(stats->pixels_masked);
+  }
   constexpr int kB = kLowFrequencyBlock;
   double sum = 0;
   size_t blocks = 0;

@@ -47,8 +47,12 @@ struct ImageDiffStats {
   //                  outside the mask: pixel noise averages out 16-fold in a block, what is left
   //                  are errors wider than a block — the photon map's blotches (Wald 1999,
   //                  §3.3.2) and biases.
+  //   mean_masked_a, mean_masked_b = the two images' means over the pixels of rmse_masked: the
+  //                  brightness away from the emitters, which their partly covered pixels and
+  //                  their radiance (10–20 against 0.5) would otherwise dominate.
   bool masked = false;
   double rmse_masked = 0, rmse_lowfreq = 0;
+  double mean_masked_a = 0, mean_masked_b = 0;
   size_t pixels_masked = 0;   // pixels in rmse_masked
   size_t blocks_lowfreq = 0;  // 4x4 blocks in rmse_lowfreq
 };

@@ -88,6 +88,11 @@ TEST(ImageDiffMasked, HandComputedMaskedAndLowFrequencyRmse) {
   EXPECT_NEAR(s.rmse_masked, std::sqrt(15.0 / 240.0), 1e-12);
   // Block means: 1/16 in 3 channels of one block, 0 elsewhere; 3 · 5 values.
   EXPECT_NEAR(s.rmse_lowfreq, std::sqrt(3.0 / 256.0 / 15.0), 1e-12);
+  // Means over the 80 pixels: pixel (5,5) adds 1/80, the checkerboard averages to 0.5; the
+  // emitter pixel's 10.5 counts only in the whole-image mean.
+  EXPECT_NEAR(s.mean_masked_a, 0.5 + 1.0 / 80.0, 1e-12);
+  EXPECT_NEAR(s.mean_masked_b, 0.5, 1e-12);
+  EXPECT_NEAR(s.mean_a, 0.5 + (1.0 + 10.0) / 96.0, 1e-12);
   // The whole-image RMSE still sees the emitter pixel.
   EXPECT_GT(s.rmse, s.rmse_masked);
   // Without a mask the masked metrics are absent.
