@@ -50,42 +50,24 @@ Rgb SampleOneLight(const EmbreeScene& scene, const LightSampler& lights, size_t 
 
 MonteCarloDirectLight::MonteCarloDirectLight(const EmbreeScene& scene, const LightSampler& lights,
                                              DirectLightOptions options)
-    : scene_(scene), lights_(lights), options_(options) {
-  const size_t n = lights.num_lights();
-  double total = 0;
-  for (size_t i = 0; i < n; ++i) total += lights.light_power(i).Luminance();
-  const float beta = std::clamp(options.uniform_fraction, 0.0f, 0.999f);
-  double acc = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const double by_power = total > 0 ? lights.light_power(i).Luminance() / total : 1.0 / double(n);
-    acc += (1.0 - beta) * by_power + beta / double(n);
-    light_cdf_.push_back(float(acc));
-  }
-  if (!light_cdf_.empty()) light_cdf_.back() = 1.0f;
-  // The probability of light i is the width of its stratum of the float CDF that Estimate
-  // searches, not p_i itself: the weights then match the choice exactly (a light too dim for
-  // a float stratum, < ~6e-8 of the power with β = 0, is never chosen and weighs nothing).
-  for (size_t i = 0; i < n; ++i) light_prob_.push_back(light_cdf_[i] - (i > 0 ? light_cdf_[i - 1] : 0.0f));
-}
+    : scene_(scene), lights_(lights), options_(options), choice_(lights, options.uniform_fraction) {}
 
 Rgb MonteCarloDirectLight::Estimate(const Bsdf& bsdf, const Vec3& x, const Vec3& wo, uint32_t lobes,
                                     Sampler& sampler, const PathVertexSlots& slots,
                                     TraceCounters& counters) const {
-  if (light_cdf_.empty() || !bsdf.HasNonDelta()) return Rgb(0.0f);
+  if (choice_.empty() || !bsdf.HasNonDelta()) return Rgb(0.0f);
   const int n = std::max(1, options_.shadow_rays);
   Rgb sum(0.0f);
   for (int j = 0; j < n; ++j) {
     // Stratified over the lights' CDF: light i receives N·p_i ± 1 of the N rays (§4.2.1).
     const uint32_t sj = uint32_t(j), sn = uint32_t(n);
     const float u = (float(j) + sampler.Get1D(slots.light_stratum, sj, sn)) / float(n);
-    const size_t i =
-        std::min<size_t>(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u) - light_cdf_.begin(),
-                         light_cdf_.size() - 1);
-    if (!(light_prob_[i] > 0.0f)) continue;  // an empty stratum: u cannot land in it
+    const LightChoice::Choice light = choice_.Choose(u);
+    if (!(light.probability > 0.0f)) continue;  // an empty stratum: u cannot land in it
     const float u_select = sampler.Get1D(slots.light_select, sj, sn);
-    const Rgb c = SampleOneLight(scene_, lights_, i, bsdf, x, wo, lobes, u_select,
+    const Rgb c = SampleOneLight(scene_, lights_, light.light, bsdf, x, wo, lobes, u_select,
                                  sampler.Get2D(slots.light_point, sj, sn), counters);
-    sum += c * (1.0f / light_prob_[i]);
+    sum += c * (1.0f / light.probability);
   }
   return sum * (1.0f / float(n));
 }

@@ -6,8 +6,8 @@
 //   selection probability ∝ power — sample j takes the j-th stratum of [0,1) through the
 //   lights' power CDF, so light i gets N·p_i ± 1 rays — then a point ∝ power within the light.
 //   Option beyond the thesis: `uniform_fraction` β mixes a uniform choice into the light
-//   probabilities, p_i = (1−β)·Φ_i/ΣΦ + β/L (defensive sampling: a dim but close light is
-//   never starved). The estimate Σ_j f·Le·V·G / (N·p_i·p(y|i)) is unbiased for any β < 1.
+//   probabilities, p_i = (1−β)·Φ_i/ΣΦ + β/L (light_choice.h: a dim but close light is never
+//   starved). The estimate Σ_j f·Le·V·G / (N·p_i·p(y|i)) is unbiased for any β < 1.
 //
 // * PhotonDirect (§4.2.3): query the direct photons (tagged with their light) at x; E_i = power
 //   of the found photons from light i. Contributing lights (E_i > 0) get
@@ -33,6 +33,7 @@
 #include "common/accel/embree_scene.h"
 #include "common/core/rng.h"
 #include "common/estimators/trace_counters.h"
+#include "common/lights/light_choice.h"
 #include "common/lights/light_sampler.h"
 #include "common/materials/bsdf.h"
 #include "common/photon/photon_map.h"
@@ -56,7 +57,7 @@ class MonteCarloDirectLight {
   const EmbreeScene& scene_;
   const LightSampler& lights_;
   DirectLightOptions options_;
-  std::vector<float> light_cdf_, light_prob_;
+  LightChoice choice_;
 };
 
 // One light sample's contribution f·Le·V·cos·cos/d² / pdf_area (pdf within the light), or 0:

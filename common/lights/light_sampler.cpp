@@ -84,6 +84,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
     g.prob.push_back(float(weights[i]));  // normalised below
     g.power += emission[i] * (kPi * scene.triangle_area(tri));
   }
+  within_prob_by_tri_.assign(s.triangles.size(), 0.0f);
   for (LightGroup& g : lights_) {
     if (g.triangles.empty()) continue;
     double sum = 0;
@@ -94,6 +95,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(&scene) {
       acc += g.prob[i];
       g.prob[i] = float(g.prob[i] / sum);
       g.cdf[i] = float(acc / sum);
+      within_prob_by_tri_[g.triangles[i]] = g.prob[i];
     }
     g.cdf.back() = 1.0f;
   }
@@ -271,6 +273,16 @@ LightSample LightSampler::EmitterSample(size_t emitter, float u1, float u2) cons
   }
   const uint32_t tri = triangles_[emitter];
   return MakeSample(tri, u1, u2, select_prob_by_tri_[tri]);
+}
+
+size_t LightSampler::LightOfTriangle(uint32_t tri) const {
+  const SceneDescription& s = scene_->description();
+  return LightIndex(s.triangle_light.empty() ? kNoLight : s.triangle_light[tri]);
+}
+
+float LightSampler::PdfAreaWithinLight(uint32_t tri) const {
+  const float p = within_prob_by_tri_[tri];
+  return p > 0.0f ? p / scene_->triangle_area(tri) : 0.0f;
 }
 
 float LightSampler::PdfArea(uint32_t tri) const {

@@ -130,6 +130,10 @@ class LightSampler {
   LightSample SampleLight(size_t light, float u_select, float u1, float u2) const;
   // Which light a scene light id is (kNoLight → the extra one); num_lights() if unknown.
   size_t LightIndex(uint32_t scene_light_id) const;
+  // The light (0..num_lights()−1) emitting triangle `tri` is part of, and the density per unit
+  // area with which SampleLight of that light gives a point on it (0 if it does not emit).
+  size_t LightOfTriangle(uint32_t tri) const;
+  float PdfAreaWithinLight(uint32_t tri) const;
   // Punctual light `index` (of punctual()) as SampleLight gives it: its delta sample, pdf_area 1.
   LightSample PunctualSample(size_t index) const { return MakePunctualSample(uint32_t(index), 1.0f); }
 
@@ -159,6 +163,7 @@ class LightSampler {
   float environment_prob_ = 0;                     // its selection probability
   std::vector<float> cdf_;                         // cumulative selection probability, last = 1
   std::vector<float> select_prob_by_tri_;          // per scene triangle; 0 for non-emitters
+  std::vector<float> within_prob_by_tri_;          // the same within the triangle's light
   Rgb total_power_;
 };
 

@@ -19,7 +19,7 @@ inline float PowerHeuristic(float pdf_a, float pdf_b) {
 }  // namespace
 
 PathTracer::PathTracer(const EmbreeScene& scene, const LightSampler& lights, PathTracerOptions options)
-    : scene_(scene), lights_(lights), options_(options) {}
+    : scene_(scene), lights_(lights), options_(options), choice_(lights, options.light_uniform_fraction) {}
 
 Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
@@ -40,7 +40,7 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
         const Rgb le = environment->Radiance(ray.direction);
         radiance +=
             throughput * le *
-            (previous_was_delta ? 1.0f : PowerHeuristic(previous_pdf, lights_.PdfEnvironment(ray.direction)));
+            (previous_was_delta ? 1.0f : PowerHeuristic(previous_pdf, choice_.PdfEnvironment(ray.direction)));
       }
       break;
     }
@@ -55,7 +55,7 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
       } else {
         const float cos_light = -Dot(ray.direction, hit->geometric_normal);
         const float dist2 = LengthSquared(hit->position - previous_position);
-        const float pdf_light = lights_.PdfArea(hit->triangle) * dist2 / cos_light;
+        const float pdf_light = choice_.PdfArea(hit->triangle) * dist2 / cos_light;
         radiance += throughput * material.emission * PowerHeuristic(previous_pdf, pdf_light);
       }
     }
@@ -64,10 +64,12 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
     const Vec3 wo = -ray.direction;
 
     // Next-event estimation: one light sample, MIS-weighted against BSDF sampling.
-    if (bsdf.HasNonDelta() && !lights_.empty()) {
-      const float u_sel = sampler.Get1D(slots.light_select);
+    if (bsdf.HasNonDelta() && !choice_.empty()) {
+      const LightChoice::Choice light = choice_.Choose(sampler.Get1D(slots.light_select));
       const Sample2 u = sampler.Get2D(slots.light_point);
-      const LightSample ls = lights_.Sample(u_sel, u.u, u.v);
+      LightSample ls = lights_.SampleLight(light.light, light.u, u.u, u.v);
+      // The choice's probability into the sample's density, as the rest of this step expects.
+      ls.pdf_area *= light.probability;
       const Vec3 to_light = ls.position - hit->position;
       const float dist2 = LengthSquared(to_light);
       if (ls.delta()) {

@@ -2,8 +2,12 @@
 // The reference path tracer (`--integrator path`): unbiased, next-event estimation with
 // multiple importance sampling (power heuristic), Russian roulette, delta lobes followed
 // exactly. Every photon-map image is measured against it.
+// Next-event estimation picks a light by LightChoice with half of its probability uniform over the
+// lights (light_choice.h): by power alone, a sky of hundreds of watts starves a spot lamp or an
+// emitting panel that lights part of the scene as brightly (docs/results/blender-cycles.md).
 
 #include "common/accel/embree_scene.h"
+#include "common/lights/light_choice.h"
 #include "common/lights/light_sampler.h"
 #include "common/render/integrator.h"
 
@@ -16,6 +20,9 @@ struct PathTracerOptions {
   // Hard safety cap on path length. Paths are terminated by RR long before this; the cap only
   // protects against pathological inputs (it is a negligible bias: throughput ~ 0 by then).
   int max_depth = 1024;
+  // β of the light choice for next-event estimation (light_choice.h). Not a render setting: one
+  // value serves every scene (the mixture is never worse than half of either pure rule).
+  float light_uniform_fraction = 0.5f;
 };
 
 class PathTracer final : public Integrator {
@@ -28,6 +35,7 @@ class PathTracer final : public Integrator {
   const EmbreeScene& scene_;
   const LightSampler& lights_;
   PathTracerOptions options_;
+  LightChoice choice_;
 };
 
 }  // namespace pf
