@@ -119,6 +119,14 @@ TEST_F(LocalFarmTest, TexturedGlbRendersOnTheFarmAsLocally) {
   ExpectNoProcessLeft();
 }
 
+// A Blender export on the farm: scenes/blender-studio (glTF from Blender's exporter with a PNG
+// texture, a spot lamp whose cone Blender writes hard-edged, glass, and the manifest's HDR sky):
+// the same bits on two workers as locally, both integrators.
+TEST_F(LocalFarmTest, BlenderExportRendersOnTheFarmAsLocally) {
+  ExpectShippedSceneRendersOnTheFarmAsLocally("blender-studio", "sky, spot and panel");
+  ExpectNoProcessLeft();
+}
+
 // `pf render` of the shipped scene with the photon map (`photons`, k = 20) at 24x16, no PNG, quiet.
 std::vector<std::string> PhotonMapRender24x16(const std::string& photons,
                                               const std::vector<std::string>& more) {

@@ -3,11 +3,14 @@ reference image of the same scene (docs/results/blender-cycles.md).
 
 Run through tools/blender/cycles_reference.sh (Blender 3.4, Debian's `blender` package):
     blender --background --factory-startup --python-exit-code 1 --python tools/blender/blender_box.py -- \
-        OUT_DIR RESOLUTION SAMPLES VARIANT
+        OUT_DIR RESOLUTION SAMPLES VARIANT [SEED]
 
 Writes OUT_DIR/blender-box.gltf (+ .bin) and OUT_DIR/cycles-<VARIANT>-<RESOLUTION>.exr (linear,
-32-bit). VARIANT `principled` renders the materials as Blender shows them (Cycles' Principled
-BSDF); `lambert` replaces every non-emitting material by Cycles' Diffuse BSDF (Lambert) of the
+32-bit), and prints `cycles_cpu_seconds=<s>`, the process CPU time of the render call
+(bench/cycles_curve.py). SEED (default 1, the references') is Cycles' sampling seed.
+
+VARIANT `principled` renders the materials as Blender shows them (Cycles' Principled BSDF);
+`lambert` replaces every non-emitting material by Cycles' Diffuse BSDF (Lambert) of the
 base colour and the emitter by a pure Emission shader, which is what scenes/blender-box's
 blender-box-lambert.json asks of pf: the two renderers then share the scattering model exactly
 and differ only in light transport.
@@ -25,11 +28,14 @@ they do not change the exported file:
 """
 import math
 import sys
+import time
 
 import bpy
 
-out_dir, resolution, samples, variant = sys.argv[sys.argv.index("--") + 1:][:4]
+arguments = sys.argv[sys.argv.index("--") + 1:]
+out_dir, resolution, samples, variant = arguments[:4]
 resolution, samples = int(resolution), int(samples)
+seed = int(arguments[4]) if len(arguments) > 4 else 1
 if variant not in ("principled", "lambert"):
     sys.exit(f"blender_box.py: VARIANT must be principled or lambert, not {variant!r}")
 
@@ -166,7 +172,7 @@ cycles.caustics_refractive = True
 cycles.blur_glossy = 0.0
 cycles.pixel_filter_type = "BOX"
 cycles.filter_width = 1.0
-cycles.seed = 1
+cycles.seed = seed
 scene.view_settings.view_transform = "Standard"
 scene.view_settings.look = "None"
 scene.view_settings.exposure = 0.0
@@ -176,4 +182,6 @@ scene.render.image_settings.color_depth = "32"
 scene.render.image_settings.exr_codec = "ZIP"
 scene.render.image_settings.color_mode = "RGB"
 scene.render.filepath = f"{out_dir}/cycles-{variant}-{resolution}.exr"
+start = time.process_time()
 bpy.ops.render.render(write_still=True)
+print(f"cycles_cpu_seconds={time.process_time() - start:.3f}")
