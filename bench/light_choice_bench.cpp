@@ -2,8 +2,8 @@
 // error of the path tracer at equal samples for several β (β = 0: by power alone, the thesis's
 // rule; β > 0: that share uniform over the lights), side by side in one run, on the shipped scenes
 // with more than one light and a converged reference. Every row renders the same pixel samples
-// (seeds 1..repeats) with the same rays, so the CPU time is printed only to show it does not
-// change; the errors are `pf diff --scene`'s (display-clamped, masked away from the emitters,
+// (seeds 1..repeats); only the shadow rays go to other lights, so the CPU time is printed to show
+// it hardly changes; the errors are `pf diff --scene`'s (display-clamped, masked away from the emitters,
 // 4x4-block low-frequency) against the reference, medians over the seeds.
 //
 //   build/bench/light_choice_bench [--spp 32] [--repeats 2] [--betas 0,0.25,0.5,0.75]
@@ -102,7 +102,7 @@ int main(int argc, char** argv) {
     std::map<std::string, double> base;
     for (const std::string& beta_text : Split(betas)) {
       PathTracerOptions options;
-      options.light_uniform_fraction = std::stof(beta_text);
+      options.nee_uniform_fraction = std::stof(beta_text);
       const PathTracer tracer(accel, lights, options);
       std::vector<double> cpu, display, masked, lowfreq;
       for (int r = 1; r <= repeats; ++r) {
@@ -122,7 +122,7 @@ int main(int argc, char** argv) {
                   m_display / base["display"], m_masked / base["masked"], m_lowfreq / base["lowfreq"]);
       out.push_back({{"scene", name},
                      {"lights", lights.num_lights()},
-                     {"beta", options.light_uniform_fraction},
+                     {"beta", options.nee_uniform_fraction},
                      {"spp", spp},
                      {"cpu_s", cpu},
                      {"rmse_display", display},

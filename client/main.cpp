@@ -313,8 +313,9 @@ int main(int argc, char** argv) {
   diff->add_option(
           "--scene", diff_scene,
           "The scene shown: adds rmse_masked (without the emitters seen directly and a 2-pixel band "
-          "around them) and rmse_lowfreq (RMSE of 4x4-pixel block means outside that mask); emitters "
-          "are found by tracing the scene's camera at the images' resolution")
+          "around them), rmse_lowfreq (RMSE of 4x4-pixel block means outside that mask) and the two "
+          "images' means outside it; emitters are found by tracing the scene's camera at the images' "
+          "resolution")
       ->check(CLI::ExistingFile);
   diff->add_option("--camera", diff_camera, "With --scene: the named camera (default: the scene's first)");
   std::vector<int> diff_region;

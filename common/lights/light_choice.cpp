@@ -20,7 +20,8 @@ LightChoice::LightChoice(const LightSampler& lights, float uniform_fraction) : l
   // The probability of light i is the width of its stratum of the float CDF that Choose
   // searches, not p_i itself: the weights then match the choice exactly.
   for (size_t i = 0; i < n; ++i) prob_.push_back(cdf_[i] - (i > 0 ? cdf_[i - 1] : 0.0f));
-  if (lights.environment()) environment_light_ = n - 1;
+  if (const EnvironmentLight* environment = lights.environment())
+    environment_light_ = lights.LightIndex(environment->light());
 }
 
 LightChoice::Choice LightChoice::Choose(float u) const {

@@ -9,8 +9,8 @@
 // not how much reaches a given point, so a spot lamp of 7 W that lights the floor under it as
 // brightly as a sky of 600 W (the sky's power counts every ray through the scene's bounding disc)
 // gets 1 % of the samples by power and its pool is noise (docs/results/blender-cycles.md); with
-// β the weight of any light's sample is at most L/β times its contribution, and no light gets
-// less than half (β = 1/2) of what either rule alone would give it.
+// β no light gets less than β/L of the samples, and with β = 1/2 none gets less than half of what
+// either rule alone would give it, so the estimate's second moment is at most twice either rule's.
 
 #include <cstddef>
 #include <cstdint>
@@ -44,7 +44,7 @@ class LightChoice {
  private:
   const LightSampler* lights_;
   std::vector<float> cdf_, prob_;
-  size_t environment_light_ = 0;  // the environment's light number (the last), if there is one
+  size_t environment_light_ = 0;  // the environment's light number, if there is one
 };
 
 }  // namespace pf

@@ -285,9 +285,4 @@ float LightSampler::PdfAreaWithinLight(uint32_t tri) const {
   return p > 0.0f ? p / scene_->triangle_area(tri) : 0.0f;
 }
 
-float LightSampler::PdfArea(uint32_t tri) const {
-  const float p = select_prob_by_tri_[tri];
-  return p > 0.0f ? p / scene_->triangle_area(tri) : 0.0f;
-}
-
 }  // namespace pf

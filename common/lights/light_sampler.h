@@ -8,8 +8,9 @@
 // estimate weighs the choice only, so next-event estimation stays unbiased whatever its error
 // (the pdf is the one used, p/A). Photons likewise carry Le·texel(x)·π/(p/A·N) (photon_tracer.cpp):
 // their expected total is the exact power. total_power() and light_power() use the estimate.
-// Used for next-event estimation (path tracer, §4.2.1 direct light) and for photon emission
-// (§2.2: photons per light ∝ its power).
+// Sample's choice ∝ power over every emitter is photon emission's (§2.2: photons per light ∝ its
+// power) and the integrator pilot's; next-event estimation chooses a light by LightChoice
+// (light_choice.h) and a point on it by SampleLight.
 //
 // Punctual lights (point, spot, directional: punctual_light.h) are emitters too, numbered after
 // the triangles and chosen ∝ their power alike: point 4π·I, spot 2π·I·[(1 − cos θi) +
@@ -96,18 +97,14 @@ class LightSampler {
                             cdf_.size() - 1);
   }
   LightSample EmitterSample(size_t emitter, float u1, float u2) const;
-  // Density per unit area of sampling this point on triangle `tri` (0 if it does not emit).
-  float PdfArea(uint32_t tri) const;
   // Total emitted power Σ π·A·Le + Σ Φ of the punctual lights + the environment's (RGB), W.
   const Rgb& total_power() const { return total_power_; }
   size_t num_emitting_triangles() const { return triangles_.size(); }
   // Every emitter EmitterIndex can give: the triangles, then the punctual lights, then the environment.
   size_t num_emitters() const { return triangles_.size() + punctual_.size() + (environment_ ? 1 : 0); }
   const std::vector<PunctualEmitter>& punctual() const { return punctual_; }
-  // The environment (null if the scene has none), and the solid-angle density with which Sample
-  // gives direction wi from it (its choice included): for MIS with BSDF samples that escape.
+  // The environment (null if the scene has none).
   const EnvironmentLight* environment() const { return environment_.get(); }
-  float PdfEnvironment(const Vec3& wi) const { return environment_prob_ * environment_->Pdf(wi); }
 
   // A delta sample's light at x (ls.delta()), and whether nothing blocks the way from x (ng: the
   // geometric normal there, the shadow ray's origin is offset along it) to it.

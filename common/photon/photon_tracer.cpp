@@ -162,7 +162,7 @@ struct TraceShared {
 
 // Stratified light choice: photon i takes the i-th stratum of [0,1), so every light gets
 // N·p_light photons up to ±1 (§2.2: photons per light ∝ its power).
-float LightChoice(double jitter, uint64_t index, uint64_t emitted) {
+float StratifiedLightUniform(double jitter, uint64_t index, uint64_t emitted) {
   return std::min(float((double(index) + jitter) / double(emitted)), 0x1.fffffep-1f);
 }
 
@@ -178,7 +178,7 @@ struct PhotonStart {
 // The photon's emitter, from its light stratum's jitter (the photon's first number).
 const PhotonEmitter& EmitterOf(const LightSampler& lights, const TraceShared& shared, double jitter,
                                uint64_t index) {
-  return shared.emitters[lights.EmitterIndex(LightChoice(jitter, index, shared.emitted))];
+  return shared.emitters[lights.EmitterIndex(StratifiedLightUniform(jitter, index, shared.emitted))];
 }
 const PhotonEmitter& ChooseEmitter(const LightSampler& lights, const PhotonTracerOptions& o,
                                    const TraceShared& shared, Sampler& sampler, uint64_t index) {

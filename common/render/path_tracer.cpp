@@ -19,7 +19,7 @@ inline float PowerHeuristic(float pdf_a, float pdf_b) {
 }  // namespace
 
 PathTracer::PathTracer(const EmbreeScene& scene, const LightSampler& lights, PathTracerOptions options)
-    : scene_(scene), lights_(lights), options_(options), choice_(lights, options.light_uniform_fraction) {}
+    : scene_(scene), lights_(lights), options_(options), choice_(lights, options.nee_uniform_fraction) {}
 
 Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
@@ -67,6 +67,7 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
     if (bsdf.HasNonDelta() && !choice_.empty()) {
       const LightChoice::Choice light = choice_.Choose(sampler.Get1D(slots.light_select));
       const Sample2 u = sampler.Get2D(slots.light_point);
+      if (!(light.probability > 0.0f)) continue;  // never: u < 1 lands in a non-empty stratum
       LightSample ls = lights_.SampleLight(light.light, light.u, u.u, u.v);
       // The choice's probability into the sample's density, as the rest of this step expects.
       ls.pdf_area *= light.probability;

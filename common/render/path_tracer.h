@@ -20,9 +20,10 @@ struct PathTracerOptions {
   // Hard safety cap on path length. Paths are terminated by RR long before this; the cap only
   // protects against pathological inputs (it is a negligible bias: throughput ~ 0 by then).
   int max_depth = 1024;
-  // β of the light choice for next-event estimation (light_choice.h). Not a render setting: one
-  // value serves every scene (the mixture is never worse than half of either pure rule).
-  float light_uniform_fraction = 0.5f;
+  // β of the light choice for next-event estimation (light_choice.h). Not a render setting (the
+  // photon-map integrator's `light-uniform-fraction` does not reach it): one value serves every
+  // scene, since the mixture's second moment is at most twice either pure rule's.
+  float nee_uniform_fraction = 0.5f;
 };
 
 class PathTracer final : public Integrator {

@@ -61,6 +61,9 @@ bool MapGltfLight(const tinygltf::Light& g, size_t index, const mgf::Affine& wor
           "(radians)");
     l.inner_cone_deg = float(inner * 90.0 / half_pi);
     l.outer_cone_deg = float(outer * 90.0 / half_pi);
+    // Below the manifest's band the cone's float cosine rounds to 1: a spot of no power.
+    if (!(l.outer_cone_deg >= kMinSpotFalloffDeg))
+      fail("outerConeAngle must be at least " + std::to_string(kMinSpotFalloffDeg) + " degrees");
     // A falloff band narrower than the manifest's limit is a hard edge too: SpotFalloff and the
     // photon emitter's cone sampling need no band then (punctual_light.h, photon_tracer.cpp).
     if (l.outer_cone_deg < l.inner_cone_deg + kMinSpotFalloffDeg) l.inner_cone_deg = l.outer_cone_deg;

@@ -98,10 +98,10 @@ ImageDiffStats StudioAgainstCycles(const char* integrator, uint32_t spp, uint64_
 
 // The path tracer against Cycles where light arrives from an HDR sky, a spot lamp and an emitting
 // panel, over a textured floor, copper and two kinds of glass. Measured at 256 spp: mean ratio
-// 1.008 away from the panel, rmse_lowfreq 0.006 of white; pf's 65536-spp reference: 1.0076. Tolerance 1.5 % on the mean: the two
-// renderers' models differ in small known ways (docs/results/blender-cycles.md: Cycles 3.4's spot
-// lamp is dimmer off its axis by cos θ, its rough glass scatters between microfacets, its metal's
-// Fresnel curve is not Schlick's), each below 1 % of this image's mean.
+// 1.008 away from the panel, rmse_lowfreq 0.006 of white; pf's 65536-spp reference: 1.0076. Tolerance 1.5 %
+// on the mean: the two renderers' models differ in small known ways (docs/results/blender-cycles.md:
+// Cycles 3.4's spot lamp is dimmer off its axis by cos θ, its rough glass scatters between microfacets, its
+// metal's Fresnel curve is not Schlick's), each below 1 % of this image's mean.
 TEST(CyclesReference, PathTracerAgreesWithCyclesOnTheBlenderStudio) {
   const ImageDiffStats s = StudioAgainstCycles("path", 256, 0);
   ASSERT_EQ(s.nonfinite_a, 0u);

@@ -187,7 +187,8 @@ TEST(GltfLoader, SpotConeAnglesOutOfOrderAreAnError) {
 
 // Blender's exporter writes innerConeAngle = outerConeAngle for a spot lamp without blend, which
 // the specification does not allow (inner < outer): it is read as a hard-edged cone, and a band
-// narrower than the manifest's kMinSpotFalloffDeg too. An outer angle of 0 is still refused.
+// narrower than the manifest's kMinSpotFalloffDeg too. An outer angle of 0 (or below that limit) is
+// still refused.
 TEST(GltfLoader, SpotWithEqualConeAnglesIsHardEdged) {
   test_util::TempDir dir("pf_gltf_test");
   const auto load = [&](const std::string& spot) {
@@ -204,6 +205,9 @@ TEST(GltfLoader, SpotWithEqualConeAnglesIsHardEdged) {
   s = LoadGltf(load(R"({"innerConeAngle":0.4999,"outerConeAngle":0.5})"));
   EXPECT_EQ(s.punctual_lights[0].inner_cone_deg, s.punctual_lights[0].outer_cone_deg);
   EXPECT_THAT(ErrorOf(load(R"({"innerConeAngle":0,"outerConeAngle":0})")), HasSubstr("spot cone angles"));
+  // A cone whose float cosine is 1 would carry no power: refused with the element named.
+  EXPECT_THAT(ErrorOf(load(R"({"innerConeAngle":0,"outerConeAngle":0.0001})")),
+              HasSubstr("scene.gltf: KHR_lights_punctual.lights[0]: outerConeAngle must be at least"));
 }
 
 TEST(GltfLoader, MaterialMapping) {

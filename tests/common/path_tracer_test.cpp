@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <numeric>
 
 #include "common/accel/embree_scene.h"
@@ -160,6 +163,51 @@ TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
     const double measured = sums[i].Mean() / spp;
     EXPECT_NEAR(measured, expected, 0.01 * expected) << "pixel (" << px << "," << py << ")";
     EXPECT_GT(expected, 0.01);
+  }
+}
+
+// The same floor under the same 0.2 m light (2.5 W) and a uniform sky of radiance 0.05 (about
+// 100 W through the scene's bounding disc): the light choice (light_choice.h) gives the small
+// light 2.5 % of the light samples by power and 26 % with half uniform; both must render the
+// exact irradiance Le·Ω(x) + L_sky·(π − Ω(x)), Ω the light's projected solid angle (the light
+// hides the sky behind it), so MIS with the choice's densities must be right on both sides.
+TEST(PathTracerAnalytic, LambertianPlaneUnderAnAreaLightAndASky) {
+  SceneDescription scene = testing::FloorUnderSquareLight(0.1f);
+  constexpr double kSky = 0.05;
+  scene.environment.emplace();
+  scene.environment->color = Rgb(float(kSky));
+  scene.environment->light = scene.num_lights++;
+  const std::vector<Vec3> light_polygon = {
+      {-0.1f, -0.1f, 1}, {-0.1f, 0.1f, 1}, {0.1f, 0.1f, 1}, {0.1f, -0.1f, 1}};
+  const Camera camera(testing::FloorCamera());
+  const EmbreeScene accel(scene);
+  const LightSampler lights(accel);
+  ASSERT_EQ(lights.num_lights(), 2u);
+  const std::vector<uint32_t> pixels = {16 * 32 + 16, 20 * 32 + 8, 24 * 32 + 24, 12 * 32 + 4, 28 * 32 + 16};
+  for (const float beta : {0.5f, 0.0f}) {
+    const PathTracer tracer(accel, lights, PathTracerOptions{.nee_uniform_fraction = beta});
+    const uint32_t spp = 65536;
+    std::vector<Rgb> sums(pixels.size());
+    RenderPixels(tracer, camera, pixels, 0, spp, 11, 0, sums);
+    double worst = 0;
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      const int px = int(pixels[i] % 32), py = int(pixels[i] / 32);
+      double expected = 0;
+      constexpr int kSub = 16;
+      for (int sy = 0; sy < kSub; ++sy)
+        for (int sx = 0; sx < kSub; ++sx) {
+          const Ray r = camera.GenerateRay(px, py, (sx + 0.5f) / kSub, (sy + 0.5f) / kSub);
+          const auto hit = accel.Intersect(r);
+          ASSERT_TRUE(hit && hit->material == 0) << "pixel must see the floor";
+          const double omega = PolygonIrradiance(hit->position, Vec3(0, 0, 1), light_polygon, 1.0);
+          expected += 0.5 / kPi * (20.0 * omega + kSky * (kPi - omega));
+        }
+      expected /= kSub * kSub;
+      EXPECT_NEAR(sums[i].Mean() / spp, expected, 0.01 * expected)
+          << "beta " << beta << " pixel (" << px << "," << py << ")";
+      worst = std::max(worst, std::fabs(sums[i].Mean() / spp - expected) / expected);
+    }
+    std::printf("[ analytic ] beta %.1f: largest relative pixel error %.2e\n", beta, worst);
   }
 }
 
