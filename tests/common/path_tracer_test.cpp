@@ -130,9 +130,28 @@ double PolygonIrradiance(const Vec3& x, const Vec3& n, const std::vector<Vec3>& 
   return le * 0.5 * std::fabs(sum);
 }
 
+// The mean of radiance(x) over the floor points x a 16×16 grid of camera rays through pixel (px, py)
+// hits: the pixel's exact box-filtered value. Every ray must see the floor (material 0); NaN if one
+// does not, which fails the comparison.
+template <typename Radiance>
+double FloorPixelMean(const Camera& camera, const EmbreeScene& accel, int px, int py, Radiance radiance) {
+  double sum = 0;
+  constexpr int kSub = 16;
+  for (int sy = 0; sy < kSub; ++sy)
+    for (int sx = 0; sx < kSub; ++sx) {
+      const Ray r = camera.GenerateRay(px, py, (sx + 0.5f) / kSub, (sy + 0.5f) / kSub);
+      const auto hit = accel.Intersect(r);
+      if (!hit || hit->material != 0) {
+        ADD_FAILURE() << "pixel (" << px << "," << py << ") must see the floor";
+        return std::nan("");
+      }
+      sum += radiance(hit->position);
+    }
+  return sum / (kSub * kSub);
+}
+
 TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
   const SceneDescription scene = testing::FloorUnderSquareLight(0.1f);
-  const uint32_t floor_id = 0;  // FloorUnderSquareLight: the floor is material 0
   // The 0.2 m square light, as the scene has it.
   const std::vector<Vec3> light_polygon = {
       {-0.1f, -0.1f, 1}, {-0.1f, 0.1f, 1}, {0.1f, 0.1f, 1}, {0.1f, -0.1f, 1}};
@@ -150,16 +169,9 @@ TEST(PathTracerAnalytic, LambertianPlaneUnderSmallAreaLight) {
   for (size_t i = 0; i < pixels.size(); ++i) {
     const int px = int(pixels[i] % 32), py = int(pixels[i] / 32);
     // Exact box-filtered reference: L = ρ·E/π averaged over a 16×16 grid inside the pixel.
-    double expected = 0;
-    constexpr int kSub = 16;
-    for (int sy = 0; sy < kSub; ++sy)
-      for (int sx = 0; sx < kSub; ++sx) {
-        const Ray r = camera.GenerateRay(px, py, (sx + 0.5f) / kSub, (sy + 0.5f) / kSub);
-        const auto hit = accel.Intersect(r);
-        ASSERT_TRUE(hit && hit->material == floor_id) << "pixel must see the floor";
-        expected += 0.5 / kPi * PolygonIrradiance(hit->position, Vec3(0, 0, 1), light_polygon, 20.0);
-      }
-    expected /= kSub * kSub;
+    const double expected = FloorPixelMean(camera, accel, px, py, [&](const Vec3& x) {
+      return 0.5 / kPi * PolygonIrradiance(x, Vec3(0, 0, 1), light_polygon, 20.0);
+    });
     const double measured = sums[i].Mean() / spp;
     EXPECT_NEAR(measured, expected, 0.01 * expected) << "pixel (" << px << "," << py << ")";
     EXPECT_GT(expected, 0.01);
@@ -192,17 +204,10 @@ TEST(PathTracerAnalytic, LambertianPlaneUnderAnAreaLightAndASky) {
     double worst = 0;
     for (size_t i = 0; i < pixels.size(); ++i) {
       const int px = int(pixels[i] % 32), py = int(pixels[i] / 32);
-      double expected = 0;
-      constexpr int kSub = 16;
-      for (int sy = 0; sy < kSub; ++sy)
-        for (int sx = 0; sx < kSub; ++sx) {
-          const Ray r = camera.GenerateRay(px, py, (sx + 0.5f) / kSub, (sy + 0.5f) / kSub);
-          const auto hit = accel.Intersect(r);
-          ASSERT_TRUE(hit && hit->material == 0) << "pixel must see the floor";
-          const double omega = PolygonIrradiance(hit->position, Vec3(0, 0, 1), light_polygon, 1.0);
-          expected += 0.5 / kPi * (20.0 * omega + kSky * (kPi - omega));
-        }
-      expected /= kSub * kSub;
+      const double expected = FloorPixelMean(camera, accel, px, py, [&](const Vec3& x) {
+        const double omega = PolygonIrradiance(x, Vec3(0, 0, 1), light_polygon, 1.0);
+        return 0.5 / kPi * (20.0 * omega + kSky * (kPi - omega));
+      });
       EXPECT_NEAR(sums[i].Mean() / spp, expected, 0.01 * expected)
           << "beta " << beta << " pixel (" << px << "," << py << ")";
       worst = std::max(worst, std::fabs(sums[i].Mean() / spp - expected) / expected);

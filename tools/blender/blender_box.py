@@ -27,10 +27,13 @@ they do not change the exported file:
     inside each pixel), a black world (the exporter writes no world; pf's scene has no sky).
 """
 import math
+import os
 import sys
-import time
 
 import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cycles_setup  # noqa: E402 (tools/blender/cycles_setup.py, beside this script)
 
 arguments = sys.argv[sys.argv.index("--") + 1:]
 out_dir, resolution, samples, variant = arguments[:4]
@@ -136,52 +139,11 @@ if variant == "lambert":
     strength_input = emission.inputs["Strength"]
 else:
     strength_input = bsdf.inputs["Emission Strength"]
-geometry = tree.nodes.new("ShaderNodeNewGeometry")
-front = tree.nodes.new("ShaderNodeMath")
-front.operation = "SUBTRACT"
-front.inputs[0].default_value = 1.0
-tree.links.new(geometry.outputs["Backfacing"], front.inputs[1])
-strength = tree.nodes.new("ShaderNodeMath")
-strength.operation = "MULTIPLY"
-strength.inputs[1].default_value = bsdf.inputs["Emission Strength"].default_value
-tree.links.new(front.outputs[0], strength.inputs[0])
-tree.links.new(strength.outputs[0], strength_input)
+cycles_setup.front_face_only(tree, bsdf.inputs["Emission Strength"].default_value, strength_input)
 
 world = bpy.data.worlds.new("black")
 world.use_nodes = False
 world.color = (0.0, 0.0, 0.0)
 scene.world = world
 
-scene.render.engine = "CYCLES"
-cycles = scene.cycles
-cycles.device = "CPU"
-cycles.samples = samples
-cycles.use_adaptive_sampling = False
-cycles.use_denoising = False
-cycles.sample_clamp_direct = 0.0
-cycles.sample_clamp_indirect = 0.0
-cycles.light_sampling_threshold = 0.0
-cycles.max_bounces = 64
-cycles.diffuse_bounces = 64
-cycles.glossy_bounces = 64
-cycles.transmission_bounces = 64
-cycles.transparent_max_bounces = 64
-cycles.min_light_bounces = 0
-cycles.caustics_reflective = True
-cycles.caustics_refractive = True
-cycles.blur_glossy = 0.0
-cycles.pixel_filter_type = "BOX"
-cycles.filter_width = 1.0
-cycles.seed = seed
-scene.view_settings.view_transform = "Standard"
-scene.view_settings.look = "None"
-scene.view_settings.exposure = 0.0
-scene.view_settings.gamma = 1.0
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_depth = "32"
-scene.render.image_settings.exr_codec = "ZIP"
-scene.render.image_settings.color_mode = "RGB"
-scene.render.filepath = f"{out_dir}/cycles-{variant}-{resolution}.exr"
-start = time.process_time()
-bpy.ops.render.render(write_still=True)
-print(f"cycles_cpu_seconds={time.process_time() - start:.3f}")
+cycles_setup.render_exact(scene, samples, seed, f"{out_dir}/cycles-{variant}-{resolution}.exr")

@@ -35,9 +35,11 @@ looked up nearest (Cycles: Closest) as pf's environment does.
 import math
 import os
 import sys
-import time
 
 import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cycles_setup  # noqa: E402 (tools/blender/cycles_setup.py, beside this script)
 
 arguments = sys.argv[sys.argv.index("--") + 1:]
 out_dir, width, height, samples, variant, output = arguments[:6]
@@ -272,16 +274,8 @@ tree = panel.node_tree
 bsdf = tree.nodes["Principled BSDF"]
 emission = tree.nodes.new("ShaderNodeEmission")
 emission.inputs["Color"].default_value = bsdf.inputs["Emission"].default_value
-geometry = tree.nodes.new("ShaderNodeNewGeometry")
-front = tree.nodes.new("ShaderNodeMath")
-front.operation = "SUBTRACT"
-front.inputs[0].default_value = 1.0
-tree.links.new(geometry.outputs["Backfacing"], front.inputs[1])
-strength = tree.nodes.new("ShaderNodeMath")
-strength.operation = "MULTIPLY"
-strength.inputs[1].default_value = bsdf.inputs["Emission Strength"].default_value
-tree.links.new(front.outputs[0], strength.inputs[0])
-tree.links.new(strength.outputs[0], emission.inputs["Strength"])
+strength = cycles_setup.front_face_only(tree, bsdf.inputs["Emission Strength"].default_value,
+                                        emission.inputs["Strength"])
 tree.links.new(emission.outputs["Emission"], tree.nodes["Material Output"].inputs["Surface"])
 
 world = bpy.data.worlds.new("sky")
@@ -294,37 +288,7 @@ world.node_tree.links.new(environment.outputs["Color"], world.node_tree.nodes["B
 world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
 scene.world = world
 
-scene.render.engine = "CYCLES"
-cycles = scene.cycles
-cycles.device = "CPU"
-cycles.samples = samples
-cycles.use_adaptive_sampling = False
-cycles.use_denoising = False
-cycles.sample_clamp_direct = 0.0
-cycles.sample_clamp_indirect = 0.0
-cycles.light_sampling_threshold = 0.0
-cycles.max_bounces = 64
-cycles.diffuse_bounces = 64
-cycles.glossy_bounces = 64
-cycles.transmission_bounces = 64
-cycles.transparent_max_bounces = 64
-cycles.min_light_bounces = 0
-cycles.caustics_reflective = True
-cycles.caustics_refractive = True
-cycles.blur_glossy = 0.0
-cycles.pixel_filter_type = "BOX"
-cycles.filter_width = 1.0
-cycles.seed = seed
 world.cycles.sampling_method = "AUTOMATIC"
-scene.view_settings.view_transform = "Standard"
-scene.view_settings.look = "None"
-scene.view_settings.exposure = 0.0
-scene.view_settings.gamma = 1.0
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_depth = "32"
-scene.render.image_settings.exr_codec = "ZIP"
-scene.render.image_settings.color_mode = "RGB"
-scene.render.filepath = output
 # A diagnostic: PF_STUDIO_LIGHTS=sky,spot,panel (the default) names the lights Cycles renders; the
 # export above always has them all.
 lights = os.environ.get("PF_STUDIO_LIGHTS", "sky,spot,panel").split(",")
@@ -334,6 +298,4 @@ if "spot" not in lights:
     spot.hide_render = True
 if "panel" not in lights:
     strength.inputs[1].default_value = 0.0
-start = time.process_time()
-bpy.ops.render.render(write_still=True)
-print(f"cycles_cpu_seconds={time.process_time() - start:.3f}")
+cycles_setup.render_exact(scene, samples, seed, output)
