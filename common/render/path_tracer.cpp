@@ -21,6 +21,41 @@ inline float PowerHeuristic(float pdf_a, float pdf_b) {
 PathTracer::PathTracer(const EmbreeScene& scene, const LightSampler& lights, PathTracerOptions options)
     : scene_(scene), lights_(lights), options_(options), choice_(lights, options.nee_uniform_fraction) {}
 
+Rgb PathTracer::LightSampleEstimate(const SurfaceHit& hit, const Bsdf& bsdf, const Vec3& wo,
+                                    const Rgb& throughput, Sampler& sampler, const PathVertexSlots& slots,
+                                    TraceCounters& counters) const {
+  const LightChoice::Choice light = choice_.Choose(sampler.Get1D(slots.light_select));
+  const Sample2 u = sampler.Get2D(slots.light_point);
+  // Choose never lands in an empty stratum for u < 1; a zero probability would divide below.
+  if (!(light.probability > 0.0f)) return Rgb(0.0f);
+  LightSample ls = lights_.SampleLight(light.light, light.u, u.u, u.v);
+  // The choice's probability into the sample's density, as the rest of this step expects.
+  ls.pdf_area *= light.probability;
+  if (ls.delta()) {
+    // A point, spot or directional light: no BSDF sample can reach it, so no MIS weight.
+    return throughput * DeltaLightContribution(lights_, ls, bsdf, hit.position, wo, kLobeAll, counters);
+  }
+  if (ls.environment) {
+    const Rgb c = EnvironmentLightContribution(lights_, ls, bsdf, hit.position, wo, kLobeAll, counters);
+    return c.IsBlack() ? c
+                       : throughput * c * PowerHeuristic(ls.pdf_area * ls.pdf_direction, bsdf.Pdf(wo, ls.wi));
+  }
+  const Vec3 to_light = ls.position - hit.position;
+  const float dist2 = LengthSquared(to_light);
+  if (!(dist2 > 0.0f)) return Rgb(0.0f);
+  const Vec3 wi = to_light / std::sqrt(dist2);
+  const float cos_light = -Dot(wi, ls.normal);
+  if (cos_light <= 0.0f) return Rgb(0.0f);
+  const Rgb f = bsdf.Eval(wo, wi);
+  if (f.IsBlack()) return Rgb(0.0f);
+  ++counters.shadow_rays;
+  if (!scene_.Visible(hit.position, hit.geometric_normal, ls.position, ls.normal)) return Rgb(0.0f);
+  const float pdf_light = ls.pdf_area * dist2 / cos_light;
+  const float weight = PowerHeuristic(pdf_light, bsdf.Pdf(wo, wi));
+  const float cos_surface = std::fabs(Dot(wi, hit.shading_normal));
+  return throughput * f * ls.radiance * (cos_surface * weight / pdf_light);
+}
+
 Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& counters) const {
   const SceneDescription& desc = scene_.description();
   Rgb radiance(0.0f);
@@ -64,40 +99,8 @@ Rgb PathTracer::Li(const Ray& camera_ray, Sampler& sampler, TraceCounters& count
     const Vec3 wo = -ray.direction;
 
     // Next-event estimation: one light sample, MIS-weighted against BSDF sampling.
-    if (bsdf.HasNonDelta() && !choice_.empty()) {
-      const LightChoice::Choice light = choice_.Choose(sampler.Get1D(slots.light_select));
-      const Sample2 u = sampler.Get2D(slots.light_point);
-      if (!(light.probability > 0.0f)) continue;  // never: u < 1 lands in a non-empty stratum
-      LightSample ls = lights_.SampleLight(light.light, light.u, u.u, u.v);
-      // The choice's probability into the sample's density, as the rest of this step expects.
-      ls.pdf_area *= light.probability;
-      const Vec3 to_light = ls.position - hit->position;
-      const float dist2 = LengthSquared(to_light);
-      if (ls.delta()) {
-        // A point, spot or directional light: no BSDF sample can reach it, so no MIS weight.
-        radiance +=
-            throughput * DeltaLightContribution(lights_, ls, bsdf, hit->position, wo, kLobeAll, counters);
-      } else if (ls.environment) {
-        const Rgb c = EnvironmentLightContribution(lights_, ls, bsdf, hit->position, wo, kLobeAll, counters);
-        if (!c.IsBlack())
-          radiance += throughput * c * PowerHeuristic(ls.pdf_area * ls.pdf_direction, bsdf.Pdf(wo, ls.wi));
-      } else if (dist2 > 0.0f) {
-        const Vec3 wi = to_light / std::sqrt(dist2);
-        const float cos_light = -Dot(wi, ls.normal);
-        if (cos_light > 0.0f) {
-          const Rgb f = bsdf.Eval(wo, wi);
-          if (!f.IsBlack()) {
-            ++counters.shadow_rays;
-            if (scene_.Visible(hit->position, hit->geometric_normal, ls.position, ls.normal)) {
-              const float pdf_light = ls.pdf_area * dist2 / cos_light;
-              const float weight = PowerHeuristic(pdf_light, bsdf.Pdf(wo, wi));
-              const float cos_surface = std::fabs(Dot(wi, hit->shading_normal));
-              radiance += throughput * f * ls.radiance * (cos_surface * weight / pdf_light);
-            }
-          }
-        }
-      }
-    }
+    if (bsdf.HasNonDelta() && !choice_.empty())
+      radiance += LightSampleEstimate(*hit, bsdf, wo, throughput, sampler, slots, counters);
 
     // Continue the path by sampling the BSDF.
     const float u_lobe = sampler.Get1D(slots.bsdf_lobe);

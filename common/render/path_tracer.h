@@ -9,7 +9,9 @@
 #include "common/accel/embree_scene.h"
 #include "common/lights/light_choice.h"
 #include "common/lights/light_sampler.h"
+#include "common/materials/bsdf.h"
 #include "common/render/integrator.h"
+#include "common/sampling/sample_layout.h"
 
 namespace pf {
 
@@ -33,6 +35,11 @@ class PathTracer final : public Integrator {
   const char* name() const override { return "path"; }
 
  private:
+  // One light sample at `hit` (next-event estimation), MIS-weighted against BSDF sampling, times
+  // the path's throughput (multiplied first, in the order the golden images were recorded with).
+  Rgb LightSampleEstimate(const SurfaceHit& hit, const Bsdf& bsdf, const Vec3& wo, const Rgb& throughput,
+                          Sampler& sampler, const PathVertexSlots& slots, TraceCounters& counters) const;
+
   const EmbreeScene& scene_;
   const LightSampler& lights_;
   PathTracerOptions options_;
