@@ -36,6 +36,8 @@ SCENES = {  # name: (manifest, converged path-traced reference, its resolution)
                       "320x240"),
     "bathroom": ("scenes/bathroom/bathroom.json", "scenes/bathroom/reference-160.exr", "160x120"),
     "conference": ("scenes/conference/conference.json", "scenes/conference/reference-160.exr", "160x120"),
+    "blender-studio": ("scenes/blender-studio/blender-studio.json", "scenes/blender-studio/reference-128x96.exr",
+                       "128x96"),
 }
 CONFIGS = {  # name: pf render flags
     "default": [],

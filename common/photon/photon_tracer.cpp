@@ -257,15 +257,14 @@ Emission EmitPunctual(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir) {
   return e;
 }
 
-[[gnu::always_inline]] inline Emission Emit(const PhotonEmitter& em, Sampler& sampler, float epsilon) {
+[[gnu::always_inline]] inline Emission EmitFrom(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir,
+                                                float epsilon) {
   Emission e;
-  const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
   if (em.punctual) [[unlikely]] {
-    if (em.environment) return EmitEnvironment(em, u_point, sampler.PhotonGet2D(kPhotonDirectionSlot));
-    return EmitPunctual(em, u_point, sampler.PhotonGet2D(kPhotonDirectionSlot));
+    if (em.environment) return EmitEnvironment(em, u_point, u_dir);
+    return EmitPunctual(em, u_point, u_dir);
   }
   e.position = SampleTriangle(em.a, em.b, em.c, u_point.u, u_point.v);
-  const Sample2 u_dir = sampler.PhotonGet2D(kPhotonDirectionSlot);
   e.ray = Ray{OffsetRayOrigin(e.position, em.normal, epsilon),
               em.frame.ToWorld(CosineHemisphereFast(u_dir.u, u_dir.v))};
   e.power = em.power;
@@ -273,6 +272,12 @@ Emission EmitPunctual(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir) {
     e.power =
         em.power * em.emission_texture->Lookup(UvOnTriangle(em.uv_a, em.uv_b, em.uv_c, u_point.u, u_point.v));
   return e;
+}
+
+// The point's numbers are drawn before the direction's (the order of every trace so far).
+[[gnu::always_inline]] inline Emission Emit(const PhotonEmitter& em, Sampler& sampler, float epsilon) {
+  const Sample2 u_point = sampler.PhotonGet2D(kPhotonPointSlot);
+  return EmitFrom(em, u_point, sampler.PhotonGet2D(kPhotonDirectionSlot), epsilon);
 }
 
 // Importance-driven storing (Wald 1999, §4.7): a storing hit keeps its photon with probability
@@ -584,6 +589,11 @@ void TraceRange(const EmbreeScene& scene, const LightSampler& lights, const Phot
 }
 
 }  // namespace
+
+PhotonLaunch LaunchPhoton(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir, float epsilon) {
+  const Emission e = EmitFrom(em, u_point, u_dir, epsilon);
+  return {e.ray, e.power};
+}
 
 PhotonTracingResult TracePhotons(const EmbreeScene& scene, const LightSampler& lights,
                                  const PhotonTracerOptions& options) {

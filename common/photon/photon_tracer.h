@@ -132,6 +132,15 @@ struct PhotonEmitter {
 std::vector<PhotonEmitter> PhotonEmitters(const SceneDescription& desc, const LightSampler& lights,
                                           uint64_t emitted);
 
+// A photon leaving emitter `em` as TracePhotons emits it, from its point and direction numbers:
+// its first ray and its power Φ. For pilots that follow a few photons and keep no map
+// (caustic_reach.h in common/render).
+struct PhotonLaunch {
+  Ray ray;
+  Rgb power;
+};
+PhotonLaunch LaunchPhoton(const PhotonEmitter& em, Sample2 u_point, Sample2 u_dir, float epsilon);
+
 // Whether the scene has any singular surface a photon could bounce off before landing on a
 // diffuse one. If not, no photon can ever be caustic and the caustic map is not built
 // ("model only what the scene needs").

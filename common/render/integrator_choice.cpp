@@ -29,7 +29,9 @@ IntegratorEvidence SceneEvidence(const SceneDescription& scene, const CameraSpec
   const double radius = std::max({DerivedInitialRadius(bounds, defaults.photons, defaults.k),
                                   DerivedInitialRadius(bounds, settings.photons, settings.k),
                                   double(settings.progressive_radius)});
-  e.reach = MeasureLightReach(runtime, Camera(camera, scene.origin), float(radius));
+  const Camera pilot_camera(camera, scene.origin);
+  e.reach = MeasureLightReach(runtime, pilot_camera, float(radius));
+  if (e.specular_surfaces) e.caustics = MeasureCausticReach(runtime, pilot_camera);
   return e;
 }
 
@@ -39,6 +41,13 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
       "{:.0f}% of the {} surface points the camera sees are lit directly, {:.1f}% unlit next to lit space "
       "behind a thin wall",
       100.0 * e.reach.lit_fraction, e.reach.points, 100.0 * e.reach.leak_fraction);
+  const std::string caustics = fmt::format(
+      "{:.1f}% of the light landing on diffuse surfaces comes from point, spot or directional lights "
+      "through them (> {:.0f}% needs photons: a path tracer never finds it), the caustics a path tracer "
+      "finds add a squared relative noise of {:.2f} per sample (> {:.1f} needs photons), {:.1f}% of "
+      "the irradiance seen",
+      100.0 * e.caustics.punctual_caustic_share, 100.0 * kPunctualCausticsAbove,
+      e.caustics.relative_caustic_variance, kNoisyCausticsAbove, 100.0 * e.caustics.caustic_fraction);
   const auto choose = [&c](IntegratorKind kind, std::string reason) {
     c.integrator = kind;
     c.choices.push_back(
@@ -46,10 +55,12 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
   };
   if (e.photon_map_settings_given) {
     choose(IntegratorKind::kPhotonMap, "settings only the photon map reads were given; " + seen);
-  } else if (e.specular_surfaces) {
+  } else if (e.specular_surfaces && (e.caustics.punctual_caustic_share > kPunctualCausticsAbove ||
+                                     e.caustics.relative_caustic_variance > kNoisyCausticsAbove)) {
     choose(IntegratorKind::kPhotonMap,
-           "mirror or glass surfaces: the light they reflect or refract onto diffuse surfaces (caustics) "
-           "reaches no shadow ray, photons carry it (Wald 1999, 2.2); " +
+           "mirror or glass surfaces: " + caustics +
+               ": the light they reflect or refract onto diffuse surfaces (caustics) reaches no shadow ray, "
+               "photons carry it (Wald 1999, 2.2); " +
                seen);
   } else if (e.reach.points > 0 && e.reach.lit_fraction < kIndirectlyLitBelow) {
     choose(
@@ -58,11 +69,14 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
                            "photons along the way light goes",
                            100.0 * kIndirectlyLitBelow));
   } else {
-    choose(
-        IntegratorKind::kPath,
-        seen + fmt::format(
-                   ", no mirror or glass, {} light{}: shadow rays find the light (unbiased, no photon map)",
-                   e.lights, e.lights == 1 ? "" : "s"));
+    const std::string specular =
+        e.specular_surfaces
+            ? "; mirror or glass surfaces, but a path tracer finds the light they focus: " + caustics
+            : ", no mirror or glass";
+    choose(IntegratorKind::kPath,
+           seen + specular +
+               fmt::format(", {} light{}: shadow rays find the light (unbiased, no photon map)", e.lights,
+                           e.lights == 1 ? "" : "s"));
     return c;
   }
   if (e.reach.leak_fraction > kLeakyAbove && !e.occlusion_test_given) {

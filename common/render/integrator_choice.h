@@ -7,6 +7,7 @@
 
 #include <vector>
 
+#include "common/render/caustic_reach.h"
 #include "common/render/job_render_settings.h"
 #include "common/render/light_reach.h"
 
@@ -16,6 +17,13 @@ namespace pf {
 // occlusion test (Wald 1999, §4.1.1) against light bleeding through the walls between the lit and
 // the unlit parts.
 inline constexpr double kIndirectlyLitBelow = 0.5;
+// With mirrors or glass, the photon map is chosen for their caustics when a path tracer cannot
+// render them: above this share of the light landing on diffuse surfaces coming from a punctual
+// light through a mirror or glass (CausticReach::punctual_caustic_share), which it never finds,
+inline constexpr double kPunctualCausticsAbove = 0.01;
+// or above this squared relative noise per sample from the caustics it finds by chance
+// (CausticReach::relative_caustic_variance): small lamps seen through glass.
+inline constexpr double kNoisyCausticsAbove = 0.5;
 // Above this leak fraction (LightReach::leak_fraction) a photon map gets the occlusion test.
 inline constexpr double kLeakyAbove = 0.01;
 
@@ -25,6 +33,7 @@ struct IntegratorEvidence {
   bool specular_surfaces = false;          // SceneHasSpecularSurfaces
   int lights = 0;                          // SceneDescription::num_lights (for the reason)
   LightReach reach;                        // MeasureLightReach with the job's camera
+  CausticReach caustics;                   // MeasureCausticReach with the job's camera, if specular
 };
 
 struct IntegratorChoice {

@@ -6,20 +6,10 @@
 #include <cmath>
 
 #include "common/materials/bsdf.h"
+#include "common/sampling/hashed_uniform.h"
 
 namespace pf {
 namespace {
-
-// A uniform number in [0, 1) from (cell, sample, dimension): splitmix64 of their mix, so the pilot
-// needs no sampler state and gives the same answer on any thread count.
-float HashedUniform(uint64_t cell, uint64_t sample, uint64_t dim) {
-  uint64_t z =
-      cell * 0x9e3779b97f4a7c15ull + sample * 0xbf58476d1ce4e5b9ull + dim * 0x94d049bb133111ebull + 1;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  z ^= z >> 31;
-  return float(z >> 40) * 0x1.0p-24f;
-}
 
 // Whether light sample `ls` reaches x on the side `n` faces (the side the camera sees); a zero n is
 // a point in open space, which light reaches from every side.

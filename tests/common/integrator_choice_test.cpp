@@ -1,4 +1,5 @@
-// `integrator auto` (common/render/integrator_choice.h) and its pilot (light_reach.h): the pilot's
+// `integrator auto` (common/render/integrator_choice.h) and its pilot (light_reach.h; the caustic
+// pilot's own tests are caustic_reach_test.cpp): the pilot's
 // fractions against geometry worked out by hand, the rule's branches, and what it chooses for the
 // shipped scenes with references (the choices docs/results/time-budget.md measures).
 
@@ -156,8 +157,23 @@ TEST(IntegratorChoice, EachRuleChoosesAndSaysWhy) {
 
   IntegratorEvidence specular = Evidence(0.9, 0.0);
   specular.specular_surfaces = true;
-  EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPhotonMap);
+  EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPath) << "caustics a path tracer finds";
+  EXPECT_THAT(ChooseIntegrator(specular).choices[0].reason,
+              HasSubstr("a path tracer finds the light they focus"));
+  specular.caustics.relative_caustic_variance = kNoisyCausticsAbove;
+  EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPath);
+  specular.caustics.relative_caustic_variance = kNoisyCausticsAbove * 1.01;
+  EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPhotonMap) << "noisy caustics";
   EXPECT_THAT(ChooseIntegrator(specular).choices[0].reason, HasSubstr("mirror or glass"));
+  specular.caustics.relative_caustic_variance = 0.0;
+  specular.caustics.punctual_caustic_share = kPunctualCausticsAbove;
+  EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPath);
+  specular.caustics.punctual_caustic_share = kPunctualCausticsAbove * 1.01;
+  EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPhotonMap)
+      << "caustics of punctual lights";
+  IntegratorEvidence unused = Evidence(0.9, 0.0);
+  unused.caustics.punctual_caustic_share = 1.0;
+  EXPECT_EQ(ChooseIntegrator(unused).integrator, IntegratorKind::kPath) << "no mirror or glass, no caustics";
 
   const IntegratorChoice many = ChooseIntegrator(Evidence(0.9, 0.0, 100));
   EXPECT_EQ(many.integrator, IntegratorKind::kPath) << "many lights, all of them in view";
@@ -226,6 +242,8 @@ TEST(IntegratorChoice, ShippedScenes) {
     EXPECT_FALSE(c.occlusion_test) << caustic;
   }
   EXPECT_EQ(ChoiceFor("conference/conference.json").integrator, IntegratorKind::kPath) << "8 lights in view";
+  EXPECT_EQ(ChoiceFor("blender-studio/blender-studio.json").integrator, IntegratorKind::kPath)
+      << "glass, but the caustics are the sky's";
   for (const char* leaky : {"invisibledate/invisibledate.json", "scene10/scene10.json"}) {
     const IntegratorChoice c = ChoiceFor(leaky);
     EXPECT_EQ(c.integrator, IntegratorKind::kPhotonMap) << leaky;

@@ -1,0 +1,168 @@
+// The caustic pilot behind `integrator auto` (common/render/caustic_reach.h): its numbers against
+// geometry worked out by hand, and what the rule (integrator_choice.h) makes of a glass ball lit by
+// a sky, a small lamp and a point light.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+#include "common/camera/camera.h"
+#include "common/render/caustic_reach.h"
+#include "common/render/integrator_choice.h"
+#include "common/render/scene_runtime.h"
+#include "tests/common/test_scenes.h"
+
+namespace pf {
+namespace {
+
+using testing::AddMaterial;
+using testing::AddQuad;
+using ::testing::HasSubstr;
+using testing::LookAtCamera;
+
+void AddPointLight(SceneDescription& scene, Vec3d position, float intensity) {
+  scene.punctual_lights.push_back(PunctualLight{.kind = PunctualLight::Kind::kPoint,
+                                                .name = "point",
+                                                .position = position,
+                                                .intensity = Rgb(intensity),
+                                                .light = scene.num_lights++});
+}
+
+void AddSky(SceneDescription& scene, float radiance) {
+  scene.environment.emplace();
+  scene.environment->color = Rgb(radiance);
+  scene.environment->light = scene.num_lights++;
+}
+
+// A point light at the centre of the cube [-1, 1]³ whose top face is a perfect mirror (reflectance
+// 1) and whose other five are grey: every photon lands on a grey face, the sixth of them that
+// leave towards the top (each face subtends 4π/6) after one mirror, with all their power.
+TEST(CausticReach, PunctualShareIsTheMirrorFacesSolidAngle) {
+  SceneDescription scene;
+  const uint32_t grey = AddMaterial(scene, Material{.name = "grey", .diffuse_reflectance = Rgb(0.5f)});
+  const uint32_t mirror = AddMaterial(scene, Material{.name = "mirror", .specular_reflectance = Rgb(1.0f)});
+  // Front faces inward (counter-clockwise seen from inside).
+  AddQuad(scene, {-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1}, grey);  // floor, up
+  AddQuad(scene, {-1, -1, 1}, {-1, 1, 1}, {1, 1, 1}, {1, -1, 1}, mirror);    // top, down
+  AddQuad(scene, {-1, -1, -1}, {-1, 1, -1}, {-1, 1, 1}, {-1, -1, 1}, grey);  // x = -1
+  AddQuad(scene, {1, -1, -1}, {1, -1, 1}, {1, 1, 1}, {1, 1, -1}, grey);      // x = 1
+  AddQuad(scene, {-1, -1, -1}, {-1, -1, 1}, {1, -1, 1}, {1, -1, -1}, grey);  // y = -1
+  AddQuad(scene, {-1, 1, -1}, {1, 1, -1}, {1, 1, 1}, {-1, 1, 1}, grey);      // y = 1
+  AddPointLight(scene, {0, 0, 0}, 1.0f);
+  const SceneRuntime runtime(scene);
+  const Camera camera(LookAtCamera({0, 0, 0.5f}, {0, 0, -1}, {0, 1, 0}, 90.0f, 32, 32));
+  const CausticReach reach = MeasureCausticReach(runtime, camera);
+  // 2^15 photons: a binomial share's standard deviation is 0.002.
+  EXPECT_NEAR(reach.punctual_caustic_share, 1.0 / 6.0, 0.01);
+
+  scene.materials[mirror] = Material{.name = "grey too", .diffuse_reflectance = Rgb(0.5f)};
+  EXPECT_EQ(MeasureCausticReach(SceneRuntime(scene), camera).punctual_caustic_share, 0.0) << "no mirror";
+}
+
+// The fraction of a cosine-distributed ray's directions from the floor point (x, y, 0) that meet
+// the wall x = 0, |y| < 10, 0 < z < 10: midpoints of a 256 × 256 grid over the cosine mapping.
+double WallFraction(double x, double y) {
+  constexpr int kN = 256;
+  int hits = 0;
+  for (int i = 0; i < kN; ++i)
+    for (int j = 0; j < kN; ++j) {
+      const double u1 = (i + 0.5) / kN, u2 = (j + 0.5) / kN;
+      const double r = std::sqrt(u1), phi = 2.0 * std::numbers::pi * u2;
+      const double dx = r * std::cos(phi), dy = r * std::sin(phi), dz = std::sqrt(1.0 - u1);
+      if (dx >= 0.0) continue;
+      const double t = -x / dx;
+      hits += std::abs(y + t * dy) < 10.0 && t * dz < 10.0;
+    }
+  return double(hits) / (kN * kN);
+}
+
+// A grey floor z = 0 under a sky of radiance L, with a perfect mirror wall x = 0 (10 m high, 20 m
+// wide) beside the camera's view of the floor (x in about [0.27, 1.73]). From a floor point a
+// fraction f of the cosine-distributed directions (WallFraction: about 0.44) meets the mirror and
+// leaves upwards into the sky: a path tracer's sample of the caustic is πL with probability f, so
+// the caustic is f·πL of the irradiance πL and the sample's variance (πL)²·f(1 − f). By brute force
+// at the pilot's own lattice points, the pilot must give the mean of f and of f(1 − f). Its photons
+// (2^20) estimate them with a kernel: a few percent of noise.
+TEST(CausticReach, AMirrorWallUnderASkyMatchesBruteForce) {
+  SceneDescription scene;
+  const uint32_t grey = AddMaterial(scene, Material{.name = "grey", .diffuse_reflectance = Rgb(0.5f)});
+  const uint32_t mirror = AddMaterial(scene, Material{.name = "mirror", .specular_reflectance = Rgb(1.0f)});
+  AddQuad(scene, {0, -10, 0}, {10, -10, 0}, {10, 10, 0}, {0, 10, 0}, grey);
+  AddQuad(scene, {0, -10, 0}, {0, 10, 0}, {0, 10, 10}, {0, -10, 10}, mirror);  // facing +x
+  AddSky(scene, 0.5f);
+  const SceneRuntime runtime(scene);
+  constexpr int kGrid = 32;
+  const Camera camera(LookAtCamera({1.0f, 0, 2.0f}, {1.0f, 0, 0}, {1, 0, 0}, 40.0f, 32, 32));
+  double f_sum = 0, variance_sum = 0;
+  int points = 0;
+  for (int j = 0; j < kGrid; ++j)
+    for (int i = 0; i < kGrid; ++i) {  // the pilot's lattice (caustic_reach.cpp)
+      const float fx = (float(i) + 0.5f) / float(kGrid) * float(camera.width());
+      const float fy = (float(j) + 0.5f) / float(kGrid) * float(camera.height());
+      const int px = std::min(int(fx), camera.width() - 1), py = std::min(int(fy), camera.height() - 1);
+      const Ray ray = camera.GenerateRay(px, py, fx - float(px), fy - float(py));
+      const Vec3 p = ray.origin + ray.direction * (-ray.origin.z / ray.direction.z);
+      ASSERT_GT(p.x, 0.2f);
+      const double f = WallFraction(p.x, p.y);
+      f_sum += f;
+      variance_sum += f * (1.0 - f);
+      ++points;
+    }
+  const CausticReach reach = MeasureCausticReach(runtime, camera, kGrid, 32, 1 << 20);
+  EXPECT_EQ(reach.points, points);
+  EXPECT_NEAR(reach.caustic_fraction, f_sum / points, 0.03);
+  EXPECT_NEAR(reach.relative_caustic_variance, variance_sum / points, 0.025);
+  EXPECT_EQ(reach.punctual_caustic_share, 0.0) << "no punctual light";
+  std::printf("[ brute force ] caustic fraction %.4f (pilot %.4f), relative variance %.4f (pilot %.4f)\n",
+              f_sum / points, reach.caustic_fraction, variance_sum / points, reach.relative_caustic_variance);
+
+  scene.materials[mirror] = Material{.name = "grey too", .diffuse_reflectance = Rgb(0.5f)};
+  const CausticReach grey_wall = MeasureCausticReach(SceneRuntime(scene), camera, kGrid, 32, 1 << 20);
+  EXPECT_EQ(grey_wall.caustic_fraction, 0.0);
+  EXPECT_EQ(grey_wall.relative_caustic_variance, 0.0);
+}
+
+// A glass ball (radius 0.3, centre 0.5 m up) on a grey floor, seen from above at an angle.
+struct GlassBall {
+  SceneDescription scene;
+  CameraSpec camera = LookAtCamera({1.5f, 0.0f, 1.5f}, {0.0f, 0.0f, 0.2f}, {0, 0, 1}, 60.0f, 64, 48);
+  GlassBall() {
+    const uint32_t grey = AddMaterial(scene, Material{.name = "grey", .diffuse_reflectance = Rgb(0.5f)});
+    const uint32_t glass =
+        AddMaterial(scene, Material{.name = "glass", .specular_transmittance = Rgb(1.0f), .ior = 1.5f});
+    AddQuad(scene, {-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}, grey);
+    testing::AddSphere(scene, {0, 0, 0.5f}, 0.3f, 4, glass, false);
+  }
+  IntegratorChoice Choose() const {
+    return ChooseIntegrator(SceneEvidence(scene, camera, JobRenderSettings()));
+  }
+};
+
+TEST(CausticReach, TheRuleLeavesASkysCausticsToThePathTracerAndALampsToPhotons) {
+  GlassBall sky;
+  AddSky(sky.scene, 1.0f);
+  const IntegratorChoice by_sky = sky.Choose();
+  EXPECT_EQ(by_sky.integrator, IntegratorKind::kPath);
+  EXPECT_THAT(by_sky.choices[0].reason, HasSubstr("a path tracer finds the light they focus"));
+
+  GlassBall lamp;  // a 10 cm lamp 2 m above the ball
+  const uint32_t emitter = AddMaterial(lamp.scene, Material{.name = "lamp", .emission = Rgb(400.0f)});
+  AddQuad(lamp.scene, {-0.05f, -0.05f, 2.5f}, {-0.05f, 0.05f, 2.5f}, {0.05f, 0.05f, 2.5f},
+          {0.05f, -0.05f, 2.5f}, emitter, 0);
+  lamp.scene.num_lights = 1;
+  const IntegratorChoice by_lamp = lamp.Choose();
+  EXPECT_EQ(by_lamp.integrator, IntegratorKind::kPhotonMap);
+  EXPECT_THAT(by_lamp.choices[0].reason, HasSubstr("squared relative noise"));
+
+  GlassBall point;
+  AddPointLight(point.scene, {0, 0, 2.5}, 4.0f);
+  const IntegratorChoice by_point = point.Choose();
+  EXPECT_EQ(by_point.integrator, IntegratorKind::kPhotonMap);
+  EXPECT_THAT(by_point.choices[0].reason, HasSubstr("a path tracer never finds it"));
+}
+
+}  // namespace
+}  // namespace pf
