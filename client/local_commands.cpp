@@ -366,7 +366,8 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output, 
     }
     if (first_two.empty()) {  // the first input
       for (const auto& [key, value] : meta)
-        if (SameRenderKey(key) || key == "plan") common.emplace(key, value);
+        if (SameRenderKey(key) || key == "plan" || key.starts_with(kAutoHeaderPrefix))
+          common.emplace(key, value);
     } else {
       for (auto it = common.begin(); it != common.end();)
         it = meta.count(it->first) && meta[it->first] == it->second ? std::next(it) : common.erase(it);

@@ -19,7 +19,8 @@ void RecordRender(const RenderRecord& r, ImageMetadata& meta) {
   RecordRenderSettings(r.settings, meta);
   meta["plan"] = PlanRecordText(r.plan);
   meta["seed"] = std::to_string(r.seed);
-  for (const AutoChoice& c : r.auto_choices) meta["auto." + c.setting] = c.value + ": " + c.reason;
+  for (const AutoChoice& c : r.auto_choices)
+    meta[std::string(kAutoHeaderPrefix) + c.setting] = c.value + ": " + c.reason;
 }
 
 bool SameRenderKey(std::string_view key) {

@@ -30,6 +30,9 @@
 
 namespace pf {
 
+// The prefix of the auto.<setting> keys (pf merge carries them over when every input agrees).
+inline constexpr std::string_view kAutoHeaderPrefix = "auto.";
+
 struct RenderRecord {
   std::string scene;           // SceneBundle::entry
   std::string scene_hash;      // BundleHash

@@ -310,12 +310,17 @@ TEST(Cli, MergeWeighsBySppAndWarns) {
                            dir.path(), 60);
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("seed 1"), std::string::npos) << r.err;
+  // The integrator `auto` chose, and why, carry over when every input says the same.
+  const std::string chosen = HeaderOf(dir / "a.exr")["auto.integrator"];
+  EXPECT_EQ(chosen.rfind("path: ", 0), 0u) << chosen;
+  EXPECT_EQ(HeaderOf(dir / "ab.exr")["auto.integrator"], chosen);
   // Different integrators: warned.
   r = RunCommand({Binaries::Pf(), "merge", (dir / "a.exr").string(), (dir / "pm.exr").string(), "-o",
                   (dir / "apm.exr").string()},
                  dir.path(), 60);
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("integrator"), std::string::npos) << r.err;
+  EXPECT_EQ(HeaderOf(dir / "apm.exr").count("auto.integrator"), 0u) << "not every input's choice";
   // An EXR without spp (here pf diff's error image) is not silently weighted 1.
   ASSERT_EQ(RunCommand({Binaries::Pf(), "diff", (dir / "a.exr").string(), (dir / "b.exr").string(),
                         "--error-image", (dir / "err.exr").string()},
