@@ -17,11 +17,14 @@
 namespace pf {
 namespace {
 
-// Perfect mirrors and glass a photon is followed through, at most this many in a row.
+// Perfect mirrors and glass a photon (or a camera ray) is followed through, at most this many in a
+// row: a glass ball is two, a glass in a mirror four; light after eight more is a sliver of the
+// caustic, and the pilot must stay cheap.
 constexpr int kMaxSpecularChain = 8;
+constexpr uint32_t kDeltaLobes = kLobeSpecularReflection | kLobeSpecularTransmission;
 // The caustic photons' kernel holds about this many photons of the pilot's, were they spread
-// evenly over the scene's bounding box (DerivedInitialRadius).
-constexpr int kKernelPhotons = 16;
+// evenly over the surface of the scene's bounding box (DerivedInitialRadius).
+constexpr int kKernelPhotons = 64;
 
 // A pilot photon that reached a surface with a diffuse lobe through one or more delta lobes, from
 // an emitting triangle or the environment (luminances).
@@ -38,7 +41,7 @@ struct LightSide {
 };
 
 // Photons as TracePhotons emits them (LaunchPhoton, a stratified light choice ∝ power), each
-// followed through delta lobes to its first surface with a diffuse lobe.
+// followed through delta lobes; every surface with a diffuse lobe on the way is a landing.
 LightSide TraceLightSide(const SceneRuntime& scene, int photons) {
   const SceneDescription& desc = scene.description;
   LightSide all;
@@ -79,14 +82,16 @@ LightSide TraceLightSide(const SceneRuntime& scene, int photons) {
           if (chain > 0 && punctual) out.punctual_caustic += l;
           if (chain > 0 && !punctual)
             out.caustics.push_back({hit->position, ray.direction, l, radiance * (l / emitted)});
-          break;
         }
-        // Only perfect mirrors and glass: from a glossy surface a path tracer's shadow rays find the light.
-        if (bsdf.HasNonDelta()) break;
+        // Onwards by the perfect mirror and glass lobes only, also of a material that has a diffuse
+        // or glossy lobe beside them (MGF rd with a smooth rs): from those lobes a path tracer's
+        // shadow rays find the light. Russian roulette over the lobes keeps the photon's expected
+        // power, as the photon walk does (§2.2).
+        if (!bsdf.HasLobes(kDeltaLobes)) break;
         const uint64_t dim = 8 + 3 * uint64_t(chain);
         const std::optional<BsdfSample> s =
             bsdf.Sample(-ray.direction, HashedUniform(cell, 0, dim), HashedUniform(cell, 0, dim + 1),
-                        HashedUniform(cell, 0, dim + 2));
+                        HashedUniform(cell, 0, dim + 2), Bsdf::Mode::kRussianRoulette, kDeltaLobes);
         if (!s || s->weight.IsBlack()) break;
         power = power * s->weight;
         ray = Ray{scene.accel.SpawnOrigin(*hit, s->wi), s->wi};
@@ -143,6 +148,7 @@ class CausticGrid {
 // The luminance of the irradiance at x (side n) that one light sample of `choice` estimates.
 double DirectIrradiance(const SceneRuntime& scene, const LightChoice& choice, const Vec3& x, const Vec3& n,
                         float u0, float u1, float u2) {
+  if (choice.empty()) return 0.0;
   const LightChoice::Choice c = choice.Choose(u0);
   if (!(c.probability > 0.0f)) return 0.0;
   const LightSample ls = scene.lights.SampleLight(c.light, c.u, u1, u2);
@@ -167,9 +173,13 @@ double DirectIrradiance(const SceneRuntime& scene, const LightChoice& choice, co
   return double(ls.radiance.Luminance()) * cos_x * cos_light / (d2 * c.probability * ls.pdf_area);
 }
 
+// A point's squared relative noise counts up to this much in the mean: a single dark point with a
+// caustic photon nearby must not decide for the whole image.
+constexpr double kMaxRelativeVariance = 100.0;
+
 struct CameraSums {
   int points = 0;
-  double caustic = 0, variance = 0, total = 0, total_squared = 0;
+  double caustic = 0, total = 0, relative_variance = 0;
 };
 
 CameraSums MeasureAtCameraPoints(const SceneRuntime& scene, const Camera& camera, const CausticGrid& caustics,
@@ -184,15 +194,34 @@ CameraSums MeasureAtCameraPoints(const SceneRuntime& scene, const Camera& camera
       const float fx = (float(i) + 0.5f) / float(grid) * float(camera.width());
       const float fy = (float(j) + 0.5f) / float(grid) * float(camera.height());
       const int px = std::min(int(fx), camera.width() - 1), py = std::min(int(fy), camera.height() - 1);
-      const Ray ray = camera.GenerateRay(px, py, fx - float(px), fy - float(py));
-      const std::optional<SurfaceHit> hit = scene.accel.Intersect(ray);
+      const uint64_t cell = uint64_t(1) << 40 | (uint64_t(j) * uint64_t(grid) + uint64_t(i));
+      // The first surface with a non-delta lobe, seen directly or through mirrors and glass (a
+      // caustic seen through the glass that makes it counts too).
+      Ray ray = camera.GenerateRay(px, py, fx - float(px), fy - float(py));
+      std::optional<SurfaceHit> hit = scene.accel.Intersect(ray);
+      for (int chain = 0; hit; ++chain) {
+        const Material& m = desc.materials[hit->material];
+        if (m.IsEmissive() && hit->front_face) {
+          hit.reset();
+          break;
+        }
+        const Bsdf bsdf(m, hit->shading_normal, hit->geometric_normal);
+        if (bsdf.HasNonDelta()) break;
+        const uint64_t dim = 3 + 3 * uint64_t(chain), sample = uint64_t(shadow_rays);
+        std::optional<BsdfSample> s;
+        if (chain < kMaxSpecularChain)
+          s = bsdf.Sample(-ray.direction, HashedUniform(cell, sample, dim),
+                          HashedUniform(cell, sample, dim + 1), HashedUniform(cell, sample, dim + 2));
+        if (!s || s->weight.IsBlack()) {
+          hit.reset();
+          break;
+        }
+        ray = Ray{scene.accel.SpawnOrigin(*hit, s->wi), s->wi};
+        hit = scene.accel.Intersect(ray);
+      }
       if (!hit) continue;
-      const Material& m = desc.materials[hit->material];
-      if (m.IsEmissive() && hit->front_face) continue;
-      if (!Bsdf(m, hit->shading_normal, hit->geometric_normal).HasNonDelta()) continue;
       const Vec3 n =
           Dot(hit->geometric_normal, ray.direction) < 0.0f ? hit->geometric_normal : -hit->geometric_normal;
-      const uint64_t cell = uint64_t(1) << 40 | (uint64_t(j) * uint64_t(grid) + uint64_t(i));
       double direct = 0, direct_squared = 0;
       for (int s = 0; s < shadow_rays; ++s) {
         const double d =
@@ -220,18 +249,21 @@ CameraSums MeasureAtCameraPoints(const SceneRuntime& scene, const Camera& camera
       const double total = direct_mean + caustic;
       ++row.points;
       row.caustic += caustic;
-      row.variance += std::max(0.0, second_moment - (caustic * caustic - caustic_noise));
       row.total += total;
-      row.total_squared += std::max(0.0, total * total - caustic_noise - direct_noise);
+      const double variance = std::max(0.0, second_moment - (caustic * caustic - caustic_noise));
+      const double total_squared = total * total - caustic_noise - direct_noise;
+      if (variance > 0.0)
+        row.relative_variance += total_squared > 0.0
+                                     ? std::min(variance / total_squared, kMaxRelativeVariance)
+                                     : kMaxRelativeVariance;
     }
   });
   CameraSums all;
   for (const CameraSums& row : rows) {  // in row order: the same sums on every thread count
     all.points += row.points;
     all.caustic += row.caustic;
-    all.variance += row.variance;
     all.total += row.total;
-    all.total_squared += row.total_squared;
+    all.relative_variance += row.relative_variance;
   }
   return all;
 }
@@ -241,6 +273,7 @@ CameraSums MeasureAtCameraPoints(const SceneRuntime& scene, const Camera& camera
 CausticReach MeasureCausticReach(const SceneRuntime& scene, const Camera& camera, int grid, int shadow_rays,
                                  int photons) {
   CausticReach r;
+  if (scene.lights.empty()) return r;
   LightSide light_side = TraceLightSide(scene, photons);
   if (light_side.landed > 0.0) r.punctual_caustic_share = light_side.punctual_caustic / light_side.landed;
   const float radius =
@@ -248,7 +281,7 @@ CausticReach MeasureCausticReach(const SceneRuntime& scene, const Camera& camera
   const CausticGrid caustics(std::move(light_side.caustics), radius);
   const CameraSums sums = MeasureAtCameraPoints(scene, camera, caustics, radius, grid, shadow_rays);
   r.points = sums.points;
-  if (sums.total_squared > 0.0) r.relative_caustic_variance = sums.variance / sums.total_squared;
+  if (sums.points > 0) r.relative_caustic_variance = sums.relative_variance / sums.points;
   if (sums.total > 0.0) r.caustic_fraction = sums.caustic / sums.total;
   return r;
 }

@@ -43,11 +43,12 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
       100.0 * e.reach.lit_fraction, e.reach.points, 100.0 * e.reach.leak_fraction);
   const std::string caustics = fmt::format(
       "{:.1f}% of the light landing on diffuse surfaces comes from point, spot or directional lights "
-      "through them (> {:.0f}% needs photons: a path tracer never finds it), the caustics a path tracer "
-      "finds add a squared relative noise of {:.2f} per sample (> {:.1f} needs photons), {:.1f}% of "
-      "the irradiance seen",
-      100.0 * e.caustics.punctual_caustic_share, 100.0 * kPunctualCausticsAbove,
-      e.caustics.relative_caustic_variance, kNoisyCausticsAbove, 100.0 * e.caustics.caustic_fraction);
+      "by way of them, the caustics are {:.1f}% of the irradiance the camera sees and add a squared "
+      "relative noise of {:.2f} per path-traced sample",
+      100.0 * e.caustics.punctual_caustic_share, 100.0 * e.caustics.caustic_fraction,
+      e.caustics.relative_caustic_variance);
+  const bool missed = e.caustics.punctual_caustic_share > kPunctualCausticsAbove;
+  const bool noisy = e.caustics.relative_caustic_variance > kNoisyCausticsAbove;
   const auto choose = [&c](IntegratorKind kind, std::string reason) {
     c.integrator = kind;
     c.choices.push_back(
@@ -55,12 +56,17 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
   };
   if (e.photon_map_settings_given) {
     choose(IntegratorKind::kPhotonMap, "settings only the photon map reads were given; " + seen);
-  } else if (e.specular_surfaces && (e.caustics.punctual_caustic_share > kPunctualCausticsAbove ||
-                                     e.caustics.relative_caustic_variance > kNoisyCausticsAbove)) {
+  } else if (e.specular_surfaces && (missed || noisy || e.caustics.points == 0)) {
+    const std::string why = e.caustics.points == 0
+                                ? "the camera sees no diffuse surface, so the caustic pilot has no evidence"
+                            : missed ? fmt::format("{} (> {:.0f}%: light a path tracer never finds)",
+                                                   caustics, 100.0 * kPunctualCausticsAbove)
+                                     : fmt::format("{} (> {:.1f}: light a path tracer finds by chance)",
+                                                   caustics, kNoisyCausticsAbove);
     choose(IntegratorKind::kPhotonMap,
-           "mirror or glass surfaces: " + caustics +
-               ": the light they reflect or refract onto diffuse surfaces (caustics) reaches no shadow ray, "
-               "photons carry it (Wald 1999, 2.2); " +
+           "mirror or glass surfaces: " + why +
+               "; photons carry the light they reflect or refract onto diffuse surfaces (caustics, "
+               "Wald 1999, 2.2); " +
                seen);
   } else if (e.reach.points > 0 && e.reach.lit_fraction < kIndirectlyLitBelow) {
     choose(
@@ -71,7 +77,10 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
   } else {
     const std::string specular =
         e.specular_surfaces
-            ? "; mirror or glass surfaces, but a path tracer finds the light they focus: " + caustics
+            ? fmt::format(
+                  "; mirror or glass surfaces, but {} (at most {:.0f}% and {:.1f}: a path tracer "
+                  "renders their caustics)",
+                  caustics, 100.0 * kPunctualCausticsAbove, kNoisyCausticsAbove)
             : ", no mirror or glass";
     choose(IntegratorKind::kPath,
            seen + specular +

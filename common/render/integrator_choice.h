@@ -1,9 +1,10 @@
 #pragma once
 // What `integrator auto` (the default of pf render and pf submit) becomes for a scene and camera,
 // and why (docs/renderer.md, "Choosing the integrator"; measured in docs/results/time-budget.md).
-// Decided once, where the scene is loaded (pf), from the scene's materials and a pilot of camera and
-// shadow rays (light_reach.h), so the job stores a concrete integrator and every worker renders
-// the same one. Each part can be forced: --integrator path|photonmap, --set occlusion-test=....
+// Decided once, where the scene is loaded (pf), from the scene's materials and two pilots — camera
+// and shadow rays (light_reach.h), and with mirrors or glass, photons (caustic_reach.h) — so the job stores a
+// concrete integrator and every worker renders the same one. Each part can be forced: --integrator
+// path|photonmap, --set occlusion-test=....
 
 #include <vector>
 
@@ -47,18 +48,19 @@ struct IntegratorChoice {
 bool SceneHasSpecularSurfaces(const SceneDescription& scene);
 
 // What the scene and its camera tell (the user's part of the evidence is the caller's): its
-// materials, its lights and the pilot (MeasureLightReach). The pilot's leak distance is the first
-// progressive pass's radius (progressive_radius.h) for the larger of the radii of `settings`
-// (photons, k, progressive-radius as the job has them) and of the default photons and k, so that
+// materials, its lights and the pilots (MeasureLightReach; MeasureCausticReach if specular). The pilot's leak
+// distance is the first progressive pass's radius (progressive_radius.h) for the larger of the radii of
+// `settings` (photons, k, progressive-radius as the job has them) and of the default photons and k, so that
 // the guard errs towards the occlusion test.
 IntegratorEvidence SceneEvidence(const SceneDescription& scene, const CameraSpec& camera,
                                  const JobRenderSettings& settings);
 
-// The rule, in order: photon-map settings given → the photon map; specular surfaces → the photon
-// map (caustics); a lit fraction below kIndirectlyLitBelow → the photon map; else the path tracer
-// (unbiased, and as good where most of what is seen sees a light: many lights alone do not make
-// the photon map the better choice, CONFERENCE in docs/results/time-budget.md). A photon map
-// chosen here gets the occlusion test when the leak fraction is above kLeakyAbove.
+// The rule, in order: photon-map settings given → the photon map; specular surfaces whose caustics
+// a path tracer misses (kPunctualCausticsAbove) or finds only noisily (kNoisyCausticsAbove), or that
+// the camera sees no diffuse surface past, → the photon map; a lit fraction below kIndirectlyLitBelow → the
+// photon map; else the path tracer (unbiased, and as good where most of what is seen sees a light: many
+// lights alone do not make the photon map the better choice, CONFERENCE in docs/results/time-budget.md). A
+// photon map chosen here gets the occlusion test when the leak fraction is above kLeakyAbove.
 IntegratorChoice ChooseIntegrator(const IntegratorEvidence& evidence);
 
 }  // namespace pf

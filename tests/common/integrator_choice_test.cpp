@@ -157,20 +157,24 @@ TEST(IntegratorChoice, EachRuleChoosesAndSaysWhy) {
 
   IntegratorEvidence specular = Evidence(0.9, 0.0);
   specular.specular_surfaces = true;
+  EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPhotonMap) << "no caustic evidence";
+  EXPECT_THAT(ChooseIntegrator(specular).choices[0].reason, HasSubstr("no evidence"));
+  specular.caustics.points = 1000;
   EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPath) << "caustics a path tracer finds";
   EXPECT_THAT(ChooseIntegrator(specular).choices[0].reason,
-              HasSubstr("a path tracer finds the light they focus"));
+              HasSubstr("a path tracer renders their caustics"));
   specular.caustics.relative_caustic_variance = kNoisyCausticsAbove;
   EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPath);
   specular.caustics.relative_caustic_variance = kNoisyCausticsAbove * 1.01;
   EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPhotonMap) << "noisy caustics";
-  EXPECT_THAT(ChooseIntegrator(specular).choices[0].reason, HasSubstr("mirror or glass"));
+  EXPECT_THAT(ChooseIntegrator(specular).choices[0].reason, HasSubstr("a path tracer finds by chance"));
   specular.caustics.relative_caustic_variance = 0.0;
   specular.caustics.punctual_caustic_share = kPunctualCausticsAbove;
   EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPath);
   specular.caustics.punctual_caustic_share = kPunctualCausticsAbove * 1.01;
   EXPECT_EQ(ChooseIntegrator(specular).integrator, IntegratorKind::kPhotonMap)
       << "caustics of punctual lights";
+  EXPECT_THAT(ChooseIntegrator(specular).choices[0].reason, HasSubstr("a path tracer never finds"));
   IntegratorEvidence unused = Evidence(0.9, 0.0);
   unused.caustics.punctual_caustic_share = 1.0;
   EXPECT_EQ(ChooseIntegrator(unused).integrator, IntegratorKind::kPath) << "no mirror or glass, no caustics";
@@ -244,6 +248,8 @@ TEST(IntegratorChoice, ShippedScenes) {
   EXPECT_EQ(ChoiceFor("conference/conference.json").integrator, IntegratorKind::kPath) << "8 lights in view";
   EXPECT_EQ(ChoiceFor("blender-studio/blender-studio.json").integrator, IntegratorKind::kPath)
       << "glass, but the caustics are the sky's";
+  EXPECT_EQ(ChoiceFor("office3/office3.json").integrator, IntegratorKind::kPhotonMap)
+      << "a polished desk under a bare bulb: the path tracer's image is fireflies";
   for (const char* leaky : {"invisibledate/invisibledate.json", "scene10/scene10.json"}) {
     const IntegratorChoice c = ChoiceFor(leaky);
     EXPECT_EQ(c.integrator, IntegratorKind::kPhotonMap) << leaky;
