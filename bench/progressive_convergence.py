@@ -10,7 +10,8 @@ rmse_lowfreq = 4x4 block means outside that mask). The slope is the least-square
 log(error) on log(N) over all N.
 
     bench/progressive_convergence.py [--scenes cornell-box] [--passes 8,16,32,64,128] [--photons 10000]
-                                     [--k 50] [--threads 2] [--out docs/results]
+                                     [--k 50] [--threads 2] [--plans progressive,multiple-maps]
+                                     [--extra "--set progressive-alpha=0.5"] [--out docs/results]
 
 Writes <out>/progressive-photon-mapping.json and prints a Markdown table.
 """
@@ -47,6 +48,7 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--extra", default="", help="more pf render flags for every image")
+    ap.add_argument("--plans", default=",".join(PLANS), help="progressive, multiple-maps or both")
     ap.add_argument("--out", default=str(ROOT / "docs/results"))
     args = ap.parse_args()
     ns = [int(n) for n in args.passes.split(",")]
@@ -54,7 +56,8 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for scene in args.scenes.split(","):
             manifest, reference, res = SCENES[scene]
-            for plan, flag in PLANS.items():
+            for plan in args.plans.split(","):
+                flag = PLANS[plan]
                 for n in ns:
                     exr = pathlib.Path(tmp) / f"{scene}-{plan}-{n}.exr"
                     cmd = [args.pf, "render", manifest, "--integrator", "photonmap", "--photons", str(args.photons),
@@ -69,7 +72,7 @@ def main():
                     rows.append(row)
     slopes = []
     for scene in args.scenes.split(","):
-        for plan in PLANS:
+        for plan in args.plans.split(","):
             pts = [r for r in rows if r["scene"] == scene and r["plan"] == plan]
             slopes.append({"scene": scene, "plan": plan,
                            **{m: slope([r["maps"] for r in pts], [r[m] for r in pts]) for m in METRICS}})
