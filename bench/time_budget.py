@@ -47,6 +47,8 @@ CONFIGS = {  # name: pf render flags
     # Fewer samples per pass: more passes in the budget, so a smaller last radius (less bias).
     "default-spp4": ["--spp", "4"],
     "default-spp1": ["--spp", "1"],
+    # The progressive radius schedule's alpha at 1/2 (docs/results/progressive-photon-mapping.md).
+    "default-alpha-half": ["--plan", "progressive", "--spp", "4", "--set", "progressive-alpha=0.5"],
 }
 # What each named configuration is after resolution: (integrator, occlusion test).
 RESOLVED = {"path": ("path", False), "photonmap": ("photonmap", False), "photonmap-occl": ("photonmap", True)}

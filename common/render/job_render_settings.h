@@ -12,6 +12,7 @@
 
 #include "common/photon/photon_maps.h"
 #include "common/render/photon_map_integrator.h"
+#include "common/render/progressive_radius.h"
 #include "common/sampling/sampler.h"
 #include "common/scene/scene.h"
 
@@ -89,7 +90,7 @@ struct JobRenderSettings {
   // The progressive plan (plan_factory.h; progressive_radius.h, Knaus & Zwicker 2011): the
   // schedule's α and the first pass's radius (0 = derived from the scene and the photons per pass).
   // Read only by a progressive plan's tasks; they change no map (the radius is a query setting).
-  double progressive_alpha = 2.0 / 3.0;
+  double progressive_alpha = kDefaultProgressiveAlpha;
   float progressive_radius = 0.0f;
 
   // The settings with every `auto` made concrete for `scene`: a pure function of both, so every

@@ -149,7 +149,8 @@ std::vector<RenderSetting> MakeTable() {
       {.name = "progressive-alpha",
        .group = G::kEstimate,
        .help = "Progressive plan: alpha of the radius schedule r_p^2 = r_1^2 prod_{i=1..p} (i+alpha)/(i+1) "
-               "(Knaus & Zwicker 2011; 2/3 balances bias and variance)",
+               "(Knaus & Zwicker 2011 suggest 2/3; 1/2 lets a disk's bias at walls' edges fall as fast as "
+               "the noise: docs/results/progressive-photon-mapping.md)",
        .min = 0.01,
        .max = 0.99}));
   t.push_back(Real<&S::progressive_radius>(

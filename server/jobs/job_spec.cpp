@@ -222,6 +222,11 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
                      " entries with the coordinator's own " + std::to_string(job.auto_choices.size()));
   for (const AutoChoice& c : job.auto_choices) AutoChoiceToProto(c, job.spec.add_auto_settings());
   job.plan = PlanFromProto(accepted.plan(), "spec.plan");
+  // α is stored explicitly with every progressive photon-map job, its default included: the
+  // default has changed before (2/3, now 1/2), and a job must resume with the α it started with
+  // (recovery.cpp reads a stored progressive job without it as one of the 2/3 days).
+  if (job.plan.kind == PlanKind::kProgressive && job.settings.integrator == IntegratorKind::kPhotonMap)
+    job.spec.mutable_settings()->mutable_photon_map()->set_progressive_alpha(job.settings.progressive_alpha);
   if (job.plan.kind != PlanKind::kProgressive)
     for (const std::string& name : NonDefaultSettings(job.settings))
       if (name.starts_with(kProgressiveSettingPrefix))

@@ -7,6 +7,7 @@
 
 #include "common/core/error.h"
 #include "common/plan/hierarchical.h"
+#include "common/render/progressive_radius.h"
 #include "proto/limits.h"
 #include "server/assembly/result_merger.h"
 #include "server/scheduling/checkpoint_restore.h"
@@ -171,6 +172,13 @@ RecoveryReport RecoverJobs(JobStore& db, const SceneCatalog& scenes, const fs::p
     try {
       photonfarm::v1::JobSpec spec;
       if (!spec.ParseFromString(row.spec)) throw InputError("stored spec does not parse");
+      // A progressive photon-map job stored before α was written explicitly (job_spec.cpp) left
+      // it unset when it was the default of the time, 2/3: it resumes with that α.
+      if (spec.plan().has_progressive() &&
+          spec.settings().integrator() == photonfarm::v1::INTEGRATOR_PHOTONMAP &&
+          !spec.settings().photon_map().has_progressive_alpha())
+        spec.mutable_settings()->mutable_photon_map()->set_progressive_alpha(
+            kStoredJobsUnsetProgressiveAlpha);
       config = ValidateJobSpec(spec, scenes);
     } catch (const std::exception& e) {
       if (!finished) {

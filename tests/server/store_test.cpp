@@ -12,6 +12,7 @@
 #include "common/core/atomic_file.h"
 #include "common/core/byte_codec.h"
 #include "common/core/error.h"
+#include "common/render/progressive_radius.h"
 #include "server/clock.h"
 #include "server/rpc/job_images.h"
 #include "server/rpc/status_mapping.h"
@@ -530,6 +531,36 @@ TEST_F(Recovery, ALostJobTableNeverReusesAnIdAndOldFilesAreSetAside) {
   EXPECT_NE(new_id, old_id);
   EXPECT_EQ(scheduler.Status(new_id).tasks_done(), 0u) << "nothing of the old job merged into the new one";
   persister.Stop();
+}
+
+// The progressive schedule's α was 2/3 by default and is 1/2 now. A progressive photon-map job is
+// stored with its α written out; one stored before that, with α unset, resumes with 2/3, the α it
+// started with, not today's default.
+TEST_F(Recovery, AProgressiveJobResumesWithTheAlphaItWasStoredWith) {
+  v1::JobSpec spec = SkippingSpec(1, 1);
+  spec.mutable_settings()->set_integrator(v1::INTEGRATOR_PHOTONMAP);
+  spec.mutable_settings()->mutable_photon_map()->set_photons(1000);
+  spec.mutable_settings()->mutable_photon_map()->set_k(10);
+  spec.mutable_plan()->mutable_progressive()->set_passes(2);
+  spec.mutable_plan()->mutable_progressive()->set_samples_per_pixel(1);
+  std::string fresh_id, old_id;
+  {
+    SqliteStore db(db_file);
+    Scheduler scheduler(clock, SchedulerOptions{});
+    const JobConfig fresh = ValidateJobSpec(spec, catalog);
+    ASSERT_TRUE(fresh.spec.settings().photon_map().has_progressive_alpha()) << "written out, default or not";
+    EXPECT_EQ(fresh.spec.settings().photon_map().progressive_alpha(), kDefaultProgressiveAlpha);
+    fresh_id = SubmitStored(scheduler, db, fresh);
+    JobConfig old = ValidateJobSpec(spec, catalog);
+    old.spec.mutable_settings()->mutable_photon_map()->clear_progressive_alpha();  // as stored before
+    old_id = SubmitStored(scheduler, db, old);
+  }
+  SqliteStore db(db_file);
+  Scheduler scheduler(clock, SchedulerOptions{});
+  EXPECT_EQ(RecoverJobs(db, catalog, cp_dir, scheduler, clock).jobs_resumed, 2u);
+  EXPECT_EQ(scheduler.Status(fresh_id).spec().settings().photon_map().progressive_alpha(), 0.5);
+  EXPECT_EQ(scheduler.Status(old_id).spec().settings().photon_map().progressive_alpha(), 2.0 / 3.0);
+  EXPECT_EQ(scheduler.Snapshot(old_id, false).config->settings.progressive_alpha, 2.0 / 3.0);
 }
 
 // Elapsed time was saved only on state changes, so a time budget restarted with the
