@@ -47,8 +47,11 @@ CONFIGS = {  # name: pf render flags
     # Fewer samples per pass: more passes in the budget, so a smaller last radius (less bias).
     "default-spp4": ["--spp", "4"],
     "default-spp1": ["--spp", "1"],
-    # The progressive radius schedule's alpha at 1/2 (docs/results/progressive-photon-mapping.md).
+    # The progressive radius schedule's alpha, 1/2 (the default since 2026-11-29) or the former 2/3
+    # (docs/results/progressive-photon-mapping.md), with the plan the budget gives the photon map.
     "default-alpha-half": ["--plan", "progressive", "--spp", "4", "--set", "progressive-alpha=0.5"],
+    "default-alpha-two-thirds": ["--plan", "progressive", "--spp", "4", "--set",
+                                 "progressive-alpha=0.6666666666666666"],
 }
 # What each named configuration is after resolution: (integrator, occlusion test).
 RESOLVED = {"path": ("path", False), "photonmap": ("photonmap", False), "photonmap-occl": ("photonmap", True)}

@@ -33,6 +33,7 @@
 #include "common/render/integrator_factory.h"
 #include "common/render/path_tracer.h"
 #include "common/render/photon_map_integrator.h"
+#include "common/render/progressive_radius.h"
 #include "common/render/render_settings_text.h"
 #include "common/render/renderer.h"
 #include "common/scene/scene_bundle.h"
@@ -357,8 +358,13 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& output, 
     }
     // What the image is of (render_header.h SameRenderKey): the scene, the camera, every setting.
     // A key only one of the two holds (a file of an older pf) is not compared.
+    // The progressive schedule's settings are in every photon-map image's header, but only the
+    // progressive plan reads them: for another plan they say nothing about the image (and their
+    // default changed, docs/farm.md "Upgrades").
+    const bool progressive = meta.count("plan") && meta["plan"].starts_with("progressive");
+    const std::string progressive_key = SettingHeaderKey(kProgressiveSettingPrefix);
     for (const auto& [key, value] : meta) {
-      if (!SameRenderKey(key)) continue;
+      if (!SameRenderKey(key) || (!progressive && key.starts_with(progressive_key))) continue;
       auto [it, fresh] = first_value.emplace(key, value);
       if (!fresh && it->second != value)
         spdlog::warn("{}: {} {} differs from the first input's {}: the average mixes different renders", path,

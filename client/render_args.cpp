@@ -538,6 +538,10 @@ PreparedJob PrepareJob(const RenderArgs& args) {
                     uint32_t(std::max(1, a.workers)), kMapsCanBeShipped, "spec");
     spdlog::info("plan auto: {}", s.plan().chosen_by_auto().reason());
   }
+  // The progressive schedule's α, written even at its default: a coordinator of an older build
+  // reads an unset one as its own default (docs/farm.md, "Upgrades").
+  if (s.plan().has_progressive())
+    WriteProgressiveAlpha(SettingsFromProto(s.settings(), "settings"), s.mutable_settings());
   return p;
 }
 

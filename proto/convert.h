@@ -28,6 +28,11 @@ void CameraToProto(const CameraSpec& c, photonfarm::v1::Camera* out);
 
 JobRenderSettings SettingsFromProto(const photonfarm::v1::RenderSettings& s, const std::string& field);
 void SettingsToProto(const JobRenderSettings& s, photonfarm::v1::RenderSettings* out);
+// Writes the progressive schedule's α of a photon-map job into `out` even at its default (call it for
+// the progressive plan's jobs and tasks): the default has changed (2/3, then 1/2), and a reader of
+// another build, or a stored job read back later, must not take an unset α for its own default
+// (docs/farm.md, "Upgrades").
+void WriteProgressiveAlpha(const JobRenderSettings& s, photonfarm::v1::RenderSettings* out);
 
 PlanSpec PlanFromProto(const photonfarm::v1::Plan& p, const std::string& field);
 void PlanToProto(const PlanSpec& p, photonfarm::v1::Plan* out);

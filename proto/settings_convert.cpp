@@ -16,7 +16,9 @@
 // excludes (caustic_split 0 = off), or any photon-map field of a path job — except for the
 // settings a job must state (the integrator, and photons and k of a photon-map job), for which 0
 // is refused. SettingsToProto leaves a default
-// unset where it reads back as the default, so that a spec holds what its sender chose.
+// unset where it reads back as the default, so that a spec holds what its sender chose; the
+// progressive plan's α is written even at its default (WriteProgressiveAlpha: its default changed,
+// and a stored progressive job without it resumes with the old one, server/scheduling/recovery.cpp).
 
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/message.h>
@@ -192,6 +194,11 @@ JobRenderSettings SettingsFromProto(const v1::RenderSettings& s, const std::stri
   }
   CheckRenderSettingRules(out, [&](std::string_view name) { return paths.at(name); });
   return out;
+}
+
+void WriteProgressiveAlpha(const JobRenderSettings& s, v1::RenderSettings* out) {
+  if (s.integrator == IntegratorKind::kPhotonMap)
+    out->mutable_photon_map()->set_progressive_alpha(s.progressive_alpha);
 }
 
 void SettingsToProto(const JobRenderSettings& s, v1::RenderSettings* out) {

@@ -223,10 +223,10 @@ JobConfig ValidateJobSpec(const v1::JobSpec& spec, const SceneCatalog& scenes, u
   for (const AutoChoice& c : job.auto_choices) AutoChoiceToProto(c, job.spec.add_auto_settings());
   job.plan = PlanFromProto(accepted.plan(), "spec.plan");
   // α is stored explicitly with every progressive photon-map job, its default included: the
-  // default has changed before (2/3, now 1/2), and a job must resume with the α it started with
-  // (recovery.cpp reads a stored progressive job without it as one of the 2/3 days).
-  if (job.plan.kind == PlanKind::kProgressive && job.settings.integrator == IntegratorKind::kPhotonMap)
-    job.spec.mutable_settings()->mutable_photon_map()->set_progressive_alpha(job.settings.progressive_alpha);
+  // default has changed (2/3, now 1/2), and a job must resume with the α it started with
+  // (recovery.cpp reads a stored progressive job without it as stored when 2/3 was the default).
+  if (job.plan.kind == PlanKind::kProgressive)
+    WriteProgressiveAlpha(job.settings, job.spec.mutable_settings());
   if (job.plan.kind != PlanKind::kProgressive)
     for (const std::string& name : NonDefaultSettings(job.settings))
       if (name.starts_with(kProgressiveSettingPrefix))

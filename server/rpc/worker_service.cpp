@@ -32,6 +32,8 @@ void FillTask(const Lease& lease, v1::Task* task, CoordinatorApi& api) {
   task->set_scene_hash(lease.config->scene_hash);
   task->set_scene_entry(lease.config->scene_entry);
   SettingsToProto(lease.config->settings, task->mutable_settings());
+  if (lease.config->plan.kind == PlanKind::kProgressive)
+    WriteProgressiveAlpha(lease.config->settings, task->mutable_settings());
   if (lease.chunk) {
     // A piece of a map to trace: no pixels, no camera (Task.trace_chunk).
     task->set_task_id(lease.task_id);

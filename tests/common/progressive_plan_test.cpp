@@ -73,7 +73,8 @@ TEST_F(ProgressiveConsistency, ErrorKeepsFallingWhereMultipleMapsFlatten) {
                m64 = RelativeError(PlanKind::kMultipleMaps, 64);
   RecordProperty("errors", std::to_string(p4) + " " + std::to_string(p64) + " " + std::to_string(m4) + " " +
                                std::to_string(m64));
-  // 16x the passes: r² falls by 16^(α−1) ≈ 0.40 (bias) and the noise by 16^(−α/2) ≈ 0.40.
+  // 16x the passes, at the default α = 1/2: r² falls by 16^(α−1) = 0.25 (bias) and the noise by
+  // 16^(−α/2) = 0.5 (at 2/3, the α this bound was first set for, both ≈ 0.40).
   EXPECT_LT(p64, 0.6 * p4) << p4 << " -> " << p64;
   // The same maps with the k nearest stop at the bias of k = 200.
   EXPECT_GT(m64, 0.65 * m4) << m4 << " -> " << m64;

@@ -83,6 +83,26 @@ TEST(SettingsConvert, EveryRowRoundTrips) {
 
 // Proto3 cannot tell 0 from unset: a 0 outside the range is the default, except for what a job
 // must state.
+// The progressive schedule's α at its default is left unset by SettingsToProto, like every default,
+// and written by WriteProgressiveAlpha, which progressive jobs and tasks get: an unset α in a stored
+// job means the former default 2/3 (server/scheduling/recovery.cpp).
+TEST(SettingsConvert, ProgressiveAlphaIsWrittenEvenAtItsDefault) {
+  JobRenderSettings s;
+  s.integrator = IntegratorKind::kPhotonMap;
+  v1::RenderSettings wire;
+  SettingsToProto(s, &wire);
+  EXPECT_FALSE(wire.photon_map().has_progressive_alpha());
+  WriteProgressiveAlpha(s, &wire);
+  ASSERT_TRUE(wire.photon_map().has_progressive_alpha());
+  EXPECT_EQ(wire.photon_map().progressive_alpha(), 0.5);
+  EXPECT_EQ(SettingsFromProto(wire, "settings").progressive_alpha, 0.5);
+  s.integrator = IntegratorKind::kPath;
+  v1::RenderSettings path_wire;
+  SettingsToProto(s, &path_wire);
+  WriteProgressiveAlpha(s, &path_wire);
+  EXPECT_FALSE(path_wire.has_photon_map()) << "the path tracer has no schedule";
+}
+
 TEST(SettingsConvert, UnsetFieldsAreTheDefaults) {
   v1::RenderSettings s = PhotonMapJob();
   s.mutable_photon_map()->clear_glossy_depth();
