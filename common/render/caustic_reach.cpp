@@ -11,6 +11,7 @@
 #include "common/materials/bsdf.h"
 #include "common/photon/photon_tracer.h"
 #include "common/render/path_tracer.h"
+#include "common/render/pilot_lattice.h"
 #include "common/render/progressive_radius.h"
 #include "common/sampling/hashed_uniform.h"
 
@@ -106,7 +107,10 @@ LightSide TraceLightSide(const SceneRuntime& scene, int photons) {
   return all;
 }
 
-// The caustic photons sorted into cubic cells of side r, for the kernel's look-ups.
+// The caustic photons sorted into cubic cells of side r, for the kernel's look-ups. Not a PhotonMap
+// (photon_map.h, whose QueryRadius answers the same question): its 18-byte photons (§2.2) carry one
+// RGBE power, and the kernel needs two per photon, Φ and T·Le·Φ, which differ by the light's
+// radiance (orders of magnitude for a small lamp: one shared exponent would lose Φ).
 class CausticGrid {
  public:
   CausticGrid(std::vector<CausticPhoton> photons, float r) : photons_(std::move(photons)), r_(r) {
@@ -191,13 +195,10 @@ CameraSums MeasureAtCameraPoints(const SceneRuntime& scene, const Camera& camera
   tbb::parallel_for(0, grid, [&](int j) {
     CameraSums& row = rows[size_t(j)];
     for (int i = 0; i < grid; ++i) {
-      const float fx = (float(i) + 0.5f) / float(grid) * float(camera.width());
-      const float fy = (float(j) + 0.5f) / float(grid) * float(camera.height());
-      const int px = std::min(int(fx), camera.width() - 1), py = std::min(int(fy), camera.height() - 1);
       const uint64_t cell = uint64_t(1) << 40 | (uint64_t(j) * uint64_t(grid) + uint64_t(i));
       // The first surface with a non-delta lobe, seen directly or through mirrors and glass (a
       // caustic seen through the glass that makes it counts too).
-      Ray ray = camera.GenerateRay(px, py, fx - float(px), fy - float(py));
+      Ray ray = PilotLatticeRay(camera, grid, i, j);
       std::optional<SurfaceHit> hit = scene.accel.Intersect(ray);
       for (int chain = 0; hit; ++chain) {
         const Material& m = desc.materials[hit->material];

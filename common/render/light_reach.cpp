@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "common/materials/bsdf.h"
+#include "common/render/pilot_lattice.h"
 #include "common/sampling/hashed_uniform.h"
 
 namespace pf {
@@ -72,10 +73,7 @@ LightReach MeasureLightReach(const SceneRuntime& scene, const Camera& camera, fl
   tbb::parallel_for(0, grid, [&](int j) {
     int row_points = 0, row_lit = 0, row_leaks = 0;
     for (int i = 0; i < grid; ++i) {
-      const float fx = (float(i) + 0.5f) / float(grid) * float(camera.width());
-      const float fy = (float(j) + 0.5f) / float(grid) * float(camera.height());
-      const int px = std::min(int(fx), camera.width() - 1), py = std::min(int(fy), camera.height() - 1);
-      const Ray ray = camera.GenerateRay(px, py, fx - float(px), fy - float(py));
+      const Ray ray = PilotLatticeRay(camera, grid, i, j);
       const std::optional<SurfaceHit> hit = scene.accel.Intersect(ray);
       if (!hit) continue;
       const Material& m = desc.materials[hit->material];

@@ -13,6 +13,7 @@
 #include "common/camera/camera.h"
 #include "common/render/integrator_choice.h"
 #include "common/render/light_reach.h"
+#include "common/render/pilot_lattice.h"
 #include "common/render/scene_runtime.h"
 #include "common/scene/scene_loader.h"
 #include "tests/common/test_scenes.h"
@@ -27,17 +28,12 @@ using testing::LookAtCamera;
 
 constexpr int kGrid = 64;
 
-// The pilot's lattice (light_reach.h): one camera ray through each cell centre of a kGrid × kGrid
+// The pilot's lattice (pilot_lattice.h): one camera ray through each cell centre of a kGrid × kGrid
 // grid over the image.
 template <typename Visit>
 void ForEachLatticeRay(const Camera& camera, const Visit& visit) {
   for (int j = 0; j < kGrid; ++j)
-    for (int i = 0; i < kGrid; ++i) {
-      const float fx = (float(i) + 0.5f) / float(kGrid) * float(camera.width());
-      const float fy = (float(j) + 0.5f) / float(kGrid) * float(camera.height());
-      const int px = std::min(int(fx), camera.width() - 1), py = std::min(int(fy), camera.height() - 1);
-      visit(camera.GenerateRay(px, py, fx - float(px), fy - float(py)));
-    }
+    for (int i = 0; i < kGrid; ++i) visit(PilotLatticeRay(camera, kGrid, i, j));
 }
 
 // The floor z = 0 under a small light 1 m up (FloorUnderSquareLight) with an opaque square of side
