@@ -44,6 +44,9 @@ CONFIGS = {  # name: pf render flags
     "path": ["--integrator", "path"],
     "photonmap": ["--integrator", "photonmap"],
     "photonmap-occl": ["--integrator", "photonmap", "--set", "occlusion-test=true"],
+    # The progressive photon map with a local pass (final gather, Wald 1999, 4.3) of 16 rays.
+    "photonmap-occl-local16": ["--integrator", "photonmap", "--set", "occlusion-test=true", "--plan", "progressive",
+                               "--spp", "4", "--set", "local-pass-rays=16"],
     # Fewer samples per pass: more passes in the budget, so a smaller last radius (less bias).
     "default-spp4": ["--spp", "4"],
     "default-spp1": ["--spp", "1"],

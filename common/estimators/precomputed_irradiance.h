@@ -54,7 +54,7 @@ struct PrecomputedIrradianceOptions {
   // (nearest) → 0.01844 (4; the full local pass 0.01856), INVISIBLEDATE 0.4506 → 0.4523, for
   // +5-13 % CPU time: docs/results/kernel.md §2.
   int average = 4;
-  // The sites' own estimates drop photons whose origin the site cannot see (Wald 1999, §4.1.1;
+  // The sites' own estimates drop photons whose incoming path the site cannot see (Wald 1999, §4.1.1;
   // needs photon origins in the maps: ConfigureMapsFor keeps them). Read by the photon map
   // integrator, which builds the sites (Build itself only calls the RadianceFn). Without it the
   // sites next to a wall carry the light of the room behind it into every gather that reads

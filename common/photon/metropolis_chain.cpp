@@ -38,8 +38,8 @@ bool TraceChain(const EmbreeScene& scene, const ChainStart& c, const ChainState&
   result->q = 1.0;
   Rgb power = StartPower(c, w);
   if (power.IsBlack()) return false;
-  Vec3 previous = c.position;
   Ray ray{c.hit ? scene.SpawnOrigin(*c.hit, w) : c.ray_origin_light, w};
+  Vec3 previous = ray.origin;  // off the surface, as TracedPhoton::origin
   const size_t n = like.lobes.size();
   for (size_t i = 0; i <= n; ++i) {
     ++counts.rays;
@@ -62,8 +62,8 @@ bool TraceChain(const EmbreeScene& scene, const ChainStart& c, const ChainState&
     result->q *= double(s->pdf);
     power *= s->weight;
     if (power.IsBlack() || !power.IsFinite()) return false;
-    previous = hit->position;
     ray = Ray{scene.SpawnOrigin(*hit, s->wi), s->wi};
+    previous = ray.origin;
   }
   return false;
 }

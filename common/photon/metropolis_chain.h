@@ -34,9 +34,9 @@ inline constexpr uint32_t kSingularLobes =
 // Its direction ω was drawn with a density ∝ max(0, ω·axis) on the side `side` (emission: the
 // light's normal; a bounce: the Bsdf's lobe axis, sidedness against the geometric normal).
 struct ChainStart {
-  Vec3 position, ray_origin_light;  // the vertex; the light's offset origin (emission only)
-  std::optional<SurfaceHit> hit;    // the bounce's hit (nullopt: emission)
-  std::optional<Bsdf> bsdf;         // the bounce's Bsdf, for the diffuse weight at a new ω
+  Vec3 ray_origin_light;          // the light's offset origin (emission only)
+  std::optional<SurfaceHit> hit;  // the bounce's hit (nullopt: emission)
+  std::optional<Bsdf> bsdf;       // the bounce's Bsdf, for the diffuse weight at a new ω
   Vec3 wo, axis, side;
   Rgb power;             // emission: Φ leaving the light; bounce: Φ arriving (before the diffuse weight)
   Rgb diffuse_roulette;  // bounce: 1/P(diffuse lobe) (the RR selection, constant in ω)

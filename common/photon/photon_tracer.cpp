@@ -324,7 +324,7 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
                           : Sampler::ForPhoton(shared.stream, index);
   const PhotonEmitter& em = start ? *start->emitter : ChooseEmitter(lights, o, shared, sampler, index);
   const Emission e = Emit(em, sampler, scene.epsilon());
-  Vec3 previous = e.position;
+  Vec3 previous = e.ray.origin;  // a photon's origin: its last ray's start, off the surface (TracedPhoton)
   Ray ray = e.ray;
   Rgb power = e.power;
   const uint32_t light = em.light;
@@ -389,9 +389,9 @@ void TracePlainWalk(const EmbreeScene& scene, const LightSampler& lights, const 
     if (power.IsBlack() || !power.IsFinite()) return;
     // A diffuse bounce resets the caustic test; a singular one makes the next store caustic.
     any_singular_since_diffuse = IsSingular(lobe);
-    previous = hit.position;
     const Vec3& n = hit.geometric_normal;
     ray = Ray{OffsetRayOrigin(hit.position, Dot(wi, n) >= 0 ? n : -n, scene.epsilon()), wi};
+    previous = ray.origin;
   }
 }
 
@@ -411,7 +411,7 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
   const Emission e = Emit(em, sampler, scene.epsilon());
   Rgb power = e.power;
   const Vec3 dir = e.ray.direction;
-  Vec3 previous = e.position;
+  Vec3 previous = e.ray.origin;
   Ray ray = e.ray;
 
   // Metropolis splitting (§4.6.2): the chain being walked, if any. Its state is allocated by the
@@ -453,7 +453,6 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
   // (weight 1, as a chain that cannot be split is) — unbiased, only not refined.
   if (metropolis && !em.punctual) {
     ChainStart start;
-    start.position = e.position;
     start.ray_origin_light = ray.origin;
     start.axis = em.normal;
     start.side = em.normal;
@@ -522,7 +521,6 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
     if (metropolis && s->lobe == kLobeDiffuseReflection) {
       if (const std::optional<Vec3> axis = bsdf.LobeAxis(wo)) {
         ChainStart start;
-        start.position = hit->position;
         start.hit = *hit;
         start.bsdf = bsdf;
         start.wo = wo;
@@ -536,8 +534,8 @@ void TraceEmitted(const EmbreeScene& scene, const LightSampler& lights, const Ph
     }
     // A diffuse bounce resets the caustic test; a singular one makes the next store caustic.
     any_singular_since_diffuse = IsSingular(s->lobe);
-    previous = hit->position;
     ray = Ray{scene.SpawnOrigin(*hit, s->wi), s->wi};
+    previous = ray.origin;
   }
   if (in_chain()) mw->state.splittable = false;  // the bounce cap ended it: stored unsplit
   end_chain(false);

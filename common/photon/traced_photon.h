@@ -20,9 +20,12 @@ enum class PhotonKind : uint8_t { kDirect = 0, kIndirect = 1, kCaustic = 2 };
 // Full-precision photon as traced; compressed to the 18-byte Photon when put in a map.
 struct TracedPhoton {
   Vec3 position;
-  Vec3 direction;      // unit, pointing back towards where the photon came from (ω in §2.2)
-  Rgb power;           // Φ, W
-  Vec3 origin;         // previous vertex of the path (occlusion testing, §4.1.1)
+  Vec3 direction;  // unit, pointing back towards where the photon came from (ω in §2.2)
+  Rgb power;       // Φ, W
+  // The previous vertex of the path (occlusion testing, §4.1.1), as the ray that left it started:
+  // moved off its surface to the side the photon left on (OffsetRayOrigin). A test ray from a point
+  // that sees that side ends short of the surface; one from behind a zero-thickness wall crosses it.
+  Vec3 origin;
   uint32_t light = 0;  // emitting light id (PhotonDirect, §4.2.3)
   PhotonKind kind = PhotonKind::kIndirect;
   // Explicit, zero-initialised padding: arrays of equal photons are equal byte for byte however

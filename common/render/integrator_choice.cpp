@@ -94,7 +94,7 @@ IntegratorChoice ChooseIntegrator(const IntegratorEvidence& e) {
         {"occlusion-test", "true",
          fmt::format("{:.1f}% of the points the camera sees are unlit, with lit space behind a wall "
                      "within the photon search radius (> {:.0f}%): photons whose "
-                     "origin the point cannot see are dropped (no light bleeding, 4.1.1)",
+                     "incoming path the point cannot see are dropped (no light bleeding, 4.1.1)",
                      100.0 * e.reach.leak_fraction, 100.0 * kLeakyAbove)});
   }
   return c;

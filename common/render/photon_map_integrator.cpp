@@ -129,7 +129,7 @@ void PhotonMapIntegrator::PreparePrecomputedIrradiance() {
     precomputed_ = std::static_pointer_cast<const PrecomputedIrradiance>(slot.value);
     return;
   }
-  // With p.occlusion_test the sites' estimates drop photons whose origin x cannot see (Wald
+  // With p.occlusion_test the sites' estimates drop photons whose incoming path x cannot see (Wald
   // 1999, §4.1.1), whatever the camera path does: a site is estimated once and read by many
   // gather rays, so its k shadow rays are paid once per map, and without the test the sites next
   // to a wall carry the light of the room behind it into every gather that reads them

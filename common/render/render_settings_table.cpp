@@ -175,12 +175,12 @@ std::vector<RenderSetting> MakeTable() {
                    {"after", "after the search", "AFTER_QUERY"},
                    {"none", "no test"}}},
       std::vector{FeasibilityTest::kInQuery, FeasibilityTest::kAfterQuery, FeasibilityTest::kNone}));
-  t.push_back(Bool<&S::occlusion_test>(
-      {.name = "occlusion-test",
-       .group = G::kEstimate,
-       .help = "Drop found photons whose origin the point cannot see (4.1.1): no light bleeding through "
-               "walls, one shadow ray per photon",
-       .changes_map = true}));
+  t.push_back(Bool<&S::occlusion_test>({.name = "occlusion-test",
+                                        .group = G::kEstimate,
+                                        .help = "Drop found photons whose incoming path the point cannot see "
+                                                "near the photon (4.1.1): no light bleeding through "
+                                                "walls, one shadow ray per photon",
+                                        .changes_map = true}));
   t.push_back(Int<&S::adaptive_k_min>(
       {.name = "adaptive-k-min",
        .group = G::kEstimate,
@@ -281,7 +281,7 @@ std::vector<RenderSetting> MakeTable() {
   RenderSetting site = Choice<&S::site_occlusion_test>(
       {.name = "site-occlusion-test",
        .group = G::kLocalPass,
-       .help = "Precomputed sites drop photons whose origin the site cannot see (4.1.1)",
+       .help = "Precomputed sites drop photons whose incoming path the site cannot see (4.1.1)",
        .choices = {{"on", "no light bleeding through walls into the sites (rooms side by side)"},
                    {"off", "faster, and no darkened corners where nothing bleeds"}},
        .changes_map = true,
